@@ -1,0 +1,1 @@
+"""delaytrack: control of Euler-Lagrange systems under unknown input delay."""

@@ -1,0 +1,107 @@
+"""Checks on user input that raise errors a control engineer can act on.
+
+Every function names the argument, shows the offending value and says what would be valid.
+None of them clamps, rounds or repairs a value.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+__all__ = [
+    "as_spd_matrix",
+    "as_square_matrix",
+    "format_values",
+    "positive_scalar",
+    "finite_array",
+]
+
+_SYMMETRY_RTOL = 1e-10
+
+
+def format_values(values: np.ndarray | Sequence[float], digits: int = 6) -> str:
+    """Render a short list of numbers for an error message."""
+    flat = np.asarray(values, dtype=float).ravel()
+    shown = ", ".join(f"{v:.{digits}g}" for v in flat[:8])
+    return f"[{shown}{', ...' if flat.size > 8 else ''}]"
+
+
+def positive_scalar(name: str, value: object, *, strictly: bool = True) -> float:
+    """Return ``value`` as a finite float that is > 0 (or >= 0 when ``strictly`` is False)."""
+    try:
+        number = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a real number; got {value!r}") from None
+    if not math.isfinite(number):
+        raise ValueError(f"{name} must be finite; got {number}")
+    if strictly and number <= 0.0:
+        raise ValueError(f"{name} must be > 0; got {number:g}")
+    if not strictly and number < 0.0:
+        raise ValueError(f"{name} must be >= 0; got {number:g}")
+    return number
+
+
+def finite_array(name: str, value: object, *, ndim: int | None = None) -> np.ndarray:
+    """Return ``value`` as a float64 array with only finite entries."""
+    try:
+        array = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be an array of real numbers; got {value!r}") from None
+    if ndim is not None and array.ndim != ndim:
+        raise ValueError(f"{name} must be {ndim}-dimensional; got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        bad = np.argwhere(~np.isfinite(array))[0]
+        raise ValueError(f"{name} must be finite; entry {tuple(int(i) for i in bad)} is {array[tuple(bad)]}")
+    return array
+
+
+def as_square_matrix(name: str, value: object, n: int | None = None) -> np.ndarray:
+    """Return ``value`` as an ``(n, n)`` float64 matrix.
+
+    A scalar means ``value * I`` and a 1-D sequence means ``diag(value)``; both need ``n`` for a
+    scalar. With ``n`` given, the dimension must match.
+    """
+    array = finite_array(name, value)
+    if array.ndim == 0:
+        if n is None:
+            raise ValueError(f"{name} is a scalar; its dimension n must be given to build {name}*I")
+        matrix = float(array) * np.eye(n)
+    elif array.ndim == 1:
+        matrix = np.diag(array)
+    elif array.ndim == 2:
+        matrix = array
+    else:
+        raise ValueError(f"{name} must be a scalar, a diagonal or a square matrix; got shape {array.shape}")
+    if matrix.shape[0] != matrix.shape[1]:
+        raise ValueError(f"{name} must be square; got shape {matrix.shape}")
+    if n is not None and matrix.shape[0] != n:
+        raise ValueError(f"{name} must be {n}x{n}; got shape {matrix.shape}")
+    if matrix.shape[0] == 0:
+        raise ValueError(f"{name} must have at least one row; got shape {matrix.shape}")
+    return matrix
+
+
+def as_spd_matrix(name: str, value: object, n: int | None = None) -> np.ndarray:
+    """Return ``value`` as a symmetric positive definite ``(n, n)`` matrix, or raise.
+
+    Accepts the same forms as :func:`as_square_matrix`. Symmetry is checked to a relative
+    tolerance of 1e-10; the returned matrix is exactly symmetrised.
+    """
+    matrix = as_square_matrix(name, value, n)
+    scale = max(1.0, float(np.max(np.abs(matrix))))
+    asymmetry = float(np.max(np.abs(matrix - matrix.T)))
+    if asymmetry > _SYMMETRY_RTOL * scale:
+        raise ValueError(
+            f"{name} must be symmetric positive definite; it is not symmetric "
+            f"(max |{name} - {name}^T| = {asymmetry:.3g})"
+        )
+    matrix = 0.5 * (matrix + matrix.T)
+    eigenvalues = np.linalg.eigvalsh(matrix)
+    if eigenvalues[0] <= 0.0:
+        raise ValueError(
+            f"{name} must be symmetric positive definite; its eigenvalues are {format_values(eigenvalues)}"
+        )
+    return matrix

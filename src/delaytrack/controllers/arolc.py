@@ -1,0 +1,157 @@
+"""Adaptive-Robust Outer Loop Control (AROLC), Roy & Kar, as fixed by SPEC §2.
+
+Continuous law (paper eqs. (input), (control input), (aux), (delta u), (ATRC)):
+
+    τ  = M̂ u + N̂,   u = û + Δu,   û = q̈_d + K2 ė1 + K1 e1
+    s  = Bᵀ P e,    B = [0; I],    AᵀP + PA = -Q,   A = [[0, I], [-K1, -K2]]
+    Δu = α ĉ s / ‖s‖  if ‖s‖ >= ε,   α ĉ s / ε  otherwise
+    ĉ' = ‖s‖ if ĉ > γ and sᵀṡ > 0;   -‖s‖ if ĉ > γ and sᵀṡ <= 0;   γ if ĉ <= γ
+
+Decisions where the paper is silent (see docs/decisions.md):
+
+* the law runs at a fixed period ``T_c`` with zero-order hold; ĉ is integrated by forward Euler,
+  ``ĉ_{k+1} = ĉ_k + T_c ĉ'_k``, and Δu at tick k uses ĉ_k;
+* ṡ is not measured: the sign of ``sᵀṡ`` is that of ``s_kᵀ (s_k - s_{k-1})``; at the first tick
+  (no previous s) it is taken as ``<= 0``;
+* ``ĉ(0) = γ`` unless ``c_hat0`` is given.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+from numba import njit
+
+from delaytrack._validation import as_spd_matrix, positive_scalar
+from delaytrack.analysis.razumikhin import error_dynamics_matrices, lyapunov_matrix
+from delaytrack.controllers.base import Controller, computed_torque_command, tracking_errors
+from delaytrack.controllers.dispatch import AROLC_STEP
+from delaytrack.plants.base import ELPlant
+
+__all__ = ["AROLC", "arolc_step", "adaptive_gain_rate"]
+
+# Layout of the state vector: [c_hat, has_previous_s, s_previous (n)].
+_C_HAT = 0
+_HAS_PREVIOUS = 1
+_S_PREVIOUS = 2
+
+
+@njit(cache=True)
+def adaptive_gain_rate(c_hat, s, s_previous, has_previous, gamma):
+    """``ĉ'`` of the adaptive law (ATRC) with ``sᵀṡ`` replaced by ``sᵀ(s - s_previous)``."""
+    if c_hat <= gamma:
+        return gamma
+    norm_s = math.sqrt(np.sum(s * s))
+    if has_previous and np.sum(s * (s - s_previous)) > 0.0:
+        return norm_s
+    return -norm_s
+
+
+@njit(cache=True)
+def arolc_step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model_terms, model_params, command):
+    """One AROLC tick (see the module docstring).
+
+    ``params = [K1, K2, BᵀP, α, ε, γ]`` (matrices flattened row-major, ``BᵀP`` is (n, 2n));
+    ``state = [ĉ, has_previous_s, s_previous]`` is advanced in place.
+    """
+    n = q.shape[0]
+    gain_1 = params[: n * n].reshape((n, n))
+    gain_2 = params[n * n : 2 * n * n].reshape((n, n))
+    bt_p = params[2 * n * n : 4 * n * n].reshape((n, 2 * n))
+    alpha = params[4 * n * n]
+    epsilon = params[4 * n * n + 1]
+    gamma = params[4 * n * n + 2]
+    error = tracking_errors(q, qdot, qd, qd_dot)
+    s = bt_p @ error
+    norm_s = math.sqrt(np.sum(s * s))
+    c_hat = state[_C_HAT]
+    u = qd_ddot + gain_2 @ error[n:] + gain_1 @ error[:n]
+    scale = alpha * c_hat / (norm_s if norm_s >= epsilon else epsilon)
+    u += scale * s
+    computed_torque_command(model_terms, model_params, q, qdot, u, command)
+    rate = adaptive_gain_rate(c_hat, s, state[_S_PREVIOUS:], state[_HAS_PREVIOUS] != 0.0, gamma)
+    state[_C_HAT] = c_hat + T_c * rate
+    state[_HAS_PREVIOUS] = 1.0
+    state[_S_PREVIOUS:] = s
+
+
+@dataclass(frozen=True, eq=False)
+class AROLC(Controller):
+    """AROLC for an ``n``-coordinate Euler–Lagrange plant.
+
+    Parameters
+    ----------
+    model : ELPlant
+        Nominal plant ``M̂, N̂`` (no knowledge of the delay or of uncertainty bounds is needed).
+    K1, K2 : array_like
+        Symmetric positive definite (n, n); a scalar means a multiple of I, 1-D a diagonal.
+    Q : array_like
+        Symmetric positive definite (2n, 2n) defining ``P`` by ``AᵀP + PA = -Q``.
+    alpha, epsilon, gamma : float
+        Switching gain ``α > 0``, boundary layer ``ε > 0`` and floor ``γ > 0`` of ĉ.
+    c_hat0 : float, optional
+        Initial ĉ, ``> 0``; ``γ`` by default.
+
+    The paper's robot gains are ``K1 = K2 = Q = I``, ``α = 2``, ``ε = 0.1``, ``γ = 0.001``.
+    """
+
+    model: ELPlant
+    K1: np.ndarray
+    K2: np.ndarray
+    Q: np.ndarray
+    alpha: float
+    epsilon: float
+    gamma: float
+    c_hat0: float | None = None
+    P: np.ndarray = field(init=False, repr=False)
+    _params: np.ndarray = field(init=False, repr=False)
+    type_name: ClassVar[str] = "arolc"
+    kernel_id: ClassVar[int] = AROLC_STEP
+
+    def __post_init__(self) -> None:
+        self._check_model()
+        n = self.model.n
+        object.__setattr__(self, "K1", as_spd_matrix("K1", self.K1, n))
+        object.__setattr__(self, "K2", as_spd_matrix("K2", self.K2, n))
+        object.__setattr__(self, "Q", as_spd_matrix("Q", self.Q, 2 * n))
+        for name in ("alpha", "epsilon", "gamma"):
+            object.__setattr__(self, name, positive_scalar(name, getattr(self, name)))
+        c_hat0 = self.gamma if self.c_hat0 is None else positive_scalar("c_hat0", self.c_hat0)
+        object.__setattr__(self, "c_hat0", c_hat0)
+        P = lyapunov_matrix(self.K1, self.K2, self.Q)
+        input_matrix = error_dynamics_matrices(self.K1, self.K2)[3]
+        object.__setattr__(self, "P", P)
+        packed = [self.K1.ravel(), self.K2.ravel(), (input_matrix.T @ P).ravel()]
+        object.__setattr__(self, "_params", np.concatenate([*packed, [self.alpha, self.epsilon, self.gamma]]))
+
+    @property
+    def params(self) -> np.ndarray:
+        return self._params
+
+    @property
+    def step_kernel(self):
+        return arolc_step
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        return ("c_hat", "has_previous_s", *(f"s_previous_{i}" for i in range(self.n)))
+
+    def initial_state(self) -> np.ndarray:
+        state = np.zeros(2 + self.n)
+        state[_C_HAT] = self.c_hat0
+        return state
+
+    def to_spec(self) -> dict[str, Any]:
+        return {
+            "type": self.type_name,
+            "K1": self.K1.tolist(),
+            "K2": self.K2.tolist(),
+            "Q": self.Q.tolist(),
+            "alpha": self.alpha,
+            "epsilon": self.epsilon,
+            "gamma": self.gamma,
+            "c_hat0": self.c_hat0,
+        }

@@ -1,0 +1,147 @@
+"""The controller interface: frozen parameters, explicit state, one compiled step.
+
+A controller is sampled at ``T_c``. Its kernel
+
+    step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model_terms, model_params, command)
+
+reads the measured ``q, q̇`` and the reference ``q_d, q̇_d, q̈_d`` at the tick ``t``, writes the
+actuator ``command`` (m,) and advances ``state`` in place to the next tick. ``model_terms`` is
+the terms kernel of the nominal plant (``M̂, N̂, Ĝ``; see :mod:`delaytrack.plants.base`).
+The controller never sees the delay.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from numba.extending import register_jitable
+
+from delaytrack._validation import positive_scalar
+from delaytrack.plants.base import ELPlant
+from delaytrack.plants.dispatch import call_terms
+
+__all__ = ["Controller", "computed_torque_command", "tracking_errors"]
+
+
+@register_jitable
+def tracking_errors(q, qdot, qd, qd_dot):
+    """``e = [e1; ė1]`` with ``e1 = q_d - q`` (the paper's tracking error), shape (2n,)."""
+    n = q.shape[0]
+    error = np.empty(2 * n)
+    error[:n] = qd - q
+    error[n:] = qd_dot - qdot
+    return error
+
+
+@register_jitable
+def computed_torque_command(model_terms, model_params, q, qdot, u, command):
+    """Actuator command realising ``τ = M̂(q) u + N̂(q, q̇)`` (paper eq. (input)).
+
+    ``τ`` is mapped to the actuators by solving ``Ĝ(q) command = τ``; the nominal model must be
+    fully actuated (``Ĝ`` square and invertible).
+    """
+    n = q.shape[0]
+    mass = np.empty((n, n))
+    nonlinear = np.empty(n)
+    input_map = np.empty((n, command.shape[0]))
+    call_terms(model_terms, q, qdot, model_params, mass, nonlinear, input_map)
+    command[:] = np.linalg.solve(input_map, mass @ u + nonlinear)
+
+
+class Controller(ABC):
+    """A sampled-data tracking controller for an ``n``-coordinate Euler–Lagrange plant.
+
+    Attributes
+    ----------
+    model : ELPlant
+        The nominal plant ``M̂, N̂, Ĝ`` the controller believes in.
+    """
+
+    model: ELPlant
+    #: Name used in scenario files and result tables.
+    type_name: str
+    #: Id of the compiled step (see :mod:`delaytrack.controllers.dispatch`).
+    kernel_id: int
+
+    @property
+    def n(self) -> int:
+        return self.model.n
+
+    @property
+    def m(self) -> int:
+        return self.model.m
+
+    @property
+    @abstractmethod
+    def params(self) -> np.ndarray:
+        """Parameter vector of the step kernel (float64, 1-D)."""
+
+    @property
+    @abstractmethod
+    def step_kernel(self) -> Callable[..., None]:
+        """The compiled step (see the module docstring for its signature)."""
+
+    @property
+    @abstractmethod
+    def state_names(self) -> tuple[str, ...]:
+        """Names of the entries of the state vector (may be empty)."""
+
+    @abstractmethod
+    def initial_state(self) -> np.ndarray:
+        """State at the first tick."""
+
+    @abstractmethod
+    def to_spec(self) -> dict[str, Any]:
+        """Plain-data description: ``{"type": ..., gains...}``."""
+
+    @property
+    def state_size(self) -> int:
+        return len(self.state_names)
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the step runs compiled (its nominal model is a built-in compiled plant)."""
+        return self.model.compiled
+
+    @property
+    def step_callable(self) -> Callable[..., None]:
+        """The step as a Python callable: compiled, or plain Python for a Python nominal model."""
+        return self.step_kernel if self.compiled else self.step_kernel.py_func
+
+    def step(
+        self,
+        t: float,
+        q: np.ndarray,
+        qdot: np.ndarray,
+        reference: tuple[np.ndarray, np.ndarray, np.ndarray],
+        state: np.ndarray,
+        *,
+        T_c: float,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """One controller tick for real-time use: ``(command (m,), next state)``.
+
+        ``reference`` is ``(q_d, q̇_d, q̈_d)`` at ``t``; ``state`` is not modified.
+        """
+        sample = positive_scalar("T_c", T_c)
+        arrays = [np.ascontiguousarray(np.asarray(a, dtype=float)) for a in (q, qdot, *reference)]
+        for name, array in zip(("q", "qdot", "qd", "qd_dot", "qd_ddot"), arrays, strict=True):
+            if array.shape != (self.n,):
+                raise ValueError(f"{name} must have shape ({self.n},); got {array.shape}")
+        next_state = np.array(state, dtype=float)
+        if next_state.shape != (self.state_size,):
+            raise ValueError(f"state must have shape ({self.state_size},); got {next_state.shape}")
+        command = np.empty(self.m)
+        self.step_callable(float(t), *arrays, sample, self.params, next_state, self.model.kernel_handle, self.model.params, command)
+        return command, next_state
+
+    def _check_model(self) -> None:
+        if not isinstance(self.model, ELPlant):
+            raise TypeError(f"model must be an ELPlant (the nominal plant); got {type(self.model).__name__}")
+        if self.model.m != self.model.n:
+            raise ValueError(
+                f"{type(self).__name__} needs a fully actuated nominal model (m == n); "
+                f"got n = {self.model.n}, m = {self.model.m}"
+            )

@@ -1,0 +1,73 @@
+"""The plain outer loop (computed torque with PD outer loop): AROLC without the switching term."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+from numba import njit
+
+from delaytrack._validation import as_spd_matrix
+from delaytrack.controllers.base import Controller, computed_torque_command
+from delaytrack.controllers.dispatch import OUTER_LOOP_STEP
+from delaytrack.plants.base import ELPlant
+
+__all__ = ["OuterLoop", "outer_loop_step"]
+
+
+@njit(cache=True)
+def outer_loop_step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model_terms, model_params, command):
+    """``τ = M̂ (q̈_d + K2 ė1 + K1 e1) + N̂``: paper eqs. (input) and (aux) with ``Δu = 0``.
+
+    ``params = [K1, K2]`` flattened row-major; there is no state.
+    """
+    n = q.shape[0]
+    gain_1 = params[: n * n].reshape((n, n))
+    gain_2 = params[n * n : 2 * n * n].reshape((n, n))
+    u = qd_ddot + gain_2 @ (qd_dot - qdot) + gain_1 @ (qd - q)
+    computed_torque_command(model_terms, model_params, q, qdot, u, command)
+
+
+@dataclass(frozen=True, eq=False)
+class OuterLoop(Controller):
+    """Outer-loop controller ``τ = M̂ û + N̂``, ``û = q̈_d + K2 ė1 + K1 e1`` (the ablation of AROLC).
+
+    Parameters
+    ----------
+    model : ELPlant
+        Nominal plant ``M̂, N̂``.
+    K1, K2 : array_like
+        Symmetric positive definite (n, n); a scalar means a multiple of I, 1-D a diagonal.
+    """
+
+    model: ELPlant
+    K1: np.ndarray
+    K2: np.ndarray
+    _params: np.ndarray = field(init=False, repr=False)
+    type_name: ClassVar[str] = "outer-loop"
+    kernel_id: ClassVar[int] = OUTER_LOOP_STEP
+
+    def __post_init__(self) -> None:
+        self._check_model()
+        object.__setattr__(self, "K1", as_spd_matrix("K1", self.K1, self.model.n))
+        object.__setattr__(self, "K2", as_spd_matrix("K2", self.K2, self.model.n))
+        object.__setattr__(self, "_params", np.concatenate([self.K1.ravel(), self.K2.ravel()]))
+
+    @property
+    def params(self) -> np.ndarray:
+        return self._params
+
+    @property
+    def step_kernel(self):
+        return outer_loop_step
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        return ()
+
+    def initial_state(self) -> np.ndarray:
+        return np.zeros(0)
+
+    def to_spec(self) -> dict[str, Any]:
+        return {"type": self.type_name, "K1": self.K1.tolist(), "K2": self.K2.tolist()}

@@ -1,0 +1,154 @@
+"""Compiled evaluation of delay profiles, shared by the Python classes and the simulation engine.
+
+A profile is a ``kind`` code and a flat ``params`` vector:
+
+========================  ===========================================================
+kind                      params
+========================  ===========================================================
+``CONSTANT``              ``[h]``
+``ABS_SINE``              ``[offset, amplitude, omega, phase]``:
+                          ``h(t) = offset + amplitude |sin(omega t + phase)|``
+``PIECEWISE_CONSTANT``    ``[m, t_0 .. t_{m-1}, h_0 .. h_{m-1}]``, ``h = h_i`` on ``[t_i, t_{i+1})``
+``PIECEWISE_LINEAR``      ``[m, t_0 .. t_{m-1}, h_0 .. h_{m-1}]``, linear between knots
+========================  ===========================================================
+
+Both piecewise kinds hold their first value before ``t_0`` and their last after ``t_{m-1}``.
+
+The simulator integrates across the instants where ``g(t) = t - h(t)`` crosses a controller tick.
+To find them it needs pieces on which ``g`` is continuous and monotone: :func:`next_breakpoint`
+returns the next end of such a piece (a kink or jump of ``h``, or an extremum of ``g`` where
+``dh/dt = 1``), and :func:`crossing_time` solves ``g(t) = target`` inside one piece.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from numba.extending import register_jitable
+
+CONSTANT = 0
+ABS_SINE = 1
+PIECEWISE_CONSTANT = 2
+PIECEWISE_LINEAR = 3
+
+_NEWTON_ITERATIONS = 60
+
+
+@register_jitable
+def _knot_index(params, t):
+    """Index ``i`` with ``t_i <= t < t_{i+1}``; -1 before the first knot."""
+    m = int(params[0])
+    return np.searchsorted(params[1 : 1 + m], t, side="right") - 1
+
+
+@register_jitable
+def delay_value(kind, params, t):
+    """Return ``h(t)`` for one profile (see the module table for ``params``)."""
+    if kind == CONSTANT:
+        return params[0]
+    if kind == ABS_SINE:
+        return params[0] + params[1] * abs(math.sin(params[2] * t + params[3]))
+    m = int(params[0])
+    i = _knot_index(params, t)
+    if i < 0:
+        return params[1 + m]
+    if kind == PIECEWISE_CONSTANT or i >= m - 1:
+        return params[1 + m + i]
+    t_a = params[1 + i]
+    t_b = params[2 + i]
+    h_a = params[1 + m + i]
+    h_b = params[2 + m + i]
+    return h_a + (h_b - h_a) * (t - t_a) / (t_b - t_a)
+
+
+@register_jitable
+def piece_end_values(kind, params, a, b):
+    """``(h(a+), h(b-))`` on a piece ``[a, b]`` that contains no breakpoint inside."""
+    if kind == PIECEWISE_CONSTANT:
+        value = delay_value(kind, params, 0.5 * (a + b))
+        return value, value
+    return delay_value(kind, params, a), delay_value(kind, params, b)
+
+
+@register_jitable
+def next_breakpoint(kind, params, t):
+    """Smallest ``t_b > t`` at which ``h`` has a kink or jump or ``t - h(t)`` has an extremum.
+
+    Returns ``inf`` when there is none. Between two consecutive breakpoints ``t - h(t)`` is
+    continuous and monotone.
+    """
+    if kind == CONSTANT:
+        return np.inf
+    if kind == ABS_SINE:
+        amplitude = params[1]
+        omega = params[2]
+        if omega == 0.0 or amplitude == 0.0:
+            return np.inf
+        # In each half period theta in [j pi, (j+1) pi) the profile is offset + A sin(theta - j pi);
+        # it has a kink at j pi and, when A omega > 1, dh/dt = 1 at j pi + arccos(1 / (A omega)).
+        extremum = math.acos(1.0 / (amplitude * omega)) if amplitude * omega > 1.0 else -1.0
+        theta = omega * t + params[3]
+        j = math.floor(theta / math.pi)
+        for step in range(3):
+            base = (j + step) * math.pi
+            for offset in (0.0, extremum):
+                if offset < 0.0:
+                    continue
+                t_b = (base + offset - params[3]) / omega
+                if t_b > t:
+                    return t_b
+        return np.inf
+    m = int(params[0])
+    i = _knot_index(params, t)
+    if i + 1 < m:
+        return params[2 + i]
+    return np.inf
+
+
+@register_jitable
+def crossing_time(kind, params, a, b, g_a, g_b, target):
+    """Solve ``t - h(t) = target`` for ``t`` in a piece ``[a, b]`` where ``g = t - h`` is monotone.
+
+    ``g_a`` and ``g_b`` are ``g(a+)`` and ``g(b-)``; ``target`` must lie between them. ``g`` is
+    linear on a piece for every kind but ``ABS_SINE``, which is solved by bracketed Newton steps.
+    """
+    if g_b == g_a:
+        return a
+    if kind != ABS_SINE:
+        root = a + (target - g_a) * (b - a) / (g_b - g_a)
+        return min(max(root, a), b)
+    increasing = g_b > g_a
+    lo = a
+    hi = b
+    root = a + (target - g_a) * (b - a) / (g_b - g_a)
+    amplitude = params[1]
+    omega = params[2]
+    phase = params[3]
+    for _ in range(_NEWTON_ITERATIONS):
+        if not lo < root < hi:
+            root = 0.5 * (lo + hi)
+        theta = omega * root + phase
+        sine = math.sin(theta)
+        residual = root - params[0] - amplitude * abs(sine) - target
+        if residual == 0.0:
+            return root
+        if (residual < 0.0) == increasing:
+            lo = root
+        else:
+            hi = root
+        if hi - lo <= 4.0 * np.finfo(np.float64).eps * max(1.0, abs(root)):
+            return 0.5 * (lo + hi)
+        slope = 1.0 - amplitude * omega * math.cos(theta) * (1.0 if sine >= 0.0 else -1.0)
+        root = root - residual / slope if slope != 0.0 else 0.5 * (lo + hi)
+    return root
+
+
+@njit(cache=True)
+def delay_values(kind, params, times):
+    """Vectorised :func:`delay_value` over a 1-D array of times."""
+    out = np.empty(times.shape[0])
+    for i in range(times.shape[0]):
+        out[i] = delay_value(kind, params, times[i])
+    return out

@@ -1,0 +1,49 @@
+"""The delay-profile interface: ``h(t)`` with a known upper bound ``h_max``."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Any, ClassVar
+
+import numpy as np
+
+from delaytrack.delays import _kernel
+
+__all__ = ["DelayProfile"]
+
+
+class DelayProfile(ABC):
+    """An input delay ``h(t) >= 0`` in seconds, known to the simulator and never to AROLC.
+
+    Subclasses are frozen dataclasses. Each states ``h_max``, an upper bound used to size the
+    simulator's command history, and reduces to a compiled ``(kind, params)`` pair (see
+    :mod:`delaytrack.delays._kernel`), which is the single definition of ``h(t)``.
+    """
+
+    #: Name used in scenario files (``[delay] type = ...``).
+    type_name: ClassVar[str]
+
+    @property
+    @abstractmethod
+    def kind(self) -> int:
+        """Compiled profile family (a constant of :mod:`delaytrack.delays._kernel`)."""
+
+    @property
+    @abstractmethod
+    def params(self) -> np.ndarray:
+        """Compiled parameter vector, float64, 1-D."""
+
+    @property
+    @abstractmethod
+    def h_max(self) -> float:
+        """Upper bound of ``h(t)`` over all ``t`` (seconds)."""
+
+    @abstractmethod
+    def to_spec(self) -> dict[str, Any]:
+        """Plain-data description, the inverse of :func:`delaytrack.delays.delay_from_spec`."""
+
+    def h(self, t: float | np.ndarray) -> np.ndarray:
+        """Delay ``h(t)`` in seconds at the time(s) ``t`` (any shape)."""
+        times = np.asarray(t, dtype=float)
+        values = _kernel.delay_values(self.kind, self.params, np.ascontiguousarray(times.ravel()))
+        return values.reshape(times.shape)

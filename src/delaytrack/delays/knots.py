@@ -1,0 +1,41 @@
+"""Validation of knot sequences ``(t_i, h_i)`` shared by the piecewise profiles."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from delaytrack._validation import finite_array
+
+__all__ = ["checked_knots", "pack_knots"]
+
+
+def checked_knots(times: object, values: object) -> tuple[np.ndarray, np.ndarray]:
+    """Return ``(times, values)`` as float arrays after checking them.
+
+    Times must be finite and strictly increasing; delays finite and ``>= 0``; both 1-D of the
+    same length ``>= 1``.
+    """
+    t = finite_array("times", times, ndim=1)
+    h = finite_array("delays", values, ndim=1)
+    if t.size == 0:
+        raise ValueError("times must contain at least one knot; got none")
+    if t.shape != h.shape:
+        raise ValueError(f"times and delays must have the same length; got {t.size} and {h.size}")
+    steps = np.diff(t)
+    if np.any(steps <= 0.0):
+        i = int(np.argmax(steps <= 0.0))
+        raise ValueError(
+            "times must be strictly increasing; "
+            f"times[{i}] = {t[i]:g} is followed by times[{i + 1}] = {t[i + 1]:g}"
+        )
+    if np.any(h < 0.0):
+        i = int(np.argmax(h < 0.0))
+        raise ValueError(f"delays must be >= 0; delays[{i}] = {h[i]:g} at t = {t[i]:g}")
+    t.flags.writeable = False
+    h.flags.writeable = False
+    return t, h
+
+
+def pack_knots(times: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Compiled parameter vector ``[m, t_0 .. t_{m-1}, h_0 .. h_{m-1}]``."""
+    return np.concatenate(([float(times.size)], times, values))

@@ -1,0 +1,93 @@
+"""A seeded random delay with bounded value and bounded rate of change."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from delaytrack._validation import positive_scalar
+from delaytrack.delays import _kernel
+from delaytrack.delays.base import DelayProfile
+from delaytrack.delays.knots import pack_knots
+
+__all__ = ["RandomDelay"]
+
+
+@dataclass(frozen=True, eq=False)
+class RandomDelay(DelayProfile):
+    """A piecewise-linear random walk in ``[h_low, h_high]`` with ``|dh/dt| <= max_rate``.
+
+    Knots are ``knot_spacing`` seconds apart over ``[0, duration]``; the first value is uniform in
+    ``[h_low, h_high]``, each slope uniform in ``[-max_rate, max_rate]``, and the walk is reflected
+    at the bounds (which keeps the slope's magnitude). After ``duration`` the last value is held.
+    The same ``seed`` gives the same profile. ``max_rate > 1`` is allowed: the delay then shrinks
+    faster than time passes, and older commands are re-applied, as the physics says.
+    """
+
+    h_low: float
+    h_high: float
+    max_rate: float
+    duration: float
+    seed: int
+    knot_spacing: float = 0.01
+    _params: np.ndarray = field(init=False, repr=False)
+    type_name: ClassVar[str] = "random"
+
+    def __post_init__(self) -> None:
+        low = positive_scalar("h_low", self.h_low, strictly=False)
+        high = positive_scalar("h_high", self.h_high, strictly=False)
+        if high < low:
+            raise ValueError(f"h_high must be >= h_low; got h_low = {low:g}, h_high = {high:g}")
+        rate = positive_scalar("max_rate", self.max_rate, strictly=False)
+        duration = positive_scalar("duration", self.duration)
+        spacing = positive_scalar("knot_spacing", self.knot_spacing)
+        if not isinstance(self.seed, int | np.integer) or self.seed < 0:
+            raise ValueError(f"seed must be a non-negative integer; got {self.seed!r}")
+        for name, value in (("h_low", low), ("h_high", high), ("max_rate", rate)):
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "duration", duration)
+        object.__setattr__(self, "knot_spacing", spacing)
+        times, values = self._walk()
+        object.__setattr__(self, "_params", pack_knots(times, values))
+
+    def _walk(self) -> tuple[np.ndarray, np.ndarray]:
+        rng = np.random.default_rng(int(self.seed))
+        count = int(np.ceil(self.duration / self.knot_spacing)) + 1
+        times = np.arange(count) * self.knot_spacing
+        slopes = rng.uniform(-self.max_rate, self.max_rate, size=count - 1)
+        values = np.empty(count)
+        values[0] = rng.uniform(self.h_low, self.h_high)
+        width = self.h_high - self.h_low
+        for i, slope in enumerate(slopes):
+            value = values[i] + slope * self.knot_spacing
+            if width == 0.0:
+                value = self.h_low
+            while not self.h_low <= value <= self.h_high:
+                value = 2 * self.h_high - value if value > self.h_high else 2 * self.h_low - value
+            values[i + 1] = value
+        return times, values
+
+    @property
+    def kind(self) -> int:
+        return _kernel.PIECEWISE_LINEAR
+
+    @property
+    def params(self) -> np.ndarray:
+        return self._params
+
+    @property
+    def h_max(self) -> float:
+        return self.h_high
+
+    def to_spec(self) -> dict[str, Any]:
+        return {
+            "type": self.type_name,
+            "h_low": self.h_low,
+            "h_high": self.h_high,
+            "max_rate": self.max_rate,
+            "duration": self.duration,
+            "seed": int(self.seed),
+            "knot_spacing": self.knot_spacing,
+        }

@@ -1,0 +1,84 @@
+"""A measured delay trace ``(t_i, h_i)``, linearly interpolated; loadable from CSV."""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from delaytrack.delays import _kernel
+from delaytrack.delays.base import DelayProfile
+from delaytrack.delays.knots import checked_knots, pack_knots
+
+__all__ = ["TraceDelay"]
+
+
+@dataclass(frozen=True, eq=False)
+class TraceDelay(DelayProfile):
+    """``h(t)`` linear between knots ``(times[i], values[i])``, held constant outside them.
+
+    Parameters
+    ----------
+    times : array_like, shape (m,)
+        Seconds, strictly increasing.
+    values : array_like, shape (m,)
+        Delays in seconds, ``>= 0``.
+    source : str, optional
+        Where the trace came from (a CSV path), kept for the record.
+    """
+
+    times: np.ndarray
+    values: np.ndarray
+    source: str | None = None
+    _params: np.ndarray = field(init=False, repr=False)
+    type_name: ClassVar[str] = "trace"
+
+    def __post_init__(self) -> None:
+        times, values = checked_knots(self.times, self.values)
+        object.__setattr__(self, "times", times)
+        object.__setattr__(self, "values", values)
+        object.__setattr__(self, "_params", pack_knots(times, values))
+
+    @classmethod
+    def from_csv(cls, path: str | Path) -> TraceDelay:
+        """Read a CSV of two columns ``t, h`` in seconds; a header row ``t,h`` is optional."""
+        path = Path(path)
+        if not path.is_file():
+            raise FileNotFoundError(f"delay trace file {str(path)!r} does not exist")
+        with path.open(newline="") as handle:
+            rows = [row for row in csv.reader(handle) if row and any(cell.strip() for cell in row)]
+        if rows and rows[0][0].strip().lower() == "t":
+            rows = rows[1:]
+        times, values = [], []
+        for number, row in enumerate(rows, start=1):
+            if len(row) != 2:
+                raise ValueError(f"{path}: data row {number} must have 2 columns (t, h); got {row}")
+            try:
+                times.append(float(row[0]))
+                values.append(float(row[1]))
+            except ValueError:
+                raise ValueError(f"{path}: data row {number} is not numeric: {row}") from None
+        try:
+            return cls(np.array(times), np.array(values), source=str(path))
+        except ValueError as error:
+            raise ValueError(f"{path}: {error}") from None
+
+    @property
+    def kind(self) -> int:
+        return _kernel.PIECEWISE_LINEAR
+
+    @property
+    def params(self) -> np.ndarray:
+        return self._params
+
+    @property
+    def h_max(self) -> float:
+        return float(np.max(self.values))
+
+    def to_spec(self) -> dict[str, Any]:
+        if self.source is not None:
+            return {"type": self.type_name, "path": self.source}
+        return {"type": self.type_name, "times": self.times.tolist(), "values": self.values.tolist()}

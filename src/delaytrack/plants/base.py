@@ -1,0 +1,127 @@
+"""The Euler–Lagrange plant interface ``M(q) q̈ + N(q, q̇) = G(q) u``.
+
+A plant is defined once, by a *terms kernel* ``terms(q, qdot, params, M, N, G)`` that fills the
+mass matrix ``M`` (n, n), the nonlinear terms ``N`` (n,) — Coriolis, gravity, friction, anything
+not proportional to q̈ — and the input map ``G`` (n, m). The simulator integrates the state
+``x = [q, q̇]`` (2n,) with the right-hand side :func:`el_rhs`; the controllers use the same
+kernel of a *nominal* plant as their model ``M̂, N̂``. Kernels are numba-compiled for the built-in
+plants and plain Python for :class:`~delaytrack.plants.CallablePlant`.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from numba.extending import register_jitable
+
+from delaytrack.plants.dispatch import call_terms
+
+__all__ = ["ELPlant", "el_rhs"]
+
+
+@register_jitable
+def el_rhs(terms, t, x, u, params, dx):
+    """State derivative of ``M(q) q̈ + N(q, q̇) = G(q) u`` with ``x = [q, q̇]``.
+
+    Implements ``q̈ = M(q)^{-1} (G(q) u - N(q, q̇))`` (the paper's eq. (sys new) with the applied,
+    delayed input ``u = τ(t - h(t))``) and writes ``dx = [q̇, q̈]``.
+    """
+    n = x.shape[0] // 2
+    mass = np.empty((n, n))
+    nonlinear = np.empty(n)
+    input_map = np.empty((n, u.shape[0]))
+    call_terms(terms, x[:n], x[n:], params, mass, nonlinear, input_map)
+    qdd = np.linalg.solve(mass, input_map @ u - nonlinear)
+    dx[:n] = x[n:]
+    dx[n:] = qdd
+
+
+class ELPlant(ABC):
+    """An Euler–Lagrange plant with ``n`` coordinates and ``m`` inputs.
+
+    Subclasses provide :attr:`terms_kernel` and :attr:`params`. Any control-affine second-order
+    system fits this form (a constrained one with ``M = I``, ``N = -a(q, q̇)``, ``G = b(q)``). The Python
+    methods below evaluate the same kernel with a leading batch axis: ``q (batch, n)``.
+    """
+
+    #: Number of generalised coordinates.
+    n: int
+    #: Number of actuator inputs.
+    m: int
+    #: Id of a built-in compiled terms kernel (see :mod:`delaytrack.plants.dispatch`), else None.
+    kernel_id: int | None = None
+
+    @property
+    @abstractmethod
+    def params(self) -> np.ndarray:
+        """Parameter vector passed to the kernels (float64, 1-D)."""
+
+    @property
+    @abstractmethod
+    def terms_kernel(self) -> Callable[..., None]:
+        """``terms(q, qdot, params, M, N, G)``: fill ``M`` (n, n), ``N`` (n,), ``G`` (n, m)."""
+
+    @abstractmethod
+    def to_spec(self) -> dict[str, Any]:
+        """Plain-data description (type name and parameters) for scenario files and reports."""
+
+    @property
+    def kernel_handle(self) -> int | Callable[..., None]:
+        """What the engine calls: the kernel id when compiled, else the terms callable."""
+        return self.kernel_id if self.compiled else self.terms_kernel
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the plant is a built-in compiled one (else the simulator runs as Python)."""
+        return self.kernel_id is not None
+
+    def terms(self, q: np.ndarray, qdot: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``M (batch, n, n)``, ``N (batch, n)`` and ``G (batch, n, m)`` at ``q, qdot (batch, n)``."""
+        q = self._batch("q", q)
+        qdot = self._batch("qdot", qdot)
+        if q.shape[0] != qdot.shape[0]:
+            raise ValueError(f"q and qdot must have the same batch size; got {q.shape[0]} and {qdot.shape[0]}")
+        batch = q.shape[0]
+        mass = np.empty((batch, self.n, self.n))
+        nonlinear = np.empty((batch, self.n))
+        input_map = np.empty((batch, self.n, self.m))
+        for b in range(batch):
+            self.terms_kernel(q[b], qdot[b], self.params, mass[b], nonlinear[b], input_map[b])
+        return mass, nonlinear, input_map
+
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """``M(q)``, shape (batch, n, n)."""
+        q = self._batch("q", q)
+        return self.terms(q, np.zeros_like(q))[0]
+
+    def nonlinear_terms(self, q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
+        """``N(q, q̇)``, shape (batch, n)."""
+        return self.terms(q, qdot)[1]
+
+    def input_map(self, q: np.ndarray) -> np.ndarray:
+        """``G(q)``, shape (batch, n, m)."""
+        q = self._batch("q", q)
+        return self.terms(q, np.zeros_like(q))[2]
+
+    def state_derivative(self, x: np.ndarray, u: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """``dx/dt`` at states ``x (batch, 2n)`` with inputs ``u (batch, m)``."""
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+        u = np.atleast_2d(np.asarray(u, dtype=float))
+        if x.shape[1] != 2 * self.n or u.shape[1] != self.m:
+            raise ValueError(
+                f"x must have shape (batch, {2 * self.n}) and u (batch, {self.m}); "
+                f"got {x.shape} and {u.shape}"
+            )
+        dx = np.empty_like(x)
+        for b in range(x.shape[0]):
+            el_rhs(self.terms_kernel, float(t), x[b], u[b % u.shape[0]], self.params, dx[b])
+        return dx
+
+    def _batch(self, name: str, value: np.ndarray) -> np.ndarray:
+        array = np.atleast_2d(np.asarray(value, dtype=float))
+        if array.ndim != 2 or array.shape[1] != self.n:
+            raise ValueError(f"{name} must have shape (batch, {self.n}) or ({self.n},); got {np.shape(value)}")
+        return np.ascontiguousarray(array)

@@ -1,0 +1,102 @@
+"""An Euler–Lagrange plant from user functions ``M(q)`` and ``N(q, q̇)``."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from delaytrack._validation import format_values
+from delaytrack.plants.base import ELPlant
+
+__all__ = ["CallablePlant"]
+
+
+@dataclass(frozen=True, eq=False)
+class CallablePlant(ELPlant):
+    """``M(q) q̈ + N(q, q̇) = G(q) u`` from Python callables.
+
+    Parameters
+    ----------
+    n : int
+        Number of coordinates.
+    mass_matrix : callable
+        ``mass_matrix(q) -> (n, n)`` symmetric positive definite.
+    nonlinear_terms : callable
+        ``nonlinear_terms(q, qdot) -> (n,)``: Coriolis, gravity, friction, disturbances.
+    input_map : callable or array_like, optional
+        ``input_map(q) -> (n, m)`` or a constant (n, m) matrix; the identity by default.
+    name : str
+        Shown in results and reports.
+
+    Notes
+    -----
+    The functions are checked once at ``q = q̇ = 0`` (shapes, finiteness, symmetry and positive
+    definiteness of ``M``). They run as Python inside the simulator, which is much slower than the
+    compiled built-in plants.
+    """
+
+    n: int
+    mass_matrix_fn: Callable[[np.ndarray], np.ndarray]
+    nonlinear_terms_fn: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    input_map_fn: Callable[[np.ndarray], np.ndarray] | np.ndarray | None = None
+    name: str = "callable"
+    m: int = field(init=False)
+    type_name: ClassVar[str] = "callable"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.n, int | np.integer) or self.n < 1:
+            raise ValueError(f"n must be a positive integer; got {self.n!r}")
+        for label, fn in (("mass_matrix", self.mass_matrix_fn), ("nonlinear_terms", self.nonlinear_terms_fn)):
+            if not callable(fn):
+                raise TypeError(f"{label} must be callable; got {type(fn).__name__}")
+        if self.input_map_fn is not None and not callable(self.input_map_fn):
+            constant = np.array(self.input_map_fn, dtype=float)
+            if constant.ndim != 2 or constant.shape[0] != self.n:
+                raise ValueError(f"input_map must have shape ({self.n}, m); got {constant.shape}")
+            object.__setattr__(self, "input_map_fn", constant)
+        zero = np.zeros(self.n)
+        mass = self._evaluate("mass_matrix", self.mass_matrix_fn, (zero,), (self.n, self.n))
+        if np.max(np.abs(mass - mass.T)) > 1e-10 * max(1.0, float(np.max(np.abs(mass)))):
+            raise ValueError("mass_matrix(0) must be symmetric; got a non-symmetric matrix")
+        eigenvalues = np.linalg.eigvalsh(mass)
+        if eigenvalues[0] <= 0.0:
+            raise ValueError(f"mass_matrix(0) must be positive definite; its eigenvalues are {format_values(eigenvalues)}")
+        self._evaluate("nonlinear_terms", self.nonlinear_terms_fn, (zero, zero), (self.n,))
+        object.__setattr__(self, "m", self._input_map(zero).shape[1])
+
+    def _evaluate(self, label: str, fn: Callable[..., Any], args: tuple, shape: tuple[int, ...]) -> np.ndarray:
+        value = np.asarray(fn(*args), dtype=float)
+        if value.shape != shape:
+            raise ValueError(f"{label} must return shape {shape}; got {value.shape}")
+        if not np.all(np.isfinite(value)):
+            raise ValueError(f"{label} returned non-finite values at q = qdot = 0: {format_values(value)}")
+        return value
+
+    def _input_map(self, q: np.ndarray) -> np.ndarray:
+        if self.input_map_fn is None:
+            return np.eye(self.n)
+        if callable(self.input_map_fn):
+            value = np.asarray(self.input_map_fn(q), dtype=float)
+            if value.ndim != 2 or value.shape[0] != self.n:
+                raise ValueError(f"input_map must return shape ({self.n}, m); got {value.shape}")
+            return value
+        return self.input_map_fn
+
+    @property
+    def params(self) -> np.ndarray:
+        return np.zeros(0)
+
+    @property
+    def terms_kernel(self):
+        def terms(q, qdot, params, mass, nonlinear, input_map):
+            mass[:, :] = self.mass_matrix_fn(q)
+            nonlinear[:] = self.nonlinear_terms_fn(q, qdot)
+            input_map[:, :] = self._input_map(q)
+
+        return terms
+
+    def to_spec(self) -> dict[str, Any]:
+        return {"type": self.type_name, "name": self.name, "n": int(self.n), "m": int(self.m)}

@@ -1,0 +1,44 @@
+"""Calling a plant's terms kernel from the engine: by id when compiled, as a callable otherwise.
+
+numba keys its disk cache on argument types, and the type of a function passed as an argument
+embeds its address, which changes in every process. So the compiled engine receives an integer
+*kernel id* for built-in plants and dispatches statically (cacheable); the plain-Python engine
+receives the callable itself. :func:`call_terms` is that one call site for both.
+"""
+
+from __future__ import annotations
+
+from numba import types
+from numba.extending import overload
+
+__all__ = ["LINEAR", "TWO_LINK_ARM", "call_terms"]
+
+TWO_LINK_ARM = 0
+LINEAR = 1
+
+
+def call_terms(terms, q, qdot, params, mass, nonlinear, input_map):
+    """Fill ``M, N, G`` with ``terms`` (a callable here; an id or a callable in compiled code)."""
+    terms(q, qdot, params, mass, nonlinear, input_map)
+
+
+@overload(call_terms)
+def _call_terms_compiled(terms, q, qdot, params, mass, nonlinear, input_map):
+    if isinstance(terms, types.Integer):
+        from delaytrack.plants.linear import linear_terms
+        from delaytrack.plants.two_link_arm import two_link_terms
+
+        def by_id(terms, q, qdot, params, mass, nonlinear, input_map):
+            if terms == TWO_LINK_ARM:
+                two_link_terms(q, qdot, params, mass, nonlinear, input_map)
+            elif terms == LINEAR:
+                linear_terms(q, qdot, params, mass, nonlinear, input_map)
+            else:
+                raise ValueError("unknown plant kernel id")
+
+        return by_id
+
+    def by_callable(terms, q, qdot, params, mass, nonlinear, input_map):
+        terms(q, qdot, params, mass, nonlinear, input_map)
+
+    return by_callable

@@ -1,0 +1,160 @@
+"""Desired trajectories ``q_d(t)`` with their first two derivatives.
+
+:class:`SinusoidalReference` covers set-points, ramps and the paper's circle:
+
+    q_d,i(t) = offset_i + slope_i t + Σ_k amplitude_ik sin(frequency_ik t + phase_ik)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numba import njit, types
+from numba.extending import overload
+
+from delaytrack._validation import finite_array
+
+__all__ = ["SINUSOIDAL", "SinusoidalReference", "call_reference", "sinusoidal_reference"]
+
+SINUSOIDAL = 0
+
+
+@njit(cache=True)
+def sinusoidal_reference(t, params, qd, qd_dot, qd_ddot):
+    """Fill ``q_d(t)``, ``q̇_d(t)``, ``q̈_d(t)``; ``params = [n, K, offset, slope, A, ω, φ]``."""
+    n = int(params[0])
+    harmonics = int(params[1])
+    base = 2 + 2 * n
+    size = n * harmonics
+    for i in range(n):
+        qd[i] = params[2 + i] + params[2 + n + i] * t
+        qd_dot[i] = params[2 + n + i]
+        qd_ddot[i] = 0.0
+        for k in range(harmonics):
+            j = i * harmonics + k
+            amplitude = params[base + j]
+            omega = params[base + size + j]
+            angle = omega * t + params[base + 2 * size + j]
+            qd[i] += amplitude * math.sin(angle)
+            qd_dot[i] += amplitude * omega * math.cos(angle)
+            qd_ddot[i] -= amplitude * omega * omega * math.sin(angle)
+
+
+def call_reference(reference, t, params, qd, qd_dot, qd_ddot):
+    """Evaluate ``reference`` (a callable; an id or a callable in compiled code, see
+    :mod:`delaytrack.plants.dispatch`)."""
+    reference(t, params, qd, qd_dot, qd_ddot)
+
+
+@overload(call_reference)
+def _call_reference_compiled(reference, t, params, qd, qd_dot, qd_ddot):
+    if isinstance(reference, types.Integer):
+
+        def by_id(reference, t, params, qd, qd_dot, qd_ddot):
+            if reference == SINUSOIDAL:
+                sinusoidal_reference(t, params, qd, qd_dot, qd_ddot)
+            else:
+                raise ValueError("unknown reference kernel id")
+
+        return by_id
+
+    def by_callable(reference, t, params, qd, qd_dot, qd_ddot):
+        reference(t, params, qd, qd_dot, qd_ddot)
+
+    return by_callable
+
+
+@dataclass(frozen=True, eq=False)
+class SinusoidalReference:
+    """``q_d(t) = offset + slope t + Σ_k amplitude[:, k] sin(frequency[:, k] t + phase[:, k])``.
+
+    Parameters
+    ----------
+    offset : array_like, shape (n,)
+    slope : array_like, shape (n,), optional
+    amplitude, frequency, phase : array_like, shape (n,) or (n, K), optional
+        One column per harmonic; frequencies in rad/s.
+    """
+
+    offset: np.ndarray
+    slope: np.ndarray | None = None
+    amplitude: np.ndarray | None = None
+    frequency: np.ndarray | None = None
+    phase: np.ndarray | None = None
+    _params: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        offset = finite_array("offset", self.offset, ndim=1)
+        n = offset.size
+        slope = np.zeros(n) if self.slope is None else finite_array("slope", self.slope, ndim=1)
+        if slope.size != n:
+            raise ValueError(f"slope must have length n = {n}; got {slope.size}")
+        harmonic = {}
+        for name in ("amplitude", "frequency", "phase"):
+            value = getattr(self, name)
+            array = np.zeros((n, 0)) if value is None else finite_array(name, value)
+            array = array.reshape(n, -1) if array.ndim == 1 and array.size == n else array
+            if array.ndim != 2 or array.shape[0] != n:
+                raise ValueError(f"{name} must have shape (n,) or (n, K) with n = {n}; got {array.shape}")
+            harmonic[name] = array
+        widths = {name: array.shape[1] for name, array in harmonic.items() if getattr(self, name) is not None}
+        count = max(widths.values(), default=0)
+        for name in harmonic:
+            if getattr(self, name) is None:
+                harmonic[name] = np.zeros((n, count))
+            elif harmonic[name].shape[1] != count:
+                raise ValueError(f"amplitude, frequency and phase must have the same shape; got {widths}")
+        object.__setattr__(self, "offset", offset)
+        object.__setattr__(self, "slope", slope)
+        for name, array in harmonic.items():
+            object.__setattr__(self, name, array)
+        packed = [[float(n), float(count)], offset, slope]
+        packed += [harmonic[name].ravel() for name in ("amplitude", "frequency", "phase")]
+        object.__setattr__(self, "_params", np.concatenate(packed))
+
+    @classmethod
+    def from_spec(cls, spec: dict[str, Any]) -> SinusoidalReference:
+        """Build from ``{"offset": [...], "slope": [...], "amplitude": ..., ...}``."""
+        accepted = {"offset", "slope", "amplitude", "frequency", "phase"}
+        unknown = sorted(set(spec) - accepted)
+        if unknown:
+            raise ValueError(f"unknown key(s) {unknown} in reference; valid keys are {sorted(accepted)}")
+        if "offset" not in spec:
+            raise ValueError("reference needs 'offset' (one value per coordinate)")
+        return cls(**spec)
+
+    @property
+    def n(self) -> int:
+        return self.offset.size
+
+    @property
+    def params(self) -> np.ndarray:
+        return self._params
+
+    @property
+    def kernel(self):
+        return sinusoidal_reference
+
+    @property
+    def kernel_id(self) -> int:
+        return SINUSOIDAL
+
+    def evaluate(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``q_d, q̇_d, q̈_d`` at times ``t``, each of shape ``(*t.shape, n)``."""
+        times = np.asarray(t, dtype=float)
+        out = np.empty((3, times.size, self.n))
+        for i, time in enumerate(times.ravel()):
+            sinusoidal_reference(float(time), self._params, out[0, i], out[1, i], out[2, i])
+        return tuple(out[j].reshape(*times.shape, self.n) for j in range(3))
+
+    def to_spec(self) -> dict[str, Any]:
+        return {
+            "offset": self.offset.tolist(),
+            "slope": self.slope.tolist(),
+            "amplitude": self.amplitude.tolist(),
+            "frequency": self.frequency.tolist(),
+            "phase": self.phase.tolist(),
+        }

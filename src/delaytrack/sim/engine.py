@@ -1,0 +1,219 @@
+"""The fixed-step closed loop: sampled controller, delayed zero-order hold, RK4 plant (SPEC §5).
+
+One run (:func:`run_closed_loop`) proceeds tick by tick. At tick ``k`` (time ``t_k``) the
+controller reads ``x(t_k)`` and issues command ``k`` into the history; the plant is then integrated
+with RK4 over the ``steps_per_tick`` steps of length ``dt`` up to ``t_{k+1}``.
+
+The applied input ``u(t)`` is the command of the latest tick ``<= t - h(t)``. With a time-varying
+delay it switches at instants inside a step, where ``g(t) = t - h(t)`` crosses a tick time. Each
+step is split there, so that every RK4 sub-step sees a constant input and the scheme keeps its
+fourth order: the step is first cut at the profile's breakpoints (pieces on which ``g`` is
+continuous and monotone), then each piece at the crossings, solved from ``g(t) = t_k``. The input
+of a sub-step is looked up at its midpoint. Crossings closer than ``1e-9 dt`` to the end of a piece
+are not split off (the sliver is integrated with its neighbour's input).
+
+All functions are written once and run either compiled (every model kernel numba-compiled) or
+as plain Python (a user plant given as Python callables): see :mod:`delaytrack.sim.simulate`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from numba.extending import register_jitable
+
+from delaytrack.delays._kernel import (
+    crossing_time,
+    delay_value,
+    next_breakpoint,
+    piece_end_values,
+)
+from delaytrack.controllers.dispatch import call_step
+from delaytrack.plants.base import el_rhs
+from delaytrack.reference import call_reference
+from delaytrack.sim.history import latest_tick_index, tick_time
+
+__all__ = ["STATUS_NAMES", "run_closed_loop", "run_batch", "run_batch_compiled"]
+
+OK = 0
+DIVERGED = 1
+DELAY_BEYOND_HISTORY = 2
+#: Human-readable names of the status codes of a run.
+STATUS_NAMES = ("ok", "diverged", "delay beyond history")
+
+_SPLIT_TOLERANCE = 1e-9
+
+
+@register_jitable
+def _rk4_substep(plant_terms, plant_params, t, x, u, length, work):
+    """One classical RK4 step of length ``length`` with constant input ``u``; updates ``x``."""
+    k1, k2, k3, k4, stage = work[0], work[1], work[2], work[3], work[4]
+    el_rhs(plant_terms, t, x, u, plant_params, k1)
+    stage[:] = x + 0.5 * length * k1
+    el_rhs(plant_terms, t + 0.5 * length, stage, u, plant_params, k2)
+    stage[:] = x + 0.5 * length * k2
+    el_rhs(plant_terms, t + 0.5 * length, stage, u, plant_params, k3)
+    stage[:] = x + length * k3
+    el_rhs(plant_terms, t + length, stage, u, plant_params, k4)
+    x += (length / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+
+@register_jitable
+def _applied_slot(delay_kind, delay_params, t, newest, capacity, t0, dt, steps_per_tick):
+    """Ring slot of the command applied at ``t`` (-1 for ``u_init``, -2 beyond the history)."""
+    k = latest_tick_index(t - delay_value(delay_kind, delay_params, t), t0, dt, steps_per_tick)
+    if k < 0:
+        return -1
+    if k <= newest - capacity:
+        return -2
+    return k % capacity
+
+
+@register_jitable
+def _integrate_interval(
+    plant_terms, plant_params, delay_kind, delay_params, x, a, b, history, u_init, newest, t0, dt, steps_per_tick, work
+):
+    """Integrate ``x`` over ``[a, b]`` with the input looked up at the midpoint.
+
+    Returns the ring slot used (see :func:`_applied_slot`); -2 means nothing was integrated.
+    """
+    middle = 0.5 * (a + b)
+    slot = _applied_slot(delay_kind, delay_params, middle, newest, history.shape[0], t0, dt, steps_per_tick)
+    if slot == -2:
+        return slot
+    u = u_init if slot == -1 else history[slot]
+    _rk4_substep(plant_terms, plant_params, a, x, u, b - a, work)
+    return slot
+
+
+@register_jitable
+def _integrate_step(
+    plant_terms, plant_params, delay_kind, delay_params, x, t_start, t_end, history, u_init, newest, t0, dt, steps_per_tick, work
+):
+    """Integrate ``x`` over one plant step ``[t_start, t_end]``, split where the input switches.
+
+    Returns the ring slot of the input applied at the start of the step (-1 for ``u_init``), or -2
+    when a needed command has left the history.
+    """
+    tolerance = _SPLIT_TOLERANCE * dt
+    first_slot = -3
+    a = t_start
+    while a < t_end:
+        b = min(next_breakpoint(delay_kind, delay_params, a), t_end)
+        h_a, h_b = piece_end_values(delay_kind, delay_params, a, b)
+        g_a = a - h_a
+        g_b = b - h_b
+        k_a = latest_tick_index(g_a, t0, dt, steps_per_tick)
+        k_b = latest_tick_index(g_b, t0, dt, steps_per_tick)
+        start = a
+        if k_b != k_a:
+            direction = 1 if k_b > k_a else -1
+            first = k_a + 1 if direction == 1 else k_a
+            last = k_b + 1 if direction == 1 else k_b
+            for k in range(first, last, direction):
+                target = tick_time(k, t0, dt, steps_per_tick)
+                crossing = crossing_time(delay_kind, delay_params, a, b, g_a, g_b, target)
+                if crossing - start <= tolerance or b - crossing <= tolerance:
+                    continue
+                slot = _integrate_interval(
+                    plant_terms, plant_params, delay_kind, delay_params, x, start, crossing,
+                    history, u_init, newest, t0, dt, steps_per_tick, work,
+                )
+                if first_slot == -3 or slot == -2:
+                    first_slot = slot
+                if slot == -2:
+                    return slot
+                start = crossing
+        slot = _integrate_interval(
+            plant_terms, plant_params, delay_kind, delay_params, x, start, b,
+            history, u_init, newest, t0, dt, steps_per_tick, work,
+        )
+        if first_slot == -3 or slot == -2:
+            first_slot = slot
+        if slot == -2:
+            return slot
+        a = b
+    return first_slot
+
+
+@register_jitable
+def run_closed_loop(
+    plant_terms, plant_params, model_terms, model_params, reference, reference_params,
+    controller_step, controller_params, controller_state, delay_kind, delay_params,
+    x0, u_init, t0, dt, steps_per_tick, n_ticks, record_every, capacity, divergence_bound,
+    states, commands, applied, delays, controller_states,
+):
+    """Simulate one closed loop from ``t0`` to tick ``n_ticks``; return ``(status, t_stop)``.
+
+    Records are written every ``record_every`` ticks into ``states (R, 2n)``, ``commands
+    (R, m)``, ``applied (R, m)`` (the input applied over the step that starts at the tick),
+    ``delays (R,)`` and ``controller_states (R, n_state)`` (the state used at the tick). Rows
+    after a stop are left as they were (the caller fills them with NaN).
+    """
+    n = x0.shape[0] // 2
+    m = u_init.shape[0]
+    T_c = steps_per_tick * dt
+    x = x0.copy()
+    history = np.zeros((capacity, m))
+    work = np.empty((5, x0.shape[0]))
+    qd = np.empty(n)
+    qd_dot = np.empty(n)
+    qd_ddot = np.empty(n)
+    command = np.empty(m)
+    for k in range(n_ticks + 1):
+        t_k = tick_time(k, t0, dt, steps_per_tick)
+        record = k % record_every == 0
+        row = k // record_every
+        if record:
+            states[row] = x
+            controller_states[row] = controller_state
+            delays[row] = delay_value(delay_kind, delay_params, t_k)
+        call_reference(reference, t_k, reference_params, qd, qd_dot, qd_ddot)
+        call_step(
+            controller_step,             t_k, x[:n], x[n:], qd, qd_dot, qd_ddot, T_c, controller_params, controller_state,
+            model_terms, model_params, command,
+        )
+        history[k % capacity] = command
+        if record:
+            commands[row] = command
+        if not np.all(np.isfinite(command)):
+            return DIVERGED, t_k
+        if k == n_ticks:
+            if record:
+                slot = _applied_slot(delay_kind, delay_params, t_k, k, capacity, t0, dt, steps_per_tick)
+                applied[row] = u_init if slot == -1 else history[slot]
+            break
+        for j in range(steps_per_tick):
+            t_start = t0 + (k * steps_per_tick + j) * dt
+            t_end = t0 + (k * steps_per_tick + j + 1) * dt
+            slot = _integrate_step(
+                plant_terms, plant_params, delay_kind, delay_params, x, t_start, t_end,
+                history, u_init, k, t0, dt, steps_per_tick, work,
+            )
+            if slot == -2:
+                return DELAY_BEYOND_HISTORY, t_start
+            if record and j == 0:
+                applied[row] = u_init if slot == -1 else history[slot]
+            if not np.all(np.isfinite(x)) or np.max(np.abs(x)) > divergence_bound:
+                return DIVERGED, t_end
+    return OK, tick_time(n_ticks, t0, dt, steps_per_tick)
+
+
+@register_jitable
+def run_batch(
+    plant_terms, plant_params, model_terms, model_params, reference, reference_params,
+    controller_step, controller_params, controller_state, delay_kind, delay_params,
+    x0, u_init, t0, dt, steps_per_tick, n_ticks, record_every, capacity, divergence_bound,
+    states, commands, applied, delays, controller_states, status, t_stop,
+):
+    """:func:`run_closed_loop` for each batch element ``b`` (every per-element array has ``b`` first)."""
+    for b in range(x0.shape[0]):
+        status[b], t_stop[b] = run_closed_loop(
+            plant_terms, plant_params[b], model_terms, model_params[b], reference, reference_params,
+            controller_step, controller_params[b], controller_state[b], delay_kind[b], delay_params[b],
+            x0[b], u_init, t0, dt, steps_per_tick, n_ticks, record_every, capacity[b], divergence_bound,
+            states[b], commands[b], applied[b], delays[b], controller_states[b],
+        )
+
+
+run_batch_compiled = njit(cache=True)(run_batch)

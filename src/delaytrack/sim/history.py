@@ -1,0 +1,44 @@
+"""The command history: which controller command is applied at time ``t`` (SPEC §5).
+
+Controller ticks are at ``t_k = t0 + (k * steps_per_tick) * dt`` — computed, never accumulated.
+The input applied to the plant at time ``t`` is the command of the latest tick
+``t_k <= t - h(t)``; before the first command exists it is ``u_init``. Commands live in a ring
+buffer of ``capacity`` slots (tick ``k`` in slot ``k % capacity``), sized from the profile's
+``h_max`` by :func:`history_capacity`.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba.extending import register_jitable
+
+__all__ = ["history_capacity", "latest_tick_index", "tick_time"]
+
+
+def history_capacity(h_max: float, T_c: float) -> int:
+    """Ring-buffer slots needed when the delay never exceeds ``h_max``.
+
+    Over one controller period starting at tick ``k`` the oldest command needed is that of tick
+    ``k - ceil(h_max / T_c) - 1``; one more slot absorbs rounding at tick boundaries.
+    """
+    return int(math.ceil(h_max / T_c)) + 3
+
+
+@register_jitable
+def tick_time(k, t0, dt, steps_per_tick):
+    """Time of controller tick ``k``: ``t0 + (k * steps_per_tick) * dt``."""
+    return t0 + (k * steps_per_tick) * dt
+
+
+@register_jitable
+def latest_tick_index(g, t0, dt, steps_per_tick):
+    """Largest ``k`` with ``tick_time(k) <= g`` (``-1`` when ``g < t0``)."""
+    if g < t0:
+        return -1
+    k = int(math.floor((g - t0) / (steps_per_tick * dt)))
+    while tick_time(k + 1, t0, dt, steps_per_tick) <= g:
+        k += 1
+    while k >= 0 and tick_time(k, t0, dt, steps_per_tick) > g:
+        k -= 1
+    return k

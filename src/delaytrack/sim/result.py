@@ -1,0 +1,132 @@
+"""The result of a (batched) closed-loop simulation."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from delaytrack.sim.engine import STATUS_NAMES
+
+__all__ = ["SimResult"]
+
+
+@dataclass(frozen=True, eq=False)
+class SimResult:
+    """Recorded trajectories of ``batch`` closed loops, sampled at controller ticks.
+
+    Attributes
+    ----------
+    t : ndarray, shape (R,)
+        Record times ``t0 + k T_c`` for every ``record_every``-th tick ``k``.
+    x : ndarray, shape (batch, R, 2n)
+        Plant state ``[q, q̇]`` at the record times (before the tick's command).
+    reference : ndarray, shape (R, 3, n)
+        ``q_d, q̇_d, q̈_d`` at the record times.
+    commands : ndarray, shape (batch, R, m)
+        Command issued by the controller at each record time.
+    applied : ndarray, shape (batch, R, m)
+        Delayed command applied to the plant over the plant step starting at the record time.
+    h : ndarray, shape (batch, R)
+        True delay ``h(t)`` (known to the simulator only).
+    controller_state : ndarray, shape (batch, R, n_state)
+        Controller state used at each record time (for AROLC ``ĉ`` is column 0).
+    controller_state_names : tuple of str
+    status : ndarray of int, shape (batch,)
+        0 ok, 1 diverged, 2 delay beyond the history buffer; see :attr:`status_names`.
+    t_stop : ndarray, shape (batch,)
+        Time at which each run ended; rows recorded after it are NaN.
+    settings : dict
+        Everything needed to rerun: plant, controller, delays, reference, ``dt``, ``T_c``, ...
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    reference: np.ndarray
+    commands: np.ndarray
+    applied: np.ndarray
+    h: np.ndarray
+    controller_state: np.ndarray
+    controller_state_names: tuple[str, ...]
+    status: np.ndarray
+    t_stop: np.ndarray
+    settings: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def batch_size(self) -> int:
+        return self.x.shape[0]
+
+    @property
+    def n(self) -> int:
+        return self.x.shape[2] // 2
+
+    @property
+    def q(self) -> np.ndarray:
+        """Coordinates, shape (batch, R, n)."""
+        return self.x[:, :, : self.n]
+
+    @property
+    def qdot(self) -> np.ndarray:
+        """Velocities, shape (batch, R, n)."""
+        return self.x[:, :, self.n :]
+
+    @property
+    def e1(self) -> np.ndarray:
+        """Tracking error ``e1 = q_d - q``, shape (batch, R, n)."""
+        return self.reference[None, :, 0, :] - self.q
+
+    @property
+    def status_names(self) -> list[str]:
+        """Status of each run in words."""
+        return [STATUS_NAMES[int(code)] for code in self.status]
+
+    @property
+    def ok(self) -> np.ndarray:
+        """Boolean mask of the runs that reached the final time."""
+        return self.status == 0
+
+    def __getitem__(self, index: int | slice | np.ndarray) -> SimResult:
+        """The sub-batch ``index`` (an int keeps a batch axis of length 1)."""
+        select = np.atleast_1d(np.arange(self.batch_size)[index])
+        settings = dict(self.settings)
+        if "delays" in settings:
+            settings["delays"] = [settings["delays"][i] for i in select]
+        return SimResult(
+            t=self.t,
+            x=self.x[select],
+            reference=self.reference,
+            commands=self.commands[select],
+            applied=self.applied[select],
+            h=self.h[select],
+            controller_state=self.controller_state[select],
+            controller_state_names=self.controller_state_names,
+            status=self.status[select],
+            t_stop=self.t_stop[select],
+            settings=settings,
+        )
+
+    def to_frame(self) -> pd.DataFrame:
+        """Long table, one row per (batch element, record time).
+
+        Columns: ``batch, t, h, q_i, qdot_i, qd_i, e1_i, command_j, applied_j`` and the
+        controller state by name.
+        """
+        batch, records = self.batch_size, self.t.size
+        columns: dict[str, np.ndarray] = {
+            "batch": np.repeat(np.arange(batch), records),
+            "t": np.tile(self.t, batch),
+            "h": self.h.ravel(),
+        }
+        for i in range(self.n):
+            columns[f"q_{i}"] = self.q[:, :, i].ravel()
+            columns[f"qdot_{i}"] = self.qdot[:, :, i].ravel()
+            columns[f"qd_{i}"] = np.tile(self.reference[:, 0, i], batch)
+            columns[f"e1_{i}"] = self.e1[:, :, i].ravel()
+        for j in range(self.commands.shape[2]):
+            columns[f"command_{j}"] = self.commands[:, :, j].ravel()
+            columns[f"applied_{j}"] = self.applied[:, :, j].ravel()
+        for j, name in enumerate(self.controller_state_names):
+            columns[name] = self.controller_state[:, :, j].ravel()
+        return pd.DataFrame(columns)

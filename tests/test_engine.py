@@ -48,7 +48,9 @@ def brute_force_index(t: float, delay: DelayProfile, tick_times: np.ndarray) -> 
 
 def fast_random_delay() -> RandomDelay:
     # max_rate 3 gives stretches with dh/dt < -1, where older commands come back.
-    return RandomDelay(h_low=0.0, h_high=0.08, max_rate=3.0, duration=2.0, seed=11, knot_spacing=0.013)
+    return RandomDelay(
+        h_low=0.0, h_high=0.08, max_rate=3.0, duration=2.0, seed=11, knot_spacing=0.013
+    )
 
 
 # --- the lookup itself -------------------------------------------------------------------------
@@ -58,7 +60,9 @@ def test_latest_tick_index_equals_a_scan_of_all_tick_times() -> None:
     rng = np.random.default_rng(0)
     t0, dt, steps = 0.3, 1e-3, 7
     ticks = t0 + (np.arange(2000) * steps) * dt
-    samples = np.concatenate([rng.uniform(t0 - 0.1, ticks[-1], 3000), ticks[:200], ticks[:200] - 1e-15])
+    samples = np.concatenate(
+        [rng.uniform(t0 - 0.1, ticks[-1], 3000), ticks[:200], ticks[:200] - 1e-15]
+    )
     for g in samples:
         issued = np.flatnonzero(ticks <= g)
         expected = int(issued[-1]) if issued.size else -1
@@ -80,10 +84,19 @@ def test_latest_tick_index_equals_a_scan_of_all_tick_times() -> None:
 def test_applied_input_is_the_latest_command_issued_before_t_minus_h(delay: DelayProfile) -> None:
     dt, t_c = 5e-4, 2e-3
     result = simulate(
-        TwoLinkArm(), arm_arolc(), delay, np.zeros(4), reference=ARM_REFERENCE, t1=2.0, dt=dt, T_c=t_c
+        TwoLinkArm(),
+        arm_arolc(),
+        delay,
+        np.zeros(4),
+        reference=ARM_REFERENCE,
+        t1=2.0,
+        dt=dt,
+        T_c=t_c,
     )
     commands = result.commands[0]
-    assert np.all(np.abs(np.diff(commands, axis=0)).sum(axis=1) > 0), "commands must differ per tick"
+    assert np.all(np.abs(np.diff(commands, axis=0)).sum(axis=1) > 0), (
+        "commands must differ per tick"
+    )
     # The record at tick j is the input over the first sub-step after t_j; sample just inside it.
     probe = result.t[:-1] + 0.5e-9 * dt
     indices = np.array([brute_force_index(t, delay, result.t) for t in probe])
@@ -96,8 +109,15 @@ def test_applied_input_is_the_latest_command_issued_before_t_minus_h(delay: Dela
 def test_input_before_the_first_command_arrives_is_u_init() -> None:
     plant, controller, reference = point_mass_loop()
     result = simulate(
-        plant, controller, ConstantDelay(0.0505), [1.0, 0.0], reference=reference,
-        t1=0.2, dt=1e-3, T_c=T_C, u_init=[0.75],
+        plant,
+        controller,
+        ConstantDelay(0.0505),
+        [1.0, 0.0],
+        reference=reference,
+        t1=0.2,
+        dt=1e-3,
+        T_c=T_C,
+        u_init=[0.75],
     )
     early = result.t < 0.0505
     np.testing.assert_array_equal(result.applied[0, early, 0], 0.75)
@@ -122,7 +142,14 @@ def exact_sampled_solution(delay: DelayProfile, x0: np.ndarray, t1: float) -> np
     for tick in ticks:
         above = g - tick
         for i in np.flatnonzero(np.sign(above[:-1]) != np.sign(above[1:])):
-            events.add(brentq(lambda t, tick=tick: t - float(delay.h(t)) - tick, grid[i], grid[i + 1], xtol=1e-15))
+            events.add(
+                brentq(
+                    lambda t, tick=tick: t - float(delay.h(t)) - tick,
+                    grid[i],
+                    grid[i + 1],
+                    xtol=1e-15,
+                )
+            )
     times = np.array(sorted(events))
     commands: list[float] = []
     x = np.array(x0, dtype=float)
@@ -138,7 +165,11 @@ def exact_sampled_solution(delay: DelayProfile, x0: np.ndarray, t1: float) -> np
 
 @pytest.mark.parametrize(
     "delay",
-    [ConstantDelay(0.0437), AbsSineDelay(offset=0.02, amplitude=0.05, frequency=2.0), fast_random_delay()],
+    [
+        ConstantDelay(0.0437),
+        AbsSineDelay(offset=0.02, amplitude=0.05, frequency=2.0),
+        fast_random_delay(),
+    ],
     ids=["constant", "abs-sine", "random-fast"],
 )
 def test_engine_converges_to_the_exact_solution_at_fourth_order(delay: DelayProfile) -> None:
@@ -162,20 +193,35 @@ def test_engine_converges_to_the_exact_solution_at_fourth_order(delay: DelayProf
 
 
 def test_batch_equals_single_runs_element_by_element() -> None:
-    delays = [AbsSineDelay.S1(), AbsSineDelay.S2(), RandomDelay(0.0, 0.1, 0.5, 3.0, seed=4), ConstantDelay(0.06)]
-    x0 = np.array([[0.1, -0.2, 0.0, 0.0], [0.0, 0.0, 0.5, 0.0], [0.3, 0.1, 0.0, -0.4], [0.0, 0.0, 0.0, 0.0]])
+    delays = [
+        AbsSineDelay.S1(),
+        AbsSineDelay.S2(),
+        RandomDelay(0.0, 0.1, 0.5, 3.0, seed=4),
+        ConstantDelay(0.06),
+    ]
+    x0 = np.array(
+        [[0.1, -0.2, 0.0, 0.0], [0.0, 0.0, 0.5, 0.0], [0.3, 0.1, 0.0, -0.4], [0.0, 0.0, 0.0, 0.0]]
+    )
     settings = dict(reference=ARM_REFERENCE, t1=3.0, dt=1e-3, T_c=2e-3)
     batch = simulate(TwoLinkArm(), arm_arolc(), delays, x0, **settings)
     for b, delay in enumerate(delays):
         single = simulate(TwoLinkArm(), arm_arolc(), delay, x0[b], **settings)
         for name in ("x", "commands", "applied", "h", "controller_state"):
-            np.testing.assert_array_equal(getattr(batch, name)[b], getattr(single, name)[0], err_msg=name)
+            np.testing.assert_array_equal(
+                getattr(batch, name)[b], getattr(single, name)[0], err_msg=name
+            )
 
 
 def test_same_seed_same_result_other_seed_other_result() -> None:
     settings = dict(reference=ARM_REFERENCE, t1=2.0, dt=1e-3, T_c=2e-3)
     runs = [
-        simulate(TwoLinkArm(), arm_arolc(), RandomDelay(0.0, 0.1, 1.5, 2.0, seed=seed), np.zeros(4), **settings)
+        simulate(
+            TwoLinkArm(),
+            arm_arolc(),
+            RandomDelay(0.0, 0.1, 1.5, 2.0, seed=seed),
+            np.zeros(4),
+            **settings,
+        )
         for seed in (7, 7, 8)
     ]
     np.testing.assert_array_equal(runs[0].x, runs[1].x)
@@ -188,14 +234,23 @@ def test_a_diverging_run_stops_with_a_status_and_the_batch_goes_on() -> None:
     # K2 = 40 with a 0.2 s delay is far beyond the delay margin: the loop oscillates and grows.
     delays = [ConstantDelay(0.005), ConstantDelay(0.2)]
     result = simulate(
-        plant, stiff, delays, [1.0, 0.0], reference=reference, t1=5.0, dt=1e-3, T_c=T_C,
+        plant,
+        stiff,
+        delays,
+        [1.0, 0.0],
+        reference=reference,
+        t1=5.0,
+        dt=1e-3,
+        T_c=T_C,
         divergence_bound=1e3,
     )
     assert result.status_names == ["ok", "diverged"]
     assert result.t_stop[0] == pytest.approx(5.0)
     assert result.t_stop[1] < 5.0
     assert np.all(np.isnan(result.x[1, result.t > result.t_stop[1]]))
-    alone = simulate(plant, stiff, delays[0], [1.0, 0.0], reference=reference, t1=5.0, dt=1e-3, T_c=T_C)
+    alone = simulate(
+        plant, stiff, delays[0], [1.0, 0.0], reference=reference, t1=5.0, dt=1e-3, T_c=T_C
+    )
     np.testing.assert_array_equal(result.x[0], alone.x[0])
 
 
@@ -209,7 +264,16 @@ class _UnderstatedBound(ConstantDelay):
 
 def test_a_delay_beyond_the_history_is_a_status_never_a_clamp() -> None:
     plant, controller, reference = point_mass_loop()
-    result = simulate(plant, controller, _UnderstatedBound(0.2), [1.0, 0.0], reference=reference, t1=1.0, dt=1e-3, T_c=T_C)
+    result = simulate(
+        plant,
+        controller,
+        _UnderstatedBound(0.2),
+        [1.0, 0.0],
+        reference=reference,
+        t1=1.0,
+        dt=1e-3,
+        T_c=T_C,
+    )
     assert result.status_names == ["delay beyond history"]
     assert result.t_stop[0] < 1.0
 
@@ -239,7 +303,10 @@ def test_record_every_decimates_the_full_record() -> None:
 @pytest.mark.parametrize(
     ("override", "message"),
     [
-        ({"T_c": 0.0025, "dt": 0.001}, r"T_c must be a positive integer multiple of dt; got T_c/dt = 2\.5"),
+        (
+            {"T_c": 0.0025, "dt": 0.001},
+            r"T_c must be a positive integer multiple of dt; got T_c/dt = 2\.5",
+        ),
         ({"t1": 1.005}, r"t1 - t0 must be a positive integer multiple of T_c"),
         ({"dt": -1e-3}, r"dt must be > 0; got -0\.001"),
         ({"dt": float("nan")}, r"dt must be finite"),
@@ -248,13 +315,20 @@ def test_record_every_decimates_the_full_record() -> None:
         ({"x0": [1.0, 0.0, 0.0]}, r"x0 must have shape \(2,\) or \(batch, 2\); got \(3,\)"),
         ({"x0": [np.nan, 0.0]}, r"x0 must be finite"),
         ({"u_init": [0.0, 0.0]}, r"u_init must have shape \(1,\); got \(2,\)"),
-        ({"delay": [ConstantDelay(0.01)] * 3, "x0": np.zeros((2, 2))}, r"x0 has 2 rows but the batch has 3"),
+        (
+            {"delay": [ConstantDelay(0.01)] * 3, "x0": np.zeros((2, 2))},
+            r"x0 has 2 rows but the batch has 3",
+        ),
         ({"reference": ARM_REFERENCE}, r"reference has n = 2 coordinates; the plant has n = 1"),
     ],
 )
-def test_bad_simulation_settings_are_refused_with_the_offending_value(override: dict, message: str) -> None:
+def test_bad_simulation_settings_are_refused_with_the_offending_value(
+    override: dict, message: str
+) -> None:
     plant, controller, reference = point_mass_loop()
-    arguments = dict(delay=ConstantDelay(0.01), x0=[1.0, 0.0], reference=reference, t1=1.0, dt=1e-3, T_c=T_C)
+    arguments = dict(
+        delay=ConstantDelay(0.01), x0=[1.0, 0.0], reference=reference, t1=1.0, dt=1e-3, T_c=T_C
+    )
     arguments.update(override)
     with pytest.raises(ValueError, match=message):
         simulate(plant, controller, **arguments)
@@ -262,5 +336,16 @@ def test_bad_simulation_settings_are_refused_with_the_offending_value(override: 
 
 def test_plant_and_controller_of_different_sizes_are_refused() -> None:
     _, controller, reference = point_mass_loop()
-    with pytest.raises(ValueError, match=r"controller\[0\] has n = 1, m = 1; the plant has n = 2, m = 2"):
-        simulate(TwoLinkArm(), controller, ConstantDelay(0.01), np.zeros(4), reference=reference, t1=1.0, dt=1e-3, T_c=T_C)
+    with pytest.raises(
+        ValueError, match=r"controller\[0\] has n = 1, m = 1; the plant has n = 2, m = 2"
+    ):
+        simulate(
+            TwoLinkArm(),
+            controller,
+            ConstantDelay(0.01),
+            np.zeros(4),
+            reference=reference,
+            t1=1.0,
+            dt=1e-3,
+            T_c=T_C,
+        )

@@ -54,7 +54,9 @@ def finite_array(name: str, value: object, *, ndim: int | None = None) -> np.nda
         raise ValueError(f"{name} must be {ndim}-dimensional; got shape {array.shape}")
     if not np.all(np.isfinite(array)):
         bad = np.argwhere(~np.isfinite(array))[0]
-        raise ValueError(f"{name} must be finite; entry {tuple(int(i) for i in bad)} is {array[tuple(bad)]}")
+        raise ValueError(
+            f"{name} must be finite; entry {tuple(int(i) for i in bad)} is {array[tuple(bad)]}"
+        )
     return array
 
 
@@ -74,7 +76,9 @@ def as_square_matrix(name: str, value: object, n: int | None = None) -> np.ndarr
     elif array.ndim == 2:
         matrix = array
     else:
-        raise ValueError(f"{name} must be a scalar, a diagonal or a square matrix; got shape {array.shape}")
+        raise ValueError(
+            f"{name} must be a scalar, a diagonal or a square matrix; got shape {array.shape}"
+        )
     if matrix.shape[0] != matrix.shape[1]:
         raise ValueError(f"{name} must be square; got shape {matrix.shape}")
     if n is not None and matrix.shape[0] != n:
@@ -102,6 +106,7 @@ def as_spd_matrix(name: str, value: object, n: int | None = None) -> np.ndarray:
     eigenvalues = np.linalg.eigvalsh(matrix)
     if eigenvalues[0] <= 0.0:
         raise ValueError(
-            f"{name} must be symmetric positive definite; its eigenvalues are {format_values(eigenvalues)}"
+            f"{name} must be symmetric positive definite; "
+            f"its eigenvalues are {format_values(eigenvalues)}"
         )
     return matrix

@@ -98,15 +98,23 @@ class SinusoidalReference:
             array = np.zeros((n, 0)) if value is None else finite_array(name, value)
             array = array.reshape(n, -1) if array.ndim == 1 and array.size == n else array
             if array.ndim != 2 or array.shape[0] != n:
-                raise ValueError(f"{name} must have shape (n,) or (n, K) with n = {n}; got {array.shape}")
+                raise ValueError(
+                    f"{name} must have shape (n,) or (n, K) with n = {n}; got {array.shape}"
+                )
             harmonic[name] = array
-        widths = {name: array.shape[1] for name, array in harmonic.items() if getattr(self, name) is not None}
+        widths = {
+            name: array.shape[1]
+            for name, array in harmonic.items()
+            if getattr(self, name) is not None
+        }
         count = max(widths.values(), default=0)
         for name in harmonic:
             if getattr(self, name) is None:
                 harmonic[name] = np.zeros((n, count))
             elif harmonic[name].shape[1] != count:
-                raise ValueError(f"amplitude, frequency and phase must have the same shape; got {widths}")
+                raise ValueError(
+                    f"amplitude, frequency and phase must have the same shape; got {widths}"
+                )
         object.__setattr__(self, "offset", offset)
         object.__setattr__(self, "slope", slope)
         for name, array in harmonic.items():
@@ -121,7 +129,9 @@ class SinusoidalReference:
         accepted = {"offset", "slope", "amplitude", "frequency", "phase"}
         unknown = sorted(set(spec) - accepted)
         if unknown:
-            raise ValueError(f"unknown key(s) {unknown} in reference; valid keys are {sorted(accepted)}")
+            raise ValueError(
+                f"unknown key(s) {unknown} in reference; valid keys are {sorted(accepted)}"
+            )
         if "offset" not in spec:
             raise ValueError("reference needs 'offset' (one value per coordinate)")
         return cls(**spec)

@@ -29,5 +29,8 @@ def controller_from_spec(spec: Mapping[str, Any], model: ELPlant) -> Controller:
     gains = {key: value for key, value in spec.items() if key != "type"}
     unknown = sorted(set(gains) - _GAINS[name])
     if unknown:
-        raise ValueError(f"unknown key(s) {unknown} for controller {name!r}; valid keys are {sorted(_GAINS[name])}")
+        raise ValueError(
+            f"unknown key(s) {unknown} for controller {name!r}; "
+            f"valid keys are {sorted(_GAINS[name])}"
+        )
     return CONTROLLERS[name](model=model, **gains)

@@ -51,7 +51,9 @@ def adaptive_gain_rate(c_hat, s, s_previous, has_previous, gamma):
 
 
 @njit(cache=True)
-def arolc_step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model_terms, model_params, command):
+def arolc_step(
+    t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model_terms, model_params, command
+):
     """One AROLC tick (see the module docstring).
 
     ``params = [K1, K2, BᵀP, α, ε, γ]`` (matrices flattened row-major, ``BᵀP`` is (n, 2n));
@@ -125,7 +127,9 @@ class AROLC(Controller):
         input_matrix = error_dynamics_matrices(self.K1, self.K2)[3]
         object.__setattr__(self, "P", P)
         packed = [self.K1.ravel(), self.K2.ravel(), (input_matrix.T @ P).ravel()]
-        object.__setattr__(self, "_params", np.concatenate([*packed, [self.alpha, self.epsilon, self.gamma]]))
+        object.__setattr__(
+            self, "_params", np.concatenate([*packed, [self.alpha, self.epsilon, self.gamma]])
+        )
 
     @property
     def params(self) -> np.ndarray:

@@ -134,12 +134,23 @@ class Controller(ABC):
         if next_state.shape != (self.state_size,):
             raise ValueError(f"state must have shape ({self.state_size},); got {next_state.shape}")
         command = np.empty(self.m)
-        self.step_callable(float(t), *arrays, sample, self.params, next_state, self.model.kernel_handle, self.model.params, command)
+        self.step_callable(
+            float(t),
+            *arrays,
+            sample,
+            self.params,
+            next_state,
+            self.model.kernel_handle,
+            self.model.params,
+            command,
+        )
         return command, next_state
 
     def _check_model(self) -> None:
         if not isinstance(self.model, ELPlant):
-            raise TypeError(f"model must be an ELPlant (the nominal plant); got {type(self.model).__name__}")
+            raise TypeError(
+                f"model must be an ELPlant (the nominal plant); got {type(self.model).__name__}"
+            )
         if self.model.m != self.model.n:
             raise ValueError(
                 f"{type(self).__name__} needs a fully actuated nominal model (m == n); "

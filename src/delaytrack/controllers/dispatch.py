@@ -14,28 +14,62 @@ OUTER_LOOP_STEP = 0
 AROLC_STEP = 1
 
 
-def call_step(step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command):
+def call_step(
+    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command
+):
     """Run one controller tick with ``step`` (see :mod:`delaytrack.controllers.base`)."""
     step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command)
 
 
 @overload(call_step)
-def _call_step_compiled(step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command):
+def _call_step_compiled(
+    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command
+):
     if isinstance(step, types.Integer):
         from delaytrack.controllers.arolc import arolc_step
         from delaytrack.controllers.outer_loop import outer_loop_step
 
-        def by_id(step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command):
+        def by_id(
+            step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command
+        ):
             if step == OUTER_LOOP_STEP:
-                outer_loop_step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command)
+                outer_loop_step(
+                    t,
+                    q,
+                    qdot,
+                    qd,
+                    qd_dot,
+                    qd_ddot,
+                    T_c,
+                    params,
+                    state,
+                    model,
+                    model_params,
+                    command,
+                )
             elif step == AROLC_STEP:
-                arolc_step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command)
+                arolc_step(
+                    t,
+                    q,
+                    qdot,
+                    qd,
+                    qd_dot,
+                    qd_ddot,
+                    T_c,
+                    params,
+                    state,
+                    model,
+                    model_params,
+                    command,
+                )
             else:
                 raise ValueError("unknown controller kernel id")
 
         return by_id
 
-    def by_callable(step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command):
+    def by_callable(
+        step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command
+    ):
         step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command)
 
     return by_callable

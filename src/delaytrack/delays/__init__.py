@@ -65,7 +65,9 @@ def delay_from_spec(spec: Mapping[str, Any]) -> DelayProfile:
     Unknown types and unknown keys raise ``ValueError`` naming them and the valid choices.
     """
     if "type" not in spec:
-        raise ValueError(f"delay needs a 'type', one of {sorted([*DELAY_TYPES, *PAPER_SCENARIO_DELAYS])}")
+        raise ValueError(
+            f"delay needs a 'type', one of {sorted([*DELAY_TYPES, *PAPER_SCENARIO_DELAYS])}"
+        )
     name = spec["type"]
     fields = {key: value for key, value in spec.items() if key != "type"}
     if name in PAPER_SCENARIO_DELAYS:
@@ -83,6 +85,8 @@ def delay_from_spec(spec: Mapping[str, Any]) -> DelayProfile:
         )
     if name == "trace" and "path" in fields:
         if len(fields) > 1:
-            raise ValueError("delay type 'trace' takes either 'path' or 'times' and 'values', not both")
+            raise ValueError(
+                "delay type 'trace' takes either 'path' or 'times' and 'values', not both"
+            )
         return TraceDelay.from_csv(fields["path"])
     return cls(**{accepted[key]: value for key, value in fields.items()})

@@ -50,4 +50,8 @@ class PiecewiseConstantDelay(DelayProfile):
         return float(np.max(self.values))
 
     def to_spec(self) -> dict[str, Any]:
-        return {"type": self.type_name, "times": self.times.tolist(), "values": self.values.tolist()}
+        return {
+            "type": self.type_name,
+            "times": self.times.tolist(),
+            "values": self.values.tolist(),
+        }

@@ -81,4 +81,8 @@ class TraceDelay(DelayProfile):
     def to_spec(self) -> dict[str, Any]:
         if self.source is not None:
             return {"type": self.type_name, "path": self.source}
-        return {"type": self.type_name, "times": self.times.tolist(), "values": self.values.tolist()}
+        return {
+            "type": self.type_name,
+            "times": self.times.tolist(),
+            "values": self.values.tolist(),
+        }

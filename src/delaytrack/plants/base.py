@@ -43,7 +43,8 @@ class ELPlant(ABC):
     """An Euler–Lagrange plant with ``n`` coordinates and ``m`` inputs.
 
     Subclasses provide :attr:`terms_kernel` and :attr:`params`. Any control-affine second-order
-    system fits this form (a constrained one with ``M = I``, ``N = -a(q, q̇)``, ``G = b(q)``). The Python
+    system fits this form (a constrained one with ``M = I``, ``N = -a(q, q̇)``, ``G = b(q)``).
+    The Python
     methods below evaluate the same kernel with a leading batch axis: ``q (batch, n)``.
     """
 
@@ -79,11 +80,13 @@ class ELPlant(ABC):
         return self.kernel_id is not None
 
     def terms(self, q: np.ndarray, qdot: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``M (batch, n, n)``, ``N (batch, n)`` and ``G (batch, n, m)`` at ``q, qdot (batch, n)``."""
+        """``M (batch, n, n)``, ``N (batch, n)``, ``G (batch, n, m)`` at ``q, qdot (batch, n)``."""
         q = self._batch("q", q)
         qdot = self._batch("qdot", qdot)
         if q.shape[0] != qdot.shape[0]:
-            raise ValueError(f"q and qdot must have the same batch size; got {q.shape[0]} and {qdot.shape[0]}")
+            raise ValueError(
+                f"q and qdot must have the same batch size; got {q.shape[0]} and {qdot.shape[0]}"
+            )
         batch = q.shape[0]
         mass = np.empty((batch, self.n, self.n))
         nonlinear = np.empty((batch, self.n))
@@ -123,5 +126,7 @@ class ELPlant(ABC):
     def _batch(self, name: str, value: np.ndarray) -> np.ndarray:
         array = np.atleast_2d(np.asarray(value, dtype=float))
         if array.ndim != 2 or array.shape[1] != self.n:
-            raise ValueError(f"{name} must have shape (batch, {self.n}) or ({self.n},); got {np.shape(value)}")
+            raise ValueError(
+                f"{name} must have shape (batch, {self.n}) or ({self.n},); got {np.shape(value)}"
+            )
         return np.ascontiguousarray(array)

@@ -49,7 +49,10 @@ class CallablePlant(ELPlant):
     def __post_init__(self) -> None:
         if not isinstance(self.n, int | np.integer) or self.n < 1:
             raise ValueError(f"n must be a positive integer; got {self.n!r}")
-        for label, fn in (("mass_matrix", self.mass_matrix_fn), ("nonlinear_terms", self.nonlinear_terms_fn)):
+        for label, fn in (
+            ("mass_matrix", self.mass_matrix_fn),
+            ("nonlinear_terms", self.nonlinear_terms_fn),
+        ):
             if not callable(fn):
                 raise TypeError(f"{label} must be callable; got {type(fn).__name__}")
         if self.input_map_fn is not None and not callable(self.input_map_fn):
@@ -63,16 +66,23 @@ class CallablePlant(ELPlant):
             raise ValueError("mass_matrix(0) must be symmetric; got a non-symmetric matrix")
         eigenvalues = np.linalg.eigvalsh(mass)
         if eigenvalues[0] <= 0.0:
-            raise ValueError(f"mass_matrix(0) must be positive definite; its eigenvalues are {format_values(eigenvalues)}")
+            raise ValueError(
+                "mass_matrix(0) must be positive definite; "
+                f"its eigenvalues are {format_values(eigenvalues)}"
+            )
         self._evaluate("nonlinear_terms", self.nonlinear_terms_fn, (zero, zero), (self.n,))
         object.__setattr__(self, "m", self._input_map(zero).shape[1])
 
-    def _evaluate(self, label: str, fn: Callable[..., Any], args: tuple, shape: tuple[int, ...]) -> np.ndarray:
+    def _evaluate(
+        self, label: str, fn: Callable[..., Any], args: tuple, shape: tuple[int, ...]
+    ) -> np.ndarray:
         value = np.asarray(fn(*args), dtype=float)
         if value.shape != shape:
             raise ValueError(f"{label} must return shape {shape}; got {value.shape}")
         if not np.all(np.isfinite(value)):
-            raise ValueError(f"{label} returned non-finite values at q = qdot = 0: {format_values(value)}")
+            raise ValueError(
+                f"{label} returned non-finite values at q = qdot = 0: {format_values(value)}"
+            )
         return value
 
     def _input_map(self, q: np.ndarray) -> np.ndarray:

@@ -27,7 +27,6 @@ def linear_terms(q, qdot, params, mass, nonlinear, input_map):
     nonlinear[:] = damping @ qdot + stiffness @ q
 
 
-
 @dataclass(frozen=True, eq=False)
 class LinearPlant(ELPlant):
     """``M q̈ + D q̇ + K q = G u`` with constant matrices.
@@ -56,9 +55,15 @@ class LinearPlant(ELPlant):
         mass_array = np.asarray(self.mass, dtype=float)
         n = 1 if mass_array.ndim == 0 else mass_array.shape[0]
         mass = as_spd_matrix("mass", self.mass, n)
-        damping = np.zeros((n, n)) if self.damping is None else as_square_matrix("damping", self.damping, n)
+        damping = (
+            np.zeros((n, n))
+            if self.damping is None
+            else as_square_matrix("damping", self.damping, n)
+        )
         stiffness = (
-            np.zeros((n, n)) if self.stiffness is None else as_square_matrix("stiffness", self.stiffness, n)
+            np.zeros((n, n))
+            if self.stiffness is None
+            else as_square_matrix("stiffness", self.stiffness, n)
         )
         if self.input_map_matrix is None:
             input_map = np.eye(n)
@@ -66,13 +71,22 @@ class LinearPlant(ELPlant):
             input_map = finite_array("input_map_matrix", self.input_map_matrix)
             input_map = input_map.reshape(n, -1) if input_map.ndim < 2 else input_map
             if input_map.ndim != 2 or input_map.shape[0] != n:
-                raise ValueError(f"input_map_matrix must have shape ({n}, m); got {input_map.shape}")
-        for name, value in (("mass", mass), ("damping", damping), ("stiffness", stiffness), ("input_map_matrix", input_map)):
+                raise ValueError(
+                    f"input_map_matrix must have shape ({n}, m); got {input_map.shape}"
+                )
+        for name, value in (
+            ("mass", mass),
+            ("damping", damping),
+            ("stiffness", stiffness),
+            ("input_map_matrix", input_map),
+        ):
             object.__setattr__(self, name, value)
         object.__setattr__(self, "n", n)
         object.__setattr__(self, "m", input_map.shape[1])
         object.__setattr__(
-            self, "_params", np.concatenate([mass.ravel(), damping.ravel(), stiffness.ravel(), input_map.ravel()])
+            self,
+            "_params",
+            np.concatenate([mass.ravel(), damping.ravel(), stiffness.ravel(), input_map.ravel()]),
         )
 
     @property

@@ -46,7 +46,6 @@ def two_link_terms(q, qdot, params, mass, nonlinear, input_map):
     input_map[1, 1] = 1.0
 
 
-
 @dataclass(frozen=True)
 class TwoLinkArm(ELPlant):
     """Two-link planar arm; the defaults are the direct-drive arm of the module docstring.
@@ -73,11 +72,14 @@ class TwoLinkArm(ELPlant):
         for name in ("p1", "p2", "p3"):
             object.__setattr__(self, name, positive_scalar(name, getattr(self, name)))
         for name in ("fd1", "fd2"):
-            object.__setattr__(self, name, positive_scalar(name, getattr(self, name), strictly=False))
+            object.__setattr__(
+                self, name, positive_scalar(name, getattr(self, name), strictly=False)
+            )
         margin = self.p1 * self.p2 - self.p2**2 - self.p3**2
         if margin <= 0.0:
             raise ValueError(
-                "two-link arm parameters must satisfy p1*p2 - p2**2 > p3**2 for a positive definite "
+                "two-link arm parameters must satisfy p1*p2 - p2**2 > p3**2 "
+                "for a positive definite "
                 f"mass matrix; got p1={self.p1:g}, p2={self.p2:g}, p3={self.p3:g}"
             )
 
@@ -90,4 +92,11 @@ class TwoLinkArm(ELPlant):
         return two_link_terms
 
     def to_spec(self) -> dict[str, Any]:
-        return {"type": self.type_name, "p1": self.p1, "p2": self.p2, "p3": self.p3, "fd1": self.fd1, "fd2": self.fd2}
+        return {
+            "type": self.type_name,
+            "p1": self.p1,
+            "p2": self.p2,
+            "p3": self.p3,
+            "fd1": self.fd1,
+            "fd2": self.fd2,
+        }

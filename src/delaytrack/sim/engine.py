@@ -22,13 +22,13 @@ import numpy as np
 from numba import njit
 from numba.extending import register_jitable
 
+from delaytrack.controllers.dispatch import call_step
 from delaytrack.delays._kernel import (
     crossing_time,
     delay_value,
     next_breakpoint,
     piece_end_values,
 )
-from delaytrack.controllers.dispatch import call_step
 from delaytrack.plants.base import el_rhs
 from delaytrack.reference import call_reference
 from delaytrack.sim.history import latest_tick_index, tick_time
@@ -71,14 +71,29 @@ def _applied_slot(delay_kind, delay_params, t, newest, capacity, t0, dt, steps_p
 
 @register_jitable
 def _integrate_interval(
-    plant_terms, plant_params, delay_kind, delay_params, x, a, b, history, u_init, newest, t0, dt, steps_per_tick, work
+    plant_terms,
+    plant_params,
+    delay_kind,
+    delay_params,
+    x,
+    a,
+    b,
+    history,
+    u_init,
+    newest,
+    t0,
+    dt,
+    steps_per_tick,
+    work,
 ):
     """Integrate ``x`` over ``[a, b]`` with the input looked up at the midpoint.
 
     Returns the ring slot used (see :func:`_applied_slot`); -2 means nothing was integrated.
     """
     middle = 0.5 * (a + b)
-    slot = _applied_slot(delay_kind, delay_params, middle, newest, history.shape[0], t0, dt, steps_per_tick)
+    slot = _applied_slot(
+        delay_kind, delay_params, middle, newest, history.shape[0], t0, dt, steps_per_tick
+    )
     if slot == -2:
         return slot
     u = u_init if slot == -1 else history[slot]
@@ -88,7 +103,20 @@ def _integrate_interval(
 
 @register_jitable
 def _integrate_step(
-    plant_terms, plant_params, delay_kind, delay_params, x, t_start, t_end, history, u_init, newest, t0, dt, steps_per_tick, work
+    plant_terms,
+    plant_params,
+    delay_kind,
+    delay_params,
+    x,
+    t_start,
+    t_end,
+    history,
+    u_init,
+    newest,
+    t0,
+    dt,
+    steps_per_tick,
+    work,
 ):
     """Integrate ``x`` over one plant step ``[t_start, t_end]``, split where the input switches.
 
@@ -116,8 +144,20 @@ def _integrate_step(
                 if crossing - start <= tolerance or b - crossing <= tolerance:
                     continue
                 slot = _integrate_interval(
-                    plant_terms, plant_params, delay_kind, delay_params, x, start, crossing,
-                    history, u_init, newest, t0, dt, steps_per_tick, work,
+                    plant_terms,
+                    plant_params,
+                    delay_kind,
+                    delay_params,
+                    x,
+                    start,
+                    crossing,
+                    history,
+                    u_init,
+                    newest,
+                    t0,
+                    dt,
+                    steps_per_tick,
+                    work,
                 )
                 if first_slot == -3 or slot == -2:
                     first_slot = slot
@@ -125,8 +165,20 @@ def _integrate_step(
                     return slot
                 start = crossing
         slot = _integrate_interval(
-            plant_terms, plant_params, delay_kind, delay_params, x, start, b,
-            history, u_init, newest, t0, dt, steps_per_tick, work,
+            plant_terms,
+            plant_params,
+            delay_kind,
+            delay_params,
+            x,
+            start,
+            b,
+            history,
+            u_init,
+            newest,
+            t0,
+            dt,
+            steps_per_tick,
+            work,
         )
         if first_slot == -3 or slot == -2:
             first_slot = slot
@@ -138,10 +190,31 @@ def _integrate_step(
 
 @register_jitable
 def run_closed_loop(
-    plant_terms, plant_params, model_terms, model_params, reference, reference_params,
-    controller_step, controller_params, controller_state, delay_kind, delay_params,
-    x0, u_init, t0, dt, steps_per_tick, n_ticks, record_every, capacity, divergence_bound,
-    states, commands, applied, delays, controller_states,
+    plant_terms,
+    plant_params,
+    model_terms,
+    model_params,
+    reference,
+    reference_params,
+    controller_step,
+    controller_params,
+    controller_state,
+    delay_kind,
+    delay_params,
+    x0,
+    u_init,
+    t0,
+    dt,
+    steps_per_tick,
+    n_ticks,
+    record_every,
+    capacity,
+    divergence_bound,
+    states,
+    commands,
+    applied,
+    delays,
+    controller_states,
 ):
     """Simulate one closed loop from ``t0`` to tick ``n_ticks``; return ``(status, t_stop)``.
 
@@ -170,8 +243,19 @@ def run_closed_loop(
             delays[row] = delay_value(delay_kind, delay_params, t_k)
         call_reference(reference, t_k, reference_params, qd, qd_dot, qd_ddot)
         call_step(
-            controller_step,             t_k, x[:n], x[n:], qd, qd_dot, qd_ddot, T_c, controller_params, controller_state,
-            model_terms, model_params, command,
+            controller_step,
+            t_k,
+            x[:n],
+            x[n:],
+            qd,
+            qd_dot,
+            qd_ddot,
+            T_c,
+            controller_params,
+            controller_state,
+            model_terms,
+            model_params,
+            command,
         )
         history[k % capacity] = command
         if record:
@@ -180,15 +264,29 @@ def run_closed_loop(
             return DIVERGED, t_k
         if k == n_ticks:
             if record:
-                slot = _applied_slot(delay_kind, delay_params, t_k, k, capacity, t0, dt, steps_per_tick)
+                slot = _applied_slot(
+                    delay_kind, delay_params, t_k, k, capacity, t0, dt, steps_per_tick
+                )
                 applied[row] = u_init if slot == -1 else history[slot]
             break
         for j in range(steps_per_tick):
             t_start = t0 + (k * steps_per_tick + j) * dt
             t_end = t0 + (k * steps_per_tick + j + 1) * dt
             slot = _integrate_step(
-                plant_terms, plant_params, delay_kind, delay_params, x, t_start, t_end,
-                history, u_init, k, t0, dt, steps_per_tick, work,
+                plant_terms,
+                plant_params,
+                delay_kind,
+                delay_params,
+                x,
+                t_start,
+                t_end,
+                history,
+                u_init,
+                k,
+                t0,
+                dt,
+                steps_per_tick,
+                work,
             )
             if slot == -2:
                 return DELAY_BEYOND_HISTORY, t_start
@@ -201,18 +299,62 @@ def run_closed_loop(
 
 @register_jitable
 def run_batch(
-    plant_terms, plant_params, model_terms, model_params, reference, reference_params,
-    controller_step, controller_params, controller_state, delay_kind, delay_params,
-    x0, u_init, t0, dt, steps_per_tick, n_ticks, record_every, capacity, divergence_bound,
-    states, commands, applied, delays, controller_states, status, t_stop,
+    plant_terms,
+    plant_params,
+    model_terms,
+    model_params,
+    reference,
+    reference_params,
+    controller_step,
+    controller_params,
+    controller_state,
+    delay_kind,
+    delay_params,
+    x0,
+    u_init,
+    t0,
+    dt,
+    steps_per_tick,
+    n_ticks,
+    record_every,
+    capacity,
+    divergence_bound,
+    states,
+    commands,
+    applied,
+    delays,
+    controller_states,
+    status,
+    t_stop,
 ):
-    """:func:`run_closed_loop` for each batch element ``b`` (every per-element array has ``b`` first)."""
+    """:func:`run_closed_loop` for each batch element ``b`` (per-element arrays: ``b`` first)."""
     for b in range(x0.shape[0]):
         status[b], t_stop[b] = run_closed_loop(
-            plant_terms, plant_params[b], model_terms, model_params[b], reference, reference_params,
-            controller_step, controller_params[b], controller_state[b], delay_kind[b], delay_params[b],
-            x0[b], u_init, t0, dt, steps_per_tick, n_ticks, record_every, capacity[b], divergence_bound,
-            states[b], commands[b], applied[b], delays[b], controller_states[b],
+            plant_terms,
+            plant_params[b],
+            model_terms,
+            model_params[b],
+            reference,
+            reference_params,
+            controller_step,
+            controller_params[b],
+            controller_state[b],
+            delay_kind[b],
+            delay_params[b],
+            x0[b],
+            u_init,
+            t0,
+            dt,
+            steps_per_tick,
+            n_ticks,
+            record_every,
+            capacity[b],
+            divergence_bound,
+            states[b],
+            commands[b],
+            applied[b],
+            delays[b],
+            controller_states[b],
         )
 
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import Any, TypeVar
 
@@ -38,7 +37,10 @@ def _integer_ratio(name: str, numerator: float, denominator: float, what: str) -
     ratio = numerator / denominator
     count = round(ratio)
     if count < 1 or abs(ratio - count) > _RATIO_TOLERANCE * max(1.0, ratio):
-        raise ValueError(f"{name} must be a positive integer multiple of {what}; got {name}/{what} = {ratio:.12g}")
+        raise ValueError(
+            f"{name} must be a positive integer multiple of {what}; "
+            f"got {name}/{what} = {ratio:.12g}"
+        )
     return int(count)
 
 
@@ -47,7 +49,9 @@ def _broadcast(name: str, items: list[_T], batch: int) -> list[_T]:
         return items
     if len(items) == 1:
         return items * batch
-    raise ValueError(f"{name} has {len(items)} entries but the batch has {batch}; give 1 or {batch}")
+    raise ValueError(
+        f"{name} has {len(items)} entries but the batch has {batch}; give 1 or {batch}"
+    )
 
 
 def _stack_padded(vectors: list[np.ndarray]) -> np.ndarray:
@@ -135,12 +139,21 @@ def simulate(
     n, m = first_plant.n, first_plant.m
     for i, item in enumerate(plants):
         if type(item) is not type(first_plant) or (item.n, item.m) != (n, m):
-            raise ValueError(f"plant[{i}] must be a {type(first_plant).__name__} with n = {n}, m = {m}")
+            raise ValueError(
+                f"plant[{i}] must be a {type(first_plant).__name__} with n = {n}, m = {m}"
+            )
     for i, item in enumerate(controllers):
-        if item.step_kernel is not first_controller.step_kernel or type(item.model) is not type(first_controller.model):
-            raise ValueError(f"controller[{i}] must be of the same kind as controller[0] (with the same model type)")
+        if item.step_kernel is not first_controller.step_kernel or type(item.model) is not type(
+            first_controller.model
+        ):
+            raise ValueError(
+                f"controller[{i}] must be of the same kind as controller[0] "
+                "(with the same model type)"
+            )
         if (item.n, item.m) != (n, m):
-            raise ValueError(f"controller[{i}] has n = {item.n}, m = {item.m}; the plant has n = {n}, m = {m}")
+            raise ValueError(
+                f"controller[{i}] has n = {item.n}, m = {item.m}; the plant has n = {n}, m = {m}"
+            )
     if reference.n != n:
         raise ValueError(f"reference has n = {reference.n} coordinates; the plant has n = {n}")
 
@@ -153,9 +166,13 @@ def simulate(
     plants = _broadcast("plant", plants, batch)
     controllers = _broadcast("controller", controllers, batch)
     delays = _broadcast("delay", delays, batch)
-    states0 = np.ascontiguousarray(np.broadcast_to(states0, (batch, 2 * n)) if states0.shape[0] == 1 else states0)
+    states0 = np.ascontiguousarray(
+        np.broadcast_to(states0, (batch, 2 * n)) if states0.shape[0] == 1 else states0
+    )
     if states0.shape[0] != batch:
-        raise ValueError(f"x0 has {states0.shape[0]} rows but the batch has {batch}; give 1 or {batch}")
+        raise ValueError(
+            f"x0 has {states0.shape[0]} rows but the batch has {batch}; give 1 or {batch}"
+        )
     u_init = np.zeros(m) if u_init is None else finite_array("u_init", u_init, ndim=1)
     if u_init.shape != (m,):
         raise ValueError(f"u_init must have shape ({m},); got {u_init.shape}")
@@ -176,7 +193,9 @@ def simulate(
         plant_params=_stack_padded([p.params for p in plants]),
         model_params=_stack_padded([c.model.params for c in controllers]),
         controller_params=_stack_padded([c.params for c in controllers]),
-        controller_state=np.array([c.initial_state() for c in controllers]).reshape(batch, state_size),
+        controller_state=np.array([c.initial_state() for c in controllers]).reshape(
+            batch, state_size
+        ),
         delay_kind=np.array([d.kind for d in delays], dtype=np.int64),
         delay_params=_stack_padded([d.params for d in delays]),
         capacity=np.array([history_capacity(d.h_max, T_c) for d in delays], dtype=np.int64),
@@ -187,15 +206,31 @@ def simulate(
         runner(
             first_plant.kernel_handle if compiled else first_plant.terms_kernel,
             arrays["plant_params"][part],
-            first_controller.model.kernel_handle, arrays["model_params"][part],
-            reference.kernel_id if compiled else reference.kernel, reference.params,
+            first_controller.model.kernel_handle,
+            arrays["model_params"][part],
+            reference.kernel_id if compiled else reference.kernel,
+            reference.params,
             first_controller.kernel_id if compiled else first_controller.step_callable,
-            arrays["controller_params"][part], arrays["controller_state"][part],
-            arrays["delay_kind"][part], arrays["delay_params"][part],
-            states0[part], u_init, t0, dt, steps_per_tick, n_ticks, int(record_every),
-            arrays["capacity"][part], divergence_bound,
-            states[part], commands[part], applied[part], delay_records[part], controller_states[part],
-            status[part], t_stop[part],
+            arrays["controller_params"][part],
+            arrays["controller_state"][part],
+            arrays["delay_kind"][part],
+            arrays["delay_params"][part],
+            states0[part],
+            u_init,
+            t0,
+            dt,
+            steps_per_tick,
+            n_ticks,
+            int(record_every),
+            arrays["capacity"][part],
+            divergence_bound,
+            states[part],
+            commands[part],
+            applied[part],
+            delay_records[part],
+            controller_states[part],
+            status[part],
+            t_stop[part],
         )
 
     times = t0 + (np.arange(records) * record_every * steps_per_tick) * dt
@@ -212,8 +247,12 @@ def simulate(
         "record_every": int(record_every),
         "divergence_bound": divergence_bound,
         "compiled": compiled,
-        "plant": [p.to_spec() for p in plants] if len(set(map(id, plants))) > 1 else plants[0].to_spec(),
-        "controller": controllers[0].to_spec() if len(set(map(id, controllers))) == 1 else [c.to_spec() for c in controllers],
+        "plant": [p.to_spec() for p in plants]
+        if len(set(map(id, plants))) > 1
+        else plants[0].to_spec(),
+        "controller": controllers[0].to_spec()
+        if len(set(map(id, controllers))) == 1
+        else [c.to_spec() for c in controllers],
         "model": controllers[0].model.to_spec(),
         "delays": [d.to_spec() for d in delays],
         "reference": reference.to_spec(),

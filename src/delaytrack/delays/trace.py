@@ -3,21 +3,20 @@
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
 
 from delaytrack.delays import _kernel
-from delaytrack.delays.base import DelayProfile
-from delaytrack.delays.knots import checked_knots, pack_knots
+from delaytrack.delays.knots import KnotDelay
 
 __all__ = ["TraceDelay"]
 
 
 @dataclass(frozen=True, eq=False)
-class TraceDelay(DelayProfile):
+class TraceDelay(KnotDelay):
     """``h(t)`` linear between knots ``(times[i], values[i])``, held constant outside them.
 
     Parameters
@@ -30,17 +29,8 @@ class TraceDelay(DelayProfile):
         Where the trace came from (a CSV path), kept for the record.
     """
 
-    times: np.ndarray
-    values: np.ndarray
     source: str | None = None
-    _params: np.ndarray = field(init=False, repr=False)
     type_name: ClassVar[str] = "trace"
-
-    def __post_init__(self) -> None:
-        times, values = checked_knots(self.times, self.values)
-        object.__setattr__(self, "times", times)
-        object.__setattr__(self, "values", values)
-        object.__setattr__(self, "_params", pack_knots(times, values))
 
     @classmethod
     def from_csv(cls, path: str | Path) -> TraceDelay:
@@ -70,19 +60,7 @@ class TraceDelay(DelayProfile):
     def kind(self) -> int:
         return _kernel.PIECEWISE_LINEAR
 
-    @property
-    def params(self) -> np.ndarray:
-        return self._params
-
-    @property
-    def h_max(self) -> float:
-        return float(np.max(self.values))
-
     def to_spec(self) -> dict[str, Any]:
         if self.source is not None:
             return {"type": self.type_name, "path": self.source}
-        return {
-            "type": self.type_name,
-            "times": self.times.tolist(),
-            "values": self.values.tolist(),
-        }
+        return super().to_spec()

@@ -13,7 +13,10 @@ Decisions where the paper is silent (see docs/decisions.md):
   ``ĉ_{k+1} = ĉ_k + T_c ĉ'_k``, and Δu at tick k uses ĉ_k;
 * ṡ is not measured: the sign of ``sᵀṡ`` is that of ``s_kᵀ (s_k - s_{k-1})``; at the first tick
   (no previous s) it is taken as ``<= 0``;
-* ``ĉ(0) = γ`` unless ``c_hat0`` is given.
+* ``ĉ(0) = γ`` unless ``c_hat0`` is given;
+* a decreasing Euler step stops at γ: ``ĉ_{k+1} = max(ĉ_k - T_c ‖s_k‖, γ)``. In continuous time
+  ĉ cannot pass below γ (at ĉ = γ the law switches to ĉ' = γ > 0 and ĉ slides along γ); plain
+  forward Euler would overshoot, even below zero, which flips the sign of Δu.
 """
 
 from __future__ import annotations
@@ -75,7 +78,8 @@ def arolc_step(
     u += scale * s
     computed_torque_command(model_terms, model_params, q, qdot, u, command)
     rate = adaptive_gain_rate(c_hat, s, state[_S_PREVIOUS:], state[_HAS_PREVIOUS] != 0.0, gamma)
-    state[_C_HAT] = c_hat + T_c * rate
+    c_next = c_hat + T_c * rate
+    state[_C_HAT] = gamma if rate < 0.0 and c_next < gamma else c_next
     state[_HAS_PREVIOUS] = 1.0
     state[_S_PREVIOUS:] = s
 

@@ -21,7 +21,7 @@ class RandomDelay(DelayProfile):
 
     Knots are ``knot_spacing`` seconds apart over ``[0, duration]``; the first value is uniform in
     ``[h_low, h_high]``, each slope uniform in ``[-max_rate, max_rate]``, and the walk is reflected
-    at the bounds (which keeps the slope's magnitude). After ``duration`` the last value is held.
+    at the bounds (a reflected segment has a smaller slope, so ``|dh/dt| <= max_rate`` holds). After ``duration`` the last value is held.
     The same ``seed`` gives the same profile. ``max_rate > 1`` is allowed: the delay then shrinks
     faster than time passes, and older commands are re-applied, as the physics says.
     """

@@ -67,6 +67,8 @@ def as_square_matrix(name: str, value: object, n: int | None = None) -> np.ndarr
     scalar. With ``n`` given, the dimension must match.
     """
     array = finite_array(name, value)
+    if array.ndim == 1 and n is not None and array.size != n:
+        raise ValueError(f"{name} given as a diagonal must have {n} entries; got {array.size}")
     if array.ndim == 0:
         if n is None:
             raise ValueError(f"{name} is a scalar; its dimension n must be given to build {name}*I")

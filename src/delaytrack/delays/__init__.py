@@ -50,6 +50,15 @@ DELAY_TYPES: dict[str, tuple[type[DelayProfile], dict[str, str]]] = {
     ),
 }
 
+#: Keys each family needs (a trace needs 'times' and 'values', or 'path' alone).
+_REQUIRED: dict[str, tuple[str, ...]] = {
+    "constant": ("h",),
+    "abs-sine": ("offset", "amplitude", "frequency"),
+    "piecewise-constant": ("times", "values"),
+    "trace": ("times", "values"),
+    "random": ("h_low", "h_high", "max_rate", "duration", "seed"),
+}
+
 #: The paper's four delay scenarios.
 PAPER_SCENARIO_DELAYS = {
     "S1": AbsSineDelay.S1,
@@ -89,4 +98,9 @@ def delay_from_spec(spec: Mapping[str, Any]) -> DelayProfile:
                 "delay type 'trace' takes either 'path' or 'times' and 'values', not both"
             )
         return TraceDelay.from_csv(fields["path"])
+    missing = sorted(key for key in _REQUIRED[name] if key not in fields)
+    if missing:
+        raise ValueError(
+            f"delay type {name!r} needs key(s) {missing}; valid keys are {sorted(accepted)}"
+        )
     return cls(**{accepted[key]: value for key, value in fields.items()})

@@ -21,7 +21,8 @@ class RandomDelay(DelayProfile):
 
     Knots are ``knot_spacing`` seconds apart over ``[0, duration]``; the first value is uniform in
     ``[h_low, h_high]``, each slope uniform in ``[-max_rate, max_rate]``, and the walk is reflected
-    at the bounds (a reflected segment has a smaller slope, so ``|dh/dt| <= max_rate`` holds). After ``duration`` the last value is held.
+    at the bounds (a reflected segment has a smaller slope, so ``|dh/dt| <= max_rate`` holds).
+    After ``duration`` the last value is held.
     The same ``seed`` gives the same profile. ``max_rate > 1`` is allowed: the delay then shrinks
     faster than time passes, and older commands are re-applied, as the physics says.
     """
@@ -43,7 +44,11 @@ class RandomDelay(DelayProfile):
         rate = positive_scalar("max_rate", self.max_rate, strictly=False)
         duration = positive_scalar("duration", self.duration)
         spacing = positive_scalar("knot_spacing", self.knot_spacing)
-        if not isinstance(self.seed, int | np.integer) or self.seed < 0:
+        if (
+            isinstance(self.seed, bool)
+            or not isinstance(self.seed, int | np.integer)
+            or self.seed < 0
+        ):
             raise ValueError(f"seed must be a non-negative integer; got {self.seed!r}")
         for name, value in (("h_low", low), ("h_high", high), ("max_rate", rate)):
             object.__setattr__(self, name, value)

@@ -15,6 +15,14 @@ from delaytrack.delays.knots import KnotDelay
 __all__ = ["TraceDelay"]
 
 
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 @dataclass(frozen=True, eq=False)
 class TraceDelay(KnotDelay):
     """``h(t)`` linear between knots ``(times[i], values[i])``, held constant outside them.
@@ -34,13 +42,13 @@ class TraceDelay(KnotDelay):
 
     @classmethod
     def from_csv(cls, path: str | Path) -> TraceDelay:
-        """Read a CSV of two columns ``t, h`` in seconds; a header row ``t,h`` is optional."""
+        """Read a CSV of two columns ``t, h`` in seconds; a non-numeric header row is skipped."""
         path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(f"delay trace file {str(path)!r} does not exist")
         with path.open(newline="") as handle:
             rows = [row for row in csv.reader(handle) if row and any(cell.strip() for cell in row)]
-        if rows and rows[0][0].strip().lower() == "t":
+        if rows and not _is_number(rows[0][0]):
             rows = rows[1:]
         times, values = [], []
         for number, row in enumerate(rows, start=1):

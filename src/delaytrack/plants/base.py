@@ -118,6 +118,10 @@ class ELPlant(ABC):
                 f"x must have shape (batch, {2 * self.n}) and u (batch, {self.m}); "
                 f"got {x.shape} and {u.shape}"
             )
+        if u.shape[0] not in (1, x.shape[0]):
+            raise ValueError(
+                f"u must have batch 1 or {x.shape[0]} (the batch of x); got {u.shape[0]}"
+            )
         dx = np.empty_like(x)
         for b in range(x.shape[0]):
             el_rhs(self.terms_kernel, float(t), x[b], u[b % u.shape[0]], self.params, dx[b])

@@ -1,0 +1,328 @@
+"""The ``delaytrack`` command: thin wrappers that parse, call the library and print.
+
+Commands::
+
+    delaytrack bound --k1 1 --k2 1 --q 1 --beta 1 --r 1.1 [--n 5] [--json]
+    delaytrack simulate SCENARIO.toml [--out DIR] [--format parquet|csv|both]
+    delaytrack reproduce [--out results] [--duration SECONDS] [--no-dt-check]
+
+Bad input ends with exit code 2 and a one-line ``error: ...`` naming the argument, the value and
+what is valid; never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["main"]
+
+EXIT_USAGE = 2
+
+
+class UsageError(Exception):
+    """Bad command-line input; the message is shown as ``error: <message>``."""
+
+
+# --------------------------------------------------------------------------------------------
+# bound
+
+
+def _numbers(flag: str, text: str) -> np.ndarray:
+    """Parse ``"1"`` or ``"1,2.5,3"`` into a 1-D array of finite floats."""
+    parts = [part.strip() for part in text.split(",")]
+    try:
+        values = np.array([float(part) for part in parts])
+    except ValueError:
+        raise UsageError(
+            f"{flag} must be a number or a comma-separated list of numbers; got {text!r}"
+        ) from None
+    if not np.all(np.isfinite(values)):
+        raise UsageError(f"{flag} must be finite; got {text!r}")
+    return values
+
+
+def _scalar(flag: str, text: str) -> float:
+    values = _numbers(flag, text)
+    if values.size != 1:
+        raise UsageError(f"{flag} must be a single number; got {text!r}")
+    return float(values[0])
+
+
+def _dimension(args: argparse.Namespace, k1: np.ndarray, k2: np.ndarray, q: np.ndarray) -> int:
+    """n from --n, else from the length of a comma list, else 1; check every list fits it."""
+    if args.n is not None:
+        if args.n < 1:
+            raise UsageError(f"--n must be a positive integer (the number of joints); got {args.n}")
+        n = args.n
+    else:
+        candidates = {len(v) for v in (k1, k2) if len(v) > 1}
+        if len(q) > 1:
+            if len(q) % 2:
+                raise UsageError(
+                    f"--q has {len(q)} entries; as a diagonal it needs 2n entries (an even count)"
+                )
+            candidates.add(len(q) // 2)
+        if len(candidates) > 1:
+            raise UsageError(
+                f"the comma lists disagree on n: --k1 has {len(k1)}, --k2 {len(k2)} and --q "
+                f"{len(q)} entries (k1, k2 need n, q needs 2n); give matching lists or --n"
+            )
+        n = candidates.pop() if candidates else 1
+    for flag, values, size in (("--k1", k1, n), ("--k2", k2, n), ("--q", q, 2 * n)):
+        if len(values) not in (1, size):
+            raise UsageError(
+                f"{flag} has {len(values)} entries; with n = {n} it needs 1 (a multiple of I) or "
+                f"{size} (a diagonal)"
+            )
+    return n
+
+
+def _diagonal(values: np.ndarray, size: int) -> np.ndarray:
+    return np.diag(np.broadcast_to(values, (size,)).astype(float))
+
+
+_LIBRARY_NAMES = {"K1": "--k1", "K2": "--k2", "Q": "--q", "beta": "--beta", "r": "--r"}
+
+
+def _bound(args: argparse.Namespace) -> int:
+    from delaytrack.analysis import razumikhin_bound
+
+    raw = {"--k1": args.k1, "--k2": args.k2, "--q": args.q, "--beta": args.beta, "--r": args.r}
+    k1, k2, q = _numbers("--k1", args.k1), _numbers("--k2", args.k2), _numbers("--q", args.q)
+    beta, r = _scalar("--beta", args.beta), _scalar("--r", args.r)
+    if beta <= 0.0:
+        raise UsageError(
+            f"--beta must be > 0 (the weight of the paper's inequality); got {args.beta}"
+        )
+    if r <= 1.0:
+        raise UsageError(
+            f"--r must be > 1 (the Razumikhin factor in V(e(xi)) < r V(e(t))); got {args.r}"
+        )
+    n = _dimension(args, k1, k2, q)
+    try:
+        bound = razumikhin_bound(
+            _diagonal(k1, n), _diagonal(k2, n), _diagonal(q, 2 * n), beta, r, n=n
+        )
+    except (ValueError, TypeError) as error:
+        message = str(error)
+        for name, flag in _LIBRARY_NAMES.items():
+            if message.startswith(f"{name} "):
+                message = f"{flag} {message[len(name) + 1 :]} (got {flag} {raw[flag]})"
+                break
+        raise UsageError(message) from None
+    if args.json:
+        data = bound.to_dict()
+        data["h_m_ms"] = 1e3 * bound.h_m
+        print(json.dumps(data))
+        return 0
+
+    def shown(values: np.ndarray) -> str:
+        if len(values) == 1:
+            return f"{values[0]:g} I"
+        return "diag(" + ", ".join(f"{v:g}" for v in values) + ")"
+
+    print("Razumikhin delay bound (Roy & Kar, Theorem 1)")
+    print(
+        f"  n = {n}, K1 = {shown(k1)}, K2 = {shown(k2)}, Q = {shown(q)}, beta = {beta:g}, r = {r:g}"
+    )
+    print(f"  lambda_min(Q) = {bound.lambda_min_Q:.6g}")
+    print(f"  ||E||_2       = {bound.E_norm:.6g}")
+    print(f"  h_m           = {bound.h_m:.6g} s ({1e3 * bound.h_m:.4g} ms)")
+    print(
+        "AROLC is certified for every input delay 0 <= h(t) < h_m "
+        "(Q - h E stays positive definite)."
+    )
+    return 0
+
+
+# --------------------------------------------------------------------------------------------
+# simulate
+
+
+def _scenario_source(text: str) -> Path:
+    """A scenario file path, or the name of a shipped scenario (``two_link_S1``)."""
+    from delaytrack.experiments import builtin_scenario_names, builtin_scenario_path
+
+    path = Path(text)
+    if path.exists() or path.suffix == ".toml":
+        return path
+    if text in builtin_scenario_names():
+        return builtin_scenario_path(text)
+    raise UsageError(
+        f"scenario file {text!r} does not exist (nor is it a built-in scenario; those are "
+        f"{builtin_scenario_names()})"
+    )
+
+
+def _simulate(args: argparse.Namespace) -> int:
+    from delaytrack.experiments import Scenario, run_to_folder
+
+    scenario = Scenario.from_toml(_scenario_source(args.scenario))
+    folder = Path(args.out) if args.out is not None else Path("results") / scenario.name
+    formats = ("parquet", "csv") if args.format == "both" else (args.format,)
+    start = time.perf_counter()
+    output = run_to_folder(scenario, folder, formats=formats, progress=args.progress)
+    seconds = time.perf_counter() - start
+    status = ", ".join(output.result.status_names)
+    print(
+        f"simulated {scenario.name!r}: {scenario.duration:g} s in {seconds:.1f} s wall time, "
+        f"status {status}"
+    )
+    print(f"wrote {len(output.files)} files to {folder}/:")
+    for path in output.files:
+        print(f"  {path.relative_to(folder)}")
+    return 0
+
+
+# --------------------------------------------------------------------------------------------
+# reproduce
+
+
+def _reproduce(args: argparse.Namespace) -> int:
+    from delaytrack.experiments.two_link import FOLDER, reproduce
+
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
+        raise UsageError(f"--duration must be a positive number of seconds; got {args.duration:g}")
+    start = time.perf_counter()
+    study, files = reproduce(
+        args.out, duration=args.duration, check_dt=not args.no_dt_check, progress=not args.quiet
+    )
+    seconds = time.perf_counter() - start
+    folder = Path(args.out) / FOLDER
+    print(f"two-link job done in {seconds:.1f} s wall time; wrote {len(files)} files to {folder}/")
+    columns = ["scenario", "controller", "ae_q1", "ae_q2", "tv", "status"]
+    print(study.summary[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    if study.dt_check is not None:
+        print(f"largest relative change of a metric when dt is halved: {study.dt_max_change:.2e}")
+    print(f"report: {folder / 'report.html'}")
+    return 0
+
+
+# --------------------------------------------------------------------------------------------
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors (``error: ...``) and exit code 2, without the usage dump."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(EXIT_USAGE, f"error: {message} (see {self.prog} --help)\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``delaytrack`` command."""
+    parser = _Parser(
+        prog="delaytrack",
+        description="AROLC for Euler-Lagrange systems with unknown input delay: certified delay "
+        "bound, simulation, and the main job.",
+    )
+    from delaytrack import __version__
+
+    parser.add_argument("--version", action="version", version=f"delaytrack {__version__}")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    commands.required = True
+
+    bound = commands.add_parser(
+        "bound",
+        help="the certified maximum input delay h_m of Theorem 1",
+        description="Theorem 1's certified delay bound h_m = lambda_min(Q) / ||E||_2. A single "
+        "number means a multiple of the identity, a comma list a diagonal (k1, k2 of length n, "
+        "q of length 2n). Example: delaytrack bound --k1 1 --k2 1 --q 1 --beta 1 --r 1.1",
+    )
+    bound.add_argument(
+        "--k1",
+        required=True,
+        metavar="K1",
+        help="proportional gain K1 (n); write --k1=-1,2 for a list starting with a minus",
+    )
+    bound.add_argument("--k2", required=True, metavar="K2", help="derivative gain K2 (n)")
+    bound.add_argument("--q", required=True, metavar="Q", help="Lyapunov weight Q (2n)")
+    bound.add_argument("--beta", default="1", metavar="BETA", help="beta > 0 (default 1)")
+    bound.add_argument(
+        "--r", default="1.1", metavar="R", help="Razumikhin factor r > 1 (default 1.1)"
+    )
+    bound.add_argument(
+        "--n",
+        type=int,
+        default=None,
+        help="number of joints (default: length of a comma list, else 1)",
+    )
+    bound.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    bound.set_defaults(handler=_bound)
+
+    simulate = commands.add_parser(
+        "simulate",
+        help="run one scenario file and write a results folder",
+        description="Run a scenario TOML file (or the name of a shipped scenario such as "
+        "two_link_S1) and write scenario.toml (as run), trajectories, metrics.csv and figures.",
+    )
+    simulate.add_argument(
+        "scenario", metavar="SCENARIO", help="scenario .toml file or built-in name"
+    )
+    simulate.add_argument(
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="results folder (default results/<scenario name>)",
+    )
+    simulate.add_argument(
+        "--format",
+        choices=("parquet", "csv", "both"),
+        default="parquet",
+        help="trajectory file format (default parquet)",
+    )
+    simulate.add_argument(
+        "--progress", action="store_true", help="show the simulator's progress bar"
+    )
+    simulate.set_defaults(handler=_simulate)
+
+    reproduce = commands.add_parser(
+        "reproduce",
+        help="the main job: AROLC vs the outer loop on the two-link arm (S1, S3)",
+        description="Run the main job and write <out>/two-link/: summary.csv, dt_check.csv, "
+        "trajectories, figures and a self-contained report.html.",
+    )
+    reproduce.add_argument(
+        "--out", default="results", metavar="DIR", help="output root (default results)"
+    )
+    reproduce.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="override the 30 s duration (a multiple of T_c = 2 ms; for quick checks)",
+    )
+    reproduce.add_argument("--no-dt-check", action="store_true", help="skip the dt/2 rerun")
+    reproduce.add_argument("--quiet", action="store_true", help="no progress bar")
+    reproduce.set_defaults(handler=_reproduce)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``delaytrack`` command; return its exit code."""
+    from delaytrack.experiments import ScenarioError
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.handler(args)
+    except (UsageError, ScenarioError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return EXIT_USAGE
+    except OSError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,808 @@
+"""Scenarios: one closed-loop experiment as a frozen, serialisable spec (a TOML file).
+
+A scenario file names the true plant, the nominal model the controller believes in, the
+controller and its gains, the delay profile, the reference, and the numerical settings::
+
+    name = "two_link_S1"        # folder name of the results: letters, digits, '.', '_', '-'
+    duration = 30.0             # simulated seconds, from t = 0
+    dt = 0.001                  # plant RK4 step (s)
+    T_c = 0.002                 # controller period (s), an integer multiple of dt
+    seed = 1                    # optional; see below
+    x0 = [0.0, 0.0, 0.0, 0.0]   # optional [q, qdot] at t = 0; zeros by default
+    record_every = 1            # optional; record every k-th controller tick
+
+    [plant]                     # the truth: type and parameters
+    type = "two-link-arm"
+    [model]                     # the nominal plant M̂, N̂ used by the controller
+    type = "two-link-arm"
+    fd1 = 0.0
+    [controller]
+    type = "arolc"
+    K1 = 1.0                    # a number means K1 * I, a list a diagonal, a list of lists a matrix
+    ...
+    [delay]
+    type = "S1"                 # or "constant", "abs-sine", "piecewise-constant", "trace", "random"
+    [reference]                 # q_d(t) = offset + slope t + Σ amplitude sin(frequency t + phase)
+    offset = [0.0, 0.0]
+    amplitude = [0.8, 0.5]
+    frequency = [0.5, 0.7]
+
+Every key is checked: an unknown key anywhere, a missing required key or a value of the wrong type
+raises :class:`ScenarioError` naming the key in dotted form (``controller.alpha``) and what is
+valid. The valid keys of ``[plant]``, ``[model]``, ``[controller]`` and ``[delay]`` depend on their
+``type``; they are listed in the error message.
+
+**Seed.** ``seed`` is the scenario's random seed. Every random element without a seed of its own
+takes it: today that is a ``[delay]`` of type ``"random"`` without ``seed``. Such a delay also
+takes the scenario's ``duration`` when it has none. A random delay with neither its own seed nor a
+scenario seed is refused (results must be reproducible). :meth:`Scenario.resolved` returns the
+scenario with these defaults written in, which is what ``delaytrack simulate`` saves as
+"the scenario as run".
+
+**Paths.** A ``[delay]`` of type ``"trace"`` may give ``path`` to a CSV file; in a file loaded by
+:meth:`Scenario.from_toml` a relative path is taken relative to the scenario file and stored
+absolute.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import json
+import math
+import re
+import tomllib
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+from delaytrack._io import write_frame, write_text
+from delaytrack.controllers import CONTROLLERS, Controller, controller_from_spec
+from delaytrack.delays import DELAY_TYPES, PAPER_SCENARIO_DELAYS, DelayProfile, delay_from_spec
+from delaytrack.plants import PLANT_TYPES, ELPlant, plant_from_spec
+from delaytrack.reference import SinusoidalReference
+from delaytrack.sim import SimResult, simulate
+
+__all__ = [
+    "BuiltScenario",
+    "RunOutput",
+    "Scenario",
+    "ScenarioError",
+    "builtin_scenario_names",
+    "builtin_scenario_path",
+    "load_builtin",
+    "run_batched",
+    "run_to_folder",
+    "dumps_toml",
+]
+
+
+class ScenarioError(ValueError):
+    """A scenario file or dict is not valid; the message names the key and what is valid."""
+
+
+# --------------------------------------------------------------------------------------------
+# Value kinds. Each checker returns an error phrase ("must be ...") or None when the value fits.
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _is_vector(value: object) -> bool:
+    return isinstance(value, list) and all(_is_number(item) for item in value)
+
+
+def _is_matrix(value: object) -> bool:
+    if not isinstance(value, list) or not value or not all(_is_vector(row) for row in value):
+        return False
+    return len({len(row) for row in value}) == 1
+
+
+def _number(value: object) -> str | None:
+    if not _is_number(value):
+        return "must be a number"
+    if not math.isfinite(value):
+        return "must be a finite number"
+    return None
+
+
+def _integer(value: object) -> str | None:
+    return None if isinstance(value, int) and not isinstance(value, bool) else "must be an integer"
+
+
+def _string(value: object) -> str | None:
+    return None if isinstance(value, str) else "must be a string"
+
+
+def _vector(value: object) -> str | None:
+    return None if _is_vector(value) else "must be a list of numbers"
+
+
+def _gain(value: object) -> str | None:
+    if _is_number(value) or _is_vector(value) or _is_matrix(value):
+        return None
+    return (
+        "must be a number (a multiple of I), a list of numbers (a diagonal) or a list of "
+        "equally long lists of numbers (a matrix)"
+    )
+
+
+def _array(value: object) -> str | None:
+    if _is_vector(value) or _is_matrix(value):
+        return None
+    return "must be a list of numbers or a list of equally long lists of numbers"
+
+
+_Check = Callable[[object], "str | None"]
+
+#: Keys and value kinds of each table, by ``type``. ``type`` itself is implied.
+_PLANT_KEYS: dict[str, dict[str, _Check]] = {
+    "two-link-arm": {"p1": _number, "p2": _number, "p3": _number, "fd1": _number, "fd2": _number},
+    "linear": {"mass": _gain, "damping": _gain, "stiffness": _gain, "input_map": _array},
+}
+_CONTROLLER_KEYS: dict[str, dict[str, _Check]] = {
+    "arolc": {
+        "K1": _gain,
+        "K2": _gain,
+        "Q": _gain,
+        "alpha": _number,
+        "epsilon": _number,
+        "gamma": _number,
+        "c_hat0": _number,
+    },
+    "outer-loop": {"K1": _gain, "K2": _gain},
+}
+_DELAY_KEYS: dict[str, dict[str, _Check]] = {
+    "constant": {"h": _number},
+    "abs-sine": {"offset": _number, "amplitude": _number, "frequency": _number, "phase": _number},
+    "piecewise-constant": {"times": _vector, "values": _vector},
+    "trace": {"times": _vector, "values": _vector, "path": _string},
+    "random": {
+        "h_low": _number,
+        "h_high": _number,
+        "max_rate": _number,
+        "duration": _number,
+        "seed": _integer,
+        "knot_spacing": _number,
+    },
+    **{name: {} for name in PAPER_SCENARIO_DELAYS},
+}
+#: Keys a table of a given type must have (the others have defaults). A random delay's seed and
+#: duration default to the scenario's; a trace needs ``path`` or both ``times`` and ``values``.
+_REQUIRED_KEYS: dict[str, dict[str, tuple[str, ...]]] = {
+    "plant": {"linear": ("mass",)},
+    "model": {"linear": ("mass",)},
+    "controller": {
+        "arolc": ("K1", "K2", "Q", "alpha", "epsilon", "gamma"),
+        "outer-loop": ("K1", "K2"),
+    },
+    "delay": {
+        "constant": ("h",),
+        "abs-sine": ("offset", "amplitude", "frequency"),
+        "piecewise-constant": ("times", "values"),
+        "random": ("h_low", "h_high", "max_rate"),
+    },
+}
+_REFERENCE_KEYS: dict[str, _Check] = {
+    "type": _string,
+    "offset": _vector,
+    "slope": _vector,
+    "amplitude": _array,
+    "frequency": _array,
+    "phase": _array,
+}
+_REFERENCE_TYPES = ("sinusoidal",)
+
+_TOP_LEVEL_SCALARS: dict[str, _Check] = {
+    "name": _string,
+    "duration": _number,
+    "dt": _number,
+    "T_c": _number,
+    "seed": _integer,
+    "x0": _vector,
+    "record_every": _integer,
+}
+_TABLES = ("plant", "model", "controller", "delay", "reference")
+_REQUIRED = ("name", "duration", "dt", "T_c", *_TABLES)
+_TOP_LEVEL_KEYS = (*_TOP_LEVEL_SCALARS, *_TABLES)
+_TABLE_PURPOSE = {
+    "plant": "the true plant",
+    "model": "the nominal plant the controller uses; copy [plant] for a perfect model",
+    "controller": "the controller and its gains",
+    "delay": "the input delay profile",
+    "reference": "the desired trajectory q_d(t)",
+}
+_NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
+_RATIO_TOLERANCE = 1e-9
+
+
+def _fail(key: str, phrase: str, value: object) -> ScenarioError:
+    return ScenarioError(f"scenario key {key!r} {phrase}; got {value!r}")
+
+
+def _check_value(key: str, value: object, check: _Check) -> None:
+    phrase = check(value)
+    if phrase is not None:
+        raise _fail(key, phrase, value)
+
+
+def _check_table(table: str, value: object, schemas: Mapping[str, Mapping[str, _Check]]) -> None:
+    """Check a typed table: a ``type`` from ``schemas`` and only the keys of that type."""
+    if not isinstance(value, Mapping):
+        raise _fail(table, f"must be a table ([{table}]: {_TABLE_PURPOSE[table]})", value)
+    valid_types = sorted(schemas)
+    if "type" not in value:
+        raise ScenarioError(
+            f"scenario key '{table}.type' is missing; [{table}] needs a type, one of {valid_types}"
+        )
+    kind = value["type"]
+    if not isinstance(kind, str) or kind not in schemas:
+        raise ScenarioError(
+            f"scenario key '{table}.type' must be one of {valid_types}; got {kind!r}"
+        )
+    keys = schemas[kind]
+    for key, item in value.items():
+        if key == "type":
+            continue
+        if key not in keys:
+            raise ScenarioError(
+                f"unknown key '{table}.{key}' in scenario; valid keys in [{table}] with "
+                f"type = {kind!r} are {['type', *sorted(keys)]}"
+            )
+        _check_value(f"{table}.{key}", item, keys[key])
+    required = _REQUIRED_KEYS.get(table, {}).get(kind, ())
+    if kind == "trace" and "path" not in value:
+        required = ("times", "values")
+    for key in required:
+        if key not in value:
+            raise ScenarioError(
+                f"scenario key '{table}.{key}' is missing; [{table}] with type = {kind!r} needs "
+                f"{list(required)}"
+            )
+    if kind == "trace" and "path" in value and ("times" in value or "values" in value):
+        raise ScenarioError(
+            f"scenario table [{table}] with type = 'trace' takes either 'path' or 'times' and "
+            "'values', not both"
+        )
+
+
+def _plant_schemas() -> dict[str, dict[str, _Check]]:
+    # The registry is the authority on which types exist; a registered type without a schema
+    # here is passed to plant_from_spec unchecked (its errors are still prefixed with the table).
+    return {name: _PLANT_KEYS.get(name, _ANY) for name in PLANT_TYPES}
+
+
+def _controller_schemas() -> dict[str, dict[str, _Check]]:
+    return {name: _CONTROLLER_KEYS.get(name, _ANY) for name in CONTROLLERS}
+
+
+def _delay_schemas() -> dict[str, dict[str, _Check]]:
+    names = [*DELAY_TYPES, *PAPER_SCENARIO_DELAYS]
+    return {name: _DELAY_KEYS.get(name, _ANY) for name in names}
+
+
+class _AnyKeys(dict):
+    """Schema of a registered type this module does not know: every key, any value."""
+
+    def __contains__(self, key: object) -> bool:
+        return True
+
+    def __getitem__(self, key: str) -> _Check:
+        return lambda value: None
+
+
+_ANY: dict[str, _Check] = _AnyKeys()
+
+
+def _plain(value: Any) -> Any:
+    """Deep copy of TOML-like data as plain dicts and lists (tuples become lists)."""
+    if isinstance(value, Mapping):
+        return {str(key): _plain(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(item) for item in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return copy.deepcopy(value)
+
+
+# --------------------------------------------------------------------------------------------
+# TOML output. The standard library reads TOML but does not write it; scenarios only hold
+# strings, integers, floats, booleans, (nested) lists of those and one level of tables, which
+# this small writer covers with one-line arrays (readable matrices).
+
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+
+
+def _toml_key(key: str) -> str:
+    return key if _BARE_KEY.fullmatch(key) else json.dumps(key)
+
+
+def _toml_value(value: Any, key: str) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        text = repr(value)
+        return text if any(c in text for c in ".en") else f"{text}.0"
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(item, key) for item in value) + "]"
+    raise ScenarioError(f"scenario key {key!r} cannot be written to TOML; got {value!r}")
+
+
+def dumps_toml(data: Mapping[str, Any]) -> str:
+    """Render scenario data (scalars, lists, one level of tables) as TOML text."""
+    lines = [
+        f"{_toml_key(key)} = {_toml_value(value, key)}"
+        for key, value in data.items()
+        if not isinstance(value, Mapping)
+    ]
+    for table, content in data.items():
+        if not isinstance(content, Mapping):
+            continue
+        lines += ["", f"[{_toml_key(table)}]"]
+        for key, value in content.items():
+            if isinstance(value, Mapping):
+                raise ScenarioError(f"scenario key '{table}.{key}' cannot be a nested table")
+            lines.append(f"{_toml_key(key)} = {_toml_value(value, f'{table}.{key}')}")
+    return "\n".join(lines) + "\n"
+
+
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class BuiltScenario:
+    """The objects a scenario describes, ready for :func:`delaytrack.sim.simulate`."""
+
+    plant: ELPlant
+    model: ELPlant
+    controller: Controller
+    delay: DelayProfile
+    reference: SinusoidalReference
+    x0: np.ndarray
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One closed-loop experiment: plant, nominal model, controller, delay, reference, settings.
+
+    Construct with :meth:`from_toml` or :meth:`from_dict` (or directly with the same fields);
+    every field is validated on construction (see the module docstring for the file format).
+
+    Attributes
+    ----------
+    name : str
+        Identifier, also the default results folder name.
+    plant, model, controller, delay, reference : Mapping
+        The ``[plant]`` (truth), ``[model]`` (nominal plant), ``[controller]``, ``[delay]`` and
+        ``[reference]`` tables, read-only.
+    duration, dt, T_c : float
+        Simulated time from ``t = 0``, plant step and controller period, in seconds. ``T_c`` must
+        be an integer multiple of ``dt`` and ``duration`` of ``T_c``.
+    seed : int or None
+        Default seed of random elements (a random delay without its own seed).
+    x0 : tuple of float or None
+        Initial state ``[q, q̇]`` (2n); zeros when None.
+    record_every : int
+        Record every ``record_every``-th controller tick.
+    """
+
+    name: str
+    plant: Mapping[str, Any]
+    model: Mapping[str, Any]
+    controller: Mapping[str, Any]
+    delay: Mapping[str, Any]
+    reference: Mapping[str, Any]
+    duration: float
+    dt: float
+    T_c: float
+    seed: int | None = None
+    x0: tuple[float, ...] | None = None
+    record_every: int = 1
+
+    def __post_init__(self) -> None:
+        _check_value("name", self.name, _string)
+        if not _NAME_PATTERN.fullmatch(self.name):
+            raise _fail(
+                "name",
+                "must start with a letter or digit and contain only letters, digits, '.', '_' "
+                "and '-' (it names the results folder)",
+                self.name,
+            )
+        for key in ("duration", "dt", "T_c"):
+            value = getattr(self, key)
+            _check_value(key, value, _number)
+            if value <= 0:
+                raise _fail(key, "must be > 0 (seconds)", value)
+            object.__setattr__(self, key, float(value))
+        _check_ratio("T_c", self.T_c, "dt", self.dt)
+        _check_ratio("duration", self.duration, "T_c", self.T_c)
+        if self.seed is not None:
+            _check_value("seed", self.seed, _integer)
+            if self.seed < 0:
+                raise _fail("seed", "must be >= 0", self.seed)
+        if self.x0 is not None:
+            x0 = _plain(self.x0)
+            _check_value("x0", x0, _vector)
+            _check_value(
+                "x0", x0, lambda v: None if all(map(math.isfinite, v)) else "must be finite"
+            )
+            object.__setattr__(self, "x0", tuple(float(v) for v in x0))
+        _check_value("record_every", self.record_every, _integer)
+        if self.record_every < 1:
+            raise _fail("record_every", "must be >= 1", self.record_every)
+        tables = {table: _plain(getattr(self, table)) for table in _TABLES}
+        _check_table("plant", tables["plant"], _plant_schemas())
+        _check_table("model", tables["model"], _plant_schemas())
+        _check_table("controller", tables["controller"], _controller_schemas())
+        _check_table("delay", tables["delay"], _delay_schemas())
+        _check_reference(tables["reference"])
+        for table, content in tables.items():
+            object.__setattr__(self, table, MappingProxyType(content))
+
+    # ---- reading and writing -----------------------------------------------------------------
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Scenario:
+        """Build from a dict with the layout of a scenario file (see the module docstring).
+
+        Raises
+        ------
+        ScenarioError
+            For an unknown, missing or ill-typed key; the message names it.
+        """
+        if not isinstance(data, Mapping):
+            raise ScenarioError(f"a scenario must be a table of keys; got {type(data).__name__}")
+        for key in data:
+            if key not in _TOP_LEVEL_KEYS:
+                raise ScenarioError(
+                    f"unknown key {key!r} in scenario; valid keys are {sorted(_TOP_LEVEL_KEYS)}"
+                )
+        for key in _REQUIRED:
+            if key not in data:
+                what = (
+                    f"table [{key}] ({_TABLE_PURPOSE[key]})" if key in _TABLES else f"key {key!r}"
+                )
+                raise ScenarioError(f"scenario is missing the required {what}")
+        return cls(**{key: _plain(value) for key, value in data.items()})
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> Scenario:
+        """Read a scenario file. Relative trace paths are resolved against its folder.
+
+        Raises
+        ------
+        ScenarioError
+            If the file is missing, is not TOML, or is not a valid scenario; the message starts
+            with the file name.
+        """
+        source = Path(path)
+        try:
+            text = source.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise ScenarioError(f"scenario file {str(source)!r} does not exist") from None
+        except (OSError, UnicodeDecodeError) as error:
+            raise ScenarioError(f"cannot read scenario file {str(source)!r}: {error}") from None
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as error:
+            raise ScenarioError(f"{source}: not valid TOML: {error}") from None
+        delay = data.get("delay")
+        if isinstance(delay, dict) and isinstance(delay.get("path"), str):
+            trace = Path(delay["path"]).expanduser()
+            delay["path"] = str(trace if trace.is_absolute() else (source.parent / trace).resolve())
+        try:
+            return cls.from_dict(data)
+        except ScenarioError as error:
+            raise ScenarioError(f"{source}: {error}") from None
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data in the file layout (a deep copy); ``None`` fields are left out."""
+        data: dict[str, Any] = {
+            "name": self.name,
+            "duration": self.duration,
+            "dt": self.dt,
+            "T_c": self.T_c,
+        }
+        if self.seed is not None:
+            data["seed"] = self.seed
+        if self.x0 is not None:
+            data["x0"] = list(self.x0)
+        data["record_every"] = self.record_every
+        for table in _TABLES:
+            data[table] = _plain(getattr(self, table))
+        return data
+
+    def to_toml(self, path: str | Path | None = None) -> str:
+        """The scenario as TOML text; also written (atomically) to ``path`` when given."""
+        text = dumps_toml(self.to_dict())
+        if path is not None:
+            write_text(path, text)
+        return text
+
+    def replace(self, **changes: Any) -> Scenario:
+        """A copy with some fields changed (validated again), e.g. ``replace(dt=5e-4)``."""
+        return dataclasses.replace(self, **changes)
+
+    # ---- building and running ----------------------------------------------------------------
+
+    def _delay_spec(self) -> dict[str, Any]:
+        spec = _plain(self.delay)
+        if spec["type"] == "random":
+            if "seed" not in spec:
+                if self.seed is None:
+                    raise ScenarioError(
+                        "scenario key 'delay.seed' is missing and the scenario has no 'seed'; a "
+                        "random delay needs one of them (results must be reproducible)"
+                    )
+                spec["seed"] = self.seed
+            spec.setdefault("duration", self.duration)
+        return spec
+
+    def build(self) -> BuiltScenario:
+        """Construct plant, model, controller, delay, reference and ``x0``.
+
+        Raises
+        ------
+        ScenarioError
+            If a table's values are refused by its constructor (for example a gain that is not
+            positive definite) or the dimensions disagree; the message names the table.
+        """
+        plant = _construct("plant", lambda: plant_from_spec(self.plant), self.plant)
+        model = _construct("model", lambda: plant_from_spec(self.model), self.model)
+        if (model.n, model.m) != (plant.n, plant.m):
+            raise ScenarioError(
+                f"scenario table [model] has n = {model.n}, m = {model.m}; [plant] has "
+                f"n = {plant.n}, m = {plant.m} (they must describe the same kind of system)"
+            )
+        controller = _construct(
+            "controller", lambda: controller_from_spec(self.controller, model), self.controller
+        )
+        delay = _construct("delay", lambda: delay_from_spec(self._delay_spec()), self.delay)
+        reference_spec = {k: v for k, v in _plain(self.reference).items() if k != "type"}
+        reference = _construct(
+            "reference", lambda: SinusoidalReference.from_spec(reference_spec), reference_spec
+        )
+        if reference.n != plant.n:
+            raise ScenarioError(
+                f"scenario key 'reference.offset' has {reference.n} entries; the plant has "
+                f"n = {plant.n} coordinates"
+            )
+        if self.x0 is None:
+            x0 = np.zeros(2 * plant.n)
+        else:
+            x0 = np.array(self.x0)
+            if x0.shape != (2 * plant.n,):
+                raise _fail("x0", f"must have 2n = {2 * plant.n} entries [q, qdot]", list(self.x0))
+        return BuiltScenario(plant, model, controller, delay, reference, x0)
+
+    def resolved(self) -> Scenario:
+        """The scenario with its defaults written in: ``x0``, and a random delay's seed/duration.
+
+        Running the resolved scenario gives the same result; it is what gets saved as the
+        scenario "as run".
+        """
+        built = self.build()
+        return self.replace(x0=tuple(built.x0.tolist()), delay=self._delay_spec())
+
+    def run(self, *, progress: bool = False) -> SimResult:
+        """Simulate the scenario (batch of one); see :func:`delaytrack.sim.simulate`."""
+        built = self.build()
+        return _simulate(self, built.plant, built.controller, built.delay, built, progress)
+
+
+def _construct(table: str, make: Callable[[], Any], keys: Iterable[str] = ()) -> Any:
+    """Call a constructor; re-raise its refusal naming the table (and the key when it names one).
+
+    The library's messages start with the offending argument's name (``"K1 must be symmetric
+    positive definite; ..."``); when that name is a key of the table the message becomes
+    ``"scenario key 'controller.K1' must be ..."``.
+    """
+    try:
+        return make()
+    except ScenarioError:
+        raise
+    except (ValueError, TypeError, FileNotFoundError) as error:
+        message = str(error)
+        for key in keys:
+            if message.startswith(f"{key} "):
+                raise ScenarioError(
+                    f"scenario key '{table}.{key}' {message[len(key) + 1 :]}"
+                ) from None
+        raise ScenarioError(f"scenario table [{table}]: {message}") from None
+
+
+def _check_ratio(name: str, value: float, unit_name: str, unit: float) -> None:
+    ratio = value / unit
+    if round(ratio) < 1 or abs(ratio - round(ratio)) > _RATIO_TOLERANCE * max(1.0, ratio):
+        raise ScenarioError(
+            f"scenario key {name!r} must be a positive integer multiple of {unit_name!r}; got "
+            f"{name} = {value:g}, {unit_name} = {unit:g} ({name}/{unit_name} = {ratio:.12g})"
+        )
+
+
+def _check_reference(value: object) -> None:
+    if not isinstance(value, Mapping):
+        raise _fail(
+            "reference", f"must be a table ([reference]: {_TABLE_PURPOSE['reference']})", value
+        )
+    for key, item in value.items():
+        if key not in _REFERENCE_KEYS:
+            raise ScenarioError(
+                f"unknown key 'reference.{key}' in scenario; valid keys in [reference] are "
+                f"{sorted(_REFERENCE_KEYS)}"
+            )
+        _check_value(f"reference.{key}", item, _REFERENCE_KEYS[key])
+    if value.get("type", "sinusoidal") not in _REFERENCE_TYPES:
+        raise _fail("reference.type", f"must be one of {list(_REFERENCE_TYPES)}", value["type"])
+    if "offset" not in value:
+        raise ScenarioError(
+            "scenario key 'reference.offset' is missing; [reference] needs 'offset' "
+            "(one value per coordinate)"
+        )
+
+
+def _simulate(
+    scenario: Scenario,
+    plant: ELPlant,
+    controller: Controller,
+    delay: DelayProfile | list[DelayProfile],
+    built: BuiltScenario,
+    progress: bool,
+) -> SimResult:
+    try:
+        return simulate(
+            plant,
+            controller,
+            delay,
+            built.x0,
+            reference=built.reference,
+            t1=scenario.duration,
+            dt=scenario.dt,
+            T_c=scenario.T_c,
+            record_every=scenario.record_every,
+            progress=progress,
+        )
+    except ValueError as error:
+        # simulate()'s refusals of its input; anything else is a bug and keeps its traceback.
+        raise ScenarioError(f"scenario {scenario.name!r}: {error}") from None
+
+
+def run_batched(scenarios: Sequence[Scenario], *, progress: bool = False) -> SimResult:
+    """Run scenarios that differ only in name, delay and seed as one batched simulation.
+
+    Batch element ``i`` is ``scenarios[i]``; the result equals running each scenario alone.
+
+    Raises
+    ------
+    ScenarioError
+        If the list is empty or the scenarios differ in anything else than name, delay and seed.
+    """
+    if not scenarios:
+        raise ScenarioError("run_batched needs at least one scenario")
+    first = scenarios[0]
+    shared = _shared_part(first)
+    for other in scenarios[1:]:
+        if _shared_part(other) != shared:
+            different = sorted(k for k in shared if _shared_part(other).get(k) != shared.get(k))
+            raise ScenarioError(
+                f"scenarios {first.name!r} and {other.name!r} differ in {different}; only name, "
+                "delay and seed may differ within a batch"
+            )
+    built = first.build()
+    delays = [
+        _construct("delay", lambda s=scenario: delay_from_spec(s._delay_spec()))
+        for scenario in scenarios
+    ]
+    return _simulate(first, built.plant, built.controller, delays, built, progress)
+
+
+def _shared_part(scenario: Scenario) -> dict[str, Any]:
+    data = scenario.to_dict()
+    for key in ("name", "delay", "seed"):
+        data.pop(key, None)
+    return data
+
+
+# --------------------------------------------------------------------------------------------
+# Scenarios shipped with the package (src/delaytrack/scenarios/*.toml).
+
+
+def builtin_scenario_names() -> list[str]:
+    """Names (file stems) of the scenario files shipped with the package."""
+    folder = resources.files("delaytrack").joinpath("scenarios")
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def builtin_scenario_path(name: str) -> Path:
+    """Path of a shipped scenario file, e.g. ``builtin_scenario_path("two_link_S1")``."""
+    names = builtin_scenario_names()
+    if name not in names:
+        raise ScenarioError(f"no built-in scenario {name!r}; the built-in scenarios are {names}")
+    return Path(str(resources.files("delaytrack").joinpath("scenarios", f"{name}.toml")))
+
+
+def load_builtin(name: str) -> Scenario:
+    """Load a shipped scenario by name (see :func:`builtin_scenario_names`)."""
+    return Scenario.from_toml(builtin_scenario_path(name))
+
+
+# --------------------------------------------------------------------------------------------
+# One scenario to a results folder (what `delaytrack simulate` does).
+
+TRAJECTORY_FORMATS = ("parquet", "csv")
+
+
+@dataclass(frozen=True)
+class RunOutput:
+    """What :func:`run_to_folder` produced: the result and the files written."""
+
+    scenario: Scenario
+    result: SimResult
+    folder: Path
+    files: tuple[Path, ...]
+
+
+def run_to_folder(
+    scenario: Scenario,
+    folder: str | Path,
+    *,
+    formats: Sequence[str] = ("parquet",),
+    figure_formats: Sequence[str] = ("png", "svg"),
+    progress: bool = False,
+) -> RunOutput:
+    """Run a scenario and write its results folder.
+
+    Files (each written atomically):
+
+    - ``scenario.toml``: the scenario as run (:meth:`Scenario.resolved`; loads back unchanged);
+    - ``trajectories.parquet`` and/or ``trajectories.csv``: :meth:`SimResult.to_frame`;
+    - ``metrics.csv``: :func:`delaytrack.metrics.metrics_table` (AE, RMS, max error, TV);
+    - ``figures/{tracking,error,commands,delay[,c_hat]}.{png,svg}``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    folder : path
+        Created if missing; existing files of the same names are replaced.
+    formats : sequence of {"parquet", "csv"}
+        Trajectory file formats.
+    figure_formats : sequence of str
+        Figure file formats (matplotlib names).
+    progress : bool
+        Show the simulator's progress bar.
+    """
+    from delaytrack.metrics import metrics_table
+    from delaytrack.report.figures import write_run_figures
+
+    unknown = sorted(set(formats) - set(TRAJECTORY_FORMATS))
+    if unknown or not formats:
+        raise ValueError(
+            f"formats must be a non-empty subset of {list(TRAJECTORY_FORMATS)}; got {list(formats)}"
+        )
+    resolved = scenario.resolved()
+    result = resolved.run(progress=progress)
+    folder = Path(folder)
+    files = [folder / "scenario.toml"]
+    resolved.to_toml(files[0])
+    frame = result.to_frame()
+    for fmt in formats:
+        files.append(write_frame(frame, folder / f"trajectories.{fmt}"))
+    files.append(write_frame(metrics_table(result, label=resolved.name), folder / "metrics.csv"))
+    files += write_run_figures(result, folder / "figures", formats=figure_formats)
+    return RunOutput(resolved, result, folder, tuple(files))

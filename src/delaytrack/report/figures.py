@@ -1,0 +1,255 @@
+"""Figures of simulation results, as matplotlib :class:`~matplotlib.figure.Figure` objects.
+
+No pyplot: figures are created directly (``Figure(...)``), so nothing here touches matplotlib's
+global backend or opens a window, and it runs the same on a head-less machine and in tests.
+
+Every plotting function takes *runs*: a mapping ``label -> SimResult`` where each result holds one
+run (batch of one; select one with ``result[i]``), or a single result, which is then plotted for
+every batch element with labels ``run 0, run 1, ...``.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from delaytrack._io import atomic_path
+
+if TYPE_CHECKING:
+    from delaytrack.sim.result import SimResult
+
+__all__ = [
+    "c_hat_figure",
+    "commands_figure",
+    "delay_figure",
+    "error_figure",
+    "png_bytes",
+    "save_figure",
+    "tracking_figure",
+    "write_run_figures",
+]
+
+_ROW_HEIGHT = 2.1
+_WIDTH = 8.0
+_DPI = 110
+
+
+def _runs(runs: Mapping[str, SimResult] | SimResult) -> dict[str, SimResult]:
+    """Normalise to ``label -> single-run result``."""
+    if isinstance(runs, Mapping):
+        out = {}
+        for label, result in runs.items():
+            if result.batch_size != 1:
+                raise ValueError(
+                    f"run {label!r} has a batch of {result.batch_size}; pass one run per label "
+                    "(select one with result[i])"
+                )
+            out[str(label)] = result
+        return out
+    if runs.batch_size == 1:
+        return {"run": runs}
+    return {f"run {i}": runs[i] for i in range(runs.batch_size)}
+
+
+def _names(count: int, names: Sequence[str] | None, prefix: str) -> list[str]:
+    if names is None:
+        return [f"{prefix}{i + 1}" for i in range(count)]
+    if len(names) != count:
+        raise ValueError(f"expected {count} names; got {len(names)}: {list(names)}")
+    return list(names)
+
+
+def _stacked(rows: int, title: str | None) -> tuple[Figure, list]:
+    figure = Figure(figsize=(_WIDTH, _ROW_HEIGHT * rows + 0.9), dpi=_DPI, layout="constrained")
+    axes = figure.subplots(rows, 1, sharex=True, squeeze=False)[:, 0]
+    if title:
+        figure.suptitle(title)
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+    axes[-1].set_xlabel("t (s)")
+    return figure, list(axes)
+
+
+def _legend(ax, columns: int) -> None:
+    """Legend above the top panel, outside the data."""
+    ax.legend(
+        loc="lower left", bbox_to_anchor=(0.0, 1.0), fontsize="small", ncols=columns, frameon=False
+    )
+
+
+def tracking_figure(
+    runs: Mapping[str, SimResult] | SimResult,
+    *,
+    coordinate_names: Sequence[str] | None = None,
+    unit: str = "rad",
+    title: str | None = None,
+) -> Figure:
+    """``q_j(t)`` of each run against the reference ``q_d,j(t)``, one panel per coordinate."""
+    runs = _runs(runs)
+    first = next(iter(runs.values()))
+    names = _names(first.n, coordinate_names, "q")
+    figure, axes = _stacked(first.n, title)
+    for j, ax in enumerate(axes):
+        ax.plot(first.t, first.reference[:, 0, j], color="black", lw=1.2, ls="--", label="q_d")
+        for label, result in runs.items():
+            ax.plot(result.t, result.q[0, :, j], lw=1.0, label=label)
+        ax.set_ylabel(f"{names[j]} ({unit})")
+    _legend(axes[0], len(runs) + 1)
+    return figure
+
+
+def error_figure(
+    runs: Mapping[str, SimResult] | SimResult,
+    *,
+    coordinate_names: Sequence[str] | None = None,
+    unit: str = "rad",
+    title: str | None = None,
+) -> Figure:
+    """Absolute tracking error ``|e1_j(t)| = |q_d,j - q_j|`` of each run, a panel per coordinate."""
+    runs = _runs(runs)
+    first = next(iter(runs.values()))
+    names = _names(first.n, coordinate_names, "q")
+    figure, axes = _stacked(first.n, title)
+    for j, ax in enumerate(axes):
+        for label, result in runs.items():
+            ax.plot(result.t, np.abs(result.e1[0, :, j]), lw=1.0, label=label)
+        ax.set_ylabel(f"|e1| of {names[j]} ({unit})")
+        ax.set_ylim(bottom=0.0)
+    _legend(axes[0], len(runs))
+    return figure
+
+
+def commands_figure(
+    runs: Mapping[str, SimResult] | SimResult,
+    *,
+    input_names: Sequence[str] | None = None,
+    unit: str = "N·m",
+    title: str | None = None,
+) -> Figure:
+    """Commanded ``τ_j(t)`` (solid) and applied, delayed ``τ_j(t - h(t))`` (dashed) inputs."""
+    runs = _runs(runs)
+    first = next(iter(runs.values()))
+    m = first.commands.shape[2]
+    names = _names(m, input_names, "u")
+    figure, axes = _stacked(m, title)
+    for j, ax in enumerate(axes):
+        for k, (label, result) in enumerate(runs.items()):
+            color = f"C{k}"
+            ax.plot(
+                result.t, result.commands[0, :, j], lw=1.0, color=color, label=f"{label} commanded"
+            )
+            ax.plot(
+                result.t,
+                result.applied[0, :, j],
+                lw=1.0,
+                color=color,
+                ls="--",
+                alpha=0.8,
+                label=f"{label} applied",
+            )
+        ax.set_ylabel(f"{names[j]} ({unit})")
+    _legend(axes[0], 2 * len(runs))
+    return figure
+
+
+def delay_figure(
+    runs: Mapping[str, SimResult] | SimResult,
+    *,
+    h_m: float | None = None,
+    title: str | None = None,
+) -> Figure:
+    """The true input delay ``h(t)`` of each run in ms, and the certified bound ``h_m`` if given."""
+    runs = _runs(runs)
+    figure, axes = _stacked(1, title)
+    ax = axes[0]
+    for label, result in runs.items():
+        ax.plot(result.t, 1e3 * result.h[0], lw=1.2, label=label)
+    if h_m is not None:
+        ax.axhline(
+            1e3 * h_m, color="black", ls=":", lw=1.2, label=f"certified h_m = {1e3 * h_m:.2f} ms"
+        )
+    ax.set_ylabel("h(t) (ms)")
+    highest = max([np.nanmax(1e3 * r.h[0]) for r in runs.values()] + [1e3 * (h_m or 0.0)])
+    ax.set_ylim(0.0, 1.45 * highest if highest > 0 else 1.0)  # room for the legend above
+    ax.legend(loc="upper right", fontsize="small", ncols=len(runs) + (h_m is not None))
+    return figure
+
+
+def c_hat_figure(
+    runs: Mapping[str, SimResult] | SimResult,
+    *,
+    title: str | None = None,
+) -> Figure:
+    """The adaptive gain ``ĉ(t)`` of AROLC for each run that has one (state named ``c_hat``)."""
+    runs = _runs(runs)
+    figure, axes = _stacked(1, title)
+    ax = axes[0]
+    plotted = 0
+    for label, result in runs.items():
+        if "c_hat" not in result.controller_state_names:
+            continue
+        column = result.controller_state_names.index("c_hat")
+        ax.plot(result.t, result.controller_state[0, :, column], lw=1.2, label=label)
+        plotted += 1
+    if plotted == 0:
+        raise ValueError(
+            "none of the runs has a controller state 'c_hat' (is the controller AROLC?)"
+        )
+    ax.set_ylabel("ĉ(t)")
+    ax.legend(loc="upper right", fontsize="small")
+    return figure
+
+
+def png_bytes(figure: Figure) -> bytes:
+    """The figure rendered as PNG."""
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=_DPI)
+    return buffer.getvalue()
+
+
+def save_figure(
+    figure: Figure, stem: str | Path, formats: Sequence[str] = ("png", "svg")
+) -> list[Path]:
+    """Write ``stem.<format>`` for each format, atomically; return the paths."""
+    paths = []
+    for fmt in formats:
+        path = Path(stem).with_suffix(f".{fmt}")
+        with atomic_path(path) as temporary:
+            # SVG output embeds a date by default; drop it so identical runs give identical files.
+            metadata = {"Date": None} if fmt == "svg" else None
+            figure.savefig(temporary, format=fmt, dpi=_DPI, metadata=metadata)
+        paths.append(path)
+    return paths
+
+
+def write_run_figures(
+    result: SimResult,
+    folder: str | Path,
+    *,
+    coordinate_names: Sequence[str] | None = None,
+    formats: Sequence[str] = ("png", "svg"),
+) -> list[Path]:
+    """The standard figures of one simulation, written to ``folder``.
+
+    ``tracking`` (q vs q_d), ``error`` (|e1| over time), ``commands`` (commanded vs applied),
+    ``delay`` (h(t)) and, when the controller has a ``c_hat`` state (AROLC), ``c_hat``. A batched
+    result is drawn with one line per batch element.
+    """
+    folder = Path(folder)
+    figures = {
+        "tracking": tracking_figure(result, coordinate_names=coordinate_names),
+        "error": error_figure(result, coordinate_names=coordinate_names),
+        "commands": commands_figure(result),
+        "delay": delay_figure(result),
+    }
+    if "c_hat" in result.controller_state_names:
+        figures["c_hat"] = c_hat_figure(result)
+    paths: list[Path] = []
+    for name, figure in figures.items():
+        paths += save_figure(figure, folder / name, formats)
+    return paths

@@ -1,0 +1,226 @@
+"""The ``delaytrack`` command: bound, simulate, help and error handling.
+
+Error paths run in a subprocess (the real entry point, exit code, stderr, no traceback); the
+simulation runs in-process through ``main(argv)`` to keep the suite fast.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from delaytrack.analysis import razumikhin_bound
+from delaytrack.cli import main
+from delaytrack.experiments import Scenario, load_builtin
+
+PAPER_H_M = 0.12487
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "delaytrack.cli", *args], capture_output=True, text=True, timeout=300
+    )
+
+
+def bound_json(capsys, *args: str) -> dict:
+    assert main(["bound", *args, "--json"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("\n") == 1, "--json must print exactly one line"
+    return json.loads(out)
+
+
+# ---- bound --------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("n", [1, 5])
+def test_bound_paper_value(capsys, n):
+    data = bound_json(
+        capsys, "--k1", "1", "--k2", "1", "--q", "1", "--beta", "1", "--r", "1.1", "--n", str(n)
+    )
+    assert data["h_m"] == pytest.approx(PAPER_H_M, abs=1e-5)
+    assert data["n"] == n and data["beta"] == 1.0 and data["r"] == 1.1
+    assert data["lambda_min_Q"] == 1.0
+    assert data["E_norm"] == pytest.approx(1.0 / data["h_m"])
+
+
+def test_bound_paper_value_through_the_entry_point():
+    done = run_cli(
+        "bound", "--k1", "1", "--k2", "1", "--q", "1", "--beta", "1", "--r", "1.1", "--json"
+    )
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["h_m"] == pytest.approx(PAPER_H_M, abs=1e-5)
+
+
+def test_bound_other_gains_against_the_library(capsys):
+    data = bound_json(
+        capsys, "--k1", "2,3", "--k2", "1.5,4", "--q", "1,2,0.5,3", "--beta", "0.7", "--r", "1.3"
+    )
+    direct = razumikhin_bound(
+        np.diag([2.0, 3.0]), np.diag([1.5, 4.0]), np.diag([1, 2, 0.5, 3.0]), 0.7, 1.3
+    )
+    assert data["n"] == 2
+    assert data["h_m"] == pytest.approx(direct.h_m, rel=1e-12)
+    assert data["E_norm"] == pytest.approx(direct.E_norm, rel=1e-12)
+    assert data["lambda_min_Q"] == pytest.approx(0.5)
+
+
+def test_bound_scalars_with_n_equal_the_expanded_diagonal(capsys):
+    scalar = bound_json(capsys, "--k1", "2", "--k2", "3", "--q", "0.5", "--n", "3")
+    listed = bound_json(capsys, "--k1", "2,2,2", "--k2", "3,3,3", "--q", "0.5,0.5,0.5,0.5,0.5,0.5")
+    assert scalar["h_m"] == pytest.approx(listed["h_m"], rel=1e-14)
+    assert listed["n"] == 3
+
+
+def test_bound_text_output(capsys):
+    assert main(["bound", "--k1", "1", "--k2", "1", "--q", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "h_m" in out and "0.12487 s" in out and "lambda_min(Q)" in out
+
+
+def test_bound_r_of_one_is_refused_without_traceback():
+    done = run_cli("bound", "--k1", "1", "--k2", "1", "--q", "1", "--beta", "1", "--r", "1")
+    assert done.returncode == 2
+    assert "Traceback" not in done.stderr
+    assert done.stderr.strip().splitlines() == [
+        "error: --r must be > 1 (the Razumikhin factor in V(e(xi)) < r V(e(t))); got 1"
+    ]
+
+
+def test_bound_negative_gain_shows_its_eigenvalues():
+    done = run_cli("bound", "--k1", "-1", "--k2", "1", "--q", "1")
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert (
+        "error: --k1 must be symmetric positive definite; its eigenvalues are [-1]" in done.stderr
+    )
+    assert "(got --k1 -1)" in done.stderr
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (
+            ["--k1", "abc", "--k2", "1", "--q", "1"],
+            "--k1 must be a number or a comma-separated list of numbers; got 'abc'",
+        ),
+        (["--k1", "1", "--k2", "1", "--q", "1", "--beta", "0"], "--beta must be > 0"),
+        (["--k1", "1", "--k2", "1", "--q", "1,2,3"], "--q has 3 entries"),
+        (["--k1", "1,2", "--k2", "1,2,3", "--q", "1"], "the comma lists disagree on n"),
+        (
+            ["--k1", "1,2", "--k2", "1", "--q", "1", "--n", "3"],
+            "--k1 has 2 entries; with n = 3 it needs 1",
+        ),
+        (
+            ["--k1", "1", "--k2", "1", "--q", "-2"],
+            "--q must be symmetric positive definite; its eigenvalues are [-2, -2]",
+        ),
+        (["--k1", "1", "--k2", "1", "--q", "1", "--n", "0"], "--n must be a positive integer"),
+        (["--k1", "1", "--k2", "1", "--q", "1", "--r", "nan"], "--r must be finite"),
+    ],
+)
+def test_bound_bad_input_messages(capsys, args, message):
+    assert main(["bound", *args]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and message in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_missing_argument_is_a_usage_error():
+    done = run_cli("bound", "--k2", "1", "--q", "1")
+    assert done.returncode == 2 and "--k1" in done.stderr and "Traceback" not in done.stderr
+
+
+@pytest.mark.parametrize("command", [[], ["bound"], ["simulate"], ["reproduce"]])
+def test_help_on_every_command(command, capsys):
+    with pytest.raises(SystemExit) as stop:
+        main([*command, "--help"])
+    assert stop.value.code == 0
+    assert "usage: delaytrack" in capsys.readouterr().out
+
+
+# ---- simulate -----------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def short_scenario(tmp_path):
+    scenario = load_builtin("two_link_S1").replace(name="short", duration=0.5)
+    path = tmp_path / "short.toml"
+    scenario.to_toml(path)
+    return path
+
+
+def test_simulate_writes_every_promised_file(short_scenario, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["simulate", str(short_scenario), "--out", str(out), "--format", "both"]) == 0
+    printed = capsys.readouterr().out
+    assert str(out) in printed
+    expected = ["scenario.toml", "trajectories.parquet", "trajectories.csv", "metrics.csv"]
+    expected += [
+        f"figures/{name}.{ext}"
+        for name in ("tracking", "error", "commands", "delay", "c_hat")
+        for ext in ("png", "svg")
+    ]
+    for name in expected:
+        assert (out / name).is_file() and (out / name).stat().st_size > 0, name
+    assert not [p for p in out.rglob(".*") if p.is_file()], "temporary files left behind"
+
+    metrics = pd.read_csv(out / "metrics.csv")
+    assert len(metrics) == 1 and metrics.loc[0, "status"] == "ok"
+    assert {"ae_q1", "ae_q2", "rms_q1", "max_q2", "tv"} <= set(metrics.columns)
+    assert np.isfinite(metrics.loc[0, "ae_q1"]) and metrics.loc[0, "ae_q1"] > 0
+
+    frame = pd.read_parquet(out / "trajectories.parquet")
+    assert len(frame) == 251 and frame["t"].iloc[-1] == pytest.approx(0.5)
+    csv = pd.read_csv(out / "trajectories.csv")
+    np.testing.assert_allclose(csv["e1_0"].to_numpy(), frame["e1_0"].to_numpy(), rtol=1e-12)
+
+    as_run = Scenario.from_toml(out / "scenario.toml")
+    assert as_run == Scenario.from_toml(short_scenario).resolved()
+    # Re-running the saved scenario reproduces the metrics.
+    assert as_run.run().e1[0, -1, 0] == pytest.approx(frame["e1_0"].iloc[-1], rel=1e-12)
+
+
+def test_simulate_default_folder_and_builtin_name(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    scenario = load_builtin("two_link_S3_outer_loop").replace(name="tiny", duration=0.1)
+    scenario.to_toml(tmp_path / "tiny.toml")
+    assert main(["simulate", "tiny.toml"]) == 0
+    assert (tmp_path / "results" / "tiny" / "trajectories.parquet").is_file()
+    assert not (
+        tmp_path / "results" / "tiny" / "figures" / "c_hat.png"
+    ).exists()  # no ĉ for the outer loop
+    capsys.readouterr()
+
+
+def test_simulate_bad_scenario_exits_2_naming_the_key(tmp_path):
+    text = load_builtin("two_link_S1").to_toml().replace("alpha = 2.0", 'alpha = "two"')
+    assert 'alpha = "two"' in text
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    done = run_cli("simulate", str(path), "--out", str(tmp_path / "o"))
+    assert done.returncode == 2
+    assert "Traceback" not in done.stderr
+    assert "scenario key 'controller.alpha' must be a number; got 'two'" in done.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_simulate_missing_file_exits_2(tmp_path):
+    done = run_cli("simulate", str(tmp_path / "missing.toml"))
+    assert (
+        done.returncode == 2 and "does not exist" in done.stderr and "Traceback" not in done.stderr
+    )
+
+
+def test_simulate_refusal_at_build_exits_2(tmp_path, capsys):
+    text = load_builtin("two_link_S1").to_toml().replace("K1 = 1.0", "K1 = -1.0")
+    path = tmp_path / "neg.toml"
+    path.write_text(text)
+    assert main(["simulate", str(path), "--out", str(tmp_path / "o")]) == 2
+    assert (
+        "scenario key 'controller.K1' must be symmetric positive definite"
+        in capsys.readouterr().err
+    )

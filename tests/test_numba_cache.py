@@ -1,0 +1,34 @@
+"""numba's cache folder follows the whole package source (a stale compiled engine is a bug)."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numba
+
+from delaytrack import _numba_cache
+
+
+def test_cache_folder_is_keyed_by_the_current_source() -> None:
+    assert numba.config.CACHE_DIR == str(_numba_cache.cache_directory())
+    assert Path(numba.config.CACHE_DIR).name == _numba_cache.source_hash()
+
+
+def test_editing_any_kernel_file_changes_the_key(tmp_path, monkeypatch) -> None:
+    copy = tmp_path / "delaytrack"
+    shutil.copytree(
+        Path(_numba_cache.__file__).parent, copy, ignore=shutil.ignore_patterns("__pycache__")
+    )
+    monkeypatch.setattr(_numba_cache, "_PACKAGE", copy)
+    before = _numba_cache.source_hash()
+    assert before == _numba_cache.source_hash()
+    # The controller kernel is inlined into the compiled engine but lives in another file.
+    arolc = copy / "controllers" / "arolc.py"
+    arolc.write_text(arolc.read_text() + "\n# an edit\n")
+    assert _numba_cache.source_hash() != before
+
+
+def test_user_cache_root_is_respected(monkeypatch, tmp_path) -> None:
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    assert _numba_cache.cache_directory().parent == tmp_path / "delaytrack"

@@ -1,0 +1,111 @@
+"""The main job (``delaytrack reproduce``), the README's promises and the example, end to end."""
+
+from __future__ import annotations
+
+import base64
+import re
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from delaytrack.cli import main
+from delaytrack.experiments import Scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.slow
+def test_reproduce_smoke(tmp_path, capsys):
+    assert main(["reproduce", "--out", str(tmp_path), "--duration", "1", "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    folder = tmp_path / "two-link"
+    assert "report.html" in printed
+
+    summary = pd.read_csv(folder / "summary.csv")
+    assert list(summary[["scenario", "controller"]].itertuples(index=False, name=None)) == [
+        ("S1", "arolc"),
+        ("S1", "outer-loop"),
+        ("S3", "arolc"),
+        ("S3", "outer-loop"),
+    ]
+    for column in ("ae_q1", "ae_q2", "rms_q1", "rms_q2", "max_q1", "max_q2", "tv", "status"):
+        assert column in summary.columns
+    assert (summary["status"] == "ok").all()
+    assert (summary["ae_q1"] > 0).all()
+
+    check = pd.read_csv(folder / "dt_check.csv")
+    assert len(check) == 4 and (check["max_relative_change"] < 0.01).all()
+
+    for case in ("S1", "S3"):
+        for controller in ("arolc", "outer-loop"):
+            frame = pd.read_parquet(folder / "trajectories" / f"{case}_{controller}.parquet")
+            assert len(frame) == 501 and frame["t"].iloc[-1] == pytest.approx(1.0)
+    for name in ("error_S1", "error_S3", "c_hat", "delay"):
+        for ext in ("png", "svg"):
+            assert (folder / "figures" / f"{name}.{ext}").stat().st_size > 1000
+    for path in (folder / "scenarios").glob("*.toml"):
+        assert Scenario.from_toml(path).duration == 1.0
+
+    report = (folder / "report.html").read_text()
+    assert "0.12487" in report and "h_m" in report
+    images = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', report)
+    assert len(images) >= 4
+    assert base64.b64decode(images[0])[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "<script" not in report and 'src="http' not in report and "<link" not in report
+    assert "20 % below the truth" in report
+
+
+def test_reproduce_rejects_a_bad_duration(tmp_path, capsys):
+    assert main(["reproduce", "--out", str(tmp_path), "--duration", "-1", "--quiet"]) == 2
+    assert "--duration must be a positive number of seconds" in capsys.readouterr().err
+    assert main(["reproduce", "--out", str(tmp_path), "--duration", "0.0015", "--quiet"]) == 2
+    assert "must be a positive integer multiple of 'T_c'" in capsys.readouterr().err
+
+
+def test_readme_starts_with_the_two_commands():
+    lines = [line for line in (ROOT / "README.md").read_text().splitlines() if line.strip()]
+    assert lines[0].startswith("# ")
+    commands = [line.split("#")[0].strip() for line in lines[2:4]]
+    assert commands == ["make reproduce", "make test"]
+
+
+@pytest.mark.slow
+def test_custom_plant_example_runs(tmp_path):
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "examples" / "custom_plant.py"), "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr
+    assert (
+        "AROLC: status ok" in done.stdout and "certified delay bound h_m = 124.9 ms" in done.stdout
+    )
+    assert (tmp_path / "pendulum_error.png").is_file()
+
+
+def _readme_blocks(language: str) -> list[str]:
+    return re.findall(rf"```{language}\n(.*?)```", (ROOT / "README.md").read_text(), re.S)
+
+
+def test_readme_python_examples_run(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    blocks = _readme_blocks("python")
+    assert len(blocks) >= 3
+    for number, block in enumerate(blocks):
+        exec(compile(block, f"README.md python block {number}", "exec"), {})
+    out = capsys.readouterr().out
+    assert "(2, 2501, 2) ['ok', 'ok']" in out and "0.12487" in out
+    assert Scenario.from_toml(tmp_path / "my_scenario.toml").duration == 2.0
+
+
+def test_readme_scenario_file_is_valid():
+    (block,) = _readme_blocks("toml")
+    scenario = Scenario.from_dict(tomllib.loads(block))
+    built = scenario.build()
+    assert built.delay.h_max == pytest.approx(0.125)
+    assert built.controller.K2.tolist() == [[1.0, 0.0], [0.0, 1.5]]

@@ -1,0 +1,344 @@
+"""Scenario files: round trip, every refusal names its key, building, seeds, running."""
+
+from __future__ import annotations
+
+import re
+import tomllib
+
+import numpy as np
+import pytest
+
+from delaytrack.controllers import AROLC
+from delaytrack.delays import AbsSineDelay, RandomDelay, TraceDelay
+from delaytrack.experiments import (
+    Scenario,
+    ScenarioError,
+    builtin_scenario_names,
+    load_builtin,
+    run_batched,
+)
+from delaytrack.experiments.scenario import dumps_toml
+from delaytrack.plants import TwoLinkArm
+
+
+def base_dict() -> dict:
+    return {
+        "name": "test-case",
+        "duration": 0.2,
+        "dt": 0.001,
+        "T_c": 0.002,
+        "plant": {"type": "two-link-arm"},
+        "model": {"type": "two-link-arm", "fd1": 0.0, "fd2": 0.0},
+        "controller": {
+            "type": "arolc",
+            "K1": [[2.0, 0.5], [0.5, 3.0]],
+            "K2": [1.0, 2.0],
+            "Q": 1,
+            "alpha": 2.0,
+            "epsilon": 0.1,
+            "gamma": 0.001,
+        },
+        "delay": {"type": "abs-sine", "offset": 0.02, "amplitude": 0.08, "frequency": 1.0},
+        "reference": {"offset": [0.0, 0.0], "amplitude": [0.8, 0.5], "frequency": [0.5, 0.7]},
+    }
+
+
+def refused(data: dict, pattern: str) -> None:
+    with pytest.raises(ScenarioError, match=pattern):
+        Scenario.from_dict(data)
+
+
+# ---- round trip -------------------------------------------------------------------------------
+
+
+def test_round_trip_through_a_file(tmp_path):
+    data = base_dict() | {"seed": 7, "x0": [0.1, 0, 0, 0], "record_every": 2}
+    scenario = Scenario.from_dict(data)
+    path = tmp_path / "s.toml"
+    scenario.to_toml(path)
+    again = Scenario.from_toml(path)
+    assert again.to_dict() == scenario.to_dict()
+    assert again == scenario
+    assert again.controller["K1"] == [[2.0, 0.5], [0.5, 3.0]]
+    assert again.x0 == (0.1, 0.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize("name", builtin_scenario_names())
+def test_shipped_scenarios_load_round_trip_and_build(name, tmp_path):
+    scenario = load_builtin(name)
+    assert scenario.name == name
+    path = tmp_path / f"{name}.toml"
+    scenario.to_toml(path)
+    assert Scenario.from_toml(path).to_dict() == scenario.to_dict()
+    built = scenario.build()
+    assert isinstance(built.plant, TwoLinkArm) and built.plant.fd1 == 5.3
+    assert built.model.p1 == pytest.approx(0.8 * 3.473)
+    assert built.model.fd1 == 0.0
+
+
+def test_shipped_scenarios_cover_the_main_job():
+    assert {
+        "two_link_S1",
+        "two_link_S1_outer_loop",
+        "two_link_S3",
+        "two_link_S3_outer_loop",
+    } <= set(builtin_scenario_names())
+
+
+def test_toml_writer_output_is_read_back_exactly():
+    data = {
+        "name": 'quote " and back\\slash and ü',
+        "number": 1e-05,
+        "integer": 3,
+        "negative": -2.5,
+        "big": 1e300,
+        "whole": 4.0,
+        "flag": True,
+        "matrix": [[1.0, 2.0], [3.0, 4.0]],
+        "table": {"key with space": [1, 2], "empty": []},
+    }
+    assert tomllib.loads(dumps_toml(data)) == data
+
+
+# ---- refusals name the key ----------------------------------------------------------------------
+
+
+def test_unknown_top_level_key():
+    refused(
+        base_dict() | {"dt_typo": 0.001}, r"unknown key 'dt_typo' in scenario; valid keys are \["
+    )
+
+
+def test_unknown_key_in_controller_table():
+    data = base_dict()
+    data["controller"]["alfa"] = 2.0
+    refused(
+        data, r"unknown key 'controller\.alfa' in scenario; valid keys in \[controller\] .*'alpha'"
+    )
+
+
+def test_key_of_another_controller_type_is_unknown():
+    data = base_dict()
+    data["controller"] = {"type": "outer-loop", "K1": 1.0, "K2": 1.0, "alpha": 2.0}
+    refused(data, r"unknown key 'controller\.alpha'.*type = 'outer-loop'")
+
+
+def test_wrong_type_for_dt():
+    refused(base_dict() | {"dt": "1ms"}, r"^scenario key 'dt' must be a number; got '1ms'$")
+
+
+def test_wrong_type_for_a_controller_number():
+    data = base_dict()
+    data["controller"]["alpha"] = "two"
+    refused(data, r"^scenario key 'controller\.alpha' must be a number; got 'two'$")
+
+
+def test_wrong_type_for_a_gain():
+    data = base_dict()
+    data["controller"]["K1"] = "eye"
+    refused(data, r"scenario key 'controller\.K1' must be a number \(a multiple of I\), a list")
+
+
+def test_ragged_gain_matrix_is_refused():
+    data = base_dict()
+    data["controller"]["K1"] = [[1.0, 0.0], [0.0]]
+    refused(data, r"scenario key 'controller\.K1' must be")
+
+
+def test_boolean_is_not_a_number():
+    refused(base_dict() | {"duration": True}, r"scenario key 'duration' must be a number; got True")
+
+
+def test_missing_plant_table():
+    data = base_dict()
+    del data["plant"]
+    refused(data, r"scenario is missing the required table \[plant\]")
+
+
+def test_missing_top_level_key():
+    data = base_dict()
+    del data["T_c"]
+    refused(data, r"scenario is missing the required key 'T_c'")
+
+
+def test_missing_and_unknown_type():
+    data = base_dict()
+    del data["delay"]["type"]
+    refused(data, r"scenario key 'delay\.type' is missing; \[delay\] needs a type, one of \[")
+    data = base_dict()
+    data["plant"]["type"] = "three-link-arm"
+    refused(
+        data,
+        r"scenario key 'plant\.type' must be one of \['linear', 'two-link-arm'\]; "
+        r"got 'three-link-arm'",
+    )
+
+
+def test_table_given_as_a_value():
+    refused(base_dict() | {"delay": 0.06}, r"scenario key 'delay' must be a table")
+
+
+def test_unknown_reference_key():
+    data = base_dict()
+    data["reference"]["amplitdue"] = [1.0, 1.0]
+    refused(data, r"unknown key 'reference\.amplitdue' in scenario")
+
+
+def test_non_positive_step_and_bad_ratio():
+    refused(base_dict() | {"dt": 0}, r"scenario key 'dt' must be > 0 \(seconds\); got 0")
+    refused(
+        base_dict() | {"T_c": 0.0025},
+        r"scenario key 'T_c' must be a positive integer multiple of 'dt'",
+    )
+    refused(
+        base_dict() | {"duration": 0.201},
+        r"scenario key 'duration' must be a positive integer multiple of 'T_c'",
+    )
+
+
+def test_bad_name_record_every_and_seed():
+    refused(
+        base_dict() | {"name": "../evil"}, r"scenario key 'name' must start with a letter or digit"
+    )
+    refused(base_dict() | {"record_every": 0}, r"scenario key 'record_every' must be >= 1; got 0")
+    refused(base_dict() | {"seed": 1.5}, r"scenario key 'seed' must be an integer; got 1.5")
+
+
+def test_refusals_from_constructors_name_the_key():
+    data = base_dict()
+    data["controller"]["K1"] = -1.0
+    with pytest.raises(
+        ScenarioError,
+        match=r"scenario key 'controller\.K1' must be symmetric positive definite; "
+        r"its eigenvalues are \[-1, -1\]",
+    ):
+        Scenario.from_dict(data).build()
+
+
+def test_dimension_mismatches_are_refused_at_build():
+    with pytest.raises(ScenarioError, match=r"scenario key 'x0' must have 2n = 4 entries"):
+        Scenario.from_dict(base_dict() | {"x0": [0.0, 0.0]}).build()
+    data = base_dict()
+    data["reference"]["offset"] = [0.0, 0.0, 0.0]
+    data["reference"]["amplitude"] = [1.0, 1.0, 1.0]
+    data["reference"]["frequency"] = [1.0, 1.0, 1.0]
+    with pytest.raises(
+        ScenarioError, match=r"'reference\.offset' has 3 entries; the plant has n = 2"
+    ):
+        Scenario.from_dict(data).build()
+
+
+def test_file_errors_name_the_file(tmp_path):
+    with pytest.raises(ScenarioError, match=r"scenario file '.*nope\.toml' does not exist"):
+        Scenario.from_toml(tmp_path / "nope.toml")
+    broken = tmp_path / "broken.toml"
+    broken.write_text("name = \n")
+    with pytest.raises(ScenarioError, match=r"broken\.toml: not valid TOML"):
+        Scenario.from_toml(broken)
+    typo = tmp_path / "typo.toml"
+    typo.write_text(dumps_toml(base_dict() | {"dt_typo": 1}))
+    with pytest.raises(ScenarioError, match=r"typo\.toml: unknown key 'dt_typo'"):
+        Scenario.from_toml(typo)
+
+
+# ---- building -----------------------------------------------------------------------------------
+
+
+def test_gain_forms_number_list_and_matrix():
+    built = Scenario.from_dict(base_dict()).build()
+    assert isinstance(built.controller, AROLC)
+    np.testing.assert_array_equal(built.controller.K1, [[2.0, 0.5], [0.5, 3.0]])
+    np.testing.assert_array_equal(built.controller.K2, np.diag([1.0, 2.0]))
+    np.testing.assert_array_equal(built.controller.Q, np.eye(4))
+    assert isinstance(built.delay, AbsSineDelay) and built.delay.h_max == pytest.approx(0.1)
+    np.testing.assert_array_equal(built.x0, np.zeros(4))
+
+
+def random_delay(**extra) -> dict:
+    return {"type": "random", "h_low": 0.01, "h_high": 0.05, "max_rate": 0.5} | extra
+
+
+def test_random_delay_takes_the_scenario_seed_and_duration():
+    scenario = Scenario.from_dict(base_dict() | {"seed": 42, "delay": random_delay()})
+    delay = scenario.build().delay
+    assert isinstance(delay, RandomDelay)
+    assert delay.seed == 42 and delay.duration == pytest.approx(0.2)
+    resolved = scenario.resolved()
+    assert resolved.delay["seed"] == 42 and resolved.x0 == (0.0, 0.0, 0.0, 0.0)
+    other = Scenario.from_dict(base_dict() | {"seed": 43, "delay": random_delay()}).build().delay
+    assert not np.array_equal(delay.params, other.params)
+
+
+def test_random_delay_own_seed_wins():
+    scenario = Scenario.from_dict(base_dict() | {"seed": 42, "delay": random_delay(seed=5)})
+    assert scenario.build().delay.seed == 5
+
+
+def test_random_delay_without_any_seed_is_refused():
+    scenario = Scenario.from_dict(base_dict() | {"delay": random_delay()})
+    with pytest.raises(
+        ScenarioError, match=r"'delay\.seed' is missing and the scenario has no 'seed'"
+    ):
+        scenario.build()
+
+
+def test_relative_trace_path_is_resolved_against_the_file(tmp_path, monkeypatch):
+    folder = tmp_path / "cases"
+    folder.mkdir()
+    (folder / "trace.csv").write_text("t,h\n0,0.01\n1,0.03\n")
+    data = base_dict() | {"delay": {"type": "trace", "path": "trace.csv"}}
+    (folder / "s.toml").write_text(dumps_toml(data))
+    monkeypatch.chdir(tmp_path)
+    scenario = Scenario.from_toml(folder / "s.toml")
+    delay = scenario.build().delay
+    assert isinstance(delay, TraceDelay) and delay.h_max == pytest.approx(0.03)
+    assert scenario.delay["path"] == str((folder / "trace.csv").resolve())
+
+
+# ---- running ------------------------------------------------------------------------------------
+
+
+def test_run_and_batched_run_agree():
+    s1 = load_builtin("two_link_S1").replace(duration=0.2)
+    s3 = load_builtin("two_link_S3").replace(duration=0.2)
+    single = s3.run()
+    assert single.x.shape == (1, 101, 4) and single.status_names == ["ok"]
+    batch = run_batched([s1, s3])
+    assert batch.batch_size == 2
+    np.testing.assert_array_equal(batch.x[1], single.x[0])
+    np.testing.assert_array_equal(batch.h[0], AbsSineDelay.S1().h(batch.t))
+
+
+def test_run_batched_refuses_scenarios_that_differ_in_more_than_the_delay():
+    arolc = load_builtin("two_link_S1")
+    outer = load_builtin("two_link_S1_outer_loop")
+    with pytest.raises(ScenarioError, match=re.escape("differ in ['controller']")):
+        run_batched([arolc, outer])
+
+
+@pytest.mark.parametrize(
+    ("table", "content", "key"),
+    [
+        ("delay", {"type": "constant"}, "delay.h"),
+        ("delay", {"type": "abs-sine", "offset": 0.01, "amplitude": 0.02}, "delay.frequency"),
+        ("delay", {"type": "trace", "times": [0.0, 1.0]}, "delay.values"),
+        (
+            "controller",
+            {"type": "arolc", "K1": 1.0, "K2": 1.0, "Q": 1.0, "alpha": 2.0, "epsilon": 0.1},
+            "controller.gamma",
+        ),
+        ("controller", {"type": "outer-loop", "K1": 1.0}, "controller.K2"),
+        ("model", {"type": "linear", "damping": 1.0}, "model.mass"),
+    ],
+)
+def test_missing_required_key_in_a_table(table, content, key):
+    refused(
+        base_dict() | {table: content}, rf"scenario key '{re.escape(key)}' is missing; \[{table}\]"
+    )
+
+
+def test_trace_takes_path_or_knots_not_both():
+    content = {"type": "trace", "path": "x.csv", "times": [0.0], "values": [0.01]}
+    refused(
+        base_dict() | {"delay": content}, r"takes either 'path' or 'times' and 'values', not both"
+    )

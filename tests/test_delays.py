@@ -16,8 +16,7 @@ import pytest
 import scipy.optimize
 
 from delaytrack.delays import (
-    DELAY_TYPES,
-    PAPER_SCENARIO_DELAYS,
+    DELAY_SPECS,
     AbsSineDelay,
     ConstantDelay,
     PiecewiseConstantDelay,
@@ -81,7 +80,7 @@ def test_abs_sine_with_phase_matches_formula():
 @pytest.mark.parametrize("name, value", [("S3", 0.060), ("S4", 0.120)])
 def test_paper_constant_delays(name, value):
     # SPEC §6: S3 60 ms, S4 120 ms.
-    profile = PAPER_SCENARIO_DELAYS[name]()
+    profile = DELAY_SPECS[name].build()
     assert isinstance(profile, ConstantDelay)
     np.testing.assert_array_equal(profile.h(TIMES), np.full(TIMES.shape, value))
     assert profile.h_max == value
@@ -510,20 +509,18 @@ VALID_TYPES = [
 
 
 def test_delay_from_spec_unknown_type_lists_valid_types():
-    with pytest.raises(ValueError, match=r"unknown delay type 'sine'") as info:
+    with pytest.raises(ValueError, match=r"'delay\.type' must be one of .*; got 'sine'") as info:
         delay_from_spec({"type": "sine"})
     assert str(VALID_TYPES) in str(info.value)
-    with pytest.raises(ValueError, match=r"delay needs a 'type'"):
+    with pytest.raises(ValueError, match=r"'delay\.type' is missing; \[delay\] needs a type"):
         delay_from_spec({"h": 0.1})
 
 
 def test_delay_from_spec_unknown_key_names_it():
-    with pytest.raises(
-        ValueError, match=r"unknown key\(s\) \['amp'\] for delay type 'abs-sine'"
-    ) as info:
+    with pytest.raises(ValueError, match=r"unknown key 'delay\.amp'") as info:
         delay_from_spec({"type": "abs-sine", "offset": 0.0, "amp": 0.1, "frequency": 1.0})
-    assert "valid keys are ['amplitude', 'frequency', 'offset', 'phase']" in str(info.value)
-    with pytest.raises(ValueError, match=r"unknown key\(s\) \['value'\] for delay type 'constant'"):
+    assert "are ['type', 'amplitude', 'frequency', 'offset', 'phase']" in str(info.value)
+    with pytest.raises(ValueError, match=r"unknown key 'delay\.value' .* type = 'constant'"):
         delay_from_spec({"type": "constant", "value": 0.1})
 
 
@@ -544,7 +541,7 @@ def test_delay_from_spec_paper_names(name, expected):
 @pytest.mark.parametrize("name", ["S1", "S3"])
 def test_delay_from_spec_paper_name_with_parameters_refused(name):
     with pytest.raises(
-        ValueError, match=rf"delay type '{name}' takes no parameters; got \['phase'\]"
+        ValueError, match=rf"unknown key 'delay\.phase' .* type = '{name}' are \['type'\]"
     ):
         delay_from_spec({"type": name, "phase": 0.3})
 
@@ -564,7 +561,7 @@ def test_spec_round_trip(profile):
     rebuilt = delay_from_spec(profile.to_spec())
     assert type(rebuilt) is type(profile)
     np.testing.assert_array_equal(rebuilt.params, profile.params)
-    assert rebuilt.to_spec()["type"] in DELAY_TYPES
+    assert rebuilt.to_spec()["type"] in DELAY_SPECS
 
 
 def test_delay_from_spec_trace_needs_path_or_knots_not_both(tmp_path):

@@ -275,11 +275,10 @@ def test_random_delay_own_seed_wins():
 
 
 def test_random_delay_without_any_seed_is_refused():
-    scenario = Scenario.from_dict(base_dict() | {"delay": random_delay()})
     with pytest.raises(
         ScenarioError, match=r"'delay\.seed' is missing and the scenario has no 'seed'"
     ):
-        scenario.build()
+        Scenario.from_dict(base_dict() | {"delay": random_delay()})
 
 
 def test_relative_trace_path_is_resolved_against_the_file(tmp_path, monkeypatch):

@@ -5,32 +5,35 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+from delaytrack._spec import TypeSpec, build_from_table, gain, number
 from delaytrack.controllers.arolc import AROLC
 from delaytrack.controllers.base import Controller
 from delaytrack.controllers.outer_loop import OuterLoop
 from delaytrack.plants.base import ELPlant
 
-__all__ = ["AROLC", "CONTROLLERS", "Controller", "OuterLoop", "controller_from_spec"]
+__all__ = ["AROLC", "CONTROLLER_SPECS", "Controller", "OuterLoop", "controller_from_spec"]
 
-#: Controllers by scenario-file name.
-CONTROLLERS: dict[str, type[Controller]] = {"arolc": AROLC, "outer-loop": OuterLoop}
-
-_GAINS = {
-    "arolc": {"K1", "K2", "Q", "alpha", "epsilon", "gamma", "c_hat0"},
-    "outer-loop": {"K1", "K2"},
+#: Controllers that can be built from plain data, by scenario-file name.
+CONTROLLER_SPECS: dict[str, TypeSpec] = {
+    "arolc": TypeSpec(
+        AROLC,
+        {
+            "K1": ("K1", gain),
+            "K2": ("K2", gain),
+            "Q": ("Q", gain),
+            "alpha": ("alpha", number),
+            "epsilon": ("epsilon", number),
+            "gamma": ("gamma", number),
+            "c_hat0": ("c_hat0", number),
+        },
+        required=("K1", "K2", "Q", "alpha", "epsilon", "gamma"),
+    ),
+    "outer-loop": TypeSpec(
+        OuterLoop, {"K1": ("K1", gain), "K2": ("K2", gain)}, required=("K1", "K2")
+    ),
 }
 
 
 def controller_from_spec(spec: Mapping[str, Any], model: ELPlant) -> Controller:
     """Build a controller from ``{"type": name, gains...}`` around the nominal ``model``."""
-    name = spec.get("type")
-    if name not in CONTROLLERS:
-        raise ValueError(f"unknown controller type {name!r}; valid types are {sorted(CONTROLLERS)}")
-    gains = {key: value for key, value in spec.items() if key != "type"}
-    unknown = sorted(set(gains) - _GAINS[name])
-    if unknown:
-        raise ValueError(
-            f"unknown key(s) {unknown} for controller {name!r}; "
-            f"valid keys are {sorted(_GAINS[name])}"
-        )
-    return CONTROLLERS[name](model=model, **gains)
+    return build_from_table("controller", spec, CONTROLLER_SPECS, model=model)

@@ -62,9 +62,11 @@ from typing import Any
 import numpy as np
 
 from delaytrack._io import write_frame, write_text
-from delaytrack.controllers import CONTROLLERS, Controller, controller_from_spec
-from delaytrack.delays import DELAY_TYPES, PAPER_SCENARIO_DELAYS, DelayProfile, delay_from_spec
-from delaytrack.plants import PLANT_TYPES, ELPlant, plant_from_spec
+from delaytrack._spec import SpecError as ScenarioError
+from delaytrack._spec import array, check_table, fail, integer, number, string, vector
+from delaytrack.controllers import CONTROLLER_SPECS, Controller, controller_from_spec
+from delaytrack.delays import DELAY_SPECS, DelayProfile, delay_from_spec
+from delaytrack.plants import PLANT_SPECS, ELPlant, plant_from_spec
 from delaytrack.reference import SinusoidalReference
 from delaytrack.sim import SimResult, simulate
 
@@ -82,131 +84,24 @@ __all__ = [
 ]
 
 
-class ScenarioError(ValueError):
-    """A scenario file or dict is not valid; the message names the key and what is valid."""
-
-
-# --------------------------------------------------------------------------------------------
-# Value kinds. Each checker returns an error phrase ("must be ...") or None when the value fits.
-
-
-def _is_number(value: object) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool)
-
-
-def _is_vector(value: object) -> bool:
-    return isinstance(value, list) and all(_is_number(item) for item in value)
-
-
-def _is_matrix(value: object) -> bool:
-    if not isinstance(value, list) or not value or not all(_is_vector(row) for row in value):
-        return False
-    return len({len(row) for row in value}) == 1
-
-
-def _number(value: object) -> str | None:
-    if not _is_number(value):
-        return "must be a number"
-    if not math.isfinite(value):
-        return "must be a finite number"
-    return None
-
-
-def _integer(value: object) -> str | None:
-    return None if isinstance(value, int) and not isinstance(value, bool) else "must be an integer"
-
-
-def _string(value: object) -> str | None:
-    return None if isinstance(value, str) else "must be a string"
-
-
-def _vector(value: object) -> str | None:
-    return None if _is_vector(value) else "must be a list of numbers"
-
-
-def _gain(value: object) -> str | None:
-    if _is_number(value) or _is_vector(value) or _is_matrix(value):
-        return None
-    return (
-        "must be a number (a multiple of I), a list of numbers (a diagonal) or a list of "
-        "equally long lists of numbers (a matrix)"
-    )
-
-
-def _array(value: object) -> str | None:
-    if _is_vector(value) or _is_matrix(value):
-        return None
-    return "must be a list of numbers or a list of equally long lists of numbers"
-
-
-_Check = Callable[[object], "str | None"]
-
-#: Keys and value kinds of each table, by ``type``. ``type`` itself is implied.
-_PLANT_KEYS: dict[str, dict[str, _Check]] = {
-    "two-link-arm": {"p1": _number, "p2": _number, "p3": _number, "fd1": _number, "fd2": _number},
-    "linear": {"mass": _gain, "damping": _gain, "stiffness": _gain, "input_map": _array},
-}
-_CONTROLLER_KEYS: dict[str, dict[str, _Check]] = {
-    "arolc": {
-        "K1": _gain,
-        "K2": _gain,
-        "Q": _gain,
-        "alpha": _number,
-        "epsilon": _number,
-        "gamma": _number,
-        "c_hat0": _number,
-    },
-    "outer-loop": {"K1": _gain, "K2": _gain},
-}
-_DELAY_KEYS: dict[str, dict[str, _Check]] = {
-    "constant": {"h": _number},
-    "abs-sine": {"offset": _number, "amplitude": _number, "frequency": _number, "phase": _number},
-    "piecewise-constant": {"times": _vector, "values": _vector},
-    "trace": {"times": _vector, "values": _vector, "path": _string},
-    "random": {
-        "h_low": _number,
-        "h_high": _number,
-        "max_rate": _number,
-        "duration": _number,
-        "seed": _integer,
-        "knot_spacing": _number,
-    },
-    **{name: {} for name in PAPER_SCENARIO_DELAYS},
-}
-#: Keys a table of a given type must have (the others have defaults). A random delay's seed and
-#: duration default to the scenario's; a trace needs ``path`` or both ``times`` and ``values``.
-_REQUIRED_KEYS: dict[str, dict[str, tuple[str, ...]]] = {
-    "plant": {"linear": ("mass",)},
-    "model": {"linear": ("mass",)},
-    "controller": {
-        "arolc": ("K1", "K2", "Q", "alpha", "epsilon", "gamma"),
-        "outer-loop": ("K1", "K2"),
-    },
-    "delay": {
-        "constant": ("h",),
-        "abs-sine": ("offset", "amplitude", "frequency"),
-        "piecewise-constant": ("times", "values"),
-        "random": ("h_low", "h_high", "max_rate"),
-    },
-}
-_REFERENCE_KEYS: dict[str, _Check] = {
-    "type": _string,
-    "offset": _vector,
-    "slope": _vector,
-    "amplitude": _array,
-    "frequency": _array,
-    "phase": _array,
+_REFERENCE_KEYS: dict[str, Callable[[object], str | None]] = {
+    "type": string,
+    "offset": vector,
+    "slope": vector,
+    "amplitude": array,
+    "frequency": array,
+    "phase": array,
 }
 _REFERENCE_TYPES = ("sinusoidal",)
 
-_TOP_LEVEL_SCALARS: dict[str, _Check] = {
-    "name": _string,
-    "duration": _number,
-    "dt": _number,
-    "T_c": _number,
-    "seed": _integer,
-    "x0": _vector,
-    "record_every": _integer,
+_TOP_LEVEL_SCALARS: dict[str, Callable[[object], str | None]] = {
+    "name": string,
+    "duration": number,
+    "dt": number,
+    "T_c": number,
+    "seed": integer,
+    "x0": vector,
+    "record_every": integer,
 }
 _TABLES = ("plant", "model", "controller", "delay", "reference")
 _REQUIRED = ("name", "duration", "dt", "T_c", *_TABLES)
@@ -222,82 +117,10 @@ _NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
 _RATIO_TOLERANCE = 1e-9
 
 
-def _fail(key: str, phrase: str, value: object) -> ScenarioError:
-    return ScenarioError(f"scenario key {key!r} {phrase}; got {value!r}")
-
-
-def _check_value(key: str, value: object, check: _Check) -> None:
+def _check_value(key: str, value: object, check: Callable[[object], str | None]) -> None:
     phrase = check(value)
     if phrase is not None:
-        raise _fail(key, phrase, value)
-
-
-def _check_table(table: str, value: object, schemas: Mapping[str, Mapping[str, _Check]]) -> None:
-    """Check a typed table: a ``type`` from ``schemas`` and only the keys of that type."""
-    if not isinstance(value, Mapping):
-        raise _fail(table, f"must be a table ([{table}]: {_TABLE_PURPOSE[table]})", value)
-    valid_types = sorted(schemas)
-    if "type" not in value:
-        raise ScenarioError(
-            f"scenario key '{table}.type' is missing; [{table}] needs a type, one of {valid_types}"
-        )
-    kind = value["type"]
-    if not isinstance(kind, str) or kind not in schemas:
-        raise ScenarioError(
-            f"scenario key '{table}.type' must be one of {valid_types}; got {kind!r}"
-        )
-    keys = schemas[kind]
-    for key, item in value.items():
-        if key == "type":
-            continue
-        if key not in keys:
-            raise ScenarioError(
-                f"unknown key '{table}.{key}' in scenario; valid keys in [{table}] with "
-                f"type = {kind!r} are {['type', *sorted(keys)]}"
-            )
-        _check_value(f"{table}.{key}", item, keys[key])
-    required = _REQUIRED_KEYS.get(table, {}).get(kind, ())
-    if kind == "trace" and "path" not in value:
-        required = ("times", "values")
-    for key in required:
-        if key not in value:
-            raise ScenarioError(
-                f"scenario key '{table}.{key}' is missing; [{table}] with type = {kind!r} needs "
-                f"{list(required)}"
-            )
-    if kind == "trace" and "path" in value and ("times" in value or "values" in value):
-        raise ScenarioError(
-            f"scenario table [{table}] with type = 'trace' takes either 'path' or 'times' and "
-            "'values', not both"
-        )
-
-
-def _plant_schemas() -> dict[str, dict[str, _Check]]:
-    # The registry is the authority on which types exist; a registered type without a schema
-    # here is passed to plant_from_spec unchecked (its errors are still prefixed with the table).
-    return {name: _PLANT_KEYS.get(name, _ANY) for name in PLANT_TYPES}
-
-
-def _controller_schemas() -> dict[str, dict[str, _Check]]:
-    return {name: _CONTROLLER_KEYS.get(name, _ANY) for name in CONTROLLERS}
-
-
-def _delay_schemas() -> dict[str, dict[str, _Check]]:
-    names = [*DELAY_TYPES, *PAPER_SCENARIO_DELAYS]
-    return {name: _DELAY_KEYS.get(name, _ANY) for name in names}
-
-
-class _AnyKeys(dict):
-    """Schema of a registered type this module does not know: every key, any value."""
-
-    def __contains__(self, key: object) -> bool:
-        return True
-
-    def __getitem__(self, key: str) -> _Check:
-        return lambda value: None
-
-
-_ANY: dict[str, _Check] = _AnyKeys()
+        raise fail(key, phrase, value)
 
 
 def _plain(value: Any) -> Any:
@@ -416,9 +239,9 @@ class Scenario:
     record_every: int = 1
 
     def __post_init__(self) -> None:
-        _check_value("name", self.name, _string)
+        _check_value("name", self.name, string)
         if not _NAME_PATTERN.fullmatch(self.name):
-            raise _fail(
+            raise fail(
                 "name",
                 "must start with a letter or digit and contain only letters, digits, '.', '_' "
                 "and '-' (it names the results folder)",
@@ -426,31 +249,33 @@ class Scenario:
             )
         for key in ("duration", "dt", "T_c"):
             value = getattr(self, key)
-            _check_value(key, value, _number)
+            _check_value(key, value, number)
             if value <= 0:
-                raise _fail(key, "must be > 0 (seconds)", value)
+                raise fail(key, "must be > 0 (seconds)", value)
             object.__setattr__(self, key, float(value))
         _check_ratio("T_c", self.T_c, "dt", self.dt)
         _check_ratio("duration", self.duration, "T_c", self.T_c)
         if self.seed is not None:
-            _check_value("seed", self.seed, _integer)
+            _check_value("seed", self.seed, integer)
             if self.seed < 0:
-                raise _fail("seed", "must be >= 0", self.seed)
+                raise fail("seed", "must be >= 0", self.seed)
         if self.x0 is not None:
             x0 = _plain(self.x0)
-            _check_value("x0", x0, _vector)
+            _check_value("x0", x0, vector)
             _check_value(
                 "x0", x0, lambda v: None if all(map(math.isfinite, v)) else "must be finite"
             )
             object.__setattr__(self, "x0", tuple(float(v) for v in x0))
-        _check_value("record_every", self.record_every, _integer)
+        _check_value("record_every", self.record_every, integer)
         if self.record_every < 1:
-            raise _fail("record_every", "must be >= 1", self.record_every)
+            raise fail("record_every", "must be >= 1", self.record_every)
         tables = {table: _plain(getattr(self, table)) for table in _TABLES}
-        _check_table("plant", tables["plant"], _plant_schemas())
-        _check_table("model", tables["model"], _plant_schemas())
-        _check_table("controller", tables["controller"], _controller_schemas())
-        _check_table("delay", tables["delay"], _delay_schemas())
+        check_table("plant", tables["plant"], PLANT_SPECS)
+        check_table("model", tables["model"], PLANT_SPECS)
+        check_table("controller", tables["controller"], CONTROLLER_SPECS)
+        check_table(
+            "delay", _with_delay_defaults(tables["delay"], self.seed, self.duration), DELAY_SPECS
+        )
         _check_reference(tables["reference"])
         for table, content in tables.items():
             object.__setattr__(self, table, MappingProxyType(content))
@@ -542,17 +367,7 @@ class Scenario:
     # ---- building and running ----------------------------------------------------------------
 
     def _delay_spec(self) -> dict[str, Any]:
-        spec = _plain(self.delay)
-        if spec["type"] == "random":
-            if "seed" not in spec:
-                if self.seed is None:
-                    raise ScenarioError(
-                        "scenario key 'delay.seed' is missing and the scenario has no 'seed'; a "
-                        "random delay needs one of them (results must be reproducible)"
-                    )
-                spec["seed"] = self.seed
-            spec.setdefault("duration", self.duration)
-        return spec
+        return _with_delay_defaults(_plain(self.delay), self.seed, self.duration)
 
     def build(self) -> BuiltScenario:
         """Construct plant, model, controller, delay, reference and ``x0``.
@@ -563,17 +378,15 @@ class Scenario:
             If a table's values are refused by its constructor (for example a gain that is not
             positive definite) or the dimensions disagree; the message names the table.
         """
-        plant = _construct("plant", lambda: plant_from_spec(self.plant), self.plant)
-        model = _construct("model", lambda: plant_from_spec(self.model), self.model)
+        plant = plant_from_spec(_plain(self.plant))
+        model = plant_from_spec(_plain(self.model), table="model")
         if (model.n, model.m) != (plant.n, plant.m):
             raise ScenarioError(
                 f"scenario table [model] has n = {model.n}, m = {model.m}; [plant] has "
                 f"n = {plant.n}, m = {plant.m} (they must describe the same kind of system)"
             )
-        controller = _construct(
-            "controller", lambda: controller_from_spec(self.controller, model), self.controller
-        )
-        delay = _construct("delay", lambda: delay_from_spec(self._delay_spec()), self.delay)
+        controller = controller_from_spec(_plain(self.controller), model)
+        delay = delay_from_spec(self._delay_spec())
         reference_spec = {k: v for k, v in _plain(self.reference).items() if k != "type"}
         reference = _construct(
             "reference", lambda: SinusoidalReference.from_spec(reference_spec), reference_spec
@@ -588,7 +401,7 @@ class Scenario:
         else:
             x0 = np.array(self.x0)
             if x0.shape != (2 * plant.n,):
-                raise _fail("x0", f"must have 2n = {2 * plant.n} entries [q, qdot]", list(self.x0))
+                raise fail("x0", f"must have 2n = {2 * plant.n} entries [q, qdot]", list(self.x0))
         return BuiltScenario(plant, model, controller, delay, reference, x0)
 
     def resolved(self) -> Scenario:
@@ -627,6 +440,22 @@ def _construct(table: str, make: Callable[[], Any], keys: Iterable[str] = ()) ->
         raise ScenarioError(f"scenario table [{table}]: {message}") from None
 
 
+def _with_delay_defaults(delay: object, seed: int | None, duration: float) -> object:
+    """A random delay without its own seed or duration takes the scenario's (a copy)."""
+    if not isinstance(delay, Mapping) or delay.get("type") != "random":
+        return delay
+    spec = dict(delay)
+    if "seed" not in spec:
+        if seed is None:
+            raise ScenarioError(
+                "scenario key 'delay.seed' is missing and the scenario has no 'seed'; a "
+                "random delay needs one of them (results must be reproducible)"
+            )
+        spec["seed"] = seed
+    spec.setdefault("duration", duration)
+    return spec
+
+
 def _check_ratio(name: str, value: float, unit_name: str, unit: float) -> None:
     ratio = value / unit
     if round(ratio) < 1 or abs(ratio - round(ratio)) > _RATIO_TOLERANCE * max(1.0, ratio):
@@ -638,7 +467,7 @@ def _check_ratio(name: str, value: float, unit_name: str, unit: float) -> None:
 
 def _check_reference(value: object) -> None:
     if not isinstance(value, Mapping):
-        raise _fail(
+        raise fail(
             "reference", f"must be a table ([reference]: {_TABLE_PURPOSE['reference']})", value
         )
     for key, item in value.items():
@@ -649,7 +478,7 @@ def _check_reference(value: object) -> None:
             )
         _check_value(f"reference.{key}", item, _REFERENCE_KEYS[key])
     if value.get("type", "sinusoidal") not in _REFERENCE_TYPES:
-        raise _fail("reference.type", f"must be one of {list(_REFERENCE_TYPES)}", value["type"])
+        raise fail("reference.type", f"must be one of {list(_REFERENCE_TYPES)}", value["type"])
     if "offset" not in value:
         raise ScenarioError(
             "scenario key 'reference.offset' is missing; [reference] needs 'offset' "
@@ -705,10 +534,7 @@ def run_batched(scenarios: Sequence[Scenario], *, progress: bool = False) -> Sim
                 "delay and seed may differ within a batch"
             )
     built = first.build()
-    delays = [
-        _construct("delay", lambda s=scenario: delay_from_spec(s._delay_spec()))
-        for scenario in scenarios
-    ]
+    delays = [delay_from_spec(scenario._delay_spec()) for scenario in scenarios]
     return _simulate(first, built.plant, built.controller, delays, built, progress)
 
 

@@ -1,0 +1,188 @@
+"""Plain-data specs (scenario tables) of plants, controllers and delays.
+
+Each registry declares, once per type, the constructor, the keys it accepts with their value
+kinds, and the keys it needs (:class:`TypeSpec`). :func:`build_from_table` checks a table against
+that declaration and builds the object; every refusal is a :class:`SpecError` naming the key
+(``"scenario key 'controller.alpha' must be a number; got 'two'"``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+__all__ = [
+    "Check",
+    "SpecError",
+    "TypeSpec",
+    "array",
+    "build_from_table",
+    "check_table",
+    "gain",
+    "integer",
+    "number",
+    "string",
+    "vector",
+]
+
+#: A value check: returns an error phrase ("must be ...") or None when the value fits.
+Check = Callable[[object], "str | None"]
+
+
+class SpecError(ValueError):
+    """A scenario file or table is not valid; the message names the key and what is valid."""
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _is_vector(value: object) -> bool:
+    return isinstance(value, list) and all(_is_number(item) for item in value)
+
+
+def _is_matrix(value: object) -> bool:
+    if not isinstance(value, list) or not value or not all(_is_vector(row) for row in value):
+        return False
+    return len({len(row) for row in value}) == 1
+
+
+def number(value: object) -> str | None:
+    if not _is_number(value):
+        return "must be a number"
+    if not math.isfinite(value):
+        return "must be a finite number"
+    return None
+
+
+def integer(value: object) -> str | None:
+    return None if isinstance(value, int) and not isinstance(value, bool) else "must be an integer"
+
+
+def string(value: object) -> str | None:
+    return None if isinstance(value, str) else "must be a string"
+
+
+def vector(value: object) -> str | None:
+    return None if _is_vector(value) else "must be a list of numbers"
+
+
+def gain(value: object) -> str | None:
+    if _is_number(value) or _is_vector(value) or _is_matrix(value):
+        return None
+    return (
+        "must be a number (a multiple of I), a list of numbers (a diagonal) or a list of "
+        "equally long lists of numbers (a matrix)"
+    )
+
+
+def array(value: object) -> str | None:
+    if _is_vector(value) or _is_matrix(value):
+        return None
+    return "must be a list of numbers or a list of equally long lists of numbers"
+
+
+@dataclass(frozen=True)
+class TypeSpec:
+    """How a table with a given ``type`` becomes an object.
+
+    Attributes
+    ----------
+    build : callable
+        Constructor called with the table's values as keyword arguments.
+    keys : mapping
+        Table key -> (constructor argument, value check).
+    required : tuple of str
+        Keys the table must have.
+    alternatives : tuple of tuple of str
+        Groups of keys of which exactly one group must be given, complete (for example a trace's
+        ``("path",)`` or ``("times", "values")``).
+    """
+
+    build: Callable[..., Any]
+    keys: Mapping[str, tuple[str, Check]] = field(default_factory=dict)
+    required: tuple[str, ...] = ()
+    alternatives: tuple[tuple[str, ...], ...] = ()
+
+
+def fail(key: str, phrase: str, value: object) -> SpecError:
+    """The error for ``key`` whose ``value`` does not fit ``phrase`` ("must be ...")."""
+    return SpecError(f"scenario key {key!r} {phrase}; got {value!r}")
+
+
+def check_table(table: str, value: object, types: Mapping[str, TypeSpec]) -> TypeSpec:
+    """Check a typed table: a ``type`` among ``types``, only its keys; return its spec."""
+    if not isinstance(value, Mapping):
+        raise fail(table, f"must be a table ([{table}])", value)
+    valid_types = sorted(types)
+    if "type" not in value:
+        raise SpecError(
+            f"scenario key '{table}.type' is missing; [{table}] needs a type, one of {valid_types}"
+        )
+    kind = value["type"]
+    if not isinstance(kind, str) or kind not in types:
+        raise SpecError(f"scenario key '{table}.type' must be one of {valid_types}; got {kind!r}")
+    spec = types[kind]
+    for key, item in value.items():
+        if key == "type":
+            continue
+        if key not in spec.keys:
+            raise SpecError(
+                f"unknown key '{table}.{key}' in scenario; valid keys in [{table}] with "
+                f"type = {kind!r} are {['type', *sorted(spec.keys)]}"
+            )
+        phrase = spec.keys[key][1](item)
+        if phrase is not None:
+            raise fail(f"{table}.{key}", phrase, item)
+    if spec.alternatives:
+        _check_alternatives(table, kind, value, spec.alternatives)
+    missing = [key for key in spec.required if key not in value]
+    if missing:
+        raise SpecError(
+            f"scenario key '{table}.{missing[0]}' is missing; [{table}] with type = {kind!r} "
+            f"needs {list(spec.required)}"
+        )
+    return spec
+
+
+def _check_alternatives(
+    table: str, kind: str, value: Mapping[str, Any], groups: tuple[tuple[str, ...], ...]
+) -> None:
+    described = " or ".join(" and ".join(repr(key) for key in group) for group in groups)
+    touched = [group for group in groups if any(key in value for key in group)]
+    if len(touched) > 1:
+        raise SpecError(
+            f"scenario table [{table}] with type = {kind!r} takes either {described}, not both"
+        )
+    group = touched[0] if touched else groups[0]
+    missing = [key for key in group if key not in value]
+    if missing:
+        raise SpecError(
+            f"scenario key '{table}.{missing[0]}' is missing; [{table}] with type = {kind!r} "
+            f"needs {described}"
+        )
+
+
+def build_from_table(table: str, value: object, types: Mapping[str, TypeSpec], **extra: Any) -> Any:
+    """Check ``value`` with :func:`check_table` and build it (``extra`` goes to the constructor).
+
+    A refusal by the constructor is re-raised naming the table, and the key when the message
+    starts with the constructor argument of one (``"K1 must be ..."`` becomes
+    ``"scenario key 'controller.K1' must be ..."``).
+    """
+    spec = check_table(table, value, types)
+    arguments = {spec.keys[key][0]: item for key, item in value.items() if key != "type"}
+    try:
+        return spec.build(**extra, **arguments)
+    except SpecError:
+        raise
+    except (ValueError, TypeError, FileNotFoundError) as error:
+        message = str(error)
+        for key, (argument, _) in spec.keys.items():
+            if message.startswith(f"{argument} "):
+                raise SpecError(
+                    f"scenario key '{table}.{key}' {message[len(argument) + 1 :]}"
+                ) from None
+        raise SpecError(f"scenario table [{table}]: {message}") from None

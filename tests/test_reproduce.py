@@ -101,6 +101,7 @@ def test_readme_python_examples_run(tmp_path, monkeypatch, capsys):
     out = capsys.readouterr().out
     assert "(2, 2501, 2) ['ok', 'ok']" in out and "0.12487" in out
     assert Scenario.from_toml(tmp_path / "my_scenario.toml").duration == 2.0
+    assert (tmp_path / "error_S1.png").stat().st_size > 0
 
 
 def test_readme_scenario_file_is_valid():

@@ -21,6 +21,15 @@ if TYPE_CHECKING:
 __all__ = ["atomic_path", "write_bytes", "write_frame", "write_text"]
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+_DEFAULT_MODE = 0o666 & ~_umask()
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; on success it replaces ``path`` atomically.
@@ -42,6 +51,8 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     temporary = Path(name)
     try:
         yield temporary
+        # mkstemp creates the file private (0600); give it the mode a plain open() would.
+        os.chmod(temporary, _DEFAULT_MODE)
         os.replace(temporary, target)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):

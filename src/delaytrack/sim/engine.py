@@ -189,40 +189,41 @@ def _integrate_step(
 
 
 @register_jitable
-def run_closed_loop(
-    plant_terms,
-    plant_params,
-    model_terms,
-    model_params,
-    reference,
-    reference_params,
-    controller_step,
-    controller_params,
-    controller_state,
-    delay_kind,
-    delay_params,
-    x0,
-    u_init,
-    t0,
-    dt,
-    steps_per_tick,
-    n_ticks,
-    record_every,
-    capacity,
-    divergence_bound,
-    states,
-    commands,
-    applied,
-    delays,
-    controller_states,
-):
+def run_closed_loop(handles, run, settings, records):
     """Simulate one closed loop from ``t0`` to tick ``n_ticks``; return ``(status, t_stop)``.
 
-    Records are written every ``record_every`` ticks into ``states (R, 2n)``, ``commands
-    (R, m)``, ``applied (R, m)`` (the input applied over the step that starts at the tick),
-    ``delays (R,)`` and ``controller_states (R, n_state)`` (the state used at the tick). Rows
-    after a stop are left as they were (the caller fills them with NaN).
+    Parameters (tuples, so that :func:`run_batch` can pass them on whole)
+    ----------------------------------------------------------------------
+    handles : tuple
+        ``(plant_terms, model_terms, reference, controller_step)``: kernel ids (compiled) or
+        callables (plain Python); see :mod:`delaytrack.plants.dispatch`.
+    run : tuple
+        This run's arrays ``(plant_params, model_params, controller_params, controller_state,
+        delay_kind, delay_params, x0, capacity)``; ``controller_state`` is advanced in place.
+    settings : tuple
+        ``(reference_params, u_init, t0, dt, steps_per_tick, n_ticks, record_every,
+        divergence_bound)``, shared by every run of a batch.
+    records : (states, commands, applied, delays, controller_states)
+        Written every ``record_every`` ticks: ``states (R, 2n)``, ``commands (R, m)``,
+        ``applied (R, m)`` (the input applied over the step that starts at the tick),
+        ``delays (R,)`` and ``controller_states (R, n_state)`` (the state used at the tick).
+        Rows after a stop are left as they were (the caller fills them with NaN).
     """
+    plant_terms, model_terms, reference, controller_step = handles
+    (
+        plant_params,
+        model_params,
+        controller_params,
+        controller_state,
+        delay_kind,
+        delay_params,
+        x0,
+        capacity,
+    ) = run
+    reference_params, u_init, t0, dt, steps_per_tick, n_ticks, record_every, divergence_bound = (
+        settings
+    )
+    states, commands, applied, delays, controller_states = records
     n = x0.shape[0] // 2
     m = u_init.shape[0]
     T_c = steps_per_tick * dt
@@ -298,64 +299,36 @@ def run_closed_loop(
 
 
 @register_jitable
-def run_batch(
-    plant_terms,
-    plant_params,
-    model_terms,
-    model_params,
-    reference,
-    reference_params,
-    controller_step,
-    controller_params,
-    controller_state,
-    delay_kind,
-    delay_params,
-    x0,
-    u_init,
-    t0,
-    dt,
-    steps_per_tick,
-    n_ticks,
-    record_every,
-    capacity,
-    divergence_bound,
-    states,
-    commands,
-    applied,
-    delays,
-    controller_states,
-    status,
-    t_stop,
-):
-    """:func:`run_closed_loop` for each batch element ``b`` (per-element arrays: ``b`` first)."""
+def run_batch(handles, runs, settings, records, status, t_stop):
+    """:func:`run_closed_loop` for each batch element ``b``.
+
+    ``runs`` and ``records`` hold the arrays of :func:`run_closed_loop` with a leading batch axis;
+    ``status (B,)`` and ``t_stop (B,)`` receive each run's outcome.
+    """
+    (
+        plant_params,
+        model_params,
+        controller_params,
+        controller_state,
+        delay_kind,
+        delay_params,
+        x0,
+        capacity,
+    ) = runs
+    states, commands, applied, delays, controller_states = records
     for b in range(x0.shape[0]):
-        status[b], t_stop[b] = run_closed_loop(
-            plant_terms,
+        run = (
             plant_params[b],
-            model_terms,
             model_params[b],
-            reference,
-            reference_params,
-            controller_step,
             controller_params[b],
             controller_state[b],
             delay_kind[b],
             delay_params[b],
             x0[b],
-            u_init,
-            t0,
-            dt,
-            steps_per_tick,
-            n_ticks,
-            record_every,
             capacity[b],
-            divergence_bound,
-            states[b],
-            commands[b],
-            applied[b],
-            delays[b],
-            controller_states[b],
         )
+        run_records = (states[b], commands[b], applied[b], delays[b], controller_states[b])
+        status[b], t_stop[b] = run_closed_loop(handles, run, settings, run_records)
 
 
 run_batch_compiled = njit(cache=True)(run_batch)

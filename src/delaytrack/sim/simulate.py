@@ -189,46 +189,41 @@ def simulate(
 
     compiled = first_plant.compiled and first_controller.compiled
     runner = run_batch_compiled if compiled else run_batch
-    arrays = dict(
-        plant_params=_stack_padded([p.params for p in plants]),
-        model_params=_stack_padded([c.model.params for c in controllers]),
-        controller_params=_stack_padded([c.params for c in controllers]),
-        controller_state=np.array([c.initial_state() for c in controllers]).reshape(
-            batch, state_size
-        ),
-        delay_kind=np.array([d.kind for d in delays], dtype=np.int64),
-        delay_params=_stack_padded([d.params for d in delays]),
-        capacity=np.array([history_capacity(d.h_max, T_c) for d in delays], dtype=np.int64),
+    handles = (
+        first_plant.kernel_handle if compiled else first_plant.terms_kernel,
+        first_controller.model.kernel_handle,
+        reference.kernel_id if compiled else reference.kernel,
+        first_controller.kernel_id if compiled else first_controller.step_callable,
     )
+    runs = (
+        _stack_padded([p.params for p in plants]),
+        _stack_padded([c.model.params for c in controllers]),
+        _stack_padded([c.params for c in controllers]),
+        np.array([c.initial_state() for c in controllers]).reshape(batch, state_size),
+        np.array([d.kind for d in delays], dtype=np.int64),
+        _stack_padded([d.params for d in delays]),
+        states0,
+        np.array([history_capacity(d.h_max, T_c) for d in delays], dtype=np.int64),
+    )
+    settings = (
+        reference.params,
+        u_init,
+        t0,
+        dt,
+        steps_per_tick,
+        n_ticks,
+        int(record_every),
+        divergence_bound,
+    )
+    outputs = (states, commands, applied, delay_records, controller_states)
     chunks = np.array_split(np.arange(batch), min(batch, 100)) if progress else [np.arange(batch)]
     for chunk in tqdm(chunks, desc="simulate", unit="chunk", disable=not progress):
         part = slice(chunk[0], chunk[-1] + 1)
         runner(
-            first_plant.kernel_handle if compiled else first_plant.terms_kernel,
-            arrays["plant_params"][part],
-            first_controller.model.kernel_handle,
-            arrays["model_params"][part],
-            reference.kernel_id if compiled else reference.kernel,
-            reference.params,
-            first_controller.kernel_id if compiled else first_controller.step_callable,
-            arrays["controller_params"][part],
-            arrays["controller_state"][part],
-            arrays["delay_kind"][part],
-            arrays["delay_params"][part],
-            states0[part],
-            u_init,
-            t0,
-            dt,
-            steps_per_tick,
-            n_ticks,
-            int(record_every),
-            arrays["capacity"][part],
-            divergence_bound,
-            states[part],
-            commands[part],
-            applied[part],
-            delay_records[part],
-            controller_states[part],
+            handles,
+            tuple(array[part] for array in runs),
+            settings,
+            tuple(array[part] for array in outputs),
             status[part],
             t_stop[part],
         )
@@ -239,7 +234,7 @@ def simulate(
         for array in (states, commands, applied, delay_records, controller_states):
             array[b, after] = np.nan
     qd, qd_dot, qd_ddot = reference.evaluate(times)
-    settings: dict[str, Any] = {
+    record: dict[str, Any] = {
         "t0": t0,
         "t1": t1,
         "dt": dt,
@@ -268,5 +263,5 @@ def simulate(
         controller_state_names=first_controller.state_names,
         status=status,
         t_stop=t_stop,
-        settings=settings,
+        settings=record,
     )

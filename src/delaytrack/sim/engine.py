@@ -133,57 +133,39 @@ def _integrate_step(
         g_b = b - h_b
         k_a = latest_tick_index(g_a, t0, dt, steps_per_tick)
         k_b = latest_tick_index(g_b, t0, dt, steps_per_tick)
+        # Sub-intervals end at each tick crossed by g on this piece, in time order, then at b.
+        crossings = abs(k_b - k_a)
+        direction = 1 if k_b >= k_a else -1
+        first_tick = k_a + 1 if direction == 1 else k_a
         start = a
-        if k_b != k_a:
-            direction = 1 if k_b > k_a else -1
-            first = k_a + 1 if direction == 1 else k_a
-            last = k_b + 1 if direction == 1 else k_b
-            for k in range(first, last, direction):
-                target = tick_time(k, t0, dt, steps_per_tick)
-                crossing = crossing_time(delay_kind, delay_params, a, b, g_a, g_b, target)
-                if crossing - start <= tolerance or b - crossing <= tolerance:
+        for i in range(crossings + 1):
+            end = b
+            if i < crossings:
+                target = tick_time(first_tick + direction * i, t0, dt, steps_per_tick)
+                end = crossing_time(delay_kind, delay_params, a, b, g_a, g_b, target)
+                if end - start <= tolerance or b - end <= tolerance:
                     continue
-                slot = _integrate_interval(
-                    plant_terms,
-                    plant_params,
-                    delay_kind,
-                    delay_params,
-                    x,
-                    start,
-                    crossing,
-                    history,
-                    u_init,
-                    newest,
-                    t0,
-                    dt,
-                    steps_per_tick,
-                    work,
-                )
-                if first_slot == -3 or slot == -2:
-                    first_slot = slot
-                if slot == -2:
-                    return slot
-                start = crossing
-        slot = _integrate_interval(
-            plant_terms,
-            plant_params,
-            delay_kind,
-            delay_params,
-            x,
-            start,
-            b,
-            history,
-            u_init,
-            newest,
-            t0,
-            dt,
-            steps_per_tick,
-            work,
-        )
-        if first_slot == -3 or slot == -2:
-            first_slot = slot
-        if slot == -2:
-            return slot
+            slot = _integrate_interval(
+                plant_terms,
+                plant_params,
+                delay_kind,
+                delay_params,
+                x,
+                start,
+                end,
+                history,
+                u_init,
+                newest,
+                t0,
+                dt,
+                steps_per_tick,
+                work,
+            )
+            if first_slot == -3:
+                first_slot = slot
+            if slot == -2:
+                return slot
+            start = end
         a = b
     return first_slot
 

@@ -48,7 +48,11 @@ def computed_torque_command(model_terms, model_params, q, qdot, u, command):
     nonlinear = np.empty(n)
     input_map = np.empty((n, command.shape[0]))
     call_terms(model_terms, q, qdot, model_params, mass, nonlinear, input_map)
-    command[:] = np.linalg.solve(input_map, mass @ u + nonlinear)
+    tau = mass @ u + nonlinear
+    if not (np.all(np.isfinite(tau)) and np.all(np.isfinite(input_map))):
+        command[:] = np.nan  # the simulator stops the run as diverged
+        return
+    command[:] = np.linalg.solve(input_map, tau)
 
 
 class Controller(ABC):

@@ -34,9 +34,14 @@ def el_rhs(terms, t, x, u, params, dx):
     nonlinear = np.empty(n)
     input_map = np.empty((n, u.shape[0]))
     call_terms(terms, x[:n], x[n:], params, mass, nonlinear, input_map)
-    qdd = np.linalg.solve(mass, input_map @ u - nonlinear)
+    force = input_map @ u - nonlinear
+    if not (np.all(np.isfinite(mass)) and np.all(np.isfinite(force))):
+        # A diverging state: report it through dx (the simulator then stops the run with a
+        # status) instead of letting the linear solve raise and end the whole batch.
+        dx[:] = np.nan
+        return
     dx[:n] = x[n:]
-    dx[n:] = qdd
+    dx[n:] = np.linalg.solve(mass, force)
 
 
 class ELPlant(ABC):

@@ -70,38 +70,6 @@ def _applied_slot(delay_kind, delay_params, t, newest, capacity, t0, dt, steps_p
 
 
 @register_jitable
-def _integrate_interval(
-    plant_terms,
-    plant_params,
-    delay_kind,
-    delay_params,
-    x,
-    a,
-    b,
-    history,
-    u_init,
-    newest,
-    t0,
-    dt,
-    steps_per_tick,
-    work,
-):
-    """Integrate ``x`` over ``[a, b]`` with the input looked up at the midpoint.
-
-    Returns the ring slot used (see :func:`_applied_slot`); -2 means nothing was integrated.
-    """
-    middle = 0.5 * (a + b)
-    slot = _applied_slot(
-        delay_kind, delay_params, middle, newest, history.shape[0], t0, dt, steps_per_tick
-    )
-    if slot == -2:
-        return slot
-    u = u_init if slot == -1 else history[slot]
-    _rk4_substep(plant_terms, plant_params, a, x, u, b - a, work)
-    return slot
-
-
-@register_jitable
 def _integrate_step(
     plant_terms,
     plant_params,
@@ -117,13 +85,16 @@ def _integrate_step(
     dt,
     steps_per_tick,
     work,
+    probe_only,
 ):
     """Integrate ``x`` over one plant step ``[t_start, t_end]``, split where the input switches.
 
-    Returns the ring slot of the input applied at the start of the step (-1 for ``u_init``), or -2
-    when a needed command has left the history.
+    Each sub-step uses the command looked up at its midpoint. Returns the ring slot of the input
+    of the first sub-step (-1 for ``u_init``), or -2 when a needed command has left the history.
+    With ``probe_only`` nothing is integrated: only that first slot is found.
     """
     tolerance = _SPLIT_TOLERANCE * dt
+    capacity = history.shape[0]
     first_slot = -3
     a = t_start
     while a < t_end:
@@ -145,26 +116,24 @@ def _integrate_step(
                 end = crossing_time(delay_kind, delay_params, a, b, g_a, g_b, target)
                 if end - start <= tolerance or b - end <= tolerance:
                     continue
-            slot = _integrate_interval(
-                plant_terms,
-                plant_params,
+            slot = _applied_slot(
                 delay_kind,
                 delay_params,
-                x,
-                start,
-                end,
-                history,
-                u_init,
+                0.5 * (start + end),
                 newest,
+                capacity,
                 t0,
                 dt,
                 steps_per_tick,
-                work,
             )
-            if first_slot == -3:
-                first_slot = slot
             if slot == -2:
                 return slot
+            if first_slot == -3:
+                first_slot = slot
+                if probe_only:
+                    return slot
+            u = u_init if slot == -1 else history[slot]
+            _rk4_substep(plant_terms, plant_params, start, x, u, end - start, work)
             start = end
         a = b
     return first_slot
@@ -187,7 +156,7 @@ def run_closed_loop(handles, run, settings, records):
         divergence_bound)``, shared by every run of a batch.
     records : (states, commands, applied, delays, controller_states)
         Written every ``record_every`` ticks: ``states (R, 2n)``, ``commands (R, m)``,
-        ``applied (R, m)`` (the input applied over the step that starts at the tick),
+        ``applied (R, m)`` (the input of the first sub-step after the tick),
         ``delays (R,)`` and ``controller_states (R, n_state)`` (the state used at the tick).
         Rows after a stop are left as they were (the caller fills them with NaN).
     """
@@ -247,9 +216,26 @@ def run_closed_loop(handles, run, settings, records):
             return DIVERGED, t_k
         if k == n_ticks:
             if record:
-                slot = _applied_slot(
-                    delay_kind, delay_params, t_k, k, capacity, t0, dt, steps_per_tick
+                # The input a step from t_k would start with, found as for every other row.
+                slot = _integrate_step(
+                    plant_terms,
+                    plant_params,
+                    delay_kind,
+                    delay_params,
+                    x,
+                    t_k,
+                    t_k + dt,
+                    history,
+                    u_init,
+                    k,
+                    t0,
+                    dt,
+                    steps_per_tick,
+                    work,
+                    True,
                 )
+                if slot == -2:
+                    return DELAY_BEYOND_HISTORY, t_k
                 applied[row] = u_init if slot == -1 else history[slot]
             break
         for j in range(steps_per_tick):
@@ -270,6 +256,7 @@ def run_closed_loop(handles, run, settings, records):
                 dt,
                 steps_per_tick,
                 work,
+                False,
             )
             if slot == -2:
                 return DELAY_BEYOND_HISTORY, t_start

@@ -189,12 +189,24 @@ def simulate(
 
     compiled = first_plant.compiled and first_controller.compiled
     runner = run_batch_compiled if compiled else run_batch
-    handles = (
-        first_plant.kernel_handle if compiled else first_plant.terms_kernel,
-        first_controller.model.kernel_handle,
-        reference.kernel_id if compiled else reference.kernel,
-        first_controller.kernel_id if compiled else first_controller.step_callable,
-    )
+
+    def handles(b: int) -> tuple:
+        """Kernel ids (compiled) or element ``b``'s own callables (plain Python)."""
+        plant_b, controller_b = plants[b], controllers[b]
+        if compiled:
+            return (
+                plant_b.kernel_id,
+                controller_b.model.kernel_id,
+                reference.kernel_id,
+                controller_b.kernel_id,
+            )
+        return (
+            plant_b.terms_kernel,
+            controller_b.model.kernel_handle,
+            reference.kernel,
+            controller_b.step_callable,
+        )
+
     runs = (
         _stack_padded([p.params for p in plants]),
         _stack_padded([c.model.params for c in controllers]),
@@ -216,11 +228,16 @@ def simulate(
         divergence_bound,
     )
     outputs = (states, commands, applied, delay_records, controller_states)
-    chunks = np.array_split(np.arange(batch), min(batch, 100)) if progress else [np.arange(batch)]
+    # Compiled kernels are shared by the whole batch; Python callables may differ per element,
+    # so the plain-Python engine runs one element at a time.
+    if compiled and not progress:
+        chunks = [np.arange(batch)]
+    else:
+        chunks = np.array_split(np.arange(batch), batch if not compiled else min(batch, 100))
     for chunk in tqdm(chunks, desc="simulate", unit="chunk", disable=not progress):
         part = slice(chunk[0], chunk[-1] + 1)
         runner(
-            handles,
+            handles(int(chunk[0])),
             tuple(array[part] for array in runs),
             settings,
             tuple(array[part] for array in outputs),

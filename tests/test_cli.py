@@ -118,7 +118,9 @@ def test_bound_negative_gain_shows_its_eigenvalues():
             ["--k1", "1", "--k2", "1", "--q", "-2"],
             "--q must be symmetric positive definite; its eigenvalues are [-2, -2]",
         ),
-        (["--k1", "1", "--k2", "1", "--q", "1", "--n", "0"], "--n must be a positive integer"),
+        (["--k1", "1", "--k2", "1", "--q", "1", "--n", "0"], "--n must be an integer from 1 to"),
+        (["--k1", "1", "--k2", "1", "--q", "1", "--n", "100000"], "got 100000"),
+        (["--k1", "1e300", "--k2", "1", "--q", "1"], "cannot be solved accurately"),
         (["--k1", "1", "--k2", "1", "--q", "1", "--r", "nan"], "--r must be finite"),
     ],
 )

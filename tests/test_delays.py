@@ -627,3 +627,11 @@ def test_delay_from_spec_missing_key_names_the_scenario_key():
     # A scenario file says [delay] type = "constant", h = ...; forgetting h should say so.
     with pytest.raises(ValueError, match=r"'h'"):
         delay_from_spec({"type": "constant"})
+
+
+def test_random_delay_in_a_very_narrow_band_reflects_in_closed_form():
+    # A band of 1e-9 s with slope steps of up to 0.01 s needs ~1e7 reflections per knot if done
+    # one at a time; the closed-form fold keeps construction instant and the walk in the band.
+    profile = RandomDelay(0.05, 0.05 + 1e-9, 1.0, 1.0, seed=1)
+    values = profile.h(np.linspace(0.0, 1.0, 1001))
+    assert np.all((values >= 0.05) & (values <= 0.05 + 1e-9))

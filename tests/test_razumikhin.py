@@ -297,3 +297,10 @@ def test_scipy_sign_convention_is_the_one_we_rely_on():
     A = np.array([[0.0, 1.0], [-2.0, -3.0]])
     P = scipy.linalg.solve_continuous_lyapunov(A.T, -np.eye(2))
     np.testing.assert_allclose(A.T @ P + P @ A, -np.eye(2), atol=1e-14)
+
+
+def test_gains_too_ill_conditioned_for_an_accurate_lyapunov_solution_are_refused():
+    # K1 = 1e8, K2 = 1: scipy returns an indefinite P with a residual of order ||Q|| (found in
+    # review); the bound would be meaningless, so the solve is checked and refused.
+    with pytest.raises(ValueError, match=r"cannot be solved accurately.*relative residual"):
+        razumikhin_bound(1e8, 1.0, 1.0, 1.0, 1.1)

@@ -59,8 +59,11 @@ def _scalar(flag: str, text: str) -> float:
 def _dimension(args: argparse.Namespace, k1: np.ndarray, k2: np.ndarray, q: np.ndarray) -> int:
     """n from --n, else from the length of a comma list, else 1; check every list fits it."""
     if args.n is not None:
-        if args.n < 1:
-            raise UsageError(f"--n must be a positive integer (the number of joints); got {args.n}")
+        if not 1 <= args.n <= _MAX_JOINTS:
+            raise UsageError(
+                f"--n must be an integer from 1 to {_MAX_JOINTS} (the number of joints); "
+                f"got {args.n}"
+            )
         n = args.n
     else:
         candidates = {len(v) for v in (k1, k2) if len(v) > 1}
@@ -83,6 +86,10 @@ def _dimension(args: argparse.Namespace, k1: np.ndarray, k2: np.ndarray, q: np.n
                 f"{size} (a diagonal)"
             )
     return n
+
+
+#: Largest --n: E is 2n x 2n and dense, so n = 1000 already needs tens of MB per matrix.
+_MAX_JOINTS = 1000
 
 
 def _diagonal(values: np.ndarray, size: int) -> np.ndarray:

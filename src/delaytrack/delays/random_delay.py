@@ -69,8 +69,11 @@ class RandomDelay(DelayProfile):
             value = values[i] + slope * self.knot_spacing
             if width == 0.0:
                 value = self.h_low
-            while not self.h_low <= value <= self.h_high:
-                value = 2 * self.h_high - value if value > self.h_high else 2 * self.h_low - value
+            elif not self.h_low <= value <= self.h_high:
+                # Reflect at the bounds as often as needed, in closed form (a narrow band would
+                # take many reflections).
+                folded = (value - self.h_low) % (2.0 * width)
+                value = self.h_low + (folded if folded <= width else 2.0 * width - folded)
             values[i + 1] = value
         return times, values
 

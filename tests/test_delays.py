@@ -436,9 +436,9 @@ def test_delay_value_scalar_kernel_matches_profiles():
 @pytest.mark.parametrize(
     "build, message",
     [
-        (lambda: ConstantDelay(-0.01), r"delay h must be >= 0; got -0\.01"),
-        (lambda: ConstantDelay(float("nan")), r"delay h must be finite; got nan"),
-        (lambda: ConstantDelay(float("inf")), r"delay h must be finite"),
+        (lambda: ConstantDelay(-0.01), r"value must be >= 0; got -0\.01"),
+        (lambda: ConstantDelay(float("nan")), r"value must be finite; got nan"),
+        (lambda: ConstantDelay(float("inf")), r"value must be finite"),
         (lambda: AbsSineDelay(-0.02, 0.08, 1.0), r"offset must be >= 0; got -0\.02"),
         (lambda: AbsSineDelay(0.02, -0.08, 1.0), r"amplitude must be >= 0; got -0\.08"),
         (lambda: AbsSineDelay(0.02, 0.08, 0.0), r"frequency must be > 0; got 0"),
@@ -456,8 +456,8 @@ def test_delay_value_scalar_kernel_matches_profiles():
             lambda: PiecewiseConstantDelay([0.0, 1.0, 1.0], [0.1] * 3),
             r"times\[1\] = 1 is followed by times\[2\] = 1",
         ),
-        (lambda: TraceDelay([0.0, 1.0, 2.0], [0.1, 0.0, -0.01]), r"delays\[2\] = -0\.01 at t = 2"),
-        (lambda: PiecewiseConstantDelay([0.0, 1.0], [-0.5, 0.1]), r"delays\[0\] = -0\.5 at t = 0"),
+        (lambda: TraceDelay([0.0, 1.0, 2.0], [0.1, 0.0, -0.01]), r"values\[2\] = -0\.01 at t = 2"),
+        (lambda: PiecewiseConstantDelay([0.0, 1.0], [-0.5, 0.1]), r"values\[0\] = -0\.5 at t = 0"),
         (lambda: TraceDelay([0.0, 1.0, 2.0], [0.1, 0.2]), r"same length; got 3 and 2"),
         (lambda: TraceDelay([], []), r"at least one knot"),
         (
@@ -487,7 +487,7 @@ def test_refused_profiles(build, message):
 
 
 def test_non_numeric_delay_is_a_type_error():
-    with pytest.raises(TypeError, match=r"delay h must be a real number; got 'abc'"):
+    with pytest.raises(TypeError, match=r"value must be a real number; got 'abc'"):
         ConstantDelay("abc")
 
 
@@ -635,3 +635,11 @@ def test_random_delay_in_a_very_narrow_band_reflects_in_closed_form():
     profile = RandomDelay(0.05, 0.05 + 1e-9, 1.0, 1.0, seed=1)
     values = profile.h(np.linspace(0.0, 1.0, 1001))
     assert np.all((values >= 0.05) & (values <= 0.05 + 1e-9))
+
+
+def test_a_number_given_as_text_or_bool_is_refused():
+    # float("0.06") and float(True) would succeed: a string or a bool for a delay is a mistake.
+    with pytest.raises(TypeError, match=r"value must be a real number; got '0\.06'"):
+        ConstantDelay("0.06")
+    with pytest.raises(TypeError, match=r"frequency must be a real number; got True"):
+        AbsSineDelay(0.01, 0.02, True)

@@ -351,7 +351,7 @@ def test_record_every_decimates_the_full_record() -> None:
     [
         (
             {"T_c": 0.0025, "dt": 0.001},
-            r"T_c must be a positive integer multiple of dt; got T_c/dt = 2\.5",
+            r"T_c must be a positive integer multiple of dt; got \(T_c\)/dt = 2\.5",
         ),
         ({"t1": 1.005}, r"t1 - t0 must be a positive integer multiple of T_c"),
         ({"dt": -1e-3}, r"dt must be > 0; got -0\.001"),
@@ -378,6 +378,25 @@ def test_bad_simulation_settings_are_refused_with_the_offending_value(
     arguments.update(override)
     with pytest.raises(ValueError, match=message):
         simulate(plant, controller, **arguments)
+
+
+def test_a_duration_far_from_t0_is_not_refused_for_rounding() -> None:
+    # With t0 = 1e5 + 0.1 the difference t1 - t0 carries rounding of order ulp(1e5), far more
+    # than 1e-9 of eight ticks (found in review); the check allows for it.
+    plant, controller, reference = point_mass_loop()
+    t0 = 1e5 + 0.1
+    result = simulate(
+        plant,
+        controller,
+        ConstantDelay(0.01),
+        [1.0, 0.0],
+        reference=reference,
+        t0=t0,
+        t1=t0 + 8 * T_C,
+        dt=1e-3,
+        T_c=T_C,
+    )
+    assert result.t.size == 9 and result.status_names == ["ok"]
 
 
 def test_plant_and_controller_of_different_sizes_are_refused() -> None:

@@ -12,6 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 
 __all__ = [
+    "integer_multiple",
     "as_spd_matrix",
     "as_square_matrix",
     "format_values",
@@ -29,8 +30,27 @@ def format_values(values: np.ndarray | Sequence[float], digits: int = 6) -> str:
     return f"[{shown}{', ...' if flat.size > 8 else ''}]"
 
 
+def integer_multiple(value: float, unit: float, *, scale: float = 0.0) -> int | None:
+    """``value / unit`` when it is a positive integer up to rounding, else None.
+
+    The tolerance is ``1e-9`` relative to the ratio plus the rounding of numbers of size
+    ``scale`` (for a duration ``t1 - t0`` computed from large times, ``scale = max |t|``).
+    """
+    ratio = value / unit
+    count = round(ratio)
+    tolerance = 1e-9 * max(1.0, abs(ratio)) + 4.0 * np.finfo(float).eps * scale / unit
+    if count < 1 or abs(ratio - count) > tolerance:
+        return None
+    return int(count)
+
+
 def positive_scalar(name: str, value: object, *, strictly: bool = True) -> float:
-    """Return ``value`` as a finite float that is > 0 (or >= 0 when ``strictly`` is False)."""
+    """Return ``value`` as a finite float that is > 0 (or >= 0 when ``strictly`` is False).
+
+    Strings and booleans are refused (``"2"`` or ``True`` for a gain is a mistake, not a number).
+    """
+    if isinstance(value, str | bool | np.bool_):
+        raise TypeError(f"{name} must be a real number; got {value!r}")
     try:
         number = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):

@@ -22,7 +22,7 @@ class ConstantDelay(DelayProfile):
     type_name: ClassVar[str] = "constant"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "value", positive_scalar("delay h", self.value, strictly=False))
+        object.__setattr__(self, "value", positive_scalar("value", self.value, strictly=False))
 
     @classmethod
     def S3(cls) -> ConstantDelay:

@@ -20,11 +20,11 @@ def checked_knots(times: object, values: object) -> tuple[np.ndarray, np.ndarray
     same length ``>= 1``.
     """
     t = finite_array("times", times, ndim=1)
-    h = finite_array("delays", values, ndim=1)
+    h = finite_array("values", values, ndim=1)
     if t.size == 0:
         raise ValueError("times must contain at least one knot; got none")
     if t.shape != h.shape:
-        raise ValueError(f"times and delays must have the same length; got {t.size} and {h.size}")
+        raise ValueError(f"times and values must have the same length; got {t.size} and {h.size}")
     steps = np.diff(t)
     if np.any(steps <= 0.0):
         i = int(np.argmax(steps <= 0.0))
@@ -34,7 +34,7 @@ def checked_knots(times: object, values: object) -> tuple[np.ndarray, np.ndarray
         )
     if np.any(h < 0.0):
         i = int(np.argmax(h < 0.0))
-        raise ValueError(f"delays must be >= 0; delays[{i}] = {h[i]:g} at t = {t[i]:g}")
+        raise ValueError(f"values must be >= 0 (delays); values[{i}] = {h[i]:g} at t = {t[i]:g}")
     t.flags.writeable = False
     h.flags.writeable = False
     return t, h

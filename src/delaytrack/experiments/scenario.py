@@ -64,6 +64,7 @@ import numpy as np
 from delaytrack._io import write_frame, write_text
 from delaytrack._spec import SpecError as ScenarioError
 from delaytrack._spec import array, check_table, fail, integer, number, string, vector
+from delaytrack._validation import integer_multiple
 from delaytrack.controllers import CONTROLLER_SPECS, Controller, controller_from_spec
 from delaytrack.delays import DELAY_SPECS, DelayProfile, delay_from_spec
 from delaytrack.plants import PLANT_SPECS, ELPlant, plant_from_spec
@@ -114,7 +115,6 @@ _TABLE_PURPOSE = {
     "reference": "the desired trajectory q_d(t)",
 }
 _NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
-_RATIO_TOLERANCE = 1e-9
 
 
 def _check_value(key: str, value: object, check: Callable[[object], str | None]) -> None:
@@ -458,7 +458,7 @@ def _with_delay_defaults(delay: object, seed: int | None, duration: float) -> ob
 
 def _check_ratio(name: str, value: float, unit_name: str, unit: float) -> None:
     ratio = value / unit
-    if round(ratio) < 1 or abs(ratio - round(ratio)) > _RATIO_TOLERANCE * max(1.0, ratio):
+    if integer_multiple(value, unit) is None:
         raise ScenarioError(
             f"scenario key {name!r} must be a positive integer multiple of {unit_name!r}; got "
             f"{name} = {value:g}, {unit_name} = {unit:g} ({name}/{unit_name} = {ratio:.12g})"

@@ -8,7 +8,7 @@ from typing import Any, TypeVar
 import numpy as np
 from tqdm.auto import tqdm
 
-from delaytrack._validation import finite_array, positive_scalar
+from delaytrack._validation import finite_array, integer_multiple, positive_scalar
 from delaytrack.controllers.base import Controller
 from delaytrack.delays.base import DelayProfile
 from delaytrack.plants.base import ELPlant
@@ -20,7 +20,6 @@ from delaytrack.sim.result import SimResult
 __all__ = ["simulate"]
 
 _T = TypeVar("_T")
-_RATIO_TOLERANCE = 1e-9
 
 
 def _as_batch(name: str, value: _T | Sequence[_T], kind: type) -> list[_T]:
@@ -29,19 +28,20 @@ def _as_batch(name: str, value: _T | Sequence[_T], kind: type) -> list[_T]:
         raise ValueError(f"{name} must not be empty")
     for i, item in enumerate(items):
         if not isinstance(item, kind):
-            raise TypeError(f"{name}[{i}] must be a {kind.__name__}; got {type(item).__name__}")
+            raise TypeError(
+                f"{name}[{i}] must be an instance of {kind.__name__}; got {type(item).__name__}"
+            )
     return items
 
 
-def _integer_ratio(name: str, numerator: float, denominator: float, what: str) -> int:
-    ratio = numerator / denominator
-    count = round(ratio)
-    if count < 1 or abs(ratio - count) > _RATIO_TOLERANCE * max(1.0, ratio):
+def _integer_ratio(name: str, value: float, unit: float, what: str, scale: float = 0.0) -> int:
+    count = integer_multiple(value, unit, scale=scale)
+    if count is None:
         raise ValueError(
             f"{name} must be a positive integer multiple of {what}; "
-            f"got {name}/{what} = {ratio:.12g}"
+            f"got ({name})/{what} = {value / unit:.12g}"
         )
-    return int(count)
+    return count
 
 
 def _broadcast(name: str, items: list[_T], batch: int) -> list[_T]:
@@ -128,8 +128,12 @@ def simulate(
     if t1 <= t0:
         raise ValueError(f"t1 must be later than t0; got t0 = {t0:g}, t1 = {t1:g}")
     steps_per_tick = _integer_ratio("T_c", T_c, dt, "dt")
-    n_ticks = _integer_ratio("t1 - t0", t1 - t0, T_c, "T_c")
-    if not isinstance(record_every, int | np.integer) or record_every < 1:
+    n_ticks = _integer_ratio("t1 - t0", t1 - t0, T_c, "T_c", scale=max(abs(t0), abs(t1)))
+    if (
+        isinstance(record_every, bool)
+        or not isinstance(record_every, int | np.integer)
+        or record_every < 1
+    ):
         raise ValueError(f"record_every must be a positive integer; got {record_every!r}")
     divergence_bound = positive_scalar("divergence_bound", divergence_bound)
     if not isinstance(reference, SinusoidalReference):

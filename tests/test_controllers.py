@@ -474,3 +474,11 @@ def test_controllers_with_callable_nominal_model(rng, arm):
             )
             np.testing.assert_allclose(command_a, command_b, rtol=1e-12, atol=1e-12)
             np.testing.assert_allclose(state_a, state_b, rtol=1e-12, atol=1e-15)
+
+
+def test_a_singular_nominal_input_map_is_refused():
+    # G = [[1, 1], [1, 1]] cannot turn a torque into actuator commands; found in review, where
+    # the simulation crashed inside the compiled solve instead.
+    singular = LinearPlant(mass=[1.0, 1.0], input_map_matrix=[[1.0, 1.0], [1.0, 1.0]])
+    with pytest.raises(ValueError, match=r"invertible nominal input map .* condition number"):
+        OuterLoop(singular, K1=1.0, K2=1.0)

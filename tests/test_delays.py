@@ -458,7 +458,10 @@ def test_delay_value_scalar_kernel_matches_profiles():
         ),
         (lambda: TraceDelay([0.0, 1.0, 2.0], [0.1, 0.0, -0.01]), r"values\[2\] = -0\.01 at t = 2"),
         (lambda: PiecewiseConstantDelay([0.0, 1.0], [-0.5, 0.1]), r"values\[0\] = -0\.5 at t = 0"),
-        (lambda: TraceDelay([0.0, 1.0, 2.0], [0.1, 0.2]), r"same length; got 3 and 2"),
+        (
+            lambda: TraceDelay([0.0, 1.0, 2.0], [0.1, 0.2]),
+            r"one entry per time; got 2 values for 3 times",
+        ),
         (lambda: TraceDelay([], []), r"at least one knot"),
         (
             lambda: TraceDelay([0.0, float("nan")], [0.1, 0.1]),

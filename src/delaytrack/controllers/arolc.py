@@ -30,7 +30,12 @@ from numba import njit
 
 from delaytrack._validation import as_spd_matrix, positive_scalar
 from delaytrack.analysis.razumikhin import error_dynamics_matrices, lyapunov_matrix
-from delaytrack.controllers.base import Controller, computed_torque_command, tracking_errors
+from delaytrack.controllers.base import (
+    Controller,
+    auxiliary_input,
+    computed_torque_command,
+    tracking_errors,
+)
 from delaytrack.controllers.dispatch import AROLC_STEP
 from delaytrack.plants.base import ELPlant
 
@@ -63,19 +68,16 @@ def arolc_step(
     ``state = [ĉ, has_previous_s, s_previous]`` is advanced in place.
     """
     n = q.shape[0]
-    gain_1 = params[: n * n].reshape((n, n))
-    gain_2 = params[n * n : 2 * n * n].reshape((n, n))
-    bt_p = params[2 * n * n : 4 * n * n].reshape((n, 2 * n))
+    BtP = params[2 * n * n : 4 * n * n].reshape((n, 2 * n))
     alpha = params[4 * n * n]
     epsilon = params[4 * n * n + 1]
     gamma = params[4 * n * n + 2]
     error = tracking_errors(q, qdot, qd, qd_dot)
-    s = bt_p @ error
+    s = BtP @ error
     norm_s = math.sqrt(np.sum(s * s))
     c_hat = state[_C_HAT]
-    u = qd_ddot + gain_2 @ error[n:] + gain_1 @ error[:n]
-    scale = alpha * c_hat / (norm_s if norm_s >= epsilon else epsilon)
-    u += scale * s
+    # u = û + Δu with Δu = α ĉ s / max(‖s‖, ε)  (paper eqs. (control input), (delta u)).
+    u = auxiliary_input(params, error, qd_ddot) + alpha * c_hat / max(norm_s, epsilon) * s
     computed_torque_command(model_terms, model_params, q, qdot, u, command)
     rate = adaptive_gain_rate(c_hat, s, state[_S_PREVIOUS:], state[_HAS_PREVIOUS] != 0.0, gamma)
     c_next = c_hat + T_c * rate

@@ -23,7 +23,7 @@ from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import call_terms
 
-__all__ = ["Controller", "computed_torque_command", "tracking_errors"]
+__all__ = ["Controller", "auxiliary_input", "computed_torque_command", "tracking_errors"]
 
 
 @register_jitable
@@ -34,6 +34,15 @@ def tracking_errors(q, qdot, qd, qd_dot):
     error[:n] = qd - q
     error[n:] = qd_dot - qdot
     return error
+
+
+@register_jitable
+def auxiliary_input(params, error, qd_ddot):
+    """``û = q̈_d + K2 ė1 + K1 e1`` (paper eq. (aux)); ``params`` starts with K1, K2 (row-major)."""
+    n = qd_ddot.shape[0]
+    K1 = params[: n * n].reshape((n, n))
+    K2 = params[n * n : 2 * n * n].reshape((n, n))
+    return qd_ddot + K2 @ error[n:] + K1 @ error[:n]
 
 
 @register_jitable
@@ -53,6 +62,10 @@ def computed_torque_command(model_terms, model_params, q, qdot, u, command):
         command[:] = np.nan  # the simulator stops the run as diverged
         return
     command[:] = np.linalg.solve(input_map, tau)
+
+
+#: Largest accepted condition number of the nominal input map at q = 0.
+_MAX_INPUT_MAP_CONDITION = 1e12
 
 
 class Controller(ABC):
@@ -159,4 +172,10 @@ class Controller(ABC):
             raise ValueError(
                 f"{type(self).__name__} needs a fully actuated nominal model (m == n); "
                 f"got n = {self.model.n}, m = {self.model.m}"
+            )
+        condition = np.linalg.cond(self.model.input_map(np.zeros(self.model.n))[0])
+        if not condition < _MAX_INPUT_MAP_CONDITION:
+            raise ValueError(
+                f"{type(self).__name__} needs an invertible nominal input map G(q) to turn tau "
+                f"into actuator commands; at q = 0 its condition number is {condition:.3g}"
             )

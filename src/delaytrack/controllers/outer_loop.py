@@ -9,7 +9,12 @@ import numpy as np
 from numba import njit
 
 from delaytrack._validation import as_spd_matrix
-from delaytrack.controllers.base import Controller, computed_torque_command
+from delaytrack.controllers.base import (
+    Controller,
+    auxiliary_input,
+    computed_torque_command,
+    tracking_errors,
+)
 from delaytrack.controllers.dispatch import OUTER_LOOP_STEP
 from delaytrack.plants.base import ELPlant
 
@@ -24,10 +29,7 @@ def outer_loop_step(
 
     ``params = [K1, K2]`` flattened row-major; there is no state.
     """
-    n = q.shape[0]
-    gain_1 = params[: n * n].reshape((n, n))
-    gain_2 = params[n * n : 2 * n * n].reshape((n, n))
-    u = qd_ddot + gain_2 @ (qd_dot - qdot) + gain_1 @ (qd - q)
+    u = auxiliary_input(params, tracking_errors(q, qdot, qd, qd_dot), qd_ddot)
     computed_torque_command(model_terms, model_params, q, qdot, u, command)
 
 

@@ -24,7 +24,9 @@ def checked_knots(times: object, values: object) -> tuple[np.ndarray, np.ndarray
     if t.size == 0:
         raise ValueError("times must contain at least one knot; got none")
     if t.shape != h.shape:
-        raise ValueError(f"times and values must have the same length; got {t.size} and {h.size}")
+        raise ValueError(
+            f"values must have one entry per time; got {h.size} values for {t.size} times"
+        )
     steps = np.diff(t)
     if np.any(steps <= 0.0):
         i = int(np.argmax(steps <= 0.0))

@@ -19,8 +19,9 @@ __all__ = ["history_capacity", "latest_tick_index", "tick_time"]
 def history_capacity(h_max: float, T_c: float) -> int:
     """Ring-buffer slots needed when the delay never exceeds ``h_max``.
 
-    Over one controller period starting at tick ``k`` the oldest command needed is that of tick
-    ``k - ceil(h_max / T_c) - 1``; one more slot absorbs rounding at tick boundaries.
+    Over one controller period starting at tick ``k`` (the newest command) the oldest command
+    needed is that of tick ``k - ceil(h_max / T_c)``: ``ceil(h_max / T_c) + 1`` slots. Two more
+    absorb rounding at tick boundaries.
     """
     return int(math.ceil(h_max / T_c)) + 3
 

@@ -28,7 +28,8 @@ class SimResult:
     commands : ndarray, shape (batch, R, m)
         Command issued by the controller at each record time.
     applied : ndarray, shape (batch, R, m)
-        Delayed command applied to the plant over the plant step starting at the record time.
+        Delayed command applied to the plant just after the record time (over the first
+        sub-step of the plant step that starts there).
     h : ndarray, shape (batch, R)
         True delay ``h(t)`` (known to the simulator only).
     controller_state : ndarray, shape (batch, R, n_state)

@@ -360,6 +360,8 @@ def test_record_every_decimates_the_full_record() -> None:
         ({"record_every": 0}, r"record_every must be a positive integer; got 0"),
         ({"x0": [1.0, 0.0, 0.0]}, r"x0 must have shape \(2,\) or \(batch, 2\); got \(3,\)"),
         ({"x0": [np.nan, 0.0]}, r"x0 must be finite"),
+        ({"x0": [2e6, 0.0]}, r"x0 must lie within divergence_bound = 1e\+06; max \|x0\| = 2e\+06"),
+        ({"t1": 1e9}, r"needs .* GiB, more than this machine.s memory; raise record_every"),
         ({"u_init": [0.0, 0.0]}, r"u_init must have shape \(1,\); got \(2,\)"),
         (
             {"delay": [ConstantDelay(0.01)] * 3, "x0": np.zeros((2, 2))},

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+import os
 from collections.abc import Sequence
 from typing import Any, TypeVar
 
@@ -42,6 +44,14 @@ def _integer_ratio(name: str, value: float, unit: float, what: str, scale: float
             f"got ({name})/{what} = {value / unit:.12g}"
         )
     return count
+
+
+def _physical_memory() -> float:
+    """Bytes of physical memory (infinite where the platform does not say)."""
+    try:
+        return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        return math.inf
 
 
 def _broadcast(name: str, items: list[_T], batch: int) -> list[_T]:
@@ -181,13 +191,31 @@ def simulate(
     if u_init.shape != (m,):
         raise ValueError(f"u_init must have shape ({m},); got {u_init.shape}")
 
+    if np.max(np.abs(states0)) > divergence_bound:
+        raise ValueError(
+            f"x0 must lie within divergence_bound = {divergence_bound:g}; "
+            f"max |x0| = {np.max(np.abs(states0)):g}"
+        )
+
     records = n_ticks // record_every + 1
     state_size = first_controller.state_size
-    states = np.full((batch, records, 2 * n), np.nan)
-    commands = np.full((batch, records, m), np.nan)
-    applied = np.full((batch, records, m), np.nan)
-    delay_records = np.full((batch, records), np.nan)
-    controller_states = np.full((batch, records, state_size), np.nan)
+    size = batch * records * (2 * n + 2 * m + 1 + state_size) * 8
+    if size > _physical_memory():
+        raise ValueError(
+            f"recording {batch} run(s) x {records} samples needs {size / 2**30:.3g} GiB, more "
+            "than this machine's memory; raise record_every, shorten t1 - t0 or split the batch"
+        )
+    try:
+        states = np.full((batch, records, 2 * n), np.nan)
+        commands = np.full((batch, records, m), np.nan)
+        applied = np.full((batch, records, m), np.nan)
+        delay_records = np.full((batch, records), np.nan)
+        controller_states = np.full((batch, records, state_size), np.nan)
+    except MemoryError:
+        raise ValueError(
+            f"recording {batch} run(s) x {records} samples needs {size / 2**30:.3g} GiB, more "
+            "than is free; raise record_every, shorten t1 - t0 or split the batch"
+        ) from None
     status = np.zeros(batch, dtype=np.int64)
     t_stop = np.zeros(batch)
 

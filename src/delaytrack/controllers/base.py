@@ -21,7 +21,7 @@ from numba.extending import register_jitable
 
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
-from delaytrack.plants.dispatch import call_terms
+from delaytrack.plants.dispatch import call_command_map, call_terms
 
 __all__ = ["Controller", "auxiliary_input", "computed_torque_command", "tracking_errors"]
 
@@ -49,8 +49,9 @@ def auxiliary_input(params, error, qd_ddot):
 def computed_torque_command(model_terms, model_params, q, qdot, u, command):
     """Actuator command realising ``τ = M̂(q) u + N̂(q, q̇)`` (paper eq. (input)).
 
-    ``τ`` is mapped to the actuators by solving ``Ĝ(q) command = τ``; the nominal model must be
-    fully actuated (``Ĝ`` square and invertible).
+    ``τ`` is mapped to the actuators by the model's command map
+    (:func:`delaytrack.plants.dispatch.call_command_map`): ``Ĝ(q)⁻¹ τ`` for a fully actuated
+    model, ``S(q)ᵀ τ`` for the wheeled robot.
     """
     n = q.shape[0]
     mass = np.empty((n, n))
@@ -61,7 +62,7 @@ def computed_torque_command(model_terms, model_params, q, qdot, u, command):
     if not (np.all(np.isfinite(tau)) and np.all(np.isfinite(input_map))):
         command[:] = np.nan  # the simulator stops the run as diverged
         return
-    command[:] = np.linalg.solve(input_map, tau)
+    call_command_map(model_terms, q, model_params, input_map, tau, command)
 
 
 #: Largest accepted condition number of the nominal input map at q = 0.
@@ -168,10 +169,12 @@ class Controller(ABC):
             raise TypeError(
                 f"model must be an ELPlant (the nominal plant); got {type(self.model).__name__}"
             )
+        if self.model.has_command_map:
+            return
         if self.model.m != self.model.n:
             raise ValueError(
-                f"{type(self).__name__} needs a fully actuated nominal model (m == n); "
-                f"got n = {self.model.n}, m = {self.model.m}"
+                f"{type(self).__name__} needs a fully actuated nominal model (m == n) or one "
+                f"with its own command map; got n = {self.model.n}, m = {self.model.m}"
             )
         condition = np.linalg.cond(self.model.input_map(np.zeros(self.model.n))[0])
         if not condition < _MAX_INPUT_MAP_CONDITION:

@@ -59,6 +59,10 @@ class ELPlant(ABC):
     m: int
     #: Id of a built-in compiled terms kernel (see :mod:`delaytrack.plants.dispatch`), else None.
     kernel_id: int | None = None
+    #: True when, as a nominal model, the plant maps a generalised force τ to its ``m < n``
+    #: actuators itself (:func:`delaytrack.plants.dispatch.call_command_map`), as a constrained
+    #: robot does with ``S(q)ᵀ τ``.
+    has_command_map: bool = False
 
     @property
     @abstractmethod

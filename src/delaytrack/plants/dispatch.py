@@ -8,10 +8,11 @@ receives the callable itself. :func:`call_terms` is that one call site for both.
 
 from __future__ import annotations
 
+import numpy as np
 from numba import types
-from numba.extending import overload
+from numba.extending import overload, register_jitable
 
-__all__ = ["LINEAR", "TWO_LINK_ARM", "call_terms"]
+__all__ = ["LINEAR", "TWO_LINK_ARM", "call_command_map", "call_terms", "solve_input_map"]
 
 TWO_LINK_ARM = 0
 LINEAR = 1
@@ -42,3 +43,27 @@ def _call_terms_compiled(terms, q, qdot, params, mass, nonlinear, input_map):
         terms(q, qdot, params, mass, nonlinear, input_map)
 
     return by_callable
+
+
+@register_jitable
+def solve_input_map(input_map, tau, command):
+    """The default command map: solve ``G(q) command = τ`` (a fully actuated model)."""
+    command[:] = np.linalg.solve(input_map, tau)
+
+
+def call_command_map(model, q, params, input_map, tau, command):
+    """Actuator ``command`` that realises the generalised force ``τ`` on the nominal ``model``.
+
+    Fully actuated models solve ``G(q) command = τ``. A model with constraints supplies its own
+    map by kernel id (e.g. the wheeled robot's ``command = S(q)ᵀ τ``); a Python model uses the
+    default.
+    """
+    solve_input_map(input_map, tau, command)
+
+
+@overload(call_command_map)
+def _call_command_map_compiled(model, q, params, input_map, tau, command):
+    def default(model, q, params, input_map, tau, command):
+        solve_input_map(input_map, tau, command)
+
+    return default

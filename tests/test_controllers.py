@@ -392,7 +392,8 @@ def test_under_actuated_model_refused():
     assert (model.n, model.m) == (2, 1)
     with pytest.raises(
         ValueError,
-        match=r"AROLC needs a fully actuated nominal model \(m == n\) or one with its own command map; got n = 2, m = 1",
+        match=r"AROLC needs a fully actuated nominal model \(m == n\) or one with its own "
+        r"command map; got n = 2, m = 1",
     ):
         AROLC(model=model, **PAPER)
     with pytest.raises(ValueError, match=r"OuterLoop needs a fully actuated .* got n = 2, m = 1"):

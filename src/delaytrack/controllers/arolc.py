@@ -60,7 +60,7 @@ def adaptive_gain_rate(c_hat, s, s_previous, has_previous, gamma):
 
 @njit(cache=True)
 def arolc_step(
-    t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model_terms, model_params, command
+    t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model_terms, model_params, command
 ):
     """One AROLC tick (see the module docstring).
 

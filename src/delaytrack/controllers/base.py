@@ -2,12 +2,14 @@
 
 A controller is sampled at ``T_c``. Its kernel
 
-    step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model_terms, model_params, command)
+    step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model_terms, model_params, command)
 
 reads the measured ``q, q̇`` and the reference ``q_d, q̇_d, q̈_d`` at the tick ``t``, writes the
 actuator ``command`` (m,) and advances ``state`` in place to the next tick. ``model_terms`` is
 the terms kernel of the nominal plant (``M̂, N̂, Ĝ``; see :mod:`delaytrack.plants.base`).
-The controller never sees the delay.
+
+``h`` is the true delay ``h(t)``. AROLC and the outer loop never read it (they do not know the
+delay); the predictor baselines need it by assumption (:attr:`Controller.needs_delay`).
 """
 
 from __future__ import annotations
@@ -83,6 +85,8 @@ class Controller(ABC):
     type_name: str
     #: Id of the compiled step (see :mod:`delaytrack.controllers.dispatch`).
     kernel_id: int
+    #: Whether the law reads the true delay ``h(t)`` (the predictor baselines do; AROLC does not).
+    needs_delay: bool = False
 
     @property
     def n(self) -> int:
@@ -138,12 +142,17 @@ class Controller(ABC):
         state: np.ndarray,
         *,
         T_c: float,
+        h: float | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """One controller tick for real-time use: ``(command (m,), next state)``.
 
-        ``reference`` is ``(q_d, q̇_d, q̈_d)`` at ``t``; ``state`` is not modified.
+        ``reference`` is ``(q_d, q̇_d, q̈_d)`` at ``t``; ``state`` is not modified. ``h`` is the
+        true delay, required only by controllers with :attr:`needs_delay`.
         """
         sample = positive_scalar("T_c", T_c)
+        if h is None and self.needs_delay:
+            raise ValueError(f"{type(self).__name__} needs the true delay: pass h=... (seconds)")
+        delay = 0.0 if h is None else positive_scalar("h", h, strictly=False)
         arrays = [np.ascontiguousarray(np.asarray(a, dtype=float)) for a in (q, qdot, *reference)]
         for name, array in zip(("q", "qdot", "qd", "qd_dot", "qd_ddot"), arrays, strict=True):
             if array.shape != (self.n,):
@@ -156,6 +165,7 @@ class Controller(ABC):
             float(t),
             *arrays,
             sample,
+            delay,
             self.params,
             next_state,
             self.model.kernel_handle,

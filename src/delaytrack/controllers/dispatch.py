@@ -15,22 +15,35 @@ AROLC_STEP = 1
 
 
 def call_step(
-    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command
+    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command
 ):
     """Run one controller tick with ``step`` (see :mod:`delaytrack.controllers.base`)."""
-    step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command)
+    step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command)
 
 
 @overload(call_step)
 def _call_step_compiled(
-    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command
+    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command
 ):
     if isinstance(step, types.Integer):
         from delaytrack.controllers.arolc import arolc_step
         from delaytrack.controllers.outer_loop import outer_loop_step
 
         def by_id(
-            step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command
+            step,
+            t,
+            q,
+            qdot,
+            qd,
+            qd_dot,
+            qd_ddot,
+            T_c,
+            h,
+            params,
+            state,
+            model,
+            model_params,
+            command,
         ):
             if step == OUTER_LOOP_STEP:
                 outer_loop_step(
@@ -41,6 +54,7 @@ def _call_step_compiled(
                     qd_dot,
                     qd_ddot,
                     T_c,
+                    h,
                     params,
                     state,
                     model,
@@ -56,6 +70,7 @@ def _call_step_compiled(
                     qd_dot,
                     qd_ddot,
                     T_c,
+                    h,
                     params,
                     state,
                     model,
@@ -68,8 +83,8 @@ def _call_step_compiled(
         return by_id
 
     def by_callable(
-        step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command
+        step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command
     ):
-        step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, params, state, model, model_params, command)
+        step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command)
 
     return by_callable

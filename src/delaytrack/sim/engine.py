@@ -189,10 +189,11 @@ def run_closed_loop(handles, run, settings, records):
         t_k = tick_time(k, t0, dt, steps_per_tick)
         record = k % record_every == 0
         row = k // record_every
+        h_k = delay_value(delay_kind, delay_params, t_k)
         if record:
             states[row] = x
             controller_states[row] = controller_state
-            delays[row] = delay_value(delay_kind, delay_params, t_k)
+            delays[row] = h_k
         call_reference(reference, t_k, reference_params, qd, qd_dot, qd_ddot)
         call_step(
             controller_step,
@@ -203,6 +204,7 @@ def run_closed_loop(handles, run, settings, records):
             qd_dot,
             qd_ddot,
             T_c,
+            h_k,
             controller_params,
             controller_state,
             model_terms,

@@ -78,7 +78,7 @@ def arolc_step(
     c_hat = state[_C_HAT]
     # u = û + Δu with Δu = α ĉ s / max(‖s‖, ε)  (paper eqs. (control input), (delta u)).
     u = auxiliary_input(params, error, qd_ddot) + alpha * c_hat / max(norm_s, epsilon) * s
-    computed_torque_command(model_terms, model_params, q, qdot, u, command)
+    computed_torque_command(model_terms, model_params, t, q, qdot, u, command)
     rate = adaptive_gain_rate(c_hat, s, state[_S_PREVIOUS:], state[_HAS_PREVIOUS] != 0.0, gamma)
     c_next = c_hat + T_c * rate
     state[_C_HAT] = gamma if rate < 0.0 and c_next < gamma else c_next

@@ -48,7 +48,7 @@ def auxiliary_input(params, error, qd_ddot):
 
 
 @register_jitable
-def computed_torque_command(model_terms, model_params, q, qdot, u, command):
+def computed_torque_command(model_terms, model_params, t, q, qdot, u, command):
     """Actuator command realising ``τ = M̂(q) u + N̂(q, q̇)`` (paper eq. (input)).
 
     ``τ`` is mapped to the actuators by the model's command map
@@ -59,7 +59,7 @@ def computed_torque_command(model_terms, model_params, q, qdot, u, command):
     mass = np.empty((n, n))
     nonlinear = np.empty(n)
     input_map = np.empty((n, command.shape[0]))
-    call_terms(model_terms, q, qdot, model_params, mass, nonlinear, input_map)
+    call_terms(model_terms, t, q, qdot, model_params, mass, nonlinear, input_map)
     tau = mass @ u + nonlinear
     if not (np.all(np.isfinite(tau)) and np.all(np.isfinite(input_map))):
         command[:] = np.nan  # the simulator stops the run as diverged

@@ -30,7 +30,7 @@ def outer_loop_step(
     ``params = [K1, K2]`` flattened row-major; there is no state.
     """
     u = auxiliary_input(params, tracking_errors(q, qdot, qd, qd_dot), qd_ddot)
-    computed_torque_command(model_terms, model_params, q, qdot, u, command)
+    computed_torque_command(model_terms, model_params, t, q, qdot, u, command)
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,8 +1,9 @@
 """The Euler–Lagrange plant interface ``M(q) q̈ + N(q, q̇) = G(q) u``.
 
-A plant is defined once, by a *terms kernel* ``terms(q, qdot, params, M, N, G)`` that fills the
+A plant is defined once, by a *terms kernel* ``terms(t, q, qdot, params, M, N, G)`` that fills the
 mass matrix ``M`` (n, n), the nonlinear terms ``N`` (n,) — Coriolis, gravity, friction, anything
-not proportional to q̈ — and the input map ``G`` (n, m). The simulator integrates the state
+not proportional to q̈ — and the input map ``G`` (n, m), at time ``t`` (a time-varying plant, such
+as one carrying a payload on a schedule, reads it). The simulator integrates the state
 ``x = [q, q̇]`` (2n,) with the right-hand side :func:`el_rhs`; the controllers use the same
 kernel of a *nominal* plant as their model ``M̂, N̂``. Kernels are numba-compiled for the built-in
 plants and plain Python for :class:`~delaytrack.plants.CallablePlant`.
@@ -33,7 +34,7 @@ def el_rhs(terms, t, x, u, params, dx):
     mass = np.empty((n, n))
     nonlinear = np.empty(n)
     input_map = np.empty((n, u.shape[0]))
-    call_terms(terms, x[:n], x[n:], params, mass, nonlinear, input_map)
+    call_terms(terms, t, x[:n], x[n:], params, mass, nonlinear, input_map)
     force = input_map @ u - nonlinear
     if not (np.all(np.isfinite(mass)) and np.all(np.isfinite(force))):
         # A diverging state: report it through dx (the simulator then stops the run with a
@@ -72,7 +73,7 @@ class ELPlant(ABC):
     @property
     @abstractmethod
     def terms_kernel(self) -> Callable[..., None]:
-        """``terms(q, qdot, params, M, N, G)``: fill ``M`` (n, n), ``N`` (n,), ``G`` (n, m)."""
+        """``terms(t, q, qdot, params, M, N, G)``: fill ``M`` (n, n), ``N`` (n,), ``G`` (n, m)."""
 
     @abstractmethod
     def to_spec(self) -> dict[str, Any]:
@@ -88,7 +89,9 @@ class ELPlant(ABC):
         """Whether the plant is a built-in compiled one (else the simulator runs as Python)."""
         return self.kernel_id is not None
 
-    def terms(self, q: np.ndarray, qdot: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def terms(
+        self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``M (batch, n, n)``, ``N (batch, n)``, ``G (batch, n, m)`` at ``q, qdot (batch, n)``."""
         q = self._batch("q", q)
         qdot = self._batch("qdot", qdot)
@@ -101,7 +104,9 @@ class ELPlant(ABC):
         nonlinear = np.empty((batch, self.n))
         input_map = np.empty((batch, self.n, self.m))
         for b in range(batch):
-            self.terms_kernel(q[b], qdot[b], self.params, mass[b], nonlinear[b], input_map[b])
+            self.terms_kernel(
+                float(t), q[b], qdot[b], self.params, mass[b], nonlinear[b], input_map[b]
+            )
         return mass, nonlinear, input_map
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:

@@ -101,7 +101,7 @@ class CallablePlant(ELPlant):
 
     @property
     def terms_kernel(self):
-        def terms(q, qdot, params, mass, nonlinear, input_map):
+        def terms(t, q, qdot, params, mass, nonlinear, input_map):
             mass[:, :] = self.mass_matrix_fn(q)
             nonlinear[:] = self.nonlinear_terms_fn(q, qdot)
             input_map[:, :] = self._input_map(q)

@@ -18,29 +18,29 @@ TWO_LINK_ARM = 0
 LINEAR = 1
 
 
-def call_terms(terms, q, qdot, params, mass, nonlinear, input_map):
+def call_terms(terms, t, q, qdot, params, mass, nonlinear, input_map):
     """Fill ``M, N, G`` with ``terms`` (a callable here; an id or a callable in compiled code)."""
-    terms(q, qdot, params, mass, nonlinear, input_map)
+    terms(t, q, qdot, params, mass, nonlinear, input_map)
 
 
 @overload(call_terms)
-def _call_terms_compiled(terms, q, qdot, params, mass, nonlinear, input_map):
+def _call_terms_compiled(terms, t, q, qdot, params, mass, nonlinear, input_map):
     if isinstance(terms, types.Integer):
         from delaytrack.plants.linear import linear_terms
         from delaytrack.plants.two_link_arm import two_link_terms
 
-        def by_id(terms, q, qdot, params, mass, nonlinear, input_map):
+        def by_id(terms, t, q, qdot, params, mass, nonlinear, input_map):
             if terms == TWO_LINK_ARM:
-                two_link_terms(q, qdot, params, mass, nonlinear, input_map)
+                two_link_terms(t, q, qdot, params, mass, nonlinear, input_map)
             elif terms == LINEAR:
-                linear_terms(q, qdot, params, mass, nonlinear, input_map)
+                linear_terms(t, q, qdot, params, mass, nonlinear, input_map)
             else:
                 raise ValueError("unknown plant kernel id")
 
         return by_id
 
-    def by_callable(terms, q, qdot, params, mass, nonlinear, input_map):
-        terms(q, qdot, params, mass, nonlinear, input_map)
+    def by_callable(terms, t, q, qdot, params, mass, nonlinear, input_map):
+        terms(t, q, qdot, params, mass, nonlinear, input_map)
 
     return by_callable
 

@@ -16,7 +16,7 @@ __all__ = ["LinearPlant", "linear_terms"]
 
 
 @njit(cache=True)
-def linear_terms(q, qdot, params, mass, nonlinear, input_map):
+def linear_terms(t, q, qdot, params, mass, nonlinear, input_map):
     """Fill ``M``, ``N = D q̇ + K q`` and ``G``; ``params = [M, D, K, G]`` flattened row-major."""
     n = q.shape[0]
     m = input_map.shape[1]

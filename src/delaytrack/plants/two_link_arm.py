@@ -30,7 +30,7 @@ __all__ = ["TwoLinkArm", "two_link_terms"]
 
 
 @njit(cache=True)
-def two_link_terms(q, qdot, params, mass, nonlinear, input_map):
+def two_link_terms(t, q, qdot, params, mass, nonlinear, input_map):
     """Fill ``M``, ``N`` and ``G = I`` of the two-link arm; ``params = [p1, p2, p3, fd1, fd2]``."""
     p1, p2, p3, fd1, fd2 = params[0], params[1], params[2], params[3], params[4]
     c2 = math.cos(q[1])

@@ -109,7 +109,7 @@ class Controller(ABC):
     @property
     @abstractmethod
     def state_names(self) -> tuple[str, ...]:
-        """Names of the entries of the state vector (may be empty)."""
+        """Names of the leading state entries that the simulator records (may be empty)."""
 
     @abstractmethod
     def initial_state(self) -> np.ndarray:
@@ -121,6 +121,8 @@ class Controller(ABC):
 
     @property
     def state_size(self) -> int:
+        """Length of the whole state vector; the entries past ``state_names`` (for example a
+        history buffer) are working memory and are not recorded."""
         return len(self.state_names)
 
     @property

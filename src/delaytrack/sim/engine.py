@@ -157,7 +157,8 @@ def run_closed_loop(handles, run, settings, records):
     records : (states, commands, applied, delays, controller_states)
         Written every ``record_every`` ticks: ``states (R, 2n)``, ``commands (R, m)``,
         ``applied (R, m)`` (the input of the first sub-step after the tick),
-        ``delays (R,)`` and ``controller_states (R, n_state)`` (the state used at the tick).
+        ``delays (R,)`` and ``controller_states (R, n_recorded)`` (the leading entries of the
+        state used at the tick).
         Rows after a stop are left as they were (the caller fills them with NaN).
     """
     plant_terms, model_terms, reference, controller_step = handles
@@ -192,7 +193,7 @@ def run_closed_loop(handles, run, settings, records):
         h_k = delay_value(delay_kind, delay_params, t_k)
         if record:
             states[row] = x
-            controller_states[row] = controller_state
+            controller_states[row] = controller_state[: controller_states.shape[1]]
             delays[row] = h_k
         call_reference(reference, t_k, reference_params, qd, qd_dot, qd_ddot)
         call_step(

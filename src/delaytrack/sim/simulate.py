@@ -199,7 +199,8 @@ def simulate(
 
     records = n_ticks // record_every + 1
     state_size = first_controller.state_size
-    size = batch * records * (2 * n + 2 * m + 1 + state_size) * 8
+    recorded_state = len(first_controller.state_names)
+    size = batch * records * (2 * n + 2 * m + 1 + recorded_state) * 8
     if size > _physical_memory():
         raise ValueError(
             f"recording {batch} run(s) x {records} samples needs {size / 2**30:.3g} GiB, more "
@@ -210,7 +211,7 @@ def simulate(
         commands = np.full((batch, records, m), np.nan)
         applied = np.full((batch, records, m), np.nan)
         delay_records = np.full((batch, records), np.nan)
-        controller_states = np.full((batch, records, state_size), np.nan)
+        controller_states = np.full((batch, records, recorded_state), np.nan)
     except MemoryError:
         raise ValueError(
             f"recording {batch} run(s) x {records} samples needs {size / 2**30:.3g} GiB, more "

@@ -411,7 +411,8 @@ def test_controller_from_spec(arm, rng):
     np.testing.assert_array_equal(outer.K1, 2 * np.eye(2))
     with pytest.raises(
         ValueError,
-        match=r"'controller\.type' must be one of \['arolc', 'outer-loop'\]; got 'pid'",
+        match=r"'controller\.type' must be one of "
+        r"\['arolc', 'outer-loop', 'pcon', 'pconf'\]; got 'pid'",
     ):
         controller_from_spec({"type": "pid"}, arm)
     with pytest.raises(

@@ -1,4 +1,5 @@
-"""Tracking controllers: AROLC, the plain outer loop, and a registry by name."""
+"""Tracking controllers: AROLC, the plain outer loop, the predictor baselines PCON and PCONf, and a
+registry by name."""
 
 from __future__ import annotations
 
@@ -9,9 +10,27 @@ from delaytrack._spec import TypeSpec, build_from_table, gain, number
 from delaytrack.controllers.arolc import AROLC
 from delaytrack.controllers.base import Controller
 from delaytrack.controllers.outer_loop import OuterLoop
+from delaytrack.controllers.pcon import PCON, PCONf, PredictorBaseline
 from delaytrack.plants.base import ELPlant
 
-__all__ = ["AROLC", "CONTROLLER_SPECS", "Controller", "OuterLoop", "controller_from_spec"]
+__all__ = [
+    "AROLC",
+    "CONTROLLER_SPECS",
+    "Controller",
+    "OuterLoop",
+    "PCON",
+    "PCONf",
+    "PredictorBaseline",
+    "controller_from_spec",
+]
+
+_PREDICTOR_KEYS = {
+    "kappa": ("kappa", number),
+    "vartheta": ("vartheta", gain),
+    "k_b": ("k_b", gain),
+    "history": ("history", number),
+    "T_c": ("T_c", number),
+}
 
 #: Controllers that can be built from plain data, by scenario-file name.
 CONTROLLER_SPECS: dict[str, TypeSpec] = {
@@ -30,6 +49,12 @@ CONTROLLER_SPECS: dict[str, TypeSpec] = {
     ),
     "outer-loop": TypeSpec(
         OuterLoop, {"K1": ("K1", gain), "K2": ("K2", gain)}, required=("K1", "K2")
+    ),
+    "pcon": TypeSpec(PCON, _PREDICTOR_KEYS, required=tuple(_PREDICTOR_KEYS)),
+    "pconf": TypeSpec(
+        PCONf,
+        {**_PREDICTOR_KEYS, "h_bar": ("h_bar", number)},
+        required=(*_PREDICTOR_KEYS, "h_bar"),
     ),
 }
 

@@ -8,10 +8,12 @@ from __future__ import annotations
 from numba import types
 from numba.extending import overload
 
-__all__ = ["AROLC_STEP", "OUTER_LOOP_STEP", "call_step"]
+__all__ = ["AROLC_STEP", "OUTER_LOOP_STEP", "PCON_STEP", "call_step"]
 
 OUTER_LOOP_STEP = 0
 AROLC_STEP = 1
+#: PCON and PCONf share one kernel (a flag in their parameters selects the window).
+PCON_STEP = 2
 
 
 def call_step(
@@ -28,6 +30,7 @@ def _call_step_compiled(
     if isinstance(step, types.Integer):
         from delaytrack.controllers.arolc import arolc_step
         from delaytrack.controllers.outer_loop import outer_loop_step
+        from delaytrack.controllers.pcon import pcon_step
 
         def by_id(
             step,
@@ -63,6 +66,22 @@ def _call_step_compiled(
                 )
             elif step == AROLC_STEP:
                 arolc_step(
+                    t,
+                    q,
+                    qdot,
+                    qd,
+                    qd_dot,
+                    qd_ddot,
+                    T_c,
+                    h,
+                    params,
+                    state,
+                    model,
+                    model_params,
+                    command,
+                )
+            elif step == PCON_STEP:
+                pcon_step(
                     t,
                     q,
                     qdot,

@@ -1,0 +1,306 @@
+"""The predictor-based baselines PCON (paper Ref 32) and PCONf (Ref 31), as fixed by SPEC §4.
+
+Continuous law (paper eqs. (filter), (int error) and ``τ = k_b ϱ``):
+
+    ϱ   = ė1 + κ e1 − ϑ e_z,     e_z(t) = ∫_{t−h}^{t} τ(θ) dθ,     τ = k_b ϱ
+
+with ``e1 = q_d − q``, ``κ > 0``, ``ϑ`` a constant symmetric positive definite estimate of
+``M⁻¹`` and ``k_b`` the feedback gain. PCON (Fischer et al., time-varying delay) evaluates the
+window with the true delay ``h = h(t_k)`` (its assumption: the delay is known); PCONf (Sharma et
+al. 2011, constant delay) with its constant ``h̄``. The generalised force ``τ`` (n,) is mapped to
+the actuators by the nominal model's command map, as for AROLC: ``Ĝ(q)⁻¹ τ`` for a fully actuated
+model, the model's own map (``S(q)ᵀ τ`` for the wheeled robot) otherwise.
+
+Decisions where the paper is silent (docs/decisions.md, D23):
+
+* The law runs at the fixed period ``T_c`` with zero-order hold, ``τ(θ) = τ_j`` on
+  ``[t_j, t_{j+1})``. ``e_z`` is then a finite sum, evaluated exactly (no quadrature): at tick
+  ``k``, with ``H = h / T_c = w + f`` (``w`` whole ticks, ``0 <= f < 1``),
+
+      e_z(t_k) = T_c (τ_{k−1} + … + τ_{k−w} + f τ_{k−w−1}).
+
+  The weights are overlaps of ``[t_j, t_{j+1})`` with ``[t_k − h, t_k)`` measured in units of
+  ``T_c`` from the current tick, never from absolute times (``t_k − h`` vs ``t_j`` would lose
+  digits at large ``t``). The command being computed (``τ_k``) does not contribute.
+* Before the first tick ``τ = 0`` (the simulator's default ``u_init``): ticks before the first
+  contribute nothing.
+* ``τ_j`` is the law's generalised force, stored before the command map.
+* The past ``τ_j`` live in the explicit state, in a ring of ``ceil(history / T_c) + 2`` ticks.
+  The period ``T_c`` the ring is sized for is a constructor argument (the state size must be
+  known before a run); a step called with another period, or asked for a window longer than
+  ``history``, issues a NaN command, which the simulator reports as ``diverged``. The Python
+  :meth:`~PredictorBaseline.step` raises instead.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+from numba import njit
+
+from delaytrack._validation import as_spd_matrix, positive_scalar
+from delaytrack.controllers.base import Controller
+from delaytrack.controllers.dispatch import PCON_STEP
+from delaytrack.plants.base import ELPlant
+from delaytrack.plants.dispatch import call_command_map, call_terms
+
+__all__ = ["PCON", "PCONf", "PredictorBaseline", "pcon_step", "ring_slots"]
+
+# Layout of the parameter vector: [κ, T_c, history, fixed, h̄, slots, k_b (n²), ϑ (n²)].
+_KAPPA = 0
+_PERIOD = 1
+_HISTORY = 2
+_FIXED = 3
+_H_BAR = 4
+_SLOTS = 5
+_MATRICES = 6
+
+#: Relative tolerance between the step's ``T_c`` and the period the ring was sized for.
+_PERIOD_RTOL = 1e-9
+
+
+def ring_slots(history: float, T_c: float) -> int:
+    """Ticks of ``τ`` kept by a controller whose window never exceeds ``history`` seconds.
+
+    At tick ``k`` a window ``h = (w + f) T_c <= history`` reads ``τ_{k−1} … τ_{k−w}``, and
+    ``τ_{k−w−1}`` only when ``f > 0``, so ``w + 1 <= ceil(history / T_c)``: that many ticks
+    suffice. Two more are margin against rounding (as for the engine's history).
+    """
+    return int(math.ceil(history / T_c)) + 2
+
+
+@njit(cache=True)
+def pcon_step(
+    t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model_terms, model_params, command
+):
+    """One PCON / PCONf tick (see the module docstring).
+
+    ``params = [κ, T_c, history, fixed, h̄, slots, k_b, ϑ]`` (matrices flattened row-major); the
+    window is ``h̄`` when ``fixed`` is non-zero (PCONf), else the true delay ``h`` (PCON).
+    ``state = [e_z (n), ϱ (n), count, ring (slots × n)]``: ``e_z`` and ``ϱ`` of the latest
+    tick, the number of ticks taken, and ``τ`` of tick ``j`` in ring slot ``j % slots``.
+    """
+    n = q.shape[0]
+    period = params[_PERIOD]
+    window = params[_H_BAR] if params[_FIXED] != 0.0 else h
+    if not (abs(T_c - period) <= _PERIOD_RTOL * period and 0.0 <= window <= params[_HISTORY]):
+        command[:] = np.nan  # the simulator stops the run as diverged
+        return
+    kappa = params[_KAPPA]
+    slots = int(params[_SLOTS])
+    k_b = params[_MATRICES : _MATRICES + n * n].reshape((n, n))
+    vartheta = params[_MATRICES + n * n : _MATRICES + 2 * n * n].reshape((n, n))
+    count = int(state[2 * n])
+    ring = 2 * n + 1
+    # e_z(t_k) = T_c (τ_{k−1} + … + τ_{k−w} + f τ_{k−w−1}), H = h / T_c = w + f; ticks before
+    # the first (j < 0) carry τ = 0.
+    ticks = window / T_c
+    whole = int(math.floor(ticks))
+    fraction = ticks - whole
+    e_z = np.zeros(n)
+    for i in range(1, min(whole, count) + 1):
+        start = ring + ((count - i) % slots) * n
+        e_z += state[start : start + n]
+    if fraction > 0.0 and whole < count:
+        start = ring + ((count - whole - 1) % slots) * n
+        e_z += fraction * state[start : start + n]
+    e_z *= T_c
+    rho = (qd_dot - qdot) + kappa * (qd - q) - vartheta @ e_z
+    tau = k_b @ rho
+    mass = np.empty((n, n))
+    nonlinear = np.empty(n)
+    input_map = np.empty((n, command.shape[0]))
+    call_terms(model_terms, t, q, qdot, model_params, mass, nonlinear, input_map)
+    if not (np.all(np.isfinite(tau)) and np.all(np.isfinite(input_map))):
+        command[:] = np.nan
+        return
+    call_command_map(model_terms, q, model_params, input_map, tau, command)
+    state[:n] = e_z
+    state[n : 2 * n] = rho
+    start = ring + (count % slots) * n
+    state[start : start + n] = tau
+    state[2 * n] = count + 1
+
+
+@dataclass(frozen=True, eq=False)
+class PredictorBaseline(Controller):
+    """The predictor law shared by :class:`PCON` and :class:`PCONf` (SPEC §4).
+
+    Parameters
+    ----------
+    model : ELPlant
+        Nominal plant; only its command map is used (``τ`` to actuator commands).
+    kappa : float
+        ``κ > 0``, weight of ``e1`` in ``ϱ``.
+    vartheta : array_like
+        ``ϑ``, symmetric positive definite (n, n) estimate of ``M⁻¹``; a scalar means a multiple
+        of I, 1-D a diagonal.
+    k_b : array_like
+        Feedback gain ``τ = k_b ϱ``: a scalar ``> 0`` as in the paper, or symmetric positive
+        definite (n, n) (1-D a diagonal).
+    history : float
+        Seconds of ``τ`` kept, ``> 0``; must cover the longest window the law will be asked for.
+    T_c : float
+        Controller period the history is sized for (the simulator's ``T_c``), ``> 0``.
+    """
+
+    model: ELPlant
+    kappa: float
+    vartheta: np.ndarray
+    k_b: np.ndarray
+    history: float
+    T_c: float
+    _params: np.ndarray = field(init=False, repr=False)
+    kernel_id: ClassVar[int] = PCON_STEP
+
+    def __post_init__(self) -> None:
+        if type(self) is PredictorBaseline:
+            raise TypeError("PredictorBaseline is the shared law; build a PCON or a PCONf")
+        self._check_model()
+        n = self.model.n
+        object.__setattr__(self, "kappa", positive_scalar("kappa", self.kappa))
+        object.__setattr__(self, "vartheta", as_spd_matrix("vartheta", self.vartheta, n))
+        object.__setattr__(self, "k_b", as_spd_matrix("k_b", self.k_b, n))
+        object.__setattr__(self, "history", positive_scalar("history", self.history))
+        object.__setattr__(self, "T_c", positive_scalar("T_c", self.T_c))
+        scalars = [
+            self.kappa,
+            self.T_c,
+            self.history,
+            1.0 if self.fixed_delay is not None else 0.0,
+            0.0 if self.fixed_delay is None else self.fixed_delay,
+            float(ring_slots(self.history, self.T_c)),
+        ]
+        packed = np.concatenate([scalars, self.k_b.ravel(), self.vartheta.ravel()])
+        object.__setattr__(self, "_params", packed)
+
+    @property
+    def fixed_delay(self) -> float | None:
+        """The constant window ``h̄`` (PCONf), or None when the law reads the true delay."""
+        return None
+
+    @property
+    def slots(self) -> int:
+        """Ticks of ``τ`` the state keeps: ``ceil(history / T_c) + 2``."""
+        return ring_slots(self.history, self.T_c)
+
+    @property
+    def params(self) -> np.ndarray:
+        return self._params
+
+    @property
+    def step_kernel(self):
+        return pcon_step
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """``e_z`` and ``ϱ`` of the latest tick: recorded at tick ``k`` they belong to ``k − 1``."""
+        return (
+            *(f"e_z_previous_{i}" for i in range(self.n)),
+            *(f"rho_previous_{i}" for i in range(self.n)),
+        )
+
+    @property
+    def state_size(self) -> int:
+        """``2n`` recorded entries, the tick count, and the ring of ``slots × n`` past ``τ``."""
+        return 2 * self.n + 1 + self.slots * self.n
+
+    def initial_state(self) -> np.ndarray:
+        return np.zeros(self.state_size)
+
+    def check_delay_bound(self, h_max: float) -> None:
+        """Raise unless the law can run under delays up to ``h_max`` seconds.
+
+        PCON reads the true delay, so ``h_max`` must not exceed ``history``; PCONf never reads
+        it (any ``h_max`` is fine).
+        """
+        h_max = positive_scalar("h_max", h_max, strictly=False)
+        if self.fixed_delay is None and h_max > self.history:
+            raise ValueError(
+                f"h_max = {h_max:g} s exceeds history = {self.history:g} s: {type(self).__name__} "
+                "integrates tau over the true delay and keeps only history seconds of it"
+            )
+
+    def step(
+        self,
+        t: float,
+        q: np.ndarray,
+        qdot: np.ndarray,
+        reference: tuple[np.ndarray, np.ndarray, np.ndarray],
+        state: np.ndarray,
+        *,
+        T_c: float,
+        h: float | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`Controller.step`, refusing a period or a delay the state cannot serve."""
+        period = positive_scalar("T_c", T_c)
+        if abs(period - self.T_c) > _PERIOD_RTOL * self.T_c:
+            raise ValueError(
+                f"T_c = {period:g} s differs from the period this controller's history is "
+                f"sized for (T_c = {self.T_c:g} s)"
+            )
+        if self.fixed_delay is None and h is not None:
+            delay = positive_scalar("h", h, strictly=False)
+            if delay > self.history:
+                raise ValueError(
+                    f"h = {delay:g} s exceeds history = {self.history:g} s: the state keeps "
+                    "only history seconds of tau"
+                )
+        return super().step(t, q, qdot, reference, state, T_c=T_c, h=h)
+
+    def to_spec(self) -> dict[str, Any]:
+        return {
+            "type": self.type_name,
+            "kappa": self.kappa,
+            "vartheta": self.vartheta.tolist(),
+            "k_b": self.k_b.tolist(),
+            "history": self.history,
+            "T_c": self.T_c,
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class PCON(PredictorBaseline):
+    """PCON (paper Ref 32, time-varying delay): the window is the true delay ``h(t_k)``.
+
+    The law assumes the delay known, so the simulator passes it ``h(t_k)`` at every tick. See
+    :class:`PredictorBaseline` for the parameters; ``history`` must be at least the delay
+    profile's ``h_max`` (:meth:`PredictorBaseline.check_delay_bound`).
+    """
+
+    type_name: ClassVar[str] = "pcon"
+    needs_delay: ClassVar[bool] = True
+
+
+@dataclass(frozen=True, eq=False)
+class PCONf(PredictorBaseline):
+    """PCONf (paper Ref 31, constant known delay): the window is the constant ``h_bar``.
+
+    Parameters are those of :class:`PredictorBaseline` and ``h_bar``, the delay the law assumes
+    (seconds, ``0 <= h_bar <= history``). The true delay is never read.
+    """
+
+    h_bar: float
+    type_name: ClassVar[str] = "pconf"
+    needs_delay: ClassVar[bool] = False
+
+    def __post_init__(self) -> None:
+        h_bar = positive_scalar("h_bar", self.h_bar, strictly=False)
+        history = positive_scalar("history", self.history)
+        if h_bar > history:
+            raise ValueError(
+                f"h_bar = {h_bar:g} s exceeds history = {history:g} s: the history must hold "
+                "the whole window of tau"
+            )
+        object.__setattr__(self, "h_bar", h_bar)
+        super().__post_init__()
+
+    @property
+    def fixed_delay(self) -> float | None:
+        return self.h_bar
+
+    def to_spec(self) -> dict[str, Any]:
+        return {**super().to_spec(), "h_bar": self.h_bar}

@@ -372,33 +372,43 @@ def test_step_refuses_what_the_state_cannot_serve(arm):
         controller.step(*call, state, T_c=0.002, h=0.11)
     with pytest.raises(ValueError, match=r"T_c = 0\.004 s differs from the period .* 0\.002 s"):
         controller.step(*call, state, T_c=0.004, h=0.05)
-    controller.check_delay_bound(0.1)
+    controller.check_run(0.002, 0.1)
     with pytest.raises(ValueError, match=r"h_max = 0\.2 s exceeds history"):
-        controller.check_delay_bound(0.2)
+        controller.check_run(0.002, 0.2)
+    with pytest.raises(
+        ValueError, match=r"built for T_c = 0\.002 s; the simulation runs at T_c = 0\.004"
+    ):
+        controller.check_run(0.004, 0.1)
     # PCONf never reads the true delay: any bound, any h.
     fixed = PCONf(arm, **GOOD, h_bar=0.05)
-    fixed.check_delay_bound(10.0)
+    fixed.check_run(0.002, 10.0)
     command, _ = fixed.step(*call, fixed.initial_state(), T_c=0.002, h=10.0)
     assert np.all(np.isfinite(command))
 
 
 @pytest.mark.parametrize(
-    "delay, T_c", [(0.12, 0.002), (0.05, 0.004)], ids=["delay beyond history", "other T_c"]
+    "delay, T_c, message",
+    [
+        (0.12, 0.002, r"h_max = 0\.12 s exceeds history = 0\.1 s"),
+        (0.05, 0.004, r"built for T_c = 0\.002 s; the simulation runs at T_c = 0\.004 s"),
+    ],
+    ids=["delay beyond history", "other T_c"],
 )
-def test_kernel_refusals_stop_the_run_at_the_first_tick(arm, arm_gains, delay, T_c):
-    # The compiled step cannot raise: it issues NaN, which the engine reports as "diverged".
+def test_simulate_refuses_a_run_the_law_cannot_do(arm, arm_gains, delay, T_c, message):
+    # Refused before the run (Controller.check_run); the compiled step's own guard (a NaN
+    # command, reported as "diverged") stays as a second line of defence.
     controller = PCON(arm, **arm_gains, history=0.1, T_c=0.002)
-    run = simulate(
-        arm,
-        controller,
-        ConstantDelay(delay),
-        np.zeros(4),
-        reference=ARM_REFERENCE,
-        t1=0.2,
-        dt=0.001,
-        T_c=T_c,
-    )
-    assert run.status_names[0] == "diverged" and run.t_stop[0] == 0.0
+    with pytest.raises(ValueError, match=message):
+        simulate(
+            arm,
+            controller,
+            ConstantDelay(delay),
+            np.zeros(4),
+            reference=ARM_REFERENCE,
+            t1=0.2,
+            dt=0.001,
+            T_c=T_c,
+        )
 
 
 # --------------------------------------------------------------------------------------------

@@ -176,6 +176,13 @@ class Controller(ABC):
         )
         return command, next_state
 
+    def check_run(self, T_c: float, h_max: float) -> None:
+        """Raise if the law cannot run at period ``T_c`` under delays up to ``h_max`` seconds.
+
+        :func:`delaytrack.sim.simulate` calls it for every run; most laws accept anything.
+        """
+        return  # AROLC and the outer loop run at any period under any delay.
+
     def _check_model(self) -> None:
         if not isinstance(self.model, ELPlant):
             raise TypeError(

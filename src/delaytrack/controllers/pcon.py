@@ -211,12 +211,18 @@ class PredictorBaseline(Controller):
     def initial_state(self) -> np.ndarray:
         return np.zeros(self.state_size)
 
-    def check_delay_bound(self, h_max: float) -> None:
-        """Raise unless the law can run under delays up to ``h_max`` seconds.
+    def check_run(self, T_c: float, h_max: float) -> None:
+        """Raise unless the law runs at its own ``T_c`` under delays up to ``h_max`` seconds.
 
-        PCON reads the true delay, so ``h_max`` must not exceed ``history``; PCONf never reads
-        it (any ``h_max`` is fine).
+        The history ring is sized for the constructor's ``T_c``. PCON reads the true delay, so
+        ``h_max`` must not exceed ``history``; PCONf never reads it (any ``h_max`` is fine).
         """
+        T_c = positive_scalar("T_c", T_c)
+        if abs(T_c - self.T_c) > 1e-9 * self.T_c:
+            raise ValueError(
+                f"{type(self).__name__} was built for T_c = {self.T_c:g} s; the simulation runs at "
+                f"T_c = {T_c:g} s"
+            )
         h_max = positive_scalar("h_max", h_max, strictly=False)
         if self.fixed_delay is None and h_max > self.history:
             raise ValueError(
@@ -268,7 +274,7 @@ class PCON(PredictorBaseline):
 
     The law assumes the delay known, so the simulator passes it ``h(t_k)`` at every tick. See
     :class:`PredictorBaseline` for the parameters; ``history`` must be at least the delay
-    profile's ``h_max`` (:meth:`PredictorBaseline.check_delay_bound`).
+    profile's ``h_max`` (:meth:`PredictorBaseline.check_run`).
     """
 
     type_name: ClassVar[str] = "pcon"

@@ -187,6 +187,8 @@ def simulate(
         raise ValueError(
             f"x0 has {states0.shape[0]} rows but the batch has {batch}; give 1 or {batch}"
         )
+    for controller_b, delay_b in zip(controllers, delays, strict=True):
+        controller_b.check_run(T_c, delay_b.h_max)
     u_init = np.zeros(m) if u_init is None else finite_array("u_init", u_init, ndim=1)
     if u_init.shape != (m,):
         raise ValueError(f"u_init must have shape ({m},); got {u_init.shape}")

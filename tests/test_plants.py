@@ -418,7 +418,9 @@ def test_plant_from_spec_builds_and_refuses():
     np.testing.assert_array_equal(plant_from_spec(linear.to_spec()).params, linear.params)
     with pytest.raises(
         ValueError,
-        match=r"'plant\.type' must be one of \['linear', 'two-link-arm'\]; got 'scara'",
+        match=r"'plant\.type' must be one of \['linear', 'two-link-arm', 'wheeled-robot', "
+        r"'wheeled-robot-nominal', 'wheeled-robot-payload', 'wheeled-robot-printed'\]; "
+        r"got 'scara'",
     ):
         plant_from_spec({"type": "scara"})
     with pytest.raises(ValueError, match=r"'plant\.type' is missing"):

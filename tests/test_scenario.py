@@ -169,7 +169,9 @@ def test_missing_and_unknown_type():
     data["plant"]["type"] = "three-link-arm"
     refused(
         data,
-        r"scenario key 'plant\.type' must be one of \['linear', 'two-link-arm'\]; "
+        r"scenario key 'plant\.type' must be one of \['linear', 'two-link-arm', "
+        r"'wheeled-robot', 'wheeled-robot-nominal', 'wheeled-robot-payload', "
+        r"'wheeled-robot-printed'\]; "
         r"got 'three-link-arm'",
     )
 

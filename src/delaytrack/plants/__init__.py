@@ -5,10 +5,12 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from delaytrack._spec import TypeSpec, array, build_from_table, gain, number
+from delaytrack._spec import TypeSpec, array, build_from_table, gain, integer, number
 from delaytrack.plants.base import ELPlant, el_rhs
 from delaytrack.plants.callable_plant import CallablePlant
 from delaytrack.plants.linear import LinearPlant
+from delaytrack.plants.robot import NominalRobot, PayloadRobot, PrintedRobotModel, WheeledRobot
+from delaytrack.plants.robot.body import BODY_KEYS
 from delaytrack.plants.two_link_arm import TwoLinkArm
 
 __all__ = [
@@ -16,10 +18,43 @@ __all__ = [
     "CallablePlant",
     "ELPlant",
     "LinearPlant",
+    "NominalRobot",
+    "PayloadRobot",
+    "PrintedRobotModel",
     "TwoLinkArm",
+    "WheeledRobot",
     "el_rhs",
     "plant_from_spec",
 ]
+
+_TRUTH_KEYS = (
+    *BODY_KEYS,
+    "viscous_friction",
+    "coulomb_friction",
+    "friction_speed",
+    "baumgarte_gain",
+)
+_PAYLOAD_KEYS = (
+    "payload_mass",
+    "time_on",
+    "time_off",
+    "first_on",
+    "duration",
+    "plate_length",
+    "plate_width",
+    "plate_center",
+)
+
+
+def _boolean(value: object) -> str | None:
+    return None if isinstance(value, bool) else "must be true or false"
+
+
+def _payload_robot(**arguments: Any) -> PayloadRobot:
+    """Build a :class:`PayloadRobot` from flat scenario keys (robot keys go to its robot)."""
+    robot = WheeledRobot(**{key: arguments.pop(key) for key in _TRUTH_KEYS if key in arguments})
+    return PayloadRobot(robot=robot, **arguments)
+
 
 #: Plants that can be built from plain data, by scenario-file name.
 PLANT_SPECS: dict[str, TypeSpec] = {
@@ -35,6 +70,35 @@ PLANT_SPECS: dict[str, TypeSpec] = {
             "input_map": ("input_map_matrix", array),
         },
         required=("mass",),
+    ),
+    WheeledRobot.type_name: TypeSpec(WheeledRobot, {key: (key, number) for key in _TRUTH_KEYS}),
+    PayloadRobot.type_name: TypeSpec(
+        _payload_robot,
+        {
+            **{key: (key, number) for key in (*_TRUTH_KEYS, *_PAYLOAD_KEYS)},
+            "seed": ("seed", integer),
+            "placements": ("placements", array),
+        },
+        alternatives=(("seed", "duration"), ("placements",)),
+    ),
+    NominalRobot.type_name: TypeSpec(NominalRobot, {key: (key, number) for key in BODY_KEYS}),
+    PrintedRobotModel.type_name: TypeSpec(
+        PrintedRobotModel,
+        {
+            **{
+                key: (key, number)
+                for key in (
+                    "wheel_radius",
+                    "half_track",
+                    "d",
+                    "mass",
+                    "first_moment",
+                    "inertia",
+                    "wheel_spin_inertia",
+                )
+            },
+            "corrected_row2": ("corrected_row2", _boolean),
+        },
     ),
 }
 

@@ -12,10 +12,29 @@ import numpy as np
 from numba import types
 from numba.extending import overload, register_jitable
 
-__all__ = ["LINEAR", "TWO_LINK_ARM", "call_command_map", "call_terms", "solve_input_map"]
+__all__ = [
+    "LINEAR",
+    "ROBOT_COMMAND_MAP_IDS",
+    "ROBOT_NOMINAL",
+    "ROBOT_PAYLOAD",
+    "ROBOT_PRINTED",
+    "ROBOT_TRUTH",
+    "TWO_LINK_ARM",
+    "call_command_map",
+    "call_terms",
+    "solve_input_map",
+]
 
 TWO_LINK_ARM = 0
 LINEAR = 1
+#: The wheeled robot (:mod:`delaytrack.plants.robot`): truth, truth with payload, the nominal
+#: Lagrangian model and the paper's printed model.
+ROBOT_TRUTH = 2
+ROBOT_PAYLOAD = 3
+ROBOT_NOMINAL = 4
+ROBOT_PRINTED = 5
+#: Nominal models whose command map is the robot's ``command = S(q)ᵀ τ``.
+ROBOT_COMMAND_MAP_IDS = (ROBOT_NOMINAL, ROBOT_PRINTED)
 
 
 def call_terms(terms, t, q, qdot, params, mass, nonlinear, input_map):
@@ -27,6 +46,10 @@ def call_terms(terms, t, q, qdot, params, mass, nonlinear, input_map):
 def _call_terms_compiled(terms, t, q, qdot, params, mass, nonlinear, input_map):
     if isinstance(terms, types.Integer):
         from delaytrack.plants.linear import linear_terms
+        from delaytrack.plants.robot.nominal import robot_nominal_terms
+        from delaytrack.plants.robot.payload import robot_payload_terms
+        from delaytrack.plants.robot.printed import robot_printed_terms
+        from delaytrack.plants.robot.truth import robot_truth_terms
         from delaytrack.plants.two_link_arm import two_link_terms
 
         def by_id(terms, t, q, qdot, params, mass, nonlinear, input_map):
@@ -34,6 +57,14 @@ def _call_terms_compiled(terms, t, q, qdot, params, mass, nonlinear, input_map):
                 two_link_terms(t, q, qdot, params, mass, nonlinear, input_map)
             elif terms == LINEAR:
                 linear_terms(t, q, qdot, params, mass, nonlinear, input_map)
+            elif terms == ROBOT_TRUTH:
+                robot_truth_terms(t, q, qdot, params, mass, nonlinear, input_map)
+            elif terms == ROBOT_PAYLOAD:
+                robot_payload_terms(t, q, qdot, params, mass, nonlinear, input_map)
+            elif terms == ROBOT_NOMINAL:
+                robot_nominal_terms(t, q, qdot, params, mass, nonlinear, input_map)
+            elif terms == ROBOT_PRINTED:
+                robot_printed_terms(t, q, qdot, params, mass, nonlinear, input_map)
             else:
                 raise ValueError("unknown plant kernel id")
 
@@ -55,14 +86,31 @@ def call_command_map(model, q, params, input_map, tau, command):
     """Actuator ``command`` that realises the generalised force ``τ`` on the nominal ``model``.
 
     Fully actuated models solve ``G(q) command = τ``. A model with constraints supplies its own
-    map by kernel id (e.g. the wheeled robot's ``command = S(q)ᵀ τ``); a Python model uses the
-    default.
+    map by kernel id: the wheeled robot's nominal models (:data:`ROBOT_COMMAND_MAP_IDS`) use
+    ``command = S(q)ᵀ τ`` (SPEC §6). Other ids and Python models use the default.
     """
+    if isinstance(model, int | np.integer) and not isinstance(model, bool):
+        if int(model) in ROBOT_COMMAND_MAP_IDS:
+            from delaytrack.plants.robot.kinematics import robot_command_map
+
+            robot_command_map(q, params, tau, command)
+            return
     solve_input_map(input_map, tau, command)
 
 
 @overload(call_command_map)
 def _call_command_map_compiled(model, q, params, input_map, tau, command):
+    if isinstance(model, types.Integer):
+        from delaytrack.plants.robot.kinematics import robot_command_map
+
+        def by_id(model, q, params, input_map, tau, command):
+            if model == ROBOT_NOMINAL or model == ROBOT_PRINTED:
+                robot_command_map(q, params, tau, command)
+            else:
+                solve_input_map(input_map, tau, command)
+
+        return by_id
+
     def default(model, q, params, input_map, tau, command):
         solve_input_map(input_map, tau, command)
 

@@ -1,0 +1,267 @@
+"""The payload experiment as a plant: a robot that carries a point mass on a schedule (SPEC §6).
+
+The paper adds 3.5 kg for 5 s, removes it for 5 s, and repeats, "at different places on the
+robotic platform every time". :class:`PayloadRobot` wraps a
+:class:`~delaytrack.plants.robot.truth.WheeledRobot` (perturbations are wrappers, STYLE.md) and its
+parameter vector carries the whole schedule, so the compiled terms kernel picks the payload in
+force from ``t``:
+
+* placement ``k = 0, 1, …`` is on during ``[t_k, t_k + time_on)``, ``t_k = first_on + k (time_on +
+  time_off)``, and off otherwise; after the last placement the robot stays unloaded;
+* a placement is a point ``p = (p_x, p_y)`` in the body frame (forward, left of the axle
+  midpoint A); random placements are uniform on the platform rectangle
+  ``[c - ℓ/2, c + ℓ/2] × [-w/2, w/2]`` (``c`` = ``plate_center``), drawn from
+  ``numpy.random.default_rng(seed)``;
+* the payload changes the rigid-body aggregates (point mass, parallel axis theorem)::
+
+      M_b' = M_b + m_p,   s' = s + m_p p,   I_A' = I_A + m_p |p|²
+
+  hence the centre of mass ``s'/M_b'`` (also sideways) and the yaw inertia about it,
+  ``I_A' - |s'|²/M_b'``.
+
+Placing or removing the payload changes the mass matrix while the wheel rates ``η`` stay continuous
+(the impulse of a real placement is not modelled); the kinetic energy jumps accordingly. The
+switching times fall inside RK4 steps unless they are multiples of ``dt``; that costs accuracy
+over one step, not constraint satisfaction.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+from numba import njit
+
+from delaytrack._validation import finite_array, positive_scalar
+from delaytrack.plants.base import ELPlant
+from delaytrack.plants.dispatch import ROBOT_PAYLOAD
+from delaytrack.plants.robot.parameters import P3DX_PAYLOAD
+from delaytrack.plants.robot.truth import (
+    TRUTH_PARAMS,
+    ConstrainedRobotPhysics,
+    WheeledRobot,
+    constrained_terms,
+)
+
+__all__ = ["PayloadRobot", "active_placement", "random_placements", "robot_payload_terms"]
+
+# Layout after the truth parameters: [m_p, first_on, time_on, time_off, count, p_0x, p_0y, ...].
+_MASS = TRUTH_PARAMS
+_FIRST_ON = TRUTH_PARAMS + 1
+_TIME_ON = TRUTH_PARAMS + 2
+_TIME_OFF = TRUTH_PARAMS + 3
+_COUNT = TRUTH_PARAMS + 4
+_PLACEMENTS = TRUTH_PARAMS + 5
+
+
+@njit(cache=True)
+def active_placement(t, params):
+    """Index of the placement in force at ``t``, or -1 when the robot is unloaded."""
+    first_on = params[_FIRST_ON]
+    time_on = params[_TIME_ON]
+    period = time_on + params[_TIME_OFF]
+    count = int(params[_COUNT])
+    if t < first_on or count == 0:
+        return -1
+    k = int(math.floor((t - first_on) / period))
+    if k >= count:
+        return -1
+    if t - first_on - k * period < time_on:
+        return k
+    return -1
+
+
+@njit(cache=True)
+def robot_payload_terms(t, q, qdot, params, mass, nonlinear, input_map):
+    """Terms kernel of :class:`PayloadRobot`: the truth robot with the payload in force at ``t``."""
+    mass_b = params[3]
+    s_x = params[4]
+    s_y = params[5]
+    inertia_a = params[6]
+    k = active_placement(t, params)
+    if k >= 0:
+        m_p = params[_MASS]
+        p_x = params[_PLACEMENTS + 2 * k]
+        p_y = params[_PLACEMENTS + 2 * k + 1]
+        mass_b += m_p
+        s_x += m_p * p_x
+        s_y += m_p * p_y
+        inertia_a += m_p * (p_x * p_x + p_y * p_y)
+    constrained_terms(q, qdot, params, mass_b, s_x, s_y, inertia_a, mass, nonlinear, input_map)
+
+
+def placement_count(duration: float, first_on: float, time_on: float, time_off: float) -> int:
+    """Number of placements that start before ``duration``."""
+    if duration <= first_on:
+        return 0
+    return int(math.ceil((duration - first_on) / (time_on + time_off) - 1e-12))
+
+
+def random_placements(
+    seed: int,
+    count: int,
+    plate_length: float = P3DX_PAYLOAD.plate_length,
+    plate_width: float = P3DX_PAYLOAD.plate_width,
+    plate_center: float = P3DX_PAYLOAD.plate_center,
+) -> np.ndarray:
+    """``count`` points (count, 2) uniform on the plate rectangle, body frame from A, seeded."""
+    rng = np.random.default_rng(seed)
+    forward = rng.uniform(plate_center - plate_length / 2, plate_center + plate_length / 2, count)
+    lateral = rng.uniform(-plate_width / 2, plate_width / 2, count)
+    return np.column_stack([forward, lateral])
+
+
+@dataclass(frozen=True, eq=False)
+class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
+    """A :class:`WheeledRobot` carrying a point payload on a schedule (module docstring).
+
+    Give either ``placements`` or ``seed`` and ``duration`` (random placements covering
+    ``[0, duration]``).
+
+    Parameters
+    ----------
+    robot : WheeledRobot, optional
+        The robot without payload (P3-DX defaults).
+    placements : array_like, shape (k, 2), optional
+        Body-frame points ``(p_x, p_y)`` from A (forward, left), m, one per placement.
+    seed : int, optional
+        Seed of the random placements.
+    duration : float, optional
+        Seconds to cover with random placements.
+    payload_mass : float
+        ``m_p`` in kg (3.5).
+    time_on, time_off, first_on : float
+        Schedule in s (5, 5, 5).
+    plate_length, plate_width, plate_center : float
+        Rectangle of the random placements, m (0.44 × 0.38 centred ``d`` = 0.05 ahead of A).
+    """
+
+    robot: WheeledRobot = field(default_factory=WheeledRobot)
+    placements: np.ndarray | None = None
+    seed: int | None = None
+    duration: float | None = None
+    payload_mass: float = P3DX_PAYLOAD.mass
+    time_on: float = P3DX_PAYLOAD.time_on
+    time_off: float = P3DX_PAYLOAD.time_off
+    first_on: float = P3DX_PAYLOAD.first_on
+    plate_length: float = P3DX_PAYLOAD.plate_length
+    plate_width: float = P3DX_PAYLOAD.plate_width
+    plate_center: float = P3DX_PAYLOAD.plate_center
+    _params: np.ndarray = field(init=False, repr=False)
+    n: ClassVar[int] = 5
+    m: ClassVar[int] = 2
+    type_name: ClassVar[str] = "wheeled-robot-payload"
+    kernel_id: ClassVar[int] = ROBOT_PAYLOAD
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.robot, WheeledRobot):
+            raise TypeError(f"robot must be a WheeledRobot; got {type(self.robot).__name__}")
+        object.__setattr__(self, "payload_mass", positive_scalar("payload_mass", self.payload_mass))
+        for name in ("time_on", "time_off", "plate_length", "plate_width"):
+            object.__setattr__(self, name, positive_scalar(name, getattr(self, name)))
+        object.__setattr__(
+            self, "first_on", positive_scalar("first_on", self.first_on, strictly=False)
+        )
+        object.__setattr__(
+            self, "plate_center", float(finite_array("plate_center", self.plate_center, ndim=0))
+        )
+        random = self.seed is not None or self.duration is not None
+        if (self.placements is None) == (not random):
+            raise ValueError(
+                "give either placements (a (k, 2) array of body-frame points) or seed and "
+                "duration (random placements), not both"
+            )
+        if random:
+            if self.seed is None or self.duration is None:
+                raise ValueError("random placements need both seed and duration")
+            if isinstance(self.seed, bool) or not isinstance(self.seed, int | np.integer):
+                raise TypeError(f"seed must be an integer; got {self.seed!r}")
+            duration = positive_scalar("duration", self.duration)
+            object.__setattr__(self, "duration", duration)
+            count = placement_count(duration, self.first_on, self.time_on, self.time_off)
+            placements = random_placements(
+                int(self.seed), count, self.plate_length, self.plate_width, self.plate_center
+            )
+        else:
+            placements = finite_array("placements", self.placements)
+            if placements.size == 0:
+                placements = placements.reshape(0, 2)
+            if placements.ndim != 2 or placements.shape[1] != 2:
+                raise ValueError(
+                    f"placements must have shape (k, 2) (forward, left in m); "
+                    f"got {placements.shape}"
+                )
+        object.__setattr__(self, "placements", placements)
+        schedule = [
+            self.payload_mass,
+            self.first_on,
+            self.time_on,
+            self.time_off,
+            float(len(placements)),
+        ]
+        object.__setattr__(
+            self,
+            "_params",
+            np.concatenate([self.robot.truth_params(), schedule, placements.ravel()]),
+        )
+
+    @property
+    def params(self) -> np.ndarray:
+        return self._params
+
+    @property
+    def terms_kernel(self):
+        return robot_payload_terms
+
+    def to_spec(self) -> dict[str, Any]:
+        spec: dict[str, Any] = {"type": self.type_name, **self.robot.truth_spec()}
+        spec.update(
+            payload_mass=self.payload_mass,
+            time_on=self.time_on,
+            time_off=self.time_off,
+            first_on=self.first_on,
+        )
+        if self.seed is not None:
+            spec.update(
+                seed=int(self.seed),
+                duration=self.duration,
+                plate_length=self.plate_length,
+                plate_width=self.plate_width,
+                plate_center=self.plate_center,
+            )
+        else:
+            spec["placements"] = self.placements.tolist()
+        return spec
+
+    # ---- physics helpers ---------------------------------------------------------------------
+
+    def placement_at(self, t: float) -> np.ndarray | None:
+        """Body-frame point (2,) of the payload in force at ``t``, or None."""
+        k = active_placement(float(t), self._params)
+        return None if k < 0 else self.placements[k].copy()
+
+    def aggregates(self, t: float = 0.0) -> np.ndarray:
+        """``[M_b, s_x, s_y, I_A]`` at time ``t``, payload included when it is on."""
+        mass_b, s_x, s_y, inertia_a = self._params[3:7]
+        point = self.placement_at(t)
+        if point is not None:
+            m_p = self.payload_mass
+            mass_b += m_p
+            s_x += m_p * point[0]
+            s_y += m_p * point[1]
+            inertia_a += m_p * float(point @ point)
+        return np.array([mass_b, s_x, s_y, inertia_a])
+
+    def mass_properties(self, t: float = 0.0) -> dict[str, Any]:
+        """Total mass (kg), centre of mass from A (forward, left; m) and yaw inertia about A and
+        about the centre of mass (kg·m²) at time ``t``."""
+        mass_b, s_x, s_y, inertia_a = self.aggregates(t)
+        com = np.array([s_x, s_y]) / mass_b
+        return {
+            "mass": float(mass_b),
+            "center_of_mass": com,
+            "yaw_inertia_about_axle": float(inertia_a),
+            "yaw_inertia_about_com": float(inertia_a - mass_b * float(com @ com)),
+        }

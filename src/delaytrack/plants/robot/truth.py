@@ -1,0 +1,267 @@
+"""The truth plant: the constrained differential-drive robot with wheel friction (SPEC §6).
+
+Reduced wheel-space dynamics (derived in ``scripts/derive_robot.py``; ``η = (θ̇_r, θ̇_l)``,
+``v = R (θ̇_r + θ̇_l)/2``, ``ω = R (θ̇_r - θ̇_l)/(2L)``, aggregates ``M_b, s = (s_x, s_y), I_A``
+of :mod:`~delaytrack.plants.robot.body`)::
+
+    M_r η̇ + n_r(η) = τ - f(η)
+
+    M_r = I_w I + Jᵀ [[M_b, -s_y], [-s_y, I_A]] J,   J = [[R/2, R/2], [R/(2L), -R/(2L)]]
+    n_r = Jᵀ [-s_x ω², s_x v ω]                      (power-free: ηᵀ n_r = 0)
+    f_i = b_v θ̇_i + f_c tanh(θ̇_i / v_s)             (viscous + smoothed Coulomb, per wheel)
+
+equivalently, in body velocities, ``(M_b + 2I_w/R²) v̇ - s_y ω̇ - s_x ω² = F_v`` and
+``(I_A + 2L²I_w/R²) ω̇ - s_y v̇ + s_x v ω = F_ω``; for ``s_y = 0`` this is ROBOT-NOTES' ``M_r, C_r``
+(Dhaouadi & Abu Hatab 2013). A centre of mass off the heading axis (``s_y ≠ 0``, a payload placed
+sideways) couples v̇ and ω̇ through the mass matrix.
+
+The plant is integrated in ``q`` as ``M = I``, ``N = -a``, ``G = b`` with ``q̈ = a + b τ``:
+
+    η̇ = M_r⁻¹ (τ - f - n_r),     q̈ = S(q) η̇ + (∂S/∂φ) φ̇ η - k_b [ρ; 0],
+    ρ = q̇_{1:3} - S_{1:3}(q) η                     (velocity-constraint residual)
+
+so that, exactly in continuous time, ``ρ̇ = -k_b ρ`` (Baumgarte stabilisation of the velocity
+constraints; the term vanishes on the constraint manifold, where ``Λ(q) q̇ = Λ_{:,1:3} ρ = 0``).
+RK4 would otherwise let ``Λ q̇`` drift by its truncation error; ``k_b`` (default 20 s⁻¹, a 50 ms
+time constant) damps that drift and any inconsistent initial velocity. RK4 stays stable on this
+term while ``k_b dt < 2.78``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+from numba import njit
+
+from delaytrack._validation import positive_scalar
+from delaytrack.plants.base import ELPlant
+from delaytrack.plants.dispatch import ROBOT_TRUTH
+from delaytrack.plants.robot.body import RobotBody
+from delaytrack.plants.robot.kinematics import constraint_residual, kinematic_map_kernel
+from delaytrack.plants.robot.parameters import P3DX
+
+__all__ = [
+    "DEFAULT_BAUMGARTE_GAIN",
+    "ConstrainedRobotPhysics",
+    "TRUTH_PARAMS",
+    "WheeledRobot",
+    "constrained_terms",
+    "reduced_terms_kernel",
+    "robot_truth_terms",
+]
+
+#: Baumgarte gain k_b of the velocity-constraint residual, 1/s.
+DEFAULT_BAUMGARTE_GAIN = 20.0
+#: Length of the truth plant's parameter vector:
+#: ``[R, L, d, M_b, s_x, s_y, I_A, I_w, b_v, f_c, v_s, k_b]``.
+TRUTH_PARAMS = 12
+
+
+@njit(cache=True)
+def reduced_terms_kernel(qdot, params, mass_b, s_x, s_y, inertia_a, reduced_mass, bias, friction):
+    """Fill ``M_r`` (2, 2), ``n_r`` (2,), ``f`` (2,) of the module docstring at ``η = q̇[3:5]``."""
+    R, L, Iw = params[0], params[1], params[7]
+    b_v, f_c, v_s = params[8], params[9], params[10]
+    a = 0.5 * R
+    b = R / (2.0 * L)
+    wr = qdot[3]
+    wl = qdot[4]
+    v = a * (wr + wl)
+    w = b * (wr - wl)
+    reduced_mass[0, 0] = Iw + a * a * mass_b - 2.0 * a * b * s_y + b * b * inertia_a
+    reduced_mass[0, 1] = a * a * mass_b - b * b * inertia_a
+    reduced_mass[1, 0] = reduced_mass[0, 1]
+    reduced_mass[1, 1] = Iw + a * a * mass_b + 2.0 * a * b * s_y + b * b * inertia_a
+    bias[0] = s_x * w * (b * v - a * w)
+    bias[1] = -s_x * w * (b * v + a * w)
+    friction[0] = b_v * wr
+    friction[1] = b_v * wl
+    if f_c != 0.0:
+        friction[0] += f_c * math.tanh(wr / v_s)
+        friction[1] += f_c * math.tanh(wl / v_s)
+
+
+@njit(cache=True)
+def constrained_terms(q, qdot, params, mass_b, s_x, s_y, inertia_a, mass, nonlinear, input_map):
+    """``M = I``, ``N = -a``, ``G = b`` of the constrained robot (module docstring) with the
+    rigid-body aggregates given (so that a payload can change them)."""
+    R, L, d = params[0], params[1], params[2]
+    k_b = params[11]
+    reduced_mass = np.empty((2, 2))
+    bias = np.empty(2)
+    friction = np.empty(2)
+    reduced_terms_kernel(qdot, params, mass_b, s_x, s_y, inertia_a, reduced_mass, bias, friction)
+    det = reduced_mass[0, 0] * reduced_mass[1, 1] - reduced_mass[0, 1] * reduced_mass[1, 0]
+    i00 = reduced_mass[1, 1] / det
+    i01 = -reduced_mass[0, 1] / det
+    i11 = reduced_mass[0, 0] / det
+    # η̇ = drift + M_r⁻¹ τ
+    g0 = -(bias[0] + friction[0])
+    g1 = -(bias[1] + friction[1])
+    drift_r = i00 * g0 + i01 * g1
+    drift_l = i01 * g0 + i11 * g1
+    S = np.empty((5, 2))
+    kinematic_map_kernel(q[2], R, L, d, S)
+    wr = qdot[3]
+    wl = qdot[4]
+    v = 0.5 * R * (wr + wl)
+    w = R * (wr - wl) / (2.0 * L)
+    c = math.cos(q[2])
+    s = math.sin(q[2])
+    phidot = qdot[2]
+    # (∂S/∂φ) φ̇ η for rows x, y (row φ of S is constant).
+    sdot_x = (-v * s - d * w * c) * phidot
+    sdot_y = (v * c - d * w * s) * phidot
+    # Velocity-constraint residual ρ = q̇_{1:3} - S_{1:3} η.
+    rho_x = qdot[0] - (v * c - d * w * s)
+    rho_y = qdot[1] - (v * s + d * w * c)
+    rho_phi = qdot[2] - w
+    mass[:, :] = 0.0
+    for i in range(5):
+        mass[i, i] = 1.0
+    nonlinear[0] = -(S[0, 0] * drift_r + S[0, 1] * drift_l + sdot_x - k_b * rho_x)
+    nonlinear[1] = -(S[1, 0] * drift_r + S[1, 1] * drift_l + sdot_y - k_b * rho_y)
+    nonlinear[2] = -(S[2, 0] * drift_r + S[2, 1] * drift_l - k_b * rho_phi)
+    nonlinear[3] = -drift_r
+    nonlinear[4] = -drift_l
+    for i in range(5):
+        input_map[i, 0] = S[i, 0] * i00 + S[i, 1] * i01
+        input_map[i, 1] = S[i, 0] * i01 + S[i, 1] * i11
+
+
+@njit(cache=True)
+def robot_truth_terms(t, q, qdot, params, mass, nonlinear, input_map):
+    """Terms kernel of :class:`WheeledRobot`; ``params`` as :data:`TRUTH_PARAMS` describes."""
+    constrained_terms(
+        q, qdot, params, params[3], params[4], params[5], params[6], mass, nonlinear, input_map
+    )
+
+
+class ConstrainedRobotPhysics:
+    """Python helpers shared by the robot truth plants (``params`` in the truth layout)."""
+
+    params: np.ndarray
+
+    def aggregates(self, t: float = 0.0) -> np.ndarray:
+        """``[M_b, s_x, s_y, I_A]`` of the rigid part at time ``t``."""
+        return np.array(self.params[3:7], dtype=float)
+
+    def reduced_terms(
+        self, qdot: np.ndarray, t: float = 0.0
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``M_r (batch, 2, 2)``, ``n_r (batch, 2)``, friction ``f (batch, 2)`` at ``q̇ (batch, 5)``
+        and time ``t``."""
+        qdot = np.atleast_2d(np.asarray(qdot, dtype=float))
+        if qdot.ndim != 2 or qdot.shape[1] != 5:
+            raise ValueError(f"qdot must have shape (batch, 5) or (5,); got {qdot.shape}")
+        params = self.params
+        mass_b, s_x, s_y, inertia_a = self.aggregates(t)
+        batch = qdot.shape[0]
+        reduced_mass = np.empty((batch, 2, 2))
+        bias = np.empty((batch, 2))
+        friction = np.empty((batch, 2))
+        for k in range(batch):
+            reduced_terms_kernel(
+                np.ascontiguousarray(qdot[k]),
+                params,
+                mass_b,
+                s_x,
+                s_y,
+                inertia_a,
+                reduced_mass[k],
+                bias[k],
+                friction[k],
+            )
+        return reduced_mass, bias, friction
+
+    def kinetic_energy(self, x: np.ndarray, t: float = 0.0) -> np.ndarray:
+        """``T = ½ ηᵀ M_r η`` (J) of the constrained robot at states ``x (batch, 10)``."""
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+        reduced_mass = self.reduced_terms(x[:, 5:], t)[0]
+        eta = x[:, 8:10]
+        return 0.5 * np.einsum("bi,bij,bj->b", eta, reduced_mass, eta)
+
+    def constraint_residual(self, x: np.ndarray) -> np.ndarray:
+        """``Λ(q) q̇`` (batch, 3) in m/s at states ``x (batch, 10)``."""
+        R, L, d = self.params[:3]
+        return np.atleast_2d(constraint_residual(x, R, L, d))
+
+
+@dataclass(frozen=True, eq=False)
+class WheeledRobot(RobotBody, ConstrainedRobotPhysics, ELPlant):
+    """The constrained differential-drive robot of SPEC §6 (the truth plant).
+
+    Coordinates ``q = (x_c, y_c, φ, θ_r, θ_l)``, inputs the wheel torques ``u = (τ_r, τ_l)``.
+    Start it on the constraint manifold
+    (:func:`~delaytrack.plants.robot.kinematics.consistent_state`); an inconsistent initial
+    velocity decays as ``exp(-k_b t)``.
+
+    Parameters
+    ----------
+    wheel_radius, half_track, d, mass, yaw_inertia, wheel_mass, wheel_spin_inertia,
+    com_forward, com_lateral : float
+        The body (:class:`~delaytrack.plants.robot.body.RobotBody`; P3-DX defaults).
+    viscous_friction : float
+        ``b_v`` >= 0, N·m·s/rad (default 0.01, an assumption; see ``P3DX_SOURCES``).
+    coulomb_friction : float
+        ``f_c`` >= 0, N·m (default 0.1, an assumption).
+    friction_speed : float
+        ``v_s`` > 0 of the ``tanh`` smoothing, rad/s (default 0.05).
+    baumgarte_gain : float
+        ``k_b`` >= 0 of the velocity-constraint stabilisation, 1/s (default 20).
+    """
+
+    viscous_friction: float = P3DX.viscous_friction
+    coulomb_friction: float = P3DX.coulomb_friction
+    friction_speed: float = P3DX.friction_speed
+    baumgarte_gain: float = DEFAULT_BAUMGARTE_GAIN
+    type_name: ClassVar[str] = "wheeled-robot"
+    kernel_id: ClassVar[int] = ROBOT_TRUTH
+
+    def __post_init__(self) -> None:
+        self._check_body()
+        for name in ("viscous_friction", "coulomb_friction", "baumgarte_gain"):
+            object.__setattr__(
+                self, name, positive_scalar(name, getattr(self, name), strictly=False)
+            )
+        object.__setattr__(
+            self, "friction_speed", positive_scalar("friction_speed", self.friction_speed)
+        )
+
+    @property
+    def params(self) -> np.ndarray:
+        return self.truth_params()
+
+    def truth_params(self) -> np.ndarray:
+        """``[R, L, d, M_b, s_x, s_y, I_A, I_w, b_v, f_c, v_s, k_b]``."""
+        return np.concatenate(
+            [
+                self.body_params(),
+                [
+                    self.viscous_friction,
+                    self.coulomb_friction,
+                    self.friction_speed,
+                    self.baumgarte_gain,
+                ],
+            ]
+        )
+
+    @property
+    def terms_kernel(self):
+        return robot_truth_terms
+
+    def to_spec(self) -> dict[str, Any]:
+        return {"type": self.type_name, **self.truth_spec()}
+
+    def truth_spec(self) -> dict[str, Any]:
+        """The fields as plain data (scenario keys), without ``type``."""
+        return {
+            **self.body_spec(),
+            "viscous_friction": self.viscous_friction,
+            "coulomb_friction": self.coulomb_friction,
+            "friction_speed": self.friction_speed,
+            "baumgarte_gain": self.baumgarte_gain,
+        }

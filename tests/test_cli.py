@@ -136,7 +136,9 @@ def test_missing_argument_is_a_usage_error():
     assert done.returncode == 2 and "--k1" in done.stderr and "Traceback" not in done.stderr
 
 
-@pytest.mark.parametrize("command", [[], ["bound"], ["simulate"], ["reproduce"]])
+@pytest.mark.parametrize(
+    "command", [[], ["bound"], ["simulate"], ["reproduce"], ["tune-baselines"]]
+)
 def test_help_on_every_command(command, capsys):
     with pytest.raises(SystemExit) as stop:
         main([*command, "--help"])

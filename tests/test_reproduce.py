@@ -20,7 +20,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.mark.slow
 def test_reproduce_smoke(tmp_path, capsys):
-    assert main(["reproduce", "--out", str(tmp_path), "--duration", "1", "--quiet"]) == 0
+    args = ["reproduce", "--job", "two-link", "--out", str(tmp_path), "--duration", "1", "--quiet"]
+    assert main(args) == 0
     printed = capsys.readouterr().out
     folder = tmp_path / "two-link"
     assert "report.html" in printed
@@ -62,7 +63,8 @@ def test_reproduce_smoke(tmp_path, capsys):
 def test_reproduce_rejects_a_bad_duration(tmp_path, capsys):
     assert main(["reproduce", "--out", str(tmp_path), "--duration", "-1", "--quiet"]) == 2
     assert "--duration must be a positive number of seconds" in capsys.readouterr().err
-    assert main(["reproduce", "--out", str(tmp_path), "--duration", "0.0015", "--quiet"]) == 2
+    args = ["reproduce", "--job", "two-link", "--out", str(tmp_path), "--duration", "0.0015"]
+    assert main([*args, "--quiet"]) == 2
     assert "must be a positive integer multiple of 'T_c'" in capsys.readouterr().err
 
 

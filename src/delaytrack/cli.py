@@ -4,7 +4,8 @@ Commands::
 
     delaytrack bound --k1 1 --k2 1 --q 1 --beta 1 --r 1.1 [--n 5] [--json]
     delaytrack simulate SCENARIO.toml [--out DIR] [--format parquet|csv|both]
-    delaytrack reproduce [--out results] [--duration SECONDS] [--no-dt-check]
+    delaytrack reproduce [--out results] [--duration SECONDS] [--no-dt-check] [--job paper|two-link]
+    delaytrack tune-baselines [--out PATH] [--quiet]
 
 Bad input ends with exit code 2 and a one-line ``error: ...`` naming the argument, the value and
 what is valid; never a traceback.
@@ -194,10 +195,44 @@ def _simulate(args: argparse.Namespace) -> int:
 
 
 def _reproduce(args: argparse.Namespace) -> int:
-    from delaytrack.experiments.two_link import FOLDER, reproduce
-
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UsageError(f"--duration must be a positive number of seconds; got {args.duration:g}")
+    if args.job == "two-link":
+        return _reproduce_two_link(args)
+    from delaytrack.experiments.paper import DURATION, SUMMARY_COLUMNS, reproduce
+
+    if args.duration is not None:
+        steps = args.duration / 0.01
+        if abs(steps - round(steps)) > 1e-9 * max(1.0, steps) or round(steps) < 1:
+            raise UsageError(
+                f"--duration must be a positive integer multiple of 'T_c' = 0.01 s; got "
+                f"{args.duration:g}"
+            )
+    start = time.perf_counter()
+    studies = reproduce(
+        args.out,
+        duration=DURATION if args.duration is None else args.duration,
+        check_dt=not args.no_dt_check,
+        progress=not args.quiet,
+    )
+    seconds = time.perf_counter() - start
+    out = Path(args.out)
+    print(
+        f"paper job done in {seconds:.1f} s wall time; wrote {out / 'paper'}/ and "
+        f"{out / 'paper-literal'}/"
+    )
+    study = studies["consistent"]
+    columns = SUMMARY_COLUMNS[:5] + ["tv"]
+    print(study.summary[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    if study.dt_check is not None:
+        print(f"largest relative change of a metric when dt is halved: {study.dt_max_change:.2e}")
+    print(f"report: {out / 'paper' / 'report.html'}")
+    return 0
+
+
+def _reproduce_two_link(args: argparse.Namespace) -> int:
+    from delaytrack.experiments.two_link import FOLDER, reproduce
+
     start = time.perf_counter()
     study, files = reproduce(
         args.out, duration=args.duration, check_dt=not args.no_dt_check, progress=not args.quiet
@@ -210,6 +245,27 @@ def _reproduce(args: argparse.Namespace) -> int:
     if study.dt_check is not None:
         print(f"largest relative change of a metric when dt is halved: {study.dt_max_change:.2e}")
     print(f"report: {folder / 'report.html'}")
+    return 0
+
+
+# --------------------------------------------------------------------------------------------
+# tune-baselines
+
+
+def _tune_baselines(args: argparse.Namespace) -> int:
+    from delaytrack.experiments.tuning import default_gains_path, tune_baselines, write_gains
+
+    start = time.perf_counter()
+    results = tune_baselines(progress=not args.quiet)
+    path = write_gains(results, args.out)
+    seconds = time.perf_counter() - start
+    for kind, result in results.items():
+        best = ", ".join(f"{k} = {v:g}" for k, v in result.best.items())
+        interior = "interior" if all(result.interior.values()) else "ON THE GRID'S EDGE"
+        print(f"{kind}: {best} ({interior})")
+    print(f"wrote {path} in {seconds:.1f} s")
+    if args.out is not None and Path(args.out).resolve() != default_gains_path().resolve():
+        print(f"note: the paper job reads {default_gains_path()}; copy the file there to use it")
     return 0
 
 
@@ -292,9 +348,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     reproduce = commands.add_parser(
         "reproduce",
-        help="the main job: AROLC vs the outer loop on the two-link arm (S1, S3)",
-        description="Run the main job and write <out>/two-link/: summary.csv, dt_check.csv, "
-        "trajectories, figures and a self-contained report.html.",
+        help="the main job: the paper's robot experiment (S1-S4, AROLC vs PCON/PCONf)",
+        description="Run the paper's robot experiment and write <out>/paper/ and "
+        "<out>/paper-literal/: summary.csv, tables.md, dt_check.csv, figures and a "
+        "self-contained report.html. --job two-link runs the earlier two-link job into "
+        "<out>/two-link/ instead.",
     )
     reproduce.add_argument(
         "--out", default="results", metavar="DIR", help="output root (default results)"
@@ -304,11 +362,29 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         default=None,
         metavar="SECONDS",
-        help="override the 30 s duration (a multiple of T_c = 2 ms; for quick checks)",
+        help="override the duration (paper: 60 s, a multiple of T_c = 10 ms; two-link: 30 s, "
+        "a multiple of 2 ms); for quick checks",
+    )
+    reproduce.add_argument(
+        "--job",
+        choices=("paper", "two-link"),
+        default="paper",
+        help="which job to run (default paper)",
     )
     reproduce.add_argument("--no-dt-check", action="store_true", help="skip the dt/2 rerun")
     reproduce.add_argument("--quiet", action="store_true", help="no progress bar")
     reproduce.set_defaults(handler=_reproduce)
+
+    tune = commands.add_parser(
+        "tune-baselines",
+        help="grid-search the PCON/PCONf gains on held-out conditions",
+        description="Tune PCON and PCONf by the seeded grid search of "
+        "delaytrack.experiments.tuning and write the chosen gains, grid and objective values "
+        "as TOML (default: the package's data/baseline_gains.toml, which the paper job reads).",
+    )
+    tune.add_argument("--out", default=None, metavar="PATH", help="gains file to write")
+    tune.add_argument("--quiet", action="store_true", help="no progress bar")
+    tune.set_defaults(handler=_tune_baselines)
     return parser
 
 

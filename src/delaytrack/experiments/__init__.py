@@ -3,9 +3,14 @@ ones, and the jobs built from them.
 
 - :mod:`delaytrack.experiments.scenario`: :class:`Scenario` (load, validate, dump, build, run),
   :func:`run_batched`, :func:`run_to_folder` and the shipped scenario files.
-- :mod:`delaytrack.experiments.two_link`: the interim main job, AROLC vs the plain outer loop on
-  the two-link arm under the paper's S1 and S3 delays (``delaytrack reproduce``). Import it
-  explicitly; it pulls in the report package.
+- :mod:`delaytrack.experiments.paper`: the main job, the paper's robot experiment (S1–S4, AROLC vs
+  PCON/PCONf vs the outer loop; ``delaytrack reproduce``).
+- :mod:`delaytrack.experiments.tuning`: the seeded grid search that chooses the baselines' gains
+  (``delaytrack tune-baselines``).
+- :mod:`delaytrack.experiments.two_link`: the earlier interim job, AROLC vs the plain outer loop
+  on the two-link arm under S1 and S3 (``delaytrack reproduce --job two-link``).
+
+Import the jobs explicitly; they pull in the report package.
 """
 
 from delaytrack.experiments.scenario import (

@@ -1,0 +1,831 @@
+"""The paper's experiment (SPEC §6): the PIONEER-3 robot with payload under S1–S4.
+
+:func:`run_paper` writes ``<out_dir>/``:
+
+- ``summary.csv``: one row per (scenario, controller) with exactly the columns of
+  :data:`SUMMARY_COLUMNS` (AE, %AE, RMS and max error of x and y in mm, TV of the commanded wheel
+  torques in N·m); runs that diverged have NaN metrics (and are flagged in the report);
+- ``tables.md``: the paper's Tables I–III with our numbers beside the paper's;
+- ``dt_check.csv``: the metrics with ``dt`` halved and the largest relative change per run;
+- ``figures/*.png|svg``: the S1 x–y path of each controller, |e_x| and |e_y| over time (S1, S2 and
+  S3, S4), ĉ(t) and h(t);
+- ``report.html``: self-contained; every modelling decision, the tables, the claims check, the
+  dt-halving check and the figures.
+
+Set-up (the decisions are stated again in the report):
+
+- **Truth plant**: :class:`~delaytrack.plants.robot.PayloadRobot` with the robot package's
+  defaults (P3-DX parameters, wheel friction) and the paper's payload (3.5 kg, 5 s on / 5 s off, a
+  random point of the top plate each time) with ONE payload seed, :data:`PAYLOAD_SEED`, shared by
+  every controller and scenario, so every controller faces the same disturbance.
+- **Nominal model** of every controller: :class:`~delaytrack.plants.robot.NominalRobot` (no
+  payload, no friction), commands ``τ_w = S(q)ᵀ τ``.
+- **Controllers**: AROLC with the paper's gains, the plain outer loop (AROLC without Δu), PCON
+  (S1, S2; given the true delay) and PCONf (S3, S4; ``h̄`` = the scenario's delay) with the gains
+  of ``delaytrack/data/baseline_gains.toml`` (:mod:`delaytrack.experiments.tuning`).
+- **Settings**: 60 s, ``dt`` = 1 ms, ``T_c`` = 10 ms (none of them is in the paper).
+
+Each controller kind runs its four scenarios as one batched simulation (PCON and PCONf share a
+kernel, so the baselines are one batch too).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+from tqdm.auto import tqdm
+
+from delaytrack import __version__
+from delaytrack._io import write_frame, write_text
+from delaytrack.analysis import RazumikhinBound, razumikhin_bound
+from delaytrack.controllers import AROLC, OuterLoop
+from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
+from delaytrack.experiments import tuning
+from delaytrack.metrics import (
+    max_abs_error,
+    mean_absolute_error,
+    percent_of,
+    rms_error,
+    total_variation,
+)
+from delaytrack.plants.robot import (
+    P3DX,
+    P3DX_PAYLOAD,
+    NominalRobot,
+    PayloadRobot,
+    initial_state,
+    paper_reference,
+)
+from delaytrack.report import (
+    HtmlReport,
+    c_hat_figure,
+    delay_figure,
+    relative_difference,
+    save_figure,
+)
+from delaytrack.sim import SimResult, simulate
+
+__all__ = [
+    "PAPER_TABLE",
+    "PAYLOAD_SEED",
+    "SCENARIOS",
+    "SUMMARY_COLUMNS",
+    "PaperStudy",
+    "reproduce",
+    "run_paper",
+    "run_study",
+    "write_study",
+]
+
+#: Delay scenarios (SPEC §6): name -> delay profile.
+SCENARIOS: dict[str, DelayProfile] = {
+    "S1": AbsSineDelay.S1(),
+    "S2": AbsSineDelay.S2(),
+    "S3": ConstantDelay.S3(),
+    "S4": ConstantDelay.S4(),
+}
+#: The predictor baseline the paper compares with in each scenario.
+BASELINE = {"S1": "PCON", "S2": "PCON", "S3": "PCONf", "S4": "PCONf"}
+_SCENARIO_TEXT = {
+    "S1": "h(t) = 20 + 80 |sin t| ms",
+    "S2": "h(t) = 5 + 120 |sin 0.1t| ms",
+    "S3": "h = 60 ms",
+    "S4": "h = 120 ms",
+}
+#: One payload seed for every reported run (the tuning uses another, tuning.TUNING_SEED).
+PAYLOAD_SEED = 2024
+DURATION, DT, T_C = 60.0, 1e-3, 0.01
+#: AROLC's gains (the paper's, SPEC §2).
+AROLC_GAINS = dict(K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
+BETA, R = 1.0, 1.1
+#: %AE scale: the circle's diameter in mm (the paper's).
+DIAMETER_MM = 2500.0
+SUMMARY_COLUMNS = [
+    "scenario",
+    "controller",
+    "ae_x_mm",
+    "ae_y_mm",
+    "pct_ae_x",
+    "pct_ae_y",
+    "tv",
+    "rms_x_mm",
+    "rms_y_mm",
+    "max_x_mm",
+    "max_y_mm",
+]
+_METRICS = SUMMARY_COLUMNS[2:]
+#: The paper's Tables I–III (real robot): (scenario, controller) -> (AE-x, %AE-x, AE-y, %AE-y, TV).
+PAPER_TABLE: dict[tuple[str, str], tuple[float, float, float, float, float]] = {
+    ("S1", "PCON"): (58.30, 2.33, 53.09, 2.12, 5.45),
+    ("S1", "AROLC"): (23.33, 0.93, 22.92, 0.92, 0.42),
+    ("S2", "PCON"): (78.46, 3.14, 81.37, 3.25, 6.39),
+    ("S2", "AROLC"): (36.42, 1.46, 39.66, 1.59, 0.55),
+    ("S3", "PCONf"): (99.63, 3.99, 85.79, 3.43, 8.74),
+    ("S3", "AROLC"): (45.66, 1.82, 51.84, 2.07, 2.23),
+    ("S4", "PCONf"): (136.91, 5.48, 102.19, 4.79, 10.73),
+    ("S4", "AROLC"): (82.29, 3.29, 69.05, 2.76, 3.36),
+}
+_KINDS = ("AROLC", "baseline", "OuterLoop")
+#: A run whose x or y error exceeds this (m) at any record left the path (the loop is unstable
+#: although the state stayed finite): it counts as diverged, with NaN metrics. The path is 2.5 m
+#: across; the literal path's compromise motions stay below 5 m.
+LEFT_PATH_M = 10.0
+_DT_TOLERANCE = 0.01
+
+
+def controller_name(scenario: str, kind: str) -> str:
+    """``AROLC``, ``OuterLoop``, or the scenario's baseline (``PCON`` / ``PCONf``)."""
+    return BASELINE[scenario] if kind == "baseline" else kind
+
+
+@dataclass(frozen=True)
+class PaperStudy:
+    """Everything :func:`run_study` computed.
+
+    Attributes
+    ----------
+    reference : str
+        ``"consistent"`` or ``"literal"``.
+    results : dict
+        ``kind -> SimResult`` batched over :data:`SCENARIOS` (kinds ``AROLC``, ``baseline``,
+        ``OuterLoop``; element ``i`` is the ``i``-th scenario).
+    summary : DataFrame
+        :data:`SUMMARY_COLUMNS`, one row per (scenario, controller).
+    status : DataFrame
+        ``scenario, controller, status, t_stop`` of every run.
+    dt_check : DataFrame or None
+        Metrics at ``dt/2`` with the largest relative change per run.
+    gains : dict
+        The baselines' gains as read from the gains file.
+    bound : RazumikhinBound
+    duration, seconds : float
+        Simulated seconds per run; wall time of the simulations.
+    """
+
+    reference: str
+    results: dict[str, SimResult]
+    summary: pd.DataFrame
+    status: pd.DataFrame
+    dt_check: pd.DataFrame | None
+    gains: dict[str, dict[str, float]]
+    bound: RazumikhinBound
+    duration: float
+    seconds: float
+
+    def run(self, scenario: str, kind: str) -> SimResult:
+        """One run: ``kind`` is ``AROLC``, ``OuterLoop``, ``baseline``, ``PCON`` or ``PCONf``."""
+        kind = "baseline" if kind in ("PCON", "PCONf") else kind
+        return self.results[kind][list(SCENARIOS).index(scenario)]
+
+    @property
+    def dt_max_change(self) -> float:
+        if self.dt_check is None:
+            return float("nan")
+        return float(self.dt_check["max_relative_change"].max())
+
+
+def _controllers(gains: dict[str, dict[str, float]], reference: str) -> dict[str, list]:
+    nominal = NominalRobot()
+    baselines = []
+    for scenario, delay in SCENARIOS.items():
+        kind = BASELINE[scenario]
+        g = gains[kind]
+        h_bar = float(delay.h_max) if kind == "PCONf" else None
+        baselines.append(
+            tuning.make_baseline(
+                kind, g["kappa"], g["k_b"], g["c"], h_bar=h_bar, reference=reference
+            )
+        )
+    return {
+        "AROLC": [AROLC(nominal, **AROLC_GAINS)],
+        "baseline": baselines,
+        "OuterLoop": [OuterLoop(nominal, K1=AROLC_GAINS["K1"], K2=AROLC_GAINS["K2"])],
+    }
+
+
+def _summary(results: dict[str, SimResult]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    rows, status = [], []
+    for kind, result in results.items():
+        ae = 1e3 * mean_absolute_error(result)[:, :2]
+        rms = 1e3 * rms_error(result)[:, :2]
+        peak = 1e3 * max_abs_error(result)[:, :2]
+        tv = total_variation(result)
+        names = list(result.status_names)
+        errors = np.abs(result.e1[:, :, :2])
+        t_stop = np.asarray(result.t_stop, dtype=float).copy()
+        for i in range(result.batch_size):
+            beyond = np.flatnonzero(np.any(errors[i] > LEFT_PATH_M, axis=1))
+            if names[i] == "ok" and beyond.size:
+                names[i] = "diverged (left the path)"
+                t_stop[i] = float(result.t[beyond[0]])
+                for metric in (ae, rms, peak):
+                    metric[i] = np.nan
+                tv[i] = np.nan
+        for i, scenario in enumerate(SCENARIOS):
+            name = controller_name(scenario, kind)
+            rows.append(
+                {
+                    "scenario": scenario,
+                    "controller": name,
+                    "ae_x_mm": ae[i, 0],
+                    "ae_y_mm": ae[i, 1],
+                    "pct_ae_x": percent_of(ae[i, 0], DIAMETER_MM),
+                    "pct_ae_y": percent_of(ae[i, 1], DIAMETER_MM),
+                    "tv": tv[i],
+                    "rms_x_mm": rms[i, 0],
+                    "rms_y_mm": rms[i, 1],
+                    "max_x_mm": peak[i, 0],
+                    "max_y_mm": peak[i, 1],
+                }
+            )
+            status.append(
+                {
+                    "scenario": scenario,
+                    "controller": name,
+                    "status": names[i],
+                    "t_stop": float(t_stop[i]),
+                }
+            )
+    order = {"AROLC": 0, "PCON": 1, "PCONf": 1, "OuterLoop": 2}
+
+    def sort(frame: pd.DataFrame) -> pd.DataFrame:
+        keys = frame["scenario"] + frame["controller"].map(order).astype(str)
+        return frame.iloc[np.argsort(keys.to_numpy(), kind="stable")].reset_index(drop=True)
+
+    return sort(pd.DataFrame(rows, columns=SUMMARY_COLUMNS)), sort(pd.DataFrame(status))
+
+
+def _simulate_all(
+    controllers: dict[str, list], reference: str, duration: float, dt: float, bar: tqdm
+) -> dict[str, SimResult]:
+    ref = paper_reference(reference)
+    x0 = initial_state(ref)
+    plant = PayloadRobot(seed=PAYLOAD_SEED, duration=max(duration, DURATION))
+    results = {}
+    for kind, batch in controllers.items():
+        bar.set_postfix_str(f"{kind}, dt = {dt:g} s")
+        results[kind] = simulate(
+            plant,
+            batch,
+            list(SCENARIOS.values()),
+            x0,
+            reference=ref,
+            t1=duration,
+            dt=dt,
+            T_c=T_C,
+        )
+        bar.update()
+    return results
+
+
+def run_study(
+    *,
+    reference: str = "consistent",
+    duration: float = DURATION,
+    progress: bool = True,
+    check_dt: bool = True,
+    gains_path: str | Path | None = None,
+) -> PaperStudy:
+    """Run S1–S4 for every controller (and again at ``dt/2`` if ``check_dt``)."""
+    gains = tuning.load_gains(gains_path)
+    controllers = _controllers(gains, reference)
+    bound = razumikhin_bound(
+        AROLC_GAINS["K1"], AROLC_GAINS["K2"], AROLC_GAINS["Q"], BETA, R, n=NominalRobot.n
+    )
+    steps = len(controllers) * (2 if check_dt else 1)
+    start = time.perf_counter()
+    with tqdm(total=steps, desc=f"paper ({reference})", unit="batch", disable=not progress) as bar:
+        results = _simulate_all(controllers, reference, duration, DT, bar)
+        halved = _simulate_all(controllers, reference, duration, DT / 2, bar) if check_dt else None
+    seconds = time.perf_counter() - start
+    summary, status = _summary(results)
+    dt_check = None
+    if halved is not None:
+        fine, _ = _summary(halved)
+        change = relative_difference(summary, fine, _METRICS)
+        dt_check = fine.copy()
+        dt_check["max_relative_change"] = change.max(axis=1)
+    return PaperStudy(
+        reference, results, summary, status, dt_check, gains, bound, duration, seconds
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Tables
+
+
+def _fmt(value: float, digits: int = 2) -> str:
+    return "NaN" if not np.isfinite(value) else f"{value:.{digits}f}"
+
+
+def tables_markdown(summary: pd.DataFrame, reference: str = "consistent") -> str:
+    """The paper's Tables I–III with our numbers beside the paper's (markdown)."""
+
+    def row_of(scenario: str, controller: str) -> pd.Series:
+        return summary[(summary.scenario == scenario) & (summary.controller == controller)].iloc[0]
+
+    lines = [
+        f"# The paper's Tables I–III: ours (simulation, `{reference}` path) beside the paper's "
+        "(real robot)",
+        "",
+        "AE in mm, %AE = AE / 2500 mm × 100, TV in N·m (commanded wheel torques at the controller "
+        "ticks). Paper values from SPEC §6; `—`: not in the paper. Compare the pattern, not the "
+        "digits.",
+        "",
+    ]
+    for title, cases, baseline in (
+        ("Table I: S1, S2 (time-varying delay) vs PCON", ("S1", "S2"), "PCON"),
+        ("Table II: S3, S4 (constant delay) vs PCONf", ("S3", "S4"), "PCONf"),
+    ):
+        lines += [
+            f"## {title}",
+            "",
+            "| case | controller | AE-x ours | AE-x paper | %AE-x ours | %AE-x paper | AE-y ours | "
+            "AE-y paper | %AE-y ours | %AE-y paper |",
+            "|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        for case in cases:
+            for controller in (baseline, "AROLC", "OuterLoop"):
+                ours = row_of(case, controller)
+                paper = PAPER_TABLE.get((case, controller))
+                p = [_fmt(v) for v in paper] if paper else ["—"] * 5
+                lines.append(
+                    f"| {case} | {controller} | {_fmt(ours.ae_x_mm)} | {p[0]} | "
+                    f"{_fmt(ours.pct_ae_x)} | {p[1]} | {_fmt(ours.ae_y_mm)} | {p[2]} | "
+                    f"{_fmt(ours.pct_ae_y)} | {p[3]} |"
+                )
+        lines.append("")
+    lines += [
+        "## Table III: total variation of the control input",
+        "",
+        "| case | baseline | TV baseline ours | TV baseline paper | TV AROLC ours | "
+        "TV AROLC paper | TV OuterLoop ours |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for case in SCENARIOS:
+        baseline = BASELINE[case]
+        lines.append(
+            f"| {case} | {baseline} | {_fmt(row_of(case, baseline).tv)} | "
+            f"{_fmt(PAPER_TABLE[case, baseline][4])} | {_fmt(row_of(case, 'AROLC').tv)} | "
+            f"{_fmt(PAPER_TABLE[case, 'AROLC'][4])} | {_fmt(row_of(case, 'OuterLoop').tv)} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+# --------------------------------------------------------------------------------------------
+# Figures
+
+
+def _path_figure(study: PaperStudy, scenario: str) -> Figure:
+    figure = Figure(figsize=(6.4, 6.0), dpi=110, layout="constrained")
+    ax = figure.subplots()
+    first = study.run(scenario, "AROLC")
+    ax.plot(first.reference[:, 0, 0], first.reference[:, 0, 1], "k--", lw=1.4, label="reference")
+    for kind in _KINDS:
+        run = study.run(scenario, kind)
+        ax.plot(run.q[0, :, 0], run.q[0, :, 1], lw=1.0, label=controller_name(scenario, kind))
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small")
+    ax.set_title(f"x–y path under {scenario} ({_SCENARIO_TEXT[scenario]})")
+    return figure
+
+
+def _error_figure(study: PaperStudy, cases: tuple[str, ...]) -> Figure:
+    figure = Figure(figsize=(9.0, 2.3 * 2 * len(cases) + 0.6), dpi=110, layout="constrained")
+    axes = figure.subplots(2 * len(cases), 1, sharex=True, squeeze=False)[:, 0]
+    for i, case in enumerate(cases):
+        for j, coordinate in enumerate(("x", "y")):
+            ax = axes[2 * i + j]
+            for kind in _KINDS:
+                run = study.run(case, kind)
+                ax.plot(
+                    run.t,
+                    1e3 * np.abs(run.e1[0, :, j]),
+                    lw=0.9,
+                    label=controller_name(case, kind),
+                )
+            ax.set_ylabel(f"{case} |e_{coordinate}| (mm)")
+            ax.set_ylim(bottom=0.0)
+            ax.grid(True, alpha=0.3)
+            ax.legend(loc="upper right", fontsize="x-small", ncols=3)
+    axes[-1].set_xlabel("t (s)")
+    return figure
+
+
+def _figures(study: PaperStudy) -> dict[str, tuple[Figure, str]]:
+    arolc = {case: study.run(case, "AROLC") for case in SCENARIOS}
+    return {
+        "path_S1": (
+            _path_figure(study, "S1"),
+            "S1: x–y path of the tracked point for each controller against the reference circle "
+            "(the paper's Fig. 1).",
+        ),
+        "error_S1_S2": (
+            _error_figure(study, ("S1", "S2")),
+            "|e_x| and |e_y| over time under S1 and S2 (time-varying delays): AROLC, PCON, outer "
+            "loop.",
+        ),
+        "error_S3_S4": (
+            _error_figure(study, ("S3", "S4")),
+            "|e_x| and |e_y| over time under S3 and S4 (constant delays): AROLC, PCONf, outer "
+            "loop.",
+        ),
+        "c_hat": (
+            c_hat_figure(arolc, title="AROLC adaptive gain ĉ(t)"),
+            "AROLC's adaptive gain ĉ(t) in each scenario (ĉ(0) = γ = 0.001).",
+        ),
+        "delay": (
+            delay_figure(arolc, h_m=study.bound.h_m, title="Input delay h(t)"),
+            "The true delays h(t) of S1–S4 and AROLC's certified bound h_m (Theorem 1).",
+        ),
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# Claims
+
+
+def _row(summary: pd.DataFrame, scenario: str, controller: str) -> pd.Series:
+    return summary[(summary.scenario == scenario) & (summary.controller == controller)].iloc[0]
+
+
+def _below(a: float, b: float) -> bool:
+    """``a < b``, where a diverged run (NaN) loses against a finished one."""
+    if not np.isfinite(a):
+        return False
+    return bool(not np.isfinite(b) or a < b)
+
+
+def claims(summary: pd.DataFrame) -> dict[str, dict[str, bool]]:
+    """The paper's claims, case by case: ``ae`` (AROLC below the baseline in AE-x and AE-y),
+    ``tv`` (AROLC below in TV), and ``growth`` (AROLC's AE-x and AE-y larger in S4 than in S3).
+    A diverged baseline (NaN) counts as above AROLC."""
+    ae, tv = {}, {}
+    for case in SCENARIOS:
+        a, b = _row(summary, case, "AROLC"), _row(summary, case, BASELINE[case])
+        ae[case] = _below(a.ae_x_mm, b.ae_x_mm) and _below(a.ae_y_mm, b.ae_y_mm)
+        tv[case] = _below(a.tv, b.tv)
+    s3, s4 = _row(summary, "S3", "AROLC"), _row(summary, "S4", "AROLC")
+    growth = {"S3->S4": bool(s4.ae_x_mm > s3.ae_x_mm and s4.ae_y_mm > s3.ae_y_mm)}
+    return {"ae": ae, "tv": tv, "growth": growth}
+
+
+def _claims_text(study: PaperStudy) -> list[str]:
+    summary = study.summary
+    checks = claims(summary)
+    lines = []
+    for case in SCENARIOS:
+        a, b = _row(summary, case, "AROLC"), _row(summary, case, BASELINE[case])
+        verdict = "HOLDS" if checks["ae"][case] else "FAILS"
+        lines.append(
+            f"AE, {case}: AROLC {_fmt(a.ae_x_mm)} / {_fmt(a.ae_y_mm)} mm (x / y) vs "
+            f"{BASELINE[case]} {_fmt(b.ae_x_mm)} / {_fmt(b.ae_y_mm)} mm: the claim 'AROLC below "
+            f"the predictor baseline' {verdict}."
+        )
+    for case in SCENARIOS:
+        a, b = _row(summary, case, "AROLC"), _row(summary, case, BASELINE[case])
+        verdict = "HOLDS" if checks["tv"][case] else "FAILS"
+        lines.append(
+            f"TV, {case}: AROLC {_fmt(a.tv)} N·m vs {BASELINE[case]} {_fmt(b.tv)} N·m: the claim "
+            f"'AROLC's TV is lower' {verdict}."
+        )
+    s3, s4 = _row(summary, "S3", "AROLC"), _row(summary, "S4", "AROLC")
+    verdict = "HOLDS" if checks["growth"]["S3->S4"] else "FAILS"
+    lines.append(
+        f"Growth with the delay: AROLC's AE goes from {_fmt(s3.ae_x_mm)} / {_fmt(s3.ae_y_mm)} mm "
+        f"(S3, 60 ms) to {_fmt(s4.ae_x_mm)} / {_fmt(s4.ae_y_mm)} mm (S4, 120 ms): the claim "
+        f"'AROLC's error grows from S3 to S4' {verdict}."
+    )
+    return lines
+
+
+def _explanation(study: PaperStudy) -> list[str]:
+    summary = study.summary
+    checks = claims(summary)
+    arolc = summary[summary.controller == "AROLC"]
+    outer = summary[summary.controller == "OuterLoop"]
+    base = summary[summary.controller.isin(["PCON", "PCONf"])]
+    g = study.gains
+    c_max = max(
+        float(np.nanmax(study.run(case, "AROLC").controller_state[0, :, 0])) for case in SCENARIOS
+    )
+    record = tuning.load_tuning_record()
+    spread = {}
+    for kind in ("PCON", "PCONf"):
+        objective = pd.DataFrame(record[kind]["rows"], columns=record[kind]["columns"]).objective
+        spread[kind] = (float(objective.min()), float(objective.max()))
+    out = []
+    if not all(checks["ae"].values()):
+        out.append(
+            "Why the AE claim fails here. AROLC runs with the paper's gains K1 = K2 = I: an outer "
+            "loop with natural frequency 1 rad/s and damping 0.5, far slower than the 0.35 rad/s "
+            "circle needs to reject the unmodelled wheel friction (about 0.15 N·m per wheel) and "
+            "the 3.5 kg payload. Its error is set by that model mismatch, not by the delay: "
+            f"AROLC's AE spans {arolc.ae_x_mm.min():.1f}–{arolc.ae_x_mm.max():.1f} mm in x over "
+            "the four delays, and the outer loop without Δu is at "
+            f"{outer.ae_x_mm.min():.1f}–{outer.ae_x_mm.max():.1f} mm. The switching term helps "
+            f"(ĉ peaks at {c_max:.3g}, so ‖Δu‖ ≤ α ĉ = {2 * c_max:.3g} rad/s²) but cannot "
+            "replace stiffer gains. The baselines were tuned (on held-out conditions) to minimise "
+            f"exactly this AE, and the optimum is a stiff law: PCON κ = {g['PCON']['kappa']:g}, "
+            f"k_b = {g['PCON']['k_b']:g}, ϑ = {g['PCON']['c']:g} M̂⁻¹; PCONf "
+            f"κ = {g['PCONf']['kappa']:g}, k_b = {g['PCONf']['k_b']:g}, "
+            f"ϑ = {g['PCONf']['c']:g} M̂⁻¹, which reach AE of "
+            f"{base.ae_x_mm.min():.1f}–{base.ae_x_mm.max():.1f} mm in x. The comparison is "
+            "therefore a tuned baseline against AROLC with the paper's gains (we do not retune "
+            "AROLC). How much tuning matters: on the tuning grid the baselines' objective ranges "
+            f"from {spread['PCON'][0]:.3g} to {spread['PCON'][1]:.3g} mm (PCON) and "
+            f"{spread['PCONf'][0]:.3g} to {spread['PCONf'][1]:.3g} mm (PCONf) among the runs "
+            "that stayed on the path; the paper does not say how its baselines were tuned, and "
+            "weakly tuned baselines would land above AROLC."
+        )
+    bad = study.status[
+        study.status.controller.isin(["PCON", "PCONf"]) & (study.status.status != "ok")
+    ]
+    if len(bad):
+        which = ", ".join(
+            f"{r.controller} in {r.scenario} (t = {r.t_stop:.1f} s)" for r in bad.itertuples()
+        )
+        out.append(
+            f"Baseline failures: {which}. The AE-optimal gains sit close to the sampled law's "
+            "stability limit, so a delay that stays long near its maximum destabilises them. S2 "
+            "(5 + 120 |sin 0.1t| ms) dwells above 115 ms for about 8 s around t = 15.7 s and "
+            "47 s; the tuning condition reached 130 ms but only briefly (it varies at 0.5 rad/s). "
+            "Where the baseline diverges the claim 'holds' only by the baseline's failure, and "
+            "AROLC's robustness to the delay is a real advantage there."
+        )
+    out.append(
+        "What the predictor does on this robot (docs/decisions.md D23). The law is applied in the "
+        "five coordinates q = (x, y, φ, θ_r, θ_l) and its command is projected to the wheels by "
+        "τ_w = S(q)ᵀ τ. The delayed input reaches ϱ̇ through S M_r⁻¹ S(q(t − h))ᵀ τ(t − h), a "
+        "rank-2 map that turns with the heading, while ϑ e_z predicts ϑ τ(t − h). No constant "
+        "symmetric positive definite ϑ cancels it, and e_z also integrates the components of τ "
+        "that the constraints absorb. The predictor is thus only partly effective, and the "
+        "sampled law is stable only for about T_c k_b λ_max(ϑ) < 2 (λ_max(M̂⁻¹) = 1/I_w = 100, "
+        "so k_b c < 2 at T_c = 10 ms). The tuned gains lie near that boundary; there the "
+        "commands can oscillate from tick to tick, which TV measures (TV was not part of the "
+        "tuning objective)."
+    )
+    tv_fail = [case for case, ok in checks["tv"].items() if not ok]
+    tv_hold = [case for case, ok in checks["tv"].items() if ok]
+    base_tv = {case: _row(summary, case, BASELINE[case]).tv for case in SCENARIOS}
+    out.append(
+        "TV: AROLC's TV is "
+        + ", ".join(f"{_row(summary, c, 'AROLC').tv:.3g}" for c in SCENARIOS)
+        + " N·m (S1–S4), against the outer loop's "
+        + ", ".join(f"{_row(summary, c, 'OuterLoop').tv:.3g}" for c in SCENARIOS)
+        + " N·m: its switching term Δu (ĉ grows to several units) adds most of it. The "
+        "baselines' TV is "
+        + ", ".join(f"{base_tv[c]:.3g}" for c in SCENARIOS)
+        + " N·m: small where the tuned law runs smoothly, large where it runs near its "
+        "stability limit (the longest delays). "
+        + (f"The claim holds in {', '.join(tv_hold)}" if tv_hold else "The claim holds nowhere")
+        + (f" and fails in {', '.join(tv_fail)}." if tv_fail else ".")
+        + " The paper's TV values (0.42–3.36 for AROLC) are smaller than ours because a real "
+        "robot's torque commands and units differ; the comparison is within each row."
+    )
+    return out
+
+
+def _literal_paragraph(study: PaperStudy, literal_summary: pd.DataFrame | None) -> str:
+    text = (
+        "The literal path (SPEC §6). The paper prints x_d = 1.25 sin(0.35t) + 0.1, "
+        "y_d = 1.25 cos(0.35t) + 1.35, φ_d = 0.25t, θ_r,d = 3t, θ_l,d = 2t. These are not "
+        "consistent for a nonholonomic robot: the circle is driven clockwise at 0.4375 m/s while "
+        "φ_d turns counter-clockwise and the wheel references imply 0.24 m/s and "
+        "0.295 rad/s. No motion satisfies all five, so every controller, which weighs all five "
+        "coordinates, settles on a compromise between the x–y circle, the heading and the "
+        "wheel angles, and the x–y errors grow to the order of the path itself. The main results "
+        "(results/paper/) use the 'consistent' path (same circle, heading and wheel angles "
+        "derived from the kinematics)."
+    )
+    if study.reference == "literal":
+        frame = study.summary
+        where = "this run"
+    elif literal_summary is not None:
+        frame = literal_summary
+        where = "the sibling run ../paper-literal/"
+    else:
+        return text + " The literal run is written by `delaytrack reproduce` to paper-literal/."
+    rows = "; ".join(
+        f"{r.scenario} {r.controller}: AE {_fmt(r.ae_x_mm, 0)} / {_fmt(r.ae_y_mm, 0)} mm"
+        for r in frame.itertuples()
+        if r.scenario in ("S1", "S4")
+    )
+    return text + f" Measured in {where} (AE x / y): {rows}."
+
+
+# --------------------------------------------------------------------------------------------
+# Writing
+
+
+def _settings(study: PaperStudy) -> dict[str, str]:
+    g = study.gains
+    record = tuning.load_tuning_record()
+    return {
+        "reference path": f"'{study.reference}' (paper_reference): x_d = 1.25 sin(0.35t) + 0.1, "
+        "y_d = 1.25 cos(0.35t) + 1.35 m; "
+        + (
+            "φ_d, θ_r,d, θ_l,d derived from the kinematics (φ_d = 0.040011 − 0.35t, "
+            "θ̇_r,d = 3.8913, θ̇_l,d = 5.0759 rad/s; docs/robot.md)"
+            if study.reference == "consistent"
+            else "φ_d = 0.25t, θ_r,d = 3t, θ_l,d = 2t as printed (kinematically inconsistent)"
+        ),
+        "initial state": "x0 = initial_state(reference): on the path's pose at t = 0, with the "
+        "reference's wheel rates, on the constraint manifold",
+        "truth plant": "PayloadRobot(WheeledRobot()): constrained P3-DX dynamics, wheel friction "
+        f"(viscous {P3DX.viscous_friction:g} N·m·s/rad + Coulomb {P3DX.coulomb_friction:g} N·m, "
+        f"tanh-smoothed at {P3DX.friction_speed:g} rad/s; assumptions), "
+        "Baumgarte gain 20 1/s",
+        "parameters": f"R = {P3DX.wheel_radius} m, L = {P3DX.half_track} m (half track), "
+        f"d = {P3DX.d} m, m = {P3DX.mass} kg, I about the axle midpoint = "
+        f"{P3DX.yaw_inertia} kg·m², I_w = {P3DX.wheel_spin_inertia} kg·m²; sources in "
+        "delaytrack.plants.robot.P3DX_SOURCES and docs/robot.md",
+        "payload": f"{P3DX_PAYLOAD.mass} kg, on {P3DX_PAYLOAD.time_on:g} s / off "
+        f"{P3DX_PAYLOAD.time_off:g} s, first on at t = {P3DX_PAYLOAD.first_on:g} s (our "
+        "choice: the robot starts as the nominal model), at a uniform random point of the "
+        f"{P3DX_PAYLOAD.plate_length} × {P3DX_PAYLOAD.plate_width} m top plate; seed "
+        f"{PAYLOAD_SEED}, the same for every controller and scenario",
+        "nominal model": "NominalRobot(): the unconstrained Lagrangian M̂, N̂ of the robot without "
+        "payload and friction; commands τ_w = S(q)ᵀ τ (all controllers)",
+        "AROLC": "K1 = K2 = Q = I, α = 2, ε = 0.1, γ = 0.001, ĉ(0) = γ (the paper's gains)",
+        "OuterLoop": "K1 = K2 = I (AROLC without Δu; an ablation)",
+        "PCON (S1, S2)": f"κ = {g['PCON']['kappa']:g}, k_b = {g['PCON']['k_b']:g} I, "
+        f"ϑ = {g['PCON']['c']:g} M̂(q_d(0))⁻¹, given the true h(t), history "
+        f"{tuning.HISTORY:g} s (≥ h_max = 0.125 s)",
+        "PCONf (S3, S4)": f"κ = {g['PCONf']['kappa']:g}, k_b = {g['PCONf']['k_b']:g} I, "
+        f"ϑ = {g['PCONf']['c']:g} M̂(q_d(0))⁻¹, h̄ = the scenario's constant delay",
+        "baseline tuning": "grid search (delaytrack tune-baselines; "
+        "delaytrack/data/baseline_gains.toml) over κ ∈ "
+        f"{record['grid_kappa']}, k_b ∈ {record['grid_k_b']}, c ∈ {record['grid_c']}; "
+        f"objective mean(AE-x, AE-y) over {record['duration']:g} s; held-out conditions: PCON "
+        f"{record['PCON']['condition']}; PCONf {record['PCONf']['condition']}; payload seed "
+        f"{record['payload_seed']} (not {PAYLOAD_SEED}); none of S1–S4",
+        "delays": "; ".join(f"{k}: {v}" for k, v in _SCENARIO_TEXT.items())
+        + " (unknown to AROLC and the outer loop)",
+        "duration": f"{study.duration:g} s (not in the paper; six payload cycles)",
+        "plant step dt": f"{DT:g} s, RK4 split at the delayed input's switches (SPEC §5); the "
+        "dt/2 check below shows the results do not hinge on it",
+        "controller period T_c": f"{T_C:g} s (100 Hz), zero-order hold. Not in the paper: a "
+        "plausible rate for a P3-DX control loop (its onboard server cycles at 10–100 ms), 2× "
+        "below the smallest S1 delay and 6× below S3's",
+        "metrics": "over the whole run, no transient skipped: AE = mean |e| of x and y (mm), "
+        "%AE = AE / 2500 mm × 100, RMS, max; TV = Σ |Δu_r| + |Δu_l| over consecutive "
+        "controller ticks of the commanded wheel torques (N·m)",
+        "delaytrack": __version__,
+    }
+
+
+def write_study(
+    study: PaperStudy, folder: str | Path, *, literal_summary: pd.DataFrame | None = None
+) -> list[Path]:
+    """Write ``summary.csv``, ``tables.md``, ``dt_check.csv``, figures and ``report.html``."""
+    folder = Path(folder)
+    files = [write_frame(study.summary, folder / "summary.csv")]
+    files.append(write_text(folder / "tables.md", tables_markdown(study.summary, study.reference)))
+    if study.dt_check is not None:
+        files.append(write_frame(study.dt_check, folder / "dt_check.csv"))
+    figures = _figures(study)
+    for name, (figure, _) in figures.items():
+        files += save_figure(figure, folder / "figures" / name)
+    report = _report(study, figures, literal_summary)
+    files.append(report.write(folder / "report.html"))
+    return files
+
+
+def _report(
+    study: PaperStudy,
+    figures: dict[str, tuple[Figure, str]],
+    literal_summary: pd.DataFrame | None,
+) -> HtmlReport:
+    report = HtmlReport(f"delaytrack: the paper's robot experiment (S1–S4, {study.reference} path)")
+    report.paragraph(
+        "A simulated PIONEER-3 DX tracks the paper's circle while its wheel-torque commands "
+        "arrive late by the paper's delays S1–S4, with a 3.5 kg payload put on and taken off "
+        "every 5 s. AROLC (Roy & Kar, the paper's gains) is compared with the predictor "
+        "baselines PCON (S1, S2) and PCONf (S3, S4), tuned by a documented grid search on other "
+        "conditions, and with the plain outer loop. Every number below is computed by the "
+        "simulation; the paper's are from a real robot, so the pattern is compared, not the "
+        "digits."
+    )
+    bad = study.status[study.status.status != "ok"]
+    if len(bad):
+        report.paragraph(
+            "Diverged runs (metrics NaN): "
+            + "; ".join(
+                f"{r.scenario} {r.controller} stopped as '{r.status}' at t = {r.t_stop:g} s"
+                for r in bad.itertuples()
+            ),
+            note=True,
+        )
+    report.heading("Claims check")
+    if study.reference == "literal":
+        report.paragraph(
+            "This is the literal path, which no robot can follow (see 'Literal path' below): "
+            "every controller ends with errors of the order of a metre, so this claims check "
+            "says little about the controllers. The mechanisms explained below are those of the "
+            "consistent path (../paper/report.html).",
+            note=True,
+        )
+    report.bullets(_claims_text(study))
+    for text in _explanation(study):
+        report.paragraph(text)
+    report.heading("Summary")
+    report.table(study.summary, "summary.csv: AE, RMS, max in mm; %AE of 2500 mm; TV in N·m.")
+    report.heading("Tables I–III beside the paper's")
+    report.code(tables_markdown(study.summary, study.reference))
+    report.heading("Literal path")
+    report.paragraph(_literal_paragraph(study, literal_summary))
+    report.heading("Numerical check: halving dt")
+    if study.dt_check is None:
+        report.paragraph("Not run (check_dt = False).", note=True)
+    else:
+        worst = study.dt_max_change
+        verdict = "below" if worst < _DT_TOLERANCE else "NOT below"
+        report.paragraph(
+            f"Every run repeated with dt = {DT / 2:g} s (T_c unchanged). The largest relative "
+            f"change of any summary metric is {worst:.3g}, {verdict} the 1 % criterion."
+        )
+        report.table(study.dt_check, "Metrics at dt/2 and the largest relative change per run.")
+    report.heading("Baseline tuning")
+    record = tuning.load_tuning_record()
+    for kind in ("PCON", "PCONf"):
+        table = pd.DataFrame(record[kind]["rows"], columns=record[kind]["columns"])
+        best = table.sort_values("objective").head(8)
+        report.paragraph(
+            f"{kind} on {record[kind]['condition']}: chosen κ = {record[kind]['kappa']:g}, "
+            f"k_b = {record[kind]['k_b']:g}, c = {record[kind]['c']:g} (objective "
+            f"{record[kind]['objective']:.3f} mm; optimum interior in every gain: "
+            f"{record[kind]['interior']}); {int(table.objective.isna().sum())} of {len(table)} "
+            "grid points diverged or left the path."
+        )
+        report.table(best, f"{kind}: the eight best grid points (objective = mean AE, mm).")
+    report.heading("Settings and modelling decisions")
+    report.settings(_settings(study))
+    report.paragraph(
+        f"Theorem 1's certified delay bound for AROLC's gains: h_m = {study.bound.h_m:.5f} s. "
+        "S1 (max 100 ms), S3 (60 ms) and S4 (120 ms) are below it; S2 reaches 125 ms, just "
+        "above it."
+    )
+    report.heading("Figures")
+    for figure, caption in figures.values():
+        report.figure(figure, caption)
+    report.paragraph(
+        f"Simulation wall time: {study.seconds:.1f} s ({len(study.results)} batched simulate() "
+        "calls of four runs each"
+        + (", and as many at dt/2" if study.dt_check is not None else "")
+        + "; numba-compiled)."
+    )
+    return report
+
+
+def run_paper(
+    out_dir: str | Path,
+    *,
+    reference: str = "consistent",
+    duration: float = DURATION,
+    progress: bool = True,
+    check_dt: bool = True,
+    literal_summary: pd.DataFrame | None = None,
+) -> PaperStudy:
+    """Run the paper's experiment and write ``out_dir`` (module docstring); return the study."""
+    if not (math.isfinite(duration) and duration > 0):
+        raise ValueError(f"duration must be a positive number of seconds; got {duration!r}")
+    study = run_study(reference=reference, duration=duration, progress=progress, check_dt=check_dt)
+    write_study(study, out_dir, literal_summary=literal_summary)
+    return study
+
+
+def reproduce(
+    out: str | Path = "results",
+    *,
+    duration: float = DURATION,
+    check_dt: bool = True,
+    progress: bool = True,
+) -> dict[str, PaperStudy]:
+    """``<out>/paper-literal/`` then ``<out>/paper/`` (whose report cites the literal run)."""
+    out = Path(out)
+    literal = run_paper(
+        out / "paper-literal",
+        reference="literal",
+        duration=duration,
+        progress=progress,
+        check_dt=check_dt,
+    )
+    consistent = run_paper(
+        out / "paper",
+        reference="consistent",
+        duration=duration,
+        progress=progress,
+        check_dt=check_dt,
+        literal_summary=literal.summary,
+    )
+    return {"consistent": consistent, "literal": literal}

@@ -47,6 +47,7 @@ from delaytrack.analysis import RazumikhinBound, razumikhin_bound
 from delaytrack.controllers import AROLC, OuterLoop
 from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
 from delaytrack.experiments import tuning
+from delaytrack.experiments.convergence import dt_check_table, largest_change, write_dt_check
 from delaytrack.metrics import (
     max_abs_error,
     mean_absolute_error,
@@ -66,7 +67,6 @@ from delaytrack.report import (
     HtmlReport,
     c_hat_figure,
     delay_figure,
-    relative_difference,
     save_figure,
 )
 from delaytrack.sim import SimResult, simulate
@@ -136,7 +136,6 @@ _KINDS = ("AROLC", "baseline", "OuterLoop")
 #: although the state stayed finite): it counts as diverged, with NaN metrics. The path is 2.5 m
 #: across; the literal path's compromise motions stay below 5 m.
 LEFT_PATH_M = 10.0
-_DT_TOLERANCE = 0.01
 
 
 def controller_name(scenario: str, kind: str) -> str:
@@ -185,9 +184,8 @@ class PaperStudy:
 
     @property
     def dt_max_change(self) -> float:
-        if self.dt_check is None:
-            return float("nan")
-        return float(self.dt_check["max_relative_change"].max())
+        """Largest relative change of any metric when ``dt`` is halved (NaN if not checked)."""
+        return largest_change(self.dt_check)
 
 
 def _controllers(gains: dict[str, dict[str, float]], reference: str) -> dict[str, list]:
@@ -308,9 +306,7 @@ def run_study(
     dt_check = None
     if halved is not None:
         fine, _ = _summary(halved)
-        change = relative_difference(summary, fine, _METRICS)
-        dt_check = fine.copy()
-        dt_check["max_relative_change"] = change.max(axis=1)
+        dt_check = dt_check_table(summary, fine, _METRICS)
     return PaperStudy(
         reference, results, summary, status, dt_check, gains, bound, duration, seconds
     )
@@ -744,17 +740,7 @@ def _report(
     report.code(tables_markdown(study.summary, study.reference))
     report.heading("Literal path")
     report.paragraph(_literal_paragraph(study, literal_summary))
-    report.heading("Numerical check: halving dt")
-    if study.dt_check is None:
-        report.paragraph("Not run (check_dt = False).", note=True)
-    else:
-        worst = study.dt_max_change
-        verdict = "below" if worst < _DT_TOLERANCE else "NOT below"
-        report.paragraph(
-            f"Every run repeated with dt = {DT / 2:g} s (T_c unchanged). The largest relative "
-            f"change of any summary metric is {worst:.3g}, {verdict} the 1 % criterion."
-        )
-        report.table(study.dt_check, "Metrics at dt/2 and the largest relative change per run.")
+    write_dt_check(report, study.dt_check, DT / 2)
     report.heading("Baseline tuning")
     record = tuning.load_tuning_record()
     for kind in ("PCON", "PCONf"):

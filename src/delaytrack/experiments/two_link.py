@@ -35,6 +35,7 @@ from tqdm.auto import tqdm
 from delaytrack import __version__
 from delaytrack._io import write_frame
 from delaytrack.analysis import RazumikhinBound, razumikhin_bound
+from delaytrack.experiments.convergence import dt_check_table, largest_change, write_dt_check
 from delaytrack.experiments.scenario import Scenario, load_builtin, run_batched
 from delaytrack.metrics import metrics_table
 from delaytrack.report import (
@@ -43,7 +44,6 @@ from delaytrack.report import (
     delay_figure,
     error_figure,
     relative_change,
-    relative_difference,
     save_figure,
     tracking_figure,
 )
@@ -63,7 +63,6 @@ _CASE_TEXT = {
     "S1": "S1: h(t) = 20 + 80 |sin t| ms (time-varying, maximum 100 ms)",
     "S3": "S3: h = 60 ms (constant)",
 }
-_DT_TOLERANCE = 0.01
 
 
 def scenario_name(case: str, controller: str) -> str:
@@ -109,9 +108,7 @@ class TwoLinkStudy:
     @property
     def dt_max_change(self) -> float:
         """Largest relative change of any metric when ``dt`` is halved (NaN if not checked)."""
-        if self.dt_check is None:
-            return float("nan")
-        return float(self.dt_check["max_relative_change"].max())
+        return largest_change(self.dt_check)
 
 
 def _summary(results: dict[str, SimResult]) -> pd.DataFrame:
@@ -195,9 +192,7 @@ def run_study(
     if check_dt:
         fine = _summary(halved)
         metrics = [c for c in summary.columns if c.startswith(("ae_", "rms_", "max_")) or c == "tv"]
-        change = relative_difference(summary, fine, metrics)
-        dt_check = fine[["scenario", "controller", *metrics]].copy()
-        dt_check["max_relative_change"] = change.max(axis=1)
+        dt_check = dt_check_table(summary, fine[["scenario", "controller", *metrics]], metrics)
     undelayed_table = pd.concat(undelayed.values(), ignore_index=True)
     return TwoLinkStudy(scenarios, results, summary, dt_check, undelayed_table, bound, seconds)
 
@@ -430,20 +425,7 @@ def _report(study: TwoLinkStudy, figures: dict[str, tuple[object, str]]) -> Html
         "the run reached the final time.",
     )
     report.table(study.undelayed, "Context: the same runs with no delay (h = 0).")
-    report.heading("Numerical check: halving dt")
-    if study.dt_check is None:
-        report.paragraph("Not run (check_dt = False).", note=True)
-    else:
-        worst = study.dt_max_change
-        verdict = "below" if worst < _DT_TOLERANCE else "NOT below"
-        report.paragraph(
-            f"Every run repeated with dt = {study.scenarios[CASES[0], 'arolc'].dt / 2:g} s (T_c "
-            f"unchanged). The largest relative change of any metric is {worst:.3g}, {verdict} "
-            f"the 1 % criterion."
-        )
-        report.table(
-            study.dt_check, "Metrics at dt/2 and the largest relative change per run.", digits=6
-        )
+    write_dt_check(report, study.dt_check, study.scenarios[CASES[0], "arolc"].dt / 2)
     report.heading("Settings")
     report.settings(_settings_rows(study))
     report.heading("Figures")

@@ -377,8 +377,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     tune = commands.add_parser(
         "tune-baselines",
-        help="grid-search the PCON/PCONf gains on held-out conditions",
-        description="Tune PCON and PCONf by the seeded grid search of "
+        help="grid-search the PCON/PCONf/AROLC gains on held-out conditions",
+        description="Tune PCON, PCONf and AROLC by the seeded worst-case grid search of "
         "delaytrack.experiments.tuning and write the chosen gains, grid and objective values "
         "as TOML (default: the package's data/baseline_gains.toml, which the paper job reads).",
     )

@@ -368,15 +368,16 @@ def test_step_refuses_what_the_state_cannot_serve(arm):
     state = controller.initial_state()
     with pytest.raises(ValueError, match=r"PCON needs the true delay: pass h=\.\.\."):
         controller.step(*call, state, T_c=0.002)
-    with pytest.raises(ValueError, match=r"h = 0\.11 s exceeds history = 0\.1 s"):
+    with pytest.raises(ValueError, match=r"delay 0\.11 s exceeds history = 0\.1 s"):
         controller.step(*call, state, T_c=0.002, h=0.11)
     with pytest.raises(ValueError, match=r"T_c = 0\.004 s differs from the period .* 0\.002 s"):
         controller.step(*call, state, T_c=0.004, h=0.05)
     controller.check_run(0.002, 0.1)
-    with pytest.raises(ValueError, match=r"h_max = 0\.2 s exceeds history"):
+    with pytest.raises(ValueError, match=r"delay 0\.2 s exceeds history"):
         controller.check_run(0.002, 0.2)
     with pytest.raises(
-        ValueError, match=r"built for T_c = 0\.002 s; the simulation runs at T_c = 0\.004"
+        ValueError,
+        match=r"T_c = 0\.004 s differs from the period PCON was built for \(T_c = 0\.002 s\)",
     ):
         controller.check_run(0.004, 0.1)
     # PCONf never reads the true delay: any bound, any h.
@@ -389,8 +390,12 @@ def test_step_refuses_what_the_state_cannot_serve(arm):
 @pytest.mark.parametrize(
     "delay, T_c, message",
     [
-        (0.12, 0.002, r"h_max = 0\.12 s exceeds history = 0\.1 s"),
-        (0.05, 0.004, r"built for T_c = 0\.002 s; the simulation runs at T_c = 0\.004 s"),
+        (0.12, 0.002, r"delay 0\.12 s exceeds history = 0\.1 s"),
+        (
+            0.05,
+            0.004,
+            r"T_c = 0\.004 s differs from the period PCON was built for \(T_c = 0\.002 s\)",
+        ),
     ],
     ids=["delay beyond history", "other T_c"],
 )

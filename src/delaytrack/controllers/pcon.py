@@ -218,15 +218,15 @@ class PredictorBaseline(Controller):
         ``h_max`` must not exceed ``history``; PCONf never reads it (any ``h_max`` is fine).
         """
         T_c = positive_scalar("T_c", T_c)
-        if abs(T_c - self.T_c) > 1e-9 * self.T_c:
+        if abs(T_c - self.T_c) > _PERIOD_RTOL * self.T_c:
             raise ValueError(
-                f"{type(self).__name__} was built for T_c = {self.T_c:g} s; the simulation runs at "
-                f"T_c = {T_c:g} s"
+                f"T_c = {T_c:g} s differs from the period {type(self).__name__} was built for "
+                f"(T_c = {self.T_c:g} s): its history is sized for it"
             )
         h_max = positive_scalar("h_max", h_max, strictly=False)
         if self.fixed_delay is None and h_max > self.history:
             raise ValueError(
-                f"h_max = {h_max:g} s exceeds history = {self.history:g} s: {type(self).__name__} "
+                f"delay {h_max:g} s exceeds history = {self.history:g} s: {type(self).__name__} "
                 "integrates tau over the true delay and keeps only history seconds of it"
             )
 
@@ -242,19 +242,7 @@ class PredictorBaseline(Controller):
         h: float | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`Controller.step`, refusing a period or a delay the state cannot serve."""
-        period = positive_scalar("T_c", T_c)
-        if abs(period - self.T_c) > _PERIOD_RTOL * self.T_c:
-            raise ValueError(
-                f"T_c = {period:g} s differs from the period this controller's history is "
-                f"sized for (T_c = {self.T_c:g} s)"
-            )
-        if self.fixed_delay is None and h is not None:
-            delay = positive_scalar("h", h, strictly=False)
-            if delay > self.history:
-                raise ValueError(
-                    f"h = {delay:g} s exceeds history = {self.history:g} s: the state keeps "
-                    "only history seconds of tau"
-                )
+        self.check_run(T_c, 0.0 if h is None else h)
         return super().step(t, q, qdot, reference, state, T_c=T_c, h=h)
 
     def to_spec(self) -> dict[str, Any]:

@@ -13,30 +13,14 @@ import math
 import numpy as np
 import pytest
 
+from arm_closed_form import arm_mass, arm_nonlinear
 from delaytrack.controllers import AROLC, OuterLoop, controller_from_spec
 from delaytrack.controllers.arolc import adaptive_gain_rate
 from delaytrack.plants import CallablePlant, LinearPlant, TwoLinkArm
 
-# Two-link arm defaults (module docstring of delaytrack.plants.two_link_arm).
-P1, P2, P3, FD1, FD2 = 3.473, 0.196, 0.242, 5.3, 1.1
 # SPEC §2: the paper's gains K1 = K2 = Q = I, alpha = 2, epsilon = 0.1, gamma = 0.001.
 PAPER = dict(K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
 T_C = 0.01
-
-
-def arm_mass(q):
-    c2 = math.cos(q[1])
-    return np.array([[P1 + 2 * P3 * c2, P2 + P3 * c2], [P2 + P3 * c2, P2]])
-
-
-def arm_nonlinear(q, qdot):
-    s2 = math.sin(q[1])
-    return np.array(
-        [
-            -P3 * s2 * (2 * qdot[0] * qdot[1] + qdot[1] ** 2) + FD1 * qdot[0],
-            P3 * s2 * qdot[0] ** 2 + FD2 * qdot[1],
-        ]
-    )
 
 
 def lyapunov_by_kronecker(A, Q):

@@ -9,12 +9,12 @@ constant delay, ``M ϱ̇ = M(q̈_d + κ ė1) + N − τ(t)``, in which the delay
 
 from __future__ import annotations
 
-import math
 from fractions import Fraction
 
 import numpy as np
 import pytest
 
+from arm_closed_form import arm_mass, arm_nonlinear
 from delaytrack.controllers import PCON, PCONf, PredictorBaseline, controller_from_spec
 from delaytrack.controllers.pcon import ring_slots
 from delaytrack.delays import AbsSineDelay, ConstantDelay
@@ -22,27 +22,10 @@ from delaytrack.plants import CallablePlant, LinearPlant, TwoLinkArm
 from delaytrack.reference import SinusoidalReference
 from delaytrack.sim import simulate
 
-# Two-link arm defaults (module docstring of delaytrack.plants.two_link_arm).
-P1, P2, P3, FD1, FD2 = 3.473, 0.196, 0.242, 5.3, 1.1
 T_C = 0.01
 HISTORY = 0.1
 # A modest reference for the arm (the two_link_*.toml scenarios' q_d).
 ARM_REFERENCE = SinusoidalReference([0.0, 0.0], amplitude=[0.8, 0.5], frequency=[0.5, 0.7])
-
-
-def arm_mass(q):
-    c2 = math.cos(q[1])
-    return np.array([[P1 + 2 * P3 * c2, P2 + P3 * c2], [P2 + P3 * c2, P2]])
-
-
-def arm_nonlinear(q, qdot):
-    s2 = math.sin(q[1])
-    return np.array(
-        [
-            -P3 * s2 * (2 * qdot[0] * qdot[1] + qdot[1] ** 2) + FD1 * qdot[0],
-            P3 * s2 * qdot[0] ** 2 + FD2 * qdot[1],
-        ]
-    )
 
 
 def exact_window_integral(taus, k, h, T_c, n=2):

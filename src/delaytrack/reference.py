@@ -12,17 +12,24 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numba import njit, types
+from numba import types
 from numba.extending import overload
 
+from delaytrack._jit import kernel
 from delaytrack._validation import finite_array
 
-__all__ = ["SINUSOIDAL", "SinusoidalReference", "call_reference", "sinusoidal_reference"]
+__all__ = [
+    "SINUSOIDAL",
+    "SinusoidalReference",
+    "call_reference",
+    "sinusoidal_reference",
+    "sinusoidal_reference_values",
+]
 
 SINUSOIDAL = 0
 
 
-@njit(cache=True)
+@kernel
 def sinusoidal_reference(t, params, qd, qd_dot, qd_ddot):
     """Fill ``q_d(t)``, ``q̇_d(t)``, ``q̈_d(t)``; ``params = [n, K, offset, slope, A, ω, φ]``."""
     n = int(params[0])
@@ -41,6 +48,13 @@ def sinusoidal_reference(t, params, qd, qd_dot, qd_ddot):
             qd[i] += amplitude * math.sin(angle)
             qd_dot[i] += amplitude * omega * math.cos(angle)
             qd_ddot[i] -= amplitude * omega * omega * math.sin(angle)
+
+
+@kernel
+def sinusoidal_reference_values(times, params, out):
+    """:func:`sinusoidal_reference` at each of ``times`` (1-D) into ``out (3, times.size, n)``."""
+    for i in range(times.shape[0]):
+        sinusoidal_reference(times[i], params, out[0, i], out[1, i], out[2, i])
 
 
 def call_reference(reference, t, params, qd, qd_dot, qd_ddot):
@@ -156,8 +170,7 @@ class SinusoidalReference:
         """``q_d, q̇_d, q̈_d`` at times ``t``, each of shape ``(*t.shape, n)``."""
         times = np.asarray(t, dtype=float)
         out = np.empty((3, times.size, self.n))
-        for i, time in enumerate(times.ravel()):
-            sinusoidal_reference(float(time), self._params, out[0, i], out[1, i], out[2, i])
+        sinusoidal_reference_values(np.ascontiguousarray(times.ravel()), self._params, out)
         return tuple(out[j].reshape(*times.shape, self.n) for j in range(3))
 
     def to_spec(self) -> dict[str, Any]:

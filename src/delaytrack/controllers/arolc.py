@@ -26,8 +26,9 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
-from numba import njit
 
+from delaytrack._jit import kernel
+from delaytrack._small_linalg import matvec
 from delaytrack._validation import as_spd_matrix, positive_scalar
 from delaytrack.analysis.razumikhin import error_dynamics_matrices, lyapunov_matrix
 from delaytrack.controllers.base import (
@@ -47,7 +48,7 @@ _HAS_PREVIOUS = 1
 _S_PREVIOUS = 2
 
 
-@njit(cache=True)
+@kernel
 def adaptive_gain_rate(c_hat, s, s_previous, has_previous, gamma):
     """``ĉ'`` of the adaptive law (ATRC) with ``sᵀṡ`` replaced by ``sᵀ(s - s_previous)``."""
     if c_hat <= gamma:
@@ -58,7 +59,7 @@ def adaptive_gain_rate(c_hat, s, s_previous, has_previous, gamma):
     return -norm_s
 
 
-@njit(cache=True)
+@kernel
 def arolc_step(
     t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model_terms, model_params, command
 ):
@@ -73,7 +74,7 @@ def arolc_step(
     epsilon = params[4 * n * n + 1]
     gamma = params[4 * n * n + 2]
     error = tracking_errors(q, qdot, qd, qd_dot)
-    s = BtP @ error
+    s = matvec(BtP, error)
     norm_s = math.sqrt(np.sum(s * s))
     c_hat = state[_C_HAT]
     # u = û + Δu with Δu = α ĉ s / max(‖s‖, ε)  (paper eqs. (control input), (delta u)).

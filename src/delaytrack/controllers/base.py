@@ -19,8 +19,9 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from numba.extending import register_jitable
 
+from delaytrack._jit import inline_kernel
+from delaytrack._small_linalg import matvec
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import call_command_map, call_terms
@@ -28,7 +29,7 @@ from delaytrack.plants.dispatch import call_command_map, call_terms
 __all__ = ["Controller", "auxiliary_input", "computed_torque_command", "tracking_errors"]
 
 
-@register_jitable
+@inline_kernel
 def tracking_errors(q, qdot, qd, qd_dot):
     """``e = [e1; ė1]`` with ``e1 = q_d - q`` (the paper's tracking error), shape (2n,)."""
     n = q.shape[0]
@@ -38,16 +39,16 @@ def tracking_errors(q, qdot, qd, qd_dot):
     return error
 
 
-@register_jitable
+@inline_kernel
 def auxiliary_input(params, error, qd_ddot):
     """``û = q̈_d + K2 ė1 + K1 e1`` (paper eq. (aux)); ``params`` starts with K1, K2 (row-major)."""
     n = qd_ddot.shape[0]
     K1 = params[: n * n].reshape((n, n))
     K2 = params[n * n : 2 * n * n].reshape((n, n))
-    return qd_ddot + K2 @ error[n:] + K1 @ error[:n]
+    return qd_ddot + matvec(K2, error[n:]) + matvec(K1, error[:n])
 
 
-@register_jitable
+@inline_kernel
 def computed_torque_command(model_terms, model_params, t, q, qdot, u, command):
     """Actuator command realising ``τ = M̂(q) u + N̂(q, q̇)`` (paper eq. (input)).
 
@@ -60,7 +61,7 @@ def computed_torque_command(model_terms, model_params, t, q, qdot, u, command):
     nonlinear = np.empty(n)
     input_map = np.empty((n, command.shape[0]))
     call_terms(model_terms, t, q, qdot, model_params, mass, nonlinear, input_map)
-    tau = mass @ u + nonlinear
+    tau = matvec(mass, u) + nonlinear
     if not (np.all(np.isfinite(tau)) and np.all(np.isfinite(input_map))):
         command[:] = np.nan  # the simulator stops the run as diverged
         return

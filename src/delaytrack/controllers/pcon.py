@@ -39,8 +39,9 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
-from numba import njit
 
+from delaytrack._jit import kernel
+from delaytrack._small_linalg import matvec
 from delaytrack._validation import as_spd_matrix, positive_scalar
 from delaytrack.controllers.base import Controller
 from delaytrack.controllers.dispatch import PCON_STEP
@@ -72,7 +73,7 @@ def ring_slots(history: float, T_c: float) -> int:
     return int(math.ceil(history / T_c)) + 2
 
 
-@njit(cache=True)
+@kernel
 def pcon_step(
     t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model_terms, model_params, command
 ):
@@ -108,8 +109,8 @@ def pcon_step(
         start = ring + ((count - whole - 1) % slots) * n
         e_z += fraction * state[start : start + n]
     e_z *= T_c
-    rho = (qd_dot - qdot) + kappa * (qd - q) - vartheta @ e_z
-    tau = k_b @ rho
+    rho = (qd_dot - qdot) + kappa * (qd - q) - matvec(vartheta, e_z)
+    tau = matvec(k_b, rho)
     mass = np.empty((n, n))
     nonlinear = np.empty(n)
     input_map = np.empty((n, command.shape[0]))

@@ -25,8 +25,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
-from numba.extending import register_jitable
+
+from delaytrack._jit import inline_kernel, kernel
 
 CONSTANT = 0
 ABS_SINE = 1
@@ -36,14 +36,14 @@ PIECEWISE_LINEAR = 3
 _NEWTON_ITERATIONS = 60
 
 
-@register_jitable
+@inline_kernel
 def _knot_index(params, t):
     """Index ``i`` with ``t_i <= t < t_{i+1}``; -1 before the first knot."""
     m = int(params[0])
     return np.searchsorted(params[1 : 1 + m], t, side="right") - 1
 
 
-@register_jitable
+@inline_kernel
 def delay_value(kind, params, t):
     """Return ``h(t)`` for one profile (see the module table for ``params``)."""
     if kind == CONSTANT:
@@ -63,7 +63,7 @@ def delay_value(kind, params, t):
     return h_a + (h_b - h_a) * (t - t_a) / (t_b - t_a)
 
 
-@register_jitable
+@inline_kernel
 def piece_end_values(kind, params, a, b):
     """``(h(a+), h(b-))`` on a piece ``[a, b]`` that contains no breakpoint inside."""
     if kind == PIECEWISE_CONSTANT:
@@ -72,7 +72,7 @@ def piece_end_values(kind, params, a, b):
     return delay_value(kind, params, a), delay_value(kind, params, b)
 
 
-@register_jitable
+@inline_kernel
 def next_breakpoint(kind, params, t):
     """Smallest ``t_b > t`` at which ``h`` has a kink or jump or ``t - h(t)`` has an extremum.
 
@@ -107,7 +107,7 @@ def next_breakpoint(kind, params, t):
     return np.inf
 
 
-@register_jitable
+@inline_kernel
 def crossing_time(kind, params, a, b, g_a, g_b, target):
     """Solve ``t - h(t) = target`` for ``t`` in a piece ``[a, b]`` where ``g = t - h`` is monotone.
 
@@ -145,7 +145,7 @@ def crossing_time(kind, params, a, b, g_a, g_b, target):
     return root
 
 
-@njit(cache=True)
+@kernel
 def delay_values(kind, params, times):
     """Vectorised :func:`delay_value` over a 1-D array of times."""
     out = np.empty(times.shape[0])

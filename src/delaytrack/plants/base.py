@@ -11,38 +11,47 @@ plants and plain Python for :class:`~delaytrack.plants.CallablePlant`.
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from numba.extending import register_jitable
 
+from delaytrack._jit import inline_kernel
+from delaytrack._small_linalg import solve_in_place
 from delaytrack.plants.dispatch import call_terms
 
-__all__ = ["ELPlant", "el_rhs"]
+__all__ = ["ELPlant", "el_rhs", "rhs_scratch"]
 
 
-@register_jitable
-def el_rhs(terms, t, x, u, params, dx):
-    """State derivative of ``M(q) q̈ + N(q, q̇) = G(q) u`` with ``x = [q, q̇]``.
+@inline_kernel
+def rhs_scratch(n, m):
+    """Working arrays ``(M (n, n), N (n,), G (n, m))`` of :func:`el_rhs`, allocated once a run."""
+    return np.empty((n, n)), np.empty(n), np.empty((n, m))
 
-    Implements ``q̈ = M(q)^{-1} (G(q) u - N(q, q̇))`` (the paper's eq. (sys new) with the applied,
-    delayed input ``u = τ(t - h(t))``) and writes ``dx = [q̇, q̈]``.
+
+@inline_kernel
+def el_rhs(terms, t, q, qdot, u, params, qddot, scratch):
+    """Acceleration of ``M(q) q̈ + N(q, q̇) = G(q) u``: ``q̈ = M(q)^{-1} (G(q) u - N(q, q̇))``.
+
+    The paper's eq. (sys new) with the applied, delayed input ``u = τ(t - h(t))``; the state
+    derivative is ``[q̇, q̈]``. ``scratch`` is :func:`rhs_scratch` ``(n, m)``: nothing is
+    allocated, so the compiled inner loop stays cheap.
     """
-    n = x.shape[0] // 2
-    mass = np.empty((n, n))
-    nonlinear = np.empty(n)
-    input_map = np.empty((n, u.shape[0]))
-    call_terms(terms, t, x[:n], x[n:], params, mass, nonlinear, input_map)
-    force = input_map @ u - nonlinear
-    if not (np.all(np.isfinite(mass)) and np.all(np.isfinite(force))):
-        # A diverging state: report it through dx (the simulator then stops the run with a
-        # status) instead of letting the linear solve raise and end the whole batch.
-        dx[:] = np.nan
-        return
-    dx[:n] = x[n:]
-    dx[n:] = np.linalg.solve(mass, force)
+    mass, nonlinear, input_map = scratch
+    call_terms(terms, t, q, qdot, params, mass, nonlinear, input_map)
+    finite = True
+    for i in range(q.shape[0]):
+        force = -nonlinear[i]
+        for j in range(u.shape[0]):
+            force += input_map[i, j] * u[j]
+        qddot[i] = force
+        finite = finite and math.isfinite(force)
+    # A diverging state (or a singular M) is reported through q̈ (the simulator then stops the
+    # run with a status) instead of raising and ending the whole batch.
+    if not (finite and solve_in_place(mass, qddot)):
+        qddot[:] = np.nan
 
 
 class ELPlant(ABC):
@@ -137,8 +146,20 @@ class ELPlant(ABC):
                 f"u must have batch 1 or {x.shape[0]} (the batch of x); got {u.shape[0]}"
             )
         dx = np.empty_like(x)
+        dx[:, : self.n] = x[:, self.n :]
+        scratch = rhs_scratch(self.n, self.m)
         for b in range(x.shape[0]):
-            el_rhs(self.terms_kernel, float(t), x[b], u[b % u.shape[0]], self.params, dx[b])
+            q, qdot = x[b, : self.n], x[b, self.n :]
+            el_rhs(
+                self.terms_kernel,
+                float(t),
+                q,
+                qdot,
+                u[b % u.shape[0]],
+                self.params,
+                dx[b, self.n :],
+                scratch,
+            )
         return dx
 
     def _batch(self, name: str, value: np.ndarray) -> np.ndarray:

@@ -10,7 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 from numba import types
-from numba.extending import overload, register_jitable
+from numba.extending import overload
+
+from delaytrack._jit import inline_kernel
+from delaytrack._small_linalg import solve_in_place
 
 __all__ = [
     "LINEAR",
@@ -76,10 +79,13 @@ def _call_terms_compiled(terms, t, q, qdot, params, mass, nonlinear, input_map):
     return by_callable
 
 
-@register_jitable
+@inline_kernel
 def solve_input_map(input_map, tau, command):
     """The default command map: solve ``G(q) command = τ`` (a fully actuated model)."""
-    command[:] = np.linalg.solve(input_map, tau)
+    square = input_map.copy()
+    command[:] = tau
+    if not solve_in_place(square, command):
+        command[:] = np.nan
 
 
 def call_command_map(model, q, params, input_map, tau, command):

@@ -6,8 +6,9 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
-from numba import njit
 
+from delaytrack._jit import kernel
+from delaytrack._small_linalg import matvec
 from delaytrack._validation import as_spd_matrix, as_square_matrix, finite_array
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import LINEAR
@@ -15,7 +16,7 @@ from delaytrack.plants.dispatch import LINEAR
 __all__ = ["LinearPlant", "linear_terms"]
 
 
-@njit(cache=True)
+@kernel
 def linear_terms(t, q, qdot, params, mass, nonlinear, input_map):
     """Fill ``M``, ``N = D q̇ + K q`` and ``G``; ``params = [M, D, K, G]`` flattened row-major."""
     n = q.shape[0]
@@ -24,7 +25,7 @@ def linear_terms(t, q, qdot, params, mass, nonlinear, input_map):
     damping = params[n * n : 2 * n * n].reshape((n, n))
     stiffness = params[2 * n * n : 3 * n * n].reshape((n, n))
     input_map[:, :] = params[3 * n * n : 3 * n * n + n * m].reshape((n, m))
-    nonlinear[:] = damping @ qdot + stiffness @ q
+    nonlinear[:] = matvec(damping, qdot) + matvec(stiffness, q)
 
 
 @dataclass(frozen=True, eq=False)

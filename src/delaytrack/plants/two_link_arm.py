@@ -20,8 +20,8 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
-from numba import njit
 
+from delaytrack._jit import kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import TWO_LINK_ARM
@@ -29,7 +29,7 @@ from delaytrack.plants.dispatch import TWO_LINK_ARM
 __all__ = ["TwoLinkArm", "two_link_terms"]
 
 
-@njit(cache=True)
+@kernel
 def two_link_terms(t, q, qdot, params, mass, nonlinear, input_map):
     """Fill ``M``, ``N`` and ``G = I`` of the two-link arm; ``params = [p1, p2, p3, fd1, fd2]``."""
     p1, p2, p3, fd1, fd2 = params[0], params[1], params[2], params[3], params[4]

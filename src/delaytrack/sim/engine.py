@@ -18,10 +18,11 @@ as plain Python (a user plant given as Python callables): see :mod:`delaytrack.s
 
 from __future__ import annotations
 
-import numpy as np
-from numba import njit
-from numba.extending import register_jitable
+import math
 
+import numpy as np
+
+from delaytrack._jit import inline_kernel, kernel
 from delaytrack.controllers.dispatch import call_step
 from delaytrack.delays._kernel import (
     crossing_time,
@@ -29,7 +30,7 @@ from delaytrack.delays._kernel import (
     next_breakpoint,
     piece_end_values,
 )
-from delaytrack.plants.base import el_rhs
+from delaytrack.plants.base import el_rhs, rhs_scratch
 from delaytrack.reference import call_reference
 from delaytrack.sim.history import latest_tick_index, tick_time
 
@@ -44,21 +45,63 @@ STATUS_NAMES = ("ok", "diverged", "delay beyond history")
 _SPLIT_TOLERANCE = 1e-9
 
 
-@register_jitable
+@inline_kernel
+def rk4_workspace(x, m):
+    """Working memory of :func:`_rk4_substep` for the state ``x = [q, q̇]`` (2n,) and ``m`` inputs.
+
+    ``(q, q̇, slopes (4, 2n), stage, stage_q, stage_q̇, accelerations, scratch)``: the views are
+    taken once per run, so the inner loop neither allocates nor slices.
+    """
+    n = x.shape[0] // 2
+    slopes = np.empty((4, 2 * n))
+    stage = np.empty(2 * n)
+    accelerations = (slopes[0, n:], slopes[1, n:], slopes[2, n:], slopes[3, n:])
+    return x[:n], x[n:], slopes, stage, stage[:n], stage[n:], accelerations, rhs_scratch(n, m)
+
+
+@inline_kernel
 def _rk4_substep(plant_terms, plant_params, t, x, u, length, work):
-    """One classical RK4 step of length ``length`` with constant input ``u``; updates ``x``."""
-    k1, k2, k3, k4, stage = work[0], work[1], work[2], work[3], work[4]
-    el_rhs(plant_terms, t, x, u, plant_params, k1)
-    stage[:] = x + 0.5 * length * k1
-    el_rhs(plant_terms, t + 0.5 * length, stage, u, plant_params, k2)
-    stage[:] = x + 0.5 * length * k2
-    el_rhs(plant_terms, t + 0.5 * length, stage, u, plant_params, k3)
-    stage[:] = x + length * k3
-    el_rhs(plant_terms, t + length, stage, u, plant_params, k4)
-    x += (length / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    """One classical RK4 step of length ``length`` with constant input ``u``; updates ``x``.
+
+    ``work`` is :func:`rk4_workspace` of this ``x``; written as loops so that nothing is
+    allocated.
+    """
+    q, qdot, slopes, stage, stage_q, stage_qdot, accelerations, scratch = work
+    n = q.shape[0]
+    half = 0.5 * length
+    el_rhs(plant_terms, t, q, qdot, u, plant_params, accelerations[0], scratch)
+    for i in range(n):
+        slopes[0, i] = qdot[i]
+    for i in range(2 * n):
+        stage[i] = x[i] + half * slopes[0, i]
+    el_rhs(plant_terms, t + half, stage_q, stage_qdot, u, plant_params, accelerations[1], scratch)
+    for i in range(n):
+        slopes[1, i] = stage_qdot[i]
+    for i in range(2 * n):
+        stage[i] = x[i] + half * slopes[1, i]
+    el_rhs(plant_terms, t + half, stage_q, stage_qdot, u, plant_params, accelerations[2], scratch)
+    for i in range(n):
+        slopes[2, i] = stage_qdot[i]
+    for i in range(2 * n):
+        stage[i] = x[i] + length * slopes[2, i]
+    el_rhs(plant_terms, t + length, stage_q, stage_qdot, u, plant_params, accelerations[3], scratch)
+    for i in range(n):
+        slopes[3, i] = stage_qdot[i]
+    sixth = length / 6.0
+    for i in range(2 * n):
+        x[i] += sixth * (slopes[0, i] + 2.0 * slopes[1, i] + 2.0 * slopes[2, i] + slopes[3, i])
 
 
-@register_jitable
+@inline_kernel
+def _beyond(values, bound):
+    """Whether any entry is non-finite or larger than ``bound`` in magnitude."""
+    for value in values:
+        if not math.isfinite(value) or abs(value) > bound:
+            return True
+    return False
+
+
+@inline_kernel
 def _applied_slot(delay_kind, delay_params, t, newest, capacity, t0, dt, steps_per_tick):
     """Ring slot of the command applied at ``t`` (-1 for ``u_init``, -2 beyond the history)."""
     k = latest_tick_index(t - delay_value(delay_kind, delay_params, t), t0, dt, steps_per_tick)
@@ -69,7 +112,7 @@ def _applied_slot(delay_kind, delay_params, t, newest, capacity, t0, dt, steps_p
     return k % capacity
 
 
-@register_jitable
+@inline_kernel
 def _integrate_step(
     plant_terms,
     plant_params,
@@ -139,7 +182,7 @@ def _integrate_step(
     return first_slot
 
 
-@register_jitable
+@inline_kernel
 def run_closed_loop(handles, run, settings, records):
     """Simulate one closed loop from ``t0`` to tick ``n_ticks``; return ``(status, t_stop)``.
 
@@ -181,7 +224,7 @@ def run_closed_loop(handles, run, settings, records):
     T_c = steps_per_tick * dt
     x = x0.copy()
     history = np.zeros((capacity, m))
-    work = np.empty((5, x0.shape[0]))
+    work = rk4_workspace(x, m)
     qd = np.empty(n)
     qd_dot = np.empty(n)
     qd_ddot = np.empty(n)
@@ -215,7 +258,7 @@ def run_closed_loop(handles, run, settings, records):
         history[k % capacity] = command
         if record:
             commands[row] = command
-        if not np.all(np.isfinite(command)):
+        if _beyond(command, np.inf):
             return DIVERGED, t_k
         if k == n_ticks:
             if record:
@@ -265,12 +308,12 @@ def run_closed_loop(handles, run, settings, records):
                 return DELAY_BEYOND_HISTORY, t_start
             if record and j == 0:
                 applied[row] = u_init if slot == -1 else history[slot]
-            if not np.all(np.isfinite(x)) or np.max(np.abs(x)) > divergence_bound:
+            if _beyond(x, divergence_bound):
                 return DIVERGED, t_end
     return OK, tick_time(n_ticks, t0, dt, steps_per_tick)
 
 
-@register_jitable
+@inline_kernel
 def run_batch(handles, runs, settings, records, status, t_stop):
     """:func:`run_closed_loop` for each batch element ``b``.
 
@@ -303,4 +346,4 @@ def run_batch(handles, runs, settings, records, status, t_stop):
         status[b], t_stop[b] = run_closed_loop(handles, run, settings, run_records)
 
 
-run_batch_compiled = njit(cache=True)(run_batch)
+run_batch_compiled = kernel(run_batch)

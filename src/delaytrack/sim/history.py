@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from numba.extending import register_jitable
+from delaytrack._jit import inline_kernel
 
 __all__ = ["history_capacity", "latest_tick_index", "tick_time"]
 
@@ -26,13 +26,13 @@ def history_capacity(h_max: float, T_c: float) -> int:
     return int(math.ceil(h_max / T_c)) + 3
 
 
-@register_jitable
+@inline_kernel
 def tick_time(k, t0, dt, steps_per_tick):
     """Time of controller tick ``k``: ``t0 + (k * steps_per_tick) * dt``."""
     return t0 + (k * steps_per_tick) * dt
 
 
-@register_jitable
+@inline_kernel
 def latest_tick_index(g, t0, dt, steps_per_tick):
     """Largest ``k`` with ``tick_time(k) <= g`` (``-1`` when ``g < t0``)."""
     if g < t0:

@@ -28,52 +28,58 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from delaytrack._jit import kernel
 
 __all__ = [
     "constraint_matrix",
     "constraint_residual",
     "consistent_state",
     "kinematic_map",
+    "kinematic_map_entries",
     "kinematic_map_kernel",
     "kinematic_map_rate",
     "robot_command_map",
 ]
 
 
-@njit(cache=True)
-def kinematic_map_kernel(phi, R, L, d, S):
-    """Fill ``S(q)`` (5, 2); it depends on φ only."""
-    c = math.cos(phi)
-    s = math.sin(phi)
+@kernel
+def kinematic_map_entries(c, s, R, L, d):
+    """The entries of rows x, y, φ of ``S(q)`` that vary: ``(S_00, S_01, S_10, S_11, S_20)``.
+
+    ``c, s`` are ``cos φ, sin φ``; ``S_21 = -S_20`` and rows θ_r, θ_l are the identity.
+    """
     a = 0.5 * R
     b = R / (2.0 * L)
-    S[0, 0] = a * c - d * b * s
-    S[0, 1] = a * c + d * b * s
-    S[1, 0] = a * s + d * b * c
-    S[1, 1] = a * s - d * b * c
-    S[2, 0] = b
-    S[2, 1] = -b
+    return a * c - d * b * s, a * c + d * b * s, a * s + d * b * c, a * s - d * b * c, b
+
+
+@kernel
+def kinematic_map_kernel(phi, R, L, d, S):
+    """Fill ``S(q)`` (5, 2); it depends on φ only."""
+    S[0, 0], S[0, 1], S[1, 0], S[1, 1], S[2, 0] = kinematic_map_entries(
+        math.cos(phi), math.sin(phi), R, L, d
+    )
+    S[2, 1] = -S[2, 0]
     S[3, 0] = 1.0
     S[3, 1] = 0.0
     S[4, 0] = 0.0
     S[4, 1] = 1.0
 
 
-@njit(cache=True)
+@kernel
 def robot_command_map(q, params, tau, command):
     """Wheel torques ``command = S(q)ᵀ τ``; ``params`` starts with ``[R, L, d]``.
 
     The command map of the robot's nominal models (see
     :func:`delaytrack.plants.dispatch.call_command_map`).
     """
-    S = np.empty((5, 2))
-    kinematic_map_kernel(q[2], params[0], params[1], params[2], S)
-    for j in range(2):
-        total = 0.0
-        for i in range(5):
-            total += S[i, j] * tau[i]
-        command[j] = total
+    phi = q[2]
+    S00, S01, S10, S11, S20 = kinematic_map_entries(
+        math.cos(phi), math.sin(phi), params[0], params[1], params[2]
+    )
+    command[0] = S00 * tau[0] + S10 * tau[1] + S20 * tau[2] + tau[3]
+    command[1] = S01 * tau[0] + S11 * tau[1] - S20 * tau[2] + tau[4]
 
 
 def _angles(q: np.ndarray) -> np.ndarray:

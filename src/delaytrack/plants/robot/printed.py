@@ -46,8 +46,8 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
-from numba import njit
 
+from delaytrack._jit import kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import ROBOT_PRINTED
@@ -56,7 +56,7 @@ from delaytrack.plants.robot.parameters import P3DX
 __all__ = ["PrintedRobotModel", "robot_printed_terms"]
 
 
-@njit(cache=True)
+@kernel
 def robot_printed_terms(t, q, qdot, params, mass, nonlinear, input_map):
     """Fill ``M̄``, ``V̄``, ``G``; ``params = [r̄, b, d, m, K, Ī, I_w, corrected_row2]``."""
     r = params[0]

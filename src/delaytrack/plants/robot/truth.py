@@ -34,13 +34,13 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
-from numba import njit
 
+from delaytrack._jit import kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import ROBOT_TRUTH
 from delaytrack.plants.robot.body import RobotBody
-from delaytrack.plants.robot.kinematics import constraint_residual, kinematic_map_kernel
+from delaytrack.plants.robot.kinematics import constraint_residual, kinematic_map_entries
 from delaytrack.plants.robot.parameters import P3DX
 
 __all__ = [
@@ -50,6 +50,7 @@ __all__ = [
     "WheeledRobot",
     "constrained_terms",
     "reduced_terms_kernel",
+    "reduced_terms_values",
     "robot_truth_terms",
 ]
 
@@ -60,9 +61,10 @@ DEFAULT_BAUMGARTE_GAIN = 20.0
 TRUTH_PARAMS = 12
 
 
-@njit(cache=True)
-def reduced_terms_kernel(qdot, params, mass_b, s_x, s_y, inertia_a, reduced_mass, bias, friction):
-    """Fill ``M_r`` (2, 2), ``n_r`` (2,), ``f`` (2,) of the module docstring at ``η = q̇[3:5]``."""
+@kernel
+def reduced_terms_values(qdot, params, mass_b, s_x, s_y, inertia_a):
+    """``M_r``, ``n_r`` and ``f`` of the module docstring at ``η = q̇[3:5]``, as scalars
+    ``(M_r00, M_r01, M_r11, n_r0, n_r1, f_0, f_1)`` (``M_r`` is symmetric)."""
     R, L, Iw = params[0], params[1], params[7]
     b_v, f_c, v_s = params[8], params[9], params[10]
     a = 0.5 * R
@@ -71,46 +73,58 @@ def reduced_terms_kernel(qdot, params, mass_b, s_x, s_y, inertia_a, reduced_mass
     wl = qdot[4]
     v = a * (wr + wl)
     w = b * (wr - wl)
-    reduced_mass[0, 0] = Iw + a * a * mass_b - 2.0 * a * b * s_y + b * b * inertia_a
-    reduced_mass[0, 1] = a * a * mass_b - b * b * inertia_a
-    reduced_mass[1, 0] = reduced_mass[0, 1]
-    reduced_mass[1, 1] = Iw + a * a * mass_b + 2.0 * a * b * s_y + b * b * inertia_a
-    bias[0] = s_x * w * (b * v - a * w)
-    bias[1] = -s_x * w * (b * v + a * w)
-    friction[0] = b_v * wr
-    friction[1] = b_v * wl
+    m00 = Iw + a * a * mass_b - 2.0 * a * b * s_y + b * b * inertia_a
+    m01 = a * a * mass_b - b * b * inertia_a
+    m11 = Iw + a * a * mass_b + 2.0 * a * b * s_y + b * b * inertia_a
+    friction_r = b_v * wr
+    friction_l = b_v * wl
     if f_c != 0.0:
-        friction[0] += f_c * math.tanh(wr / v_s)
-        friction[1] += f_c * math.tanh(wl / v_s)
+        friction_r += f_c * math.tanh(wr / v_s)
+        friction_l += f_c * math.tanh(wl / v_s)
+    bias_r = s_x * w * (b * v - a * w)
+    bias_l = -s_x * w * (b * v + a * w)
+    return m00, m01, m11, bias_r, bias_l, friction_r, friction_l
 
 
-@njit(cache=True)
+@kernel
+def reduced_terms_kernel(qdot, params, mass_b, s_x, s_y, inertia_a, reduced_mass, bias, friction):
+    """Fill ``M_r`` (2, 2), ``n_r`` (2,), ``f`` (2,) from :func:`reduced_terms_values`."""
+    m00, m01, m11, bias[0], bias[1], friction[0], friction[1] = reduced_terms_values(
+        qdot, params, mass_b, s_x, s_y, inertia_a
+    )
+    reduced_mass[0, 0] = m00
+    reduced_mass[0, 1] = m01
+    reduced_mass[1, 0] = m01
+    reduced_mass[1, 1] = m11
+
+
+@kernel
 def constrained_terms(q, qdot, params, mass_b, s_x, s_y, inertia_a, mass, nonlinear, input_map):
     """``M = I``, ``N = -a``, ``G = b`` of the constrained robot (module docstring) with the
-    rigid-body aggregates given (so that a payload can change them)."""
+    rigid-body aggregates given (so that a payload can change them). Allocation-free: it runs at
+    every RK4 stage."""
     R, L, d = params[0], params[1], params[2]
     k_b = params[11]
-    reduced_mass = np.empty((2, 2))
-    bias = np.empty(2)
-    friction = np.empty(2)
-    reduced_terms_kernel(qdot, params, mass_b, s_x, s_y, inertia_a, reduced_mass, bias, friction)
-    det = reduced_mass[0, 0] * reduced_mass[1, 1] - reduced_mass[0, 1] * reduced_mass[1, 0]
-    i00 = reduced_mass[1, 1] / det
-    i01 = -reduced_mass[0, 1] / det
-    i11 = reduced_mass[0, 0] / det
+    m00, m01, m11, bias_r, bias_l, friction_r, friction_l = reduced_terms_values(
+        qdot, params, mass_b, s_x, s_y, inertia_a
+    )
+    det = m00 * m11 - m01 * m01
+    i00 = m11 / det
+    i01 = -m01 / det
+    i11 = m00 / det
     # η̇ = drift + M_r⁻¹ τ
-    g0 = -(bias[0] + friction[0])
-    g1 = -(bias[1] + friction[1])
+    g0 = -(bias_r + friction_r)
+    g1 = -(bias_l + friction_l)
     drift_r = i00 * g0 + i01 * g1
     drift_l = i01 * g0 + i11 * g1
-    S = np.empty((5, 2))
-    kinematic_map_kernel(q[2], R, L, d, S)
+    c = math.cos(q[2])
+    s = math.sin(q[2])
+    # Rows x, y, φ of S(q); rows θ_r, θ_l are the identity.
+    S00, S01, S10, S11, S20 = kinematic_map_entries(c, s, R, L, d)
     wr = qdot[3]
     wl = qdot[4]
     v = 0.5 * R * (wr + wl)
     w = R * (wr - wl) / (2.0 * L)
-    c = math.cos(q[2])
-    s = math.sin(q[2])
     phidot = qdot[2]
     # (∂S/∂φ) φ̇ η for rows x, y (row φ of S is constant).
     sdot_x = (-v * s - d * w * c) * phidot
@@ -119,20 +133,27 @@ def constrained_terms(q, qdot, params, mass_b, s_x, s_y, inertia_a, mass, nonlin
     rho_x = qdot[0] - (v * c - d * w * s)
     rho_y = qdot[1] - (v * s + d * w * c)
     rho_phi = qdot[2] - w
-    mass[:, :] = 0.0
     for i in range(5):
-        mass[i, i] = 1.0
-    nonlinear[0] = -(S[0, 0] * drift_r + S[0, 1] * drift_l + sdot_x - k_b * rho_x)
-    nonlinear[1] = -(S[1, 0] * drift_r + S[1, 1] * drift_l + sdot_y - k_b * rho_y)
-    nonlinear[2] = -(S[2, 0] * drift_r + S[2, 1] * drift_l - k_b * rho_phi)
+        for j in range(5):
+            mass[i, j] = 1.0 if i == j else 0.0
+    nonlinear[0] = -(S00 * drift_r + S01 * drift_l + sdot_x - k_b * rho_x)
+    nonlinear[1] = -(S10 * drift_r + S11 * drift_l + sdot_y - k_b * rho_y)
+    nonlinear[2] = -(S20 * drift_r - S20 * drift_l - k_b * rho_phi)
     nonlinear[3] = -drift_r
     nonlinear[4] = -drift_l
-    for i in range(5):
-        input_map[i, 0] = S[i, 0] * i00 + S[i, 1] * i01
-        input_map[i, 1] = S[i, 0] * i01 + S[i, 1] * i11
+    input_map[0, 0] = S00 * i00 + S01 * i01
+    input_map[0, 1] = S00 * i01 + S01 * i11
+    input_map[1, 0] = S10 * i00 + S11 * i01
+    input_map[1, 1] = S10 * i01 + S11 * i11
+    input_map[2, 0] = S20 * i00 - S20 * i01
+    input_map[2, 1] = S20 * i01 - S20 * i11
+    input_map[3, 0] = i00
+    input_map[3, 1] = i01
+    input_map[4, 0] = i01
+    input_map[4, 1] = i11
 
 
-@njit(cache=True)
+@kernel
 def robot_truth_terms(t, q, qdot, params, mass, nonlinear, input_map):
     """Terms kernel of :class:`WheeledRobot`; ``params`` as :data:`TRUTH_PARAMS` describes."""
     constrained_terms(

@@ -1,0 +1,160 @@
+"""One plant step of the closed loop, split where the delayed input switches (SPEC §5).
+
+The applied input ``u(t)`` is the command of the latest tick ``<= t - h(t)``. With a time-varying
+delay it switches at instants inside a step, where ``g(t) = t - h(t)`` crosses a tick time.
+:func:`integrate_step` splits the step there, so that every RK4 sub-step sees a constant input
+and the scheme keeps its fourth order: the step is first cut at the profile's breakpoints (pieces
+on which ``g`` is continuous and monotone), then each piece at the crossings, solved from
+``g(t) = t_k``. The input of a sub-step is looked up at its midpoint. Crossings closer than
+``1e-9 dt`` to the end of a piece are not split off (the sliver is integrated with its
+neighbour's input).
+
+This is the innermost loop of every simulation: nothing here allocates (the working memory is
+:func:`rk4_workspace`, made once per run).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from delaytrack._jit import inline_kernel
+from delaytrack.delays._kernel import (
+    crossing_time,
+    delay_value,
+    next_breakpoint,
+    piece_end_values,
+)
+from delaytrack.plants.base import el_rhs, rhs_scratch
+from delaytrack.sim.history import latest_tick_index, tick_time
+
+__all__ = ["integrate_step", "rk4_workspace"]
+
+_SPLIT_TOLERANCE = 1e-9
+
+
+@inline_kernel
+def rk4_workspace(x, m):
+    """Working memory of :func:`_rk4_substep` for the state ``x = [q, q̇]`` (2n,) and ``m`` inputs.
+
+    ``(q, q̇, slopes (4, 2n), stage, stage_q, stage_q̇, accelerations, scratch)``: the views are
+    taken once per run, so the inner loop neither allocates nor slices.
+    """
+    n = x.shape[0] // 2
+    slopes = np.empty((4, 2 * n))
+    stage = np.empty(2 * n)
+    accelerations = (slopes[0, n:], slopes[1, n:], slopes[2, n:], slopes[3, n:])
+    return x[:n], x[n:], slopes, stage, stage[:n], stage[n:], accelerations, rhs_scratch(n, m)
+
+
+@inline_kernel
+def _rk4_substep(plant_terms, plant_params, t, x, u, length, work):
+    """One classical RK4 step of length ``length`` with constant input ``u``; updates ``x``.
+
+    ``work`` is :func:`rk4_workspace` of this ``x``; written as loops so that nothing is
+    allocated.
+    """
+    q, qdot, slopes, stage, stage_q, stage_qdot, accelerations, scratch = work
+    n = q.shape[0]
+    half = 0.5 * length
+    el_rhs(plant_terms, t, q, qdot, u, plant_params, accelerations[0], scratch)
+    for i in range(n):
+        slopes[0, i] = qdot[i]
+    for i in range(2 * n):
+        stage[i] = x[i] + half * slopes[0, i]
+    el_rhs(plant_terms, t + half, stage_q, stage_qdot, u, plant_params, accelerations[1], scratch)
+    for i in range(n):
+        slopes[1, i] = stage_qdot[i]
+    for i in range(2 * n):
+        stage[i] = x[i] + half * slopes[1, i]
+    el_rhs(plant_terms, t + half, stage_q, stage_qdot, u, plant_params, accelerations[2], scratch)
+    for i in range(n):
+        slopes[2, i] = stage_qdot[i]
+    for i in range(2 * n):
+        stage[i] = x[i] + length * slopes[2, i]
+    el_rhs(plant_terms, t + length, stage_q, stage_qdot, u, plant_params, accelerations[3], scratch)
+    for i in range(n):
+        slopes[3, i] = stage_qdot[i]
+    sixth = length / 6.0
+    for i in range(2 * n):
+        x[i] += sixth * (slopes[0, i] + 2.0 * slopes[1, i] + 2.0 * slopes[2, i] + slopes[3, i])
+
+
+@inline_kernel
+def _applied_slot(delay_kind, delay_params, t, newest, capacity, t0, dt, steps_per_tick):
+    """Ring slot of the command applied at ``t`` (-1 for ``u_init``, -2 beyond the history)."""
+    k = latest_tick_index(t - delay_value(delay_kind, delay_params, t), t0, dt, steps_per_tick)
+    if k < 0:
+        return -1
+    if k <= newest - capacity:
+        return -2
+    return k % capacity
+
+
+@inline_kernel
+def integrate_step(
+    plant_terms,
+    plant_params,
+    delay_kind,
+    delay_params,
+    x,
+    t_start,
+    t_end,
+    history,
+    u_init,
+    newest,
+    t0,
+    dt,
+    steps_per_tick,
+    work,
+    probe_only,
+):
+    """Integrate ``x`` over one plant step ``[t_start, t_end]``, split where the input switches.
+
+    Each sub-step uses the command looked up at its midpoint. Returns the ring slot of the input
+    of the first sub-step (-1 for ``u_init``), or -2 when a needed command has left the history.
+    With ``probe_only`` nothing is integrated: only that first slot is found.
+    """
+    tolerance = _SPLIT_TOLERANCE * dt
+    capacity = history.shape[0]
+    first_slot = -3
+    a = t_start
+    while a < t_end:
+        b = min(next_breakpoint(delay_kind, delay_params, a), t_end)
+        h_a, h_b = piece_end_values(delay_kind, delay_params, a, b)
+        g_a = a - h_a
+        g_b = b - h_b
+        k_a = latest_tick_index(g_a, t0, dt, steps_per_tick)
+        k_b = latest_tick_index(g_b, t0, dt, steps_per_tick)
+        # Sub-intervals end at each tick crossed by g on this piece, in time order, then at b.
+        crossings = abs(k_b - k_a)
+        direction = 1 if k_b >= k_a else -1
+        first_tick = k_a + 1 if direction == 1 else k_a
+        start = a
+        for i in range(crossings + 1):
+            end = b
+            if i < crossings:
+                target = tick_time(first_tick + direction * i, t0, dt, steps_per_tick)
+                end = crossing_time(delay_kind, delay_params, a, b, g_a, g_b, target)
+                if end - start <= tolerance or b - end <= tolerance:
+                    continue
+            slot = _applied_slot(
+                delay_kind,
+                delay_params,
+                0.5 * (start + end),
+                newest,
+                capacity,
+                t0,
+                dt,
+                steps_per_tick,
+            )
+            if slot == -2:
+                return slot
+            if first_slot == -3:
+                first_slot = slot
+                if probe_only:
+                    return slot
+            u = u_init if slot == -1 else history[slot]
+            _rk4_substep(plant_terms, plant_params, start, x, u, end - start, work)
+            start = end
+        a = b
+    return first_slot

@@ -49,7 +49,14 @@ from delaytrack.metrics import (
     rms_error,
     total_variation,
 )
-from delaytrack.plants import CallablePlant, ELPlant, LinearPlant, TwoLinkArm, plant_from_spec
+from delaytrack.plants import (
+    CallablePlant,
+    CompiledPlant,
+    ELPlant,
+    LinearPlant,
+    TwoLinkArm,
+    plant_from_spec,
+)
 from delaytrack.reference import SinusoidalReference
 from delaytrack.sim import SimResult, simulate
 
@@ -57,6 +64,7 @@ __all__ = [
     "AROLC",
     "AbsSineDelay",
     "CallablePlant",
+    "CompiledPlant",
     "ConstantDelay",
     "Controller",
     "DelayProfile",

@@ -44,6 +44,11 @@ __all__ = [
 
 def _window(result: SimResult, t_from: float | None) -> np.ndarray:
     """Boolean mask over the record times: ``t >= t_from`` (all records when ``t_from`` is None)."""
+    if not result.has_trajectories:
+        raise ValueError(
+            "this result has no recorded trajectories (simulate(..., trajectories=False)); "
+            "read its running metrics, result.metrics, or metrics_table(result)"
+        )
     if t_from is None:
         return np.ones(result.t.size, dtype=bool)
     start = float(t_from)
@@ -186,7 +191,9 @@ def metrics_table(
     -------
     DataFrame
         Columns ``[label,] batch, status, t_stop, ae_<c>.., rms_<c>.., max_<c>.., tv``; metric
-        values are NaN for runs whose status is not ``ok``.
+        values are NaN for runs whose status is not ``ok``. A result without trajectories
+        (``simulate(..., trajectories=False)``) gives its running metrics, taken over every
+        controller tick.
     """
     n = result.n
     names = [f"q{i + 1}" for i in range(n)] if coordinate_names is None else list(coordinate_names)
@@ -198,12 +205,22 @@ def metrics_table(
     columns["batch"] = np.arange(result.batch_size)
     columns["status"] = result.status_names
     columns["t_stop"] = np.asarray(result.t_stop, dtype=float)
-    for prefix, values in (
-        ("ae", mean_absolute_error(result, t_from=t_from)),
-        ("rms", rms_error(result, t_from=t_from)),
-        ("max", max_abs_error(result, t_from=t_from)),
-    ):
+    if result.has_trajectories:
+        values = {
+            "ae": mean_absolute_error(result, t_from=t_from),
+            "rms": rms_error(result, t_from=t_from),
+            "max": max_abs_error(result, t_from=t_from),
+            "tv": total_variation(result, t_from=t_from),
+        }
+    elif t_from is None:
+        values = result.metrics
+    else:
+        raise ValueError(
+            "t_from selects recorded samples, and this result has none; give the window to "
+            "simulate(..., metrics_from=...) instead"
+        )
+    for prefix in ("ae", "rms", "max"):
         for j, name in enumerate(names):
-            columns[f"{prefix}_{name}"] = values[:, j]
-    columns["tv"] = total_variation(result, t_from=t_from)
+            columns[f"{prefix}_{name}"] = values[prefix][:, j]
+    columns["tv"] = values["tv"]
     return pd.DataFrame(columns)

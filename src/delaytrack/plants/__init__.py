@@ -8,6 +8,7 @@ from typing import Any
 from delaytrack._spec import TypeSpec, array, build_from_table, gain, integer, number
 from delaytrack.plants.base import ELPlant, el_rhs
 from delaytrack.plants.callable_plant import CallablePlant
+from delaytrack.plants.compiled_plant import CompiledPlant
 from delaytrack.plants.linear import LinearPlant
 from delaytrack.plants.robot import NominalRobot, PayloadRobot, PrintedRobotModel, WheeledRobot
 from delaytrack.plants.robot.body import BODY_KEYS
@@ -16,6 +17,7 @@ from delaytrack.plants.two_link_arm import TwoLinkArm
 __all__ = [
     "PLANT_SPECS",
     "CallablePlant",
+    "CompiledPlant",
     "ELPlant",
     "LinearPlant",
     "NominalRobot",

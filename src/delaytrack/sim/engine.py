@@ -16,15 +16,23 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
-from delaytrack._jit import inline_kernel, kernel
+from delaytrack._jit import KERNEL_OPTIONS, inline_kernel
 from delaytrack.controllers.dispatch import call_step
 from delaytrack.delays._kernel import delay_value
 from delaytrack.reference import call_reference
 from delaytrack.sim.history import tick_time
 from delaytrack.sim.integrator import integrate_step, rk4_workspace
+from delaytrack.sim.running_metrics import accumulate_tick
 
-__all__ = ["STATUS_NAMES", "run_closed_loop", "run_batch", "run_batch_compiled"]
+__all__ = [
+    "STATUS_NAMES",
+    "run_batch",
+    "run_batch_compiled",
+    "run_batch_uncached",
+    "run_closed_loop",
+]
 
 OK = 0
 DIVERGED = 1
@@ -56,9 +64,12 @@ def run_closed_loop(handles, run, settings, records):
         delay_kind, delay_params, x0, capacity)``; ``controller_state`` is advanced in place.
     settings : tuple
         ``(reference_params, u_init, t0, dt, steps_per_tick, n_ticks, record_every,
-        divergence_bound)``, shared by every run of a batch.
-    records : (states, commands, applied, delays, controller_states)
-        Written every ``record_every`` ticks: ``states (R, 2n)``, ``commands (R, m)``,
+        divergence_bound, metrics_from)``, shared by every run of a batch; ``record_every = 0``
+        records nothing, and the running metrics count the ticks ``k >= metrics_from``.
+    records : (states, commands, applied, delays, controller_states, sums)
+        ``sums`` (3n + 2,) accumulates the running metrics at every tick
+        (:mod:`delaytrack.sim.running_metrics`). The others are written every ``record_every``
+        ticks: ``states (R, 2n)``, ``commands (R, m)``,
         ``applied (R, m)`` (the input of the first sub-step after the tick),
         ``delays (R,)`` and ``controller_states (R, n_recorded)`` (the leading entries of the
         state used at the tick).
@@ -75,10 +86,18 @@ def run_closed_loop(handles, run, settings, records):
         x0,
         capacity,
     ) = run
-    reference_params, u_init, t0, dt, steps_per_tick, n_ticks, record_every, divergence_bound = (
-        settings
-    )
-    states, commands, applied, delays, controller_states = records
+    (
+        reference_params,
+        u_init,
+        t0,
+        dt,
+        steps_per_tick,
+        n_ticks,
+        record_every,
+        divergence_bound,
+        metrics_from,
+    ) = settings
+    states, commands, applied, delays, controller_states, sums = records
     n = x0.shape[0] // 2
     m = u_init.shape[0]
     T_c = steps_per_tick * dt
@@ -89,10 +108,11 @@ def run_closed_loop(handles, run, settings, records):
     qd_dot = np.empty(n)
     qd_ddot = np.empty(n)
     command = np.empty(m)
+    previous_command = np.empty(m)
     for k in range(n_ticks + 1):
         t_k = tick_time(k, t0, dt, steps_per_tick)
-        record = k % record_every == 0
-        row = k // record_every
+        record = record_every > 0 and k % record_every == 0
+        row = k // record_every if record else 0
         h_k = delay_value(delay_kind, delay_params, t_k)
         if record:
             states[row] = x
@@ -120,6 +140,9 @@ def run_closed_loop(handles, run, settings, records):
             commands[row] = command
         if _beyond(command, np.inf):
             return DIVERGED, t_k
+        if k >= metrics_from:
+            accumulate_tick(sums, qd, x[:n], command, previous_command, k == metrics_from)
+            previous_command[:] = command
         if k == n_ticks:
             if record:
                 # The input a step from t_k would start with, found as for every other row.
@@ -190,7 +213,7 @@ def run_batch(handles, runs, settings, records, status, t_stop):
         x0,
         capacity,
     ) = runs
-    states, commands, applied, delays, controller_states = records
+    states, commands, applied, delays, controller_states, sums = records
     for b in range(x0.shape[0]):
         run = (
             plant_params[b],
@@ -202,8 +225,20 @@ def run_batch(handles, runs, settings, records, status, t_stop):
             x0[b],
             capacity[b],
         )
-        run_records = (states[b], commands[b], applied[b], delays[b], controller_states[b])
+        run_records = (
+            states[b],
+            commands[b],
+            applied[b],
+            delays[b],
+            controller_states[b],
+            sums[b],
+        )
         status[b], t_stop[b] = run_closed_loop(handles, run, settings, run_records)
 
 
-run_batch_compiled = kernel(run_batch)
+#: :func:`run_batch` compiled for the built-in kernels (called by integer id); cached on disk. It
+#: releases the GIL, so threads run sub-batches in parallel.
+run_batch_compiled = njit(nogil=True, **KERNEL_OPTIONS)(run_batch)
+#: The same, for a user's compiled kernel (:class:`~delaytrack.plants.CompiledPlant`) passed as
+#: a function: numba cannot cache that on disk, so it is compiled once per process.
+run_batch_uncached = njit(nogil=True, **{**KERNEL_OPTIONS, "cache": False})(run_batch)

@@ -39,6 +39,11 @@ class SimResult:
         0 ok, 1 diverged, 2 delay beyond the history buffer; see :attr:`status_names`.
     t_stop : ndarray, shape (batch,)
         Time at which each run ended; rows recorded after it are NaN.
+    metrics : dict of str to ndarray
+        Running metrics over every controller tick from ``settings["metrics_from"]``
+        (:mod:`delaytrack.sim.running_metrics`): ``"ae"``, ``"rms"``, ``"max"`` (batch, n) and
+        ``"tv"`` (batch,); NaN for runs that are not ok. They are there even when no trajectory
+        was recorded (``simulate(..., trajectories=False)``).
     settings : dict
         Everything needed to rerun: plant, controller, delays, reference, ``dt``, ``T_c``, ...
     """
@@ -53,7 +58,13 @@ class SimResult:
     controller_state_names: tuple[str, ...]
     status: np.ndarray
     t_stop: np.ndarray
+    metrics: dict[str, np.ndarray] = field(default_factory=dict)
     settings: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def has_trajectories(self) -> bool:
+        """Whether trajectories were recorded (``simulate(..., trajectories=True)``)."""
+        return self.t.size > 0
 
     @property
     def batch_size(self) -> int:
@@ -105,6 +116,7 @@ class SimResult:
             controller_state_names=self.controller_state_names,
             status=self.status[select],
             t_stop=self.t_stop[select],
+            metrics={name: values[select] for name, values in self.metrics.items()},
             settings=settings,
         )
 

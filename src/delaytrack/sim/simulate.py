@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any, TypeVar
 
 import numpy as np
+from numba.core.errors import NumbaExperimentalFeatureWarning
 from tqdm.auto import tqdm
 
 from delaytrack._validation import finite_array, integer_multiple, positive_scalar
@@ -15,13 +18,19 @@ from delaytrack.controllers.base import Controller
 from delaytrack.delays.base import DelayProfile
 from delaytrack.plants.base import ELPlant
 from delaytrack.reference import SinusoidalReference
-from delaytrack.sim.engine import run_batch, run_batch_compiled
+from delaytrack.sim.engine import run_batch, run_batch_compiled, run_batch_uncached
+from delaytrack.sim.fallback import PythonFallbackWarning
 from delaytrack.sim.history import history_capacity
 from delaytrack.sim.result import SimResult
+from delaytrack.sim.running_metrics import accumulator_size, finish_metrics
 
 __all__ = ["simulate"]
 
 _T = TypeVar("_T")
+
+#: Chunks per worker thread: enough for load balance and a moving progress bar, few enough
+#: that the per-call overhead stays negligible.
+_CHUNKS_PER_WORKER = 8
 
 
 def _as_batch(name: str, value: _T | Sequence[_T], kind: type) -> list[_T]:
@@ -44,6 +53,38 @@ def _integer_ratio(name: str, value: float, unit: float, what: str, scale: float
             f"got ({name})/{what} = {value / unit:.12g}"
         )
     return count
+
+
+def _check_same_kernel(name: str, plant: ELPlant, first: ELPlant) -> None:
+    """A compiled batch runs one kernel for all its elements."""
+    if plant.compiled and plant.kernel_handle is not first.kernel_handle:
+        raise ValueError(
+            f"{name} has another compiled kernel than element 0; a batch runs one kernel "
+            "(split it into one simulate call per kernel)"
+        )
+
+
+def _metrics_from_tick(
+    metrics_from: float | None, t0: float, t1: float, dt: float, steps_per_tick: int, n_ticks: int
+) -> int:
+    """First tick counted by the running metrics: the first one at or after ``metrics_from``."""
+    if metrics_from is None:
+        return 0
+    start = float(finite_array("metrics_from", metrics_from, ndim=0))
+    if not t0 <= start <= t1:
+        raise ValueError(
+            f"metrics_from must lie in [t0, t1] = [{t0:g}, {t1:g}] s; got {metrics_from!r}"
+        )
+    return min(n_ticks, math.ceil((start - t0) / (steps_per_tick * dt) - 1e-9))
+
+
+def _workers(workers: int | None) -> int:
+    """Thread count: ``workers`` checked, or the cores this process may use."""
+    if workers is None:
+        return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1)
+    if isinstance(workers, bool) or not isinstance(workers, int | np.integer) or workers < 1:
+        raise ValueError(f"workers must be a positive integer (threads); got {workers!r}")
+    return int(workers)
 
 
 def _physical_memory() -> float:
@@ -85,7 +126,10 @@ def simulate(
     t0: float = 0.0,
     u_init: np.ndarray | None = None,
     record_every: int = 1,
+    trajectories: bool = True,
+    metrics_from: float | None = None,
     divergence_bound: float = 1e6,
+    workers: int | None = None,
     progress: bool = False,
 ) -> SimResult:
     """Simulate ``M(q) q̈ + N(q, q̇) = G(q) τ(t - h(t))`` under a sampled controller.
@@ -118,9 +162,20 @@ def simulate(
         Input applied before the first command arrives (zero by default).
     record_every : int
         Record every ``record_every``-th controller tick.
+    trajectories : bool
+        Record trajectories (every ``record_every``-th tick). With False nothing is recorded and
+        memory does not grow with ``t1 - t0``: the result carries only the running metrics
+        (:attr:`SimResult.metrics`), which are always accumulated at every tick.
+    metrics_from : float, optional
+        Start of the running metrics' window, seconds (``t0`` by default), e.g. to skip a
+        transient; it must be before ``t1``.
     divergence_bound : float
         A run whose state leaves ``max |x_i| <= divergence_bound`` (or becomes non-finite) stops
         with status ``diverged``; the rest of the batch goes on.
+    workers : int, optional
+        Threads that run the batch in parallel (compiled plants only; all cores by default).
+        Each run is computed by one thread exactly as it would be alone, so results do not
+        depend on ``workers``.
     progress : bool
         Show a progress bar over the batch.
 
@@ -156,6 +211,7 @@ def simulate(
             raise ValueError(
                 f"plant[{i}] must be a {type(first_plant).__name__} with n = {n}, m = {m}"
             )
+        _check_same_kernel(f"plant[{i}]", item, first_plant)
     for i, item in enumerate(controllers):
         if item.step_kernel is not first_controller.step_kernel or type(item.model) is not type(
             first_controller.model
@@ -168,6 +224,7 @@ def simulate(
             raise ValueError(
                 f"controller[{i}] has n = {item.n}, m = {item.m}; the plant has n = {n}, m = {m}"
             )
+        _check_same_kernel(f"controller[{i}].model", item.model, first_controller.model)
     if reference.n != n:
         raise ValueError(f"reference has n = {reference.n} coordinates; the plant has n = {n}")
 
@@ -199,14 +256,20 @@ def simulate(
             f"max |x0| = {np.max(np.abs(states0)):g}"
         )
 
-    records = n_ticks // record_every + 1
+    if not isinstance(trajectories, bool | np.bool_):
+        raise TypeError(f"trajectories must be True or False; got {trajectories!r}")
+    metrics_from_tick = _metrics_from_tick(metrics_from, t0, t1, dt, steps_per_tick, n_ticks)
+    workers = _workers(workers)
+
+    records = n_ticks // record_every + 1 if trajectories else 0
     state_size = first_controller.state_size
     recorded_state = len(first_controller.state_names)
     size = batch * records * (2 * n + 2 * m + 1 + recorded_state) * 8
     if size > _physical_memory():
         raise ValueError(
             f"recording {batch} run(s) x {records} samples needs {size / 2**30:.3g} GiB, more "
-            "than this machine's memory; raise record_every, shorten t1 - t0 or split the batch"
+            "than this machine's memory; raise record_every, pass trajectories=False (running "
+            "metrics only), shorten t1 - t0 or split the batch"
         )
     try:
         states = np.full((batch, records, 2 * n), np.nan)
@@ -217,21 +280,25 @@ def simulate(
     except MemoryError:
         raise ValueError(
             f"recording {batch} run(s) x {records} samples needs {size / 2**30:.3g} GiB, more "
-            "than is free; raise record_every, shorten t1 - t0 or split the batch"
+            "than is free; raise record_every, pass trajectories=False (running metrics only), "
+            "shorten t1 - t0 or split the batch"
         ) from None
+    sums = np.zeros((batch, accumulator_size(n)))
     status = np.zeros(batch, dtype=np.int64)
     t_stop = np.zeros(batch)
 
     compiled = first_plant.compiled and first_controller.compiled
-    runner = run_batch_compiled if compiled else run_batch
+    if not compiled:
+        warnings.warn(PythonFallbackWarning.describe(first_plant, first_controller), stacklevel=2)
 
     def handles(b: int) -> tuple:
-        """Kernel ids (compiled) or element ``b``'s own callables (plain Python)."""
+        """Kernel ids or a user's compiled kernels (compiled), or element ``b``'s own callables
+        (plain Python)."""
         plant_b, controller_b = plants[b], controllers[b]
         if compiled:
             return (
-                plant_b.kernel_id,
-                controller_b.model.kernel_id,
+                plant_b.kernel_handle,
+                controller_b.model.kernel_handle,
                 reference.kernel_id,
                 controller_b.kernel_id,
             )
@@ -259,17 +326,20 @@ def simulate(
         dt,
         steps_per_tick,
         n_ticks,
-        int(record_every),
+        int(record_every) if trajectories else 0,
         divergence_bound,
+        metrics_from_tick,
     )
-    outputs = (states, commands, applied, delay_records, controller_states)
-    # Compiled kernels are shared by the whole batch; Python callables may differ per element,
-    # so the plain-Python engine runs one element at a time.
-    if compiled and not progress:
-        chunks = [np.arange(batch)]
+    outputs = (states, commands, applied, delay_records, controller_states, sums)
+
+    if not compiled:
+        runner = run_batch
+    elif first_plant.kernel_id is not None and first_controller.model.kernel_id is not None:
+        runner = run_batch_compiled
     else:
-        chunks = np.array_split(np.arange(batch), batch if not compiled else min(batch, 100))
-    for chunk in tqdm(chunks, desc="simulate", unit="chunk", disable=not progress):
+        runner = run_batch_uncached
+
+    def run_chunk(chunk: np.ndarray) -> int:
         part = slice(chunk[0], chunk[-1] + 1)
         runner(
             handles(int(chunk[0])),
@@ -279,6 +349,30 @@ def simulate(
             status[part],
             t_stop[part],
         )
+        return chunk.size
+
+    # Compiled kernels are shared by the whole batch and release the GIL: chunks run on
+    # `workers` threads. Python callables may differ per element and hold the GIL, so the
+    # plain-Python engine runs one element at a time.
+    if compiled:
+        pieces = min(batch, workers * _CHUNKS_PER_WORKER if (progress or workers > 1) else 1)
+    else:
+        pieces = batch
+    chunks = np.array_split(np.arange(batch), pieces)
+    with (
+        warnings.catch_warnings(),
+        tqdm(total=batch, desc="simulate", unit="run", disable=not progress) as bar,
+    ):
+        # numba calls a user's kernel passed as an argument an experimental feature; it is
+        # what CompiledPlant is for, and tests/test_speed_paths.py pins its results.
+        warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
+        if compiled and workers > 1 and len(chunks) > 1:
+            with ThreadPoolExecutor(max_workers=workers) as pool:
+                for done in pool.map(run_chunk, chunks):
+                    bar.update(done)
+        else:
+            for chunk in chunks:
+                bar.update(run_chunk(chunk))
 
     times = t0 + (np.arange(records) * record_every * steps_per_tick) * dt
     for b in np.flatnonzero(status != 0):
@@ -292,6 +386,8 @@ def simulate(
         "dt": dt,
         "T_c": T_c,
         "record_every": int(record_every),
+        "trajectories": bool(trajectories),
+        "metrics_from": t0 + metrics_from_tick * steps_per_tick * dt,
         "divergence_bound": divergence_bound,
         "compiled": compiled,
         "plant": [p.to_spec() for p in plants]
@@ -315,5 +411,6 @@ def simulate(
         controller_state_names=first_controller.state_names,
         status=status,
         t_stop=t_stop,
+        metrics=finish_metrics(sums, status == 0),
         settings=record,
     )

@@ -1,0 +1,30 @@
+"""The message shown when a simulation cannot run compiled."""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["PythonFallbackWarning"]
+
+
+class PythonFallbackWarning(UserWarning):
+    """The closed loop runs as plain Python (a plant or model given as Python callables).
+
+    Results are the same as compiled (to rounding), but each run is one to two orders of
+    magnitude slower. Write the plant's terms as a numba-compiled function and wrap it in
+    :class:`~delaytrack.plants.CompiledPlant` to run at the built-in plants' speed.
+    """
+
+    @classmethod
+    def describe(cls, plant: Any, controller: Any) -> PythonFallbackWarning:
+        slow = [
+            f"{role} {type(item).__name__}"
+            for role, item in (("plant", plant), ("nominal model", controller.model))
+            if not item.compiled
+        ]
+        return cls(
+            f"simulate() runs as plain Python because the {' and the '.join(slow)} "
+            "is given as Python callables (about 100x slower than compiled). For compiled speed, "
+            "write terms(t, q, qdot, params, M, N, G) with @numba.njit and wrap it in "
+            "delaytrack.plants.CompiledPlant (see docs/performance.md)."
+        )

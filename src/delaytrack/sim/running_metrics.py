@@ -1,0 +1,63 @@
+"""Tracking and effort metrics accumulated inside the run, at every controller tick.
+
+A sweep of thousands of runs needs the metrics of SPEC §6, not the trajectories: the engine adds
+each tick's tracking error ``e1 = q_d - q`` and command to a few sums per run, so memory does not
+grow with the number of steps. Over the ticks ``k`` with ``t_k >= t_from`` (``K`` of them):
+
+    AE_j  = (1/K) Σ_k |e1_j(t_k)|          RMS_j = sqrt((1/K) Σ_k e1_j(t_k)²)
+    MAX_j = max_k |e1_j(t_k)|              TV    = Σ_k Σ_j |command_j(t_{k+1}) - command_j(t_k)|
+
+These are the definitions of :mod:`delaytrack.metrics` taken over every tick, so they equal
+``metrics_table`` of a result recorded with ``record_every = 1`` (up to the order of the sums).
+Layout of one run's accumulator (``3n + 2`` floats): ``[Σ|e1| (n), Σe1² (n), max|e1| (n), TV,
+K]``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from delaytrack._jit import inline_kernel
+
+__all__ = ["accumulate_tick", "accumulator_size", "finish_metrics"]
+
+
+def accumulator_size(n: int) -> int:
+    """Floats per run of the accumulator for ``n`` coordinates."""
+    return 3 * n + 2
+
+
+@inline_kernel
+def accumulate_tick(sums, qd, q, command, previous_command, first):
+    """Add tick ``(q_d, q, command)`` to ``sums``; ``first`` when it is the first tick counted."""
+    n = q.shape[0]
+    for j in range(n):
+        error = abs(qd[j] - q[j])
+        sums[j] += error
+        sums[n + j] += error * error
+        sums[2 * n + j] = max(sums[2 * n + j], error)
+    if not first:
+        variation = 0.0
+        for j in range(command.shape[0]):
+            variation += abs(command[j] - previous_command[j])
+        sums[3 * n] += variation
+    sums[3 * n + 1] += 1.0
+
+
+def finish_metrics(sums: np.ndarray, ok: np.ndarray) -> dict[str, np.ndarray]:
+    """``{"ae", "rms", "max" (B, n), "tv" (B,)}`` from accumulators ``sums (B, 3n + 2)``.
+
+    Runs that are not ``ok`` get NaN, as in :mod:`delaytrack.metrics` (their sums describe a
+    shorter experiment that ended in a blow-up).
+    """
+    n = (sums.shape[1] - 2) // 3
+    count = sums[:, 3 * n + 1 : 3 * n + 2]
+    metrics = {
+        "ae": sums[:, :n] / count,
+        "rms": np.sqrt(sums[:, n : 2 * n] / count),
+        "max": sums[:, 2 * n : 3 * n].copy(),
+        "tv": sums[:, 3 * n].copy(),
+    }
+    for values in metrics.values():
+        values[~ok] = np.nan
+    return metrics

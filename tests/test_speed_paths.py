@@ -1,0 +1,201 @@
+"""The fast paths of issue 4 agree with the plain ones.
+
+* running metrics (accumulated at every tick) == :func:`metrics_table` of a full record;
+* ``trajectories=False`` gives the same metrics without any trajectory;
+* threads: a batch split over workers == the same batch on one thread, bit for bit;
+* a user's numba-compiled plant (:class:`CompiledPlant`) == the built-in plant it re-implements,
+  and a plant of Python callables runs the same engine with a :class:`PythonFallbackWarning`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numba import njit
+
+from delaytrack.controllers import AROLC, OuterLoop
+from delaytrack.delays import AbsSineDelay, ConstantDelay, RandomDelay
+from delaytrack.experiments.paper import AROLC_GAINS
+from delaytrack.metrics import mean_absolute_error, metrics_table
+from delaytrack.plants import CallablePlant, CompiledPlant, TwoLinkArm
+from delaytrack.plants.robot import NominalRobot, PayloadRobot, initial_state, paper_reference
+from delaytrack.reference import SinusoidalReference
+from delaytrack.sim import simulate
+from delaytrack.sim.fallback import PythonFallbackWarning
+
+ARM_REFERENCE = SinusoidalReference([0.0, 0.0], amplitude=[0.8, 0.5], frequency=[0.5, 0.7])
+METRIC_COLUMNS = ["ae_q1", "ae_q2", "rms_q1", "rms_q2", "max_q1", "max_q2", "tv"]
+
+
+def arm_controller(plant: TwoLinkArm | None = None) -> AROLC:
+    nominal = plant or TwoLinkArm(p1=2.8, p2=0.16, p3=0.19, fd1=0.0, fd2=0.0)
+    return AROLC(nominal, K1=4.0, K2=4.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
+
+
+def robot_batch(size: int) -> dict:
+    """``size`` robot runs that differ in delay profile and payload placements."""
+    reference = paper_reference("consistent")
+    return dict(
+        plant=[PayloadRobot(seed=seed, duration=3.0) for seed in range(size)],
+        controller=AROLC(NominalRobot(), **AROLC_GAINS),
+        delay=[
+            RandomDelay(0.02, 0.13, max_rate=0.5, duration=3.0, seed=seed) for seed in range(size)
+        ],
+        x0=initial_state(reference),
+        reference=reference,
+        t1=3.0,
+        dt=1e-3,
+        T_c=1e-2,
+    )
+
+
+def test_running_metrics_equal_the_metrics_of_the_full_record() -> None:
+    settings = robot_batch(3)
+    for start in (None, 1.25):
+        result = simulate(**settings, metrics_from=start, workers=1)
+        offline = metrics_table(result, ["x", "y", "phi", "r", "l"], t_from=start)
+        for j, name in enumerate(["x", "y", "phi", "r", "l"]):
+            for key in ("ae", "rms", "max"):
+                np.testing.assert_allclose(
+                    result.metrics[key][:, j], offline[f"{key}_{name}"], rtol=1e-12, atol=0
+                )
+        np.testing.assert_allclose(result.metrics["tv"], offline["tv"], rtol=1e-12, atol=0)
+        assert np.all(result.metrics["ae"] > 0.0)
+
+
+def test_metrics_from_counts_the_ticks_at_or_after_it() -> None:
+    settings = robot_batch(1)
+    whole = simulate(**settings, metrics_from=0.0)
+    late = simulate(**settings, metrics_from=2.0)
+    np.testing.assert_array_equal(whole.metrics["ae"], simulate(**settings).metrics["ae"])
+    expected = mean_absolute_error(whole, t_from=2.0)
+    np.testing.assert_allclose(late.metrics["ae"], expected, rtol=1e-12, atol=0)
+    assert late.settings["metrics_from"] == 2.0
+
+
+def test_without_trajectories_the_metrics_are_the_same_and_nothing_is_recorded() -> None:
+    settings = robot_batch(2)
+    full = simulate(**settings)
+    lean = simulate(**settings, trajectories=False)
+    assert not lean.has_trajectories and lean.x.shape == (2, 0, 10)
+    for key in ("ae", "rms", "max", "tv"):
+        np.testing.assert_array_equal(lean.metrics[key], full.metrics[key])
+    np.testing.assert_array_equal(lean.status, full.status)
+    table = metrics_table(lean, ["x", "y", "phi", "r", "l"])
+    np.testing.assert_array_equal(table["ae_x"], full.metrics["ae"][:, 0])
+    with pytest.raises(ValueError, match="no recorded trajectories"):
+        mean_absolute_error(lean)
+    with pytest.raises(ValueError, match="metrics_from"):
+        metrics_table(lean, t_from=1.0)
+
+
+def test_a_diverged_run_has_nan_running_metrics() -> None:
+    arm = TwoLinkArm()
+    unstable = AROLC(arm, K1=400.0, K2=40.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
+    result = simulate(
+        arm,
+        unstable,
+        [ConstantDelay(0.0), ConstantDelay(0.2)],
+        np.zeros(4),
+        reference=ARM_REFERENCE,
+        t1=5.0,
+        dt=1e-3,
+        T_c=2e-3,
+        trajectories=False,
+    )
+    assert result.status_names == ["ok", "diverged"]
+    assert np.all(np.isfinite(result.metrics["ae"][0]))
+    assert np.all(np.isnan(result.metrics["ae"][1])) and np.isnan(result.metrics["tv"][1])
+
+
+@pytest.mark.parametrize("workers", [2, 3])
+def test_threads_give_the_results_of_one_thread_bit_for_bit(workers: int) -> None:
+    settings = robot_batch(5)
+    single = simulate(**settings, workers=1)
+    threaded = simulate(**settings, workers=workers, progress=True)
+    for name in ("x", "commands", "applied", "controller_state", "status", "t_stop"):
+        np.testing.assert_array_equal(getattr(threaded, name), getattr(single, name))
+    for key in single.metrics:
+        np.testing.assert_array_equal(threaded.metrics[key], single.metrics[key])
+
+
+@pytest.mark.parametrize(
+    ("override", "message"),
+    [
+        ({"workers": 0}, r"workers must be a positive integer \(threads\); got 0"),
+        ({"workers": 1.5}, r"workers must be a positive integer"),
+        ({"metrics_from": 3.5}, r"metrics_from must lie in \[t0, t1\] = \[0, 3\] s; got 3\.5"),
+        ({"metrics_from": float("nan")}, r"metrics_from must be finite"),
+    ],
+)
+def test_bad_speed_settings_are_refused(override: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        simulate(**{**robot_batch(1), **override})
+
+
+def test_trajectories_must_be_a_bool() -> None:
+    with pytest.raises(TypeError, match="trajectories must be True or False; got 'no'"):
+        simulate(**robot_batch(1), trajectories="no")
+
+
+# --- user plants ------------------------------------------------------------------------------
+
+
+@njit
+def user_arm_terms(t, q, qdot, params, mass, nonlinear, input_map):
+    """The two-link arm of :mod:`delaytrack.plants.two_link_arm`, written as a user would."""
+    p1, p2, p3, fd1, fd2 = params[0], params[1], params[2], params[3], params[4]
+    c2 = math.cos(q[1])
+    s2 = math.sin(q[1])
+    mass[0, 0] = p1 + 2.0 * p3 * c2
+    mass[0, 1] = p2 + p3 * c2
+    mass[1, 0] = p2 + p3 * c2
+    mass[1, 1] = p2
+    nonlinear[0] = -p3 * s2 * (2.0 * qdot[0] * qdot[1] + qdot[1] * qdot[1]) + fd1 * qdot[0]
+    nonlinear[1] = p3 * s2 * qdot[0] * qdot[0] + fd2 * qdot[1]
+    input_map[:, :] = 0.0
+    input_map[0, 0] = 1.0
+    input_map[1, 1] = 1.0
+
+
+@pytest.mark.slow  # compiles the engine around the user's kernel (about a minute)
+def test_a_compiled_user_plant_runs_compiled_and_equals_the_built_in_plant() -> None:
+    arm = TwoLinkArm()
+    user = CompiledPlant(2, 2, user_arm_terms, arm.params, name="user arm")
+    settings = dict(reference=ARM_REFERENCE, t1=2.0, dt=1e-3, T_c=2e-3)
+    delays = [AbsSineDelay.S1(), ConstantDelay(0.05)]
+    built_in = simulate(arm, arm_controller(), delays, np.zeros(4), **settings)
+    mine = simulate(user, arm_controller(), delays, np.zeros(4), **settings)
+    assert mine.settings["compiled"]
+    np.testing.assert_allclose(mine.x, built_in.x, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(mine.commands, built_in.commands, rtol=0, atol=1e-12)
+
+
+def test_a_compiled_user_plant_is_checked_at_rest() -> None:
+    with pytest.raises(TypeError, match=r"decorate it with @numba.njit\); got function"):
+        CompiledPlant(2, 2, user_arm_terms.py_func, TwoLinkArm().params)
+    with pytest.raises(ValueError, match="positive definite M"):
+        CompiledPlant(2, 2, user_arm_terms, [-1.0, 0.1, 0.1, 0.0, 0.0])
+    with pytest.raises(ValueError, match="m must be a positive integer; got 0"):
+        CompiledPlant(2, 0, user_arm_terms, TwoLinkArm().params)
+
+
+def test_a_python_plant_warns_that_it_runs_as_plain_python() -> None:
+    arm = TwoLinkArm()
+    python_arm = CallablePlant(
+        2, lambda q: arm.mass_matrix(q)[0], lambda q, qdot: arm.nonlinear_terms(q, qdot)[0]
+    )
+    with pytest.warns(PythonFallbackWarning, match=r"plant CallablePlant .*CompiledPlant"):
+        result = simulate(
+            python_arm,
+            OuterLoop(arm, K1=4.0, K2=4.0),
+            ConstantDelay(0.01),
+            np.zeros(4),
+            reference=ARM_REFERENCE,
+            t1=0.1,
+            dt=1e-3,
+            T_c=2e-3,
+        )
+    assert not result.settings["compiled"]

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from delaytrack._jit import inline_kernel
+from delaytrack._jit import hot_inline_kernel, inline_kernel
 from delaytrack._small_linalg import solve_in_place
 from delaytrack.plants.dispatch import call_terms
 
@@ -31,7 +31,7 @@ def rhs_scratch(n, m):
     return np.empty((n, n)), np.empty(n), np.empty((n, m))
 
 
-@inline_kernel
+@hot_inline_kernel
 def el_rhs(terms, t, q, qdot, u, params, qddot, scratch):
     """Acceleration of ``M(q) q̈ + N(q, q̇) = G(q) u``: ``q̈ = M(q)^{-1} (G(q) u - N(q, q̇))``.
 

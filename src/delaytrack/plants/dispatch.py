@@ -45,7 +45,7 @@ def call_terms(terms, t, q, qdot, params, mass, nonlinear, input_map):
     terms(t, q, qdot, params, mass, nonlinear, input_map)
 
 
-@overload(call_terms)
+@overload(call_terms, inline="always")
 def _call_terms_compiled(terms, t, q, qdot, params, mass, nonlinear, input_map):
     if isinstance(terms, types.Integer):
         from delaytrack.plants.linear import linear_terms

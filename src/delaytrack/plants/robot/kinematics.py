@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from delaytrack._jit import kernel
+from delaytrack._jit import hot_kernel, kernel
 
 __all__ = [
     "constraint_matrix",
@@ -43,7 +43,7 @@ __all__ = [
 ]
 
 
-@kernel
+@hot_kernel
 def kinematic_map_entries(c, s, R, L, d):
     """The entries of rows x, y, φ of ``S(q)`` that vary: ``(S_00, S_01, S_10, S_11, S_20)``.
 

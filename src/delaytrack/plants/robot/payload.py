@@ -33,7 +33,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import kernel
+from delaytrack._jit import hot_kernel
 from delaytrack._validation import finite_array, positive_scalar
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import ROBOT_PAYLOAD
@@ -56,7 +56,7 @@ _COUNT = TRUTH_PARAMS + 4
 _PLACEMENTS = TRUTH_PARAMS + 5
 
 
-@kernel
+@hot_kernel
 def active_placement(t, params):
     """Index of the placement in force at ``t``, or -1 when the robot is unloaded."""
     first_on = params[_FIRST_ON]
@@ -73,7 +73,7 @@ def active_placement(t, params):
     return -1
 
 
-@kernel
+@hot_kernel
 def robot_payload_terms(t, q, qdot, params, mass, nonlinear, input_map):
     """Terms kernel of :class:`PayloadRobot`: the truth robot with the payload in force at ``t``."""
     mass_b = params[3]

@@ -35,7 +35,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import kernel
+from delaytrack._jit import hot_kernel, kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import ROBOT_TRUTH
@@ -61,7 +61,7 @@ DEFAULT_BAUMGARTE_GAIN = 20.0
 TRUTH_PARAMS = 12
 
 
-@kernel
+@hot_kernel
 def reduced_terms_values(qdot, params, mass_b, s_x, s_y, inertia_a):
     """``M_r``, ``n_r`` and ``f`` of the module docstring at ``η = q̇[3:5]``, as scalars
     ``(M_r00, M_r01, M_r11, n_r0, n_r1, f_0, f_1)`` (``M_r`` is symmetric)."""
@@ -98,7 +98,7 @@ def reduced_terms_kernel(qdot, params, mass_b, s_x, s_y, inertia_a, reduced_mass
     reduced_mass[1, 1] = m11
 
 
-@kernel
+@hot_kernel
 def constrained_terms(q, qdot, params, mass_b, s_x, s_y, inertia_a, mass, nonlinear, input_map):
     """``M = I``, ``N = -a``, ``G = b`` of the constrained robot (module docstring) with the
     rigid-body aggregates given (so that a payload can change them). Allocation-free: it runs at
@@ -153,7 +153,7 @@ def constrained_terms(q, qdot, params, mass_b, s_x, s_y, inertia_a, mass, nonlin
     input_map[4, 1] = i11
 
 
-@kernel
+@hot_kernel
 def robot_truth_terms(t, q, qdot, params, mass, nonlinear, input_map):
     """Terms kernel of :class:`WheeledRobot`; ``params`` as :data:`TRUTH_PARAMS` describes."""
     constrained_terms(

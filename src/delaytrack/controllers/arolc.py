@@ -53,10 +53,22 @@ def adaptive_gain_rate(c_hat, s, s_previous, has_previous, gamma):
     """``ĉ'`` of the adaptive law (ATRC) with ``sᵀṡ`` replaced by ``sᵀ(s - s_previous)``."""
     if c_hat <= gamma:
         return gamma
-    norm_s = math.sqrt(np.sum(s * s))
-    if has_previous and np.sum(s * (s - s_previous)) > 0.0:
+    norm_s = math.sqrt(_dot(s, s))
+    increasing = 0.0
+    for i in range(s.shape[0]):
+        increasing += s[i] * (s[i] - s_previous[i])
+    if has_previous and increasing > 0.0:
         return norm_s
     return -norm_s
+
+
+@kernel
+def _dot(a, b):
+    """``aᵀb``, summed in index order."""
+    total = 0.0
+    for i in range(a.shape[0]):
+        total += a[i] * b[i]
+    return total
 
 
 @kernel
@@ -75,10 +87,13 @@ def arolc_step(
     gamma = params[4 * n * n + 2]
     error = tracking_errors(q, qdot, qd, qd_dot)
     s = matvec(BtP, error)
-    norm_s = math.sqrt(np.sum(s * s))
+    norm_s = math.sqrt(_dot(s, s))
     c_hat = state[_C_HAT]
     # u = û + Δu with Δu = α ĉ s / max(‖s‖, ε)  (paper eqs. (control input), (delta u)).
-    u = auxiliary_input(params, error, qd_ddot) + alpha * c_hat / max(norm_s, epsilon) * s
+    u = auxiliary_input(params, error, qd_ddot)
+    gain = alpha * c_hat / max(norm_s, epsilon)
+    for i in range(n):
+        u[i] += gain * s[i]
     computed_torque_command(model_terms, model_params, t, q, qdot, u, command)
     rate = adaptive_gain_rate(c_hat, s, state[_S_PREVIOUS:], state[_HAS_PREVIOUS] != 0.0, gamma)
     c_next = c_hat + T_c * rate

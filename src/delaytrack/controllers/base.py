@@ -14,6 +14,7 @@ delay); the predictor baselines need it by assumption (:attr:`Controller.needs_d
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from typing import Any
@@ -21,7 +22,6 @@ from typing import Any
 import numpy as np
 
 from delaytrack._jit import inline_kernel
-from delaytrack._small_linalg import matvec
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import call_command_map, call_terms
@@ -43,9 +43,15 @@ def tracking_errors(q, qdot, qd, qd_dot):
 def auxiliary_input(params, error, qd_ddot):
     """``û = q̈_d + K2 ė1 + K1 e1`` (paper eq. (aux)); ``params`` starts with K1, K2 (row-major)."""
     n = qd_ddot.shape[0]
-    K1 = params[: n * n].reshape((n, n))
-    K2 = params[n * n : 2 * n * n].reshape((n, n))
-    return qd_ddot + matvec(K2, error[n:]) + matvec(K1, error[:n])
+    u = np.empty(n)
+    for i in range(n):
+        damping = 0.0
+        stiffness = 0.0
+        for j in range(n):
+            damping += params[n * n + i * n + j] * error[n + j]
+            stiffness += params[i * n + j] * error[j]
+        u[i] = qd_ddot[i] + damping + stiffness
+    return u
 
 
 @inline_kernel
@@ -61,11 +67,19 @@ def computed_torque_command(model_terms, model_params, t, q, qdot, u, command):
     nonlinear = np.empty(n)
     input_map = np.empty((n, command.shape[0]))
     call_terms(model_terms, t, q, qdot, model_params, mass, nonlinear, input_map)
-    tau = matvec(mass, u) + nonlinear
-    if not (np.all(np.isfinite(tau)) and np.all(np.isfinite(input_map))):
+    finite = True
+    for i in range(n):
+        total = 0.0
+        for j in range(n):
+            total += mass[i, j] * u[j]
+        nonlinear[i] += total  # τ, in place of N̂
+        finite = finite and math.isfinite(nonlinear[i])
+        for j in range(command.shape[0]):
+            finite = finite and math.isfinite(input_map[i, j])
+    if not finite:
         command[:] = np.nan  # the simulator stops the run as diverged
         return
-    call_command_map(model_terms, q, model_params, input_map, tau, command)
+    call_command_map(model_terms, q, model_params, input_map, nonlinear, command)
 
 
 #: Largest accepted condition number of the nominal input map at q = 0.

@@ -11,10 +11,12 @@
 it and stays plain Python otherwise (the path of user plants given as Python callables).
 
 :data:`hot_kernel` and :data:`hot_inline_kernel` are the same, but inlined into their compiled
-callers at the numba IR level (``inline="always"``). They are for the functions on the plant's
-right-hand side, evaluated four times per RK4 step: a numba call passes arrays by reference
-count (an atomic increment and decrement per array argument and call), which cost more than the
-arithmetic of the robot's right-hand side; inlined, the counts cancel at compile time.
+callers at the numba IR level (``inline="always"``). They are for the innermost loop: the RK4
+sub-step, the plant's right-hand side (evaluated four times per step) and the controller's model.
+A numba call passes arrays by reference count (an atomic increment and decrement per array
+argument and call), which cost more than the arithmetic of the robot's right-hand side; inlined,
+the counts cancel at compile time. The delay kernels stay out-of-line: inlined (numba 0.68) they
+broke the applied-input test of the two-link arm.
 """
 
 from __future__ import annotations
@@ -30,4 +32,12 @@ KERNEL_OPTIONS = {"cache": True, "error_model": "numpy"}
 kernel = njit(**KERNEL_OPTIONS)
 inline_kernel = register_jitable(error_model=KERNEL_OPTIONS["error_model"])
 hot_kernel = njit(**KERNEL_OPTIONS, inline="always")
-hot_inline_kernel = register_jitable(error_model=KERNEL_OPTIONS["error_model"], inline="always")
+
+
+def hot_inline_kernel(function):
+    """:data:`inline_kernel`, inlined into its compiled callers.
+
+    A fresh decorator per function: ``register_jitable`` pops ``inline`` from its options on first
+    use, so a shared one would inline only the first function it decorates.
+    """
+    return register_jitable(error_model=KERNEL_OPTIONS["error_model"], inline="always")(function)

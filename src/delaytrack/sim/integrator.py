@@ -75,7 +75,7 @@ def _rk4_substep(plant_terms, plant_params, t, x, u, length, work):
         x[i] += sixth * (slopes[0, i] + 2.0 * slopes[1, i] + 2.0 * slopes[2, i] + slopes[3, i])
 
 
-@inline_kernel
+@hot_inline_kernel
 def _applied_slot(delay_kind, delay_params, t, newest, capacity, t0, dt, steps_per_tick):
     """Ring slot of the command applied at ``t`` (-1 for ``u_init``, -2 beyond the history)."""
     k = latest_tick_index(t - delay_value(delay_kind, delay_params, t), t0, dt, steps_per_tick)

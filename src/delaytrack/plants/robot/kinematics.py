@@ -67,7 +67,7 @@ def kinematic_map_kernel(phi, R, L, d, S):
     S[4, 1] = 1.0
 
 
-@kernel
+@hot_kernel
 def robot_command_map(q, params, tau, command):
     """Wheel torques ``command = S(q)ᵀ τ``; ``params`` starts with ``[R, L, d]``.
 

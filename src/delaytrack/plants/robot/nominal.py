@@ -31,7 +31,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import kernel
+from delaytrack._jit import hot_kernel
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import ROBOT_NOMINAL
 from delaytrack.plants.robot.body import RobotBody
@@ -39,7 +39,7 @@ from delaytrack.plants.robot.body import RobotBody
 __all__ = ["NominalRobot", "robot_nominal_terms"]
 
 
-@kernel
+@hot_kernel
 def robot_nominal_terms(t, q, qdot, params, mass, nonlinear, input_map):
     """Fill ``M̂``, ``N̂``, ``G``; ``params = [R, L, d, M_b, s_x, s_y, I_A, I_w]``."""
     d = params[2]

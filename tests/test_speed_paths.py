@@ -4,7 +4,8 @@
 * ``trajectories=False`` gives the same metrics without any trajectory;
 * threads: a batch split over workers == the same batch on one thread, bit for bit;
 * a user's numba-compiled plant (:class:`CompiledPlant`) == the built-in plant it re-implements,
-  and a plant of Python callables runs the same engine with a :class:`PythonFallbackWarning`.
+  and a plant of Python callables runs the same engine with a :class:`PythonFallbackWarning`;
+* the reference path (``engine="python"``: the engine and kernels as plain Python) == compiled.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from delaytrack.plants.robot import NominalRobot, PayloadRobot, initial_state, p
 from delaytrack.reference import SinusoidalReference
 from delaytrack.sim import simulate
 from delaytrack.sim.fallback import PythonFallbackWarning
+from test_golden import golden
 
 ARM_REFERENCE = SinusoidalReference([0.0, 0.0], amplitude=[0.8, 0.5], frequency=[0.5, 0.7])
 METRIC_COLUMNS = ["ae_q1", "ae_q2", "rms_q1", "rms_q2", "max_q1", "max_q2", "tv"]
@@ -199,3 +201,45 @@ def test_a_python_plant_warns_that_it_runs_as_plain_python() -> None:
             T_c=2e-3,
         )
     assert not result.settings["compiled"]
+
+
+# --- the reference path ----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", golden.CONTROLLERS)
+def test_the_reference_python_engine_equals_the_compiled_one(name: str) -> None:
+    """Every controller on the payload robot (the golden cases), through a payload switch."""
+    case = golden.build_case(name)
+    settings = dict(reference=case.pop("reference"), t1=1.5, dt=1e-3, T_c=golden.T_C)
+    compiled = simulate(**case, **settings, engine="compiled")
+    reference = simulate(**case, **settings, engine="python")
+    assert compiled.settings["compiled"] and not reference.settings["compiled"]
+    for key in ("x", "commands", "applied", "controller_state"):
+        np.testing.assert_allclose(
+            getattr(reference, key), getattr(compiled, key), rtol=0, atol=1e-12, err_msg=key
+        )
+    for key in compiled.metrics:
+        np.testing.assert_allclose(reference.metrics[key], compiled.metrics[key], rtol=1e-12)
+
+
+def test_engine_names_and_the_compiled_engine_without_compiled_kernels_are_refused() -> None:
+    case = golden.build_case("outer_loop")
+    settings = dict(reference=case.pop("reference"), t1=0.1, dt=1e-3, T_c=golden.T_C)
+    with pytest.raises(ValueError, match=r"engine must be one of \['auto', 'compiled', 'python'\]"):
+        simulate(**case, **settings, engine="fast")
+    arm = TwoLinkArm()
+    python_arm = CallablePlant(
+        2, lambda q: arm.mass_matrix(q)[0], lambda q, qdot: arm.nonlinear_terms(q, qdot)[0]
+    )
+    with pytest.raises(ValueError, match="engine='compiled' needs compiled kernels"):
+        simulate(
+            python_arm,
+            OuterLoop(arm, K1=4.0, K2=4.0),
+            ConstantDelay(0.01),
+            np.zeros(4),
+            reference=ARM_REFERENCE,
+            t1=0.1,
+            dt=1e-3,
+            T_c=2e-3,
+            engine="compiled",
+        )

@@ -597,8 +597,8 @@ def run_to_folder(
     Files (each written atomically):
 
     - ``scenario.toml``: the scenario as run (:meth:`Scenario.resolved`; loads back unchanged);
-    - ``trajectories.parquet`` and/or ``trajectories.csv``: :meth:`SimResult.to_frame`;
     - ``metrics.csv``: :func:`delaytrack.metrics.metrics_table` (AE, RMS, max error, TV);
+    - ``trajectories.parquet`` and/or ``trajectories.csv``: :meth:`SimResult.to_frame`;
     - ``figures/{tracking,error,commands,delay[,c_hat]}.{png,svg}``.
 
     Parameters
@@ -626,9 +626,10 @@ def run_to_folder(
     folder = Path(folder)
     files = [folder / "scenario.toml"]
     resolved.to_toml(files[0])
+    # The metrics first: they are the result a user waits for; trajectories and figures follow.
+    files.append(write_frame(metrics_table(result, label=resolved.name), folder / "metrics.csv"))
     frame = result.to_frame()
     for fmt in formats:
         files.append(write_frame(frame, folder / f"trajectories.{fmt}"))
-    files.append(write_frame(metrics_table(result, label=resolved.name), folder / "metrics.csv"))
     files += write_run_figures(result, folder / "figures", formats=figure_formats)
     return RunOutput(resolved, result, folder, tuple(files))

@@ -8,6 +8,10 @@ receives the callable itself. :func:`call_terms` is that one call site for both.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
 import numpy as np
 from numba import types
 from numba.extending import overload
@@ -17,6 +21,7 @@ from delaytrack._small_linalg import solve_in_place
 
 __all__ = [
     "LINEAR",
+    "PythonKernel",
     "ROBOT_COMMAND_MAP_IDS",
     "ROBOT_NOMINAL",
     "ROBOT_PAYLOAD",
@@ -25,6 +30,7 @@ __all__ = [
     "TWO_LINK_ARM",
     "call_command_map",
     "call_terms",
+    "python_kernel",
     "solve_input_map",
 ]
 
@@ -88,13 +94,36 @@ def solve_input_map(input_map, tau, command):
         command[:] = np.nan
 
 
+@dataclass(frozen=True)
+class PythonKernel:
+    """A plant's terms kernel as plain Python (its ``py_func``), for the reference engine.
+
+    It carries the plant's built-in ``kernel_id`` (None for a user plant), so that
+    :func:`call_command_map` picks the same command map as the compiled engine does.
+    """
+
+    function: Callable[..., None]
+    kernel_id: int | None
+
+    def __call__(self, t, q, qdot, params, mass, nonlinear, input_map) -> None:
+        self.function(t, q, qdot, params, mass, nonlinear, input_map)
+
+
+def python_kernel(plant: Any) -> PythonKernel:
+    """``plant``'s terms kernel as plain Python (see :class:`PythonKernel`)."""
+    kernel = plant.terms_kernel
+    return PythonKernel(getattr(kernel, "py_func", kernel), plant.kernel_id)
+
+
 def call_command_map(model, q, params, input_map, tau, command):
     """Actuator ``command`` that realises the generalised force ``τ`` on the nominal ``model``.
 
     Fully actuated models solve ``G(q) command = τ``. A model with constraints supplies its own
     map by kernel id: the wheeled robot's nominal models (:data:`ROBOT_COMMAND_MAP_IDS`) use
-    ``command = S(q)ᵀ τ`` (SPEC §6). Other ids and Python models use the default.
+    ``command = S(q)ᵀ τ`` (SPEC §6). Other ids and Python models use the default; a
+    :class:`PythonKernel` carries its model's id.
     """
+    model = getattr(model, "kernel_id", model)
     if isinstance(model, int | np.integer) and not isinstance(model, bool):
         if int(model) in ROBOT_COMMAND_MAP_IDS:
             from delaytrack.plants.robot.kinematics import robot_command_map

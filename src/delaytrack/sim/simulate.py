@@ -17,6 +17,7 @@ from delaytrack._validation import finite_array, integer_multiple, positive_scal
 from delaytrack.controllers.base import Controller
 from delaytrack.delays.base import DelayProfile
 from delaytrack.plants.base import ELPlant
+from delaytrack.plants.dispatch import python_kernel
 from delaytrack.reference import SinusoidalReference
 from delaytrack.sim.engine import run_batch, run_batch_compiled, run_batch_uncached
 from delaytrack.sim.fallback import PythonFallbackWarning
@@ -27,6 +28,9 @@ from delaytrack.sim.running_metrics import accumulator_size, finish_metrics
 __all__ = ["simulate"]
 
 _T = TypeVar("_T")
+
+#: Values of ``simulate(engine=...)``.
+ENGINES = ("auto", "compiled", "python")
 
 #: Chunks per worker thread: enough for load balance and a moving progress bar, few enough
 #: that the per-call overhead stays negligible.
@@ -130,6 +134,7 @@ def simulate(
     metrics_from: float | None = None,
     divergence_bound: float = 1e6,
     workers: int | None = None,
+    engine: str = "auto",
     progress: bool = False,
 ) -> SimResult:
     """Simulate ``M(q) q̈ + N(q, q̇) = G(q) τ(t - h(t))`` under a sampled controller.
@@ -176,6 +181,12 @@ def simulate(
         Threads that run the batch in parallel (compiled plants only; all cores by default).
         Each run is computed by one thread exactly as it would be alone, so results do not
         depend on ``workers``.
+    engine : {"auto", "compiled", "python"}
+        ``"auto"`` runs compiled when every kernel is (built-in plants, :class:`CompiledPlant`)
+        and as plain Python otherwise, with a :class:`PythonFallbackWarning`. ``"compiled"``
+        refuses to fall back. ``"python"`` is the reference path: the same engine and kernels
+        (their ``py_func``) run as plain Python, one to two orders of magnitude slower; results
+        agree with the compiled path to rounding.
     progress : bool
         Show a progress bar over the batch.
 
@@ -288,7 +299,16 @@ def simulate(
     t_stop = np.zeros(batch)
 
     compiled = first_plant.compiled and first_controller.compiled
-    if not compiled:
+    if engine not in ENGINES:
+        raise ValueError(f"engine must be one of {list(ENGINES)}; got {engine!r}")
+    if engine == "compiled" and not compiled:
+        raise ValueError(
+            "engine='compiled' needs compiled kernels; "
+            + str(PythonFallbackWarning.describe(first_plant, first_controller))
+        )
+    if engine == "python":
+        compiled = False
+    elif not compiled:
         warnings.warn(PythonFallbackWarning.describe(first_plant, first_controller), stacklevel=2)
 
     def handles(b: int) -> tuple:
@@ -303,10 +323,10 @@ def simulate(
                 controller_b.kernel_id,
             )
         return (
-            plant_b.terms_kernel,
-            controller_b.model.kernel_handle,
-            reference.kernel,
-            controller_b.step_callable,
+            python_kernel(plant_b),
+            python_kernel(controller_b.model),
+            reference.kernel.py_func,
+            controller_b.step_kernel.py_func,
         )
 
     runs = (

@@ -27,7 +27,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import kernel
+from delaytrack._jit import hot_kernel, kernel
 from delaytrack._small_linalg import matvec
 from delaytrack._validation import as_spd_matrix, positive_scalar
 from delaytrack.analysis.razumikhin import error_dynamics_matrices, lyapunov_matrix
@@ -48,7 +48,7 @@ _HAS_PREVIOUS = 1
 _S_PREVIOUS = 2
 
 
-@kernel
+@hot_kernel
 def adaptive_gain_rate(c_hat, s, s_previous, has_previous, gamma):
     """``ĉ'`` of the adaptive law (ATRC) with ``sᵀṡ`` replaced by ``sᵀ(s - s_previous)``."""
     if c_hat <= gamma:
@@ -62,7 +62,7 @@ def adaptive_gain_rate(c_hat, s, s_previous, has_previous, gamma):
     return -norm_s
 
 
-@kernel
+@hot_kernel
 def _dot(a, b):
     """``aᵀb``, summed in index order."""
     total = 0.0

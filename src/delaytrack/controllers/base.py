@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from delaytrack._jit import inline_kernel
+from delaytrack._jit import hot_inline_kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import call_command_map, call_terms
@@ -29,7 +29,7 @@ from delaytrack.plants.dispatch import call_command_map, call_terms
 __all__ = ["Controller", "auxiliary_input", "computed_torque_command", "tracking_errors"]
 
 
-@inline_kernel
+@hot_inline_kernel
 def tracking_errors(q, qdot, qd, qd_dot):
     """``e = [e1; ė1]`` with ``e1 = q_d - q`` (the paper's tracking error), shape (2n,)."""
     n = q.shape[0]
@@ -39,7 +39,7 @@ def tracking_errors(q, qdot, qd, qd_dot):
     return error
 
 
-@inline_kernel
+@hot_inline_kernel
 def auxiliary_input(params, error, qd_ddot):
     """``û = q̈_d + K2 ė1 + K1 e1`` (paper eq. (aux)); ``params`` starts with K1, K2 (row-major)."""
     n = qd_ddot.shape[0]
@@ -54,7 +54,7 @@ def auxiliary_input(params, error, qd_ddot):
     return u
 
 
-@inline_kernel
+@hot_inline_kernel
 def computed_torque_command(model_terms, model_params, t, q, qdot, u, command):
     """Actuator command realising ``τ = M̂(q) u + N̂(q, q̇)`` (paper eq. (input)).
 

@@ -1,46 +1,69 @@
-"""Benchmarks of the closed loop: ``make bench`` prints a table and writes benchmarks/results.json.
+"""Benchmarks of issue 4: ``make bench`` prints a table and writes benchmarks/results.json.
 
-Case: the two-link arm under AROLC with the paper's S1 delay, 10 s simulated, dt = 1 ms,
-T_c = 2 ms. The baseline is the same engine source run as plain Python (the path a user plant
-given as Python callables takes), measured in the same run. Medians of several repetitions,
-after one untimed call that compiles (or loads from numba's disk cache).
+Cases (all on the paper's robot: PayloadRobot truth, AROLC with the paper's gains on the nominal
+model, ``dt`` = 1 ms, ``T_c`` = 10 ms; medians of several repetitions after one untimed call that
+compiles or loads numba's disk cache):
+
+``single``
+    One 60 s S1 run (60 000 RK4 steps), compiled, against two baselines measured in the same
+    run: a plain NumPy per-step loop and ``scipy.integrate.solve_ivp`` with the delayed command
+    looked up in the callback (:mod:`baselines`).
+``batch``
+    ``B`` runs, each with its own delay profile (|sin|, random-walk and constant families with
+    drawn parameters) and payload placements, metrics only (``trajectories=False``), on all
+    cores; each ``B`` in a fresh process, which reports its peak memory above its resting
+    size. ``B`` = 1 .. 10 000 at 10 s, the duration series at ``B`` = 100, and the issue's goal
+    case ``B`` = 1000 at 60 s.
+``startup``
+    ``delaytrack simulate benchmarks/short_scenario.toml`` in a new process with numba's cache
+    warm: time until ``metrics.csv`` exists (the first result) and until the command exits.
+``controller_step``
+    One 5-DOF AROLC tick through :meth:`Controller.step` (the real-time Python API).
+``agreement``
+    Largest differences between the compiled engine, the same batch on worker threads and the
+    reference path (the engine run as plain Python, ``simulate(..., engine="python")``).
+
+``python benchmarks/run.py --quick`` runs shorter versions of every case (for a smoke test).
 """
 
 from __future__ import annotations
 
+import argparse
 import json
+import os
 import platform
+import resource
 import statistics
+import subprocess
+import sys
+import tempfile
 import time
+import timeit
 from pathlib import Path
 
 import numpy as np
 
-from delaytrack.controllers import AROLC
-from delaytrack.delays import AbsSineDelay
-from delaytrack.plants import CallablePlant, TwoLinkArm
-from delaytrack.reference import SinusoidalReference
-from delaytrack.sim import simulate
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-DURATION = 10.0
-DT = 1e-3
-T_C = 2e-3
-REPEATS = 5
+from baselines import numpy_loop, robot_case, solve_ivp_loop  # noqa: E402
 
+from delaytrack.controllers import AROLC  # noqa: E402
+from delaytrack.delays import AbsSineDelay, ConstantDelay, RandomDelay  # noqa: E402
+from delaytrack.experiments.paper import AROLC_GAINS, DT, T_C  # noqa: E402
+from delaytrack.plants.robot import (  # noqa: E402
+    NominalRobot,
+    PayloadRobot,
+    initial_state,
+    paper_reference,
+)
+from delaytrack.sim import simulate  # noqa: E402
 
-def python_arm(arm: TwoLinkArm) -> CallablePlant:
-    """The same arm as Python callables, so the engine runs uncompiled."""
-
-    def mass(q: np.ndarray) -> np.ndarray:
-        return arm.mass_matrix(q)[0]
-
-    def nonlinear(q: np.ndarray, qdot: np.ndarray) -> np.ndarray:
-        return arm.nonlinear_terms(q, qdot)[0]
-
-    return CallablePlant(2, mass, nonlinear, name="two-link-arm (Python)")
+HERE = Path(__file__).resolve().parent
+SHORT_SCENARIO = HERE / "short_scenario.toml"
 
 
 def median_seconds(run, repeats: int) -> float:
+    """Median wall time of ``repeats`` calls of ``run`` after one untimed call."""
     run()
     times = []
     for _ in range(repeats):
@@ -50,53 +73,250 @@ def median_seconds(run, repeats: int) -> float:
     return statistics.median(times)
 
 
-def main() -> None:
-    arm = TwoLinkArm()
-    nominal = TwoLinkArm(p1=0.8 * arm.p1, p2=0.8 * arm.p2, p3=0.8 * arm.p3, fd1=0.0, fd2=0.0)
-    controller = AROLC(nominal, K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
-    reference = SinusoidalReference([0.0, 0.0], amplitude=[0.8, 0.5], frequency=[0.5, 0.7])
-    steps = round(DURATION / DT)
+def steps(duration: float, batch: int = 1) -> int:
+    """Plant RK4 steps of ``batch`` runs of ``duration`` seconds."""
+    return batch * round(duration / DT)
 
-    def run(plant, duration: float = DURATION):
-        return lambda: simulate(
-            plant,
-            controller,
-            AbsSineDelay.S1(),
-            np.zeros(4),
-            reference=reference,
-            t1=duration,
-            dt=DT,
-            T_c=T_C,
+
+# --- single run ------------------------------------------------------------------------------
+
+
+def single_case(duration: float, repeats: int, baseline_repeats: int) -> list[dict]:
+    plant, controller, delay, reference, x0 = robot_case(duration)
+
+    def compiled():
+        return simulate(
+            plant, controller, delay, x0, reference=reference, t1=duration, dt=DT, T_c=T_C
         )
 
-    compiled = median_seconds(run(arm), REPEATS)
-    # The Python path is ~100x slower: time 1 s of it and scale, to keep `make bench` short.
-    python = median_seconds(run(python_arm(arm), 1.0), 3) * DURATION
-    cases = [
-        {
-            "case": "two-link S1 AROLC, compiled",
-            "median_s": compiled,
-            "steps_per_s": steps / compiled,
-        },
-        {
-            "case": "same, plain-Python engine (baseline)",
-            "median_s": python,
-            "steps_per_s": steps / python,
-        },
-    ]
+    engine = median_seconds(compiled, repeats)
+    numpy_time = median_seconds(lambda: numpy_loop(duration), baseline_repeats)
+    scipy_time = median_seconds(lambda: solve_ivp_loop(duration), baseline_repeats)
+    rows = []
+    for name, seconds, baseline in (
+        ("compiled engine", engine, numpy_time),
+        ("baseline: NumPy per-step loop", numpy_time, numpy_time),
+        ("baseline: solve_ivp RK45 per period", scipy_time, numpy_time),
+    ):
+        rows.append(
+            {
+                "case": f"single S1 robot run {duration:g} s: {name}",
+                "median_s": seconds,
+                "steps_per_s": steps(duration) / seconds,
+                "baseline": "NumPy per-step loop",
+                "baseline_s": baseline,
+                "ratio_to_baseline": baseline / seconds,
+            }
+        )
+    rows[0]["ratio_to_solve_ivp"] = scipy_time / engine
+    return rows
+
+
+# --- batches ---------------------------------------------------------------------------------
+
+
+def batch_inputs(batch: int, duration: float) -> dict:
+    """``batch`` distinct robot runs: delay profile and payload placements drawn per run."""
+    rng = np.random.default_rng(4)
+    delays = []
+    for b in range(batch):
+        family = b % 3
+        if family == 0:
+            offset, amplitude = rng.uniform(0.0, 0.05), rng.uniform(0.02, 0.1)
+            delays.append(AbsSineDelay(offset, amplitude, frequency=rng.uniform(0.5, 2.0)))
+        elif family == 1:
+            delays.append(RandomDelay(0.01, 0.12, max_rate=0.5, duration=duration, seed=b))
+        else:
+            delays.append(ConstantDelay(rng.uniform(0.0, 0.12)))
+    reference = paper_reference("consistent")
+    return dict(
+        plant=[PayloadRobot(seed=b, duration=duration) for b in range(batch)],
+        controller=AROLC(NominalRobot(), **AROLC_GAINS),
+        delay=delays,
+        x0=initial_state(reference),
+        reference=reference,
+        t1=duration,
+        dt=DT,
+        T_c=T_C,
+        trajectories=False,
+    )
+
+
+def _resident_bytes() -> int:
+    with open("/proc/self/statm") as statm:
+        return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def batch_worker(batch: int, duration: float, repeats: int, workers: int | None) -> dict:
+    """Run in a fresh process: median time and peak memory growth of one batch size."""
+    inputs = batch_inputs(batch, duration)
+    simulate(**{**batch_inputs(1, 0.1), "workers": 1})  # load the compiled engine
+    resting = _resident_bytes()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        result = simulate(**inputs, workers=workers)
+        times.append(time.perf_counter() - start)
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    return {
+        "median_s": statistics.median(times),
+        "peak_memory_growth_mib": max(0, peak - resting) / 2**20,
+        "ok_runs": int(np.sum(result.status == 0)),
+    }
+
+
+def batch_case(batch: int, duration: float, repeats: int, workers: int | None = None) -> dict:
+    command = [sys.executable, __file__, "--batch-worker", str(batch), str(duration), str(repeats)]
+    if workers is not None:
+        command.append(str(workers))
+    finished = subprocess.run(command, check=True, capture_output=True, text=True)
+    measured = json.loads(finished.stdout)
+    threads = workers or len(os.sched_getaffinity(0))
+    return {
+        "case": f"batch B={batch}, {duration:g} s, {threads} thread(s)",
+        "batch": batch,
+        "duration_s": duration,
+        "workers": threads,
+        "repeats": repeats,
+        **measured,
+        "steps_per_s": steps(duration, batch) / measured["median_s"],
+        "ms_per_run": 1e3 * measured["median_s"] / batch,
+    }
+
+
+# --- start-up, controller step, agreement ----------------------------------------------------
+
+
+def startup_case(repeats: int) -> dict:
+    """Fresh ``delaytrack simulate`` processes: time to ``metrics.csv`` and to exit."""
+    executable = Path(sys.executable).with_name("delaytrack")
+    first, total = [], []
+    for i in range(repeats + 1):
+        with tempfile.TemporaryDirectory() as folder:
+            metrics = Path(folder) / "metrics.csv"
+            start = time.perf_counter()
+            process = subprocess.Popen(
+                [str(executable), "simulate", str(SHORT_SCENARIO), "--out", folder],
+                stdout=subprocess.DEVNULL,
+            )
+            seen = None
+            while process.poll() is None:
+                if seen is None and metrics.exists():
+                    seen = time.perf_counter() - start
+                time.sleep(0.002)
+            end = time.perf_counter() - start
+            if process.returncode != 0:
+                raise RuntimeError("delaytrack simulate failed in the start-up benchmark")
+            if i:  # the first process may compile; the cache is warm afterwards
+                first.append(seen if seen is not None else end)
+                total.append(end)
+    return {
+        "case": "start-up: delaytrack simulate short scenario (new process, cache warm)",
+        "median_s": statistics.median(first),
+        "first_result_s": statistics.median(first),
+        "command_total_s": statistics.median(total),
+    }
+
+
+def controller_step_case(repeats: int) -> dict:
+    controller = AROLC(NominalRobot(), **AROLC_GAINS)
+    reference = paper_reference("consistent")
+    x0 = initial_state(reference)
+    qd = tuple(values[0] for values in reference.evaluate(np.array([0.5])))
+    state = controller.initial_state()
+
+    def tick():
+        controller.step(0.5, x0[:5], x0[5:], qd, state, T_c=T_C)
+
+    tick()
+    per_call = [timeit.timeit(tick, number=2000) / 2000 for _ in range(repeats)]
+    return {
+        "case": "one 5-DOF AROLC tick through Controller.step",
+        "median_s": statistics.median(per_call),
+        "median_us": 1e6 * statistics.median(per_call),
+    }
+
+
+def _largest_difference(a, b) -> float:
+    """Largest absolute difference of the states and commands of two results."""
+    return float(max(np.max(np.abs(a.x - b.x)), np.max(np.abs(a.commands - b.commands))))
+
+
+def agreement_case(duration: float) -> dict:
+    inputs = {**batch_inputs(6, duration), "trajectories": True}
+    single = simulate(**inputs, workers=1)
+    threaded = simulate(**inputs, workers=3)
+    # The reference path is slow: two of the runs (one |sin| and one random-walk profile).
+    pair = {**inputs, "plant": inputs["plant"][:2], "delay": inputs["delay"][:2]}
+    reference = simulate(**pair, engine="python")
+    return {
+        "case": f"agreement, {duration:g} s robot runs (max |difference| of states and commands)",
+        "threads_vs_single": _largest_difference(threaded, single),
+        "reference_python_vs_compiled": _largest_difference(reference, single[:2]),
+    }
+
+
+# --- main ------------------------------------------------------------------------------------
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="short versions of every case")
+    parser.add_argument("--batch-worker", nargs="+", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.batch_worker:
+        batch, duration, repeats, *workers = args.batch_worker
+        workers = int(workers[0]) if workers else None
+        print(json.dumps(batch_worker(int(batch), float(duration), int(repeats), workers)))
+        return
+
+    quick = args.quick
+    cases: list[dict] = []
+    cases += single_case(6.0 if quick else 60.0, 3 if quick else 9, 1 if quick else 3)
+    sizes = (1, 10, 100) if quick else (1, 10, 100, 1000, 10000)
+    for batch in sizes:
+        cases.append(batch_case(batch, 1.0 if quick else 10.0, 3 if batch <= 1000 else 1))
+    for duration in (1.0, 3.0) if quick else (30.0, 60.0):
+        cases.append(batch_case(100, duration, 3))
+    goal = 100 if quick else 1000
+    goal_duration = 6.0 if quick else 60.0
+    cases.append(batch_case(goal, goal_duration, 1, workers=1))  # the threads' speed-up
+    cases.append(batch_case(goal, goal_duration, 1 if quick else 3))
+    cases.append(startup_case(3 if quick else 5))
+    cases.append(controller_step_case(5))
+    cases.append(agreement_case(2.0 if quick else 10.0))
+
+    print(f"{'case':<68} {'median s':>10} {'steps/s':>10} {'ratio':>8} {'peak MiB':>9}")
     for case in cases:
-        case["baseline_s"] = python
-        case["ratio_to_baseline"] = python / case["median_s"]
-    print(f"{'case':<42} {'median s':>10} {'steps/s':>12} {'speed-up':>9}")
-    for case in cases:
-        speed = f"{case['steps_per_s']:>12.3g} {case['ratio_to_baseline']:>8.1f}x"
-        print(f"{case['case']:<42} {case['median_s']:>10.4f} {speed}")
+        rate = f"{case['steps_per_s']:.3g}" if "steps_per_s" in case else ""
+        ratio = f"{case['ratio_to_baseline']:.1f}x" if "ratio_to_baseline" in case else ""
+        memory = case.get("peak_memory_growth_mib")
+        memory = f"{memory:.1f}" if memory is not None else ""
+        median = f"{case['median_s']:.4g}" if "median_s" in case else ""
+        print(f"{case['case']:<68} {median:>10} {rate:>10} {ratio:>8} {memory:>9}")
+    extra = cases[0]
+    print(f"compiled single run vs solve_ivp: {extra['ratio_to_solve_ivp']:.0f}x faster")
+    startup = next(c for c in cases if c["case"].startswith("start-up"))
+    print(
+        f"start-up: first result {startup['first_result_s']:.2f} s, "
+        f"command done {startup['command_total_s']:.2f} s"
+    )
+    agreement = cases[-1]
+    print(
+        f"agreement: threads vs one thread {agreement['threads_vs_single']:.1e}, "
+        f"reference Python engine vs compiled {agreement['reference_python_vs_compiled']:.1e}"
+    )
     output = {
-        "machine": {"python": platform.python_version(), "processor": platform.machine()},
-        "settings": {"duration_s": DURATION, "dt": DT, "T_c": T_C, "repeats": REPEATS},
+        "machine": {
+            "python": platform.python_version(),
+            "processor": platform.processor() or platform.machine(),
+            "cores": len(os.sched_getaffinity(0)),
+            "platform": platform.platform(),
+        },
+        "settings": {"dt": DT, "T_c": T_C, "quick": quick},
         "cases": cases,
     }
-    path = Path(__file__).with_name("results.json")
+    path = HERE / ("results-quick.json" if quick else "results.json")
     path.write_text(json.dumps(output, indent=2) + "\n")
     print(f"wrote {path}")
 

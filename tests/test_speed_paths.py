@@ -243,3 +243,19 @@ def test_engine_names_and_the_compiled_engine_without_compiled_kernels_are_refus
             T_c=2e-3,
             engine="compiled",
         )
+
+
+def test_one_compiled_engine_serves_every_call() -> None:
+    """Read-only or broadcast inputs must not make numba compile the engine again (minutes)."""
+    from delaytrack.sim.engine import run_batch_compiled
+
+    settings = robot_batch(2)
+    simulate(**settings)
+    compiled = set(run_batch_compiled.signatures)
+    x0 = np.array(settings["x0"])
+    x0.flags.writeable = False
+    u_init = np.zeros(2)
+    u_init.flags.writeable = False
+    simulate(**{**settings, "x0": x0, "plant": settings["plant"][0], "delay": settings["delay"][0]})
+    simulate(**{**settings, "x0": np.stack([x0, x0])}, u_init=u_init, trajectories=False)
+    assert set(run_batch_compiled.signatures) == compiled

@@ -19,6 +19,7 @@ import numpy as np
 
 from delaytrack._jit import hot_inline_kernel, inline_kernel
 from delaytrack.delays._kernel import (
+    PIECEWISE_CONSTANT,
     crossing_time,
     delay_value,
     next_breakpoint,
@@ -36,13 +37,16 @@ _SPLIT_TOLERANCE = 1e-9
 def rk4_workspace(x, m):
     """Working memory of :func:`_rk4_substep` for the state ``x = [q, q̇]`` (2n,) and ``m`` inputs.
 
-    ``(slopes (4, 2n), stage (2n,), stage_q, stage_q̇, scratch)``: the views are taken once per
-    run, so the inner loop neither allocates nor slices.
+    ``(slopes (4, 2n), stage (2n,), stage_q, stage_q̇, scratch, profile)``: the views are taken
+    once per run, so the inner loop neither allocates nor slices. ``profile`` remembers, from
+    one step to the next, the delay profile's current piece ``[from, breakpoint)`` and
+    ``h(t_end)`` of the last piece (see :func:`integrate_step`).
     """
     n = x.shape[0] // 2
     slopes = np.empty((4, 2 * n))
     stage = np.empty(2 * n)
-    return slopes, stage, stage[:n], stage[n:], rhs_scratch(n, m)
+    profile = np.array([np.inf, -np.inf, np.nan, np.nan])
+    return slopes, stage, stage[:n], stage[n:], rhs_scratch(n, m), profile
 
 
 @hot_inline_kernel
@@ -54,7 +58,7 @@ def _rk4_substep(plant_terms, plant_params, t, x, u, length, work):
     :func:`rk4_workspace` of this ``x``; written as loops so that nothing is allocated, with one
     call of the (inlined) right-hand side.
     """
-    slopes, stage, stage_q, stage_qdot, scratch = work
+    slopes, stage, stage_q, stage_qdot, scratch, _ = work
     n = stage_q.shape[0]
     half = 0.5 * length
     for s in range(4):
@@ -109,14 +113,29 @@ def integrate_step(
     Each sub-step uses the command looked up at its midpoint. Returns the ring slot of the input
     of the first sub-step (-1 for ``u_init``), or -2 when a needed command has left the history.
     With ``probe_only`` nothing is integrated: only that first slot is found.
+
+    Consecutive steps mostly lie on one piece of the profile, and a step starts where the last
+    one ended, so the piece's breakpoint and, for a continuous profile, ``h`` at the start are
+    taken from ``work``'s ``profile`` memory: the same numbers, computed once.
     """
     tolerance = _SPLIT_TOLERANCE * dt
     capacity = history.shape[0]
+    profile = work[5]
     first_slot = -3
     a = t_start
     while a < t_end:
-        b = min(next_breakpoint(delay_kind, delay_params, a), t_end)
-        h_a, h_b = piece_end_values(delay_kind, delay_params, a, b)
+        # next_breakpoint(a) is the same for every a in [from, breakpoint).
+        if not profile[0] <= a < profile[1]:
+            profile[0] = a
+            profile[1] = next_breakpoint(delay_kind, delay_params, a)
+        b = min(profile[1], t_end)
+        if delay_kind == PIECEWISE_CONSTANT:
+            h_a, h_b = piece_end_values(delay_kind, delay_params, a, b)
+        else:  # continuous: h(a+) = h(a), remembered when a ended the last piece
+            h_a = profile[3] if a == profile[2] else delay_value(delay_kind, delay_params, a)
+            h_b = delay_value(delay_kind, delay_params, b)
+            profile[2] = b
+            profile[3] = h_b
         g_a = a - h_a
         g_b = b - h_b
         k_a = latest_tick_index(g_a, t0, dt, steps_per_tick)

@@ -248,8 +248,11 @@ def simulate(
     plants = _broadcast("plant", plants, batch)
     controllers = _broadcast("controller", controllers, batch)
     delays = _broadcast("delay", delays, batch)
-    states0 = np.ascontiguousarray(
-        np.broadcast_to(states0, (batch, 2 * n)) if states0.shape[0] == 1 else states0
+    # A writable C-contiguous copy: numba compiles the engine once per argument type, and a
+    # read-only broadcast view would be another type (another two-minute compile).
+    states0 = np.array(
+        np.broadcast_to(states0, (batch, 2 * n)) if states0.shape[0] == 1 else states0,
+        order="C",
     )
     if states0.shape[0] != batch:
         raise ValueError(
@@ -257,7 +260,7 @@ def simulate(
         )
     for controller_b, delay_b in zip(controllers, delays, strict=True):
         controller_b.check_run(T_c, delay_b.h_max)
-    u_init = np.zeros(m) if u_init is None else finite_array("u_init", u_init, ndim=1)
+    u_init = np.zeros(m) if u_init is None else np.array(finite_array("u_init", u_init, ndim=1))
     if u_init.shape != (m,):
         raise ValueError(f"u_init must have shape ({m},); got {u_init.shape}")
 
@@ -340,7 +343,7 @@ def simulate(
         np.array([history_capacity(d.h_max, T_c) for d in delays], dtype=np.int64),
     )
     settings = (
-        reference.params,
+        np.array(reference.params),
         u_init,
         t0,
         dt,

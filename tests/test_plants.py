@@ -352,7 +352,7 @@ def test_callable_plant_input_map_forms():
         ),
         (
             (2, lambda q: np.diag([1.0, -2.0]), lambda q, qd: np.zeros(2)),
-            r"mass_matrix\(0\) must be positive definite; its eigenvalues are \[-2, 1\]",
+            r"mass_matrix\(0\) must be symmetric positive definite; its eigenvalues are \[-2, 1\]",
         ),
         (
             (2, lambda q: np.eye(2), lambda q, qd: np.full(2, np.nan)),

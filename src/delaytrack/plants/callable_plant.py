@@ -8,7 +8,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._validation import format_values
+from delaytrack._validation import as_spd_matrix, format_values
 from delaytrack.plants.base import ELPlant
 
 __all__ = ["CallablePlant"]
@@ -62,14 +62,7 @@ class CallablePlant(ELPlant):
             object.__setattr__(self, "input_map_fn", constant)
         zero = np.zeros(self.n)
         mass = self._evaluate("mass_matrix", self.mass_matrix_fn, (zero,), (self.n, self.n))
-        if np.max(np.abs(mass - mass.T)) > 1e-10 * max(1.0, float(np.max(np.abs(mass)))):
-            raise ValueError("mass_matrix(0) must be symmetric; got a non-symmetric matrix")
-        eigenvalues = np.linalg.eigvalsh(mass)
-        if eigenvalues[0] <= 0.0:
-            raise ValueError(
-                "mass_matrix(0) must be positive definite; "
-                f"its eigenvalues are {format_values(eigenvalues)}"
-            )
+        as_spd_matrix("mass_matrix(0)", mass, self.n)
         self._evaluate("nonlinear_terms", self.nonlinear_terms_fn, (zero, zero), (self.n,))
         object.__setattr__(self, "m", self._input_map(zero).shape[1])
 

@@ -9,7 +9,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numba.core.registry import CPUDispatcher
 
-from delaytrack._validation import finite_array, format_values
+from delaytrack._validation import as_spd_matrix, finite_array, format_values
 from delaytrack.plants.base import ELPlant
 
 __all__ = ["CompiledPlant"]
@@ -67,15 +67,7 @@ class CompiledPlant(ELPlant):
                 raise ValueError(
                     f"kernel gave a non-finite {label} at q = qdot = 0: {format_values(value)}"
                 )
-        mass = mass[0]
-        if np.max(np.abs(mass - mass.T)) > 1e-10 * max(1.0, float(np.max(np.abs(mass)))):
-            raise ValueError("kernel must give a symmetric M; M(0) is not symmetric")
-        eigenvalues = np.linalg.eigvalsh(mass)
-        if eigenvalues[0] <= 0.0:
-            raise ValueError(
-                "kernel must give a positive definite M; the eigenvalues of M(0) are "
-                f"{format_values(eigenvalues)}"
-            )
+        as_spd_matrix("the kernel's M(0)", mass[0], self.n)
 
     @property
     def params(self) -> np.ndarray:

@@ -181,18 +181,24 @@ def test_a_compiled_user_plant_is_checked_at_rest() -> None:
         CompiledPlant(2, 0, user_arm_terms, TwoLinkArm().params)
 
 
+def simulate_python_arm(**options):
+    """A short run of :func:`python_arm` under the outer loop."""
+    return simulate(
+        python_arm(),
+        OuterLoop(TwoLinkArm(), K1=4.0, K2=4.0),
+        ConstantDelay(0.01),
+        np.zeros(4),
+        reference=ARM_REFERENCE,
+        t1=0.1,
+        dt=1e-3,
+        T_c=2e-3,
+        **options,
+    )
+
+
 def test_a_python_plant_warns_that_it_runs_as_plain_python() -> None:
     with pytest.warns(PythonFallbackWarning, match=r"plant CallablePlant .*CompiledPlant"):
-        result = simulate(
-            python_arm(),
-            OuterLoop(TwoLinkArm(), K1=4.0, K2=4.0),
-            ConstantDelay(0.01),
-            np.zeros(4),
-            reference=ARM_REFERENCE,
-            t1=0.1,
-            dt=1e-3,
-            T_c=2e-3,
-        )
+        result = simulate_python_arm()
     assert not result.settings["compiled"]
 
 
@@ -221,17 +227,7 @@ def test_engine_names_and_the_compiled_engine_without_compiled_kernels_are_refus
     with pytest.raises(ValueError, match=r"engine must be one of \['auto', 'compiled', 'python'\]"):
         simulate(**case, **settings, engine="fast")
     with pytest.raises(ValueError, match="engine='compiled' needs compiled kernels"):
-        simulate(
-            python_arm(),
-            OuterLoop(TwoLinkArm(), K1=4.0, K2=4.0),
-            ConstantDelay(0.01),
-            np.zeros(4),
-            reference=ARM_REFERENCE,
-            t1=0.1,
-            dt=1e-3,
-            T_c=2e-3,
-            engine="compiled",
-        )
+        simulate_python_arm(engine="compiled")
 
 
 def test_one_compiled_engine_serves_every_call() -> None:

@@ -157,7 +157,7 @@ def python_arm() -> CallablePlant:
     )
 
 
-@pytest.mark.slow  # compiles the engine around the user's kernel (about a minute)
+@pytest.mark.slow  # compiles the engine around the user's kernel (about 25 s)
 def test_a_compiled_user_plant_runs_compiled_and_equals_the_built_in_plant() -> None:
     arm = TwoLinkArm()
     user = CompiledPlant(2, 2, user_arm_terms, arm.params, name="user arm")
@@ -244,3 +244,32 @@ def test_one_compiled_engine_serves_every_call() -> None:
     simulate(**{**settings, "x0": x0, "plant": settings["plant"][0], "delay": settings["delay"][0]})
     simulate(**{**settings, "x0": np.stack([x0, x0])}, u_init=u_init, trajectories=False)
     assert set(run_batch_compiled.signatures) == compiled
+
+
+def test_a_run_that_stops_before_its_metrics_window_has_nan_metrics() -> None:
+    arm = TwoLinkArm()
+    unstable = AROLC(arm, K1=400.0, K2=40.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
+    result = simulate(
+        arm,
+        unstable,
+        [ConstantDelay(0.0), ConstantDelay(0.2)],
+        np.zeros(4),
+        reference=ARM_REFERENCE,
+        t1=5.0,
+        dt=1e-3,
+        T_c=2e-3,
+        metrics_from=4.5,
+        trajectories=False,
+    )
+    assert result.status_names == ["ok", "diverged"] and result.t_stop[1] < 4.5
+    assert np.all(np.isfinite(result.metrics["rms"][0]))
+    for key in ("ae", "rms", "max"):
+        assert np.all(np.isnan(result.metrics[key][1]))
+
+
+def test_metrics_from_between_ticks_starts_at_the_next_tick_as_t_from_does() -> None:
+    settings = robot_batch(1)
+    for start in (1.234, 1.23, 1.2300000000000002):
+        result = simulate(**settings, metrics_from=start)
+        expected = mean_absolute_error(result, t_from=start)
+        np.testing.assert_allclose(result.metrics["ae"], expected, rtol=1e-12, atol=0)

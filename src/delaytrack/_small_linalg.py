@@ -32,8 +32,9 @@ def solve_in_place(a, b):
     """Solve ``a x = b`` by Gaussian elimination with partial pivoting; ``b`` becomes ``x``.
 
     ``a`` (n, n) is overwritten by its elimination factors. Returns False (and leaves ``b``
-    unspecified) when a pivot is zero or not finite, i.e. ``a`` is singular to working precision
-    or holds NaN. A diagonal ``a`` (the constrained robot's ``M = I``) is solved by division.
+    unspecified) when a pivot is exactly zero or not finite (``a`` singular or holding NaN). A
+    nearly singular ``a`` gives a huge solution, which the simulator's divergence bound stops.
+    A diagonal ``a`` (the constrained robot's ``M = I``) is solved by division.
     """
     n = b.shape[0]
     if _is_diagonal(a):

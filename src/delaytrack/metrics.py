@@ -191,9 +191,11 @@ def metrics_table(
     -------
     DataFrame
         Columns ``[label,] batch, status, t_stop, ae_<c>.., rms_<c>.., max_<c>.., tv``; metric
-        values are NaN for runs whose status is not ``ok``. A result without trajectories
-        (``simulate(..., trajectories=False)``) gives its running metrics, taken over every
-        controller tick.
+        values are NaN for runs whose status is not ``ok``. With trajectories, the metrics are
+        taken over the recorded samples from ``t_from``; they equal the running metrics
+        (``result.metrics``, every tick from ``simulate(metrics_from=...)``) when
+        ``record_every = 1`` and ``t_from`` is that ``metrics_from``. A result without
+        trajectories (``simulate(..., trajectories=False)``) gives its running metrics.
     """
     n = result.n
     names = [f"q{i + 1}" for i in range(n)] if coordinate_names is None else list(coordinate_names)

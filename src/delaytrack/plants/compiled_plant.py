@@ -36,8 +36,10 @@ class CompiledPlant(ELPlant):
     -----
     The kernel is checked once at ``q = q̇ = 0``, ``t = 0`` (finite values, ``M`` symmetric
     positive definite). The simulator's loop is compiled for your kernel once per process (no
-    disk cache, since numba cannot cache a function passed as an argument): expect about a
-    minute of compilation on the first ``simulate`` call, then built-in speed. A plant given as
+    disk cache, since numba cannot cache a function passed as an argument): expect about 25 s of
+    compilation on the first ``simulate`` call, then built-in speed. Compile the kernel with
+    ``numba.njit(error_model="numpy")`` to have a division by zero end only that run (as
+    ``diverged``) instead of raising. A plant given as
     plain Python callables (:class:`CallablePlant`) needs no compilation but runs about 100x
     slower.
     """

@@ -8,7 +8,6 @@ from typing import Any, ClassVar
 import numpy as np
 
 from delaytrack._jit import kernel
-from delaytrack._small_linalg import matvec
 from delaytrack._validation import as_spd_matrix, as_square_matrix, finite_array
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import LINEAR
@@ -25,7 +24,13 @@ def linear_terms(t, q, qdot, params, mass, nonlinear, input_map):
     damping = params[n * n : 2 * n * n].reshape((n, n))
     stiffness = params[2 * n * n : 3 * n * n].reshape((n, n))
     input_map[:, :] = params[3 * n * n : 3 * n * n + n * m].reshape((n, m))
-    nonlinear[:] = matvec(damping, qdot) + matvec(stiffness, q)
+    for i in range(n):  # D q̇ + K q by loops: no temporaries in the right-hand side
+        damping_force = 0.0
+        stiffness_force = 0.0
+        for j in range(n):
+            damping_force += damping[i, j] * qdot[j]
+            stiffness_force += stiffness[i, j] * q[j]
+        nonlinear[i] = damping_force + stiffness_force
 
 
 @dataclass(frozen=True, eq=False)

@@ -21,7 +21,7 @@ from delaytrack.plants.dispatch import python_kernel
 from delaytrack.reference import SinusoidalReference
 from delaytrack.sim.engine import run_batch, run_batch_compiled, run_batch_uncached
 from delaytrack.sim.fallback import PythonFallbackWarning
-from delaytrack.sim.history import history_capacity
+from delaytrack.sim.history import history_capacity, tick_time
 from delaytrack.sim.result import SimResult
 from delaytrack.sim.running_metrics import accumulator_size, finish_metrics
 
@@ -79,7 +79,14 @@ def _metrics_from_tick(
         raise ValueError(
             f"metrics_from must lie in [t0, t1] = [{t0:g}, {t1:g}] s; got {metrics_from!r}"
         )
-    return min(n_ticks, math.ceil((start - t0) / (steps_per_tick * dt) - 1e-9))
+    # The first k with tick_time(k) >= start, with tick times computed as the engine and
+    # metrics._window compute them, so that both count the same ticks.
+    k = min(n_ticks, max(0, math.ceil((start - t0) / (steps_per_tick * dt))))
+    while k > 0 and tick_time(k - 1, t0, dt, steps_per_tick) >= start:
+        k -= 1
+    while k < n_ticks and tick_time(k, t0, dt, steps_per_tick) < start:
+        k += 1
+    return k
 
 
 def _workers(workers: int | None) -> int:
@@ -173,7 +180,7 @@ def simulate(
         (:attr:`SimResult.metrics`), which are always accumulated at every tick.
     metrics_from : float, optional
         Start of the running metrics' window, seconds (``t0`` by default), e.g. to skip a
-        transient; it must be before ``t1``.
+        transient; in ``[t0, t1]``. The window holds the ticks at or after it.
     divergence_bound : float
         A run whose state leaves ``max |x_i| <= divergence_bound`` (or becomes non-finite) stops
         with status ``diverged``; the rest of the batch goes on.
@@ -184,9 +191,10 @@ def simulate(
     engine : {"auto", "compiled", "python"}
         ``"auto"`` runs compiled when every kernel is (built-in plants, :class:`CompiledPlant`)
         and as plain Python otherwise, with a :class:`PythonFallbackWarning`. ``"compiled"``
-        refuses to fall back. ``"python"`` is the reference path: the same engine and kernels
-        (their ``py_func``) run as plain Python, one to two orders of magnitude slower; results
-        agree with the compiled path to rounding.
+        refuses to fall back. ``"python"`` is the reference path: the same engine, controllers
+        and kernels (their ``py_func``; helpers a kernel calls stay compiled) run as plain
+        Python, one to two orders of magnitude slower; results agree with the compiled path to
+        rounding.
     progress : bool
         Show a progress bar over the batch.
 

@@ -92,10 +92,11 @@ def test_without_trajectories_the_metrics_are_the_same_and_nothing_is_recorded()
         metrics_table(lean, t_from=1.0)
 
 
-def test_a_diverged_run_has_nan_running_metrics() -> None:
+def stiff_arm_pair(**options):
+    """Stiff AROLC gains on the arm: stable without delay, diverging under h = 0.2 s."""
     arm = TwoLinkArm()
     unstable = AROLC(arm, K1=400.0, K2=40.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
-    result = simulate(
+    return simulate(
         arm,
         unstable,
         [ConstantDelay(0.0), ConstantDelay(0.2)],
@@ -105,7 +106,12 @@ def test_a_diverged_run_has_nan_running_metrics() -> None:
         dt=1e-3,
         T_c=2e-3,
         trajectories=False,
+        **options,
     )
+
+
+def test_a_diverged_run_has_nan_running_metrics() -> None:
+    result = stiff_arm_pair()
     assert result.status_names == ["ok", "diverged"]
     assert np.all(np.isfinite(result.metrics["ae"][0]))
     assert np.all(np.isnan(result.metrics["ae"][1])) and np.isnan(result.metrics["tv"][1])
@@ -247,20 +253,7 @@ def test_one_compiled_engine_serves_every_call() -> None:
 
 
 def test_a_run_that_stops_before_its_metrics_window_has_nan_metrics() -> None:
-    arm = TwoLinkArm()
-    unstable = AROLC(arm, K1=400.0, K2=40.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
-    result = simulate(
-        arm,
-        unstable,
-        [ConstantDelay(0.0), ConstantDelay(0.2)],
-        np.zeros(4),
-        reference=ARM_REFERENCE,
-        t1=5.0,
-        dt=1e-3,
-        T_c=2e-3,
-        metrics_from=4.5,
-        trajectories=False,
-    )
+    result = stiff_arm_pair(metrics_from=4.5)
     assert result.status_names == ["ok", "diverged"] and result.t_stop[1] < 4.5
     assert np.all(np.isfinite(result.metrics["rms"][0]))
     for key in ("ae", "rms", "max"):

@@ -170,6 +170,7 @@ class Controller(ABC):
         if h is None and self.needs_delay:
             raise ValueError(f"{type(self).__name__} needs the true delay: pass h=... (seconds)")
         delay = 0.0 if h is None else positive_scalar("h", h, strictly=False)
+        self.check_run(sample, delay)
         arrays = [np.ascontiguousarray(np.asarray(a, dtype=float)) for a in (q, qdot, *reference)]
         for name, array in zip(("q", "qdot", "qd", "qd_dot", "qd_ddot"), arrays, strict=True):
             if array.shape != (self.n,):
@@ -194,7 +195,8 @@ class Controller(ABC):
     def check_run(self, T_c: float, h_max: float) -> None:
         """Raise if the law cannot run at period ``T_c`` under delays up to ``h_max`` seconds.
 
-        :func:`delaytrack.sim.simulate` calls it for every run; most laws accept anything.
+        :func:`delaytrack.sim.simulate` calls it for every run and :meth:`step` for every tick;
+        most laws accept anything.
         """
         return  # AROLC and the outer loop run at any period under any delay.
 

@@ -231,21 +231,6 @@ class PredictorBaseline(Controller):
                 "integrates tau over the true delay and keeps only history seconds of it"
             )
 
-    def step(
-        self,
-        t: float,
-        q: np.ndarray,
-        qdot: np.ndarray,
-        reference: tuple[np.ndarray, np.ndarray, np.ndarray],
-        state: np.ndarray,
-        *,
-        T_c: float,
-        h: float | None = None,
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`Controller.step`, refusing a period or a delay the state cannot serve."""
-        self.check_run(T_c, 0.0 if h is None else h)
-        return super().step(t, q, qdot, reference, state, T_c=T_c, h=h)
-
     def to_spec(self) -> dict[str, Any]:
         return {
             "type": self.type_name,

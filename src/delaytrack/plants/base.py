@@ -90,8 +90,9 @@ class ELPlant(ABC):
 
     @property
     def kernel_handle(self) -> int | Callable[..., None]:
-        """What the engine calls: the kernel id when compiled, else the terms callable."""
-        return self.kernel_id if self.compiled else self.terms_kernel
+        """What the engine calls: the built-in kernel id, else the terms function itself (a
+        numba-compiled one for :class:`~delaytrack.plants.CompiledPlant`, Python otherwise)."""
+        return self.kernel_id if self.kernel_id is not None else self.terms_kernel
 
     @property
     def compiled(self) -> bool:

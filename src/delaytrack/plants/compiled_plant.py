@@ -83,10 +83,5 @@ class CompiledPlant(ELPlant):
     def compiled(self) -> bool:
         return True
 
-    @property
-    def kernel_handle(self) -> Callable[..., None]:
-        """The compiled kernel itself: the simulator's loop is compiled around it."""
-        return self.kernel
-
     def to_spec(self) -> dict[str, Any]:
         return {"type": self.type_name, "name": self.name, "n": int(self.n), "m": int(self.m)}

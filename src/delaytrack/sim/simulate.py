@@ -287,12 +287,13 @@ def simulate(
     state_size = first_controller.state_size
     recorded_state = len(first_controller.state_names)
     size = batch * records * (2 * n + 2 * m + 1 + recorded_state) * 8
+    too_big = (
+        f"recording {batch} run(s) x {records} samples needs {size / 2**30:.3g} GiB, more than "
+        "{what}; raise record_every, pass trajectories=False (running metrics only), shorten "
+        "t1 - t0 or split the batch"
+    )
     if size > _physical_memory():
-        raise ValueError(
-            f"recording {batch} run(s) x {records} samples needs {size / 2**30:.3g} GiB, more "
-            "than this machine's memory; raise record_every, pass trajectories=False (running "
-            "metrics only), shorten t1 - t0 or split the batch"
-        )
+        raise ValueError(too_big.format(what="this machine's memory"))
     try:
         states = np.full((batch, records, 2 * n), np.nan)
         commands = np.full((batch, records, m), np.nan)
@@ -300,11 +301,7 @@ def simulate(
         delay_records = np.full((batch, records), np.nan)
         controller_states = np.full((batch, records, recorded_state), np.nan)
     except MemoryError:
-        raise ValueError(
-            f"recording {batch} run(s) x {records} samples needs {size / 2**30:.3g} GiB, more "
-            "than is free; raise record_every, pass trajectories=False (running metrics only), "
-            "shorten t1 - t0 or split the batch"
-        ) from None
+        raise ValueError(too_big.format(what="is free")) from None
     sums = np.zeros((batch, accumulator_size(n)))
     status = np.zeros(batch, dtype=np.int64)
     t_stop = np.zeros(batch)

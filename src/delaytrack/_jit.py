@@ -17,6 +17,12 @@ A numba call passes arrays by reference count (an atomic increment and decrement
 argument and call), which cost more than the arithmetic of the robot's right-hand side; inlined,
 the counts cancel at compile time. The delay kernels stay out-of-line: inlined (numba 0.68) they
 broke the applied-input test of the two-link arm.
+
+:data:`borrowing_kernel` is :data:`inline_kernel` compiled without numba's runtime
+(``_nrt=False``): no reference counts at all, so it may neither allocate nor return an array
+(numba refuses to compile it if it does), only work in arrays its caller owns. Inlining does not
+remove every count: a loop over sub-steps kept about 30 atomic operations per RK4 step, a third of
+the step's time, in :func:`delaytrack.sim.integrator.integrate_step`, which is therefore one.
 """
 
 from __future__ import annotations
@@ -24,7 +30,14 @@ from __future__ import annotations
 from numba import njit
 from numba.extending import register_jitable
 
-__all__ = ["KERNEL_OPTIONS", "hot_inline_kernel", "hot_kernel", "inline_kernel", "kernel"]
+__all__ = [
+    "KERNEL_OPTIONS",
+    "borrowing_kernel",
+    "hot_inline_kernel",
+    "hot_kernel",
+    "inline_kernel",
+    "kernel",
+]
 
 #: numba options of every compiled kernel.
 KERNEL_OPTIONS = {"cache": True, "error_model": "numpy"}
@@ -32,6 +45,7 @@ KERNEL_OPTIONS = {"cache": True, "error_model": "numpy"}
 kernel = njit(**KERNEL_OPTIONS)
 inline_kernel = register_jitable(error_model=KERNEL_OPTIONS["error_model"])
 hot_kernel = njit(**KERNEL_OPTIONS, inline="always")
+borrowing_kernel = register_jitable(error_model=KERNEL_OPTIONS["error_model"], _nrt=False)
 
 
 def hot_inline_kernel(function):

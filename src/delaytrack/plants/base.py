@@ -20,7 +20,7 @@ import numpy as np
 
 from delaytrack._jit import hot_inline_kernel, inline_kernel
 from delaytrack._small_linalg import solve_in_place
-from delaytrack.plants.dispatch import call_terms
+from delaytrack.plants.dispatch import call_terms, has_identity_mass
 
 __all__ = ["ELPlant", "el_rhs", "rhs_scratch"]
 
@@ -37,7 +37,8 @@ def el_rhs(terms, t, q, qdot, u, params, qddot, scratch):
 
     The paper's eq. (sys new) with the applied, delayed input ``u = τ(t - h(t))``; the state
     derivative is ``[q̇, q̈]``. ``scratch`` is :func:`rhs_scratch` ``(n, m)``: nothing is
-    allocated, so the compiled inner loop stays cheap.
+    allocated, so the compiled inner loop stays cheap. A plant that always has ``M = I``
+    (:func:`~delaytrack.plants.dispatch.has_identity_mass`) skips the solve.
     """
     mass, nonlinear, input_map = scratch
     call_terms(terms, t, q, qdot, params, mass, nonlinear, input_map)
@@ -50,7 +51,7 @@ def el_rhs(terms, t, q, qdot, u, params, qddot, scratch):
         finite = finite and math.isfinite(force)
     # A diverging state (or a singular M) is reported through q̈ (the simulator then stops the
     # run with a status) instead of raising and ending the whole batch.
-    if not (finite and solve_in_place(mass, qddot)):
+    if not (finite and (has_identity_mass(terms) or solve_in_place(mass, qddot))):
         qddot[:] = np.nan
 
 

@@ -22,6 +22,7 @@ from delaytrack._small_linalg import solve_in_place
 __all__ = [
     "LINEAR",
     "PythonKernel",
+    "IDENTITY_MASS_IDS",
     "ROBOT_COMMAND_MAP_IDS",
     "ROBOT_NOMINAL",
     "ROBOT_PAYLOAD",
@@ -30,6 +31,7 @@ __all__ = [
     "TWO_LINK_ARM",
     "call_command_map",
     "call_terms",
+    "has_identity_mass",
     "python_kernel",
     "solve_input_map",
 ]
@@ -44,6 +46,9 @@ ROBOT_NOMINAL = 4
 ROBOT_PRINTED = 5
 #: Nominal models whose command map is the robot's ``command = S(q)ᵀ τ``.
 ROBOT_COMMAND_MAP_IDS = (ROBOT_NOMINAL, ROBOT_PRINTED)
+#: Plants whose terms kernel always fills ``M = I``: the constrained robot, integrated as
+#: ``q̈ = a + b τ`` (:mod:`delaytrack.plants.robot.truth`).
+IDENTITY_MASS_IDS = (ROBOT_TRUTH, ROBOT_PAYLOAD)
 
 
 def call_terms(terms, t, q, qdot, params, mass, nonlinear, input_map):
@@ -83,6 +88,30 @@ def _call_terms_compiled(terms, t, q, qdot, params, mass, nonlinear, input_map):
         terms(t, q, qdot, params, mass, nonlinear, input_map)
 
     return by_callable
+
+
+def has_identity_mass(terms):
+    """Whether the plant kernel ``terms`` always fills ``M(q) = I``, so that ``q̈`` needs no solve.
+
+    True for the ids in :data:`IDENTITY_MASS_IDS` (in plain Python, for a :class:`PythonKernel`
+    carrying one of them); False for any other kernel, which is then solved for ``q̈``.
+    """
+    return getattr(terms, "kernel_id", None) in IDENTITY_MASS_IDS
+
+
+@overload(has_identity_mass, inline="always")
+def _has_identity_mass_compiled(terms):
+    if isinstance(terms, types.Integer):
+
+        def by_id(terms):
+            return terms == ROBOT_TRUTH or terms == ROBOT_PAYLOAD
+
+        return by_id
+
+    def other(terms):
+        return False
+
+    return other
 
 
 @inline_kernel

@@ -5,19 +5,21 @@ delay it switches at instants inside a step, where ``g(t) = t - h(t)`` crosses a
 :func:`integrate_step` splits the step there, so that every RK4 sub-step sees a constant input
 and the scheme keeps its fourth order: the step is first cut at the profile's breakpoints (pieces
 on which ``g`` is continuous and monotone), then each piece at the crossings, solved from
-``g(t) = t_k``. The input of a sub-step is looked up at its midpoint. Crossings closer than
-``1e-9 dt`` to the end of a piece are not split off (the sliver is integrated with its
-neighbour's input).
+``g(t) = t_k``. Between two consecutive crossings ``g`` lies between two consecutive ticks, so
+the input of a sub-step is the command of the crossing count, without evaluating ``h`` again.
+Crossings closer than ``1e-9 dt`` to either end of a sub-step are not split off (the sliver is
+integrated with its neighbour's input).
 
 This is the innermost loop of every simulation: nothing here allocates (the working memory is
-:func:`rk4_workspace`, made once per run).
+:func:`rk4_workspace`, made once per run), and :func:`integrate_step` is compiled without
+reference counting (:data:`delaytrack._jit.borrowing_kernel`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from delaytrack._jit import hot_inline_kernel, inline_kernel
+from delaytrack._jit import borrowing_kernel, hot_inline_kernel, inline_kernel
 from delaytrack.delays._kernel import (
     PIECEWISE_CONSTANT,
     crossing_time,
@@ -80,9 +82,9 @@ def _rk4_substep(plant_terms, plant_params, t, x, u, length, work):
 
 
 @hot_inline_kernel
-def _applied_slot(delay_kind, delay_params, t, newest, capacity, t0, dt, steps_per_tick):
-    """Ring slot of the command applied at ``t`` (-1 for ``u_init``, -2 beyond the history)."""
-    k = latest_tick_index(t - delay_value(delay_kind, delay_params, t), t0, dt, steps_per_tick)
+def _history_slot(k, newest, capacity):
+    """Ring slot of command ``k`` (-1 for ``u_init`` before the first tick, -2 when it has left
+    the history of ``capacity`` commands whose newest is ``newest``)."""
     if k < 0:
         return -1
     if k <= newest - capacity:
@@ -90,7 +92,7 @@ def _applied_slot(delay_kind, delay_params, t, newest, capacity, t0, dt, steps_p
     return k % capacity
 
 
-@inline_kernel
+@borrowing_kernel
 def integrate_step(
     plant_terms,
     plant_params,
@@ -110,9 +112,9 @@ def integrate_step(
 ):
     """Integrate ``x`` over one plant step ``[t_start, t_end]``, split where the input switches.
 
-    Each sub-step uses the command looked up at its midpoint. Returns the ring slot of the input
-    of the first sub-step (-1 for ``u_init``), or -2 when a needed command has left the history.
-    With ``probe_only`` nothing is integrated: only that first slot is found.
+    Returns the ring slot of the input of the first sub-step (-1 for ``u_init``), or -2 when a
+    needed command has left the history. With ``probe_only`` nothing is integrated: only that
+    first slot is found.
 
     Consecutive steps mostly lie on one piece of the profile, and a step starts where the last
     one ended, so the piece's breakpoint and, for a continuous profile, ``h`` at the start are
@@ -150,18 +152,12 @@ def integrate_step(
             if i < crossings:
                 target = tick_time(first_tick + direction * i, t0, dt, steps_per_tick)
                 end = crossing_time(delay_kind, delay_params, a, b, g_a, g_b, target)
-                if end - start <= tolerance or b - end <= tolerance:
-                    continue
-            slot = _applied_slot(
-                delay_kind,
-                delay_params,
-                0.5 * (start + end),
-                newest,
-                capacity,
-                t0,
-                dt,
-                steps_per_tick,
-            )
+                if end - start <= tolerance:
+                    continue  # a sliver: integrated with the input after this crossing
+                if b - end <= tolerance:
+                    end = b  # the rest of the piece is a sliver: integrated with this input
+            # On sub-interval i, g lies between the ticks crossed at its ends: command k_a ± i.
+            slot = _history_slot(k_a + direction * i, newest, capacity)
             if slot == -2:
                 return slot
             if first_slot == -3:
@@ -171,5 +167,7 @@ def integrate_step(
             u = u_init if slot == -1 else history[slot]
             _rk4_substep(plant_terms, plant_params, start, x, u, end - start, work)
             start = end
+            if end == b:
+                break
         a = b
     return first_slot

@@ -13,8 +13,6 @@ as plain Python (a user plant given as Python callables): see :mod:`delaytrack.s
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
@@ -23,10 +21,20 @@ from delaytrack.controllers.dispatch import call_step
 from delaytrack.delays._kernel import delay_value
 from delaytrack.reference import call_reference
 from delaytrack.sim.history import tick_time
-from delaytrack.sim.integrator import integrate_step, rk4_workspace
+from delaytrack.sim.integrator import (
+    DELAY_BEYOND_HISTORY,
+    DIVERGED,
+    OK,
+    beyond,
+    integrate_tick,
+    rk4_workspace,
+)
 from delaytrack.sim.running_metrics import accumulate_tick
 
 __all__ = [
+    "DELAY_BEYOND_HISTORY",
+    "DIVERGED",
+    "OK",
     "STATUS_NAMES",
     "run_batch",
     "run_batch_compiled",
@@ -34,20 +42,9 @@ __all__ = [
     "run_closed_loop",
 ]
 
-OK = 0
-DIVERGED = 1
-DELAY_BEYOND_HISTORY = 2
-#: Human-readable names of the status codes of a run.
+#: Human-readable names of the status codes of a run (``OK``, ``DIVERGED``,
+#: ``DELAY_BEYOND_HISTORY``).
 STATUS_NAMES = ("ok", "diverged", "delay beyond history")
-
-
-@inline_kernel
-def _beyond(values, bound):
-    """Whether any entry is non-finite or larger than ``bound`` in magnitude."""
-    for value in values:
-        if not math.isfinite(value) or abs(value) > bound:
-            return True
-    return False
 
 
 @inline_kernel
@@ -138,61 +135,35 @@ def run_closed_loop(handles, run, settings, records):
         history[k % capacity] = command
         if record:
             commands[row] = command
-        if _beyond(command, np.inf):
+        if beyond(command, np.inf):
             return DIVERGED, t_k
         if k >= metrics_from:
             accumulate_tick(sums, qd, x[:n], command, previous_command, k == metrics_from)
             previous_command[:] = command
-        if k == n_ticks:
-            if record:
-                # The input a step from t_k would start with, found as for every other row.
-                slot = integrate_step(
-                    plant_terms,
-                    plant_params,
-                    delay_kind,
-                    delay_params,
-                    x,
-                    t_k,
-                    t_k + dt,
-                    history,
-                    u_init,
-                    k,
-                    t0,
-                    dt,
-                    steps_per_tick,
-                    work,
-                    True,
-                )
-                if slot == -2:
-                    return DELAY_BEYOND_HISTORY, t_k
-                applied[row] = u_init if slot == -1 else history[slot]
+        # At the last tick, only the input a step from t_k would start with (for the record).
+        last = k == n_ticks
+        if last and not record:
             break
-        for j in range(steps_per_tick):
-            t_start = t0 + (k * steps_per_tick + j) * dt
-            t_end = t0 + (k * steps_per_tick + j + 1) * dt
-            slot = integrate_step(
-                plant_terms,
-                plant_params,
-                delay_kind,
-                delay_params,
-                x,
-                t_start,
-                t_end,
-                history,
-                u_init,
-                k,
-                t0,
-                dt,
-                steps_per_tick,
-                work,
-                False,
-            )
-            if slot == -2:
-                return DELAY_BEYOND_HISTORY, t_start
-            if record and j == 0:
-                applied[row] = u_init if slot == -1 else history[slot]
-            if _beyond(x, divergence_bound):
-                return DIVERGED, t_end
+        outcome, t_stop, slot = integrate_tick(
+            plant_terms,
+            plant_params,
+            delay_kind,
+            delay_params,
+            x,
+            k,
+            history,
+            u_init,
+            t0,
+            dt,
+            steps_per_tick,
+            divergence_bound,
+            work,
+            last,
+        )
+        if record and slot != -3:
+            applied[row] = u_init if slot == -1 else history[slot]
+        if outcome != OK:
+            return outcome, t_stop
     return OK, tick_time(n_ticks, t0, dt, steps_per_tick)
 
 

@@ -17,6 +17,8 @@ reference counting (:data:`delaytrack._jit.borrowing_kernel`).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from delaytrack._jit import borrowing_kernel, hot_inline_kernel, inline_kernel
@@ -30,9 +32,31 @@ from delaytrack.delays._kernel import (
 from delaytrack.plants.base import el_rhs, rhs_scratch
 from delaytrack.sim.history import latest_tick_index, tick_time
 
-__all__ = ["integrate_step", "rk4_workspace"]
+__all__ = [
+    "DELAY_BEYOND_HISTORY",
+    "DIVERGED",
+    "OK",
+    "beyond",
+    "integrate_step",
+    "integrate_tick",
+    "rk4_workspace",
+]
 
 _SPLIT_TOLERANCE = 1e-9
+
+#: Outcomes of :func:`integrate_tick`, and the status codes of a run.
+OK = 0
+DIVERGED = 1
+DELAY_BEYOND_HISTORY = 2
+
+
+@inline_kernel
+def beyond(values, bound):
+    """Whether any entry is non-finite or larger than ``bound`` in magnitude."""
+    for value in values:
+        if not math.isfinite(value) or abs(value) > bound:
+            return True
+    return False
 
 
 @inline_kernel
@@ -92,7 +116,7 @@ def _history_slot(k, newest, capacity):
     return k % capacity
 
 
-@borrowing_kernel
+@hot_inline_kernel
 def integrate_step(
     plant_terms,
     plant_params,
@@ -171,3 +195,65 @@ def integrate_step(
                 break
         a = b
     return first_slot
+
+
+@borrowing_kernel
+def integrate_tick(
+    plant_terms,
+    plant_params,
+    delay_kind,
+    delay_params,
+    x,
+    k,
+    history,
+    u_init,
+    t0,
+    dt,
+    steps_per_tick,
+    divergence_bound,
+    work,
+    probe_only,
+):
+    """Integrate ``x`` over the ``steps_per_tick`` plant steps after tick ``k``.
+
+    Command ``k`` is the newest in ``history``. Returns ``(outcome, t_stop, first_slot)``:
+    :data:`OK` with ``t_stop`` the next tick's time; :data:`DIVERGED` when, at the end ``t_stop``
+    of a step, an entry of ``x`` is non-finite or beyond ``divergence_bound``; or
+    :data:`DELAY_BEYOND_HISTORY` when the step starting at ``t_stop`` needs a command that has left
+    the history. ``first_slot`` is the ring slot of the input of the first sub-step after the tick
+    (-1 for ``u_init``; -3 when even the first step could not start). With ``probe_only``,
+    nothing is integrated: only ``first_slot`` is found.
+
+    One call per tick, compiled without reference counts (a call per step cost about a tenth of
+    the step in argument passing).
+    """
+    first_slot = -3
+    for j in range(steps_per_tick):
+        t_start = t0 + (k * steps_per_tick + j) * dt
+        t_end = t0 + (k * steps_per_tick + j + 1) * dt
+        slot = integrate_step(
+            plant_terms,
+            plant_params,
+            delay_kind,
+            delay_params,
+            x,
+            t_start,
+            t_end,
+            history,
+            u_init,
+            k,
+            t0,
+            dt,
+            steps_per_tick,
+            work,
+            probe_only,
+        )
+        if slot == -2:
+            return DELAY_BEYOND_HISTORY, t_start, first_slot
+        if j == 0:
+            first_slot = slot
+            if probe_only:
+                break
+        if beyond(x, divergence_bound):
+            return DIVERGED, t_end, first_slot
+    return OK, tick_time(k + 1, t0, dt, steps_per_tick), first_slot

@@ -25,8 +25,10 @@ except PackageNotFoundError:  # pragma: no cover - running from a source tree wi
     __version__ = "0.0.0+unknown"
 
 from delaytrack.analysis import (
+    ExactDelayMargin,
     RazumikhinBound,
     UltimateBounds,
+    exact_delay_margin,
     razumikhin_bound,
     ultimate_bounds,
 )
@@ -69,6 +71,7 @@ __all__ = [
     "Controller",
     "DelayProfile",
     "ELPlant",
+    "ExactDelayMargin",
     "LinearPlant",
     "OuterLoop",
     "PiecewiseConstantDelay",
@@ -84,6 +87,7 @@ __all__ = [
     "__version__",
     "controller_from_spec",
     "delay_from_spec",
+    "exact_delay_margin",
     "load_builtin",
     "max_abs_error",
     "mean_absolute_error",

@@ -1,5 +1,7 @@
-"""Stability analysis of AROLC: Theorem 1's delay bound and Theorem 2's ultimate bounds."""
+"""Stability analysis of AROLC: Theorem 1's delay bound, Theorem 2's ultimate bounds, the exact
+delay margin of the nominal error dynamics and a gain design for the certified bound."""
 
+from delaytrack.analysis.exact_margin import ExactDelayMargin, exact_delay_margin
 from delaytrack.analysis.razumikhin import (
     RazumikhinBound,
     error_dynamics_matrices,
@@ -9,9 +11,11 @@ from delaytrack.analysis.razumikhin import (
 from delaytrack.analysis.ultimate_bounds import UltimateBounds, psi_min, ultimate_bounds
 
 __all__ = [
+    "ExactDelayMargin",
     "RazumikhinBound",
     "UltimateBounds",
     "error_dynamics_matrices",
+    "exact_delay_margin",
     "lyapunov_matrix",
     "psi_min",
     "razumikhin_bound",

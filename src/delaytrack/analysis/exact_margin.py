@@ -1,0 +1,235 @@
+"""The exact delay margin of the nominal AROLC error dynamics under a constant input delay.
+
+With the input delayed by a constant h and no uncertainty, the outer loop of AROLC gives
+(paper, (new err dyn 1) with Δu = σ = 0)
+
+    ë1(t) = −K2 ė1(t − h) − K1 e1(t − h),
+
+a retarded delay differential equation whose characteristic equation is
+
+    det(s² I + (K2 s + K1) e^{−s h}) = 0.
+
+For symmetric positive definite K1, K2 it is stable at h = 0, and as h grows it stays stable
+until a root first reaches the imaginary axis. That delay is the exact delay margin, against
+which Theorem 1's certified h_m (:func:`delaytrack.analysis.razumikhin_bound`) can be judged.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.optimize
+
+from delaytrack.analysis.razumikhin import _gains
+
+__all__ = ["ExactDelayMargin", "exact_delay_margin"]
+
+#: Number of frequencies sampled across the bracket that holds every crossing frequency.
+_SCAN_POINTS = 2048
+
+#: Relative widening of the bracket, so that a crossing on its edge (all gains equal, where the
+#: bracket is a single point) is a sign change inside it.
+_BRACKET_MARGIN = 1e-3
+
+#: A local extremum of |μ| / ω² − 1 within this distance of 0 is a tangential touch.
+_TOUCH_TOLERANCE = 1e-9
+
+#: Crossing frequencies closer than this (relative) are one crossing (repeated eigenvalues).
+_SAME_FREQUENCY_RTOL = 1e-9
+
+
+@dataclass(frozen=True)
+class ExactDelayMargin:
+    """Result of :func:`exact_delay_margin`.
+
+    Attributes
+    ----------
+    h : float
+        The delay margin in seconds: the smallest constant delay h > 0 at which a root of
+        det(s² I + (K2 s + K1) e^{−sh}) = 0 lies on the imaginary axis.
+    omega : float
+        The frequency in rad/s of that root, s = ±jω.
+    crossing_omegas : tuple of float
+        Every crossing frequency ω > 0 (a frequency at which some delay puts a root at s = jω),
+        in the order of ``crossing_delays``.
+    crossing_delays : tuple of float
+        For each crossing frequency, the smallest delay that puts the root there, ascending.
+        The larger delays h + 2πk/ω (k = 1, 2, ...) put it there again.
+    """
+
+    h: float
+    omega: float
+    crossing_omegas: tuple[float, ...]
+    crossing_delays: tuple[float, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain floats and lists, ready for ``json.dumps``."""
+        return {
+            "h": self.h,
+            "omega": self.omega,
+            "crossing_omegas": list(self.crossing_omegas),
+            "crossing_delays": list(self.crossing_delays),
+        }
+
+
+def crossover_frequency(k1: float, k2: float) -> float:
+    """The frequency ω > 0 with ω⁴ = k1² + ω² k2², i.e. ω² = (k2² + sqrt(k2⁴ + 4 k1²)) / 2.
+
+    For scalar gains it is where the loop (k2 s + k1) / s² has unit gain.
+    """
+    return math.sqrt(0.5 * (k2 * k2 + math.sqrt(k2**4 + 4.0 * k1 * k1)))
+
+
+def _moduli_excess(K1: np.ndarray, K2: np.ndarray, omegas: np.ndarray) -> np.ndarray:
+    """log(ω² / |μ_k(ω)|) for the eigenvalues μ_k of K1 + jωK2, sorted, shape (len(omegas), n).
+
+    A root of the characteristic equation lies at s = jω exactly where a column is zero.
+    Each column is continuous in ω (sorted moduli of continuous eigenvalues).
+    """
+    pencils = K1[None, :, :] + 1j * omegas[:, None, None] * K2[None, :, :]
+    moduli = np.sort(np.abs(np.linalg.eigvals(pencils)), axis=1)
+    return 2.0 * np.log(omegas)[:, None] - np.log(moduli)
+
+
+def _excess(K1: np.ndarray, K2: np.ndarray, k: int):
+    """The k-th column of :func:`_moduli_excess` as a scalar function of ω."""
+    return lambda omega: float(_moduli_excess(K1, K2, np.array([omega]))[0, k])
+
+
+def _crossings_of_column(excess, omegas: np.ndarray, values: np.ndarray) -> list[float]:
+    """Frequencies where one sorted column of excesses is zero: sign changes and touches.
+
+    A sign change between neighbouring samples is refined with Brent's method. At a local
+    minimum of |excess| among the samples without a sign change, the excess is pushed towards
+    zero over the two neighbouring intervals: if it comes within ``_TOUCH_TOLERANCE`` of zero,
+    the frequency is a tangential touch and counts as one crossing; if it changes sign there,
+    two crossings hide between samples and both are refined.
+    """
+    found: list[float] = []
+    signs = np.sign(values)
+    for i in np.flatnonzero(signs[:-1] * signs[1:] <= 0.0):
+        found.append(scipy.optimize.brentq(excess, omegas[i], omegas[i + 1], xtol=1e-14))
+    magnitude = np.abs(values)
+    for i in range(1, len(values) - 1):
+        same_sign = signs[i - 1] == signs[i] == signs[i + 1] != 0.0
+        if not (
+            same_sign and magnitude[i] <= magnitude[i - 1] and magnitude[i] <= magnitude[i + 1]
+        ):
+            continue
+        sign = signs[i]
+        closest = scipy.optimize.minimize_scalar(
+            lambda omega, s=sign: s * excess(omega),
+            bounds=(omegas[i - 1], omegas[i + 1]),
+            method="bounded",
+            options={"xatol": 1e-13 * omegas[i]},
+        )
+        value = excess(closest.x)
+        if abs(value) <= _TOUCH_TOLERANCE:
+            found.append(float(closest.x))
+        elif np.sign(value) != sign:
+            found.append(scipy.optimize.brentq(excess, omegas[i - 1], closest.x, xtol=1e-14))
+            found.append(scipy.optimize.brentq(excess, closest.x, omegas[i + 1], xtol=1e-14))
+    return found
+
+
+def _first_delay(K1: np.ndarray, K2: np.ndarray, omega: float) -> float:
+    """Smallest h > 0 with e^{−jωh} = ω² / μ for the eigenvalue μ of K1 + jωK2 with |μ| ≈ ω².
+
+    λ = ω² / μ gives h = ((−arg λ) mod 2π) / ω = (arg μ mod 2π) / ω.
+    """
+    eigenvalues = np.linalg.eigvals(K1 + 1j * omega * K2)
+    mu = eigenvalues[np.argmin(np.abs(np.log(np.abs(eigenvalues) / omega**2)))]
+    return float(np.mod(np.angle(mu), 2.0 * np.pi) / omega)
+
+
+def exact_delay_margin(K1: object, K2: object, *, n: int | None = None) -> ExactDelayMargin:
+    """The smallest constant input delay at which the nominal AROLC error dynamics lose stability.
+
+    Implements the characteristic equation of ë1 = −K2 ė1(t − h) − K1 e1(t − h)::
+
+        det(s² I + (K2 s + K1) e^{−s h}) = 0.
+
+    **On the imaginary axis.** s = jω (ω > 0; ω < 0 is the conjugate, and s = 0 is never a root
+    because K1 is nonsingular) is a root for delay h exactly when e^{−jωh} is an eigenvalue
+    λ = ω² / μ of ω² (K1 + jωK2)⁻¹, μ an eigenvalue of K1 + jωK2. So ω is a crossing frequency
+    iff some |μ(ω)| = ω², and then h = (arg μ mod 2π) / ω, plus multiples of 2π / ω.
+
+    **Where crossings can lie.** Let (K1 + jωK2) v = μ v with ‖v‖ = 1. As K1, K2 are
+    symmetric, a = vᴴ K1 v and b = vᴴ K2 v are real, with λ_min(K1) <= a <= ‖K1‖ and
+    λ_min(K2) <= b <= ‖K2‖, and μ = a + jωb. A crossing needs ω⁴ = |μ|² = a² + ω² b², hence
+
+        λ_min(K1)² + ω² λ_min(K2)² <= ω⁴ <= ‖K1‖² + ω² ‖K2‖²,
+
+    i.e. ω_c(λ_min(K1), λ_min(K2)) <= ω <= ω_c(‖K1‖, ‖K2‖) with
+    ω_c(k1, k2)² = (k2² + sqrt(k2⁴ + 4 k1²)) / 2, the crossover of (k2 s + k1) / s². (This is
+    tighter than λ_min(K1) <= ω² <= ‖K1‖ + ω‖K2‖, which it implies.) Below the bracket every
+    |μ| exceeds ω² and above it every |μ| is below ω², so each of the n sorted curves
+    log(ω² / |μ_k(ω)|) changes sign an odd number of times inside it: there are at least n
+    crossings (counted with multiplicity). Since a = Re μ > 0 and b = Im μ / ω > 0, μ lies in
+    the open first quadrant and h = arg μ / ω with 0 < arg μ < π/2.
+
+    **Method.** The bracket, widened by 0.1 %, is sampled at 2048 log-spaced frequencies; every
+    sign change of every sorted curve is refined with :func:`scipy.optimize.brentq`. A local
+    minimum of a curve's distance to zero without a sign change is examined too: two roots
+    closer than the sampling step are split and refined, and a tangential touch (the curve
+    reaches zero within 1e-9 without crossing) counts as a crossing frequency, because a root
+    then reaches the imaginary axis, which is what the margin measures. Frequencies equal to
+    a relative 1e-9 are merged (repeated gains give repeated crossings).
+
+    For diagonal gains the axes decouple and the result is, per axis,
+    ω_c = ω_c(k1, k2) and h = atan(ω_c k2 / k1) / ω_c; K1 = K2 = I gives h = 0.7111 s.
+
+    Parameters
+    ----------
+    K1, K2 : array_like
+        Symmetric positive definite gains of (aux), ``(n, n)``; a 1-D array means a diagonal
+        matrix and a scalar means ``K * I`` (n = 1 unless ``n`` is given).
+    n : int, optional
+        Number of joints; needed only to expand a scalar K1 with n > 1.
+
+    Returns
+    -------
+    ExactDelayMargin
+        The margin h (s), its frequency ω (rad/s) and every crossing frequency with its first
+        crossing delay.
+
+    Raises
+    ------
+    ValueError
+        If a gain is not symmetric positive definite (the message gives its eigenvalues), is
+        not finite, or has the wrong shape (the message names the argument and the shape).
+    TypeError
+        If a gain is not numeric.
+
+    Examples
+    --------
+    >>> round(exact_delay_margin(1.0, 1.0).h, 4)
+    0.7111
+    """
+    K1_matrix, K2_matrix = _gains(K1, K2, n, spd=True)
+    low = crossover_frequency(np.linalg.eigvalsh(K1_matrix)[0], np.linalg.eigvalsh(K2_matrix)[0])
+    high = crossover_frequency(np.linalg.norm(K1_matrix, 2), np.linalg.norm(K2_matrix, 2))
+    omegas = np.geomspace(
+        low * (1.0 - _BRACKET_MARGIN), high * (1.0 + _BRACKET_MARGIN), _SCAN_POINTS
+    )
+    excesses = _moduli_excess(K1_matrix, K2_matrix, omegas)
+    frequencies: list[float] = []
+    for k in range(K1_matrix.shape[0]):
+        frequencies += _crossings_of_column(
+            _excess(K1_matrix, K2_matrix, k), omegas, excesses[:, k]
+        )
+    merged: list[float] = []
+    for omega in sorted(frequencies):
+        if not merged or omega - merged[-1] > _SAME_FREQUENCY_RTOL * omega:
+            merged.append(omega)
+    delays = [_first_delay(K1_matrix, K2_matrix, omega) for omega in merged]
+    order = np.argsort(delays, kind="stable")
+    return ExactDelayMargin(
+        h=delays[order[0]],
+        omega=merged[order[0]],
+        crossing_omegas=tuple(float(merged[i]) for i in order),
+        crossing_delays=tuple(float(delays[i]) for i in order),
+    )

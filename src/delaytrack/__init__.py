@@ -26,8 +26,10 @@ except PackageNotFoundError:  # pragma: no cover - running from a source tree wi
 
 from delaytrack.analysis import (
     ExactDelayMargin,
+    GainDesign,
     RazumikhinBound,
     UltimateBounds,
+    design_gains,
     exact_delay_margin,
     razumikhin_bound,
     ultimate_bounds,
@@ -72,6 +74,7 @@ __all__ = [
     "DelayProfile",
     "ELPlant",
     "ExactDelayMargin",
+    "GainDesign",
     "LinearPlant",
     "OuterLoop",
     "PiecewiseConstantDelay",
@@ -87,6 +90,7 @@ __all__ = [
     "__version__",
     "controller_from_spec",
     "delay_from_spec",
+    "design_gains",
     "exact_delay_margin",
     "load_builtin",
     "max_abs_error",

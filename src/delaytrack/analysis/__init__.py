@@ -2,6 +2,7 @@
 delay margin of the nominal error dynamics and a gain design for the certified bound."""
 
 from delaytrack.analysis.exact_margin import ExactDelayMargin, exact_delay_margin
+from delaytrack.analysis.gain_design import GainDesign, design_gains
 from delaytrack.analysis.razumikhin import (
     RazumikhinBound,
     error_dynamics_matrices,
@@ -12,8 +13,10 @@ from delaytrack.analysis.ultimate_bounds import UltimateBounds, psi_min, ultimat
 
 __all__ = [
     "ExactDelayMargin",
+    "GainDesign",
     "RazumikhinBound",
     "UltimateBounds",
+    "design_gains",
     "error_dynamics_matrices",
     "exact_delay_margin",
     "lyapunov_matrix",

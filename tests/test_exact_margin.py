@@ -145,6 +145,7 @@ def test_result_is_frozen_and_serialisable():
         (np.eye(2), np.eye(3), ValueError, "K2 must be n x n = 2x2"),
         (np.ones((2, 3)), np.eye(2), ValueError, "K1 must be square"),
         ("fast", 1.0, TypeError, "K1 must be an array of real numbers; got 'fast'"),
+        (1e300, 1.0, ValueError, "K1 and K2 are too large for the margin to be computed"),
     ],
 )
 def test_bad_gains_are_refused_with_a_clear_message(K1, K2, error, words):

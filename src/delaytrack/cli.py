@@ -3,6 +3,8 @@
 Commands::
 
     delaytrack bound --k1 1 --k2 1 --q 1 --beta 1 --r 1.1 [--n 5] [--json]
+    delaytrack margin --k1 1 --k2 1 [--q 1] [--beta 1] [--r 1.1] [--n 5] [--json]
+    delaytrack design [--n 2] [--gain-bound 1] [--r 1.1] [--seed 0] [--json]
     delaytrack simulate SCENARIO.toml [--out DIR] [--format parquet|csv|both]
     delaytrack reproduce [--out results] [--duration SECONDS] [--no-dt-check] [--job paper|two-link]
     delaytrack tune-baselines [--out PATH] [--quiet]
@@ -20,8 +22,12 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from delaytrack.analysis import RazumikhinBound
 
 __all__ = ["main"]
 
@@ -60,12 +66,7 @@ def _scalar(flag: str, text: str) -> float:
 def _dimension(args: argparse.Namespace, k1: np.ndarray, k2: np.ndarray, q: np.ndarray) -> int:
     """n from --n, else from the length of a comma list, else 1; check every list fits it."""
     if args.n is not None:
-        if not 1 <= args.n <= _MAX_JOINTS:
-            raise UsageError(
-                f"--n must be an integer from 1 to {_MAX_JOINTS} (the number of joints); "
-                f"got {args.n}"
-            )
-        n = args.n
+        n = _joints(args.n)
     else:
         candidates = {len(v) for v in (k1, k2) if len(v) > 1}
         if len(q) > 1:
@@ -93,6 +94,15 @@ def _dimension(args: argparse.Namespace, k1: np.ndarray, k2: np.ndarray, q: np.n
 _MAX_JOINTS = 1000
 
 
+def _joints(n: int) -> int:
+    """Check --n."""
+    if not 1 <= n <= _MAX_JOINTS:
+        raise UsageError(
+            f"--n must be an integer from 1 to {_MAX_JOINTS} (the number of joints); got {n}"
+        )
+    return n
+
+
 def _diagonal(values: np.ndarray, size: int) -> np.ndarray:
     return np.diag(np.broadcast_to(values, (size,)).astype(float))
 
@@ -100,19 +110,33 @@ def _diagonal(values: np.ndarray, size: int) -> np.ndarray:
 _LIBRARY_NAMES = {"K1": "--k1", "K2": "--k2", "Q": "--q", "beta": "--beta", "r": "--r"}
 
 
-def _bound(args: argparse.Namespace) -> int:
+def _shown(values: np.ndarray) -> str:
+    """``"2 I"`` for one value, ``"diag(1, 2)"`` for a list."""
+    if len(values) == 1:
+        return f"{values[0]:g} I"
+    return "diag(" + ", ".join(f"{v:g}" for v in values) + ")"
+
+
+def _razumikhin_factor(text: str) -> float:
+    """Parse and check --r."""
+    r = _scalar("--r", text)
+    if r <= 1.0:
+        raise UsageError(
+            f"--r must be > 1 (the Razumikhin factor in V(e(xi)) < r V(e(t))); got {text}"
+        )
+    return r
+
+
+def _theorem_1(args: argparse.Namespace) -> tuple[RazumikhinBound, str]:
+    """Parse --k1, --k2, --q, --beta, --r, --n; return Theorem 1's result and a settings line."""
     from delaytrack.analysis import razumikhin_bound
 
     raw = {"--k1": args.k1, "--k2": args.k2, "--q": args.q, "--beta": args.beta, "--r": args.r}
     k1, k2, q = _numbers("--k1", args.k1), _numbers("--k2", args.k2), _numbers("--q", args.q)
-    beta, r = _scalar("--beta", args.beta), _scalar("--r", args.r)
+    beta, r = _scalar("--beta", args.beta), _razumikhin_factor(args.r)
     if beta <= 0.0:
         raise UsageError(
             f"--beta must be > 0 (the weight of the paper's inequality); got {args.beta}"
-        )
-    if r <= 1.0:
-        raise UsageError(
-            f"--r must be > 1 (the Razumikhin factor in V(e(xi)) < r V(e(t))); got {args.r}"
         )
     n = _dimension(args, k1, k2, q)
     try:
@@ -126,27 +150,107 @@ def _bound(args: argparse.Namespace) -> int:
                 message = f"{flag} {message[len(name) + 1 :]} (got {flag} {raw[flag]})"
                 break
         raise UsageError(message) from None
+    settings = (
+        f"  n = {n}, K1 = {_shown(k1)}, K2 = {_shown(k2)}, Q = {_shown(q)}, beta = {beta:g}, "
+        f"r = {r:g}"
+    )
+    return bound, settings
+
+
+def _bound(args: argparse.Namespace) -> int:
+    bound, settings = _theorem_1(args)
     if args.json:
         data = bound.to_dict()
         data["h_m_ms"] = 1e3 * bound.h_m
         print(json.dumps(data))
         return 0
-
-    def shown(values: np.ndarray) -> str:
-        if len(values) == 1:
-            return f"{values[0]:g} I"
-        return "diag(" + ", ".join(f"{v:g}" for v in values) + ")"
-
     print("Razumikhin delay bound (Roy & Kar, Theorem 1)")
-    print(
-        f"  n = {n}, K1 = {shown(k1)}, K2 = {shown(k2)}, Q = {shown(q)}, beta = {beta:g}, r = {r:g}"
-    )
+    print(settings)
     print(f"  lambda_min(Q) = {bound.lambda_min_Q:.6g}")
     print(f"  ||E||_2       = {bound.E_norm:.6g}")
     print(f"  h_m           = {bound.h_m:.6g} s ({1e3 * bound.h_m:.4g} ms)")
     print(
         "AROLC is certified for every input delay 0 <= h(t) < h_m "
         "(Q - h E stays positive definite)."
+    )
+    return 0
+
+
+# --------------------------------------------------------------------------------------------
+# margin
+
+
+def _margin(args: argparse.Namespace) -> int:
+    from delaytrack.analysis import exact_delay_margin
+
+    bound, settings = _theorem_1(args)
+    exact = exact_delay_margin(bound.K1, bound.K2)
+    ratio = bound.h_m / exact.h
+    if args.json:
+        data = {
+            "n": bound.n,
+            "h_m": bound.h_m,
+            "h_exact": exact.h,
+            "omega_exact": exact.omega,
+            "ratio": ratio,
+            "crossing_omegas": list(exact.crossing_omegas),
+            "crossing_delays": list(exact.crossing_delays),
+        }
+        print(json.dumps(data))
+        return 0
+    print("Delay margins of the nominal error dynamics e1'' = -K2 e1'(t-h) - K1 e1(t-h)")
+    print(settings)
+    print(f"  h_m (certified, Theorem 1)  = {bound.h_m:.6g} s ({1e3 * bound.h_m:.4g} ms)")
+    print(
+        f"  h_exact (constant delay)    = {exact.h:.6g} s ({1e3 * exact.h:.4g} ms) "
+        f"at omega_exact = {exact.omega:.6g} rad/s"
+    )
+    print(f"  h_m / h_exact               = {ratio:.4g}")
+    print("h_m holds for every time-varying delay below it, with uncertainty; h_exact only for a")
+    print("constant delay without uncertainty (a root reaches s = j omega_exact there).")
+    return 0
+
+
+# --------------------------------------------------------------------------------------------
+# design
+
+
+def _design(args: argparse.Namespace) -> int:
+    from delaytrack.analysis import design_gains
+
+    gain_bound, r = _scalar("--gain-bound", args.gain_bound), _razumikhin_factor(args.r)
+    if gain_bound <= 0.0:
+        raise UsageError(
+            f"--gain-bound must be > 0 (the largest diagonal entry of K1 and K2); "
+            f"got {args.gain_bound}"
+        )
+    if args.seed < 0:
+        raise UsageError(f"--seed must be a non-negative integer; got {args.seed}")
+    design = design_gains(n=_joints(args.n), gain_bound=gain_bound, r=r, seed=args.seed)
+    if args.json:
+        print(json.dumps(design.to_dict()))
+        return 0
+    gain = 100.0 * (design.h_m / design.reference_h_m - 1.0)
+    print(
+        f"Gain design for Theorem 1 (diagonal K1, K2, Q; every entry of K1 and K2 <= "
+        f"{design.gain_bound:g})"
+    )
+    print(
+        f"  n = {design.n}, K1 = {design.K1[0, 0]:.6g} I, K2 = {design.K2[0, 0]:.6g} I, "
+        f"Q = diag(1, {design.Q[-1, -1]:.6g}) per joint, beta = {design.beta:.6g}, "
+        f"r = {design.r:g}"
+    )
+    print(
+        f"  h_m = {design.h_m:.6g} s ({1e3 * design.h_m:.4g} ms); the paper's K1 = K2 = Q = I, "
+        f"beta = 1: {design.reference_h_m:.6g} s ({gain:+.2f} %)"
+    )
+    print(
+        f"  exact margin of these gains (constant delay): {design.exact.h:.6g} s at "
+        f"{design.exact.omega:.6g} rad/s"
+    )
+    print(
+        f"  gain bound {'active' if design.bound_active else 'inactive'}; seed {design.seed}; "
+        f"{design.evaluations} evaluations in {design.seconds:.1f} s"
     )
     return 0
 
@@ -279,6 +383,42 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f"error: {message} (see {self.prog} --help)\n")
 
 
+def _theorem_1_arguments(command: argparse.ArgumentParser, q_default: str | None) -> None:
+    """Add --k1, --k2, --q, --beta, --r, --n and --json; --q is required when it has no default."""
+    command.add_argument(
+        "--k1",
+        required=True,
+        metavar="K1",
+        help="proportional gain K1 (n); write --k1=-1,2 for a list starting with a minus",
+    )
+    command.add_argument("--k2", required=True, metavar="K2", help="derivative gain K2 (n)")
+    command.add_argument(
+        "--q",
+        required=q_default is None,
+        default=q_default,
+        metavar="Q",
+        help="Lyapunov weight Q (2n)" + ("" if q_default is None else f" (default {q_default})"),
+    )
+    command.add_argument("--beta", default="1", metavar="BETA", help="beta > 0 (default 1)")
+    command.add_argument(
+        "--n",
+        type=int,
+        default=None,
+        help="number of joints (default: length of a comma list, else 1)",
+    )
+    _r_and_json_arguments(command)
+
+
+def _r_and_json_arguments(command: argparse.ArgumentParser) -> None:
+    """Add --r (the Razumikhin factor) and --json."""
+    command.add_argument(
+        "--r", default="1.1", metavar="R", help="Razumikhin factor r > 1 (default 1.1)"
+    )
+    command.add_argument(
+        "--json", action="store_true", help="print one JSON object instead of text"
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``delaytrack`` command."""
     parser = _Parser(
@@ -299,26 +439,37 @@ def build_parser() -> argparse.ArgumentParser:
         "number means a multiple of the identity, a comma list a diagonal (k1, k2 of length n, "
         "q of length 2n). Example: delaytrack bound --k1 1 --k2 1 --q 1 --beta 1 --r 1.1",
     )
-    bound.add_argument(
-        "--k1",
-        required=True,
-        metavar="K1",
-        help="proportional gain K1 (n); write --k1=-1,2 for a list starting with a minus",
-    )
-    bound.add_argument("--k2", required=True, metavar="K2", help="derivative gain K2 (n)")
-    bound.add_argument("--q", required=True, metavar="Q", help="Lyapunov weight Q (2n)")
-    bound.add_argument("--beta", default="1", metavar="BETA", help="beta > 0 (default 1)")
-    bound.add_argument(
-        "--r", default="1.1", metavar="R", help="Razumikhin factor r > 1 (default 1.1)"
-    )
-    bound.add_argument(
-        "--n",
-        type=int,
-        default=None,
-        help="number of joints (default: length of a comma list, else 1)",
-    )
-    bound.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    _theorem_1_arguments(bound, q_default=None)
     bound.set_defaults(handler=_bound)
+
+    margin = commands.add_parser(
+        "margin",
+        help="certified h_m beside the exact constant-delay margin h_exact",
+        description="Theorem 1's certified bound h_m and the exact delay margin h_exact of "
+        "e1'' = -K2 e1'(t-h) - K1 e1(t-h) for a constant delay h (the smallest h with a root of "
+        "det(s^2 I + (K2 s + K1) e^(-sh)) on the imaginary axis). Lists as for bound. "
+        "Example: delaytrack margin --k1 1 --k2 1",
+    )
+    _theorem_1_arguments(margin, q_default="1")
+    margin.set_defaults(handler=_margin)
+
+    design = commands.add_parser(
+        "design",
+        help="diagonal K1, K2, Q and beta that maximise the certified h_m",
+        description="Search diagonal K1, K2, Q and beta (seeded differential evolution) for the "
+        "largest delay Theorem 1 certifies, with every diagonal entry of K1 and K2 at most "
+        "--gain-bound. Example: delaytrack design --gain-bound 1 --seed 0",
+    )
+    design.add_argument("--n", type=int, default=1, help="number of joints (default 1)")
+    design.add_argument(
+        "--gain-bound",
+        default="1",
+        metavar="B",
+        help="largest diagonal entry of K1 and K2 (default 1, the paper's K1 = K2 = I)",
+    )
+    design.add_argument("--seed", type=int, default=0, help="search seed (default 0)")
+    _r_and_json_arguments(design)
+    design.set_defaults(handler=_design)
 
     simulate = commands.add_parser(
         "simulate",

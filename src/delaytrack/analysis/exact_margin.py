@@ -37,6 +37,9 @@ _BRACKET_MARGIN = 1e-3
 #: A local extremum of |μ| / ω² − 1 within this distance of 0 is a tangential touch.
 _TOUCH_TOLERANCE = 1e-9
 
+#: Largest crossing frequency handled: ω² and |μ| must stay finite with room to spare.
+_LARGEST_FREQUENCY = 1e100
+
 #: Crossing frequencies closer than this (relative) are one crossing (repeated eigenvalues).
 _SAME_FREQUENCY_RTOL = 1e-9
 
@@ -80,7 +83,8 @@ def crossover_frequency(k1: float, k2: float) -> float:
 
     For scalar gains it is where the loop (k2 s + k1) / s² has unit gain.
     """
-    return math.sqrt(0.5 * (k2 * k2 + math.sqrt(k2**4 + 4.0 * k1 * k1)))
+    square = float(k2) * float(k2)
+    return math.sqrt(0.5 * (square + math.hypot(square, 2.0 * float(k1))))
 
 
 def _moduli_excess(K1: np.ndarray, K2: np.ndarray, omegas: np.ndarray) -> np.ndarray:
@@ -212,6 +216,12 @@ def exact_delay_margin(K1: object, K2: object, *, n: int | None = None) -> Exact
     K1_matrix, K2_matrix = _gains(K1, K2, n, spd=True)
     low = crossover_frequency(np.linalg.eigvalsh(K1_matrix)[0], np.linalg.eigvalsh(K2_matrix)[0])
     high = crossover_frequency(np.linalg.norm(K1_matrix, 2), np.linalg.norm(K2_matrix, 2))
+    if not high < _LARGEST_FREQUENCY:
+        raise ValueError(
+            f"K1 and K2 are too large for the margin to be computed in floating point: crossing "
+            f"frequencies may reach {high:.3g} rad/s (||K1|| = {np.linalg.norm(K1_matrix, 2):.3g}, "
+            f"||K2|| = {np.linalg.norm(K2_matrix, 2):.3g}); rescale time"
+        )
     omegas = np.geomspace(
         low * (1.0 - _BRACKET_MARGIN), high * (1.0 + _BRACKET_MARGIN), _SCAN_POINTS
     )

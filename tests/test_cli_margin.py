@@ -98,6 +98,12 @@ def test_design_text_output(capsys):
     assert "exact margin of these gains" in out
 
 
+def test_design_with_a_least_bandwidth(capsys):
+    data = json_of(capsys, "design", "--gain-bound", "10", "--min-bandwidth", "2")
+    assert data["min_bandwidth"] == 2.0 and data["bandwidth_active"] and data["k1"] >= 4.0
+    assert data["h_m"] == design_gains(gain_bound=10.0, min_bandwidth=2.0).h_m
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
@@ -107,6 +113,8 @@ def test_design_text_output(capsys):
         (["--r", "0.5"], "--r must be > 1"),
         (["--seed", "-3"], "--seed must be a non-negative integer; got -3"),
         (["--n", "0"], "--n must be an integer from 1 to"),
+        (["--min-bandwidth", "0"], "--min-bandwidth must be > 0 rad/s"),
+        (["--min-bandwidth", "2"], "needs K1 entries >= 4, above --gain-bound = 1"),
     ],
 )
 def test_design_bad_input_messages(capsys, args, message):

@@ -69,6 +69,16 @@ def test_looser_bound_is_inactive_and_the_optimum_is_interior():
     assert design.exact.h >= design.h_m
 
 
+def test_least_bandwidth_binds_and_costs_certified_delay():
+    design = design_gains(gain_bound=100.0, min_bandwidth=2.0, seed=0)
+    assert design.K1[0, 0] >= 4.0 and design.bandwidth_active and not design.bound_active
+    assert design.h_m == pytest.approx(0.08879, abs=1e-5)  # measured, docs/margins.md
+    assert design.h_m < PAPER_H_M  # a faster loop is certified for less
+    assert design.exact.h >= design.h_m
+    loose = design_gains(gain_bound=100.0, min_bandwidth=0.5, seed=0)
+    assert not loose.bandwidth_active  # the unconstrained optimum has sqrt(k1) = 1.014
+
+
 def test_one_axis_design_serves_every_n(paper_bound_design):
     single = design_gains(n=1, gain_bound=1.0, seed=0)
     assert single.h_m == pytest.approx(paper_bound_design.h_m, rel=1e-12)
@@ -97,6 +107,12 @@ def test_h_m_does_not_depend_on_the_scale_of_Q(paper_bound_design):
         ({"gain_bound": math.inf}, ValueError, "gain_bound must be finite"),
         ({"gain_bound": "1"}, TypeError, "gain_bound must be a real number; got '1'"),
         ({"r": 1.0}, ValueError, "r must be > 1"),
+        ({"min_bandwidth": -1.0}, ValueError, "min_bandwidth must be > 0; got -1"),
+        (
+            {"min_bandwidth": 2.0},
+            ValueError,
+            "min_bandwidth = 2 rad/s needs K1 entries >= 4, above gain_bound = 1",
+        ),
         ({"seed": -1}, ValueError, "seed must be a non-negative integer; got -1"),
         ({"seed": 1.5}, ValueError, "seed must be a non-negative integer; got 1.5"),
     ],

@@ -4,7 +4,7 @@ Commands::
 
     delaytrack bound --k1 1 --k2 1 --q 1 --beta 1 --r 1.1 [--n 5] [--json]
     delaytrack margin --k1 1 --k2 1 [--q 1] [--beta 1] [--r 1.1] [--n 5] [--json]
-    delaytrack design [--n 2] [--gain-bound 1] [--r 1.1] [--seed 0] [--json]
+    delaytrack design [--n 2] [--gain-bound 1] [--min-bandwidth W] [--r 1.1] [--seed 0] [--json]
     delaytrack simulate SCENARIO.toml [--out DIR] [--format parquet|csv|both]
     delaytrack reproduce [--out results] [--duration SECONDS] [--no-dt-check] [--job paper|two-link]
     delaytrack tune-baselines [--out PATH] [--quiet]
@@ -226,14 +226,29 @@ def _design(args: argparse.Namespace) -> int:
         )
     if args.seed < 0:
         raise UsageError(f"--seed must be a non-negative integer; got {args.seed}")
-    design = design_gains(n=_joints(args.n), gain_bound=gain_bound, r=r, seed=args.seed)
+    bandwidth = None
+    if args.min_bandwidth is not None:
+        bandwidth = _scalar("--min-bandwidth", args.min_bandwidth)
+        if bandwidth <= 0.0:
+            raise UsageError(
+                f"--min-bandwidth must be > 0 rad/s (the least natural frequency sqrt(k1)); "
+                f"got {args.min_bandwidth}"
+            )
+    try:
+        design = design_gains(
+            n=_joints(args.n), gain_bound=gain_bound, min_bandwidth=bandwidth, r=r, seed=args.seed
+        )
+    except ValueError as error:  # min_bandwidth^2 above gain_bound
+        message = str(error).replace("min_bandwidth", "--min-bandwidth")
+        raise UsageError(message.replace("gain_bound", "--gain-bound")) from None
     if args.json:
         print(json.dumps(design.to_dict()))
         return 0
     gain = 100.0 * (design.h_m / design.reference_h_m - 1.0)
+    bandwidth_text = "" if bandwidth is None else f"; sqrt(k1) >= {bandwidth:g} rad/s"
     print(
         f"Gain design for Theorem 1 (diagonal K1, K2, Q; every entry of K1 and K2 <= "
-        f"{design.gain_bound:g})"
+        f"{design.gain_bound:g}{bandwidth_text})"
     )
     print(
         f"  n = {design.n}, K1 = {design.K1[0, 0]:.6g} I, K2 = {design.K2[0, 0]:.6g} I, "
@@ -248,8 +263,10 @@ def _design(args: argparse.Namespace) -> int:
         f"  exact margin of these gains (constant delay): {design.exact.h:.6g} s at "
         f"{design.exact.omega:.6g} rad/s"
     )
+    active = {True: "active", False: "inactive"}
+    bandwidth_state = "" if bandwidth is None else f"; bandwidth {active[design.bandwidth_active]}"
     print(
-        f"  gain bound {'active' if design.bound_active else 'inactive'}; seed {design.seed}; "
+        f"  gain bound {active[design.bound_active]}{bandwidth_state}; seed {design.seed}; "
         f"{design.evaluations} evaluations in {design.seconds:.1f} s"
     )
     return 0
@@ -466,6 +483,12 @@ def build_parser() -> argparse.ArgumentParser:
         default="1",
         metavar="B",
         help="largest diagonal entry of K1 and K2 (default 1, the paper's K1 = K2 = I)",
+    )
+    design.add_argument(
+        "--min-bandwidth",
+        default=None,
+        metavar="W",
+        help="least natural frequency sqrt(k1) of the delay-free loop, rad/s (default: none)",
     )
     design.add_argument("--seed", type=int, default=0, help="search seed (default 0)")
     _r_and_json_arguments(design)

@@ -50,8 +50,12 @@ class GainDesign:
         h_m of the paper's K1 = K2 = Q = I, β = 1 at the same r, for comparison.
     gain_bound : float
         The bound imposed on every diagonal entry of K1 and K2.
+    min_bandwidth : float or None
+        The imposed least natural frequency sqrt(K1[i, i]) in rad/s, if any.
     bound_active : bool
         Whether the largest designed gain sits on ``gain_bound`` (to a relative 1e-6).
+    bandwidth_active : bool
+        Whether sqrt(k1) sits on ``min_bandwidth`` (to a relative 1e-6); False without one.
     seed : int
         Seed of the differential evolution; the same seed gives the same design.
     evaluations : int
@@ -70,7 +74,9 @@ class GainDesign:
     exact: ExactDelayMargin
     reference_h_m: float
     gain_bound: float
+    min_bandwidth: float | None
     bound_active: bool
+    bandwidth_active: bool
     seed: int
     evaluations: int
     seconds: float
@@ -94,7 +100,9 @@ class GainDesign:
             "omega_exact": self.exact.omega,
             "reference_h_m": self.reference_h_m,
             "gain_bound": self.gain_bound,
+            "min_bandwidth": self.min_bandwidth,
             "bound_active": self.bound_active,
+            "bandwidth_active": self.bandwidth_active,
             "seed": self.seed,
             "evaluations": self.evaluations,
             "seconds": self.seconds,
@@ -117,7 +125,12 @@ def _seed(seed: object) -> int:
 
 
 def design_gains(
-    *, n: int = 1, gain_bound: float = 1.0, r: float = 1.1, seed: int = 0
+    *,
+    n: int = 1,
+    gain_bound: float = 1.0,
+    min_bandwidth: float | None = None,
+    r: float = 1.1,
+    seed: int = 0,
 ) -> GainDesign:
     """Search diagonal K1, K2, Q and β > 0 for the largest delay certified by Theorem 1.
 
@@ -127,7 +140,12 @@ def design_gains(
         E = β P B1 (A1 P⁻¹ A1ᵀ + B1 P⁻¹ B1ᵀ + P⁻¹) B1ᵀ P + 2 (r/β) P,   AᵀP + PA = −Q,
 
     subject to ``0 < K1[i, i] <= gain_bound`` and ``0 < K2[i, i] <= gain_bound`` for every
-    joint i (the paper's K1 = K2 = I has every entry equal to 1).
+    joint i (the paper's K1 = K2 = I has every entry equal to 1) and, with ``min_bandwidth``,
+    ``sqrt(K1[i, i]) >= min_bandwidth``: the delay-free loop ë1 + K2 ė1 + K1 e1 = 0 then has
+    natural frequency at least ``min_bandwidth`` rad/s in every joint.
+
+    The upper bound alone is inactive beyond about 1.03 (below); a least bandwidth is the
+    constraint that binds, and h_m falls as it rises (docs/margins.md has the numbers).
 
     **Reductions** (each exact, so nothing is lost):
 
@@ -145,7 +163,8 @@ def design_gains(
       search is over one axis: (k1, k2, q_v, β), and every joint gets the same gains.
 
     **Search.** :func:`scipy.optimize.differential_evolution` over the logarithms of
-    k1, k2 in [gain_bound / 1e4, gain_bound] and q_v, β in [1e-4, 1e4], seeded, then polished
+    k1 in [max(gain_bound / 1e4, min_bandwidth²), gain_bound], k2 in [gain_bound / 1e4,
+    gain_bound] and q_v, β in [1e-4, 1e4], seeded, then polished
     with L-BFGS-B (scipy's default). A point whose Lyapunov equation cannot be solved accurately
     counts as h_m = 0. The returned h_m is recomputed by :func:`razumikhin_bound` for the
     returned n-joint matrices, so it is exactly what Theorem 1 certifies for them.
@@ -161,6 +180,9 @@ def design_gains(
         Number of joints (default 1).
     gain_bound : float, optional
         Largest allowed diagonal entry of K1 and of K2, > 0 (default 1, the paper's gains).
+    min_bandwidth : float, optional
+        Least natural frequency sqrt(K1[i, i]) in rad/s, > 0, with min_bandwidth² <= gain_bound
+        (default: none).
     r : float, optional
         Razumikhin factor r > 1 of (razu) (default 1.1, the paper's).
     seed : int, optional
@@ -175,10 +197,10 @@ def design_gains(
     Raises
     ------
     ValueError
-        If n is not a positive integer, gain_bound is not a finite number > 0, r <= 1, or seed
-        is not a non-negative integer.
+        If n is not a positive integer, gain_bound or min_bandwidth is not a finite number > 0,
+        min_bandwidth² exceeds gain_bound, r <= 1, or seed is not a non-negative integer.
     TypeError
-        If gain_bound or r is not a real number.
+        If gain_bound, min_bandwidth or r is not a real number.
     """
     joints = _dimension(None, n)
     bound_value = positive_scalar("gain_bound", gain_bound)
@@ -188,16 +210,29 @@ def design_gains(
 
     top = math.log(bound_value)
     span = math.log(_SPAN)
+    k1_floor = top - span
+    if min_bandwidth is not None:
+        bandwidth = positive_scalar("min_bandwidth", min_bandwidth)
+        if bandwidth * bandwidth > bound_value:
+            raise ValueError(
+                f"min_bandwidth = {bandwidth:g} rad/s needs K1 entries >= {bandwidth**2:g}, above "
+                f"gain_bound = {bound_value:g}; raise gain_bound or lower min_bandwidth"
+            )
+        k1_floor = max(k1_floor, 2.0 * math.log(bandwidth))
     start = time.perf_counter()
     search = scipy.optimize.differential_evolution(
         lambda x: -_axis_h_m(x, r_value),
-        bounds=[(top - span, top), (top - span, top), (-span, span), (-span, span)],
+        bounds=[(k1_floor, top), (top - span, top), (-span, span), (-span, span)],
         seed=seed_value,
         tol=1e-10,
     )
     seconds = time.perf_counter() - start
     k1, k2, q_v, beta = (float(v) for v in np.exp(search.x))
-    k1, k2 = min(k1, bound_value), min(k2, bound_value)  # exp(log(b)) may exceed b by an ulp
+    # exp(log(b)) may miss b by an ulp: put the gains back inside their bounds.
+    k1 = min(max(k1, math.exp(k1_floor)), bound_value)
+    k2 = min(k2, bound_value)
+    if min_bandwidth is not None:
+        k1 = max(k1, bandwidth * bandwidth)
     ones = np.ones(joints)
     certified = razumikhin_bound(k1 * ones, k2 * ones, np.hstack([ones, q_v * ones]), beta, r_value)
     return GainDesign(
@@ -211,7 +246,9 @@ def design_gains(
         exact=exact_delay_margin(certified.K1, certified.K2),
         reference_h_m=reference.h_m,
         gain_bound=bound_value,
+        min_bandwidth=None if min_bandwidth is None else bandwidth,
         bound_active=max(k1, k2) >= bound_value * (1.0 - 1e-6),
+        bandwidth_active=min_bandwidth is not None and k1 <= bandwidth**2 * (1.0 + 1e-6),
         seed=seed_value,
         evaluations=int(search.nfev),
         seconds=seconds,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -130,3 +131,10 @@ def test_help(command, capsys):
         main([command, "--help"])
     assert stop.value.code == 0
     assert "usage: delaytrack" in capsys.readouterr().out
+
+
+def test_readme_shows_what_margin_prints(capsys):
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    assert main(["margin", "--k1", "1", "--k2", "1"]) == 0
+    for line in capsys.readouterr().out.splitlines()[:5]:
+        assert f"    {line}\n" in readme

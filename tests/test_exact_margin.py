@@ -79,6 +79,18 @@ def test_closed_form_per_axis_for_random_diagonal_gains():
         assert list(margin.crossing_delays) == sorted(margin.crossing_delays)
 
 
+def test_two_axes_with_one_crossover_frequency_keep_both_delays():
+    # omega^4 = k1^2 + omega^2 k2^2 has the same root for (1, 1) and (a, 0.5) with
+    # a = sqrt(omega^4 - omega^2 / 4): one crossing frequency, two different delays.
+    omega2 = (1.0 + math.sqrt(5.0)) / 2.0
+    a = math.sqrt(omega2**2 - omega2 / 4.0)
+    margin = exact_delay_margin([1.0, a], [1.0, 0.5])
+    h_b, omega_b = closed_form(a, 0.5)
+    assert omega_b == pytest.approx(math.sqrt(omega2), rel=1e-14)
+    assert margin.h == pytest.approx(h_b, rel=1e-10) and h_b < 0.5 * IDENTITY_MARGIN
+    assert margin.crossing_delays == pytest.approx([h_b, IDENTITY_MARGIN], rel=1e-10)
+
+
 def test_siso_margin_is_phase_margin_over_crossover_from_python_control():
     # The loop (k2 s + k1) / s^2 under a delay e^{-sh} keeps its gain and loses phase omega h,
     # so the delay margin is the phase margin divided by the crossover frequency.

@@ -40,8 +40,9 @@ _TOUCH_TOLERANCE = 1e-9
 #: Largest crossing frequency handled: ω² and |μ| must stay finite with room to spare.
 _LARGEST_FREQUENCY = 1e100
 
-#: Crossing frequencies closer than this (relative) are one crossing (repeated eigenvalues).
-_SAME_FREQUENCY_RTOL = 1e-9
+#: Crossings whose frequencies and delays agree to this (relative) are one crossing (repeated
+#: eigenvalues); an eigenvalue μ with |log(|μ| / ω²)| below it lies on the unit circle.
+_SAME_RTOL = 1e-9
 
 
 @dataclass(frozen=True)
@@ -78,7 +79,7 @@ class ExactDelayMargin:
         }
 
 
-def crossover_frequency(k1: float, k2: float) -> float:
+def _crossover_frequency(k1: float, k2: float) -> float:
     """The frequency ω > 0 with ω⁴ = k1² + ω² k2², i.e. ω² = (k2² + sqrt(k2⁴ + 4 k1²)) / 2.
 
     For scalar gains it is where the loop (k2 s + k1) / s² has unit gain.
@@ -139,14 +140,17 @@ def _crossings_of_column(excess, omegas: np.ndarray, values: np.ndarray) -> list
     return found
 
 
-def _first_delay(K1: np.ndarray, K2: np.ndarray, omega: float) -> float:
-    """Smallest h > 0 with e^{−jωh} = ω² / μ for the eigenvalue μ of K1 + jωK2 with |μ| ≈ ω².
+def _first_delays(K1: np.ndarray, K2: np.ndarray, omega: float) -> list[float]:
+    """Smallest h > 0 with e^{−jωh} = ω² / μ, for each eigenvalue μ of K1 + jωK2 with |μ| = ω².
 
-    λ = ω² / μ gives h = ((−arg λ) mod 2π) / ω = (arg μ mod 2π) / ω.
+    λ = ω² / μ gives h = ((−arg λ) mod 2π) / ω = (arg μ mod 2π) / ω. Every eigenvalue within
+    ``_SAME_RTOL`` of the unit modulus counts (two axes can cross at one frequency with
+    different delays); the closest one always does.
     """
     eigenvalues = np.linalg.eigvals(K1 + 1j * omega * K2)
-    mu = eigenvalues[np.argmin(np.abs(np.log(np.abs(eigenvalues) / omega**2)))]
-    return float(np.mod(np.angle(mu), 2.0 * np.pi) / omega)
+    distance = np.abs(np.log(np.abs(eigenvalues) / omega**2))
+    on_axis = eigenvalues[distance <= max(_SAME_RTOL, float(np.min(distance)))]
+    return [float(np.mod(np.angle(mu), 2.0 * np.pi) / omega) for mu in on_axis]
 
 
 def exact_delay_margin(K1: object, K2: object, *, n: int | None = None) -> ExactDelayMargin:
@@ -180,8 +184,9 @@ def exact_delay_margin(K1: object, K2: object, *, n: int | None = None) -> Exact
     minimum of a curve's distance to zero without a sign change is examined too: two roots
     closer than the sampling step are split and refined, and a tangential touch (the curve
     reaches zero within 1e-9 without crossing) counts as a crossing frequency, because a root
-    then reaches the imaginary axis, which is what the margin measures. Frequencies equal to
-    a relative 1e-9 are merged (repeated gains give repeated crossings).
+    then reaches the imaginary axis, which is what the margin measures. Crossings equal in
+    frequency and delay to a relative 1e-9 are merged (repeated gains give repeated
+    crossings); distinct delays at one frequency (two axes with one crossover) are all kept.
 
     For diagonal gains the axes decouple and the result is, per axis,
     ω_c = ω_c(k1, k2) and h = atan(ω_c k2 / k1) / ω_c; K1 = K2 = I gives h = 0.7111 s.
@@ -214,8 +219,8 @@ def exact_delay_margin(K1: object, K2: object, *, n: int | None = None) -> Exact
     0.7111
     """
     K1_matrix, K2_matrix = _gains(K1, K2, n, spd=True)
-    low = crossover_frequency(np.linalg.eigvalsh(K1_matrix)[0], np.linalg.eigvalsh(K2_matrix)[0])
-    high = crossover_frequency(np.linalg.norm(K1_matrix, 2), np.linalg.norm(K2_matrix, 2))
+    low = _crossover_frequency(np.linalg.eigvalsh(K1_matrix)[0], np.linalg.eigvalsh(K2_matrix)[0])
+    high = _crossover_frequency(np.linalg.norm(K1_matrix, 2), np.linalg.norm(K2_matrix, 2))
     if not high < _LARGEST_FREQUENCY:
         raise ValueError(
             f"K1 and K2 are too large for the margin to be computed in floating point: crossing "
@@ -231,15 +236,19 @@ def exact_delay_margin(K1: object, K2: object, *, n: int | None = None) -> Exact
         frequencies += _crossings_of_column(
             _excess(K1_matrix, K2_matrix, k), omegas, excesses[:, k]
         )
-    merged: list[float] = []
-    for omega in sorted(frequencies):
-        if not merged or omega - merged[-1] > _SAME_FREQUENCY_RTOL * omega:
-            merged.append(omega)
-    delays = [_first_delay(K1_matrix, K2_matrix, omega) for omega in merged]
-    order = np.argsort(delays, kind="stable")
+    crossings: list[tuple[float, float]] = []
+    for omega in frequencies:
+        for h in _first_delays(K1_matrix, K2_matrix, omega):
+            if not any(_same(omega, w) and _same(h, d) for d, w in crossings):
+                crossings.append((h, float(omega)))
+    crossings.sort()
     return ExactDelayMargin(
-        h=delays[order[0]],
-        omega=merged[order[0]],
-        crossing_omegas=tuple(float(merged[i]) for i in order),
-        crossing_delays=tuple(float(delays[i]) for i in order),
+        h=crossings[0][0],
+        omega=crossings[0][1],
+        crossing_omegas=tuple(w for _, w in crossings),
+        crossing_delays=tuple(d for d, _ in crossings),
     )
+
+
+def _same(a: float, b: float) -> bool:
+    return abs(a - b) <= _SAME_RTOL * max(abs(a), abs(b))

@@ -45,7 +45,8 @@ class GainDesign:
     bound : RazumikhinBound
         The full Theorem 1 result for the design (E, P, ...).
     exact : ExactDelayMargin
-        The exact constant-delay margin of the designed K1, K2 (:func:`exact_delay_margin`).
+        The exact constant-delay margin of the designed K1, K2 (:func:`exact_delay_margin`;
+        the joints are identical, so it is that of one axis).
     reference_h_m : float
         h_m of the paper's K1 = K2 = Q = I, β = 1 at the same r, for comparison.
     gain_bound : float
@@ -243,7 +244,7 @@ def design_gains(
         r=r_value,
         h_m=certified.h_m,
         bound=certified,
-        exact=exact_delay_margin(certified.K1, certified.K2),
+        exact=exact_delay_margin(k1, k2),  # every joint is this axis
         reference_h_m=reference.h_m,
         gain_bound=bound_value,
         min_bandwidth=None if min_bandwidth is None else bandwidth,

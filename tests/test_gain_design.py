@@ -77,6 +77,7 @@ def test_least_bandwidth_binds_and_costs_certified_delay():
     assert design.exact.h >= design.h_m
     loose = design_gains(gain_bound=100.0, min_bandwidth=0.5, seed=0)
     assert not loose.bandwidth_active  # the unconstrained optimum has sqrt(k1) = 1.014
+    assert loose.min_bandwidth == 0.5
 
 
 def test_one_axis_design_serves_every_n(paper_bound_design):

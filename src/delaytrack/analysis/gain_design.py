@@ -209,31 +209,27 @@ def design_gains(
     reference = razumikhin_bound(1.0, 1.0, 1.0, 1.0, r)  # also checks r
     r_value = reference.r
 
-    top = math.log(bound_value)
-    span = math.log(_SPAN)
-    k1_floor = top - span
-    if min_bandwidth is not None:
-        bandwidth = positive_scalar("min_bandwidth", min_bandwidth)
+    least_k1 = bound_value / _SPAN
+    bandwidth = None if min_bandwidth is None else positive_scalar("min_bandwidth", min_bandwidth)
+    if bandwidth is not None:
         if bandwidth * bandwidth > bound_value:
             raise ValueError(
                 f"min_bandwidth = {bandwidth:g} rad/s needs K1 entries >= {bandwidth**2:g}, above "
                 f"gain_bound = {bound_value:g}; raise gain_bound or lower min_bandwidth"
             )
-        k1_floor = max(k1_floor, 2.0 * math.log(bandwidth))
+        least_k1 = max(least_k1, bandwidth * bandwidth)
+    top, span = math.log(bound_value), math.log(_SPAN)
     start = time.perf_counter()
     search = scipy.optimize.differential_evolution(
         lambda x: -_axis_h_m(x, r_value),
-        bounds=[(k1_floor, top), (top - span, top), (-span, span), (-span, span)],
+        bounds=[(math.log(least_k1), top), (top - span, top), (-span, span), (-span, span)],
         seed=seed_value,
         tol=1e-10,
     )
     seconds = time.perf_counter() - start
     k1, k2, q_v, beta = (float(v) for v in np.exp(search.x))
     # exp(log(b)) may miss b by an ulp: put the gains back inside their bounds.
-    k1 = min(max(k1, math.exp(k1_floor)), bound_value)
-    k2 = min(k2, bound_value)
-    if min_bandwidth is not None:
-        k1 = max(k1, bandwidth * bandwidth)
+    k1, k2 = min(max(k1, least_k1), bound_value), min(k2, bound_value)
     ones = np.ones(joints)
     certified = razumikhin_bound(k1 * ones, k2 * ones, np.hstack([ones, q_v * ones]), beta, r_value)
     return GainDesign(
@@ -247,9 +243,9 @@ def design_gains(
         exact=exact_delay_margin(k1, k2),  # every joint is this axis
         reference_h_m=reference.h_m,
         gain_bound=bound_value,
-        min_bandwidth=None if min_bandwidth is None else bandwidth,
+        min_bandwidth=bandwidth,
         bound_active=max(k1, k2) >= bound_value * (1.0 - 1e-6),
-        bandwidth_active=min_bandwidth is not None and k1 <= bandwidth**2 * (1.0 + 1e-6),
+        bandwidth_active=bandwidth is not None and k1 <= bandwidth**2 * (1.0 + 1e-6),
         seed=seed_value,
         evaluations=int(search.nfev),
         seconds=seconds,

@@ -22,7 +22,8 @@ broke the applied-input test of the two-link arm.
 (``_nrt=False``): no reference counts at all, so it may neither allocate nor return an array
 (numba refuses to compile it if it does), only work in arrays its caller owns. Inlining does not
 remove every count: a loop over sub-steps kept about 30 atomic operations per RK4 step, a third of
-the step's time, in :func:`delaytrack.sim.integrator.integrate_step`, which is therefore one.
+the step's time, in the plant's step; :func:`delaytrack.sim.integrator.integrate_tick` is
+therefore one.
 """
 
 from __future__ import annotations

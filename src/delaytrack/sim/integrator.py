@@ -2,7 +2,7 @@
 
 The applied input ``u(t)`` is the command of the latest tick ``<= t - h(t)``. With a time-varying
 delay it switches at instants inside a step, where ``g(t) = t - h(t)`` crosses a tick time.
-:func:`integrate_step` splits the step there, so that every RK4 sub-step sees a constant input
+:func:`integrate_tick` splits the step there, so that every RK4 sub-step sees a constant input
 and the scheme keeps its fourth order: the step is first cut at the profile's breakpoints (pieces
 on which ``g`` is continuous and monotone), then each piece at the crossings, solved from
 ``g(t) = t_k``. Between two consecutive crossings ``g`` lies between two consecutive ticks, so
@@ -11,7 +11,7 @@ Crossings closer than ``1e-9 dt`` to either end of a sub-step are not split off 
 integrated with its neighbour's input).
 
 This is the innermost loop of every simulation: nothing here allocates (the working memory is
-:func:`rk4_workspace`, made once per run), and :func:`integrate_step` is compiled without
+:func:`rk4_workspace`, made once per run), and :func:`integrate_tick` is compiled without
 reference counting (:data:`delaytrack._jit.borrowing_kernel`).
 """
 
@@ -37,7 +37,6 @@ __all__ = [
     "DIVERGED",
     "OK",
     "beyond",
-    "integrate_step",
     "integrate_tick",
     "rk4_workspace",
 ]
@@ -66,7 +65,7 @@ def rk4_workspace(x, m):
     ``(slopes (4, 2n), stage (2n,), stage_q, stage_q̇, scratch, profile)``: the views are taken
     once per run, so the inner loop neither allocates nor slices. ``profile`` remembers, from
     one step to the next, the delay profile's current piece ``[from, breakpoint)`` and
-    ``h(t_end)`` of the last piece (see :func:`integrate_step`).
+    ``h(t_end)`` of the last piece (see :func:`_piece`).
     """
     n = x.shape[0] // 2
     slopes = np.empty((4, 2 * n))
@@ -117,84 +116,27 @@ def _history_slot(k, newest, capacity):
 
 
 @hot_inline_kernel
-def integrate_step(
-    plant_terms,
-    plant_params,
-    delay_kind,
-    delay_params,
-    x,
-    t_start,
-    t_end,
-    history,
-    u_init,
-    newest,
-    t0,
-    dt,
-    steps_per_tick,
-    work,
-    probe_only,
-):
-    """Integrate ``x`` over one plant step ``[t_start, t_end]``, split where the input switches.
+def _piece(delay_kind, delay_params, a, t_end, profile):
+    """The piece ``[a, b]`` of the profile that starts at ``a`` within a step ending ``t_end``,
+    and ``g = t - h(t)`` at its ends: ``(b, g(a+), g(b-))``.
 
-    Returns the ring slot of the input of the first sub-step (-1 for ``u_init``), or -2 when a
-    needed command has left the history. With ``probe_only`` nothing is integrated: only that
-    first slot is found.
-
-    Consecutive steps mostly lie on one piece of the profile, and a step starts where the last
-    one ended, so the piece's breakpoint and, for a continuous profile, ``h`` at the start are
-    taken from ``work``'s ``profile`` memory: the same numbers, computed once.
+    Consecutive steps mostly lie on one piece of the profile, and a piece starts where the last
+    one ended, so the breakpoint and, for a continuous profile, ``h`` at the start are taken from
+    the ``profile`` memory of :func:`rk4_workspace`: the same numbers, computed once.
     """
-    tolerance = _SPLIT_TOLERANCE * dt
-    capacity = history.shape[0]
-    profile = work[5]
-    first_slot = -3
-    a = t_start
-    while a < t_end:
-        # next_breakpoint(a) is the same for every a in [from, breakpoint).
-        if not profile[0] <= a < profile[1]:
-            profile[0] = a
-            profile[1] = next_breakpoint(delay_kind, delay_params, a)
-        b = min(profile[1], t_end)
-        if delay_kind == PIECEWISE_CONSTANT:
-            h_a, h_b = piece_end_values(delay_kind, delay_params, a, b)
-        else:  # continuous: h(a+) = h(a), remembered when a ended the last piece
-            h_a = profile[3] if a == profile[2] else delay_value(delay_kind, delay_params, a)
-            h_b = delay_value(delay_kind, delay_params, b)
-            profile[2] = b
-            profile[3] = h_b
-        g_a = a - h_a
-        g_b = b - h_b
-        k_a = latest_tick_index(g_a, t0, dt, steps_per_tick)
-        k_b = latest_tick_index(g_b, t0, dt, steps_per_tick)
-        # Sub-intervals end at each tick crossed by g on this piece, in time order, then at b.
-        crossings = abs(k_b - k_a)
-        direction = 1 if k_b >= k_a else -1
-        first_tick = k_a + 1 if direction == 1 else k_a
-        start = a
-        for i in range(crossings + 1):
-            end = b
-            if i < crossings:
-                target = tick_time(first_tick + direction * i, t0, dt, steps_per_tick)
-                end = crossing_time(delay_kind, delay_params, a, b, g_a, g_b, target)
-                if end - start <= tolerance:
-                    continue  # a sliver: integrated with the input after this crossing
-                if b - end <= tolerance:
-                    end = b  # the rest of the piece is a sliver: integrated with this input
-            # On sub-interval i, g lies between the ticks crossed at its ends: command k_a ± i.
-            slot = _history_slot(k_a + direction * i, newest, capacity)
-            if slot == -2:
-                return slot
-            if first_slot == -3:
-                first_slot = slot
-                if probe_only:
-                    return slot
-            u = u_init if slot == -1 else history[slot]
-            _rk4_substep(plant_terms, plant_params, start, x, u, end - start, work)
-            start = end
-            if end == b:
-                break
-        a = b
-    return first_slot
+    # next_breakpoint(a) is the same for every a in [from, breakpoint).
+    if not profile[0] <= a < profile[1]:
+        profile[0] = a
+        profile[1] = next_breakpoint(delay_kind, delay_params, a)
+    b = min(profile[1], t_end)
+    if delay_kind == PIECEWISE_CONSTANT:
+        h_a, h_b = piece_end_values(delay_kind, delay_params, a, b)
+    else:  # continuous: h(a+) = h(a), remembered when a ended the last piece
+        h_a = profile[3] if a == profile[2] else delay_value(delay_kind, delay_params, a)
+        h_b = delay_value(delay_kind, delay_params, b)
+        profile[2] = b
+        profile[3] = h_b
+    return b, a - h_a, b - h_b
 
 
 @borrowing_kernel
@@ -216,44 +158,58 @@ def integrate_tick(
 ):
     """Integrate ``x`` over the ``steps_per_tick`` plant steps after tick ``k``.
 
-    Command ``k`` is the newest in ``history``. Returns ``(outcome, t_stop, first_slot)``:
-    :data:`OK` with ``t_stop`` the next tick's time; :data:`DIVERGED` when, at the end ``t_stop``
-    of a step, an entry of ``x`` is non-finite or beyond ``divergence_bound``; or
-    :data:`DELAY_BEYOND_HISTORY` when the step starting at ``t_stop`` needs a command that has left
-    the history. ``first_slot`` is the ring slot of the input of the first sub-step after the tick
-    (-1 for ``u_init``; -3 when even the first step could not start). With ``probe_only``,
-    nothing is integrated: only ``first_slot`` is found.
+    Each step ``[t_start, t_end]`` is split at the profile's breakpoints and then where the
+    input switches (module docstring). Command ``k`` is the newest in ``history``. Returns
+    ``(outcome, t_stop, first_slot)``: :data:`OK` with ``t_stop`` the next tick's time;
+    :data:`DIVERGED` when, at the end ``t_stop`` of a step, an entry of ``x`` is non-finite or
+    beyond ``divergence_bound``; or :data:`DELAY_BEYOND_HISTORY` when the step starting at
+    ``t_stop`` needs a command that has left the history. ``first_slot`` is the ring slot of the
+    input of the first sub-step after the tick (-1 for ``u_init``; -3 when even that one could
+    not start). With ``probe_only`` nothing is integrated: only ``first_slot`` is found.
 
-    One call per tick, compiled without reference counts (a call per step cost about a tenth of
-    the step in argument passing).
+    One call per tick, compiled without reference counts: a call per step, with its arguments,
+    cost about a tenth of the step.
     """
+    tolerance = _SPLIT_TOLERANCE * dt
+    capacity = history.shape[0]
+    profile = work[5]
     first_slot = -3
     for j in range(steps_per_tick):
         t_start = t0 + (k * steps_per_tick + j) * dt
         t_end = t0 + (k * steps_per_tick + j + 1) * dt
-        slot = integrate_step(
-            plant_terms,
-            plant_params,
-            delay_kind,
-            delay_params,
-            x,
-            t_start,
-            t_end,
-            history,
-            u_init,
-            k,
-            t0,
-            dt,
-            steps_per_tick,
-            work,
-            probe_only,
-        )
-        if slot == -2:
-            return DELAY_BEYOND_HISTORY, t_start, first_slot
-        if j == 0:
-            first_slot = slot
-            if probe_only:
-                break
+        a = t_start
+        while a < t_end:
+            b, g_a, g_b = _piece(delay_kind, delay_params, a, t_end, profile)
+            k_a = latest_tick_index(g_a, t0, dt, steps_per_tick)
+            k_b = latest_tick_index(g_b, t0, dt, steps_per_tick)
+            # Sub-intervals end at each tick crossed by g on this piece, in time order, then b.
+            crossings = abs(k_b - k_a)
+            direction = 1 if k_b >= k_a else -1
+            first_tick = k_a + 1 if direction == 1 else k_a
+            start = a
+            for i in range(crossings + 1):
+                end = b
+                if i < crossings:
+                    target = tick_time(first_tick + direction * i, t0, dt, steps_per_tick)
+                    end = crossing_time(delay_kind, delay_params, a, b, g_a, g_b, target)
+                    if end - start <= tolerance:
+                        continue  # a sliver: integrated with the input after this crossing
+                    if b - end <= tolerance:
+                        end = b  # the rest of the piece is a sliver: integrated with this input
+                # On sub-interval i, g lies between the ticks crossed at its ends: command k_a ± i.
+                slot = _history_slot(k_a + direction * i, k, capacity)
+                if slot == -2:
+                    return DELAY_BEYOND_HISTORY, t_start, first_slot
+                if first_slot == -3:
+                    first_slot = slot
+                    if probe_only:
+                        return OK, t_start, first_slot
+                u = u_init if slot == -1 else history[slot]
+                _rk4_substep(plant_terms, plant_params, start, x, u, end - start, work)
+                start = end
+                if end == b:
+                    break
+            a = b
         if beyond(x, divergence_bound):
             return DIVERGED, t_end, first_slot
     return OK, tick_time(k + 1, t0, dt, steps_per_tick), first_slot

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from delaytrack._jit import inline_kernel
 
 __all__ = ["matvec", "solve_in_place"]
@@ -72,12 +70,10 @@ def solve_in_place(a, b):
 
 
 @inline_kernel
-def matvec(a, x):
-    """``a @ x`` for a small (r, c) matrix and (c,) vector, by loops (no BLAS call)."""
-    out = np.zeros(a.shape[0])
+def matvec(a, x, out):
+    """``out = a @ x`` for a small (r, c) matrix and (c,) vector, by loops (no BLAS call)."""
     for i in range(a.shape[0]):
         total = 0.0
         for j in range(a.shape[1]):
             total += a[i, j] * x[j]
         out[i] = total
-    return out

@@ -35,6 +35,7 @@ from delaytrack.controllers.base import (
     Controller,
     auxiliary_input,
     computed_torque_command,
+    terms_views,
     tracking_errors,
 )
 from delaytrack.controllers.dispatch import AROLC_STEP
@@ -73,28 +74,46 @@ def _dot(a, b):
 
 @kernel
 def arolc_step(
-    t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model_terms, model_params, command
+    t,
+    q,
+    qdot,
+    qd,
+    qd_dot,
+    qd_ddot,
+    T_c,
+    h,
+    params,
+    state,
+    model_terms,
+    model_params,
+    command,
+    work,
 ):
     """One AROLC tick (see the module docstring).
 
     ``params = [K1, K2, BᵀP, α, ε, γ]`` (matrices flattened row-major, ``BᵀP`` is (n, 2n));
-    ``state = [ĉ, has_previous_s, s_previous]`` is advanced in place.
+    ``state = [ĉ, has_previous_s, s_previous]`` is advanced in place; ``work`` is
+    :func:`~delaytrack.controllers.base.step_workspace` scratch.
     """
     n = q.shape[0]
     BtP = params[2 * n * n : 4 * n * n].reshape((n, 2 * n))
     alpha = params[4 * n * n]
     epsilon = params[4 * n * n + 1]
     gamma = params[4 * n * n + 2]
-    error = tracking_errors(q, qdot, qd, qd_dot)
-    s = matvec(BtP, error)
+    vectors = terms_views(work, n, command.shape[0])[3]
+    error = vectors[: 2 * n]
+    s = vectors[2 * n : 3 * n]
+    u = vectors[3 * n : 4 * n]
+    tracking_errors(q, qdot, qd, qd_dot, error)
+    matvec(BtP, error, s)
     norm_s = math.sqrt(_dot(s, s))
     c_hat = state[_C_HAT]
     # u = û + Δu with Δu = α ĉ s / max(‖s‖, ε)  (paper eqs. (control input), (delta u)).
-    u = auxiliary_input(params, error, qd_ddot)
+    auxiliary_input(params, error, qd_ddot, u)
     gain = alpha * c_hat / max(norm_s, epsilon)
     for i in range(n):
         u[i] += gain * s[i]
-    computed_torque_command(model_terms, model_params, t, q, qdot, u, command)
+    computed_torque_command(model_terms, model_params, t, q, qdot, u, command, work)
     rate = adaptive_gain_rate(c_hat, s, state[_S_PREVIOUS:], state[_HAS_PREVIOUS] != 0.0, gamma)
     c_next = c_hat + T_c * rate
     state[_C_HAT] = gamma if rate < 0.0 and c_next < gamma else c_next

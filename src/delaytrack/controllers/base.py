@@ -2,11 +2,14 @@
 
 A controller is sampled at ``T_c``. Its kernel
 
-    step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model_terms, model_params, command)
+    step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model_terms, model_params,
+         command, work)
 
 reads the measured ``q, q̇`` and the reference ``q_d, q̇_d, q̈_d`` at the tick ``t``, writes the
 actuator ``command`` (m,) and advances ``state`` in place to the next tick. ``model_terms`` is
 the terms kernel of the nominal plant (``M̂, N̂, Ĝ``; see :mod:`delaytrack.plants.base`).
+``work`` is scratch memory of :func:`step_workspace` (its contents on entry do not matter), so
+that a tick allocates nothing: the simulator makes it once per run.
 
 ``h`` is the true delay ``h(t)``. AROLC and the outer loop never read it (they do not know the
 delay); the predictor baselines need it by assumption (:attr:`Controller.needs_delay`).
@@ -21,29 +24,55 @@ from typing import Any
 
 import numpy as np
 
-from delaytrack._jit import hot_inline_kernel
+from delaytrack._jit import hot_inline_kernel, inline_kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import call_command_map, call_terms
 
-__all__ = ["Controller", "auxiliary_input", "computed_torque_command", "tracking_errors"]
+__all__ = [
+    "Controller",
+    "auxiliary_input",
+    "computed_torque_command",
+    "step_workspace",
+    "terms_views",
+    "tracking_errors",
+]
+
+
+@inline_kernel
+def step_workspace(n, m):
+    """Scratch memory of a step kernel for ``n`` coordinates and ``m`` inputs.
+
+    ``n² + n + n m`` entries for the nominal model's ``M̂, N̂, Ĝ`` (:func:`terms_views`), then
+    ``4 n`` for the law's vectors.
+    """
+    return np.empty(n * n + n + n * m + 4 * n)
 
 
 @hot_inline_kernel
-def tracking_errors(q, qdot, qd, qd_dot):
-    """``e = [e1; ė1]`` with ``e1 = q_d - q`` (the paper's tracking error), shape (2n,)."""
+def terms_views(work, n, m):
+    """``(M̂ (n, n), N̂ (n,), Ĝ (n, m), rest)``: views of a :func:`step_workspace` ``work``."""
+    size = n * n
+    mass = work[:size].reshape((n, n))
+    nonlinear = work[size : size + n]
+    input_map = work[size + n : size + n + n * m].reshape((n, m))
+    return mass, nonlinear, input_map, work[size + n + n * m :]
+
+
+@hot_inline_kernel
+def tracking_errors(q, qdot, qd, qd_dot, error):
+    """``e = [e1; ė1]`` with ``e1 = q_d - q`` (the paper's tracking error) into ``error`` (2n,)."""
     n = q.shape[0]
-    error = np.empty(2 * n)
-    error[:n] = qd - q
-    error[n:] = qd_dot - qdot
-    return error
+    for i in range(n):
+        error[i] = qd[i] - q[i]
+        error[n + i] = qd_dot[i] - qdot[i]
 
 
 @hot_inline_kernel
-def auxiliary_input(params, error, qd_ddot):
-    """``û = q̈_d + K2 ė1 + K1 e1`` (paper eq. (aux)); ``params`` starts with K1, K2 (row-major)."""
+def auxiliary_input(params, error, qd_ddot, u):
+    """``û = q̈_d + K2 ė1 + K1 e1`` (paper eq. (aux)) into ``u`` (n,); ``params`` starts with K1,
+    K2 (row-major)."""
     n = qd_ddot.shape[0]
-    u = np.empty(n)
     for i in range(n):
         damping = 0.0
         stiffness = 0.0
@@ -51,21 +80,19 @@ def auxiliary_input(params, error, qd_ddot):
             damping += params[n * n + i * n + j] * error[n + j]
             stiffness += params[i * n + j] * error[j]
         u[i] = qd_ddot[i] + damping + stiffness
-    return u
 
 
 @hot_inline_kernel
-def computed_torque_command(model_terms, model_params, t, q, qdot, u, command):
+def computed_torque_command(model_terms, model_params, t, q, qdot, u, command, work):
     """Actuator command realising ``τ = M̂(q) u + N̂(q, q̇)`` (paper eq. (input)).
 
     ``τ`` is mapped to the actuators by the model's command map
     (:func:`delaytrack.plants.dispatch.call_command_map`): ``Ĝ(q)⁻¹ τ`` for a fully actuated
-    model, ``S(q)ᵀ τ`` for the wheeled robot.
+    model, ``S(q)ᵀ τ`` for the wheeled robot. The model's terms go to the front of ``work``
+    (:func:`terms_views`); ``u`` must not lie there.
     """
     n = q.shape[0]
-    mass = np.empty((n, n))
-    nonlinear = np.empty(n)
-    input_map = np.empty((n, command.shape[0]))
+    mass, nonlinear, input_map, _ = terms_views(work, n, command.shape[0])
     call_terms(model_terms, t, q, qdot, model_params, mass, nonlinear, input_map)
     finite = True
     for i in range(n):
@@ -189,6 +216,7 @@ class Controller(ABC):
             self.model.kernel_handle,
             self.model.params,
             command,
+            step_workspace(self.n, self.m),
         )
         return command, next_state
 

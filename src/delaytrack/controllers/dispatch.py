@@ -17,15 +17,43 @@ PCON_STEP = 2
 
 
 def call_step(
-    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command
+    step,
+    t,
+    q,
+    qdot,
+    qd,
+    qd_dot,
+    qd_ddot,
+    T_c,
+    h,
+    params,
+    state,
+    model,
+    model_params,
+    command,
+    work,
 ):
     """Run one controller tick with ``step`` (see :mod:`delaytrack.controllers.base`)."""
-    step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command)
+    step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command, work)
 
 
 @overload(call_step)
 def _call_step_compiled(
-    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command
+    step,
+    t,
+    q,
+    qdot,
+    qd,
+    qd_dot,
+    qd_ddot,
+    T_c,
+    h,
+    params,
+    state,
+    model,
+    model_params,
+    command,
+    work,
 ):
     if isinstance(step, types.Integer):
         from delaytrack.controllers.arolc import arolc_step
@@ -47,6 +75,7 @@ def _call_step_compiled(
             model,
             model_params,
             command,
+            work,
         ):
             if step == OUTER_LOOP_STEP:
                 outer_loop_step(
@@ -63,6 +92,7 @@ def _call_step_compiled(
                     model,
                     model_params,
                     command,
+                    work,
                 )
             elif step == AROLC_STEP:
                 arolc_step(
@@ -79,6 +109,7 @@ def _call_step_compiled(
                     model,
                     model_params,
                     command,
+                    work,
                 )
             elif step == PCON_STEP:
                 pcon_step(
@@ -95,6 +126,7 @@ def _call_step_compiled(
                     model,
                     model_params,
                     command,
+                    work,
                 )
             else:
                 raise ValueError("unknown controller kernel id")
@@ -102,8 +134,37 @@ def _call_step_compiled(
         return by_id
 
     def by_callable(
-        step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command
+        step,
+        t,
+        q,
+        qdot,
+        qd,
+        qd_dot,
+        qd_ddot,
+        T_c,
+        h,
+        params,
+        state,
+        model,
+        model_params,
+        command,
+        work,
     ):
-        step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command)
+        step(
+            t,
+            q,
+            qdot,
+            qd,
+            qd_dot,
+            qd_ddot,
+            T_c,
+            h,
+            params,
+            state,
+            model,
+            model_params,
+            command,
+            work,
+        )
 
     return by_callable

@@ -13,6 +13,7 @@ from delaytrack.controllers.base import (
     Controller,
     auxiliary_input,
     computed_torque_command,
+    terms_views,
     tracking_errors,
 )
 from delaytrack.controllers.dispatch import OUTER_LOOP_STEP
@@ -23,14 +24,33 @@ __all__ = ["OuterLoop", "outer_loop_step"]
 
 @kernel
 def outer_loop_step(
-    t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model_terms, model_params, command
+    t,
+    q,
+    qdot,
+    qd,
+    qd_dot,
+    qd_ddot,
+    T_c,
+    h,
+    params,
+    state,
+    model_terms,
+    model_params,
+    command,
+    work,
 ):
     """``τ = M̂ (q̈_d + K2 ė1 + K1 e1) + N̂``: paper eqs. (input) and (aux) with ``Δu = 0``.
 
-    ``params = [K1, K2]`` flattened row-major; there is no state.
+    ``params = [K1, K2]`` flattened row-major; there is no state; ``work`` is
+    :func:`~delaytrack.controllers.base.step_workspace` scratch.
     """
-    u = auxiliary_input(params, tracking_errors(q, qdot, qd, qd_dot), qd_ddot)
-    computed_torque_command(model_terms, model_params, t, q, qdot, u, command)
+    n = q.shape[0]
+    vectors = terms_views(work, n, command.shape[0])[3]
+    error = vectors[: 2 * n]
+    u = vectors[2 * n : 3 * n]
+    tracking_errors(q, qdot, qd, qd_dot, error)
+    auxiliary_input(params, error, qd_ddot, u)
+    computed_torque_command(model_terms, model_params, t, q, qdot, u, command, work)
 
 
 @dataclass(frozen=True, eq=False)

@@ -43,7 +43,7 @@ import numpy as np
 from delaytrack._jit import kernel
 from delaytrack._small_linalg import matvec
 from delaytrack._validation import as_spd_matrix, positive_scalar
-from delaytrack.controllers.base import Controller
+from delaytrack.controllers.base import Controller, terms_views
 from delaytrack.controllers.dispatch import PCON_STEP
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import call_command_map, call_terms
@@ -75,7 +75,20 @@ def ring_slots(history: float, T_c: float) -> int:
 
 @kernel
 def pcon_step(
-    t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model_terms, model_params, command
+    t,
+    q,
+    qdot,
+    qd,
+    qd_dot,
+    qd_ddot,
+    T_c,
+    h,
+    params,
+    state,
+    model_terms,
+    model_params,
+    command,
+    work,
 ):
     """One PCON / PCONf tick (see the module docstring).
 
@@ -83,6 +96,7 @@ def pcon_step(
     window is ``h̄`` when ``fixed`` is non-zero (PCONf), else the true delay ``h`` (PCON).
     ``state = [e_z (n), ϱ (n), count, ring (slots × n)]``: ``e_z`` and ``ϱ`` of the latest
     tick, the number of ticks taken, and ``τ`` of tick ``j`` in ring slot ``j % slots``.
+    ``work`` is :func:`~delaytrack.controllers.base.step_workspace` scratch.
     """
     n = q.shape[0]
     period = params[_PERIOD]
@@ -96,26 +110,36 @@ def pcon_step(
     vartheta = params[_MATRICES + n * n : _MATRICES + 2 * n * n].reshape((n, n))
     count = int(state[2 * n])
     ring = 2 * n + 1
+    mass, nonlinear, input_map, vectors = terms_views(work, n, command.shape[0])
+    e_z = vectors[:n]
+    predicted = vectors[n : 2 * n]
+    rho = vectors[2 * n : 3 * n]
+    tau = vectors[3 * n : 4 * n]
     # e_z(t_k) = T_c (τ_{k−1} + … + τ_{k−w} + f τ_{k−w−1}), H = h / T_c = w + f; ticks before
     # the first (j < 0) carry τ = 0.
     ticks = window / T_c
     whole = int(math.floor(ticks))
     fraction = ticks - whole
-    e_z = np.zeros(n)
+    e_z[:] = 0.0
     for i in range(1, min(whole, count) + 1):
         start = ring + ((count - i) % slots) * n
         e_z += state[start : start + n]
     if fraction > 0.0 and whole < count:
         start = ring + ((count - whole - 1) % slots) * n
-        e_z += fraction * state[start : start + n]
+        for j in range(n):
+            e_z[j] += fraction * state[start + j]
     e_z *= T_c
-    rho = (qd_dot - qdot) + kappa * (qd - q) - matvec(vartheta, e_z)
-    tau = matvec(k_b, rho)
-    mass = np.empty((n, n))
-    nonlinear = np.empty(n)
-    input_map = np.empty((n, command.shape[0]))
+    matvec(vartheta, e_z, predicted)
+    for i in range(n):
+        rho[i] = ((qd_dot[i] - qdot[i]) + kappa * (qd[i] - q[i])) - predicted[i]
+    matvec(k_b, rho, tau)
     call_terms(model_terms, t, q, qdot, model_params, mass, nonlinear, input_map)
-    if not (np.all(np.isfinite(tau)) and np.all(np.isfinite(input_map))):
+    finite = True
+    for i in range(n):
+        finite = finite and math.isfinite(tau[i])
+        for j in range(command.shape[0]):
+            finite = finite and math.isfinite(input_map[i, j])
+    if not finite:
         command[:] = np.nan
         return
     call_command_map(model_terms, q, model_params, input_map, tau, command)

@@ -17,6 +17,7 @@ import numpy as np
 from numba import njit
 
 from delaytrack._jit import KERNEL_OPTIONS, inline_kernel
+from delaytrack.controllers.base import step_workspace
 from delaytrack.controllers.dispatch import call_step
 from delaytrack.delays._kernel import delay_value
 from delaytrack.reference import call_reference
@@ -106,6 +107,7 @@ def run_closed_loop(handles, run, settings, records):
     qd_ddot = np.empty(n)
     command = np.empty(m)
     previous_command = np.empty(m)
+    controller_work = step_workspace(n, m)
     for k in range(n_ticks + 1):
         t_k = tick_time(k, t0, dt, steps_per_tick)
         record = record_every > 0 and k % record_every == 0
@@ -131,6 +133,7 @@ def run_closed_loop(handles, run, settings, records):
             model_terms,
             model_params,
             command,
+            controller_work,
         )
         history[k % capacity] = command
         if record:

@@ -107,6 +107,25 @@ def test_applied_input_is_the_latest_command_issued_before_t_minus_h(delay: Dela
         assert np.any(np.diff(indices) < 0), "a fast-shrinking delay must re-apply older commands"
 
 
+@pytest.mark.parametrize("offset", [1e-13, -1e-13])
+def test_a_crossing_within_the_sliver_tolerance_of_a_step_end_is_not_split_off(
+    offset: float,
+) -> None:
+    # h = 3 T_c: every switch of the input falls on a step boundary. Moved by 1e-13 s (below the
+    # 1e-9 dt tolerance), a switch lies just inside a step, after its start (+) or before its
+    # end (-); the sliver is integrated with its neighbour's input, so the run is the same.
+    # Integrating the whole step with the wrong command would move the states by ~1e-4.
+    settings = dict(reference=ARM_REFERENCE, t1=1.0, dt=1e-3, T_c=T_C)
+    on_boundary = simulate(
+        TwoLinkArm(), arm_arolc(), ConstantDelay(3 * T_C), np.zeros(4), **settings
+    )
+    moved = simulate(
+        TwoLinkArm(), arm_arolc(), ConstantDelay(3 * T_C + offset), np.zeros(4), **settings
+    )
+    np.testing.assert_array_equal(moved.applied, on_boundary.applied)
+    np.testing.assert_allclose(moved.x, on_boundary.x, rtol=0, atol=1e-12)
+
+
 def test_input_before_the_first_command_arrives_is_u_init() -> None:
     plant, controller, reference = point_mass_loop()
     result = simulate(

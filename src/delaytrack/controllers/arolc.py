@@ -74,20 +74,7 @@ def _dot(a, b):
 
 @kernel
 def arolc_step(
-    t,
-    q,
-    qdot,
-    qd,
-    qd_dot,
-    qd_ddot,
-    T_c,
-    h,
-    params,
-    state,
-    model_terms,
-    model_params,
-    command,
-    work,
+    t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model_terms, model_params, command, work
 ):
     """One AROLC tick (see the module docstring).
 

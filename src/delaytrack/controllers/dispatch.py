@@ -17,21 +17,7 @@ PCON_STEP = 2
 
 
 def call_step(
-    step,
-    t,
-    q,
-    qdot,
-    qd,
-    qd_dot,
-    qd_ddot,
-    T_c,
-    h,
-    params,
-    state,
-    model,
-    model_params,
-    command,
-    work,
+    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command, work
 ):
     """Run one controller tick with ``step`` (see :mod:`delaytrack.controllers.base`)."""
     step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command, work)
@@ -39,21 +25,7 @@ def call_step(
 
 @overload(call_step)
 def _call_step_compiled(
-    step,
-    t,
-    q,
-    qdot,
-    qd,
-    qd_dot,
-    qd_ddot,
-    T_c,
-    h,
-    params,
-    state,
-    model,
-    model_params,
-    command,
-    work,
+    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command, work
 ):
     if isinstance(step, types.Integer):
         from delaytrack.controllers.arolc import arolc_step

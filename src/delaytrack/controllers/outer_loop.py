@@ -24,20 +24,7 @@ __all__ = ["OuterLoop", "outer_loop_step"]
 
 @kernel
 def outer_loop_step(
-    t,
-    q,
-    qdot,
-    qd,
-    qd_dot,
-    qd_ddot,
-    T_c,
-    h,
-    params,
-    state,
-    model_terms,
-    model_params,
-    command,
-    work,
+    t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model_terms, model_params, command, work
 ):
     """``τ = M̂ (q̈_d + K2 ė1 + K1 e1) + N̂``: paper eqs. (input) and (aux) with ``Δu = 0``.
 

@@ -75,20 +75,7 @@ def ring_slots(history: float, T_c: float) -> int:
 
 @kernel
 def pcon_step(
-    t,
-    q,
-    qdot,
-    qd,
-    qd_dot,
-    qd_ddot,
-    T_c,
-    h,
-    params,
-    state,
-    model_terms,
-    model_params,
-    command,
-    work,
+    t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model_terms, model_params, command, work
 ):
     """One PCON / PCONf tick (see the module docstring).
 

@@ -44,7 +44,14 @@ from delaytrack.delays import (
     TraceDelay,
     delay_from_spec,
 )
-from delaytrack.experiments import Scenario, ScenarioError, load_builtin, run_to_folder
+from delaytrack.experiments import (
+    EmpiricalMargin,
+    Scenario,
+    ScenarioError,
+    empirical_margin,
+    load_builtin,
+    run_to_folder,
+)
 from delaytrack.metrics import (
     max_abs_error,
     mean_absolute_error,
@@ -73,6 +80,7 @@ __all__ = [
     "Controller",
     "DelayProfile",
     "ELPlant",
+    "EmpiricalMargin",
     "ExactDelayMargin",
     "GainDesign",
     "LinearPlant",
@@ -91,6 +99,7 @@ __all__ = [
     "controller_from_spec",
     "delay_from_spec",
     "design_gains",
+    "empirical_margin",
     "exact_delay_margin",
     "load_builtin",
     "max_abs_error",

@@ -6,7 +6,10 @@ Commands::
     delaytrack margin --k1 1 --k2 1 [--q 1] [--beta 1] [--r 1.1] [--n 5] [--json]
     delaytrack design [--n 2] [--gain-bound 1] [--min-bandwidth W] [--r 1.1] [--seed 0] [--json]
     delaytrack simulate SCENARIO.toml [--out DIR] [--format parquet|csv|both]
-    delaytrack reproduce [--out results] [--duration SECONDS] [--no-dt-check] [--job paper|two-link]
+    delaytrack empirical SCENARIO.toml --threshold RAD [--profile constant|abs-sine|abs-sine-offset]
+        [--metric ae|rms|max] [--settle S] [--resolution S] [--upper S] [--frequency W] [--json]
+    delaytrack reproduce [--out results] [--duration SECONDS] [--no-dt-check]
+        [--job paper|two-link|margins]
     delaytrack tune-baselines [--out PATH] [--quiet]
 
 Bad input ends with exit code 2 and a one-line ``error: ...`` naming the argument, the value and
@@ -117,6 +120,18 @@ def _shown(values: np.ndarray) -> str:
     return "diag(" + ", ".join(f"{v:g}" for v in values) + ")"
 
 
+def _with_flag(message: str, flags: dict[str, str], raw: dict[str, str]) -> str:
+    """A library message that starts with an argument's name, starting with its flag instead.
+
+    ``raw`` maps flags to the text given, added as ``(got --flag text)`` when present.
+    """
+    for name, flag in flags.items():
+        if message.startswith(f"{name} "):
+            given = f" (got {flag} {raw[flag]})" if flag in raw else ""
+            return f"{flag} {message[len(name) + 1 :]}{given}"
+    return message
+
+
 def _razumikhin_factor(text: str) -> float:
     """Parse and check --r."""
     r = _scalar("--r", text)
@@ -144,12 +159,7 @@ def _theorem_1(args: argparse.Namespace) -> tuple[RazumikhinBound, str]:
             _diagonal(k1, n), _diagonal(k2, n), _diagonal(q, 2 * n), beta, r, n=n
         )
     except (ValueError, TypeError) as error:
-        message = str(error)
-        for name, flag in _LIBRARY_NAMES.items():
-            if message.startswith(f"{name} "):
-                message = f"{flag} {message[len(name) + 1 :]} (got {flag} {raw[flag]})"
-                break
-        raise UsageError(message) from None
+        raise UsageError(_with_flag(str(error), _LIBRARY_NAMES, raw)) from None
     settings = (
         f"  n = {n}, K1 = {_shown(k1)}, K2 = {_shown(k2)}, Q = {_shown(q)}, beta = {beta:g}, "
         f"r = {r:g}"
@@ -312,6 +322,69 @@ def _simulate(args: argparse.Namespace) -> int:
 
 
 # --------------------------------------------------------------------------------------------
+# empirical
+
+
+def _empirical(args: argparse.Namespace) -> int:
+    from delaytrack.analysis import exact_delay_margin, razumikhin_bound
+    from delaytrack.experiments import Scenario, empirical_margin
+
+    scenario = Scenario.from_toml(_scenario_source(args.scenario))
+    controller = scenario.build().controller
+    options = {
+        "threshold": _scalar("--threshold", args.threshold),
+        "settle": None if args.settle is None else _scalar("--settle", args.settle),
+        "resolution": _scalar("--resolution", args.resolution),
+        "upper": _scalar("--upper", args.upper),
+        "frequency": _scalar("--frequency", args.frequency),
+    }
+    start = time.perf_counter()
+    try:
+        result = empirical_margin(
+            scenario,
+            controller,
+            profile=args.profile,
+            metric=args.metric,
+            progress=args.progress,
+            **options,
+        )
+    except ValueError as error:
+        flags = {name: f"--{name}" for name in options}
+        raise UsageError(_with_flag(str(error), flags, {})) from None
+    seconds = time.perf_counter() - start
+    analytic = {}
+    if hasattr(controller, "K1") and hasattr(controller, "K2"):
+        n = controller.K1.shape[0]
+        Q = getattr(controller, "Q", np.eye(2 * n))
+        analytic = {
+            "h_m": razumikhin_bound(controller.K1, controller.K2, Q, 1.0, 1.1, n=n).h_m,
+            "h_exact": exact_delay_margin(controller.K1, controller.K2).h,
+        }
+    if args.json:
+        print(json.dumps({**result.to_dict(), **analytic, "seconds": seconds}))
+        return 0
+    family = {
+        "constant": "constant delay h",
+        "abs-sine": f"h(t) = a |sin({result.frequency:g} t)|, margin in a",
+        "abs-sine-offset": f"h(t) = a/2 + (a/2) |sin({result.frequency:g} t)|, margin in a",
+    }[result.profile]
+    print(f"Empirical delay margin of {scenario.name!r} ({result.controller}; {family})")
+    print(f"  margin      = {result.describe()}")
+    print(
+        f"  search      = {result.simulations} simulations in {result.rounds} batches, "
+        f"{seconds:.1f} s wall time"
+    )
+    if analytic:
+        weight = "Q" if hasattr(controller, "Q") else "Q = I"
+        print(
+            f"  h_m         = {analytic['h_m']:.6g} s (Theorem 1: the controller's K1, K2, "
+            f"{weight}; beta = 1, r = 1.1)"
+        )
+        print(f"  h_exact     = {analytic['h_exact']:.6g} s (constant delay, nominal dynamics)")
+    return 0
+
+
+# --------------------------------------------------------------------------------------------
 # reproduce
 
 
@@ -320,6 +393,8 @@ def _reproduce(args: argparse.Namespace) -> int:
         raise UsageError(f"--duration must be a positive number of seconds; got {args.duration:g}")
     if args.job == "two-link":
         return _reproduce_two_link(args)
+    if args.job == "margins":
+        return _reproduce_margins(args)
     from delaytrack.experiments.paper import DURATION, SUMMARY_COLUMNS, reproduce
 
     if args.duration is not None:
@@ -365,6 +440,22 @@ def _reproduce_two_link(args: argparse.Namespace) -> int:
     print(study.summary[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     if study.dt_check is not None:
         print(f"largest relative change of a metric when dt is halved: {study.dt_max_change:.2e}")
+    print(f"report: {folder / 'report.html'}")
+    return 0
+
+
+def _reproduce_margins(args: argparse.Namespace) -> int:
+    from delaytrack.experiments.margins import FOLDER, reproduce
+
+    start = time.perf_counter()
+    try:
+        study, files = reproduce(args.out, duration=args.duration, progress=not args.quiet)
+    except ValueError as error:  # a --duration too short for the job's tracking rule
+        raise UsageError(f"margins job: {error}") from None
+    seconds = time.perf_counter() - start
+    folder = Path(args.out) / FOLDER
+    print(f"margins job done in {seconds:.1f} s wall time; wrote {len(files)} files to {folder}/")
+    print(study.table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     print(f"report: {folder / 'report.html'}")
     return 0
 
@@ -520,13 +611,63 @@ def build_parser() -> argparse.ArgumentParser:
     )
     simulate.set_defaults(handler=_simulate)
 
+    empirical = commands.add_parser(
+        "empirical",
+        help="empirical delay margin of a scenario's closed loop (batched bisection)",
+        description="The largest delay (constant h, or the amplitude a of h(t) = a |sin(w t)|) "
+        "at which the scenario's closed loop ends ok and keeps the tracking metric at most "
+        "--threshold: a coarse grid over [0, --upper], then multi-section down to --resolution. "
+        "The scenario's [delay] is replaced. Example: delaytrack empirical two_link_margins "
+        "--threshold 0.2",
+    )
+    empirical.add_argument(
+        "scenario", metavar="SCENARIO", help="scenario .toml file or built-in name"
+    )
+    empirical.add_argument(
+        "--threshold",
+        required=True,
+        metavar="RAD",
+        help="largest acceptable tracking metric, rad (required: what 'still tracks' means)",
+    )
+    empirical.add_argument(
+        "--profile",
+        choices=("constant", "abs-sine", "abs-sine-offset"),
+        default="constant",
+        help="delay family (default constant)",
+    )
+    empirical.add_argument(
+        "--metric",
+        choices=("ae", "rms", "max"),
+        default="ae",
+        help="mean |e1|, RMS or max |e1| over [settle, duration], largest joint (default ae)",
+    )
+    empirical.add_argument(
+        "--settle",
+        default=None,
+        metavar="S",
+        help="start of the metric window (default: half the duration)",
+    )
+    empirical.add_argument(
+        "--resolution", default="0.005", metavar="S", help="final bracket width (default 0.005 s)"
+    )
+    empirical.add_argument("--upper", default="1", metavar="S", help="search limit (default 1 s)")
+    empirical.add_argument(
+        "--frequency", default="1", metavar="W", help="w of the abs-sine families (default 1 rad/s)"
+    )
+    empirical.add_argument(
+        "--json", action="store_true", help="print one JSON object instead of text"
+    )
+    empirical.add_argument("--progress", action="store_true", help="show progress bars")
+    empirical.set_defaults(handler=_empirical)
+
     reproduce = commands.add_parser(
         "reproduce",
         help="the main job: the paper's robot experiment (S1-S4, AROLC vs PCON/PCONf)",
         description="Run the paper's robot experiment and write <out>/paper/ and "
         "<out>/paper-literal/: summary.csv, tables.md, dt_check.csv, figures and a "
         "self-contained report.html. --job two-link runs the earlier two-link job into "
-        "<out>/two-link/ instead.",
+        "<out>/two-link/ instead; --job margins compares certified, exact and empirical delay "
+        "margins over a grid of gains into <out>/margins/.",
     )
     reproduce.add_argument(
         "--out", default="results", metavar="DIR", help="output root (default results)"
@@ -537,11 +678,11 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="SECONDS",
         help="override the duration (paper: 60 s, a multiple of T_c = 10 ms; two-link: 30 s, "
-        "a multiple of 2 ms); for quick checks",
+        "a multiple of 2 ms; margins: 30 s, a multiple of 2 ms); for quick checks",
     )
     reproduce.add_argument(
         "--job",
-        choices=("paper", "two-link"),
+        choices=("paper", "two-link", "margins"),
         default="paper",
         help="which job to run (default paper)",
     )

@@ -3,6 +3,10 @@ ones, and the jobs built from them.
 
 - :mod:`delaytrack.experiments.scenario`: :class:`Scenario` (load, validate, dump, build, run),
   :func:`run_batched`, :func:`run_to_folder` and the shipped scenario files.
+- :mod:`delaytrack.experiments.empirical_margin`: :func:`empirical_margin`, the largest delay at
+  which a scenario's closed loop still tracks (bisection over batched simulations).
+- :mod:`delaytrack.experiments.margins`: certified vs exact vs empirical margins over a grid of
+  gains (``delaytrack reproduce --job margins``).
 - :mod:`delaytrack.experiments.paper`: the main job, the paper's robot experiment (S1–S4, AROLC vs
   PCON/PCONf vs the outer loop; ``delaytrack reproduce``).
 - :mod:`delaytrack.experiments.tuning`: the seeded grid search that chooses the baselines' gains
@@ -13,6 +17,10 @@ ones, and the jobs built from them.
 Import the jobs explicitly; they pull in the report package.
 """
 
+from delaytrack.experiments.empirical_margin import (
+    EmpiricalMargin,
+    empirical_margin,
+)
 from delaytrack.experiments.scenario import (
     BuiltScenario,
     RunOutput,
@@ -27,11 +35,13 @@ from delaytrack.experiments.scenario import (
 
 __all__ = [
     "BuiltScenario",
+    "EmpiricalMargin",
     "RunOutput",
     "Scenario",
     "ScenarioError",
     "builtin_scenario_names",
     "builtin_scenario_path",
+    "empirical_margin",
     "load_builtin",
     "run_batched",
     "run_to_folder",

@@ -28,6 +28,7 @@ __all__ = [
     "commands_figure",
     "delay_figure",
     "error_figure",
+    "margins_figure",
     "png_bytes",
     "save_figure",
     "tracking_figure",
@@ -202,6 +203,39 @@ def c_hat_figure(
         )
     ax.set_ylabel("ĉ(t)")
     ax.legend(loc="upper right", fontsize="small")
+    return figure
+
+
+def margins_figure(
+    margins: Mapping[str, Sequence[float]],
+    groups: Sequence[str],
+    *,
+    title: str | None = None,
+) -> Figure:
+    """Delay margins side by side per group (e.g. per gain pair), on a log scale.
+
+    Parameters
+    ----------
+    margins : mapping of str to sequence of float
+        ``label -> margin (s) per group``; NaN where a margin is unknown (not drawn).
+    groups : sequence of str
+        Name of each group, on the horizontal axis.
+    title : str, optional
+    """
+    figure = Figure(figsize=(_WIDTH + 2.0, 4.2), dpi=_DPI, layout="constrained")
+    ax = figure.add_subplot()
+    width = 0.8 / len(margins)
+    positions = np.arange(len(groups))
+    for k, (label, values) in enumerate(margins.items()):
+        values = np.asarray(values, dtype=float)
+        ax.bar(positions + (k - (len(margins) - 1) / 2) * width, values, width, label=label)
+    ax.set_yscale("log")
+    ax.set_xticks(positions, groups, rotation=30, ha="right", fontsize="small")
+    ax.set_ylabel("delay margin (s)")
+    ax.grid(axis="y", which="both", alpha=0.3)
+    ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    if title:
+        ax.set_title(title)
     return figure
 
 

@@ -1,0 +1,395 @@
+"""Empirical delay margin: the largest delay at which the full closed loop still tracks.
+
+:func:`empirical_margin` takes a :class:`~delaytrack.experiments.Scenario` (its true plant,
+nominal model, reference, ``x0``, duration, ``dt`` and ``T_c``), replaces its delay by one member
+of a one-parameter family and searches the parameter ``v`` (seconds):
+
+- ``"constant"``: ``h(t) = v``;
+- ``"abs-sine"``: ``h(t) = v |sin(frequency t)|`` (no offset; ``frequency`` 1 rad/s by default,
+  the paper's S1 frequency), so ``v`` is the amplitude and the largest delay;
+- ``"abs-sine-offset"``: ``h(t) = v/2 + (v/2) |sin(frequency t)|``, a delay that never drops
+  below half its maximum ``v``.
+
+A run **passes** when it ends with status ``ok`` (no divergence, see
+:func:`delaytrack.sim.simulate`) and its tracking metric is at most ``threshold``. The metric
+is the largest over the coordinates of one of the running metrics over the window
+``[settle, duration]``: ``"ae"`` (mean ``|e1|``), ``"rms"`` or ``"max"`` (``max |e1|``).
+
+**Search.** One batched simulation over the coarse grid ``0, upper/grid, ..., upper``; the
+first failing grid point ``f`` and the point before it ``p`` bracket the margin. Then rounds
+of multi-section, each one batched simulation of ``points`` equally spaced values inside
+``(p, f)``: the first failing one becomes ``f``, the value before it ``p``, until
+``f - p <= resolution``. The margin is ``p``: the largest delay known to pass with no failure
+found below it. Values above the first failure are never used: a loop that fails at ``f`` and
+passes again at a larger delay (a time-varying delay can do that) has margin below ``f``.
+When no grid point fails the margin is not known; the result says so (``failure_found``
+False, ``margin`` is ``upper``, a lower bound). Every evaluated value with its metric and status
+is kept.
+
+Given a list of controllers, :func:`empirical_margin` runs their searches in lockstep, one
+batched simulation per round for all of them; the results equal separate calls.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from delaytrack._validation import positive_scalar
+from delaytrack.controllers import Controller
+from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
+from delaytrack.experiments.scenario import Scenario, ScenarioError
+from delaytrack.sim import simulate
+
+__all__ = ["METRICS", "PROFILES", "EmpiricalMargin", "empirical_margin"]
+
+#: Delay families: name -> (value v, frequency) -> profile.
+PROFILES: dict[str, Callable[[float, float], DelayProfile]] = {
+    "constant": lambda v, _: ConstantDelay(v),
+    "abs-sine": lambda v, w: AbsSineDelay(offset=0.0, amplitude=v, frequency=w),
+    "abs-sine-offset": lambda v, w: AbsSineDelay(offset=v / 2, amplitude=v / 2, frequency=w),
+}
+#: Tracking metrics (keys of ``SimResult.metrics``), each taken as the largest over coordinates.
+METRICS = {"ae": "mean |e1|", "rms": "RMS of e1", "max": "max |e1|"}
+
+
+@dataclass(frozen=True, eq=False)
+class EmpiricalMargin:
+    """Result of :func:`empirical_margin`.
+
+    Attributes
+    ----------
+    margin : float
+        Largest evaluated value (s) that passes with no failing value below it. When
+        ``failure_found`` is False it is ``upper``: only a lower bound.
+    failure_found : bool
+        Whether some value up to ``upper`` fails.
+    first_failure : float or None
+        Smallest failing value found (s); ``first_failure - margin <= resolution``.
+    profile, frequency : str, float
+        Delay family and its angular frequency (rad/s; not used by ``"constant"``).
+    metric, threshold, settle : str, float, float
+        A run passes when it is ok and the largest over coordinates of ``metric`` over
+        ``[settle, duration]`` is ``<= threshold``.
+    resolution, upper : float
+        Requested width of the final bracket and the search limit (s).
+    values, metric_values, statuses : ndarray, shape (k,)
+        Every evaluated value in increasing order, its metric (NaN when the run is not ok) and
+        its status (0 ok, 1 diverged, 2 delay beyond history).
+    scenario, controller : str
+        Scenario name and controller type.
+    simulations, rounds : int
+        Runs simulated and batched simulations (coarse grid included) for this search.
+    """
+
+    margin: float
+    failure_found: bool
+    first_failure: float | None
+    profile: str
+    frequency: float
+    metric: str
+    threshold: float
+    settle: float
+    resolution: float
+    upper: float
+    values: np.ndarray
+    metric_values: np.ndarray
+    statuses: np.ndarray
+    scenario: str
+    controller: str
+    simulations: int
+    rounds: int
+
+    @property
+    def passes(self) -> np.ndarray:
+        """Whether each evaluated value passes (ok and metric within the threshold)."""
+        return (self.statuses == 0) & (self.metric_values <= self.threshold)
+
+    def describe(self) -> str:
+        """One line: the margin with its threshold and resolution, or that none was found."""
+        rule = f"{self.metric} <= {self.threshold:g} rad after t = {self.settle:g} s"
+        if not self.failure_found:
+            return (
+                f"no failure up to upper = {self.upper:g} s ({rule}): the margin is at least "
+                f"{self.upper:g} s"
+            )
+        return (
+            f"{self.margin:.6g} s (first failure {self.first_failure:.6g} s; {rule}; "
+            f"resolution {self.resolution:g} s)"
+        )
+
+    def to_frame(self) -> pd.DataFrame:
+        """Every evaluated value: ``value, metric, status, passes``."""
+        return pd.DataFrame(
+            {
+                "value": self.values,
+                "metric": self.metric_values,
+                "status": self.statuses,
+                "passes": self.passes,
+            }
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data (JSON-ready)."""
+        return {
+            "margin": self.margin,
+            "failure_found": self.failure_found,
+            "first_failure": self.first_failure,
+            "profile": self.profile,
+            "frequency": self.frequency,
+            "metric": self.metric,
+            "threshold": self.threshold,
+            "settle": self.settle,
+            "resolution": self.resolution,
+            "upper": self.upper,
+            "scenario": self.scenario,
+            "controller": self.controller,
+            "simulations": self.simulations,
+            "rounds": self.rounds,
+            "evaluated": [
+                [float(v), None if math.isnan(m) else float(m), int(s)]
+                for v, m, s in zip(self.values, self.metric_values, self.statuses, strict=True)
+            ],
+        }
+
+
+def _choice(name: str, value: object, valid: Sequence[str]) -> str:
+    if value not in valid:
+        raise ValueError(f"{name} must be one of {list(valid)}; got {value!r}")
+    return str(value)
+
+
+def _count(name: str, value: object, least: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < least:
+        raise ValueError(f"{name} must be an integer >= {least}; got {value!r}")
+    return int(value)
+
+
+class _Search:
+    """The bracket ``(passed, failed)`` of one controller and everything it evaluated."""
+
+    def __init__(self) -> None:
+        self.passed = 0.0
+        self.failed: float | None = None
+        self.rows: list[tuple[float, float, int]] = []
+        self.rounds = 0
+
+    def take(self, values: list[float], metric: np.ndarray, status: np.ndarray, ok) -> None:
+        """Record a batch of increasing values; move the bracket to its first failure."""
+        self.rows += [(v, float(m), int(s)) for v, m, s in zip(values, metric, status, strict=True)]
+        self.rounds += 1
+        for value, passes in zip(values, ok, strict=True):
+            if not passes:
+                self.failed = value
+                return
+            self.passed = value
+
+    def next_values(self, points: int, resolution: float) -> list[float]:
+        """The values of the next multi-section round; none when the bracket is narrow enough."""
+        if self.failed is None or self.failed - self.passed <= resolution:
+            return []
+        width = self.failed - self.passed
+        k = min(points, math.ceil(width / resolution) - 1)
+        return [self.passed + width * j / (k + 1) for j in range(1, k + 1)]
+
+
+def empirical_margin(
+    scenario: Scenario,
+    controller: Controller | Sequence[Controller] | None = None,
+    *,
+    threshold: float,
+    profile: str = "constant",
+    metric: str = "ae",
+    settle: float | None = None,
+    resolution: float = 0.005,
+    upper: float = 1.0,
+    frequency: float = 1.0,
+    grid: int = 16,
+    points: int = 4,
+    workers: int | None = None,
+    progress: bool = False,
+) -> EmpiricalMargin | list[EmpiricalMargin]:
+    """The largest delay (or delay amplitude) at which the closed loop still meets ``threshold``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Plant, nominal model, reference, ``x0``, duration, ``dt`` and ``T_c``; its ``[delay]`` is
+        replaced by the searched family.
+    controller : Controller or list of Controller, optional
+        The scenario's controller by default. A list (of one kind) is searched in lockstep: each
+        round is one batched simulation of every unfinished search, and each result equals
+        the search of that controller alone.
+    threshold : float
+        Largest acceptable value of ``metric`` (rad), > 0.
+    profile : {"constant", "abs-sine", "abs-sine-offset"}
+        Delay family (module docstring); the searched value ``v`` is the largest delay of each.
+    metric : {"ae", "rms", "max"}
+        Mean ``|e1|``, RMS of ``e1`` or ``max |e1|`` over ``[settle, duration]``, the largest over
+        the coordinates.
+    settle : float, optional
+        Start of the metric window, seconds in ``[0, duration)``; half the duration by default.
+    resolution : float
+        The search stops when the bracket ``(margin, first_failure)`` is at most this wide (s).
+    upper : float
+        Search limit (s), ``> resolution``.
+    frequency : float
+        Angular frequency of the ``abs-sine`` families, rad/s.
+    grid : int
+        Intervals of the coarse grid over ``[0, upper]`` (``grid + 1`` runs), >= 2.
+    points : int
+        Values per multi-section round, >= 1; each round narrows the bracket ``points + 1``-fold.
+    workers : int, optional
+        Threads of each batched simulation (all cores by default).
+    progress : bool
+        Show each batched simulation's progress bar.
+
+    Returns
+    -------
+    EmpiricalMargin, or a list of them (one per controller) when ``controller`` is a list.
+
+    Raises
+    ------
+    ValueError
+        For an argument out of range, or a threshold the loop misses already at zero delay.
+    ScenarioError
+        When the scenario cannot be built or simulated.
+    """
+    if not isinstance(scenario, Scenario):
+        raise TypeError(f"scenario must be a Scenario; got {type(scenario).__name__}")
+    single = controller is None or isinstance(controller, Controller)
+    if controller is None:
+        controllers = [scenario.build().controller]
+    elif single:
+        controllers = [controller]
+    elif isinstance(controller, list | tuple) and controller:
+        controllers = list(controller)
+    else:
+        raise TypeError(
+            f"controller must be a Controller, a non-empty list of them or None; got {controller!r}"
+        )
+    for i, item in enumerate(controllers):
+        if not isinstance(item, Controller):
+            raise TypeError(f"controller[{i}] must be a Controller; got {type(item).__name__}")
+    settings = _settings(scenario, threshold, profile, metric, settle, resolution, upper)
+    frequency = positive_scalar("frequency", frequency)
+    grid, points = _count("grid", grid, 2), _count("points", points, 1)
+    built = scenario.build()
+    make = PROFILES[settings["profile"]]
+
+    def evaluate(values: list[float], controller: list[Controller]) -> tuple[np.ndarray, ...]:
+        try:
+            result = simulate(
+                built.plant,
+                controller,
+                [make(v, frequency) for v in values],
+                built.x0,
+                reference=built.reference,
+                t1=scenario.duration,
+                dt=scenario.dt,
+                T_c=scenario.T_c,
+                trajectories=False,
+                metrics_from=settings["settle"],
+                workers=workers,
+                progress=progress,
+            )
+        except ValueError as error:
+            raise ScenarioError(f"scenario {scenario.name!r}: {error}") from None
+        ok = result.status == 0
+        worst = np.full(len(values), np.nan)
+        worst[ok] = result.metrics[settings["metric"]][ok].max(axis=1)
+        return worst, result.status, ok & (worst <= settings["threshold"])
+
+    searches = [_Search() for _ in controllers]
+    coarse = [settings["upper"] * k / grid for k in range(grid + 1)]
+    jobs = {i: coarse for i in range(len(controllers))}
+    while jobs:
+        flat = [(i, v) for i, values in jobs.items() for v in values]
+        worst, status, passes = evaluate([v for _, v in flat], [controllers[i] for i, _ in flat])
+        start = 0
+        for i, values in jobs.items():
+            part = slice(start, start + len(values))
+            start += len(values)
+            if values is coarse and not passes[part][0]:
+                where = "" if single else f" (controller[{i}])"
+                raise ValueError(
+                    f"threshold = {settings['threshold']:g} is missed already without delay: "
+                    f"{settings['metric']} = {worst[part][0]:.4g} rad, status "
+                    f"{int(status[part][0])} at h = 0{where}; give a larger threshold or a later "
+                    "settle time"
+                )
+            searches[i].take(values, worst[part], status[part], passes[part])
+        jobs = {}
+        for i, search in enumerate(searches):
+            values = search.next_values(points, settings["resolution"])
+            if values:
+                jobs[i] = values
+    results = [
+        _result(search, scenario, item, frequency, settings)
+        for search, item in zip(searches, controllers, strict=True)
+    ]
+    return results[0] if single else results
+
+
+def _settings(
+    scenario: Scenario,
+    threshold: float,
+    profile: str,
+    metric: str,
+    settle: float | None,
+    resolution: float,
+    upper: float,
+) -> dict[str, Any]:
+    """Check the search's settings; return them as the result states them."""
+    resolution = positive_scalar("resolution", resolution)
+    upper = positive_scalar("upper", upper)
+    if resolution >= upper:
+        raise ValueError(
+            f"resolution must be smaller than upper; got resolution = {resolution:g} s, "
+            f"upper = {upper:g} s"
+        )
+    settle = scenario.duration / 2 if settle is None else settle
+    settle = positive_scalar("settle", settle, strictly=False)
+    if settle >= scenario.duration:
+        raise ValueError(
+            f"settle must be below the scenario's duration {scenario.duration:g} s (the metric "
+            f"window is [settle, duration]); got {settle:g}"
+        )
+    return {
+        "profile": _choice("profile", profile, tuple(PROFILES)),
+        "metric": _choice("metric", metric, tuple(METRICS)),
+        "threshold": positive_scalar("threshold", threshold),
+        "settle": settle,
+        "resolution": resolution,
+        "upper": upper,
+    }
+
+
+def _result(
+    search: _Search,
+    scenario: Scenario,
+    controller: Controller,
+    frequency: float,
+    settings: dict[str, Any],
+) -> EmpiricalMargin:
+    rows = sorted(search.rows)
+    found = search.failed is not None
+    return EmpiricalMargin(
+        margin=search.passed,
+        failure_found=found,
+        first_failure=search.failed,
+        frequency=frequency,
+        values=np.array([row[0] for row in rows]),
+        metric_values=np.array([row[1] for row in rows]),
+        statuses=np.array([row[2] for row in rows], dtype=int),
+        scenario=scenario.name,
+        controller=controller.type_name,
+        simulations=len(rows),
+        rounds=search.rounds,
+        **settings,
+    )

@@ -1,0 +1,96 @@
+"""The ``delaytrack empirical`` command and ``delaytrack reproduce --job margins``."""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+import pytest
+
+from delaytrack.cli import main
+from delaytrack.experiments.margins import GAINS
+from test_empirical_margin import TOLERANCE, double_integrator
+
+IDENTITY_MARGIN = 0.711118648715793
+
+
+@pytest.fixture
+def scenario_file(tmp_path):
+    path = tmp_path / "double_integrator.toml"
+    double_integrator(1.0, 1.0).to_toml(path)
+    return str(path)
+
+
+def test_empirical_json_agrees_with_the_exact_margin(scenario_file, capsys):
+    args = ["empirical", scenario_file, "--threshold", "1", "--metric", "max", "--upper", "1.6"]
+    assert main([*args, "--resolution", "0.002", "--json"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("\n") == 1
+    data = json.loads(out)
+    assert data["failure_found"] is True
+    assert data["h_exact"] == pytest.approx(IDENTITY_MARGIN, rel=1e-12)
+    assert abs(data["margin"] - IDENTITY_MARGIN) <= 0.002 + TOLERANCE
+    assert data["h_m"] < data["margin"]
+    assert (data["threshold"], data["metric"], data["resolution"]) == (1.0, "max", 0.002)
+
+
+def test_empirical_text_states_threshold_resolution_and_the_analytic_margins(scenario_file, capsys):
+    args = ["empirical", scenario_file, "--threshold", "1", "--metric", "max", "--upper", "1.6"]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "Empirical delay margin of 'double_integrator' (outer-loop; constant delay h)" in out
+    assert "max <= 1 rad after t = 50 s; resolution 0.005 s" in out
+    assert "h_exact     = 0.711119 s" in out
+    assert "h_m         = " in out
+
+
+def test_empirical_reports_no_failure_below_upper(scenario_file, capsys):
+    assert main(["empirical", scenario_file, "--threshold", "10", "--upper", "0.3"]) == 0
+    assert "no failure up to upper = 0.3 s" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--threshold", "-1"], "error: --threshold must be > 0; got -1"),
+        (["--threshold", "x"], "error: --threshold must be a number"),
+        (["--threshold", "1", "--resolution", "2"], "error: --resolution must be smaller than"),
+        (["--threshold", "1", "--settle", "500"], "error: --settle must be below the scenario"),
+    ],
+)
+def test_empirical_refuses_bad_options(scenario_file, capsys, extra, message):
+    assert main(["empirical", scenario_file, *extra]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_empirical_needs_a_threshold_and_a_scenario(capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(["empirical", "two_link_margins"])
+    assert stop.value.code == 2
+    assert "--threshold" in capsys.readouterr().err
+    assert main(["empirical", "no_such_scenario", "--threshold", "1"]) == 2
+    assert "nor is it a built-in scenario" in capsys.readouterr().err
+
+
+def test_margins_job_writes_its_files(tmp_path, capsys):
+    args = ["reproduce", "--job", "margins", "--out", str(tmp_path), "--duration", "6", "--quiet"]
+    assert main(args) == 0
+    assert "margins job done" in capsys.readouterr().out
+    folder = tmp_path / "margins"
+    for name in ("margins.csv", "evaluated.csv", "scenario.toml", "report.html"):
+        assert (folder / name).is_file(), name
+    for suffix in ("png", "svg"):
+        assert (folder / "figures" / f"margins.{suffix}").is_file()
+    table = pd.read_csv(folder / "margins.csv")
+    assert len(table) == len(GAINS) ** 2
+    assert (table["h_m"] < table["h_exact"]).all()
+    html = (folder / "report.html").read_text()
+    assert "data:image/png;base64," in html and "What the gap means" in html
+
+
+def test_margins_job_too_short_for_its_tracking_rule_is_a_usage_error(tmp_path, capsys):
+    args = ["reproduce", "--job", "margins", "--out", str(tmp_path), "--duration", "4", "--quiet"]
+    assert main(args) == 2
+    assert "error: margins job: threshold = 0.2 is missed already without delay" in (
+        capsys.readouterr().err
+    )

@@ -1,0 +1,163 @@
+"""Empirical delay margin: agreement with the exact margin, the search, the result, refusals."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from delaytrack.analysis import exact_delay_margin
+from delaytrack.experiments import EmpiricalMargin, Scenario, empirical_margin
+
+#: A plant the nominal model describes exactly: q'' = u (unit masses), with the outer loop and a
+#: constant reference, so e1'' = -K2 e1'(t-h) - K1 e1(t-h) holds exactly and the empirical
+#: constant-delay margin is the exact one up to sampling (T_c = 2 ms of zero-order hold act like
+#: about 1 ms of extra delay), the finite horizon and the resolution.
+T_C = 0.002
+
+
+def double_integrator(k1, k2, *, duration=100.0, x0=(1.0, 0.0)) -> Scenario:
+    n = len(x0) // 2
+    return Scenario.from_dict(
+        {
+            "name": "double_integrator",
+            "duration": duration,
+            "dt": T_C,
+            "T_c": T_C,
+            "x0": list(x0),
+            "plant": {"type": "linear", "mass": [1.0] * n},
+            "model": {"type": "linear", "mass": [1.0] * n},
+            "controller": {"type": "outer-loop", "K1": k1, "K2": k2},
+            "delay": {"type": "constant", "h": 0.0},
+            "reference": {"offset": [0.0] * n},
+        }
+    )
+
+
+#: |empirical - exact| <= resolution + TOLERANCE: the sampling (about T_c / 2 of extra delay)
+#: and the finite horizon (100 s, a growth rate of 1/100 s^-1 shows) account for less than this.
+TOLERANCE = 2 * T_C
+
+
+@pytest.mark.parametrize(
+    ("k1", "k2"),
+    [(1.0, 1.0), ([1.0, 4.0], [1.0, 2.0])],
+    ids=["identity", "diagonal-two-axes"],
+)
+def test_constant_delay_margin_agrees_with_the_exact_margin(k1, k2):
+    n = np.size(k1)
+    scenario = double_integrator(k1, k2, x0=[1.0] * n + [0.0] * n)
+    result = empirical_margin(
+        scenario, threshold=1.0, metric="max", resolution=0.002, upper=1.6, grid=16
+    )
+    exact = exact_delay_margin(np.diag(np.broadcast_to(k1, n)), np.diag(np.broadcast_to(k2, n)))
+    assert result.failure_found
+    assert result.first_failure - result.margin <= result.resolution
+    assert abs(result.margin - exact.h) <= result.resolution + TOLERANCE, (result, exact.h)
+
+
+def test_search_is_reproducible_and_records_every_run():
+    scenario = double_integrator(1.0, 1.0, duration=40.0)
+    kwargs = {"threshold": 0.5, "resolution": 0.01, "upper": 1.2, "grid": 6, "points": 3}
+    first, second = (empirical_margin(scenario, **kwargs) for _ in range(2))
+    assert first.to_dict() == second.to_dict()
+    assert first.simulations == len(first.values) == len(set(first.values))
+    assert np.all(np.diff(first.values) > 0)
+    # The margin passes, the first failure fails, nothing between them was evaluated.
+    frame = first.to_frame()
+    assert frame.loc[frame.value == first.margin, "passes"].item()
+    assert not frame.loc[frame.value == first.first_failure, "passes"].item()
+    assert frame.loc[frame.value < first.margin, "passes"].all()
+    assert not ((frame.value > first.margin) & (frame.value < first.first_failure)).any()
+    # The coarse grid is one batch, each multi-section round one more.
+    assert first.rounds == 1 + int(np.ceil(np.log(0.2 / 0.01) / np.log(4)))
+
+
+def test_lockstep_search_equals_separate_searches():
+    scenario = double_integrator(1.0, 1.0, duration=30.0)
+    controllers = [
+        double_integrator(k, 1.0).build().controller for k in (0.5, 2.0)
+    ]  # different margins, so the two searches take different rounds
+    kwargs = {"threshold": 0.5, "resolution": 0.01, "upper": 1.2, "grid": 6, "profile": "abs-sine"}
+    together = empirical_margin(scenario, controllers, **kwargs)
+    alone = [empirical_margin(scenario, c, **kwargs) for c in controllers]
+    assert [r.to_dict() for r in together] == [r.to_dict() for r in alone]
+
+
+def test_a_threshold_never_missed_is_not_reported_as_a_margin():
+    result = empirical_margin(
+        double_integrator(1.0, 1.0, duration=20.0), threshold=10.0, upper=0.4, grid=4
+    )
+    assert not result.failure_found
+    assert result.first_failure is None
+    assert result.margin == result.upper == 0.4
+    assert result.passes.all()
+    assert "no failure up to upper = 0.4 s" in result.describe()
+    assert "at least 0.4 s" in result.describe()
+
+
+def test_result_states_its_settings():
+    result = empirical_margin(
+        double_integrator(1.0, 1.0, duration=20.0),
+        threshold=0.3,
+        metric="rms",
+        settle=5.0,
+        profile="abs-sine-offset",
+        frequency=2.0,
+        upper=0.5,
+        grid=4,
+        resolution=0.05,
+    )
+    assert isinstance(result, EmpiricalMargin)
+    data = result.to_dict()
+    for key, value in {
+        "threshold": 0.3,
+        "metric": "rms",
+        "settle": 5.0,
+        "profile": "abs-sine-offset",
+        "frequency": 2.0,
+        "upper": 0.5,
+        "resolution": 0.05,
+        "controller": "outer-loop",
+        "scenario": "double_integrator",
+    }.items():
+        assert data[key] == value
+    assert len(data["evaluated"]) == result.simulations
+    assert "rms <= 0.3 rad after t = 5 s" in result.describe()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"threshold": 0.0}, "threshold must be > 0; got 0"),
+        ({"threshold": "1"}, "threshold must be a real number"),
+        ({"profile": "sine"}, "profile must be one of ['constant', 'abs-sine', 'abs-sine-offset']"),
+        ({"metric": "mean"}, "metric must be one of ['ae', 'rms', 'max']; got 'mean'"),
+        ({"resolution": 1.0, "upper": 0.5}, "resolution must be smaller than upper"),
+        ({"upper": -1.0}, "upper must be > 0; got -1"),
+        ({"settle": 20.0}, "settle must be below the scenario's duration 20 s"),
+        ({"grid": 1}, "grid must be an integer >= 2; got 1"),
+        ({"points": 0}, "points must be an integer >= 1; got 0"),
+        ({"frequency": 0.0}, "frequency must be > 0"),
+    ],
+)
+def test_bad_arguments_are_refused_by_name(kwargs, message):
+    options = {"threshold": 0.5, **kwargs}
+    with pytest.raises((ValueError, TypeError)) as error:
+        empirical_margin(double_integrator(1.0, 1.0, duration=20.0), **options)
+    assert message in str(error.value)
+
+
+def test_a_threshold_missed_without_delay_is_refused():
+    with pytest.raises(ValueError, match=r"threshold = 0.01 is missed already without delay"):
+        empirical_margin(
+            double_integrator(1.0, 1.0, duration=4.0), threshold=0.01, metric="max", settle=0.0
+        )
+
+
+def test_bad_scenario_and_controllers_are_refused():
+    with pytest.raises(TypeError, match="scenario must be a Scenario; got dict"):
+        empirical_margin({}, threshold=1.0)
+    with pytest.raises(TypeError, match="controller must be a Controller, a non-empty list"):
+        empirical_margin(double_integrator(1.0, 1.0), [], threshold=1.0)
+    with pytest.raises(TypeError, match=r"controller\[0\] must be a Controller; got str"):
+        empirical_margin(double_integrator(1.0, 1.0), ["arolc"], threshold=1.0)

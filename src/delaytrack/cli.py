@@ -60,10 +60,14 @@ def _numbers(flag: str, text: str) -> np.ndarray:
 
 
 def _scalar(flag: str, text: str) -> float:
-    values = _numbers(flag, text)
-    if values.size != 1:
-        raise UsageError(f"{flag} must be a single number; got {text!r}")
-    return float(values[0])
+    try:
+        value = float(text)
+    except ValueError:
+        what = "a single number" if "," in text else "a number"
+        raise UsageError(f"{flag} must be {what}; got {text!r}") from None
+    if not math.isfinite(value):
+        raise UsageError(f"{flag} must be finite; got {text!r}")
+    return value
 
 
 def _dimension(args: argparse.Namespace, k1: np.ndarray, k2: np.ndarray, q: np.ndarray) -> int:
@@ -371,7 +375,8 @@ def _empirical(args: argparse.Namespace) -> int:
     print(f"Empirical delay margin of {scenario.name!r} ({result.controller}; {family})")
     print(f"  margin      = {result.describe()}")
     print(
-        f"  search      = {result.simulations} simulations in {result.rounds} batches, "
+        f"  search      = {result.simulations} simulations in {result.rounds} "
+        f"batch{'' if result.rounds == 1 else 'es'}, "
         f"{seconds:.1f} s wall time"
     )
     if analytic:

@@ -37,7 +37,8 @@ _BRACKET_MARGIN = 1e-3
 #: A local extremum of |μ| / ω² − 1 within this distance of 0 is a tangential touch.
 _TOUCH_TOLERANCE = 1e-9
 
-#: Largest crossing frequency handled: ω² and |μ| must stay finite with room to spare.
+#: Largest crossing frequency handled: ω² and |μ| must stay finite with room to spare; its
+#: inverse is the smallest, below which ω K2 and ω² underflow.
 _LARGEST_FREQUENCY = 1e100
 
 #: Crossings whose frequencies and delays agree to this (relative) are one crossing (repeated
@@ -228,6 +229,13 @@ def exact_delay_margin(K1: object, K2: object, *, n: int | None = None) -> Exact
             f"K1 and K2 are too large for the margin to be computed in floating point: crossing "
             f"frequencies may reach {high:.3g} rad/s (||K1|| = {np.linalg.norm(K1_matrix, 2):.3g}, "
             f"||K2|| = {np.linalg.norm(K2_matrix, 2):.3g}); rescale time"
+        )
+    if not low > 1.0 / _LARGEST_FREQUENCY:
+        raise ValueError(
+            f"K1 and K2 are too small for the margin to be computed in floating point: crossing "
+            f"frequencies may be as low as {low:.3g} rad/s (smallest eigenvalues of K1 and K2: "
+            f"{np.linalg.eigvalsh(K1_matrix)[0]:.3g}, {np.linalg.eigvalsh(K2_matrix)[0]:.3g}); "
+            "rescale time"
         )
     omegas = np.geomspace(
         low * (1.0 - _BRACKET_MARGIN), high * (1.0 + _BRACKET_MARGIN), _SCAN_POINTS

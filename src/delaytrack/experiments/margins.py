@@ -115,6 +115,7 @@ _LABELS = {
     "arolc_constant": "AROLC, empirical, constant h",
     "arolc_abs_sine": "AROLC, empirical, a |sin t|",
     "outer_loop_constant": "outer loop, empirical, constant h",
+    "outer_loop_abs_sine": "outer loop, empirical, a |sin t|",
 }
 
 

@@ -1,0 +1,187 @@
+"""Run a sweep's work units and keep their results as Parquet parts, one per finished unit.
+
+A part is ``<folder>/part-<unit index>-<hash12>.parquet``, one row per run, written atomically
+(temporary file in the same folder, fsync, :func:`os.replace`): a reader sees no part or a
+complete one. Its Parquet metadata holds the unit's full hash and run count, so
+:func:`finished_units` can tell a finished unit of *this* spec from a stale, truncated or
+corrupt file.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from delaytrack._io import atomic_path
+from delaytrack.metrics import metrics_table
+from delaytrack.sim import simulate
+from delaytrack.sweeps.spec import Run, SweepError, SweepSpec, Unit, canonical_json
+
+__all__ = ["PartsScan", "finished_units", "run_unit", "write_part"]
+
+#: Parquet metadata keys of a part.
+HASH_KEY = b"delaytrack.unit_hash"
+RUNS_KEY = b"delaytrack.unit_runs"
+
+
+def _batch_key(run: Run) -> str:
+    """Runs with equal keys can share one :func:`simulate` call."""
+    scenario = run.scenario
+    return canonical_json(
+        {
+            "plant": scenario.plant["type"],
+            "model": scenario.model["type"],
+            "controller": scenario.controller["type"],
+            "times": [scenario.duration, scenario.dt, scenario.T_c],
+            "reference": dict(scenario.reference),
+        }
+    )
+
+
+def _simulate_batch(runs: list[Run], workers: int | None) -> pd.DataFrame:
+    built = [run.scenario.build() for run in runs]
+    first = runs[0].scenario
+    try:
+        result = simulate(
+            [b.plant for b in built],
+            [b.controller for b in built],
+            [b.delay for b in built],
+            np.stack([b.x0 for b in built]),
+            reference=built[0].reference,
+            t1=first.duration,
+            dt=first.dt,
+            T_c=first.T_c,
+            trajectories=False,
+            workers=workers,
+        )
+    except ValueError as error:
+        indices = [run.index for run in runs]
+        raise SweepError(f"runs {indices} cannot be simulated together: {error}") from None
+    return metrics_table(result).drop(columns="batch")
+
+
+def _value_column(values: list[Any]) -> list[Any]:
+    """Numbers or strings stay as they are; anything else (lists, tables, mixtures) as JSON."""
+    numbers = all(isinstance(v, int | float) and not isinstance(v, bool) for v in values)
+    if numbers or all(isinstance(v, str) for v in values):
+        return values
+    return [canonical_json(v) for v in values]
+
+
+def run_unit(unit: Unit, *, workers: int | None = None) -> pd.DataFrame:
+    """Simulate a unit's runs (metrics only) with the batched engine; one row per run.
+
+    Runs with the same plant, model and controller types, times and reference share one
+    :func:`~delaytrack.sim.simulate` call.
+
+    Returns
+    -------
+    DataFrame
+        Columns ``run`` (index in the sweep), one per swept key (numbers and strings as they
+        are, lists and tables as canonical JSON), ``controller`` and ``delay`` (the types),
+        ``status``, ``t_stop``, ``ae_q<i>``, ``rms_q<i>``, ``max_q<i>`` per coordinate and ``tv``
+        (NaN unless ``status`` is ``ok``), in run order.
+    """
+    groups: dict[str, list[Run]] = {}
+    for run in unit.runs:
+        groups.setdefault(_batch_key(run), []).append(run)
+    metrics = {}
+    for runs in groups.values():
+        frame = _simulate_batch(runs, workers)
+        for run, (_, row) in zip(runs, frame.iterrows(), strict=True):
+            metrics[run.index] = row
+    runs = unit.runs
+    columns: dict[str, Any] = {"run": [run.index for run in runs]}
+    for key in runs[0].values:
+        columns[key] = _value_column([run.values[key] for run in runs])
+    columns["controller"] = [run.scenario.controller["type"] for run in runs]
+    columns["delay"] = [run.scenario.delay["type"] for run in runs]
+    table = pd.DataFrame([metrics[run.index] for run in runs]).reset_index(drop=True)
+    return pd.concat([pd.DataFrame(columns), table], axis=1)
+
+
+def write_part(frame: pd.DataFrame, unit: Unit, folder: str | Path) -> Path:
+    """Write a unit's results as its part, atomically and durably; return the path.
+
+    The unit's hash and run count go into the Parquet metadata.
+    """
+    if len(frame) != len(unit.runs):
+        raise ValueError(
+            f"frame has {len(frame)} rows; unit {unit.index} has {len(unit.runs)} runs"
+        )
+    table = pa.Table.from_pandas(frame, preserve_index=False)
+    metadata = {
+        **(table.schema.metadata or {}),
+        HASH_KEY: unit.hash.encode("ascii"),
+        RUNS_KEY: str(len(unit.runs)).encode("ascii"),
+    }
+    target = Path(folder) / unit.part_name
+    with atomic_path(target) as temporary:
+        pq.write_table(table.replace_schema_metadata(metadata), temporary)
+        with open(temporary, "rb") as handle:
+            os.fsync(handle.fileno())
+    return target
+
+
+@dataclass(frozen=True)
+class PartsScan:
+    """What :func:`finished_units` found in a results folder.
+
+    Attributes
+    ----------
+    finished : frozenset of int
+        Indices of units whose part is complete and made by this spec and package version.
+    rejected : Mapping[str, str]
+        Part file name -> why it does not count (truncated, corrupt, another spec or version,
+        wrong row count); those units run again.
+    """
+
+    finished: frozenset[int]
+    rejected: Mapping[str, str]
+
+
+def _check_part(path: Path, unit: Unit) -> str | None:
+    """Why the part at ``path`` does not finish ``unit``, or None when it does."""
+    try:
+        table = pq.read_table(path)
+    except (OSError, pa.ArrowException) as error:
+        return f"unreadable (truncated or corrupt): {error}"
+    metadata = table.schema.metadata or {}
+    stored = metadata.get(HASH_KEY, b"").decode("ascii", "replace")
+    if stored != unit.hash:
+        return f"unit hash {stored[:12] or 'missing'} != {unit.hash[:12]} of this spec"
+    if table.num_rows != len(unit.runs) or metadata.get(RUNS_KEY) != str(len(unit.runs)).encode():
+        return f"{table.num_rows} rows; unit {unit.index} has {len(unit.runs)} runs"
+    return None
+
+
+def finished_units(folder: str | Path, spec: SweepSpec) -> PartsScan:
+    """Which units of ``spec`` already have a valid part in ``folder`` (a resume check).
+
+    Every ``part-*.parquet`` is read in full: one of this spec's parts counts when its metadata
+    hash equals the unit's and its row count the unit's run count. Any other part file is listed
+    in :attr:`PartsScan.rejected` with the reason; a missing folder means nothing is finished.
+    """
+    folder = Path(folder)
+    units = {unit.part_name: unit for unit in spec.units()}
+    finished = set()
+    rejected = {}
+    for path in sorted(folder.glob("part-*.parquet")):
+        unit = units.get(path.name)
+        reason = "not a part of this spec (another spec or package version)"
+        if unit is not None:
+            reason = _check_part(path, unit)
+        if reason is None:
+            finished.add(unit.index)
+        else:
+            rejected[path.name] = reason
+    return PartsScan(frozenset(finished), MappingProxyType(rejected))

@@ -1,0 +1,357 @@
+"""Sweep specs: a base scenario, a grid and seeded random draws over its keys, cut into units.
+
+A sweep file (TOML)::
+
+    scenario = "two_link_S1"   # a shipped scenario name, or a scenario file (relative to this file)
+    unit_size = 8              # runs per work unit (one Parquet part each)
+    draws = 4                  # random draws, each paired with every grid point (with [random])
+    seed = 7                   # seed of the draws (with [random])
+
+    [grid]                     # Cartesian product, first key outermost, values in the listed order
+    "controller.K1" = [0.5, 1.0, 2.0]
+    delay = [{type = "S1"}, {type = "constant", h = 0.05}]   # a table name: whole tables
+
+    [random]                   # key -> distribution
+    "plant.fd1" = {dist = "loguniform", low = 1.0, high = 10.0}
+    "controller.alpha" = {dist = "choice", values = [1.0, 2.0]}
+    seed = {dist = "integers", low = 0, high = 1000}          # the scenario's seed; high inclusive
+
+A key is a top-level scenario key (``duration``, ``seed``, ...), a table name (``delay``: the
+value replaces the whole table) or a dotted ``table.key`` (``controller.K1``: the value replaces
+one key of the table, after any whole-table replacement). Every run is validated as a
+:class:`~delaytrack.experiments.Scenario` when the spec is loaded; a refusal names the sweep key
+(``grid."controller.K9" = 1.0 (run 0): unknown key 'controller.K9' in scenario; ...``).
+
+Run ``i`` is grid point ``i // draws`` with draw ``i % draws`` (one draw without ``[random]``).
+Draws of a key come from ``numpy.random.default_rng([seed, *key.encode()])``: they depend on the
+seed, the key, its distribution and ``draws`` only, not on the other keys.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+import delaytrack
+from delaytrack.experiments.scenario import (
+    Scenario,
+    ScenarioError,
+    builtin_scenario_names,
+    builtin_scenario_path,
+)
+
+__all__ = ["DISTRIBUTIONS", "Run", "SweepError", "SweepSpec", "Unit"]
+
+
+class SweepError(ScenarioError):
+    """A sweep spec is not valid; the message names the sweep key and what is valid."""
+
+
+_TOP_LEVEL = ("scenario", "unit_size", "draws", "seed", "grid", "random")
+_TABLES = ("plant", "model", "controller", "delay", "reference")
+_SCALARS = ("name", "duration", "dt", "T_c", "seed", "x0", "record_every")
+
+#: Distribution name -> its parameters, for ``[random]`` entries.
+DISTRIBUTIONS: Mapping[str, tuple[str, ...]] = MappingProxyType(
+    {
+        "uniform": ("low", "high"),
+        "loguniform": ("low", "high"),
+        "choice": ("values",),
+        "integers": ("low", "high"),
+    }
+)
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run of a sweep: its stable index, the swept values and the resolved scenario."""
+
+    index: int
+    values: Mapping[str, Any]
+    scenario: Scenario
+
+    def canonical(self) -> dict[str, Any]:
+        """Plain data identifying the run (what unit hashes cover)."""
+        scenario = self.scenario.to_dict()
+        return {"index": self.index, "values": dict(self.values), "scenario": scenario}
+
+
+@dataclass(frozen=True)
+class Unit:
+    """A work unit: consecutive runs, written as one Parquet part.
+
+    ``hash`` is the sha256 (hex) of the canonical JSON of the runs' :meth:`Run.canonical` and
+    the package version: a part whose stored hash differs was made by another spec or version.
+    """
+
+    index: int
+    runs: tuple[Run, ...]
+    hash: str
+
+    @property
+    def part_name(self) -> str:
+        """The unit's part file: ``part-<unit index, 5 digits>-<hash, 12 hex>.parquet``."""
+        return f"part-{self.index:05d}-{self.hash[:12]}.parquet"
+
+
+def canonical_json(data: Any) -> str:
+    """Sorted keys, no spaces, no NaN: equal data give equal text."""
+    return json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=False)
+
+
+def _unit_hash(runs: Sequence[Run]) -> str:
+    payload = {"version": delaytrack.__version__, "runs": [run.canonical() for run in runs]}
+    return hashlib.sha256(canonical_json(payload).encode("utf-8")).hexdigest()
+
+
+def _check_key(source: str, key: object) -> str:
+    if not isinstance(key, str):
+        raise SweepError(f"{source} key {key!r} must be a string")
+    table, dot, field = key.partition(".")
+    if dot and table in _TABLES and field and "." not in field:
+        return key
+    if not dot and key in (*_TABLES, *_SCALARS):
+        return key
+    raise SweepError(
+        f'{source}."{key}": unknown key; a sweep key is a top-level scenario key '
+        f"{list(_SCALARS)}, a table name {list(_TABLES)} (its value replaces the table) or "
+        "'table.key' such as 'controller.K1' or 'delay.h'"
+    )
+
+
+def _number(where: str, name: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise SweepError(f"{where}: '{name}' must be a finite number; got {value!r}")
+    return value
+
+
+def _draw(key: str, table: object, draws: int, seed: int) -> list[Any]:
+    """``draws`` values of ``random."key"`` from its own seeded generator."""
+    where = f'random."{key}"'
+    if not isinstance(table, Mapping) or "dist" not in table:
+        raise SweepError(
+            f"{where} must be a table with 'dist', one of {list(DISTRIBUTIONS)}, and its "
+            f"parameters; got {table!r}"
+        )
+    dist = table["dist"]
+    if dist not in DISTRIBUTIONS:
+        raise SweepError(f"{where}: 'dist' must be one of {list(DISTRIBUTIONS)}; got {dist!r}")
+    expected = {"dist", *DISTRIBUTIONS[dist]}
+    if set(table) != expected:
+        raise SweepError(
+            f"{where}: dist = {dist!r} takes exactly the keys {sorted(expected)}; got "
+            f"{sorted(table)}"
+        )
+    rng = np.random.default_rng([seed, *key.encode("utf-8")])
+    if dist == "choice":
+        values = table["values"]
+        if not isinstance(values, list) or not values:
+            raise SweepError(f"{where}: 'values' must be a non-empty list; got {values!r}")
+        return [values[i] for i in rng.integers(0, len(values), size=draws)]
+    low = _number(where, "low", table["low"])
+    high = _number(where, "high", table["high"])
+    if dist == "integers":
+        if not (isinstance(low, int) and isinstance(high, int) and low <= high):
+            raise SweepError(
+                f"{where}: dist = 'integers' needs integers low <= high (high inclusive); got "
+                f"low = {low!r}, high = {high!r}"
+            )
+        return [int(v) for v in rng.integers(low, high, size=draws, endpoint=True)]
+    if not low < high:
+        raise SweepError(f"{where}: needs low < high; got low = {low!r}, high = {high!r}")
+    if dist == "uniform":
+        return [float(v) for v in rng.uniform(low, high, size=draws)]
+    if low <= 0:
+        raise SweepError(f"{where}: dist = 'loguniform' needs low > 0; got low = {low!r}")
+    return [float(v) for v in np.exp(rng.uniform(math.log(low), math.log(high), size=draws))]
+
+
+def _apply(base: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str, Any]:
+    """The base scenario data with the run's values written in (whole tables first)."""
+    data = json.loads(json.dumps(base))
+    for key, value in values.items():
+        if "." not in key:
+            data[key] = value
+    for key, value in values.items():
+        table, dot, field = key.partition(".")
+        if dot:
+            if not isinstance(data[table], dict):
+                raise SweepError(
+                    f'sweep key "{table}" must give tables ([{table}]); got {data[table]!r}'
+                )
+            data[table][field] = value
+    return data
+
+
+def _positive_int(key: str, value: object) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise SweepError(f"sweep key {key!r} must be a positive integer; got {value!r}")
+    return value
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A sweep: base scenario, grid, seeded random draws and unit size (see the module docstring).
+
+    Build with :meth:`from_toml` or :meth:`from_dict`; every run is expanded and validated on
+    construction, so a spec that loads runs only valid scenarios.
+
+    Attributes
+    ----------
+    base : Scenario
+        The scenario every run starts from.
+    grid : Mapping[str, tuple]
+        Sweep key -> values (Cartesian product, first key outermost).
+    random : Mapping[str, Mapping]
+        Sweep key -> distribution table.
+    draws, seed : int
+        Number of random draws (1 without ``[random]``) and their seed.
+    unit_size : int
+        Runs per work unit.
+    """
+
+    base: Scenario
+    grid: Mapping[str, tuple[Any, ...]]
+    random: Mapping[str, Mapping[str, Any]]
+    draws: int
+    seed: int
+    unit_size: int
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, root: str | Path = ".") -> SweepSpec:
+        """Build from the layout of a sweep file; a relative ``scenario`` path is under ``root``.
+
+        Raises
+        ------
+        SweepError
+            For an unknown, missing or ill-typed key, or a run that is not a valid scenario.
+        """
+        if not isinstance(data, Mapping):
+            raise SweepError(f"a sweep spec must be a table of keys; got {type(data).__name__}")
+        for key in data:
+            if key not in _TOP_LEVEL:
+                raise SweepError(f"unknown sweep key {key!r}; valid keys are {list(_TOP_LEVEL)}")
+        for key in ("scenario", "unit_size"):
+            if key not in data:
+                raise SweepError(f"sweep spec is missing the required key {key!r}")
+        if "grid" not in data and "random" not in data:
+            raise SweepError("sweep spec needs a [grid] table, a [random] table or both")
+        grid = data.get("grid", {})
+        if not isinstance(grid, Mapping):
+            raise SweepError(f"sweep key 'grid' must be a table; got {grid!r}")
+        checked_grid = {}
+        for key, values in grid.items():
+            _check_key("grid", key)
+            if not isinstance(values, list) or not values:
+                raise SweepError(f'grid."{key}" must be a non-empty list of values; got {values!r}')
+            checked_grid[key] = tuple(values)
+        random = data.get("random", {})
+        if not isinstance(random, Mapping):
+            raise SweepError(f"sweep key 'random' must be a table; got {random!r}")
+        if random:
+            for key in ("draws", "seed"):
+                if key not in data:
+                    raise SweepError(f"sweep spec has [random] and needs {key!r} (an integer)")
+        else:
+            for key in ("draws", "seed"):
+                if key in data:
+                    raise SweepError(f"sweep key {key!r} needs a [random] table to draw from")
+        draws = _positive_int("draws", data.get("draws", 1))
+        seed = data.get("seed", 0)
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise SweepError(f"sweep key 'seed' must be an integer >= 0; got {seed!r}")
+        for key in random:
+            _check_key("random", key)
+            if key in checked_grid:
+                raise SweepError(f'sweep key "{key}" is in both [grid] and [random]; keep one')
+        return cls(
+            base=_load_base(data["scenario"], Path(root)),
+            grid=MappingProxyType(checked_grid),
+            random=MappingProxyType(dict(random)),
+            draws=draws,
+            seed=seed,
+            unit_size=_positive_int("unit_size", data["unit_size"]),
+        )
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> SweepSpec:
+        """Read a sweep file; a relative ``scenario`` path is taken relative to the file."""
+        source = Path(path)
+        try:
+            data = tomllib.loads(source.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise SweepError(f"sweep file {str(source)!r} does not exist") from None
+        except (OSError, UnicodeDecodeError) as error:
+            raise SweepError(f"cannot read sweep file {str(source)!r}: {error}") from None
+        except tomllib.TOMLDecodeError as error:
+            raise SweepError(f"{source}: not valid TOML: {error}") from None
+        try:
+            return cls.from_dict(data, root=source.parent)
+        except ScenarioError as error:
+            raise SweepError(f"{source}: {error}") from None
+
+    def __post_init__(self) -> None:
+        self.runs  # noqa: B018 -- expand and validate every run now, not at run time
+
+    @cached_property
+    def runs(self) -> tuple[Run, ...]:
+        """Every run, in index order."""
+        drawn = {key: _draw(key, dist, self.draws, self.seed) for key, dist in self.random.items()}
+        base = self.base.to_dict()
+        runs = []
+        for point in itertools.product(*self.grid.values()):
+            for d in range(self.draws):
+                values = dict(zip(self.grid, point, strict=True))
+                values.update({key: column[d] for key, column in drawn.items()})
+                runs.append(self._run(len(runs), values, base))
+        return tuple(runs)
+
+    def _run(self, index: int, values: dict[str, Any], base: Mapping[str, Any]) -> Run:
+        try:
+            scenario = Scenario.from_dict(_apply(base, values)).resolved()
+        except ScenarioError as error:
+            message = str(error)
+            named = [key for key in values if f"'{key}'" in message or f"[{key}]" in message]
+            if named:
+                key = named[0]
+                source = "grid" if key in self.grid else "random"
+                raise SweepError(
+                    f'{source}."{key}" = {values[key]!r} (run {index}): {message}'
+                ) from None
+            raise SweepError(f"run {index} ({values}): {message}") from None
+        return Run(index, MappingProxyType(values), scenario)
+
+    def units(self) -> tuple[Unit, ...]:
+        """The runs cut into units of ``unit_size`` consecutive runs (the last may be shorter)."""
+        size = self.unit_size
+        chunks = [self.runs[i : i + size] for i in range(0, len(self.runs), size)]
+        return tuple(Unit(k, chunk, _unit_hash(chunk)) for k, chunk in enumerate(chunks))
+
+
+def _load_base(source: object, root: Path) -> Scenario:
+    """A scenario file (relative to ``root``) or the name of a shipped scenario."""
+    if not isinstance(source, str):
+        raise SweepError(
+            f"sweep key 'scenario' must be a scenario file or a shipped scenario name; got "
+            f"{source!r}"
+        )
+    path = (root / source).expanduser()
+    if path.is_file():
+        return Scenario.from_toml(path)
+    if source in builtin_scenario_names():
+        return Scenario.from_toml(builtin_scenario_path(source))
+    raise SweepError(
+        f"sweep key 'scenario' = {source!r} is neither a file (looked for {str(path)!r}) nor a "
+        f"shipped scenario ({builtin_scenario_names()})"
+    )

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import pytest
 
@@ -278,7 +279,5 @@ def test_from_toml_resolves_the_scenario_path_and_names_the_file(tmp_path):
 
 
 def test_example_sweep_loads():
-    from pathlib import Path
-
     spec = SweepSpec.from_toml(Path(__file__).parents[1] / "examples" / "sweep_small.toml")
     assert len(spec.runs) == 24

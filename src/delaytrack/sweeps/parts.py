@@ -87,7 +87,7 @@ def run_unit(unit: Unit, *, workers: int | None = None) -> pd.DataFrame:
     -------
     DataFrame
         Columns ``run`` (index in the sweep), one per swept key (numbers and strings as they
-        are, lists and tables as canonical JSON), ``controller`` and ``delay`` (the types),
+        are, lists and tables as canonical JSON), ``controller_type`` and ``delay_type``,
         ``status``, ``t_stop``, ``ae_q<i>``, ``rms_q<i>``, ``max_q<i>`` per coordinate and ``tv``
         (NaN unless ``status`` is ``ok``), in run order.
     """
@@ -103,8 +103,8 @@ def run_unit(unit: Unit, *, workers: int | None = None) -> pd.DataFrame:
     columns: dict[str, Any] = {"run": [run.index for run in runs]}
     for key in runs[0].values:
         columns[key] = _value_column([run.values[key] for run in runs])
-    columns["controller"] = [run.scenario.controller["type"] for run in runs]
-    columns["delay"] = [run.scenario.delay["type"] for run in runs]
+    columns["controller_type"] = [run.scenario.controller["type"] for run in runs]
+    columns["delay_type"] = [run.scenario.delay["type"] for run in runs]
     table = pd.DataFrame([metrics[run.index] for run in runs]).reset_index(drop=True)
     return pd.concat([pd.DataFrame(columns), table], axis=1)
 

@@ -29,6 +29,7 @@ seed, the key, its distribution and ``draws`` only, not on the other keys.
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import itertools
 import json
@@ -255,7 +256,7 @@ class SweepSpec:
             _check_key("grid", key)
             if not isinstance(values, list) or not values:
                 raise SweepError(f'grid."{key}" must be a non-empty list of values; got {values!r}')
-            checked_grid[key] = tuple(values)
+            checked_grid[key] = tuple(copy.deepcopy(values))
         random = data.get("random", {})
         if not isinstance(random, Mapping):
             raise SweepError(f"sweep key 'random' must be a table; got {random!r}")
@@ -278,7 +279,7 @@ class SweepSpec:
         return cls(
             base=_load_base(data["scenario"], Path(root)),
             grid=MappingProxyType(checked_grid),
-            random=MappingProxyType(dict(random)),
+            random=MappingProxyType(copy.deepcopy(dict(random))),
             draws=draws,
             seed=seed,
             unit_size=_positive_int("unit_size", data["unit_size"]),

@@ -13,6 +13,7 @@ import numpy as np
 
 __all__ = [
     "integer_multiple",
+    "is_integer_at_least",
     "as_spd_matrix",
     "as_square_matrix",
     "format_values",
@@ -21,6 +22,14 @@ __all__ = [
 ]
 
 _SYMMETRY_RTOL = 1e-10
+
+
+def is_integer_at_least(value: object, least: int) -> bool:
+    """Whether ``value`` is an integer (Python or NumPy, not a bool) ``>= least``.
+
+    The test of every count, seed and size argument; each caller words its own message.
+    """
+    return not isinstance(value, bool) and isinstance(value, int | np.integer) and value >= least
 
 
 def format_values(values: np.ndarray | Sequence[float], digits: int = 6) -> str:

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import scipy.optimize
 
-from delaytrack._validation import positive_scalar
+from delaytrack._validation import is_integer_at_least, positive_scalar
 from delaytrack.analysis.exact_margin import ExactDelayMargin, exact_delay_margin
 from delaytrack.analysis.razumikhin import RazumikhinBound, _dimension, razumikhin_bound
 
@@ -120,7 +120,7 @@ def _axis_h_m(log_parameters: np.ndarray, r: float) -> float:
 
 
 def _seed(seed: object) -> int:
-    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+    if not is_integer_at_least(seed, 0):
         raise ValueError(f"seed must be a non-negative integer; got {seed!r}")
     return int(seed)
 

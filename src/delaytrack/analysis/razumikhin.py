@@ -26,7 +26,12 @@ from typing import Any
 import numpy as np
 import scipy.linalg
 
-from delaytrack._validation import as_spd_matrix, as_square_matrix, positive_scalar
+from delaytrack._validation import (
+    as_spd_matrix,
+    as_square_matrix,
+    is_integer_at_least,
+    positive_scalar,
+)
 
 __all__ = [
     "RazumikhinBound",
@@ -45,7 +50,7 @@ def _dimension(K1: object, n: int | None) -> int:
     if n is None:
         shape = np.shape(K1)
         return 1 if len(shape) == 0 else int(shape[0])
-    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
+    if not is_integer_at_least(n, 1):
         raise ValueError(f"n must be a positive integer (the number of joints); got {n!r}")
     return int(n)
 

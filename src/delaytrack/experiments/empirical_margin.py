@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from delaytrack._validation import positive_scalar
+from delaytrack._validation import is_integer_at_least, positive_scalar
 from delaytrack.controllers import Controller
 from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
 from delaytrack.experiments.scenario import Scenario, ScenarioError
@@ -165,7 +165,7 @@ def _choice(name: str, value: object, valid: Sequence[str]) -> str:
 
 
 def _count(name: str, value: object, least: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < least:
+    if not is_integer_at_least(value, least):
         raise ValueError(f"{name} must be an integer >= {least}; got {value!r}")
     return int(value)
 

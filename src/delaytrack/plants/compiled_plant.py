@@ -9,7 +9,12 @@ from typing import Any, ClassVar
 import numpy as np
 from numba.core.registry import CPUDispatcher
 
-from delaytrack._validation import as_spd_matrix, finite_array, format_values
+from delaytrack._validation import (
+    as_spd_matrix,
+    finite_array,
+    format_values,
+    is_integer_at_least,
+)
 from delaytrack.plants.base import ELPlant
 
 __all__ = ["CompiledPlant"]
@@ -54,7 +59,7 @@ class CompiledPlant(ELPlant):
     def __post_init__(self) -> None:
         for label in ("n", "m"):
             value = getattr(self, label)
-            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+            if not is_integer_at_least(value, 1):
                 raise ValueError(f"{label} must be a positive integer; got {value!r}")
         if not isinstance(self.kernel, CPUDispatcher):
             raise TypeError(

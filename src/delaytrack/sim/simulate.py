@@ -13,7 +13,12 @@ import numpy as np
 from numba.core.errors import NumbaExperimentalFeatureWarning
 from tqdm.auto import tqdm
 
-from delaytrack._validation import finite_array, integer_multiple, positive_scalar
+from delaytrack._validation import (
+    finite_array,
+    integer_multiple,
+    is_integer_at_least,
+    positive_scalar,
+)
 from delaytrack.controllers.base import Controller
 from delaytrack.delays.base import DelayProfile
 from delaytrack.plants.base import ELPlant
@@ -93,7 +98,7 @@ def _workers(workers: int | None) -> int:
     """Thread count: ``workers`` checked, or the cores this process may use."""
     if workers is None:
         return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1)
-    if isinstance(workers, bool) or not isinstance(workers, int | np.integer) or workers < 1:
+    if not is_integer_at_least(workers, 1):
         raise ValueError(f"workers must be a positive integer (threads); got {workers!r}")
     return int(workers)
 

@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 
 import delaytrack
+from delaytrack._validation import is_integer_at_least
 from delaytrack.experiments.scenario import (
     Scenario,
     ScenarioError,
@@ -196,7 +197,7 @@ def _apply(base: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str, Any]
 
 
 def _positive_int(key: str, value: object) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+    if not is_integer_at_least(value, 1):
         raise SweepError(f"sweep key {key!r} must be a positive integer; got {value!r}")
     return value
 
@@ -270,7 +271,7 @@ class SweepSpec:
                     raise SweepError(f"sweep key {key!r} needs a [random] table to draw from")
         draws = _positive_int("draws", data.get("draws", 1))
         seed = data.get("seed", 0)
-        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        if not is_integer_at_least(seed, 0):
             raise SweepError(f"sweep key 'seed' must be an integer >= 0; got {seed!r}")
         for key in random:
             _check_key("random", key)

@@ -143,7 +143,7 @@ def test_random_delay_takes_the_drawn_scenario_seed():
         (
             {"extra": 1},
             "unknown sweep key 'extra'; valid keys are ['scenario', 'unit_size', 'draws', 'seed', "
-            "'grid', 'random']",
+            "'metrics', 'grid', 'random']",
         ),
         ({"random": {}}, "sweep key 'draws' needs a [random] table to draw from"),
         (

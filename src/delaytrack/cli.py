@@ -466,6 +466,52 @@ def _reproduce_margins(args: argparse.Namespace) -> int:
 
 
 # --------------------------------------------------------------------------------------------
+# sweep
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from delaytrack.sweeps import SweepSpec, make_executor, run_sweep, write_sweep_outputs
+
+    workers = None
+    if args.workers is not None:
+        workers = _count("--workers", args.workers)
+    spec = SweepSpec.from_toml(args.spec)
+    folder = (
+        Path(args.out) if args.out is not None else Path("results/sweeps") / Path(args.spec).stem
+    )
+    print(
+        f"sweep {args.spec}: {len(spec.runs)} runs in {len(spec.units())} units -> {folder}/",
+        file=sys.stderr,
+    )
+    executor = make_executor(args.scheduler, workers=workers)
+    try:
+        outcome = run_sweep(spec, folder, executor=executor, progress=not args.quiet)
+    except KeyboardInterrupt as interrupted:
+        print(str(interrupted) or "interrupted", file=sys.stderr)
+        return 130
+    files = write_sweep_outputs(outcome)
+    print(
+        f"{len(spec.runs)} runs done ({outcome.computed} units computed, {outcome.resumed} found "
+        f"finished) in {outcome.seconds:.1f} s on {outcome.executor}"
+    )
+    for name, reason in outcome.rejected.items():
+        print(f"  part {name} did not count: {reason}")
+    print(f"wrote runs.parquet, runs.csv and {len(files)} files to {folder}/")
+    print(f"report: {folder / 'report.html'}")
+    return 0
+
+
+def _count(flag: str, text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise UsageError(f"{flag} must be a positive integer; got {text!r}")
+    return value
+
+
+# --------------------------------------------------------------------------------------------
 # tune-baselines
 
 
@@ -694,6 +740,37 @@ def build_parser() -> argparse.ArgumentParser:
     reproduce.add_argument("--no-dt-check", action="store_true", help="skip the dt/2 rerun")
     reproduce.add_argument("--quiet", action="store_true", help="no progress bar")
     reproduce.set_defaults(handler=_reproduce)
+
+    sweep = commands.add_parser(
+        "sweep",
+        help="many runs over a grid and seeded random draws, resumable, locally or on Dask",
+        description="Expand a sweep file (a base scenario, [grid] and [random] over its keys; "
+        "see docs/sweeps.md) into work units and run them: <out>/parts/ gets one Parquet part "
+        "per finished unit, written atomically; running the same command again skips finished "
+        "units. At the end: runs.parquet/.csv, summary.csv (per controller x delay class), "
+        "figures/ and report.html.",
+    )
+    sweep.add_argument("spec", help="sweep file (TOML)")
+    sweep.add_argument(
+        "--out", default=None, metavar="DIR", help="results folder (default results/sweeps/<name>)"
+    )
+    sweep.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run the units on a Dask cluster: a scheduler address (tcp://host:8786) or "
+        "'local-cluster' to start one here (needs delaytrack[dask]); default: this process, all "
+        "cores",
+    )
+    sweep.add_argument(
+        "--workers",
+        default=None,
+        metavar="N",
+        help="threads of the local executor, or worker processes of --scheduler local-cluster "
+        "(default: all cores)",
+    )
+    sweep.add_argument("--quiet", action="store_true", help="no progress bar")
+    sweep.set_defaults(handler=_sweep)
 
     tune = commands.add_parser(
         "tune-baselines",

@@ -627,7 +627,9 @@ def run_to_folder(
     files = [folder / "scenario.toml"]
     resolved.to_toml(files[0])
     # The metrics first: they are the result a user waits for; trajectories and figures follow.
-    files.append(write_frame(metrics_table(result, label=resolved.name), folder / "metrics.csv"))
+    names = resolved.build().plant.coordinate_names
+    table = metrics_table(result, coordinate_names=names, label=resolved.name)
+    files.append(write_frame(table, folder / "metrics.csv"))
     frame = result.to_frame()
     for fmt in formats:
         files.append(write_frame(frame, folder / f"trajectories.{fmt}"))

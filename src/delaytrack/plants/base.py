@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -68,6 +68,8 @@ class ELPlant(ABC):
     n: int
     #: Number of actuator inputs.
     m: int
+    #: Names of the coordinates in result tables (``ae_<name>``); None means ``q1 .. qn``.
+    coordinate_names: ClassVar[tuple[str, ...] | None] = None
     #: Id of a built-in compiled terms kernel (see :mod:`delaytrack.plants.dispatch`), else None.
     kernel_id: int | None = None
     #: True when, as a nominal model, the plant maps a generalised force τ to its ``m < n``

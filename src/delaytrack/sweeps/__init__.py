@@ -4,19 +4,37 @@
   ``[random]``, ``unit_size``), its runs and its hashed :class:`Unit`\\ s.
 - :mod:`delaytrack.sweeps.parts`: :func:`run_unit` (one unit with the batched engine),
   :func:`write_part` (one atomic Parquet part per unit) and :func:`finished_units` (resume).
+- :mod:`delaytrack.sweeps.executors`: where units run (:class:`LocalExecutor`, all local cores;
+  :class:`DaskExecutor`, a ``dask.distributed`` cluster).
+- :mod:`delaytrack.sweeps.runner`: :func:`run_sweep` (the units not done yet, a progress bar,
+  Ctrl-C safe) and :class:`SweepOutcome`.
+- :mod:`delaytrack.sweeps.summary` and :mod:`delaytrack.sweeps.report`: the summary table per
+  controller × delay class, figures and the HTML report (:func:`write_sweep_outputs`).
 """
 
+from delaytrack.sweeps.executors import DaskExecutor, LocalExecutor, make_executor
 from delaytrack.sweeps.parts import PartsScan, finished_units, run_unit, write_part
+from delaytrack.sweeps.report import write_sweep_outputs
+from delaytrack.sweeps.runner import SweepInterrupted, SweepOutcome, run_sweep
 from delaytrack.sweeps.spec import DISTRIBUTIONS, Run, SweepError, SweepSpec, Unit
+from delaytrack.sweeps.summary import summary_table
 
 __all__ = [
     "DISTRIBUTIONS",
+    "DaskExecutor",
+    "LocalExecutor",
     "PartsScan",
     "Run",
     "SweepError",
+    "SweepInterrupted",
+    "SweepOutcome",
     "SweepSpec",
     "Unit",
     "finished_units",
+    "make_executor",
+    "run_sweep",
     "run_unit",
+    "summary_table",
     "write_part",
+    "write_sweep_outputs",
 ]

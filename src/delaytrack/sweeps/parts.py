@@ -66,7 +66,9 @@ def _simulate_batch(runs: list[Run], workers: int | None) -> pd.DataFrame:
     except ValueError as error:
         indices = [run.index for run in runs]
         raise SweepError(f"runs {indices} cannot be simulated together: {error}") from None
-    return metrics_table(result).drop(columns="batch")
+    frame = metrics_table(result, built[0].plant.coordinate_names).drop(columns="batch")
+    frame.insert(0, "h_max", [float(b.delay.h_max) for b in built])
+    return frame
 
 
 def _value_column(values: list[Any]) -> list[Any]:
@@ -87,9 +89,10 @@ def run_unit(unit: Unit, *, workers: int | None = None) -> pd.DataFrame:
     -------
     DataFrame
         Columns ``run`` (index in the sweep), one per swept key (numbers and strings as they
-        are, lists and tables as canonical JSON), ``controller_type`` and ``delay_type``,
-        ``status``, ``t_stop``, ``ae_q<i>``, ``rms_q<i>``, ``max_q<i>`` per coordinate and ``tv``
-        (NaN unless ``status`` is ``ok``), in run order.
+        are, lists and tables as canonical JSON), ``controller_type``, ``delay_type``, ``h_max``
+        (the delay profile's bound, s), ``status``, ``t_stop``, ``ae_<c>``, ``rms_<c>``,
+        ``max_<c>`` per coordinate ``c`` (the plant's ``coordinate_names``, else ``q1 .. qn``) and
+        ``tv`` (NaN unless ``status`` is ``ok``), in run order.
     """
     groups: dict[str, list[Run]] = {}
     for run in unit.runs:
@@ -112,7 +115,8 @@ def run_unit(unit: Unit, *, workers: int | None = None) -> pd.DataFrame:
 def write_part(frame: pd.DataFrame, unit: Unit, folder: str | Path) -> Path:
     """Write a unit's results as its part, atomically and durably; return the path.
 
-    The unit's hash and run count go into the Parquet metadata.
+    The unit's hash and run count go into the Parquet metadata. The file is fsynced before it is
+    renamed into place and the folder after, so a part that exists survives a crash.
     """
     if len(frame) != len(unit.runs):
         raise ValueError(
@@ -129,7 +133,20 @@ def write_part(frame: pd.DataFrame, unit: Unit, folder: str | Path) -> Path:
         pq.write_table(table.replace_schema_metadata(metadata), temporary)
         with open(temporary, "rb") as handle:
             os.fsync(handle.fileno())
+    _fsync_folder(target.parent)
     return target
+
+
+def _fsync_folder(folder: Path) -> None:
+    """Make a rename in ``folder`` durable (POSIX; a no-op where folders cannot be opened)."""
+    try:
+        handle = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(handle)
+    finally:
+        os.close(handle)
 
 
 @dataclass(frozen=True)

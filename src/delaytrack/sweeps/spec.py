@@ -6,6 +6,7 @@ A sweep file (TOML)::
     unit_size = 8              # runs per work unit (one Parquet part each)
     draws = 4                  # random draws, each paired with every grid point (with [random])
     seed = 7                   # seed of the draws (with [random])
+    metrics = ["ae_q1", "tv"]  # optional: what the summary reports (every ae_* and tv by default)
 
     [grid]                     # Cartesian product, first key outermost, values in the listed order
     "controller.K1" = [0.5, 1.0, 2.0]
@@ -60,7 +61,7 @@ class SweepError(ScenarioError):
     """A sweep spec is not valid; the message names the sweep key and what is valid."""
 
 
-_TOP_LEVEL = ("scenario", "unit_size", "draws", "seed", "grid", "random")
+_TOP_LEVEL = ("scenario", "unit_size", "draws", "seed", "metrics", "grid", "random")
 _TABLES = ("plant", "model", "controller", "delay", "reference")
 _SCALARS = ("name", "duration", "dt", "T_c", "seed", "x0", "record_every")
 
@@ -105,6 +106,40 @@ class Unit:
     def part_name(self) -> str:
         """The unit's part file: ``part-<unit index, 5 digits>-<hash, 12 hex>.parquet``."""
         return f"part-{self.index:05d}-{self.hash[:12]}.parquet"
+
+    def to_payload(self) -> dict[str, Any]:
+        """The unit as plain data (JSON types), to send to another process or machine."""
+        runs = [run.canonical() for run in self.runs]
+        version = delaytrack.__version__
+        return {"index": self.index, "hash": self.hash, "version": version, "runs": runs}
+
+    @classmethod
+    def from_payload(cls, payload: Mapping[str, Any]) -> Unit:
+        """Rebuild a unit from :meth:`to_payload`, checking that it hashes the same here.
+
+        Raises
+        ------
+        SweepError
+            When this process has another delaytrack version, or the rebuilt runs do not give the
+            sender's hash (the scenarios would not run the same here).
+        """
+        index, version = payload["index"], payload["version"]
+        if version != delaytrack.__version__:
+            raise SweepError(
+                f"unit {index} comes from delaytrack {version}; this process has "
+                f"{delaytrack.__version__}: install the same version on every Dask worker"
+            )
+        runs = tuple(
+            Run(run["index"], MappingProxyType(run["values"]), Scenario.from_dict(run["scenario"]))
+            for run in payload["runs"]
+        )
+        unit = cls(index, runs, _unit_hash(runs))
+        if unit.hash != payload["hash"]:
+            raise SweepError(
+                f"unit {index} hashes to {unit.hash[:12]} here and {payload['hash'][:12]} where "
+                "it was made: the scenarios differ between the two processes"
+            )
+        return unit
 
 
 def canonical_json(data: Any) -> str:
@@ -196,6 +231,17 @@ def _apply(base: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str, Any]
     return data
 
 
+def _metrics_list(value: object) -> tuple[str, ...] | None:
+    if value is None:
+        return None
+    if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
+        raise SweepError(
+            f"sweep key 'metrics' must be a non-empty list of metric names such as "
+            f'["ae_q1", "tv"]; got {value!r}'
+        )
+    return tuple(value)
+
+
 def _positive_int(key: str, value: object) -> int:
     if not is_integer_at_least(value, 1):
         raise SweepError(f"sweep key {key!r} must be a positive integer; got {value!r}")
@@ -221,6 +267,9 @@ class SweepSpec:
         Number of random draws (1 without ``[random]``) and their seed.
     unit_size : int
         Runs per work unit.
+    metrics : tuple of str or None
+        Metric columns the summary reports (``ae_<c>``, ``rms_<c>``, ``max_<c>`` for the base
+        plant's coordinates ``c``, ``tv``); None: every ``ae_*`` and ``tv``.
     """
 
     base: Scenario
@@ -229,6 +278,7 @@ class SweepSpec:
     draws: int
     seed: int
     unit_size: int
+    metrics: tuple[str, ...] | None = None
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, root: str | Path = ".") -> SweepSpec:
@@ -284,6 +334,7 @@ class SweepSpec:
             draws=draws,
             seed=seed,
             unit_size=_positive_int("unit_size", data["unit_size"]),
+            metrics=_metrics_list(data.get("metrics")),
         )
 
     @classmethod
@@ -305,6 +356,8 @@ class SweepSpec:
 
     def __post_init__(self) -> None:
         self.runs  # noqa: B018 -- expand and validate every run now, not at run time
+        if self.metrics is not None:
+            _check_metrics(self.metrics, self.base)
 
     @cached_property
     def runs(self) -> tuple[Run, ...]:
@@ -339,6 +392,15 @@ class SweepSpec:
         size = self.unit_size
         chunks = [self.runs[i : i + size] for i in range(0, len(self.runs), size)]
         return tuple(Unit(k, chunk, _unit_hash(chunk)) for k, chunk in enumerate(chunks))
+
+
+def _check_metrics(metrics: tuple[str, ...], base: Scenario) -> None:
+    built = base.build()
+    names = built.plant.coordinate_names or [f"q{i + 1}" for i in range(built.plant.n)]
+    valid = [f"{prefix}_{name}" for prefix in ("ae", "rms", "max") for name in names] + ["tv"]
+    unknown = [metric for metric in metrics if metric not in valid]
+    if unknown:
+        raise SweepError(f"sweep key 'metrics': {unknown} unknown; valid metrics are {valid}")
 
 
 def _load_base(source: object, root: Path) -> Scenario:

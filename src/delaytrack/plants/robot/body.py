@@ -22,7 +22,10 @@ import numpy as np
 from delaytrack._validation import finite_array, positive_scalar
 from delaytrack.plants.robot.parameters import P3DX
 
-__all__ = ["BODY_KEYS", "RobotBody"]
+__all__ = ["BODY_KEYS", "COORDINATES", "RobotBody"]
+
+#: The robot's coordinates q: look-ahead point x, y (m), heading phi and wheel angles (rad).
+COORDINATES = ("x", "y", "phi", "theta_r", "theta_l")
 
 #: Names of the body fields, in the order of their scenario keys.
 BODY_KEYS = (
@@ -80,6 +83,7 @@ class RobotBody:
     com_lateral: float = 0.0
     n: ClassVar[int] = 5
     m: ClassVar[int] = 2
+    coordinate_names: ClassVar[tuple[str, ...]] = COORDINATES
 
     def _check_body(self) -> None:
         for name in ("wheel_radius", "half_track", "mass", "yaw_inertia", "wheel_spin_inertia"):

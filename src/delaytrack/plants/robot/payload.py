@@ -37,6 +37,7 @@ from delaytrack._jit import hot_kernel
 from delaytrack._validation import finite_array, positive_scalar
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import ROBOT_PAYLOAD
+from delaytrack.plants.robot.body import COORDINATES
 from delaytrack.plants.robot.parameters import P3DX_PAYLOAD
 from delaytrack.plants.robot.truth import (
     TRUTH_PARAMS,
@@ -152,6 +153,7 @@ class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
     _params: np.ndarray = field(init=False, repr=False)
     n: ClassVar[int] = 5
     m: ClassVar[int] = 2
+    coordinate_names: ClassVar[tuple[str, ...]] = COORDINATES
     type_name: ClassVar[str] = "wheeled-robot-payload"
     kernel_id: ClassVar[int] = ROBOT_PAYLOAD
 

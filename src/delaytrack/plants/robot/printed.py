@@ -51,6 +51,7 @@ from delaytrack._jit import kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import ROBOT_PRINTED
+from delaytrack.plants.robot.body import COORDINATES
 from delaytrack.plants.robot.parameters import P3DX
 
 __all__ = ["PrintedRobotModel", "robot_printed_terms"]
@@ -141,6 +142,7 @@ class PrintedRobotModel(ELPlant):
     corrected_row2: bool = False
     n: ClassVar[int] = 5
     m: ClassVar[int] = 2
+    coordinate_names: ClassVar[tuple[str, ...]] = COORDINATES
     type_name: ClassVar[str] = "wheeled-robot-printed"
     kernel_id: ClassVar[int] = ROBOT_PRINTED
     has_command_map: ClassVar[bool] = True

@@ -1,0 +1,189 @@
+"""Where a sweep's work units run: this process on every local core, or a Dask cluster.
+
+An executor takes the units still to do and yields ``(unit, results frame)`` as each finishes, in
+any order; the caller (:func:`delaytrack.sweeps.run_sweep`) writes each part as it arrives, so an
+interruption loses only the units in flight.
+
+- :class:`LocalExecutor` (the default): one unit after another in this process, each unit's runs
+  batched by :func:`~delaytrack.sim.simulate` on a thread pool over all cores. Nothing to start.
+- :class:`DaskExecutor`: every unit is a ``dask.distributed`` task on an existing cluster
+  (``tcp://host:port``) or on a :class:`distributed.LocalCluster` it starts (``local-cluster``).
+  Units travel as plain data (:meth:`Unit.to_payload`) and are checked on the worker (same
+  package version, same hash); results come back to this process, which alone writes the parts,
+  so workers need no shared file system. A task whose worker dies is rescheduled by the Dask
+  scheduler (its ``allowed-failures``); a task that raises is retried ``retries`` times.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Iterator, Mapping, Sequence
+from typing import Any, Protocol
+
+import pandas as pd
+
+from delaytrack._validation import is_integer_at_least
+from delaytrack.sweeps.parts import run_unit
+from delaytrack.sweeps.spec import SweepError, Unit
+
+__all__ = ["DaskExecutor", "Executor", "LocalExecutor", "compute_part", "make_executor"]
+
+#: ``--scheduler`` value that starts a local Dask cluster.
+LOCAL_CLUSTER = "local-cluster"
+_ADDRESS = re.compile(r"^(tcp|tls|ucx|ws|wss|inproc)://\S+$")
+
+
+class Executor(Protocol):
+    """Runs units and yields each ``(unit, frame)`` as it finishes; :meth:`close` frees it."""
+
+    #: One line for logs and the report (``"local: 2 threads"``, ``"dask: tcp://..."``).
+    description: str
+
+    def results(self, units: Sequence[Unit]) -> Iterator[tuple[Unit, pd.DataFrame]]:
+        """Yield every unit of ``units`` once, with :func:`run_unit`'s frame, as it finishes."""
+        ...
+
+    def close(self) -> None:
+        """Stop what is still running and release workers (idempotent)."""
+        ...
+
+
+class LocalExecutor:
+    """Units one after another in this process; each unit's batch on ``workers`` threads.
+
+    Parameters
+    ----------
+    workers : int, optional
+        Threads of :func:`~delaytrack.sim.simulate` (all cores by default).
+    """
+
+    def __init__(self, workers: int | None = None) -> None:
+        if workers is not None and not is_integer_at_least(workers, 1):
+            raise SweepError(f"workers must be a positive integer or None; got {workers!r}")
+        self.workers = workers
+        self.description = f"local: {workers or os.cpu_count() or 1} threads"
+
+    def results(self, units: Sequence[Unit]) -> Iterator[tuple[Unit, pd.DataFrame]]:
+        for unit in units:
+            yield unit, run_unit(unit, workers=self.workers)
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+def compute_part(payload: Mapping[str, Any], workers: int = 1) -> pd.DataFrame:
+    """The Dask task: rebuild a unit from :meth:`Unit.to_payload` here and run it.
+
+    ``workers`` threads per task (1: a Dask worker's threads are the parallelism).
+    """
+    return run_unit(Unit.from_payload(payload), workers=workers)
+
+
+def _distributed() -> Any:
+    try:
+        import distributed
+    except ImportError:
+        raise SweepError(
+            "--scheduler needs dask.distributed, which is not installed: "
+            "pip install 'delaytrack[dask]'"
+        ) from None
+    return distributed
+
+
+class DaskExecutor:
+    """Units as ``dask.distributed`` tasks; results gathered here as they complete.
+
+    Parameters
+    ----------
+    scheduler : str
+        ``tcp://host:port`` (any ``dask.distributed`` address: ``tcp``, ``tls``, ``ucx``,
+        ``ws``, ``wss``, ``inproc``) of a running scheduler, or ``"local-cluster"``.
+    workers : int, optional
+        With ``"local-cluster"``: worker processes (one thread each), all cores by default.
+    retries : int
+        Extra attempts of a task that raises (a task whose worker dies is rescheduled anyway).
+    timeout : float
+        Seconds to wait for the scheduler to answer.
+    """
+
+    def __init__(
+        self,
+        scheduler: str,
+        *,
+        workers: int | None = None,
+        retries: int = 2,
+        timeout: float = 30.0,
+    ) -> None:
+        if not isinstance(scheduler, str) or not (
+            scheduler == LOCAL_CLUSTER or _ADDRESS.match(scheduler)
+        ):
+            raise SweepError(
+                f"--scheduler must be '{LOCAL_CLUSTER}' or a Dask scheduler address such as "
+                f"'tcp://10.0.0.5:8786'; got {scheduler!r}"
+            )
+        if workers is not None and not is_integer_at_least(workers, 1):
+            raise SweepError(f"workers must be a positive integer or None; got {workers!r}")
+        if not is_integer_at_least(retries, 0):
+            raise SweepError(f"retries must be an integer >= 0; got {retries!r}")
+        distributed = _distributed()
+        self._cluster = None
+        self.retries = retries
+        self._futures: list[Any] = []
+        if scheduler == LOCAL_CLUSTER:
+            count = workers or os.cpu_count() or 1
+            self._cluster = distributed.LocalCluster(
+                n_workers=count, threads_per_worker=1, processes=True, dashboard_address=None
+            )
+            address = self._cluster.scheduler_address
+            self.description = f"dask: local cluster of {count} worker processes ({address})"
+        else:
+            address = scheduler
+            self.description = f"dask: {scheduler}"
+        try:
+            self.client = distributed.Client(address, timeout=timeout)
+        except (OSError, TimeoutError) as error:
+            self.close()
+            raise SweepError(
+                f"--scheduler {scheduler!r}: no Dask scheduler answered within {timeout:g} s "
+                f"({error}); start one (dask scheduler) or check the address"
+            ) from None
+
+    def results(self, units: Sequence[Unit]) -> Iterator[tuple[Unit, pd.DataFrame]]:
+        distributed = _distributed()
+        owner = {}
+        for unit in units:
+            future = self.client.submit(
+                compute_part,
+                unit.to_payload(),
+                1,
+                key=f"delaytrack-unit-{unit.index:05d}-{unit.hash[:16]}",
+                retries=self.retries,
+                pure=False,
+            )
+            owner[future.key] = unit
+            self._futures.append(future)
+        for future in distributed.as_completed(self._futures):
+            frame = future.result()
+            future.release()
+            yield owner[future.key], frame
+
+    def close(self) -> None:
+        """Cancel unfinished tasks, then close the client and any cluster this executor started."""
+        client = getattr(self, "client", None)
+        if client is not None:
+            if self._futures:
+                client.cancel(self._futures)
+                self._futures = []
+            client.close()
+            self.client = None
+        if self._cluster is not None:
+            self._cluster.close()
+            self._cluster = None
+
+
+def make_executor(scheduler: str | None = None, *, workers: int | None = None) -> Executor:
+    """:class:`LocalExecutor` for ``scheduler=None``, else :class:`DaskExecutor`."""
+    if scheduler is None:
+        return LocalExecutor(workers)
+    return DaskExecutor(scheduler, workers=workers)

@@ -1,0 +1,200 @@
+"""A finished sweep's outputs: summary table, figures and a section of a self-contained report.
+
+:func:`write_sweep_outputs` writes, next to the runs table of :func:`~delaytrack.sweeps.run_sweep`:
+
+- ``summary.csv``: :func:`~delaytrack.sweeps.summary.summary_table` (per controller × delay
+  class: runs, divergence rate, mean / median / 95th percentile / max of each metric);
+- ``figures/distributions.{png,svg}``: per metric, a box plot per controller (runs that ended
+  ``ok``; box = quartiles, whiskers = 5th and 95th percentiles);
+- ``figures/ae_vs_h_max.{png,svg}``: each AE metric against the delay bound ``h_max`` of the run,
+  one colour per controller;
+- ``report.html``: one self-contained file with :func:`sweep_section`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+from delaytrack import __version__
+from delaytrack._io import write_frame
+from delaytrack.report import HtmlReport, save_figure
+from delaytrack.sweeps.runner import SweepOutcome
+from delaytrack.sweeps.summary import (
+    STATISTICS,
+    controller_labels,
+    default_metrics,
+    summary_table,
+)
+
+__all__ = [
+    "ae_vs_h_max_figure",
+    "distribution_figure",
+    "sweep_figures",
+    "sweep_section",
+    "write_sweep_outputs",
+]
+
+_PANEL = (4.2, 3.4)
+
+
+def _panels(count: int) -> tuple[Figure, list]:
+    columns = min(3, count)
+    rows = math.ceil(count / columns)
+    figure = Figure(figsize=(_PANEL[0] * columns, _PANEL[1] * rows), layout="constrained")
+    axes = figure.subplots(rows, columns, squeeze=False).ravel()
+    for ax in axes[count:]:
+        ax.set_visible(False)
+    return figure, list(axes[:count])
+
+
+def _log_scale_if_wide(ax, values: np.ndarray) -> None:
+    """Log y-axis when the positive values span more than a factor of 20."""
+    positive = values[np.isfinite(values) & (values > 0)]
+    if positive.size == values[np.isfinite(values)].size and positive.size > 1:
+        if positive.max() > 20.0 * positive.min():
+            ax.set_yscale("log")
+
+
+def distribution_figure(runs: pd.DataFrame, metrics: Sequence[str]) -> Figure:
+    """Per metric, one box per controller over its ``ok`` runs; the divergence rate below it."""
+    labels = controller_labels(runs)
+    order = list(dict.fromkeys(labels))
+    ok = runs["status"] == "ok"
+    figure, axes = _panels(len(metrics))
+    names = []
+    for label in order:
+        share = 1.0 - ok[labels == label].mean()
+        names.append(f"{label}\n{100 * share:.3g} % not ok")
+    for ax, metric in zip(axes, metrics, strict=True):
+        data = [runs.loc[ok & (labels == label), metric].to_numpy(float) for label in order]
+        ax.boxplot(data, whis=(5, 95), flierprops={"markersize": 2})
+        ax.set_xticks(range(1, len(order) + 1), names, fontsize="small")
+        ax.set_title(metric)
+        _log_scale_if_wide(ax, np.concatenate(data) if data else np.array([]))
+        ax.grid(True, axis="y", alpha=0.3)
+    return figure
+
+
+def ae_vs_h_max_figure(runs: pd.DataFrame, metrics: Sequence[str]) -> Figure:
+    """Each AE metric (or the first metric, if none is an AE) against ``h_max`` in ms."""
+    shown = [metric for metric in metrics if metric.startswith("ae_")] or list(metrics[:1])
+    labels = controller_labels(runs)
+    ok = runs["status"] == "ok"
+    figure, axes = _panels(len(shown))
+    for ax, metric in zip(axes, shown, strict=True):
+        for label in dict.fromkeys(labels):
+            chosen = ok & (labels == label)
+            ax.scatter(
+                1e3 * runs.loc[chosen, "h_max"],
+                runs.loc[chosen, metric],
+                s=6,
+                alpha=0.5,
+                label=label,
+            )
+        ax.set_xlabel("h_max (ms)")
+        ax.set_title(metric)
+        _log_scale_if_wide(ax, runs.loc[ok, metric].to_numpy(float))
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize="small", markerscale=2)
+    return figure
+
+
+def _metric_table(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
+    columns = {f"{metric}_{name}": name for name in STATISTICS}
+    frame = summary[["controller", "delay_class", "runs", *columns]]
+    return frame.rename(columns=columns)
+
+
+def sweep_section(
+    report: HtmlReport,
+    outcome: SweepOutcome,
+    summary: pd.DataFrame,
+    metrics: Sequence[str],
+    figures: Mapping[str, tuple[Figure, str]],
+) -> None:
+    """Add the sweep's section to ``report``: set-up, outcome counts, summary tables, figures.
+
+    ``figures`` is :func:`sweep_figures`'s mapping.
+    """
+    spec = outcome.spec
+    report.heading(f"Sweep over {spec.base.name}")
+    report.settings(
+        {
+            "base scenario": spec.base.name,
+            "grid": "; ".join(f"{k}: {len(v)} values" for k, v in spec.grid.items()) or "none",
+            "random draws": (
+                "; ".join(f"{k}: {v['dist']}" for k, v in spec.random.items())
+                + f" ({spec.draws} draws, seed {spec.seed})"
+                if spec.random
+                else "none"
+            ),
+            "runs": f"{len(spec.runs)} in {len(spec.units())} units of up to {spec.unit_size}",
+            "this call": (
+                f"{outcome.computed} units computed, {outcome.resumed} found finished, "
+                f"{outcome.seconds:.1f} s wall time"
+            ),
+            "executor": outcome.executor,
+            "package": f"delaytrack {__version__}",
+            "results folder": str(outcome.folder),
+        }
+    )
+    if outcome.rejected:
+        report.paragraph(
+            "Part files found that did not count (their units ran again; files of another spec "
+            "are left in place):",
+            note=True,
+        )
+        report.bullets(f"{name}: {reason}" for name, reason in outcome.rejected.items())
+    report.heading("Outcomes", level=3)
+    report.paragraph(
+        "Divergence rate: share of runs whose state left the engine's bound or became non-finite. "
+        "'failed': any other status that is not ok (a delay beyond the history buffer). Metric "
+        "statistics are over the runs that ended ok."
+    )
+    outcomes = ["controller", "delay_class", "runs", "diverged", "divergence_rate", "failed"]
+    report.table(summary[outcomes])
+    for metric in metrics:
+        report.heading(metric, level=3)
+        report.table(_metric_table(summary, metric))
+    report.heading("Figures", level=3)
+    for figure, caption in figures.values():
+        report.figure(figure, caption)
+
+
+def sweep_figures(runs: pd.DataFrame, metrics: Sequence[str]) -> dict[str, tuple[Figure, str]]:
+    """File stem -> (figure, caption) of the sweep's figures."""
+    return {
+        "distributions": (
+            distribution_figure(runs, metrics),
+            "Distribution per controller (runs that ended ok; box: quartiles, whiskers: 5th and "
+            "95th percentiles).",
+        ),
+        "ae_vs_h_max": (
+            ae_vs_h_max_figure(runs, metrics),
+            "Mean absolute tracking error against the delay bound h_max of each run (runs that "
+            "ended ok).",
+        ),
+    }
+
+
+def write_sweep_outputs(
+    outcome: SweepOutcome, *, formats: Sequence[str] = ("png", "svg")
+) -> list[Path]:
+    """Write ``summary.csv``, the figures and ``report.html`` into the sweep's folder."""
+    folder = outcome.folder
+    metrics = list(outcome.spec.metrics or default_metrics(outcome.runs))
+    summary = summary_table(outcome.runs, metrics)
+    paths = [write_frame(summary, folder / "summary.csv")]
+    figures = sweep_figures(outcome.runs, metrics)
+    for stem, (figure, _) in figures.items():
+        paths += save_figure(figure, folder / "figures" / stem, formats)
+    report = HtmlReport(f"delaytrack sweep: {outcome.spec.base.name}")
+    sweep_section(report, outcome, summary, metrics, figures)
+    paths.append(report.write(folder / "report.html"))
+    return paths

@@ -1,0 +1,190 @@
+"""Run a sweep into a results folder, resumably: the units not yet done, one part each.
+
+Folder layout (``out``)::
+
+    parts/part-<unit>-<hash12>.parquet   one per finished unit, written atomically
+    runs.parquet, runs.csv               every run, in run order (when the sweep is complete)
+    .lock                                held while a sweep writes here
+
+:func:`run_sweep` skips the units whose part is valid for this spec
+(:func:`~delaytrack.sweeps.finished_units`), runs the others with an executor
+(:mod:`delaytrack.sweeps.executors`) and writes each part as soon as its unit returns. Stopped
+by Ctrl-C, it cancels what is in flight and raises :class:`SweepInterrupted`; every part already
+written stays, and the same call resumes from there.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+import pyarrow.parquet as pq
+from tqdm.auto import tqdm
+
+from delaytrack._io import write_frame
+from delaytrack.sweeps.executors import Executor, LocalExecutor
+from delaytrack.sweeps.parts import finished_units, write_part
+from delaytrack.sweeps.spec import SweepError, SweepSpec
+
+__all__ = ["SweepInterrupted", "SweepOutcome", "run_sweep"]
+
+
+class SweepInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped a sweep; ``done`` of ``total`` units have their part in ``folder``."""
+
+    def __init__(self, folder: Path, done: int, total: int) -> None:
+        super().__init__(
+            f"sweep interrupted: {done} of {total} units done, their parts kept in {folder}; run "
+            "the same command again to resume"
+        )
+        self.folder, self.done, self.total = folder, done, total
+
+
+@dataclass(frozen=True)
+class SweepOutcome:
+    """What :func:`run_sweep` did.
+
+    Attributes
+    ----------
+    spec : SweepSpec
+    folder : Path
+        The results folder.
+    runs : DataFrame
+        Every run (:func:`~delaytrack.sweeps.run_unit`'s columns), in run order.
+    computed, resumed : int
+        Units run by this call; units whose part was already there.
+    rejected : Mapping[str, str]
+        Part files found that did not count (file name -> reason); their units ran again.
+    seconds : float
+        Wall time of this call.
+    executor : str
+        Where the units ran (:attr:`Executor.description`).
+    """
+
+    spec: SweepSpec
+    folder: Path
+    runs: pd.DataFrame
+    computed: int
+    resumed: int
+    rejected: Mapping[str, str]
+    seconds: float
+    executor: str
+
+
+@contextlib.contextmanager
+def _exclusive(folder: Path) -> Iterator[None]:
+    """Hold ``folder/.lock`` (POSIX ``flock``) so two sweeps never write the same folder."""
+    try:
+        import fcntl
+    except ImportError:  # Windows: no advisory lock
+        yield
+        return
+    with open(folder / ".lock", "w") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise SweepError(
+                f"another sweep is writing to {str(folder)!r}; wait for it or choose another "
+                "output folder"
+            ) from None
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def _remove_temporaries(parts: Path) -> None:
+    """Delete half-written parts left by a killed process (``atomic_path``'s ``.part-*``)."""
+    for path in parts.glob(".part-*"):
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
+
+
+def _read_runs(parts: Path, spec: SweepSpec) -> pd.DataFrame:
+    frames = [pq.read_table(parts / unit.part_name).to_pandas() for unit in spec.units()]
+    return pd.concat(frames, ignore_index=True).sort_values("run", kind="stable")
+
+
+def run_sweep(
+    spec: SweepSpec,
+    out: str | os.PathLike[str],
+    *,
+    executor: Executor | None = None,
+    progress: bool = True,
+) -> SweepOutcome:
+    """Run every unit of ``spec`` that has no valid part in ``out/parts``; gather all runs.
+
+    Parameters
+    ----------
+    spec : SweepSpec
+    out : path
+        Results folder (created if missing).
+    executor : Executor, optional
+        Where units run; :class:`~delaytrack.sweeps.executors.LocalExecutor` (all cores) by
+        default. It is closed on return.
+    progress : bool
+        Show a progress bar (runs done, runs per second, ETA) on stderr.
+
+    Returns
+    -------
+    SweepOutcome
+        With every run; ``runs.parquet`` and ``runs.csv`` are written in ``out``.
+
+    Raises
+    ------
+    SweepInterrupted
+        On Ctrl-C, after cancelling the units in flight; finished parts stay.
+    SweepError
+        If another sweep holds the folder.
+    """
+    start = time.perf_counter()
+    folder = Path(out)
+    parts = folder / "parts"
+    parts.mkdir(parents=True, exist_ok=True)
+    executor = executor if executor is not None else LocalExecutor()
+    units = spec.units()
+    try:
+        with _exclusive(folder):
+            _remove_temporaries(parts)
+            scan = finished_units(parts, spec)
+            pending = [unit for unit in units if unit.index not in scan.finished]
+            done_runs = sum(len(unit.runs) for unit in units if unit.index in scan.finished)
+            done = len(units) - len(pending)
+            bar = tqdm(
+                total=len(spec.runs),
+                initial=done_runs,
+                unit="run",
+                desc="sweep",
+                disable=not progress,
+                dynamic_ncols=True,
+            )
+            try:
+                for unit, frame in executor.results(pending):
+                    write_part(frame, unit, parts)
+                    done += 1
+                    bar.update(len(unit.runs))
+                    bar.set_postfix_str(f"units {done}/{len(units)}", refresh=False)
+            except KeyboardInterrupt:
+                raise SweepInterrupted(folder, done, len(units)) from None
+            finally:
+                bar.close()
+            runs = _read_runs(parts, spec)
+            write_frame(runs, folder / "runs.parquet")
+            write_frame(runs, folder / "runs.csv")
+    finally:
+        executor.close()
+    return SweepOutcome(
+        spec=spec,
+        folder=folder,
+        runs=runs,
+        computed=len(pending),
+        resumed=len(units) - len(pending),
+        rejected=scan.rejected,
+        seconds=time.perf_counter() - start,
+        executor=executor.description,
+    )

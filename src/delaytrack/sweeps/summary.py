@@ -1,0 +1,143 @@
+"""A sweep's summary: per controller × delay class, the distribution of each metric.
+
+Rows of the runs table (:func:`delaytrack.sweeps.run_unit`) are grouped by
+
+- **controller**: the controller type, followed by the values of swept ``controller.*`` keys
+  (``arolc (K1=2)``); when a swept ``controller`` table list holds several tables of one type,
+  they are told apart as ``pcon #1``, ``pcon #2`` in the order they first appear;
+- **delay class**: the delay family and the band its bound ``h_max`` falls in
+  (``random, h_max 100-150 ms``; bands at :data:`DELAY_BAND_EDGES`).
+
+Per group: ``runs``; ``diverged`` and ``divergence_rate`` (status ``diverged``: the state left
+the engine's bound or became non-finite); ``failed`` (any other status that is not ``ok``, such
+as a delay beyond the history buffer); then ``<metric>_mean``, ``_median``, ``_p95`` (95th
+percentile, linear interpolation) and ``_max`` over the runs whose status is ``ok`` (NaN when
+there is none).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import pandas as pd
+
+__all__ = [
+    "DELAY_BAND_EDGES",
+    "STATISTICS",
+    "controller_labels",
+    "default_metrics",
+    "delay_classes",
+    "summary_table",
+]
+
+#: Upper edges (s) of the ``h_max`` bands of a delay class; above the last: ``> 1000 ms``.
+DELAY_BAND_EDGES: tuple[float, ...] = (0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 1.0)
+#: Statistic suffix -> function of the ``ok`` runs' values.
+STATISTICS = {
+    "mean": np.mean,
+    "median": np.median,
+    "p95": lambda values: np.percentile(values, 95.0),
+    "max": np.max,
+}
+
+
+def _shown(value: object) -> str:
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
+
+
+def _band(h_max: float) -> str:
+    lower = 0.0
+    for upper in DELAY_BAND_EDGES:
+        if h_max <= upper:
+            return f"h_max {1e3 * lower:g}-{1e3 * upper:g} ms"
+        lower = upper
+    return f"h_max > {1e3 * lower:g} ms"
+
+
+def delay_classes(runs: pd.DataFrame) -> pd.Series:
+    """``"<delay_type>, h_max <band>"`` per run (bands: :data:`DELAY_BAND_EDGES`, upper edge in)."""
+    return pd.Series(
+        [f"{kind}, {_band(h)}" for kind, h in zip(runs["delay_type"], runs["h_max"], strict=True)],
+        index=runs.index,
+        name="delay_class",
+    )
+
+
+def controller_labels(runs: pd.DataFrame) -> pd.Series:
+    """The controller label of every run (module docstring)."""
+    labels = list(runs["controller_type"])
+    if "controller" in runs:
+        numbering: dict[str, list[str]] = {}
+        for kind, table in zip(runs["controller_type"], runs["controller"], strict=True):
+            seen = numbering.setdefault(kind, [])
+            if table not in seen:
+                seen.append(table)
+        labels = [
+            f"{kind} #{numbering[kind].index(table) + 1}" if len(numbering[kind]) > 1 else kind
+            for kind, table in zip(runs["controller_type"], runs["controller"], strict=True)
+        ]
+    keys = [column for column in runs.columns if column.startswith("controller.")]
+    if keys:
+        names = [key.partition(".")[2] for key in keys]
+        swept = [
+            ", ".join(f"{name}={_shown(value)}" for name, value in zip(names, row, strict=True))
+            for row in runs[keys].itertuples(index=False)
+        ]
+        labels = [f"{label} ({text})" for label, text in zip(labels, swept, strict=True)]
+    return pd.Series(labels, index=runs.index, name="controller")
+
+
+def default_metrics(runs: pd.DataFrame) -> list[str]:
+    """Every ``ae_*`` column, then ``tv``."""
+    return [column for column in runs.columns if column.startswith("ae_")] + ["tv"]
+
+
+def summary_table(runs: pd.DataFrame, metrics: Sequence[str] | None = None) -> pd.DataFrame:
+    """The summary (module docstring), groups in order of first appearance.
+
+    Parameters
+    ----------
+    runs : DataFrame
+        The sweep's runs table (every part, one row per run).
+    metrics : sequence of str, optional
+        Metric columns to summarise; :func:`default_metrics` by default.
+
+    Raises
+    ------
+    ValueError
+        For a metric that is not a numeric column of ``runs``, naming the valid ones.
+    """
+    metrics = default_metrics(runs) if metrics is None else list(metrics)
+    valid = [
+        column
+        for column in runs.columns
+        if column.split("_")[0] in ("ae", "rms", "max") or column == "tv"
+    ]
+    unknown = [metric for metric in metrics if metric not in valid]
+    if unknown:
+        raise ValueError(f"summary metrics {unknown} are not columns of the runs; valid: {valid}")
+    frame = runs.assign(controller=controller_labels(runs), delay_class=delay_classes(runs))
+    rows = []
+    for (controller, delay_class), group in frame.groupby(
+        ["controller", "delay_class"], sort=False
+    ):
+        ok = group[group["status"] == "ok"]
+        diverged = int((group["status"] == "diverged").sum())
+        row = {
+            "controller": controller,
+            "delay_class": delay_class,
+            "runs": len(group),
+            "diverged": diverged,
+            "divergence_rate": diverged / len(group),
+            "failed": len(group) - len(ok) - diverged,
+        }
+        for metric in metrics:
+            values = ok[metric].to_numpy(dtype=float)
+            for name, statistic in STATISTICS.items():
+                row[f"{metric}_{name}"] = float(statistic(values)) if values.size else math.nan
+        rows.append(row)
+    return pd.DataFrame(rows)

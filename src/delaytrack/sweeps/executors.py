@@ -132,11 +132,15 @@ class DaskExecutor:
         self._futures: list[Any] = []
         if scheduler == LOCAL_CLUSTER:
             count = workers or os.cpu_count() or 1
+            # ":0": any free port for the scheduler's HTTP server (two local clusters coexist).
             self._cluster = distributed.LocalCluster(
-                n_workers=count, threads_per_worker=1, processes=True, dashboard_address=None
+                n_workers=count, threads_per_worker=1, processes=True, dashboard_address=":0"
             )
             address = self._cluster.scheduler_address
-            self.description = f"dask: local cluster of {count} worker processes ({address})"
+            self.description = (
+                f"dask: local cluster of {count} worker processes ({address}, dashboard "
+                f"{self._cluster.dashboard_link})"
+            )
         else:
             address = scheduler
             self.description = f"dask: {scheduler}"

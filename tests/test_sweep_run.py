@@ -1,0 +1,276 @@
+"""run_sweep with the local executor: complete, resumable, interruptible, corrupt parts redone."""
+
+import signal
+import subprocess
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+
+from delaytrack.cli import main
+from delaytrack.sweeps import (
+    LocalExecutor,
+    SweepError,
+    SweepInterrupted,
+    SweepSpec,
+    run_sweep,
+    run_unit,
+    summary_table,
+    write_sweep_outputs,
+)
+from delaytrack.sweeps.summary import controller_labels, delay_classes
+
+EXAMPLE = Path(__file__).parents[1] / "examples" / "sweep_small.toml"
+
+
+def small_spec(**changes) -> SweepSpec:
+    """The example sweep, 0.2 s runs, units of 5 (24 runs, 5 units)."""
+    data = tomllib.loads(EXAMPLE.read_text()) | {"unit_size": 5} | changes
+    data["grid"] = data["grid"] | {"duration": [0.2]}
+    return SweepSpec.from_dict(data, root=EXAMPLE.parent)
+
+
+class CountingExecutor(LocalExecutor):
+    """The local executor, recording which units it ran; raises Ctrl-C after ``stop_after``."""
+
+    def __init__(self, stop_after=None):
+        super().__init__(workers=1)
+        self.ran = []
+        self.stop_after = stop_after
+
+    def results(self, units):
+        for unit in units:
+            if self.stop_after is not None and len(self.ran) == self.stop_after:
+                raise KeyboardInterrupt
+            self.ran.append(unit.index)
+            yield unit, run_unit(unit, workers=1)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The whole small sweep run in one go."""
+    out = tmp_path_factory.mktemp("reference")
+    return run_sweep(small_spec(), out, progress=False)
+
+
+def test_a_sweep_gives_every_run_once_with_its_files(reference):
+    spec = reference.spec
+    runs = reference.runs
+    assert list(runs["run"]) == list(range(len(spec.runs))) == list(range(24))
+    assert (runs["status"] == "ok").all()
+    assert reference.computed == 5 and reference.resumed == 0
+    parts = sorted((reference.folder / "parts").glob("part-*.parquet"))
+    assert [p.name for p in parts] == [unit.part_name for unit in spec.units()]
+    # runs.parquet is read back by pyarrow alone, equal to the returned table.
+    table = pq.read_table(reference.folder / "runs.parquet").to_pandas()
+    pd.testing.assert_frame_equal(table, runs.reset_index(drop=True))
+    files = write_sweep_outputs(reference)
+    names = {path.relative_to(reference.folder).as_posix() for path in files}
+    assert names == {
+        "summary.csv",
+        "figures/distributions.png",
+        "figures/distributions.svg",
+        "figures/ae_vs_h_max.png",
+        "figures/ae_vs_h_max.svg",
+        "report.html",
+    }
+    html = (reference.folder / "report.html").read_text()
+    assert "Sweep over two_link_S1" in html and html.count("data:image/png;base64,") == 2
+    summary = pd.read_csv(reference.folder / "summary.csv")
+    assert summary["runs"].sum() == 24 and len(summary) == 6
+
+
+def test_batched_unit_equals_runs_one_by_one(reference):
+    """A unit batches its runs; each equals the run simulated alone (units of one run)."""
+    alone = pd.concat([run_unit(unit, workers=1) for unit in small_spec(unit_size=1).units()])
+    pd.testing.assert_frame_equal(
+        alone.reset_index(drop=True), reference.runs.reset_index(drop=True), check_exact=True
+    )
+
+
+def test_mixed_controller_unit_equals_separate_units(tmp_path):
+    """A unit holding AROLC and outer-loop runs (two batches) gives the same rows."""
+    changes = {
+        "grid": {
+            "duration": [0.2],
+            "controller": [
+                {
+                    "type": "arolc",
+                    "K1": 1.0,
+                    "K2": 1.0,
+                    "Q": 1.0,
+                    "alpha": 2.0,
+                    "epsilon": 0.1,
+                    "gamma": 0.001,
+                },
+                {"type": "outer-loop", "K1": 1.0, "K2": 1.0},
+            ],
+        },
+    }
+    data = tomllib.loads(EXAMPLE.read_text()) | {"unit_size": 8} | changes
+    mixed = SweepSpec.from_dict(data, root=EXAMPLE.parent)
+    assert {run.scenario.controller["type"] for run in mixed.units()[0].runs} == {
+        "arolc",
+        "outer-loop",
+    }
+    together = run_sweep(mixed, tmp_path / "mixed", progress=False).runs
+    single = SweepSpec.from_dict(data | {"unit_size": 1}, root=EXAMPLE.parent)
+    apart = run_sweep(single, tmp_path / "single", progress=False).runs
+    pd.testing.assert_frame_equal(together, apart, check_exact=True)
+    labels = set(controller_labels(together))
+    assert labels == {"arolc", "outer-loop"}
+
+
+def test_resume_skips_finished_units(reference, tmp_path):
+    executor = CountingExecutor()
+    again = run_sweep(small_spec(), reference.folder, executor=executor, progress=False)
+    assert executor.ran == [] and again.computed == 0 and again.resumed == 5
+    pd.testing.assert_frame_equal(again.runs, reference.runs, check_exact=True)
+
+
+def test_interrupted_sweep_keeps_parts_and_resumes_the_rest(reference, tmp_path):
+    out = tmp_path / "sweep"
+    first = CountingExecutor(stop_after=2)
+    with pytest.raises(SweepInterrupted) as stopped:
+        run_sweep(small_spec(), out, executor=first, progress=False)
+    assert (stopped.value.done, stopped.value.total) == (2, 5)
+    assert "run the same command again to resume" in str(stopped.value)
+    assert len(list((out / "parts").glob("part-*.parquet"))) == 2
+    assert not (out / "runs.parquet").exists()
+    second = CountingExecutor()
+    outcome = run_sweep(small_spec(), out, executor=second, progress=False)
+    assert second.ran == [2, 3, 4] and outcome.resumed == 2
+    pd.testing.assert_frame_equal(outcome.runs, reference.runs, check_exact=True)
+
+
+def test_corrupt_and_truncated_parts_are_recomputed(reference, tmp_path):
+    out = tmp_path / "sweep"
+    run_sweep(small_spec(), out, progress=False)
+    units = small_spec().units()
+    truncated = out / "parts" / units[1].part_name
+    truncated.write_bytes(truncated.read_bytes()[:100])
+    garbage = out / "parts" / units[3].part_name
+    garbage.write_bytes(b"not parquet at all" * 10)
+    leftover = out / "parts" / f".{units[4].part_name}.abc123.parquet"
+    leftover.write_bytes(b"half a part")
+    executor = CountingExecutor()
+    outcome = run_sweep(small_spec(), out, executor=executor, progress=False)
+    assert executor.ran == [1, 3]
+    assert set(outcome.rejected) == {units[1].part_name, units[3].part_name}
+    assert not leftover.exists()
+    pd.testing.assert_frame_equal(outcome.runs, reference.runs, check_exact=True)
+
+
+def test_a_changed_spec_recomputes_only_changed_units(reference, tmp_path):
+    out = tmp_path / "sweep"
+    run_sweep(small_spec(), out, progress=False)
+    data = tomllib.loads(EXAMPLE.read_text()) | {"unit_size": 5}
+    data["grid"] = data["grid"] | {"duration": [0.2], "controller.K1": [1.0, 3.0]}
+    changed = SweepSpec.from_dict(data, root=EXAMPLE.parent)
+    executor = CountingExecutor()
+    outcome = run_sweep(changed, out, executor=executor, progress=False)
+    # Runs 0-11 (K1 = 1) are unchanged: units 0 and 1 hold runs 0-9; unit 2 mixes both K1.
+    assert executor.ran == [2, 3, 4]
+    assert len(outcome.rejected) == 3
+    assert list(outcome.runs["controller.K1"]) == [1.0] * 12 + [3.0] * 12
+
+
+def test_a_second_sweep_on_the_same_folder_is_refused(tmp_path):
+    fcntl = pytest.importorskip("fcntl")
+    out = tmp_path / "sweep"
+    out.mkdir()
+    with open(out / ".lock", "w") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        with pytest.raises(SweepError, match="another sweep is writing to"):
+            run_sweep(small_spec(), out, progress=False)
+
+
+def test_summary_statistics_and_classes():
+    runs = pd.DataFrame(
+        {
+            "controller_type": ["arolc"] * 4 + ["pcon"] * 2,
+            "controller.K1": [1.0, 1.0, 1.0, 1.0, 2.0, 2.0],
+            "delay_type": ["random"] * 3 + ["constant"] * 3,
+            "h_max": [0.05, 0.12, 0.12, 0.3, 0.3, 2.0],
+            "status": ["ok", "ok", "diverged", "ok", "delay beyond history", "ok"],
+            "ae_q1": [1.0, 2.0, np.nan, 4.0, np.nan, 5.0],
+            "tv": [0.1, 0.2, np.nan, 0.4, np.nan, 0.5],
+        }
+    )
+    assert list(delay_classes(runs)) == [
+        "random, h_max 0-50 ms",
+        "random, h_max 100-150 ms",
+        "random, h_max 100-150 ms",
+        "constant, h_max 200-300 ms",
+        "constant, h_max 200-300 ms",
+        "constant, h_max > 1000 ms",
+    ]
+    summary = summary_table(runs)
+    assert list(summary["controller"]) == ["arolc (K1=1)"] * 3 + ["pcon (K1=2)"] * 2
+    row = summary.iloc[1]
+    assert (row["runs"], row["diverged"], row["divergence_rate"], row["failed"]) == (2, 1, 0.5, 0)
+    assert row["ae_q1_mean"] == row["ae_q1_max"] == 2.0
+    row = summary.iloc[3]
+    assert (row["failed"], row["diverged"]) == (1, 0) and np.isnan(row["ae_q1_mean"])
+    values = np.array([1.0, 2.0, 4.0, 5.0])
+    frame = runs.assign(h_max=0.01, delay_type="x", **{"controller.K1": 1.0}, controller_type="a")
+    whole = summary_table(frame).iloc[0]
+    assert whole["ae_q1_p95"] == pytest.approx(np.percentile(values, 95))
+    assert whole["ae_q1_median"] == 3.0 and whole["divergence_rate"] == pytest.approx(1 / 6)
+    with pytest.raises(ValueError, match=r"summary metrics \['ae_q9'\] are not columns"):
+        summary_table(runs, ["ae_q9"])
+
+
+def test_cli_sweep_runs_resumes_and_refuses_bad_arguments(tmp_path, capsys):
+    spec = tmp_path / "sweep.toml"
+    spec.write_text(EXAMPLE.read_text().replace("duration = [1.0]", "duration = [0.1]"))
+    out = tmp_path / "out"
+    assert main(["sweep", str(spec), "--out", str(out), "--quiet", "--workers", "1"]) == 0
+    printed = capsys.readouterr().out
+    assert "24 runs done (3 units computed, 0 found finished)" in printed
+    assert (out / "report.html").is_file() and (out / "summary.csv").is_file()
+    assert main(["sweep", str(spec), "--out", str(out), "--quiet"]) == 0
+    assert "(0 units computed, 3 found finished)" in capsys.readouterr().out
+    assert main(["sweep", str(spec), "--out", str(out), "--workers", "0"]) == 2
+    assert "--workers must be a positive integer; got '0'" in capsys.readouterr().err
+    assert main(["sweep", str(spec), "--out", str(out), "--scheduler", "localhost"]) == 2
+    assert "--scheduler must be 'local-cluster' or a Dask scheduler address" in (
+        capsys.readouterr().err
+    )
+    assert main(["sweep", str(tmp_path / "missing.toml")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_ctrl_c_on_the_command_keeps_finished_parts(tmp_path):
+    """SIGINT to a running ``delaytrack sweep``: exit 130, finished parts kept, no temporary
+    files; the same command then computes only the units that were missing."""
+    spec_file = tmp_path / "sweep.toml"
+    text = EXAMPLE.read_text().replace("duration = [1.0]", "duration = [60.0]")
+    spec_file.write_text(text.replace("unit_size = 8", "unit_size = 1"))
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "delaytrack.cli", "sweep", str(spec_file), "--out", str(out)]
+    process = subprocess.Popen(
+        [*command, "--quiet", "--workers", "1"], stderr=subprocess.PIPE, text=True
+    )
+    deadline = time.monotonic() + 300
+    while not list((out / "parts").glob("part-*.parquet")) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stderr
+    kept = sorted(path.name for path in (out / "parts").glob("part-*.parquet"))
+    assert 0 < len(kept) < 24
+    assert f"sweep interrupted: {len(kept)} of 24 units done" in stderr
+    assert not list((out / "parts").glob(".part-*"))
+    spec = SweepSpec.from_toml(spec_file)
+    executor = CountingExecutor()
+    outcome = run_sweep(spec, out, executor=executor, progress=False)
+    missing = [unit.index for unit in spec.units() if unit.part_name not in kept]
+    assert executor.ran == missing and outcome.resumed == len(kept)
+    assert list(outcome.runs["run"]) == list(range(24))

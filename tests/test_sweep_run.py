@@ -254,9 +254,15 @@ def test_ctrl_c_on_the_command_keeps_finished_parts(tmp_path):
     text = EXAMPLE.read_text().replace("duration = [1.0]", "duration = [60.0]")
     spec_file.write_text(text.replace("unit_size = 8", "unit_size = 1"))
     out = tmp_path / "out"
-    command = [sys.executable, "-m", "delaytrack.cli", "sweep", str(spec_file), "--out", str(out)]
+    # The command's own entry point, with Python's Ctrl-C handler installed explicitly: a
+    # process started from a background job inherits SIGINT ignored, and Python then keeps it so.
+    code = (
+        "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+        "from delaytrack.cli import main; sys.exit(main(sys.argv[1:]))"
+    )
+    arguments = ["sweep", str(spec_file), "--out", str(out), "--quiet", "--workers", "1"]
     process = subprocess.Popen(
-        [*command, "--quiet", "--workers", "1"], stderr=subprocess.PIPE, text=True
+        [sys.executable, "-c", code, *arguments], stderr=subprocess.PIPE, text=True
     )
     deadline = time.monotonic() + 300
     while not list((out / "parts").glob("part-*.parquet")) and time.monotonic() < deadline:

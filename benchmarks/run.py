@@ -22,6 +22,12 @@ compiles or loads numba's disk cache):
 ``agreement``
     Largest differences between the compiled engine, the same batch on worker threads and the
     reference path (the engine run as plain Python, ``simulate(..., engine="python")``).
+``sweep``
+    ``examples/sweep_robot.toml`` (issue 6: AROLC, PCON and the outer loop over 1000 random
+    delay profiles and payload placements, 3000 runs of 60 s) through :func:`run_sweep` with the
+    local executor and with a Dask local cluster of one worker process per core (its start-up
+    included), against the bare engine in the same run: the same runs built beforehand and
+    simulated with one :func:`simulate` call per controller type.
 
 ``python benchmarks/run.py --quick`` runs shorter versions of every case (for a smoke test).
 """
@@ -39,6 +45,7 @@ import sys
 import tempfile
 import time
 import timeit
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -57,9 +64,11 @@ from delaytrack.plants.robot import (  # noqa: E402
     paper_reference,
 )
 from delaytrack.sim import simulate  # noqa: E402
+from delaytrack.sweeps import DaskExecutor, LocalExecutor, SweepSpec, run_sweep  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 SHORT_SCENARIO = HERE / "short_scenario.toml"
+SWEEP_EXAMPLE = HERE.parent / "examples" / "sweep_robot.toml"
 
 
 def median_seconds(run, repeats: int) -> float:
@@ -259,6 +268,72 @@ def agreement_case(duration: float) -> dict:
 # --- main ------------------------------------------------------------------------------------
 
 
+# --- sweeps -----------------------------------------------------------------------------------
+
+
+def sweep_case(draws: int, duration: float) -> list[dict]:
+    """The robot example sweep (``draws`` draws, runs of ``duration`` s) three ways."""
+    data = tomllib.loads(SWEEP_EXAMPLE.read_text()) | {"draws": draws}
+    data["grid"]["duration"] = [duration]
+    spec = SweepSpec.from_dict(data, root=SWEEP_EXAMPLE.parent)
+    runs = len(spec.runs)
+    total = steps(duration, runs)
+    groups: dict[str, list] = {}
+    for run in spec.runs:
+        groups.setdefault(run.scenario.controller["type"], []).append(run.scenario.build())
+    settings = dict(t1=duration, dt=DT, T_c=T_C, trajectories=False)
+    reference = groups["arolc"][0].reference
+    for built in groups.values():  # load every controller's compiled engine, untimed
+        simulate(
+            built[0].plant,
+            built[0].controller,
+            built[0].delay,
+            built[0].x0,
+            reference=reference,
+            **{**settings, "t1": 10 * T_C},
+        )
+    start = time.perf_counter()
+    for built in groups.values():
+        simulate(
+            [b.plant for b in built],
+            [b.controller for b in built],
+            [b.delay for b in built],
+            np.stack([b.x0 for b in built]),
+            reference=reference,
+            **settings,
+        )
+    bare = time.perf_counter() - start
+    cases = [
+        {
+            "case": f"sweep baseline: bare engine, {runs} runs x {duration:g} s",
+            "median_s": bare,
+            "steps_per_s": total / bare,
+            "runs_per_s": runs / bare,
+        }
+    ]
+    executors = {"local executor": lambda: LocalExecutor(), "Dask local-cluster": _dask}
+    for name, make in executors.items():
+        with tempfile.TemporaryDirectory() as out:
+            start = time.perf_counter()
+            outcome = run_sweep(spec, out, executor=make(), progress=False)
+            seconds = time.perf_counter() - start
+        cases.append(
+            {
+                "case": f"sweep {name}, {runs} runs x {duration:g} s",
+                "median_s": seconds,
+                "steps_per_s": total / seconds,
+                "runs_per_s": runs / seconds,
+                "ratio_to_baseline": bare / seconds,
+                "ok_runs": int((outcome.runs["status"] == "ok").sum()),
+            }
+        )
+    return cases
+
+
+def _dask() -> DaskExecutor:
+    return DaskExecutor("local-cluster")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="short versions of every case")
@@ -284,7 +359,9 @@ def main() -> None:
     cases.append(batch_case(goal, goal_duration, 1 if quick else 3))
     cases.append(startup_case(3 if quick else 5))
     cases.append(controller_step_case(5))
-    cases.append(agreement_case(2.0 if quick else 10.0))
+    agreement = agreement_case(2.0 if quick else 10.0)
+    cases += sweep_case(20 if quick else 1000, 6.0 if quick else 60.0)
+    cases.append(agreement)
 
     print(f"{'case':<68} {'median s':>10} {'steps/s':>10} {'ratio':>8} {'peak MiB':>9}")
     for case in cases:

@@ -23,6 +23,7 @@ from delaytrack.sweeps import (  # noqa: E402
     DaskExecutor,
     LocalExecutor,
     SweepError,
+    SweepInterrupted,
     SweepSpec,
     run_sweep,
 )
@@ -79,10 +80,10 @@ def test_dask_cluster_gives_the_local_results(spec, local_runs, cluster, tmp_pat
 
 
 def test_a_killed_worker_loses_nothing(cluster, tmp_path):
-    spec = spec_of(120.0, 2)  # 12 units of about 0.15 s each
+    spec = spec_of(600.0, 2)  # 12 units of about 0.7 s each: the kill hits a running task
     expected = run_sweep(spec, tmp_path / "local", executor=LocalExecutor(), progress=False)
     executor = DaskExecutor(cluster.scheduler_address)
-    client = executor.client
+    client = distributed.Client(cluster.scheduler_address)  # the test's own, outlives the sweep
     client.wait_for_workers(2, timeout=60)
     pids = client.run(os.getpid)
     out = tmp_path / "dask"
@@ -103,6 +104,7 @@ def test_a_killed_worker_loses_nothing(cluster, tmp_path):
             time.sleep(0.005)
     assert victim is not None, "no part appeared within 120 s"
     parts_at_kill = len(list((out / "parts").glob("part-*.parquet")))
+    in_flight = list(client.processing()[victim])
     os.kill(pids[victim], signal.SIGKILL)
     thread.join(timeout=300)
     assert not thread.is_alive()
@@ -112,6 +114,43 @@ def test_a_killed_worker_loses_nothing(cluster, tmp_path):
     runs = finished["outcome"].runs
     assert list(runs["run"]) == list(range(len(spec.runs)))
     pd.testing.assert_frame_equal(runs, expected.runs, check_exact=True)
+    # A task the dead worker held was scheduled again (on the surviving or restarted worker).
+    story = client.run_on_scheduler(lambda dask_scheduler: dask_scheduler.story(*in_flight))
+    processing = [transition[0] for transition in story if transition[2] == "processing"]
+    assert any(processing.count(key) >= 2 for key in in_flight), story
+    client.close()
+
+
+class StoppingExecutor(DaskExecutor):
+    """A Dask executor whose caller presses Ctrl-C after ``stop_after`` results."""
+
+    def __init__(self, address, stop_after):
+        super().__init__(address)
+        self.stop_after = stop_after
+
+    def results(self, units):
+        for count, item in enumerate(super().results(units)):
+            if count == self.stop_after:
+                raise KeyboardInterrupt
+            yield item
+
+
+def test_interrupted_and_corrupt_on_dask_resume_without_recomputing(
+    spec, local_runs, cluster, tmp_path
+):
+    out = tmp_path / "dask"
+    with pytest.raises(SweepInterrupted) as stopped:
+        run_sweep(
+            spec, out, executor=StoppingExecutor(cluster.scheduler_address, 3), progress=False
+        )
+    assert stopped.value.done == 3
+    kept = sorted((out / "parts").glob("part-*.parquet"))
+    assert len(kept) == 3
+    kept[0].write_bytes(kept[0].read_bytes()[:-50])  # truncated
+    resumed = run_sweep(spec, out, executor=DaskExecutor(cluster.scheduler_address), progress=False)
+    assert resumed.resumed == 2 and resumed.computed == len(spec.units()) - 2
+    assert list(resumed.rejected) == [kept[0].name]
+    pd.testing.assert_frame_equal(resumed.runs, local_runs, check_exact=True)
 
 
 def test_cli_local_cluster(spec, local_runs, tmp_path, capsys):

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
@@ -280,3 +281,51 @@ def test_ctrl_c_on_the_command_keeps_finished_parts(tmp_path):
     missing = [unit.index for unit in spec.units() if unit.part_name not in kept]
     assert executor.ran == missing and outcome.resumed == len(kept)
     assert list(outcome.runs["run"]) == list(range(24))
+
+
+def test_a_key_with_numbers_in_one_unit_and_text_in_another(tmp_path):
+    """A scalar and a diagonal gain in one grid: one column type in every part and the table."""
+    changes = {"grid": {"duration": [0.1], "controller.K1": [2.0, [1.0, 3.0]]}, "unit_size": 1}
+    data = tomllib.loads(EXAMPLE.read_text()) | changes
+    data.pop("random"), data.pop("draws"), data.pop("seed")
+    spec = SweepSpec.from_dict(
+        data | {"grid": changes["grid"] | {"controller.K2": [1.0]}}, root=EXAMPLE.parent
+    )
+    outcome = run_sweep(spec, tmp_path / "out", progress=False)
+    table = pq.read_table(tmp_path / "out" / "runs.parquet").to_pandas()
+    assert list(table["controller.K1"]) == ["2.0", "[1.0,3.0]"]
+    assert list(outcome.runs["controller.K1"]) == ["2.0", "[1.0,3.0]"]
+
+
+def test_a_part_with_altered_values_is_recomputed(reference, tmp_path):
+    """Values changed inside a readable part (same metadata) fail its content hash."""
+    out = tmp_path / "sweep"
+    run_sweep(small_spec(), out, progress=False)
+    path = out / "parts" / small_spec().units()[2].part_name
+    table = pq.read_table(path)
+    frame = table.to_pandas()
+    frame.loc[0, "ae_q1"] *= 1.0 + 1e-12
+    altered = pa.Table.from_pandas(frame, preserve_index=False)
+    pq.write_table(altered.replace_schema_metadata(table.schema.metadata), path)
+    executor = CountingExecutor()
+    outcome = run_sweep(small_spec(), out, executor=executor, progress=False)
+    assert executor.ran == [2]
+    assert "content hash" in outcome.rejected[path.name]
+    pd.testing.assert_frame_equal(outcome.runs, reference.runs, check_exact=True)
+
+
+def test_continuous_controller_draws_do_not_split_the_summary(tmp_path):
+    data = tomllib.loads(EXAMPLE.read_text()) | {"unit_size": 24}
+    data["grid"] = {"duration": [0.1]}
+    data["random"] = {"controller.K1": {"dist": "uniform", "low": 1.0, "high": 2.0}}
+    spec = SweepSpec.from_dict(data, root=EXAMPLE.parent)
+    outcome = run_sweep(spec, tmp_path / "out", progress=False)
+    write_sweep_outputs(outcome)
+    summary = pd.read_csv(tmp_path / "out" / "summary.csv")
+    assert list(summary["controller"]) == ["arolc"] and summary["runs"].sum() == 4
+
+
+def test_cli_refuses_workers_with_a_running_cluster(tmp_path, capsys):
+    command = ["sweep", str(EXAMPLE), "--out", str(tmp_path), "--scheduler", "tcp://127.0.0.1:9"]
+    assert main([*command, "--workers", "2"]) == 2
+    assert "--workers 2 applies to the local executor" in capsys.readouterr().err

@@ -9,7 +9,8 @@ import pytest
 
 import delaytrack
 from delaytrack.experiments import load_builtin
-from delaytrack.sweeps import SweepError, SweepSpec
+from delaytrack.sweeps import SweepError, SweepSpec, Unit
+from delaytrack.sweeps import spec as spec_module
 
 
 def spec_dict(**changes) -> dict:
@@ -173,7 +174,8 @@ def test_random_delay_takes_the_drawn_scenario_seed():
                     "plant.fd1": {"dist": "uniform", "low": 2.0, "high": 1.0},
                 }
             },
-            'random."plant.fd1": needs low < high; got low = 2.0, high = 1.0',
+            'random."plant.fd1": needs low < high with a finite difference; got low = 2.0, '
+            "high = 1.0",
         ),
         (
             {
@@ -281,3 +283,70 @@ def test_from_toml_resolves_the_scenario_path_and_names_the_file(tmp_path):
 def test_example_sweep_loads():
     spec = SweepSpec.from_toml(Path(__file__).parents[1] / "examples" / "sweep_small.toml")
     assert len(spec.runs) == 24
+
+
+def test_whole_table_values_are_not_shared_between_runs():
+    """A dotted key writes into the run's own copy of a swept whole table (and of a choice)."""
+    data = spec_dict(
+        grid={"delay": [{"type": "constant", "h": 0.01}], "delay.h": [0.05, 0.1, 0.2]},
+        random={
+            "controller": {
+                "dist": "choice",
+                "values": [{"type": "outer-loop", "K1": 1.0, "K2": 1.0}],
+            },
+            "controller.K1": {"dist": "uniform", "low": 1.0, "high": 2.0},
+        },
+        unit_size=1,
+    )
+    spec = SweepSpec.from_dict(data)
+    assert [run.scenario.delay["h"] for run in spec.runs[::3]] == [0.05, 0.1, 0.2]
+    assert all(run.values["delay"] == {"type": "constant", "h": 0.01} for run in spec.runs)
+    assert spec.grid["delay"] == ({"type": "constant", "h": 0.01},)
+    assert all(run.values["controller"]["K1"] == 1.0 for run in spec.runs)
+    assert len({run.scenario.controller["K1"] for run in spec.runs}) == 3
+    # Changing the last grid value changes only the units of its runs.
+    data["grid"]["delay.h"] = [0.05, 0.1, 0.3]
+    changed = SweepSpec.from_dict(data)
+    same = [a.hash == b.hash for a, b in zip(spec.units(), changed.units(), strict=True)]
+    assert same == [True] * 6 + [False] * 3
+
+
+def test_a_run_the_controller_cannot_take_is_refused_on_load():
+    """PCON needs the delay within its history: checked when the spec loads, not at run time."""
+    pcon = {"type": "pcon", "kappa": 1.0, "vartheta": 1.0, "k_b": 1.0, "history": 0.1, "T_c": 0.002}
+    data = spec_dict(
+        grid={"controller": [pcon], "delay": [{"type": "constant", "h": 0.2}]}, random={}
+    )
+    del data["draws"], data["seed"]
+    with pytest.raises(SweepError, match=r"\(run 0\): .*exceeds history = 0.1 s"):
+        SweepSpec.from_dict(data)
+
+
+@pytest.mark.parametrize(
+    ("dist", "message"),
+    [
+        ({"dist": "integers", "low": 0, "high": 2**70}, "needs bounds within 64-bit integers"),
+        ({"dist": "uniform", "low": -1e308, "high": 1e308}, "with a finite difference"),
+    ],
+)
+def test_draws_beyond_numpy_ranges_are_refused(dist, message):
+    with pytest.raises(SweepError, match=message):
+        SweepSpec.from_dict(
+            spec_dict(random={"plant.fd1": dist} if "uniform" in dist.values() else {"seed": dist})
+        )
+
+
+def test_label_keys_are_grid_and_choice_controller_keys():
+    spec = SweepSpec.from_dict(spec_dict())
+    assert spec.label_keys == ("controller.K1", "controller.alpha")
+
+
+def test_unit_hash_changes_with_the_source_code(monkeypatch):
+    """Parts made by other code (an edited engine, same version number) do not count."""
+    before = SweepSpec.from_dict(spec_dict()).units()[0]
+    payload = before.to_payload()
+    monkeypatch.setattr(spec_module, "source_hash", lambda: "0123456789abcdef")
+    after = SweepSpec.from_dict(spec_dict()).units()[0]
+    assert after.hash != before.hash
+    with pytest.raises(SweepError, match="install the same code on every Dask worker"):
+        Unit.from_payload(payload)

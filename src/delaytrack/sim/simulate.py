@@ -94,10 +94,17 @@ def _metrics_from_tick(
     return k
 
 
+def available_cores() -> int:
+    """The cores this process may use (its CPU affinity where the OS has one, else all)."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return os.cpu_count() or 1
+
+
 def _workers(workers: int | None) -> int:
     """Thread count: ``workers`` checked, or the cores this process may use."""
     if workers is None:
-        return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1)
+        return available_cores()
     if not is_integer_at_least(workers, 1):
         raise ValueError(f"workers must be a positive integer (threads); got {workers!r}")
     return int(workers)

@@ -16,7 +16,6 @@ interruption loses only the units in flight.
 
 from __future__ import annotations
 
-import os
 import re
 from collections.abc import Iterator, Mapping, Sequence
 from typing import Any, Protocol
@@ -24,6 +23,7 @@ from typing import Any, Protocol
 import pandas as pd
 
 from delaytrack._validation import is_integer_at_least
+from delaytrack.sim.simulate import available_cores
 from delaytrack.sweeps.parts import run_unit
 from delaytrack.sweeps.spec import SweepError, Unit
 
@@ -62,7 +62,7 @@ class LocalExecutor:
         if workers is not None and not is_integer_at_least(workers, 1):
             raise SweepError(f"workers must be a positive integer or None; got {workers!r}")
         self.workers = workers
-        self.description = f"local: {workers or os.cpu_count() or 1} threads"
+        self.description = f"local: {workers or available_cores()} threads"
 
     def results(self, units: Sequence[Unit]) -> Iterator[tuple[Unit, pd.DataFrame]]:
         for unit in units:
@@ -72,12 +72,10 @@ class LocalExecutor:
         """Nothing to release."""
 
 
-def compute_part(payload: Mapping[str, Any], workers: int = 1) -> pd.DataFrame:
-    """The Dask task: rebuild a unit from :meth:`Unit.to_payload` here and run it.
-
-    ``workers`` threads per task (1: a Dask worker's threads are the parallelism).
-    """
-    return run_unit(Unit.from_payload(payload), workers=workers)
+def compute_part(payload: Mapping[str, Any]) -> pd.DataFrame:
+    """The Dask task: rebuild a unit from :meth:`Unit.to_payload` here and run it on one thread
+    (a Dask worker's threads are the parallelism)."""
+    return run_unit(Unit.from_payload(payload), workers=1)
 
 
 def _distributed() -> Any:
@@ -124,6 +122,11 @@ class DaskExecutor:
             )
         if workers is not None and not is_integer_at_least(workers, 1):
             raise SweepError(f"workers must be a positive integer or None; got {workers!r}")
+        if workers is not None and scheduler != LOCAL_CLUSTER:
+            raise SweepError(
+                f"--workers {workers} applies to the local executor and to --scheduler "
+                f"{LOCAL_CLUSTER}; a running cluster ({scheduler}) has the workers it has"
+            )
         if not is_integer_at_least(retries, 0):
             raise SweepError(f"retries must be an integer >= 0; got {retries!r}")
         distributed = _distributed()
@@ -131,7 +134,7 @@ class DaskExecutor:
         self.retries = retries
         self._futures: list[Any] = []
         if scheduler == LOCAL_CLUSTER:
-            count = workers or os.cpu_count() or 1
+            count = workers or available_cores()
             # ":0": any free port for the scheduler's HTTP server (two local clusters coexist).
             self._cluster = distributed.LocalCluster(
                 n_workers=count, threads_per_worker=1, processes=True, dashboard_address=":0"
@@ -160,7 +163,6 @@ class DaskExecutor:
             future = self.client.submit(
                 compute_part,
                 unit.to_payload(),
-                1,
                 key=f"delaytrack-unit-{unit.index:05d}-{unit.hash[:16]}",
                 retries=self.retries,
                 pure=False,

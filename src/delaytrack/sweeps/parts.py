@@ -2,15 +2,16 @@
 
 A part is ``<folder>/part-<unit index>-<hash12>.parquet``, one row per run, written atomically
 (temporary file in the same folder, fsync, :func:`os.replace`): a reader sees no part or a
-complete one. Its Parquet metadata holds the unit's full hash and run count, so
-:func:`finished_units` can tell a finished unit of *this* spec from a stale, truncated or
-corrupt file.
+complete one. Its Parquet metadata holds the unit's full hash, its run count and a sha256 of its
+values (:func:`content_hash`), so :func:`finished_units` can tell a finished unit of *this* spec
+from a stale, truncated, corrupt or altered file.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
@@ -26,11 +27,19 @@ from delaytrack.metrics import metrics_table
 from delaytrack.sim import simulate
 from delaytrack.sweeps.spec import Run, SweepError, SweepSpec, Unit, canonical_json
 
-__all__ = ["PartsScan", "finished_units", "run_unit", "write_part"]
+__all__ = ["PartsScan", "finished_units", "run_unit", "value_column", "write_part"]
 
 #: Parquet metadata keys of a part.
 HASH_KEY = b"delaytrack.unit_hash"
 RUNS_KEY = b"delaytrack.unit_runs"
+CONTENT_KEY = b"delaytrack.content_sha256"
+
+
+def content_hash(frame: pd.DataFrame) -> str:
+    """sha256 of a part's column names and values (``pandas.util.hash_pandas_object`` rows)."""
+    digest = hashlib.sha256("\x1f".join(frame.columns).encode("utf-8"))
+    digest.update(pd.util.hash_pandas_object(frame, index=False).to_numpy().tobytes())
+    return digest.hexdigest()
 
 
 def _batch_key(run: Run) -> str:
@@ -71,12 +80,26 @@ def _simulate_batch(runs: list[Run], workers: int | None) -> pd.DataFrame:
     return frame
 
 
-def _value_column(values: list[Any]) -> list[Any]:
-    """Numbers or strings stay as they are; anything else (lists, tables, mixtures) as JSON."""
-    numbers = all(isinstance(v, int | float) and not isinstance(v, bool) for v in values)
-    if numbers or all(isinstance(v, str) for v in values):
-        return values
-    return [canonical_json(v) for v in values]
+def _is_number(value: object) -> bool:
+    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(
+        value, bool | np.bool_
+    )
+
+
+def value_column(values: Sequence[Any]) -> list[Any]:
+    """How a swept key's values are stored: the same rule per unit and for the whole table.
+
+    A column of numbers stays numbers; otherwise strings stay as they are and every other value
+    (numbers among strings, booleans, lists, tables) becomes canonical JSON text, so a value is
+    stored the same way whatever else its unit holds, and parts concatenate into one type.
+    """
+    if all(_is_number(value) for value in values):
+        return list(values)
+    return [value if isinstance(value, str) else canonical_json(_plain(value)) for value in values]
+
+
+def _plain(value: Any) -> Any:
+    return value.item() if isinstance(value, np.generic) else value
 
 
 def run_unit(unit: Unit, *, workers: int | None = None) -> pd.DataFrame:
@@ -105,7 +128,7 @@ def run_unit(unit: Unit, *, workers: int | None = None) -> pd.DataFrame:
     runs = unit.runs
     columns: dict[str, Any] = {"run": [run.index for run in runs]}
     for key in runs[0].values:
-        columns[key] = _value_column([run.values[key] for run in runs])
+        columns[key] = value_column([run.values[key] for run in runs])
     columns["controller_type"] = [run.scenario.controller["type"] for run in runs]
     columns["delay_type"] = [run.scenario.delay["type"] for run in runs]
     table = pd.DataFrame([metrics[run.index] for run in runs]).reset_index(drop=True)
@@ -127,6 +150,7 @@ def write_part(frame: pd.DataFrame, unit: Unit, folder: str | Path) -> Path:
         **(table.schema.metadata or {}),
         HASH_KEY: unit.hash.encode("ascii"),
         RUNS_KEY: str(len(unit.runs)).encode("ascii"),
+        CONTENT_KEY: content_hash(frame).encode("ascii"),
     }
     target = Path(folder) / unit.part_name
     with atomic_path(target) as temporary:
@@ -178,6 +202,8 @@ def _check_part(path: Path, unit: Unit) -> str | None:
         return f"unit hash {stored[:12] or 'missing'} != {unit.hash[:12]} of this spec"
     if table.num_rows != len(unit.runs) or metadata.get(RUNS_KEY) != str(len(unit.runs)).encode():
         return f"{table.num_rows} rows; unit {unit.index} has {len(unit.runs)} runs"
+    if metadata.get(CONTENT_KEY) != content_hash(table.to_pandas()).encode("ascii"):
+        return "its values do not match the content hash written with them (altered or corrupt)"
     return None
 
 
@@ -185,8 +211,9 @@ def finished_units(folder: str | Path, spec: SweepSpec) -> PartsScan:
     """Which units of ``spec`` already have a valid part in ``folder`` (a resume check).
 
     Every ``part-*.parquet`` is read in full: one of this spec's parts counts when its metadata
-    hash equals the unit's and its row count the unit's run count. Any other part file is listed
-    in :attr:`PartsScan.rejected` with the reason; a missing folder means nothing is finished.
+    hash equals the unit's, its row count the unit's run count and its values their content
+    hash. Any other part file is listed in :attr:`PartsScan.rejected` with the reason; a
+    missing folder means nothing is finished.
     """
     folder = Path(folder)
     units = {unit.part_name: unit for unit in spec.units()}

@@ -61,9 +61,11 @@ def _log_scale_if_wide(ax, values: np.ndarray) -> None:
             ax.set_yscale("log")
 
 
-def distribution_figure(runs: pd.DataFrame, metrics: Sequence[str]) -> Figure:
-    """Per metric, one box per controller over its ``ok`` runs; the divergence rate below it."""
-    labels = controller_labels(runs)
+def distribution_figure(
+    runs: pd.DataFrame, metrics: Sequence[str], label_keys: Sequence[str] | None = None
+) -> Figure:
+    """Per metric, one box per controller over its ``ok`` runs; the share not ok below it."""
+    labels = controller_labels(runs, label_keys)
     order = list(dict.fromkeys(labels))
     ok = runs["status"] == "ok"
     figure, axes = _panels(len(metrics))
@@ -81,10 +83,12 @@ def distribution_figure(runs: pd.DataFrame, metrics: Sequence[str]) -> Figure:
     return figure
 
 
-def ae_vs_h_max_figure(runs: pd.DataFrame, metrics: Sequence[str]) -> Figure:
+def ae_vs_h_max_figure(
+    runs: pd.DataFrame, metrics: Sequence[str], label_keys: Sequence[str] | None = None
+) -> Figure:
     """Each AE metric (or the first metric, if none is an AE) against ``h_max`` in ms."""
     shown = [metric for metric in metrics if metric.startswith("ae_")] or list(metrics[:1])
-    labels = controller_labels(runs)
+    labels = controller_labels(runs, label_keys)
     ok = runs["status"] == "ok"
     figure, axes = _panels(len(shown))
     for ax, metric in zip(axes, shown, strict=True):
@@ -146,8 +150,8 @@ def sweep_section(
     )
     if outcome.rejected:
         report.paragraph(
-            "Part files found that did not count (their units ran again; files of another spec "
-            "are left in place):",
+            "Part files found that did not count: a corrupt or altered part of this sweep was "
+            "computed again; parts of another spec or code are left in place and ignored:",
             note=True,
         )
         report.bullets(f"{name}: {reason}" for name, reason in outcome.rejected.items())
@@ -167,16 +171,18 @@ def sweep_section(
         report.figure(figure, caption)
 
 
-def sweep_figures(runs: pd.DataFrame, metrics: Sequence[str]) -> dict[str, tuple[Figure, str]]:
+def sweep_figures(
+    runs: pd.DataFrame, metrics: Sequence[str], label_keys: Sequence[str] | None = None
+) -> dict[str, tuple[Figure, str]]:
     """File stem -> (figure, caption) of the sweep's figures."""
     return {
         "distributions": (
-            distribution_figure(runs, metrics),
+            distribution_figure(runs, metrics, label_keys),
             "Distribution per controller (runs that ended ok; box: quartiles, whiskers: 5th and "
             "95th percentiles).",
         ),
         "ae_vs_h_max": (
-            ae_vs_h_max_figure(runs, metrics),
+            ae_vs_h_max_figure(runs, metrics, label_keys),
             "Mean absolute tracking error against the delay bound h_max of each run (runs that "
             "ended ok).",
         ),
@@ -189,9 +195,10 @@ def write_sweep_outputs(
     """Write ``summary.csv``, the figures and ``report.html`` into the sweep's folder."""
     folder = outcome.folder
     metrics = list(outcome.spec.metrics or default_metrics(outcome.runs))
-    summary = summary_table(outcome.runs, metrics)
+    keys = outcome.spec.label_keys
+    summary = summary_table(outcome.runs, metrics, keys)
     paths = [write_frame(summary, folder / "summary.csv")]
-    figures = sweep_figures(outcome.runs, metrics)
+    figures = sweep_figures(outcome.runs, metrics, keys)
     for stem, (figure, _) in figures.items():
         paths += save_figure(figure, folder / "figures" / stem, formats)
     report = HtmlReport(f"delaytrack sweep: {outcome.spec.base.name}")

@@ -28,7 +28,7 @@ from tqdm.auto import tqdm
 
 from delaytrack._io import write_frame
 from delaytrack.sweeps.executors import Executor, LocalExecutor
-from delaytrack.sweeps.parts import finished_units, write_part
+from delaytrack.sweeps.parts import finished_units, value_column, write_part
 from delaytrack.sweeps.spec import SweepError, SweepSpec
 
 __all__ = ["SweepInterrupted", "SweepOutcome", "run_sweep"]
@@ -59,7 +59,8 @@ class SweepOutcome:
     computed, resumed : int
         Units run by this call; units whose part was already there.
     rejected : Mapping[str, str]
-        Part files found that did not count (file name -> reason); their units ran again.
+        Part files found that did not count (file name -> reason): a corrupt or altered part
+        of this spec was computed again; parts of another spec or code are ignored.
     seconds : float
         Wall time of this call.
     executor : str
@@ -107,7 +108,11 @@ def _remove_temporaries(parts: Path) -> None:
 
 def _read_runs(parts: Path, spec: SweepSpec) -> pd.DataFrame:
     frames = [pq.read_table(parts / unit.part_name).to_pandas() for unit in spec.units()]
-    return pd.concat(frames, ignore_index=True).sort_values("run", kind="stable")
+    runs = pd.concat(frames, ignore_index=True).sort_values("run", kind="stable")
+    for key in spec.runs[0].values:  # numbers in one unit, text in another: one rule for all
+        if runs[key].dtype == object:
+            runs[key] = value_column(list(runs[key]))
+    return runs.reset_index(drop=True)
 
 
 def run_sweep(
@@ -145,10 +150,10 @@ def run_sweep(
     start = time.perf_counter()
     folder = Path(out)
     parts = folder / "parts"
-    parts.mkdir(parents=True, exist_ok=True)
     executor = executor if executor is not None else LocalExecutor()
     units = spec.units()
     try:
+        parts.mkdir(parents=True, exist_ok=True)
         with _exclusive(folder):
             _remove_temporaries(parts)
             scan = finished_units(parts, spec)

@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 
 import delaytrack
+from delaytrack._numba_cache import source_hash
 from delaytrack._validation import is_integer_at_least
 from delaytrack.experiments.scenario import (
     Scenario,
@@ -61,6 +62,7 @@ class SweepError(ScenarioError):
     """A sweep spec is not valid; the message names the sweep key and what is valid."""
 
 
+_INT64_MIN, _INT64_MAX = -(2**63), 2**63 - 1
 _TOP_LEVEL = ("scenario", "unit_size", "draws", "seed", "metrics", "grid", "random")
 _TABLES = ("plant", "model", "controller", "delay", "reference")
 _SCALARS = ("name", "duration", "dt", "T_c", "seed", "x0", "record_every")
@@ -95,7 +97,8 @@ class Unit:
     """A work unit: consecutive runs, written as one Parquet part.
 
     ``hash`` is the sha256 (hex) of the canonical JSON of the runs' :meth:`Run.canonical` and
-    the package version: a part whose stored hash differs was made by another spec or version.
+    :func:`code_version` (package version and source hash): a part whose stored hash differs
+    was made by another spec or another code.
     """
 
     index: int
@@ -110,7 +113,7 @@ class Unit:
     def to_payload(self) -> dict[str, Any]:
         """The unit as plain data (JSON types), to send to another process or machine."""
         runs = [run.canonical() for run in self.runs]
-        version = delaytrack.__version__
+        version = code_version()
         return {"index": self.index, "hash": self.hash, "version": version, "runs": runs}
 
     @classmethod
@@ -124,10 +127,10 @@ class Unit:
             sender's hash (the scenarios would not run the same here).
         """
         index, version = payload["index"], payload["version"]
-        if version != delaytrack.__version__:
+        if version != code_version():
             raise SweepError(
-                f"unit {index} comes from delaytrack {version}; this process has "
-                f"{delaytrack.__version__}: install the same version on every Dask worker"
+                f"unit {index} comes from delaytrack {version} (version+source hash); this "
+                f"process has {code_version()}: install the same code on every Dask worker"
             )
         runs = tuple(
             Run(run["index"], MappingProxyType(run["values"]), Scenario.from_dict(run["scenario"]))
@@ -147,8 +150,13 @@ def canonical_json(data: Any) -> str:
     return json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=False)
 
 
+def code_version() -> str:
+    """The package version and the hash of its source (:func:`_numba_cache.source_hash`)."""
+    return f"{delaytrack.__version__}+{source_hash()}"
+
+
 def _unit_hash(runs: Sequence[Run]) -> str:
-    payload = {"version": delaytrack.__version__, "runs": [run.canonical() for run in runs]}
+    payload = {"version": code_version(), "runs": [run.canonical() for run in runs]}
     return hashlib.sha256(canonical_json(payload).encode("utf-8")).hexdigest()
 
 
@@ -195,7 +203,7 @@ def _draw(key: str, table: object, draws: int, seed: int) -> list[Any]:
         values = table["values"]
         if not isinstance(values, list) or not values:
             raise SweepError(f"{where}: 'values' must be a non-empty list; got {values!r}")
-        return [values[i] for i in rng.integers(0, len(values), size=draws)]
+        return [copy.deepcopy(values[i]) for i in rng.integers(0, len(values), size=draws)]
     low = _number(where, "low", table["low"])
     high = _number(where, "high", table["high"])
     if dist == "integers":
@@ -204,9 +212,17 @@ def _draw(key: str, table: object, draws: int, seed: int) -> list[Any]:
                 f"{where}: dist = 'integers' needs integers low <= high (high inclusive); got "
                 f"low = {low!r}, high = {high!r}"
             )
+        if not (_INT64_MIN <= low and high < _INT64_MAX):
+            raise SweepError(
+                f"{where}: dist = 'integers' needs bounds within 64-bit integers "
+                f"[{_INT64_MIN}, {_INT64_MAX - 1}]; got low = {low!r}, high = {high!r}"
+            )
         return [int(v) for v in rng.integers(low, high, size=draws, endpoint=True)]
-    if not low < high:
-        raise SweepError(f"{where}: needs low < high; got low = {low!r}, high = {high!r}")
+    if not (low < high and math.isfinite(high - low)):
+        raise SweepError(
+            f"{where}: needs low < high with a finite difference; got low = {low!r}, "
+            f"high = {high!r}"
+        )
     if dist == "uniform":
         return [float(v) for v in rng.uniform(low, high, size=draws)]
     if low <= 0:
@@ -219,7 +235,7 @@ def _apply(base: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str, Any]
     data = json.loads(json.dumps(base))
     for key, value in values.items():
         if "." not in key:
-            data[key] = value
+            data[key] = copy.deepcopy(value)  # the run's own copy: dotted keys write into it
     for key, value in values.items():
         table, dot, field = key.partition(".")
         if dot:
@@ -375,6 +391,7 @@ class SweepSpec:
     def _run(self, index: int, values: dict[str, Any], base: Mapping[str, Any]) -> Run:
         try:
             scenario = Scenario.from_dict(_apply(base, values)).resolved()
+            _check_runnable(scenario)
         except ScenarioError as error:
             message = str(error)
             named = [key for key in values if f"'{key}'" in message or f"[{key}]" in message]
@@ -389,9 +406,32 @@ class SweepSpec:
 
     def units(self) -> tuple[Unit, ...]:
         """The runs cut into units of ``unit_size`` consecutive runs (the last may be shorter)."""
+        return self._units
+
+    @cached_property
+    def _units(self) -> tuple[Unit, ...]:
         size = self.unit_size
         chunks = [self.runs[i : i + size] for i in range(0, len(self.runs), size)]
         return tuple(Unit(k, chunk, _unit_hash(chunk)) for k, chunk in enumerate(chunks))
+
+    @property
+    def label_keys(self) -> tuple[str, ...]:
+        """Swept ``controller.*`` keys that name a controller in summaries: grid keys and
+        ``choice`` draws (a continuous draw would make one group per run)."""
+        chosen = [key for key, dist in self.random.items() if dist["dist"] == "choice"]
+        return tuple(k for k in (*self.grid, *chosen) if k.startswith("controller."))
+
+
+def _check_runnable(scenario: Scenario) -> None:
+    """What :func:`~delaytrack.sim.simulate` checks before a run: the controller can run at
+    ``T_c`` under delays up to ``h_max`` (a predictor's history)."""
+    built = scenario.build()
+    try:
+        built.controller.check_run(scenario.T_c, float(built.delay.h_max))
+    except ValueError as error:
+        raise ScenarioError(
+            f"scenario table [controller] cannot run with [delay]: {error}"
+        ) from None
 
 
 def _check_metrics(metrics: tuple[str, ...], base: Scenario) -> None:
@@ -410,7 +450,7 @@ def _load_base(source: object, root: Path) -> Scenario:
             f"sweep key 'scenario' must be a scenario file or a shipped scenario name; got "
             f"{source!r}"
         )
-    path = (root / source).expanduser()
+    path = root / Path(source).expanduser()
     if path.is_file():
         return Scenario.from_toml(path)
     if source in builtin_scenario_names():

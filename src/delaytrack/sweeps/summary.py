@@ -3,8 +3,9 @@
 Rows of the runs table (:func:`delaytrack.sweeps.run_unit`) are grouped by
 
 - **controller**: the controller type, followed by the values of swept ``controller.*`` keys
-  (``arolc (K1=2)``); when a swept ``controller`` table list holds several tables of one type,
-  they are told apart as ``pcon #1``, ``pcon #2`` in the order they first appear;
+  (``arolc (K1=2)``; a sweep shows its grid and ``choice`` keys only); when a swept
+  ``controller`` table list holds several tables of one type, they are told apart as
+  ``pcon #1``, ``pcon #2`` in the order they first appear;
 - **delay class**: the delay family and the band its bound ``h_max`` falls in
   (``random, h_max 100-150 ms``; bands at :data:`DELAY_BAND_EDGES`).
 
@@ -67,8 +68,12 @@ def delay_classes(runs: pd.DataFrame) -> pd.Series:
     )
 
 
-def controller_labels(runs: pd.DataFrame) -> pd.Series:
-    """The controller label of every run (module docstring)."""
+def controller_labels(runs: pd.DataFrame, keys: Sequence[str] | None = None) -> pd.Series:
+    """The controller label of every run (module docstring).
+
+    ``keys``: the swept ``controller.*`` columns to show in labels (all of them by default;
+    :attr:`SweepSpec.label_keys` leaves out continuous draws).
+    """
     labels = list(runs["controller_type"])
     if "controller" in runs:
         numbering: dict[str, list[str]] = {}
@@ -80,7 +85,9 @@ def controller_labels(runs: pd.DataFrame) -> pd.Series:
             f"{kind} #{numbering[kind].index(table) + 1}" if len(numbering[kind]) > 1 else kind
             for kind, table in zip(runs["controller_type"], runs["controller"], strict=True)
         ]
-    keys = [column for column in runs.columns if column.startswith("controller.")]
+    if keys is None:
+        keys = [column for column in runs.columns if column.startswith("controller.")]
+    keys = list(keys)
     if keys:
         names = [key.partition(".")[2] for key in keys]
         swept = [
@@ -96,7 +103,11 @@ def default_metrics(runs: pd.DataFrame) -> list[str]:
     return [column for column in runs.columns if column.startswith("ae_")] + ["tv"]
 
 
-def summary_table(runs: pd.DataFrame, metrics: Sequence[str] | None = None) -> pd.DataFrame:
+def summary_table(
+    runs: pd.DataFrame,
+    metrics: Sequence[str] | None = None,
+    label_keys: Sequence[str] | None = None,
+) -> pd.DataFrame:
     """The summary (module docstring), groups in order of first appearance.
 
     Parameters
@@ -105,6 +116,8 @@ def summary_table(runs: pd.DataFrame, metrics: Sequence[str] | None = None) -> p
         The sweep's runs table (every part, one row per run).
     metrics : sequence of str, optional
         Metric columns to summarise; :func:`default_metrics` by default.
+    label_keys : sequence of str, optional
+        Swept ``controller.*`` columns shown in controller labels (:func:`controller_labels`).
 
     Raises
     ------
@@ -120,7 +133,8 @@ def summary_table(runs: pd.DataFrame, metrics: Sequence[str] | None = None) -> p
     unknown = [metric for metric in metrics if metric not in valid]
     if unknown:
         raise ValueError(f"summary metrics {unknown} are not columns of the runs; valid: {valid}")
-    frame = runs.assign(controller=controller_labels(runs), delay_class=delay_classes(runs))
+    labels = controller_labels(runs, label_keys)
+    frame = runs.assign(controller=labels, delay_class=delay_classes(runs))
     rows = []
     for (controller, delay_class), group in frame.groupby(
         ["controller", "delay_class"], sort=False

@@ -19,11 +19,13 @@ from delaytrack.sweeps import (
     SweepError,
     SweepInterrupted,
     SweepSpec,
+    SweepUnitsFailed,
     run_sweep,
     run_unit,
     summary_table,
     write_sweep_outputs,
 )
+from delaytrack.sweeps import executors as executors_module
 from delaytrack.sweeps.summary import controller_labels, delay_classes
 
 EXAMPLE = Path(__file__).parents[1] / "examples" / "sweep_small.toml"
@@ -329,3 +331,29 @@ def test_cli_refuses_workers_with_a_running_cluster(tmp_path, capsys):
     command = ["sweep", str(EXAMPLE), "--out", str(tmp_path), "--scheduler", "tcp://127.0.0.1:9"]
     assert main([*command, "--workers", "2"]) == 2
     assert "--workers 2 applies to the local executor" in capsys.readouterr().err
+
+
+def test_a_failing_unit_costs_only_itself(reference, tmp_path, monkeypatch, capsys):
+    """Unit 2 raises: the other units' parts are written, the error names it, exit code 1,
+    and the next call computes unit 2 alone."""
+    real = executors_module.run_unit
+
+    def failing(unit, **kwargs):
+        if unit.index == 2:
+            raise ValueError("boom in unit 2")
+        return real(unit, **kwargs)
+
+    monkeypatch.setattr(executors_module, "run_unit", failing)
+    out = tmp_path / "sweep"
+    with pytest.raises(SweepUnitsFailed, match=r"1 of 5 units failed \(unit 2: ValueError: boom"):
+        run_sweep(small_spec(), out, executor=LocalExecutor(workers=1), progress=False)
+    assert len(list((out / "parts").glob("part-*.parquet"))) == 4
+    spec_file = tmp_path / "sweep.toml"
+    spec_file.write_text(EXAMPLE.read_text().replace("duration = [1.0]", "duration = [0.2]"))
+    assert main(["sweep", str(spec_file), "--out", str(tmp_path / "cli"), "--quiet"]) == 1
+    assert "units failed (unit 2: ValueError: boom in unit 2)" in capsys.readouterr().err
+    monkeypatch.setattr(executors_module, "run_unit", real)
+    executor = CountingExecutor()
+    outcome = run_sweep(small_spec(), out, executor=executor, progress=False)
+    assert executor.ran == [2]
+    pd.testing.assert_frame_equal(outcome.runs, reference.runs, check_exact=True)

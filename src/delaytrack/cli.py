@@ -470,7 +470,13 @@ def _reproduce_margins(args: argparse.Namespace) -> int:
 
 
 def _sweep(args: argparse.Namespace) -> int:
-    from delaytrack.sweeps import SweepSpec, make_executor, run_sweep, write_sweep_outputs
+    from delaytrack.sweeps import (
+        SweepSpec,
+        SweepUnitsFailed,
+        make_executor,
+        run_sweep,
+        write_sweep_outputs,
+    )
 
     workers = None
     if args.workers is not None:
@@ -489,6 +495,9 @@ def _sweep(args: argparse.Namespace) -> int:
     except KeyboardInterrupt as interrupted:
         print(str(interrupted) or "interrupted", file=sys.stderr)
         return 130
+    except SweepUnitsFailed as failed:
+        print(f"error: {failed}", file=sys.stderr)
+        return 1
     files = write_sweep_outputs(outcome)
     print(
         f"{len(spec.runs)} runs done ({outcome.computed} units computed, {outcome.resumed} found "

@@ -15,7 +15,7 @@
 from delaytrack.sweeps.executors import DaskExecutor, LocalExecutor, make_executor
 from delaytrack.sweeps.parts import PartsScan, finished_units, run_unit, write_part
 from delaytrack.sweeps.report import write_sweep_outputs
-from delaytrack.sweeps.runner import SweepInterrupted, SweepOutcome, run_sweep
+from delaytrack.sweeps.runner import SweepInterrupted, SweepOutcome, SweepUnitsFailed, run_sweep
 from delaytrack.sweeps.spec import DISTRIBUTIONS, Run, SweepError, SweepSpec, Unit
 from delaytrack.sweeps.summary import summary_table
 
@@ -29,6 +29,7 @@ __all__ = [
     "SweepInterrupted",
     "SweepOutcome",
     "SweepSpec",
+    "SweepUnitsFailed",
     "Unit",
     "finished_units",
     "make_executor",

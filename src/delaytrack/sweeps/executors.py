@@ -1,8 +1,9 @@
 """Where a sweep's work units run: this process on every local core, or a Dask cluster.
 
 An executor takes the units still to do and yields ``(unit, results frame)`` as each finishes, in
-any order; the caller (:func:`delaytrack.sweeps.run_sweep`) writes each part as it arrives, so an
-interruption loses only the units in flight.
+any order, or ``(unit, exception)`` for a unit that failed (the others go on); the caller
+(:func:`delaytrack.sweeps.run_sweep`) writes each part as it arrives, so an interruption loses
+only the units in flight.
 
 - :class:`LocalExecutor` (the default): one unit after another in this process, each unit's runs
   batched by :func:`~delaytrack.sim.simulate` on a thread pool over all cores. Nothing to start.
@@ -27,21 +28,32 @@ from delaytrack.sim.simulate import available_cores
 from delaytrack.sweeps.parts import run_unit
 from delaytrack.sweeps.spec import SweepError, Unit
 
-__all__ = ["DaskExecutor", "Executor", "LocalExecutor", "compute_part", "make_executor"]
+__all__ = [
+    "DaskExecutor",
+    "Executor",
+    "LocalExecutor",
+    "UnitOutcome",
+    "compute_part",
+    "make_executor",
+]
 
 #: ``--scheduler`` value that starts a local Dask cluster.
 LOCAL_CLUSTER = "local-cluster"
 _ADDRESS = re.compile(r"^(tcp|tls|ucx|ws|wss|inproc)://\S+$")
 
 
+#: What an executor yields per unit: its :func:`run_unit` frame, or the exception it raised.
+UnitOutcome = tuple[Unit, pd.DataFrame | Exception]
+
+
 class Executor(Protocol):
-    """Runs units and yields each ``(unit, frame)`` as it finishes; :meth:`close` frees it."""
+    """Runs units and yields each :data:`UnitOutcome` as it finishes; :meth:`close` frees it."""
 
     #: One line for logs and the report (``"local: 2 threads"``, ``"dask: tcp://..."``).
     description: str
 
-    def results(self, units: Sequence[Unit]) -> Iterator[tuple[Unit, pd.DataFrame]]:
-        """Yield every unit of ``units`` once, with :func:`run_unit`'s frame, as it finishes."""
+    def results(self, units: Sequence[Unit]) -> Iterator[UnitOutcome]:
+        """Yield every unit of ``units`` once, with its frame or its exception, as it ends."""
         ...
 
     def close(self) -> None:
@@ -64,9 +76,14 @@ class LocalExecutor:
         self.workers = workers
         self.description = f"local: {workers or available_cores()} threads"
 
-    def results(self, units: Sequence[Unit]) -> Iterator[tuple[Unit, pd.DataFrame]]:
+    def results(self, units: Sequence[Unit]) -> Iterator[UnitOutcome]:
         for unit in units:
-            yield unit, run_unit(unit, workers=self.workers)
+            try:
+                frame = run_unit(unit, workers=self.workers)
+            except Exception as error:  # one unit's failure must not cost the others
+                yield unit, error
+            else:
+                yield unit, frame
 
     def close(self) -> None:
         """Nothing to release."""
@@ -132,7 +149,7 @@ class DaskExecutor:
         distributed = _distributed()
         self._cluster = None
         self.retries = retries
-        self._futures: list[Any] = []
+        self._futures: set[Any] = set()
         if scheduler == LOCAL_CLUSTER:
             count = workers or available_cores()
             # ":0": any free port for the scheduler's HTTP server (two local clusters coexist).
@@ -156,7 +173,7 @@ class DaskExecutor:
                 f"({error}); start one (dask scheduler) or check the address"
             ) from None
 
-    def results(self, units: Sequence[Unit]) -> Iterator[tuple[Unit, pd.DataFrame]]:
+    def results(self, units: Sequence[Unit]) -> Iterator[UnitOutcome]:
         distributed = _distributed()
         owner = {}
         for unit in units:
@@ -168,19 +185,23 @@ class DaskExecutor:
                 pure=False,
             )
             owner[future.key] = unit
-            self._futures.append(future)
-        for future in distributed.as_completed(self._futures):
-            frame = future.result()
+            self._futures.add(future)
+        for future in distributed.as_completed(list(self._futures)):
+            self._futures.discard(future)
+            try:
+                outcome = future.result()
+            except Exception as error:  # retries spent, or the task's workers kept dying
+                outcome = error
             future.release()
-            yield owner[future.key], frame
+            yield owner[future.key], outcome
 
     def close(self) -> None:
         """Cancel unfinished tasks, then close the client and any cluster this executor started."""
         client = getattr(self, "client", None)
         if client is not None:
             if self._futures:
-                client.cancel(self._futures)
-                self._futures = []
+                client.cancel(list(self._futures))
+                self._futures = set()
             client.close()
             self.client = None
         if self._cluster is not None:

@@ -31,7 +31,7 @@ from delaytrack.sweeps.executors import Executor, LocalExecutor
 from delaytrack.sweeps.parts import finished_units, value_column, write_part
 from delaytrack.sweeps.spec import SweepError, SweepSpec
 
-__all__ = ["SweepInterrupted", "SweepOutcome", "run_sweep"]
+__all__ = ["SweepInterrupted", "SweepOutcome", "SweepUnitsFailed", "run_sweep"]
 
 
 class SweepInterrupted(KeyboardInterrupt):
@@ -43,6 +43,20 @@ class SweepInterrupted(KeyboardInterrupt):
             "the same command again to resume"
         )
         self.folder, self.done, self.total = folder, done, total
+
+
+class SweepUnitsFailed(SweepError):
+    """Some units raised; ``failures`` maps unit index -> error. Every other part was written."""
+
+    def __init__(self, folder: Path, failures: Mapping[int, str], done: int, total: int) -> None:
+        shown = "; ".join(f"unit {k}: {reason}" for k, reason in list(failures.items())[:5])
+        more = f"; and {len(failures) - 5} more" if len(failures) > 5 else ""
+        super().__init__(
+            f"{len(failures)} of {total} units failed ({shown}{more}); the parts of the {done} "
+            f"finished units are kept in {folder}: fix the cause and run the same command to "
+            "compute the failed units"
+        )
+        self.folder, self.failures, self.done, self.total = folder, dict(failures), done, total
 
 
 @dataclass(frozen=True)
@@ -144,6 +158,8 @@ def run_sweep(
     ------
     SweepInterrupted
         On Ctrl-C, after cancelling the units in flight; finished parts stay.
+    SweepUnitsFailed
+        When units raised: after every other unit ran and was written.
     SweepError
         If another sweep holds the folder.
     """
@@ -168,8 +184,12 @@ def run_sweep(
                 disable=not progress,
                 dynamic_ncols=True,
             )
+            failures: dict[int, str] = {}
             try:
                 for unit, frame in executor.results(pending):
+                    if isinstance(frame, Exception):
+                        failures[unit.index] = f"{type(frame).__name__}: {frame}"
+                        continue
                     write_part(frame, unit, parts)
                     done += 1
                     bar.update(len(unit.runs))
@@ -178,6 +198,8 @@ def run_sweep(
                 raise SweepInterrupted(folder, done, len(units)) from None
             finally:
                 bar.close()
+            if failures:
+                raise SweepUnitsFailed(folder, dict(sorted(failures.items())), done, len(units))
             runs = _read_runs(parts, spec)
             write_frame(runs, folder / "runs.parquet")
             write_frame(runs, folder / "runs.csv")

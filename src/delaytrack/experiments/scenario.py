@@ -410,8 +410,12 @@ class Scenario:
         Running the resolved scenario gives the same result; it is what gets saved as the
         scenario "as run".
         """
+        return self.resolved_and_built()[0]
+
+    def resolved_and_built(self) -> tuple[Scenario, BuiltScenario]:
+        """:meth:`resolved` and :meth:`build` from one construction (sweeps check every run)."""
         built = self.build()
-        return self.replace(x0=tuple(built.x0.tolist()), delay=self._delay_spec())
+        return self.replace(x0=tuple(built.x0.tolist()), delay=self._delay_spec()), built
 
     def run(self, *, progress: bool = False) -> SimResult:
         """Simulate the scenario (batch of one); see :func:`delaytrack.sim.simulate`."""

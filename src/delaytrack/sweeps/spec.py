@@ -49,6 +49,7 @@ import delaytrack
 from delaytrack._numba_cache import source_hash
 from delaytrack._validation import is_integer_at_least
 from delaytrack.experiments.scenario import (
+    BuiltScenario,
     Scenario,
     ScenarioError,
     builtin_scenario_names,
@@ -390,8 +391,8 @@ class SweepSpec:
 
     def _run(self, index: int, values: dict[str, Any], base: Mapping[str, Any]) -> Run:
         try:
-            scenario = Scenario.from_dict(_apply(base, values)).resolved()
-            _check_runnable(scenario)
+            scenario, built = Scenario.from_dict(_apply(base, values)).resolved_and_built()
+            _check_runnable(scenario, built)
         except ScenarioError as error:
             message = str(error)
             named = [key for key in values if f"'{key}'" in message or f"[{key}]" in message]
@@ -422,10 +423,9 @@ class SweepSpec:
         return tuple(k for k in (*self.grid, *chosen) if k.startswith("controller."))
 
 
-def _check_runnable(scenario: Scenario) -> None:
+def _check_runnable(scenario: Scenario, built: BuiltScenario) -> None:
     """What :func:`~delaytrack.sim.simulate` checks before a run: the controller can run at
     ``T_c`` under delays up to ``h_max`` (a predictor's history)."""
-    built = scenario.build()
     try:
         built.controller.check_run(scenario.T_c, float(built.delay.h_max))
     except ValueError as error:

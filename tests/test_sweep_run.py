@@ -183,7 +183,7 @@ def test_a_changed_spec_recomputes_only_changed_units(reference, tmp_path):
     assert list(outcome.runs["controller.K1"]) == [1.0] * 12 + [3.0] * 12
 
 
-def test_a_second_sweep_on_the_same_folder_is_refused(tmp_path):
+def test_a_second_sweep_on_the_same_folder_is_refused(reference, tmp_path):
     fcntl = pytest.importorskip("fcntl")
     out = tmp_path / "sweep"
     out.mkdir()
@@ -191,6 +191,11 @@ def test_a_second_sweep_on_the_same_folder_is_refused(tmp_path):
         fcntl.flock(handle, fcntl.LOCK_EX)
         with pytest.raises(SweepError, match="another sweep is writing to"):
             run_sweep(small_spec(), out, progress=False)
+    # The report is written under the same lock.
+    with open(reference.folder / ".lock", "w") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        with pytest.raises(SweepError, match="another sweep is writing to"):
+            write_sweep_outputs(reference)
 
 
 def test_summary_statistics_and_classes():

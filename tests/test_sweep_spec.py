@@ -146,7 +146,8 @@ def test_random_delay_takes_the_drawn_scenario_seed():
             "unknown sweep key 'extra'; valid keys are ['scenario', 'unit_size', 'draws', 'seed', "
             "'metrics', 'grid', 'random']",
         ),
-        ({"random": {}}, "sweep key 'draws' needs a [random] table to draw from"),
+        ({"random": {}}, "sweep table [random] is empty; give it at least one key or leave it"),
+        ({"grid": {}}, "sweep table [grid] is empty; give it at least one key or leave it out"),
         (
             {"draws": 0},
             "sweep key 'draws' must be a positive integer; got 0",
@@ -317,7 +318,7 @@ def test_a_run_the_controller_cannot_take_is_refused_on_load():
     data = spec_dict(
         grid={"controller": [pcon], "delay": [{"type": "constant", "h": 0.2}]}, random={}
     )
-    del data["draws"], data["seed"]
+    del data["draws"], data["seed"], data["random"]
     with pytest.raises(SweepError, match=r"\(run 0\): .*exceeds history = 0.1 s"):
         SweepSpec.from_dict(data)
 

@@ -24,7 +24,7 @@ from matplotlib.figure import Figure
 from delaytrack import __version__
 from delaytrack._io import write_frame
 from delaytrack.report import HtmlReport, save_figure
-from delaytrack.sweeps.runner import SweepOutcome
+from delaytrack.sweeps.runner import SweepOutcome, folder_lock
 from delaytrack.sweeps.summary import (
     STATISTICS,
     controller_labels,
@@ -192,7 +192,16 @@ def sweep_figures(
 def write_sweep_outputs(
     outcome: SweepOutcome, *, formats: Sequence[str] = ("png", "svg")
 ) -> list[Path]:
-    """Write ``summary.csv``, the figures and ``report.html`` into the sweep's folder."""
+    """Write ``summary.csv``, the figures and ``report.html`` into the sweep's folder.
+
+    The folder's lock (:func:`~delaytrack.sweeps.runner.folder_lock`) is held meanwhile, so a
+    sweep started on the same folder cannot change the runs under the report.
+    """
+    with folder_lock(outcome.folder):
+        return _write_outputs(outcome, formats)
+
+
+def _write_outputs(outcome: SweepOutcome, formats: Sequence[str]) -> list[Path]:
     folder = outcome.folder
     metrics = list(outcome.spec.metrics or default_metrics(outcome.runs))
     keys = outcome.spec.label_keys

@@ -4,7 +4,7 @@ Folder layout (``out``)::
 
     parts/part-<unit>-<hash12>.parquet   one per finished unit, written atomically
     runs.parquet, runs.csv               every run, in run order (when the sweep is complete)
-    .lock                                held while a sweep writes here
+    .lock                                held while a sweep or its report writes here
 
 :func:`run_sweep` skips the units whose part is valid for this spec
 (:func:`~delaytrack.sweeps.finished_units`), runs the others with an executor
@@ -31,7 +31,7 @@ from delaytrack.sweeps.executors import Executor, LocalExecutor
 from delaytrack.sweeps.parts import finished_units, value_column, write_part
 from delaytrack.sweeps.spec import SweepError, SweepSpec
 
-__all__ = ["SweepInterrupted", "SweepOutcome", "SweepUnitsFailed", "run_sweep"]
+__all__ = ["SweepInterrupted", "SweepOutcome", "SweepUnitsFailed", "folder_lock", "run_sweep"]
 
 
 class SweepInterrupted(KeyboardInterrupt):
@@ -92,8 +92,14 @@ class SweepOutcome:
 
 
 @contextlib.contextmanager
-def _exclusive(folder: Path) -> Iterator[None]:
-    """Hold ``folder/.lock`` (POSIX ``flock``) so two sweeps never write the same folder."""
+def folder_lock(folder: Path) -> Iterator[None]:
+    """Hold ``folder/.lock`` (POSIX ``flock``) so two sweeps never write the same folder.
+
+    Raises
+    ------
+    SweepError
+        When another process holds it.
+    """
     try:
         import fcntl
     except ImportError:  # Windows: no advisory lock
@@ -170,7 +176,7 @@ def run_sweep(
     units = spec.units()
     try:
         parts.mkdir(parents=True, exist_ok=True)
-        with _exclusive(folder):
+        with folder_lock(folder):
             _remove_temporaries(parts)
             scan = finished_units(parts, spec)
             pending = [unit for unit in units if unit.index not in scan.finished]

@@ -316,6 +316,11 @@ class SweepSpec:
                 raise SweepError(f"sweep spec is missing the required key {key!r}")
         if "grid" not in data and "random" not in data:
             raise SweepError("sweep spec needs a [grid] table, a [random] table or both")
+        for table in ("grid", "random"):
+            if table in data and isinstance(data[table], Mapping) and not data[table]:
+                raise SweepError(
+                    f"sweep table [{table}] is empty; give it at least one key or leave it out"
+                )
         grid = data.get("grid", {})
         if not isinstance(grid, Mapping):
             raise SweepError(f"sweep key 'grid' must be a table; got {grid!r}")

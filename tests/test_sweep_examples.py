@@ -28,6 +28,7 @@ def test_robot_example_is_1000_draws_of_three_controllers(robot):
         assert column[:1000] == column[1000:2000] == column[2000:]
     h_high = np.array([run.values["delay.h_high"] for run in robot.runs[:1000]])
     assert 0.05 <= h_high.min() and h_high.max() <= 0.2
+    # 1000 integers drawn from 0..10^6 share a value about 0.5 times on average (birthdays).
     assert len({run.values["plant.seed"] for run in robot.runs[:1000]}) > 990
 
 

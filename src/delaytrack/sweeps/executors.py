@@ -61,6 +61,12 @@ class Executor(Protocol):
         ...
 
 
+def _checked_workers(workers: int | None) -> int | None:
+    if workers is not None and not is_integer_at_least(workers, 1):
+        raise SweepError(f"workers must be a positive integer or None; got {workers!r}")
+    return workers
+
+
 class LocalExecutor:
     """Units one after another in this process; each unit's batch on ``workers`` threads.
 
@@ -71,9 +77,7 @@ class LocalExecutor:
     """
 
     def __init__(self, workers: int | None = None) -> None:
-        if workers is not None and not is_integer_at_least(workers, 1):
-            raise SweepError(f"workers must be a positive integer or None; got {workers!r}")
-        self.workers = workers
+        self.workers = _checked_workers(workers)
         self.description = f"local: {workers or available_cores()} threads"
 
     def results(self, units: Sequence[Unit]) -> Iterator[UnitOutcome]:
@@ -137,9 +141,7 @@ class DaskExecutor:
                 f"--scheduler must be '{LOCAL_CLUSTER}' or a Dask scheduler address such as "
                 f"'tcp://10.0.0.5:8786'; got {scheduler!r}"
             )
-        if workers is not None and not is_integer_at_least(workers, 1):
-            raise SweepError(f"workers must be a positive integer or None; got {workers!r}")
-        if workers is not None and scheduler != LOCAL_CLUSTER:
+        if _checked_workers(workers) is not None and scheduler != LOCAL_CLUSTER:
             raise SweepError(
                 f"--workers {workers} applies to the local executor and to --scheduler "
                 f"{LOCAL_CLUSTER}; a running cluster ({scheduler}) has the workers it has"

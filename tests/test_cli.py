@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from delaytrack._output import MANIFEST
 from delaytrack.analysis import razumikhin_bound
 from delaytrack.cli import main
 from delaytrack.experiments import Scenario, load_builtin
@@ -170,7 +171,8 @@ def test_simulate_writes_every_promised_file(short_scenario, tmp_path, capsys):
     ]
     for name in expected:
         assert (out / name).is_file() and (out / name).stat().st_size > 0, name
-    assert not [p for p in out.rglob(".*") if p.is_file()], "temporary files left behind"
+    hidden = [p for p in out.rglob(".*") if p.is_file() and p.name != MANIFEST]
+    assert not hidden, "temporary files left behind"
 
     metrics = pd.read_csv(out / "metrics.csv")
     assert len(metrics) == 1 and metrics.loc[0, "status"] == "ok"

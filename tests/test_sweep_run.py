@@ -1,5 +1,6 @@
 """run_sweep with the local executor: complete, resumable, interruptible, corrupt parts redone."""
 
+import errno
 import signal
 import subprocess
 import sys
@@ -20,12 +21,14 @@ from delaytrack.sweeps import (
     SweepInterrupted,
     SweepSpec,
     SweepUnitsFailed,
+    finished_units,
     run_sweep,
     run_unit,
     summary_table,
     write_sweep_outputs,
 )
 from delaytrack.sweeps import executors as executors_module
+from delaytrack.sweeps import runner as runner_module
 from delaytrack.sweeps.summary import controller_labels, delay_classes
 
 EXAMPLE = Path(__file__).parents[1] / "examples" / "sweep_small.toml"
@@ -254,40 +257,102 @@ def test_cli_sweep_runs_resumes_and_refuses_bad_arguments(tmp_path, capsys):
     assert "does not exist" in capsys.readouterr().err
 
 
+#: A ``delaytrack sweep`` command whose units from the third on wait for Ctrl-C: the first two
+#: parts are written, then the file ``argv[1]`` says the command is blocked in unit 2.
+BLOCKING_COMMAND = """
+import signal, sys, time
+from pathlib import Path
+
+# A process started from a background job inherits SIGINT ignored, and Python then keeps it so.
+signal.signal(signal.SIGINT, signal.default_int_handler)
+from delaytrack.cli import main
+from delaytrack.sweeps import executors
+
+real_run_unit, blocked = executors.run_unit, Path(sys.argv[1])
+
+
+def run_unit(unit, **kwargs):
+    if unit.index < 2:
+        return real_run_unit(unit, **kwargs)
+    blocked.touch()
+    time.sleep(3600)  # ended by Ctrl-C
+
+
+executors.run_unit = run_unit
+sys.exit(main(sys.argv[2:]))
+"""
+
+
 @pytest.mark.slow
 def test_ctrl_c_on_the_command_keeps_finished_parts(tmp_path):
-    """SIGINT to a running ``delaytrack sweep``: exit 130, finished parts kept, no temporary
-    files; the same command then computes only the units that were missing."""
+    """SIGINT to a running ``delaytrack sweep``: exit 130, the two finished parts kept and
+    counted, no temporary files; the same command then computes only the missing units."""
     spec_file = tmp_path / "sweep.toml"
-    text = EXAMPLE.read_text().replace("duration = [1.0]", "duration = [60.0]")
-    spec_file.write_text(text.replace("unit_size = 8", "unit_size = 1"))
-    out = tmp_path / "out"
-    # The command's own entry point, with Python's Ctrl-C handler installed explicitly: a
-    # process started from a background job inherits SIGINT ignored, and Python then keeps it so.
-    code = (
-        "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
-        "from delaytrack.cli import main; sys.exit(main(sys.argv[1:]))"
-    )
+    text = EXAMPLE.read_text().replace("duration = [1.0]", "duration = [0.1]")
+    spec_file.write_text(text.replace("unit_size = 8", "unit_size = 4"))
+    out, blocked, log = tmp_path / "out", tmp_path / "blocked", tmp_path / "stderr.txt"
     arguments = ["sweep", str(spec_file), "--out", str(out), "--quiet", "--workers", "1"]
-    process = subprocess.Popen(
-        [sys.executable, "-c", code, *arguments], stderr=subprocess.PIPE, text=True
-    )
-    deadline = time.monotonic() + 300
-    while not list((out / "parts").glob("part-*.parquet")) and time.monotonic() < deadline:
-        time.sleep(0.01)
-    process.send_signal(signal.SIGINT)
-    _, stderr = process.communicate(timeout=120)
-    assert process.returncode == 130, stderr
-    kept = sorted(path.name for path in (out / "parts").glob("part-*.parquet"))
-    assert 0 < len(kept) < 24
-    assert f"sweep interrupted: {len(kept)} of 24 units done" in stderr
-    assert not list((out / "parts").glob(".part-*"))
+    with open(log, "w") as stderr:
+        process = subprocess.Popen(
+            [sys.executable, "-c", BLOCKING_COMMAND, str(blocked), *arguments], stderr=stderr
+        )
+    try:
+        # Generous: the child may compile the simulation kernels first on a loaded machine.
+        deadline = time.monotonic() + 300
+        while not blocked.exists():
+            assert process.poll() is None, log.read_text()
+            assert time.monotonic() < deadline, "the sweep never reached its third unit"
+            time.sleep(0.05)
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=120) == 130, log.read_text()
+    finally:
+        process.kill()
+        process.wait()
     spec = SweepSpec.from_toml(spec_file)
+    assert finished_units(out / "parts", spec).finished == {0, 1}
+    assert "sweep interrupted: 2 of 6 units done" in log.read_text()
+    assert not list((out / "parts").glob(".part-*"))
     executor = CountingExecutor()
     outcome = run_sweep(spec, out, executor=executor, progress=False)
-    missing = [unit.index for unit in spec.units() if unit.part_name not in kept]
-    assert executor.ran == missing and outcome.resumed == len(kept)
+    assert executor.ran == [2, 3, 4, 5] and outcome.resumed == 2
     assert list(outcome.runs["run"]) == list(range(24))
+
+
+@pytest.mark.parametrize("written", [True, False], ids=["after-rename", "before-rename"])
+def test_an_interrupted_sweep_counts_the_parts_on_disk(tmp_path, monkeypatch, written):
+    """Ctrl-C while unit 2's part is written, just after its rename into place or before it
+    (over a corrupt part of unit 2 from an earlier run, with the write's temporary file left):
+    the reported count is the number of valid parts on disk, and no temporary file stays."""
+    real_write_part = runner_module.write_part
+    spec = small_spec()
+    out = tmp_path / "sweep"
+    parts = out / "parts"
+    parts.mkdir(parents=True)
+    stale = parts / spec.units()[2].part_name
+    stale.write_bytes(b"not parquet at all")
+
+    def interrupted_write_part(frame, unit, folder):
+        if unit.index != 2:
+            return real_write_part(frame, unit, folder)
+        if written:
+            real_write_part(frame, unit, folder)
+        else:
+            (parts / f".{unit.part_name}.abc123.parquet").write_bytes(b"half a part")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner_module, "write_part", interrupted_write_part)
+    with pytest.raises(SweepInterrupted) as stopped:
+        run_sweep(spec, out, executor=CountingExecutor(), progress=False)
+    finished = finished_units(parts, spec).finished
+    assert finished == ({0, 1, 2} if written else {0, 1})
+    assert (stopped.value.done, stopped.value.total) == (len(finished), 5)
+    assert f"{len(finished)} of 5 units done" in str(stopped.value)
+    assert stale.exists() and not list(parts.glob(".part-*"))
+    monkeypatch.setattr(runner_module, "write_part", real_write_part)
+    executor = CountingExecutor()
+    outcome = run_sweep(spec, out, executor=executor, progress=False)
+    assert executor.ran == [k for k in range(5) if k not in finished]
+    assert outcome.resumed == len(finished)
 
 
 def test_a_key_with_numbers_in_one_unit_and_text_in_another(tmp_path):
@@ -362,3 +427,37 @@ def test_a_failing_unit_costs_only_itself(reference, tmp_path, monkeypatch, caps
     outcome = run_sweep(small_spec(), out, executor=executor, progress=False)
     assert executor.ran == [2]
     pd.testing.assert_frame_equal(outcome.runs, reference.runs, check_exact=True)
+
+
+def test_a_full_disk_keeps_the_finished_parts_and_resumes(tmp_path, monkeypatch):
+    """The disk fills while unit 2's part is written: the error says so, the half-written
+    temporary file is removed, units 0 and 1 stay finished, and the next call computes the
+    rest."""
+    real_write_part = runner_module.write_part
+    real_write_table = pq.write_table
+    spec = small_spec()
+    out = tmp_path / "sweep"
+
+    def no_space(table, where, *args, **kwargs):
+        Path(where).write_bytes(b"half a part")
+        raise OSError(errno.ENOSPC, "No space left on device", str(where))
+
+    def full_disk_write_part(frame, unit, folder):
+        if unit.index != 2:
+            return real_write_part(frame, unit, folder)
+        with monkeypatch.context() as patch:
+            patch.setattr(pq, "write_table", no_space)
+            return real_write_part(frame, unit, folder)
+
+    monkeypatch.setattr(runner_module, "write_part", full_disk_write_part)
+    with pytest.raises(OSError, match="No space left on device"):
+        run_sweep(spec, out, executor=CountingExecutor(), progress=False)
+    assert pq.write_table is real_write_table
+    parts = out / "parts"
+    assert finished_units(parts, spec).finished == {0, 1}
+    assert not [p for p in parts.iterdir() if p.name.startswith(".")]
+    monkeypatch.setattr(runner_module, "write_part", real_write_part)
+    executor = CountingExecutor()
+    outcome = run_sweep(spec, out, executor=executor, progress=False)
+    assert executor.ran == [2, 3, 4]
+    assert outcome.resumed == 2

@@ -12,6 +12,8 @@ from collections.abc import Sequence
 import numpy as np
 
 __all__ = [
+    "BEYOND_CHOICES",
+    "beyond_choice",
     "integer_multiple",
     "is_integer_at_least",
     "as_spd_matrix",
@@ -22,6 +24,21 @@ __all__ = [
 ]
 
 _SYMMETRY_RTOL = 1e-10
+
+#: What a time-limited input (a measured trace, a seeded random walk, a payload schedule) does
+#: after the time its data covers: ``"refuse"`` a run that lasts longer, or ``"hold"`` its last
+#: state, as the user chose.
+BEYOND_CHOICES = ("refuse", "hold")
+
+
+def beyond_choice(value: object) -> str:
+    """Check a ``beyond`` argument (one of :data:`BEYOND_CHOICES`)."""
+    if value not in BEYOND_CHOICES:
+        raise ValueError(
+            f"beyond must be one of {list(BEYOND_CHOICES)} (what happens after the time the "
+            f"data covers); got {value!r}"
+        )
+    return str(value)
 
 
 def is_integer_at_least(value: object, least: int) -> bool:
@@ -46,6 +63,8 @@ def integer_multiple(value: float, unit: float, *, scale: float = 0.0) -> int | 
     ``scale`` (for a duration ``t1 - t0`` computed from large times, ``scale = max |t|``).
     """
     ratio = value / unit
+    if not math.isfinite(ratio):
+        return None
     count = round(ratio)
     tolerance = 1e-9 * max(1.0, abs(ratio)) + 4.0 * np.finfo(float).eps * scale / unit
     if count < 1 or abs(ratio - count) > tolerance:

@@ -29,6 +29,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from delaytrack._output import (
+    OutputFolderError,
+    check_output_folder,
+    check_writable_location,
+)
+
 if TYPE_CHECKING:
     from delaytrack.analysis import RazumikhinBound
 
@@ -55,7 +61,13 @@ def _numbers(flag: str, text: str) -> np.ndarray:
             f"{flag} must be a number or a comma-separated list of numbers; got {text!r}"
         ) from None
     if not np.all(np.isfinite(values)):
-        raise UsageError(f"{flag} must be finite; got {text!r}")
+        raise UsageError(f"{flag} must be finite (doubles reach about 1.8e308); got {text!r}")
+    for part, value in zip(parts, values, strict=True):
+        if value == 0.0 and any(digit in part.lower().partition("e")[0] for digit in "123456789"):
+            raise UsageError(
+                f"{flag} entry {part} is too close to 0 for double precision: it rounds to 0 "
+                f"(nonzero doubles have a magnitude of at least about 4.9e-324); got {text!r}"
+            )
     return values
 
 
@@ -66,7 +78,12 @@ def _scalar(flag: str, text: str) -> float:
         what = "a single number" if "," in text else "a number"
         raise UsageError(f"{flag} must be {what}; got {text!r}") from None
     if not math.isfinite(value):
-        raise UsageError(f"{flag} must be finite; got {text!r}")
+        raise UsageError(f"{flag} must be finite (doubles reach about 1.8e308); got {text!r}")
+    if value == 0.0 and any(digit in text.lower().partition("e")[0] for digit in "123456789"):
+        raise UsageError(
+            f"{flag} = {text.strip()} is too close to 0 for double precision: it rounds to 0 "
+            f"(nonzero doubles have a magnitude of at least about 4.9e-324); got {text!r}"
+        )
     return value
 
 
@@ -238,8 +255,11 @@ def _design(args: argparse.Namespace) -> int:
             f"--gain-bound must be > 0 (the largest diagonal entry of K1 and K2); "
             f"got {args.gain_bound}"
         )
-    if args.seed < 0:
-        raise UsageError(f"--seed must be a non-negative integer; got {args.seed}")
+    if not 0 <= args.seed <= 2**32 - 1:
+        raise UsageError(
+            f"--seed must be a non-negative integer; got {args.seed} (seeds run from 0 to "
+            f"2**32 - 1 = {2**32 - 1})"
+        )
     bandwidth = None
     if args.min_bandwidth is not None:
         bandwidth = _scalar("--min-bandwidth", args.min_bandwidth)
@@ -252,13 +272,15 @@ def _design(args: argparse.Namespace) -> int:
         design = design_gains(
             n=_joints(args.n), gain_bound=gain_bound, min_bandwidth=bandwidth, r=r, seed=args.seed
         )
-    except ValueError as error:  # min_bandwidth^2 above gain_bound
-        message = str(error).replace("min_bandwidth", "--min-bandwidth")
+    except ValueError as error:  # out of range: the message names the argument
+        message = _with_flag(str(error), {"r": "--r"}, {"--r": args.r})
+        message = message.replace("min_bandwidth", "--min-bandwidth")
         raise UsageError(message.replace("gain_bound", "--gain-bound")) from None
     if args.json:
         print(json.dumps(design.to_dict()))
         return 0
     gain = 100.0 * (design.h_m / design.reference_h_m - 1.0)
+    gain_text = f"{gain:+.2f}" if abs(gain) < 1e4 else f"{gain:+.3g}"
     bandwidth_text = "" if bandwidth is None else f"; sqrt(k1) >= {bandwidth:g} rad/s"
     print(
         f"Gain design for Theorem 1 (diagonal K1, K2, Q; every entry of K1 and K2 <= "
@@ -271,7 +293,7 @@ def _design(args: argparse.Namespace) -> int:
     )
     print(
         f"  h_m = {design.h_m:.6g} s ({1e3 * design.h_m:.4g} ms); the paper's K1 = K2 = Q = I, "
-        f"beta = 1: {design.reference_h_m:.6g} s ({gain:+.2f} %)"
+        f"beta = 1: {design.reference_h_m:.6g} s ({gain_text} %)"
     )
     print(
         f"  exact margin of these gains (constant delay): {design.exact.h:.6g} s at "
@@ -309,7 +331,11 @@ def _simulate(args: argparse.Namespace) -> int:
     from delaytrack.experiments import Scenario, run_to_folder
 
     scenario = Scenario.from_toml(_scenario_source(args.scenario))
-    folder = Path(args.out) if args.out is not None else Path("results") / scenario.name
+    folder = (
+        check_output_folder(args.out, "--out")
+        if args.out is not None
+        else check_output_folder(Path("results") / scenario.name, "the results folder")
+    )
     formats = ("parquet", "csv") if args.format == "both" else (args.format,)
     start = time.perf_counter()
     output = run_to_folder(scenario, folder, formats=formats, progress=args.progress)
@@ -394,6 +420,10 @@ def _empirical(args: argparse.Namespace) -> int:
 
 
 def _reproduce(args: argparse.Namespace) -> int:
+    out = Path(check_writable_location(args.out, "--out"))
+    folders = {"paper": ("paper-literal", "paper"), "two-link": ("two-link",)}
+    for name in folders.get(args.job, (args.job,)):
+        check_output_folder(out / name, "--out")
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UsageError(f"--duration must be a positive number of seconds; got {args.duration:g}")
     if args.job == "two-link":
@@ -456,7 +486,8 @@ def _reproduce_margins(args: argparse.Namespace) -> int:
     try:
         study, files = reproduce(args.out, duration=args.duration, progress=not args.quiet)
     except ValueError as error:  # a --duration too short for the job's tracking rule
-        raise UsageError(f"margins job: {error}") from None
+        message = _with_flag(str(error), {"duration": "--duration"}, {})
+        raise UsageError(f"margins job: {message}") from None
     seconds = time.perf_counter() - start
     folder = Path(args.out) / FOLDER
     print(f"margins job done in {seconds:.1f} s wall time; wrote {len(files)} files to {folder}/")
@@ -481,10 +512,13 @@ def _sweep(args: argparse.Namespace) -> int:
     workers = None
     if args.workers is not None:
         workers = _count("--workers", args.workers)
-    spec = SweepSpec.from_toml(args.spec)
     folder = (
         Path(args.out) if args.out is not None else Path("results/sweeps") / Path(args.spec).stem
     )
+    check_writable_location(folder, "--out" if args.out is not None else "the results folder")
+    if folder.exists() and not folder.is_dir():
+        raise UsageError(f"--out {str(folder)!r} is a file; it must name a folder")
+    spec = SweepSpec.from_toml(args.spec)
     print(
         f"sweep {args.spec}: {len(spec.runs)} runs in {len(spec.units())} units -> {folder}/",
         file=sys.stderr,
@@ -527,6 +561,12 @@ def _count(flag: str, text: str) -> int:
 def _tune_baselines(args: argparse.Namespace) -> int:
     from delaytrack.experiments.tuning import default_gains_path, tune_baselines, write_gains
 
+    if args.out is not None:
+        check_writable_location(args.out, "--out")
+        if Path(args.out).is_dir():
+            raise UsageError(
+                f"--out {args.out!r} is a folder; it must name the gains file to write"
+            )
     start = time.perf_counter()
     results = tune_baselines(progress=not args.quiet)
     path = write_gains(results, args.out)
@@ -802,7 +842,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.handler(args)
-    except (UsageError, ScenarioError) as error:
+    except (UsageError, ScenarioError, OutputFolderError) as error:
         print(f"error: {error}", file=sys.stderr)
         return EXIT_USAGE
     except OSError as error:

@@ -1,24 +1,34 @@
-"""Tracking and effort metrics of SPEC §6: small pure functions on a simulation result.
+"""Tracking and effort metrics of the paper's experiments: small pure functions on a result.
 
 The result is a :class:`~delaytrack.sim.SimResult`.
 
 Every function works on a batched result (``B`` runs) and returns one value per run (and per
 coordinate where that applies). Units are those of the result: radians for a joint angle,
-metres for a position, N·m for a torque. The definitions, over the recorded samples
-``i = 0 .. R-1`` with ``t_i >= t_from``:
+metres for a position, N·m for a torque. The definitions, over the controller ticks
+``k = 0 .. K-1`` of the metric window:
 
-    AE_j   = (1/R) Σ_i |e1_j(t_i)|                       mean absolute error of coordinate j
-    RMS_j  = sqrt((1/R) Σ_i e1_j(t_i)²)                  root-mean-square error
-    MAX_j  = max_i |e1_j(t_i)|                           largest absolute error
-    TV     = Σ_i Σ_j |command_j(t_{i+1}) - command_j(t_i)|   total variation of the commands
+    AE_j   = (1/K) Σ_k |e1_j(t_k)|                       mean absolute error of coordinate j
+    RMS_j  = sqrt((1/K) Σ_k e1_j(t_k)²)                  root-mean-square error
+    MAX_j  = max_k |e1_j(t_k)|                           largest absolute error
+    TV     = Σ_k Σ_j |command_j(t_{k+1}) - command_j(t_k)|   total variation of the commands
 
 with ``e1 = q_d - q``. The paper's %AE is :func:`percent_of` ``(AE, scale)``.
 
-**Runs that did not finish give NaN.** A diverged run (or one that stopped because the delay left
-the history) has NaN samples after its stop time, and its average over the part before the stop
-describes a different experiment — a shorter one, ending in a blow-up — so it is not comparable
-with the averages of complete runs. Returning NaN keeps it out of any comparison; read its
-``status`` and ``t_stop`` instead.
+**Always every tick.** Without ``t_from`` the metrics are the simulator's running metrics
+(:attr:`SimResult.metrics`; a result without them is measured on all its records),
+accumulated inside the run at every controller tick of its window
+(``simulate(metrics_from=...)``, the whole run by default), whatever was recorded. With
+``t_from`` they are taken from the recorded trajectories, which must then hold every tick
+(``record_every = 1``): a metric over every k-th sample would be another number (a TV over
+sparse samples is smaller, an AE over one sample is that sample), so it is refused rather than
+returned. Sums run tick by tick in time order, the order of the running metrics, so a run gives
+the same bits alone or in any batch.
+
+**Runs that did not finish give NaN.** A diverged run, one that left the path (a tracking error
+beyond ``error_bound``) or one that stopped because the delay left the history describes a
+different experiment — a shorter one, ending in a blow-up — so its averages are not comparable
+with those of complete runs. Returning NaN keeps it out of any comparison; read its ``status``
+and ``t_stop`` instead.
 """
 
 from __future__ import annotations
@@ -42,107 +52,132 @@ __all__ = [
 ]
 
 
-def _window(result: SimResult, t_from: float | None) -> np.ndarray:
-    """Boolean mask over the record times: ``t >= t_from`` (all records when ``t_from`` is None)."""
-    if not result.has_trajectories:
-        raise ValueError(
-            "this result has no recorded trajectories (simulate(..., trajectories=False)); "
-            "read its running metrics, result.metrics, or metrics_table(result)"
-        )
-    if t_from is None:
-        return np.ones(result.t.size, dtype=bool)
+def _sequential_sum(values: np.ndarray, axis: int) -> np.ndarray:
+    """``Σ`` along ``axis`` in index order (``np.sum`` adds pairwise, in an order that depends
+    on the array's shape; a running accumulation does not)."""
+    if values.shape[axis] == 0:
+        return np.zeros(np.delete(values.shape, axis))
+    return np.take(np.add.accumulate(values, axis=axis), -1, axis=axis)
+
+
+def _samples(result: SimResult, t_from: float) -> slice:
+    """The recorded ticks at or after ``t_from``; every tick must have been recorded."""
     start = float(t_from)
     if not np.isfinite(start):
         raise ValueError(f"t_from must be a finite time in seconds; got {t_from!r}")
-    mask = result.t >= start
-    if not np.any(mask):
+    if not result.has_trajectories or result.settings.get("record_every", 1) != 1:
+        raise ValueError(
+            f"t_from = {start:g} s takes the metrics from the recorded trajectories, which must "
+            "hold every controller tick (simulate(..., record_every=1)); this result has "
+            + (
+                "none"
+                if not result.has_trajectories
+                else f"every {result.settings['record_every']}-th"
+            )
+            + ". Give the window to simulate(..., metrics_from=...) instead: its running metrics "
+            "count every tick"
+        )
+    first = int(np.searchsorted(result.t, start, side="left"))
+    if first >= result.t.size:
         raise ValueError(
             f"t_from = {start:g} s leaves no records; the result ends at t = {result.t[-1]:g} s"
         )
-    return mask
+    return slice(first, None)
 
 
-def _errors(result: SimResult, t_from: float | None) -> np.ndarray:
-    """``|e1|`` on the window, shape (B, R', n), with every sample of a not-ok run set to NaN."""
-    absolute = np.abs(result.e1[:, _window(result, t_from), :])
-    absolute[~result.ok] = np.nan
-    return absolute
+def _metrics(result: SimResult, t_from: float | None) -> dict[str, np.ndarray]:
+    """``{"ae", "rms", "max" (B, n), "tv" (B,)}`` over the window (module docstring)."""
+    if t_from is None and result.metrics:
+        return {name: values.copy() for name, values in result.metrics.items()}
+    # A result without running metrics (one built by hand) is measured on its records.
+    window = _samples(result, result.t[0] if t_from is None else t_from)
+    errors = np.abs(result.e1[:, window, :])
+    count = errors.shape[1]
+    variation = np.abs(np.diff(result.commands[:, window, :], axis=1))
+    metrics = {
+        "ae": _sequential_sum(errors, axis=1) / count,
+        "rms": np.sqrt(_sequential_sum(errors * errors, axis=1) / count),
+        "max": np.max(errors, axis=1),
+        "tv": _sequential_sum(_sequential_sum(variation, axis=2), axis=1),
+    }
+    for values in metrics.values():
+        values[~result.ok] = np.nan
+    return metrics
 
 
 def mean_absolute_error(result: SimResult, *, t_from: float | None = None) -> np.ndarray:
-    """Mean absolute tracking error per coordinate, ``AE_j = mean_i |e1_j(t_i)|`` (SPEC §6).
+    """Mean absolute tracking error per coordinate, ``AE_j = (1/K) Σ_k |e1_j(t_k)|``.
+
+    The paper's AE (its Tables I-III, in mm for the robot).
 
     Parameters
     ----------
     result : SimResult
         A batched simulation result.
     t_from : float, optional
-        Ignore records before this time (seconds), e.g. to skip a transient.
+        Ignore ticks before this time (seconds), e.g. to skip a transient; needs trajectories
+        recorded at every tick. By default: the running metrics' window.
 
     Returns
     -------
     ndarray, shape (B, n)
         In the unit of ``q``; NaN for runs whose status is not ``ok`` (see the module docstring).
     """
-    return np.mean(_errors(result, t_from), axis=1)
+    return _metrics(result, t_from)["ae"]
 
 
 def rms_error(result: SimResult, *, t_from: float | None = None) -> np.ndarray:
-    """Root-mean-square tracking error per coordinate, ``sqrt(mean_i e1_j(t_i)²)``.
+    """Root-mean-square tracking error per coordinate, ``sqrt((1/K) Σ_k e1_j(t_k)²)``.
 
     Parameters
     ----------
     result : SimResult
     t_from : float, optional
-        Ignore records before this time (seconds).
+        Ignore ticks before this time (seconds); see :func:`mean_absolute_error`.
 
     Returns
     -------
     ndarray, shape (B, n)
         NaN for runs whose status is not ``ok``.
     """
-    return np.sqrt(np.mean(_errors(result, t_from) ** 2, axis=1))
+    return _metrics(result, t_from)["rms"]
 
 
 def max_abs_error(result: SimResult, *, t_from: float | None = None) -> np.ndarray:
-    """Largest absolute tracking error per coordinate, ``max_i |e1_j(t_i)|``.
+    """Largest absolute tracking error per coordinate, ``max_k |e1_j(t_k)|``.
 
     Parameters
     ----------
     result : SimResult
     t_from : float, optional
-        Ignore records before this time (seconds).
+        Ignore ticks before this time (seconds); see :func:`mean_absolute_error`.
 
     Returns
     -------
     ndarray, shape (B, n)
         NaN for runs whose status is not ``ok``.
     """
-    return np.max(_errors(result, t_from), axis=1)
+    return _metrics(result, t_from)["max"]
 
 
 def total_variation(result: SimResult, *, t_from: float | None = None) -> np.ndarray:
-    """Total variation of the commands, ``TV = Σ_i Σ_j |command_j(t_{i+1}) - command_j(t_i)|``.
+    """Total variation of the commands, ``TV = Σ_k Σ_j |command_j(t_{k+1}) - command_j(t_k)|``.
 
-    The sum runs over consecutive *recorded* command samples. It equals the paper's TV (taken
-    over every controller tick) only when the result was recorded with ``record_every = 1``; with
-    coarser recording it is smaller, because changes between records cancel.
+    The paper's TV, over every controller tick of the window.
 
     Parameters
     ----------
     result : SimResult
     t_from : float, optional
-        Use only the commands recorded at ``t >= t_from`` (seconds).
+        Use only the commands of ticks at ``t >= t_from`` (seconds); see
+        :func:`mean_absolute_error`.
 
     Returns
     -------
     ndarray, shape (B,)
         In the unit of the commands (N·m for torques); NaN for runs whose status is not ``ok``.
     """
-    commands = result.commands[:, _window(result, t_from), :]
-    variation = np.sum(np.abs(np.diff(commands, axis=1)), axis=(1, 2))
-    variation[~result.ok] = np.nan
-    return variation
+    return _metrics(result, t_from)["tv"]
 
 
 def percent_of(value: np.ndarray | float, scale: float) -> np.ndarray | float:
@@ -185,17 +220,15 @@ def metrics_table(
     label : str, optional
         If given, a first column ``label`` holding it (handy when concatenating tables).
     t_from : float, optional
-        Ignore records before this time (seconds).
+        Ignore ticks before this time (seconds); see :func:`mean_absolute_error`.
 
     Returns
     -------
     DataFrame
         Columns ``[label,] batch, status, t_stop, ae_<c>.., rms_<c>.., max_<c>.., tv``; metric
-        values are NaN for runs whose status is not ``ok``. With trajectories, the metrics are
-        taken over the recorded samples from ``t_from``; they equal the running metrics
-        (``result.metrics``, every tick from ``simulate(metrics_from=...)``) when
-        ``record_every = 1`` and ``t_from`` is that ``metrics_from``. A result without
-        trajectories (``simulate(..., trajectories=False)``) gives its running metrics.
+        values are NaN for runs whose status is not ``ok``. Every metric counts every
+        controller tick of the window (module docstring): the running metrics without
+        ``t_from``, the recorded trajectories (every tick) with it.
     """
     n = result.n
     names = [f"q{i + 1}" for i in range(n)] if coordinate_names is None else list(coordinate_names)
@@ -207,20 +240,7 @@ def metrics_table(
     columns["batch"] = np.arange(result.batch_size)
     columns["status"] = result.status_names
     columns["t_stop"] = np.asarray(result.t_stop, dtype=float)
-    if result.has_trajectories:
-        values = {
-            "ae": mean_absolute_error(result, t_from=t_from),
-            "rms": rms_error(result, t_from=t_from),
-            "max": max_abs_error(result, t_from=t_from),
-            "tv": total_variation(result, t_from=t_from),
-        }
-    elif t_from is None:
-        values = result.metrics
-    else:
-        raise ValueError(
-            "t_from selects recorded samples, and this result has none; give the window to "
-            "simulate(..., metrics_from=...) instead"
-        )
+    values = _metrics(result, t_from)
     for prefix in ("ae", "rms", "max"):
         for j, name in enumerate(names):
             columns[f"{prefix}_{name}"] = values[prefix][:, j]

@@ -37,6 +37,9 @@ _BRACKET_MARGIN = 1e-3
 #: A local extremum of |μ| / ω² − 1 within this distance of 0 is a tangential touch.
 _TOUCH_TOLERANCE = 1e-9
 
+#: Smallest positive normal double; a smaller margin has lost precision.
+_TINY = float(np.finfo(float).tiny)
+
 #: Largest crossing frequency handled: ω² and |μ| must stay finite with room to spare; its
 #: inverse is the smallest, below which ω K2 and ω² underflow.
 _LARGEST_FREQUENCY = 1e100
@@ -112,12 +115,14 @@ def _crossings_of_column(excess, omegas: np.ndarray, values: np.ndarray) -> list
     minimum of |excess| among the samples without a sign change, the excess is pushed towards
     zero over the two neighbouring intervals: if it comes within ``_TOUCH_TOLERANCE`` of zero,
     the frequency is a tangential touch and counts as one crossing; if it changes sign there,
-    two crossings hide between samples and both are refined.
+    two crossings hide between samples and both are refined. Brent's method stops within
+    1e-14 of the lowest frequency: relative, so as accurate for slow gains as for fast ones.
     """
+    xtol = 1e-14 * float(omegas[0])
     found: list[float] = []
     signs = np.sign(values)
     for i in np.flatnonzero(signs[:-1] * signs[1:] <= 0.0):
-        found.append(scipy.optimize.brentq(excess, omegas[i], omegas[i + 1], xtol=1e-14))
+        found.append(scipy.optimize.brentq(excess, omegas[i], omegas[i + 1], xtol=xtol))
     magnitude = np.abs(values)
     for i in range(1, len(values) - 1):
         same_sign = signs[i - 1] == signs[i] == signs[i + 1] != 0.0
@@ -136,8 +141,8 @@ def _crossings_of_column(excess, omegas: np.ndarray, values: np.ndarray) -> list
         if abs(value) <= _TOUCH_TOLERANCE:
             found.append(float(closest.x))
         elif np.sign(value) != sign:
-            found.append(scipy.optimize.brentq(excess, omegas[i - 1], closest.x, xtol=1e-14))
-            found.append(scipy.optimize.brentq(excess, closest.x, omegas[i + 1], xtol=1e-14))
+            found.append(scipy.optimize.brentq(excess, omegas[i - 1], closest.x, xtol=xtol))
+            found.append(scipy.optimize.brentq(excess, closest.x, omegas[i + 1], xtol=xtol))
     return found
 
 
@@ -190,9 +195,11 @@ def exact_delay_margin(K1: object, K2: object, *, n: int | None = None) -> Exact
     crossings); distinct delays at one frequency (two axes with one crossover) are all kept.
 
     Cost: 2 ms for n = 1, 80 ms for a dense n = 10, 0.7 s for a dense n = 30 (one core).
-    Diagonal gains decouple, so axes with equal (k1, k2) are computed once; the result is, per
-    axis,
-    ω_c = ω_c(k1, k2) and h = atan(ω_c k2 / k1) / ω_c; K1 = K2 = I gives h = 0.7111 s.
+    Diagonal gains decouple and are not scanned: each axis crosses once, at ω_c = ω_c(k1, k2),
+    with h = atan(ω_c k2 / k1) / ω_c (closed form, O(n)); K1 = K2 = I gives h = 0.7111 s.
+
+    **Range.** Crossing frequencies must lie within [1e-100, 1e100] rad/s and the margin must be
+    a normal double (>= 2.2e-308 s); gains outside are refused with the range in the message.
 
     Parameters
     ----------
@@ -212,7 +219,8 @@ def exact_delay_margin(K1: object, K2: object, *, n: int | None = None) -> Exact
     ------
     ValueError
         If a gain is not symmetric positive definite (the message gives its eigenvalues), is
-        not finite, or has the wrong shape (the message names the argument and the shape).
+        not finite, or has the wrong shape (the message names the argument and the shape), or
+        the gains are outside the range above (the message says which range).
     TypeError
         If a gain is not numeric.
 
@@ -221,37 +229,45 @@ def exact_delay_margin(K1: object, K2: object, *, n: int | None = None) -> Exact
     >>> round(exact_delay_margin(1.0, 1.0).h, 4)
     0.7111
     """
-    K1_matrix, K2_matrix = _distinct_axes(*_gains(K1, K2, n, spd=True))
-    low = _crossover_frequency(np.linalg.eigvalsh(K1_matrix)[0], np.linalg.eigvalsh(K2_matrix)[0])
-    high = _crossover_frequency(np.linalg.norm(K1_matrix, 2), np.linalg.norm(K2_matrix, 2))
+    K1_matrix, K2_matrix = _gains(K1, K2, n, spd=True)
+    (least_k1, largest_k1), (least_k2, largest_k2) = (
+        (float(values[0]), float(values[-1]))
+        for values in (np.linalg.eigvalsh(K1_matrix), np.linalg.eigvalsh(K2_matrix))
+    )
+    low, high = (
+        _crossover_frequency(least_k1, least_k2),
+        _crossover_frequency(largest_k1, largest_k2),
+    )
     if not high < _LARGEST_FREQUENCY:
         raise ValueError(
             f"K1 and K2 are too large for the margin to be computed in floating point: crossing "
-            f"frequencies may reach {high:.3g} rad/s (||K1|| = {np.linalg.norm(K1_matrix, 2):.3g}, "
-            f"||K2|| = {np.linalg.norm(K2_matrix, 2):.3g}); rescale time"
+            f"frequencies may reach {high:.3g} rad/s (||K1|| = {largest_k1:.3g}, ||K2|| = "
+            f"{largest_k2:.3g}); they must stay below {_LARGEST_FREQUENCY:g} rad/s, which "
+            f"||K1|| below about {0.5 * _LARGEST_FREQUENCY**2:g} and ||K2|| below about "
+            f"{0.5 * _LARGEST_FREQUENCY:g} ensure; rescale time"
         )
     if not low > 1.0 / _LARGEST_FREQUENCY:
         raise ValueError(
             f"K1 and K2 are too small for the margin to be computed in floating point: crossing "
             f"frequencies may be as low as {low:.3g} rad/s (smallest eigenvalues of K1 and K2: "
-            f"{np.linalg.eigvalsh(K1_matrix)[0]:.3g}, {np.linalg.eigvalsh(K2_matrix)[0]:.3g}); "
-            "rescale time"
-        )
-    omegas = np.geomspace(
-        low * (1.0 - _BRACKET_MARGIN), high * (1.0 + _BRACKET_MARGIN), _SCAN_POINTS
-    )
-    excesses = _moduli_excess(K1_matrix, K2_matrix, omegas)
-    frequencies: list[float] = []
-    for k in range(K1_matrix.shape[0]):
-        frequencies += _crossings_of_column(
-            _excess(K1_matrix, K2_matrix, k), omegas, excesses[:, k]
+            f"{least_k1:.3g}, {least_k2:.3g}); they must stay above {1.0 / _LARGEST_FREQUENCY:g} "
+            f"rad/s, which a smallest eigenvalue of K1 above {1.0 / _LARGEST_FREQUENCY**2:g} "
+            "ensures; rescale time"
         )
     crossings: list[tuple[float, float]] = []
-    for omega in frequencies:
-        for h in _first_delays(K1_matrix, K2_matrix, omega):
-            if not any(_same(omega, w) and _same(h, d) for d, w in crossings):
-                crossings.append((h, float(omega)))
+    for h, omega in _axis_crossings(K1_matrix, K2_matrix) or _scanned_crossings(
+        K1_matrix, K2_matrix, low, high
+    ):
+        if not any(_same(omega, w) and _same(h, d) for d, w in crossings):
+            crossings.append((h, omega))
     crossings.sort()
+    if not crossings[0][0] >= _TINY:
+        raise ValueError(
+            f"K2 is too small relative to K1 for the margin to be computed in floating point: "
+            f"it would be about {crossings[0][0]:.3g} s, below the smallest normal double "
+            f"{_TINY:.3g} (smallest eigenvalue of K2 {least_k2:.3g}, largest of K1 "
+            f"{largest_k1:.3g}); rescale time"
+        )
     return ExactDelayMargin(
         h=crossings[0][0],
         omega=crossings[0][1],
@@ -260,12 +276,34 @@ def exact_delay_margin(K1: object, K2: object, *, n: int | None = None) -> Exact
     )
 
 
-def _distinct_axes(K1: np.ndarray, K2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For diagonal K1, K2, one axis per distinct pair (k1, k2): the axes decouple."""
+def _axis_crossings(K1: np.ndarray, K2: np.ndarray) -> list[tuple[float, float]]:
+    """(h, ω) of every axis of diagonal K1, K2 in closed form; empty for non-diagonal gains.
+
+    Diagonal gains decouple into scalar loops (k2 s + k1) / s², each of which crosses once, at
+    ω_c(k1, k2) with h = atan(ω_c k2 / k1) / ω_c: exact, and O(n) where the scan is O(n³) per
+    frequency.
+    """
     if np.count_nonzero(K1 - np.diag(np.diag(K1))) or np.count_nonzero(K2 - np.diag(np.diag(K2))):
-        return K1, K2
-    axes = np.unique(np.column_stack([np.diag(K1), np.diag(K2)]), axis=0)
-    return np.diag(axes[:, 0]), np.diag(axes[:, 1])
+        return []
+    crossings = []
+    for k1, k2 in zip(np.diag(K1).tolist(), np.diag(K2).tolist(), strict=True):
+        omega = _crossover_frequency(k1, k2)
+        crossings.append((math.atan2(k2, k1 / omega) / omega, omega))  # ω k2 may underflow
+    return crossings
+
+
+def _scanned_crossings(
+    K1: np.ndarray, K2: np.ndarray, low: float, high: float
+) -> list[tuple[float, float]]:
+    """(h, ω) of every crossing found by scanning the bracket [low, high] (see the method)."""
+    omegas = np.geomspace(
+        low * (1.0 - _BRACKET_MARGIN), high * (1.0 + _BRACKET_MARGIN), _SCAN_POINTS
+    )
+    excesses = _moduli_excess(K1, K2, omegas)
+    frequencies: list[float] = []
+    for k in range(K1.shape[0]):
+        frequencies += _crossings_of_column(_excess(K1, K2, k), omegas, excesses[:, k])
+    return [(h, float(omega)) for omega in frequencies for h in _first_delays(K1, K2, omega)]
 
 
 def _same(a: float, b: float) -> bool:

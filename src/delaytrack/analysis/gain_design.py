@@ -22,8 +22,30 @@ from delaytrack.analysis.razumikhin import RazumikhinBound, _dimension, razumikh
 __all__ = ["GainDesign", "design_gains"]
 
 #: Each searched quantity spans this factor: gains from gain_bound / _SPAN to gain_bound, the
-#: ratio q_v / q_p and β from 1 / _SPAN to _SPAN.
+#: ratio q_v / q_p and γ = β / √r from 1 / _SPAN to _SPAN.
 _SPAN = 1e4
+
+#: Largest seed: numpy's legacy seeding, which differential_evolution uses, takes 32 bits.
+_LARGEST_SEED = 2**32 - 1
+
+#: Where gain_bound gives a trustworthy design, for messages (measured, r = 1.1): below, Theorem
+#: 1's bound cannot be computed near the optimum (it fails at 1e-8); above, the optimum k2
+#: (0.91 without min_bandwidth, at least 0.84 min_bandwidth with one above 1 rad/s) lies more
+#: than four decades below gain_bound, outside the search. The upper limit is for
+#: min_bandwidth <= 1 and scales with a larger one.
+_GAIN_BOUND_RANGE = (1e-7, 8e3)
+
+#: Largest min_bandwidth (rad/s) that gives a trustworthy design (measured: 3000 does, with
+#: k1 = 9e6; 1e4 does not, its bound cannot be computed near k1 = 1e8).
+_LARGEST_BANDWIDTH = 3e3
+
+#: Largest r for which the paper's h_m (2.76e-301 s at r = 1e300, falling as 1 / r) is a
+#: normal double.
+_LARGEST_R = 1.2e307
+
+#: A best point within this distance (in log space, a relative 1e-6) of a box edge is on it;
+#: also the step to the neighbours that must be computable.
+_EDGE = 1e-6
 
 
 @dataclass(frozen=True, eq=False)
@@ -111,18 +133,94 @@ class GainDesign:
 
 
 def _axis_h_m(log_parameters: np.ndarray, r: float) -> float:
-    """h_m of one axis with k1, k2, Q = diag(1, q_v), β = exp(log_parameters); 0 if unsolvable."""
-    k1, k2, q_v, beta = np.exp(log_parameters)
+    """h_m of one axis at (k1, k2, q_v, γ) = exp(log_parameters); 0 where it cannot be computed.
+
+    The axis has gains k1, k2, Q = diag(1, q_v) and β = √r γ.
+    """
+    k1, k2, q_v, gamma = np.exp(log_parameters)
     try:
-        return razumikhin_bound(k1, k2, [1.0, q_v], beta, r).h_m
-    except ValueError:  # Lyapunov equation too ill-conditioned at the edge of the search box
+        return razumikhin_bound(k1, k2, [1.0, q_v], math.sqrt(r) * gamma, r).h_m
+    except ValueError:  # out of the range where the bound can be computed
         return 0.0
 
 
 def _seed(seed: object) -> int:
-    if not is_integer_at_least(seed, 0):
-        raise ValueError(f"seed must be a non-negative integer; got {seed!r}")
+    if not (is_integer_at_least(seed, 0) and seed <= _LARGEST_SEED):
+        raise ValueError(
+            f"seed must be a non-negative integer; got {seed!r} (seeds run from 0 to "
+            f"2**32 - 1 = {_LARGEST_SEED})"
+        )
     return int(seed)
+
+
+def _paper_bound(r: object) -> RazumikhinBound:
+    """Theorem 1 for the paper's K1 = K2 = Q = I, β = 1 at this r (checks r)."""
+    try:
+        return razumikhin_bound(1.0, 1.0, 1.0, 1.0, r)
+    except ValueError as error:
+        if str(error).startswith("r must"):  # not a number > 1
+            raise
+        raise ValueError(
+            f"r is too large for the design: the paper's K1 = K2 = Q = I, beta = 1, which the "
+            f"design is compared with, cannot be evaluated at r = {float(r):g} (E overflows or "
+            f"h_m underflows in double precision); r up to about {_LARGEST_R:g} works"
+        ) from None
+
+
+def _check_optimum(
+    x: np.ndarray,
+    lows: list[float],
+    highs: list[float],
+    r: float,
+    gain_bound: float,
+    min_bandwidth: float | None,
+) -> None:
+    """Raise unless the search's best point ``x`` is the optimum of the constrained problem.
+
+    The search box is (k1, k2, q_v, γ) in log space. Its upper gain limits and a lower k1
+    limit set by min_bandwidth are the constraints; its other edges (gains four decades below
+    gain_bound, q_v and γ = β / √r at 1e-4 or 1e4) only bound the search, and a best point on
+    one of them, or beside points where Theorem 1's bound cannot be computed, is not the
+    optimum: the optimum lies where the search cannot go.
+    """
+    bandwidth_binds = min_bandwidth is not None and lows[0] > math.log(gain_bound) - math.log(_SPAN)
+    edges = [
+        not bandwidth_binds and x[0] <= lows[0] + _EDGE,
+        x[1] <= lows[1] + _EDGE,
+        x[2] <= lows[2] + _EDGE or x[2] >= highs[2] - _EDGE,
+        x[3] <= lows[3] + _EDGE or x[3] >= highs[3] - _EDGE,
+    ]
+    neighbours = [
+        np.clip(x + step * np.eye(4)[i], lows, highs) for i in range(4) for step in (-_EDGE, _EDGE)
+    ]
+    computable = all(_axis_h_m(point, r) > 0.0 for point in [x, *neighbours])
+    if computable and not any(edges):
+        return
+    k1, k2, q_v, gamma = np.exp(x)
+    found = f"k1 = {k1:.3g}, k2 = {k2:.3g}, q_v = {q_v:.3g}, beta = {math.sqrt(r) * gamma:.3g}"
+    where = (
+        "lies on an edge of the searched range (gains from gain_bound / 1e4, q_v and "
+        "beta / sqrt(r) from 1e-4 to 1e4)"
+        if computable
+        else "lies next to gains for which Theorem 1's bound cannot be computed in double precision"
+    )
+    small = x[1] < 0.0  # gains below 1: the search ran into the small side
+    beyond = min_bandwidth is not None and min_bandwidth > _LARGEST_BANDWIDTH
+    if beyond or (bandwidth_binds and not small and not (computable and any(edges[:2]))):
+        raise ValueError(
+            f"min_bandwidth is too large for the design: the best design found ({found}) "
+            f"{where}, so it is not the optimum (got min_bandwidth = {min_bandwidth:g} rad/s); "
+            f"min_bandwidth up to about {_LARGEST_BANDWIDTH:g} rad/s works, with gain_bound "
+            f"from min_bandwidth^2 to about {_GAIN_BOUND_RANGE[1]:g} min_bandwidth"
+        )
+    most = _GAIN_BOUND_RANGE[1] * max(1.0, min_bandwidth or 1.0)
+    raise ValueError(
+        f"gain_bound is too {'small' if small else 'large'} for the design: the best design "
+        f"found ({found}) {where}, so it is not the optimum (got gain_bound = {gain_bound:g}); "
+        f"gain_bound from about {_GAIN_BOUND_RANGE[0]:g} to {most:g} works here, and without "
+        f"min_bandwidth any value above 1.03 gives the unconstrained optimum k1 ≈ 1.03, "
+        f"k2 ≈ 0.91"
+    )
 
 
 def design_gains(
@@ -165,10 +263,18 @@ def design_gains(
 
     **Search.** :func:`scipy.optimize.differential_evolution` over the logarithms of
     k1 in [max(gain_bound / 1e4, min_bandwidth²), gain_bound], k2 in [gain_bound / 1e4,
-    gain_bound] and q_v, β in [1e-4, 1e4], seeded, then polished
-    with L-BFGS-B (scipy's default). A point whose Lyapunov equation cannot be solved accurately
-    counts as h_m = 0. The returned h_m is recomputed by :func:`razumikhin_bound` for the
-    returned n-joint matrices, so it is exactly what Theorem 1 certifies for them.
+    gain_bound], q_v and γ = β / √r in [1e-4, 1e4] (the optimal γ does not depend on r, so any
+    r is searched alike), seeded, then polished with L-BFGS-B (scipy's default). A point where
+    Theorem 1's bound cannot be computed (:func:`razumikhin_bound` refuses it) counts as
+    h_m = 0. The returned h_m is recomputed by :func:`razumikhin_bound` for the returned
+    n-joint matrices, so it is exactly what Theorem 1 certifies for them.
+
+    **Trust.** The best point found is refused, with a ValueError naming gain_bound or
+    min_bandwidth, when it lies on an edge of the box that is not a constraint (gains at
+    gain_bound / 1e4, q_v or γ at 1e-4 or 1e4) or next to points where the bound cannot be
+    computed: the optimum then lies outside the search. Measured at r = 1.1, that leaves
+    gain_bound from about 1e-7 to 8000 (8000 min_bandwidth with one above 1 rad/s) and
+    min_bandwidth up to about 3000 rad/s.
 
     Measured (r = 1.1, seed 0): gain_bound = 1 gives h_m ≈ 0.1268 s (k1 = 1, k2 ≈ 0.897,
     Q = I, β ≈ 0.974) against the paper's 0.12487 s; the unconstrained optimum, k1 ≈ 1.029,
@@ -187,7 +293,8 @@ def design_gains(
     r : float, optional
         Razumikhin factor r > 1 of (razu) (default 1.1, the paper's).
     seed : int, optional
-        Seed of the differential evolution (default 0); the same seed gives the same design.
+        Seed of the differential evolution, 0 to 2**32 - 1 (default 0); the same seed gives the
+        same design.
 
     Returns
     -------
@@ -199,37 +306,45 @@ def design_gains(
     ------
     ValueError
         If n is not a positive integer, gain_bound or min_bandwidth is not a finite number > 0,
-        min_bandwidth² exceeds gain_bound, r <= 1, or seed is not a non-negative integer.
+        min_bandwidth² exceeds gain_bound, r <= 1 or too large for the paper's comparison value
+        to be computed (above about 1e307), seed is not an integer from 0 to 2**32 - 1, or the
+        search cannot be trusted (see Trust; the message names gain_bound or min_bandwidth and
+        the range that works).
     TypeError
         If gain_bound, min_bandwidth or r is not a real number.
     """
     joints = _dimension(None, n)
     bound_value = positive_scalar("gain_bound", gain_bound)
     seed_value = _seed(seed)
-    reference = razumikhin_bound(1.0, 1.0, 1.0, 1.0, r)  # also checks r
+    reference = _paper_bound(r)
     r_value = reference.r
 
-    least_k1 = bound_value / _SPAN
+    top, span = math.log(bound_value), math.log(_SPAN)
+    least_log_k1 = top - span
     bandwidth = None if min_bandwidth is None else positive_scalar("min_bandwidth", min_bandwidth)
     if bandwidth is not None:
-        if bandwidth * bandwidth > bound_value:
+        least_k1 = bandwidth * bandwidth
+        if least_k1 > bound_value:
+            square = f"{least_k1:g}" if math.isfinite(least_k1) else f"{bandwidth:g}^2"
             raise ValueError(
-                f"min_bandwidth = {bandwidth:g} rad/s needs K1 entries >= {bandwidth**2:g}, above "
+                f"min_bandwidth = {bandwidth:g} rad/s needs K1 entries >= {square}, above "
                 f"gain_bound = {bound_value:g}; raise gain_bound or lower min_bandwidth"
             )
-        least_k1 = max(least_k1, bandwidth * bandwidth)
-    top, span = math.log(bound_value), math.log(_SPAN)
+        least_log_k1 = min(max(least_log_k1, 2.0 * math.log(bandwidth)), top)
+    lows, highs = [least_log_k1, top - span, -span, -span], [top, top, span, span]
     start = time.perf_counter()
     search = scipy.optimize.differential_evolution(
         lambda x: -_axis_h_m(x, r_value),
-        bounds=[(math.log(least_k1), top), (top - span, top), (-span, span), (-span, span)],
+        bounds=list(zip(lows, highs, strict=True)),
         seed=seed_value,
         tol=1e-10,
     )
     seconds = time.perf_counter() - start
-    k1, k2, q_v, beta = (float(v) for v in np.exp(search.x))
+    _check_optimum(search.x, lows, highs, r_value, bound_value, bandwidth)
+    k1, k2, q_v, gamma = (float(v) for v in np.exp(search.x))
+    beta = math.sqrt(r_value) * gamma
     # exp(log(b)) may miss b by an ulp: put the gains back inside their bounds.
-    k1, k2 = min(max(k1, least_k1), bound_value), min(k2, bound_value)
+    k1, k2 = min(max(k1, math.exp(least_log_k1)), bound_value), min(k2, bound_value)
     ones = np.ones(joints)
     certified = razumikhin_bound(k1 * ones, k2 * ones, np.hstack([ones, q_v * ones]), beta, r_value)
     return GainDesign(
@@ -245,7 +360,7 @@ def design_gains(
         gain_bound=bound_value,
         min_bandwidth=bandwidth,
         bound_active=max(k1, k2) >= bound_value * (1.0 - 1e-6),
-        bandwidth_active=bandwidth is not None and k1 <= bandwidth**2 * (1.0 + 1e-6),
+        bandwidth_active=bandwidth is not None and k1 <= bandwidth * bandwidth * (1.0 + 1e-6),
         seed=seed_value,
         evaluations=int(search.nfev),
         seconds=seconds,

@@ -137,6 +137,10 @@ def pcon_step(
     state[2 * n] = count + 1
 
 
+#: Most controller periods a predictor's history may hold (8 bytes per coordinate each, per run).
+MAX_HISTORY_TICKS = 10**7
+
+
 @dataclass(frozen=True, eq=False)
 class PredictorBaseline(Controller):
     """The predictor law shared by :class:`PCON` and :class:`PCONf` (SPEC §4).
@@ -178,6 +182,12 @@ class PredictorBaseline(Controller):
         object.__setattr__(self, "k_b", as_spd_matrix("k_b", self.k_b, n))
         object.__setattr__(self, "history", positive_scalar("history", self.history))
         object.__setattr__(self, "T_c", positive_scalar("T_c", self.T_c))
+        if self.history / self.T_c > MAX_HISTORY_TICKS:
+            raise ValueError(
+                f"history must be at most {MAX_HISTORY_TICKS:.0e} controller periods "
+                f"({MAX_HISTORY_TICKS * self.T_c:g} s at T_c = {self.T_c:g} s): every run keeps "
+                f"one command per period of it in its state; got history = {self.history:g} s"
+            )
         scalars = [
             self.kappa,
             self.T_c,

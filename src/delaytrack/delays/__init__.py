@@ -29,9 +29,18 @@ __all__ = [
 ]
 
 
-def _trace(times: Any = None, values: Any = None, path: Any = None) -> TraceDelay:
-    """A trace from ``path`` (a CSV file) or from ``times`` and ``values`` (checked by the spec)."""
-    return TraceDelay.from_csv(path) if path is not None else TraceDelay(times, values)
+def _trace(
+    times: Any = None, values: Any = None, path: Any = None, beyond: Any = "refuse", **csv: Any
+) -> TraceDelay:
+    """A trace from ``path`` (a CSV file, read with the ``csv`` options) or from ``times`` and
+    ``values`` (checked by the spec)."""
+    if path is None:
+        if csv:
+            raise ValueError(
+                f"{sorted(csv)[0]} reads a CSV file; it needs 'path' (not 'times' and 'values')"
+            )
+        return TraceDelay(times, values, beyond=beyond)
+    return TraceDelay.from_csv(path, beyond=beyond, **csv)
 
 
 #: Delay profiles that can be built from plain data, by scenario-file name; also "S1" .. "S4".
@@ -49,7 +58,16 @@ DELAY_SPECS: dict[str, TypeSpec] = {
     ),
     "trace": TypeSpec(
         _trace,
-        {"times": ("times", vector), "values": ("values", vector), "path": ("path", string)},
+        {
+            "times": ("times", vector),
+            "values": ("values", vector),
+            "path": ("path", string),
+            "time_column": ("time_column", string),
+            "delay_column": ("delay_column", string),
+            "time_unit": ("time_unit", string),
+            "delay_unit": ("delay_unit", string),
+            "beyond": ("beyond", string),
+        },
         alternatives=(("path",), ("times", "values")),
     ),
     "random": TypeSpec(
@@ -58,6 +76,7 @@ DELAY_SPECS: dict[str, TypeSpec] = {
             **{name: (name, number) for name in ("h_low", "h_high", "max_rate", "duration")},
             "seed": ("seed", integer),
             "knot_spacing": ("knot_spacing", number),
+            "beyond": ("beyond", string),
         },
         required=("h_low", "h_high", "max_rate", "duration", "seed"),
     ),

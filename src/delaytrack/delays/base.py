@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from typing import Any, ClassVar
 
@@ -37,6 +38,16 @@ class DelayProfile(ABC):
     @abstractmethod
     def h_max(self) -> float:
         """Upper bound of ``h(t)`` over all ``t`` (seconds)."""
+
+    @property
+    def horizon(self) -> float:
+        """Last time (s) up to which the profile's data define ``h`` (``inf``: always).
+
+        A measured trace or a seeded random walk covers a finite time; after it ``h`` would
+        only hold the last value. :func:`~delaytrack.sim.simulate` refuses a run beyond the
+        horizon unless the profile was built with ``beyond = "hold"``.
+        """
+        return math.inf
 
     @abstractmethod
     def to_spec(self) -> dict[str, Any]:

@@ -2,17 +2,21 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._validation import positive_scalar
+from delaytrack._validation import beyond_choice, positive_scalar
 from delaytrack.delays import _kernel
 from delaytrack.delays.base import DelayProfile
 from delaytrack.delays.knots import pack_knots
 
-__all__ = ["RandomDelay"]
+__all__ = ["MAX_KNOTS", "RandomDelay"]
+
+#: Most knots of one walk (8 bytes each, twice): 10^8 knots take 1.6 GB.
+MAX_KNOTS = 1e8
 
 
 @dataclass(frozen=True, eq=False)
@@ -22,7 +26,8 @@ class RandomDelay(DelayProfile):
     Knots are ``knot_spacing`` seconds apart over ``[0, duration]``; the first value is uniform in
     ``[h_low, h_high]``, each slope uniform in ``[-max_rate, max_rate]``, and the walk is reflected
     at the bounds (a reflected segment has a smaller slope, so ``|dh/dt| <= max_rate`` holds).
-    After ``duration`` the last value is held.
+    The walk covers ``[0, duration]`` (its :attr:`horizon`); a simulation that runs longer is
+    refused, unless ``beyond = "hold"``, which holds the last value after ``duration``.
     The same ``seed`` gives the same profile. ``max_rate > 1`` is allowed: the delay then shrinks
     faster than time passes, and older commands are re-applied, as the physics says.
     """
@@ -33,6 +38,7 @@ class RandomDelay(DelayProfile):
     duration: float
     seed: int
     knot_spacing: float = 0.01
+    beyond: str = "refuse"
     _params: np.ndarray = field(init=False, repr=False)
     type_name: ClassVar[str] = "random"
 
@@ -54,6 +60,12 @@ class RandomDelay(DelayProfile):
             object.__setattr__(self, name, value)
         object.__setattr__(self, "duration", duration)
         object.__setattr__(self, "knot_spacing", spacing)
+        object.__setattr__(self, "beyond", beyond_choice(self.beyond))
+        if self.duration / spacing > MAX_KNOTS:
+            raise ValueError(
+                f"duration must be at most {MAX_KNOTS:g} knot spacings (one knot each, held in "
+                f"memory); got duration = {self.duration:g} s with knot_spacing = {spacing:g} s"
+            )
         times, values = self._walk()
         object.__setattr__(self, "_params", pack_knots(times, values))
 
@@ -89,6 +101,10 @@ class RandomDelay(DelayProfile):
     def h_max(self) -> float:
         return self.h_high
 
+    @property
+    def horizon(self) -> float:
+        return math.inf if self.beyond == "hold" else self.duration
+
     def to_spec(self) -> dict[str, Any]:
         return {
             "type": self.type_name,
@@ -98,4 +114,5 @@ class RandomDelay(DelayProfile):
             "duration": self.duration,
             "seed": int(self.seed),
             "knot_spacing": self.knot_spacing,
+            **({"beyond": self.beyond} if self.beyond != "refuse" else {}),
         }

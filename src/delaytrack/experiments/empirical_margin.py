@@ -46,7 +46,7 @@ from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
 from delaytrack.experiments.scenario import Scenario, ScenarioError
 from delaytrack.sim import simulate
 
-__all__ = ["METRICS", "PROFILES", "EmpiricalMargin", "empirical_margin"]
+__all__ = ["METRICS", "MIN_RESOLUTION", "PROFILES", "EmpiricalMargin", "empirical_margin"]
 
 #: Delay families: name -> (value v, frequency) -> profile.
 PROFILES: dict[str, Callable[[float, float], DelayProfile]] = {
@@ -56,6 +56,13 @@ PROFILES: dict[str, Callable[[float, float], DelayProfile]] = {
 }
 #: Tracking metrics (keys of ``SimResult.metrics``), each taken as the largest over coordinates.
 METRICS = {"ae": "mean |e1|", "rms": "RMS of e1", "max": "max |e1|"}
+#: Finest search resolution (s): a nanosecond, far below any plant step a scenario uses.
+MIN_RESOLUTION = 1e-9
+#: Finest resolution relative to ``upper``: brackets narrower than this are near the spacing of
+#: double-precision times and would stop shrinking.
+_RELATIVE_RESOLUTION = 1e-12
+#: Largest ``grid`` and ``points``: each is one batch of runs held in memory at once.
+MAX_BATCH_POINTS = 10_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -195,7 +202,11 @@ class _Search:
             return []
         width = self.failed - self.passed
         k = min(points, math.ceil(width / resolution) - 1)
-        return [self.passed + width * j / (k + 1) for j in range(1, k + 1)]
+        values = [self.passed + width * j / (k + 1) for j in range(1, k + 1)]
+        # Termination: every value must lie strictly inside the bracket and be new, so that each
+        # round shrinks it. Near floating-point spacing that fails, and the search ends there.
+        inside = sorted({v for v in values if self.passed < v < self.failed})
+        return inside if len(inside) == len(values) else []
 
 
 def empirical_margin(
@@ -235,15 +246,20 @@ def empirical_margin(
     settle : float, optional
         Start of the metric window, seconds in ``[0, duration)``; half the duration by default.
     resolution : float
-        The search stops when the bracket ``(margin, first_failure)`` is at most this wide (s).
+        The search stops when the bracket ``(margin, first_failure)`` is at most this wide (s);
+        at least :data:`MIN_RESOLUTION` and ``1e-12 * upper``. The search always ends: each
+        round shrinks the bracket ``points + 1``-fold, so it takes at most
+        ``log(upper / resolution) / log(points + 1) + 1`` rounds after the grid.
     upper : float
-        Search limit (s), ``> resolution``.
+        Search limit (s), ``> resolution`` and at most the scenario's duration (a longer delay
+        means that no command ever reaches the plant).
     frequency : float
         Angular frequency of the ``abs-sine`` families, rad/s.
     grid : int
-        Intervals of the coarse grid over ``[0, upper]`` (``grid + 1`` runs), >= 2.
+        Intervals of the coarse grid over ``[0, upper]`` (``grid + 1`` runs), from 2 to 10000.
     points : int
-        Values per multi-section round, >= 1; each round narrows the bracket ``points + 1``-fold.
+        Values per multi-section round, from 1 to 10000; each round narrows the bracket
+        ``points + 1``-fold.
     workers : int, optional
         Threads of each batched simulation (all cores by default).
     progress : bool
@@ -279,6 +295,12 @@ def empirical_margin(
     settings = _settings(scenario, threshold, profile, metric, settle, resolution, upper)
     frequency = positive_scalar("frequency", frequency)
     grid, points = _count("grid", grid, 2), _count("points", points, 1)
+    for name, value in (("grid", grid), ("points", points)):
+        if value > MAX_BATCH_POINTS:
+            raise ValueError(
+                f"{name} must be at most {MAX_BATCH_POINTS} (the runs of one batched "
+                f"simulation); got {value}"
+            )
     built = scenario.build()
     make = PROFILES[settings["profile"]]
 
@@ -348,6 +370,18 @@ def _settings(
     """Check the search's settings; return them as the result states them."""
     resolution = positive_scalar("resolution", resolution)
     upper = positive_scalar("upper", upper)
+    if upper > scenario.duration:
+        raise ValueError(
+            f"upper must be at most the scenario's duration {scenario.duration:g} s (a longer "
+            f"delay means that no command ever reaches the plant); got {upper:g}"
+        )
+    finest = max(MIN_RESOLUTION, _RELATIVE_RESOLUTION * upper)
+    if resolution < finest:
+        raise ValueError(
+            f"resolution must be at least {finest:g} s (the larger of {MIN_RESOLUTION:g} s and "
+            f"{_RELATIVE_RESOLUTION:g} x upper: finer brackets are below what the simulation "
+            f"resolves in double precision); got {resolution:g}"
+        )
     if resolution >= upper:
         raise ValueError(
             f"resolution must be smaller than upper; got resolution = {resolution:g} s, "

@@ -30,6 +30,7 @@ import pandas as pd
 
 from delaytrack import __version__
 from delaytrack._io import write_frame
+from delaytrack._output import check_output_folder, record_outputs
 from delaytrack.analysis import exact_delay_margin, razumikhin_bound
 from delaytrack.experiments.empirical_margin import EmpiricalMargin, empirical_margin
 from delaytrack.experiments.scenario import Scenario, load_builtin
@@ -65,10 +66,23 @@ def _column(controller: str, profile: str) -> str:
 
 
 def run_study(*, duration: float | None = None, progress: bool = False) -> MarginStudy:
-    """Compute every margin of every gain pair (``duration`` overrides 30 s, for smoke tests)."""
+    """Compute every margin of every gain pair.
+
+    ``duration`` overrides 30 s (for smoke tests); it must be at least twice the largest searched
+    delay (4 s), else the search would see no effect of the delay and its margins would mean
+    nothing.
+    """
     start = time.perf_counter()
     scenario = load_builtin(SCENARIO)
     if duration is not None:
+        shortest = 2.0 * SEARCH["upper"]
+        if not duration >= shortest:
+            raise ValueError(
+                f"duration must be at least {shortest:g} s for the margins job, twice its largest "
+                f"searched delay ({SEARCH['upper']:g} s), so that the metric window "
+                f"[duration/2, duration] begins after the longest delay has passed; got "
+                f"{duration:g}"
+            )
         scenario = scenario.replace(duration=duration)
     pairs = [(k1, k2) for k1 in GAINS for k2 in GAINS]
     rows = []
@@ -135,6 +149,7 @@ def write_study(study: MarginStudy, folder: str | Path) -> list[Path]:
     )
     files += save_figure(figure, folder / "figures" / "margins")
     files.append(_report(study, figure).write(folder / "report.html"))
+    record_outputs(folder, files)
     return files
 
 
@@ -210,5 +225,6 @@ def reproduce(
     out: str | Path = "results", *, duration: float | None = None, progress: bool = True
 ) -> tuple[MarginStudy, list[Path]]:
     """Run the job and write ``<out>/margins/``; return the study and the files written."""
+    folder = check_output_folder(Path(out) / FOLDER)
     study = run_study(duration=duration, progress=progress)
-    return study, write_study(study, Path(out) / FOLDER)
+    return study, write_study(study, folder)

@@ -47,6 +47,7 @@ from tqdm.auto import tqdm
 
 from delaytrack import __version__
 from delaytrack._io import write_frame, write_text
+from delaytrack._output import check_output_folder, record_outputs
 from delaytrack.analysis import RazumikhinBound, razumikhin_bound
 from delaytrack.controllers import AROLC, OuterLoop
 from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
@@ -857,6 +858,7 @@ def write_study(
         files += save_figure(figure, folder / "figures" / name)
     report = _report(study, figures, literal_summary)
     files.append(report.write(folder / "report.html"))
+    record_outputs(folder, files)
     return files
 
 
@@ -974,6 +976,8 @@ def reproduce(
 ) -> dict[str, PaperStudy]:
     """``<out>/paper-literal/`` then ``<out>/paper/`` (whose report cites the literal run)."""
     out = Path(out)
+    for name in ("paper-literal", "paper"):
+        check_output_folder(out / name)
     literal = run_paper(
         out / "paper-literal",
         reference="literal",

@@ -10,6 +10,7 @@ controller and its gains, the delay profile, the reference, and the numerical se
     seed = 1                    # optional; see below
     x0 = [0.0, 0.0, 0.0, 0.0]   # optional [q, qdot] at t = 0; zeros by default
     record_every = 1            # optional; record every k-th controller tick
+    error_bound = 10.0          # optional "left the path" rule: |e1_j| beyond it stops the run
 
     [plant]                     # the truth: type and parameters
     type = "two-link-arm"
@@ -62,6 +63,7 @@ from typing import Any
 import numpy as np
 
 from delaytrack._io import write_frame, write_text
+from delaytrack._output import check_output_folder, record_outputs
 from delaytrack._spec import SpecError as ScenarioError
 from delaytrack._spec import array, check_table, fail, integer, number, string, vector
 from delaytrack._validation import integer_multiple
@@ -103,6 +105,7 @@ _TOP_LEVEL_SCALARS: dict[str, Callable[[object], str | None]] = {
     "seed": integer,
     "x0": vector,
     "record_every": integer,
+    "error_bound": lambda v: _error_bound_phrase(v),
 }
 _TABLES = ("plant", "model", "controller", "delay", "reference")
 _REQUIRED = ("name", "duration", "dt", "T_c", *_TABLES)
@@ -115,6 +118,20 @@ _TABLE_PURPOSE = {
     "reference": "the desired trajectory q_d(t)",
 }
 _NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
+
+
+def _error_bound_phrase(value: object) -> str | None:
+    """Check an ``error_bound``: a number or a list of numbers, each > 0 (``inf`` allowed)."""
+    values = value if isinstance(value, list) else [value]
+    valid = values and all(
+        isinstance(v, int | float) and not isinstance(v, bool) and v > 0 for v in values
+    )
+    if valid:
+        return None
+    return (
+        "must be a number > 0 or a list of them, one per coordinate (inf: no bound for that "
+        "coordinate)"
+    )
 
 
 def _check_value(key: str, value: object, check: Callable[[object], str | None]) -> None:
@@ -223,6 +240,11 @@ class Scenario:
         Initial state ``[q, q̇]`` (2n); zeros when None.
     record_every : int
         Record every ``record_every``-th controller tick.
+    error_bound : float or tuple of float or None
+        The "left the path" rule: a run stops with status ``left the path`` at the first
+        controller tick where a tracking error ``|e1_j|`` exceeds it (one number for every
+        coordinate, or one per coordinate, ``inf`` for none); no bound when None. Its metrics
+        are then NaN and a sweep counts it in the divergence rate.
     """
 
     name: str
@@ -237,6 +259,7 @@ class Scenario:
     seed: int | None = None
     x0: tuple[float, ...] | None = None
     record_every: int = 1
+    error_bound: float | tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         _check_value("name", self.name, string)
@@ -269,6 +292,14 @@ class Scenario:
         _check_value("record_every", self.record_every, integer)
         if self.record_every < 1:
             raise fail("record_every", "must be >= 1", self.record_every)
+        if self.error_bound is not None:
+            bound = _plain(self.error_bound)
+            _check_value("error_bound", bound, _error_bound_phrase)
+            object.__setattr__(
+                self,
+                "error_bound",
+                tuple(map(float, bound)) if isinstance(bound, list) else float(bound),
+            )
         tables = {table: _plain(getattr(self, table)) for table in _TABLES}
         check_table("plant", tables["plant"], PLANT_SPECS)
         check_table("model", tables["model"], PLANT_SPECS)
@@ -349,6 +380,9 @@ class Scenario:
         if self.x0 is not None:
             data["x0"] = list(self.x0)
         data["record_every"] = self.record_every
+        if self.error_bound is not None:
+            bound = self.error_bound
+            data["error_bound"] = list(bound) if isinstance(bound, tuple) else bound
         for table in _TABLES:
             data[table] = _plain(getattr(self, table))
         return data
@@ -395,6 +429,12 @@ class Scenario:
             raise ScenarioError(
                 f"scenario key 'reference.offset' has {reference.n} entries; the plant has "
                 f"n = {plant.n} coordinates"
+            )
+        if isinstance(self.error_bound, tuple) and len(self.error_bound) != plant.n:
+            raise fail(
+                "error_bound",
+                f"must be one number or n = {plant.n} of them (one per coordinate)",
+                list(self.error_bound),
             )
         if self.x0 is None:
             x0 = np.zeros(2 * plant.n)
@@ -509,6 +549,7 @@ def _simulate(
             dt=scenario.dt,
             T_c=scenario.T_c,
             record_every=scenario.record_every,
+            error_bound=math.inf if scenario.error_bound is None else scenario.error_bound,
             progress=progress,
         )
     except ValueError as error:
@@ -609,7 +650,9 @@ def run_to_folder(
     ----------
     scenario : Scenario
     folder : path
-        Created if missing; existing files of the same names are replaced.
+        Created if missing. It must be new, empty or a results folder of an earlier run (whose
+        files are replaced; those this run does not write again are removed), and it is checked
+        before anything is computed.
     formats : sequence of {"parquet", "csv"}
         Trajectory file formats.
     figure_formats : sequence of str
@@ -625,9 +668,9 @@ def run_to_folder(
         raise ValueError(
             f"formats must be a non-empty subset of {list(TRAJECTORY_FORMATS)}; got {list(formats)}"
         )
+    folder = check_output_folder(folder)
     resolved = scenario.resolved()
     result = resolved.run(progress=progress)
-    folder = Path(folder)
     files = [folder / "scenario.toml"]
     resolved.to_toml(files[0])
     # The metrics first: they are the result a user waits for; trajectories and figures follow.
@@ -638,4 +681,5 @@ def run_to_folder(
     for fmt in formats:
         files.append(write_frame(frame, folder / f"trajectories.{fmt}"))
     files += write_run_figures(result, folder / "figures", formats=figure_formats)
+    record_outputs(folder, files)
     return RunOutput(resolved, result, folder, tuple(files))

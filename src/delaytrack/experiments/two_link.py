@@ -34,6 +34,7 @@ from tqdm.auto import tqdm
 
 from delaytrack import __version__
 from delaytrack._io import write_frame
+from delaytrack._output import check_output_folder, record_outputs
 from delaytrack.analysis import RazumikhinBound, razumikhin_bound
 from delaytrack.experiments.convergence import dt_check_table, largest_change, write_dt_check
 from delaytrack.experiments.scenario import Scenario, load_builtin, run_batched
@@ -387,6 +388,7 @@ def write_study(study: TwoLinkStudy, folder: str | Path) -> list[Path]:
     for name, (figure, _) in figures.items():
         files += save_figure(figure, folder / "figures" / name)
     files.append(_report(study, figures).write(folder / "report.html"))
+    record_outputs(folder, files)
     return files
 
 
@@ -452,6 +454,7 @@ def reproduce(
     progress: bool = True,
 ) -> tuple[TwoLinkStudy, list[Path]]:
     """Run the job and write ``<out>/two-link/``; return the study and the files written."""
+    folder = check_output_folder(Path(out) / FOLDER)
     study = run_study(duration=duration, check_dt=check_dt, progress=progress)
-    files = write_study(study, Path(out) / FOLDER)
+    files = write_study(study, folder)
     return study, files

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from delaytrack._spec import TypeSpec, array, build_from_table, gain, integer, number
+from delaytrack._spec import TypeSpec, array, build_from_table, gain, integer, number, string
 from delaytrack.plants.base import ELPlant, el_rhs
 from delaytrack.plants.callable_plant import CallablePlant
 from delaytrack.plants.compiled_plant import CompiledPlant
@@ -80,6 +80,7 @@ PLANT_SPECS: dict[str, TypeSpec] = {
             **{key: (key, number) for key in (*_TRUTH_KEYS, *_PAYLOAD_KEYS)},
             "seed": ("seed", integer),
             "placements": ("placements", array),
+            "beyond": ("beyond", string),
         },
         alternatives=(("seed", "duration"), ("placements",)),
     ),

@@ -92,6 +92,16 @@ class ELPlant(ABC):
         """Plain-data description (type name and parameters) for scenario files and reports."""
 
     @property
+    def horizon(self) -> float:
+        """Last time (s) up to which the plant's data define it (``inf``: always).
+
+        A plant built from time-limited data (a payload schedule) states where that data ends;
+        :func:`~delaytrack.sim.simulate` refuses a run beyond it unless the plant was told to
+        hold its last state.
+        """
+        return math.inf
+
+    @property
     def kernel_handle(self) -> int | Callable[..., None]:
         """What the engine calls: the built-in kernel id, else the terms function itself (a
         numba-compiled one for :class:`~delaytrack.plants.CompiledPlant`, Python otherwise)."""

@@ -25,6 +25,7 @@ from delaytrack.sim.history import tick_time
 from delaytrack.sim.integrator import (
     DELAY_BEYOND_HISTORY,
     DIVERGED,
+    LEFT_PATH,
     OK,
     beyond,
     integrate_tick,
@@ -35,6 +36,7 @@ from delaytrack.sim.running_metrics import accumulate_tick
 __all__ = [
     "DELAY_BEYOND_HISTORY",
     "DIVERGED",
+    "LEFT_PATH",
     "OK",
     "STATUS_NAMES",
     "run_batch",
@@ -44,8 +46,17 @@ __all__ = [
 ]
 
 #: Human-readable names of the status codes of a run (``OK``, ``DIVERGED``,
-#: ``DELAY_BEYOND_HISTORY``).
-STATUS_NAMES = ("ok", "diverged", "delay beyond history")
+#: ``DELAY_BEYOND_HISTORY``, ``LEFT_PATH``).
+STATUS_NAMES = ("ok", "diverged", "delay beyond history", "left the path")
+
+
+@inline_kernel
+def left_path(qd, q, error_bound):
+    """Whether some tracking error ``|q_d_j - q_j|`` exceeds ``error_bound[j]``."""
+    for j in range(q.shape[0]):
+        if abs(qd[j] - q[j]) > error_bound[j]:
+            return True
+    return False
 
 
 @inline_kernel
@@ -62,8 +73,10 @@ def run_closed_loop(handles, run, settings, records):
         delay_kind, delay_params, x0, capacity)``; ``controller_state`` is advanced in place.
     settings : tuple
         ``(reference_params, u_init, t0, dt, steps_per_tick, n_ticks, record_every,
-        divergence_bound, metrics_from)``, shared by every run of a batch; ``record_every = 0``
-        records nothing, and the running metrics count the ticks ``k >= metrics_from``.
+        divergence_bound, error_bound, metrics_from)``, shared by every run of a batch;
+        ``record_every = 0`` records nothing, the run stops with ``LEFT_PATH`` at the first tick
+        where ``|e1_j| > error_bound[j]`` (n,), and the running metrics count the ticks
+        ``k >= metrics_from``.
     records : (states, commands, applied, delays, controller_states, sums)
         ``sums`` (3n + 2,) accumulates the running metrics at every tick
         (:mod:`delaytrack.sim.running_metrics`). The others are written every ``record_every``
@@ -93,6 +106,7 @@ def run_closed_loop(handles, run, settings, records):
         n_ticks,
         record_every,
         divergence_bound,
+        error_bound,
         metrics_from,
     ) = settings
     states, commands, applied, delays, controller_states, sums = records
@@ -118,6 +132,8 @@ def run_closed_loop(handles, run, settings, records):
             controller_states[row] = controller_state[: controller_states.shape[1]]
             delays[row] = h_k
         call_reference(reference, t_k, reference_params, qd, qd_dot, qd_ddot)
+        if left_path(qd, x[:n], error_bound):
+            return LEFT_PATH, t_k
         call_step(
             controller_step,
             t_k,

@@ -16,14 +16,19 @@ from delaytrack._jit import inline_kernel
 __all__ = ["history_capacity", "latest_tick_index", "tick_time"]
 
 
-def history_capacity(h_max: float, T_c: float) -> int:
-    """Ring-buffer slots needed when the delay never exceeds ``h_max``.
+def history_capacity(h_max: float, T_c: float, n_ticks: int) -> int:
+    """Ring-buffer slots needed when the delay never exceeds ``h_max`` in a run of ``n_ticks``.
 
     Over one controller period starting at tick ``k`` (the newest command) the oldest command
-    needed is that of tick ``k - ceil(h_max / T_c)``: ``ceil(h_max / T_c) + 1`` slots. Two more
-    absorb rounding at tick boundaries.
+    needed is that of tick ``k - ceil(h_max / T_c)``: ``ceil(h_max / T_c) + 1`` slots. A run
+    never issues more than ``n_ticks + 1`` commands, so a delay longer than the run needs no
+    more than that (its commands never arrive and the plant keeps ``u_init``): memory is bounded
+    by the run's length whatever ``h_max`` is, even infinite. Two more slots absorb rounding at
+    tick boundaries.
     """
-    return int(math.ceil(h_max / T_c)) + 3
+    ticks = h_max / T_c
+    needed = n_ticks if not ticks < n_ticks else int(math.ceil(ticks))
+    return needed + 3
 
 
 @inline_kernel

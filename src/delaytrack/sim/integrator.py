@@ -35,6 +35,7 @@ from delaytrack.sim.history import latest_tick_index, tick_time
 __all__ = [
     "DELAY_BEYOND_HISTORY",
     "DIVERGED",
+    "LEFT_PATH",
     "OK",
     "beyond",
     "integrate_tick",
@@ -47,6 +48,8 @@ _SPLIT_TOLERANCE = 1e-9
 OK = 0
 DIVERGED = 1
 DELAY_BEYOND_HISTORY = 2
+#: A tracking error exceeded the run's ``error_bound`` (:func:`delaytrack.sim.simulate`).
+LEFT_PATH = 3
 
 
 @inline_kernel

@@ -36,7 +36,8 @@ class SimResult:
         Controller state used at each record time (for AROLC ``ĉ`` is column 0).
     controller_state_names : tuple of str
     status : ndarray of int, shape (batch,)
-        0 ok, 1 diverged, 2 delay beyond the history buffer; see :attr:`status_names`.
+        0 ok, 1 diverged, 2 delay beyond the history buffer, 3 left the path (a tracking
+        error beyond ``error_bound``); see :attr:`status_names`.
     t_stop : ndarray, shape (batch,)
         Time at which each run ended; rows recorded after it are NaN.
     metrics : dict of str to ndarray

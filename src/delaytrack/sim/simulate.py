@@ -37,6 +37,10 @@ _T = TypeVar("_T")
 #: Values of ``simulate(engine=...)``.
 ENGINES = ("auto", "compiled", "python")
 
+#: Most RK4 steps of one run, ``(t1 - t0) / dt``: at a few million steps a second, minutes of
+#: computing. A longer run is refused before anything is allocated.
+MAX_STEPS = 10**9
+
 #: Chunks per worker thread: enough for load balance and a moving progress bar, few enough
 #: that the per-call overhead stays negligible.
 _CHUNKS_PER_WORKER = 8
@@ -128,6 +132,35 @@ def _broadcast(name: str, items: list[_T], batch: int) -> list[_T]:
     )
 
 
+def _check_horizons(plants: list[ELPlant], delays: list[DelayProfile], t1: float) -> None:
+    """Refuse a run longer than the time its plant's or delay's data cover (never extend them
+    silently)."""
+    for name, items in (("delay", delays), ("plant", plants)):
+        for i, item in enumerate(items):
+            if item.horizon < t1 * (1.0 - 1e-12):
+                raise ValueError(
+                    f"{name}[{i}] ({type(item).__name__}) is defined up to t = {item.horizon:g} s, "
+                    f"but the run lasts until t1 = {t1:g} s; give it data that cover the run, "
+                    f'or beyond = "hold" to hold its last state after t = {item.horizon:g} s'
+                )
+
+
+def _error_bounds(error_bound: object, n: int) -> np.ndarray:
+    """``error_bound`` as one bound per coordinate, each ``> 0`` (``inf``: unbounded)."""
+    try:
+        bounds = np.array(np.broadcast_to(np.asarray(error_bound, dtype=float), (n,)))
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"error_bound must be a number > 0 or {n} of them (one per coordinate; inf for "
+            f"none); got {error_bound!r}"
+        ) from None
+    if np.any(np.isnan(bounds)) or np.any(bounds <= 0.0):
+        raise ValueError(
+            f"error_bound must be > 0 (inf for no bound) for every coordinate; got {error_bound!r}"
+        )
+    return bounds
+
+
 def _stack_padded(vectors: list[np.ndarray]) -> np.ndarray:
     width = max(1, max(vector.size for vector in vectors))
     out = np.zeros((len(vectors), width))
@@ -152,6 +185,7 @@ def simulate(
     trajectories: bool = True,
     metrics_from: float | None = None,
     divergence_bound: float = 1e6,
+    error_bound: float | Sequence[float] = math.inf,
     workers: int | None = None,
     engine: str = "auto",
     progress: bool = False,
@@ -196,6 +230,12 @@ def simulate(
     divergence_bound : float
         A run whose state leaves ``max |x_i| <= divergence_bound`` (or becomes non-finite) stops
         with status ``diverged``; the rest of the batch goes on.
+    error_bound : float or sequence of float, shape (n,)
+        The "left the path" rule: a run stops with status ``left the path`` at the first
+        controller tick where a tracking error ``|e1_j| = |q_d_j - q_j|`` exceeds
+        ``error_bound`` (one bound for every coordinate, or one per coordinate; ``inf``
+        leaves a coordinate unbounded, the default). Its metrics are NaN, as for a diverged
+        run: a loop that wanders this far off the path is unstable, whatever its state's size.
     workers : int, optional
         Threads that run the batch in parallel (compiled plants only; all cores by default).
         Each run is computed by one thread exactly as it would be alone, so results do not
@@ -225,6 +265,12 @@ def simulate(
         raise ValueError(f"t1 must be later than t0; got t0 = {t0:g}, t1 = {t1:g}")
     steps_per_tick = _integer_ratio("T_c", T_c, dt, "dt")
     n_ticks = _integer_ratio("t1 - t0", t1 - t0, T_c, "T_c", scale=max(abs(t0), abs(t1)))
+    if n_ticks * steps_per_tick > MAX_STEPS:
+        raise ValueError(
+            f"t1 - t0 must be at most {MAX_STEPS:.0e} plant steps of dt per run (minutes of "
+            f"computing for one run); got (t1 - t0)/dt = {n_ticks * steps_per_tick:.3g} "
+            f"({t1 - t0:g} s at dt = {dt:g} s): shorten the run or raise dt"
+        )
     if (
         isinstance(record_every, bool)
         or not isinstance(record_every, int | np.integer)
@@ -258,6 +304,7 @@ def simulate(
         _check_same_kernel(f"controller[{i}].model", item.model, first_controller.model)
     if reference.n != n:
         raise ValueError(f"reference has n = {reference.n} coordinates; the plant has n = {n}")
+    error_bounds = _error_bounds(error_bound, n)
 
     states0 = finite_array("x0", x0)
     if states0.ndim == 1:
@@ -280,6 +327,7 @@ def simulate(
         )
     for controller_b, delay_b in zip(controllers, delays, strict=True):
         controller_b.check_run(T_c, delay_b.h_max)
+    _check_horizons(plants, delays, t1)
     u_init = np.zeros(m) if u_init is None else np.array(finite_array("u_init", u_init, ndim=1))
     if u_init.shape != (m,):
         raise ValueError(f"u_init must have shape ({m},); got {u_init.shape}")
@@ -357,7 +405,7 @@ def simulate(
         np.array([d.kind for d in delays], dtype=np.int64),
         _stack_padded([d.params for d in delays]),
         states0,
-        np.array([history_capacity(d.h_max, T_c) for d in delays], dtype=np.int64),
+        np.array([history_capacity(d.h_max, T_c, n_ticks) for d in delays], dtype=np.int64),
     )
     settings = (
         np.array(reference.params),
@@ -368,6 +416,7 @@ def simulate(
         n_ticks,
         int(record_every) if trajectories else 0,
         divergence_bound,
+        error_bounds,
         metrics_from_tick,
     )
     outputs = (states, commands, applied, delay_records, controller_states, sums)
@@ -429,6 +478,7 @@ def simulate(
         "trajectories": bool(trajectories),
         "metrics_from": t0 + metrics_from_tick * steps_per_tick * dt,
         "divergence_bound": divergence_bound,
+        "error_bound": error_bounds.tolist(),
         "compiled": compiled,
         "plant": [p.to_spec() for p in plants]
         if len(set(map(id, plants))) > 1

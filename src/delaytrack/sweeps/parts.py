@@ -10,6 +10,7 @@ from a stale, truncated, corrupt or altered file.
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -51,6 +52,7 @@ def _batch_key(run: Run) -> str:
             "model": scenario.model["type"],
             "controller": scenario.controller["type"],
             "times": [scenario.duration, scenario.dt, scenario.T_c],
+            "error_bound": scenario.error_bound,
             "reference": dict(scenario.reference),
         }
     )
@@ -69,6 +71,7 @@ def _simulate_batch(runs: list[Run], workers: int | None) -> pd.DataFrame:
             t1=first.duration,
             dt=first.dt,
             T_c=first.T_c,
+            error_bound=math.inf if first.error_bound is None else first.error_bound,
             trajectories=False,
             workers=workers,
         )

@@ -9,8 +9,9 @@ Folder layout (``out``)::
 :func:`run_sweep` skips the units whose part is valid for this spec
 (:func:`~delaytrack.sweeps.finished_units`), runs the others with an executor
 (:mod:`delaytrack.sweeps.executors`) and writes each part as soon as its unit returns. Stopped
-by Ctrl-C, it cancels what is in flight and raises :class:`SweepInterrupted`; every part already
-written stays, and the same call resumes from there.
+by Ctrl-C, it cancels what is in flight and raises :class:`SweepInterrupted`, which counts the
+valid parts then in the folder; every part already written stays, and the same call resumes from
+there.
 """
 
 from __future__ import annotations
@@ -135,6 +136,21 @@ def _read_runs(parts: Path, spec: SweepSpec) -> pd.DataFrame:
     return runs.reset_index(drop=True)
 
 
+def _interrupted(folder: Path, spec: SweepSpec, executor: Executor) -> SweepInterrupted:
+    """What Ctrl-C left: stop the units in flight, then count the valid parts on disk.
+
+    Ctrl-C can land between a part's rename into place and any count kept beside it, so the
+    count is taken from the folder itself. Only :func:`run_sweep`'s own loop writes parts, and it
+    has stopped: the count stays true. A temporary file an interrupted write left behind is
+    removed.
+    """
+    executor.close()
+    parts = folder / "parts"
+    _remove_temporaries(parts)
+    done = len(finished_units(parts, spec).finished)
+    return SweepInterrupted(folder, done, len(spec.units()))
+
+
 def run_sweep(
     spec: SweepSpec,
     out: str | os.PathLike[str],
@@ -163,7 +179,8 @@ def run_sweep(
     Raises
     ------
     SweepInterrupted
-        On Ctrl-C, after cancelling the units in flight; finished parts stay.
+        On Ctrl-C, after cancelling the units in flight; finished parts stay, and its ``done``
+        is the number of valid parts in ``out/parts`` at that moment.
     SweepUnitsFailed
         When units raised: after every other unit ran and was written.
     SweepError
@@ -201,7 +218,7 @@ def run_sweep(
                     bar.update(len(unit.runs))
                     bar.set_postfix_str(f"units {done}/{len(units)}", refresh=False)
             except KeyboardInterrupt:
-                raise SweepInterrupted(folder, done, len(units)) from None
+                raise _interrupted(folder, spec, executor) from None
             finally:
                 bar.close()
             if failures:

@@ -56,7 +56,7 @@ from delaytrack.experiments.scenario import (
     builtin_scenario_path,
 )
 
-__all__ = ["DISTRIBUTIONS", "Run", "SweepError", "SweepSpec", "Unit"]
+__all__ = ["DISTRIBUTIONS", "MAX_RUNS", "Run", "SweepError", "SweepSpec", "Unit"]
 
 
 class SweepError(ScenarioError):
@@ -64,9 +64,12 @@ class SweepError(ScenarioError):
 
 
 _INT64_MIN, _INT64_MAX = -(2**63), 2**63 - 1
+#: Most runs of one sweep: loading validates every run (about 1.6 ms each, so 100 000 runs take
+#: minutes and a few hundred MB); larger studies are several sweep files.
+MAX_RUNS = 100_000
 _TOP_LEVEL = ("scenario", "unit_size", "draws", "seed", "metrics", "grid", "random")
 _TABLES = ("plant", "model", "controller", "delay", "reference")
-_SCALARS = ("name", "duration", "dt", "T_c", "seed", "x0", "record_every")
+_SCALARS = ("name", "duration", "dt", "T_c", "seed", "x0", "record_every", "error_bound")
 
 #: Distribution name -> its parameters, for ``[random]`` entries.
 DISTRIBUTIONS: Mapping[str, tuple[str, ...]] = MappingProxyType(
@@ -146,9 +149,20 @@ class Unit:
         return unit
 
 
+def _json_safe(data: Any) -> Any:
+    """``data`` with non-finite floats (an ``error_bound`` of ``inf``) as the text TOML uses."""
+    if isinstance(data, float) and not math.isfinite(data):
+        return "nan" if math.isnan(data) else ("inf" if data > 0 else "-inf")
+    if isinstance(data, Mapping):
+        return {key: _json_safe(value) for key, value in data.items()}
+    if isinstance(data, list | tuple):
+        return [_json_safe(value) for value in data]
+    return data
+
+
 def canonical_json(data: Any) -> str:
-    """Sorted keys, no spaces, no NaN: equal data give equal text."""
-    return json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    """Sorted keys, no spaces; a non-finite float as its TOML text: equal data give equal text."""
+    return json.dumps(_json_safe(data), sort_keys=True, separators=(",", ":"), allow_nan=False)
 
 
 def code_version() -> str:
@@ -384,6 +398,17 @@ class SweepSpec:
     @cached_property
     def runs(self) -> tuple[Run, ...]:
         """Every run, in index order."""
+        count = math.prod(len(values) for values in self.grid.values()) * self.draws
+        if count > MAX_RUNS:
+            sizes = " x ".join(
+                [f"{len(values)} ({key})" for key, values in self.grid.items()]
+                + ([f"{self.draws} draws"] if self.random else [])
+            )
+            raise SweepError(
+                f"the sweep expands to {count} runs ({sizes}); a sweep holds at most {MAX_RUNS} "
+                "runs (each is validated and kept in memory when the file loads): split it into "
+                "several sweep files"
+            )
         drawn = {key: _draw(key, dist, self.draws, self.seed) for key, dist in self.random.items()}
         base = self.base.to_dict()
         runs = []

@@ -10,7 +10,8 @@ Rows of the runs table (:func:`delaytrack.sweeps.run_unit`) are grouped by
   (``random, h_max 100-150 ms``; bands at :data:`DELAY_BAND_EDGES`).
 
 Per group: ``runs``; ``diverged`` and ``divergence_rate`` (status ``diverged``: the state left
-the engine's bound or became non-finite); ``failed`` (any other status that is not ``ok``, such
+the engine's bound or became non-finite, or ``left the path``: a tracking error passed the
+scenario's ``error_bound``); ``failed`` (any other status that is not ``ok``, such
 as a delay beyond the history buffer); then ``<metric>_mean``, ``_median``, ``_p95`` (95th
 percentile, linear interpolation) and ``_max`` over the runs whose status is ``ok`` (NaN when
 there is none).
@@ -26,6 +27,7 @@ import pandas as pd
 
 __all__ = [
     "DELAY_BAND_EDGES",
+    "DIVERGED_STATUSES",
     "STATISTICS",
     "controller_labels",
     "default_metrics",
@@ -33,6 +35,9 @@ __all__ = [
     "summary_table",
 ]
 
+#: Statuses counted as divergence: the state blew up, or a tracking error passed the
+#: scenario's ``error_bound`` (the run left the path).
+DIVERGED_STATUSES = ("diverged", "left the path")
 #: Upper edges (s) of the ``h_max`` bands of a delay class; above the last: ``> 1000 ms``.
 DELAY_BAND_EDGES: tuple[float, ...] = (0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 1.0)
 #: Statistic suffix -> function of the ``ok`` runs' values.
@@ -140,7 +145,7 @@ def summary_table(
         ["controller", "delay_class"], sort=False
     ):
         ok = group[group["status"] == "ok"]
-        diverged = int((group["status"] == "diverged").sum())
+        diverged = int(group["status"].isin(DIVERGED_STATUSES).sum())
         row = {
             "controller": controller,
             "delay_class": delay_class,

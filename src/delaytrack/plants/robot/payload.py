@@ -34,7 +34,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from delaytrack._jit import hot_kernel
-from delaytrack._validation import finite_array, positive_scalar
+from delaytrack._validation import beyond_choice, finite_array, positive_scalar
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import ROBOT_PAYLOAD
 from delaytrack.plants.robot.body import COORDINATES
@@ -137,6 +137,10 @@ class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
         Schedule in s (5, 5, 5).
     plate_length, plate_width, plate_center : float
         Rectangle of the random placements, m (0.44 × 0.38 centred ``d`` = 0.05 ahead of A).
+    beyond : {"refuse", "hold"}
+        After the schedule's last placement (``first_on + k (time_on + time_off)`` for ``k``
+        placements, its :attr:`horizon`) the payload stays off. ``"refuse"`` (default): a
+        simulation that runs longer is refused; ``"hold"``: it goes on without payload.
     """
 
     robot: WheeledRobot = field(default_factory=WheeledRobot)
@@ -150,6 +154,7 @@ class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
     plate_length: float = P3DX_PAYLOAD.plate_length
     plate_width: float = P3DX_PAYLOAD.plate_width
     plate_center: float = P3DX_PAYLOAD.plate_center
+    beyond: str = "refuse"
     _params: np.ndarray = field(init=False, repr=False)
     n: ClassVar[int] = 5
     m: ClassVar[int] = 2
@@ -196,6 +201,7 @@ class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
                     f"got {placements.shape}"
                 )
         object.__setattr__(self, "placements", placements)
+        object.__setattr__(self, "beyond", beyond_choice(self.beyond))
         schedule = [
             self.payload_mass,
             self.first_on,
@@ -217,6 +223,13 @@ class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
     def terms_kernel(self):
         return robot_payload_terms
 
+    @property
+    def horizon(self) -> float:
+        """End of the schedule, ``first_on + k (time_on + time_off)`` (``inf`` with ``hold``)."""
+        if self.beyond == "hold":
+            return math.inf
+        return self.first_on + len(self.placements) * (self.time_on + self.time_off)
+
     def to_spec(self) -> dict[str, Any]:
         spec: dict[str, Any] = {"type": self.type_name, **self.robot.truth_spec()}
         spec.update(
@@ -235,6 +248,8 @@ class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
             )
         else:
             spec["placements"] = self.placements.tolist()
+        if self.beyond != "refuse":
+            spec["beyond"] = self.beyond
         return spec
 
     # ---- physics helpers ---------------------------------------------------------------------

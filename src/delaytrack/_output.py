@@ -1,0 +1,134 @@
+"""Results folders: checked before any computing, and never holding the files of two runs.
+
+:func:`check_output_folder` is called before a command computes anything: the location must be
+a folder that can be created and written, and a folder that already holds files must be one
+this toolkit wrote (it keeps a list of them, :data:`MANIFEST`), so that a user's own files are
+never overwritten. :func:`record_outputs` is called after a run has written its files: files of
+the previous run in that folder that this run did not write again are removed, and the list is
+replaced. A folder therefore holds the files of its latest run only.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+from collections.abc import Iterable
+from pathlib import Path
+
+from delaytrack._io import write_text
+
+__all__ = [
+    "MANIFEST",
+    "OutputFolderError",
+    "check_output_folder",
+    "check_writable_location",
+    "record_outputs",
+]
+
+#: File (in each results folder) listing the files the latest run wrote, relative to it.
+MANIFEST = ".delaytrack-files.json"
+
+
+#: What results folders held before they kept a list (a folder holding only these is one of
+#: ours from an earlier version).
+_EARLIER = frozenset(
+    {
+        "scenario.toml",
+        "metrics.csv",
+        "trajectories.parquet",
+        "trajectories.csv",
+        "figures",
+        "summary.csv",
+        "summary_tuned_arolc.csv",
+        "tables.md",
+        "dt_check.csv",
+        "report.html",
+        "margins.csv",
+        "evaluated.csv",
+    }
+)
+
+
+class OutputFolderError(ValueError):
+    """A results location cannot be used; the message names the argument and the path."""
+
+
+def _nearest_existing(path: Path) -> Path:
+    for candidate in (path, *path.parents):
+        if candidate.exists():
+            return candidate
+    return Path(".")
+
+
+def check_writable_location(path: str | os.PathLike[str], argument: str) -> Path:
+    """Check that ``path`` can be created as a folder or file: not empty, no file among its
+    parents, and its nearest existing folder writable. Returns it as a :class:`Path`."""
+    text = os.fspath(path)
+    if not text.strip():
+        raise OutputFolderError(f"{argument} must name a location; got {text!r}")
+    target = Path(text).expanduser()
+    for parent in target.parents:
+        if parent.exists() and not parent.is_dir():
+            raise OutputFolderError(
+                f"{argument} {text!r} lies under {str(parent)!r}, which is a file, not a folder"
+            )
+    existing = _nearest_existing(target if target.is_dir() else target.parent)
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise OutputFolderError(
+            f"{argument} {text!r} cannot be written: {str(existing)!r} is not writable"
+        )
+    return target
+
+
+def check_output_folder(folder: str | os.PathLike[str], argument: str = "folder") -> Path:
+    """Check a results folder before computing (module docstring); return it as a Path.
+
+    Raises
+    ------
+    OutputFolderError
+        If ``folder`` is empty text, is a file, lies under a file, cannot be written, or already
+        holds files that this toolkit did not write there. The message names ``argument``.
+    """
+    target = check_writable_location(folder, argument)
+    if target.exists() and not target.is_dir():
+        raise OutputFolderError(
+            f"{argument} {os.fspath(folder)!r} is a file; it must name a folder (new or empty, "
+            "or one that holds earlier results of this toolkit)"
+        )
+    if target.is_dir() and not (target / MANIFEST).is_file():
+        foreign = sorted(entry.name for entry in target.iterdir() if entry.name not in _EARLIER)
+        if foreign:
+            shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
+            raise OutputFolderError(
+                f"{argument} {os.fspath(folder)!r} already holds files that this toolkit did not "
+                f"write ({shown}); choose a new or empty folder, so that nothing of yours is "
+                "overwritten and the folder holds one run's results only"
+            )
+    return target
+
+
+def _listed(folder: Path) -> list[str]:
+    try:
+        data = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return []
+    files = data.get("files") if isinstance(data, dict) else None
+    return [name for name in files if isinstance(name, str)] if isinstance(files, list) else []
+
+
+def record_outputs(folder: str | os.PathLike[str], files: Iterable[str | os.PathLike[str]]) -> None:
+    """After a run wrote ``files`` into ``folder``: remove the previous run's other files and
+    record these (module docstring)."""
+    root = Path(folder).resolve()
+    written = sorted(
+        {Path(file).resolve().relative_to(root).as_posix() for file in files if Path(file).exists()}
+    )
+    for name in set(_listed(root)) - set(written):
+        stale = (root / name).resolve()
+        if stale.is_relative_to(root) and stale.is_file():
+            stale.unlink()
+            if stale.parent != root:
+                with contextlib.suppress(OSError):  # a subfolder left empty goes too
+                    stale.parent.rmdir()
+    write_text(root / MANIFEST, json.dumps({"files": written}, indent=1) + "\n")

@@ -1,0 +1,313 @@
+"""Hostile inputs end in a clear error or a correct result, in bounded time and memory.
+
+One test (or a few) per failure class: resources an input asks for, searches that must end,
+metrics that must be exact, experiments that must not change silently, output folders, and the
+"left the path" rule.
+"""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from delaytrack.cli import main
+from delaytrack.delays import ConstantDelay, RandomDelay, TraceDelay
+from delaytrack.experiments import Scenario, ScenarioError, empirical_margin, load_builtin
+from delaytrack.metrics import mean_absolute_error, metrics_table, total_variation
+from delaytrack.plants.robot import PayloadRobot
+from delaytrack.sim import simulate
+from delaytrack.sim.history import history_capacity
+from delaytrack.sweeps import SweepError, SweepSpec
+from test_scenario import base_dict
+
+
+def short(**changes) -> Scenario:
+    return Scenario.from_dict({**base_dict(), **changes})
+
+
+def one_line_error(capsys, *words: str) -> str:
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1, err
+    assert "Traceback" not in err
+    for word in words:
+        assert word in err, (word, err)
+    return err
+
+
+# ---- 1. resources ----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("h_max", [1e6, 1e300, math.inf])
+def test_history_is_bounded_by_the_run_not_by_the_delay(h_max):
+    assert history_capacity(h_max, 0.002, 100) == 103
+    assert history_capacity(0.1, 0.002, 100) == 53
+
+
+def test_a_delay_longer_than_the_run_never_delivers_a_command():
+    """The plant keeps u_init: the same run as with an infinite delay, in little memory."""
+    scenario = short(x0=[0.1, 0.0, 0.0, 0.0])
+    code = (
+        "import resource, sys; sys.path.insert(0, sys.argv[1]);"
+        "from test_hostile_inputs import short;"
+        "r = short(delay={'type': 'constant', 'h': 1e6}, x0=[0.1, 0, 0, 0]).run();"
+        "print(r.status_names[0], resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code, str(Path(__file__).parent)],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=600,
+    ).stdout.split()
+    assert out[0] == "ok"
+    assert int(out[1]) < 2 * 2**20  # kB: under 2 GiB (the unbounded buffer took 8 GB)
+    far = scenario.replace(delay={"type": "constant", "h": 1e300}).run()
+    never = scenario.replace(delay={"type": "constant", "h": 0.3}).run()  # beyond the 0.2 s run
+    np.testing.assert_array_equal(far.x, never.x)
+    np.testing.assert_array_equal(far.applied[0, :-1], 0.0)
+
+
+def test_a_trace_with_an_enormous_delay_runs(tmp_path):
+    path = tmp_path / "trace.csv"
+    path.write_text("t,h\n0,0.01\n0.1,1e300\n1,1e300\n")
+    result = short(delay={"type": "trace", "path": str(path)}).run()
+    assert result.status_names == ["ok"]
+
+
+def test_a_sweep_beyond_the_run_limit_is_refused_before_expanding():
+    data = {
+        "scenario": "two_link_S1",
+        "unit_size": 10,
+        "draws": 100_000_000,
+        "seed": 1,
+        "random": {"seed": {"dist": "integers", "low": 0, "high": 10}},
+    }
+    with pytest.raises(SweepError, match=r"100000000 runs .* at most 100000 runs"):
+        SweepSpec.from_dict(data)
+
+
+def test_a_run_of_too_many_steps_is_refused():
+    with pytest.raises(ScenarioError, match=r"at most 1e\+09 plant steps"):
+        short(duration=1e7, dt=0.001, T_c=0.002).run()
+
+
+def test_a_random_walk_of_too_many_knots_is_refused():
+    with pytest.raises(ValueError, match="duration must be at most 1e"):
+        RandomDelay(0.0, 0.1, 1.0, duration=1e9, seed=1)
+
+
+# ---- 2. searches end ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"resolution": 1e-300}, "resolution must be at least 1e-09 s"),
+        ({"upper": 1e300}, "upper must be at most the scenario's duration"),
+        ({"upper": 1e6}, "upper must be at most the scenario's duration"),
+        ({"grid": 10**9}, "grid must be at most 10000"),
+    ],
+)
+def test_searches_that_could_not_end_are_refused(options, message):
+    with pytest.raises(ValueError, match=message):
+        empirical_margin(short(), threshold=1.0, **{"upper": 0.1, **options})
+
+
+@pytest.mark.parametrize("flag", [["--resolution", "1e-300"], ["--upper", "1e300"]])
+def test_empirical_cli_refuses_them_naming_the_flag(flag, capsys):
+    assert main(["empirical", "two_link_margins", "--threshold", "0.2", *flag]) == 2
+    one_line_error(capsys, flag[0], f"got {float(flag[1]):g}")
+
+
+# ---- 3 and 8. exact metrics, one summation order ------------------------------------------------
+
+
+def test_metrics_count_every_tick_whatever_is_recorded(tmp_path):
+    scenario = short()
+    exact = metrics_table(scenario.run())
+    sparse = scenario.replace(record_every=1000).run()
+    assert sparse.t.size == 1
+    table = metrics_table(sparse)
+    columns = [c for c in exact if c.startswith(("ae_", "rms_", "max_")) or c == "tv"]
+    assert (exact[columns].to_numpy() > 0).all()
+    np.testing.assert_array_equal(table[columns].to_numpy(), exact[columns].to_numpy())
+    assert main(["simulate", str(_file(tmp_path, scenario.replace(record_every=1000)))]) == 0
+
+
+def _file(tmp_path, scenario):
+    path = tmp_path / "case.toml"
+    scenario.to_toml(path)
+    return path
+
+
+def test_a_window_over_sparse_records_is_refused():
+    result = short(record_every=10).run()
+    with pytest.raises(ValueError, match="record_every=1"):
+        mean_absolute_error(result, t_from=0.1)
+
+
+def test_batch_and_single_give_the_same_bits_with_and_without_trajectories():
+    built = short().build()
+    delays = [ConstantDelay(h) for h in (0.0, 0.013, 0.05, 0.07, 0.1)]
+    settings = {"reference": built.reference, "t1": 0.2, "dt": 0.001, "T_c": 0.002}
+    batch = simulate(built.plant, built.controller, delays, built.x0, **settings)
+    lean = simulate(built.plant, built.controller, delays, built.x0, trajectories=False, **settings)
+    for i, delay in enumerate(delays):
+        alone = simulate(built.plant, built.controller, delay, built.x0, **settings)
+        for t_from in (None, 0.05):
+            np.testing.assert_array_equal(
+                total_variation(batch, t_from=t_from)[i], total_variation(alone, t_from=t_from)[0]
+            )
+            np.testing.assert_array_equal(
+                mean_absolute_error(batch, t_from=t_from)[i],
+                mean_absolute_error(alone, t_from=t_from)[0],
+            )
+    pd.testing.assert_frame_equal(metrics_table(batch), metrics_table(lean), check_exact=True)
+
+
+def test_margins_job_refuses_a_duration_that_makes_its_margins_meaningless(tmp_path, capsys):
+    args = ["reproduce", "--job", "margins", "--out", str(tmp_path), "--duration", "0.002"]
+    assert main([*args, "--quiet"]) == 2
+    one_line_error(capsys, "--duration must be at least 4 s", "0.002")
+
+
+# ---- 4. no silent change of the experiment ------------------------------------------------------
+
+
+def test_a_trace_shorter_than_the_run_is_refused_unless_held(tmp_path):
+    path = tmp_path / "trace.csv"
+    path.write_text("t,h\n0,0.01\n0.1,0.02\n")
+    delay = {"type": "trace", "path": str(path)}
+    with pytest.raises(ScenarioError, match=r"defined up to t = 0.1 s, but the run lasts until"):
+        short(delay=delay).run()
+    held = short(delay={**delay, "beyond": "hold"}).run()
+    assert held.status_names == ["ok"]
+    np.testing.assert_array_equal(held.h[0, held.t > 0.1], 0.02)
+
+
+def test_a_random_delay_shorter_than_the_run_is_refused_unless_held():
+    delay = {"type": "random", "h_low": 0.0, "h_high": 0.05, "max_rate": 0.5, "seed": 3}
+    assert short(delay=delay).run().status_names == ["ok"]  # takes the scenario's duration
+    with pytest.raises(ScenarioError, match=r"defined up to t = 0.1 s"):
+        short(delay={**delay, "duration": 0.1}).run()
+    assert short(delay={**delay, "duration": 0.1, "beyond": "hold"}).run().status_names == ["ok"]
+
+
+def test_a_payload_schedule_shorter_than_the_run_is_refused_unless_held():
+    scenario = load_builtin("robot_S1").replace(duration=20.0)
+    short_schedule = {**scenario.plant, "duration": 6.0}  # one placement: 5 s on from t = 5 s
+    with pytest.raises(ScenarioError, match=r"PayloadRobot\) is defined up to t = 15 s"):
+        scenario.replace(plant=short_schedule).run()
+    held = scenario.replace(plant={**short_schedule, "beyond": "hold"}).build().plant
+    assert held.horizon == math.inf
+    plant = PayloadRobot(seed=1, duration=100.0)
+    assert plant.horizon >= 100.0
+    assert PayloadRobot(seed=1, duration=1.0, beyond="hold").horizon == math.inf
+    with pytest.raises(ValueError, match="beyond must be one of"):
+        PayloadRobot(seed=1, duration=1.0, beyond="loop")
+
+
+def test_a_trace_in_milliseconds_is_caught_and_read_with_its_unit(tmp_path):
+    path = tmp_path / "log.csv"
+    path.write_text("t_s,delay_ms\n0,20\n1,100\n")
+    with pytest.raises(ValueError, match=r"'delay_ms' looks like ms.*delay_unit = 'ms'"):
+        TraceDelay.from_csv(path)
+    trace = TraceDelay.from_csv(path, delay_unit="ms")
+    np.testing.assert_allclose(trace.values, [0.02, 0.1])
+    spec = short(delay={"type": "trace", "path": str(path), "delay_unit": "ms", "beyond": "hold"})
+    assert spec.resolved().delay["delay_unit"] == "ms"
+
+
+def test_a_log_with_extra_columns_is_read_by_naming_them(tmp_path):
+    path = tmp_path / "log.csv"
+    path.write_text("stamp,delay,seq\n0,0.02,1\n0.5,0.04,2\n1,0.03,3\n")
+    with pytest.raises(ValueError, match="name the time and delay columns"):
+        TraceDelay.from_csv(path)
+    trace = TraceDelay.from_csv(path, time_column="stamp", delay_column="delay")
+    np.testing.assert_array_equal(trace.times, [0.0, 0.5, 1.0])
+    with pytest.raises(ValueError, match=r"delay_column = 'lag' is not in the header"):
+        TraceDelay.from_csv(path, time_column="stamp", delay_column="lag")
+
+
+# ---- 5. output folders ------------------------------------------------------------------------
+
+
+def test_output_locations_are_checked_before_computing(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    a_file = tmp_path / "file.txt"
+    a_file.write_text("mine")
+    for out in ("", str(a_file), str(a_file / "below")):
+        assert main(["simulate", "two_link_S1", "--out", out]) == 2
+        one_line_error(capsys, "--out")
+        assert main(["tune-baselines", "--out", str(tmp_path) if out == "" else out + "/x"]) == 2
+        one_line_error(capsys, "--out")
+    assert main(["reproduce", "--out", str(a_file)]) == 2
+    one_line_error(capsys, "--out")
+    assert list(tmp_path.iterdir()) == [a_file]
+
+
+def test_a_folder_of_someone_else_is_not_written_and_stale_files_go(tmp_path, capsys):
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep")
+    scenario = _file(tmp_path, short())
+    assert main(["simulate", str(scenario), "--out", str(mine)]) == 2
+    one_line_error(capsys, "--out", "notes.txt")
+    folder = tmp_path / "run"
+    assert main(["simulate", str(scenario), "--out", str(folder), "--format", "csv"]) == 0
+    assert (folder / "trajectories.csv").is_file()
+    assert main(["simulate", str(scenario), "--out", str(folder)]) == 0
+    assert (folder / "trajectories.parquet").is_file()
+    assert not (folder / "trajectories.csv").exists()
+
+
+# ---- 9. the "left the path" rule ----------------------------------------------------------------
+
+
+def test_a_run_beyond_its_error_bound_left_the_path():
+    scenario = short(error_bound=0.01)
+    result = scenario.run()
+    assert result.status_names == ["left the path"]
+    assert 0.0 < result.t_stop[0] < 0.2
+    assert np.isnan(metrics_table(result)["ae_q1"]).all()
+    per_coordinate = short(error_bound=[0.01, math.inf]).run()
+    assert per_coordinate.status_names == ["left the path"]
+    assert short(error_bound=[math.inf, math.inf]).run().status_names == ["ok"]
+    with pytest.raises(ScenarioError, match="error_bound"):
+        short(error_bound=[1.0, 1.0, 1.0]).build()
+    with pytest.raises(ScenarioError, match="error_bound"):
+        short(error_bound=-1.0)
+
+
+def test_sweeps_count_runs_that_left_the_path_as_divergence():
+    from delaytrack.sweeps.summary import summary_table
+
+    runs = pd.DataFrame(
+        {
+            "controller_type": ["pcon"] * 3,
+            "delay_type": ["constant"] * 3,
+            "h_max": [0.1] * 3,
+            "status": ["ok", "left the path", "diverged"],
+            "ae_q1": [0.01, np.nan, np.nan],
+            "tv": [1.0, np.nan, np.nan],
+        }
+    )
+    row = summary_table(runs).iloc[0]
+    assert (row["diverged"], row["divergence_rate"], row["failed"]) == (2, 2 / 3, 0)
+
+
+def test_the_robot_scenario_carries_the_paper_jobs_rule():
+    scenario = load_builtin("robot_S1")
+    assert scenario.error_bound == (10.0, 10.0, math.inf, math.inf, math.inf)
+
+
+def test_a_predictor_history_beyond_its_limit_is_refused():
+    data = {"type": "pcon", "kappa": 1.0, "vartheta": 1.0, "k_b": 1.0, "T_c": 0.002}
+    with pytest.raises(ScenarioError, match=r"'controller.history' must be at most 1e\+07"):
+        short(controller={**data, "history": 1e6}).build()

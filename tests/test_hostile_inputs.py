@@ -93,8 +93,20 @@ def test_a_sweep_beyond_the_run_limit_is_refused_before_expanding():
 
 
 def test_a_run_of_too_many_steps_is_refused():
-    with pytest.raises(ScenarioError, match=r"at most 1e\+09 plant steps"):
-        short(duration=1e7, dt=0.001, T_c=0.002).run()
+    with pytest.raises(ScenarioError, match=r"'duration' must be at most 1e\+09 plant steps"):
+        short(duration=1e7, dt=0.001, T_c=0.002)
+    built = short().build()
+    with pytest.raises(ValueError, match=r"t1 - t0 must be at most 1e\+09 plant steps"):
+        simulate(
+            built.plant,
+            built.controller,
+            built.delay,
+            built.x0,
+            reference=built.reference,
+            t1=1e7,
+            dt=1e-3,
+            T_c=2e-3,
+        )
 
 
 def test_a_random_walk_of_too_many_knots_is_refused():
@@ -311,3 +323,16 @@ def test_a_predictor_history_beyond_its_limit_is_refused():
     data = {"type": "pcon", "kappa": 1.0, "vartheta": 1.0, "k_b": 1.0, "T_c": 0.002}
     with pytest.raises(ScenarioError, match=r"'controller.history' must be at most 1e\+07"):
         short(controller={**data, "history": 1e6}).build()
+
+
+def test_sweep_output_and_workers_are_checked_before_anything_runs(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    spec = tmp_path / "sweep.toml"
+    spec.write_text('scenario = "two_link_S1"\nunit_size = 1\n[grid]\n"controller.K1" = [1.0]\n')
+    assert main(["sweep", str(spec), "--out", ""]) == 2
+    one_line_error(capsys, "--out")
+    assert main(["sweep", str(spec), "--out", str(spec)]) == 2
+    one_line_error(capsys, "--out")
+    assert main(["sweep", str(spec), "--out", "s", "--workers", "100000"]) == 2
+    one_line_error(capsys, "--workers", "at most", "100000")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sweep.toml"]

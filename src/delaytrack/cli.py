@@ -502,20 +502,28 @@ def _reproduce_margins(args: argparse.Namespace) -> int:
 
 def _sweep(args: argparse.Namespace) -> int:
     from delaytrack.sweeps import (
+        SweepError,
         SweepSpec,
         SweepUnitsFailed,
         make_executor,
         run_sweep,
         write_sweep_outputs,
     )
+    from delaytrack.sweeps.executors import checked_workers
 
     workers = None
     if args.workers is not None:
-        workers = _count("--workers", args.workers)
+        try:
+            workers = checked_workers(_count("--workers", args.workers))
+        except SweepError as error:
+            raise UsageError(_with_flag(str(error), {"workers": "--workers"}, {})) from None
     folder = (
-        Path(args.out) if args.out is not None else Path("results/sweeps") / Path(args.spec).stem
+        check_writable_location(args.out, "--out")
+        if args.out is not None
+        else check_writable_location(
+            Path("results/sweeps") / Path(args.spec).stem, "the results folder"
+        )
     )
-    check_writable_location(folder, "--out" if args.out is not None else "the results folder")
     if folder.exists() and not folder.is_dir():
         raise UsageError(f"--out {str(folder)!r} is a file; it must name a folder")
     spec = SweepSpec.from_toml(args.spec)

@@ -72,6 +72,7 @@ from delaytrack.delays import DELAY_SPECS, DelayProfile, delay_from_spec
 from delaytrack.plants import PLANT_SPECS, ELPlant, plant_from_spec
 from delaytrack.reference import SinusoidalReference
 from delaytrack.sim import SimResult, simulate
+from delaytrack.sim.simulate import MAX_STEPS
 
 __all__ = [
     "BuiltScenario",
@@ -276,6 +277,13 @@ class Scenario:
             if value <= 0:
                 raise fail(key, "must be > 0 (seconds)", value)
             object.__setattr__(self, key, float(value))
+        if self.duration / self.dt > MAX_STEPS:
+            raise fail(
+                "duration",
+                f"must be at most {MAX_STEPS:.0e} plant steps of dt = {self.dt:g} s "
+                f"({MAX_STEPS * self.dt:g} s; minutes of computing for one run)",
+                self.duration,
+            )
         _check_ratio("T_c", self.T_c, "dt", self.dt)
         _check_ratio("duration", self.duration, "T_c", self.T_c)
         if self.seed is not None:

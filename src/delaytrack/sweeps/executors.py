@@ -33,6 +33,8 @@ __all__ = [
     "Executor",
     "LocalExecutor",
     "UnitOutcome",
+    "WORKERS_PER_CORE",
+    "checked_workers",
     "compute_part",
     "make_executor",
 ]
@@ -61,9 +63,22 @@ class Executor(Protocol):
         ...
 
 
-def _checked_workers(workers: int | None) -> int | None:
+#: Most threads or local worker processes per available core: more only share the same cores
+#: (and each worker process loads its own compiled engine, hundreds of MB).
+WORKERS_PER_CORE = 4
+
+
+def checked_workers(workers: int | None) -> int | None:
+    """``workers`` (threads or local worker processes) checked: None, or 1 to
+    :data:`WORKERS_PER_CORE` per available core."""
     if workers is not None and not is_integer_at_least(workers, 1):
         raise SweepError(f"workers must be a positive integer or None; got {workers!r}")
+    most = WORKERS_PER_CORE * available_cores()
+    if workers is not None and workers > most:
+        raise SweepError(
+            f"workers must be at most {most} ({WORKERS_PER_CORE} per core of the "
+            f"{available_cores()} this process may use); got {workers}"
+        )
     return workers
 
 
@@ -77,7 +92,7 @@ class LocalExecutor:
     """
 
     def __init__(self, workers: int | None = None) -> None:
-        self.workers = _checked_workers(workers)
+        self.workers = checked_workers(workers)
         self.description = f"local: {workers or available_cores()} threads"
 
     def results(self, units: Sequence[Unit]) -> Iterator[UnitOutcome]:
@@ -141,7 +156,7 @@ class DaskExecutor:
                 f"--scheduler must be '{LOCAL_CLUSTER}' or a Dask scheduler address such as "
                 f"'tcp://10.0.0.5:8786'; got {scheduler!r}"
             )
-        if _checked_workers(workers) is not None and scheduler != LOCAL_CLUSTER:
+        if checked_workers(workers) is not None and scheduler != LOCAL_CLUSTER:
             raise SweepError(
                 f"--workers {workers} applies to the local executor and to --scheduler "
                 f"{LOCAL_CLUSTER}; a running cluster ({scheduler}) has the workers it has"

@@ -7,6 +7,7 @@ metrics that must be exact, experiments that must not change silently, output fo
 
 from __future__ import annotations
 
+import importlib
 import math
 import subprocess
 import sys
@@ -93,7 +94,9 @@ def test_a_sweep_beyond_the_run_limit_is_refused_before_expanding():
 
 
 def test_a_run_of_too_many_steps_is_refused():
-    with pytest.raises(ScenarioError, match=r"'duration' must be at most 1e\+09 plant steps"):
+    with pytest.raises(
+        ScenarioError, match=r"'duration' must be at most 1e\+09 plant steps of 'dt'"
+    ):
         short(duration=1e7, dt=0.001, T_c=0.002)
     built = short().build()
     with pytest.raises(ValueError, match=r"t1 - t0 must be at most 1e\+09 plant steps"):
@@ -336,3 +339,32 @@ def test_sweep_output_and_workers_are_checked_before_anything_runs(tmp_path, cap
     assert main(["sweep", str(spec), "--out", "s", "--workers", "100000"]) == 2
     one_line_error(capsys, "--workers", "at most", "100000")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["sweep.toml"]
+
+
+def test_working_memory_beyond_the_machine_is_refused_before_allocating(monkeypatch):
+    simulate_module = importlib.import_module("delaytrack.sim.simulate")
+    monkeypatch.setattr(simulate_module, "_physical_memory", lambda: 2.0**20)
+    data = {"type": "pcon", "kappa": 1.0, "vartheta": 1.0, "k_b": 1.0, "T_c": 0.002}
+    scenario = short(controller={**data, "history": 1000.0}, record_every=100)
+    with pytest.raises(ScenarioError, match=r"working memory needs .* GiB.*predictor's history"):
+        scenario.run()
+
+
+@pytest.mark.parametrize(
+    "delay",
+    [
+        {"type": "abs-sine", "offset": 0.0, "amplitude": 0.05, "frequency": 1e300},
+        {"type": "abs-sine", "offset": 0.0, "amplitude": 1e-3, "frequency": 1e12},
+    ],
+    ids=["fast", "fast-small"],
+)
+def test_a_delay_that_would_split_steps_without_end_is_refused(delay):
+    with pytest.raises(ScenarioError, match=r"may switch the applied command up to .* times"):
+        short(delay=delay).run()
+
+
+def test_record_every_beyond_the_run_records_the_start_and_keeps_exact_metrics():
+    exact = metrics_table(short().run())
+    result = short(record_every=2**70).run()
+    assert result.t.tolist() == [0.0] and result.settings["record_every"] == 2**70
+    pd.testing.assert_frame_equal(metrics_table(result), exact, check_exact=True)

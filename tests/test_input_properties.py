@@ -6,8 +6,8 @@ ragged rows). The contract for each: either the input is refused with an error t
 key or flag, or it is accepted and gives finite values that satisfy their definition. Every
 example must finish in bounded time.
 
-``make test`` runs a quick profile (a few dozen examples per test); set
-``HYPOTHESIS_PROFILE=long`` for a thousand per test.
+``make test`` runs a quick profile (a few dozen examples per test, the same ones every time);
+set ``HYPOTHESIS_PROFILE=long`` for a thousand random ones per test.
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from test_scenario import base_dict
 settings.register_profile(
     "quick",
     max_examples=30,
+    derandomize=True,
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
 )

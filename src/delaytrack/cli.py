@@ -380,7 +380,8 @@ def _empirical(args: argparse.Namespace) -> int:
         )
     except ValueError as error:
         flags = {name: f"--{name}" for name in options}
-        raise UsageError(_with_flag(str(error), flags, {})) from None
+        message = _with_flag(str(error), flags, {}).replace("than upper;", "than --upper;")
+        raise UsageError(message) from None
     seconds = time.perf_counter() - start
     analytic = {}
     if hasattr(controller, "K1") and hasattr(controller, "K2"):

@@ -145,6 +145,36 @@ def crossing_time(kind, params, a, b, g_a, g_b, target):
     return root
 
 
+def switch_bound(kind: int, params: np.ndarray, t0: float, t1: float, T_c: float) -> float:
+    """How many times, at most, the applied command can switch in ``[t0, t1]`` (within a
+    factor of two; what matters is the order of magnitude).
+
+    The command switches where ``g(t) = t - h(t)`` crosses a controller tick (ticks lie in
+    ``[t0, t1]``), and the simulator also splits steps at the ends of the pieces of ``g``
+    (:func:`next_breakpoint`). On each piece ``g`` is monotone, so it crosses at most
+    ``|Δ clip(g)| / T_c + 1`` ticks, with ``g`` clipped to the ticks' range. A profile whose
+    bound is astronomically large (a rectified sine of frequency 1e300) would keep the step
+    splitting busy without end.
+    """
+    duration = t1 - t0
+    if kind == CONSTANT:
+        return duration / T_c + 1.0
+    if kind == ABS_SINE:
+        amplitude, omega = abs(float(params[1])), abs(float(params[2]))  # inf, not a warning
+        pieces = 2.0 * omega * duration / math.pi + 2.0
+        travel = min(duration * (1.0 + amplitude * omega), pieces * duration)
+        return travel / T_c + pieces
+    m = int(params[0])
+    times = params[1 : 1 + m]
+    values = params[1 + m : 1 + 2 * m]
+    inside = (np.append(times[1:], np.inf) >= t0) & (times <= t1)
+    g = np.clip(times - values, t0, t1)
+    # Jumps (piecewise constant) and slopes (piecewise linear) between knots inside the run,
+    # plus the unit slope of g before, between and after them.
+    steps = np.abs(np.diff(g))[inside[:-1]] if m > 1 else np.zeros(0)
+    return (duration + float(np.sum(steps))) / T_c + float(np.count_nonzero(inside)) + 2.0
+
+
 @kernel
 def delay_values(kind, params, times):
     """Vectorised :func:`delay_value` over a 1-D array of times."""

@@ -49,6 +49,12 @@ class DelayProfile(ABC):
         """
         return math.inf
 
+    def switch_bound(self, t0: float, t1: float, T_c: float) -> float:
+        """Upper bound on the command switches in a run over ``[t0, t1]``
+        (:func:`~delaytrack.delays._kernel.switch_bound`); the simulator refuses a profile that
+        would split steps without end."""
+        return _kernel.switch_bound(self.kind, self.params, t0, t1, T_c)
+
     @abstractmethod
     def to_spec(self) -> dict[str, Any]:
         """Plain-data description, the inverse of :func:`delaytrack.delays.delay_from_spec`."""

@@ -280,7 +280,7 @@ class Scenario:
         if self.duration / self.dt > MAX_STEPS:
             raise fail(
                 "duration",
-                f"must be at most {MAX_STEPS:.0e} plant steps of dt = {self.dt:g} s "
+                f"must be at most {MAX_STEPS:.0e} plant steps of 'dt' = {self.dt:g} s "
                 f"({MAX_STEPS * self.dt:g} s; minutes of computing for one run)",
                 self.duration,
             )

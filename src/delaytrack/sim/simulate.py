@@ -328,6 +328,15 @@ def simulate(
     for controller_b, delay_b in zip(controllers, delays, strict=True):
         controller_b.check_run(T_c, delay_b.h_max)
     _check_horizons(plants, delays, t1)
+    for i, delay_b in enumerate(delays):
+        switches = delay_b.switch_bound(t0, t1, T_c)
+        if not switches <= MAX_STEPS:
+            raise ValueError(
+                f"delay[{i}] ({type(delay_b).__name__}) may switch the applied command up to "
+                f"{switches:.3g} times in this run (its t - h(t) sweeps over the controller ticks "
+                f"that often), more than {MAX_STEPS:.0e}: every switch splits a plant step. "
+                "Lower its rate of change (amplitude x frequency, or the jumps between knots)"
+            )
     u_init = np.zeros(m) if u_init is None else np.array(finite_array("u_init", u_init, ndim=1))
     if u_init.shape != (m,):
         raise ValueError(f"u_init must have shape ({m},); got {u_init.shape}")
@@ -343,7 +352,10 @@ def simulate(
     metrics_from_tick = _metrics_from_tick(metrics_from, t0, t1, dt, steps_per_tick, n_ticks)
     workers = _workers(workers)
 
-    records = n_ticks // record_every + 1 if trajectories else 0
+    # Every k-th tick with k beyond the run records tick 0 only, as k = n_ticks + 1 does (which
+    # fits the kernel's 64-bit integers).
+    every = min(int(record_every), n_ticks + 1)
+    records = n_ticks // every + 1 if trajectories else 0
     state_size = first_controller.state_size
     recorded_state = len(first_controller.state_names)
     size = batch * records * (2 * n + 2 * m + 1 + recorded_state) * 8
@@ -354,6 +366,16 @@ def simulate(
     )
     if size > _physical_memory():
         raise ValueError(too_big.format(what="this machine's memory"))
+    capacities = np.array([history_capacity(d.h_max, T_c, n_ticks) for d in delays], dtype=np.int64)
+    working = (batch * state_size + min(workers, batch) * int(capacities.max()) * m) * 8
+    if working > _physical_memory():
+        raise ValueError(
+            f"the runs' working memory needs {working / 2**30:.3g} GiB, more than this machine's "
+            f"memory: {state_size} controller-state numbers per run (a predictor keeps its "
+            f"history there) and {int(capacities.max())} commands of history per thread (the "
+            "delay bound or the run's length, whichever is shorter, over T_c); shorten the "
+            "predictor's history, the delay or the run, or split the batch"
+        )
     try:
         states = np.full((batch, records, 2 * n), np.nan)
         commands = np.full((batch, records, m), np.nan)
@@ -405,7 +427,7 @@ def simulate(
         np.array([d.kind for d in delays], dtype=np.int64),
         _stack_padded([d.params for d in delays]),
         states0,
-        np.array([history_capacity(d.h_max, T_c, n_ticks) for d in delays], dtype=np.int64),
+        capacities,
     )
     settings = (
         np.array(reference.params),
@@ -414,7 +436,7 @@ def simulate(
         dt,
         steps_per_tick,
         n_ticks,
-        int(record_every) if trajectories else 0,
+        every if trajectories else 0,
         divergence_bound,
         error_bounds,
         metrics_from_tick,
@@ -463,7 +485,7 @@ def simulate(
             for chunk in chunks:
                 bar.update(run_chunk(chunk))
 
-    times = t0 + (np.arange(records) * record_every * steps_per_tick) * dt
+    times = t0 + (np.arange(records) * every * steps_per_tick) * dt
     for b in np.flatnonzero(status != 0):
         after = times > t_stop[b]
         for array in (states, commands, applied, delay_records, controller_states):

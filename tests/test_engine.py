@@ -381,10 +381,10 @@ def test_record_every_decimates_the_full_record() -> None:
         ({"x0": [np.nan, 0.0]}, r"x0 must be finite"),
         ({"x0": [2e6, 0.0]}, r"x0 must lie within divergence_bound = 1e\+06; max \|x0\| = 2e\+06"),
         (
-            {"t1": 1e6, "x0": np.tile([1.0, 0.0], (10, 1))},
+            {"t1": 1e5, "x0": np.tile([1.0, 0.0], (1000, 1))},
             r"needs .* GiB, more than this machine.s memory; raise record_every",
         ),
-        ({"t1": 1e9}, r"t1 - t0 must be at most 1e\+09 plant steps of dt per run"),
+        ({"t1": 1e9}, r"t1 - t0 must be at most 1e\+08 plant steps of dt per run"),
         ({"u_init": [0.0, 0.0]}, r"u_init must have shape \(1,\); got \(2,\)"),
         (
             {"delay": [ConstantDelay(0.01)] * 3, "x0": np.zeros((2, 2))},

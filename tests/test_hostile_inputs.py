@@ -95,11 +95,11 @@ def test_a_sweep_beyond_the_run_limit_is_refused_before_expanding():
 
 def test_a_run_of_too_many_steps_is_refused():
     with pytest.raises(
-        ScenarioError, match=r"'duration' must be at most 1e\+09 plant steps of 'dt'"
+        ScenarioError, match=r"'duration' must be at most 1e\+08 plant steps of 'dt'"
     ):
         short(duration=1e7, dt=0.001, T_c=0.002)
     built = short().build()
-    with pytest.raises(ValueError, match=r"t1 - t0 must be at most 1e\+09 plant steps"):
+    with pytest.raises(ValueError, match=r"t1 - t0 must be at most 1e\+08 plant steps"):
         simulate(
             built.plant,
             built.controller,
@@ -343,7 +343,7 @@ def test_sweep_output_and_workers_are_checked_before_anything_runs(tmp_path, cap
 
 def test_working_memory_beyond_the_machine_is_refused_before_allocating(monkeypatch):
     simulate_module = importlib.import_module("delaytrack.sim.simulate")
-    monkeypatch.setattr(simulate_module, "_physical_memory", lambda: 2.0**20)
+    monkeypatch.setattr(simulate_module, "physical_memory", lambda: 2.0**20)
     data = {"type": "pcon", "kappa": 1.0, "vartheta": 1.0, "k_b": 1.0, "T_c": 0.002}
     scenario = short(controller={**data, "history": 1000.0}, record_every=100)
     with pytest.raises(ScenarioError, match=r"working memory needs .* GiB.*predictor's history"):
@@ -368,3 +368,94 @@ def test_record_every_beyond_the_run_records_the_start_and_keeps_exact_metrics()
     result = short(record_every=2**70).run()
     assert result.t.tolist() == [0.0] and result.settings["record_every"] == 2**70
     pd.testing.assert_frame_equal(metrics_table(result), exact, check_exact=True)
+
+
+# ---- cases of an independent campaign, one per class ------------------------------------------
+
+
+def test_numbers_beyond_what_numpy_or_a_float_takes_are_refused_naming_the_key(tmp_path):
+    with pytest.raises(ValueError, match="max_rate must be at most 1e"):
+        RandomDelay(0.01, 0.13, 1e308, duration=1.0, seed=1)
+    with pytest.raises(ScenarioError, match="'duration' must be a finite number"):
+        short(duration=10**400)
+    with pytest.raises(ValueError, match="placements"):
+        PayloadRobot(seed=1, duration=10.0, time_on=1e-300, time_off=1e-300)
+    with pytest.raises(ValueError, match="seed must be an integer from 0"):
+        PayloadRobot(seed=-5, duration=1.0)
+    path = tmp_path / "case.toml"
+    text = short().to_toml()
+    text = text[: text.index("[delay]")] + '[delay]\ntype = "trace"\npath = "~nosuchuser/x.csv"\n'
+    path.write_text(text + "\n[reference]\noffset = [0.0, 0.0]\n")
+    with pytest.raises(ScenarioError, match="delay.path"):
+        Scenario.from_toml(path)
+
+
+def test_unwritable_locations_are_refused_before_computing(tmp_path, capsys):
+    link = tmp_path / "dangling"
+    link.symlink_to(tmp_path / "nowhere")
+    for out in ("/proc/delaytrack-x", str(link), str(tmp_path / ("x" * 300))):
+        assert main(["simulate", "two_link_S1", "--out", out]) == 2
+        one_line_error(capsys, "--out")
+    assert main(["tune-baselines", "--out", "/proc/gains.toml", "--quiet"]) == 2
+    one_line_error(capsys, "--out")
+
+
+def test_files_of_a_user_are_never_overwritten(tmp_path, capsys):
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "metrics.csv").write_text("my own table")
+    assert main(["simulate", str(_file(tmp_path, short())), "--out", str(mine)]) == 2
+    one_line_error(capsys, "--out", "metrics.csv")
+    spec = tmp_path / "sweep.toml"
+    spec.write_text('scenario = "two_link_S1"\nunit_size = 1\n[grid]\n"controller.K1" = [1.0]\n')
+    (mine / "report.html").write_text("mine too")
+    assert main(["sweep", str(spec), "--out", str(mine)]) == 2
+    one_line_error(capsys, "--out")
+    assert (mine / "metrics.csv").read_text() == "my own table"
+
+
+def test_trace_files_with_a_bom_or_spelled_out_units(tmp_path):
+    bom = tmp_path / "bom.csv"
+    bom.write_bytes("\ufeff0,0.05\n0.5,0.06\n2,0.05\n".encode())
+    np.testing.assert_array_equal(TraceDelay.from_csv(bom).values, [0.05, 0.06, 0.05])
+    spelled = tmp_path / "spelled.csv"
+    spelled.write_text("t,delay_milliseconds\n0,50\n1,60\n")
+    with pytest.raises(ValueError, match="looks like ms"):
+        TraceDelay.from_csv(spelled)
+    nano = tmp_path / "nano.csv"
+    nano.write_text("t,delay_ns\n0,5e7\n1,6e7\n")
+    np.testing.assert_allclose(TraceDelay.from_csv(nano, delay_unit="ns").values, [0.05, 0.06])
+    log = tmp_path / "log.csv"
+    log.write_text("stamp,delay\n0,0.05\n1,0.06\n")
+    with pytest.raises(ValueError, match="two different columns"):
+        TraceDelay.from_csv(log, time_column="stamp", delay_column="stamp")
+    with pytest.raises(ValueError, match="is not a file"):
+        TraceDelay.from_csv(tmp_path)
+
+
+def test_the_empirical_margin_keeps_the_scenarios_error_bound():
+    with pytest.raises(ValueError, match="missed already without delay: .* status 3"):
+        empirical_margin(short(error_bound=1e-300), threshold=1.0, upper=0.1)
+
+
+def test_api_values_that_would_change_the_experiment_are_refused():
+    built = short().build()
+    settings = {"reference": built.reference, "dt": 1e-3, "T_c": 2e-3}
+    with pytest.raises(TypeError, match="x0 must be an array of real numbers"):
+        simulate(built.plant, built.controller, built.delay, built.x0 + 1j, t1=0.2, **settings)
+    with pytest.raises(ValueError, match="small enough for dt to be resolved"):
+        simulate(
+            built.plant, built.controller, built.delay, built.x0, t0=1e15, t1=1e15 + 1, **settings
+        )
+    result = short().run()
+    with pytest.raises(ValueError, match="different entries"):
+        metrics_table(result, coordinate_names=["a", "a"])
+    with pytest.raises(ValueError, match="t_from must be a time"):
+        mean_absolute_error(result, t_from=True)
+
+
+def test_a_key_with_a_newline_still_gives_one_line(tmp_path, capsys):
+    path = _file(tmp_path, short())
+    path.write_text(path.read_text().replace("[controller]\n", '[controller]\n"bad\\nkey" = 1\n'))
+    assert main(["simulate", str(path), "--out", str(tmp_path / "o")]) == 2
+    one_line_error(capsys, "bad")

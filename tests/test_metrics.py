@@ -151,5 +151,7 @@ def test_metrics_table_rows_and_columns():
 def test_metrics_table_default_names_and_checks():
     table = metrics_table(constructed())
     assert "ae_q1" in table.columns and "max_q2" in table.columns and "label" not in table.columns
-    with pytest.raises(ValueError, match=r"coordinate_names must have n = 2 entries; got 1"):
+    with pytest.raises(
+        ValueError, match=r"coordinate_names must have n = 2 different entries; got 1"
+    ):
         metrics_table(constructed(), coordinate_names=["x"])

@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -28,26 +29,6 @@ __all__ = [
 
 #: File (in each results folder) listing the files the latest run wrote, relative to it.
 MANIFEST = ".delaytrack-files.json"
-
-
-#: What results folders held before they kept a list (a folder holding only these is one of
-#: ours from an earlier version).
-_EARLIER = frozenset(
-    {
-        "scenario.toml",
-        "metrics.csv",
-        "trajectories.parquet",
-        "trajectories.csv",
-        "figures",
-        "summary.csv",
-        "summary_tuned_arolc.csv",
-        "tables.md",
-        "dt_check.csv",
-        "report.html",
-        "margins.csv",
-        "evaluated.csv",
-    }
-)
 
 
 class OutputFolderError(ValueError):
@@ -67,22 +48,41 @@ def check_writable_location(path: str | os.PathLike[str], argument: str) -> Path
     text = os.fspath(path)
     if not text.strip():
         raise OutputFolderError(f"{argument} must name a location; got {text!r}")
-    target = Path(text).expanduser()
+    try:
+        target = Path(text).expanduser()
+    except RuntimeError as error:  # "~user" of no such user
+        raise OutputFolderError(f"{argument} {text!r}: {error}") from None
+    too_long = [part for part in target.parts if len(os.fsencode(part)) > 255]
+    if too_long:
+        raise OutputFolderError(
+            f"{argument} {text!r} has a name longer than 255 bytes ({too_long[0][:20]!r}...)"
+        )
     for parent in target.parents:
         if parent.exists() and not parent.is_dir():
             raise OutputFolderError(
                 f"{argument} {text!r} lies under {str(parent)!r}, which is a file, not a folder"
             )
-    existing = _nearest_existing(target if target.is_dir() else target.parent)
-    if not os.access(existing, os.W_OK | os.X_OK):
+    if target.is_symlink() and not target.exists():
         raise OutputFolderError(
-            f"{argument} {text!r} cannot be written: {str(existing)!r} is not writable"
+            f"{argument} {text!r} is a link to nothing ({os.readlink(target)!r})"
         )
+    existing = _nearest_existing(target if target.is_dir() else target.parent)
+    try:  # the one reliable test (root passes os.access everywhere, /proc refuses files)
+        probe = tempfile.NamedTemporaryFile(dir=existing, prefix=".delaytrack-probe-")
+        probe.close()
+    except OSError as error:
+        raise OutputFolderError(
+            f"{argument} {text!r} cannot be written: {error.strerror or error} in {str(existing)!r}"
+        ) from None
     return target
 
 
-def check_output_folder(folder: str | os.PathLike[str], argument: str = "folder") -> Path:
+def check_output_folder(
+    folder: str | os.PathLike[str], argument: str = "folder", *, marks: tuple[str, ...] = ()
+) -> Path:
     """Check a results folder before computing (module docstring); return it as a Path.
+
+    ``marks`` are entries that also show a folder to be this toolkit's (a sweep's ``parts``).
 
     Raises
     ------
@@ -96,14 +96,16 @@ def check_output_folder(folder: str | os.PathLike[str], argument: str = "folder"
             f"{argument} {os.fspath(folder)!r} is a file; it must name a folder (new or empty, "
             "or one that holds earlier results of this toolkit)"
         )
-    if target.is_dir() and not (target / MANIFEST).is_file():
-        foreign = sorted(entry.name for entry in target.iterdir() if entry.name not in _EARLIER)
+    ours = (target / MANIFEST).is_file() or any((target / mark).exists() for mark in marks)
+    if target.is_dir() and not ours:
+        foreign = sorted(entry.name for entry in target.iterdir())
         if foreign:
             shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
             raise OutputFolderError(
                 f"{argument} {os.fspath(folder)!r} already holds files that this toolkit did not "
                 f"write ({shown}); choose a new or empty folder, so that nothing of yours is "
-                "overwritten and the folder holds one run's results only"
+                "overwritten and the folder holds one run's results only (results of an earlier "
+                "version of this toolkit: delete the folder)"
             )
     return target
 

@@ -52,7 +52,11 @@ def _is_matrix(value: object) -> bool:
 def number(value: object) -> str | None:
     if not _is_number(value):
         return "must be a number"
-    if not math.isfinite(value):
+    try:
+        finite = math.isfinite(value)
+    except OverflowError:  # an integer beyond any float
+        finite = False
+    if not finite:
         return "must be a finite number"
     return None
 

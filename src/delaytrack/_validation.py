@@ -95,8 +95,10 @@ def positive_scalar(name: str, value: object, *, strictly: bool = True) -> float
 def finite_array(name: str, value: object, *, ndim: int | None = None) -> np.ndarray:
     """Return ``value`` as a float64 array with only finite entries."""
     try:
+        if np.iscomplexobj(value):
+            raise TypeError
         array = np.array(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError, RecursionError):
         raise TypeError(f"{name} must be an array of real numbers; got {value!r}") from None
     if ndim is not None and array.ndim != ndim:
         raise ValueError(f"{name} must be {ndim}-dimensional; got shape {array.shape}")

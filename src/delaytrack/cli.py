@@ -33,6 +33,7 @@ from delaytrack._output import (
     OutputFolderError,
     check_output_folder,
     check_writable_location,
+    record_outputs,
 )
 
 if TYPE_CHECKING:
@@ -463,12 +464,16 @@ def _reproduce(args: argparse.Namespace) -> int:
 
 
 def _reproduce_two_link(args: argparse.Namespace) -> int:
+    from delaytrack.experiments import ScenarioError
     from delaytrack.experiments.two_link import FOLDER, reproduce
 
     start = time.perf_counter()
-    study, files = reproduce(
-        args.out, duration=args.duration, check_dt=not args.no_dt_check, progress=not args.quiet
-    )
+    try:
+        study, files = reproduce(
+            args.out, duration=args.duration, check_dt=not args.no_dt_check, progress=not args.quiet
+        )
+    except ScenarioError as error:  # a --duration the job's scenarios refuse
+        raise UsageError(str(error).replace("scenario key 'duration'", "--duration")) from None
     seconds = time.perf_counter() - start
     folder = Path(args.out) / FOLDER
     print(f"two-link job done in {seconds:.1f} s wall time; wrote {len(files)} files to {folder}/")
@@ -519,19 +524,14 @@ def _sweep(args: argparse.Namespace) -> int:
         except SweepError as error:
             raise UsageError(_with_flag(str(error), {"workers": "--workers"}, {})) from None
     folder = (
-        check_writable_location(args.out, "--out")
+        check_output_folder(args.out, "--out", marks=("parts",))
         if args.out is not None
-        else check_writable_location(
-            Path("results/sweeps") / Path(args.spec).stem, "the results folder"
+        else check_output_folder(
+            Path("results/sweeps") / Path(args.spec).stem, "the results folder", marks=("parts",)
         )
     )
-    if folder.exists() and not folder.is_dir():
-        raise UsageError(f"--out {str(folder)!r} is a file; it must name a folder")
     spec = SweepSpec.from_toml(args.spec)
-    print(
-        f"sweep {args.spec}: {len(spec.runs)} runs in {len(spec.units())} units -> {folder}/",
-        file=sys.stderr,
-    )
+    print(f"sweep {args.spec}: {len(spec.runs)} runs in {len(spec.units())} units -> {folder}/")
     executor = make_executor(args.scheduler, workers=workers)
     try:
         outcome = run_sweep(spec, folder, executor=executor, progress=not args.quiet)
@@ -542,6 +542,7 @@ def _sweep(args: argparse.Namespace) -> int:
         print(f"error: {failed}", file=sys.stderr)
         return 1
     files = write_sweep_outputs(outcome)
+    record_outputs(folder, [*files, folder / "runs.parquet", folder / "runs.csv"])
     print(
         f"{len(spec.runs)} runs done ({outcome.computed} units computed, {outcome.resumed} found "
         f"finished) in {outcome.seconds:.1f} s on {outcome.executor}"
@@ -852,7 +853,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return args.handler(args)
     except (UsageError, ScenarioError, OutputFolderError) as error:
-        print(f"error: {error}", file=sys.stderr)
+        # One line, whatever the input held (a key with a newline in it).
+        print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
         return EXIT_USAGE
     except OSError as error:
         print(f"error: {error}", file=sys.stderr)

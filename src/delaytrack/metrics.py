@@ -62,6 +62,8 @@ def _sequential_sum(values: np.ndarray, axis: int) -> np.ndarray:
 
 def _samples(result: SimResult, t_from: float) -> slice:
     """The recorded ticks at or after ``t_from``; every tick must have been recorded."""
+    if isinstance(t_from, bool) or not isinstance(t_from, int | float | np.integer | np.floating):
+        raise ValueError(f"t_from must be a time in seconds (a number); got {t_from!r}")
     start = float(t_from)
     if not np.isfinite(start):
         raise ValueError(f"t_from must be a finite time in seconds; got {t_from!r}")
@@ -232,8 +234,10 @@ def metrics_table(
     """
     n = result.n
     names = [f"q{i + 1}" for i in range(n)] if coordinate_names is None else list(coordinate_names)
-    if len(names) != n:
-        raise ValueError(f"coordinate_names must have n = {n} entries; got {len(names)}: {names}")
+    if len(names) != n or len(set(names)) != n:
+        raise ValueError(
+            f"coordinate_names must have n = {n} different entries; got {len(names)}: {names}"
+        )
     columns: dict[str, object] = {}
     if label is not None:
         columns["label"] = [label] * result.batch_size

@@ -15,8 +15,11 @@ from delaytrack.delays.knots import pack_knots
 
 __all__ = ["MAX_KNOTS", "RandomDelay"]
 
-#: Most knots of one walk (8 bytes each, twice): 10^8 knots take 1.6 GB.
-MAX_KNOTS = 1e8
+#: Largest ``max_rate``: numpy draws slopes in ``[-max_rate, max_rate]`` only while that
+#: interval's width is a finite double.
+MAX_RATE = 1e300
+#: Most knots of one walk: 10^7 knots take under half a GB and seconds to draw.
+MAX_KNOTS = 1e7
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,6 +51,11 @@ class RandomDelay(DelayProfile):
         if high < low:
             raise ValueError(f"h_high must be >= h_low; got h_low = {low:g}, h_high = {high:g}")
         rate = positive_scalar("max_rate", self.max_rate, strictly=False)
+        if rate > MAX_RATE:
+            raise ValueError(
+                f"max_rate must be at most {MAX_RATE:g} (s of delay per s; a faster walk only "
+                f"bounces between h_low and h_high); got {rate:g}"
+            )
         duration = positive_scalar("duration", self.duration)
         spacing = positive_scalar("knot_spacing", self.knot_spacing)
         if (

@@ -18,11 +18,30 @@ from delaytrack.delays.knots import KnotDelay
 __all__ = ["TIME_UNITS", "TraceDelay"]
 
 #: Units a trace file's columns may be in, with their size in seconds.
-TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6}
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 
-#: A unit written in a column header: ``delay_ms``, ``h [ms]``, ``t (s)``, ``stamp_us``.
-_HEADER_UNIT = re.compile(r"(?:^|[_\s(\[])(s|ms|us|µs|sec|msec|usec)[)\]]?\s*$", re.IGNORECASE)
-_UNIT_ALIASES = {"sec": "s", "msec": "ms", "usec": "us", "µs": "us"}
+#: A unit written in a column header: ``delay_ms``, ``h [ms]``, ``t (s)``, ``stamp_us``,
+#: ``delay_milliseconds``.
+_UNIT_ALIASES = {
+    "sec": "s",
+    "secs": "s",
+    "second": "s",
+    "seconds": "s",
+    "msec": "ms",
+    "millisecond": "ms",
+    "milliseconds": "ms",
+    "usec": "us",
+    "µs": "us",
+    "microsecond": "us",
+    "microseconds": "us",
+    "nsec": "ns",
+    "nanosecond": "ns",
+    "nanoseconds": "ns",
+}
+_HEADER_UNIT = re.compile(
+    r"(?:^|[_\s(\[])(" + "|".join([*TIME_UNITS, *_UNIT_ALIASES]) + r")[)\]]?\s*$",
+    re.IGNORECASE,
+)
 
 
 def _is_number(text: str) -> bool:
@@ -114,8 +133,10 @@ class TraceDelay(KnotDelay):
             See the class.
         """
         path = Path(path)
-        if not path.is_file():
+        if not path.exists():
             raise FileNotFoundError(f"delay trace file {str(path)!r} does not exist")
+        if not path.is_file():
+            raise ValueError(f"delay trace file {str(path)!r} is not a file")
         if (time_column is None) != (delay_column is None):
             raise ValueError(
                 "time_column and delay_column name the two columns of a CSV header; give both "
@@ -126,7 +147,7 @@ class TraceDelay(KnotDelay):
             _unit("delay_unit", "s" if delay_unit is None else delay_unit),
         ]
         try:
-            with path.open(newline="", encoding="utf-8") as handle:
+            with path.open(newline="", encoding="utf-8-sig") as handle:
                 rows = [
                     row for row in csv.reader(handle) if row and any(cell.strip() for cell in row)
                 ]
@@ -223,6 +244,11 @@ def _columns(
             "header row"
         )
     stripped = [name.strip() for name in header]
+    if time_column == delay_column:
+        raise ValueError(
+            f"{path}: time_column and delay_column must name two different columns; both are "
+            f"{time_column!r}"
+        )
     indices = []
     for argument, name in (("time_column", time_column), ("delay_column", delay_column)):
         if name not in stripped:

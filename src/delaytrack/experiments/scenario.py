@@ -72,7 +72,7 @@ from delaytrack.delays import DELAY_SPECS, DelayProfile, delay_from_spec
 from delaytrack.plants import PLANT_SPECS, ELPlant, plant_from_spec
 from delaytrack.reference import SinusoidalReference
 from delaytrack.sim import SimResult, simulate
-from delaytrack.sim.simulate import MAX_STEPS
+from delaytrack.sim.simulate import MAX_STEPS, physical_memory
 
 __all__ = [
     "BuiltScenario",
@@ -281,7 +281,7 @@ class Scenario:
             raise fail(
                 "duration",
                 f"must be at most {MAX_STEPS:.0e} plant steps of 'dt' = {self.dt:g} s "
-                f"({MAX_STEPS * self.dt:g} s; minutes of computing for one run)",
+                f"({MAX_STEPS * self.dt:g} s; about a minute of computing for one run)",
                 self.duration,
             )
         _check_ratio("T_c", self.T_c, "dt", self.dt)
@@ -368,7 +368,10 @@ class Scenario:
             raise ScenarioError(f"{source}: not valid TOML: {error}") from None
         delay = data.get("delay")
         if isinstance(delay, dict) and isinstance(delay.get("path"), str):
-            trace = Path(delay["path"]).expanduser()
+            try:
+                trace = Path(delay["path"]).expanduser()
+            except RuntimeError as error:  # "~user" of no such user
+                raise ScenarioError(f"{source}: scenario key 'delay.path': {error}") from None
             delay["path"] = str(trace if trace.is_absolute() else (source.parent / trace).resolve())
         try:
             return cls.from_dict(data)
@@ -625,6 +628,9 @@ def load_builtin(name: str) -> Scenario:
 # One scenario to a results folder (what `delaytrack simulate` does).
 
 TRAJECTORY_FORMATS = ("parquet", "csv")
+#: Peak memory of writing a results folder over the recorded arrays alone (measured: the frame,
+#: its Parquet/CSV writers and the figures hold copies).
+_WRITE_OVERHEAD = 10
 
 
 @dataclass(frozen=True)
@@ -677,7 +683,16 @@ def run_to_folder(
             f"formats must be a non-empty subset of {list(TRAJECTORY_FORMATS)}; got {list(formats)}"
         )
     folder = check_output_folder(folder)
-    resolved = scenario.resolved()
+    resolved, built = scenario.resolved_and_built()
+    records = int(resolved.duration / resolved.T_c) // resolved.record_every + 1
+    columns = 4 * built.plant.n + 2 * built.plant.m + 3 + built.controller.state_size
+    needed = _WRITE_OVERHEAD * records * columns * 8
+    if needed > physical_memory():
+        raise ScenarioError(
+            f"scenario {resolved.name!r}: writing {records} records of every tick needs about "
+            f"{needed / 2**30:.3g} GiB while its tables and figures are built, more than this "
+            "machine's memory; raise 'record_every' or shorten 'duration'"
+        )
     result = resolved.run(progress=progress)
     files = [folder / "scenario.toml"]
     resolved.to_toml(files[0])

@@ -30,7 +30,7 @@ from delaytrack.sim.history import history_capacity, tick_time
 from delaytrack.sim.result import SimResult
 from delaytrack.sim.running_metrics import accumulator_size, finish_metrics
 
-__all__ = ["simulate"]
+__all__ = ["MAX_STEPS", "physical_memory", "simulate"]
 
 _T = TypeVar("_T")
 
@@ -39,7 +39,7 @@ ENGINES = ("auto", "compiled", "python")
 
 #: Most RK4 steps of one run, ``(t1 - t0) / dt``: at a few million steps a second, minutes of
 #: computing. A longer run is refused before anything is allocated.
-MAX_STEPS = 10**9
+MAX_STEPS = 10**8
 
 #: Chunks per worker thread: enough for load balance and a moving progress bar, few enough
 #: that the per-call overhead stays negligible.
@@ -114,7 +114,7 @@ def _workers(workers: int | None) -> int:
     return int(workers)
 
 
-def _physical_memory() -> float:
+def physical_memory() -> float:
     """Bytes of physical memory (infinite where the platform does not say)."""
     try:
         return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
@@ -263,12 +263,18 @@ def simulate(
     t1 = float(finite_array("t1", t1, ndim=0))
     if t1 <= t0:
         raise ValueError(f"t1 must be later than t0; got t0 = {t0:g}, t1 = {t1:g}")
+    if max(abs(t0), abs(t1)) * np.finfo(float).eps > 1e-3 * dt:
+        raise ValueError(
+            f"t0 and t1 must be small enough for dt to be resolved: times of size "
+            f"{max(abs(t0), abs(t1)):g} s are spaced {max(abs(t0), abs(t1)) * 2.2e-16:.2g} s apart "
+            f"in double precision, not far below dt = {dt:g} s; start the run at t0 = 0"
+        )
     steps_per_tick = _integer_ratio("T_c", T_c, dt, "dt")
     n_ticks = _integer_ratio("t1 - t0", t1 - t0, T_c, "T_c", scale=max(abs(t0), abs(t1)))
     if n_ticks * steps_per_tick > MAX_STEPS:
         raise ValueError(
-            f"t1 - t0 must be at most {MAX_STEPS:.0e} plant steps of dt per run (minutes of "
-            f"computing for one run); got (t1 - t0)/dt = {n_ticks * steps_per_tick:.3g} "
+            f"t1 - t0 must be at most {MAX_STEPS:.0e} plant steps of dt per run (about a "
+            f"minute of computing for one run); got (t1 - t0)/dt = {n_ticks * steps_per_tick:.3g} "
             f"({t1 - t0:g} s at dt = {dt:g} s): shorten the run or raise dt"
         )
     if (
@@ -364,11 +370,11 @@ def simulate(
         "{what}; raise record_every, pass trajectories=False (running metrics only), shorten "
         "t1 - t0 or split the batch"
     )
-    if size > _physical_memory():
+    if size > physical_memory():
         raise ValueError(too_big.format(what="this machine's memory"))
     capacities = np.array([history_capacity(d.h_max, T_c, n_ticks) for d in delays], dtype=np.int64)
     working = (batch * state_size + min(workers, batch) * int(capacities.max()) * m) * 8
-    if working > _physical_memory():
+    if working > physical_memory():
         raise ValueError(
             f"the runs' working memory needs {working / 2**30:.3g} GiB, more than this machine's "
             f"memory: {state_size} controller-state numbers per run (a predictor keeps its "

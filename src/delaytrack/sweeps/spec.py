@@ -480,7 +480,10 @@ def _load_base(source: object, root: Path) -> Scenario:
             f"sweep key 'scenario' must be a scenario file or a shipped scenario name; got "
             f"{source!r}"
         )
-    path = root / Path(source).expanduser()
+    try:
+        path = root / Path(source).expanduser()
+    except RuntimeError as error:  # "~user" of no such user
+        raise SweepError(f"sweep key 'scenario' = {source!r}: {error}") from None
     if path.is_file():
         return Scenario.from_toml(path)
     if source in builtin_scenario_names():

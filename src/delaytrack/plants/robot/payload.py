@@ -34,7 +34,12 @@ from typing import Any, ClassVar
 import numpy as np
 
 from delaytrack._jit import hot_kernel
-from delaytrack._validation import beyond_choice, finite_array, positive_scalar
+from delaytrack._validation import (
+    beyond_choice,
+    finite_array,
+    is_integer_at_least,
+    positive_scalar,
+)
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.dispatch import ROBOT_PAYLOAD
 from delaytrack.plants.robot.body import COORDINATES
@@ -93,11 +98,16 @@ def robot_payload_terms(t, q, qdot, params, mass, nonlinear, input_map):
     constrained_terms(q, qdot, params, mass_b, s_x, s_y, inertia_a, mass, nonlinear, input_map)
 
 
+#: Most placements of a random payload schedule (two numbers each, in every run's parameters).
+MAX_PLACEMENTS = 10**6
+
+
 def placement_count(duration: float, first_on: float, time_on: float, time_off: float) -> int:
     """Number of placements that start before ``duration``."""
     if duration <= first_on:
         return 0
-    return int(math.ceil((duration - first_on) / (time_on + time_off) - 1e-12))
+    periods = (duration - first_on) / (time_on + time_off)
+    return int(math.ceil(periods - 1e-12)) if math.isfinite(periods) else 2**63
 
 
 def random_placements(
@@ -183,11 +193,19 @@ class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
         if random:
             if self.seed is None or self.duration is None:
                 raise ValueError("random placements need both seed and duration")
-            if isinstance(self.seed, bool) or not isinstance(self.seed, int | np.integer):
-                raise TypeError(f"seed must be an integer; got {self.seed!r}")
+            if not is_integer_at_least(self.seed, 0) or self.seed > 2**63 - 1:
+                raise ValueError(
+                    f"seed must be an integer from 0 to 2**63 - 1; got {self.seed!r}"
+                )
             duration = positive_scalar("duration", self.duration)
             object.__setattr__(self, "duration", duration)
             count = placement_count(duration, self.first_on, self.time_on, self.time_off)
+            if count > MAX_PLACEMENTS:
+                raise ValueError(
+                    f"duration must cover at most {MAX_PLACEMENTS:.0e} placements of the payload "
+                    f"(one every time_on + time_off = {self.time_on + self.time_off:g} s); got "
+                    f"duration = {duration:g} s, {count:.3g} placements"
+                )
             placements = random_placements(
                 int(self.seed), count, self.plate_length, self.plate_width, self.plate_center
             )

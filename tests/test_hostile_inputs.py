@@ -434,7 +434,7 @@ def test_trace_files_with_a_bom_or_spelled_out_units(tmp_path):
 
 
 def test_the_empirical_margin_keeps_the_scenarios_error_bound():
-    with pytest.raises(ValueError, match="missed already without delay: .* status 3"):
+    with pytest.raises(ValueError, match="missed already without delay: .* 'left the path'"):
         empirical_margin(short(error_bound=1e-300), threshold=1.0, upper=0.1)
 
 
@@ -459,3 +459,12 @@ def test_a_key_with_a_newline_still_gives_one_line(tmp_path, capsys):
     path.write_text(path.read_text().replace("[controller]\n", '[controller]\n"bad\\nkey" = 1\n'))
     assert main(["simulate", str(path), "--out", str(tmp_path / "o")]) == 2
     one_line_error(capsys, "bad")
+
+
+def test_a_file_with_a_byte_order_mark_and_a_frequency_too_high(tmp_path, capsys):
+    path = _file(tmp_path, short())
+    path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    assert Scenario.from_toml(path) == short()
+    args = ["empirical", "two_link_margins", "--threshold", "0.2", "--profile", "abs-sine"]
+    assert main([*args, "--frequency", "1e300"]) == 2
+    one_line_error(capsys, "--frequency", "1e+300")

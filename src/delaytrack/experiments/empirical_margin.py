@@ -44,7 +44,8 @@ from delaytrack._validation import is_integer_at_least, positive_scalar
 from delaytrack.controllers import Controller
 from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
 from delaytrack.experiments.scenario import Scenario, ScenarioError
-from delaytrack.sim import simulate
+from delaytrack.sim import STATUS_NAMES, simulate
+from delaytrack.sim.simulate import MAX_STEPS
 
 __all__ = ["METRICS", "MIN_RESOLUTION", "PROFILES", "EmpiricalMargin", "empirical_margin"]
 
@@ -303,6 +304,13 @@ def empirical_margin(
             )
     built = scenario.build()
     make = PROFILES[settings["profile"]]
+    switches = make(settings["upper"], frequency).switch_bound(0.0, scenario.duration, scenario.T_c)
+    if not switches <= MAX_STEPS:
+        raise ValueError(
+            f"frequency must be low enough for the delay to switch the command at most "
+            f"{MAX_STEPS:.0e} times in the run; at {frequency:g} rad/s with upper = "
+            f"{settings['upper']:g} s it may switch {switches:.3g} times"
+        )
 
     def evaluate(values: list[float], controller: list[Controller]) -> tuple[np.ndarray, ...]:
         try:
@@ -343,7 +351,8 @@ def empirical_margin(
                 raise ValueError(
                     f"threshold = {settings['threshold']:g} is missed already without delay: "
                     f"{settings['metric']} = {worst[part][0]:.4g} rad, status "
-                    f"{int(status[part][0])} at h = 0{where}; give a larger threshold or a later "
+                    f"{STATUS_NAMES[int(status[part][0])]!r} at h = 0{where}; give a larger "
+                    "threshold or a later "
                     "settle time"
                 )
             searches[i].take(values, worst[part], status[part], passes[part])

@@ -357,7 +357,7 @@ class Scenario:
         """
         source = Path(path)
         try:
-            text = source.read_text(encoding="utf-8")
+            text = source.read_text(encoding="utf-8-sig")  # a byte-order mark is not TOML
         except FileNotFoundError:
             raise ScenarioError(f"scenario file {str(source)!r} does not exist") from None
         except (OSError, UnicodeDecodeError) as error:

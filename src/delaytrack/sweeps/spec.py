@@ -378,7 +378,7 @@ class SweepSpec:
         """Read a sweep file; a relative ``scenario`` path is taken relative to the file."""
         source = Path(path)
         try:
-            data = tomllib.loads(source.read_text(encoding="utf-8"))
+            data = tomllib.loads(source.read_text(encoding="utf-8-sig"))
         except FileNotFoundError:
             raise SweepError(f"sweep file {str(source)!r} does not exist") from None
         except (OSError, UnicodeDecodeError) as error:

@@ -194,9 +194,7 @@ class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
             if self.seed is None or self.duration is None:
                 raise ValueError("random placements need both seed and duration")
             if not is_integer_at_least(self.seed, 0) or self.seed > 2**63 - 1:
-                raise ValueError(
-                    f"seed must be an integer from 0 to 2**63 - 1; got {self.seed!r}"
-                )
+                raise ValueError(f"seed must be an integer from 0 to 2**63 - 1; got {self.seed!r}")
             duration = positive_scalar("duration", self.duration)
             object.__setattr__(self, "duration", duration)
             count = placement_count(duration, self.first_on, self.time_on, self.time_off)

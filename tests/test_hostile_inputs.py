@@ -468,3 +468,14 @@ def test_a_file_with_a_byte_order_mark_and_a_frequency_too_high(tmp_path, capsys
     args = ["empirical", "two_link_margins", "--threshold", "0.2", "--profile", "abs-sine"]
     assert main([*args, "--frequency", "1e300"]) == 2
     one_line_error(capsys, "--frequency", "1e+300")
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "bound"),
+    [("alpha", 1e308, "<= 1e"), ("gamma", 1e308, "<= 1e"), ("c_hat0", 1e300, "<= 1e")]
+    + [("epsilon", 1e-300, ">= 1e-100")],
+)
+def test_arolc_parameters_beyond_double_precision_are_refused(key, value, bound):
+    controller = {**base_dict()["controller"], key: value}
+    with pytest.raises(ScenarioError, match=rf"'controller.{key}' must be {bound}"):
+        short(controller=controller).build()

@@ -108,6 +108,11 @@ def arolc_step(
     state[_S_PREVIOUS:] = s
 
 
+#: alpha, gamma, c_hat0 <= _LAW_RANGE and epsilon >= 1 / _LAW_RANGE: the products in
+#: Δu = α ĉ s/ε stay far from the double-precision limits.
+_LAW_RANGE = 1e100
+
+
 @dataclass(frozen=True, eq=False)
 class AROLC(Controller):
     """AROLC for an ``n``-coordinate Euler–Lagrange plant.
@@ -151,6 +156,17 @@ class AROLC(Controller):
             object.__setattr__(self, name, positive_scalar(name, getattr(self, name)))
         c_hat0 = self.gamma if self.c_hat0 is None else positive_scalar("c_hat0", self.c_hat0)
         object.__setattr__(self, "c_hat0", c_hat0)
+        # The law multiplies alpha c_hat ||s|| / epsilon: large factors or a tiny divisor
+        # overflow double precision.
+        for name in ("alpha", "gamma", "c_hat0", "epsilon"):
+            value = getattr(self, name)
+            inverse = name == "epsilon"
+            if (1.0 / value if inverse else value) > _LAW_RANGE:
+                bound = f">= {1.0 / _LAW_RANGE:g}" if inverse else f"<= {_LAW_RANGE:g}"
+                raise ValueError(
+                    f"{name} must be {bound} (the law multiplies alpha c_hat ||s|| / epsilon; "
+                    f"beyond that the command overflows double precision); got {value:g}"
+                )
         P = lyapunov_matrix(self.K1, self.K2, self.Q)
         input_matrix = error_dynamics_matrices(self.K1, self.K2)[3]
         object.__setattr__(self, "P", P)

@@ -70,7 +70,7 @@ def test_p3dx_parameters_and_sources():
     fields = set(P3DX.__dataclass_fields__) | {"platform_mass", "platform_inertia"}
     assert fields <= set(P3DX_SOURCES)
     for key, text in P3DX_SOURCES.items():
-        assert text.startswith(("[source]", "[SPEC]", "[assumed]", "[derived]")), key
+        assert text.startswith(("[source]", "[chosen]", "[assumed]", "[derived]")), key
 
 
 def test_reduced_mass_is_robot_notes_formula():

@@ -1,4 +1,4 @@
-"""Adaptive-Robust Outer Loop Control (AROLC), Roy & Kar, as fixed by SPEC §2.
+"""Adaptive-Robust Outer Loop Control (AROLC), Roy & Kar (decisions left open: docs/decisions.md).
 
 Continuous law (paper eqs. (input), (control input), (aux), (delta u), (ATRC)):
 

@@ -1,4 +1,4 @@
-"""The predictor-based baselines PCON (paper Ref 32) and PCONf (Ref 31), as fixed by SPEC §4.
+"""The predictor baselines PCON (paper Ref 32) and PCONf (Ref 31); decisions: docs/decisions.md.
 
 Continuous law (paper eqs. (filter), (int error) and ``τ = k_b ϱ``):
 
@@ -143,7 +143,7 @@ MAX_HISTORY_TICKS = 10**7
 
 @dataclass(frozen=True, eq=False)
 class PredictorBaseline(Controller):
-    """The predictor law shared by :class:`PCON` and :class:`PCONf` (SPEC §4).
+    """The predictor law shared by :class:`PCON` and :class:`PCONf` (the paper's Refs 31–32).
 
     Parameters
     ----------

@@ -1,6 +1,6 @@
 """The dt-halving check of the experiments: rerun with dt / 2 and compare every metric.
 
-SPEC §6: the results must not hinge on the plant step; halving dt (T_c unchanged) may move no
+The results must not hinge on the plant step; halving dt (T_c unchanged) may move no
 summary metric by more than 1 %.
 """
 

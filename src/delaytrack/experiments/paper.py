@@ -1,4 +1,4 @@
-"""The paper's experiment (SPEC §6): the PIONEER-3 robot with payload under S1–S4.
+"""The paper's experiment (the paper's Section III): the PIONEER-3 robot with payload under S1–S4.
 
 :func:`run_paper` writes ``<out_dir>/``:
 
@@ -90,7 +90,7 @@ __all__ = [
     "write_study",
 ]
 
-#: Delay scenarios (SPEC §6): name -> delay profile.
+#: Delay scenarios (the paper's Section III): name -> delay profile.
 SCENARIOS: dict[str, DelayProfile] = {
     "S1": AbsSineDelay.S1(),
     "S2": AbsSineDelay.S2(),
@@ -108,7 +108,7 @@ _SCENARIO_TEXT = {
 #: One payload seed for every reported run (the tuning uses another, tuning.TUNING_SEED).
 PAYLOAD_SEED = 2024
 DURATION, DT, T_C = 60.0, 1e-3, 0.01
-#: AROLC's gains (the paper's, SPEC §2).
+#: AROLC's gains (the paper's).
 AROLC_GAINS = dict(K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
 BETA, R = 1.0, 1.1
 #: %AE scale: the circle's diameter in mm (the paper's).
@@ -379,7 +379,8 @@ def tables_markdown(summary: pd.DataFrame, reference: str = "consistent") -> str
         "(real robot)",
         "",
         "AE in mm, %AE = AE / 2500 mm × 100, TV in N·m (commanded wheel torques at the controller "
-        "ticks). Paper values from SPEC §6; `—`: not in the paper. Compare the pattern, not the "
+        "ticks). Paper values from its Tables I–III; `—`: not in the paper. Compare the pattern, "
+        "not the "
         "digits.",
         "",
     ]
@@ -749,7 +750,7 @@ def _tuned_section(report: HtmlReport, study: PaperStudy) -> None:
 
 def _literal_paragraph(study: PaperStudy, literal_summary: pd.DataFrame | None) -> str:
     text = (
-        "The literal path (SPEC §6). The paper prints x_d = 1.25 sin(0.35t) + 0.1, "
+        "The literal path (the paper's Section III). The paper prints x_d = 1.25 sin(0.35t) + 0.1, "
         "y_d = 1.25 cos(0.35t) + 1.35, φ_d = 0.25t, θ_r,d = 3t, θ_l,d = 2t. These are not "
         "consistent for a nonholonomic robot: the circle is driven clockwise at 0.4375 m/s while "
         "φ_d turns counter-clockwise and the wheel references imply 0.24 m/s and "
@@ -831,7 +832,7 @@ def _settings(study: PaperStudy) -> dict[str, str]:
         "delays": "; ".join(f"{k}: {v}" for k, v in _SCENARIO_TEXT.items())
         + " (unknown to AROLC and the outer loop)",
         "duration": f"{study.duration:g} s (not in the paper; six payload cycles)",
-        "plant step dt": f"{DT:g} s, RK4 split at the delayed input's switches (SPEC §5); the "
+        "plant step dt": f"{DT:g} s, RK4 split at the delayed input's switches; the "
         "dt/2 check below shows the results do not hinge on it",
         "controller period T_c": f"{T_C:g} s (100 Hz), zero-order hold. Not in the paper: a "
         "plausible rate for a P3-DX control loop (its onboard server cycles at 10–100 ms), 2× "

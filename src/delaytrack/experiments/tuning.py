@@ -1,7 +1,7 @@
-"""Tuning of the compared controllers for the robot experiment (SPEC §4, §6): PCON, PCONf, AROLC.
+"""Tuning of the compared controllers for the paper's robot experiment: PCON, PCONf, AROLC.
 
 The paper gives no gains for its baselines, and a comparison against an untuned baseline is
-worthless (SPEC §4); a comparison of tuned baselines against an untuned AROLC is not symmetric
+worthless; a comparison of tuned baselines against an untuned AROLC is not symmetric
 either. This module is the documented, seeded and reproducible procedure that chooses the gains of
 all three, by the SAME objective; ``delaytrack tune-baselines`` runs it and writes
 ``delaytrack/data/baseline_gains.toml``, which :mod:`delaytrack.experiments.paper` reads.
@@ -11,7 +11,7 @@ Procedure (one full-factorial grid search per controller):
 - **Baselines' gains searched.** ``κ`` (scalar), ``k_b`` (scalar, i.e. ``k_b I``) and
   ``ϑ = c · M̂(q_d(0))⁻¹`` with ``M̂`` the nominal robot's
   (:class:`~delaytrack.plants.robot.NominalRobot`) mass matrix at the reference's initial pose:
-  ``ϑ`` is the law's estimate of ``M⁻¹`` (SPEC §4), scaled by ``c``. docs/decisions.md D23: the
+  ``ϑ`` is the law's estimate of ``M⁻¹`` (paper Refs 31–32), scaled by ``c``. decisions D23: the
   sampled law is stable only for roughly ``T_c · k_b · λ_max(ϑ) < 2``; ``λ_max(M̂⁻¹) = 1/I_w =
   100`` (the wheels), so with ``T_c = 10 ms`` this needs ``k_b · c < 2``. The grid straddles that
   boundary (:attr:`TuningResult.interior` reports whether the optimum is interior).

@@ -362,7 +362,7 @@ def _settings_rows(study: TwoLinkStudy) -> dict[str, str]:
         "delays": "; ".join(_CASE_TEXT[c] for c in CASES) + ". Unknown to both controllers.",
         "duration": f"{s.duration:g} s from t = 0",
         "plant step dt": f"{s.dt:g} s, fixed-step RK4 split at the instants the delayed input "
-        "switches (SPEC §5)",
+        "switches",
         "controller period T_c": f"{s.T_c:g} s with zero-order hold (500 Hz, a usual joint-"
         "controller rate; 10x below the smallest S1 delay; an integer multiple of dt)",
         "recording": f"every controller tick (record_every = {s.record_every}), so TV is the "

@@ -149,7 +149,7 @@ def call_command_map(model, q, params, input_map, tau, command):
 
     Fully actuated models solve ``G(q) command = τ``. A model with constraints supplies its own
     map by kernel id: the wheeled robot's nominal models (:data:`ROBOT_COMMAND_MAP_IDS`) use
-    ``command = S(q)ᵀ τ`` (SPEC §6). Other ids and Python models use the default; a
+    ``command = S(q)ᵀ τ`` (the paper's Section III). Other ids and Python models use the default; a
     :class:`PythonKernel` carries its model's id.
     """
     model = getattr(model, "kernel_id", model)

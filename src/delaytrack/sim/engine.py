@@ -1,4 +1,4 @@
-"""The fixed-step closed loop: sampled controller, delayed zero-order hold, RK4 plant (SPEC §5).
+"""The fixed-step closed loop: sampled controller, delayed zero-order hold, RK4 plant.
 
 One run (:func:`run_closed_loop`) proceeds tick by tick. At tick ``k`` (time ``t_k``) the
 controller reads ``x(t_k)`` and issues command ``k`` into the history; the plant is then integrated

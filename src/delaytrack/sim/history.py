@@ -1,4 +1,4 @@
-"""The command history: which controller command is applied at time ``t`` (SPEC §5).
+"""The command history: which controller command is applied at time ``t``.
 
 Controller ticks are at ``t_k = t0 + (k * steps_per_tick) * dt`` — computed, never accumulated.
 The input applied to the plant at time ``t`` is the command of the latest tick

@@ -1,4 +1,4 @@
-"""One plant step of the closed loop, split where the delayed input switches (SPEC §5).
+"""One plant step of the closed loop, split where the delayed input switches.
 
 The applied input ``u(t)`` is the command of the latest tick ``<= t - h(t)``. With a time-varying
 delay it switches at instants inside a step, where ``g(t) = t - h(t)`` crosses a tick time.

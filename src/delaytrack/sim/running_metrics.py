@@ -1,6 +1,6 @@
 """Tracking and effort metrics accumulated inside the run, at every controller tick.
 
-A sweep of thousands of runs needs the metrics of SPEC §6, not the trajectories: the engine adds
+A sweep of thousands of runs needs the paper's metrics, not the trajectories: the engine adds
 each tick's tracking error ``e1 = q_d - q`` and command to a few sums per run, so memory does not
 grow with the number of steps. Over the ticks ``k`` with ``t_k >= t_from`` (``K`` of them):
 

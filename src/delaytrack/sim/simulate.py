@@ -1,4 +1,4 @@
-"""``simulate``: the one verb that runs closed loops (SPEC §5)."""
+"""``simulate``: the one verb that runs closed loops."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The paper's wheeled robot (PIONEER-3 DX, SPEC §6): truth plant, payload, nominal models, path.
+"""The paper's wheeled robot (PIONEER-3 DX, Section III): truth, payload, nominal models, path.
 
 * :class:`WheeledRobot` — the constrained truth plant (reduced wheel-space dynamics, wheel
   friction, Baumgarte-stabilised velocity constraints);

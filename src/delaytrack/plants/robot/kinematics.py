@@ -18,9 +18,10 @@ and the three nonholonomic constraints ``Λ(q) q̇ = 0`` (no lateral slip at A; 
             [ cos φ,  sin φ,   L,  -R,   0],
             [ cos φ,  sin φ,  -L,   0,  -R]]
 
-(``Λ S = 0``; ROBOT-NOTES' Λ with A replaced by the look-ahead point.) ``S(q)ᵀ G = I`` for
+(``Λ S = 0``; the textbook Λ with A replaced by the look-ahead point.) ``S(q)ᵀ G = I`` for
 ``G = [0; 0; 0; I]``: the robot's command map ``τ_w = S(q)ᵀ τ`` sends a generalised force
-``τ`` (5,) to the two wheel torques (SPEC §6). Checked symbolically by ``scripts/derive_robot.py``.
+``τ`` (5,) to the two wheel torques (docs/robot.md). Checked symbolically by
+``scripts/derive_robot.py``.
 """
 
 from __future__ import annotations

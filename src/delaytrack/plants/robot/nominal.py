@@ -1,4 +1,4 @@
-"""The controllers' nominal robot model: the unconstrained Lagrangian in ``q`` (SPEC §6).
+"""The controllers' nominal robot model: the unconstrained Lagrangian in ``q`` (docs/robot.md).
 
 The kinetic energy of the robot (platform, wheels; no payload, no friction) with the constraints
 *not* substituted, in ``q = (x_c, y_c, φ, θ_r, θ_l)`` (derived in ``scripts/derive_robot.py``),

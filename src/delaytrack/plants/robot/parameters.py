@@ -1,9 +1,9 @@
-"""PIONEER-3 DX parameters, each with where it comes from (SPEC §6, ROBOT-NOTES).
+"""PIONEER-3 DX parameters, each with where it comes from (docs/robot.md).
 
 No single authoritative source gives a P3-DX's dynamic parameters. Every value below is marked:
 
 * **[source]** read in a public source (named);
-* **[SPEC]** fixed by SPEC §6 (itself from the public sources in ROBOT-NOTES);
+* **[chosen]** our choice within the public values (docs/robot.md lists the sources);
 * **[assumed]** our choice, stated so that a reader can change it;
 * **[derived]** computed here from the others.
 
@@ -102,12 +102,13 @@ P3DX = RobotParameters(
 P3DX_SOURCES: dict[str, str] = {
     "wheel_radius": "[source] Webots Pioneer3dx model (0.0975 m); '19 cm wheels' in its guide",
     "half_track": (
-        "[SPEC] 0.165 m; public values range 0.158 m (Gazebo p2os-derived model, wheel joints at "
+        "[chosen] 0.165 m; public values range 0.158 m (Gazebo p2os-derived model, wheel joints at "
         "±0.155–0.158 m) to 0.166 m (a controller code value of 0.3328 m track)"
     ),
     "d": (
-        "[SPEC] 0.05 m; a Gazebo p2os-derived model puts the chassis origin 0.045 m from the "
-        "axle (behind it in that model's frame: the sign is not confirmed; SPEC puts it ahead)"
+        "[chosen] 0.05 m; a Gazebo p2os-derived model puts the chassis origin 0.045 m from the "
+        "axle (behind it in that model's frame: the sign is not confirmed; the paper's 'point "
+        "ahead' puts it ahead)"
     ),
     "mass": "[source] commonly quoted 9 kg (Webots guide: 10 kg)",
     "yaw_inertia": "[source] public controller code value 0.2641 kg·m² about A (low confidence)",
@@ -116,7 +117,7 @@ P3DX_SOURCES: dict[str, str] = {
         "It only splits m into m_c and 2 m_w, i.e. sets K = 2 m_w d"
     ),
     "wheel_spin_inertia": (
-        "[SPEC] 0.01 kg·m² (a bare 0.5 kg disc gives ½ m_w R² = 0.0024; the rest is read as "
+        "[chosen] 0.01 kg·m² (a bare 0.5 kg disc gives ½ m_w R² = 0.0024; the rest is read as "
         "reflected motor/gear inertia)"
     ),
     "wheel_yaw_inertia": (
@@ -152,7 +153,7 @@ class PayloadDefaults:
     mass : float
         3.5 kg [source: the paper].
     time_on, time_off : float
-        Seconds on and off, 5 s each [source: the paper, as read by SPEC §6].
+        Seconds on and off, 5 s each [source: the paper, Section III].
     first_on : float
         Time of the first placement, 5 s [assumed: the robot starts as the nominal model].
     plate_length, plate_width : float

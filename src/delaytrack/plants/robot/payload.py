@@ -1,4 +1,4 @@
-"""The payload experiment as a plant: a robot that carries a point mass on a schedule (SPEC §6).
+"""The paper's payload experiment as a plant: a robot carrying a point mass on a schedule.
 
 The paper adds 3.5 kg for 5 s, removes it for 5 s, and repeats, "at different places on the
 robotic platform every time". :class:`PayloadRobot` wraps a

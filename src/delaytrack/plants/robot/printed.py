@@ -116,7 +116,7 @@ class PrintedRobotModel(ELPlant):
     wheel_radius : float
         ``r̄``, m (0.0975).
     half_track : float
-        ``b``, m (0.165, SPEC's half track).
+        ``b``, m (0.165, read as the half track).
     d : float
         m (0.05).
     mass : float

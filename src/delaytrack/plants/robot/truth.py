@@ -1,4 +1,4 @@
-"""The truth plant: the constrained differential-drive robot with wheel friction (SPEC §6).
+"""The truth plant: the constrained differential-drive robot with wheel friction (docs/robot.md).
 
 Reduced wheel-space dynamics (derived in ``scripts/derive_robot.py``; ``η = (θ̇_r, θ̇_l)``,
 ``v = R (θ̇_r + θ̇_l)/2``, ``ω = R (θ̇_r - θ̇_l)/(2L)``, aggregates ``M_b, s = (s_x, s_y), I_A``
@@ -11,7 +11,7 @@ of :mod:`~delaytrack.plants.robot.body`)::
     f_i = b_v θ̇_i + f_c tanh(θ̇_i / v_s)             (viscous + smoothed Coulomb, per wheel)
 
 equivalently, in body velocities, ``(M_b + 2I_w/R²) v̇ - s_y ω̇ - s_x ω² = F_v`` and
-``(I_A + 2L²I_w/R²) ω̇ - s_y v̇ + s_x v ω = F_ω``; for ``s_y = 0`` this is ROBOT-NOTES' ``M_r, C_r``
+``(I_A + 2L²I_w/R²) ω̇ - s_y v̇ + s_x v ω = F_ω``; for ``s_y = 0`` this is the textbook ``M_r, C_r``
 (Dhaouadi & Abu Hatab 2013). A centre of mass off the heading axis (``s_y ≠ 0``, a payload placed
 sideways) couples v̇ and ω̇ through the mass matrix.
 
@@ -213,7 +213,7 @@ class ConstrainedRobotPhysics:
 
 @dataclass(frozen=True, eq=False)
 class WheeledRobot(RobotBody, ConstrainedRobotPhysics, ELPlant):
-    """The constrained differential-drive robot of SPEC §6 (the truth plant).
+    """The constrained differential-drive robot of the paper's Section III (the truth plant).
 
     Coordinates ``q = (x_c, y_c, φ, θ_r, θ_l)``, inputs the wheel torques ``u = (τ_r, τ_l)``.
     Start it on the constraint manifold

@@ -46,6 +46,8 @@ def one_line_error(capsys, *words: str) -> str:
 
 @pytest.mark.parametrize("h_max", [1e6, 1e300, math.inf])
 def test_history_is_bounded_by_the_run_not_by_the_delay(h_max):
+    # min(ceil(h_max / T_c), ticks) + 3: a run of 100 ticks never needs more than its 101
+    # commands (+ 2 of slack), while 0.1 s at T_c = 2 ms needs ceil(50) + 3.
     assert history_capacity(h_max, 0.002, 100) == 103
     assert history_capacity(0.1, 0.002, 100) == 53
 

@@ -422,10 +422,14 @@ def _empirical(args: argparse.Namespace) -> int:
 
 
 def _reproduce(args: argparse.Namespace) -> int:
-    out = Path(check_writable_location(args.out, "--out"))
-    folders = {"paper": ("paper-literal", "paper"), "two-link": ("two-link",)}
-    for name in folders.get(args.job, (args.job,)):
-        check_output_folder(out / name, "--out")
+    check_writable_location(args.out, "--out")
+    try:
+        return _reproduce_job(args)
+    except OutputFolderError as error:  # a job's folder under --out, checked before computing
+        raise UsageError(f"--out {args.out!r}: {error}") from None
+
+
+def _reproduce_job(args: argparse.Namespace) -> int:
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         raise UsageError(f"--duration must be a positive number of seconds; got {args.duration:g}")
     if args.job == "two-link":

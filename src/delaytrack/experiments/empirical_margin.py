@@ -325,7 +325,7 @@ def empirical_margin(
                 T_c=scenario.T_c,
                 trajectories=False,
                 metrics_from=settings["settle"],
-                error_bound=math.inf if scenario.error_bound is None else scenario.error_bound,
+                error_bound=scenario.simulated_error_bound,
                 workers=workers,
                 progress=progress,
             )

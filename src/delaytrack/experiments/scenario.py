@@ -468,6 +468,11 @@ class Scenario:
         built = self.build()
         return self.replace(x0=tuple(built.x0.tolist()), delay=self._delay_spec()), built
 
+    @property
+    def simulated_error_bound(self) -> float | tuple[float, ...]:
+        """``error_bound`` as :func:`~delaytrack.sim.simulate` takes it (``inf``: none set)."""
+        return math.inf if self.error_bound is None else self.error_bound
+
     def run(self, *, progress: bool = False) -> SimResult:
         """Simulate the scenario (batch of one); see :func:`delaytrack.sim.simulate`."""
         built = self.build()
@@ -560,7 +565,7 @@ def _simulate(
             dt=scenario.dt,
             T_c=scenario.T_c,
             record_every=scenario.record_every,
-            error_bound=math.inf if scenario.error_bound is None else scenario.error_bound,
+            error_bound=scenario.simulated_error_bound,
             progress=progress,
         )
     except ValueError as error:
@@ -693,11 +698,11 @@ def run_to_folder(
             f"{needed / 2**30:.3g} GiB while its tables and figures are built, more than this "
             "machine's memory; raise 'record_every' or shorten 'duration'"
         )
-    result = resolved.run(progress=progress)
+    result = _simulate(resolved, built.plant, built.controller, built.delay, built, progress)
     files = [folder / "scenario.toml"]
     resolved.to_toml(files[0])
     # The metrics first: they are the result a user waits for; trajectories and figures follow.
-    names = resolved.build().plant.coordinate_names
+    names = built.plant.coordinate_names
     table = metrics_table(result, coordinate_names=names, label=resolved.name)
     files.append(write_frame(table, folder / "metrics.csv"))
     frame = result.to_frame()

@@ -10,7 +10,6 @@ from a stale, truncated, corrupt or altered file.
 from __future__ import annotations
 
 import hashlib
-import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -71,7 +70,7 @@ def _simulate_batch(runs: list[Run], workers: int | None) -> pd.DataFrame:
             t1=first.duration,
             dt=first.dt,
             T_c=first.T_c,
-            error_bound=math.inf if first.error_bound is None else first.error_bound,
+            error_bound=first.simulated_error_bound,
             trajectories=False,
             workers=workers,
         )

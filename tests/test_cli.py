@@ -106,7 +106,8 @@ def test_bound_negative_gain_shows_its_eigenvalues():
     [
         (
             ["--k1", "abc", "--k2", "1", "--q", "1"],
-            "--k1 must be a number or a comma-separated list of numbers; got 'abc'",
+            "--k1 must be a number or a comma-separated list of numbers in decimal notation "
+            "such as 2, 0.5 or 1e-3; got 'abc'",
         ),
         (["--k1", "1", "--k2", "1", "--q", "1", "--beta", "0"], "--beta must be > 0"),
         (["--k1", "1", "--k2", "1", "--q", "1,2,3"], "--q has 3 entries"),

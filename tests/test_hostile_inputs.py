@@ -19,7 +19,13 @@ import pytest
 
 from delaytrack.cli import main
 from delaytrack.delays import ConstantDelay, RandomDelay, TraceDelay
-from delaytrack.experiments import Scenario, ScenarioError, empirical_margin, load_builtin
+from delaytrack.experiments import (
+    Scenario,
+    ScenarioError,
+    empirical_margin,
+    load_builtin,
+    run_to_folder,
+)
 from delaytrack.metrics import mean_absolute_error, metrics_table, total_variation
 from delaytrack.plants.robot import PayloadRobot
 from delaytrack.sim import simulate
@@ -481,3 +487,46 @@ def test_arolc_parameters_beyond_double_precision_are_refused(key, value, bound)
     controller = {**base_dict()["controller"], key: value}
     with pytest.raises(ScenarioError, match=rf"'controller.{key}' must be {bound}"):
         short(controller=controller).build()
+
+
+def test_sweep_scheduler_is_checked_before_the_spec_is_read(tmp_path, capsys):
+    missing = tmp_path / "absent.toml"  # would be refused too, but only after the flags
+    assert main(["sweep", str(missing), "--out", str(tmp_path / "o"), "--scheduler", "x"]) == 2
+    one_line_error(capsys, "--scheduler", "'x'")
+
+
+@pytest.mark.parametrize("text", ["1_000", "0x10", "1,2_0", "٣"])
+def test_cli_numbers_are_plain_decimals(text, capsys):
+    assert main(["bound", "--k1", text, "--k2", "2", "--q", "1"]) == 2
+    one_line_error(capsys, "--k1", "decimal notation")
+
+
+def test_cli_integers_are_plain_decimal_digits(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["bound", "--k1", "1", "--k2", "2", "--q", "1", "--n", "1_0"])
+    assert exit_.value.code == 2
+    assert "--n" in capsys.readouterr().err
+    assert main(["sweep", "x.toml", "--workers", "1_0"]) == 2
+    one_line_error(capsys, "--workers")
+
+
+def test_an_empty_reference_offset_is_blamed_on_the_offset():
+    with pytest.raises(ScenarioError, match=r"reference.*offset.*empty"):
+        short(reference={"offset": []}).build()
+
+
+def test_a_path_that_is_not_utf8_is_refused_before_running(tmp_path):
+    folder = tmp_path / "caf\udce9"  # the byte 0xE9 of a Latin-1 name, as Python shows it
+    try:
+        folder.mkdir()
+    except (UnicodeEncodeError, OSError):
+        pytest.skip("this file system takes only UTF-8 names")
+    (folder / "trace.csv").write_text("t,h\n0,0.01\n1,0.01\n")
+    scenario = folder / "case.toml"
+    text = short().to_toml()
+    text = text[: text.index("[delay]")] + '[delay]\ntype = "trace"\npath = "trace.csv"\n'
+    scenario.write_text(text + "\n[reference]\noffset = [0.0, 0.0]\n")
+    out = tmp_path / "out"
+    with pytest.raises(ScenarioError, match="not UTF-8"):
+        run_to_folder(Scenario.from_toml(scenario), out)
+    assert not out.exists() or not any(out.iterdir())

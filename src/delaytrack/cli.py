@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
 import time
 from collections.abc import Sequence
@@ -52,40 +53,48 @@ class UsageError(Exception):
 # bound
 
 
-def _numbers(flag: str, text: str) -> np.ndarray:
-    """Parse ``"1"`` or ``"1,2.5,3"`` into a 1-D array of finite floats."""
-    parts = [part.strip() for part in text.split(",")]
-    try:
-        values = np.array([float(part) for part in parts])
-    except ValueError:
+_DECIMAL = re.compile(
+    r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|[+-]?(?:inf|infinity|nan)", re.I | re.ASCII
+)
+
+
+def _float(flag: str, part: str, text: str, what: str) -> float:
+    """One decimal number of ``text`` (``1``, ``-2.5``, ``3e-2``), finite and not rounded to 0.
+
+    Python's own forms beyond plain decimals (``1_000``) are refused, as every other tool
+    reading the same argument would.
+    """
+    if not _DECIMAL.fullmatch(part):
         raise UsageError(
-            f"{flag} must be a number or a comma-separated list of numbers; got {text!r}"
-        ) from None
-    if not np.all(np.isfinite(values)):
-        raise UsageError(f"{flag} must be finite (doubles reach about 1.8e308); got {text!r}")
-    for part, value in zip(parts, values, strict=True):
-        if value == 0.0 and any(digit in part.lower().partition("e")[0] for digit in "123456789"):
-            raise UsageError(
-                f"{flag} entry {part} is too close to 0 for double precision: it rounds to 0 "
-                f"(nonzero doubles have a magnitude of at least about 4.9e-324); got {text!r}"
-            )
-    return values
-
-
-def _scalar(flag: str, text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        what = "a single number" if "," in text else "a number"
-        raise UsageError(f"{flag} must be {what}; got {text!r}") from None
+            f"{flag} must be {what} in decimal notation such as 2, 0.5 or 1e-3; got {text!r}"
+        )
+    value = float(part)
     if not math.isfinite(value):
         raise UsageError(f"{flag} must be finite (doubles reach about 1.8e308); got {text!r}")
-    if value == 0.0 and any(digit in text.lower().partition("e")[0] for digit in "123456789"):
+    if value == 0.0 and any(digit in part.lower().partition("e")[0] for digit in "123456789"):
         raise UsageError(
-            f"{flag} = {text.strip()} is too close to 0 for double precision: it rounds to 0 "
+            f"{flag} entry {part} is too close to 0 for double precision: it rounds to 0 "
             f"(nonzero doubles have a magnitude of at least about 4.9e-324); got {text!r}"
         )
     return value
+
+
+def _integer(text: str) -> int:
+    """argparse type: an integer in decimal digits (``1_000`` and ``٣`` are refused)."""
+    if not re.fullmatch(r"[+-]?[0-9]+", text.strip()):
+        raise argparse.ArgumentTypeError(f"must be an integer in decimal digits; got {text!r}")
+    return int(text)
+
+
+def _numbers(flag: str, text: str) -> np.ndarray:
+    """Parse ``"1"`` or ``"1,2.5,3"`` into a 1-D array of finite floats."""
+    what = "a number or a comma-separated list of numbers"
+    return np.array([_float(flag, part.strip(), text, what) for part in text.split(",")])
+
+
+def _scalar(flag: str, text: str) -> float:
+    """Parse one finite float."""
+    return _float(flag, text.strip(), text, "a single number" if "," in text else "a number")
 
 
 def _dimension(args: argparse.Namespace, k1: np.ndarray, k2: np.ndarray, q: np.ndarray) -> int:
@@ -430,8 +439,12 @@ def _reproduce(args: argparse.Namespace) -> int:
 
 
 def _reproduce_job(args: argparse.Namespace) -> int:
-    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
-        raise UsageError(f"--duration must be a positive number of seconds; got {args.duration:g}")
+    if args.duration is not None:
+        args.duration = _scalar("--duration", args.duration)
+        if args.duration <= 0:
+            raise UsageError(
+                f"--duration must be a positive number of seconds; got {args.duration:g}"
+            )
     if args.job == "two-link":
         return _reproduce_two_link(args)
     if args.job == "margins":
@@ -519,14 +532,13 @@ def _sweep(args: argparse.Namespace) -> int:
         run_sweep,
         write_sweep_outputs,
     )
-    from delaytrack.sweeps.executors import checked_workers
+    from delaytrack.sweeps.executors import checked_scheduler
 
-    workers = None
-    if args.workers is not None:
-        try:
-            workers = checked_workers(_count("--workers", args.workers))
-        except SweepError as error:
-            raise UsageError(_with_flag(str(error), {"workers": "--workers"}, {})) from None
+    workers = None if args.workers is None else _count("--workers", args.workers)
+    try:
+        checked_scheduler(args.scheduler, workers)
+    except SweepError as error:
+        raise UsageError(_with_flag(str(error), {"workers": "--workers"}, {})) from None
     folder = (
         check_output_folder(args.out, "--out", marks=("parts",))
         if args.out is not None
@@ -559,10 +571,7 @@ def _sweep(args: argparse.Namespace) -> int:
 
 
 def _count(flag: str, text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
+    value = int(text) if text.strip().isascii() and text.strip().isdigit() else 0
     if value < 1:
         raise UsageError(f"{flag} must be a positive integer; got {text!r}")
     return value
@@ -624,7 +633,7 @@ def _theorem_1_arguments(command: argparse.ArgumentParser, q_default: str | None
     command.add_argument("--beta", default="1", metavar="BETA", help="beta > 0 (default 1)")
     command.add_argument(
         "--n",
-        type=int,
+        type=_integer,
         default=None,
         help="number of joints (default: length of a comma list, else 1)",
     )
@@ -682,7 +691,7 @@ def build_parser() -> argparse.ArgumentParser:
         "largest delay Theorem 1 certifies, with every diagonal entry of K1 and K2 at most "
         "--gain-bound. Example: delaytrack design --gain-bound 1 --seed 0",
     )
-    design.add_argument("--n", type=int, default=1, help="number of joints (default 1)")
+    design.add_argument("--n", type=_integer, default=1, help="number of joints (default 1)")
     design.add_argument(
         "--gain-bound",
         default="1",
@@ -695,7 +704,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="W",
         help="least natural frequency sqrt(k1) of the delay-free loop, rad/s (default: none)",
     )
-    design.add_argument("--seed", type=int, default=0, help="search seed (default 0)")
+    design.add_argument("--seed", type=_integer, default=0, help="search seed (default 0)")
     _r_and_json_arguments(design)
     design.set_defaults(handler=_design)
 
@@ -788,7 +797,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     reproduce.add_argument(
         "--duration",
-        type=float,
         default=None,
         metavar="SECONDS",
         help="override the duration (paper: 60 s, a multiple of T_c = 10 ms; two-link: 30 s, "

@@ -103,6 +103,8 @@ class SinusoidalReference:
     def __post_init__(self) -> None:
         offset = finite_array("offset", self.offset, ndim=1)
         n = offset.size
+        if n == 0:
+            raise ValueError("offset must have one value per coordinate; got an empty list")
         slope = np.zeros(n) if self.slope is None else finite_array("slope", self.slope, ndim=1)
         if slope.size != n:
             raise ValueError(f"slope must have length n = {n}; got {slope.size}")

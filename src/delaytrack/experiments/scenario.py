@@ -698,9 +698,18 @@ def run_to_folder(
             f"{needed / 2**30:.3g} GiB while its tables and figures are built, more than this "
             "machine's memory; raise 'record_every' or shorten 'duration'"
         )
+    text = resolved.to_toml()
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError as error:
+        raise ScenarioError(
+            f"scenario {resolved.name!r} names a file whose path is not UTF-8 text "
+            f"({error.object[max(0, error.start - 40) : error.end + 10]!r}); scenario.toml, which "
+            "records the scenario as run, could not hold it: rename the folder or file"
+        ) from None
     result = _simulate(resolved, built.plant, built.controller, built.delay, built, progress)
     files = [folder / "scenario.toml"]
-    resolved.to_toml(files[0])
+    write_text(files[0], text)
     # The metrics first: they are the result a user waits for; trajectories and figures follow.
     names = built.plant.coordinate_names
     table = metrics_table(result, coordinate_names=names, label=resolved.name)

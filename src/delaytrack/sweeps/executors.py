@@ -125,6 +125,32 @@ def _distributed() -> Any:
     return distributed
 
 
+def checked_scheduler(scheduler: str | None, workers: int | None = None) -> str | None:
+    """``scheduler`` checked: None, ``"local-cluster"`` or a Dask address that suits ``workers``.
+
+    Raises
+    ------
+    SweepError
+        Naming ``--scheduler`` (or ``--workers``) and what would be valid.
+    """
+    if scheduler is None:
+        checked_workers(workers)
+        return None
+    if not isinstance(scheduler, str) or not (
+        scheduler == LOCAL_CLUSTER or _ADDRESS.match(scheduler)
+    ):
+        raise SweepError(
+            f"--scheduler must be '{LOCAL_CLUSTER}' or a Dask scheduler address such as "
+            f"'tcp://10.0.0.5:8786'; got {scheduler!r}"
+        )
+    if checked_workers(workers) is not None and scheduler != LOCAL_CLUSTER:
+        raise SweepError(
+            f"--workers {workers} applies to the local executor and to --scheduler "
+            f"{LOCAL_CLUSTER}; a running cluster ({scheduler}) has the workers it has"
+        )
+    return scheduler
+
+
 class DaskExecutor:
     """Units as ``dask.distributed`` tasks; results gathered here as they complete.
 
@@ -149,18 +175,7 @@ class DaskExecutor:
         retries: int = 2,
         timeout: float = 30.0,
     ) -> None:
-        if not isinstance(scheduler, str) or not (
-            scheduler == LOCAL_CLUSTER or _ADDRESS.match(scheduler)
-        ):
-            raise SweepError(
-                f"--scheduler must be '{LOCAL_CLUSTER}' or a Dask scheduler address such as "
-                f"'tcp://10.0.0.5:8786'; got {scheduler!r}"
-            )
-        if checked_workers(workers) is not None and scheduler != LOCAL_CLUSTER:
-            raise SweepError(
-                f"--workers {workers} applies to the local executor and to --scheduler "
-                f"{LOCAL_CLUSTER}; a running cluster ({scheduler}) has the workers it has"
-            )
+        checked_scheduler(scheduler, workers)
         if not is_integer_at_least(retries, 0):
             raise SweepError(f"retries must be an integer >= 0; got {retries!r}")
         distributed = _distributed()

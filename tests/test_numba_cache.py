@@ -1,4 +1,4 @@
-"""numba's cache folder follows the whole package source (a stale compiled engine is a bug)."""
+"""numba's cache folder follows the compiled source (a stale engine is a bug), and only it."""
 
 from __future__ import annotations
 
@@ -27,6 +27,22 @@ def test_editing_any_kernel_file_changes_the_key(tmp_path, monkeypatch) -> None:
     arolc = copy / "controllers" / "arolc.py"
     arolc.write_text(arolc.read_text() + "\n# an edit\n")
     assert _numba_cache.source_hash() != before
+
+
+def test_editing_a_file_without_compiled_code_keeps_the_key(tmp_path, monkeypatch) -> None:
+    copy = tmp_path / "delaytrack"
+    shutil.copytree(
+        Path(_numba_cache.__file__).parent, copy, ignore=shutil.ignore_patterns("__pycache__")
+    )
+    monkeypatch.setattr(_numba_cache, "_PACKAGE", copy)
+    before = _numba_cache.source_hash()
+    for edited in ("cli.py", "report/html.py", "experiments/paper.py", "sweeps/runner.py"):
+        path = copy / edited
+        path.write_text(path.read_text() + "\n# a sentence of prose\n")
+    assert _numba_cache.source_hash() == before
+    names = {path.relative_to(copy).as_posix() for path in _numba_cache.kernel_files()}
+    assert {"sim/engine.py", "components.py", "controllers/arolc.py"} <= names
+    assert not names & {"cli.py", "report/html.py", "experiments/paper.py"}
 
 
 def test_user_cache_root_is_respected(monkeypatch, tmp_path) -> None:

@@ -199,7 +199,7 @@ def test_state_layout_and_names(arm, arm_gains):
 
 
 def test_python_nominal_model_runs_the_same_step(arm, arm_gains):
-    # A CallablePlant model runs the step as plain Python (controllers.dispatch): same numbers.
+    # A CallablePlant model runs the step as plain Python: the same numbers.
     user = CallablePlant(2, arm_mass, arm_nonlinear)
     assert not user.compiled
     rng = np.random.default_rng(2)

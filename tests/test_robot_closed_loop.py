@@ -35,9 +35,11 @@ def fast_payload(**overrides):
 
 
 class PythonPayloadRobot(PayloadRobot):
-    """The same plant without a kernel id: ``simulate`` then runs its plain-Python engine."""
+    """The same plant with its kernel as plain Python: ``simulate`` then runs as Python."""
 
-    kernel_id = None
+    @property
+    def terms_kernel(self):
+        return super().terms_kernel.py_func
 
 
 def run(plant, model=None, t1=2.0):

@@ -12,12 +12,8 @@ import pytest
 
 from delaytrack import AROLC, OuterLoop, plant_from_spec
 from delaytrack._spec import SpecError
-from delaytrack.plants.dispatch import (
-    LINEAR,
-    ROBOT_NOMINAL,
-    ROBOT_PRINTED,
-    call_command_map,
-)
+from delaytrack.components import call_command_map
+from delaytrack.plants import LinearPlant
 from delaytrack.plants.robot import (
     P3DX,
     NominalRobot,
@@ -123,21 +119,23 @@ def test_projected_nominal_model_reproduces_the_frictionless_truth(angles):
         )
 
 
-@pytest.mark.parametrize("model_id", [ROBOT_NOMINAL, ROBOT_PRINTED])
-def test_python_command_map_is_the_projection(model_id):
+@pytest.mark.parametrize("model", [NominalRobot(), PrintedRobotModel()], ids=["nominal", "printed"])
+def test_python_command_map_is_the_projection(model):
     rng = np.random.default_rng(22)
     q = np.array([0.0, 0.0, 0.9, 0.0, 0.0])
     tau = rng.normal(size=5)
     command = np.empty(2)
-    params = NominalRobot().params if model_id == ROBOT_NOMINAL else PrintedRobotModel().params
-    call_command_map(model_id, q, params, np.zeros((5, 2)), tau, command)
+    call_command_map(model.engine_kernel, q, model.params, np.zeros((5, 2)), tau, command)
     np.testing.assert_allclose(command, kinematic_map_by_hand(0.9).T @ tau, rtol=1e-14)
 
 
-def test_python_command_map_default_for_other_ids():
+def test_python_command_map_default_solves_the_input_map():
     tau = np.array([1.0, 2.0])
     command = np.empty(2)
-    call_command_map(LINEAR, np.zeros(2), np.zeros(1), np.diag([2.0, 4.0]), tau, command)
+    model = LinearPlant(np.eye(2), input_map_matrix=np.diag([2.0, 4.0]))
+    call_command_map(
+        model.engine_kernel, np.zeros(2), model.params, np.diag([2.0, 4.0]), tau, command
+    )
     np.testing.assert_allclose(command, [0.5, 0.5])
 
 
@@ -180,7 +178,7 @@ def test_spec_round_trip(plant):
     rebuilt = plant_from_spec(plant.to_spec())
     assert type(rebuilt) is type(plant)
     np.testing.assert_array_equal(rebuilt.params, plant.params)
-    assert rebuilt.kernel_id == plant.kernel_id
+    assert rebuilt.engine_kernel == plant.engine_kernel
 
 
 def test_spec_refusals_name_the_key():

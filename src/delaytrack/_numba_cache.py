@@ -1,12 +1,15 @@
-"""Where numba keeps delaytrack's compiled kernels: a folder keyed by the package's source.
+"""Where numba keeps delaytrack's compiled kernels: a folder keyed by the compiled source.
 
 numba validates a cached function against its own source file only. The compiled engine inlines
 kernels from many files (plants, controllers, delays, references), so after an edit to one of
 them numba would load a stale engine. Imported first by :mod:`delaytrack`, this module points
 ``numba.config.CACHE_DIR`` (read when each kernel is decorated) at
-``<cache root>/<hash of every .py file of the package>``, so any change recompiles everything
-once. The cache root is ``$NUMBA_CACHE_DIR`` when the user sets it, else
-``$XDG_CACHE_HOME/delaytrack/numba`` (``~/.cache/delaytrack/numba``).
+``<cache root>/<hash of the package's compiled code>``, so an edit to a kernel recompiles the
+engine once. The hash covers only the files that hold compiled code (:func:`kernel_files`: the
+ones importing numba or :mod:`delaytrack._jit`); an edit to a report, the command line or a study
+recompiles nothing. A user's kernels are covered by their numba type instead
+(:mod:`delaytrack.components`). The cache root is ``$NUMBA_CACHE_DIR`` when the user sets it,
+else ``$XDG_CACHE_HOME/delaytrack/numba`` (``~/.cache/delaytrack/numba``).
 """
 
 from __future__ import annotations
@@ -17,22 +20,34 @@ from pathlib import Path
 
 import numba
 
-__all__ = ["cache_directory", "source_hash"]
+__all__ = ["cache_directory", "kernel_files", "source_hash"]
 
 _PACKAGE = Path(__file__).resolve().parent
+#: Text that marks a file holding compiled code.
+_MARKERS = (b"from delaytrack._jit import", b"import numba", b"from numba")
+
+
+def kernel_files() -> list[Path]:
+    """The package's Python files that hold compiled code, sorted."""
+    return [
+        path
+        for path in sorted(_PACKAGE.rglob("*.py"))
+        if any(marker in path.read_bytes() for marker in _MARKERS)
+    ]
 
 
 def source_hash() -> str:
-    """SHA-256 (16 hex digits) of the paths and contents of the package's Python files."""
+    """SHA-256 (16 hex digits) of numba's version and the paths and contents of
+    :func:`kernel_files`."""
     digest = hashlib.sha256(numba.__version__.encode())
-    for path in sorted(_PACKAGE.rglob("*.py")):
+    for path in kernel_files():
         digest.update(str(path.relative_to(_PACKAGE)).encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()[:16]
 
 
 def cache_directory() -> Path:
-    """The folder for this exact source; created on demand by numba."""
+    """The folder for this exact compiled source; created on demand by numba."""
     root = os.environ.get("NUMBA_CACHE_DIR")
     if root:
         return Path(root) / "delaytrack" / source_hash()

@@ -12,21 +12,16 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numba import types
-from numba.extending import overload
 
 from delaytrack._jit import kernel
 from delaytrack._validation import finite_array
+from delaytrack.components import Kernel
 
 __all__ = [
-    "SINUSOIDAL",
     "SinusoidalReference",
-    "call_reference",
     "sinusoidal_reference",
     "sinusoidal_reference_values",
 ]
-
-SINUSOIDAL = 0
 
 
 @kernel
@@ -55,30 +50,6 @@ def sinusoidal_reference_values(times, params, out):
     """:func:`sinusoidal_reference` at each of ``times`` (1-D) into ``out (3, times.size, n)``."""
     for i in range(times.shape[0]):
         sinusoidal_reference(times[i], params, out[0, i], out[1, i], out[2, i])
-
-
-def call_reference(reference, t, params, qd, qd_dot, qd_ddot):
-    """Evaluate ``reference`` (a callable; an id or a callable in compiled code, see
-    :mod:`delaytrack.plants.dispatch`)."""
-    reference(t, params, qd, qd_dot, qd_ddot)
-
-
-@overload(call_reference)
-def _call_reference_compiled(reference, t, params, qd, qd_dot, qd_ddot):
-    if isinstance(reference, types.Integer):
-
-        def by_id(reference, t, params, qd, qd_dot, qd_ddot):
-            if reference == SINUSOIDAL:
-                sinusoidal_reference(t, params, qd, qd_dot, qd_ddot)
-            else:
-                raise ValueError("unknown reference kernel id")
-
-        return by_id
-
-    def by_callable(reference, t, params, qd, qd_dot, qd_ddot):
-        reference(t, params, qd, qd_dot, qd_ddot)
-
-    return by_callable
 
 
 @dataclass(frozen=True, eq=False)
@@ -161,12 +132,9 @@ class SinusoidalReference:
         return self._params
 
     @property
-    def kernel(self):
-        return sinusoidal_reference
-
-    @property
-    def kernel_id(self) -> int:
-        return SINUSOIDAL
+    def engine_kernel(self) -> Kernel:
+        """The :class:`~delaytrack.components.Kernel` the simulator calls."""
+        return Kernel(sinusoidal_reference)
 
     def evaluate(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``q_d, q̇_d, q̈_d`` at times ``t``, each of shape ``(*t.shape, n)``."""

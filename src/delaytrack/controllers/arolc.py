@@ -38,7 +38,6 @@ from delaytrack.controllers.base import (
     terms_views,
     tracking_errors,
 )
-from delaytrack.controllers.dispatch import AROLC_STEP
 from delaytrack.plants.base import ELPlant
 
 __all__ = ["AROLC", "arolc_step", "adaptive_gain_rate"]
@@ -144,7 +143,6 @@ class AROLC(Controller):
     P: np.ndarray = field(init=False, repr=False)
     _params: np.ndarray = field(init=False, repr=False)
     type_name: ClassVar[str] = "arolc"
-    kernel_id: ClassVar[int] = AROLC_STEP
 
     def __post_init__(self) -> None:
         self._check_model()

@@ -26,8 +26,8 @@ import numpy as np
 
 from delaytrack._jit import hot_inline_kernel, inline_kernel
 from delaytrack._validation import positive_scalar
+from delaytrack.components import Kernel, call_command_map, call_terms, is_compiled
 from delaytrack.plants.base import ELPlant
-from delaytrack.plants.dispatch import call_command_map, call_terms
 
 __all__ = [
     "Controller",
@@ -87,7 +87,7 @@ def computed_torque_command(model_terms, model_params, t, q, qdot, u, command, w
     """Actuator command realising ``τ = M̂(q) u + N̂(q, q̇)`` (paper eq. (input)).
 
     ``τ`` is mapped to the actuators by the model's command map
-    (:func:`delaytrack.plants.dispatch.call_command_map`): ``Ĝ(q)⁻¹ τ`` for a fully actuated
+    (:func:`delaytrack.components.call_command_map`): ``Ĝ(q)⁻¹ τ`` for a fully actuated
     model, ``S(q)ᵀ τ`` for the wheeled robot. The model's terms go to the front of ``work``
     (:func:`terms_views`); ``u`` must not lie there.
     """
@@ -125,8 +125,6 @@ class Controller(ABC):
     model: ELPlant
     #: Name used in scenario files and result tables.
     type_name: str
-    #: Id of the compiled step (see :mod:`delaytrack.controllers.dispatch`).
-    kernel_id: int
     #: Whether the law reads the true delay ``h(t)`` (the predictor baselines do; AROLC does not).
     needs_delay: bool = False
 
@@ -168,14 +166,23 @@ class Controller(ABC):
         return len(self.state_names)
 
     @property
+    def engine_kernel(self) -> Kernel:
+        """The :class:`~delaytrack.components.Kernel` the simulator calls for this law."""
+        return Kernel(self.step_kernel)
+
+    @property
     def compiled(self) -> bool:
-        """Whether the step runs compiled (its nominal model is a built-in compiled plant)."""
-        return self.model.compiled
+        """Whether the step runs compiled: the step and the nominal model's kernel both are."""
+        return is_compiled(self.step_kernel) and self.model.compiled
 
     @property
     def step_callable(self) -> Callable[..., None]:
         """The step as a Python callable: compiled, or plain Python for a Python nominal model."""
-        return self.step_kernel if self.compiled else self.step_kernel.py_func
+        return (
+            self.step_kernel
+            if self.compiled
+            else getattr(self.step_kernel, "py_func", self.step_kernel)
+        )
 
     def step(
         self,
@@ -213,7 +220,7 @@ class Controller(ABC):
             delay,
             self.params,
             next_state,
-            self.model.kernel_handle,
+            self.model.engine_kernel if self.compiled else self.model.engine_kernel.as_python(),
             self.model.params,
             command,
             step_workspace(self.n, self.m),

@@ -16,7 +16,6 @@ from delaytrack.controllers.base import (
     terms_views,
     tracking_errors,
 )
-from delaytrack.controllers.dispatch import OUTER_LOOP_STEP
 from delaytrack.plants.base import ELPlant
 
 __all__ = ["OuterLoop", "outer_loop_step"]
@@ -57,7 +56,6 @@ class OuterLoop(Controller):
     K2: np.ndarray
     _params: np.ndarray = field(init=False, repr=False)
     type_name: ClassVar[str] = "outer-loop"
-    kernel_id: ClassVar[int] = OUTER_LOOP_STEP
 
     def __post_init__(self) -> None:
         self._check_model()

@@ -43,10 +43,9 @@ import numpy as np
 from delaytrack._jit import kernel
 from delaytrack._small_linalg import matvec
 from delaytrack._validation import as_spd_matrix, positive_scalar
+from delaytrack.components import call_command_map, call_terms
 from delaytrack.controllers.base import Controller, terms_views
-from delaytrack.controllers.dispatch import PCON_STEP
 from delaytrack.plants.base import ELPlant
-from delaytrack.plants.dispatch import call_command_map, call_terms
 
 __all__ = ["PCON", "PCONf", "PredictorBaseline", "pcon_step", "ring_slots"]
 
@@ -170,7 +169,6 @@ class PredictorBaseline(Controller):
     history: float
     T_c: float
     _params: np.ndarray = field(init=False, repr=False)
-    kernel_id: ClassVar[int] = PCON_STEP
 
     def __post_init__(self) -> None:
         if type(self) is PredictorBaseline:

@@ -20,7 +20,7 @@ import numpy as np
 
 from delaytrack._jit import hot_inline_kernel, inline_kernel
 from delaytrack._small_linalg import solve_in_place
-from delaytrack.plants.dispatch import call_terms, has_identity_mass
+from delaytrack.components import Kernel, call_terms, has_identity_mass
 
 __all__ = ["ELPlant", "el_rhs", "rhs_scratch"]
 
@@ -37,8 +37,9 @@ def el_rhs(terms, t, q, qdot, u, params, qddot, scratch):
 
     The paper's eq. (sys new) with the applied, delayed input ``u = τ(t - h(t))``; the state
     derivative is ``[q̇, q̈]``. ``scratch`` is :func:`rhs_scratch` ``(n, m)``: nothing is
-    allocated, so the compiled inner loop stays cheap. A plant that always has ``M = I``
-    (:func:`~delaytrack.plants.dispatch.has_identity_mass`) skips the solve.
+    allocated, so the compiled inner loop stays cheap. ``terms`` is the plant's
+    :class:`~delaytrack.components.Kernel`; one that always has ``M = I``
+    (:attr:`ELPlant.identity_mass`) skips the solve.
     """
     mass, nonlinear, input_map = scratch
     call_terms(terms, t, q, qdot, params, mass, nonlinear, input_map)
@@ -70,12 +71,9 @@ class ELPlant(ABC):
     m: int
     #: Names of the coordinates in result tables (``ae_<name>``); None means ``q1 .. qn``.
     coordinate_names: ClassVar[tuple[str, ...] | None] = None
-    #: Id of a built-in compiled terms kernel (see :mod:`delaytrack.plants.dispatch`), else None.
-    kernel_id: int | None = None
-    #: True when, as a nominal model, the plant maps a generalised force τ to its ``m < n``
-    #: actuators itself (:func:`delaytrack.plants.dispatch.call_command_map`), as a constrained
-    #: robot does with ``S(q)ᵀ τ``.
-    has_command_map: bool = False
+    #: True for a plant whose terms kernel always fills ``M(q) = I`` (a constrained robot
+    #: integrated as ``q̈ = a + b τ``): the simulator then skips the solve for ``q̈``.
+    identity_mass: ClassVar[bool] = False
 
     @property
     @abstractmethod
@@ -102,15 +100,26 @@ class ELPlant(ABC):
         return math.inf
 
     @property
-    def kernel_handle(self) -> int | Callable[..., None]:
-        """What the engine calls: the built-in kernel id, else the terms function itself (a
-        numba-compiled one for :class:`~delaytrack.plants.CompiledPlant`, Python otherwise)."""
-        return self.kernel_id if self.kernel_id is not None else self.terms_kernel
+    def command_map_kernel(self) -> Callable[..., None] | None:
+        """As a nominal model: ``command_map(q, params, tau, command)``, the actuator command
+        realising a generalised force ``τ`` when the model maps it to its ``m < n`` actuators
+        itself (the wheeled robot's ``S(q)ᵀ τ``); None solves ``Ĝ(q) command = τ``."""
+        return None
+
+    @property
+    def has_command_map(self) -> bool:
+        """Whether the model maps ``τ`` to its actuators itself (:attr:`command_map_kernel`)."""
+        return self.command_map_kernel is not None
+
+    @property
+    def engine_kernel(self) -> Kernel:
+        """The :class:`~delaytrack.components.Kernel` the simulator calls for this plant."""
+        return Kernel(self.terms_kernel, self.command_map_kernel, self.identity_mass)
 
     @property
     def compiled(self) -> bool:
-        """Whether the plant is a built-in compiled one (else the simulator runs as Python)."""
-        return self.kernel_id is not None
+        """Whether the terms kernel is numba-compiled (else the simulator runs as Python)."""
+        return self.engine_kernel.compiled
 
     def terms(
         self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0
@@ -162,10 +171,11 @@ class ELPlant(ABC):
         dx = np.empty_like(x)
         dx[:, : self.n] = x[:, self.n :]
         scratch = rhs_scratch(self.n, self.m)
+        kernel = self.engine_kernel
         for b in range(x.shape[0]):
             q, qdot = x[b, : self.n], x[b, self.n :]
             el_rhs(
-                self.terms_kernel,
+                kernel,
                 float(t),
                 q,
                 qdot,

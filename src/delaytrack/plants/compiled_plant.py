@@ -7,7 +7,6 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
-from numba.core.registry import CPUDispatcher
 
 from delaytrack._validation import (
     as_spd_matrix,
@@ -15,6 +14,7 @@ from delaytrack._validation import (
     format_values,
     is_integer_at_least,
 )
+from delaytrack.components import is_compiled
 from delaytrack.plants.base import ELPlant
 
 __all__ = ["CompiledPlant"]
@@ -40,9 +40,10 @@ class CompiledPlant(ELPlant):
     Notes
     -----
     The kernel is checked once at ``q = q̇ = 0``, ``t = 0`` (finite values, ``M`` symmetric
-    positive definite). The simulator's loop is compiled for your kernel once per process (no
-    disk cache, since numba cannot cache a function passed as an argument): expect about 25 s of
-    compilation on the first ``simulate`` call, then built-in speed. Compile the kernel with
+    positive definite). The simulator's loop is compiled for your kernel on the first
+    ``simulate`` call and kept on disk, keyed by a hash of the kernel's code (and of the
+    functions and constants it uses): later processes load it, and an edit to the kernel
+    compiles it again. Compile the kernel with
     ``numba.njit(error_model="numpy")`` to have a division by zero end only that run (as
     ``diverged``) instead of raising. A plant given as
     plain Python callables (:class:`CallablePlant`) needs no compilation but runs about 100x
@@ -61,7 +62,7 @@ class CompiledPlant(ELPlant):
             value = getattr(self, label)
             if not is_integer_at_least(value, 1):
                 raise ValueError(f"{label} must be a positive integer; got {value!r}")
-        if not isinstance(self.kernel, CPUDispatcher):
+        if not is_compiled(self.kernel):
             raise TypeError(
                 "kernel must be a numba-compiled function (decorate it with @numba.njit); got "
                 f"{type(self.kernel).__name__}. For plain Python functions use CallablePlant."
@@ -83,10 +84,6 @@ class CompiledPlant(ELPlant):
     @property
     def terms_kernel(self) -> Callable[..., None]:
         return self.kernel
-
-    @property
-    def compiled(self) -> bool:
-        return True
 
     def to_spec(self) -> dict[str, Any]:
         return {"type": self.type_name, "name": self.name, "n": int(self.n), "m": int(self.m)}

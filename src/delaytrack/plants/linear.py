@@ -10,7 +10,6 @@ import numpy as np
 from delaytrack._jit import kernel
 from delaytrack._validation import as_spd_matrix, as_square_matrix, finite_array
 from delaytrack.plants.base import ELPlant
-from delaytrack.plants.dispatch import LINEAR
 
 __all__ = ["LinearPlant", "linear_terms"]
 
@@ -55,7 +54,6 @@ class LinearPlant(ELPlant):
     m: int = field(init=False)
     _params: np.ndarray = field(init=False, repr=False)
     type_name: ClassVar[str] = "linear"
-    kernel_id: ClassVar[int] = LINEAR
 
     def __post_init__(self) -> None:
         mass_array = np.asarray(self.mass, dtype=float)

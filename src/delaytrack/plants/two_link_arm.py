@@ -24,7 +24,6 @@ import numpy as np
 from delaytrack._jit import kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
-from delaytrack.plants.dispatch import TWO_LINK_ARM
 
 __all__ = ["TwoLinkArm", "two_link_terms"]
 
@@ -66,7 +65,6 @@ class TwoLinkArm(ELPlant):
     n: ClassVar[int] = 2
     m: ClassVar[int] = 2
     type_name: ClassVar[str] = "two-link-arm"
-    kernel_id: ClassVar[int] = TWO_LINK_ARM
 
     def __post_init__(self) -> None:
         for name in ("p1", "p2", "p3"):

@@ -7,8 +7,8 @@ with RK4 over the ``steps_per_tick`` steps of length ``dt`` up to ``t_{k+1}``.
 The applied input ``u(t)`` is the command of the latest tick ``<= t - h(t)``; each plant step is
 split where it switches (:mod:`delaytrack.sim.integrator`).
 
-All functions are written once and run either compiled (every model kernel numba-compiled) or
-as plain Python (a user plant given as Python callables): see :mod:`delaytrack.sim.simulate`.
+All functions are written once and run either compiled (every kernel numba-compiled) or as plain
+Python (a user plant given as Python callables): see :mod:`delaytrack.sim.simulate`.
 """
 
 from __future__ import annotations
@@ -17,10 +17,9 @@ import numpy as np
 from numba import njit
 
 from delaytrack._jit import KERNEL_OPTIONS, inline_kernel
+from delaytrack.components import call_reference, call_step
 from delaytrack.controllers.base import step_workspace
-from delaytrack.controllers.dispatch import call_step
 from delaytrack.delays._kernel import delay_value
-from delaytrack.reference import call_reference
 from delaytrack.sim.history import tick_time
 from delaytrack.sim.integrator import (
     DELAY_BEYOND_HISTORY,
@@ -41,7 +40,6 @@ __all__ = [
     "STATUS_NAMES",
     "run_batch",
     "run_batch_compiled",
-    "run_batch_uncached",
     "run_closed_loop",
 ]
 
@@ -66,8 +64,8 @@ def run_closed_loop(handles, run, settings, records):
     Parameters (tuples, so that :func:`run_batch` can pass them on whole)
     ----------------------------------------------------------------------
     handles : tuple
-        ``(plant_terms, model_terms, reference, controller_step)``: kernel ids (compiled) or
-        callables (plain Python); see :mod:`delaytrack.plants.dispatch`.
+        ``(plant_terms, model_terms, reference, controller_step)``: the components'
+        :class:`~delaytrack.components.Kernel` objects.
     run : tuple
         This run's arrays ``(plant_params, model_params, controller_params, controller_state,
         delay_kind, delay_params, x0, capacity)``; ``controller_state`` is advanced in place.
@@ -226,9 +224,7 @@ def run_batch(handles, runs, settings, records, status, t_stop):
         status[b], t_stop[b] = run_closed_loop(handles, run, settings, run_records)
 
 
-#: :func:`run_batch` compiled for the built-in kernels (called by integer id); cached on disk. It
-#: releases the GIL, so threads run sub-batches in parallel.
+#: :func:`run_batch` compiled, once for each set of kernels (their numba types name them), and
+#: cached on disk, user kernels included. It releases the GIL, so threads run sub-batches in
+#: parallel.
 run_batch_compiled = njit(nogil=True, **KERNEL_OPTIONS)(run_batch)
-#: The same, for a user's compiled kernel (:class:`~delaytrack.plants.CompiledPlant`) passed as
-#: a function: numba cannot cache that on disk, so it is compiled once per process.
-run_batch_uncached = njit(nogil=True, **{**KERNEL_OPTIONS, "cache": False})(run_batch)

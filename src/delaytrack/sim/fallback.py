@@ -22,6 +22,12 @@ class PythonFallbackWarning(UserWarning):
             for role, item in (("plant", plant), ("nominal model", controller.model))
             if not item.compiled
         ]
+        if not slow:
+            return cls(
+                f"simulate() runs as plain Python because the step of the controller "
+                f"{type(controller).__name__} is not numba-compiled (about 100x slower than "
+                "compiled). For compiled speed, decorate it with @numba.njit."
+            )
         return cls(
             f"simulate() runs as plain Python because the {' and the '.join(slow)} "
             "is given as Python callables (about 100x slower than compiled). For compiled speed, "

@@ -10,7 +10,6 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any, TypeVar
 
 import numpy as np
-from numba.core.errors import NumbaExperimentalFeatureWarning
 from tqdm.auto import tqdm
 
 from delaytrack._validation import (
@@ -22,9 +21,8 @@ from delaytrack._validation import (
 from delaytrack.controllers.base import Controller
 from delaytrack.delays.base import DelayProfile
 from delaytrack.plants.base import ELPlant
-from delaytrack.plants.dispatch import python_kernel
 from delaytrack.reference import SinusoidalReference
-from delaytrack.sim.engine import run_batch, run_batch_compiled, run_batch_uncached
+from delaytrack.sim.engine import run_batch, run_batch_compiled
 from delaytrack.sim.fallback import PythonFallbackWarning
 from delaytrack.sim.history import history_capacity, tick_time
 from delaytrack.sim.result import SimResult
@@ -70,7 +68,7 @@ def _integer_ratio(name: str, value: float, unit: float, what: str, scale: float
 
 def _check_same_kernel(name: str, plant: ELPlant, first: ELPlant) -> None:
     """A compiled batch runs one kernel for all its elements."""
-    if plant.compiled and plant.kernel_handle is not first.kernel_handle:
+    if plant.compiled and plant.engine_kernel != first.engine_kernel:
         raise ValueError(
             f"{name} has another compiled kernel than element 0; a batch runs one kernel "
             "(split it into one simulate call per kernel)"
@@ -408,22 +406,16 @@ def simulate(
         warnings.warn(PythonFallbackWarning.describe(first_plant, first_controller), stacklevel=2)
 
     def handles(b: int) -> tuple:
-        """Kernel ids or a user's compiled kernels (compiled), or element ``b``'s own callables
-        (plain Python)."""
+        """Element ``b``'s kernels (:class:`~delaytrack.components.Kernel`), compiled or as
+        plain Python."""
         plant_b, controller_b = plants[b], controllers[b]
-        if compiled:
-            return (
-                plant_b.kernel_handle,
-                controller_b.model.kernel_handle,
-                reference.kernel_id,
-                controller_b.kernel_id,
-            )
-        return (
-            python_kernel(plant_b),
-            python_kernel(controller_b.model),
-            reference.kernel.py_func,
-            controller_b.step_kernel.py_func,
+        kernels = (
+            plant_b.engine_kernel,
+            controller_b.model.engine_kernel,
+            reference.engine_kernel,
+            controller_b.engine_kernel,
         )
+        return kernels if compiled else tuple(kernel.as_python() for kernel in kernels)
 
     runs = (
         _stack_padded([p.params for p in plants]),
@@ -449,12 +441,7 @@ def simulate(
     )
     outputs = (states, commands, applied, delay_records, controller_states, sums)
 
-    if not compiled:
-        runner = run_batch
-    elif first_plant.kernel_id is not None and first_controller.model.kernel_id is not None:
-        runner = run_batch_compiled
-    else:
-        runner = run_batch_uncached
+    runner = run_batch_compiled if compiled else run_batch
 
     def run_chunk(chunk: np.ndarray) -> int:
         part = slice(chunk[0], chunk[-1] + 1)
@@ -477,12 +464,8 @@ def simulate(
         pieces = batch
     chunks = np.array_split(np.arange(batch), pieces)
     with (
-        warnings.catch_warnings(),
         tqdm(total=batch, desc="simulate", unit="run", disable=not progress) as bar,
     ):
-        # numba calls a user's kernel passed as an argument an experimental feature; it is
-        # what CompiledPlant is for, and tests/test_speed_paths.py pins its results.
-        warnings.simplefilter("ignore", NumbaExperimentalFeatureWarning)
         if compiled and workers > 1 and len(chunks) > 1:
             with ThreadPoolExecutor(max_workers=workers) as pool:
                 for done in pool.map(run_chunk, chunks):

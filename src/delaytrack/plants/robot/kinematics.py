@@ -73,7 +73,7 @@ def robot_command_map(q, params, tau, command):
     """Wheel torques ``command = S(q)ᵀ τ``; ``params`` starts with ``[R, L, d]``.
 
     The command map of the robot's nominal models (see
-    :func:`delaytrack.plants.dispatch.call_command_map`).
+    :func:`delaytrack.components.call_command_map`).
     """
     phi = q[2]
     S00, S01, S10, S11, S20 = kinematic_map_entries(

@@ -33,8 +33,8 @@ import numpy as np
 
 from delaytrack._jit import hot_kernel
 from delaytrack.plants.base import ELPlant
-from delaytrack.plants.dispatch import ROBOT_NOMINAL
 from delaytrack.plants.robot.body import RobotBody
+from delaytrack.plants.robot.kinematics import robot_command_map
 
 __all__ = ["NominalRobot", "robot_nominal_terms"]
 
@@ -78,13 +78,11 @@ class NominalRobot(RobotBody, ELPlant):
     """The unconstrained Lagrangian model of the robot (module docstring), for controllers.
 
     Parameters are those of :class:`~delaytrack.plants.robot.body.RobotBody` (P3-DX defaults).
-    As a nominal model its command map is ``τ_w = S(q)ᵀ τ`` (``has_command_map``). As a plant it
+    As a nominal model its command map is ``τ_w = S(q)ᵀ τ`` (``command_map_kernel``). As a plant it
     would ignore the constraints: use :class:`~delaytrack.plants.robot.truth.WheeledRobot`.
     """
 
     type_name: ClassVar[str] = "wheeled-robot-nominal"
-    kernel_id: ClassVar[int] = ROBOT_NOMINAL
-    has_command_map: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         self._check_body()
@@ -96,6 +94,10 @@ class NominalRobot(RobotBody, ELPlant):
     @property
     def terms_kernel(self):
         return robot_nominal_terms
+
+    @property
+    def command_map_kernel(self):
+        return robot_command_map
 
     def to_spec(self) -> dict[str, Any]:
         return {"type": self.type_name, **self.body_spec()}

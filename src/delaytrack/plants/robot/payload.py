@@ -41,7 +41,6 @@ from delaytrack._validation import (
     positive_scalar,
 )
 from delaytrack.plants.base import ELPlant
-from delaytrack.plants.dispatch import ROBOT_PAYLOAD
 from delaytrack.plants.robot.body import COORDINATES
 from delaytrack.plants.robot.parameters import P3DX_PAYLOAD
 from delaytrack.plants.robot.truth import (
@@ -170,7 +169,7 @@ class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
     m: ClassVar[int] = 2
     coordinate_names: ClassVar[tuple[str, ...]] = COORDINATES
     type_name: ClassVar[str] = "wheeled-robot-payload"
-    kernel_id: ClassVar[int] = ROBOT_PAYLOAD
+    identity_mass: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         if not isinstance(self.robot, WheeledRobot):

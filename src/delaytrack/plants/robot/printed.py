@@ -36,7 +36,7 @@ What we find (pinned in ``tests/test_robot_printed.py``, discussed in ``docs/rob
   ``I_w > 0.169`` (K = m d) or ``0.197 kg·m²`` (K = 0.05), never for a bare wheel.
 
 As a nominal model its command map is ``τ_w = S(q)ᵀ τ`` with the half-track kinematics
-(``has_command_map``), as for :class:`~delaytrack.plants.robot.nominal.NominalRobot`.
+(``command_map_kernel``), as for :class:`~delaytrack.plants.robot.nominal.NominalRobot`.
 """
 
 from __future__ import annotations
@@ -50,8 +50,8 @@ import numpy as np
 from delaytrack._jit import kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
-from delaytrack.plants.dispatch import ROBOT_PRINTED
 from delaytrack.plants.robot.body import COORDINATES
+from delaytrack.plants.robot.kinematics import robot_command_map
 from delaytrack.plants.robot.parameters import P3DX
 
 __all__ = ["PrintedRobotModel", "robot_printed_terms"]
@@ -144,8 +144,6 @@ class PrintedRobotModel(ELPlant):
     m: ClassVar[int] = 2
     coordinate_names: ClassVar[tuple[str, ...]] = COORDINATES
     type_name: ClassVar[str] = "wheeled-robot-printed"
-    kernel_id: ClassVar[int] = ROBOT_PRINTED
-    has_command_map: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         for name in ("wheel_radius", "half_track", "mass", "inertia", "wheel_spin_inertia"):
@@ -175,6 +173,10 @@ class PrintedRobotModel(ELPlant):
     @property
     def terms_kernel(self):
         return robot_printed_terms
+
+    @property
+    def command_map_kernel(self):
+        return robot_command_map
 
     def to_spec(self) -> dict[str, Any]:
         return {

@@ -38,7 +38,6 @@ import numpy as np
 from delaytrack._jit import hot_kernel, kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
-from delaytrack.plants.dispatch import ROBOT_TRUTH
 from delaytrack.plants.robot.body import RobotBody
 from delaytrack.plants.robot.kinematics import constraint_residual, kinematic_map_entries
 from delaytrack.plants.robot.parameters import P3DX
@@ -240,7 +239,7 @@ class WheeledRobot(RobotBody, ConstrainedRobotPhysics, ELPlant):
     friction_speed: float = P3DX.friction_speed
     baumgarte_gain: float = DEFAULT_BAUMGARTE_GAIN
     type_name: ClassVar[str] = "wheeled-robot"
-    kernel_id: ClassVar[int] = ROBOT_TRUTH
+    identity_mass: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         self._check_body()

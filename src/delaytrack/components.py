@@ -1,0 +1,388 @@
+"""The component protocol: how the engine calls a plant, model, controller or reference kernel.
+
+Every component of a closed loop is a *kernel* (a function with a fixed signature, compiled with
+``numba.njit`` or plain Python) plus a parameter vector it reads. The engine is handed each
+component's :class:`Kernel` and calls it through one of the functions below:
+
+===============================  ===========================================================
+:func:`call_terms`               plant or nominal model: ``terms(t, q, qdot, params, M, N, G)``
+:func:`call_command_map`         nominal model: actuator command realising a force ``τ``
+:func:`has_identity_mass`        plant: ``M(q) = I`` always (no solve for ``q̈``)
+:func:`call_step`                controller: one tick (see :mod:`delaytrack.controllers.base`)
+:func:`call_reference`           reference: ``q_d, q̇_d, q̈_d`` at ``t``
+===============================  ===========================================================
+
+The built-in components use this protocol exactly as a user's do; adding one is one file with
+its kernel and its class.
+
+In compiled code a :class:`Kernel` has a numba type of its own, named by :attr:`Kernel.key`:
+the function's module and name and, for a function outside this package, a hash of its code
+(and of the functions and constants it reaches). numba compiles the engine once for each set
+of kernels and caches that specialisation on disk under this name, so a user's compiled plant
+is compiled once, not once per process, and an edit to its code compiles it again. The code
+of this package is covered by the cache folder instead (:mod:`delaytrack._numba_cache`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import math
+import types as python_types
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import cached_property, lru_cache
+from typing import Any
+
+import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.core.dispatcher import Dispatcher
+from numba.extending import (
+    NativeValue,
+    models,
+    overload,
+    register_model,
+    typeof_impl,
+    unbox,
+)
+
+from delaytrack._jit import inline_kernel
+from delaytrack._small_linalg import solve_in_place
+
+__all__ = [
+    "Kernel",
+    "KernelType",
+    "call_command_map",
+    "call_reference",
+    "call_step",
+    "call_terms",
+    "code_fingerprint",
+    "has_identity_mass",
+    "is_compiled",
+    "solve_input_map",
+]
+
+_PACKAGE = __name__.partition(".")[0]
+#: Modules whose functions are numba's or the interpreter's, never walked for a fingerprint.
+_LIBRARIES = frozenset({"numba", "numpy", "math", "cmath", "builtins", "llvmlite", "scipy"})
+
+
+def is_compiled(function: object) -> bool:
+    """Whether ``function`` is a numba-compiled function (``@numba.njit``)."""
+    return isinstance(function, Dispatcher)
+
+
+def _python_function(function: object) -> python_types.FunctionType | None:
+    """The Python function behind ``function`` (its ``py_func`` when compiled), if any."""
+    inner = getattr(function, "py_func", function)
+    return inner if isinstance(inner, python_types.FunctionType) else None
+
+
+def _qualified_name(function: object) -> str:
+    inner = _python_function(function) or function
+    module = getattr(inner, "__module__", None) or "?"
+    return f"{module}:{getattr(inner, '__qualname__', type(inner).__name__)}"
+
+
+def _code_names(code: python_types.CodeType) -> set[str]:
+    """Global names read by ``code`` and by the functions defined inside it."""
+    names = set(code.co_names)
+    for constant in code.co_consts:
+        if isinstance(constant, python_types.CodeType):
+            names |= _code_names(constant)
+    return names
+
+
+def _value_text(value: object, walk: list[object]) -> str | None:
+    """How a global or closure value enters a fingerprint; functions are queued in ``walk``."""
+    if _python_function(value) is not None:
+        walk.append(value)
+        return _qualified_name(value)
+    if isinstance(value, python_types.ModuleType):
+        return None
+    if isinstance(value, np.ndarray):
+        return f"array{value.dtype}{value.shape}:{hashlib.sha256(value.tobytes()).hexdigest()}"
+    if isinstance(value, bool | int | float | complex | str | bytes | type(None) | tuple):
+        return repr(value)
+    return f"object@{id(value)}"  # known only in this process: compiled again in the next
+
+
+def code_fingerprint(function: Callable[..., Any]) -> str:
+    """Hash (16 hex digits) of the code that compiling ``function`` depends on, outside delaytrack.
+
+    It covers the source (or bytecode, where no source is available) of ``function``, of every
+    function it reaches through its globals and closure, and the values of the constants they
+    read. Functions of this package are covered by the cache folder and not walked.
+    """
+    digest = hashlib.sha256()
+    walk: list[object] = [function]
+    seen: set[int] = set()
+    while walk:
+        current = walk.pop()
+        inner = _python_function(current)
+        if inner is None or id(inner) in seen:
+            continue
+        seen.add(id(inner))
+        module = (inner.__module__ or "").partition(".")[0]
+        if module in _LIBRARIES or (module == _PACKAGE and current is not function):
+            continue
+        digest.update(_qualified_name(inner).encode())
+        try:
+            digest.update(inspect.getsource(inner).encode())
+        except (OSError, TypeError):
+            digest.update(inner.__code__.co_code)
+            digest.update(repr(inner.__code__.co_consts).encode())
+        for name in sorted(_code_names(inner.__code__)):
+            if name in inner.__globals__:
+                text = _value_text(inner.__globals__[name], walk)
+                if text is not None:
+                    digest.update(f"{name}={text}".encode())
+        for cell in inner.__closure__ or ():
+            text = _value_text(cell.cell_contents, walk)
+            if text is not None:
+                digest.update(text.encode())
+    return digest.hexdigest()[:16]
+
+
+#: Every Kernel made in this process, by key: the compiled engine finds its functions here.
+_KERNELS: dict[str, Kernel] = {}
+
+
+@dataclass(frozen=True)
+class Kernel:
+    """A component's kernel as the engine calls it.
+
+    Parameters
+    ----------
+    function : callable
+        The kernel, ``@numba.njit``-compiled or plain Python (then the engine runs as Python).
+    command_map : callable, optional
+        For a nominal model: ``command_map(q, params, tau, command)`` writing the actuator
+        ``command`` (m,) that realises the generalised force ``τ`` (n,); by default
+        :func:`solve_input_map`, ``Ĝ(q) command = τ``.
+    identity_mass : bool
+        For a plant whose terms kernel always fills ``M(q) = I`` (integrated as
+        ``q̈ = G(q) u - N(q, q̇)`` without a solve).
+    """
+
+    function: Callable[..., Any]
+    command_map: Callable[..., Any] | None = None
+    identity_mass: bool = False
+
+    def __post_init__(self) -> None:
+        for name in ("function", "command_map"):
+            value = getattr(self, name)
+            if not (callable(value) or (name == "command_map" and value is None)):
+                raise TypeError(f"{name} must be callable; got {type(value).__name__}")
+        if self.compiled:
+            _KERNELS.setdefault(self.key, self)
+
+    @cached_property
+    def key(self) -> str:
+        """Name of this kernel's numba type, and of the engine compiled for it on disk."""
+        parts = [_name_with_code(self.function)]
+        if self.command_map is not None:
+            parts.append(f"command_map={_name_with_code(self.command_map)}")
+        if self.identity_mass:
+            parts.append("identity_mass")
+        return ",".join(parts)
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the kernel (and its command map) are numba-compiled."""
+        return is_compiled(self.function) and (
+            self.command_map is None or is_compiled(self.command_map)
+        )
+
+    def __call__(self, *args: Any) -> Any:
+        """Run the kernel from Python (compiled if it is)."""
+        return self.function(*args)
+
+    def as_python(self) -> Kernel:
+        """The same kernel run as plain Python (its ``py_func``; the helpers it calls and the
+        command map stay compiled), for the plain-Python engine."""
+        return Kernel(
+            getattr(self.function, "py_func", self.function), self.command_map, self.identity_mass
+        )
+
+
+@lru_cache(maxsize=1024)
+def _name_with_code(function: Callable[..., Any]) -> str:
+    name = _qualified_name(function)
+    if name.partition(".")[0] == _PACKAGE:
+        return name
+    return f"{name}#{code_fingerprint(function)}"
+
+
+class KernelType(types.Type):
+    """numba type of a :class:`Kernel`: no runtime data, the kernel is known when compiling."""
+
+    def __init__(self, kernel_key: str) -> None:
+        self.kernel_key = kernel_key
+        super().__init__(name=f"Kernel({kernel_key})")
+
+    def kernel(self) -> Kernel:
+        try:
+            return _KERNELS[self.kernel_key]
+        except KeyError:
+            raise RuntimeError(f"no Kernel {self.kernel_key!r} was made in this process") from None
+
+
+register_model(KernelType)(models.OpaqueModel)
+
+
+@typeof_impl.register(Kernel)
+def _typeof_kernel(value: Kernel, context: Any) -> KernelType:
+    _KERNELS.setdefault(value.key, value)
+    return KernelType(value.key)
+
+
+@unbox(KernelType)
+def _unbox_kernel(typ: KernelType, obj: Any, c: Any) -> NativeValue:
+    return NativeValue(ir.Constant(c.context.get_value_type(typ), None))
+
+
+# ---- the calls ---------------------------------------------------------------------------------
+
+
+def call_terms(terms, t, q, qdot, params, mass, nonlinear, input_map):
+    """Fill ``M, N, G`` of a plant or nominal model with its :class:`Kernel` ``terms``."""
+    terms(t, q, qdot, params, mass, nonlinear, input_map)
+
+
+@overload(call_terms, inline="always")
+def _call_terms_compiled(terms, t, q, qdot, params, mass, nonlinear, input_map):
+    if isinstance(terms, KernelType):
+        function = terms.kernel().function
+
+        def impl(terms, t, q, qdot, params, mass, nonlinear, input_map):
+            function(t, q, qdot, params, mass, nonlinear, input_map)
+
+        return impl
+    return None
+
+
+def has_identity_mass(terms):
+    """Whether the plant :class:`Kernel` ``terms`` always fills ``M(q) = I``."""
+    return terms.identity_mass
+
+
+@overload(has_identity_mass, inline="always")
+def _has_identity_mass_compiled(terms):
+    if isinstance(terms, KernelType):
+        value = terms.kernel().identity_mass
+
+        def impl(terms):
+            return value
+
+        return impl
+    return None
+
+
+@inline_kernel
+def solve_input_map(input_map, tau, command):
+    """The default command map: solve ``G(q) command = τ`` (a fully actuated model)."""
+    square = input_map.copy()
+    command[:] = tau
+    if not solve_in_place(square, command):
+        command[:] = math.nan
+
+
+def call_command_map(model, q, params, input_map, tau, command):
+    """Actuator ``command`` that realises the generalised force ``τ`` on the nominal ``model``.
+
+    The model's own command map when its :class:`Kernel` has one (the wheeled robot's
+    ``command = S(q)ᵀ τ``, the paper's Section III), else :func:`solve_input_map`.
+    """
+    if model.command_map is not None:
+        model.command_map(q, params, tau, command)
+    else:
+        solve_input_map(input_map, tau, command)
+
+
+@overload(call_command_map)
+def _call_command_map_compiled(model, q, params, input_map, tau, command):
+    if isinstance(model, KernelType):
+        command_map = model.kernel().command_map
+        if command_map is None:
+
+            def solve(model, q, params, input_map, tau, command):
+                solve_input_map(input_map, tau, command)
+
+            return solve
+
+        def own(model, q, params, input_map, tau, command):
+            command_map(q, params, tau, command)
+
+        return own
+    return None
+
+
+def call_step(
+    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command, work
+):
+    """Run one controller tick with the controller's :class:`Kernel` ``step``."""
+    step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command, work)
+
+
+@overload(call_step)
+def _call_step_compiled(
+    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command, work
+):
+    if isinstance(step, KernelType):
+        function = step.kernel().function
+
+        def impl(
+            step,
+            t,
+            q,
+            qdot,
+            qd,
+            qd_dot,
+            qd_ddot,
+            T_c,
+            h,
+            params,
+            state,
+            model,
+            model_params,
+            command,
+            work,
+        ):
+            function(
+                t,
+                q,
+                qdot,
+                qd,
+                qd_dot,
+                qd_ddot,
+                T_c,
+                h,
+                params,
+                state,
+                model,
+                model_params,
+                command,
+                work,
+            )
+
+        return impl
+    return None
+
+
+def call_reference(reference, t, params, qd, qd_dot, qd_ddot):
+    """Evaluate the reference :class:`Kernel` ``reference``: ``q_d, q̇_d, q̈_d`` at ``t``."""
+    reference(t, params, qd, qd_dot, qd_ddot)
+
+
+@overload(call_reference)
+def _call_reference_compiled(reference, t, params, qd, qd_dot, qd_ddot):
+    if isinstance(reference, KernelType):
+        function = reference.kernel().function
+
+        def impl(reference, t, params, qd, qd_dot, qd_ddot):
+            function(t, params, qd, qd_dot, qd_ddot)
+
+        return impl
+    return None

@@ -1,0 +1,124 @@
+"""The component protocol: kernels named by their code, and a user's engine cached on disk."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from delaytrack.components import Kernel, code_fingerprint
+from delaytrack.controllers.arolc import arolc_step
+from delaytrack.plants import TwoLinkArm
+
+USER_MODULE = """
+import math
+import numba
+
+GRAVITY = {gravity}
+
+
+@numba.njit
+def swing(q):
+    return GRAVITY * math.sin(q)
+
+
+@numba.njit
+def pendulum_terms(t, q, qdot, params, M, N, G):
+    M[0, 0] = params[0] * params[1] ** 2
+    N[0] = params[0] * params[1] * swing(q[0]) + params[2] * qdot[0]
+    G[0, 0] = 1.0
+"""
+
+
+def load(tmp_path, name, gravity=9.81, extra=""):
+    path = tmp_path / f"{name}.py"
+    path.write_text(USER_MODULE.format(gravity=gravity) + extra)
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_builtin_kernels_are_named_by_module_and_function():
+    assert Kernel(arolc_step).key == "delaytrack.controllers.arolc:arolc_step"
+    assert TwoLinkArm().engine_kernel == TwoLinkArm(p1=4.0).engine_kernel  # parameters are data
+
+
+def test_a_user_kernel_is_named_by_its_code_and_what_it_reaches(tmp_path):
+    first = load(tmp_path, "user_a").pendulum_terms
+    again = load(tmp_path, "user_a").pendulum_terms  # the same text loaded twice
+    assert code_fingerprint(first) == code_fingerprint(again)
+    assert Kernel(first).key.startswith("user_a:pendulum_terms#")
+    assert Kernel(first).key == Kernel(again).key
+    # A constant read by a helper it calls, or the helper's text, changes the name.
+    assert code_fingerprint(load(tmp_path, "user_a", gravity=1.62).pendulum_terms) != (
+        code_fingerprint(first)
+    )
+    edited = load(tmp_path, "user_a", extra="\n# an edit elsewhere in the file\n")
+    assert code_fingerprint(edited.pendulum_terms) == code_fingerprint(first)  # its code only
+
+
+def test_flags_are_part_of_the_name():
+    plain = Kernel(arolc_step)
+    assert Kernel(arolc_step, identity_mass=True).key != plain.key
+    assert Kernel(arolc_step, command_map=arolc_step).key != plain.key
+    with pytest.raises(TypeError, match="function must be callable"):
+        Kernel(3.0)
+
+
+RUN = """
+import json, sys, time
+start = time.perf_counter()
+import numpy as np
+import delaytrack as dt
+sys.path.insert(0, sys.argv[1])
+from user_plant import pendulum_terms
+from delaytrack.sim.engine import run_batch_compiled
+
+truth = dt.CompiledPlant(1, 1, pendulum_terms, [1.2, 0.5, 0.4])
+model = dt.CompiledPlant(1, 1, pendulum_terms, [0.9, 0.5, 0.0])
+controller = dt.AROLC(model, K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
+result = dt.simulate(truth, controller, dt.ConstantDelay(0.01), np.zeros(2),
+                     reference=dt.SinusoidalReference(offset=[0.3], amplitude=[0.5],
+                                                      frequency=[1.0]),
+                     t1=1.0, dt=1e-3, T_c=2e-3, trajectories=False)
+stats = run_batch_compiled.stats
+print(json.dumps({"hits": sum(stats.cache_hits.values()),
+                  "misses": sum(stats.cache_misses.values()),
+                  "ae": float(dt.mean_absolute_error(result)[0, 0]),
+                  "seconds": time.perf_counter() - start}))
+"""
+
+
+@pytest.mark.slow
+def test_a_user_compiled_plant_is_compiled_once_then_loaded_from_disk(tmp_path):
+    (tmp_path / "user_plant.py").write_text(USER_MODULE.format(gravity=9.81))
+    script = tmp_path / "run.py"
+    script.write_text(textwrap.dedent(RUN))
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+
+    def run() -> dict:
+        done = subprocess.run(
+            [sys.executable, str(script), str(tmp_path)],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=900,
+            check=True,
+        )
+        return json.loads(done.stdout.strip().splitlines()[-1])
+
+    first, second = run(), run()
+    assert first["misses"] == 1 and first["hits"] == 0
+    assert second["misses"] == 0 and second["hits"] == 1
+    assert second["ae"] == first["ae"] and np.isfinite(first["ae"])
+    # An edit to the kernel's code is compiled again, not loaded stale.
+    (tmp_path / "user_plant.py").write_text(USER_MODULE.format(gravity=1.62))
+    third = run()
+    assert third["misses"] == 1 and third["ae"] != first["ae"]

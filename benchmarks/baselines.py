@@ -47,7 +47,7 @@ from delaytrack.delays import AbsSineDelay
 from delaytrack.experiments.paper import AROLC_GAINS, DT, DURATION, PAYLOAD_SEED, T_C
 from delaytrack.plants.robot import NominalRobot, PayloadRobot, initial_state, paper_reference
 from delaytrack.plants.robot.kinematics import robot_command_map
-from delaytrack.reference import SinusoidalReference
+from delaytrack.references import SinusoidalReference
 from delaytrack.sim import simulate
 
 __all__ = ["PlainAROLC", "agreement", "numpy_loop", "robot_case", "solve_ivp_loop"]

@@ -8,6 +8,11 @@ compiles or loads numba's disk cache):
     One 60 s S1 run (60 000 RK4 steps), compiled, against two baselines measured in the same
     run: a plain NumPy per-step loop and ``scipy.integrate.solve_ivp`` with the delayed command
     looked up in the callback (:mod:`baselines`).
+``ceiling``
+    The engine against the ceiling, a hand-written allocation-free numba loop of the same robot
+    run (:mod:`hand_loop`: no step splitting, nothing general), in the same process: one 60 s
+    run on one thread, and ``B`` = 1000 runs of 60 s (|sin| delays and payload placements drawn
+    per run) on all cores; ``ratio`` is the hand loop's time over the engine's (1 = as fast).
 ``batch``
     ``B`` runs, each with its own delay profile (|sin|, random-walk and constant families with
     drawn parameters) and payload placements, metrics only (``trajectories=False``), on all
@@ -53,6 +58,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from baselines import numpy_loop, robot_case, solve_ivp_loop  # noqa: E402
+from hand_loop import hand_batch, hand_run  # noqa: E402
 
 from delaytrack.controllers import AROLC  # noqa: E402
 from delaytrack.delays import AbsSineDelay, ConstantDelay, RandomDelay  # noqa: E402
@@ -117,6 +123,56 @@ def single_case(duration: float, repeats: int, baseline_repeats: int) -> list[di
             }
         )
     rows[0]["ratio_to_solve_ivp"] = scipy_time / engine
+    return rows
+
+
+# --- the ceiling: a hand-written loop ---------------------------------------------------------
+
+
+def ceiling_case(duration: float, batch: int, repeats: int) -> list[dict]:
+    """The engine and :mod:`hand_loop` on the same runs, in this process, metrics only."""
+    plant, controller, delay, reference, x0 = robot_case(duration)
+    common = dict(reference=reference, t1=duration, dt=DT, T_c=T_C, trajectories=False)
+    hand = median_seconds(
+        lambda: hand_run(plant, controller, delay, reference, x0, duration, DT, T_C), repeats
+    )
+    engine = median_seconds(
+        lambda: simulate(plant, controller, delay, x0, **common, workers=1), repeats
+    )
+    ae_engine = simulate(plant, controller, delay, x0, **common).metrics["ae"][0]
+    ae_hand = hand_run(plant, controller, delay, reference, x0, duration, DT, T_C)[1][: plant.n]
+    rng = np.random.default_rng(7)
+    plants = [PayloadRobot(seed=b, duration=duration) for b in range(batch)]
+    delays = [
+        AbsSineDelay(rng.uniform(0.0, 0.05), rng.uniform(0.02, 0.1), rng.uniform(0.5, 2.0))
+        for _ in range(batch)
+    ]
+    batch_repeats = max(1, repeats // 3)
+    hand_many = median_seconds(
+        lambda: hand_batch(plants, controller, delays, reference, x0, duration, DT, T_C),
+        batch_repeats,
+    )
+    engine_many = median_seconds(
+        lambda: simulate(plants, controller, delays, x0, **common), batch_repeats
+    )
+    rows = []
+    for name, count, seconds, baseline in (
+        (f"engine, one {duration:g} s run, 1 thread", 1, engine, hand),
+        ("ceiling: hand-written numba loop, same run", 1, hand, hand),
+        (f"engine, B={batch} runs of {duration:g} s, all cores", batch, engine_many, hand_many),
+        (f"ceiling: hand-written loop, B={batch}, prange", batch, hand_many, hand_many),
+    ):
+        rows.append(
+            {
+                "case": name,
+                "median_s": seconds,
+                "steps_per_s": steps(duration, count) / seconds,
+                "baseline": "hand-written numba loop (benchmarks/hand_loop.py)",
+                "baseline_s": baseline,
+                "ratio_to_baseline": baseline / seconds,
+            }
+        )
+    rows[0]["ae_difference_to_hand_loop_m"] = float(np.max(np.abs(ae_engine - ae_hand)))
     return rows
 
 
@@ -349,6 +405,7 @@ def main() -> None:
     quick = args.quick
     cases: list[dict] = []
     cases += single_case(6.0 if quick else 60.0, 3 if quick else 9, 1 if quick else 3)
+    cases += ceiling_case(6.0 if quick else 60.0, 100 if quick else 1000, 3 if quick else 9)
     sizes = (1, 10, 100) if quick else (1, 10, 100, 1000, 10000)
     for batch in sizes:
         cases.append(batch_case(batch, 1.0 if quick else 10.0, 3 if batch <= 1000 else 1))
@@ -374,6 +431,11 @@ def main() -> None:
         print(f"{case['case']:<68} {median:>10} {rate:>10} {ratio:>8} {memory:>9}")
     extra = cases[0]
     print(f"compiled single run vs solve_ivp: {extra['ratio_to_solve_ivp']:.0f}x faster")
+    ceiling = next(c for c in cases if "ae_difference_to_hand_loop_m" in c)
+    print(
+        "engine vs hand-written loop: AE differs by "
+        f"{ceiling['ae_difference_to_hand_loop_m']:.1e} m (the loop does not split steps)"
+    )
     startup = next(c for c in cases if c["case"].startswith("start-up"))
     print(
         f"start-up: first result {startup['first_result_s']:.2f} s, "

@@ -396,7 +396,8 @@ def test_controller_from_spec(arm, rng):
     with pytest.raises(
         ValueError,
         match=r"'controller\.type' must be one of "
-        r"\['arolc', 'outer-loop', 'pcon', 'pconf'\]; got 'pid'",
+        r"\['arolc', 'outer-loop', 'pcon', 'pconf'\] or a factory of yours, "
+        r"'python:<module>:<function>'; got 'pid'",
     ):
         controller_from_spec({"type": "pid"}, arm)
     with pytest.raises(

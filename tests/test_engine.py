@@ -16,7 +16,7 @@ from delaytrack.delays import (
     RandomDelay,
 )
 from delaytrack.plants import CallablePlant, LinearPlant, TwoLinkArm
-from delaytrack.reference import SinusoidalReference
+from delaytrack.references import SinusoidalReference
 from delaytrack.sim import simulate
 from delaytrack.sim.history import latest_tick_index
 

@@ -19,7 +19,7 @@ from delaytrack.controllers import PCON, PCONf, PredictorBaseline, controller_fr
 from delaytrack.controllers.pcon import ring_slots
 from delaytrack.delays import AbsSineDelay, ConstantDelay
 from delaytrack.plants import CallablePlant, LinearPlant, TwoLinkArm
-from delaytrack.reference import SinusoidalReference
+from delaytrack.references import SinusoidalReference
 from delaytrack.sim import simulate
 
 T_C = 0.01

@@ -397,8 +397,8 @@ def test_plant_from_spec_builds_and_refuses():
     with pytest.raises(
         ValueError,
         match=r"'plant\.type' must be one of \['linear', 'two-link-arm', 'wheeled-robot', "
-        r"'wheeled-robot-nominal', 'wheeled-robot-payload', 'wheeled-robot-printed'\]; "
-        r"got 'scara'",
+        r"'wheeled-robot-nominal', 'wheeled-robot-payload', 'wheeled-robot-printed'\] "
+        r"or a factory of yours, 'python:<module>:<function>'; got 'scara'",
     ):
         plant_from_spec({"type": "scara"})
     with pytest.raises(ValueError, match=r"'plant\.type' is missing"):

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from delaytrack.reference import SinusoidalReference
+from delaytrack.references import SinusoidalReference
 
 # Two coordinates, two harmonics each (arbitrary numbers; the second harmonic of row 1 is a
 # constant: frequency 0).

@@ -175,7 +175,7 @@ def test_missing_and_unknown_type():
         data,
         r"scenario key 'plant\.type' must be one of \['linear', 'two-link-arm', "
         r"'wheeled-robot', 'wheeled-robot-nominal', 'wheeled-robot-payload', "
-        r"'wheeled-robot-printed'\]; "
+        r"'wheeled-robot-printed'\] or a factory of yours, 'python:<module>:<function>'; "
         r"got 'three-link-arm'",
     )
 
@@ -229,7 +229,7 @@ def test_dimension_mismatches_are_refused_at_build():
     data["reference"]["amplitude"] = [1.0, 1.0, 1.0]
     data["reference"]["frequency"] = [1.0, 1.0, 1.0]
     with pytest.raises(
-        ScenarioError, match=r"'reference\.offset' has 3 entries; the plant has n = 2"
+        ScenarioError, match=r"\[reference\] gives n = 3 coordinates; the plant has n = 2"
     ):
         Scenario.from_dict(data).build()
 

@@ -21,7 +21,7 @@ from delaytrack.metrics import mean_absolute_error, metrics_table
 from delaytrack.plants import CallablePlant, CompiledPlant, TwoLinkArm
 from delaytrack.plants.robot import NominalRobot, PayloadRobot, initial_state, paper_reference
 from delaytrack.plants.two_link_arm import two_link_terms
-from delaytrack.reference import SinusoidalReference
+from delaytrack.references import SinusoidalReference
 from delaytrack.sim import simulate
 from delaytrack.sim.fallback import PythonFallbackWarning
 from test_golden import golden

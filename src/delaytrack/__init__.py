@@ -68,7 +68,7 @@ from delaytrack.plants import (
     TwoLinkArm,
     plant_from_spec,
 )
-from delaytrack.reference import SinusoidalReference
+from delaytrack.references import Reference, SinusoidalReference, SplineReference
 from delaytrack.sim import SimResult, simulate
 
 __all__ = [
@@ -88,10 +88,12 @@ __all__ = [
     "PiecewiseConstantDelay",
     "RandomDelay",
     "RazumikhinBound",
+    "Reference",
     "Scenario",
     "ScenarioError",
     "SimResult",
     "SinusoidalReference",
+    "SplineReference",
     "TraceDelay",
     "TwoLinkArm",
     "UltimateBounds",

@@ -8,12 +8,19 @@ that declaration and builds the object; every refusal is a :class:`SpecError` na
 
 from __future__ import annotations
 
+import hashlib
+import importlib
+import importlib.util
 import math
+import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 __all__ = [
+    "PYTHON_TYPE",
     "Check",
     "SpecError",
     "TypeSpec",
@@ -24,6 +31,7 @@ __all__ = [
     "integer",
     "number",
     "string",
+    "user_factory",
     "vector",
 ]
 
@@ -111,6 +119,77 @@ class TypeSpec:
     alternatives: tuple[tuple[str, ...], ...] = ()
 
 
+#: Prefix of a table type naming a user's factory: ``"python:<module>:<function>"`` (an
+#: importable module) or ``"python:<file.py>:<function>"`` (a file, in a scenario file relative
+#: to it). The factory is called with the table's other keys as keyword arguments.
+PYTHON_TYPE = "python:"
+
+#: Modules loaded from a file, by path: ``(modification time, size, module)``.
+_FILE_MODULES: dict[Path, tuple[int, int, ModuleType]] = {}
+
+
+def _module_from_file(path: Path) -> ModuleType:
+    """Import the Python file ``path`` (again when it changed since the last import)."""
+    path = path.expanduser().resolve()
+    status = path.stat()
+    known = _FILE_MODULES.get(path)
+    if known is not None and known[:2] == (status.st_mtime_ns, status.st_size):
+        return known[2]
+    name = path.stem
+    taken = sys.modules.get(name)
+    if taken is not None and getattr(taken, "__file__", None) != str(path):
+        name = f"{path.stem}_{hashlib.sha256(str(path).encode()).hexdigest()[:8]}"
+    spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:
+        raise ImportError(f"{str(path)!r} is not a Python file")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:
+        del sys.modules[name]
+        raise
+    _FILE_MODULES[path] = (status.st_mtime_ns, status.st_size, module)
+    return module
+
+
+def user_factory(table: str, kind: str) -> Callable[..., Any]:
+    """The factory named by the type ``kind`` (:data:`PYTHON_TYPE`) of ``[table]``.
+
+    Raises
+    ------
+    SpecError
+        Naming ``<table>.type`` when the name is malformed, the module cannot be imported (with
+        the error it raised) or has no such function.
+    """
+    location, colon, name = kind[len(PYTHON_TYPE) :].rpartition(":")
+    if not (colon and location and name.isidentifier()):
+        raise SpecError(
+            f"scenario key '{table}.type' must name a factory as 'python:<module>:<function>' "
+            f"or 'python:<file.py>:<function>'; got {kind!r}"
+        )
+    try:
+        if location.endswith(".py"):
+            module = _module_from_file(Path(location))
+        else:
+            module = importlib.import_module(location)
+    except Exception as error:  # noqa: BLE001 - anything the user's module raises is reported
+        raise SpecError(
+            f"scenario key '{table}.type' = {kind!r}: cannot import {location!r} "
+            f"({type(error).__name__}: {error})"
+        ) from None
+    factory = getattr(module, name, None)
+    if not callable(factory):
+        raise SpecError(
+            f"scenario key '{table}.type' = {kind!r}: {location!r} has no function {name!r}"
+        )
+    return factory
+
+
+def _any_value(value: object) -> str | None:
+    return None
+
+
 def fail(key: str, phrase: str, value: object) -> SpecError:
     """The error for ``key`` whose ``value`` does not fit ``phrase`` ("must be ...")."""
     return SpecError(f"scenario key {key!r} {phrase}; got {value!r}")
@@ -126,8 +205,14 @@ def check_table(table: str, value: object, types: Mapping[str, TypeSpec]) -> Typ
             f"scenario key '{table}.type' is missing; [{table}] needs a type, one of {valid_types}"
         )
     kind = value["type"]
+    if isinstance(kind, str) and kind.startswith(PYTHON_TYPE):
+        keys = {key: (key, _any_value) for key in value if key != "type"}
+        return TypeSpec(user_factory(table, kind), keys)
     if not isinstance(kind, str) or kind not in types:
-        raise SpecError(f"scenario key '{table}.type' must be one of {valid_types}; got {kind!r}")
+        raise SpecError(
+            f"scenario key '{table}.type' must be one of {valid_types} or a factory of yours, "
+            f"'python:<module>:<function>'; got {kind!r}"
+        )
     spec = types[kind]
     for key, item in value.items():
         if key == "type":
@@ -169,17 +254,26 @@ def _check_alternatives(
         )
 
 
-def build_from_table(table: str, value: object, types: Mapping[str, TypeSpec], **extra: Any) -> Any:
+def build_from_table(
+    table: str,
+    value: object,
+    types: Mapping[str, TypeSpec],
+    returns: type | None = None,
+    **extra: Any,
+) -> Any:
     """Check ``value`` with :func:`check_table` and build it (``extra`` goes to the constructor).
 
     A refusal by the constructor is re-raised naming the table, and the key when the message
     starts with the constructor argument of one (``"K1 must be ..."`` becomes
-    ``"scenario key 'controller.K1' must be ..."``).
+    ``"scenario key 'controller.K1' must be ..."``). A user's factory (:data:`PYTHON_TYPE`) may
+    raise anything, reported with its type; it must return an instance of ``returns``.
     """
     spec = check_table(table, value, types)
+    kind = value["type"]
+    user = kind.startswith(PYTHON_TYPE)
     arguments = {spec.keys[key][0]: item for key, item in value.items() if key != "type"}
     try:
-        return spec.build(**extra, **arguments)
+        built = spec.build(**extra, **arguments)
     except SpecError:
         raise
     except (ValueError, TypeError, FileNotFoundError) as error:
@@ -190,3 +284,15 @@ def build_from_table(table: str, value: object, types: Mapping[str, TypeSpec], *
                     f"scenario key '{table}.{key}' {message[len(argument) + 1 :]}"
                 ) from None
         raise SpecError(f"scenario table [{table}]: {message}") from None
+    except Exception as error:
+        if not user:
+            raise
+        raise SpecError(
+            f"scenario table [{table}]: {kind} raised {type(error).__name__}: {error}"
+        ) from None
+    if returns is not None and not isinstance(built, returns):
+        raise SpecError(
+            f"scenario table [{table}]: {kind} returned a {type(built).__name__}; a [{table}] "
+            f"factory must return a {returns.__name__}"
+        )
+    return built

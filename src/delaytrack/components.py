@@ -101,6 +101,8 @@ def _value_text(value: object, walk: list[object]) -> str | None:
         return _qualified_name(value)
     if isinstance(value, python_types.ModuleType):
         return None
+    if isinstance(value, type):
+        return f"{value.__module__}:{value.__qualname__}"
     if isinstance(value, np.ndarray):
         return f"array{value.dtype}{value.shape}:{hashlib.sha256(value.tobytes()).hexdigest()}"
     if isinstance(value, bool | int | float | complex | str | bytes | type(None) | tuple):

@@ -60,5 +60,10 @@ CONTROLLER_SPECS: dict[str, TypeSpec] = {
 
 
 def controller_from_spec(spec: Mapping[str, Any], model: ELPlant) -> Controller:
-    """Build a controller from ``{"type": name, gains...}`` around the nominal ``model``."""
-    return build_from_table("controller", spec, CONTROLLER_SPECS, model=model)
+    """Build a controller from ``{"type": name, gains...}`` around the nominal ``model``.
+
+    ``name`` is one of :data:`CONTROLLER_SPECS` or a factory of yours,
+    ``"python:<module>:<function>"``, called as ``factory(model=model, **gains)`` and returning
+    a :class:`Controller`.
+    """
+    return build_from_table("controller", spec, CONTROLLER_SPECS, returns=Controller, model=model)

@@ -91,5 +91,7 @@ def delay_from_spec(spec: Mapping[str, Any]) -> DelayProfile:
     """Build a profile from ``{"type": name, ...}``; ``type`` may be ``"S1"`` .. ``"S4"``.
 
     Unknown types and keys, missing keys and ill-typed values raise an error naming the key.
+    A factory of yours, ``"python:<module>:<function>"``, is called with the other keys and
+    returns a :class:`DelayProfile` (for example a trace read from a log of your own format).
     """
-    return build_from_table("delay", spec, DELAY_SPECS)
+    return build_from_table("delay", spec, DELAY_SPECS, returns=DelayProfile)

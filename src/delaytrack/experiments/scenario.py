@@ -24,14 +24,18 @@ controller and its gains, the delay profile, the reference, and the numerical se
     [delay]
     type = "S1"                 # or "constant", "abs-sine", "piecewise-constant", "trace", "random"
     [reference]                 # q_d(t) = offset + slope t + Σ amplitude sin(frequency t + phase)
-    offset = [0.0, 0.0]
+    offset = [0.0, 0.0]         # (type = "sinusoidal" by default; "spline": waypoints)
     amplitude = [0.8, 0.5]
     frequency = [0.5, 0.7]
 
 Every key is checked: an unknown key anywhere, a missing required key or a value of the wrong type
 raises :class:`ScenarioError` naming the key in dotted form (``controller.alpha``) and what is
-valid. The valid keys of ``[plant]``, ``[model]``, ``[controller]`` and ``[delay]`` depend on their
-``type``; they are listed in the error message.
+valid. The valid keys of each table depend on its ``type``; they are listed in the error message.
+
+**Components of your own.** Any table's ``type`` may be ``"python:<file.py>:<function>"`` or
+``"python:<module>:<function>"``: the function is called with the table's other keys as keyword
+arguments (a controller's also with ``model=``) and returns the plant, controller, reference or
+delay profile.
 
 **Seed.** ``seed`` is the scenario's random seed. Every random element without a seed of its own
 takes it: today that is a ``[delay]`` of type ``"random"`` without ``seed``. Such a delay also
@@ -40,9 +44,9 @@ scenario seed is refused (results must be reproducible). :meth:`Scenario.resolve
 scenario with these defaults written in, which is what ``delaytrack simulate`` saves as
 "the scenario as run".
 
-**Paths.** A ``[delay]`` of type ``"trace"`` may give ``path`` to a CSV file; in a file loaded by
-:meth:`Scenario.from_toml` a relative path is taken relative to the scenario file and stored
-absolute.
+**Paths.** A table's ``path`` (a trace or waypoint CSV file) and the file of a
+``"python:<file.py>:..."`` type, in a file loaded by :meth:`Scenario.from_toml`, are taken
+relative to the scenario file and stored absolute.
 """
 
 from __future__ import annotations
@@ -64,13 +68,23 @@ import numpy as np
 
 from delaytrack._io import write_frame, write_text
 from delaytrack._output import check_output_folder, record_outputs
+from delaytrack._spec import (
+    PYTHON_TYPE,
+    check_table,
+    fail,
+    integer,
+    number,
+    string,
+    user_factory,
+    vector,
+)
 from delaytrack._spec import SpecError as ScenarioError
-from delaytrack._spec import array, check_table, fail, integer, number, string, vector
 from delaytrack._validation import integer_multiple
+from delaytrack.components import code_fingerprint
 from delaytrack.controllers import CONTROLLER_SPECS, Controller, controller_from_spec
 from delaytrack.delays import DELAY_SPECS, DelayProfile, delay_from_spec
 from delaytrack.plants import PLANT_SPECS, ELPlant, plant_from_spec
-from delaytrack.reference import SinusoidalReference
+from delaytrack.references import REFERENCE_SPECS, Reference, reference_from_spec
 from delaytrack.sim import SimResult, simulate
 from delaytrack.sim.simulate import MAX_STEPS, physical_memory
 
@@ -87,16 +101,6 @@ __all__ = [
     "dumps_toml",
 ]
 
-
-_REFERENCE_KEYS: dict[str, Callable[[object], str | None]] = {
-    "type": string,
-    "offset": vector,
-    "slope": vector,
-    "amplitude": array,
-    "frequency": array,
-    "phase": array,
-}
-_REFERENCE_TYPES = ("sinusoidal",)
 
 _TOP_LEVEL_SCALARS: dict[str, Callable[[object], str | None]] = {
     "name": string,
@@ -214,7 +218,7 @@ class BuiltScenario:
     model: ELPlant
     controller: Controller
     delay: DelayProfile
-    reference: SinusoidalReference
+    reference: Reference
     x0: np.ndarray
 
 
@@ -315,7 +319,7 @@ class Scenario:
         check_table(
             "delay", _with_delay_defaults(tables["delay"], self.seed, self.duration), DELAY_SPECS
         )
-        _check_reference(tables["reference"])
+        check_table("reference", _with_reference_type(tables["reference"]), REFERENCE_SPECS)
         for table, content in tables.items():
             object.__setattr__(self, table, MappingProxyType(content))
 
@@ -366,13 +370,8 @@ class Scenario:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as error:
             raise ScenarioError(f"{source}: not valid TOML: {error}") from None
-        delay = data.get("delay")
-        if isinstance(delay, dict) and isinstance(delay.get("path"), str):
-            try:
-                trace = Path(delay["path"]).expanduser()
-            except RuntimeError as error:  # "~user" of no such user
-                raise ScenarioError(f"{source}: scenario key 'delay.path': {error}") from None
-            delay["path"] = str(trace if trace.is_absolute() else (source.parent / trace).resolve())
+        for table in _TABLES:
+            resolve_file_keys(source, table, data.get(table))
         try:
             return cls.from_dict(data)
         except ScenarioError as error:
@@ -432,14 +431,11 @@ class Scenario:
             )
         controller = controller_from_spec(_plain(self.controller), model)
         delay = delay_from_spec(self._delay_spec())
-        reference_spec = {k: v for k, v in _plain(self.reference).items() if k != "type"}
-        reference = _construct(
-            "reference", lambda: SinusoidalReference.from_spec(reference_spec), reference_spec
-        )
+        reference = reference_from_spec(_plain(self.reference))
         if reference.n != plant.n:
             raise ScenarioError(
-                f"scenario key 'reference.offset' has {reference.n} entries; the plant has "
-                f"n = {plant.n} coordinates"
+                f"scenario table [reference] gives n = {reference.n} coordinates; the plant has "
+                f"n = {plant.n}"
             )
         if isinstance(self.error_bound, tuple) and len(self.error_bound) != plant.n:
             raise fail(
@@ -454,6 +450,17 @@ class Scenario:
             if x0.shape != (2 * plant.n,):
                 raise fail("x0", f"must have 2n = {2 * plant.n} entries [q, qdot]", list(self.x0))
         return BuiltScenario(plant, model, controller, delay, reference, x0)
+
+    def user_code(self) -> dict[str, str]:
+        """For each table built by a factory of yours (``"python:..."``), a hash of the code it
+        runs (:func:`~delaytrack.components.code_fingerprint`); sweeps count a run made by other
+        code as not done."""
+        code = {}
+        for table in _TABLES:
+            kind = getattr(self, table).get("type")
+            if isinstance(kind, str) and kind.startswith(PYTHON_TYPE):
+                code[table] = code_fingerprint(user_factory(table, kind))
+        return code
 
     def resolved(self) -> Scenario:
         """The scenario with its defaults written in: ``x0``, and a random delay's seed/duration.
@@ -500,6 +507,35 @@ def _construct(table: str, make: Callable[[], Any], keys: Iterable[str] = ()) ->
         raise ScenarioError(f"scenario table [{table}]: {message}") from None
 
 
+def resolve_file_keys(source: Path, table: str, value: object) -> None:
+    """Make the files a table names (``path``, and the file of a ``"python:<file.py>:..."``
+    type) absolute, relative to the file ``source`` that holds it; in place."""
+    if not isinstance(value, dict):
+        return
+    kind = value.get("type")
+    if isinstance(kind, str) and kind.startswith(PYTHON_TYPE):
+        location, colon, name = kind[len(PYTHON_TYPE) :].rpartition(":")
+        if colon and location.endswith(".py"):
+            value["type"] = f"{PYTHON_TYPE}{_absolute(source, f'{table}.type', location)}:{name}"
+    if isinstance(value.get("path"), str):
+        value["path"] = _absolute(source, f"{table}.path", value["path"])
+
+
+def _absolute(source: Path, key: str, text: str) -> str:
+    try:
+        path = Path(text).expanduser()
+    except RuntimeError as error:  # "~user" of no such user
+        raise ScenarioError(f"{source}: scenario key {key!r}: {error}") from None
+    return str(path if path.is_absolute() else (source.parent / path).resolve())
+
+
+def _with_reference_type(reference: object) -> object:
+    """``[reference]`` with its default type, ``"sinusoidal"``, written in (a copy)."""
+    if not isinstance(reference, Mapping) or "type" in reference:
+        return reference
+    return {"type": "sinusoidal", **reference}
+
+
 def _with_delay_defaults(delay: object, seed: int | None, duration: float) -> object:
     """A random delay without its own seed or duration takes the scenario's (a copy)."""
     if not isinstance(delay, Mapping) or delay.get("type") != "random":
@@ -522,27 +558,6 @@ def _check_ratio(name: str, value: float, unit_name: str, unit: float) -> None:
         raise ScenarioError(
             f"scenario key {name!r} must be a positive integer multiple of {unit_name!r}; got "
             f"{name} = {value:g}, {unit_name} = {unit:g} ({name}/{unit_name} = {ratio:.12g})"
-        )
-
-
-def _check_reference(value: object) -> None:
-    if not isinstance(value, Mapping):
-        raise fail(
-            "reference", f"must be a table ([reference]: {_TABLE_PURPOSE['reference']})", value
-        )
-    for key, item in value.items():
-        if key not in _REFERENCE_KEYS:
-            raise ScenarioError(
-                f"unknown key 'reference.{key}' in scenario; valid keys in [reference] are "
-                f"{sorted(_REFERENCE_KEYS)}"
-            )
-        _check_value(f"reference.{key}", item, _REFERENCE_KEYS[key])
-    if value.get("type", "sinusoidal") not in _REFERENCE_TYPES:
-        raise fail("reference.type", f"must be one of {list(_REFERENCE_TYPES)}", value["type"])
-    if "offset" not in value:
-        raise ScenarioError(
-            "scenario key 'reference.offset' is missing; [reference] needs 'offset' "
-            "(one value per coordinate)"
         )
 
 

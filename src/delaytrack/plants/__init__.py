@@ -107,5 +107,10 @@ PLANT_SPECS: dict[str, TypeSpec] = {
 
 
 def plant_from_spec(spec: Mapping[str, Any], table: str = "plant") -> ELPlant:
-    """Build a plant from ``{"type": name, ...parameters}``; refusals name the key."""
-    return build_from_table(table, spec, PLANT_SPECS)
+    """Build a plant from ``{"type": name, ...parameters}``; refusals name the key.
+
+    ``name`` is one of :data:`PLANT_SPECS` or a factory of yours,
+    ``"python:<module>:<function>"`` (or ``"python:<file.py>:<function>"``), called with the
+    other keys as keyword arguments and returning an :class:`ELPlant`.
+    """
+    return build_from_table(table, spec, PLANT_SPECS, returns=ELPlant)

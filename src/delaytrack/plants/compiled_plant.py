@@ -36,6 +36,8 @@ class CompiledPlant(ELPlant):
         1-D float parameter vector passed to ``kernel`` as ``params`` (may be empty).
     name : str
         Shown in results and reports.
+    coordinate_names : sequence of str, optional
+        Names of the coordinates in result tables (``ae_<name>``); ``q1 .. qn`` by default.
 
     Notes
     -----
@@ -55,6 +57,7 @@ class CompiledPlant(ELPlant):
     kernel: Callable[..., None]
     parameters: np.ndarray = field(default_factory=lambda: np.zeros(0))
     name: str = "compiled"
+    coordinate_names: tuple[str, ...] | None = None
     type_name: ClassVar[str] = "compiled"
 
     def __post_init__(self) -> None:
@@ -67,6 +70,18 @@ class CompiledPlant(ELPlant):
                 "kernel must be a numba-compiled function (decorate it with @numba.njit); got "
                 f"{type(self.kernel).__name__}. For plain Python functions use CallablePlant."
             )
+        if self.coordinate_names is not None:
+            names = tuple(self.coordinate_names)
+            if (
+                len(names) != self.n
+                or len(set(names)) != self.n
+                or not all(isinstance(name, str) and name.isidentifier() for name in names)
+            ):
+                raise ValueError(
+                    f"coordinate_names must be n = {self.n} different names (letters, digits "
+                    f"and '_'); got {self.coordinate_names!r}"
+                )
+            object.__setattr__(self, "coordinate_names", names)
         parameters = finite_array("parameters", self.parameters, ndim=1)
         object.__setattr__(self, "parameters", np.ascontiguousarray(parameters))
         mass, nonlinear, input_map = self.terms(np.zeros(self.n), np.zeros(self.n))

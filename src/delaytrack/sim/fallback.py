@@ -16,21 +16,25 @@ class PythonFallbackWarning(UserWarning):
     """
 
     @classmethod
-    def describe(cls, plant: Any, controller: Any) -> PythonFallbackWarning:
+    def describe(cls, plant: Any, controller: Any, reference: Any) -> PythonFallbackWarning:
         slow = [
             f"{role} {type(item).__name__}"
             for role, item in (("plant", plant), ("nominal model", controller.model))
             if not item.compiled
         ]
-        if not slow:
+        if slow:
             return cls(
-                f"simulate() runs as plain Python because the step of the controller "
-                f"{type(controller).__name__} is not numba-compiled (about 100x slower than "
-                "compiled). For compiled speed, decorate it with @numba.njit."
+                f"simulate() runs as plain Python because the {' and the '.join(slow)} "
+                "is given as Python callables (about 100x slower than compiled). For compiled "
+                "speed, write terms(t, q, qdot, params, M, N, G) with @numba.njit and wrap it in "
+                "delaytrack.plants.CompiledPlant (see docs/performance.md)."
             )
+        what = (
+            f"the reference kernel of {type(reference).__name__}"
+            if not reference.compiled
+            else f"the step of the controller {type(controller).__name__}"
+        )
         return cls(
-            f"simulate() runs as plain Python because the {' and the '.join(slow)} "
-            "is given as Python callables (about 100x slower than compiled). For compiled speed, "
-            "write terms(t, q, qdot, params, M, N, G) with @numba.njit and wrap it in "
-            "delaytrack.plants.CompiledPlant (see docs/performance.md)."
+            f"simulate() runs as plain Python because {what} is not numba-compiled (about 100x "
+            "slower than compiled). For compiled speed, decorate it with @numba.njit."
         )

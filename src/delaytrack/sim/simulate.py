@@ -21,9 +21,10 @@ from delaytrack._validation import (
 from delaytrack.controllers.base import Controller
 from delaytrack.delays.base import DelayProfile
 from delaytrack.plants.base import ELPlant
-from delaytrack.reference import SinusoidalReference
+from delaytrack.references import Reference
 from delaytrack.sim.engine import run_batch, run_batch_compiled
 from delaytrack.sim.fallback import PythonFallbackWarning
+from delaytrack.sim.first_compile import announce_compile, engine_ready
 from delaytrack.sim.history import history_capacity, tick_time
 from delaytrack.sim.result import SimResult
 from delaytrack.sim.running_metrics import accumulator_size, finish_metrics
@@ -130,10 +131,17 @@ def _broadcast(name: str, items: list[_T], batch: int) -> list[_T]:
     )
 
 
-def _check_horizons(plants: list[ELPlant], delays: list[DelayProfile], t1: float) -> None:
-    """Refuse a run longer than the time its plant's or delay's data cover (never extend them
-    silently)."""
-    for name, items in (("delay", delays), ("plant", plants)):
+def _check_horizons(
+    plants: list[ELPlant], delays: list[DelayProfile], reference: Reference, t0: float, t1: float
+) -> None:
+    """Refuse a run longer than the time its plant's, delay's or reference's data cover (never
+    extend them silently)."""
+    if reference.start > t0:
+        raise ValueError(
+            f"reference ({type(reference).__name__}) starts at t = {reference.start:g} s, after "
+            f"the run's start t0 = {t0:g} s; give it a sample at or before t0"
+        )
+    for name, items in (("delay", delays), ("plant", plants), ("reference", [reference])):
         for i, item in enumerate(items):
             if item.horizon < t1 * (1.0 - 1e-12):
                 raise ValueError(
@@ -173,7 +181,7 @@ def simulate(
     delay: DelayProfile | Sequence[DelayProfile],
     x0: np.ndarray,
     *,
-    reference: SinusoidalReference,
+    reference: Reference,
     t1: float,
     dt: float,
     T_c: float,
@@ -206,8 +214,9 @@ def simulate(
         Input delay ``h(t)`` per batch element.
     x0 : array_like, shape (2n,) or (batch, 2n)
         Initial state ``[q(t0), q̇(t0)]``.
-    reference : SinusoidalReference
-        Desired trajectory ``q_d(t)``.
+    reference : Reference
+        Desired trajectory ``q_d(t)`` (:class:`~delaytrack.references.SinusoidalReference`,
+        :class:`~delaytrack.references.SplineReference` or a reference of yours).
     t1, dt, T_c : float
         Final time, plant step and controller period, in seconds. ``T_c`` must be an integer
         multiple of ``dt`` and ``t1 - t0`` an integer multiple of ``T_c``. There is no default
@@ -282,8 +291,11 @@ def simulate(
     ):
         raise ValueError(f"record_every must be a positive integer; got {record_every!r}")
     divergence_bound = positive_scalar("divergence_bound", divergence_bound)
-    if not isinstance(reference, SinusoidalReference):
-        raise TypeError(f"reference must be a SinusoidalReference; got {type(reference).__name__}")
+    if not isinstance(reference, Reference):
+        raise TypeError(
+            f"reference must be a Reference (SinusoidalReference, SplineReference or one of "
+            f"yours); got {type(reference).__name__}"
+        )
 
     first_plant, first_controller = plants[0], controllers[0]
     n, m = first_plant.n, first_plant.m
@@ -331,7 +343,7 @@ def simulate(
         )
     for controller_b, delay_b in zip(controllers, delays, strict=True):
         controller_b.check_run(T_c, delay_b.h_max)
-    _check_horizons(plants, delays, t1)
+    _check_horizons(plants, delays, reference, t0, t1)
     for i, delay_b in enumerate(delays):
         switches = delay_b.switch_bound(t0, t1, T_c)
         if not switches <= MAX_STEPS:
@@ -392,18 +404,20 @@ def simulate(
     status = np.zeros(batch, dtype=np.int64)
     t_stop = np.zeros(batch)
 
-    compiled = first_plant.compiled and first_controller.compiled
+    compiled = first_plant.compiled and first_controller.compiled and reference.compiled
     if engine not in ENGINES:
         raise ValueError(f"engine must be one of {list(ENGINES)}; got {engine!r}")
     if engine == "compiled" and not compiled:
         raise ValueError(
             "engine='compiled' needs compiled kernels; "
-            + str(PythonFallbackWarning.describe(first_plant, first_controller))
+            + str(PythonFallbackWarning.describe(first_plant, first_controller, reference))
         )
     if engine == "python":
         compiled = False
     elif not compiled:
-        warnings.warn(PythonFallbackWarning.describe(first_plant, first_controller), stacklevel=2)
+        warnings.warn(
+            PythonFallbackWarning.describe(first_plant, first_controller, reference), stacklevel=2
+        )
 
     def handles(b: int) -> tuple:
         """Element ``b``'s kernels (:class:`~delaytrack.components.Kernel`), compiled or as
@@ -443,9 +457,9 @@ def simulate(
 
     runner = run_batch_compiled if compiled else run_batch
 
-    def run_chunk(chunk: np.ndarray) -> int:
+    def chunk_arguments(chunk: np.ndarray) -> tuple:
         part = slice(chunk[0], chunk[-1] + 1)
-        runner(
+        return (
             handles(int(chunk[0])),
             tuple(array[part] for array in runs),
             settings,
@@ -453,6 +467,9 @@ def simulate(
             status[part],
             t_stop[part],
         )
+
+    def run_chunk(chunk: np.ndarray) -> int:
+        runner(*chunk_arguments(chunk))
         return chunk.size
 
     # Compiled kernels are shared by the whole batch and release the GIL: chunks run on
@@ -463,6 +480,8 @@ def simulate(
     else:
         pieces = batch
     chunks = np.array_split(np.arange(batch), pieces)
+    if compiled and not engine_ready(runner, chunk_arguments(chunks[0])):
+        announce_compile(first_plant, first_controller, reference)
     with (
         tqdm(total=batch, desc="simulate", unit="run", disable=not progress) as bar,
     ):

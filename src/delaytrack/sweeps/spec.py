@@ -54,6 +54,7 @@ from delaytrack.experiments.scenario import (
     ScenarioError,
     builtin_scenario_names,
     builtin_scenario_path,
+    resolve_file_keys,
 )
 
 __all__ = ["DISTRIBUTIONS", "MAX_RUNS", "Run", "SweepError", "SweepSpec", "Unit"]
@@ -93,7 +94,11 @@ class Run:
     def canonical(self) -> dict[str, Any]:
         """Plain data identifying the run (what unit hashes cover)."""
         scenario = self.scenario.to_dict()
-        return {"index": self.index, "values": dict(self.values), "scenario": scenario}
+        data = {"index": self.index, "values": dict(self.values), "scenario": scenario}
+        code = self.scenario.user_code()
+        if code:
+            data["user_code"] = code
+        return data
 
 
 @dataclass(frozen=True)
@@ -385,6 +390,14 @@ class SweepSpec:
             raise SweepError(f"cannot read sweep file {str(source)!r}: {error}") from None
         except tomllib.TOMLDecodeError as error:
             raise SweepError(f"{source}: not valid TOML: {error}") from None
+        for section in ("grid", "random"):
+            for key, values in (data.get(section) or {}).items():
+                if key not in _TABLES:  # only whole tables name files, e.g. your controllers
+                    continue
+                if isinstance(values, dict):  # a "choice" draw
+                    values = values.get("values")
+                for value in values if isinstance(values, list) else []:
+                    resolve_file_keys(source, key, value)
         try:
             return cls.from_dict(data, root=source.parent)
         except ScenarioError as error:

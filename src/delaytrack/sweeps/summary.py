@@ -2,7 +2,8 @@
 
 Rows of the runs table (:func:`delaytrack.sweeps.run_unit`) are grouped by
 
-- **controller**: the controller type, followed by the values of swept ``controller.*`` keys
+- **controller**: the controller type (for a factory of yours, ``"python:<module>:<function>"``,
+  the function's name), followed by the values of swept ``controller.*`` keys
   (``arolc (K1=2)``; a sweep shows its grid and ``choice`` keys only); when a swept
   ``controller`` table list holds several tables of one type, they are told apart as
   ``pcon #1``, ``pcon #2`` in the order they first appear;
@@ -79,16 +80,17 @@ def controller_labels(runs: pd.DataFrame, keys: Sequence[str] | None = None) -> 
     ``keys``: the swept ``controller.*`` columns to show in labels (all of them by default;
     :attr:`SweepSpec.label_keys` leaves out continuous draws).
     """
-    labels = list(runs["controller_type"])
+    kinds = [kind.rpartition(":")[2] for kind in runs["controller_type"]]
+    labels = kinds
     if "controller" in runs:
         numbering: dict[str, list[str]] = {}
-        for kind, table in zip(runs["controller_type"], runs["controller"], strict=True):
+        for kind, table in zip(kinds, runs["controller"], strict=True):
             seen = numbering.setdefault(kind, [])
             if table not in seen:
                 seen.append(table)
         labels = [
             f"{kind} #{numbering[kind].index(table) + 1}" if len(numbering[kind]) > 1 else kind
-            for kind, table in zip(runs["controller_type"], runs["controller"], strict=True)
+            for kind, table in zip(kinds, runs["controller"], strict=True)
         ]
     if keys is None:
         keys = [column for column in runs.columns if column.startswith("controller.")]

@@ -41,7 +41,7 @@ import numpy as np
 
 from delaytrack.plants.robot.kinematics import consistent_state
 from delaytrack.plants.robot.parameters import P3DX
-from delaytrack.reference import SinusoidalReference
+from delaytrack.references import SinusoidalReference
 
 __all__ = [
     "CIRCLE_CENTER",

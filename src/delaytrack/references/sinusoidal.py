@@ -1,6 +1,6 @@
-"""Desired trajectories ``q_d(t)`` with their first two derivatives.
+"""Sinusoidal references: set-points, ramps and the paper's circle.
 
-:class:`SinusoidalReference` covers set-points, ramps and the paper's circle:
+:class:`SinusoidalReference` is
 
     q_d,i(t) = offset_i + slope_i t + Σ_k amplitude_ik sin(frequency_ik t + phase_ik)
 """
@@ -15,7 +15,7 @@ import numpy as np
 
 from delaytrack._jit import kernel
 from delaytrack._validation import finite_array
-from delaytrack.components import Kernel
+from delaytrack.references.base import Reference
 
 __all__ = [
     "SinusoidalReference",
@@ -53,7 +53,7 @@ def sinusoidal_reference_values(times, params, out):
 
 
 @dataclass(frozen=True, eq=False)
-class SinusoidalReference:
+class SinusoidalReference(Reference):
     """``q_d(t) = offset + slope t + Σ_k amplitude[:, k] sin(frequency[:, k] t + phase[:, k])``.
 
     Parameters
@@ -132,9 +132,8 @@ class SinusoidalReference:
         return self._params
 
     @property
-    def engine_kernel(self) -> Kernel:
-        """The :class:`~delaytrack.components.Kernel` the simulator calls."""
-        return Kernel(sinusoidal_reference)
+    def reference_kernel(self):
+        return sinusoidal_reference
 
     def evaluate(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``q_d, q̇_d, q̈_d`` at times ``t``, each of shape ``(*t.shape, n)``."""
@@ -144,6 +143,7 @@ class SinusoidalReference:
         return tuple(out[j].reshape(*times.shape, self.n) for j in range(3))
 
     def to_spec(self) -> dict[str, Any]:
+        """The parameters (the table of the default reference type, ``"sinusoidal"``)."""
         return {
             "offset": self.offset.tolist(),
             "slope": self.slope.tolist(),

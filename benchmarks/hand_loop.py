@@ -1,0 +1,224 @@
+"""The ceiling for ``make bench``: the paper's robot run as one hand-written numba loop.
+
+What a user who knows numba well would write for exactly the case of :func:`baselines.robot_case`
+(the payload robot under AROLC with the paper's gains, S1 delay ``h(t) = 20 + 80 |sin t|`` ms,
+``T_c`` = 10 ms, ``dt`` = 1 ms), with nothing general left:
+
+* one function, every buffer allocated once before the loop, the robot's own kernels called
+  directly (:func:`~delaytrack.plants.robot.payload.robot_payload_terms`, ``M = I`` so no solve;
+  :func:`~delaytrack.controllers.arolc.arolc_step` on the nominal model;
+  :func:`~delaytrack.references.sinusoidal.sinusoidal_reference`);
+* the delayed command looked up at each RK4 stage time (``k = ⌊(t - h(t)) / T_c⌋``), **without**
+  splitting a step where it switches: first order across a switch, which the engine does not
+  accept, and cheaper than the engine's exact splitting;
+* the running metrics (sums of ``|e1|`` and TV at every tick), as the engine keeps them;
+* a batch over runs with ``numba.prange`` (one run per thread at a time).
+
+It is a ceiling for speed, not a reference for accuracy: its states agree with the engine's to
+about 1e-4 (the unsplit switches); ``make bench`` prints the difference of the metrics.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from delaytrack.controllers.arolc import arolc_step
+from delaytrack.controllers.base import step_workspace
+from delaytrack.plants.robot.payload import robot_payload_terms
+from delaytrack.references.sinusoidal import sinusoidal_reference
+
+__all__ = ["hand_batch", "hand_run"]
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath=False)
+def _one_run(
+    x0,
+    plant_params,
+    model,
+    model_params,
+    controller_params,
+    state0,
+    reference_params,
+    delay,
+    duration,
+    dt,
+    steps_per_tick,
+    sums,
+):
+    """One run; ``delay = (offset, amplitude, ω, φ)`` of ``h = offset + amplitude |sin(ω t + φ)|``;
+    ``sums`` (n + 1,) receives ``[Σ|e1_j| / K, TV]``. Returns the final state."""
+    n = x0.shape[0] // 2
+    m = 2
+    T_c = steps_per_tick * dt
+    ticks = int(round(duration / T_c))
+    capacity = ticks + 2
+    x = x0.copy()
+    history = np.zeros((capacity, m))
+    state = state0.copy()
+    qd = np.empty(n)
+    qd_dot = np.empty(n)
+    qd_ddot = np.empty(n)
+    command = np.empty(m)
+    previous = np.zeros(m)
+    work = step_workspace(n, m)
+    mass = np.empty((n, n))
+    nonlinear = np.empty(n)
+    input_map = np.empty((n, m))
+    slopes = np.empty((4, 2 * n))
+    stage = np.empty(2 * n)
+    for j in range(n + 1):
+        sums[j] = 0.0
+    for k in range(ticks):
+        t_k = k * T_c
+        sinusoidal_reference(t_k, reference_params, qd, qd_dot, qd_ddot)
+        arolc_step(
+            t_k,
+            x[:n],
+            x[n:],
+            qd,
+            qd_dot,
+            qd_ddot,
+            T_c,
+            0.0,
+            controller_params,
+            state,
+            model,
+            model_params,
+            command,
+            work,
+        )
+        for j in range(m):
+            history[k, j] = command[j]
+        for j in range(n):
+            sums[j] += abs(qd[j] - x[j])
+        if k > 0:
+            for j in range(m):
+                sums[n] += abs(command[j] - previous[j])
+        for j in range(m):
+            previous[j] = command[j]
+        for step in range(steps_per_tick):
+            t = t_k + step * dt
+            for s in range(4):
+                offset = 0.0 if s == 0 else (0.5 * dt if s < 3 else dt)
+                for i in range(2 * n):
+                    stage[i] = x[i] if s == 0 else x[i] + offset * slopes[s - 1, i]
+                time = t + offset
+                h = delay[0] + delay[1] * abs(math.sin(delay[2] * time + delay[3]))
+                index = math.floor((time - h) / T_c)
+                robot_payload_terms(
+                    time, stage[:n], stage[n:], plant_params, mass, nonlinear, input_map
+                )
+                for i in range(n):
+                    slopes[s, i] = stage[n + i]
+                    force = -nonlinear[i]
+                    if index >= 0:
+                        for j in range(m):
+                            force += input_map[i, j] * history[index, j]
+                    slopes[s, n + i] = force  # M = I for the constrained robot
+            for i in range(2 * n):
+                x[i] += (
+                    dt
+                    / 6.0
+                    * (slopes[0, i] + 2.0 * slopes[1, i] + 2.0 * slopes[2, i] + slopes[3, i])
+                )
+    for j in range(n):
+        sums[j] /= ticks
+    return x
+
+
+@numba.njit(cache=True, error_model="numpy", parallel=True)
+def _batch(
+    x0,
+    plant_params,
+    model,
+    model_params,
+    controller_params,
+    state0,
+    reference_params,
+    delays,
+    duration,
+    dt,
+    steps_per_tick,
+    sums,
+):
+    for b in numba.prange(plant_params.shape[0]):
+        _one_run(
+            x0,
+            plant_params[b],
+            model,
+            model_params,
+            controller_params,
+            state0,
+            reference_params,
+            delays[b],
+            duration,
+            dt,
+            steps_per_tick,
+            sums[b],
+        )
+
+
+def _inputs(plant, controller, reference) -> tuple:
+    return (
+        controller.model.engine_kernel,
+        controller.model.params,
+        controller.params,
+        controller.initial_state(),
+        reference.params,
+    )
+
+
+def hand_run(plant, controller, delay, reference, x0, duration, dt, T_c) -> tuple:
+    """One run of the hand loop: ``(final state, [AE_j..., TV])``."""
+    model, model_params, params, state0, reference_params = _inputs(plant, controller, reference)
+    sums = np.zeros(plant.n + 1)
+    final = _one_run(
+        x0,
+        plant.params,
+        model,
+        model_params,
+        params,
+        state0,
+        reference_params,
+        np.array([delay.offset, delay.amplitude, delay.frequency, delay.phase]),
+        duration,
+        dt,
+        round(T_c / dt),
+        sums,
+    )
+    return final, sums
+
+
+def hand_batch(plants, controller, delays, reference, x0, duration, dt, T_c) -> np.ndarray:
+    """A batch of hand-loop runs on all cores (``prange``); ``[AE_j..., TV]`` per run.
+
+    ``plants`` share one payload schedule length (their parameter vectors are stacked);
+    ``delays`` are :class:`~delaytrack.delays.AbsSineDelay` profiles.
+    """
+    model, model_params, params, state0, reference_params = _inputs(
+        plants[0], controller, reference
+    )
+    width = max(plant.params.size for plant in plants)
+    plant_params = np.zeros((len(plants), width))  # padded: the kernel reads its own length
+    for b, plant in enumerate(plants):
+        plant_params[b, : plant.params.size] = plant.params
+    delay_table = np.array([[d.offset, d.amplitude, d.frequency, d.phase] for d in delays])
+    sums = np.zeros((len(plants), plants[0].n + 1))
+    _batch(
+        x0,
+        plant_params,
+        model,
+        model_params,
+        params,
+        state0,
+        reference_params,
+        delay_table,
+        duration,
+        dt,
+        round(T_c / dt),
+        sums,
+    )
+    return sums

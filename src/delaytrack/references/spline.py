@@ -1,0 +1,203 @@
+"""Waypoint references: a cubic spline through samples ``(t_i, q_i)``, with its derivatives.
+
+On ``[t_i, t_{i+1}]`` each coordinate is the cubic
+
+    q_d(t) = c0 τ³ + c1 τ² + c2 τ + c3,   τ = t - t_i,
+    q̇_d(t) = 3 c0 τ² + 2 c1 τ + c2,       q̈_d(t) = 6 c0 τ + 2 c1,
+
+with the coefficients of :class:`scipy.interpolate.CubicSpline` (continuous ``q̇_d`` and
+``q̈_d``; the end conditions are ``boundary``). The samples come from arrays or a CSV file (a
+measured or planned trajectory); the controller needs ``q̈_d``, which the spline provides.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from delaytrack._jit import kernel
+from delaytrack._validation import beyond_choice, finite_array
+from delaytrack.references.base import Reference
+
+__all__ = ["BOUNDARIES", "MAX_SAMPLES", "SplineReference", "spline_reference"]
+
+#: End conditions of the spline (:class:`scipy.interpolate.CubicSpline`'s ``bc_type``):
+#: ``"clamped"`` zero velocity at both ends (a trajectory from rest to rest), ``"natural"`` zero
+#: acceleration, ``"not-a-knot"`` a single cubic over the first and last two intervals.
+BOUNDARIES = ("clamped", "natural", "not-a-knot")
+
+#: Most samples of one reference: each is in every run's parameters.
+MAX_SAMPLES = 10**6
+
+
+@kernel
+def spline_reference(t, params, qd, qd_dot, qd_ddot):
+    """Fill ``q_d, q̇_d, q̈_d`` at ``t`` (module docstring).
+
+    ``params = [n, K, hold, t_0 .. t_{K-1}, c]`` with ``c`` the coefficients ``(4, K-1, n)``
+    row-major. Before ``t_0`` the first sample is held with zero derivatives, and after
+    ``t_{K-1}`` the last one (``hold = 1``) or the last cubic continued (``hold = 0``); the
+    simulator refuses runs that would reach either without ``hold``.
+    """
+    n = int(params[0])
+    count = int(params[1])
+    times = params[3 : 3 + count]
+    coefficients = 3 + count
+    stride = (count - 1) * n
+    held = t < times[0] or (params[2] != 0.0 and t > times[count - 1])
+    if t < times[0]:
+        piece, tau = 0, 0.0
+    elif held:
+        piece, tau = count - 2, times[count - 1] - times[count - 2]
+    else:
+        piece = min(max(np.searchsorted(times, t, side="right") - 1, 0), count - 2)
+        tau = t - times[piece]
+    for i in range(n):
+        j = coefficients + piece * n + i
+        c0 = params[j]
+        c1 = params[j + stride]
+        c2 = params[j + 2 * stride]
+        c3 = params[j + 3 * stride]
+        qd[i] = ((c0 * tau + c1) * tau + c2) * tau + c3
+        if held:
+            qd_dot[i] = 0.0
+            qd_ddot[i] = 0.0
+        else:
+            qd_dot[i] = (3.0 * c0 * tau + 2.0 * c1) * tau + c2
+            qd_ddot[i] = 6.0 * c0 * tau + 2.0 * c1
+
+
+@dataclass(frozen=True, eq=False)
+class SplineReference(Reference):
+    """A cubic spline through samples ``values[i]`` at ``times[i]``.
+
+    Parameters
+    ----------
+    times : array_like, shape (K,)
+        Strictly increasing sample times in seconds, ``K >= 2``.
+    values : array_like, shape (K, n) or (K,)
+        ``q_d`` at each time, one column per coordinate.
+    boundary : {"clamped", "natural", "not-a-knot"}
+        End conditions (:data:`BOUNDARIES`); ``"clamped"``, zero velocity at both ends, by
+        default.
+    beyond : {"refuse", "hold"}
+        After the last sample: a run beyond it is refused (``"refuse"``, the default), or the
+        last sample is held with zero velocity and acceleration (``"hold"``). Before the first
+        sample a run is always refused.
+    """
+
+    times: np.ndarray
+    values: np.ndarray
+    boundary: str = "clamped"
+    beyond: str = "refuse"
+    _params: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        times = finite_array("times", self.times, ndim=1)
+        values = finite_array("values", self.values)
+        if values.ndim == 1:
+            values = values[:, None]
+        if not 2 <= times.size <= MAX_SAMPLES:
+            raise ValueError(f"times must hold 2 to {MAX_SAMPLES} samples; got {times.size}")
+        if not np.all(np.diff(times) > 0):
+            raise ValueError(f"times must be strictly increasing; got {times.tolist()[:10]}")
+        if values.ndim != 2 or values.shape[0] != times.size or values.shape[1] == 0:
+            raise ValueError(
+                f"values must have shape (K, n) with K = {times.size} rows, one per time; got "
+                f"{values.shape}"
+            )
+        if self.boundary not in BOUNDARIES:
+            raise ValueError(f"boundary must be one of {list(BOUNDARIES)}; got {self.boundary!r}")
+        beyond_choice(self.beyond)
+        spline = CubicSpline(times, values, axis=0, bc_type=self.boundary)
+        n = values.shape[1]
+        hold = 1.0 if self.beyond == "hold" else 0.0
+        packed = np.concatenate([[n, times.size, hold], times, spline.c.ravel()])
+        if not np.all(np.isfinite(packed)):
+            raise ValueError("values give a spline with non-finite coefficients")
+        object.__setattr__(self, "times", times)
+        object.__setattr__(self, "values", values)
+        object.__setattr__(self, "_params", packed)
+
+    @classmethod
+    def from_csv(
+        cls,
+        path: str | Path,
+        *,
+        time_column: str | None = None,
+        columns: list[str] | None = None,
+        boundary: str = "clamped",
+        beyond: str = "refuse",
+    ) -> SplineReference:
+        """Read samples from a CSV file with a header row.
+
+        ``time_column`` (the first column by default) holds the times in seconds; ``columns``
+        (all the others by default) the coordinates, in order.
+        """
+        source = Path(path).expanduser()
+        try:
+            with source.open(newline="", encoding="utf-8-sig") as handle:
+                rows = list(csv.reader(handle))
+        except (OSError, UnicodeDecodeError) as error:
+            raise ValueError(f"path {str(source)!r} cannot be read: {error}") from None
+        if len(rows) < 3:
+            raise ValueError(
+                f"path {str(source)!r} needs a header row and at least two samples; got "
+                f"{len(rows)} rows"
+            )
+        header = [name.strip() for name in rows[0]]
+        time_name = header[0] if time_column is None else time_column
+        wanted = [name for name in header if name != time_name] if columns is None else columns
+        for option, names in (("time_column", [time_name]), ("columns", wanted)):
+            for name in names:
+                if name not in header:
+                    raise ValueError(
+                        f"{option} names {name!r}, which is not in the header of "
+                        f"{str(source)!r}: {header}"
+                    )
+        if not wanted:
+            raise ValueError(f"path {str(source)!r} has no coordinate column besides the time")
+        indices = [header.index(name) for name in (time_name, *wanted)]
+        try:
+            table = np.array([[float(row[i]) for i in indices] for row in rows[1:] if row])
+        except (ValueError, IndexError):
+            raise ValueError(
+                f"path {str(source)!r}: every row needs a number in each of the columns "
+                f"{[time_name, *wanted]}"
+            ) from None
+        return cls(table[:, 0], table[:, 1:], boundary=boundary, beyond=beyond)
+
+    @property
+    def n(self) -> int:
+        return self.values.shape[1]
+
+    @property
+    def params(self) -> np.ndarray:
+        return self._params
+
+    @property
+    def reference_kernel(self):
+        return spline_reference
+
+    @property
+    def start(self) -> float:
+        return float(self.times[0])
+
+    @property
+    def horizon(self) -> float:
+        return math.inf if self.beyond == "hold" else float(self.times[-1])
+
+    def to_spec(self) -> dict[str, Any]:
+        return {
+            "type": "spline",
+            "times": self.times.tolist(),
+            "values": self.values.tolist(),
+            "boundary": self.boundary,
+            "beyond": self.beyond,
+        }

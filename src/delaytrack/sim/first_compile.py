@@ -1,0 +1,42 @@
+"""Say so before the engine is compiled for a new set of kernels (it takes seconds to a minute).
+
+numba compiles :func:`~delaytrack.sim.engine.run_batch_compiled` once for each set of kernels
+(plant, nominal model, controller, reference) and keeps it on disk; later calls load it in well
+under a second. :func:`engine_ready` tells which case a call is, so that the first one can be
+announced instead of looking like a hang.
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+__all__ = ["announce_compile", "engine_ready"]
+
+
+def engine_ready(dispatcher: Any, arguments: tuple) -> bool:
+    """Whether ``dispatcher`` has code for ``arguments``' types in memory or in its disk cache.
+
+    Uses numba's cache index (not a public interface); when it cannot be read, the answer is
+    False (the notice is then shown once too often, never missed).
+    """
+    try:
+        signature = tuple(dispatcher.typeof_pyval(argument) for argument in arguments)
+        if signature in dispatcher.overloads:
+            return True
+        cache = dispatcher._cache
+        key = cache._index_key(signature, dispatcher.targetctx.codegen())
+        return key in cache._cache_file._load_index()
+    except Exception:  # noqa: BLE001 - numba internals changed: assume a compile
+        return False
+
+
+def announce_compile(plant: Any, controller: Any, reference: Any) -> None:
+    """One line on standard error before a first compile."""
+    print(
+        f"delaytrack: compiling the engine for {type(plant).__name__} + "
+        f"{type(controller).__name__} on {type(controller.model).__name__} + "
+        f"{type(reference).__name__} (once; from seconds to a minute, then kept on disk)",
+        file=sys.stderr,
+        flush=True,
+    )

@@ -1,0 +1,229 @@
+"""Components of your own in scenario and sweep files: plants, models, controllers, references.
+
+The shipped example ``examples/user_arm`` (a vertical two-link arm of its own, PD with gravity
+compensation as a controller of its own, a spline reference) runs through every command; the
+failure cases of a factory end in an error naming the table.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.interpolate import CubicSpline
+
+import delaytrack as dt
+from delaytrack.cli import main
+from delaytrack.experiments import Scenario, ScenarioError
+from delaytrack.sweeps import SweepSpec
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "user_arm"
+
+
+@pytest.fixture
+def example(tmp_path: Path) -> Path:
+    """A copy of the example folder (tests may edit it)."""
+    folder = tmp_path / "user_arm"
+    shutil.copytree(EXAMPLE, folder, ignore=shutil.ignore_patterns("__pycache__"))
+    return folder
+
+
+def short(folder: Path, **changes) -> Path:
+    """The example scenario, 1 s long, with ``changes`` to its tables, written beside it."""
+    scenario = Scenario.from_toml(folder / "arm_S1.toml")
+    data = scenario.to_dict()
+    data["duration"] = 1.0
+    data["reference"] = {
+        "type": "spline",
+        "times": [0.0, 0.5, 1.0],
+        "values": [[-1.2, 0.6], [-1.0, 0.8], [-0.9, 0.7]],
+    }
+    for key, value in changes.items():
+        data[key] = value
+    path = folder / "short.toml"
+    path.write_text(Scenario.from_dict(data).to_toml())
+    return path
+
+
+def test_a_user_plant_model_and_reference_run_compiled_from_a_scenario_file(example):
+    scenario = Scenario.from_toml(example / "arm_S1.toml")
+    assert scenario.plant["type"] == f"python:{example / 'arm.py'}:make_arm"  # made absolute
+    built = scenario.build()
+    assert type(built.plant).__name__ == "CompiledPlant"
+    assert built.plant.coordinate_names == ("shoulder", "elbow")
+    assert built.model.params[0] == pytest.approx(0.8 * built.plant.params[0])
+    result = Scenario.from_toml(short(example)).run()
+    assert result.settings["compiled"] and result.status_names == ["ok"]
+
+
+def test_simulate_empirical_and_sweep_commands_take_them(example, tmp_path, capsys):
+    path = short(example)
+    out = tmp_path / "run"
+    assert main(["simulate", str(path), "--out", str(out)]) == 0
+    metrics = pd.read_csv(out / "metrics.csv")
+    assert {"ae_shoulder", "ae_elbow"} <= set(metrics.columns)
+    assert main(["empirical", str(path), "--threshold", "0.5", "--upper", "0.5", "--json"]) == 0
+    margin = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert margin["margin"] > 0
+    sweep = example / "sweep_arm.toml"
+    text = sweep.read_text().replace("draws = 6", "draws = 1")
+    sweep.write_text(text.replace('scenario = "arm_S1.toml"', 'scenario = "short.toml"'))
+    assert main(["sweep", str(sweep), "--out", str(tmp_path / "sweep"), "--quiet"]) == 0
+    summary = pd.read_csv(tmp_path / "sweep" / "summary.csv")
+    assert set(summary["controller"]) == {"arolc", "make_pd_gravity"}
+    assert (summary["runs"] > 0).all()
+
+
+def test_the_user_controller_runs_compiled_and_matches_its_law(example):
+    scenario = Scenario.from_toml(short(example))
+    table = {"type": "python:pd_gravity.py:make_pd_gravity", "K_P": [10.0, 2.0], "K_D": 1.0}
+    data = scenario.to_dict()
+    data["controller"] = {**table, "type": f"python:{example / 'pd_gravity.py'}:make_pd_gravity"}
+    built = Scenario.from_dict(data).build()
+    controller = built.controller
+    assert controller.compiled
+    q, qdot = np.array([0.3, -0.2]), np.array([0.1, 0.4])
+    qd, qd_dot = np.array([0.5, 0.1]), np.array([0.0, 0.2])
+    command, _ = controller.step(0.0, q, qdot, (qd, qd_dot, np.zeros(2)), np.zeros(0), T_c=0.002)
+    gravity = built.model.nonlinear_terms(q, np.zeros(2))[0]
+    expected = gravity + np.diag([10.0, 2.0]) @ (qd - q) + (qd_dot - qdot)
+    np.testing.assert_allclose(command, expected, rtol=1e-13)
+
+
+@pytest.mark.parametrize(
+    ("kind", "message"),
+    [
+        ("python:arm.py", r"must name a factory as 'python:<module>:<function>'"),
+        ("python:no_such_module_xyz:make", r"cannot import 'no_such_module_xyz'"),
+        ("python:arm.py:make_robot", r"'.*arm.py' has no function 'make_robot'"),
+        ("python:arm.py:GRAVITY", r"has no function 'GRAVITY'"),
+        ("python:broken.py:make", r"cannot import .*ZeroDivisionError"),
+        ("python:wrong.py:make", r"returned a float; a \[plant\] factory must return a ELPlant"),
+        ("python:raises.py:make", r"\[plant\]: python:.* raised KeyError"),
+    ],
+)
+def test_a_factory_that_cannot_be_used_is_refused_naming_the_table(example, kind, message):
+    (example / "broken.py").write_text("1 / 0\n")
+    (example / "wrong.py").write_text("def make():\n    return 3.0\n")
+    (example / "raises.py").write_text("def make():\n    raise KeyError('mass')\n")
+    path = short(example)
+    path.write_text(path.read_text().replace(f"python:{example / 'arm.py'}:make_arm", kind, 1))
+    with pytest.raises(ScenarioError, match=message):
+        Scenario.from_toml(path).build()
+    assert main(["simulate", str(path), "--out", str(example / "out")]) == 2
+
+
+def test_unknown_keyword_of_a_factory_names_the_table(example):
+    path = short(example)
+    text = path.read_text().replace('make_arm"\n', 'make_arm"\nmass_scael = 0.8\n', 1)
+    path.write_text(text)
+    with pytest.raises(ScenarioError, match=r"\[plant\].*unexpected keyword argument 'mass_scael'"):
+        Scenario.from_toml(path).build()
+
+
+def test_sweep_parts_follow_the_users_code(example):
+    sweep = example / "sweep_arm.toml"
+    before = SweepSpec.from_toml(sweep).units()[0].hash
+    assert SweepSpec.from_toml(sweep).units()[0].hash == before
+    arm = example / "arm.py"
+    arm.write_text(arm.read_text().replace("GRAVITY = 9.81", "GRAVITY = 9.80665"))
+    assert SweepSpec.from_toml(sweep).units()[0].hash != before
+    arm.write_text(arm.read_text() + "\n# a comment outside the code it runs\n")
+    third = SweepSpec.from_toml(sweep).units()[0].hash
+    arm.write_text(arm.read_text() + "\n# another\n")
+    assert SweepSpec.from_toml(sweep).units()[0].hash == third
+
+
+# ---- the spline reference --------------------------------------------------------------------
+
+TIMES = np.array([0.0, 0.7, 1.5, 2.0, 3.2])
+VALUES = np.array([[0.0, 1.0], [0.5, -0.2], [0.1, 0.3], [-0.4, 0.0], [0.2, 0.6]])
+
+
+@pytest.mark.parametrize("boundary", ["clamped", "natural", "not-a-knot"])
+def test_spline_reference_is_scipys_spline_with_its_derivatives(boundary):
+    reference = dt.SplineReference(TIMES, VALUES, boundary=boundary)
+    spline = CubicSpline(TIMES, VALUES, bc_type=boundary)
+    times = np.linspace(0.0, 3.2, 97)
+    qd, qd_dot, qd_ddot = reference.evaluate(times)
+    for values, order in ((qd, 0), (qd_dot, 1), (qd_ddot, 2)):
+        np.testing.assert_allclose(values, spline(times, order), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(qd[[0, -1]], VALUES[[0, -1]], atol=1e-14)
+    if boundary == "clamped":
+        np.testing.assert_allclose(qd_dot[[0, -1]], 0.0, atol=1e-12)
+
+
+def test_spline_reference_beyond_its_samples_is_refused_or_held():
+    plant = dt.TwoLinkArm()
+    controller = dt.OuterLoop(plant, K1=1.0, K2=1.0)
+    settings = dict(t1=4.0, dt=1e-3, T_c=2e-3, trajectories=False)
+    with pytest.raises(ValueError, match=r"reference\[0\] \(SplineReference\) is defined up to"):
+        dt.simulate(
+            plant,
+            controller,
+            dt.ConstantDelay(0.01),
+            np.zeros(4),
+            reference=dt.SplineReference(TIMES, VALUES),
+            **settings,
+        )
+    held = dt.SplineReference(TIMES, VALUES, beyond="hold")
+    result = dt.simulate(
+        plant, controller, dt.ConstantDelay(0.01), np.zeros(4), reference=held, **settings
+    )
+    assert result.status_names == ["ok"] and result.settings["compiled"]
+    qd, qd_dot, qd_ddot = held.evaluate(np.array([3.5, 10.0]))
+    np.testing.assert_allclose(qd, np.tile(VALUES[-1], (2, 1)), atol=1e-12)
+    assert not qd_dot.any() and not qd_ddot.any()
+    late = dt.SplineReference(TIMES + 0.5, VALUES)
+    with pytest.raises(ValueError, match=r"starts at t = 0.5 s, after the run's start t0 = 0"):
+        dt.simulate(
+            plant,
+            controller,
+            dt.ConstantDelay(0.01),
+            np.zeros(4),
+            reference=late,
+            t1=1.0,
+            dt=1e-3,
+            T_c=2e-3,
+        )
+
+
+def test_spline_reference_from_a_csv_file_and_a_scenario_table(tmp_path):
+    path = tmp_path / "poses.csv"
+    rows = ["stamp,shoulder,elbow,note"] + [
+        f"{t},{a},{b},x" for t, (a, b) in zip(TIMES, VALUES, strict=True)
+    ]
+    path.write_text("\n".join(rows) + "\n")
+    read = dt.SplineReference.from_csv(path, columns=["shoulder", "elbow"])
+    np.testing.assert_array_equal(read.params, dt.SplineReference(TIMES, VALUES).params)
+    with pytest.raises(ValueError, match=r"columns names 'wrist', which is not in the header"):
+        dt.SplineReference.from_csv(path, columns=["wrist"])
+    scenario = tmp_path / "case.toml"
+    base = Scenario.from_toml(EXAMPLE / "arm_S1.toml").to_dict()
+    base["duration"] = 3.2
+    base["x0"] = [0.0, 1.0, 0.0, 0.0]
+    base["reference"] = {"type": "spline", "path": "poses.csv", "columns": ["shoulder", "elbow"]}
+    scenario.write_text(Scenario.from_dict(base).to_toml())
+    loaded = Scenario.from_toml(scenario)
+    assert loaded.reference["path"] == str(path)
+    np.testing.assert_array_equal(loaded.build().reference.params, read.params)
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        ({"times": [0.0], "values": [[1.0]]}, "times must hold 2 to"),
+        ({"times": [0.0, 0.0], "values": [1.0, 2.0]}, "times must be strictly increasing"),
+        ({"times": [0.0, 1.0], "values": [[1.0, 2.0]]}, r"values must have shape \(K, n\)"),
+        ({"times": [0.0, 1.0], "values": [1.0, 2.0], "boundary": "cubic"}, "boundary must be"),
+        ({"times": [0.0, 1.0], "values": [1.0, 2.0], "beyond": "loop"}, "beyond must be"),
+        ({"times": [0.0, float("nan")], "values": [1.0, 2.0]}, "times must be finite"),
+    ],
+)
+def test_spline_reference_refuses_bad_samples(arguments, message):
+    with pytest.raises(ValueError, match=message):
+        dt.SplineReference(**arguments)

@@ -33,23 +33,22 @@ from delaytrack.references.sinusoidal import sinusoidal_reference
 __all__ = ["hand_batch", "hand_run"]
 
 
-@numba.njit(cache=True, error_model="numpy", fastmath=False)
-def _one_run(
-    x0,
-    plant_params,
-    model,
-    model_params,
-    controller_params,
-    state0,
-    reference_params,
-    delay,
-    duration,
-    dt,
-    steps_per_tick,
-    sums,
-):
+@numba.njit(cache=True, error_model="numpy")
+def _one_run(plant_params, delay, sums, shared):
     """One run; ``delay = (offset, amplitude, ω, φ)`` of ``h = offset + amplitude |sin(ω t + φ)|``;
-    ``sums`` (n + 1,) receives ``[Σ|e1_j| / K, TV]``. Returns the final state."""
+    ``sums`` (n + 1,) receives ``[Σ|e1_j| / K, TV]``; ``shared`` is :func:`_shared`. Returns the
+    final state."""
+    (
+        x0,
+        model,
+        model_params,
+        controller_params,
+        state0,
+        reference_params,
+        duration,
+        dt,
+        steps_per_tick,
+    ) = shared
     n = x0.shape[0] // 2
     m = 2
     T_c = steps_per_tick * dt
@@ -130,95 +129,44 @@ def _one_run(
 
 
 @numba.njit(cache=True, error_model="numpy", parallel=True)
-def _batch(
-    x0,
-    plant_params,
-    model,
-    model_params,
-    controller_params,
-    state0,
-    reference_params,
-    delays,
-    duration,
-    dt,
-    steps_per_tick,
-    sums,
-):
+def _batch(plant_params, delays, sums, shared):
     for b in numba.prange(plant_params.shape[0]):
-        _one_run(
-            x0,
-            plant_params[b],
-            model,
-            model_params,
-            controller_params,
-            state0,
-            reference_params,
-            delays[b],
-            duration,
-            dt,
-            steps_per_tick,
-            sums[b],
-        )
+        _one_run(plant_params[b], delays[b], sums[b], shared)
 
 
-def _inputs(plant, controller, reference) -> tuple:
+def _shared(controller, reference, x0, duration, dt, T_c) -> tuple:
+    """What every run of a batch shares (the last argument of :func:`_one_run`)."""
     return (
+        x0,
         controller.model.engine_kernel,
         controller.model.params,
         controller.params,
         controller.initial_state(),
         reference.params,
+        duration,
+        dt,
+        round(T_c / dt),
     )
 
 
 def hand_run(plant, controller, delay, reference, x0, duration, dt, T_c) -> tuple:
     """One run of the hand loop: ``(final state, [AE_j..., TV])``."""
-    model, model_params, params, state0, reference_params = _inputs(plant, controller, reference)
     sums = np.zeros(plant.n + 1)
-    final = _one_run(
-        x0,
-        plant.params,
-        model,
-        model_params,
-        params,
-        state0,
-        reference_params,
-        np.array([delay.offset, delay.amplitude, delay.frequency, delay.phase]),
-        duration,
-        dt,
-        round(T_c / dt),
-        sums,
-    )
-    return final, sums
+    profile = np.array([delay.offset, delay.amplitude, delay.frequency, delay.phase])
+    shared = _shared(controller, reference, x0, duration, dt, T_c)
+    return _one_run(plant.params, profile, sums, shared), sums
 
 
 def hand_batch(plants, controller, delays, reference, x0, duration, dt, T_c) -> np.ndarray:
     """A batch of hand-loop runs on all cores (``prange``); ``[AE_j..., TV]`` per run.
 
-    ``plants`` share one payload schedule length (their parameter vectors are stacked);
     ``delays`` are :class:`~delaytrack.delays.AbsSineDelay` profiles.
     """
-    model, model_params, params, state0, reference_params = _inputs(
-        plants[0], controller, reference
-    )
     width = max(plant.params.size for plant in plants)
     plant_params = np.zeros((len(plants), width))  # padded: the kernel reads its own length
     for b, plant in enumerate(plants):
         plant_params[b, : plant.params.size] = plant.params
-    delay_table = np.array([[d.offset, d.amplitude, d.frequency, d.phase] for d in delays])
+    profiles = np.array([[d.offset, d.amplitude, d.frequency, d.phase] for d in delays])
     sums = np.zeros((len(plants), plants[0].n + 1))
-    _batch(
-        x0,
-        plant_params,
-        model,
-        model_params,
-        params,
-        state0,
-        reference_params,
-        delay_table,
-        duration,
-        dt,
-        round(T_c / dt),
-        sums,
-    )
+    _batch(plant_params, profiles, sums, _shared(controller, reference, x0, duration, dt, T_c))
     return sums

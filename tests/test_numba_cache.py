@@ -6,8 +6,20 @@ import shutil
 from pathlib import Path
 
 import numba
+import pytest
 
 from delaytrack import _numba_cache
+
+
+@pytest.fixture
+def package_copy(tmp_path, monkeypatch) -> Path:
+    """A copy of the package's source that :mod:`delaytrack._numba_cache` hashes instead."""
+    copy = tmp_path / "delaytrack"
+    shutil.copytree(
+        Path(_numba_cache.__file__).parent, copy, ignore=shutil.ignore_patterns("__pycache__")
+    )
+    monkeypatch.setattr(_numba_cache, "_PACKAGE", copy)
+    return copy
 
 
 def test_cache_folder_is_keyed_by_the_current_source() -> None:
@@ -15,12 +27,8 @@ def test_cache_folder_is_keyed_by_the_current_source() -> None:
     assert Path(numba.config.CACHE_DIR).name == _numba_cache.source_hash()
 
 
-def test_editing_any_kernel_file_changes_the_key(tmp_path, monkeypatch) -> None:
-    copy = tmp_path / "delaytrack"
-    shutil.copytree(
-        Path(_numba_cache.__file__).parent, copy, ignore=shutil.ignore_patterns("__pycache__")
-    )
-    monkeypatch.setattr(_numba_cache, "_PACKAGE", copy)
+def test_editing_any_kernel_file_changes_the_key(package_copy) -> None:
+    copy = package_copy
     before = _numba_cache.source_hash()
     assert before == _numba_cache.source_hash()
     # The controller kernel is inlined into the compiled engine but lives in another file.
@@ -29,12 +37,8 @@ def test_editing_any_kernel_file_changes_the_key(tmp_path, monkeypatch) -> None:
     assert _numba_cache.source_hash() != before
 
 
-def test_editing_a_file_without_compiled_code_keeps_the_key(tmp_path, monkeypatch) -> None:
-    copy = tmp_path / "delaytrack"
-    shutil.copytree(
-        Path(_numba_cache.__file__).parent, copy, ignore=shutil.ignore_patterns("__pycache__")
-    )
-    monkeypatch.setattr(_numba_cache, "_PACKAGE", copy)
+def test_editing_a_file_without_compiled_code_keeps_the_key(package_copy) -> None:
+    copy = package_copy
     before = _numba_cache.source_hash()
     for edited in ("cli.py", "report/html.py", "experiments/paper.py", "sweeps/runner.py"):
         path = copy / edited

@@ -16,7 +16,12 @@ sub-step, the plant's right-hand side (evaluated four times per step) and the co
 A numba call passes arrays by reference count (an atomic increment and decrement per array
 argument and call), which cost more than the arithmetic of the robot's right-hand side; inlined,
 the counts cancel at compile time. The delay kernels stay out-of-line: inlined (numba 0.68) they
-broke the applied-input test of the two-link arm.
+broke the applied-input test of the two-link arm. Both are ``njit`` functions that numba inlines
+into the untyped code of their callers, which is then typed once: a ``register_jitable`` function
+with ``inline="always"`` is inlined after typing instead, compiled alone first and typed again in
+every caller, which took the paper job's first compile from 28 s to 50 s at the same speed.
+:data:`hot_inline_kernel` functions take a component's kernel and run as plain Python when it
+is one (the plain-Python engine).
 
 :data:`borrowing_kernel` is :data:`inline_kernel` compiled without numba's runtime
 (``_nrt=False``): no reference counts at all, so it may neither allocate nor return an array
@@ -29,6 +34,7 @@ therefore one.
 from __future__ import annotations
 
 from numba import njit
+from numba.core.registry import CPUDispatcher
 from numba.extending import register_jitable
 
 __all__ = [
@@ -49,10 +55,29 @@ hot_kernel = njit(**KERNEL_OPTIONS, inline="always")
 borrowing_kernel = register_jitable(error_model=KERNEL_OPTIONS["error_model"], _nrt=False)
 
 
-def hot_inline_kernel(function):
-    """:data:`inline_kernel`, inlined into its compiled callers.
+class _PythonOrCompiled(CPUDispatcher):
+    """A compiled function that runs as plain Python when handed a plain-Python kernel.
 
-    A fresh decorator per function: ``register_jitable`` pops ``inline`` from its options on first
-    use, so a shared one would inline only the first function it decorates.
+    Called from Python with an argument that says ``runs_as_python`` (a
+    :class:`~delaytrack.components.Kernel` of a Python function), it runs its ``py_func``, whose
+    calls of other such functions do the same; otherwise it runs compiled. In compiled code it
+    is an ordinary ``njit`` function.
     """
-    return register_jitable(error_model=KERNEL_OPTIONS["error_model"], inline="always")(function)
+
+    def __call__(self, *args, **kwargs):
+        if any(getattr(argument, "runs_as_python", False) for argument in args):
+            return self.py_func(*args, **kwargs)
+        return super().__call__(*args, **kwargs)
+
+
+def hot_inline_kernel(function):
+    """A kernel inlined into its compiled callers before typing (``njit(inline="always")``),
+    that runs as plain Python in the plain-Python engine (:class:`_PythonOrCompiled`).
+
+    numba inlines an ``njit`` function with ``inline="always"`` into the untyped code of its
+    caller, which then types it once; a ``register_jitable`` one is inlined after typing, compiled
+    alone first and typed again inside each caller, which cost most of the compile time.
+    """
+    dispatcher = njit(**KERNEL_OPTIONS, inline="always")(function)
+    dispatcher.__class__ = _PythonOrCompiled
+    return dispatcher

@@ -191,6 +191,11 @@ class Kernel:
         return ",".join(parts)
 
     @property
+    def runs_as_python(self) -> bool:
+        """Whether the engine's helpers handed this kernel run as plain Python."""
+        return not self.compiled
+
+    @property
     def compiled(self) -> bool:
         """Whether the kernel (and its command map) are numba-compiled."""
         return is_compiled(self.function) and (
@@ -321,53 +326,19 @@ def _call_command_map_compiled(model, q, params, input_map, tau, command):
     return None
 
 
-def call_step(
-    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command, work
-):
-    """Run one controller tick with the controller's :class:`Kernel` ``step``."""
-    step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command, work)
+def call_step(step, *arguments):
+    """Run one controller tick with the controller's :class:`Kernel` ``step``; ``arguments`` are
+    those of the step kernel (:mod:`delaytrack.controllers.base`)."""
+    step(*arguments)
 
 
 @overload(call_step)
-def _call_step_compiled(
-    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command, work
-):
+def _call_step_compiled(step, *arguments):
     if isinstance(step, KernelType):
         function = step.kernel().function
 
-        def impl(
-            step,
-            t,
-            q,
-            qdot,
-            qd,
-            qd_dot,
-            qd_ddot,
-            T_c,
-            h,
-            params,
-            state,
-            model,
-            model_params,
-            command,
-            work,
-        ):
-            function(
-                t,
-                q,
-                qdot,
-                qd,
-                qd_dot,
-                qd_ddot,
-                T_c,
-                h,
-                params,
-                state,
-                model,
-                model_params,
-                command,
-                work,
-            )
+        def impl(step, *arguments):
+            function(*arguments)
 
         return impl
     return None

@@ -43,20 +43,17 @@ __all__ = [
 def step_workspace(n, m):
     """Scratch memory of a step kernel for ``n`` coordinates and ``m`` inputs.
 
-    ``n² + n + n m`` entries for the nominal model's ``M̂, N̂, Ĝ`` (:func:`terms_views`), then
-    ``4 n`` for the law's vectors.
+    ``(M̂ (n, n), N̂ (n,), Ĝ (n, m), rest (4 n,))``: the nominal model's terms, then the law's
+    vectors (:func:`terms_views`). Separate arrays rather than views of one: reshaping a view
+    compiles numba's shape-error path into every step (about 2 s of a first compile).
     """
-    return np.empty(n * n + n + n * m + 4 * n)
+    return np.empty((n, n)), np.empty(n), np.empty((n, m)), np.empty(4 * n)
 
 
 @hot_inline_kernel
 def terms_views(work, n, m):
-    """``(M̂ (n, n), N̂ (n,), Ĝ (n, m), rest)``: views of a :func:`step_workspace` ``work``."""
-    size = n * n
-    mass = work[:size].reshape((n, n))
-    nonlinear = work[size : size + n]
-    input_map = work[size + n : size + n + n * m].reshape((n, m))
-    return mass, nonlinear, input_map, work[size + n + n * m :]
+    """``(M̂ (n, n), N̂ (n,), Ĝ (n, m), rest (4 n,))`` of a :func:`step_workspace` ``work``."""
+    return work
 
 
 @hot_inline_kernel

@@ -326,19 +326,25 @@ def _call_command_map_compiled(model, q, params, input_map, tau, command):
     return None
 
 
-def call_step(step, *arguments):
-    """Run one controller tick with the controller's :class:`Kernel` ``step``; ``arguments`` are
-    those of the step kernel (:mod:`delaytrack.controllers.base`)."""
-    step(*arguments)
+def call_step(
+    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command, work
+):
+    """Run one controller tick with the controller's :class:`Kernel` ``step``; the other
+    arguments are those of the step kernel (:mod:`delaytrack.controllers.base`)."""
+    step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command, work)
 
 
-@overload(call_step)
-def _call_step_compiled(step, *arguments):
+@overload(call_step, inline="always")
+def _call_step_compiled(
+    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, mp, u, work
+):
+    # Inlined, so that the tick calls the step directly (a call level cost about 0.13 µs a tick;
+    # numba's inliner does not take *arguments).
     if isinstance(step, KernelType):
         function = step.kernel().function
 
-        def impl(step, *arguments):
-            function(*arguments)
+        def impl(step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, mp, u, work):
+            function(t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, mp, u, work)
 
         return impl
     return None

@@ -8,7 +8,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack.delays import _kernel
+import delaytrack.delays._kernel as _kernel
 
 __all__ = ["DelayProfile"]
 

@@ -7,8 +7,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+import delaytrack.delays._kernel as _kernel
 from delaytrack._validation import positive_scalar
-from delaytrack.delays import _kernel
 from delaytrack.delays.base import DelayProfile
 
 __all__ = ["ConstantDelay"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from delaytrack.delays import _kernel
+import delaytrack.delays._kernel as _kernel
 from delaytrack.delays.knots import KnotDelay
 
 __all__ = ["PiecewiseConstantDelay"]

@@ -8,8 +8,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+import delaytrack.delays._kernel as _kernel
 from delaytrack._validation import beyond_choice, positive_scalar
-from delaytrack.delays import _kernel
 from delaytrack.delays.base import DelayProfile
 from delaytrack.delays.knots import pack_knots
 

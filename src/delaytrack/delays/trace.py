@@ -11,8 +11,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+import delaytrack.delays._kernel as _kernel
 from delaytrack._validation import beyond_choice
-from delaytrack.delays import _kernel
 from delaytrack.delays.knots import KnotDelay
 
 __all__ = ["TIME_UNITS", "TraceDelay"]

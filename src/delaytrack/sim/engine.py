@@ -120,6 +120,8 @@ def run_closed_loop(handles, run, settings, records):
     command = np.empty(m)
     previous_command = np.empty(m)
     controller_work = step_workspace(n, m)
+    q = x[:n]  # views of x, which is advanced in place
+    qdot = x[n:]
     for k in range(n_ticks + 1):
         t_k = tick_time(k, t0, dt, steps_per_tick)
         record = record_every > 0 and k % record_every == 0
@@ -130,13 +132,13 @@ def run_closed_loop(handles, run, settings, records):
             controller_states[row] = controller_state[: controller_states.shape[1]]
             delays[row] = h_k
         call_reference(reference, t_k, reference_params, qd, qd_dot, qd_ddot)
-        if left_path(qd, x[:n], error_bound):
+        if left_path(qd, q, error_bound):
             return LEFT_PATH, t_k
         call_step(
             controller_step,
             t_k,
-            x[:n],
-            x[n:],
+            q,
+            qdot,
             qd,
             qd_dot,
             qd_ddot,
@@ -149,14 +151,17 @@ def run_closed_loop(handles, run, settings, records):
             command,
             controller_work,
         )
-        history[k % capacity] = command
+        slot = k % capacity
+        for j in range(m):
+            history[slot, j] = command[j]
         if record:
             commands[row] = command
         if beyond(command, np.inf):
             return DIVERGED, t_k
         if k >= metrics_from:
-            accumulate_tick(sums, qd, x[:n], command, previous_command, k == metrics_from)
-            previous_command[:] = command
+            accumulate_tick(sums, qd, q, command, previous_command, k == metrics_from)
+            for j in range(m):
+                previous_command[j] = command[j]
         # At the last tick, only the input a step from t_k would start with (for the record).
         last = k == n_ticks
         if last and not record:

@@ -480,7 +480,8 @@ def simulate(
     else:
         pieces = batch
     chunks = np.array_split(np.arange(batch), pieces)
-    if compiled and not engine_ready(runner, chunk_arguments(chunks[0])):
+    kernel_keys = tuple(kernel.key for kernel in handles(0)) if compiled else None
+    if compiled and not engine_ready(runner, chunk_arguments(chunks[0]), kernel_keys):
         announce_compile(first_plant, first_controller, reference)
     with (
         tqdm(total=batch, desc="simulate", unit="run", disable=not progress) as bar,

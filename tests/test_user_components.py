@@ -227,3 +227,22 @@ def test_spline_reference_from_a_csv_file_and_a_scenario_table(tmp_path):
 def test_spline_reference_refuses_bad_samples(arguments, message):
     with pytest.raises(ValueError, match=message):
         dt.SplineReference(**arguments)
+
+
+def test_results_carry_the_plants_coordinate_names(example):
+    result = Scenario.from_toml(short(example)).run()
+    assert result.coordinate_names == ("shoulder", "elbow")
+    table = dt.metrics_table(result)
+    assert {"ae_shoulder", "rms_elbow", "max_shoulder"} <= set(table.columns)
+    assert result[0].coordinate_names == ("shoulder", "elbow")
+    plain = dt.simulate(
+        dt.TwoLinkArm(),
+        dt.OuterLoop(dt.TwoLinkArm(), K1=1.0, K2=1.0),
+        dt.ConstantDelay(0.01),
+        np.zeros(4),
+        reference=dt.SinusoidalReference(offset=[0.0, 0.0]),
+        t1=0.1,
+        dt=1e-3,
+        T_c=2e-3,
+    )
+    assert plain.coordinate_names is None and "ae_q1" in dt.metrics_table(plain).columns

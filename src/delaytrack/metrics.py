@@ -218,7 +218,8 @@ def metrics_table(
     ----------
     result : SimResult
     coordinate_names : sequence of str, optional
-        One name per coordinate, used in the column names; ``q1 .. qn`` by default.
+        One name per coordinate, used in the column names; by default the plant's
+        (``result.coordinate_names``), else ``q1 .. qn``.
     label : str, optional
         If given, a first column ``label`` holding it (handy when concatenating tables).
     t_from : float, optional
@@ -233,6 +234,8 @@ def metrics_table(
         ``t_from``, the recorded trajectories (every tick) with it.
     """
     n = result.n
+    if coordinate_names is None:
+        coordinate_names = result.coordinate_names
     names = [f"q{i + 1}" for i in range(n)] if coordinate_names is None else list(coordinate_names)
     if len(names) != n or len(set(names)) != n:
         raise ValueError(

@@ -93,7 +93,9 @@ def tracking_figure(
     """``q_j(t)`` of each run against the reference ``q_d,j(t)``, one panel per coordinate."""
     runs = _runs(runs)
     first = next(iter(runs.values()))
-    names = _names(first.n, coordinate_names, "q")
+    names = _names(
+        first.n, first.coordinate_names if coordinate_names is None else coordinate_names, "q"
+    )
     figure, axes = _stacked(first.n, title)
     for j, ax in enumerate(axes):
         ax.plot(first.t, first.reference[:, 0, j], color="black", lw=1.2, ls="--", label="q_d")
@@ -114,7 +116,9 @@ def error_figure(
     """Absolute tracking error ``|e1_j(t)| = |q_d,j - q_j|`` of each run, a panel per coordinate."""
     runs = _runs(runs)
     first = next(iter(runs.values()))
-    names = _names(first.n, coordinate_names, "q")
+    names = _names(
+        first.n, first.coordinate_names if coordinate_names is None else coordinate_names, "q"
+    )
     figure, axes = _stacked(first.n, title)
     for j, ax in enumerate(axes):
         for label, result in runs.items():

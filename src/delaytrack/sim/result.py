@@ -47,6 +47,9 @@ class SimResult:
         was recorded (``simulate(..., trajectories=False)``).
     settings : dict
         Everything needed to rerun: plant, controller, delays, reference, ``dt``, ``T_c``, ...
+    coordinate_names : tuple of str, optional
+        The plant's names of its coordinates (``x, y, phi, ...`` for the robot), used by
+        :func:`~delaytrack.metrics.metrics_table` and the figures; None means ``q1 .. qn``.
     """
 
     t: np.ndarray
@@ -61,6 +64,7 @@ class SimResult:
     t_stop: np.ndarray
     metrics: dict[str, np.ndarray] = field(default_factory=dict)
     settings: dict[str, Any] = field(default_factory=dict)
+    coordinate_names: tuple[str, ...] | None = None
 
     @property
     def has_trajectories(self) -> bool:
@@ -119,6 +123,7 @@ class SimResult:
             t_stop=self.t_stop[select],
             metrics={name: values[select] for name, values in self.metrics.items()},
             settings=settings,
+            coordinate_names=self.coordinate_names,
         )
 
     def to_frame(self) -> pd.DataFrame:

@@ -534,4 +534,5 @@ def simulate(
         t_stop=t_stop,
         metrics=finish_metrics(sums, status == 0),
         settings=record,
+        coordinate_names=first_plant.coordinate_names,
     )

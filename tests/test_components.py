@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.machinery
 import importlib.util
 import json
 import os
@@ -62,6 +63,22 @@ def test_a_user_kernel_is_named_by_its_code_and_what_it_reaches(tmp_path):
     )
     edited = load(tmp_path, "user_a", extra="\n# an edit elsewhere in the file\n")
     assert code_fingerprint(edited.pendulum_terms) == code_fingerprint(first)  # its code only
+
+
+def test_the_name_does_not_depend_on_how_the_code_was_loaded(tmp_path):
+    """Source compiled now and the same module read from its .pyc give one name (marshal
+    bytes differ between the two)."""
+    import py_compile
+
+    fresh = load(tmp_path, "user_b")
+    compiled = py_compile.compile(str(tmp_path / "user_b.py"), cfile=str(tmp_path / "b.pyc"))
+    loader = importlib.machinery.SourcelessFileLoader("user_b", compiled)
+    spec = importlib.util.spec_from_loader("user_b", loader)
+    from_pyc = importlib.util.module_from_spec(spec)
+    loader.exec_module(from_pyc)
+    assert code_fingerprint(from_pyc.pendulum_terms.py_func) == code_fingerprint(
+        fresh.pendulum_terms.py_func
+    )
 
 
 def test_flags_are_part_of_the_name():

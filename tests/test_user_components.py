@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +20,7 @@ from scipy.interpolate import CubicSpline
 import delaytrack as dt
 from delaytrack.cli import main
 from delaytrack.experiments import Scenario, ScenarioError
-from delaytrack.sweeps import SweepSpec
+from delaytrack.sweeps import SweepError, SweepSpec
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "user_arm"
 
@@ -123,6 +124,69 @@ def test_unknown_keyword_of_a_factory_names_the_table(example):
     path.write_text(text)
     with pytest.raises(ScenarioError, match=r"\[plant\].*unexpected keyword argument 'mass_scael'"):
         Scenario.from_toml(path).build()
+
+
+def test_sweep_parts_follow_the_controller_law_and_the_parameters(example):
+    sweep = example / "sweep_arm.toml"
+    hashes = [unit.hash for unit in SweepSpec.from_toml(sweep).units()]
+    law = example / "pd_gravity.py"
+    law.write_text(law.read_text().replace("tau[i] = nonlinear[i]", "tau[i] = 0.5 * nonlinear[i]"))
+    changed = [unit.hash for unit in SweepSpec.from_toml(sweep).units()]
+    assert [a == b for a, b in zip(hashes, changed, strict=True)] == [
+        not any("make_pd_gravity" in str(run.scenario.controller["type"]) for run in unit.runs)
+        for unit in SweepSpec.from_toml(sweep).units()
+    ]
+    arm = example / "arm.py"
+    arm.write_text(arm.read_text().replace("m1: float = 1.0", "m1: float = 1.1"))
+    assert not set(changed) & {unit.hash for unit in SweepSpec.from_toml(sweep).units()}
+
+
+def test_a_users_file_neither_shadows_a_module_nor_misses_its_neighbours(example, tmp_path):
+    import statistics
+
+    (example / "statistics.py").write_text(
+        "from arm import make_arm\n\ndef make(**keys):\n    return make_arm(**keys)\n"
+    )
+    path = short(example)
+    path.write_text(path.read_text().replace("arm.py:make_arm", "statistics.py:make", 1))
+    built = Scenario.from_toml(path).build()
+    assert built.plant.coordinate_names == ("shoulder", "elbow")
+    assert sys.modules["statistics"] is statistics
+
+
+def test_swept_files_are_relative_to_the_sweep_file(example):
+    (example / "poses.csv").write_text("t,a,b\n0,-1.2,0.6\n0.5,-1.0,0.8\n1,-0.9,0.7\n")
+    short(example)
+    sweep = example / "files.toml"
+    sweep.write_text(
+        'scenario = "short.toml"\nunit_size = 1\n[grid]\n"reference.path" = ["poses.csv"]\n'
+        '"reference.type" = ["spline"]\n'
+    )
+    with pytest.raises(SweepError, match="either"):  # times/values of the base and a path
+        SweepSpec.from_toml(sweep)
+    text = short(example).read_text()
+    text = text[: text.index("[reference]")] + '[reference]\ntype = "spline"\npath = "x.csv"\n'
+    (example / "short.toml").write_text(text)
+    (example / "x.csv").write_text("t,a,b\n0,0,0\n1,0,0\n")
+    spec = SweepSpec.from_toml(sweep)
+    assert spec.runs[0].scenario.reference["path"] == str(example / "poses.csv")
+
+
+def test_a_kernel_numba_cannot_compile_is_a_one_line_error(example, capsys):
+    law = example / "pd_gravity.py"
+    law.write_text(law.read_text().replace("tau[i] = nonlinear[i]", "tau[i] = nonlinaer[i]"))
+    path = short(example)
+    data = Scenario.from_toml(path).to_dict()
+    data["controller"] = {
+        "type": f"python:{law}:make_pd_gravity",
+        "K_P": 1.0,
+        "K_D": 1.0,
+    }
+    path.write_text(Scenario.from_dict(data).to_toml())
+    assert main(["simulate", str(path), "--out", str(example / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "numba could not compile the engine" in err and "Traceback" not in err
+    assert err.strip().count("\n") <= 1
 
 
 def test_sweep_parts_follow_the_users_code(example):

@@ -124,32 +124,36 @@ class TypeSpec:
 #: to it). The factory is called with the table's other keys as keyword arguments.
 PYTHON_TYPE = "python:"
 
-#: Modules loaded from a file, by path: ``(modification time, size, module)``.
-_FILE_MODULES: dict[Path, tuple[int, int, ModuleType]] = {}
+#: Modules loaded from a file, by path: ``(sha256 of the file, module)``.
+_FILE_MODULES: dict[Path, tuple[str, ModuleType]] = {}
 
 
 def _module_from_file(path: Path) -> ModuleType:
-    """Import the Python file ``path`` (again when it changed since the last import)."""
+    """Import the Python file ``path`` (again when its content changed since the last import).
+
+    It is imported as ``<stem>_<hash of its path>`` (never shadowing a module of that stem),
+    with its folder first on ``sys.path`` while it runs, so that it can import its neighbours.
+    """
     path = path.expanduser().resolve()
-    status = path.stat()
+    content = hashlib.sha256(path.read_bytes()).hexdigest()
     known = _FILE_MODULES.get(path)
-    if known is not None and known[:2] == (status.st_mtime_ns, status.st_size):
-        return known[2]
-    name = path.stem
-    taken = sys.modules.get(name)
-    if taken is not None and getattr(taken, "__file__", None) != str(path):
-        name = f"{path.stem}_{hashlib.sha256(str(path).encode()).hexdigest()[:8]}"
+    if known is not None and known[0] == content:
+        return known[1]
+    name = f"{path.stem}_{hashlib.sha256(str(path).encode()).hexdigest()[:8]}"
     spec = importlib.util.spec_from_file_location(name, path)
     if spec is None or spec.loader is None:
         raise ImportError(f"{str(path)!r} is not a Python file")
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
+    sys.path.insert(0, str(path.parent))
     try:
         spec.loader.exec_module(module)
     except BaseException:
         del sys.modules[name]
         raise
-    _FILE_MODULES[path] = (status.st_mtime_ns, status.st_size, module)
+    finally:
+        sys.path.remove(str(path.parent))
+    _FILE_MODULES[path] = (content, module)
     return module
 
 

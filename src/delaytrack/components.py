@@ -25,8 +25,8 @@ of this package is covered by the cache folder instead (:mod:`delaytrack._numba_
 
 from __future__ import annotations
 
+import enum
 import hashlib
-import inspect
 import math
 import types as python_types
 from collections.abc import Callable
@@ -94,47 +94,119 @@ def _code_names(code: python_types.CodeType) -> set[str]:
     return names
 
 
-def _value_text(value: object, walk: list[object]) -> str | None:
-    """How a global or closure value enters a fingerprint; functions are queued in ``walk``."""
+def _code_text(code: python_types.CodeType) -> bytes:
+    """What ``code`` does: its bytecode, names and constants, nested functions included (not
+    its file or line numbers, nor how it was loaded: ``marshal`` gives other bytes for the same
+    code read from a ``.pyc``)."""
+    parts = [
+        code.co_code,
+        repr((code.co_names, code.co_varnames, code.co_freevars, code.co_cellvars)).encode(),
+        repr((code.co_argcount, code.co_kwonlyargcount, code.co_flags)).encode(),
+    ]
+    for constant in code.co_consts:
+        if isinstance(constant, python_types.CodeType):
+            parts.append(_code_text(constant))
+        else:
+            parts.append(repr(constant).encode())
+    return b"\x1f".join(parts)
+
+
+def _is_users(module: str | None) -> bool:
+    """Whether ``module`` is a user's (not this package, numba, NumPy or the interpreter's)."""
+    top = (module or "").partition(".")[0]
+    return bool(top) and top != _PACKAGE and top not in _LIBRARIES
+
+
+def _members(container: object) -> list[object]:
+    """The functions a user's class (its methods, properties, a jitclass's methods) or module
+    (the functions and classes defined in it) holds, for the walk."""
+    if isinstance(container, python_types.ModuleType):
+        return [
+            value
+            for value in vars(container).values()
+            if getattr(value, "__module__", None) == container.__name__
+        ]
+    members: list[object] = []
+    for value in vars(container).values():
+        if isinstance(value, property):
+            members += [value.fget, value.fset]
+        elif isinstance(value, staticmethod | classmethod):
+            members.append(value.__func__)
+        else:
+            members.append(value)
+    class_type = getattr(container, "class_type", None)  # a numba jitclass
+    members += list(getattr(class_type, "methods", {}).values())
+    return members
+
+
+#: Values whose text is their ``repr``.
+_CONSTANTS = (enum.Enum, np.generic, bool, int, float, complex, str, bytes)
+
+
+def _value_text(value: object, walk: list[object], depth: int = 0) -> str | None:
+    """How a global or closure value enters a fingerprint; functions, and the members of a
+    user's classes and modules, are queued in ``walk``."""
     if _python_function(value) is not None:
         walk.append(value)
         return _qualified_name(value)
-    if isinstance(value, python_types.ModuleType):
-        return None
-    if isinstance(value, type):
-        return f"{value.__module__}:{value.__qualname__}"
+    if isinstance(value, python_types.ModuleType | type):
+        if _is_users(getattr(value, "__module__", None) or getattr(value, "__name__", None)):
+            walk.append(value)
+        name = getattr(value, "__qualname__", value.__name__)
+        return f"{getattr(value, '__module__', '')}:{name}"
     if isinstance(value, np.ndarray):
         return f"array{value.dtype}{value.shape}:{hashlib.sha256(value.tobytes()).hexdigest()}"
-    if isinstance(value, bool | int | float | complex | str | bytes | type(None) | tuple):
-        return repr(value)
+    if isinstance(value, _CONSTANTS):
+        return f"{type(value).__name__}:{value!r}"
+    if value is None:
+        return "None"
+    if isinstance(value, python_types.BuiltinFunctionType | np.ufunc):
+        return f"builtin {getattr(value, '__module__', None)}.{value.__name__}"
+    if isinstance(value, set | frozenset) and depth < 4:
+        return f"set({','.join(sorted(str(_value_text(item, walk, depth + 1)) for item in value))})"
+    if isinstance(value, list | tuple | dict) and depth < 4:
+        items = sorted(value.items(), key=repr) if isinstance(value, dict) else enumerate(value)
+        inner = [f"{key!r}={_value_text(item, walk, depth + 1)}" for key, item in items]
+        return f"{type(value).__name__}({','.join(inner)})"
     return f"object@{id(value)}"  # known only in this process: compiled again in the next
 
 
+@lru_cache(maxsize=1024)
 def code_fingerprint(function: Callable[..., Any]) -> str:
     """Hash (16 hex digits) of the code that compiling ``function`` depends on, outside delaytrack.
 
-    It covers the source (or bytecode, where no source is available) of ``function``, of every
-    function it reaches through its globals and closure, and the values of the constants they
-    read. Functions of this package are covered by the cache folder and not walked.
+    It covers the code as loaded (bytecode, constants and names, not the file on disk, which may
+    have changed since) of ``function`` and of every function it reaches through its globals and
+    closure, through the user modules and classes it names (their functions, methods,
+    properties and jitclass methods), and the values of the constants they read. Functions of
+    this package are covered by the cache folder and not walked. A value with no stable text
+    (an arbitrary object) is taken by identity: the key then holds in this process only.
     """
     digest = hashlib.sha256()
     walk: list[object] = [function]
     seen: set[int] = set()
     while walk:
         current = walk.pop()
-        inner = _python_function(current)
-        if inner is None or id(inner) in seen:
+        if id(current) in seen:
             continue
-        seen.add(id(inner))
+        seen.add(id(current))
+        if isinstance(current, python_types.ModuleType | type):
+            walk += _members(current)
+            if isinstance(current, type):  # class constants, enum members
+                for key, value in sorted(vars(current).items()):
+                    if not key.startswith("_") and isinstance(value, _CONSTANTS):
+                        digest.update(f"{key}={_value_text(value, walk)}".encode())
+            continue
+        inner = _python_function(current)
+        if inner is None:
+            continue
         module = (inner.__module__ or "").partition(".")[0]
         if module in _LIBRARIES or (module == _PACKAGE and current is not function):
             continue
+        if inner.__code__.co_filename == "<string>" and current is not function:
+            continue  # generated by the library that made it (a dataclass's __init__, __eq__)
         digest.update(_qualified_name(inner).encode())
-        try:
-            digest.update(inspect.getsource(inner).encode())
-        except (OSError, TypeError):
-            digest.update(inner.__code__.co_code)
-            digest.update(repr(inner.__code__.co_consts).encode())
+        digest.update(_code_text(inner.__code__))
         for name in sorted(_code_names(inner.__code__)):
             if name in inner.__globals__:
                 text = _value_text(inner.__globals__[name], walk)

@@ -75,12 +75,10 @@ from delaytrack._spec import (
     integer,
     number,
     string,
-    user_factory,
     vector,
 )
 from delaytrack._spec import SpecError as ScenarioError
 from delaytrack._validation import integer_multiple
-from delaytrack.components import code_fingerprint
 from delaytrack.controllers import CONTROLLER_SPECS, Controller, controller_from_spec
 from delaytrack.delays import DELAY_SPECS, DelayProfile, delay_from_spec
 from delaytrack.plants import PLANT_SPECS, ELPlant, plant_from_spec
@@ -450,17 +448,6 @@ class Scenario:
             if x0.shape != (2 * plant.n,):
                 raise fail("x0", f"must have 2n = {2 * plant.n} entries [q, qdot]", list(self.x0))
         return BuiltScenario(plant, model, controller, delay, reference, x0)
-
-    def user_code(self) -> dict[str, str]:
-        """For each table built by a factory of yours (``"python:..."``), a hash of the code it
-        runs (:func:`~delaytrack.components.code_fingerprint`); sweeps count a run made by other
-        code as not done."""
-        code = {}
-        for table in _TABLES:
-            kind = getattr(self, table).get("type")
-            if isinstance(kind, str) and kind.startswith(PYTHON_TYPE):
-                code[table] = code_fingerprint(user_factory(table, kind))
-        return code
 
     def resolved(self) -> Scenario:
         """The scenario with its defaults written in: ``x0``, and a random delay's seed/duration.

@@ -21,9 +21,10 @@ _READY: set[object] = set()
 def engine_ready(dispatcher: Any, arguments: tuple, key: object) -> bool:
     """Whether ``dispatcher`` has code for ``arguments``' types in memory or in its disk cache.
 
-    ``key`` names the argument types (the kernels' keys): once found ready, the answer is
-    remembered. Uses numba's cache index (not a public interface); when it cannot be read, the
-    answer is False (the notice is then shown once too often, never missed).
+    ``key`` names the argument types (the kernels' keys; the arrays' types are the same in
+    every call of :func:`~delaytrack.sim.simulate`): once found ready, the answer is remembered.
+    Uses numba's cache index (not a public interface); when it cannot be read, the answer is
+    False (the notice is then shown once too often).
     """
     if key in _READY:
         return True

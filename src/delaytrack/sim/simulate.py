@@ -67,6 +67,22 @@ def _integer_ratio(name: str, value: float, unit: float, what: str, scale: float
     return count
 
 
+_NUMBA_CAUSES = ("Error: ", "Untyped global name", "Unknown attribute", "Cannot unify")
+
+
+def _numba_cause(error: Exception) -> str:
+    """The innermost cause in a numba error's message (``NameError: name 'x' is not
+    defined``), else its first line."""
+    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+    causes = [
+        line
+        for line in lines
+        if any(marker in line for marker in _NUMBA_CAUSES)
+        and not line.startswith(("Failed in", "During", "File", "raised from"))
+    ]
+    return causes[-1] if causes else f"{type(error).__name__}: {lines[0] if lines else ''}"
+
+
 def _check_same_kernel(name: str, plant: ELPlant, first: ELPlant) -> None:
     """A compiled batch runs one kernel for all its elements."""
     if plant.compiled and plant.engine_kernel != first.engine_kernel:
@@ -483,16 +499,24 @@ def simulate(
     kernel_keys = tuple(kernel.key for kernel in handles(0)) if compiled else None
     if compiled and not engine_ready(runner, chunk_arguments(chunks[0]), kernel_keys):
         announce_compile(first_plant, first_controller, reference)
-    with (
-        tqdm(total=batch, desc="simulate", unit="run", disable=not progress) as bar,
-    ):
-        if compiled and workers > 1 and len(chunks) > 1:
-            with ThreadPoolExecutor(max_workers=workers) as pool:
-                for done in pool.map(run_chunk, chunks):
-                    bar.update(done)
-        else:
-            for chunk in chunks:
-                bar.update(run_chunk(chunk))
+    try:
+        with tqdm(total=batch, desc="simulate", unit="run", disable=not progress) as bar:
+            if compiled and workers > 1 and len(chunks) > 1:
+                with ThreadPoolExecutor(max_workers=workers) as pool:
+                    for done in pool.map(run_chunk, chunks):
+                        bar.update(done)
+            else:
+                for chunk in chunks:
+                    bar.update(run_chunk(chunk))
+    except Exception as error:
+        if not (compiled and type(error).__module__.startswith("numba")):
+            raise
+        # numba could not compile a kernel of the user's: their error, in one line.
+        raise ValueError(
+            f"numba could not compile the engine for the kernels {list(kernel_keys)}: "
+            f"{_numba_cause(error)} (call a kernel of yours alone, compiled, to see numba's "
+            "whole message)"
+        ) from None
 
     times = t0 + (np.arange(records) * every * steps_per_tick) * dt
     for b in np.flatnonzero(status != 0):

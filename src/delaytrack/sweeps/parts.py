@@ -47,6 +47,7 @@ def _batch_key(run: Run) -> str:
     scenario = run.scenario
     return canonical_json(
         {
+            "kernels": list(run.kernels),  # a factory may give other kernels for other keys
             "plant": scenario.plant["type"],
             "model": scenario.model["type"],
             "controller": scenario.controller["type"],

@@ -85,20 +85,79 @@ DISTRIBUTIONS: Mapping[str, tuple[str, ...]] = MappingProxyType(
 
 @dataclass(frozen=True)
 class Run:
-    """One run of a sweep: its stable index, the swept values and the resolved scenario."""
+    """One run of a sweep: its stable index, the swept values, the resolved scenario, and what
+    the engine receives for it (:func:`engine_inputs`: the kernels' keys and a hash of every
+    parameter vector)."""
 
     index: int
     values: Mapping[str, Any]
     scenario: Scenario
+    kernels: tuple[str, ...]
+    parameters: str
+
+    @classmethod
+    def of(cls, index: int, values: Mapping[str, Any], scenario: Scenario, built: Any) -> Run:
+        """The run of a scenario and its construction (:meth:`Scenario.build`)."""
+        return cls(index, values, scenario, *engine_inputs(built))
 
     def canonical(self) -> dict[str, Any]:
         """Plain data identifying the run (what unit hashes cover)."""
-        scenario = self.scenario.to_dict()
-        data = {"index": self.index, "values": dict(self.values), "scenario": scenario}
-        code = self.scenario.user_code()
-        if code:
-            data["user_code"] = code
-        return data
+        return {
+            "index": self.index,
+            "values": dict(self.values),
+            "scenario": self.scenario.to_dict(),
+            "kernels": list(self.kernels),
+            "parameters": self.parameters,
+        }
+
+
+def _resolve_swept_files(source: Path, key: str, values: object) -> None:
+    """Make the files named by swept values absolute, relative to the sweep file ``source``, in
+    place: whole tables (``controller = [{type = "python:pd.py:make", ...}]``) and the keys
+    ``<table>.path`` and ``<table>.type``."""
+    if isinstance(values, dict):  # a "choice" draw
+        values = values.get("values")
+    if not isinstance(values, list):
+        return
+    table, _, field = key.partition(".")
+    for i, value in enumerate(values):
+        if key in _TABLES:
+            resolve_file_keys(source, key, value)
+        elif table in _TABLES and field in ("path", "type") and isinstance(value, str):
+            holder = {field: value}
+            resolve_file_keys(source, table, holder)
+            values[i] = holder[field]
+
+
+def engine_inputs(built: BuiltScenario) -> tuple[tuple[str, ...], str]:
+    """What the compiled engine receives for a run: the keys of its plant's, model's,
+    controller's and reference's kernels (a user's kernels with a hash of their code) and a
+    sha256 of every parameter vector, the delay profile and ``x0``.
+
+    A unit hash covers these rather than the Python code that made them, so that an edit of a
+    factory, a default or a delay's definition that changes a run changes its hash, and one that
+    does not (a docstring, a report) keeps finished parts.
+    """
+    controller = built.controller
+    kernels = tuple(
+        component.engine_kernel.key
+        for component in (built.plant, controller.model, controller, built.reference)
+    )
+    digest = hashlib.sha256()
+    for array in (
+        built.plant.params,
+        controller.model.params,
+        controller.params,
+        controller.initial_state(),
+        np.array([built.delay.kind], dtype=float),
+        built.delay.params,
+        built.reference.params,
+        built.x0,
+    ):
+        values = np.ascontiguousarray(array, dtype=float)
+        digest.update(str(values.shape).encode())
+        digest.update(values.tobytes())
+    return kernels, digest.hexdigest()
 
 
 @dataclass(frozen=True)
@@ -141,10 +200,12 @@ class Unit:
                 f"unit {index} comes from delaytrack {version} (version+source hash); this "
                 f"process has {code_version()}: install the same code on every Dask worker"
             )
-        runs = tuple(
-            Run(run["index"], MappingProxyType(run["values"]), Scenario.from_dict(run["scenario"]))
-            for run in payload["runs"]
-        )
+        runs = []
+        for run in payload["runs"]:
+            scenario = Scenario.from_dict(run["scenario"])
+            values = MappingProxyType(run["values"])
+            runs.append(Run.of(run["index"], values, scenario, scenario.build()))
+        runs = tuple(runs)
         unit = cls(index, runs, _unit_hash(runs))
         if unit.hash != payload["hash"]:
             raise SweepError(
@@ -170,9 +231,19 @@ def canonical_json(data: Any) -> str:
     return json.dumps(_json_safe(data), sort_keys=True, separators=(",", ":"), allow_nan=False)
 
 
+#: Files without compiled code that still decide a sweep's numbers: how a run is set up for the
+#: engine, how metrics are taken, how a part's rows are made.
+RESULT_FILES = ("sim/simulate.py", "metrics.py", "sweeps/parts.py")
+
+
 def code_version() -> str:
-    """The package version and the hash of its source (:func:`_numba_cache.source_hash`)."""
-    return f"{delaytrack.__version__}+{source_hash()}"
+    """The package version, the hash of its compiled code (:func:`_numba_cache.source_hash`) and
+    of :data:`RESULT_FILES`; with :func:`engine_inputs`, what a part's numbers depend on."""
+    digest = hashlib.sha256(source_hash().encode())
+    package = Path(delaytrack.__file__).parent
+    for name in RESULT_FILES:
+        digest.update((package / name).read_bytes())
+    return f"{delaytrack.__version__}+{digest.hexdigest()[:16]}"
 
 
 def _unit_hash(runs: Sequence[Run]) -> str:
@@ -392,12 +463,7 @@ class SweepSpec:
             raise SweepError(f"{source}: not valid TOML: {error}") from None
         for section in ("grid", "random"):
             for key, values in (data.get(section) or {}).items():
-                if key not in _TABLES:  # only whole tables name files, e.g. your controllers
-                    continue
-                if isinstance(values, dict):  # a "choice" draw
-                    values = values.get("values")
-                for value in values if isinstance(values, list) else []:
-                    resolve_file_keys(source, key, value)
+                _resolve_swept_files(source, key, values)
         try:
             return cls.from_dict(data, root=source.parent)
         except ScenarioError as error:
@@ -446,7 +512,7 @@ class SweepSpec:
                     f'{source}."{key}" = {values[key]!r} (run {index}): {message}'
                 ) from None
             raise SweepError(f"run {index} ({values}): {message}") from None
-        return Run(index, MappingProxyType(values), scenario)
+        return Run.of(index, MappingProxyType(values), scenario, built)
 
     def units(self) -> tuple[Unit, ...]:
         """The runs cut into units of ``unit_size`` consecutive runs (the last may be shorter)."""

@@ -274,6 +274,23 @@ class Kernel:
             self.command_map is None or is_compiled(self.command_map)
         )
 
+    @classmethod
+    def of(
+        cls,
+        function: Callable[..., Any],
+        command_map: Callable[..., Any] | None = None,
+        identity_mass: bool = False,
+    ) -> Kernel:
+        """The Kernel of these functions, made once (its key and numba type are then computed
+        once, not at every call of a component's ``engine_kernel``)."""
+        return _kernel_of(cls, function, command_map, identity_mass)
+
+    @cached_property
+    def numba_type(self) -> KernelType:
+        """This kernel's numba type (:class:`KernelType`)."""
+        _KERNELS.setdefault(self.key, self)
+        return KernelType(self.key)
+
     def __call__(self, *args: Any) -> Any:
         """Run the kernel from Python (compiled if it is)."""
         return self.function(*args)
@@ -284,6 +301,11 @@ class Kernel:
         return Kernel(
             getattr(self.function, "py_func", self.function), self.command_map, self.identity_mass
         )
+
+
+@lru_cache(maxsize=4096)
+def _kernel_of(cls: type, function: Any, command_map: Any, identity_mass: bool) -> Kernel:
+    return cls(function, command_map, identity_mass)
 
 
 @lru_cache(maxsize=1024)
@@ -313,8 +335,7 @@ register_model(KernelType)(models.OpaqueModel)
 
 @typeof_impl.register(Kernel)
 def _typeof_kernel(value: Kernel, context: Any) -> KernelType:
-    _KERNELS.setdefault(value.key, value)
-    return KernelType(value.key)
+    return value.numba_type
 
 
 @unbox(KernelType)

@@ -165,7 +165,7 @@ class Controller(ABC):
     @property
     def engine_kernel(self) -> Kernel:
         """The :class:`~delaytrack.components.Kernel` the simulator calls for this law."""
-        return Kernel(self.step_kernel)
+        return Kernel.of(self.step_kernel)
 
     @property
     def compiled(self) -> bool:

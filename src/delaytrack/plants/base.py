@@ -114,7 +114,7 @@ class ELPlant(ABC):
     @property
     def engine_kernel(self) -> Kernel:
         """The :class:`~delaytrack.components.Kernel` the simulator calls for this plant."""
-        return Kernel(self.terms_kernel, self.command_map_kernel, self.identity_mass)
+        return Kernel.of(self.terms_kernel, self.command_map_kernel, self.identity_mass)
 
     @property
     def compiled(self) -> bool:

@@ -59,7 +59,7 @@ class Reference(ABC):
     @property
     def engine_kernel(self) -> Kernel:
         """The :class:`~delaytrack.components.Kernel` the simulator calls."""
-        return Kernel(self.reference_kernel)
+        return Kernel.of(self.reference_kernel)
 
     @property
     def compiled(self) -> bool:

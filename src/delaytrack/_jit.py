@@ -23,6 +23,13 @@ every caller, which took the paper job's first compile from 28 s to 50 s at the 
 :data:`hot_inline_kernel` functions take a component's kernel and run as plain Python when it
 is one (the plain-Python engine).
 
+:data:`tick_kernel` is :data:`kernel` compiled without numba's runtime (``_nrt=False``): the
+functions called once a controller tick (the controllers' steps, the references). They only
+work in arrays their callers own (a copy into a slice is written as a loop, since numba's slice
+copy needs the runtime); with the runtime, the reference counts of the views they make (about
+fifty atomic operations a tick) took more than half of the time of a tick's compiled code, and
+a 60 s robot run went from 20 ms to 18.7 ms without them.
+
 :data:`borrowing_kernel` is :data:`inline_kernel` compiled without numba's runtime
 (``_nrt=False``): no reference counts at all, so it may neither allocate nor return an array
 (numba refuses to compile it if it does), only work in arrays its caller owns. Inlining does not
@@ -44,6 +51,7 @@ __all__ = [
     "hot_kernel",
     "inline_kernel",
     "kernel",
+    "tick_kernel",
 ]
 
 #: numba options of every compiled kernel.
@@ -53,6 +61,7 @@ kernel = njit(**KERNEL_OPTIONS)
 inline_kernel = register_jitable(error_model=KERNEL_OPTIONS["error_model"])
 hot_kernel = njit(**KERNEL_OPTIONS, inline="always")
 borrowing_kernel = register_jitable(error_model=KERNEL_OPTIONS["error_model"], _nrt=False)
+tick_kernel = njit(**KERNEL_OPTIONS, _nrt=False)
 
 
 class _PythonOrCompiled(CPUDispatcher):

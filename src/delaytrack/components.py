@@ -382,15 +382,20 @@ def _has_identity_mass_compiled(terms):
 
 @inline_kernel
 def solve_input_map(input_map, tau, command):
-    """The default command map: solve ``G(q) command = τ`` (a fully actuated model)."""
-    square = input_map.copy()
-    command[:] = tau
-    if not solve_in_place(square, command):
+    """The default command map: solve ``G(q) command = τ`` (a fully actuated model).
+
+    ``input_map`` is scratch (the model's ``Ĝ`` of this tick): it is factorised in place, so
+    that nothing is allocated.
+    """
+    for i in range(command.shape[0]):
+        command[i] = tau[i]
+    if not solve_in_place(input_map, command):
         command[:] = math.nan
 
 
 def call_command_map(model, q, params, input_map, tau, command):
-    """Actuator ``command`` that realises the generalised force ``τ`` on the nominal ``model``.
+    """Actuator ``command`` that realises the generalised force ``τ`` on the nominal ``model``
+    (``input_map``, the model's ``Ĝ(q)``, may be overwritten).
 
     The model's own command map when its :class:`Kernel` has one (the wheeled robot's
     ``command = S(q)ᵀ τ``, the paper's Section III), else :func:`solve_input_map`.

@@ -27,7 +27,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import hot_kernel, kernel
+from delaytrack._jit import hot_kernel, tick_kernel
 from delaytrack._small_linalg import matvec
 from delaytrack._validation import as_spd_matrix, positive_scalar
 from delaytrack.analysis.razumikhin import error_dynamics_matrices, lyapunov_matrix
@@ -71,7 +71,7 @@ def _dot(a, b):
     return total
 
 
-@kernel
+@tick_kernel
 def arolc_step(
     t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model_terms, model_params, command, work
 ):
@@ -104,7 +104,8 @@ def arolc_step(
     c_next = c_hat + T_c * rate
     state[_C_HAT] = gamma if rate < 0.0 and c_next < gamma else c_next
     state[_HAS_PREVIOUS] = 1.0
-    state[_S_PREVIOUS:] = s
+    for i in range(n):  # a loop: an array-to-slice copy needs numba's runtime
+        state[_S_PREVIOUS + i] = s[i]
 
 
 #: alpha, gamma, c_hat0 <= _LAW_RANGE and epsilon >= 1 / _LAW_RANGE: the products in

@@ -7,7 +7,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import kernel
+from delaytrack._jit import tick_kernel
 from delaytrack._validation import as_spd_matrix
 from delaytrack.controllers.base import (
     Controller,
@@ -21,7 +21,7 @@ from delaytrack.plants.base import ELPlant
 __all__ = ["OuterLoop", "outer_loop_step"]
 
 
-@kernel
+@tick_kernel
 def outer_loop_step(
     t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model_terms, model_params, command, work
 ):

@@ -40,7 +40,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import kernel
+from delaytrack._jit import tick_kernel
 from delaytrack._small_linalg import matvec
 from delaytrack._validation import as_spd_matrix, positive_scalar
 from delaytrack.components import call_command_map, call_terms
@@ -72,7 +72,7 @@ def ring_slots(history: float, T_c: float) -> int:
     return int(math.ceil(history / T_c)) + 2
 
 
-@kernel
+@tick_kernel
 def pcon_step(
     t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model_terms, model_params, command, work
 ):
@@ -129,10 +129,11 @@ def pcon_step(
         command[:] = np.nan
         return
     call_command_map(model_terms, q, model_params, input_map, tau, command)
-    state[:n] = e_z
-    state[n : 2 * n] = rho
     start = ring + (count % slots) * n
-    state[start : start + n] = tau
+    for i in range(n):  # loops: an array-to-slice copy needs numba's runtime
+        state[i] = e_z[i]
+        state[n + i] = rho[i]
+        state[start + i] = tau[i]
     state[2 * n] = count + 1
 
 

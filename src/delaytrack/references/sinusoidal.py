@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from delaytrack._jit import kernel
+from delaytrack._jit import kernel, tick_kernel
 from delaytrack._validation import finite_array
 from delaytrack.references.base import Reference
 
@@ -24,7 +24,7 @@ __all__ = [
 ]
 
 
-@kernel
+@tick_kernel
 def sinusoidal_reference(t, params, qd, qd_dot, qd_ddot):
     """Fill ``q_d(t)``, ``q̇_d(t)``, ``q̈_d(t)``; ``params = [n, K, offset, slope, A, ω, φ]``."""
     n = int(params[0])

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from delaytrack._jit import kernel
+from delaytrack._jit import tick_kernel
 from delaytrack._validation import beyond_choice, finite_array
 from delaytrack.references.base import Reference
 
@@ -36,7 +36,7 @@ BOUNDARIES = ("clamped", "natural", "not-a-knot")
 MAX_SAMPLES = 10**6
 
 
-@kernel
+@tick_kernel
 def spline_reference(t, params, qd, qd_dot, qd_ddot):
     """Fill ``q_d, q̇_d, q̈_d`` at ``t`` (module docstring).
 

@@ -210,6 +210,7 @@ class Controller(ABC):
         if next_state.shape != (self.state_size,):
             raise ValueError(f"state must have shape ({self.state_size},); got {next_state.shape}")
         command = np.empty(self.m)
+        model = self.model.engine_kernel
         self.step_callable(
             float(t),
             *arrays,
@@ -217,7 +218,7 @@ class Controller(ABC):
             delay,
             self.params,
             next_state,
-            self.model.engine_kernel if self.compiled else self.model.engine_kernel.as_python(),
+            model if model.compiled else model.as_python(),
             self.model.params,
             command,
             step_workspace(self.n, self.m),

@@ -81,6 +81,30 @@ def test_the_name_does_not_depend_on_how_the_code_was_loaded(tmp_path):
     )
 
 
+def test_python_kernels_are_not_kept_by_the_kernel_cache():
+    import gc
+    import weakref
+
+    from delaytrack.components import _kernel_of
+
+    plant = dt_callable_plant()
+    alive = weakref.ref(plant)
+    before = _kernel_of.cache_info().currsize
+    for _ in range(50):
+        assert not plant.compiled  # a new closure at each access
+    assert _kernel_of.cache_info().currsize == before
+    del plant
+    gc.collect()
+    assert alive() is None
+    assert Kernel.of(arolc_step) is Kernel.of(arolc_step)  # compiled ones are made once
+
+
+def dt_callable_plant():
+    from delaytrack.plants import CallablePlant
+
+    return CallablePlant(1, lambda q: np.array([[1.0]]), lambda q, qdot: np.array([0.0]))
+
+
 def test_flags_are_part_of_the_name():
     plain = Kernel(arolc_step)
     assert Kernel(arolc_step, identity_mass=True).key != plain.key

@@ -281,9 +281,12 @@ class Kernel:
         command_map: Callable[..., Any] | None = None,
         identity_mass: bool = False,
     ) -> Kernel:
-        """The Kernel of these functions, made once (its key and numba type are then computed
-        once, not at every call of a component's ``engine_kernel``)."""
-        return _kernel_of(cls, function, command_map, identity_mass)
+        """The Kernel of these functions; for compiled ones made once (its key and numba type
+        are then computed once, not at every call of a component's ``engine_kernel``). Python
+        kernels are made anew, so that a cache never keeps a user's closures alive."""
+        if is_compiled(function) and (command_map is None or is_compiled(command_map)):
+            return _kernel_of(cls, function, command_map, identity_mass)
+        return cls(function, command_map, identity_mass)
 
     @cached_property
     def numba_type(self) -> KernelType:

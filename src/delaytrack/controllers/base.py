@@ -86,7 +86,8 @@ def computed_torque_command(model_terms, model_params, t, q, qdot, u, command, w
     ``τ`` is mapped to the actuators by the model's command map
     (:func:`delaytrack.components.call_command_map`): ``Ĝ(q)⁻¹ τ`` for a fully actuated
     model, ``S(q)ᵀ τ`` for the wheeled robot. The model's terms go to the front of ``work``
-    (:func:`terms_views`); ``u`` must not lie there.
+    (:func:`terms_views`); ``u`` must not lie there. Afterwards ``N̂`` holds ``τ`` and ``Ĝ`` may
+    hold its LU factors (the default command map factorises it in place): read neither again.
     """
     n = q.shape[0]
     mass, nonlinear, input_map, _ = terms_views(work, n, command.shape[0])
@@ -218,7 +219,7 @@ class Controller(ABC):
             delay,
             self.params,
             next_state,
-            model if model.compiled else model.as_python(),
+            model if self.compiled else model.as_python(),
             self.model.params,
             command,
             step_workspace(self.n, self.m),

@@ -82,7 +82,6 @@ def test_dask_cluster_gives_the_local_results(spec, local_runs, cluster, tmp_pat
 def test_a_killed_worker_loses_nothing(cluster, tmp_path):
     spec = spec_of(600.0, 2)  # 12 units of about 0.7 s each: the kill hits a running task
     expected = run_sweep(spec, tmp_path / "local", executor=LocalExecutor(), progress=False)
-    executor = DaskExecutor(cluster.scheduler_address)
     client = distributed.Client(cluster.scheduler_address)  # the test's own, outlives the sweep
     client.wait_for_workers(2, timeout=60)
     pids = client.run(os.getpid)
@@ -90,6 +89,10 @@ def test_a_killed_worker_loses_nothing(cluster, tmp_path):
     finished = {}
 
     def sweep():
+        # The executor is made in the thread that waits on it, as `delaytrack sweep` does: a
+        # client made in one thread and waited on in another failed once with distributed's
+        # "Event ... is bound to a different event loop" when the kill hit a finished unit.
+        executor = DaskExecutor(cluster.scheduler_address)
         finished["outcome"] = run_sweep(spec, out, executor=executor, progress=False)
 
     thread = threading.Thread(target=sweep)

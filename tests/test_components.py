@@ -65,20 +65,26 @@ def test_a_user_kernel_is_named_by_its_code_and_what_it_reaches(tmp_path):
     assert code_fingerprint(edited.pendulum_terms) == code_fingerprint(first)  # its code only
 
 
-def test_the_name_does_not_depend_on_how_the_code_was_loaded(tmp_path):
-    """Source compiled now and the same module read from its .pyc give one name (marshal
-    bytes differ between the two)."""
+def test_the_name_does_not_depend_on_where_or_how_the_code_was_loaded(tmp_path):
+    """The same code moved down its file, or read from a .pyc, keeps its name: the name hashes
+    what the code does, not its line numbers nor the bytes marshal gives for it."""
     import py_compile
 
     fresh = load(tmp_path, "user_b")
+    moved = tmp_path / "user_c.py"
+    moved.write_text(
+        "# a comment above moves every line down\n\n" + USER_MODULE.format(gravity=9.81)
+    )
+    spec = importlib.util.spec_from_file_location("user_b", moved)
+    shifted = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(shifted)
     compiled = py_compile.compile(str(tmp_path / "user_b.py"), cfile=str(tmp_path / "b.pyc"))
     loader = importlib.machinery.SourcelessFileLoader("user_b", compiled)
-    spec = importlib.util.spec_from_loader("user_b", loader)
-    from_pyc = importlib.util.module_from_spec(spec)
+    from_pyc = importlib.util.module_from_spec(importlib.util.spec_from_loader("user_b", loader))
     loader.exec_module(from_pyc)
-    assert code_fingerprint(from_pyc.pendulum_terms.py_func) == code_fingerprint(
-        fresh.pendulum_terms.py_func
-    )
+    expected = code_fingerprint(fresh.pendulum_terms.py_func)
+    assert code_fingerprint(shifted.pendulum_terms.py_func) == expected
+    assert code_fingerprint(from_pyc.pendulum_terms.py_func) == expected
 
 
 def test_python_kernels_are_not_kept_by_the_kernel_cache():

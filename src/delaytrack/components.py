@@ -219,7 +219,8 @@ def code_fingerprint(function: Callable[..., Any]) -> str:
     return digest.hexdigest()[:16]
 
 
-#: Every Kernel made in this process, by key: the compiled engine finds its functions here.
+#: Every Kernel numba has typed in this process (:attr:`Kernel.numba_type`), by key: the
+#: compiled engine finds its functions here.
 _KERNELS: dict[str, Kernel] = {}
 
 
@@ -249,8 +250,6 @@ class Kernel:
             value = getattr(self, name)
             if not (callable(value) or (name == "command_map" and value is None)):
                 raise TypeError(f"{name} must be callable; got {type(value).__name__}")
-        if self.compiled:
-            _KERNELS.setdefault(self.key, self)
 
     @cached_property
     def key(self) -> str:
@@ -311,7 +310,6 @@ def _kernel_of(cls: type, function: Any, command_map: Any, identity_mass: bool) 
     return cls(function, command_map, identity_mass)
 
 
-@lru_cache(maxsize=1024)
 def _name_with_code(function: Callable[..., Any]) -> str:
     name = _qualified_name(function)
     if name.partition(".")[0] == _PACKAGE:

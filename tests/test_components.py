@@ -119,6 +119,15 @@ def test_flags_are_part_of_the_name():
         Kernel(3.0)
 
 
+def test_a_plants_sizes_are_part_of_its_name_and_checked():
+    assert TwoLinkArm().engine_kernel.sizes == (2, 2)
+    assert Kernel(arolc_step, sizes=(2, 1)).key != Kernel(arolc_step, sizes=(3, 1)).key
+    assert Kernel(arolc_step, sizes=(np.int64(2), 1)).sizes == (2, 1)
+    for bad in [(0, 1), (2,), (2.0, 1), (True, 1), "21"]:
+        with pytest.raises(ValueError, match="sizes must be two integers n, m >= 1"):
+            Kernel(arolc_step, sizes=bad)
+
+
 RUN = """
 import json, sys, time
 start = time.perf_counter()

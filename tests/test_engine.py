@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import pytest
 from scipy.linalg import expm
@@ -15,10 +16,11 @@ from delaytrack.delays import (
     PiecewiseConstantDelay,
     RandomDelay,
 )
-from delaytrack.plants import CallablePlant, LinearPlant, TwoLinkArm
+from delaytrack.plants import CallablePlant, CompiledPlant, LinearPlant, TwoLinkArm
 from delaytrack.references import SinusoidalReference
 from delaytrack.sim import simulate
 from delaytrack.sim.history import latest_tick_index
+from delaytrack.sim.integrator import beyond
 
 # A damped point mass q̈ = -c q̇ + u under a sampled PD law u = -K2 q̇ - K1 q (q_d = 0): linear,
 # so its exact solution between input switches is a matrix exponential.
@@ -303,6 +305,45 @@ def test_a_non_finite_stage_stops_only_that_run() -> None:
         divergence_bound=1e300,
     )
     assert result.status_names == ["ok", "diverged"]
+
+
+def test_beyond_flags_non_finite_entries_and_entries_over_the_bound() -> None:
+    for values, bound, expected in [
+        ([0.0, -2.0], 2.0, False),
+        ([0.0, -2.5], 2.0, True),
+        ([np.nan, 0.0], 2.0, True),
+        ([0.0, np.inf], 2.0, True),
+        ([1e300, -1e300], np.inf, False),
+        ([0.0, -np.inf], np.inf, True),
+        ([np.nan], np.inf, True),
+    ]:
+        assert beyond(np.array(values), bound) is expected, (values, bound)
+
+
+def test_a_non_finite_force_stops_the_run_at_the_end_of_its_step() -> None:
+    @numba.njit
+    def breaks_at_one_second(t, q, qdot, params, M, N, G):
+        M[0, 0] = 1.0
+        N[0] = np.inf if t >= 1.0005 else q[0]
+        G[0, 0] = 1.0
+
+    plant = CompiledPlant(1, 1, breaks_at_one_second, [0.0])
+    controller = OuterLoop(LinearPlant(mass=1.0), K1=1.0, K2=2.0)
+    result = simulate(
+        plant,
+        controller,
+        ConstantDelay(0.0),
+        [0.1, 0.0],
+        reference=SinusoidalReference([0.0]),
+        t1=2.0,
+        dt=1e-3,
+        T_c=0.01,
+        divergence_bound=1e300,
+    )
+    assert result.status_names == ["diverged"]
+    # The middle stages of the step [1, 1.001] see t = 1.0005; the run stops at its end, not at
+    # the next controller tick.
+    assert result.t_stop[0] == pytest.approx(1.001)
 
 
 def test_a_batch_of_python_plants_runs_each_with_its_own_functions() -> None:

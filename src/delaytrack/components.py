@@ -8,6 +8,7 @@ component's :class:`Kernel` and calls it through one of the functions below:
 :func:`call_terms`               plant or nominal model: ``terms(t, q, qdot, params, M, N, G)``
 :func:`call_command_map`         nominal model: actuator command realising a force ``τ``
 :func:`has_identity_mass`        plant: ``M(q) = I`` always (no solve for ``q̈``)
+:func:`plant_sizes`              plant: its ``n`` and ``m``, constants when compiled
 :func:`call_step`                controller: one tick (see :mod:`delaytrack.controllers.base`)
 :func:`call_reference`           reference: ``q_d, q̇_d, q̈_d`` at ``t``
 ===============================  ===========================================================
@@ -60,6 +61,7 @@ __all__ = [
     "code_fingerprint",
     "has_identity_mass",
     "is_compiled",
+    "plant_sizes",
     "solve_input_map",
 ]
 
@@ -239,17 +241,29 @@ class Kernel:
     identity_mass : bool
         For a plant whose terms kernel always fills ``M(q) = I`` (integrated as
         ``q̈ = G(q) u - N(q, q̇)`` without a solve).
+    sizes : (int, int), optional
+        For a plant: its numbers of coordinates ``n`` and inputs ``m``. The engine's loops
+        over them are then compiled for these sizes (unrolled), once per size.
     """
 
     function: Callable[..., Any]
     command_map: Callable[..., Any] | None = None
     identity_mass: bool = False
+    sizes: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
         for name in ("function", "command_map"):
             value = getattr(self, name)
             if not (callable(value) or (name == "command_map" and value is None)):
                 raise TypeError(f"{name} must be callable; got {type(value).__name__}")
+        if self.sizes is not None:
+            sizes = tuple(self.sizes)
+            if len(sizes) != 2 or not all(
+                isinstance(size, int | np.integer) and not isinstance(size, bool) and size >= 1
+                for size in sizes
+            ):
+                raise ValueError(f"sizes must be two integers n, m >= 1; got {self.sizes!r}")
+            object.__setattr__(self, "sizes", (int(sizes[0]), int(sizes[1])))
 
     @cached_property
     def key(self) -> str:
@@ -259,6 +273,8 @@ class Kernel:
             parts.append(f"command_map={_name_with_code(self.command_map)}")
         if self.identity_mass:
             parts.append("identity_mass")
+        if self.sizes is not None:
+            parts.append("sizes={}x{}".format(*self.sizes))
         return ",".join(parts)
 
     @property
@@ -279,13 +295,14 @@ class Kernel:
         function: Callable[..., Any],
         command_map: Callable[..., Any] | None = None,
         identity_mass: bool = False,
+        sizes: tuple[int, int] | None = None,
     ) -> Kernel:
         """The Kernel of these functions; for compiled ones made once (its key and numba type
         are then computed once, not at every call of a component's ``engine_kernel``). Python
         kernels are made anew, so that a cache never keeps a user's closures alive."""
         if is_compiled(function) and (command_map is None or is_compiled(command_map)):
-            return _kernel_of(cls, function, command_map, identity_mass)
-        return cls(function, command_map, identity_mass)
+            return _kernel_of(cls, function, command_map, identity_mass, sizes)
+        return cls(function, command_map, identity_mass, sizes)
 
     @cached_property
     def numba_type(self) -> KernelType:
@@ -301,13 +318,18 @@ class Kernel:
         """The same kernel run as plain Python (its ``py_func``; the helpers it calls and the
         command map stay compiled), for the plain-Python engine."""
         return Kernel(
-            getattr(self.function, "py_func", self.function), self.command_map, self.identity_mass
+            getattr(self.function, "py_func", self.function),
+            self.command_map,
+            self.identity_mass,
+            self.sizes,
         )
 
 
 @lru_cache(maxsize=4096)
-def _kernel_of(cls: type, function: Any, command_map: Any, identity_mass: bool) -> Kernel:
-    return cls(function, command_map, identity_mass)
+def _kernel_of(
+    cls: type, function: Any, command_map: Any, identity_mass: bool, sizes: Any
+) -> Kernel:
+    return cls(function, command_map, identity_mass, sizes)
 
 
 def _name_with_code(function: Callable[..., Any]) -> str:
@@ -376,6 +398,29 @@ def _has_identity_mass_compiled(terms):
 
         def impl(terms):
             return value
+
+        return impl
+    return None
+
+
+def plant_sizes(terms, q, u):
+    """``(n, m)`` of the plant :class:`Kernel` ``terms``: its :attr:`~Kernel.sizes` when it has
+    them (compile-time constants in compiled code), else the lengths of ``q`` and ``u``."""
+    if terms.sizes is not None:
+        return terms.sizes
+    return q.shape[0], u.shape[0]
+
+
+@overload(plant_sizes, inline="always")
+def _plant_sizes_compiled(terms, q, u):
+    if isinstance(terms, KernelType):
+        sizes = terms.kernel().sizes
+        if sizes is None:
+            return lambda terms, q, u: (q.shape[0], u.shape[0])
+        n, m = sizes
+
+        def impl(terms, q, u):
+            return n, m
 
         return impl
     return None

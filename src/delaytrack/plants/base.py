@@ -20,7 +20,7 @@ import numpy as np
 
 from delaytrack._jit import hot_inline_kernel, inline_kernel
 from delaytrack._small_linalg import solve_in_place
-from delaytrack.components import Kernel, call_terms, has_identity_mass
+from delaytrack.components import Kernel, call_terms, has_identity_mass, plant_sizes
 
 __all__ = ["ELPlant", "el_rhs", "rhs_scratch"]
 
@@ -43,16 +43,16 @@ def el_rhs(terms, t, q, qdot, u, params, qddot, scratch):
     """
     mass, nonlinear, input_map = scratch
     call_terms(terms, t, q, qdot, params, mass, nonlinear, input_map)
-    finite = True
-    for i in range(q.shape[0]):
+    n, m = plant_sizes(terms, q, u)
+    for i in range(n):
         force = -nonlinear[i]
-        for j in range(u.shape[0]):
+        for j in range(m):
             force += input_map[i, j] * u[j]
         qddot[i] = force
-        finite = finite and math.isfinite(force)
-    # A diverging state (or a singular M) is reported through q̈ (the simulator then stops the
-    # run with a status) instead of raising and ending the whole batch.
-    if not (finite and (has_identity_mass(terms) or solve_in_place(mass, qddot))):
+    # A singular M is reported through q̈ (the simulator then stops the run with a status)
+    # instead of raising and ending the whole batch; a non-finite force gives a non-finite q̈,
+    # and the state that the simulator checks after each step becomes non-finite with it.
+    if not (has_identity_mass(terms) or solve_in_place(mass, qddot)):
         qddot[:] = np.nan
 
 
@@ -114,7 +114,9 @@ class ELPlant(ABC):
     @property
     def engine_kernel(self) -> Kernel:
         """The :class:`~delaytrack.components.Kernel` the simulator calls for this plant."""
-        return Kernel.of(self.terms_kernel, self.command_map_kernel, self.identity_mass)
+        return Kernel.of(
+            self.terms_kernel, self.command_map_kernel, self.identity_mass, (self.n, self.m)
+        )
 
     @property
     def compiled(self) -> bool:

@@ -29,6 +29,7 @@ from delaytrack.delays._kernel import (
     next_breakpoint,
     piece_end_values,
 )
+from delaytrack.components import plant_sizes
 from delaytrack.plants.base import el_rhs, rhs_scratch
 from delaytrack.sim.history import latest_tick_index, tick_time
 
@@ -52,11 +53,12 @@ DELAY_BEYOND_HISTORY = 2
 LEFT_PATH = 3
 
 
-@inline_kernel
+@hot_inline_kernel
 def beyond(values, bound):
     """Whether any entry is non-finite or larger than ``bound`` in magnitude."""
     for value in values:
-        if not math.isfinite(value) or abs(value) > bound:
+        magnitude = abs(value)
+        if not (magnitude <= bound and magnitude < math.inf):  # NaN fails both
             return True
     return False
 
@@ -87,7 +89,7 @@ def _rk4_substep(plant_terms, plant_params, t, x, u, length, work):
     call of the (inlined) right-hand side.
     """
     slopes, stage, stage_q, stage_qdot, scratch, _ = work
-    n = stage_q.shape[0]
+    n, _ = plant_sizes(plant_terms, stage_q, u)
     half = 0.5 * length
     for s in range(4):
         if s == 0:

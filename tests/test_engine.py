@@ -11,6 +11,7 @@ from scipy.optimize import brentq
 from delaytrack.controllers import AROLC, OuterLoop
 from delaytrack.delays import (
     AbsSineDelay,
+    CompiledDelay,
     ConstantDelay,
     DelayProfile,
     PiecewiseConstantDelay,
@@ -48,6 +49,25 @@ def brute_force_index(t: float, delay: DelayProfile, tick_times: np.ndarray) -> 
     return int(issued[-1]) if issued.size else -1
 
 
+@numba.njit
+def smooth_rise_and_ripple(t, params):
+    """A delay kernel of a user's: a tanh rise plus a ripple, |dh/dt| < 1."""
+    return params[0] + params[1] * np.tanh((t - params[2]) / params[3]) + 0.01 * np.sin(7.0 * t)
+
+
+@numba.njit
+def drop_at(t, params):
+    """A delay kernel of a user's that jumps down (t - h(t) jumps forward) at ``params[2]``."""
+    return params[0] if t < params[2] else params[1]
+
+
+def own_delays() -> list[CompiledDelay]:
+    return [
+        CompiledDelay(smooth_rise_and_ripple, [0.035, 0.02, 0.4, 0.05], h_max=0.07, name="rise"),
+        CompiledDelay(drop_at, [0.061, 0.0137, 0.5031], h_max=0.07, name="drop"),
+    ]
+
+
 def fast_random_delay() -> RandomDelay:
     # max_rate 3 gives stretches with dh/dt < -1, where older commands come back.
     return RandomDelay(
@@ -80,8 +100,18 @@ def test_latest_tick_index_equals_a_scan_of_all_tick_times() -> None:
         AbsSineDelay(offset=0.01, amplitude=0.05, frequency=30.0),  # A·ω = 1.5: g non-monotone
         PiecewiseConstantDelay([0.0, 0.5, 0.9, 1.4], [0.03, 0.011, 0.07, 0.0]),
         fast_random_delay(),
+        *own_delays(),
     ],
-    ids=["constant", "constant-aligned", "S1", "fast-sine", "piecewise", "random-fast"],
+    ids=[
+        "constant",
+        "constant-aligned",
+        "S1",
+        "fast-sine",
+        "piecewise",
+        "random-fast",
+        "own-rise",
+        "own-drop",
+    ],
 )
 def test_applied_input_is_the_latest_command_issued_before_t_minus_h(delay: DelayProfile) -> None:
     dt, t_c = 5e-4, 2e-3
@@ -199,8 +229,17 @@ def exact_sampled_solution(
             0.0,
         ),
         (fast_random_delay(), 0.0),
+        *((delay, 0.0) for delay in own_delays()),
     ],
-    ids=["constant", "abs-sine", "abs-sine-nonmonotone-t0", "piecewise-jumps", "random-fast"],
+    ids=[
+        "constant",
+        "abs-sine",
+        "abs-sine-nonmonotone-t0",
+        "piecewise-jumps",
+        "random-fast",
+        "own-rise",
+        "own-drop",
+    ],
 )
 def test_engine_converges_to_the_exact_solution_at_fourth_order(
     delay: DelayProfile, t0: float

@@ -107,15 +107,16 @@ def test_readme_python_examples_run(tmp_path, monkeypatch, capsys):
 
 
 def test_readme_user_component_tables_are_the_shipped_examples():
-    _, block = _readme_blocks("toml")
-    shown = tomllib.loads(block)
-    example = Path(__file__).resolve().parents[1] / "examples" / "user_arm" / "arm_S1.toml"
-    shipped = tomllib.loads(example.read_text())
-    assert shown == {table: shipped[table] for table in shown}
+    _, *blocks = _readme_blocks("toml")
+    examples = Path(__file__).resolve().parents[1] / "examples" / "user_arm"
+    for block, name in zip(blocks, ["arm_S1.toml", "arm_congested.toml"], strict=True):
+        shown = tomllib.loads(block)
+        shipped = tomllib.loads((examples / name).read_text())
+        assert shown == {table: shipped[table] for table in shown}
 
 
 def test_readme_scenario_file_is_valid():
-    block, _ = _readme_blocks("toml")
+    block, *_ = _readme_blocks("toml")
     scenario = Scenario.from_dict(tomllib.loads(block))
     built = scenario.build()
     assert built.delay.h_max == pytest.approx(0.125)

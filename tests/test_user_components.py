@@ -1,4 +1,5 @@
-"""Components of your own in scenario and sweep files: plants, models, controllers, references.
+"""Components of your own in scenario and sweep files: plants, models, controllers, references,
+delay profiles.
 
 The shipped example ``examples/user_arm`` (a vertical two-link arm of its own, PD with gravity
 compensation as a controller of its own, a spline reference) runs through every command; the
@@ -12,6 +13,7 @@ import shutil
 import sys
 from pathlib import Path
 
+import numba
 import numpy as np
 import pandas as pd
 import pytest
@@ -21,6 +23,7 @@ import delaytrack as dt
 from delaytrack.cli import main
 from delaytrack.experiments import Scenario, ScenarioError
 from delaytrack.sweeps import SweepError, SweepSpec
+from delaytrack.sweeps.spec import engine_inputs
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "user_arm"
 
@@ -138,7 +141,15 @@ def test_sweep_parts_follow_the_controller_law_and_the_parameters(example):
     ]
     arm = example / "arm.py"
     arm.write_text(arm.read_text().replace("m1: float = 1.0", "m1: float = 1.1"))
-    assert not set(changed) & {unit.hash for unit in SweepSpec.from_toml(sweep).units()}
+    massive = [unit.hash for unit in SweepSpec.from_toml(sweep).units()]
+    assert not set(changed) & set(massive)
+    link = example / "congested_link.py"
+    link.write_text(link.read_text().replace("base + burst * 0.5 *", "base + burst * 0.4999 *"))
+    units = SweepSpec.from_toml(sweep).units()
+    assert [a == unit.hash for a, unit in zip(massive, units, strict=True)] == [
+        not any("make_congested_link" in str(run.scenario.delay["type"]) for run in unit.runs)
+        for unit in units
+    ]
 
 
 def test_a_users_file_neither_shadows_a_module_nor_misses_its_neighbours(example, tmp_path):
@@ -310,3 +321,69 @@ def test_results_carry_the_plants_coordinate_names(example):
         T_c=2e-3,
     )
     assert plain.coordinate_names is None and "ae_q1" in dt.metrics_table(plain).columns
+
+
+def test_a_delay_kernel_of_ones_own_runs_from_a_scenario_file(example):
+    scenario = Scenario.from_toml(example / "arm_congested.toml")
+    built = scenario.build()
+    assert isinstance(built.delay, dt.CompiledDelay)
+    assert built.delay.h_max == pytest.approx(0.12)
+    times = np.array([0.0, 0.5, 0.8, 1.1, 2.8, 3.2])
+    expected = [0.02, 0.02, 0.12, 0.02, 0.12, 0.02]
+    np.testing.assert_allclose(built.delay.h(times), expected, atol=1e-12)
+    data = scenario.to_dict()
+    data["duration"] = 1.5
+    result = Scenario.from_dict(data).run()
+    assert result.status_names == ["ok"]
+    np.testing.assert_array_equal(result.h[0], built.delay.h(result.t))
+    # The sweep unit of such a run follows the kernel's code.
+    assert ":congested_link_delay#" in engine_inputs(built)[0][-1]
+
+
+@numba.njit
+def _linear_delay(t, params):
+    return params[0] + params[1] * t if params[1] >= -0.5 else np.sqrt(params[0] - t)
+
+
+def _point_mass_run(delay, **changes):
+    settings = dict(reference=dt.SinusoidalReference([0.0]), t1=1.0, dt=1e-3, T_c=0.01, **changes)
+    plant = dt.LinearPlant(mass=1.0)
+    return dt.simulate(plant, dt.OuterLoop(plant, K1=1.0, K2=2.0), delay, [0.1, 0.0], **settings)
+
+
+@pytest.mark.parametrize(
+    ("params", "h_max", "message"),
+    [
+        ([0.05, -0.1], 0.1, r"gives h = -0.0001 s at t = 0.5\d* s; it must be a number from 0"),
+        ([0.05, 0.1], 0.1, r"gives h = 0.1001 s at t = 0.501 s"),
+        ([0.5, -1.0], 1.0, r"gives h = nan s at t = 0.501 s"),
+    ],
+)
+def test_a_delay_kernel_out_of_its_range_is_refused_before_running(params, h_max, message):
+    delay = dt.CompiledDelay(_linear_delay, params, h_max=h_max, name="ramp")
+    with pytest.raises(ValueError, match=message):
+        _point_mass_run(delay)
+
+
+def test_a_delay_kernel_must_be_compiled_and_one_per_batch():
+    with pytest.raises(TypeError, match="kernel must be a numba-compiled function"):
+        dt.CompiledDelay(lambda t, params: 0.01, h_max=0.01)
+    with pytest.raises(ValueError, match="h_max must be >= 0"):
+        dt.CompiledDelay(_linear_delay, [0.0, 0.0], h_max=-1.0)
+    other = numba.njit(lambda t, params: params[0])
+    first = dt.CompiledDelay(_linear_delay, [0.01, 0.0], h_max=0.01)
+    second = dt.CompiledDelay(other, [0.01], h_max=0.01)
+    with pytest.raises(ValueError, match=r"delay\[2\] has another kernel than delay\[0\]"):
+        _point_mass_run([first, dt.ConstantDelay(0.01), second])
+    # One kernel with built-in profiles: each run as alone, bit for bit.
+    both = _point_mass_run([first, dt.ConstantDelay(0.01)])
+    np.testing.assert_array_equal(both.x[0], _point_mass_run(first).x[0])
+    np.testing.assert_array_equal(both.x[1], _point_mass_run(dt.ConstantDelay(0.01)).x[0])
+
+
+def test_a_delay_kernel_runs_the_same_in_the_plain_python_engine():
+    delay = dt.CompiledDelay(_linear_delay, [0.012, 0.03], h_max=0.05)
+    compiled = _point_mass_run(delay)
+    python = _point_mass_run(delay, engine="python")
+    np.testing.assert_array_equal(python.x, compiled.x)
+    np.testing.assert_array_equal(python.applied, compiled.applied)

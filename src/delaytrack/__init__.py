@@ -37,6 +37,7 @@ from delaytrack.analysis import (
 from delaytrack.controllers import AROLC, Controller, OuterLoop, controller_from_spec
 from delaytrack.delays import (
     AbsSineDelay,
+    CompiledDelay,
     ConstantDelay,
     DelayProfile,
     PiecewiseConstantDelay,
@@ -74,6 +75,7 @@ from delaytrack.sim import SimResult, simulate
 __all__ = [
     "AROLC",
     "AbsSineDelay",
+    "CompiledDelay",
     "CallablePlant",
     "CompiledPlant",
     "ConstantDelay",

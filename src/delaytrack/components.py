@@ -11,6 +11,7 @@ component's :class:`Kernel` and calls it through one of the functions below:
 :func:`plant_sizes`              plant: its ``n`` and ``m``, constants when compiled
 :func:`call_step`                controller: one tick (see :mod:`delaytrack.controllers.base`)
 :func:`call_reference`           reference: ``q_d, q̇_d, q̈_d`` at ``t``
+:func:`call_delay`               delay profile of your own: ``h(t)``
 ===============================  ===========================================================
 
 The built-in components use this protocol exactly as a user's do; adding one is one file with
@@ -55,6 +56,7 @@ __all__ = [
     "Kernel",
     "KernelType",
     "call_command_map",
+    "call_delay",
     "call_reference",
     "call_step",
     "call_terms",
@@ -506,6 +508,23 @@ def _call_reference_compiled(reference, t, params, qd, qd_dot, qd_ddot):
 
         def impl(reference, t, params, qd, qd_dot, qd_ddot):
             function(t, params, qd, qd_dot, qd_ddot)
+
+        return impl
+    return None
+
+
+def call_delay(delay, t, params):
+    """Evaluate the delay-profile :class:`Kernel` ``delay``: ``h(t)`` in seconds."""
+    return delay(t, params)
+
+
+@overload(call_delay, inline="always")
+def _call_delay_compiled(delay, t, params):
+    if isinstance(delay, KernelType):
+        function = delay.kernel().function
+
+        def impl(delay, t, params):
+            return float(function(t, params))
 
         return impl
     return None

@@ -1,4 +1,5 @@
-"""Input-delay profiles ``h(t)``: constant, rectified sine, piecewise constant, trace, random.
+"""Input-delay profiles ``h(t)``: constant, rectified sine, piecewise constant, trace, random,
+and a compiled kernel of your own.
 
 Each profile knows its bound ``h_max``; :func:`delay_from_spec` builds one from plain data (a
 scenario file's ``[delay]`` table).
@@ -12,6 +13,7 @@ from typing import Any
 from delaytrack._spec import TypeSpec, build_from_table, integer, number, string, vector
 from delaytrack.delays.abs_sine import AbsSineDelay
 from delaytrack.delays.base import DelayProfile
+from delaytrack.delays.compiled_delay import CompiledDelay
 from delaytrack.delays.constant import ConstantDelay
 from delaytrack.delays.piecewise_constant import PiecewiseConstantDelay
 from delaytrack.delays.random_delay import RandomDelay
@@ -19,6 +21,7 @@ from delaytrack.delays.trace import TraceDelay
 
 __all__ = [
     "AbsSineDelay",
+    "CompiledDelay",
     "ConstantDelay",
     "DelayProfile",
     "PiecewiseConstantDelay",

@@ -10,9 +10,13 @@ kind                      params
                           ``h(t) = offset + amplitude |sin(omega t + phase)|``
 ``PIECEWISE_CONSTANT``    ``[m, t_0 .. t_{m-1}, h_0 .. h_{m-1}]``, ``h = h_i`` on ``[t_i, t_{i+1})``
 ``PIECEWISE_LINEAR``      ``[m, t_0 .. t_{m-1}, h_0 .. h_{m-1}]``, linear between knots
+``KERNEL``                a kernel of your own: ``h(t) = kernel(t, params)``
+                          (:class:`~delaytrack.delays.CompiledDelay`)
 ========================  ===========================================================
 
 Both piecewise kinds hold their first value before ``t_0`` and their last after ``t_{m-1}``.
+The engine reaches every kind through the ``profile_*`` functions, which take the batch's
+delay :class:`~delaytrack.components.Kernel` (:func:`no_kernel` when no run has one).
 
 The simulator integrates across the instants where ``g(t) = t - h(t)`` crosses a controller tick.
 To find them it needs pieces on which ``g`` is continuous and monotone: :func:`next_breakpoint`
@@ -27,11 +31,13 @@ import math
 import numpy as np
 
 from delaytrack._jit import inline_kernel, kernel
+from delaytrack.components import Kernel, call_delay
 
 CONSTANT = 0
 ABS_SINE = 1
 PIECEWISE_CONSTANT = 2
 PIECEWISE_LINEAR = 3
+KERNEL = 4
 
 _NEWTON_ITERATIONS = 60
 
@@ -79,7 +85,7 @@ def next_breakpoint(kind, params, t):
     Returns ``inf`` when there is none. Between two consecutive breakpoints ``t - h(t)`` is
     continuous and monotone.
     """
-    if kind == CONSTANT:
+    if kind == CONSTANT or kind == KERNEL:
         return np.inf
     if kind == ABS_SINE:
         amplitude = params[1]
@@ -182,3 +188,92 @@ def delay_values(kind, params, times):
     for i in range(times.shape[0]):
         out[i] = delay_value(kind, params, times[i])
     return out
+
+
+# ---- every kind, a kernel of the user's included (the engine's calls) ------------------------
+
+
+@kernel
+def no_kernel(t, params):
+    """The delay kernel of a batch without a :data:`KERNEL` profile (never called)."""
+    return math.nan
+
+
+#: The :class:`~delaytrack.components.Kernel` of :func:`no_kernel`.
+NO_KERNEL = Kernel.of(no_kernel)
+
+
+@inline_kernel
+def profile_value(delay, kind, params, t):
+    """``h(t)`` of a profile of any kind; ``delay`` is the batch's delay kernel."""
+    if kind == KERNEL:
+        return call_delay(delay, t, params)
+    return delay_value(kind, params, t)
+
+
+@inline_kernel
+def profile_end_values(delay, kind, params, a, b):
+    """:func:`piece_end_values` of a profile of any kind."""
+    if kind == KERNEL:
+        return call_delay(delay, a, params), call_delay(delay, b, params)
+    return piece_end_values(kind, params, a, b)
+
+
+@inline_kernel
+def profile_crossing_time(delay, kind, params, a, b, g_a, g_b, target):
+    """:func:`crossing_time` of a profile of any kind.
+
+    A kernel of the user's is solved by regula falsi with the Illinois modification (the kept
+    end's value halved when the same end is kept twice), inside the bracket ``[a, b]`` whose
+    ends straddle ``target``, until the bracket is a few units of round-off wide.
+    """
+    if kind != KERNEL:
+        return crossing_time(kind, params, a, b, g_a, g_b, target)
+    lo = a
+    hi = b
+    f_lo = g_a - target
+    f_hi = g_b - target
+    if f_lo == 0.0:
+        return a
+    kept = 0
+    for _ in range(2 * _NEWTON_ITERATIONS):
+        if hi - lo <= 4.0 * np.finfo(np.float64).eps * max(1.0, abs(lo)):
+            break
+        root = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+        if not lo < root < hi:
+            root = 0.5 * (lo + hi)
+        residual = root - call_delay(delay, root, params) - target
+        if residual == 0.0:
+            return root
+        if (residual < 0.0) == (f_lo < 0.0):
+            lo, f_lo = root, residual
+            if kept == -1:
+                f_hi *= 0.5
+            kept = -1
+        else:
+            hi, f_hi = root, residual
+            if kept == 1:
+                f_lo *= 0.5
+            kept = 1
+    return 0.5 * (lo + hi)
+
+
+@kernel
+def kernel_delay_values(delay, params, times):
+    """``h`` of a delay kernel of the user's at each of ``times`` (1-D)."""
+    out = np.empty(times.shape[0])
+    for i in range(times.shape[0]):
+        out[i] = call_delay(delay, times[i], params)
+    return out
+
+
+@kernel
+def first_invalid_step_end(delay, params, t0, dt, steps, h_max):
+    """Index ``j`` of the first step end ``t0 + j dt`` (``j = 0 .. steps``) where a delay kernel
+    of the user's gives an ``h`` that is not a number in ``[0, h_max]``, and that ``h``;
+    ``(-1, 0.0)`` when there is none."""
+    for j in range(steps + 1):
+        h = call_delay(delay, t0 + j * dt, params)
+        if not (0.0 <= h <= h_max):
+            return j, h
+    return -1, 0.0

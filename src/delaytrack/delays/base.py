@@ -9,6 +9,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 import delaytrack.delays._kernel as _kernel
+from delaytrack.components import Kernel
 
 __all__ = ["DelayProfile"]
 
@@ -35,6 +36,12 @@ class DelayProfile(ABC):
         """Compiled parameter vector, float64, 1-D."""
 
     @property
+    def engine_kernel(self) -> Kernel:
+        """The delay :class:`~delaytrack.components.Kernel` the simulator calls for this
+        profile: none for the built-in kinds (:data:`~delaytrack.delays._kernel.NO_KERNEL`)."""
+        return _kernel.NO_KERNEL
+
+    @property
     @abstractmethod
     def h_max(self) -> float:
         """Upper bound of ``h(t)`` over all ``t`` (seconds)."""
@@ -48,6 +55,11 @@ class DelayProfile(ABC):
         horizon unless the profile was built with ``beyond = "hold"``.
         """
         return math.inf
+
+    def check_run(self, t0: float, dt: float, steps: int) -> None:  # noqa: B027 - a default
+        """Refuse a run of ``steps`` plant steps of ``dt`` from ``t0`` that this profile cannot
+        serve (a kernel of the user's out of ``[0, h_max]``); the built-in profiles are checked
+        when they are made."""
 
     def switch_bound(self, t0: float, t1: float, T_c: float) -> float:
         """Upper bound on the command switches in a run over ``[t0, t1]``

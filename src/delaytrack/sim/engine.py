@@ -19,7 +19,7 @@ from numba import njit
 from delaytrack._jit import KERNEL_OPTIONS, inline_kernel
 from delaytrack.components import call_reference, call_step
 from delaytrack.controllers.base import step_workspace
-from delaytrack.delays._kernel import delay_value
+from delaytrack.delays._kernel import profile_value
 from delaytrack.sim.history import tick_time
 from delaytrack.sim.integrator import (
     DELAY_BEYOND_HISTORY,
@@ -64,8 +64,9 @@ def run_closed_loop(handles, run, settings, records):
     Parameters (tuples, so that :func:`run_batch` can pass them on whole)
     ----------------------------------------------------------------------
     handles : tuple
-        ``(plant_terms, model_terms, reference, controller_step)``: the components'
-        :class:`~delaytrack.components.Kernel` objects.
+        ``(plant_terms, model_terms, reference, controller_step, delay)``: the components'
+        :class:`~delaytrack.components.Kernel` objects (``delay``: the batch's delay kernel,
+        for the runs whose profile is a kernel of the user's).
     run : tuple
         This run's arrays ``(plant_params, model_params, controller_params, controller_state,
         delay_kind, delay_params, x0, capacity)``; ``controller_state`` is advanced in place.
@@ -84,7 +85,7 @@ def run_closed_loop(handles, run, settings, records):
         state used at the tick).
         Rows after a stop are left as they were (the caller fills them with NaN).
     """
-    plant_terms, model_terms, reference, controller_step = handles
+    plant_terms, model_terms, reference, controller_step, delay = handles
     (
         plant_params,
         model_params,
@@ -126,7 +127,7 @@ def run_closed_loop(handles, run, settings, records):
         t_k = tick_time(k, t0, dt, steps_per_tick)
         record = record_every > 0 and k % record_every == 0
         row = k // record_every if record else 0
-        h_k = delay_value(delay_kind, delay_params, t_k)
+        h_k = profile_value(delay, delay_kind, delay_params, t_k)
         if record:
             states[row] = x
             controller_states[row] = controller_state[: controller_states.shape[1]]
@@ -169,6 +170,7 @@ def run_closed_loop(handles, run, settings, records):
         outcome, t_stop, slot = integrate_tick(
             plant_terms,
             plant_params,
+            delay,
             delay_kind,
             delay_params,
             x,

@@ -1,7 +1,8 @@
 """Say so before the engine is compiled for a new set of kernels (it takes seconds to a minute).
 
 numba compiles :func:`~delaytrack.sim.engine.run_batch_compiled` once for each set of kernels
-(plant, nominal model, controller, reference) and keeps it on disk; later calls load it in well
+(plant, nominal model, controller, reference, a delay kernel of the user's) and keeps it on
+disk; later calls load it in well
 under a second. :func:`engine_ready` tells which case a call is, so that the first one can be
 announced instead of looking like a hang.
 """
@@ -40,12 +41,15 @@ def engine_ready(dispatcher: Any, arguments: tuple, key: object) -> bool:
         return False
 
 
-def announce_compile(plant: Any, controller: Any, reference: Any) -> None:
-    """One line on standard error before a first compile."""
+def announce_compile(plant: Any, controller: Any, reference: Any, delay: Any = None) -> None:
+    """One line on standard error before a first compile (``delay``: a profile of the user's
+    kernel, when the batch has one)."""
+    own_delay = f" + {type(delay).__name__} {delay.name!r}" if delay is not None else ""
     print(
         f"delaytrack: compiling the engine for {type(plant).__name__} + "
         f"{type(controller).__name__} on {type(controller.model).__name__} + "
-        f"{type(reference).__name__} (once; from seconds to a minute, then kept on disk)",
+        f"{type(reference).__name__}{own_delay} (once; from seconds to a minute, then kept on "
+        "disk)",
         file=sys.stderr,
         flush=True,
     )

@@ -22,14 +22,14 @@ import math
 import numpy as np
 
 from delaytrack._jit import borrowing_kernel, hot_inline_kernel, inline_kernel
+from delaytrack.components import plant_sizes
 from delaytrack.delays._kernel import (
     PIECEWISE_CONSTANT,
-    crossing_time,
-    delay_value,
     next_breakpoint,
-    piece_end_values,
+    profile_crossing_time,
+    profile_end_values,
+    profile_value,
 )
-from delaytrack.components import plant_sizes
 from delaytrack.plants.base import el_rhs, rhs_scratch
 from delaytrack.sim.history import latest_tick_index, tick_time
 
@@ -121,7 +121,7 @@ def _history_slot(k, newest, capacity):
 
 
 @hot_inline_kernel
-def _piece(delay_kind, delay_params, a, t_end, profile):
+def _piece(delay, delay_kind, delay_params, a, t_end, profile):
     """The piece ``[a, b]`` of the profile that starts at ``a`` within a step ending ``t_end``,
     and ``g = t - h(t)`` at its ends: ``(b, g(a+), g(b-))``.
 
@@ -135,10 +135,10 @@ def _piece(delay_kind, delay_params, a, t_end, profile):
         profile[1] = next_breakpoint(delay_kind, delay_params, a)
     b = min(profile[1], t_end)
     if delay_kind == PIECEWISE_CONSTANT:
-        h_a, h_b = piece_end_values(delay_kind, delay_params, a, b)
+        h_a, h_b = profile_end_values(delay, delay_kind, delay_params, a, b)
     else:  # continuous: h(a+) = h(a), remembered when a ended the last piece
-        h_a = profile[3] if a == profile[2] else delay_value(delay_kind, delay_params, a)
-        h_b = delay_value(delay_kind, delay_params, b)
+        h_a = profile[3] if a == profile[2] else profile_value(delay, delay_kind, delay_params, a)
+        h_b = profile_value(delay, delay_kind, delay_params, b)
         profile[2] = b
         profile[3] = h_b
     return b, a - h_a, b - h_b
@@ -148,6 +148,7 @@ def _piece(delay_kind, delay_params, a, t_end, profile):
 def integrate_tick(
     plant_terms,
     plant_params,
+    delay,
     delay_kind,
     delay_params,
     x,
@@ -184,7 +185,7 @@ def integrate_tick(
         t_end = t0 + (k * steps_per_tick + j + 1) * dt
         a = t_start
         while a < t_end:
-            b, g_a, g_b = _piece(delay_kind, delay_params, a, t_end, profile)
+            b, g_a, g_b = _piece(delay, delay_kind, delay_params, a, t_end, profile)
             k_a = latest_tick_index(g_a, t0, dt, steps_per_tick)
             k_b = latest_tick_index(g_b, t0, dt, steps_per_tick)
             # Sub-intervals end at each tick crossed by g on this piece, in time order, then b.
@@ -196,7 +197,9 @@ def integrate_tick(
                 end = b
                 if i < crossings:
                     target = tick_time(first_tick + direction * i, t0, dt, steps_per_tick)
-                    end = crossing_time(delay_kind, delay_params, a, b, g_a, g_b, target)
+                    end = profile_crossing_time(
+                        delay, delay_kind, delay_params, a, b, g_a, g_b, target
+                    )
                     if end - start <= tolerance:
                         continue  # a sliver: integrated with the input after this crossing
                     if b - end <= tolerance:

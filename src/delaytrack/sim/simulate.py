@@ -19,6 +19,7 @@ from delaytrack._validation import (
     positive_scalar,
 )
 from delaytrack.controllers.base import Controller
+from delaytrack.delays._kernel import NO_KERNEL
 from delaytrack.delays.base import DelayProfile
 from delaytrack.plants.base import ELPlant
 from delaytrack.references import Reference
@@ -360,7 +361,16 @@ def simulate(
     for controller_b, delay_b in zip(controllers, delays, strict=True):
         controller_b.check_run(T_c, delay_b.h_max)
     _check_horizons(plants, delays, reference, t0, t1)
+    own_delays = [i for i, delay_b in enumerate(delays) if delay_b.engine_kernel != NO_KERNEL]
+    delay_kernel = delays[own_delays[0]].engine_kernel if own_delays else NO_KERNEL
+    for i in own_delays:
+        if delays[i].engine_kernel != delay_kernel:
+            raise ValueError(
+                f"delay[{i}] has another kernel than delay[{own_delays[0]}]; a batch runs one "
+                "delay kernel of yours (split it into one simulate call per kernel)"
+            )
     for i, delay_b in enumerate(delays):
+        delay_b.check_run(t0, dt, n_ticks * steps_per_tick + 1)
         switches = delay_b.switch_bound(t0, t1, T_c)
         if not switches <= MAX_STEPS:
             raise ValueError(
@@ -444,6 +454,7 @@ def simulate(
             controller_b.model.engine_kernel,
             reference.engine_kernel,
             controller_b.engine_kernel,
+            delay_kernel,
         )
         return kernels if compiled else tuple(kernel.as_python() for kernel in kernels)
 
@@ -498,7 +509,12 @@ def simulate(
     chunks = np.array_split(np.arange(batch), pieces)
     kernel_keys = tuple(kernel.key for kernel in handles(0)) if compiled else None
     if compiled and not engine_ready(runner, chunk_arguments(chunks[0]), kernel_keys):
-        announce_compile(first_plant, first_controller, reference)
+        announce_compile(
+            first_plant,
+            first_controller,
+            reference,
+            delays[own_delays[0]] if own_delays else None,
+        )
     try:
         with tqdm(total=batch, desc="simulate", unit="run", disable=not progress) as bar:
             if compiled and workers > 1 and len(chunks) > 1:

@@ -131,7 +131,7 @@ def _resolve_swept_files(source: Path, key: str, values: object) -> None:
 
 def engine_inputs(built: BuiltScenario) -> tuple[tuple[str, ...], str]:
     """What the compiled engine receives for a run: the keys of its plant's, model's,
-    controller's and reference's kernels (a user's kernels with a hash of their code) and a
+    controller's, reference's and delay's kernels (a user's with a hash of their code) and a
     sha256 of every parameter vector, the delay profile and ``x0``.
 
     A unit hash covers these rather than the Python code that made them, so that an edit of a
@@ -141,7 +141,7 @@ def engine_inputs(built: BuiltScenario) -> tuple[tuple[str, ...], str]:
     controller = built.controller
     kernels = tuple(
         component.engine_kernel.key
-        for component in (built.plant, controller.model, controller, built.reference)
+        for component in (built.plant, controller.model, controller, built.reference, built.delay)
     )
     digest = hashlib.sha256()
     for array in (

@@ -396,9 +396,10 @@ def test_plant_from_spec_builds_and_refuses():
     np.testing.assert_array_equal(plant_from_spec(linear.to_spec()).params, linear.params)
     with pytest.raises(
         ValueError,
-        match=r"'plant\.type' must be one of \['linear', 'two-link-arm', 'wheeled-robot', "
-        r"'wheeled-robot-nominal', 'wheeled-robot-payload', 'wheeled-robot-printed'\] "
-        r"or a factory of yours, 'python:<module>:<function>'; got 'scara'",
+        match=r"'plant\.type' must be one of \['linear', 'mujoco', 'two-link-arm', "
+        r"'wheeled-robot', 'wheeled-robot-nominal', 'wheeled-robot-payload', "
+        r"'wheeled-robot-printed'\] or a factory of yours, 'python:<module>:<function>'; "
+        r"got 'scara'",
     ):
         plant_from_spec({"type": "scara"})
     with pytest.raises(ValueError, match=r"'plant\.type' is missing"):

@@ -173,7 +173,7 @@ def test_missing_and_unknown_type():
     data["plant"]["type"] = "three-link-arm"
     refused(
         data,
-        r"scenario key 'plant\.type' must be one of \['linear', 'two-link-arm', "
+        r"scenario key 'plant\.type' must be one of \['linear', 'mujoco', 'two-link-arm', "
         r"'wheeled-robot', 'wheeled-robot-nominal', 'wheeled-robot-payload', "
         r"'wheeled-robot-printed'\] or a factory of yours, 'python:<module>:<function>'; "
         r"got 'three-link-arm'",

@@ -66,6 +66,7 @@ from delaytrack.plants import (
     CompiledPlant,
     ELPlant,
     LinearPlant,
+    MujocoPlant,
     TwoLinkArm,
     plant_from_spec,
 )
@@ -86,6 +87,7 @@ __all__ = [
     "ExactDelayMargin",
     "GainDesign",
     "LinearPlant",
+    "MujocoPlant",
     "OuterLoop",
     "PiecewiseConstantDelay",
     "RandomDelay",

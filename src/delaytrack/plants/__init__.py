@@ -10,6 +10,7 @@ from delaytrack.plants.base import ELPlant, el_rhs
 from delaytrack.plants.callable_plant import CallablePlant
 from delaytrack.plants.compiled_plant import CompiledPlant
 from delaytrack.plants.linear import LinearPlant
+from delaytrack.plants.mujoco import MujocoPlant
 from delaytrack.plants.robot import NominalRobot, PayloadRobot, PrintedRobotModel, WheeledRobot
 from delaytrack.plants.robot.body import BODY_KEYS
 from delaytrack.plants.two_link_arm import TwoLinkArm
@@ -20,6 +21,7 @@ __all__ = [
     "CompiledPlant",
     "ELPlant",
     "LinearPlant",
+    "MujocoPlant",
     "NominalRobot",
     "PayloadRobot",
     "PrintedRobotModel",
@@ -83,6 +85,17 @@ PLANT_SPECS: dict[str, TypeSpec] = {
             "beyond": ("beyond", string),
         },
         alternatives=(("seed", "duration"), ("placements",)),
+    ),
+    MujocoPlant.type_name: TypeSpec(
+        MujocoPlant,
+        {
+            **{
+                key: (key, number if key == "mass_scale" else string)
+                for key in ("path", "mass_scale", "actuator_limits", "constraints", "name")
+            },
+            "add_motors": ("add_motors", _boolean),
+        },
+        required=("path",),
     ),
     NominalRobot.type_name: TypeSpec(NominalRobot, {key: (key, number) for key in BODY_KEYS}),
     PrintedRobotModel.type_name: TypeSpec(

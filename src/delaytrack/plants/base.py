@@ -74,6 +74,9 @@ class ELPlant(ABC):
     #: True for a plant whose terms kernel always fills ``M(q) = I`` (a constrained robot
     #: integrated as ``q̈ = a + b τ``): the simulator then skips the solve for ``q̈``.
     identity_mass: ClassVar[bool] = False
+    #: False for a plant whose kernel writes memory of its own (a MuJoCo model's ``mjData``):
+    #: the simulator then runs a batch with it on one thread.
+    thread_safe: ClassVar[bool] = True
 
     @property
     @abstractmethod
@@ -88,6 +91,12 @@ class ELPlant(ABC):
     @abstractmethod
     def to_spec(self) -> dict[str, Any]:
         """Plain-data description (type name and parameters) for scenario files and reports."""
+
+    @property
+    def run_identity(self) -> np.ndarray:
+        """What the engine computes with, as numbers, for a sweep unit's hash: the parameter
+        vector, unless it holds numbers that change between processes (addresses)."""
+        return self.params
 
     @property
     def horizon(self) -> float:

@@ -393,6 +393,8 @@ def simulate(
         raise TypeError(f"trajectories must be True or False; got {trajectories!r}")
     metrics_from_tick = _metrics_from_tick(metrics_from, t0, t1, dt, steps_per_tick, n_ticks)
     workers = _workers(workers)
+    if not (first_plant.thread_safe and first_controller.model.thread_safe):
+        workers = 1  # the kernels write memory of their own (a MuJoCo model's mjData)
 
     # Every k-th tick with k beyond the run records tick 0 only, as k = n_ticks + 1 does (which
     # fits the kernel's 64-bit integers).

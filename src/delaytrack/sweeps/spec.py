@@ -145,8 +145,8 @@ def engine_inputs(built: BuiltScenario) -> tuple[tuple[str, ...], str]:
     )
     digest = hashlib.sha256()
     for array in (
-        built.plant.params,
-        controller.model.params,
+        built.plant.run_identity,
+        controller.model.run_identity,
         controller.params,
         controller.initial_state(),
         np.array([built.delay.kind], dtype=float),

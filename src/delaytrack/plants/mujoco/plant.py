@@ -1,0 +1,338 @@
+"""A robot from a MuJoCo model file (MJCF, or URDF read by MuJoCo's compiler) as an
+Euler–Lagrange plant or nominal model.
+
+MuJoCo computes, at any ``(q, q̇)``, the joint-space inertia ``M(q)`` (armature included), the
+bias forces ``qfrc_bias = C(q, q̇) q̇ + g(q)`` and the passive forces (joint springs and
+dampers), and maps actuator controls to joint forces. :class:`MujocoPlant` reads them into
+the form every plant of this toolkit has (the paper's eq. (1))::
+
+    M(q) q̈ + N(q, q̇) = G(q) u,   N = qfrc_bias - qfrc_passive,   G[:, j] = ∂qfrc_actuator/∂u_j
+
+so the same model file serves as the simulated robot and, perturbed (``mass_scale``), as the
+controller's nominal model, in every command. The compiled terms kernel calls MuJoCo's C
+functions (:mod:`~delaytrack.plants.mujoco.capi`): ``mj_fwdPosition`` and ``mj_fwdVelocity``
+for ``M``'s factors and the forces, ``mj_mulM`` for the columns of ``M``, and
+``mj_fwdActuation`` for the columns of ``G``.
+
+What this form leaves out is refused unless asked for: constraint forces (joint limits,
+friction loss, contacts) and the clamping of controls and forces to their ranges are not part
+of ``M q̈ + N = G u``. Contacts cannot be known from the file; a model whose bodies touch needs
+MuJoCo's own stepping, which this plant does not do.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from delaytrack._jit import kernel
+from delaytrack._validation import positive_scalar
+from delaytrack.plants.base import ELPlant
+from delaytrack.plants.mujoco.capi import array_at, call_void2, call_void4, function_address
+
+__all__ = ["MujocoPlant", "mujoco_terms"]
+
+#: Control used to read a column of ``G``: a power of two, so that dividing by it is exact.
+_PROBE = 2.0**-20
+#: Layout of the parameter vector (addresses as float64, exact below 2**53).
+_MODEL, _DATA, _QPOS, _QVEL, _CTRL, _BIAS, _PASSIVE, _ACTUATOR = range(8)
+_POSITION, _VELOCITY, _ACTUATION, _MUL_M, _VECTOR, _PRODUCT = range(8, 14)
+_PARAMS = 14
+
+_INSTALL = "MuJoCo is not installed: pip install -e '.[mujoco]' (from a clone of delaytrack)"
+
+
+def import_mujoco() -> Any:
+    """The ``mujoco`` package, or an ImportError that says how to install it."""
+    try:
+        return importlib.import_module("mujoco")
+    except ImportError:
+        raise ImportError(_INSTALL) from None
+
+
+@kernel
+def mujoco_terms(t, q, qdot, params, M, N, G):
+    """Terms kernel of :class:`MujocoPlant`: ``M``, ``N = qfrc_bias - qfrc_passive`` and
+    ``G[:, j] = qfrc_actuator(u = δ e_j) / δ`` (δ = 2⁻²⁰) of the model at ``(q, q̇)``."""
+    n = q.shape[0]
+    m = G.shape[1]
+    model = params[_MODEL]
+    data = params[_DATA]
+    qpos = array_at(params[_QPOS], n)
+    qvel = array_at(params[_QVEL], n)
+    ctrl = array_at(params[_CTRL], m)
+    bias = array_at(params[_BIAS], n)
+    passive = array_at(params[_PASSIVE], n)
+    actuator = array_at(params[_ACTUATOR], n)
+    vector = array_at(params[_VECTOR], n)
+    product = array_at(params[_PRODUCT], n)
+    for i in range(n):
+        qpos[i] = q[i]
+        qvel[i] = qdot[i]
+        vector[i] = 0.0
+    for j in range(m):
+        ctrl[j] = 0.0
+    call_void2(params[_POSITION], model, data)
+    call_void2(params[_VELOCITY], model, data)
+    for i in range(n):
+        N[i] = bias[i] - passive[i]
+    for j in range(n):  # column j of M: M e_j
+        vector[j] = 1.0
+        call_void4(params[_MUL_M], model, data, params[_PRODUCT], params[_VECTOR])
+        for i in range(n):
+            M[i, j] = product[i]
+        vector[j] = 0.0
+    for j in range(m):  # column j of G: the joint forces of control δ e_j, over δ
+        ctrl[j] = _PROBE
+        call_void2(params[_ACTUATION], model, data)
+        for i in range(n):
+            G[i, j] = actuator[i] / _PROBE
+        ctrl[j] = 0.0
+
+
+_JOINT_KINDS = {0: "free", 1: "ball", 2: "slide", 3: "hinge"}
+
+
+@dataclass(frozen=True, eq=False)
+class MujocoPlant(ELPlant):
+    """A robot from a MuJoCo model file: coordinates are its joints, inputs its actuators.
+
+    Parameters
+    ----------
+    path : str or Path
+        An MJCF (``.xml``) or URDF file that MuJoCo's compiler reads.
+    mass_scale : float
+        Factor (> 0) on every body's mass and inertia: ``0.8`` makes a nominal model 20 %
+        light, as a controller's model of the real robot would be.
+    actuator_limits : {"refuse", "ignore"}
+        A model whose actuators clamp their controls or forces (``ctrlrange``/``forcerange``
+        with limits on) is refused (``"refuse"``): the clamping is not part of
+        ``M q̈ + N = G u``. ``"ignore"`` uses it without the clamps (for a nominal model, or a
+        plant whose commands stay in range).
+    constraints : {"refuse", "ignore"}
+        The same for joint limits and joint friction loss, which MuJoCo applies as constraint
+        forces.
+    add_motors : bool
+        Put a motor (gear 1, named after its joint) on every joint that no actuator of the
+        file drives: a URDF file has no actuators.
+    name : str, optional
+        Shown in results and reports (the model's name by default).
+
+    Notes
+    -----
+    Only hinge and slide joints are coordinates (``nq = nv``): free and ball joints are
+    refused. A floating base, such as a wheeled robot's, is written with slide and hinge joints
+    (``x``, ``y``, heading) in the file. Actuators must be direct: no activation dynamics
+    (``dyntype`` none), a fixed gain and no state-dependent bias, so that their joint forces are
+    ``G(q) u`` (motors with any ``gear``).
+
+    The plant holds MuJoCo's ``mjData``, which every evaluation writes: a simulation with such a
+    plant or model runs its batch on one thread (``thread_safe`` is False).
+    """
+
+    path: str | Path
+    mass_scale: float = 1.0
+    actuator_limits: str = "refuse"
+    constraints: str = "refuse"
+    add_motors: bool = False
+    name: str | None = None
+    n: int = field(init=False)
+    m: int = field(init=False)
+    coordinate_names: tuple[str, ...] | None = field(init=False)
+    _model: Any = field(init=False, repr=False)
+    _data: Any = field(init=False, repr=False)
+    _scratch: np.ndarray = field(init=False, repr=False)
+    _params: np.ndarray = field(init=False, repr=False)
+    type_name: ClassVar[str] = "mujoco"
+    thread_safe: ClassVar[bool] = False
+
+    def __post_init__(self) -> None:
+        mujoco = import_mujoco()
+        path = Path(self.path)
+        object.__setattr__(self, "path", path)
+        if not path.is_file():
+            raise FileNotFoundError(f"path: no MuJoCo model file {str(path)!r}")
+        scale = positive_scalar("mass_scale", self.mass_scale)
+        object.__setattr__(self, "mass_scale", scale)
+        for key in ("actuator_limits", "constraints"):
+            if getattr(self, key) not in ("refuse", "ignore"):
+                raise ValueError(f"{key} must be 'refuse' or 'ignore'; got {getattr(self, key)!r}")
+        if not isinstance(self.add_motors, bool):
+            raise TypeError(f"add_motors must be true or false; got {self.add_motors!r}")
+        try:
+            model = _load(mujoco, path, self.add_motors)
+        except Exception as error:  # noqa: BLE001 - MuJoCo's own message names the problem
+            message = " ".join(str(error).split())
+            raise ValueError(f"path {str(path)!r}: MuJoCo could not read it: {message}") from None
+        self._check(mujoco, model, path)
+        model.body_mass[1:] *= scale
+        model.body_inertia[1:] *= scale
+        data = mujoco.MjData(model)
+        mujoco.mj_setConst(model, data)
+        names = tuple(
+            mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(model.njnt)
+        )
+        usable = all(name and name.isidentifier() for name in names) and len(set(names)) == len(
+            names
+        )
+        scratch = np.zeros((2, model.nv))
+        params = np.zeros(_PARAMS)
+        params[[_MODEL, _DATA]] = model._address, data._address
+        for index, array in (
+            (_QPOS, data.qpos),
+            (_QVEL, data.qvel),
+            (_CTRL, data.ctrl),
+            (_BIAS, data.qfrc_bias),
+            (_PASSIVE, data.qfrc_passive),
+            (_ACTUATOR, data.qfrc_actuator),
+            (_VECTOR, scratch[0]),
+            (_PRODUCT, scratch[1]),
+        ):
+            params[index] = array.ctypes.data
+        for index, function in (
+            (_POSITION, "mj_fwdPosition"),
+            (_VELOCITY, "mj_fwdVelocity"),
+            (_ACTUATION, "mj_fwdActuation"),
+            (_MUL_M, "mj_mulM"),
+        ):
+            params[index] = function_address(mujoco, function)
+        for key, value in (
+            ("n", int(model.nv)),
+            ("m", int(model.nu)),
+            ("coordinate_names", names if usable else None),
+            ("_model", model),
+            ("_data", data),
+            ("_scratch", scratch),
+            ("_params", params),
+            (
+                "name",
+                self.name
+                if self.name is not None
+                else (model.names.split(b"\0")[0].decode() or path.stem),
+            ),
+        ):
+            object.__setattr__(self, key, value)
+        mass, nonlinear, input_map = self.terms(np.zeros(self.n), np.zeros(self.n))
+        if not (
+            np.all(np.isfinite(mass))
+            and np.all(np.isfinite(nonlinear))
+            and np.all(np.isfinite(input_map))
+        ):
+            raise ValueError(f"path {str(path)!r}: the model gives non-finite terms at q = 0")
+
+    def _check(self, mujoco: Any, model: Any, path: Path) -> None:
+        """Refuse what ``M q̈ + N = G u`` cannot represent (class notes)."""
+        where = f"path {str(path)!r}"
+        joint = lambda j: mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"#{j}"  # noqa: E731
+        actuator = lambda j: mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, j) or f"#{j}"  # noqa: E731
+        for j, kind in enumerate(model.jnt_type):
+            if kind not in (2, 3):
+                raise ValueError(
+                    f"{where}: joint {joint(j)!r} is a {_JOINT_KINDS[int(kind)]} joint; only "
+                    "hinge and slide joints can be coordinates (write a floating base as slide "
+                    "and hinge joints: x, y, heading)"
+                )
+        if model.nv == 0:
+            raise ValueError(f"{where}: the model has no joints")
+        if model.nu == 0:
+            raise ValueError(
+                f"{where}: the model has no actuators (a URDF file has none); pass "
+                "add_motors=True to put a motor on every joint"
+            )
+        for j in range(model.nu):
+            direct = (
+                model.actuator_dyntype[j] == 0
+                and model.actuator_gaintype[j] == 0
+                and model.actuator_biastype[j] == 0
+            )
+            if not direct:
+                raise ValueError(
+                    f"{where}: actuator {actuator(j)!r} has activation dynamics, a variable gain "
+                    "or a bias (a position or velocity servo); only direct actuators (motors, "
+                    "any gear) map controls to joint forces as G(q) u"
+                )
+            limited = model.actuator_ctrllimited[j] or model.actuator_forcelimited[j]
+            if limited and self.actuator_limits == "refuse":
+                raise ValueError(
+                    f"{where}: actuator {actuator(j)!r} clamps its control or force "
+                    "(ctrlrange/forcerange), which M q̈ + N = G u does not; pass "
+                    "actuator_limits='ignore' to use the model without the clamps"
+                )
+        if self.constraints == "refuse":
+            for j in range(model.njnt):
+                if model.jnt_limited[j]:
+                    raise ValueError(
+                        f"{where}: joint {joint(j)!r} has limits, a constraint force that "
+                        "M q̈ + N = G u leaves out; pass constraints='ignore' to use the model "
+                        "without them"
+                    )
+            for dof in range(model.nv):
+                if model.dof_frictionloss[dof] > 0.0:
+                    raise ValueError(
+                        f"{where}: joint {joint(int(model.dof_jntid[dof]))!r} has friction loss, "
+                        "a constraint force that M q̈ + N = G u leaves out; pass "
+                        "constraints='ignore' to use the model without it"
+                    )
+
+    def __reduce__(self) -> tuple:
+        # Made again from its file when copied or sent to another process: the parameter
+        # vector holds addresses of this process's MuJoCo data.
+        arguments = (
+            self.path,
+            self.mass_scale,
+            self.actuator_limits,
+            self.constraints,
+            self.add_motors,
+            self.name,
+        )
+        return (type(self), arguments)
+
+    @property
+    def params(self) -> np.ndarray:
+        return self._params
+
+    @property
+    def terms_kernel(self):
+        return mujoco_terms
+
+    @property
+    def run_identity(self) -> np.ndarray:
+        """The compiled model (MuJoCo's binary ``.mjb`` of it, masses scaled), as numbers: what
+        a sweep unit's hash covers instead of the parameter vector's addresses."""
+        mujoco = import_mujoco()
+        buffer = np.zeros(mujoco.mj_sizeModel(self._model), dtype=np.uint8)
+        mujoco.mj_saveModel(self._model, None, buffer)
+        digest = hashlib.sha256(buffer.tobytes()).digest()
+        return np.frombuffer(digest, dtype=np.uint8).astype(float)
+
+    def to_spec(self) -> dict[str, Any]:
+        spec: dict[str, Any] = {"type": self.type_name, "path": str(self.path)}
+        if self.mass_scale != 1.0:
+            spec["mass_scale"] = self.mass_scale
+        for key in ("actuator_limits", "constraints"):
+            if getattr(self, key) != "refuse":
+                spec[key] = getattr(self, key)
+        if self.add_motors:
+            spec["add_motors"] = True
+        return spec
+
+
+def _load(mujoco: Any, path: Path, add_motors: bool) -> Any:
+    """MuJoCo's compiled model of the file, with a motor on every joint no actuator drives
+    when ``add_motors``."""
+    if not add_motors:
+        return mujoco.MjModel.from_xml_path(str(path))
+    spec = mujoco.MjSpec.from_file(str(path))
+    driven = {actuator.target for actuator in spec.actuators}
+    for joint in spec.joints:
+        if joint.name not in driven:
+            motor = spec.add_actuator()
+            motor.name = joint.name
+            motor.target = joint.name
+            motor.trntype = mujoco.mjtTrn.mjTRN_JOINT
+    return spec.compile()

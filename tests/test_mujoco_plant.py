@@ -1,0 +1,220 @@
+"""Robots from MuJoCo model files: the plant form checked against MuJoCo's own dynamics, in
+every command, and the model files it refuses."""
+
+from __future__ import annotations
+
+import copy
+import pickle
+import shutil
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pandas as pd
+import pytest
+
+import delaytrack as dt
+from delaytrack.cli import main
+from delaytrack.experiments import Scenario, ScenarioError
+from delaytrack.plants import MujocoPlant
+from delaytrack.sweeps import SweepSpec
+from delaytrack.sweeps.spec import engine_inputs
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "mujoco_arm"
+ARM = EXAMPLE / "arm3.xml"
+REFERENCE = dt.SinusoidalReference(
+    [0.0, 0.3, 0.0], amplitude=[[0.5], [0.3], [0.2]], frequency=[[1.0], [1.3], [0.7]]
+)
+
+
+def test_the_plant_form_gives_mujocos_own_accelerations():
+    plant = MujocoPlant(ARM)
+    assert (plant.n, plant.m, plant.coordinate_names) == (3, 3, ("shoulder", "elbow", "wrist"))
+    model = mujoco.MjModel.from_xml_path(str(ARM))
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        q, qdot, u = rng.normal(size=3), 3.0 * rng.normal(size=3), 5.0 * rng.normal(size=3)
+        mass, nonlinear, input_map = (array[0] for array in plant.terms(q, qdot))
+        data.qpos[:], data.qvel[:], data.ctrl[:] = q, qdot, u
+        mujoco.mj_forward(model, data)
+        qddot = np.linalg.solve(mass, input_map @ u - nonlinear)
+        np.testing.assert_allclose(qddot, data.qacc, rtol=1e-12, atol=1e-11)
+    np.testing.assert_allclose(np.diag(input_map), [10.0, 5.0, 2.0])  # the motors' gears
+
+
+def test_a_lighter_model_scales_masses_and_inertias():
+    full, light = MujocoPlant(ARM), MujocoPlant(ARM, mass_scale=0.8)
+    q, qdot = np.array([0.3, -0.2, 0.5]), np.zeros(3)
+    mass_full, gravity_full, _ = (array[0] for array in full.terms(q, qdot))
+    mass_light, gravity_light, _ = (array[0] for array in light.terms(q, qdot))
+    armature = 0.01 * np.eye(3)  # rotor inertia, not a body's
+    np.testing.assert_allclose(mass_light - armature, 0.8 * (mass_full - armature), rtol=1e-12)
+    np.testing.assert_allclose(gravity_light, 0.8 * gravity_full, rtol=1e-12)
+    assert not np.array_equal(full.run_identity, light.run_identity)
+    np.testing.assert_array_equal(full.run_identity, MujocoPlant(ARM).run_identity)
+
+
+def test_it_runs_compiled_as_plant_and_model_the_same_as_plain_python():
+    truth, model = MujocoPlant(ARM), MujocoPlant(ARM, mass_scale=0.8)
+    controller = dt.AROLC(model, K1=16.0, K2=8.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
+    x0 = [0.0, 0.3, 0.0, 0.5, 0.39, 0.14]
+    settings = dict(reference=REFERENCE, t1=0.5, dt=1e-3, T_c=2e-3)
+    compiled = dt.simulate(truth, controller, dt.AbsSineDelay.S1(), x0, **settings)
+    python = dt.simulate(truth, controller, dt.AbsSineDelay.S1(), x0, engine="python", **settings)
+    assert compiled.settings["compiled"] and compiled.status_names == ["ok"]
+    np.testing.assert_array_equal(python.x, compiled.x)
+    # A batch shares the plant's MuJoCo data: it runs on one thread, each run as alone.
+    delays = [dt.AbsSineDelay.S1(), dt.ConstantDelay(0.03)]
+    batch = dt.simulate(truth, controller, delays, x0, workers=2, **settings)
+    np.testing.assert_array_equal(batch.x[0], compiled.x[0])
+
+
+def test_a_copy_is_made_again_from_its_file():
+    plant = MujocoPlant(ARM, mass_scale=0.9)
+    for twin in (copy.deepcopy(plant), pickle.loads(pickle.dumps(plant))):
+        assert twin.params[0] != plant.params[0]  # its own MuJoCo model, not a dangling address
+        q = np.array([0.1, 0.2, 0.3])
+        np.testing.assert_array_equal(twin.terms(q, q)[1], plant.terms(q, q)[1])
+
+
+def test_scenario_simulate_and_sweep_take_a_model_file(tmp_path):
+    folder = tmp_path / "mujoco_arm"
+    shutil.copytree(EXAMPLE, folder)
+    scenario = Scenario.from_toml(folder / "arm3_S1.toml")
+    assert scenario.plant["path"] == str(folder / "arm3.xml")  # relative to the scenario file
+    data = scenario.to_dict()
+    data["duration"] = 1.0
+    (folder / "short.toml").write_text(Scenario.from_dict(data).to_toml())
+    out = tmp_path / "run"
+    assert main(["simulate", str(folder / "short.toml"), "--out", str(out)]) == 0
+    metrics = pd.read_csv(out / "metrics.csv")
+    assert {"ae_shoulder", "ae_elbow", "ae_wrist"} <= set(metrics.columns)
+    sweep = folder / "sweep_arm3.toml"
+    text = sweep.read_text().replace("draws = 4", "draws = 1")
+    sweep.write_text(text.replace('scenario = "arm3_S1.toml"', 'scenario = "short.toml"'))
+    assert main(["sweep", str(sweep), "--out", str(tmp_path / "sweep"), "--quiet"]) == 0
+    summary = pd.read_csv(tmp_path / "sweep" / "summary.csv")
+    assert set(summary["controller"]) == {"arolc", "outer-loop"} and (summary["runs"] > 0).all()
+    # Unit hashes cover the compiled model, not the addresses of this process.
+    built = Scenario.from_toml(folder / "short.toml").build()
+    assert engine_inputs(built) == engine_inputs(Scenario.from_toml(folder / "short.toml").build())
+    assert [u.hash for u in SweepSpec.from_toml(sweep).units()] == [
+        u.hash for u in SweepSpec.from_toml(sweep).units()
+    ]
+
+
+def _arm_with(tmp_path: Path, old: str, new: str) -> Path:
+    path = tmp_path / "arm.xml"
+    text = ARM.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new))
+    return path
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "options", "message"),
+    [
+        (
+            '<joint name="shoulder"/>',
+            '<joint name="shoulder" type="ball"/>',
+            {},
+            "'shoulder' is a ball joint",
+        ),
+        (
+            '<body name="upper" pos="0 0 1">',
+            '<body name="base" pos="0 0 2"><freejoint name="base"/>'
+            '<geom type="sphere" size="0.1" mass="1"/></body><body name="upper" pos="0 0 1">',
+            {},
+            "'base' is a free joint",
+        ),
+        (
+            '<motor joint="elbow" gear="5"/>',
+            '<position joint="elbow" kp="5"/>',
+            {},
+            "only direct actuators",
+        ),
+        ('gear="5"/>', 'gear="5" ctrlrange="-1 1"/>', {}, "pass actuator_limits='ignore'"),
+        ('<joint name="wrist"/>', '<joint name="wrist" range="-1 1"/>', {}, "'wrist' has limits"),
+        (
+            '<joint name="wrist"/>',
+            '<joint name="wrist" frictionloss="0.1"/>',
+            {},
+            "'wrist' has friction loss",
+        ),
+        ("<mujoco model", "<mujoco modle", {}, "MuJoCo could not read it"),
+    ],
+)
+def test_model_files_it_cannot_represent_are_refused_naming_what(
+    tmp_path, old, new, options, message
+):
+    with pytest.raises(ValueError, match=message):
+        MujocoPlant(_arm_with(tmp_path, old, new), **options)
+
+
+def test_limits_are_used_without_their_clamps_only_when_asked(tmp_path):
+    path = _arm_with(tmp_path, 'gear="5"/>', 'gear="5" ctrlrange="-1 1"/>')
+    plant = MujocoPlant(path, actuator_limits="ignore")
+    np.testing.assert_allclose(np.diag(plant.terms(np.zeros(3), np.zeros(3))[2][0]), [10, 5, 2])
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"path": "missing.xml"}, "no MuJoCo model file"),
+        ({"mass_scale": 0.0}, "model.mass_scale' must be > 0"),
+        ({"mass_scale": "heavy"}, "model.mass_scale"),
+        ({"constraints": "maybe"}, "model.constraints' must be 'refuse' or 'ignore'"),
+    ],
+)
+def test_bad_model_keys_name_the_key(tmp_path, changes, message):
+    shutil.copytree(EXAMPLE, tmp_path / "arm")
+    data = Scenario.from_toml(tmp_path / "arm" / "arm3_S1.toml").to_dict()
+    data["model"] = {**data["model"], **changes}
+    with pytest.raises(ScenarioError, match=message):
+        Scenario.from_dict(data).build()
+
+
+def test_without_mujoco_the_error_says_how_to_install_it(monkeypatch):
+    import importlib
+
+    real = importlib.import_module
+
+    def no_mujoco(name, *args):
+        if name == "mujoco":
+            raise ImportError("No module named 'mujoco'")
+        return real(name, *args)
+
+    monkeypatch.setattr(importlib, "import_module", no_mujoco)
+    with pytest.raises(ImportError, match=r"pip install -e '\.\[mujoco\]'"):
+        MujocoPlant(ARM)
+
+
+URDF = """<robot name="two">
+  <link name="base"/>
+  <link name="l1"><inertial><mass value="1.0"/>
+    <inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="l2"><inertial><origin xyz="0.2 0 0"/><mass value="0.5"/>
+    <inertia ixx="0.005" iyy="0.005" izz="0.005" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="10" velocity="5"/></joint>
+  <joint name="j2" type="continuous"><parent link="l1"/><child link="l2"/>
+    <origin xyz="0.4 0 0"/><axis xyz="0 0 1"/></joint>
+</robot>"""
+
+
+def test_a_urdf_file_gets_a_motor_on_every_joint_when_asked(tmp_path):
+    path = tmp_path / "two.urdf"
+    path.write_text(URDF)
+    with pytest.raises(ValueError, match="no actuators .* pass add_motors=True"):
+        MujocoPlant(path)
+    with pytest.raises(ValueError, match="joint 'j1' has limits"):
+        MujocoPlant(path, add_motors=True)
+    plant = MujocoPlant(path, add_motors=True, constraints="ignore")
+    assert (plant.n, plant.m, plant.coordinate_names) == (2, 2, ("j1", "j2"))
+    mass, nonlinear, input_map = (array[0] for array in plant.terms([0.3, 0.7], [1.0, -2.0]))
+    np.testing.assert_array_equal(input_map, np.eye(2))
+    # Two point-like links about parallel axes: M11 = I1 + I2 + m2 (l1² + c2² + 2 l1 c2 cos q2).
+    expected = 0.01 + 0.005 + 0.5 * (0.4**2 + 0.2**2 + 2 * 0.4 * 0.2 * np.cos(0.7))
+    assert mass[0, 0] == pytest.approx(expected, rel=1e-12)
+    assert dt.plant_from_spec(plant.to_spec()).to_spec() == plant.to_spec()

@@ -1,4 +1,4 @@
-"""Hand-written baselines of the paper's robot closed loop, for ``make bench`` (issue 4).
+"""Hand-written baselines of the paper's robot closed loop, for ``make bench``.
 
 ``benchmarks/run.py`` times :func:`numpy_loop` and :func:`solve_ivp_loop` against the compiled
 engine (:func:`delaytrack.sim.simulate`) on the same case, built once by :func:`robot_case`: the

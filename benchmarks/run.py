@@ -1,4 +1,4 @@
-"""Benchmarks of issue 4: ``make bench`` prints a table and writes benchmarks/results.json.
+"""The benchmarks: ``make bench`` prints a table and writes benchmarks/results.json.
 
 Cases (all on the paper's robot: PayloadRobot truth, AROLC with the paper's gains on the nominal
 model, ``dt`` = 1 ms, ``T_c`` = 10 ms; medians of several repetitions after one untimed call that
@@ -17,8 +17,8 @@ compiles or loads numba's disk cache):
     ``B`` runs, each with its own delay profile (|sin|, random-walk and constant families with
     drawn parameters) and payload placements, metrics only (``trajectories=False``), on all
     cores; each ``B`` in a fresh process, which reports its peak memory above its resting
-    size. ``B`` = 1 .. 10 000 at 10 s, the duration series at ``B`` = 100, and the issue's goal
-    case ``B`` = 1000 at 60 s.
+    size. ``B`` = 1 .. 10 000 at 10 s, the duration series at ``B`` = 100, and the goal case
+    ``B`` = 1000 at 60 s.
 ``startup``
     ``delaytrack simulate benchmarks/short_scenario.toml`` in a new process with numba's cache
     warm: time until ``metrics.csv`` exists (the first result) and until the command exits.
@@ -27,8 +27,13 @@ compiles or loads numba's disk cache):
 ``agreement``
     Largest differences between the compiled engine, the same batch on worker threads and the
     reference path (the engine run as plain Python, ``simulate(..., engine="python")``).
+``mujoco``
+    A 60 s run of the three-link arm of ``examples/mujoco_arm`` stepped by MuJoCo
+    (``MujocoPlant(stepping="mujoco")``, AROLC on the 20 % light model, S1, ``dt`` = 1 ms,
+    ``T_c`` = 10 ms), against MuJoCo stepping the same model alone for the same number of
+    steps from a compiled loop (:mod:`mujoco_floor`), and 100 such runs in one batch.
 ``sweep``
-    ``examples/sweep_robot.toml`` (issue 6: AROLC, PCON and the outer loop over 1000 random
+    ``examples/sweep_robot.toml`` (AROLC, PCON and the outer loop over 1000 random
     delay profiles and payload placements, 3000 runs of 60 s) through :func:`run_sweep` with the
     local executor and with a Dask local cluster of one worker process per core (its start-up
     included), against the bare engine in the same run: the same runs built beforehand and
@@ -176,6 +181,67 @@ def ceiling_case(duration: float, batch: int, repeats: int) -> list[dict]:
         np.max(np.abs(ae_engine - ae_hand) / np.abs(ae_engine))
     )
     return rows
+
+
+def mujoco_case(duration: float, batch: int, repeats: int) -> list[dict]:
+    """The MuJoCo-stepped arm against MuJoCo stepping it alone (module docstring)."""
+    from mujoco_floor import bare_steps
+
+    import delaytrack as dt
+    from delaytrack.plants import MujocoPlant
+
+    path = str(HERE.parent / "examples" / "mujoco_arm" / "arm3.xml")
+    truth = MujocoPlant(path, stepping="mujoco")
+    controller = dt.AROLC(
+        MujocoPlant(path, mass_scale=0.8),
+        K1=16.0,
+        K2=8.0,
+        Q=1.0,
+        alpha=2.0,
+        epsilon=0.1,
+        gamma=0.001,
+    )
+    reference = dt.SinusoidalReference(
+        [0.0, 0.3, 0.0], amplitude=[[0.5], [0.3], [0.2]], frequency=[[1.0], [1.3], [0.7]]
+    )
+    x0 = np.array([0.0, 0.3, 0.0, 0.5, 0.39, 0.14])
+    common = dict(reference=reference, t1=duration, dt=DT, T_c=T_C, trajectories=False)
+    count = steps(duration)
+    floor = median_seconds(lambda: bare_steps(path, count, x0[:3], x0[3:]), repeats)
+    single = median_seconds(
+        lambda: dt.simulate(truth, controller, dt.AbsSineDelay.S1(), x0, **common), repeats
+    )
+    delays = [dt.AbsSineDelay(0.02, 0.08, 1.0 + 0.01 * b) for b in range(batch)]
+    many = median_seconds(
+        lambda: dt.simulate(truth, controller, delays, x0, **common), max(1, repeats // 3)
+    )
+    baseline = "MuJoCo's mj_step alone, compiled loop (benchmarks/mujoco_floor.py)"
+    return [
+        {
+            "case": f"MuJoCo arm stepped by MuJoCo, one {duration:g} s run",
+            "median_s": single,
+            "steps_per_s": count / single,
+            "baseline": baseline,
+            "baseline_s": floor,
+            "ratio_to_baseline": floor / single,
+        },
+        {
+            "case": f"floor: mj_step alone, {count} steps",
+            "median_s": floor,
+            "steps_per_s": count / floor,
+            "baseline": baseline,
+            "baseline_s": floor,
+            "ratio_to_baseline": 1.0,
+        },
+        {
+            "case": f"MuJoCo arm, B={batch} runs of {duration:g} s (one thread: MuJoCo's data)",
+            "median_s": many,
+            "steps_per_s": count * batch / many,
+            "baseline": baseline,
+            "baseline_s": floor * batch,
+            "ratio_to_baseline": floor * batch / many,
+        },
+    ]
 
 
 # --- batches ---------------------------------------------------------------------------------
@@ -408,6 +474,7 @@ def main() -> None:
     cases: list[dict] = []
     cases += single_case(6.0 if quick else 60.0, 3 if quick else 9, 1 if quick else 3)
     cases += ceiling_case(6.0 if quick else 60.0, 100 if quick else 1000, 3 if quick else 9)
+    cases += mujoco_case(6.0 if quick else 60.0, 10 if quick else 100, 3 if quick else 9)
     sizes = (1, 10, 100) if quick else (1, 10, 100, 1000, 10000)
     for batch in sizes:
         cases.append(batch_case(batch, 1.0 if quick else 10.0, 3 if batch <= 1000 else 1))

@@ -218,3 +218,89 @@ def test_a_urdf_file_gets_a_motor_on_every_joint_when_asked(tmp_path):
     expected = 0.01 + 0.005 + 0.5 * (0.4**2 + 0.2**2 + 2 * 0.4 * 0.2 * np.cos(0.7))
     assert mass[0, 0] == pytest.approx(expected, rel=1e-12)
     assert dt.plant_from_spec(plant.to_spec()).to_spec() == plant.to_spec()
+
+
+# ---- stepped by MuJoCo ----------------------------------------------------------------------
+
+T_C, DT = 0.002, 0.001
+X0 = np.array([0.0, 0.3, 0.0, 0.5, 0.39, 0.14])
+
+
+def _native_delay_run(h: float, ticks: int, controller, exact_clock: bool) -> np.ndarray:
+    """The closed loop run by MuJoCo alone, the delay by its actuators' own ``delay``
+    (independent of this toolkit's delay); the states at the ticks."""
+    import re
+
+    nsample = round(h / DT) + 3
+    text = re.sub(r"(<motor [^/]*)/>", rf'\1 delay="{h!r}" nsample="{nsample}"/>', ARM.read_text())
+    model = mujoco.MjModel.from_xml_string(text)
+    assert model.actuator_delay[0] == h
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = X0[:3], X0[3:]
+    state = controller.initial_state()
+    steps = round(T_C / DT)
+    states = []
+    for k in range(ticks):
+        reference = tuple(array[0] for array in REFERENCE.evaluate(np.array([k * T_C])))
+        states.append(np.concatenate([data.qpos, data.qvel]))
+        command, state = controller.step(
+            k * T_C, data.qpos.copy(), data.qvel.copy(), reference, state, T_c=T_C
+        )
+        data.ctrl[:] = command
+        for j in range(steps):
+            if exact_clock:
+                data.time = (k * steps + j) * DT  # as this toolkit counts time
+            mujoco.mj_step(model, data)
+    return np.array(states)
+
+
+@pytest.mark.parametrize("h", [0.0, DT, 0.03, 0.0305])
+def test_the_delay_agrees_with_mujocos_own_actuator_delay(h):
+    model = MujocoPlant(ARM, mass_scale=0.8)
+    controller = dt.AROLC(model, K1=16.0, K2=8.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
+    ticks = 1000
+    ours = dt.simulate(
+        MujocoPlant(ARM, stepping="mujoco"),
+        controller,
+        dt.ConstantDelay(h),
+        X0,
+        reference=REFERENCE,
+        t1=ticks * T_C,
+        dt=DT,
+        T_c=T_C,
+    ).x[0, :ticks]
+    np.testing.assert_array_equal(ours, _native_delay_run(h, ticks, controller, True))
+    # MuJoCo's own clock adds dt at each step; a delay that is not a whole number of steps
+    # never meets a tie, so even that clock agrees bit for bit.
+    if round(h / DT) * DT != h:
+        np.testing.assert_array_equal(ours, _native_delay_run(h, ticks, controller, False))
+
+
+def test_stepped_by_mujoco_each_run_starts_afresh_and_dt_is_the_models():
+    truth = MujocoPlant(ARM, stepping="mujoco")
+    controller = dt.OuterLoop(MujocoPlant(ARM, mass_scale=0.8), K1=16.0, K2=8.0)
+    settings = dict(reference=REFERENCE, t1=0.4, dt=DT, T_c=T_C)
+    alone = dt.simulate(truth, controller, dt.AbsSineDelay.S1(), X0, **settings)
+    batch = dt.simulate(
+        truth, controller, [dt.ConstantDelay(0.05), dt.AbsSineDelay.S1()], X0, **settings
+    )
+    np.testing.assert_array_equal(batch.x[1], alone.x[0])
+    python = dt.simulate(truth, controller, dt.AbsSineDelay.S1(), X0, engine="python", **settings)
+    np.testing.assert_array_equal(python.x, alone.x)
+    with pytest.raises(ValueError, match=r"dt = 0.0005 s disagrees with the timestep 0.001 s"):
+        dt.simulate(truth, controller, dt.ConstantDelay(0.0), X0, **{**settings, "dt": 5e-4})
+    assert dt.plant_from_spec(truth.to_spec()).stepping == "mujoco"
+
+
+def test_stepped_by_mujoco_it_takes_what_the_plant_form_cannot(tmp_path):
+    path = _arm_with(tmp_path, '<joint name="wrist"/>', '<joint name="wrist" range="-0.1 0.1"/>')
+    with pytest.raises(ValueError, match="'wrist' has limits"):
+        MujocoPlant(path)
+    truth = MujocoPlant(path, stepping="mujoco")
+    controller = dt.OuterLoop(MujocoPlant(ARM), K1=16.0, K2=8.0)
+    result = dt.simulate(
+        truth, controller, dt.ConstantDelay(0.0), X0, reference=REFERENCE, t1=2.0, dt=DT, T_c=T_C
+    )
+    # The reference swings the wrist by ±0.2 rad; the joint limit holds it near ±0.1 rad.
+    wrist = result.x[0, :, 2]
+    assert np.max(np.abs(wrist)) < 0.115 and result.status_names == ["ok"]

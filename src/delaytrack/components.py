@@ -9,6 +9,8 @@ component's :class:`Kernel` and calls it through one of the functions below:
 :func:`call_command_map`         nominal model: actuator command realising a force ``τ``
 :func:`has_identity_mass`        plant: ``M(q) = I`` always (no solve for ``q̈``)
 :func:`plant_sizes`              plant: its ``n`` and ``m``, constants when compiled
+:func:`has_stepper`              plant: stepped by an integrator of its own
+:func:`call_stepper`             such a plant: one step ``stepper(t, x, u, dt, params, first)``
 :func:`call_step`                controller: one tick (see :mod:`delaytrack.controllers.base`)
 :func:`call_reference`           reference: ``q_d, q̇_d, q̈_d`` at ``t``
 :func:`call_delay`               delay profile of your own: ``h(t)``
@@ -59,9 +61,11 @@ __all__ = [
     "call_delay",
     "call_reference",
     "call_step",
+    "call_stepper",
     "call_terms",
     "code_fingerprint",
     "has_identity_mass",
+    "has_stepper",
     "is_compiled",
     "plant_sizes",
     "solve_input_map",
@@ -246,17 +250,24 @@ class Kernel:
     sizes : (int, int), optional
         For a plant: its numbers of coordinates ``n`` and inputs ``m``. The engine's loops
         over them are then compiled for these sizes (unrolled), once per size.
+    stepper : callable, optional
+        For a plant stepped by an integrator of its own (a MuJoCo model):
+        ``stepper(t, x, u, dt, params, first)`` advances the state ``x = [q, q̇]`` in place over
+        one step of ``dt`` from ``t`` with the input ``u`` held (``first``: the first step of a
+        run, where it resets any state of its own). The engine then calls it once per step
+        instead of its RK4 on the terms.
     """
 
     function: Callable[..., Any]
     command_map: Callable[..., Any] | None = None
     identity_mass: bool = False
     sizes: tuple[int, int] | None = None
+    stepper: Callable[..., Any] | None = None
 
     def __post_init__(self) -> None:
-        for name in ("function", "command_map"):
+        for name in ("function", "command_map", "stepper"):
             value = getattr(self, name)
-            if not (callable(value) or (name == "command_map" and value is None)):
+            if not (callable(value) or (name != "function" and value is None)):
                 raise TypeError(f"{name} must be callable; got {type(value).__name__}")
         if self.sizes is not None:
             sizes = tuple(self.sizes)
@@ -277,6 +288,8 @@ class Kernel:
             parts.append("identity_mass")
         if self.sizes is not None:
             parts.append("sizes={}x{}".format(*self.sizes))
+        if self.stepper is not None:
+            parts.append(f"stepper={_name_with_code(self.stepper)}")
         return ",".join(parts)
 
     @property
@@ -287,8 +300,8 @@ class Kernel:
     @property
     def compiled(self) -> bool:
         """Whether the kernel (and its command map) are numba-compiled."""
-        return is_compiled(self.function) and (
-            self.command_map is None or is_compiled(self.command_map)
+        return is_compiled(self.function) and all(
+            extra is None or is_compiled(extra) for extra in (self.command_map, self.stepper)
         )
 
     @classmethod
@@ -298,13 +311,15 @@ class Kernel:
         command_map: Callable[..., Any] | None = None,
         identity_mass: bool = False,
         sizes: tuple[int, int] | None = None,
+        stepper: Callable[..., Any] | None = None,
     ) -> Kernel:
         """The Kernel of these functions; for compiled ones made once (its key and numba type
         are then computed once, not at every call of a component's ``engine_kernel``). Python
         kernels are made anew, so that a cache never keeps a user's closures alive."""
-        if is_compiled(function) and (command_map is None or is_compiled(command_map)):
-            return _kernel_of(cls, function, command_map, identity_mass, sizes)
-        return cls(function, command_map, identity_mass, sizes)
+        kernel = cls(function, command_map, identity_mass, sizes, stepper)
+        if kernel.compiled:
+            return _kernel_of(cls, function, command_map, identity_mass, kernel.sizes, stepper)
+        return kernel
 
     @cached_property
     def numba_type(self) -> KernelType:
@@ -324,14 +339,15 @@ class Kernel:
             self.command_map,
             self.identity_mass,
             self.sizes,
+            getattr(self.stepper, "py_func", self.stepper),
         )
 
 
 @lru_cache(maxsize=4096)
 def _kernel_of(
-    cls: type, function: Any, command_map: Any, identity_mass: bool, sizes: Any
+    cls: type, function: Any, command_map: Any, identity_mass: bool, sizes: Any, stepper: Any
 ) -> Kernel:
-    return cls(function, command_map, identity_mass, sizes)
+    return cls(function, command_map, identity_mass, sizes, stepper)
 
 
 def _name_with_code(function: Callable[..., Any]) -> str:
@@ -400,6 +416,38 @@ def _has_identity_mass_compiled(terms):
 
         def impl(terms):
             return value
+
+        return impl
+    return None
+
+
+def has_stepper(terms):
+    """Whether the plant :class:`Kernel` ``terms`` is stepped by an integrator of its own."""
+    return terms.stepper is not None
+
+
+@overload(has_stepper, inline="always")
+def _has_stepper_compiled(terms):
+    if isinstance(terms, KernelType):
+        value = terms.kernel().stepper is not None
+        return lambda terms: value
+    return None
+
+
+def call_stepper(terms, t, x, u, dt, params, first):
+    """Advance ``x`` over one step with the plant's own integrator (:attr:`Kernel.stepper`)."""
+    terms.stepper(t, x, u, dt, params, first)
+
+
+@overload(call_stepper, inline="always")
+def _call_stepper_compiled(terms, t, x, u, dt, params, first):
+    if isinstance(terms, KernelType):
+        stepper = terms.kernel().stepper
+        if stepper is None:
+            return lambda terms, t, x, u, dt, params, first: None
+
+        def impl(terms, t, x, u, dt, params, first):
+            stepper(t, x, u, dt, params, first)
 
         return impl
     return None

@@ -91,7 +91,14 @@ PLANT_SPECS: dict[str, TypeSpec] = {
         {
             **{
                 key: (key, number if key == "mass_scale" else string)
-                for key in ("path", "mass_scale", "actuator_limits", "constraints", "name")
+                for key in (
+                    "path",
+                    "mass_scale",
+                    "actuator_limits",
+                    "constraints",
+                    "stepping",
+                    "name",
+                )
             },
             "add_motors": ("add_motors", _boolean),
         },

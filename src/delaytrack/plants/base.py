@@ -124,8 +124,23 @@ class ELPlant(ABC):
     def engine_kernel(self) -> Kernel:
         """The :class:`~delaytrack.components.Kernel` the simulator calls for this plant."""
         return Kernel.of(
-            self.terms_kernel, self.command_map_kernel, self.identity_mass, (self.n, self.m)
+            self.terms_kernel,
+            self.command_map_kernel,
+            self.identity_mass,
+            (self.n, self.m),
+            self.stepper_kernel,
         )
+
+    @property
+    def stepper_kernel(self) -> Callable[..., None] | None:
+        """For a plant stepped by an integrator of its own (a MuJoCo model stepped by MuJoCo):
+        ``stepper(t, x, u, dt, params, first)`` (:class:`~delaytrack.components.Kernel`);
+        None: the simulator integrates the terms with RK4."""
+        return None
+
+    def check_step(self, dt: float) -> None:  # noqa: B027 - a default
+        """Refuse a plant step ``dt`` this plant cannot take (its own integrator's fixed
+        step); every step is fine for the simulator's RK4."""
 
     @property
     def compiled(self) -> bool:

@@ -10,6 +10,13 @@ the input of a sub-step is the command of the crossing count, without evaluating
 Crossings closer than ``1e-9 dt`` to either end of a sub-step are not split off (the sliver is
 integrated with its neighbour's input).
 
+A plant stepped by an integrator of its own (a MuJoCo model, :attr:`Kernel.stepper
+<delaytrack.components.Kernel>`) takes whole steps instead: the command in force at a step's
+start, that of the latest tick ``<= t_start - h(t_start)`` (``+ 1e-9 dt``, so that a tick
+that ``t - h(t)`` reaches at the step's start up to rounding counts, as a sliver does in the
+split steps), is held over the step, as a zero-order hold sampled at ``dt``. A switch inside a
+step then takes effect at the next step.
+
 This is the innermost loop of every simulation: nothing here allocates (the working memory is
 :func:`rk4_workspace`, made once per run), and :func:`integrate_tick` is compiled without
 reference counting (:data:`delaytrack._jit.borrowing_kernel`).
@@ -22,7 +29,7 @@ import math
 import numpy as np
 
 from delaytrack._jit import borrowing_kernel, hot_inline_kernel, inline_kernel
-from delaytrack.components import plant_sizes
+from delaytrack.components import call_stepper, has_stepper, plant_sizes
 from delaytrack.delays._kernel import (
     PIECEWISE_CONSTANT,
     next_breakpoint,
@@ -184,6 +191,22 @@ def integrate_tick(
         t_start = t0 + (k * steps_per_tick + j) * dt
         t_end = t0 + (k * steps_per_tick + j + 1) * dt
         a = t_start
+        if has_stepper(plant_terms):
+            # The plant's own integrator takes whole steps: the command in force at the step's
+            # start is held over it; a switch within the sliver tolerance after the start
+            # counts as at the start, as in the split steps (module docstring).
+            _, g_a, _ = _piece(delay, delay_kind, delay_params, a, t_end, profile)
+            index = latest_tick_index(g_a + tolerance, t0, dt, steps_per_tick)
+            slot = _history_slot(index, k, capacity)
+            if slot == -2:
+                return DELAY_BEYOND_HISTORY, t_start, first_slot
+            if first_slot == -3:
+                first_slot = slot
+                if probe_only:
+                    return OK, t_start, first_slot
+            u = u_init if slot == -1 else history[slot]
+            call_stepper(plant_terms, t_start, x, u, dt, plant_params, k == 0 and j == 0)
+            a = t_end
         while a < t_end:
             b, g_a, g_b = _piece(delay, delay_kind, delay_params, a, t_end, profile)
             k_a = latest_tick_index(g_a, t0, dt, steps_per_tick)

@@ -358,6 +358,8 @@ def simulate(
         raise ValueError(
             f"x0 has {states0.shape[0]} rows but the batch has {batch}; give 1 or {batch}"
         )
+    for plant_b in plants:
+        plant_b.check_step(dt)
     for controller_b, delay_b in zip(controllers, delays, strict=True):
         controller_b.check_run(T_c, delay_b.h_max)
     _check_horizons(plants, delays, reference, t0, t1)

@@ -2,11 +2,13 @@
 
 A kernel receives the addresses of MuJoCo's ``mjModel``, ``mjData``, of the arrays inside
 ``mjData`` and of the C functions it calls as numbers in its parameter vector, reads and
-writes those arrays through :func:`array_at` and calls the functions through
-:func:`call_void2`. Nothing in the compiled code depends on where the library or the model
-were loaded in this process, so numba caches it on disk like any other kernel. An address
-(below 2**47 in a user process on x86-64 and AArch64 Linux) is exact in a float64. Both
-functions also run as plain Python (through :mod:`ctypes`), for the plain-Python engine.
+writes those arrays through :func:`read_at` and :func:`write_at` (no array object is made, so
+they also work in kernels compiled without numba's runtime) and calls the functions through
+:func:`call_void2` and :func:`call_void4`. Nothing in the compiled code depends on where the
+library or the model were loaded in this process, so numba caches it on disk like any other
+kernel. An address (below 2**47 in a user process on x86-64 and AArch64 Linux) is exact in a
+float64. All four functions also run as plain Python (through :mod:`ctypes`), for the
+plain-Python engine.
 """
 
 from __future__ import annotations
@@ -19,10 +21,10 @@ from typing import Any
 
 import numpy as np
 from llvmlite import ir
-from numba import carray, types
+from numba import types
 from numba.extending import intrinsic, overload
 
-__all__ = ["array_at", "call_void2", "call_void4", "function_address"]
+__all__ = ["call_void2", "call_void4", "function_address", "read_at", "write_at"]
 
 _VOID2 = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p)
 _VOID4 = ctypes.CFUNCTYPE(None, *[ctypes.c_void_p] * 4)
@@ -55,9 +57,14 @@ def call_void4(function, first, second, third, fourth):
     _VOID4(int(function))(int(first), int(second), int(third), int(fourth))
 
 
-def array_at(address, size):
-    """The ``size`` float64 numbers at ``address`` as a 1-D array (a view, no copy)."""
-    return np.ctypeslib.as_array((ctypes.c_double * int(size)).from_address(int(address)))
+def read_at(address, index):
+    """Entry ``index`` of the float64 numbers at ``address``."""
+    return ctypes.c_double.from_address(int(address) + 8 * int(index)).value
+
+
+def write_at(address, index, value):
+    """Set entry ``index`` of the float64 numbers at ``address`` to ``value``."""
+    ctypes.c_double.from_address(int(address) + 8 * int(index)).value = float(value)
 
 
 def _codegen(arity: int):
@@ -85,13 +92,22 @@ def _call_void4(typingctx, function, first, second, third, fourth):
 
 
 @intrinsic
-def _float_pointer(typingctx, address):
-    signature = types.CPointer(types.float64)(types.int64)
+def _read(typingctx, address, index):
+    def codegen(context, builder, signature, values):
+        pointer = builder.inttoptr(values[0], ir.DoubleType().as_pointer())
+        return builder.load(builder.gep(pointer, [values[1]]))
 
-    def codegen(context, builder, signature, arguments):
-        return builder.inttoptr(arguments[0], context.get_value_type(signature.return_type))
+    return types.float64(types.int64, types.int64), codegen
 
-    return signature, codegen
+
+@intrinsic
+def _write(typingctx, address, index, value):
+    def codegen(context, builder, signature, values):
+        pointer = builder.inttoptr(values[0], ir.DoubleType().as_pointer())
+        builder.store(values[2], builder.gep(pointer, [values[1]]))
+        return context.get_dummy_value()
+
+    return types.void(types.int64, types.int64, types.float64), codegen
 
 
 @overload(call_void2, inline="always")
@@ -112,9 +128,17 @@ def _call_void4_compiled(function, first, second, third, fourth):
     return impl
 
 
-@overload(array_at, inline="always")
-def _array_at_compiled(address, size):
-    def impl(address, size):
-        return carray(_float_pointer(np.int64(address)), (size,))
+@overload(read_at, inline="always")
+def _read_at_compiled(address, index):
+    def impl(address, index):
+        return _read(np.int64(address), np.int64(index))
+
+    return impl
+
+
+@overload(write_at, inline="always")
+def _write_at_compiled(address, index, value):
+    def impl(address, index, value):
+        _write(np.int64(address), np.int64(index), np.float64(value))
 
     return impl

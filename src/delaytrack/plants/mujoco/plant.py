@@ -33,7 +33,13 @@ import numpy as np
 from delaytrack._jit import kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
-from delaytrack.plants.mujoco.capi import array_at, call_void2, call_void4, function_address
+from delaytrack.plants.mujoco.capi import (
+    call_void2,
+    call_void4,
+    function_address,
+    read_at,
+    write_at,
+)
 
 __all__ = ["MujocoPlant", "mujoco_terms"]
 
@@ -41,8 +47,10 @@ __all__ = ["MujocoPlant", "mujoco_terms"]
 _PROBE = 2.0**-20
 #: Layout of the parameter vector (addresses as float64, exact below 2**53).
 _MODEL, _DATA, _QPOS, _QVEL, _CTRL, _BIAS, _PASSIVE, _ACTUATOR = range(8)
-_POSITION, _VELOCITY, _ACTUATION, _MUL_M, _VECTOR, _PRODUCT = range(8, 14)
-_PARAMS = 14
+_POSITION, _VELOCITY, _ACTUATION, _MUL_M, _VECTOR, _PRODUCT, _RESET, _STEP = range(8, 16)
+_PARAMS = 16
+#: How the simulated plant advances: this toolkit's RK4 on the terms, or MuJoCo's mj_step.
+STEPPINGS = ("rk4", "mujoco")
 
 _INSTALL = "MuJoCo is not installed: pip install -e '.[mujoco]' (from a clone of delaytrack)"
 
@@ -63,36 +71,50 @@ def mujoco_terms(t, q, qdot, params, M, N, G):
     m = G.shape[1]
     model = params[_MODEL]
     data = params[_DATA]
-    qpos = array_at(params[_QPOS], n)
-    qvel = array_at(params[_QVEL], n)
-    ctrl = array_at(params[_CTRL], m)
-    bias = array_at(params[_BIAS], n)
-    passive = array_at(params[_PASSIVE], n)
-    actuator = array_at(params[_ACTUATOR], n)
-    vector = array_at(params[_VECTOR], n)
-    product = array_at(params[_PRODUCT], n)
     for i in range(n):
-        qpos[i] = q[i]
-        qvel[i] = qdot[i]
-        vector[i] = 0.0
+        write_at(params[_QPOS], i, q[i])
+        write_at(params[_QVEL], i, qdot[i])
+        write_at(params[_VECTOR], i, 0.0)
     for j in range(m):
-        ctrl[j] = 0.0
+        write_at(params[_CTRL], j, 0.0)
     call_void2(params[_POSITION], model, data)
     call_void2(params[_VELOCITY], model, data)
     for i in range(n):
-        N[i] = bias[i] - passive[i]
+        N[i] = read_at(params[_BIAS], i) - read_at(params[_PASSIVE], i)
     for j in range(n):  # column j of M: M e_j
-        vector[j] = 1.0
+        write_at(params[_VECTOR], j, 1.0)
         call_void4(params[_MUL_M], model, data, params[_PRODUCT], params[_VECTOR])
         for i in range(n):
-            M[i, j] = product[i]
-        vector[j] = 0.0
+            M[i, j] = read_at(params[_PRODUCT], i)
+        write_at(params[_VECTOR], j, 0.0)
     for j in range(m):  # column j of G: the joint forces of control δ e_j, over δ
-        ctrl[j] = _PROBE
+        write_at(params[_CTRL], j, _PROBE)
         call_void2(params[_ACTUATION], model, data)
         for i in range(n):
-            G[i, j] = actuator[i] / _PROBE
-        ctrl[j] = 0.0
+            G[i, j] = read_at(params[_ACTUATOR], i) / _PROBE
+        write_at(params[_CTRL], j, 0.0)
+
+
+@kernel
+def mujoco_step(t, x, u, dt, params, first):
+    """One ``mj_step`` of the model from ``x = [q, q̇]`` with controls ``u`` held; ``x`` gets
+    the state after it. The first step of a run resets MuJoCo's data (``mj_resetData``), so that
+    a run does not depend on the one before it; MuJoCo's other state (activations, the
+    solver's warm start) carries over from step to step, as in MuJoCo's own loop."""
+    n = x.shape[0] // 2
+    model = params[_MODEL]
+    data = params[_DATA]
+    if first:
+        call_void2(params[_RESET], model, data)
+    for i in range(n):
+        write_at(params[_QPOS], i, x[i])
+        write_at(params[_QVEL], i, x[n + i])
+    for j in range(u.shape[0]):
+        write_at(params[_CTRL], j, u[j])
+    call_void2(params[_STEP], model, data)
+    for i in range(n):
+        x[i] = read_at(params[_QPOS], i)
+        x[n + i] = read_at(params[_QVEL], i)
 
 
 _JOINT_KINDS = {0: "free", 1: "ball", 2: "slide", 3: "hinge"}
@@ -120,6 +142,13 @@ class MujocoPlant(ELPlant):
     add_motors : bool
         Put a motor (gear 1, named after its joint) on every joint that no actuator of the
         file drives: a URDF file has no actuators.
+    stepping : {"rk4", "mujoco"}
+        As the simulated plant: ``"rk4"`` integrates ``M q̈ + N = G u`` with the simulator's
+        RK4, split where the delayed command switches; ``"mujoco"`` steps the model with
+        MuJoCo's ``mj_step`` and the integrator of its file (contacts, limits, friction loss
+        and every actuator type included), holding the command in force at each step's start.
+        The run's ``dt`` must then be the file's ``timestep``. As a nominal model the terms
+        are used either way.
     name : str, optional
         Shown in results and reports (the model's name by default).
 
@@ -131,6 +160,10 @@ class MujocoPlant(ELPlant):
     (``dyntype`` none), a fixed gain and no state-dependent bias, so that their joint forces are
     ``G(q) u`` (motors with any ``gear``).
 
+    With ``stepping="mujoco"`` none of the refusals about actuators, limits and friction loss
+    apply (MuJoCo steps them), and contacts act; MuJoCo's state beyond ``q, q̇`` (activations,
+    the solver's warm start) lives in its data, reset at the start of each run.
+
     The plant holds MuJoCo's ``mjData``, which every evaluation writes: a simulation with such a
     plant or model runs its batch on one thread (``thread_safe`` is False).
     """
@@ -140,6 +173,7 @@ class MujocoPlant(ELPlant):
     actuator_limits: str = "refuse"
     constraints: str = "refuse"
     add_motors: bool = False
+    stepping: str = "rk4"
     name: str | None = None
     n: int = field(init=False)
     m: int = field(init=False)
@@ -162,6 +196,8 @@ class MujocoPlant(ELPlant):
         for key in ("actuator_limits", "constraints"):
             if getattr(self, key) not in ("refuse", "ignore"):
                 raise ValueError(f"{key} must be 'refuse' or 'ignore'; got {getattr(self, key)!r}")
+        if self.stepping not in STEPPINGS:
+            raise ValueError(f"stepping must be one of {list(STEPPINGS)}; got {self.stepping!r}")
         if not isinstance(self.add_motors, bool):
             raise TypeError(f"add_motors must be true or false; got {self.add_motors!r}")
         try:
@@ -199,6 +235,8 @@ class MujocoPlant(ELPlant):
             (_VELOCITY, "mj_fwdVelocity"),
             (_ACTUATION, "mj_fwdActuation"),
             (_MUL_M, "mj_mulM"),
+            (_RESET, "mj_resetData"),
+            (_STEP, "mj_step"),
         ):
             params[index] = function_address(mujoco, function)
         for key, value in (
@@ -244,6 +282,8 @@ class MujocoPlant(ELPlant):
                 f"{where}: the model has no actuators (a URDF file has none); pass "
                 "add_motors=True to put a motor on every joint"
             )
+        if self.stepping == "mujoco":
+            return  # MuJoCo steps it: actuators, limits and contacts are its own
         for j in range(model.nu):
             direct = (
                 model.actuator_dyntype[j] == 0
@@ -288,6 +328,7 @@ class MujocoPlant(ELPlant):
             self.actuator_limits,
             self.constraints,
             self.add_motors,
+            self.stepping,
             self.name,
         )
         return (type(self), arguments)
@@ -299,6 +340,19 @@ class MujocoPlant(ELPlant):
     @property
     def terms_kernel(self):
         return mujoco_terms
+
+    @property
+    def stepper_kernel(self):
+        return mujoco_step if self.stepping == "mujoco" else None
+
+    def check_step(self, dt: float) -> None:
+        """Stepped by MuJoCo, the run's ``dt`` must be the model's ``timestep``."""
+        timestep = float(self._model.opt.timestep)
+        if self.stepping == "mujoco" and abs(dt - timestep) > 1e-12 * timestep:
+            raise ValueError(
+                f"dt = {dt:g} s disagrees with the timestep {timestep:g} s of {str(self.path)!r}, "
+                "which MuJoCo steps it with: set dt to it (or <option timestep> in the file)"
+            )
 
     @property
     def run_identity(self) -> np.ndarray:
@@ -319,6 +373,8 @@ class MujocoPlant(ELPlant):
                 spec[key] = getattr(self, key)
         if self.add_motors:
             spec["add_motors"] = True
+        if self.stepping != "rk4":
+            spec["stepping"] = self.stepping
         return spec
 
 

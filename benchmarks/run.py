@@ -31,7 +31,8 @@ compiles or loads numba's disk cache):
     A 60 s run of the three-link arm of ``examples/mujoco_arm`` stepped by MuJoCo
     (``MujocoPlant(stepping="mujoco")``, AROLC on the 20 % light model, S1, ``dt`` = 1 ms,
     ``T_c`` = 10 ms), against MuJoCo stepping the same model alone for the same number of
-    steps from a compiled loop (:mod:`mujoco_floor`), and 100 such runs in one batch.
+    steps from a compiled loop (:mod:`mujoco_floor`), and 100 such runs in one batch on all
+    cores (a copy of MuJoCo's data per thread), against the floor's time for as many steps.
 ``sweep``
     ``examples/sweep_robot.toml`` (AROLC, PCON and the outer loop over 1000 random
     delay profiles and payload placements, 3000 runs of 60 s) through :func:`run_sweep` with the
@@ -234,7 +235,7 @@ def mujoco_case(duration: float, batch: int, repeats: int) -> list[dict]:
             "ratio_to_baseline": 1.0,
         },
         {
-            "case": f"MuJoCo arm, B={batch} runs of {duration:g} s (one thread: MuJoCo's data)",
+            "case": f"MuJoCo arm, B={batch} runs of {duration:g} s, all cores",
             "median_s": many,
             "steps_per_s": count * batch / many,
             "baseline": baseline,

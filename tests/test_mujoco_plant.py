@@ -64,10 +64,14 @@ def test_it_runs_compiled_as_plant_and_model_the_same_as_plain_python():
     python = dt.simulate(truth, controller, dt.AbsSineDelay.S1(), x0, engine="python", **settings)
     assert compiled.settings["compiled"] and compiled.status_names == ["ok"]
     np.testing.assert_array_equal(python.x, compiled.x)
-    # A batch shares the plant's MuJoCo data: it runs on one thread, each run as alone.
+    # Two threads, each with its own copy of the plant's and the model's MuJoCo data: each run
+    # as alone.
     delays = [dt.AbsSineDelay.S1(), dt.ConstantDelay(0.03)]
     batch = dt.simulate(truth, controller, delays, x0, workers=2, **settings)
     np.testing.assert_array_equal(batch.x[0], compiled.x[0])
+    alone = dt.simulate(truth, controller, delays[1], x0, **settings)
+    np.testing.assert_array_equal(batch.x[1], alone.x[0])
+    assert truth.for_worker(1) is truth.for_worker(1) and truth.for_worker(1) is not truth
 
 
 def test_a_copy_is_made_again_from_its_file():
@@ -304,3 +308,22 @@ def test_stepped_by_mujoco_it_takes_what_the_plant_form_cannot(tmp_path):
     # The reference swings the wrist by ±0.2 rad; the joint limit holds it near ±0.1 rad.
     wrist = result.x[0, :, 2]
     assert np.max(np.abs(wrist)) < 0.115 and result.status_names == ["ok"]
+
+
+def test_the_urdf_example_runs_from_its_scenario_and_sweep(tmp_path):
+    folder = tmp_path / "mujoco_urdf"
+    shutil.copytree(EXAMPLE.parent / "mujoco_urdf", folder)
+    scenario = Scenario.from_toml(folder / "two_link_S2.toml")
+    built = scenario.build()
+    assert built.plant.coordinate_names == ("shoulder", "elbow") and built.plant.m == 2
+    data = scenario.to_dict()
+    data["duration"] = 1.0
+    data["reference"] = {**data["reference"], "times": [0.0, 0.5, 1.0]}
+    data["reference"]["values"] = data["reference"]["values"][:3]
+    (folder / "short.toml").write_text(Scenario.from_dict(data).to_toml())
+    sweep = folder / "sweep_two_link.toml"
+    text = sweep.read_text().replace("draws = 4", "draws = 1")
+    sweep.write_text(text.replace('scenario = "two_link_S2.toml"', 'scenario = "short.toml"'))
+    assert main(["sweep", str(sweep), "--out", str(tmp_path / "sweep"), "--quiet"]) == 0
+    summary = pd.read_csv(tmp_path / "sweep" / "summary.csv")
+    assert (summary["runs"] > 0).all() and (summary["diverged"] == 0).all()

@@ -75,7 +75,7 @@ class ELPlant(ABC):
     #: integrated as ``q̈ = a + b τ``): the simulator then skips the solve for ``q̈``.
     identity_mass: ClassVar[bool] = False
     #: False for a plant whose kernel writes memory of its own (a MuJoCo model's ``mjData``):
-    #: the simulator then runs a batch with it on one thread.
+    #: the simulator then gives each thread of a batch its own copy (:meth:`for_worker`).
     thread_safe: ClassVar[bool] = True
 
     @property
@@ -91,6 +91,11 @@ class ELPlant(ABC):
     @abstractmethod
     def to_spec(self) -> dict[str, Any]:
         """Plain-data description (type name and parameters) for scenario files and reports."""
+
+    def for_worker(self, index: int) -> ELPlant:
+        """The plant whose kernel the batch's chunk ``index`` (> 0) runs: the plant itself
+        unless it writes memory of its own (:attr:`thread_safe`), then a copy of its own."""
+        return self
 
     @property
     def run_identity(self) -> np.ndarray:

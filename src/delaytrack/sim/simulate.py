@@ -395,8 +395,8 @@ def simulate(
         raise TypeError(f"trajectories must be True or False; got {trajectories!r}")
     metrics_from_tick = _metrics_from_tick(metrics_from, t0, t1, dt, steps_per_tick, n_ticks)
     workers = _workers(workers)
-    if not (first_plant.thread_safe and first_controller.model.thread_safe):
-        workers = 1  # the kernels write memory of their own (a MuJoCo model's mjData)
+    # Kernels that write memory of their own (a MuJoCo model's data) get a copy per chunk.
+    own_memory = not (first_plant.thread_safe and first_controller.model.thread_safe)
 
     # Every k-th tick with k beyond the run records tick 0 only, as k = n_ticks + 1 does (which
     # fits the kernel's 64-bit integers).
@@ -488,31 +488,39 @@ def simulate(
 
     runner = run_batch_compiled if compiled else run_batch
 
-    def chunk_arguments(chunk: np.ndarray) -> tuple:
+    def chunk_arguments(index: int) -> tuple:
+        chunk = chunks[index]
         part = slice(chunk[0], chunk[-1] + 1)
+        chunk_runs = [array[part] for array in runs]
+        if own_memory and index > 0:  # this chunk's copies of the plants and models
+            chunk_runs[0] = _stack_padded([plants[b].for_worker(index).params for b in chunk])
+            chunk_runs[1] = _stack_padded(
+                [controllers[b].model.for_worker(index).params for b in chunk]
+            )
         return (
             handles(int(chunk[0])),
-            tuple(array[part] for array in runs),
+            tuple(chunk_runs),
             settings,
             tuple(array[part] for array in outputs),
             status[part],
             t_stop[part],
         )
 
-    def run_chunk(chunk: np.ndarray) -> int:
-        runner(*chunk_arguments(chunk))
-        return chunk.size
+    def run_chunk(index: int) -> int:
+        runner(*chunk_arguments(index))
+        return chunks[index].size
 
     # Compiled kernels are shared by the whole batch and release the GIL: chunks run on
     # `workers` threads. Python callables may differ per element and hold the GIL, so the
     # plain-Python engine runs one element at a time.
     if compiled:
-        pieces = min(batch, workers * _CHUNKS_PER_WORKER if (progress or workers > 1) else 1)
+        per_worker = 1 if own_memory else _CHUNKS_PER_WORKER
+        pieces = min(batch, workers * per_worker if (progress or workers > 1) else 1)
     else:
         pieces = batch
     chunks = np.array_split(np.arange(batch), pieces)
     kernel_keys = tuple(kernel.key for kernel in handles(0)) if compiled else None
-    if compiled and not engine_ready(runner, chunk_arguments(chunks[0]), kernel_keys):
+    if compiled and not engine_ready(runner, chunk_arguments(0), kernel_keys):
         announce_compile(
             first_plant,
             first_controller,
@@ -523,11 +531,11 @@ def simulate(
         with tqdm(total=batch, desc="simulate", unit="run", disable=not progress) as bar:
             if compiled and workers > 1 and len(chunks) > 1:
                 with ThreadPoolExecutor(max_workers=workers) as pool:
-                    for done in pool.map(run_chunk, chunks):
+                    for done in pool.map(run_chunk, range(len(chunks))):
                         bar.update(done)
             else:
-                for chunk in chunks:
-                    bar.update(run_chunk(chunk))
+                for index in range(len(chunks)):
+                    bar.update(run_chunk(index))
     except Exception as error:
         if not (compiled and type(error).__module__.startswith("numba")):
             raise

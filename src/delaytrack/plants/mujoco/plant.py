@@ -22,6 +22,7 @@ MuJoCo's own stepping, which this plant does not do.
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import importlib
 from dataclasses import dataclass, field
@@ -164,8 +165,9 @@ class MujocoPlant(ELPlant):
     apply (MuJoCo steps them), and contacts act; MuJoCo's state beyond ``q, q̇`` (activations,
     the solver's warm start) lives in its data, reset at the start of each run.
 
-    The plant holds MuJoCo's ``mjData``, which every evaluation writes: a simulation with such a
-    plant or model runs its batch on one thread (``thread_safe`` is False).
+    The plant holds MuJoCo's ``mjData``, which every evaluation writes (``thread_safe`` is
+    False): each thread of a batch runs a copy of its own (:meth:`for_worker`), made from the
+    file once and kept.
     """
 
     path: str | Path
@@ -182,6 +184,7 @@ class MujocoPlant(ELPlant):
     _data: Any = field(init=False, repr=False)
     _scratch: np.ndarray = field(init=False, repr=False)
     _params: np.ndarray = field(init=False, repr=False)
+    _copies: dict[int, MujocoPlant] = field(init=False, repr=False)
     type_name: ClassVar[str] = "mujoco"
     thread_safe: ClassVar[bool] = False
 
@@ -247,6 +250,7 @@ class MujocoPlant(ELPlant):
             ("_data", data),
             ("_scratch", scratch),
             ("_params", params),
+            ("_copies", {}),
             (
                 "name",
                 self.name
@@ -332,6 +336,11 @@ class MujocoPlant(ELPlant):
             self.name,
         )
         return (type(self), arguments)
+
+    def for_worker(self, index: int) -> MujocoPlant:
+        if index not in self._copies:
+            self._copies[index] = copy.copy(self)  # made again from the file (__reduce__)
+        return self._copies[index]
 
     @property
     def params(self) -> np.ndarray:

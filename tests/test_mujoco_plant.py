@@ -147,6 +147,25 @@ def _arm_with(tmp_path: Path, old: str, new: str) -> Path:
             "'wrist' has friction loss",
         ),
         ("<mujoco model", "<mujoco modle", {}, "MuJoCo could not read it"),
+        ('gear="5"/>', 'gear="5" delay="0.01" nsample="12"/>', {}, "has a delay of its own"),
+        (
+            '<joint name="elbow"/>',
+            '<joint name="elbow" actuatorgravcomp="true"/>',
+            {},
+            "gravity compensation through its actuators",
+        ),
+        (
+            '<joint name="elbow"/>',
+            '<joint name="elbow" actuatorfrcrange="-1 1"/>',
+            {},
+            "pass actuator_limits='ignore'",
+        ),
+        (
+            "</worldbody>",
+            '</worldbody><equality><joint joint1="elbow" joint2="wrist"/></equality>',
+            {},
+            "equality constraints",
+        ),
     ],
 )
 def test_model_files_it_cannot_represent_are_refused_naming_what(
@@ -212,9 +231,12 @@ def test_a_urdf_file_gets_a_motor_on_every_joint_when_asked(tmp_path):
     path.write_text(URDF)
     with pytest.raises(ValueError, match="no actuators .* pass add_motors=True"):
         MujocoPlant(path)
-    with pytest.raises(ValueError, match="joint 'j1' has limits"):
+    # URDF's effort limit is a clamp on the joint's actuator force, its limits a constraint.
+    with pytest.raises(ValueError, match="actuator 'j1' clamps its control or force"):
         MujocoPlant(path, add_motors=True)
-    plant = MujocoPlant(path, add_motors=True, constraints="ignore")
+    with pytest.raises(ValueError, match="joint 'j1' has limits"):
+        MujocoPlant(path, add_motors=True, actuator_limits="ignore")
+    plant = MujocoPlant(path, add_motors=True, actuator_limits="ignore", constraints="ignore")
     assert (plant.n, plant.m, plant.coordinate_names) == (2, 2, ("j1", "j2"))
     mass, nonlinear, input_map = (array[0] for array in plant.terms([0.3, 0.7], [1.0, -2.0]))
     np.testing.assert_array_equal(input_map, np.eye(2))
@@ -280,14 +302,16 @@ def test_the_delay_agrees_with_mujocos_own_actuator_delay(h):
         np.testing.assert_array_equal(ours, _native_delay_run(h, ticks, controller, False))
 
 
-def test_stepped_by_mujoco_each_run_starts_afresh_and_dt_is_the_models():
-    truth = MujocoPlant(ARM, stepping="mujoco")
+def test_stepped_by_mujoco_each_run_starts_afresh_and_dt_is_the_models(tmp_path):
+    # A joint limit makes MuJoCo's solver warm-start from the step before: a run that did not
+    # start from fresh data would differ from the same run alone.
+    limited = _arm_with(tmp_path, '<joint name="wrist"/>', '<joint name="wrist" range="-0.1 0.1"/>')
+    truth = MujocoPlant(limited, stepping="mujoco")
     controller = dt.OuterLoop(MujocoPlant(ARM, mass_scale=0.8), K1=16.0, K2=8.0)
     settings = dict(reference=REFERENCE, t1=0.4, dt=DT, T_c=T_C)
     alone = dt.simulate(truth, controller, dt.AbsSineDelay.S1(), X0, **settings)
-    batch = dt.simulate(
-        truth, controller, [dt.ConstantDelay(0.05), dt.AbsSineDelay.S1()], X0, **settings
-    )
+    delays = [dt.ConstantDelay(0.05), dt.AbsSineDelay.S1()]
+    batch = dt.simulate(truth, controller, delays, X0, workers=1, **settings)
     np.testing.assert_array_equal(batch.x[1], alone.x[0])
     python = dt.simulate(truth, controller, dt.AbsSineDelay.S1(), X0, engine="python", **settings)
     np.testing.assert_array_equal(python.x, alone.x)
@@ -327,3 +351,24 @@ def test_the_urdf_example_runs_from_its_scenario_and_sweep(tmp_path):
     assert main(["sweep", str(sweep), "--out", str(tmp_path / "sweep"), "--quiet"]) == 0
     summary = pd.read_csv(tmp_path / "sweep" / "summary.csv")
     assert (summary["runs"] > 0).all() and (summary["diverged"] == 0).all()
+
+
+def test_a_stepped_model_is_not_a_nominal_model_and_a_diverging_run_is_reported():
+    stepped = MujocoPlant(ARM, stepping="mujoco")
+    with pytest.raises(ValueError, match="nominal model must be a plant form"):
+        dt.OuterLoop(stepped, K1=16.0, K2=8.0)
+    # Gains far too high for the delay: the state grows until MuJoCo meets bad numbers, which
+    # it would otherwise hide (a control beyond 1e10 set to zero, a bad state reset).
+    wild = dt.OuterLoop(MujocoPlant(ARM), K1=4.0e4, K2=400.0)
+    result = dt.simulate(
+        stepped,
+        wild,
+        dt.ConstantDelay(0.05),
+        X0,
+        reference=REFERENCE,
+        t1=4.0,
+        dt=DT,
+        T_c=T_C,
+        divergence_bound=1e300,
+    )
+    assert result.status_names == ["diverged"] and result.t_stop[0] < 4.0

@@ -239,6 +239,12 @@ class Controller(ABC):
             raise TypeError(
                 f"model must be an ELPlant (the nominal plant); got {type(self.model).__name__}"
             )
+        if self.model.stepper_kernel is not None:
+            raise ValueError(
+                f"{type(self).__name__}'s nominal model must be a plant form M q'' + N = G u; "
+                f"{type(self.model).__name__} is stepped by an integrator of its own (a MuJoCo "
+                "model with stepping='mujoco' is for the simulated plant only)"
+            )
         if self.model.has_command_map:
             return
         if self.model.m != self.model.n:

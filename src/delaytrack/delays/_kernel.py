@@ -235,6 +235,8 @@ def profile_crossing_time(delay, kind, params, a, b, g_a, g_b, target):
     f_hi = g_b - target
     if f_lo == 0.0:
         return a
+    if f_hi == 0.0:
+        return b
     kept = 0
     for _ in range(2 * _NEWTON_ITERATIONS):
         if hi - lo <= 4.0 * np.finfo(np.float64).eps * max(1.0, abs(lo)):

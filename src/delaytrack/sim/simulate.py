@@ -492,7 +492,7 @@ def simulate(
         chunk = chunks[index]
         part = slice(chunk[0], chunk[-1] + 1)
         chunk_runs = [array[part] for array in runs]
-        if own_memory and index > 0:  # this chunk's copies of the plants and models
+        if in_parallel and own_memory and index > 0:  # this chunk's copies of plants and models
             chunk_runs[0] = _stack_padded([plants[b].for_worker(index).params for b in chunk])
             chunk_runs[1] = _stack_padded(
                 [controllers[b].model.for_worker(index).params for b in chunk]
@@ -519,6 +519,7 @@ def simulate(
     else:
         pieces = batch
     chunks = np.array_split(np.arange(batch), pieces)
+    in_parallel = compiled and workers > 1 and len(chunks) > 1
     kernel_keys = tuple(kernel.key for kernel in handles(0)) if compiled else None
     if compiled and not engine_ready(runner, chunk_arguments(0), kernel_keys):
         announce_compile(
@@ -529,7 +530,7 @@ def simulate(
         )
     try:
         with tqdm(total=batch, desc="simulate", unit="run", disable=not progress) as bar:
-            if compiled and workers > 1 and len(chunks) > 1:
+            if in_parallel:
                 with ThreadPoolExecutor(max_workers=workers) as pool:
                     for done in pool.map(run_chunk, range(len(chunks))):
                         bar.update(done)

@@ -14,10 +14,11 @@ functions (:mod:`~delaytrack.plants.mujoco.capi`): ``mj_fwdPosition`` and ``mj_f
 for ``M``'s factors and the forces, ``mj_mulM`` for the columns of ``M``, and
 ``mj_fwdActuation`` for the columns of ``G``.
 
-What this form leaves out is refused unless asked for: constraint forces (joint limits,
-friction loss, contacts) and the clamping of controls and forces to their ranges are not part
-of ``M q̈ + N = G u``. Contacts cannot be known from the file; a model whose bodies touch needs
-MuJoCo's own stepping, which this plant does not do.
+What this form leaves out is refused unless asked for: constraint forces (joint and tendon
+limits, friction loss, equality constraints) and the clamping of controls and forces to their
+ranges are not part of ``M q̈ + N = G u``. Contacts cannot be known from the file; a simulated
+robot whose bodies touch needs MuJoCo's own stepping (``stepping="mujoco"``), which applies all
+of them.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from delaytrack._jit import kernel
-from delaytrack._validation import positive_scalar
+from delaytrack._validation import as_spd_matrix, positive_scalar
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.mujoco.capi import (
     call_void2,
@@ -52,6 +53,8 @@ _POSITION, _VELOCITY, _ACTUATION, _MUL_M, _VECTOR, _PRODUCT, _RESET, _STEP = ran
 _PARAMS = 16
 #: How the simulated plant advances: this toolkit's RK4 on the terms, or MuJoCo's mj_step.
 STEPPINGS = ("rk4", "mujoco")
+#: MuJoCo's bound on a "bad" number (mjMAXVAL): it zeroes such a control.
+_MUJOCO_LARGEST = 1e10
 
 _INSTALL = "MuJoCo is not installed: pip install -e '.[mujoco]' (from a clone of delaytrack)"
 
@@ -101,12 +104,21 @@ def mujoco_step(t, x, u, dt, params, first):
     """One ``mj_step`` of the model from ``x = [q, q̇]`` with controls ``u`` held; ``x`` gets
     the state after it. The first step of a run resets MuJoCo's data (``mj_resetData``), so that
     a run does not depend on the one before it; MuJoCo's other state (activations, the
-    solver's warm start) carries over from step to step, as in MuJoCo's own loop."""
+    solver's warm start) carries over from step to step, as in MuJoCo's own loop. A control
+    beyond MuJoCo's 1e10 makes ``x`` NaN (the run then stops as diverged), and MuJoCo's
+    automatic reset of a bad state is turned off (:class:`MujocoPlant`), so that a diverging
+    state reaches the simulator's check."""
     n = x.shape[0] // 2
     model = params[_MODEL]
     data = params[_DATA]
     if first:
         call_void2(params[_RESET], model, data)
+    for j in range(u.shape[0]):
+        # MuJoCo would set a control beyond 1e10 to zero and go on: a diverged run instead.
+        if not abs(u[j]) <= _MUJOCO_LARGEST:
+            for i in range(2 * n):
+                x[i] = np.nan
+            return
     for i in range(n):
         write_at(params[_QPOS], i, x[i])
         write_at(params[_QVEL], i, x[n + i])
@@ -167,7 +179,8 @@ class MujocoPlant(ELPlant):
 
     The plant holds MuJoCo's ``mjData``, which every evaluation writes (``thread_safe`` is
     False): each thread of a batch runs a copy of its own (:meth:`for_worker`), made from the
-    file once and kept.
+    file once and kept. Run one ``simulate`` call at a time with a given plant (two threads of
+    yours simulating the same plant object at once would share its data).
     """
 
     path: str | Path
@@ -209,6 +222,8 @@ class MujocoPlant(ELPlant):
             message = " ".join(str(error).split())
             raise ValueError(f"path {str(path)!r}: MuJoCo could not read it: {message}") from None
         self._check(mujoco, model, path)
+        if self.stepping == "mujoco":  # a diverging state must reach the simulator, not reset
+            model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
         model.body_mass[1:] *= scale
         model.body_inertia[1:] *= scale
         data = mujoco.MjData(model)
@@ -260,12 +275,9 @@ class MujocoPlant(ELPlant):
         ):
             object.__setattr__(self, key, value)
         mass, nonlinear, input_map = self.terms(np.zeros(self.n), np.zeros(self.n))
-        if not (
-            np.all(np.isfinite(mass))
-            and np.all(np.isfinite(nonlinear))
-            and np.all(np.isfinite(input_map))
-        ):
+        if not all(np.all(np.isfinite(array)) for array in (mass, nonlinear, input_map)):
             raise ValueError(f"path {str(path)!r}: the model gives non-finite terms at q = 0")
+        as_spd_matrix(f"the M(0) of {str(path)!r}", mass[0], self.n)
 
     def _check(self, mujoco: Any, model: Any, path: Path) -> None:
         """Refuse what ``M q̈ + N = G u`` cannot represent (class notes)."""
@@ -286,8 +298,19 @@ class MujocoPlant(ELPlant):
                 f"{where}: the model has no actuators (a URDF file has none); pass "
                 "add_motors=True to put a motor on every joint"
             )
+        for j in range(model.nu):
+            if float(getattr(model, "actuator_delay", np.zeros(model.nu))[j]) > 0.0:
+                raise ValueError(
+                    f"{where}: actuator {actuator(j)!r} has a delay of its own (MuJoCo's "
+                    "'delay'); give the delay in the scenario's [delay] table instead"
+                )
         if self.stepping == "mujoco":
             return  # MuJoCo steps it: actuators, limits and contacts are its own
+        if np.any(getattr(model, "jnt_actgravcomp", np.zeros(0))):
+            raise ValueError(
+                f"{where}: a joint takes gravity compensation through its actuators "
+                "(actuatorgravcomp), which M q̈ + N = G u does not have"
+            )
         for j in range(model.nu):
             direct = (
                 model.actuator_dyntype[j] == 0
@@ -300,11 +323,16 @@ class MujocoPlant(ELPlant):
                     "or a bias (a position or velocity servo); only direct actuators (motors, "
                     "any gear) map controls to joint forces as G(q) u"
                 )
-            limited = model.actuator_ctrllimited[j] or model.actuator_forcelimited[j]
+            limited = (
+                model.actuator_ctrllimited[j]
+                or model.actuator_forcelimited[j]
+                or model.jnt_actfrclimited[int(model.actuator_trnid[j, 0])]
+            )
             if limited and self.actuator_limits == "refuse":
                 raise ValueError(
                     f"{where}: actuator {actuator(j)!r} clamps its control or force "
-                    "(ctrlrange/forcerange), which M q̈ + N = G u does not; pass "
+                    "(ctrlrange, forcerange, or its joint's actuatorfrcrange, which a URDF "
+                    "effort limit becomes), which M q̈ + N = G u does not; pass "
                     "actuator_limits='ignore' to use the model without the clamps"
                 )
         if self.constraints == "refuse":
@@ -312,6 +340,18 @@ class MujocoPlant(ELPlant):
                 if model.jnt_limited[j]:
                     raise ValueError(
                         f"{where}: joint {joint(j)!r} has limits, a constraint force that "
+                        "M q̈ + N = G u leaves out; pass constraints='ignore' to use the model "
+                        "without them"
+                    )
+            others = (
+                ("equality constraints", model.neq > 0),
+                ("tendon limits", bool(np.any(model.tendon_limited))),
+                ("tendon friction loss", bool(np.any(model.tendon_frictionloss > 0.0))),
+            )
+            for what, present in others:
+                if present:
+                    raise ValueError(
+                        f"{where}: the model has {what}, constraint forces that "
                         "M q̈ + N = G u leaves out; pass constraints='ignore' to use the model "
                         "without them"
                     )
@@ -339,7 +379,13 @@ class MujocoPlant(ELPlant):
 
     def for_worker(self, index: int) -> MujocoPlant:
         if index not in self._copies:
-            self._copies[index] = copy.copy(self)  # made again from the file (__reduce__)
+            twin = copy.copy(self)  # made again from the file (__reduce__)
+            if not np.array_equal(twin.run_identity, self.run_identity):
+                raise ValueError(
+                    f"path {str(self.path)!r} changed after the plant was made: the threads of "
+                    "a batch would simulate another model; make the plant again"
+                )
+            self._copies[index] = twin
         return self._copies[index]
 
     @property

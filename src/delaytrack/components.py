@@ -316,10 +316,13 @@ class Kernel:
         """The Kernel of these functions; for compiled ones made once (its key and numba type
         are then computed once, not at every call of a component's ``engine_kernel``). Python
         kernels are made anew, so that a cache never keeps a user's closures alive."""
-        kernel = cls(function, command_map, identity_mass, sizes, stepper)
-        if kernel.compiled:
-            return _kernel_of(cls, function, command_map, identity_mass, kernel.sizes, stepper)
-        return kernel
+        compiled = is_compiled(function) and all(
+            extra is None or is_compiled(extra) for extra in (command_map, stepper)
+        )
+        if compiled:  # a hashable key for the cache; the Kernel checks the sizes themselves
+            key = None if sizes is None else tuple(sizes)
+            return _kernel_of(cls, function, command_map, identity_mass, key, stepper)
+        return cls(function, command_map, identity_mass, sizes, stepper)
 
     @cached_property
     def numba_type(self) -> KernelType:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
+from functools import cached_property
 from typing import Any, ClassVar
 
 import numpy as np
@@ -125,9 +126,10 @@ class ELPlant(ABC):
         """Whether the model maps ``τ`` to its actuators itself (:attr:`command_map_kernel`)."""
         return self.command_map_kernel is not None
 
-    @property
+    @cached_property
     def engine_kernel(self) -> Kernel:
-        """The :class:`~delaytrack.components.Kernel` the simulator calls for this plant."""
+        """The :class:`~delaytrack.components.Kernel` the simulator calls for this plant (made
+        once: a plant does not change)."""
         return Kernel.of(
             self.terms_kernel,
             self.command_map_kernel,

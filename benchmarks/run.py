@@ -32,7 +32,8 @@ compiles or loads numba's disk cache):
     (``MujocoPlant(stepping="mujoco")``, AROLC on the 20 % light model, S1, ``dt`` = 1 ms,
     ``T_c`` = 10 ms), against MuJoCo stepping the same model alone for the same number of
     steps from a compiled loop (:mod:`mujoco_floor`), and 100 such runs in one batch on all
-    cores (a copy of MuJoCo's data per thread), against the floor's time for as many steps.
+    cores (a copy of MuJoCo's data per thread), against the floor's time for as many steps
+    and against the same batch on one thread.
 ``sweep``
     ``examples/sweep_robot.toml`` (AROLC, PCON and the outer loop over 1000 random
     delay profiles and payload placements, 3000 runs of 60 s) through :func:`run_sweep` with the
@@ -216,6 +217,9 @@ def mujoco_case(duration: float, batch: int, repeats: int) -> list[dict]:
     many = median_seconds(
         lambda: dt.simulate(truth, controller, delays, x0, **common), max(1, repeats // 3)
     )
+    alone = median_seconds(
+        lambda: dt.simulate(truth, controller, delays, x0, workers=1, **common), 1
+    )
     baseline = "MuJoCo's mj_step alone, compiled loop (benchmarks/mujoco_floor.py)"
     return [
         {
@@ -241,6 +245,8 @@ def mujoco_case(duration: float, batch: int, repeats: int) -> list[dict]:
             "baseline": baseline,
             "baseline_s": floor * batch,
             "ratio_to_baseline": floor * batch / many,
+            "one_thread_s": alone,
+            "speedup_over_one_thread": alone / many,
         },
     ]
 

@@ -198,7 +198,7 @@ def test_bad_model_keys_name_the_key(tmp_path, changes, message):
         Scenario.from_dict(data).build()
 
 
-def test_without_mujoco_the_error_says_how_to_install_it(monkeypatch):
+def test_without_mujoco_the_error_says_how_to_install_it(monkeypatch, tmp_path, capsys):
     import importlib
 
     real = importlib.import_module
@@ -211,6 +211,10 @@ def test_without_mujoco_the_error_says_how_to_install_it(monkeypatch):
     monkeypatch.setattr(importlib, "import_module", no_mujoco)
     with pytest.raises(ImportError, match=r"pip install -e '\.\[mujoco\]'"):
         MujocoPlant(ARM)
+    # On the command line: exit 2 and the same advice, no traceback.
+    scenario = str(EXAMPLE / "arm3_S1.toml")
+    assert main(["simulate", scenario, "--out", str(tmp_path / "out")]) == 2
+    assert "pip install -e '.[mujoco]'" in capsys.readouterr().err
 
 
 URDF = """<robot name="two">

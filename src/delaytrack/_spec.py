@@ -280,7 +280,8 @@ def build_from_table(
         built = spec.build(**extra, **arguments)
     except SpecError:
         raise
-    except (ValueError, TypeError, FileNotFoundError) as error:
+    except (ValueError, TypeError, FileNotFoundError, ImportError) as error:
+        # ImportError: an optional extra the type needs is not installed (the message says how).
         message = str(error)
         for key, (argument, _) in spec.keys.items():
             if message.startswith(f"{argument} "):

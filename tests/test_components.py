@@ -97,7 +97,7 @@ def test_python_kernels_are_not_kept_by_the_kernel_cache():
     alive = weakref.ref(plant)
     before = _kernel_of.cache_info().currsize
     for _ in range(50):
-        assert not plant.compiled  # a new closure at each access
+        assert not plant.compiled  # its kernel is plain Python
     assert _kernel_of.cache_info().currsize == before
     del plant
     gc.collect()
@@ -115,8 +115,11 @@ def test_flags_are_part_of_the_name():
     plain = Kernel(arolc_step)
     assert Kernel(arolc_step, identity_mass=True).key != plain.key
     assert Kernel(arolc_step, command_map=arolc_step).key != plain.key
+    assert Kernel(arolc_step, stepper=arolc_step).key != plain.key
     with pytest.raises(TypeError, match="function must be callable"):
         Kernel(3.0)
+    with pytest.raises(TypeError, match="stepper must be callable"):
+        Kernel(arolc_step, stepper=3.0)
 
 
 def test_a_plants_sizes_are_part_of_its_name_and_checked():

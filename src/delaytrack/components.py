@@ -299,10 +299,8 @@ class Kernel:
 
     @property
     def compiled(self) -> bool:
-        """Whether the kernel (and its command map) are numba-compiled."""
-        return is_compiled(self.function) and all(
-            extra is None or is_compiled(extra) for extra in (self.command_map, self.stepper)
-        )
+        """Whether the kernel (and its command map and stepper) are numba-compiled."""
+        return _all_compiled(self.function, self.command_map, self.stepper)
 
     @classmethod
     def of(
@@ -316,10 +314,9 @@ class Kernel:
         """The Kernel of these functions; for compiled ones made once (its key and numba type
         are then computed once, not at every call of a component's ``engine_kernel``). Python
         kernels are made anew, so that a cache never keeps a user's closures alive."""
-        compiled = is_compiled(function) and all(
-            extra is None or is_compiled(extra) for extra in (command_map, stepper)
-        )
-        if compiled:  # a hashable key for the cache; the Kernel checks the sizes themselves
+        if _all_compiled(
+            function, command_map, stepper
+        ):  # a hashable key for the cache; the Kernel checks the sizes themselves
             key = None if sizes is None else tuple(sizes)
             return _kernel_of(cls, function, command_map, identity_mass, key, stepper)
         return cls(function, command_map, identity_mass, sizes, stepper)
@@ -344,6 +341,11 @@ class Kernel:
             self.sizes,
             getattr(self.stepper, "py_func", self.stepper),
         )
+
+
+def _all_compiled(function: object, *extras: object) -> bool:
+    """Whether ``function`` and each of ``extras`` that is given are numba-compiled."""
+    return is_compiled(function) and all(extra is None or is_compiled(extra) for extra in extras)
 
 
 @lru_cache(maxsize=4096)

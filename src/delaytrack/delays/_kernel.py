@@ -15,8 +15,11 @@ kind                      params
 ========================  ===========================================================
 
 Both piecewise kinds hold their first value before ``t_0`` and their last after ``t_{m-1}``.
-The engine reaches every kind through the ``profile_*`` functions, which take the batch's
-delay :class:`~delaytrack.components.Kernel` (:func:`no_kernel` when no run has one).
+The engine evaluates ``h`` and solves the crossings of every kind through
+:func:`profile_value` and :func:`profile_crossing_time`, which take the batch's delay
+:class:`~delaytrack.components.Kernel` (:func:`no_kernel` when no run has one). A kernel has no
+breakpoints that the engine knows (``t - h(t)`` is taken as monotone between step ends):
+:func:`next_breakpoint` gives none.
 
 The simulator integrates across the instants where ``g(t) = t - h(t)`` crosses a controller tick.
 To find them it needs pieces on which ``g`` is continuous and monotone: :func:`next_breakpoint`
@@ -181,15 +184,6 @@ def switch_bound(kind: int, params: np.ndarray, t0: float, t1: float, T_c: float
     return (duration + float(np.sum(steps))) / T_c + float(np.count_nonzero(inside)) + 2.0
 
 
-@kernel
-def delay_values(kind, params, times):
-    """Vectorised :func:`delay_value` over a 1-D array of times."""
-    out = np.empty(times.shape[0])
-    for i in range(times.shape[0]):
-        out[i] = delay_value(kind, params, times[i])
-    return out
-
-
 # ---- every kind, a kernel of the user's included (the engine's calls) ------------------------
 
 
@@ -209,14 +203,6 @@ def profile_value(delay, kind, params, t):
     if kind == KERNEL:
         return call_delay(delay, t, params)
     return delay_value(kind, params, t)
-
-
-@inline_kernel
-def profile_end_values(delay, kind, params, a, b):
-    """:func:`piece_end_values` of a profile of any kind."""
-    if kind == KERNEL:
-        return call_delay(delay, a, params), call_delay(delay, b, params)
-    return piece_end_values(kind, params, a, b)
 
 
 @inline_kernel
@@ -261,11 +247,11 @@ def profile_crossing_time(delay, kind, params, a, b, g_a, g_b, target):
 
 
 @kernel
-def kernel_delay_values(delay, params, times):
-    """``h`` of a delay kernel of the user's at each of ``times`` (1-D)."""
+def profile_values(delay, kind, params, times):
+    """:func:`profile_value` at each of ``times`` (1-D)."""
     out = np.empty(times.shape[0])
     for i in range(times.shape[0]):
-        out[i] = call_delay(delay, times[i], params)
+        out[i] = profile_value(delay, kind, params, times[i])
     return out
 
 

@@ -74,5 +74,7 @@ class DelayProfile(ABC):
     def h(self, t: float | np.ndarray) -> np.ndarray:
         """Delay ``h(t)`` in seconds at the time(s) ``t`` (any shape)."""
         times = np.asarray(t, dtype=float)
-        values = _kernel.delay_values(self.kind, self.params, np.ascontiguousarray(times.ravel()))
+        values = _kernel.profile_values(
+            self.engine_kernel, self.kind, self.params, np.ascontiguousarray(times.ravel())
+        )
         return values.reshape(times.shape)

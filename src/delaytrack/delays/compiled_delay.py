@@ -90,13 +90,6 @@ class CompiledDelay(DelayProfile):
     def engine_kernel(self) -> Kernel:
         return Kernel.of(self.kernel)
 
-    def h(self, t: float | np.ndarray) -> np.ndarray:
-        times = np.asarray(t, dtype=float)
-        values = _kernel.kernel_delay_values(
-            self.engine_kernel, self.params, np.ascontiguousarray(times.ravel())
-        )
-        return values.reshape(times.shape)
-
     def switch_bound(self, t0: float, t1: float, T_c: float) -> float:
         """With ``t - h(t)`` monotone between step ends and ``0 <= h <= h_max``, it crosses at
         most ``(t1 - t0 + h_max) / T_c + 2`` ticks."""

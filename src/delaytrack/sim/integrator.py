@@ -33,8 +33,8 @@ from delaytrack.components import call_stepper, has_stepper, plant_sizes
 from delaytrack.delays._kernel import (
     PIECEWISE_CONSTANT,
     next_breakpoint,
+    piece_end_values,
     profile_crossing_time,
-    profile_end_values,
     profile_value,
 )
 from delaytrack.plants.base import el_rhs, rhs_scratch
@@ -142,7 +142,7 @@ def _piece(delay, delay_kind, delay_params, a, t_end, profile):
         profile[1] = next_breakpoint(delay_kind, delay_params, a)
     b = min(profile[1], t_end)
     if delay_kind == PIECEWISE_CONSTANT:
-        h_a, h_b = profile_end_values(delay, delay_kind, delay_params, a, b)
+        h_a, h_b = piece_end_values(delay_kind, delay_params, a, b)
     else:  # continuous: h(a+) = h(a), remembered when a ended the last piece
         h_a = profile[3] if a == profile[2] else profile_value(delay, delay_kind, delay_params, a)
         h_b = profile_value(delay, delay_kind, delay_params, b)
@@ -191,26 +191,17 @@ def integrate_tick(
         t_start = t0 + (k * steps_per_tick + j) * dt
         t_end = t0 + (k * steps_per_tick + j + 1) * dt
         a = t_start
-        if has_stepper(plant_terms):
-            # The plant's own integrator takes whole steps: the command in force at the step's
-            # start is held over it; a switch within the sliver tolerance after the start
-            # counts as at the start, as in the split steps (module docstring).
-            _, g_a, _ = _piece(delay, delay_kind, delay_params, a, t_end, profile)
-            index = latest_tick_index(g_a + tolerance, t0, dt, steps_per_tick)
-            slot = _history_slot(index, k, capacity)
-            if slot == -2:
-                return DELAY_BEYOND_HISTORY, t_start, first_slot
-            if first_slot == -3:
-                first_slot = slot
-                if probe_only:
-                    return OK, t_start, first_slot
-            u = u_init if slot == -1 else history[slot]
-            call_stepper(plant_terms, t_start, x, u, dt, plant_params, k == 0 and j == 0)
-            a = t_end
         while a < t_end:
             b, g_a, g_b = _piece(delay, delay_kind, delay_params, a, t_end, profile)
-            k_a = latest_tick_index(g_a, t0, dt, steps_per_tick)
-            k_b = latest_tick_index(g_b, t0, dt, steps_per_tick)
+            if has_stepper(plant_terms):
+                # The plant's own integrator takes the whole step, with the command in force at
+                # its start (a switch within the sliver tolerance after it counts as at it).
+                b = t_end
+                k_a = latest_tick_index(g_a + tolerance, t0, dt, steps_per_tick)
+                k_b = k_a
+            else:
+                k_a = latest_tick_index(g_a, t0, dt, steps_per_tick)
+                k_b = latest_tick_index(g_b, t0, dt, steps_per_tick)
             # Sub-intervals end at each tick crossed by g on this piece, in time order, then b.
             crossings = abs(k_b - k_a)
             direction = 1 if k_b >= k_a else -1
@@ -236,7 +227,10 @@ def integrate_tick(
                     if probe_only:
                         return OK, t_start, first_slot
                 u = u_init if slot == -1 else history[slot]
-                _rk4_substep(plant_terms, plant_params, start, x, u, end - start, work)
+                if has_stepper(plant_terms):
+                    call_stepper(plant_terms, start, x, u, dt, plant_params, k == 0 and j == 0)
+                else:
+                    _rk4_substep(plant_terms, plant_params, start, x, u, end - start, work)
                 start = end
                 if end == b:
                     break

@@ -371,8 +371,9 @@ def simulate(
                 f"delay[{i}] has another kernel than delay[{own_delays[0]}]; a batch runs one "
                 "delay kernel of yours (split it into one simulate call per kernel)"
             )
-    for i, delay_b in enumerate(delays):
+    for delay_b in {id(delay_b): delay_b for delay_b in delays}.values():  # once per profile
         delay_b.check_run(t0, dt, n_ticks * steps_per_tick + 1)
+    for i, delay_b in enumerate(delays):
         switches = delay_b.switch_bound(t0, t1, T_c)
         if not switches <= MAX_STEPS:
             raise ValueError(

@@ -13,6 +13,7 @@ import pytest
 from delaytrack import razumikhin_bound
 from delaytrack.cli import main
 from delaytrack.experiments import paper, tuning
+from delaytrack.experiments.contact import contact_findings
 
 ROWS = [
     ("S1", "AROLC"),
@@ -80,6 +81,19 @@ def test_short_run_writes_every_promised_file(tmp_path):
         assert text in report
     assert "Not run (check_dt = False)" in report
 
+    # The same runs on the robot with real wheels (MuJoCo is installed for the tests).
+    contact = pd.read_csv(tmp_path / "summary_contact.csv")
+    pairs = list(contact[["scenario", "controller"]].itertuples(index=False, name=None))
+    assert sorted(pairs) == sorted(
+        ROWS + [(case, "AROLC-tuned") for case in ("S1", "S2", "S3", "S4")]
+    )
+    assert np.all(np.isfinite(contact.iloc[:, 2:].to_numpy()))
+    assert (contact.slip_sideways_rms_mm_s > 0).all() and (contact.slip_max_mm_s < 400).all()
+    merged = contact.merge(summary, on=["scenario", "controller"], suffixes=("", "_analytic"))
+    np.testing.assert_array_equal(merged.ae_x_mm, merged.ae_x_mm_analytic)
+    assert "With contact physics" in report
+    assert contact_findings(study.contact)[0] in report
+
 
 @pytest.mark.slow
 def test_reproduce_writes_both_folders(tmp_path, capsys):
@@ -101,7 +115,8 @@ def test_reproduce_refuses_a_duration_off_the_controller_grid(tmp_path, capsys):
 
 
 def test_diverged_runs_get_nan_metrics_and_a_flag():
-    study = paper.run_study(duration=1.0, progress=False, check_dt=False)
+    study = paper.run_study(duration=1.0, progress=False, check_dt=False, contact=False)
+    assert study.contact is None
     result = study.results["baseline"]
     # Push one run off the path: the same summary code must flag it.
     broken = result.x.copy()
@@ -113,6 +128,34 @@ def test_diverged_runs_get_nan_metrics_and_a_flag():
     assert summary[row].iloc[:, 2:].isna().all(axis=None)
     assert status[row].status.iloc[0] == "diverged (left the path)"
     assert paper.claims(summary)["ae"]["S2"]  # a diverged baseline loses
+
+
+def test_contact_findings_are_computed_from_the_table():
+    table = pd.DataFrame(
+        {
+            "scenario": ["S1", "S1", "S2", "S2"],
+            "controller": ["AROLC", "PCON", "AROLC", "PCON"],
+            "ae_x_mm": [10.0, 5.0, 10.0, 5.0],
+            "ae_x_contact_mm": [11.0, 4.0, 30.0, np.nan],
+            "ae_y_mm": [10.0, 5.0, 10.0, 5.0],
+            "ae_y_contact_mm": [13.0, 5.0, 30.0, np.nan],
+            "tv": [1.0, 2.0, 1.0, 2.0],
+            "tv_contact": [1.5, 2.0, 1.0, np.nan],
+            "slip_sideways_rms_mm_s": [0.5, 0.25, 0.75, np.nan],
+            "slip_rolling_rms_mm_s": [2.0, 3.0, 4.0, np.nan],
+            "slip_max_mm_s": [9.0, 8.0, 12.5, np.nan],
+        }
+    )
+    table["change_ae_pct"] = 100 * (
+        (table.ae_x_contact_mm + table.ae_y_contact_mm) / (table.ae_x_mm + table.ae_y_mm) - 1
+    )
+    table["change_tv_pct"] = 100 * (table.tv_contact / table.tv - 1)
+    text = " ".join(contact_findings(table))
+    assert "In the 3 runs" in text and "-10 to +200 %" in text and "(median +20 %)" in text
+    assert "+0 to +50 %" in text and "0.25–0.75 mm/s" in text and "at most 12.5 mm/s" in text
+    assert "in 2 of 2 scenarios (S1: PCON < AROLC; S2: AROLC" in text
+    assert "Left the path on one of the robots: S2 PCON." in text
+    assert "The largest change is AROLC's in S2: AE-x 10 → 30 mm" in text
 
 
 def test_claims_are_computed_from_the_summary():

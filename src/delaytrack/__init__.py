@@ -67,6 +67,7 @@ from delaytrack.plants import (
     ELPlant,
     LinearPlant,
     MujocoPlant,
+    MujocoWheeledRobot,
     TwoLinkArm,
     plant_from_spec,
 )
@@ -88,6 +89,7 @@ __all__ = [
     "GainDesign",
     "LinearPlant",
     "MujocoPlant",
+    "MujocoWheeledRobot",
     "OuterLoop",
     "PiecewiseConstantDelay",
     "RandomDelay",

@@ -8,7 +8,7 @@ Commands::
     delaytrack simulate SCENARIO.toml [--out DIR] [--format parquet|csv|both]
     delaytrack empirical SCENARIO.toml --threshold RAD [--profile constant|abs-sine|abs-sine-offset]
         [--metric ae|rms|max] [--settle S] [--resolution S] [--upper S] [--frequency W] [--json]
-    delaytrack reproduce [--out results] [--duration SECONDS] [--no-dt-check]
+    delaytrack reproduce [--out results] [--duration SECONDS] [--no-dt-check] [--no-contact]
         [--job paper|two-link|margins]
     delaytrack tune-baselines [--out PATH] [--quiet]
 
@@ -464,6 +464,7 @@ def _reproduce_job(args: argparse.Namespace) -> int:
         duration=DURATION if args.duration is None else args.duration,
         check_dt=not args.no_dt_check,
         progress=not args.quiet,
+        contact=False if args.no_contact else None,
     )
     seconds = time.perf_counter() - start
     out = Path(args.out)
@@ -476,6 +477,10 @@ def _reproduce_job(args: argparse.Namespace) -> int:
     print(study.summary[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     if study.dt_check is not None:
         print(f"largest relative change of a metric when dt is halved: {study.dt_max_change:.2e}")
+    if study.contact is not None:
+        from delaytrack.experiments.contact import contact_findings
+
+        print("with contact physics (MuJoCo): " + contact_findings(study.contact)[0])
     print(f"report: {out / 'paper' / 'report.html'}")
     return 0
 
@@ -809,6 +814,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="which job to run (default paper)",
     )
     reproduce.add_argument("--no-dt-check", action="store_true", help="skip the dt/2 rerun")
+    reproduce.add_argument(
+        "--no-contact",
+        action="store_true",
+        help="skip the runs on the robot with real wheels (MuJoCo; run by default when it is "
+        "installed)",
+    )
     reproduce.add_argument("--quiet", action="store_true", help="no progress bar")
     reproduce.set_defaults(handler=_reproduce)
 

@@ -9,6 +9,9 @@
   (controller ``AROLC-tuned``; :mod:`delaytrack.experiments.tuning`);
 - ``tables.md``: the paper's Tables I–III with our numbers beside the paper's;
 - ``dt_check.csv``: the metrics with ``dt`` halved and the largest relative change per run;
+- ``summary_contact.csv`` (consistent path, with MuJoCo installed): every run again on the robot
+  with real wheels (:class:`~delaytrack.plants.robot.MujocoWheeledRobot`, the same payload), its
+  AE and TV beside the analytic robot's and its wheel slip (:mod:`delaytrack.experiments.contact`);
 - ``figures/*.png|svg``: the S1 x–y path of each controller, |e_x| and |e_y| over time (S1, S2 and
   S3, S4), ĉ(t) and h(t);
 - ``report.html``: self-contained; every modelling decision, the tables, the claims check, the
@@ -52,6 +55,7 @@ from delaytrack.analysis import RazumikhinBound, razumikhin_bound
 from delaytrack.controllers import AROLC, OuterLoop
 from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
 from delaytrack.experiments import tuning
+from delaytrack.experiments.contact import SLIP_COLUMNS, comparison, contact_findings, wheel_slip
 from delaytrack.experiments.convergence import dt_check_table, largest_change, write_dt_check
 from delaytrack.metrics import (
     max_abs_error,
@@ -60,9 +64,12 @@ from delaytrack.metrics import (
     rms_error,
     total_variation,
 )
+from delaytrack.plants import ELPlant
+from delaytrack.plants.mujoco import import_mujoco
 from delaytrack.plants.robot import (
     P3DX,
     P3DX_PAYLOAD,
+    MujocoWheeledRobot,
     NominalRobot,
     PayloadRobot,
     initial_state,
@@ -175,6 +182,9 @@ class PaperStudy:
         :data:`SUMMARY_COLUMNS` for the tuned AROLC (controller ``AROLC-tuned``).
     tuned_gains : dict
         The tuned AROLC's gains (:func:`tuning.load_arolc_gains`), with its bound ``h_m``.
+    contact : DataFrame or None
+        Every run on the robot with real wheels beside the analytic robot
+        (:func:`~delaytrack.experiments.contact.comparison`); None when not run.
     bound : RazumikhinBound
     duration, seconds : float
         Simulated seconds per run; wall time of the simulations.
@@ -189,6 +199,7 @@ class PaperStudy:
     bound: RazumikhinBound
     tuned_summary: pd.DataFrame
     tuned_gains: dict[str, float]
+    contact: pd.DataFrame | None
     duration: float
     seconds: float
 
@@ -278,14 +289,20 @@ def _summary(results: dict[str, SimResult]) -> tuple[pd.DataFrame, pd.DataFrame]
 
 
 def _simulate_all(
-    controllers: dict[str, list], reference: str, duration: float, dt: float, bar: tqdm
+    controllers: dict[str, list],
+    reference: str,
+    duration: float,
+    dt: float,
+    bar: tqdm,
+    plant: ELPlant | None = None,
 ) -> dict[str, SimResult]:
     ref = paper_reference(reference)
     x0 = initial_state(ref)
-    plant = PayloadRobot(seed=PAYLOAD_SEED, duration=max(duration, DURATION))
+    if plant is None:
+        plant = PayloadRobot(seed=PAYLOAD_SEED, duration=max(duration, DURATION))
     results = {}
     for kind, batch in controllers.items():
-        bar.set_postfix_str(f"{kind}, dt = {dt:g} s")
+        bar.set_postfix_str(f"{kind}, {type(plant).__name__}, dt = {dt:g} s")
         results[kind] = simulate(
             plant,
             batch,
@@ -307,21 +324,31 @@ def run_study(
     progress: bool = True,
     check_dt: bool = True,
     gains_path: str | Path | None = None,
+    contact: bool | None = None,
 ) -> PaperStudy:
-    """Run S1–S4 for every controller (and again at ``dt/2`` if ``check_dt``)."""
+    """Run S1–S4 for every controller (and again at ``dt/2`` if ``check_dt``; and on the
+    robot with real wheels if ``contact``: by default when MuJoCo is installed and the path is
+    the consistent one)."""
+    if contact is None:
+        contact = reference == "consistent" and _mujoco_installed()
     gains = tuning.load_gains(gains_path)
     tuned = tuning.load_arolc_gains(gains_path)
     controllers = _controllers(gains, tuned, reference)
     bound = razumikhin_bound(
         AROLC_GAINS["K1"], AROLC_GAINS["K2"], AROLC_GAINS["Q"], BETA, R, n=NominalRobot.n
     )
-    steps = len(controllers) * (2 if check_dt else 1)
+    steps = len(controllers) * (1 + int(check_dt) + int(contact))
     start = time.perf_counter()
     with tqdm(total=steps, desc=f"paper ({reference})", unit="batch", disable=not progress) as bar:
         results = _simulate_all(controllers, reference, duration, DT, bar)
         halved = _simulate_all(controllers, reference, duration, DT / 2, bar) if check_dt else None
+        wheels = None
+        if contact:
+            robot = MujocoWheeledRobot(seed=PAYLOAD_SEED, duration=max(duration, DURATION))
+            wheels = _simulate_all(controllers, reference, duration, DT, bar, plant=robot)
     seconds = time.perf_counter() - start
-    summary, status, tuned_summary = _split(*_summary(results))
+    analytic, status = _summary(results)
+    summary, status, tuned_summary = _split(analytic, status)
     dt_check = None
     if halved is not None:
         fine, _ = _summary(halved)
@@ -337,9 +364,29 @@ def run_study(
         bound=bound,
         tuned_summary=tuned_summary,
         tuned_gains=tuned,
+        contact=None if wheels is None else _contact_table(analytic, wheels),
         duration=duration,
         seconds=seconds,
     )
+
+
+def _contact_table(analytic: pd.DataFrame, wheels: dict[str, SimResult]) -> pd.DataFrame:
+    """The runs on the robot with real wheels beside the analytic robot's, with wheel slip."""
+    rows = []
+    for kind, result in wheels.items():
+        for scenario, slip in zip(SCENARIOS, wheel_slip(result), strict=True):
+            row = {"scenario": scenario, "controller": controller_name(scenario, kind)}
+            rows.append(row | dict(zip(SLIP_COLUMNS, slip, strict=True)))
+    contact, _ = _summary(wheels)
+    return comparison(analytic, contact.merge(pd.DataFrame(rows), on=["scenario", "controller"]))
+
+
+def _mujoco_installed() -> bool:
+    try:
+        import_mujoco()
+    except ImportError:
+        return False
+    return True
 
 
 def _split(
@@ -748,6 +795,51 @@ def _tuned_section(report: HtmlReport, study: PaperStudy) -> None:
     report.bullets(lines)
 
 
+def _contact_section(report: HtmlReport, study: PaperStudy) -> None:
+    if study.reference != "consistent":
+        return
+    report.heading("With contact physics")
+    if study.contact is None:
+        report.paragraph(
+            "Not run: this section needs MuJoCo (pip install -e '.[mujoco]' from a clone of "
+            "delaytrack), which steps a model of the robot with real wheels.",
+            note=True,
+        )
+        return
+    report.paragraph(
+        "Every run above again, on the robot with real wheels: a MuJoCo model of the P3-DX "
+        "(delaytrack/data/p3dx.xml: the same masses, inertias, geometry and wheel friction as "
+        "the analytic robot) whose wheels roll on the floor through friction contacts "
+        "(friction coefficient 0.8, MuJoCo's soft contacts) and whose platform rests on ball "
+        "casters, with the same payload put on and taken off at run time. MuJoCo steps it at "
+        f"dt = {DT * 1e3:g} ms (its implicitfast integrator); the controllers, gains, delays "
+        "and payload seed are unchanged. The analytic robot cannot slip; here the wheels can, "
+        "the platform pitches and rolls on its contacts, and the wheels' dry friction acts "
+        "as MuJoCo's friction loss instead of a smoothed Coulomb law."
+    )
+    for text in contact_findings(study.contact):
+        report.paragraph(text)
+    columns = {
+        "scenario": "scenario",
+        "controller": "controller",
+        "ae_x_mm": "AE-x mm",
+        "ae_x_contact_mm": "AE-x contact mm",
+        "ae_y_mm": "AE-y mm",
+        "ae_y_contact_mm": "AE-y contact mm",
+        "change_ae_pct": "AE change %",
+        "tv": "TV N·m",
+        "tv_contact": "TV contact N·m",
+        "change_tv_pct": "TV change %",
+        "slip_sideways_rms_mm_s": "sideways slip RMS mm/s",
+        "slip_rolling_rms_mm_s": "rolling slip RMS mm/s",
+    }
+    report.table(
+        study.contact[list(columns)].rename(columns=columns),
+        "summary_contact.csv: each run on the analytic robot and with contacts (AE of x and "
+        "y together for the change); slip from the residual of the rolling constraints.",
+    )
+
+
 def _literal_paragraph(study: PaperStudy, literal_summary: pd.DataFrame | None) -> str:
     text = (
         "The literal path (the paper's Section III). The paper prints x_d = 1.25 sin(0.35t) + 0.1, "
@@ -851,6 +943,8 @@ def write_study(
     folder = Path(folder)
     files = [write_frame(study.summary, folder / "summary.csv")]
     files.append(write_frame(study.tuned_summary, folder / "summary_tuned_arolc.csv"))
+    if study.contact is not None:
+        files.append(write_frame(study.contact, folder / "summary_contact.csv"))
     files.append(write_text(folder / "tables.md", tables_markdown(study.summary, study.reference)))
     if study.dt_check is not None:
         files.append(write_frame(study.dt_check, folder / "dt_check.csv"))
@@ -905,6 +999,7 @@ def _report(
     report.heading("Summary")
     report.table(study.summary, "summary.csv: AE, RMS, max in mm; %AE of 2500 mm; TV in N·m.")
     _tuned_section(report, study)
+    _contact_section(report, study)
     report.heading("Tables I–III beside the paper's")
     report.code(tables_markdown(study.summary, study.reference))
     report.heading("Literal path")
@@ -959,11 +1054,18 @@ def run_paper(
     progress: bool = True,
     check_dt: bool = True,
     literal_summary: pd.DataFrame | None = None,
+    contact: bool | None = None,
 ) -> PaperStudy:
     """Run the paper's experiment and write ``out_dir`` (module docstring); return the study."""
     if not (math.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be a positive number of seconds; got {duration!r}")
-    study = run_study(reference=reference, duration=duration, progress=progress, check_dt=check_dt)
+    study = run_study(
+        reference=reference,
+        duration=duration,
+        progress=progress,
+        check_dt=check_dt,
+        contact=contact,
+    )
     write_study(study, out_dir, literal_summary=literal_summary)
     return study
 
@@ -974,8 +1076,10 @@ def reproduce(
     duration: float = DURATION,
     check_dt: bool = True,
     progress: bool = True,
+    contact: bool | None = None,
 ) -> dict[str, PaperStudy]:
-    """``<out>/paper-literal/`` then ``<out>/paper/`` (whose report cites the literal run)."""
+    """``<out>/paper-literal/`` then ``<out>/paper/`` (whose report cites the literal run, and
+    has the runs with contact physics when ``contact``; by default when MuJoCo is installed)."""
     out = Path(out)
     for name in ("paper-literal", "paper"):
         check_output_folder(out / name)
@@ -993,5 +1097,6 @@ def reproduce(
         progress=progress,
         check_dt=check_dt,
         literal_summary=literal.summary,
+        contact=contact,
     )
     return {"consistent": consistent, "literal": literal}

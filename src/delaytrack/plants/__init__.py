@@ -11,7 +11,13 @@ from delaytrack.plants.callable_plant import CallablePlant
 from delaytrack.plants.compiled_plant import CompiledPlant
 from delaytrack.plants.linear import LinearPlant
 from delaytrack.plants.mujoco import MujocoPlant
-from delaytrack.plants.robot import NominalRobot, PayloadRobot, PrintedRobotModel, WheeledRobot
+from delaytrack.plants.robot import (
+    MujocoWheeledRobot,
+    NominalRobot,
+    PayloadRobot,
+    PrintedRobotModel,
+    WheeledRobot,
+)
 from delaytrack.plants.robot.body import BODY_KEYS
 from delaytrack.plants.two_link_arm import TwoLinkArm
 
@@ -22,6 +28,7 @@ __all__ = [
     "ELPlant",
     "LinearPlant",
     "MujocoPlant",
+    "MujocoWheeledRobot",
     "NominalRobot",
     "PayloadRobot",
     "PrintedRobotModel",
@@ -52,6 +59,11 @@ _PAYLOAD_KEYS = (
 
 def _boolean(value: object) -> str | None:
     return None if isinstance(value, bool) else "must be true or false"
+
+
+def _joint_names(value: object) -> str | None:
+    named = isinstance(value, list) and value and all(isinstance(item, str) for item in value)
+    return None if named else "must be a list of joint names"
 
 
 def _payload_robot(**arguments: Any) -> PayloadRobot:
@@ -101,8 +113,20 @@ PLANT_SPECS: dict[str, TypeSpec] = {
                 )
             },
             "add_motors": ("add_motors", _boolean),
+            "coordinates": ("coordinates", _joint_names),
         },
         required=("path",),
+    ),
+    MujocoWheeledRobot.type_name: TypeSpec(
+        MujocoWheeledRobot,
+        {
+            "path": ("path", string),
+            "name": ("name", string),
+            **{key: (key, number) for key in ("mass_scale", *_PAYLOAD_KEYS)},
+            "seed": ("seed", integer),
+            "placements": ("placements", array),
+            "beyond": ("beyond", string),
+        },
     ),
     NominalRobot.type_name: TypeSpec(NominalRobot, {key: (key, number) for key in BODY_KEYS}),
     PrintedRobotModel.type_name: TypeSpec(

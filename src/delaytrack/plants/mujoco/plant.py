@@ -26,7 +26,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import importlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -43,7 +43,7 @@ from delaytrack.plants.mujoco.capi import (
     write_at,
 )
 
-__all__ = ["MujocoPlant", "mujoco_terms"]
+__all__ = ["MujocoPlant", "extras_start", "mujoco_step", "mujoco_terms"]
 
 #: Control used to read a column of ``G``: a power of two, so that dividing by it is exact.
 _PROBE = 2.0**-20
@@ -51,6 +51,8 @@ _PROBE = 2.0**-20
 _MODEL, _DATA, _QPOS, _QVEL, _CTRL, _BIAS, _PASSIVE, _ACTUATOR = range(8)
 _POSITION, _VELOCITY, _ACTUATION, _MUL_M, _VECTOR, _PRODUCT, _RESET, _STEP = range(8, 16)
 _PARAMS = 16
+#: Then the coordinates' places in MuJoCo's ``qpos`` (n entries) and ``qvel`` (n entries).
+_INDICES = _PARAMS
 #: How the simulated plant advances: this toolkit's RK4 on the terms, or MuJoCo's mj_step.
 STEPPINGS = ("rk4", "mujoco")
 #: MuJoCo's bound on a "bad" number (mjMAXVAL): it zeroes such a control.
@@ -65,6 +67,13 @@ def import_mujoco() -> Any:
         return importlib.import_module("mujoco")
     except ImportError:
         raise ImportError(_INSTALL) from None
+
+
+@kernel
+def extras_start(n):
+    """Where a plant built on :class:`MujocoPlant` (``n`` coordinates) may put parameters of
+    its own: after MuJoCo's addresses and the coordinates' places."""
+    return _INDICES + 2 * n
 
 
 @kernel
@@ -107,7 +116,8 @@ def mujoco_step(t, x, u, dt, params, first):
     solver's warm start) carries over from step to step, as in MuJoCo's own loop. A control
     beyond MuJoCo's 1e10 makes ``x`` NaN (the run then stops as diverged), and MuJoCo's
     automatic reset of a bad state is turned off (:class:`MujocoPlant`), so that a diverging
-    state reaches the simulator's check."""
+    state reaches the simulator's check. ``x`` holds the plant's coordinates only: the model's
+    other joints (:attr:`MujocoPlant.coordinates`) move in MuJoCo's data."""
     n = x.shape[0] // 2
     model = params[_MODEL]
     data = params[_DATA]
@@ -120,14 +130,14 @@ def mujoco_step(t, x, u, dt, params, first):
                 x[i] = np.nan
             return
     for i in range(n):
-        write_at(params[_QPOS], i, x[i])
-        write_at(params[_QVEL], i, x[n + i])
+        write_at(params[_QPOS], int(params[_INDICES + i]), x[i])
+        write_at(params[_QVEL], int(params[_INDICES + n + i]), x[n + i])
     for j in range(u.shape[0]):
         write_at(params[_CTRL], j, u[j])
     call_void2(params[_STEP], model, data)
     for i in range(n):
-        x[i] = read_at(params[_QPOS], i)
-        x[n + i] = read_at(params[_QVEL], i)
+        x[i] = read_at(params[_QPOS], int(params[_INDICES + i]))
+        x[n + i] = read_at(params[_QVEL], int(params[_INDICES + n + i]))
 
 
 _JOINT_KINDS = {0: "free", 1: "ball", 2: "slide", 3: "hinge"}
@@ -155,6 +165,12 @@ class MujocoPlant(ELPlant):
     add_motors : bool
         Put a motor (gear 1, named after its joint) on every joint that no actuator of the
         file drives: a URDF file has no actuators.
+    coordinates : sequence of str, optional
+        Names of the joints (hinge or slide) that are the plant's coordinates ``q``, in this
+        order; all joints by default. With ``stepping="mujoco"`` only: the other joints (a
+        floating base's height, pitch and roll, a caster) are MuJoCo's to move, like its
+        contact state, and the controller sees the coordinates it has a model of (a wheeled
+        robot's ``x, y``, heading and wheel angles).
     stepping : {"rk4", "mujoco"}
         As the simulated plant: ``"rk4"`` integrates ``M q̈ + N = G u`` with the simulator's
         RK4, split where the delayed command switches; ``"mujoco"`` steps the model with
@@ -167,15 +183,17 @@ class MujocoPlant(ELPlant):
 
     Notes
     -----
-    Only hinge and slide joints are coordinates (``nq = nv``): free and ball joints are
-    refused. A floating base, such as a wheeled robot's, is written with slide and hinge joints
-    (``x``, ``y``, heading) in the file. Actuators must be direct: no activation dynamics
-    (``dyntype`` none), a fixed gain and no state-dependent bias, so that their joint forces are
-    ``G(q) u`` (motors with any ``gear``).
+    Only hinge and slide joints are coordinates: free and ball joints are refused unless
+    ``coordinates`` leaves them out. A floating base, such as a wheeled robot's, is written
+    with slide and hinge joints (``x``, ``y``, heading; and height, pitch, roll left out of
+    ``coordinates`` when the base rests on contacts) in the file. Actuators must be direct: no
+    activation dynamics (``dyntype`` none), a fixed gain and no state-dependent bias, so that
+    their joint forces are ``G(q) u`` (motors with any ``gear``).
 
     With ``stepping="mujoco"`` none of the refusals about actuators, limits and friction loss
-    apply (MuJoCo steps them), and contacts act; MuJoCo's state beyond ``q, q̇`` (activations,
-    the solver's warm start) lives in its data, reset at the start of each run.
+    apply (MuJoCo steps them), and contacts act; MuJoCo's state beyond ``q, q̇`` (the joints
+    left out of ``coordinates``, activations, the solver's warm start) lives in its data, reset
+    at the start of each run (the file's reference pose ``qpos0``, at rest).
 
     The plant holds MuJoCo's ``mjData``, which every evaluation writes (``thread_safe`` is
     False): each thread of a batch runs a copy of its own (:meth:`for_worker`), made from the
@@ -190,6 +208,7 @@ class MujocoPlant(ELPlant):
     add_motors: bool = False
     stepping: str = "rk4"
     name: str | None = None
+    coordinates: tuple[str, ...] | None = None
     n: int = field(init=False)
     m: int = field(init=False)
     coordinate_names: tuple[str, ...] | None = field(init=False)
@@ -198,6 +217,7 @@ class MujocoPlant(ELPlant):
     _scratch: np.ndarray = field(init=False, repr=False)
     _params: np.ndarray = field(init=False, repr=False)
     _copies: dict[int, MujocoPlant] = field(init=False, repr=False)
+    _identity: np.ndarray = field(init=False, repr=False)
     type_name: ClassVar[str] = "mujoco"
     thread_safe: ClassVar[bool] = False
 
@@ -221,21 +241,22 @@ class MujocoPlant(ELPlant):
         except Exception as error:  # noqa: BLE001 - MuJoCo's own message names the problem
             message = " ".join(str(error).split())
             raise ValueError(f"path {str(path)!r}: MuJoCo could not read it: {message}") from None
-        self._check(mujoco, model, path)
+        joints = self._coordinate_joints(mujoco, model, path)
+        self._check(mujoco, model, path, joints)
         if self.stepping == "mujoco":  # a diverging state must reach the simulator, not reset
             model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
         model.body_mass[1:] *= scale
         model.body_inertia[1:] *= scale
         data = mujoco.MjData(model)
         mujoco.mj_setConst(model, data)
-        names = tuple(
-            mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(model.njnt)
-        )
+        names = tuple(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joints)
         usable = all(name and name.isidentifier() for name in names) and len(set(names)) == len(
             names
         )
         scratch = np.zeros((2, model.nv))
-        params = np.zeros(_PARAMS)
+        params = np.zeros(_INDICES + 2 * len(joints))
+        params[_INDICES : _INDICES + len(joints)] = model.jnt_qposadr[joints]
+        params[_INDICES + len(joints) :] = model.jnt_dofadr[joints]
         params[[_MODEL, _DATA]] = model._address, data._address
         for index, array in (
             (_QPOS, data.qpos),
@@ -258,7 +279,7 @@ class MujocoPlant(ELPlant):
         ):
             params[index] = function_address(mujoco, function)
         for key, value in (
-            ("n", int(model.nv)),
+            ("n", len(joints)),
             ("m", int(model.nu)),
             ("coordinate_names", names if usable else None),
             ("_model", model),
@@ -274,25 +295,56 @@ class MujocoPlant(ELPlant):
             ),
         ):
             object.__setattr__(self, key, value)
+        object.__setattr__(self, "_identity", self._compiled_identity(mujoco))
+        if self.coordinates is not None:
+            return  # stepped by MuJoCo: no terms of the chosen joints alone
         mass, nonlinear, input_map = self.terms(np.zeros(self.n), np.zeros(self.n))
         if not all(np.all(np.isfinite(array)) for array in (mass, nonlinear, input_map)):
             raise ValueError(f"path {str(path)!r}: the model gives non-finite terms at q = 0")
         as_spd_matrix(f"the M(0) of {str(path)!r}", mass[0], self.n)
 
-    def _check(self, mujoco: Any, model: Any, path: Path) -> None:
+    def _coordinate_joints(self, mujoco: Any, model: Any, path: Path) -> list[int]:
+        """Ids of the joints that are the coordinates: :attr:`coordinates`, or every joint."""
+        if model.njnt == 0:
+            raise ValueError(f"path {str(path)!r}: the model has no joints")
+        if self.coordinates is None:
+            return list(range(model.njnt))
+        names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(model.njnt)]
+        chosen = self.coordinates
+        if isinstance(chosen, str) or not all(isinstance(name, str) for name in chosen):
+            raise TypeError(f"coordinates must be a list of joint names; got {chosen!r}")
+        chosen = tuple(chosen)
+        object.__setattr__(self, "coordinates", chosen)
+        if not chosen or len(set(chosen)) != len(chosen):
+            raise ValueError(
+                f"coordinates must name joints, each once; got {list(chosen)} (joints of "
+                f"{str(path)!r}: {names})"
+            )
+        if self.stepping != "mujoco":
+            raise ValueError(
+                "coordinates (a part of the joints) needs stepping='mujoco': MuJoCo moves the "
+                "other joints, and M q'' + N = G u of a part of the joints is not defined"
+            )
+        unknown = [name for name in chosen if name not in names]
+        if unknown:
+            raise ValueError(
+                f"coordinates: {unknown} are not joints of {str(path)!r}; its joints: {names}"
+            )
+        return [names.index(name) for name in chosen]
+
+    def _check(self, mujoco: Any, model: Any, path: Path, joints: list[int]) -> None:
         """Refuse what ``M q̈ + N = G u`` cannot represent (class notes)."""
         where = f"path {str(path)!r}"
         joint = lambda j: mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"#{j}"  # noqa: E731
         actuator = lambda j: mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, j) or f"#{j}"  # noqa: E731
-        for j, kind in enumerate(model.jnt_type):
+        for j in joints:
+            kind = int(model.jnt_type[j])
             if kind not in (2, 3):
                 raise ValueError(
-                    f"{where}: joint {joint(j)!r} is a {_JOINT_KINDS[int(kind)]} joint; only "
+                    f"{where}: joint {joint(j)!r} is a {_JOINT_KINDS[kind]} joint; only "
                     "hinge and slide joints can be coordinates (write a floating base as slide "
-                    "and hinge joints: x, y, heading)"
+                    "and hinge joints: x, y, heading; or leave it out of coordinates)"
                 )
-        if model.nv == 0:
-            raise ValueError(f"{where}: the model has no joints")
         if model.nu == 0:
             raise ValueError(
                 f"{where}: the model has no actuators (a URDF file has none); pass "
@@ -326,7 +378,10 @@ class MujocoPlant(ELPlant):
             limited = (
                 model.actuator_ctrllimited[j]
                 or model.actuator_forcelimited[j]
-                or model.jnt_actfrclimited[int(model.actuator_trnid[j, 0])]
+                or (  # a joint's actuatorfrcrange (the target is a joint, not a tendon)
+                    model.actuator_trntype[j] == int(mujoco.mjtTrn.mjTRN_JOINT)
+                    and model.jnt_actfrclimited[int(model.actuator_trnid[j, 0])]
+                )
             )
             if limited and self.actuator_limits == "refuse":
                 raise ValueError(
@@ -366,16 +421,8 @@ class MujocoPlant(ELPlant):
     def __reduce__(self) -> tuple:
         # Made again from its file when copied or sent to another process: the parameter
         # vector holds addresses of this process's MuJoCo data.
-        arguments = (
-            self.path,
-            self.mass_scale,
-            self.actuator_limits,
-            self.constraints,
-            self.add_motors,
-            self.stepping,
-            self.name,
-        )
-        return (type(self), arguments)
+        arguments = {item.name: getattr(self, item.name) for item in fields(self) if item.init}
+        return (_made_again, (type(self), arguments))
 
     def for_worker(self, index: int) -> MujocoPlant:
         if index not in self._copies:
@@ -391,6 +438,16 @@ class MujocoPlant(ELPlant):
     @property
     def params(self) -> np.ndarray:
         return self._params
+
+    def terms(
+        self, q: np.ndarray, qdot: np.ndarray, t: float = 0.0
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if self.coordinates is not None:
+            raise ValueError(
+                f"{self.name!r} has no M, N, G of its coordinates {list(self.coordinates)} "
+                "alone (MuJoCo moves its other joints): it is a simulated plant only"
+            )
+        return super().terms(q, qdot, t)
 
     @property
     def terms_kernel(self):
@@ -411,12 +468,15 @@ class MujocoPlant(ELPlant):
 
     @property
     def run_identity(self) -> np.ndarray:
-        """The compiled model (MuJoCo's binary ``.mjb`` of it, masses scaled), as numbers: what
-        a sweep unit's hash covers instead of the parameter vector's addresses."""
-        mujoco = import_mujoco()
+        """The compiled model (MuJoCo's binary ``.mjb`` of it, masses scaled) and the
+        coordinates' places, as numbers: what a sweep unit's hash covers instead of the
+        parameter vector's addresses."""
+        return self._identity
+
+    def _compiled_identity(self, mujoco: Any) -> np.ndarray:
         buffer = np.zeros(mujoco.mj_sizeModel(self._model), dtype=np.uint8)
         mujoco.mj_saveModel(self._model, None, buffer)
-        digest = hashlib.sha256(buffer.tobytes()).digest()
+        digest = hashlib.sha256(buffer.tobytes() + self._params[_INDICES:].tobytes()).digest()
         return np.frombuffer(digest, dtype=np.uint8).astype(float)
 
     def to_spec(self) -> dict[str, Any]:
@@ -430,7 +490,13 @@ class MujocoPlant(ELPlant):
             spec["add_motors"] = True
         if self.stepping != "rk4":
             spec["stepping"] = self.stepping
+        if self.coordinates is not None:
+            spec["coordinates"] = list(self.coordinates)
         return spec
+
+
+def _made_again(cls: type, arguments: dict[str, Any]) -> MujocoPlant:
+    return cls(**arguments)
 
 
 def _load(mujoco: Any, path: Path, add_motors: bool) -> Any:

@@ -3,6 +3,8 @@
 * :class:`WheeledRobot` — the constrained truth plant (reduced wheel-space dynamics, wheel
   friction, Baumgarte-stabilised velocity constraints);
 * :class:`PayloadRobot` — the truth plant carrying the paper's 3.5 kg payload on a schedule;
+* :class:`MujocoWheeledRobot` — the same robot with real wheels: a MuJoCo model with contacts
+  (``data/p3dx.xml``, :data:`P3DX_MJCF`; needs the ``mujoco`` extra);
 * :class:`NominalRobot` — the unconstrained Lagrangian ``M̂, N̂`` the controllers use, with the
   command map ``τ_w = S(q)ᵀ τ``;
 * :class:`PrintedRobotModel` — the paper's printed ``M̄, V̄`` as an alternative nominal model;
@@ -13,6 +15,7 @@ See ``docs/robot.md`` for the derivation, the decisions and the findings on the 
 """
 
 from delaytrack.plants.robot.body import RobotBody
+from delaytrack.plants.robot.contact import P3DX_MJCF, MujocoWheeledRobot
 from delaytrack.plants.robot.kinematics import (
     consistent_state,
     constraint_matrix,
@@ -35,8 +38,10 @@ from delaytrack.plants.robot.truth import WheeledRobot
 
 __all__ = [
     "P3DX",
+    "P3DX_MJCF",
     "P3DX_PAYLOAD",
     "P3DX_SOURCES",
+    "MujocoWheeledRobot",
     "NominalRobot",
     "PayloadDefaults",
     "PayloadRobot",

@@ -52,22 +52,19 @@ from delaytrack.plants.robot.truth import (
 
 __all__ = ["PayloadRobot", "active_placement", "random_placements", "robot_payload_terms"]
 
-# Layout after the truth parameters: [m_p, first_on, time_on, time_off, count, p_0x, p_0y, ...].
-_MASS = TRUTH_PARAMS
-_FIRST_ON = TRUTH_PARAMS + 1
-_TIME_ON = TRUTH_PARAMS + 2
-_TIME_OFF = TRUTH_PARAMS + 3
-_COUNT = TRUTH_PARAMS + 4
-_PLACEMENTS = TRUTH_PARAMS + 5
+# Layout of a schedule, from its start in a parameter vector (the truth parameters' end in
+# PayloadRobot's): [m_p, first_on, time_on, time_off, count, p_0x, p_0y, ...].
+_MASS, _FIRST_ON, _TIME_ON, _TIME_OFF, _COUNT, _PLACEMENTS = range(6)
 
 
 @hot_kernel
-def active_placement(t, params):
-    """Index of the placement in force at ``t``, or -1 when the robot is unloaded."""
-    first_on = params[_FIRST_ON]
-    time_on = params[_TIME_ON]
-    period = time_on + params[_TIME_OFF]
-    count = int(params[_COUNT])
+def active_placement(t, params, start):
+    """Index of the placement in force at ``t``, or -1 when the robot is unloaded; the schedule
+    starts at ``params[start]``."""
+    first_on = params[start + _FIRST_ON]
+    time_on = params[start + _TIME_ON]
+    period = time_on + params[start + _TIME_OFF]
+    count = int(params[start + _COUNT])
     if t < first_on or count == 0:
         return -1
     k = int(math.floor((t - first_on) / period))
@@ -85,11 +82,11 @@ def robot_payload_terms(t, q, qdot, params, mass, nonlinear, input_map):
     s_x = params[4]
     s_y = params[5]
     inertia_a = params[6]
-    k = active_placement(t, params)
+    k = active_placement(t, params, TRUTH_PARAMS)
     if k >= 0:
-        m_p = params[_MASS]
-        p_x = params[_PLACEMENTS + 2 * k]
-        p_y = params[_PLACEMENTS + 2 * k + 1]
+        m_p = params[TRUTH_PARAMS + _MASS]
+        p_x = params[TRUTH_PARAMS + _PLACEMENTS + 2 * k]
+        p_y = params[TRUTH_PARAMS + _PLACEMENTS + 2 * k + 1]
         mass_b += m_p
         s_x += m_p * p_x
         s_y += m_p * p_y
@@ -170,6 +167,20 @@ class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
     coordinate_names: ClassVar[tuple[str, ...]] = COORDINATES
     type_name: ClassVar[str] = "wheeled-robot-payload"
     identity_mass: ClassVar[bool] = True
+    #: The fields of the payload and its schedule (the others describe the robot).
+    schedule_keys: ClassVar[tuple[str, ...]] = (
+        "placements",
+        "seed",
+        "duration",
+        "payload_mass",
+        "time_on",
+        "time_off",
+        "first_on",
+        "plate_length",
+        "plate_width",
+        "plate_center",
+        "beyond",
+    )
 
     def __post_init__(self) -> None:
         if not isinstance(self.robot, WheeledRobot):
@@ -239,6 +250,12 @@ class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
         return robot_payload_terms
 
     @property
+    def schedule(self) -> np.ndarray:
+        """The schedule as kernels read it (:func:`active_placement`): ``[m_p, first_on,
+        time_on, time_off, k, p_0x, p_0y, …]``."""
+        return self._params[TRUTH_PARAMS:]
+
+    @property
     def horizon(self) -> float:
         """End of the schedule, ``first_on + k (time_on + time_off)`` (``inf`` with ``hold``)."""
         if self.beyond == "hold":
@@ -271,7 +288,7 @@ class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
 
     def placement_at(self, t: float) -> np.ndarray | None:
         """Body-frame point (2,) of the payload in force at ``t``, or None."""
-        k = active_placement(float(t), self._params)
+        k = active_placement(float(t), self._params, TRUTH_PARAMS)
         return None if k < 0 else self.placements[k].copy()
 
     def aggregates(self, t: float = 0.0) -> np.ndarray:

@@ -232,3 +232,15 @@ def test_the_robot_with_contacts_refuses_what_it_cannot_be(tmp_path):
         dt.AROLC(MujocoWheeledRobot(), **AROLC_GAINS)
     with pytest.raises(ValueError, match="seed"):
         MujocoWheeledRobot(duration=10.0)
+
+
+def test_the_contacts_time_constant_is_set_or_refused():
+    soft, stiff = MujocoWheeledRobot(), MujocoWheeledRobot(contact_time_constant=0.005)
+    assert np.all(stiff._model.geom_solref == [0.005, 1.0])
+    assert np.all(soft._model.geom_solref == [0.02, 1.0])  # MuJoCo's default, from the file
+    assert not np.array_equal(soft.run_identity, stiff.run_identity)
+    assert stiff.to_spec()["contact_time_constant"] == 0.005
+    with pytest.raises(ValueError, match=r"at least two of the model's timesteps, 0.002 s"):
+        MujocoWheeledRobot(contact_time_constant=0.0015)
+    with pytest.raises(ValueError, match="contact_time_constant"):
+        MujocoWheeledRobot(contact_time_constant=-1.0)

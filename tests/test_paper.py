@@ -83,10 +83,11 @@ def test_short_run_writes_every_promised_file(tmp_path):
 
     # The same runs on the robot with real wheels (MuJoCo is installed for the tests).
     contact = pd.read_csv(tmp_path / "summary_contact.csv")
-    pairs = list(contact[["scenario", "controller"]].itertuples(index=False, name=None))
-    assert sorted(pairs) == sorted(
-        ROWS + [(case, "AROLC-tuned") for case in ("S1", "S2", "S3", "S4")]
-    )
+    assert list(contact.contact_time_constant_s.unique()) == list(paper.CONTACT_TIME_CONSTANTS)
+    runs = ROWS + [(case, "AROLC-tuned") for case in ("S1", "S2", "S3", "S4")]
+    for _, rows in contact.groupby("contact_time_constant_s"):
+        pairs = list(rows[["scenario", "controller"]].itertuples(index=False, name=None))
+        assert sorted(pairs) == sorted(runs)
     assert np.all(np.isfinite(contact.iloc[:, 2:].to_numpy()))
     assert (contact.slip_sideways_rms_mm_s > 0).all() and (contact.slip_max_mm_s < 400).all()
     merged = contact.merge(summary, on=["scenario", "controller"], suffixes=("", "_analytic"))
@@ -133,10 +134,11 @@ def test_diverged_runs_get_nan_metrics_and_a_flag():
 def test_contact_findings_are_computed_from_the_table():
     table = pd.DataFrame(
         {
+            "contact_time_constant_s": [0.02, 0.02, 0.02, 0.02],
             "scenario": ["S1", "S1", "S2", "S2"],
             "controller": ["AROLC", "PCON", "AROLC", "PCON"],
             "ae_x_mm": [10.0, 5.0, 10.0, 5.0],
-            "ae_x_contact_mm": [11.0, 4.0, 30.0, np.nan],
+            "ae_x_contact_mm": [11.0, 40.0, 30.0, np.nan],
             "ae_y_mm": [10.0, 5.0, 10.0, 5.0],
             "ae_y_contact_mm": [13.0, 5.0, 30.0, np.nan],
             "tv": [1.0, 2.0, 1.0, 2.0],
@@ -150,12 +152,20 @@ def test_contact_findings_are_computed_from_the_table():
         (table.ae_x_contact_mm + table.ae_y_contact_mm) / (table.ae_x_mm + table.ae_y_mm) - 1
     )
     table["change_tv_pct"] = 100 * (table.tv_contact / table.tv - 1)
-    text = " ".join(contact_findings(table))
-    assert "In the 3 runs" in text and "-10 to +200 %" in text and "(median +20 %)" in text
-    assert "+0 to +50 %" in text and "0.25–0.75 mm/s" in text and "at most 12.5 mm/s" in text
-    assert "in 2 of 2 scenarios (S1: PCON < AROLC; S2: AROLC" in text
+    stiff = table.assign(contact_time_constant_s=0.005, ae_x_contact_mm=table.ae_x_mm)
+    stiff["change_ae_pct"] = 100 * (
+        (stiff.ae_x_contact_mm + stiff.ae_y_contact_mm) / (stiff.ae_x_mm + stiff.ae_y_mm) - 1
+    )
+    text = " ".join(contact_findings(pd.concat([table, stiff])))
+    assert "In the 3 runs" in text and "+20 % to +350 %" in text and "(median +200 %)" in text
+    assert "+0 % to +50 %" in text and "0.25–0.75 mm/s" in text and "at most 12.5 mm/s" in text
+    assert (
+        "in 1 of 2 scenarios (S1: PCON < AROLC on the analytic robot, AROLC < PCON with "
+        "contacts; S2: AROLC on both)" in text
+    )
     assert "Left the path on one of the robots: S2 PCON." in text
-    assert "The largest change is AROLC's in S2: AE-x 10 → 30 mm" in text
+    assert "The largest change is PCON's in S1: AE-x 5 → 40 mm" in text
+    assert "time constant of 5 ms instead of 20 ms" in text and "+0 % to +100 %" in text
 
 
 def test_claims_are_computed_from_the_summary():

@@ -76,23 +76,56 @@ def comparison(analytic: pd.DataFrame, contact: pd.DataFrame) -> pd.DataFrame:
     return table
 
 
-def _span(values: pd.Series, unit: str, digits: int = 0) -> str:
-    return f"{values.min():+.{digits}f} to {values.max():+.{digits}f} {unit}"
+def _percent(value: float) -> str:
+    return f"{round(float(value)):+d} %"  # rounded first: no "-0 %"
+
+
+def _changes(runs: pd.DataFrame) -> str:
+    ae, tv = runs["change_ae_pct"], runs["change_tv_pct"]
+    return (
+        f"the mean absolute error (x and y together) by {_percent(ae.min())} to "
+        f"{_percent(ae.max())} (median {_percent(ae.median())}) and the control effort TV by "
+        f"{_percent(tv.min())} to {_percent(tv.max())} (median {_percent(tv.median())})"
+    )
+
+
+def _order(runs: pd.DataFrame, ae_x: str, ae_y: str) -> list[str]:
+    error = dict(zip(runs["controller"], runs[ae_x] + runs[ae_y], strict=True))
+    return sorted(error, key=error.get)
+
+
+def _rankings(runs: pd.DataFrame) -> str:
+    parts, same = [], 0
+    for scenario, cases in runs.groupby("scenario", sort=True):
+        analytic = _order(cases, "ae_x_mm", "ae_y_mm")
+        contact = _order(cases, "ae_x_contact_mm", "ae_y_contact_mm")
+        if analytic == contact:
+            same += 1
+            parts.append(f"{scenario}: {' < '.join(analytic)} on both")
+        else:
+            parts.append(
+                f"{scenario}: {' < '.join(analytic)} on the analytic robot, "
+                f"{' < '.join(contact)} with contacts"
+            )
+    return (
+        f"Ordered by error, the controllers rank the same on both robots in {same} of "
+        f"{len(parts)} scenarios ({'; '.join(parts)})."
+    )
 
 
 def contact_findings(table: pd.DataFrame) -> list[str]:
     """What contacts changed, in sentences whose numbers all come from ``table``
-    (:func:`comparison`)."""
-    both = table.dropna(subset=["change_ae_pct", "change_tv_pct"])
-    lost = table[table["change_ae_pct"].isna()]
+    (:func:`comparison`, with a column ``contact_time_constant_s``: the first time constant's
+    runs are the main ones, the others how much the contacts' softness matters)."""
+    constants = list(dict.fromkeys(table["contact_time_constant_s"]))
+    main = table[table["contact_time_constant_s"] == constants[0]]
+    both = main.dropna(subset=["change_ae_pct", "change_tv_pct"])
+    lost = main[main["change_ae_pct"].isna()]
     text = []
     if len(both):
         text.append(
             f"In the {len(both)} runs that stayed on the path on both robots, contact physics "
-            f"changed the mean absolute error (x and y together) by "
-            f"{_span(both['change_ae_pct'], '%')} (median {both['change_ae_pct'].median():+.0f} "
-            f"%) and the control effort TV by {_span(both['change_tv_pct'], '%')} (median "
-            f"{both['change_tv_pct'].median():+.0f} %)."
+            f"(contact time constant {1e3 * constants[0]:g} ms) changed {_changes(both)}."
         )
         text.append(
             "The wheels slip: the axle's sideways velocity has an RMS of "
@@ -110,32 +143,18 @@ def contact_findings(table: pd.DataFrame) -> list[str]:
             f"{largest['ae_y_mm']:.3g} → {largest['ae_y_contact_mm']:.3g} mm, TV "
             f"{largest['tv']:.3g} → {largest['tv_contact']:.3g} N·m."
         )
-        ranking = []
-        for scenario, runs in both.groupby("scenario", sort=True):
-            ae = dict(
-                zip(
-                    runs["controller"],
-                    runs["ae_x_mm"] + runs["ae_y_mm"],
-                    strict=True,
-                )
-            )
-            ae_contact = dict(
-                zip(
-                    runs["controller"],
-                    runs["ae_x_contact_mm"] + runs["ae_y_contact_mm"],
-                    strict=True,
-                )
-            )
-            order = sorted(ae, key=ae.get)
-            order_contact = sorted(ae_contact, key=ae_contact.get)
-            ranking.append((scenario, order == order_contact, " < ".join(order_contact)))
-        same = [scenario for scenario, kept, _ in ranking if kept]
-        text.append(
-            f"Ordered by error, the controllers rank the same on both robots in {len(same)} of "
-            f"{len(ranking)} scenarios ("
-            + "; ".join(f"{scenario}: {order}" for scenario, _, order in ranking)
-            + ", with contacts)."
+        text.append(_rankings(both))
+    for constant in constants[1:]:
+        other = table[table["contact_time_constant_s"] == constant].dropna(
+            subset=["change_ae_pct", "change_tv_pct"]
         )
+        if len(other):
+            text.append(
+                f"With a contact time constant of {1e3 * constant:g} ms instead of "
+                f"{1e3 * constants[0]:g} ms (shorter is stiffer), contact physics "
+                f"changed {_changes(other)} ({len(other)} runs on the path on both robots; "
+                "summary_contact.csv has them)."
+            )
     if len(lost):
         text.append(
             "Left the path on one of the robots: "

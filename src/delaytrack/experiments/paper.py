@@ -112,6 +112,9 @@ _SCENARIO_TEXT = {
     "S3": "h = 60 ms",
     "S4": "h = 120 ms",
 }
+#: Contact time constants (s) of the robot with real wheels: MuJoCo's default, then a stiffer
+#: contact, to show how much the contacts' softness matters.
+CONTACT_TIME_CONSTANTS = (0.02, 0.005)
 #: One payload seed for every reported run (the tuning uses another, tuning.TUNING_SEED).
 PAYLOAD_SEED = 2024
 DURATION, DT, T_C = 60.0, 1e-3, 0.01
@@ -337,15 +340,21 @@ def run_study(
     bound = razumikhin_bound(
         AROLC_GAINS["K1"], AROLC_GAINS["K2"], AROLC_GAINS["Q"], BETA, R, n=NominalRobot.n
     )
-    steps = len(controllers) * (1 + int(check_dt) + int(contact))
+    steps = len(controllers) * (1 + int(check_dt) + len(CONTACT_TIME_CONSTANTS) * int(contact))
     start = time.perf_counter()
     with tqdm(total=steps, desc=f"paper ({reference})", unit="batch", disable=not progress) as bar:
         results = _simulate_all(controllers, reference, duration, DT, bar)
         halved = _simulate_all(controllers, reference, duration, DT / 2, bar) if check_dt else None
-        wheels = None
-        if contact:
-            robot = MujocoWheeledRobot(seed=PAYLOAD_SEED, duration=max(duration, DURATION))
-            wheels = _simulate_all(controllers, reference, duration, DT, bar, plant=robot)
+        wheels = {}
+        for time_constant in CONTACT_TIME_CONSTANTS if contact else ():
+            robot = MujocoWheeledRobot(
+                seed=PAYLOAD_SEED,
+                duration=max(duration, DURATION),
+                contact_time_constant=time_constant,
+            )
+            wheels[time_constant] = _simulate_all(
+                controllers, reference, duration, DT, bar, plant=robot
+            )
     seconds = time.perf_counter() - start
     analytic, status = _summary(results)
     summary, status, tuned_summary = _split(analytic, status)
@@ -364,21 +373,31 @@ def run_study(
         bound=bound,
         tuned_summary=tuned_summary,
         tuned_gains=tuned,
-        contact=None if wheels is None else _contact_table(analytic, wheels),
+        contact=_contact_table(analytic, wheels) if wheels else None,
         duration=duration,
         seconds=seconds,
     )
 
 
-def _contact_table(analytic: pd.DataFrame, wheels: dict[str, SimResult]) -> pd.DataFrame:
-    """The runs on the robot with real wheels beside the analytic robot's, with wheel slip."""
-    rows = []
-    for kind, result in wheels.items():
-        for scenario, slip in zip(SCENARIOS, wheel_slip(result), strict=True):
-            row = {"scenario": scenario, "controller": controller_name(scenario, kind)}
-            rows.append(row | dict(zip(SLIP_COLUMNS, slip, strict=True)))
-    contact, _ = _summary(wheels)
-    return comparison(analytic, contact.merge(pd.DataFrame(rows), on=["scenario", "controller"]))
+def _contact_table(
+    analytic: pd.DataFrame, wheels: dict[float, dict[str, SimResult]]
+) -> pd.DataFrame:
+    """The runs on the robot with real wheels (per contact time constant) beside the analytic
+    robot's, with wheel slip."""
+    tables = []
+    for time_constant, results in wheels.items():
+        rows = []
+        for kind, result in results.items():
+            for scenario, slip in zip(SCENARIOS, wheel_slip(result), strict=True):
+                row = {"scenario": scenario, "controller": controller_name(scenario, kind)}
+                rows.append(row | dict(zip(SLIP_COLUMNS, slip, strict=True)))
+        contact, _ = _summary(results)
+        table = comparison(
+            analytic, contact.merge(pd.DataFrame(rows), on=["scenario", "controller"])
+        )
+        table.insert(2, "contact_time_constant_s", time_constant)
+        tables.append(table)
+    return pd.concat(tables, ignore_index=True)
 
 
 def _mujoco_installed() -> bool:
@@ -810,7 +829,10 @@ def _contact_section(report: HtmlReport, study: PaperStudy) -> None:
         "Every run above again, on the robot with real wheels: a MuJoCo model of the P3-DX "
         "(delaytrack/data/p3dx.xml: the same masses, inertias, geometry and wheel friction as "
         "the analytic robot) whose wheels roll on the floor through friction contacts "
-        "(friction coefficient 0.8, MuJoCo's soft contacts) and whose platform rests on ball "
+        "(friction coefficient 0.8; MuJoCo's soft contacts, with its default time constant of "
+        f"{1e3 * CONTACT_TIME_CONSTANTS[0]:g} ms, and again at "
+        f"{', '.join(f'{1e3 * value:g}' for value in CONTACT_TIME_CONSTANTS[1:])} ms to see "
+        "what their softness does) and whose platform rests on ball "
         "casters, with the same payload put on and taken off at run time. MuJoCo steps it at "
         f"dt = {DT * 1e3:g} ms (its implicitfast integrator); the controllers, gains, delays "
         "and payload seed are unchanged. The analytic robot cannot slip; here the wheels can, "
@@ -833,10 +855,12 @@ def _contact_section(report: HtmlReport, study: PaperStudy) -> None:
         "slip_sideways_rms_mm_s": "sideways slip RMS mm/s",
         "slip_rolling_rms_mm_s": "rolling slip RMS mm/s",
     }
+    main = study.contact[study.contact.contact_time_constant_s == CONTACT_TIME_CONSTANTS[0]]
     report.table(
-        study.contact[list(columns)].rename(columns=columns),
-        "summary_contact.csv: each run on the analytic robot and with contacts (AE of x and "
-        "y together for the change); slip from the residual of the rolling constraints.",
+        main[list(columns)].rename(columns=columns),
+        f"summary_contact.csv: each run on the analytic robot and with contacts (time constant "
+        f"{1e3 * CONTACT_TIME_CONSTANTS[0]:g} ms; AE of x and y together for the change); slip "
+        "from the residual of the rolling constraints.",
     )
 
 

@@ -114,6 +114,7 @@ PLANT_SPECS: dict[str, TypeSpec] = {
             },
             "add_motors": ("add_motors", _boolean),
             "coordinates": ("coordinates", _joint_names),
+            "contact_time_constant": ("contact_time_constant", number),
         },
         required=("path",),
     ),
@@ -122,7 +123,10 @@ PLANT_SPECS: dict[str, TypeSpec] = {
         {
             "path": ("path", string),
             "name": ("name", string),
-            **{key: (key, number) for key in ("mass_scale", *_PAYLOAD_KEYS)},
+            **{
+                key: (key, number)
+                for key in ("mass_scale", "contact_time_constant", *_PAYLOAD_KEYS)
+            },
             "seed": ("seed", integer),
             "placements": ("placements", array),
             "beyond": ("beyond", string),

@@ -180,6 +180,11 @@ class MujocoPlant(ELPlant):
         are used either way.
     name : str, optional
         Shown in results and reports (the model's name by default).
+    contact_time_constant : float, optional
+        The time constant (s) of every contact of the model (MuJoCo's ``solref``, the first
+        number, of every geom and contact pair; the damping ratio is kept, or 1): how soft
+        the contacts are. None keeps the file's (MuJoCo's default is 0.02 s). MuJoCo needs at
+        least two timesteps; a smaller value is refused rather than raised by MuJoCo.
 
     Notes
     -----
@@ -209,6 +214,7 @@ class MujocoPlant(ELPlant):
     stepping: str = "rk4"
     name: str | None = None
     coordinates: tuple[str, ...] | None = None
+    contact_time_constant: float | None = None
     n: int = field(init=False)
     m: int = field(init=False)
     coordinate_names: tuple[str, ...] | None = field(init=False)
@@ -247,6 +253,8 @@ class MujocoPlant(ELPlant):
             model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
         model.body_mass[1:] *= scale
         model.body_inertia[1:] *= scale
+        if self.contact_time_constant is not None:
+            self._set_contact_time_constant(model)
         data = mujoco.MjData(model)
         mujoco.mj_setConst(model, data)
         names = tuple(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joints)
@@ -331,6 +339,19 @@ class MujocoPlant(ELPlant):
                 f"coordinates: {unknown} are not joints of {str(path)!r}; its joints: {names}"
             )
         return [names.index(name) for name in chosen]
+
+    def _set_contact_time_constant(self, model: Any) -> None:
+        time_constant = positive_scalar("contact_time_constant", self.contact_time_constant)
+        timestep = float(model.opt.timestep)
+        if time_constant < 2.0 * timestep:
+            raise ValueError(
+                f"contact_time_constant must be at least two of the model's timesteps, "
+                f"{2.0 * timestep:g} s (MuJoCo would raise it to that); got {time_constant:g}"
+            )
+        object.__setattr__(self, "contact_time_constant", time_constant)
+        for solref in (model.geom_solref, model.pair_solref):
+            solref[:, 1] = np.where(solref[:, 0] > 0.0, solref[:, 1], 1.0)
+            solref[:, 0] = time_constant
 
     def _check(self, mujoco: Any, model: Any, path: Path, joints: list[int]) -> None:
         """Refuse what ``M q̈ + N = G u`` cannot represent (class notes)."""
@@ -492,6 +513,8 @@ class MujocoPlant(ELPlant):
             spec["stepping"] = self.stepping
         if self.coordinates is not None:
             spec["coordinates"] = list(self.coordinates)
+        if self.contact_time_constant is not None:
+            spec["contact_time_constant"] = self.contact_time_constant
         return spec
 
 

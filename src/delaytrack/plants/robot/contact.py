@@ -77,6 +77,9 @@ class MujocoWheeledRobot(MujocoPlant):
         a body ``payload`` whose frame is at the axle midpoint A.
     mass_scale : float
         Factor (> 0) on every body's mass and inertia (the payload's is set at run time).
+    contact_time_constant : float, optional
+        How soft the wheels' contacts are (s; MuJoCo's default 0.02 s by default), as for
+        :class:`~delaytrack.plants.mujoco.MujocoPlant`.
     placements, seed, duration, payload_mass, time_on, time_off, first_on, plate_length,
     plate_width, plate_center, beyond
         The payload and its schedule, as for :class:`~delaytrack.plants.robot.PayloadRobot`.
@@ -169,6 +172,8 @@ class MujocoWheeledRobot(MujocoPlant):
             spec["path"] = str(self.path)
         if self.mass_scale != 1.0:
             spec["mass_scale"] = self.mass_scale
+        if self.contact_time_constant is not None:
+            spec["contact_time_constant"] = self.contact_time_constant
         if self._payload is not None:
             payload = self._payload.to_spec()
             for key in PayloadRobot.schedule_keys:

@@ -397,9 +397,9 @@ def test_plant_from_spec_builds_and_refuses():
     with pytest.raises(
         ValueError,
         match=r"'plant\.type' must be one of \['linear', 'mujoco', 'two-link-arm', "
-        r"'wheeled-robot', 'wheeled-robot-nominal', 'wheeled-robot-payload', "
-        r"'wheeled-robot-printed'\] or a factory of yours, 'python:<module>:<function>'; "
-        r"got 'scara'",
+        r"'wheeled-robot', 'wheeled-robot-mujoco', 'wheeled-robot-nominal', "
+        r"'wheeled-robot-payload', 'wheeled-robot-printed'\] or a factory of yours, "
+        r"'python:<module>:<function>'; got 'scara'",
     ):
         plant_from_spec({"type": "scara"})
     with pytest.raises(ValueError, match=r"'plant\.type' is missing"):

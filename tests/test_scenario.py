@@ -174,9 +174,9 @@ def test_missing_and_unknown_type():
     refused(
         data,
         r"scenario key 'plant\.type' must be one of \['linear', 'mujoco', 'two-link-arm', "
-        r"'wheeled-robot', 'wheeled-robot-nominal', 'wheeled-robot-payload', "
-        r"'wheeled-robot-printed'\] or a factory of yours, 'python:<module>:<function>'; "
-        r"got 'three-link-arm'",
+        r"'wheeled-robot', 'wheeled-robot-mujoco', 'wheeled-robot-nominal', "
+        r"'wheeled-robot-payload', 'wheeled-robot-printed'\] or a factory of yours, "
+        r"'python:<module>:<function>'; got 'three-link-arm'",
     )
 
 

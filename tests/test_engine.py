@@ -69,7 +69,8 @@ def own_delays() -> list[CompiledDelay]:
 
 
 def fast_random_delay() -> RandomDelay:
-    # max_rate 3 gives stretches with dh/dt < -1, where older commands come back.
+    # max_rate 3 gives stretches with dh/dt > 1, where t - h(t) runs back and older commands
+    # come back.
     return RandomDelay(
         h_low=0.0, h_high=0.08, max_rate=3.0, duration=2.0, seed=11, knot_spacing=0.013
     )
@@ -136,7 +137,7 @@ def test_applied_input_is_the_latest_command_issued_before_t_minus_h(delay: Dela
     expected = np.where(indices[:, None] >= 0, commands[np.maximum(indices, 0)], 0.0)
     np.testing.assert_array_equal(result.applied[0], expected)
     if isinstance(delay, RandomDelay):
-        assert np.any(np.diff(indices) < 0), "a fast-shrinking delay must re-apply older commands"
+        assert np.any(np.diff(indices) < 0), "a fast-growing delay must re-apply older commands"
 
 
 @pytest.mark.parametrize("offset", [1e-13, -1e-13])

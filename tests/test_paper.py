@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import itertools
+import math
 import re
 
 import numpy as np
@@ -282,3 +283,32 @@ def test_worst_case_objective_excludes_any_divergence(monkeypatch):
     assert result.best["objective"] == 5.0
     assert np.isnan(result.table.objective.iloc[2])
     assert result.table.status.iloc[2].startswith("diverged")
+
+
+def test_certification_and_dwell_text_are_computed_from_the_profiles():
+    text = paper._certified_text(0.11, 60.0, "AROLC")
+    assert text == (
+        "Largest delays over the run: S1 100 ms, S2 125 ms, S3 60 ms, S4 120 ms. AROLC is "
+        "certified for S1, S3 and NOT certified for S2, S4."
+    )
+    assert paper._certified_text(0.05, 60.0, "X").endswith(
+        "X is certified for none of S1, S2, S3, S4."
+    )
+    assert paper._certified_text(0.2, 60.0, "Y").endswith("Y is certified for S1, S2, S3, S4.")
+    # S2 = 5 + 120 |sin 0.1 t| ms is above 112.5 ms where |sin 0.1 t| > 0.8958: around t = 5π k.
+    dwells = paper._dwells("S2", 60.0, 0.1125)
+    assert len(dwells) == 2
+    half = (math.pi / 2 - math.asin(0.1075 / 0.12)) / 0.1
+    for (start, end), centre in zip(dwells, (5 * math.pi, 15 * math.pi), strict=True):
+        assert start == pytest.approx(centre - half, abs=2e-3)
+        assert end == pytest.approx(centre + half, abs=2e-3)
+
+
+def test_the_report_prose_follows_the_gains(monkeypatch):
+    monkeypatch.setitem(paper.AROLC_GAINS, "alpha", 3.5)
+    monkeypatch.setitem(paper.AROLC_GAINS, "K1", 4.0)
+    study = paper.run_study(duration=1.0, progress=False, check_dt=False, contact=False)
+    settings = paper._settings(study)
+    assert settings["AROLC"].startswith("K1 = 4 I, K2 = 1 I, Q = 1 I, α = 3.5, ε = 0.1")
+    text = " ".join(paper._explanation(study))
+    assert "K1 = 4 I" in text and "natural frequency 2 rad/s and damping 0.25" in text

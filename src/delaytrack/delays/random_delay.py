@@ -31,8 +31,10 @@ class RandomDelay(DelayProfile):
     at the bounds (a reflected segment has a smaller slope, so ``|dh/dt| <= max_rate`` holds).
     The walk covers ``[0, duration]`` (its :attr:`horizon`); a simulation that runs longer is
     refused, unless ``beyond = "hold"``, which holds the last value after ``duration``.
-    The same ``seed`` gives the same profile. ``max_rate > 1`` is allowed: the delay then shrinks
-    faster than time passes, and older commands are re-applied, as the physics says.
+    The same ``seed`` gives the same profile. ``max_rate > 1`` is allowed: where the delay then
+    grows faster than time passes (``dh/dt > 1``), ``t - h(t)`` runs backwards and older
+    commands are re-applied, as the physics says; where it shrinks faster (``dh/dt < -1``),
+    commands are skipped.
     """
 
     h_low: float

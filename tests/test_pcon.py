@@ -16,6 +16,7 @@ import pytest
 
 from arm_closed_form import arm_mass, arm_nonlinear
 from delaytrack.controllers import PCON, PCONf, PredictorBaseline, controller_from_spec
+from delaytrack.controllers.delay_knowledge import hash32, standard_noise, told_delays
 from delaytrack.controllers.pcon import ring_slots
 from delaytrack.delays import AbsSineDelay, ConstantDelay
 from delaytrack.plants import CallablePlant, LinearPlant, TwoLinkArm
@@ -452,3 +453,89 @@ def test_batch_equals_single_runs(arm, arm_gains):
         single = simulate(arm, controllers[b], delays[b], np.zeros(4), **settings)
         np.testing.assert_array_equal(batch.x[b], single.x[0])
         np.testing.assert_array_equal(batch.controller_state[b], single.controller_state[0])
+
+
+# --------------------------------------------------------------------------------------------
+# What PCON is told of the delay
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("scale", "offset"), [(2.0, 0.0), (1.0, -0.01), (0.5, 0.005)])
+def test_pcon_told_a_wrong_constant_delay_is_pconf_with_that_window(arm, arm_gains, scale, offset):
+    # Under a true constant delay of 30 ms, PCON told s h + b runs the law of PCONf with
+    # h_bar = s h + b, bit for bit.
+    settings = dict(reference=ARM_REFERENCE, t1=2.0, dt=0.001, T_c=0.002)
+    told = PCON(arm, **arm_gains, history=0.1, T_c=0.002, delay_scale=scale, delay_offset=offset)
+    fixed = PCONf(arm, **arm_gains, history=0.1, T_c=0.002, h_bar=scale * 0.03 + offset)
+    a = simulate(arm, told, ConstantDelay(0.03), np.zeros(4), **settings)
+    b = simulate(arm, fixed, ConstantDelay(0.03), np.zeros(4), **settings)
+    np.testing.assert_array_equal(a.x, b.x)
+    np.testing.assert_array_equal(a.commands, b.commands)
+    exact = simulate(
+        arm,
+        PCON(arm, **arm_gains, history=0.1, T_c=0.002),
+        ConstantDelay(0.03),
+        np.zeros(4),
+        **settings,
+    )
+    assert not np.array_equal(exact.x, a.x)
+
+
+def test_the_noisy_estimate_is_seeded_bounded_and_recorded_in_e_z(arm, arm_gains):
+    T_c = 0.002
+    noisy = PCON(arm, **arm_gains, history=0.2, T_c=T_c, delay_noise=0.01, noise_seed=7)
+    settings = dict(reference=ARM_REFERENCE, t1=1.6, dt=0.001, T_c=T_c)
+    delay = AbsSineDelay.S1()
+    result = simulate(arm, noisy, delay, np.zeros(4), **settings)
+    again = simulate(arm, [noisy, noisy], [delay, delay], np.zeros(4), **settings)
+    np.testing.assert_array_equal(again.x[1], result.x[0])
+    other = simulate(
+        arm,
+        PCON(arm, **arm_gains, history=0.2, T_c=T_c, delay_noise=0.01, noise_seed=8),
+        delay,
+        np.zeros(4),
+        **settings,
+    )
+    assert not np.array_equal(other.x, result.x)
+    ticks = np.arange(result.commands.shape[1]) * T_c
+    told = told_delays(result.h[0], ticks, T_c, noise=0.01, seed=7)
+    error = told - result.h[0]
+    assert np.all(told >= 0.0) and np.all(np.abs(error[told > 0]) <= 0.06)
+    assert 0.006 < np.std(error) < 0.014 and abs(np.mean(error)) < 0.003  # σ = 10 ms
+    commands, e_z = result.commands[0], result.controller_state[0, :, :2]
+    for k in range(0, commands.shape[0] - 1, 7):
+        first = max(0, k - 100)
+        expected = exact_window_integral(list(commands[first:k]), k - first, told[k], T_c)
+        np.testing.assert_allclose(e_z[k + 1], expected, rtol=1e-12, atol=1e-15)
+
+
+def test_the_noise_is_near_standard_normal():
+    xi = np.array([standard_noise(3, k) for k in range(20000)])
+    assert abs(xi.mean()) < 0.03 and abs(xi.std() - 1.0) < 0.03 and np.abs(xi).max() <= 6.0
+    assert abs(np.corrcoef(xi[:-1], xi[1:])[0, 1]) < 0.03  # consecutive ticks independent
+    assert hash32(2**32 + 5) == hash32(5) and 0 <= hash32(-1) < 2**32
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        (dict(delay_scale=-1.0), "delay_scale"),
+        (dict(delay_offset=float("nan")), "delay_offset"),
+        (dict(delay_noise=-0.01), "delay_noise"),
+        (dict(noise_seed=-1), "noise_seed must be an integer from 0 to 4294967295"),
+        (dict(noise_seed=1.5), "noise_seed"),
+    ],
+)
+def test_bad_delay_knowledge_refused(arm, arm_gains, changes, message):
+    with pytest.raises((ValueError, TypeError), match=message):
+        PCON(arm, **arm_gains, history=0.1, T_c=T_C, **changes)
+
+
+def test_a_told_delay_beyond_the_history_is_refused(arm, arm_gains):
+    controller = PCON(arm, **arm_gains, history=0.15, T_c=T_C, delay_scale=2.0, delay_noise=0.01)
+    with pytest.raises(ValueError, match=r"2 · 0.1 \+ 0 \+ 6 · 0.01 = 0.26 s .* history = 0.15 s"):
+        controller.check_run(T_C, 0.1)
+    spec = controller.to_spec()
+    assert spec["delay_scale"] == 2.0 and spec["delay_noise"] == 0.01 and "noise_seed" not in spec
+    rebuilt = controller_from_spec(spec, arm)
+    np.testing.assert_array_equal(rebuilt.params, controller.params)

@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from delaytrack._spec import TypeSpec, build_from_table, gain, number
+from delaytrack._spec import TypeSpec, build_from_table, gain, integer, number
 from delaytrack.controllers.arolc import AROLC
 from delaytrack.controllers.base import Controller
 from delaytrack.controllers.outer_loop import OuterLoop
@@ -50,7 +50,15 @@ CONTROLLER_SPECS: dict[str, TypeSpec] = {
     "outer-loop": TypeSpec(
         OuterLoop, {"K1": ("K1", gain), "K2": ("K2", gain)}, required=("K1", "K2")
     ),
-    "pcon": TypeSpec(PCON, _PREDICTOR_KEYS, required=tuple(_PREDICTOR_KEYS)),
+    "pcon": TypeSpec(
+        PCON,
+        {
+            **_PREDICTOR_KEYS,
+            **{key: (key, number) for key in ("delay_scale", "delay_offset", "delay_noise")},
+            "noise_seed": ("noise_seed", integer),
+        },
+        required=tuple(_PREDICTOR_KEYS),
+    ),
     "pconf": TypeSpec(
         PCONf,
         {**_PREDICTOR_KEYS, "h_bar": ("h_bar", number)},

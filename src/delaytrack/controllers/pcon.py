@@ -6,10 +6,12 @@ Continuous law (paper eqs. (filter), (int error) and ``τ = k_b ϱ``):
 
 with ``e1 = q_d − q``, ``κ > 0``, ``ϑ`` a constant symmetric positive definite estimate of
 ``M⁻¹`` and ``k_b`` the feedback gain. PCON (Fischer et al., time-varying delay) evaluates the
-window with the true delay ``h = h(t_k)`` (its assumption: the delay is known); PCONf (Sharma et
-al. 2011, constant delay) with its constant ``h̄``. The generalised force ``τ`` (n,) is mapped to
-the actuators by the nominal model's command map, as for AROLC: ``Ĝ(q)⁻¹ τ`` for a fully actuated
-model, the model's own map (``S(q)ᵀ τ`` for the wheeled robot) otherwise.
+window with the true delay ``h = h(t_k)`` (its assumption: the delay is known), or with what
+it is told of it (:mod:`~delaytrack.controllers.delay_knowledge`: a scaled, offset or noisy
+``h(t_k)``); PCONf (Sharma et al. 2011, constant delay) with its constant ``h̄``. The
+generalised force ``τ`` (n,) is mapped to the actuators by the nominal model's command map, as
+for AROLC: ``Ĝ(q)⁻¹ τ`` for a fully actuated model, the model's own map (``S(q)ᵀ τ`` for the
+wheeled robot) otherwise.
 
 Decisions where the paper is silent (docs/decisions.md, D23):
 
@@ -42,21 +44,34 @@ import numpy as np
 
 from delaytrack._jit import tick_kernel
 from delaytrack._small_linalg import matvec
-from delaytrack._validation import as_spd_matrix, positive_scalar
+from delaytrack._validation import (
+    as_spd_matrix,
+    finite_array,
+    is_integer_at_least,
+    positive_scalar,
+)
 from delaytrack.components import call_command_map, call_terms
 from delaytrack.controllers.base import Controller, terms_views
+from delaytrack.controllers.delay_knowledge import NOISE_BOUND, told_delay
 from delaytrack.plants.base import ELPlant
 
 __all__ = ["PCON", "PCONf", "PredictorBaseline", "pcon_step", "ring_slots"]
 
-# Layout of the parameter vector: [κ, T_c, history, fixed, h̄, slots, k_b (n²), ϑ (n²)].
+# Layout of the parameter vector: [κ, T_c, history, fixed, h̄, slots, s, b, σ, seed, k_b (n²),
+# ϑ (n²)] (s, b, σ, seed: what PCON is told of the delay).
 _KAPPA = 0
 _PERIOD = 1
 _HISTORY = 2
 _FIXED = 3
 _H_BAR = 4
 _SLOTS = 5
-_MATRICES = 6
+_SCALE = 6
+_OFFSET = 7
+_NOISE = 8
+_SEED = 9
+_MATRICES = 10
+#: Largest seed of the delay estimate's noise (it lives in the float parameter vector).
+MAX_NOISE_SEED = 2**32 - 1
 
 #: Relative tolerance between the step's ``T_c`` and the period the ring was sized for.
 _PERIOD_RTOL = 1e-9
@@ -78,15 +93,21 @@ def pcon_step(
 ):
     """One PCON / PCONf tick (see the module docstring).
 
-    ``params = [κ, T_c, history, fixed, h̄, slots, k_b, ϑ]`` (matrices flattened row-major); the
-    window is ``h̄`` when ``fixed`` is non-zero (PCONf), else the true delay ``h`` (PCON).
+    ``params = [κ, T_c, history, fixed, h̄, slots, s, b, σ, seed, k_b, ϑ]`` (matrices flattened
+    row-major); the window is ``h̄`` when ``fixed`` is non-zero (PCONf), else what PCON is told of
+    the true delay ``h``: ``max(0, s h + b + σ ξ_k)`` (:func:`told_delay`).
     ``state = [e_z (n), ϱ (n), count, ring (slots × n)]``: ``e_z`` and ``ϱ`` of the latest
     tick, the number of ticks taken, and ``τ`` of tick ``j`` in ring slot ``j % slots``.
     ``work`` is :func:`~delaytrack.controllers.base.step_workspace` scratch.
     """
     n = q.shape[0]
     period = params[_PERIOD]
-    window = params[_H_BAR] if params[_FIXED] != 0.0 else h
+    if params[_FIXED] != 0.0:
+        window = params[_H_BAR]
+    else:
+        window = told_delay(
+            h, t, period, params[_SCALE], params[_OFFSET], params[_NOISE], int(params[_SEED])
+        )
     if not (abs(T_c - period) <= _PERIOD_RTOL * period and 0.0 <= window <= params[_HISTORY]):
         command[:] = np.nan  # the simulator stops the run as diverged
         return
@@ -194,6 +215,7 @@ class PredictorBaseline(Controller):
             1.0 if self.fixed_delay is not None else 0.0,
             0.0 if self.fixed_delay is None else self.fixed_delay,
             float(ring_slots(self.history, self.T_c)),
+            *self.delay_knowledge,
         ]
         packed = np.concatenate([scalars, self.k_b.ravel(), self.vartheta.ravel()])
         object.__setattr__(self, "_params", packed)
@@ -202,6 +224,11 @@ class PredictorBaseline(Controller):
     def fixed_delay(self) -> float | None:
         """The constant window ``h̄`` (PCONf), or None when the law reads the true delay."""
         return None
+
+    @property
+    def delay_knowledge(self) -> tuple[float, float, float, float]:
+        """``(s, b, σ, seed)`` of what the law is told of the delay (exact by default)."""
+        return (1.0, 0.0, 0.0, 0.0)
 
     @property
     def slots(self) -> int:
@@ -245,10 +272,17 @@ class PredictorBaseline(Controller):
                 f"(T_c = {self.T_c:g} s): its history is sized for it"
             )
         h_max = positive_scalar("h_max", h_max, strictly=False)
-        if self.fixed_delay is None and h_max > self.history:
+        scale, offset, noise, _ = self.delay_knowledge
+        told = scale * h_max + offset + NOISE_BOUND * noise
+        if self.fixed_delay is None and told > self.history:
             raise ValueError(
                 f"delay {h_max:g} s exceeds history = {self.history:g} s: {type(self).__name__} "
                 "integrates tau over the true delay and keeps only history seconds of it"
+                if told == h_max
+                else f"the delay {type(self).__name__} may be told reaches "
+                f"{scale:g} · {h_max:g} + {offset:g} + {NOISE_BOUND:g} · {noise:g} = {told:g} s "
+                f"(delay_scale · h_max + delay_offset + {NOISE_BOUND:g} delay_noise), more than "
+                f"history = {self.history:g} s: raise history to at least {told:g} s"
             )
 
     def to_spec(self) -> dict[str, Any]:
@@ -264,15 +298,68 @@ class PredictorBaseline(Controller):
 
 @dataclass(frozen=True, eq=False)
 class PCON(PredictorBaseline):
-    """PCON (paper Ref 32, time-varying delay): the window is the true delay ``h(t_k)``.
+    """PCON (paper Ref 32, time-varying delay): the window is the true delay ``h(t_k)``, or what
+    the law is told of it.
 
     The law assumes the delay known, so the simulator passes it ``h(t_k)`` at every tick. See
-    :class:`PredictorBaseline` for the parameters; ``history`` must be at least the delay
-    profile's ``h_max`` (:meth:`PredictorBaseline.check_run`).
+    :class:`PredictorBaseline` for the other parameters.
+
+    Parameters
+    ----------
+    delay_scale, delay_offset, delay_noise : float
+        What the law is told (:mod:`~delaytrack.controllers.delay_knowledge`):
+        ``ĥ_k = max(0, delay_scale · h(t_k) + delay_offset + delay_noise · ξ_k)``, with
+        ``delay_scale >= 0``, ``delay_offset`` in s, ``delay_noise >= 0`` the standard deviation
+        (s) of approximately normal noise bounded by 6 of them. The defaults ``1, 0, 0`` tell
+        the true delay, the paper's assumption.
+    noise_seed : int
+        Seed of the noise, 0 to 2³² − 1.
+
+    Notes
+    -----
+    ``history`` must hold the longest window the law can be told,
+    ``delay_scale · h_max + delay_offset + 6 delay_noise``
+    (:meth:`PredictorBaseline.check_run` refuses a run otherwise).
     """
 
+    delay_scale: float = 1.0
+    delay_offset: float = 0.0
+    delay_noise: float = 0.0
+    noise_seed: int = 0
     type_name: ClassVar[str] = "pcon"
     needs_delay: ClassVar[bool] = True
+
+    def __post_init__(self) -> None:
+        object.__setattr__(
+            self, "delay_scale", positive_scalar("delay_scale", self.delay_scale, strictly=False)
+        )
+        object.__setattr__(
+            self, "delay_offset", float(finite_array("delay_offset", self.delay_offset, ndim=0))
+        )
+        object.__setattr__(
+            self, "delay_noise", positive_scalar("delay_noise", self.delay_noise, strictly=False)
+        )
+        if not is_integer_at_least(self.noise_seed, 0) or self.noise_seed > MAX_NOISE_SEED:
+            raise ValueError(
+                f"noise_seed must be an integer from 0 to {MAX_NOISE_SEED}; got {self.noise_seed!r}"
+            )
+        super().__post_init__()
+
+    @property
+    def delay_knowledge(self) -> tuple[float, float, float, float]:
+        return (self.delay_scale, self.delay_offset, self.delay_noise, float(self.noise_seed))
+
+    def to_spec(self) -> dict[str, Any]:
+        spec = super().to_spec()
+        for key, default in (
+            ("delay_scale", 1.0),
+            ("delay_offset", 0.0),
+            ("delay_noise", 0.0),
+            ("noise_seed", 0),
+        ):
+            if getattr(self, key) != default:
+                spec[key] = getattr(self, key)
+        return spec
 
 
 @dataclass(frozen=True, eq=False)

@@ -539,3 +539,20 @@ def test_a_told_delay_beyond_the_history_is_refused(arm, arm_gains):
     assert spec["delay_scale"] == 2.0 and spec["delay_noise"] == 0.01 and "noise_seed" not in spec
     rebuilt = controller_from_spec(spec, arm)
     np.testing.assert_array_equal(rebuilt.params, controller.params)
+
+
+def test_a_batch_of_predictors_with_different_histories_is_refused(arm, arm_gains):
+    short, long = (PCON(arm, **arm_gains, history=h, T_c=T_C) for h in (0.1, 0.2))
+    with pytest.raises(
+        ValueError, match=r"controller\[1\] keeps .* give every one the same history"
+    ):
+        simulate(
+            arm,
+            [short, long],
+            ConstantDelay(0.05),
+            np.zeros(4),
+            reference=ARM_REFERENCE,
+            t1=0.1,
+            dt=0.001,
+            T_c=T_C,
+        )

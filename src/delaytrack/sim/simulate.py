@@ -335,6 +335,12 @@ def simulate(
                 f"controller[{i}] has n = {item.n}, m = {item.m}; the plant has n = {n}, m = {m}"
             )
         _check_same_kernel(f"controller[{i}].model", item.model, first_controller.model)
+        if item.state_size != first_controller.state_size:
+            raise ValueError(
+                f"controller[{i}] keeps {item.state_size} state numbers and controller[0] "
+                f"{first_controller.state_size}: a batch stacks them, so they must be equal "
+                "(a predictor's state is sized by its history: give every one the same history)"
+            )
     if reference.n != n:
         raise ValueError(f"reference has n = {reference.n} coordinates; the plant has n = {n}")
     error_bounds = _error_bounds(error_bound, n)

@@ -1013,7 +1013,8 @@ def _settings(study: PaperStudy) -> dict[str, str]:
         ),
         "initial state": "x0 = initial_state(reference): on the path's pose at t = 0, with the "
         "reference's wheel rates, on the constraint manifold",
-        "truth plant": "PayloadRobot(WheeledRobot()): constrained P3-DX dynamics, wheel friction "
+        "truth plant": "PayloadRobot(robot=WheeledRobot()): constrained P3-DX dynamics, wheel "
+        "friction "
         f"(viscous {P3DX.viscous_friction:g} N·m·s/rad + Coulomb {P3DX.coulomb_friction:g} N·m, "
         f"tanh-smoothed at {P3DX.friction_speed:g} rad/s; assumptions), "
         f"Baumgarte gain {DEFAULT_BAUMGARTE_GAIN:g} 1/s",

@@ -31,8 +31,7 @@ from delaytrack._jit import kernel
 from delaytrack.plants.mujoco.capi import write_at
 from delaytrack.plants.mujoco.plant import MujocoPlant, extras_start, import_mujoco, mujoco_step
 from delaytrack.plants.robot.body import COORDINATES
-from delaytrack.plants.robot.parameters import P3DX_PAYLOAD
-from delaytrack.plants.robot.payload import PayloadRobot, active_placement
+from delaytrack.plants.robot.payload import SCHEDULE_POINTS, PayloadSchedule, active_placement
 
 __all__ = ["P3DX_MJCF", "MujocoWheeledRobot", "wheeled_robot_step"]
 
@@ -54,15 +53,15 @@ def wheeled_robot_step(t, x, u, dt, params, first):
     k = active_placement(t, params, schedule)
     if k >= 0:
         write_at(params[at + _BODY_MASS], 0, params[schedule])
-        write_at(params[at + _BODY_CENTER], 0, params[schedule + 5 + 2 * k])
-        write_at(params[at + _BODY_CENTER], 1, params[schedule + 6 + 2 * k])
+        write_at(params[at + _BODY_CENTER], 0, params[schedule + SCHEDULE_POINTS + 2 * k])
+        write_at(params[at + _BODY_CENTER], 1, params[schedule + SCHEDULE_POINTS + 1 + 2 * k])
     else:
         write_at(params[at + _BODY_MASS], 0, 0.0)
     mujoco_step(t, x, u, dt, params, first)
 
 
 @dataclass(frozen=True, eq=False)
-class MujocoWheeledRobot(MujocoPlant):
+class MujocoWheeledRobot(PayloadSchedule, MujocoPlant):
     """The PIONEER-3 DX stepped by MuJoCo: wheels on the floor through contacts (module
     docstring), optionally carrying the paper's payload.
 
@@ -82,7 +81,8 @@ class MujocoWheeledRobot(MujocoPlant):
         :class:`~delaytrack.plants.mujoco.MujocoPlant`.
     placements, seed, duration, payload_mass, time_on, time_off, first_on, plate_length,
     plate_width, plate_center, beyond
-        The payload and its schedule, as for :class:`~delaytrack.plants.robot.PayloadRobot`.
+        The payload and its schedule, as for :class:`~delaytrack.plants.robot.PayloadRobot`
+        (:class:`~delaytrack.plants.robot.payload.PayloadSchedule`).
     name : str, optional
         Shown in results and reports.
 
@@ -96,18 +96,7 @@ class MujocoWheeledRobot(MujocoPlant):
     path: str | Path = P3DX_MJCF
     stepping: str = "mujoco"
     coordinates: tuple[str, ...] | None = COORDINATES
-    placements: np.ndarray | None = None
-    seed: int | None = None
-    duration: float | None = None
-    payload_mass: float = P3DX_PAYLOAD.mass
-    time_on: float = P3DX_PAYLOAD.time_on
-    time_off: float = P3DX_PAYLOAD.time_off
-    first_on: float = P3DX_PAYLOAD.first_on
-    plate_length: float = P3DX_PAYLOAD.plate_length
-    plate_width: float = P3DX_PAYLOAD.plate_width
-    plate_center: float = P3DX_PAYLOAD.plate_center
-    beyond: str = "refuse"
-    _payload: PayloadRobot | None = field(init=False, repr=False)
+    _schedule: np.ndarray | None = field(init=False, repr=False)
     type_name: ClassVar[str] = "wheeled-robot-mujoco"
 
     def __post_init__(self) -> None:
@@ -136,9 +125,10 @@ class MujocoWheeledRobot(MujocoPlant):
         # MuJoCo skips body_ipos of a body whose centre of mass was at its frame's origin when
         # compiled (body_sameframe): the payload's moves at run time.
         self._model.body_sameframe[body] = 0
-        payload = self._payload_robot()
-        object.__setattr__(self, "_payload", payload)
-        schedule = _NO_PAYLOAD if payload is None else payload.schedule
+        carried = not (self.placements is None and self.seed is None and self.duration is None)
+        schedule = self._checked_schedule() if carried else None
+        object.__setattr__(self, "_schedule", schedule)
+        schedule = _NO_PAYLOAD if schedule is None else schedule
         addresses = [
             self._model.body_mass.ctypes.data + 8 * body,
             self._model.body_ipos.ctypes.data + 24 * body,
@@ -147,12 +137,6 @@ class MujocoWheeledRobot(MujocoPlant):
         digest = hashlib.sha256(self._identity.tobytes() + schedule.tobytes()).digest()
         object.__setattr__(self, "_identity", np.frombuffer(digest, dtype=np.uint8).astype(float))
 
-    def _payload_robot(self) -> PayloadRobot | None:
-        """The schedule, checked as :class:`PayloadRobot` checks it (None: no payload)."""
-        if self.placements is None and self.seed is None and self.duration is None:
-            return None
-        return PayloadRobot(**{key: getattr(self, key) for key in PayloadRobot.schedule_keys})
-
     @property
     def stepper_kernel(self):
         return wheeled_robot_step
@@ -160,11 +144,16 @@ class MujocoWheeledRobot(MujocoPlant):
     @property
     def horizon(self) -> float:
         """End of the payload's schedule (``inf`` without payload or with ``beyond="hold"``)."""
-        return math.inf if self._payload is None else self._payload.horizon
+        if self._schedule is None:
+            return math.inf
+        return self._schedule_horizon(len(self._schedule[SCHEDULE_POINTS:]) // 2)
 
     def placement_at(self, t: float) -> np.ndarray | None:
         """Body-frame point (2,) of the payload in force at ``t`` (from A), or None."""
-        return None if self._payload is None else self._payload.placement_at(t)
+        if self._schedule is None:
+            return None
+        k = active_placement(float(t), self._schedule, 0)
+        return None if k < 0 else self._schedule[SCHEDULE_POINTS:].reshape(-1, 2)[k].copy()
 
     def to_spec(self) -> dict[str, Any]:
         spec: dict[str, Any] = {"type": self.type_name}
@@ -174,9 +163,7 @@ class MujocoWheeledRobot(MujocoPlant):
             spec["mass_scale"] = self.mass_scale
         if self.contact_time_constant is not None:
             spec["contact_time_constant"] = self.contact_time_constant
-        if self._payload is not None:
-            payload = self._payload.to_spec()
-            for key in PayloadRobot.schedule_keys:
-                if key in payload:
-                    spec[key] = payload[key]
+        if self._schedule is not None:
+            placements = self._schedule[SCHEDULE_POINTS:].reshape(-1, 2)
+            spec.update(self._schedule_spec(placements))
         return spec

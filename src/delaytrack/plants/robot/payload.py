@@ -28,7 +28,7 @@ over one step, not constraint satisfaction.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any, ClassVar
 
 import numpy as np
@@ -50,11 +50,20 @@ from delaytrack.plants.robot.truth import (
     constrained_terms,
 )
 
-__all__ = ["PayloadRobot", "active_placement", "random_placements", "robot_payload_terms"]
+__all__ = [
+    "SCHEDULE_KEYS",
+    "SCHEDULE_POINTS",
+    "PayloadRobot",
+    "PayloadSchedule",
+    "active_placement",
+    "random_placements",
+    "robot_payload_terms",
+]
 
 # Layout of a schedule, from its start in a parameter vector (the truth parameters' end in
-# PayloadRobot's): [m_p, first_on, time_on, time_off, count, p_0x, p_0y, ...].
-_MASS, _FIRST_ON, _TIME_ON, _TIME_OFF, _COUNT, _PLACEMENTS = range(6)
+# PayloadRobot's): [m_p, first_on, time_on, time_off, count, p_0x, p_0y, ...]; SCHEDULE_POINTS is
+# where the points start.
+_MASS, _FIRST_ON, _TIME_ON, _TIME_OFF, _COUNT, SCHEDULE_POINTS = range(6)
 
 
 @hot_kernel
@@ -85,8 +94,8 @@ def robot_payload_terms(t, q, qdot, params, mass, nonlinear, input_map):
     k = active_placement(t, params, TRUTH_PARAMS)
     if k >= 0:
         m_p = params[TRUTH_PARAMS + _MASS]
-        p_x = params[TRUTH_PARAMS + _PLACEMENTS + 2 * k]
-        p_y = params[TRUTH_PARAMS + _PLACEMENTS + 2 * k + 1]
+        p_x = params[TRUTH_PARAMS + SCHEDULE_POINTS + 2 * k]
+        p_y = params[TRUTH_PARAMS + SCHEDULE_POINTS + 2 * k + 1]
         mass_b += m_p
         s_x += m_p * p_x
         s_y += m_p * p_y
@@ -121,16 +130,15 @@ def random_placements(
 
 
 @dataclass(frozen=True, eq=False)
-class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
-    """A :class:`WheeledRobot` carrying a point payload on a schedule (module docstring).
+class PayloadSchedule:
+    """The paper's payload and its schedule: the fields of the robots that carry it
+    (:class:`PayloadRobot`, :class:`~delaytrack.plants.robot.MujocoWheeledRobot`).
 
     Give either ``placements`` or ``seed`` and ``duration`` (random placements covering
     ``[0, duration]``).
 
     Parameters
     ----------
-    robot : WheeledRobot, optional
-        The robot without payload (P3-DX defaults).
     placements : array_like, shape (k, 2), optional
         Body-frame points ``(p_x, p_y)`` from A (forward, left), m, one per placement.
     seed : int, optional
@@ -145,11 +153,10 @@ class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
         Rectangle of the random placements, m (0.44 × 0.38 centred ``d`` = 0.05 ahead of A).
     beyond : {"refuse", "hold"}
         After the schedule's last placement (``first_on + k (time_on + time_off)`` for ``k``
-        placements, its :attr:`horizon`) the payload stays off. ``"refuse"`` (default): a
-        simulation that runs longer is refused; ``"hold"``: it goes on without payload.
+        placements, its horizon) the payload stays off. ``"refuse"`` (default): a simulation
+        that runs longer is refused; ``"hold"``: it goes on without payload.
     """
 
-    robot: WheeledRobot = field(default_factory=WheeledRobot)
     placements: np.ndarray | None = None
     seed: int | None = None
     duration: float | None = None
@@ -161,30 +168,11 @@ class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
     plate_width: float = P3DX_PAYLOAD.plate_width
     plate_center: float = P3DX_PAYLOAD.plate_center
     beyond: str = "refuse"
-    _params: np.ndarray = field(init=False, repr=False)
-    n: ClassVar[int] = 5
-    m: ClassVar[int] = 2
-    coordinate_names: ClassVar[tuple[str, ...]] = COORDINATES
-    type_name: ClassVar[str] = "wheeled-robot-payload"
-    identity_mass: ClassVar[bool] = True
-    #: The fields of the payload and its schedule (the others describe the robot).
-    schedule_keys: ClassVar[tuple[str, ...]] = (
-        "placements",
-        "seed",
-        "duration",
-        "payload_mass",
-        "time_on",
-        "time_off",
-        "first_on",
-        "plate_length",
-        "plate_width",
-        "plate_center",
-        "beyond",
-    )
 
-    def __post_init__(self) -> None:
-        if not isinstance(self.robot, WheeledRobot):
-            raise TypeError(f"robot must be a WheeledRobot; got {type(self.robot).__name__}")
+    def _checked_schedule(self) -> np.ndarray:
+        """Check the fields (setting them to plain floats) and return the schedule as kernels
+        read it (:func:`active_placement`): ``[m_p, first_on, time_on, time_off, k, p_0x,
+        p_0y, …]``."""
         object.__setattr__(self, "payload_mass", positive_scalar("payload_mass", self.payload_mass))
         for name in ("time_on", "time_off", "plate_length", "plate_width"):
             object.__setattr__(self, name, positive_scalar(name, getattr(self, name)))
@@ -226,7 +214,6 @@ class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
                     f"placements must have shape (k, 2) (forward, left in m); "
                     f"got {placements.shape}"
                 )
-        object.__setattr__(self, "placements", placements)
         object.__setattr__(self, "beyond", beyond_choice(self.beyond))
         schedule = [
             self.payload_mass,
@@ -235,11 +222,71 @@ class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
             self.time_off,
             float(len(placements)),
         ]
-        object.__setattr__(
-            self,
-            "_params",
-            np.concatenate([self.robot.truth_params(), schedule, placements.ravel()]),
-        )
+        return np.concatenate([schedule, placements.ravel()])
+
+    def _schedule_horizon(self, count: int) -> float:
+        """End of a schedule of ``count`` placements (``inf`` with ``beyond="hold"``)."""
+        if self.beyond == "hold":
+            return math.inf
+        return self.first_on + count * (self.time_on + self.time_off)
+
+    def _schedule_spec(self, placements: np.ndarray) -> dict[str, Any]:
+        """The schedule's fields as plain data (scenario keys)."""
+        spec: dict[str, Any] = {
+            "payload_mass": self.payload_mass,
+            "time_on": self.time_on,
+            "time_off": self.time_off,
+            "first_on": self.first_on,
+        }
+        if self.seed is not None:
+            spec.update(
+                seed=int(self.seed),
+                duration=self.duration,
+                plate_length=self.plate_length,
+                plate_width=self.plate_width,
+                plate_center=self.plate_center,
+            )
+        else:
+            spec["placements"] = placements.tolist()
+        if self.beyond != "refuse":
+            spec["beyond"] = self.beyond
+        return spec
+
+
+#: The fields of the payload and its schedule.
+SCHEDULE_KEYS = tuple(item.name for item in fields(PayloadSchedule))
+
+
+@dataclass(frozen=True, eq=False)
+class PayloadRobot(PayloadSchedule, ConstrainedRobotPhysics, ELPlant):
+    """A :class:`WheeledRobot` carrying a point payload on a schedule (module docstring).
+
+    Give either ``placements`` or ``seed`` and ``duration`` (random placements covering
+    ``[0, duration]``); after construction ``placements`` holds the points used.
+
+    Parameters
+    ----------
+    robot : WheeledRobot, optional
+        The robot without payload (P3-DX defaults).
+    placements, seed, duration, payload_mass, time_on, time_off, first_on, plate_length,
+    plate_width, plate_center, beyond
+        The payload and its schedule (:class:`PayloadSchedule`).
+    """
+
+    robot: WheeledRobot = field(default_factory=WheeledRobot)
+    _params: np.ndarray = field(init=False, repr=False)
+    n: ClassVar[int] = 5
+    m: ClassVar[int] = 2
+    coordinate_names: ClassVar[tuple[str, ...]] = COORDINATES
+    type_name: ClassVar[str] = "wheeled-robot-payload"
+    identity_mass: ClassVar[bool] = True
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.robot, WheeledRobot):
+            raise TypeError(f"robot must be a WheeledRobot; got {type(self.robot).__name__}")
+        schedule = self._checked_schedule()
+        object.__setattr__(self, "placements", schedule[SCHEDULE_POINTS:].reshape(-1, 2))
+        object.__setattr__(self, "_params", np.concatenate([self.robot.truth_params(), schedule]))
 
     @property
     def params(self) -> np.ndarray:
@@ -250,39 +297,16 @@ class PayloadRobot(ConstrainedRobotPhysics, ELPlant):
         return robot_payload_terms
 
     @property
-    def schedule(self) -> np.ndarray:
-        """The schedule as kernels read it (:func:`active_placement`): ``[m_p, first_on,
-        time_on, time_off, k, p_0x, p_0y, …]``."""
-        return self._params[TRUTH_PARAMS:]
-
-    @property
     def horizon(self) -> float:
         """End of the schedule, ``first_on + k (time_on + time_off)`` (``inf`` with ``hold``)."""
-        if self.beyond == "hold":
-            return math.inf
-        return self.first_on + len(self.placements) * (self.time_on + self.time_off)
+        return self._schedule_horizon(len(self.placements))
 
     def to_spec(self) -> dict[str, Any]:
-        spec: dict[str, Any] = {"type": self.type_name, **self.robot.truth_spec()}
-        spec.update(
-            payload_mass=self.payload_mass,
-            time_on=self.time_on,
-            time_off=self.time_off,
-            first_on=self.first_on,
-        )
-        if self.seed is not None:
-            spec.update(
-                seed=int(self.seed),
-                duration=self.duration,
-                plate_length=self.plate_length,
-                plate_width=self.plate_width,
-                plate_center=self.plate_center,
-            )
-        else:
-            spec["placements"] = self.placements.tolist()
-        if self.beyond != "refuse":
-            spec["beyond"] = self.beyond
-        return spec
+        return {
+            "type": self.type_name,
+            **self.robot.truth_spec(),
+            **self._schedule_spec(self.placements),
+        }
 
     # ---- physics helpers ---------------------------------------------------------------------
 

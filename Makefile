@@ -15,8 +15,9 @@ $(STAMP): pyproject.toml
 reproduce: $(STAMP)
 	$(BIN)/delaytrack reproduce --out results
 
+# One pytest process per core (pytest-xdist): the suite is mostly numba compiling.
 test: $(STAMP)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n auto
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py

@@ -4,6 +4,7 @@ every command, and the model files it refuses."""
 from __future__ import annotations
 
 import copy
+import json
 import pickle
 import shutil
 from pathlib import Path
@@ -82,7 +83,7 @@ def test_a_copy_is_made_again_from_its_file():
         np.testing.assert_array_equal(twin.terms(q, q)[1], plant.terms(q, q)[1])
 
 
-def test_scenario_simulate_and_sweep_take_a_model_file(tmp_path):
+def test_scenario_simulate_empirical_and_sweep_take_a_model_file(tmp_path, capsys):
     folder = tmp_path / "mujoco_arm"
     shutil.copytree(EXAMPLE, folder)
     scenario = Scenario.from_toml(folder / "arm3_S1.toml")
@@ -103,6 +104,17 @@ def test_scenario_simulate_and_sweep_take_a_model_file(tmp_path):
     # Unit hashes cover the compiled model, not the addresses of this process.
     built = Scenario.from_toml(folder / "short.toml").build()
     assert engine_inputs(built) == engine_inputs(Scenario.from_toml(folder / "short.toml").build())
+    # The empirical delay margin of the model file's closed loop (its [delay] replaced): the
+    # 1 s run keeps its error below 0.5 rad at no delay and leaves it (or diverges) by 0.4 s.
+    capsys.readouterr()
+    arguments = ["empirical", str(folder / "short.toml"), "--threshold", "0.5", "--json"]
+    arguments += ["--upper", "0.4", "--resolution", "0.02", "--settle", "0.5"]
+    assert main(arguments) == 0
+    found = json.loads(capsys.readouterr().out)
+    assert found["scenario"] == "arm3_S1" and found["controller"] == "arolc"
+    assert found["evaluated"][0][0] == 0.0 and found["evaluated"][0][2] == 0
+    assert 0.0 < found["margin"] <= 0.4
+
     assert [u.hash for u in SweepSpec.from_toml(sweep).units()] == [
         u.hash for u in SweepSpec.from_toml(sweep).units()
     ]

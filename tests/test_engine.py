@@ -520,3 +520,62 @@ def test_plant_and_controller_of_different_sizes_are_refused() -> None:
             dt=1e-3,
             T_c=T_C,
         )
+
+
+def test_saturated_actuators_apply_the_clipped_delayed_command() -> None:
+    # The actuators apply clip(command, -limit, limit) of the delayed command; the record
+    # `commands` keeps what the controller issued, which exceeds the limits here.
+    dt, t_c = 5e-4, 2e-3
+    delay = AbsSineDelay.S1()
+    limits = np.array([4.0, 1.5])
+    settings = dict(reference=ARM_REFERENCE, t1=2.0, dt=dt, T_c=t_c, input_limits=limits)
+    result = simulate(TwoLinkArm(), arm_arolc(), delay, np.zeros(4), **settings)
+    commands = result.commands[0]
+    assert np.any(np.abs(commands) > limits, axis=0).all()  # not vacuous: both saturate
+    probe = result.t + 0.5e-9 * dt
+    indices = np.array([brute_force_index(t, delay, result.t) for t in probe])
+    issued = np.where(indices[:, None] >= 0, commands[np.maximum(indices, 0)], 0.0)
+    np.testing.assert_array_equal(result.applied[0], np.clip(issued, -limits, limits))
+    assert result.settings["input_limits"] == limits.tolist()
+    free = simulate(
+        TwoLinkArm(), arm_arolc(), delay, np.zeros(4), **{**settings, "input_limits": np.inf}
+    )
+    assert not np.array_equal(free.x, result.x)
+    # Per run: a batch with a limited and an unlimited element equals the two alone.
+    batch = simulate(
+        TwoLinkArm(),
+        arm_arolc(),
+        [delay, delay],
+        np.zeros(4),
+        **{**settings, "input_limits": [limits, [np.inf, np.inf]]},
+    )
+    np.testing.assert_array_equal(batch.x[0], result.x[0])
+    np.testing.assert_array_equal(batch.x[1], free.x[0])
+    python = simulate(TwoLinkArm(), arm_arolc(), delay, np.zeros(4), engine="python", **settings)
+    np.testing.assert_array_equal(python.x, result.x)
+
+
+@pytest.mark.parametrize(
+    ("limits", "u_init", "message"),
+    [
+        (0.0, None, "input_limits must be > 0"),
+        (float("nan"), None, "input_limits must be > 0"),
+        ([1.0, 2.0, 3.0], None, "input_limits must be a number > 0, 2 of them"),
+        ("high", None, "input_limits must be a number > 0"),
+        (1.0, [2.0, 0.0], "u_init = \\[2.0, 0.0\\] lies beyond input_limits"),
+    ],
+)
+def test_bad_input_limits_are_refused(limits, u_init, message) -> None:
+    with pytest.raises(ValueError, match=message):
+        simulate(
+            TwoLinkArm(),
+            arm_arolc(),
+            ConstantDelay(0.01),
+            np.zeros(4),
+            reference=ARM_REFERENCE,
+            t1=0.1,
+            dt=1e-3,
+            T_c=2e-3,
+            input_limits=limits,
+            u_init=u_init,
+        )

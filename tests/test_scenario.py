@@ -347,3 +347,23 @@ def test_trace_takes_path_or_knots_not_both():
     refused(
         base_dict() | {"delay": content}, r"takes either 'path' or 'times' and 'values', not both"
     )
+
+
+def test_input_limits_saturate_the_actuators_and_are_checked(tmp_path):
+    data = base_dict()
+    data["input_limits"] = [5.0, float("inf")]
+    scenario = Scenario.from_dict(data)
+    assert scenario.input_limits == (5.0, float("inf"))
+    path = tmp_path / "limited.toml"
+    scenario.to_toml(path)
+    assert Scenario.from_toml(path).input_limits == (5.0, float("inf"))
+    result = scenario.run()
+    assert result.settings["input_limits"] == [5.0, float("inf")]
+    assert np.all(np.abs(result.applied[0][:, 0]) <= 5.0)
+    assert np.array_equal(
+        Scenario.from_dict({**data, "input_limits": 1e9}).run().x,
+        Scenario.from_dict(base_dict()).run().x,
+    )
+    refused({**data, "input_limits": -1.0}, "'input_limits' must be a number > 0 or a list of them")
+    with pytest.raises(ScenarioError, match="'input_limits' must be one number or m = 2 of them"):
+        Scenario.from_dict({**data, "input_limits": [1.0, 2.0, 3.0]}).run()

@@ -326,6 +326,7 @@ def empirical_margin(
                 trajectories=False,
                 metrics_from=settings["settle"],
                 error_bound=scenario.simulated_error_bound,
+                input_limits=scenario.simulated_input_limits,
                 workers=workers,
                 progress=progress,
             )

@@ -11,6 +11,7 @@ controller and its gains, the delay profile, the reference, and the numerical se
     x0 = [0.0, 0.0, 0.0, 0.0]   # optional [q, qdot] at t = 0; zeros by default
     record_every = 1            # optional; record every k-th controller tick
     error_bound = 10.0          # optional "left the path" rule: |e1_j| beyond it stops the run
+    input_limits = [5.0, 2.0]   # optional actuator saturation: |u_j| applied at most this
 
     [plant]                     # the truth: type and parameters
     type = "two-link-arm"
@@ -109,6 +110,7 @@ _TOP_LEVEL_SCALARS: dict[str, Callable[[object], str | None]] = {
     "x0": vector,
     "record_every": integer,
     "error_bound": lambda v: _error_bound_phrase(v),
+    "input_limits": lambda v: _input_limits_phrase(v),
 }
 _TABLES = ("plant", "model", "controller", "delay", "reference")
 _REQUIRED = ("name", "duration", "dt", "T_c", *_TABLES)
@@ -135,6 +137,13 @@ def _error_bound_phrase(value: object) -> str | None:
         "must be a number > 0 or a list of them, one per coordinate (inf: no bound for that "
         "coordinate)"
     )
+
+
+def _input_limits_phrase(value: object) -> str | None:
+    """Check ``input_limits``: a number or a list of numbers, each > 0 (``inf`` allowed)."""
+    if _error_bound_phrase(value) is None:
+        return None
+    return "must be a number > 0 or a list of them, one per input (inf: no limit for that input)"
 
 
 def _check_value(key: str, value: object, check: Callable[[object], str | None]) -> None:
@@ -248,6 +257,9 @@ class Scenario:
         controller tick where a tracking error ``|e1_j|`` exceeds it (one number for every
         coordinate, or one per coordinate, ``inf`` for none); no bound when None. Its metrics
         are then NaN and a sweep counts it in the divergence rate.
+    input_limits : float or tuple of float or None
+        Actuator saturation: each command is applied as ``clip(u_j, -limit_j, limit_j)`` (one
+        number for every input, or one per input, ``inf`` for none); no limit when None.
     """
 
     name: str
@@ -263,6 +275,7 @@ class Scenario:
     x0: tuple[float, ...] | None = None
     record_every: int = 1
     error_bound: float | tuple[float, ...] | None = None
+    input_limits: float | tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         _check_value("name", self.name, string)
@@ -302,14 +315,18 @@ class Scenario:
         _check_value("record_every", self.record_every, integer)
         if self.record_every < 1:
             raise fail("record_every", "must be >= 1", self.record_every)
-        if self.error_bound is not None:
-            bound = _plain(self.error_bound)
-            _check_value("error_bound", bound, _error_bound_phrase)
-            object.__setattr__(
-                self,
-                "error_bound",
-                tuple(map(float, bound)) if isinstance(bound, list) else float(bound),
-            )
+        for key, phrase in (
+            ("error_bound", _error_bound_phrase),
+            ("input_limits", _input_limits_phrase),
+        ):
+            if getattr(self, key) is not None:
+                value = _plain(getattr(self, key))
+                _check_value(key, value, phrase)
+                object.__setattr__(
+                    self,
+                    key,
+                    tuple(map(float, value)) if isinstance(value, list) else float(value),
+                )
         tables = {table: _plain(getattr(self, table)) for table in _TABLES}
         check_table("plant", tables["plant"], PLANT_SPECS)
         check_table("model", tables["model"], PLANT_SPECS)
@@ -388,9 +405,10 @@ class Scenario:
         if self.x0 is not None:
             data["x0"] = list(self.x0)
         data["record_every"] = self.record_every
-        if self.error_bound is not None:
-            bound = self.error_bound
-            data["error_bound"] = list(bound) if isinstance(bound, tuple) else bound
+        for key in ("error_bound", "input_limits"):
+            value = getattr(self, key)
+            if value is not None:
+                data[key] = list(value) if isinstance(value, tuple) else value
         for table in _TABLES:
             data[table] = _plain(getattr(self, table))
         return data
@@ -441,6 +459,12 @@ class Scenario:
                 f"must be one number or n = {plant.n} of them (one per coordinate)",
                 list(self.error_bound),
             )
+        if isinstance(self.input_limits, tuple) and len(self.input_limits) != plant.m:
+            raise fail(
+                "input_limits",
+                f"must be one number or m = {plant.m} of them (one per input)",
+                list(self.input_limits),
+            )
         if self.x0 is None:
             x0 = np.zeros(2 * plant.n)
         else:
@@ -466,6 +490,11 @@ class Scenario:
     def simulated_error_bound(self) -> float | tuple[float, ...]:
         """``error_bound`` as :func:`~delaytrack.sim.simulate` takes it (``inf``: none set)."""
         return math.inf if self.error_bound is None else self.error_bound
+
+    @property
+    def simulated_input_limits(self) -> float | tuple[float, ...]:
+        """``input_limits`` as :func:`~delaytrack.sim.simulate` takes it (``inf``: none set)."""
+        return math.inf if self.input_limits is None else self.input_limits
 
     def run(self, *, progress: bool = False) -> SimResult:
         """Simulate the scenario (batch of one); see :func:`delaytrack.sim.simulate`."""
@@ -568,6 +597,7 @@ def _simulate(
             T_c=scenario.T_c,
             record_every=scenario.record_every,
             error_bound=scenario.simulated_error_bound,
+            input_limits=scenario.simulated_input_limits,
             progress=progress,
         )
     except ValueError as error:

@@ -69,7 +69,10 @@ def run_closed_loop(handles, run, settings, records):
         for the runs whose profile is a kernel of the user's).
     run : tuple
         This run's arrays ``(plant_params, model_params, controller_params, controller_state,
-        delay_kind, delay_params, x0, capacity)``; ``controller_state`` is advanced in place.
+        delay_kind, delay_params, x0, capacity, input_limits)``; ``controller_state`` is
+        advanced in place. The actuators apply each command saturated to
+        ``[-input_limits, input_limits]`` (m,): the history holds the saturated commands, the
+        record ``commands`` what the controller issued.
     settings : tuple
         ``(reference_params, u_init, t0, dt, steps_per_tick, n_ticks, record_every,
         divergence_bound, error_bound, metrics_from)``, shared by every run of a batch;
@@ -95,6 +98,7 @@ def run_closed_loop(handles, run, settings, records):
         delay_params,
         x0,
         capacity,
+        input_limits,
     ) = run
     (
         reference_params,
@@ -153,8 +157,8 @@ def run_closed_loop(handles, run, settings, records):
             controller_work,
         )
         slot = k % capacity
-        for j in range(m):
-            history[slot, j] = command[j]
+        for j in range(m):  # the actuator saturates what it applies (inf: no limit)
+            history[slot, j] = min(max(command[j], -input_limits[j]), input_limits[j])
         if record:
             commands[row] = command
         if beyond(command, np.inf):
@@ -207,6 +211,7 @@ def run_batch(handles, runs, settings, records, status, t_stop):
         delay_params,
         x0,
         capacity,
+        input_limits,
     ) = runs
     states, commands, applied, delays, controller_states, sums = records
     for b in range(x0.shape[0]):
@@ -219,6 +224,7 @@ def run_batch(handles, runs, settings, records, status, t_stop):
             delay_params[b],
             x0[b],
             capacity[b],
+            input_limits[b],
         )
         run_records = (
             states[b],

@@ -184,6 +184,25 @@ def _error_bounds(error_bound: object, n: int) -> np.ndarray:
     return bounds
 
 
+def _input_limits(input_limits: object, batch: int, m: int) -> np.ndarray:
+    """``input_limits`` as one row of ``m`` limits per run, each ``> 0`` (``inf``: none)."""
+    try:
+        limits = np.asarray(input_limits, dtype=float)
+        if limits.ndim == 2 and limits.shape[0] == 1:
+            limits = limits[0]
+        limits = np.array(np.broadcast_to(limits, (batch, m)))
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"input_limits must be a number > 0, {m} of them (one per input) or a ({batch}, {m}) "
+            f"array (one row per run); inf for none; got {input_limits!r}"
+        ) from None
+    if np.any(np.isnan(limits)) or np.any(limits <= 0.0):
+        raise ValueError(
+            f"input_limits must be > 0 (inf for no limit) for every input; got {input_limits!r}"
+        )
+    return limits
+
+
 def _stack_padded(vectors: list[np.ndarray]) -> np.ndarray:
     width = max(1, max(vector.size for vector in vectors))
     out = np.zeros((len(vectors), width))
@@ -209,6 +228,7 @@ def simulate(
     metrics_from: float | None = None,
     divergence_bound: float = 1e6,
     error_bound: float | Sequence[float] = math.inf,
+    input_limits: float | Sequence[float] | np.ndarray = math.inf,
     workers: int | None = None,
     engine: str = "auto",
     progress: bool = False,
@@ -260,6 +280,12 @@ def simulate(
         ``error_bound`` (one bound for every coordinate, or one per coordinate; ``inf``
         leaves a coordinate unbounded, the default). Its metrics are NaN, as for a diverged
         run: a loop that wanders this far off the path is unstable, whatever its state's size.
+    input_limits : float or array_like, shape (m,) or (batch, m)
+        Actuator saturation: each command is applied as ``clip(u_j, -limit_j, limit_j)`` (one
+        limit for every input, one per input, or one row per batch element; ``inf``, the
+        default, for none; each ``> 0``). The record ``commands`` (and TV) is what the
+        controller issued, ``applied`` what the actuators applied. ``u_init`` must lie within
+        the limits.
     workers : int, optional
         Threads that run the batch in parallel (compiled plants only; all cores by default).
         Each run is computed by one thread exactly as it would be alone, so results do not
@@ -391,6 +417,11 @@ def simulate(
     u_init = np.zeros(m) if u_init is None else np.array(finite_array("u_init", u_init, ndim=1))
     if u_init.shape != (m,):
         raise ValueError(f"u_init must have shape ({m},); got {u_init.shape}")
+    limits = _input_limits(input_limits, batch, m)
+    if np.any(np.abs(u_init) > limits):
+        raise ValueError(
+            f"u_init = {u_init.tolist()} lies beyond input_limits: the actuators cannot apply it"
+        )
 
     if np.max(np.abs(states0)) > divergence_bound:
         raise ValueError(
@@ -478,6 +509,7 @@ def simulate(
         _stack_padded([d.params for d in delays]),
         states0,
         capacities,
+        limits,
     )
     settings = (
         np.array(reference.params),
@@ -570,6 +602,7 @@ def simulate(
         "metrics_from": t0 + metrics_from_tick * steps_per_tick * dt,
         "divergence_bound": divergence_bound,
         "error_bound": error_bounds.tolist(),
+        "input_limits": limits[0].tolist() if np.all(limits == limits[0]) else limits.tolist(),
         "compiled": compiled,
         "plant": [p.to_spec() for p in plants]
         if len(set(map(id, plants))) > 1

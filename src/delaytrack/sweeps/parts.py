@@ -72,6 +72,12 @@ def _simulate_batch(runs: list[Run], workers: int | None) -> pd.DataFrame:
             dt=first.dt,
             T_c=first.T_c,
             error_bound=first.simulated_error_bound,
+            input_limits=np.array(
+                [
+                    np.broadcast_to(run.scenario.simulated_input_limits, (b.plant.m,))
+                    for run, b in zip(runs, built, strict=True)
+                ]
+            ),
             trajectories=False,
             workers=workers,
         )

@@ -70,7 +70,17 @@ _INT64_MIN, _INT64_MAX = -(2**63), 2**63 - 1
 MAX_RUNS = 100_000
 _TOP_LEVEL = ("scenario", "unit_size", "draws", "seed", "metrics", "grid", "random")
 _TABLES = ("plant", "model", "controller", "delay", "reference")
-_SCALARS = ("name", "duration", "dt", "T_c", "seed", "x0", "record_every", "error_bound")
+_SCALARS = (
+    "name",
+    "duration",
+    "dt",
+    "T_c",
+    "seed",
+    "x0",
+    "record_every",
+    "error_bound",
+    "input_limits",
+)
 
 #: Distribution name -> its parameters, for ``[random]`` entries.
 DISTRIBUTIONS: Mapping[str, tuple[str, ...]] = MappingProxyType(

@@ -461,3 +461,21 @@ def test_a_full_disk_keeps_the_finished_parts_and_resumes(tmp_path, monkeypatch)
     outcome = run_sweep(spec, out, executor=executor, progress=False)
     assert executor.ran == [2, 3, 4]
     assert outcome.resumed == 2
+
+
+def test_a_sweep_over_input_limits_batches_each_run_with_its_own(tmp_path):
+    """Grid points with and without saturation share units; each run equals its run alone."""
+    data = tomllib.loads(EXAMPLE.read_text()) | {"unit_size": 4, "draws": 1}
+    data["grid"] = data["grid"] | {"duration": [0.2], "input_limits": [0.5, float("inf")]}
+    spec = SweepSpec.from_dict(data, root=EXAMPLE.parent)
+    runs = run_sweep(spec, tmp_path / "out", progress=False).runs
+    assert len(runs) == 12
+    single = SweepSpec.from_dict(data | {"unit_size": 1}, root=EXAMPLE.parent)
+    alone = pd.concat([run_unit(unit, workers=1) for unit in single.units()])
+    pd.testing.assert_frame_equal(
+        alone.reset_index(drop=True), runs.reset_index(drop=True), check_exact=True
+    )
+    limited = runs[runs["input_limits"] == 0.5]
+    free = runs[runs["input_limits"] == float("inf")]
+    assert len(limited) == len(free) == 6
+    assert not np.allclose(limited["ae_q1"].to_numpy(), free["ae_q1"].to_numpy())

@@ -8,6 +8,7 @@ import pytest
 from scipy.linalg import expm
 from scipy.optimize import brentq
 
+from delaytrack._counter_noise import standard_noise
 from delaytrack.controllers import AROLC, OuterLoop
 from delaytrack.delays import (
     AbsSineDelay,
@@ -19,7 +20,7 @@ from delaytrack.delays import (
 )
 from delaytrack.plants import CallablePlant, CompiledPlant, LinearPlant, TwoLinkArm
 from delaytrack.references import SinusoidalReference
-from delaytrack.sim import simulate
+from delaytrack.sim import MeasurementNoise, simulate
 from delaytrack.sim.history import latest_tick_index
 from delaytrack.sim.integrator import beyond
 
@@ -578,4 +579,110 @@ def test_bad_input_limits_are_refused(limits, u_init, message) -> None:
             T_c=2e-3,
             input_limits=limits,
             u_init=u_init,
+        )
+
+
+def _measured(x, k, noise, n):
+    """q~, q~dot of the measurement model at tick k, written out again here with NumPy."""
+    q, qdot = x[:n].copy(), x[n:].copy()
+    step = np.broadcast_to(np.asarray(noise.quantization, dtype=float), (n,))
+    position = np.broadcast_to(np.asarray(noise.position, dtype=float), (n,))
+    velocity = np.broadcast_to(np.asarray(noise.velocity, dtype=float), (n,))
+    for j in range(n):
+        if step[j] > 0:
+            q[j] = step[j] * np.floor(q[j] / step[j] + 0.5)
+        if position[j] > 0:
+            q[j] += position[j] * standard_noise(noise.seed, 2 * n * k + j)
+        if velocity[j] > 0:
+            qdot[j] += velocity[j] * standard_noise(noise.seed, 2 * n * k + n + j)
+    return q, qdot
+
+
+@pytest.mark.parametrize(
+    "noise",
+    [
+        MeasurementNoise(quantization=2 * np.pi / 500),
+        MeasurementNoise(quantization=[0.01, 0.0], position=0.002, velocity=[0.05, 0.1], seed=9),
+    ],
+)
+def test_the_controller_reads_the_measured_state(noise) -> None:
+    # The outer loop has no state: each recorded command must be its law evaluated on the
+    # measured state of the recorded true state at that tick.
+    controller = OuterLoop(TwoLinkArm(), K1=4.0, K2=4.0)
+    settings = dict(reference=ARM_REFERENCE, t1=0.5, dt=1e-3, T_c=2e-3)
+    result = simulate(
+        TwoLinkArm(),
+        controller,
+        ConstantDelay(0.01),
+        np.zeros(4),
+        measurement_noise=noise,
+        **settings,
+    )
+    qd, qd_dot, qd_ddot = ARM_REFERENCE.evaluate(result.t)
+    state = controller.initial_state()
+    for k in range(0, result.t.size, 17):
+        q, qdot = _measured(result.x[0, k], k, noise, 2)
+        command, _ = controller.step(
+            result.t[k], q, qdot, (qd[k], qd_dot[k], qd_ddot[k]), state, T_c=2e-3, h=0.01
+        )
+        np.testing.assert_array_equal(result.commands[0, k], command)
+    exact = simulate(TwoLinkArm(), controller, ConstantDelay(0.01), np.zeros(4), **settings)
+    assert not np.array_equal(exact.commands, result.commands)
+    silent = simulate(
+        TwoLinkArm(),
+        controller,
+        ConstantDelay(0.01),
+        np.zeros(4),
+        measurement_noise=MeasurementNoise(),
+        **settings,
+    )
+    np.testing.assert_array_equal(silent.x, exact.x)  # no noise: the true state, bit for bit
+    batch = simulate(
+        TwoLinkArm(),
+        controller,
+        [ConstantDelay(0.01)] * 2,
+        np.zeros(4),
+        measurement_noise=[MeasurementNoise(), noise],
+        **settings,
+    )
+    np.testing.assert_array_equal(batch.x[0], exact.x[0])
+    np.testing.assert_array_equal(batch.x[1], result.x[0])
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        (dict(position=-0.1), "measurement_noise.position must be a number >= 0"),
+        (dict(velocity=float("nan")), "measurement_noise.velocity must be a number >= 0"),
+        (dict(quantization=[[0.1]]), "measurement_noise.quantization must be a number >= 0"),
+        (dict(seed=-1), "measurement_noise.seed must be an integer from 0 to 4294967295"),
+        (dict(seed=2**32), "measurement_noise.seed"),
+    ],
+)
+def test_bad_measurement_noise_is_refused(arguments, message) -> None:
+    with pytest.raises(ValueError, match=message):
+        MeasurementNoise(**arguments)
+
+
+def test_measurement_noise_of_the_wrong_size_is_refused() -> None:
+    settings = dict(reference=ARM_REFERENCE, t1=0.1, dt=1e-3, T_c=2e-3)
+    with pytest.raises(
+        ValueError, match=r"measurement_noise.position must have 1 or n = 2 entries"
+    ):
+        simulate(
+            TwoLinkArm(),
+            arm_arolc(),
+            ConstantDelay(0.01),
+            np.zeros(4),
+            measurement_noise=MeasurementNoise(position=[0.1, 0.2, 0.3]),
+            **settings,
+        )
+    with pytest.raises(TypeError, match=r"measurement_noise\[0\] must be a MeasurementNoise"):
+        simulate(
+            TwoLinkArm(),
+            arm_arolc(),
+            ConstantDelay(0.01),
+            np.zeros(4),
+            measurement_noise=[0.1],
+            **settings,
         )

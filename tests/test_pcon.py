@@ -15,8 +15,9 @@ import numpy as np
 import pytest
 
 from arm_closed_form import arm_mass, arm_nonlinear
+from delaytrack._counter_noise import hash32, standard_noise
 from delaytrack.controllers import PCON, PCONf, PredictorBaseline, controller_from_spec
-from delaytrack.controllers.delay_knowledge import hash32, standard_noise, told_delays
+from delaytrack.controllers.delay_knowledge import told_delays
 from delaytrack.controllers.pcon import ring_slots
 from delaytrack.delays import AbsSineDelay, ConstantDelay
 from delaytrack.plants import CallablePlant, LinearPlant, TwoLinkArm

@@ -367,3 +367,26 @@ def test_input_limits_saturate_the_actuators_and_are_checked(tmp_path):
     refused({**data, "input_limits": -1.0}, "'input_limits' must be a number > 0 or a list of them")
     with pytest.raises(ScenarioError, match="'input_limits' must be one number or m = 2 of them"):
         Scenario.from_dict({**data, "input_limits": [1.0, 2.0, 3.0]}).run()
+
+
+def test_measurement_noise_is_a_table_of_the_scenario(tmp_path):
+    data = base_dict() | {"measurement_noise": {"quantization": 0.01, "velocity": 0.05, "seed": 4}}
+    scenario = Scenario.from_dict(data)
+    path = tmp_path / "noisy.toml"
+    scenario.to_toml(path)
+    again = Scenario.from_toml(path)
+    assert dict(again.measurement_noise) == {"quantization": 0.01, "velocity": 0.05, "seed": 4}
+    result = again.run()
+    assert result.settings["measurement_noise"] == [
+        {"quantization": 0.01, "position": 0.0, "velocity": 0.05, "seed": 4}
+    ]
+    assert not np.array_equal(result.x, Scenario.from_dict(base_dict()).run().x)
+    refused(
+        data | {"measurement_noise": {"sigma": 0.1}},
+        "'measurement_noise' must be a table with keys among",
+    )
+    refused(
+        data | {"measurement_noise": {"position": -1.0}},
+        "measurement_noise.position must be a number >= 0",
+    )
+    refused(data | {"measurement_noise": 0.1}, "'measurement_noise' must be a table")

@@ -72,7 +72,7 @@ from delaytrack.plants import (
     plant_from_spec,
 )
 from delaytrack.references import Reference, SinusoidalReference, SplineReference
-from delaytrack.sim import SimResult, simulate
+from delaytrack.sim import MeasurementNoise, SimResult, simulate
 
 __all__ = [
     "AROLC",
@@ -97,6 +97,7 @@ __all__ = [
     "Reference",
     "Scenario",
     "ScenarioError",
+    "MeasurementNoise",
     "SimResult",
     "SinusoidalReference",
     "SplineReference",

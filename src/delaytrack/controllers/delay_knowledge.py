@@ -9,11 +9,9 @@ with a scale ``s`` (``2`` tells twice the delay), an offset ``b`` (s) and noise 
 deviation ``σ`` (s); ``s = 1, b = σ = 0`` is the paper's exact knowledge. A window cannot be
 negative: an estimate below zero is used as zero (no prediction).
 
-``ξ_k`` is approximately standard normal: the sum of twelve uniforms on (0, 1) minus 6 (the
-Irwin–Hall distribution: mean 0, variance 1, always within ±6). The uniforms come from a
-counter-based generator keyed by the seed and the tick index ``k = round(t_k / T_c)`` (a 32-bit
-integer hash, C. Wellons' "lowbias32" with its improved constants), so that a run gives the same
-estimates alone, in a batch and on any thread, with no generator state to carry.
+``ξ_k`` is :func:`~delaytrack._counter_noise.standard_noise` of the seed and the tick index
+``k = round(t_k / T_c)``: approximately standard normal, always within ±6, the same for a run
+alone, in a batch and on any thread.
 """
 
 from __future__ import annotations
@@ -22,36 +20,10 @@ import math
 
 import numpy as np
 
+from delaytrack._counter_noise import standard_noise
 from delaytrack._jit import hot_kernel
 
-__all__ = ["NOISE_BOUND", "hash32", "standard_noise", "told_delay", "told_delays"]
-
-#: ``|ξ_k| <= 6`` always (twelve uniforms minus 6).
-NOISE_BOUND = 6.0
-_MASK = 0xFFFFFFFF
-_TWO_32 = 4294967296.0
-
-
-@hot_kernel
-def hash32(x):
-    """A 32-bit integer hash of ``x mod 2³²`` (every product stays below 2⁶³)."""
-    x = x & _MASK
-    x ^= x >> 16
-    x = (x * 0x21F0AAAD) & _MASK
-    x ^= x >> 15
-    x = (x * 0x735A2D97) & _MASK
-    x ^= x >> 15
-    return x
-
-
-@hot_kernel
-def standard_noise(seed, k):
-    """``ξ_k`` of the module docstring for ``seed`` and tick index ``k`` (integers)."""
-    base = hash32(seed)
-    total = 0.0
-    for i in range(12):
-        total += (hash32(base + 12 * k + i) + 0.5) / _TWO_32
-    return total - 6.0
+__all__ = ["told_delay", "told_delays"]
 
 
 @hot_kernel

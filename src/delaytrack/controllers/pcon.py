@@ -42,6 +42,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from delaytrack._counter_noise import NOISE_BOUND
 from delaytrack._jit import tick_kernel
 from delaytrack._small_linalg import matvec
 from delaytrack._validation import (
@@ -52,7 +53,7 @@ from delaytrack._validation import (
 )
 from delaytrack.components import call_command_map, call_terms
 from delaytrack.controllers.base import Controller, terms_views
-from delaytrack.controllers.delay_knowledge import NOISE_BOUND, told_delay
+from delaytrack.controllers.delay_knowledge import told_delay
 from delaytrack.plants.base import ELPlant
 
 __all__ = ["PCON", "PCONf", "PredictorBaseline", "pcon_step", "ring_slots"]

@@ -327,6 +327,7 @@ def empirical_margin(
                 metrics_from=settings["settle"],
                 error_bound=scenario.simulated_error_bound,
                 input_limits=scenario.simulated_input_limits,
+                measurement_noise=scenario.simulated_measurement_noise,
                 workers=workers,
                 progress=progress,
             )

@@ -12,6 +12,7 @@ controller and its gains, the delay profile, the reference, and the numerical se
     record_every = 1            # optional; record every k-th controller tick
     error_bound = 10.0          # optional "left the path" rule: |e1_j| beyond it stops the run
     input_limits = [5.0, 2.0]   # optional actuator saturation: |u_j| applied at most this
+    measurement_noise = { quantization = 0.0015, velocity = 0.01, seed = 3 }   # optional
 
     [plant]                     # the truth: type and parameters
     type = "two-link-arm"
@@ -84,7 +85,7 @@ from delaytrack.controllers import CONTROLLER_SPECS, Controller, controller_from
 from delaytrack.delays import DELAY_SPECS, DelayProfile, delay_from_spec
 from delaytrack.plants import PLANT_SPECS, ELPlant, plant_from_spec
 from delaytrack.references import REFERENCE_SPECS, Reference, reference_from_spec
-from delaytrack.sim import SimResult, simulate
+from delaytrack.sim import MeasurementNoise, SimResult, simulate
 from delaytrack.sim.simulate import MAX_STEPS, physical_memory
 
 __all__ = [
@@ -111,6 +112,7 @@ _TOP_LEVEL_SCALARS: dict[str, Callable[[object], str | None]] = {
     "record_every": integer,
     "error_bound": lambda v: _error_bound_phrase(v),
     "input_limits": lambda v: _input_limits_phrase(v),
+    "measurement_noise": lambda v: _measurement_noise_phrase(v),
 }
 _TABLES = ("plant", "model", "controller", "delay", "reference")
 _REQUIRED = ("name", "duration", "dt", "T_c", *_TABLES)
@@ -144,6 +146,20 @@ def _input_limits_phrase(value: object) -> str | None:
     if _error_bound_phrase(value) is None:
         return None
     return "must be a number > 0 or a list of them, one per input (inf: no limit for that input)"
+
+
+_NOISE_KEYS = ("quantization", "position", "velocity", "seed")
+
+
+def _measurement_noise_phrase(value: object) -> str | None:
+    """Check ``measurement_noise``: a table of :class:`MeasurementNoise`'s keys."""
+    if isinstance(value, dict) and set(value) <= set(_NOISE_KEYS):
+        try:
+            MeasurementNoise(**value)
+        except (TypeError, ValueError) as error:
+            return f"is refused: {error}"
+        return None
+    return f"must be a table with keys among {list(_NOISE_KEYS)}"
 
 
 def _check_value(key: str, value: object, check: Callable[[object], str | None]) -> None:
@@ -260,6 +276,9 @@ class Scenario:
     input_limits : float or tuple of float or None
         Actuator saturation: each command is applied as ``clip(u_j, -limit_j, limit_j)`` (one
         number for every input, or one per input, ``inf`` for none); no limit when None.
+    measurement_noise : mapping or None
+        What the controller reads: ``{quantization, position, velocity, seed}``
+        (:class:`~delaytrack.sim.measurement.MeasurementNoise`); the true state when None.
     """
 
     name: str
@@ -276,6 +295,7 @@ class Scenario:
     record_every: int = 1
     error_bound: float | tuple[float, ...] | None = None
     input_limits: float | tuple[float, ...] | None = None
+    measurement_noise: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
         _check_value("name", self.name, string)
@@ -327,6 +347,10 @@ class Scenario:
                     key,
                     tuple(map(float, value)) if isinstance(value, list) else float(value),
                 )
+        if self.measurement_noise is not None:
+            noise = _plain(self.measurement_noise)
+            _check_value("measurement_noise", noise, _measurement_noise_phrase)
+            object.__setattr__(self, "measurement_noise", MappingProxyType(noise))
         tables = {table: _plain(getattr(self, table)) for table in _TABLES}
         check_table("plant", tables["plant"], PLANT_SPECS)
         check_table("model", tables["model"], PLANT_SPECS)
@@ -409,6 +433,8 @@ class Scenario:
             value = getattr(self, key)
             if value is not None:
                 data[key] = list(value) if isinstance(value, tuple) else value
+        if self.measurement_noise is not None:
+            data["measurement_noise"] = _plain(self.measurement_noise)
         for table in _TABLES:
             data[table] = _plain(getattr(self, table))
         return data
@@ -490,6 +516,13 @@ class Scenario:
     def simulated_error_bound(self) -> float | tuple[float, ...]:
         """``error_bound`` as :func:`~delaytrack.sim.simulate` takes it (``inf``: none set)."""
         return math.inf if self.error_bound is None else self.error_bound
+
+    @property
+    def simulated_measurement_noise(self) -> MeasurementNoise | None:
+        """``measurement_noise`` as :func:`~delaytrack.sim.simulate` takes it."""
+        if self.measurement_noise is None:
+            return None
+        return MeasurementNoise(**_plain(self.measurement_noise))
 
     @property
     def simulated_input_limits(self) -> float | tuple[float, ...]:
@@ -598,6 +631,7 @@ def _simulate(
             record_every=scenario.record_every,
             error_bound=scenario.simulated_error_bound,
             input_limits=scenario.simulated_input_limits,
+            measurement_noise=scenario.simulated_measurement_noise,
             progress=progress,
         )
     except ValueError as error:

@@ -1,7 +1,8 @@
 """The simulation engine: sampled controller, exact delayed lookup, RK4 plant, batching."""
 
 from delaytrack.sim.engine import STATUS_NAMES
+from delaytrack.sim.measurement import MeasurementNoise
 from delaytrack.sim.result import SimResult
 from delaytrack.sim.simulate import simulate
 
-__all__ = ["STATUS_NAMES", "SimResult", "simulate"]
+__all__ = ["STATUS_NAMES", "MeasurementNoise", "SimResult", "simulate"]

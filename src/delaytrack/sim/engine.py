@@ -30,6 +30,7 @@ from delaytrack.sim.integrator import (
     integrate_tick,
     rk4_workspace,
 )
+from delaytrack.sim.measurement import measure
 from delaytrack.sim.running_metrics import accumulate_tick
 
 __all__ = [
@@ -69,10 +70,11 @@ def run_closed_loop(handles, run, settings, records):
         for the runs whose profile is a kernel of the user's).
     run : tuple
         This run's arrays ``(plant_params, model_params, controller_params, controller_state,
-        delay_kind, delay_params, x0, capacity, input_limits)``; ``controller_state`` is
-        advanced in place. The actuators apply each command saturated to
-        ``[-input_limits, input_limits]`` (m,): the history holds the saturated commands, the
-        record ``commands`` what the controller issued.
+        delay_kind, delay_params, x0, capacity, input_limits, measurement)``;
+        ``controller_state`` is advanced in place. The actuators apply each command saturated
+        to ``[-input_limits, input_limits]`` (m,): the history holds the saturated commands,
+        the record ``commands`` what the controller issued. The controller reads the state
+        through :func:`~delaytrack.sim.measurement.measure` with ``measurement`` (3n + 1,).
     settings : tuple
         ``(reference_params, u_init, t0, dt, steps_per_tick, n_ticks, record_every,
         divergence_bound, error_bound, metrics_from)``, shared by every run of a batch;
@@ -99,6 +101,7 @@ def run_closed_loop(handles, run, settings, records):
         x0,
         capacity,
         input_limits,
+        measurement,
     ) = run
     (
         reference_params,
@@ -127,6 +130,8 @@ def run_closed_loop(handles, run, settings, records):
     controller_work = step_workspace(n, m)
     q = x[:n]  # views of x, which is advanced in place
     qdot = x[n:]
+    q_measured = np.empty(n)  # what the controller reads
+    qdot_measured = np.empty(n)
     for k in range(n_ticks + 1):
         t_k = tick_time(k, t0, dt, steps_per_tick)
         record = record_every > 0 and k % record_every == 0
@@ -139,11 +144,12 @@ def run_closed_loop(handles, run, settings, records):
         call_reference(reference, t_k, reference_params, qd, qd_dot, qd_ddot)
         if left_path(qd, q, error_bound):
             return LEFT_PATH, t_k
+        measure(q, qdot, k, measurement, q_measured, qdot_measured)
         call_step(
             controller_step,
             t_k,
-            q,
-            qdot,
+            q_measured,
+            qdot_measured,
             qd,
             qd_dot,
             qd_ddot,
@@ -212,6 +218,7 @@ def run_batch(handles, runs, settings, records, status, t_stop):
         x0,
         capacity,
         input_limits,
+        measurement,
     ) = runs
     states, commands, applied, delays, controller_states, sums = records
     for b in range(x0.shape[0]):
@@ -225,6 +232,7 @@ def run_batch(handles, runs, settings, records, status, t_stop):
             x0[b],
             capacity[b],
             input_limits[b],
+            measurement[b],
         )
         run_records = (
             states[b],

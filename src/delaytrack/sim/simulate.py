@@ -27,6 +27,7 @@ from delaytrack.sim.engine import run_batch, run_batch_compiled
 from delaytrack.sim.fallback import PythonFallbackWarning
 from delaytrack.sim.first_compile import announce_compile, engine_ready
 from delaytrack.sim.history import history_capacity, tick_time
+from delaytrack.sim.measurement import MeasurementNoise
 from delaytrack.sim.result import SimResult
 from delaytrack.sim.running_metrics import accumulator_size, finish_metrics
 
@@ -184,6 +185,34 @@ def _error_bounds(error_bound: object, n: int) -> np.ndarray:
     return bounds
 
 
+def _as_noise_list(measurement_noise: object) -> list[MeasurementNoise]:
+    items = (
+        [measurement_noise]
+        if isinstance(measurement_noise, MeasurementNoise)
+        else list(measurement_noise)  # type: ignore[call-overload]
+    )
+    for i, item in enumerate(items):
+        if not isinstance(item, MeasurementNoise):
+            raise TypeError(
+                f"measurement_noise[{i}] must be a MeasurementNoise; got {type(item).__name__}"
+            )
+    return items
+
+
+def _measurement(measurement_noise: object, batch: int, n: int) -> np.ndarray:
+    """One row ``[Δ (n), σ_q (n), σ_v (n), seed]`` per run (zeros: the true state)."""
+    if measurement_noise is None:
+        return np.zeros((batch, 3 * n + 1))
+    items = _as_noise_list(measurement_noise)
+    if len(items) not in (1, batch):
+        raise ValueError(
+            f"measurement_noise must be one MeasurementNoise or {batch} (one per run); got "
+            f"{len(items)}"
+        )
+    rows = np.array([item.params(n) for item in items])
+    return np.array(np.broadcast_to(rows, (batch, 3 * n + 1)))
+
+
 def _input_limits(input_limits: object, batch: int, m: int) -> np.ndarray:
     """``input_limits`` as one row of ``m`` limits per run, each ``> 0`` (``inf``: none)."""
     try:
@@ -229,6 +258,7 @@ def simulate(
     divergence_bound: float = 1e6,
     error_bound: float | Sequence[float] = math.inf,
     input_limits: float | Sequence[float] | np.ndarray = math.inf,
+    measurement_noise: MeasurementNoise | Sequence[MeasurementNoise] | None = None,
     workers: int | None = None,
     engine: str = "auto",
     progress: bool = False,
@@ -286,6 +316,11 @@ def simulate(
         default, for none; each ``> 0``). The record ``commands`` (and TV) is what the
         controller issued, ``applied`` what the actuators applied. ``u_init`` must lie within
         the limits.
+    measurement_noise : MeasurementNoise or sequence of MeasurementNoise, optional
+        What the controller reads instead of the true ``q, q̇``: encoder quantisation and
+        seeded white noise (:class:`~delaytrack.sim.measurement.MeasurementNoise`; one for the
+        batch or one per element). None: the true state. The metrics and ``error_bound`` use
+        the true state.
     workers : int, optional
         Threads that run the batch in parallel (compiled plants only; all cores by default).
         Each run is computed by one thread exactly as it would be alone, so results do not
@@ -418,6 +453,7 @@ def simulate(
     if u_init.shape != (m,):
         raise ValueError(f"u_init must have shape ({m},); got {u_init.shape}")
     limits = _input_limits(input_limits, batch, m)
+    measurement = _measurement(measurement_noise, batch, n)
     if np.any(np.abs(u_init) > limits):
         raise ValueError(
             f"u_init = {u_init.tolist()} lies beyond input_limits: the actuators cannot apply it"
@@ -510,6 +546,7 @@ def simulate(
         states0,
         capacities,
         limits,
+        measurement,
     )
     settings = (
         np.array(reference.params),
@@ -603,6 +640,9 @@ def simulate(
         "divergence_bound": divergence_bound,
         "error_bound": error_bounds.tolist(),
         "input_limits": limits[0].tolist() if np.all(limits == limits[0]) else limits.tolist(),
+        "measurement_noise": None
+        if measurement_noise is None
+        else [noise.to_spec() for noise in _as_noise_list(measurement_noise)],
         "compiled": compiled,
         "plant": [p.to_spec() for p in plants]
         if len(set(map(id, plants))) > 1

@@ -80,6 +80,7 @@ _SCALARS = (
     "record_every",
     "error_bound",
     "input_limits",
+    "measurement_noise",
 )
 
 #: Distribution name -> its parameters, for ``[random]`` entries.

@@ -561,7 +561,7 @@ def test_saturated_actuators_apply_the_clipped_delayed_command() -> None:
     [
         (0.0, None, "input_limits must be > 0"),
         (float("nan"), None, "input_limits must be > 0"),
-        ([1.0, 2.0, 3.0], None, "input_limits must be a number > 0, 2 of them"),
+        ([1.0, 2.0, 3.0], None, "input_limits must be a number > 0 or 2 of them"),
         ("high", None, "input_limits must be a number > 0"),
         (1.0, [2.0, 0.0], "u_init = \\[2.0, 0.0\\] lies beyond input_limits"),
     ],

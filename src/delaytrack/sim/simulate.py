@@ -169,20 +169,21 @@ def _check_horizons(
                 )
 
 
-def _error_bounds(error_bound: object, n: int) -> np.ndarray:
-    """``error_bound`` as one bound per coordinate, each ``> 0`` (``inf``: unbounded)."""
+def _positive_limits(key: str, value: object, shape: tuple[int, ...], entries: str) -> np.ndarray:
+    """``value`` broadcast to ``shape`` (a leading row of one spreads to every run), each entry
+    ``> 0`` (``inf``: none); refusals name ``key`` and what ``entries`` it takes."""
     try:
-        bounds = np.array(np.broadcast_to(np.asarray(error_bound, dtype=float), (n,)))
+        array = np.asarray(value, dtype=float)
+        if array.ndim == 2 and array.shape[0] == 1 and len(shape) == 2:
+            array = array[0]
+        array = np.array(np.broadcast_to(array, shape))
     except (TypeError, ValueError):
         raise ValueError(
-            f"error_bound must be a number > 0 or {n} of them (one per coordinate; inf for "
-            f"none); got {error_bound!r}"
+            f"{key} must be a number > 0 or {entries}; inf for none; got {value!r}"
         ) from None
-    if np.any(np.isnan(bounds)) or np.any(bounds <= 0.0):
-        raise ValueError(
-            f"error_bound must be > 0 (inf for no bound) for every coordinate; got {error_bound!r}"
-        )
-    return bounds
+    if np.any(np.isnan(array)) or np.any(array <= 0.0):
+        raise ValueError(f"{key} must be > 0 (inf for none) in every entry; got {value!r}")
+    return array
 
 
 def _as_noise_list(measurement_noise: object) -> list[MeasurementNoise]:
@@ -211,25 +212,6 @@ def _measurement(measurement_noise: object, batch: int, n: int) -> np.ndarray:
         )
     rows = np.array([item.params(n) for item in items])
     return np.array(np.broadcast_to(rows, (batch, 3 * n + 1)))
-
-
-def _input_limits(input_limits: object, batch: int, m: int) -> np.ndarray:
-    """``input_limits`` as one row of ``m`` limits per run, each ``> 0`` (``inf``: none)."""
-    try:
-        limits = np.asarray(input_limits, dtype=float)
-        if limits.ndim == 2 and limits.shape[0] == 1:
-            limits = limits[0]
-        limits = np.array(np.broadcast_to(limits, (batch, m)))
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"input_limits must be a number > 0, {m} of them (one per input) or a ({batch}, {m}) "
-            f"array (one row per run); inf for none; got {input_limits!r}"
-        ) from None
-    if np.any(np.isnan(limits)) or np.any(limits <= 0.0):
-        raise ValueError(
-            f"input_limits must be > 0 (inf for no limit) for every input; got {input_limits!r}"
-        )
-    return limits
 
 
 def _stack_padded(vectors: list[np.ndarray]) -> np.ndarray:
@@ -404,7 +386,9 @@ def simulate(
             )
     if reference.n != n:
         raise ValueError(f"reference has n = {reference.n} coordinates; the plant has n = {n}")
-    error_bounds = _error_bounds(error_bound, n)
+    error_bounds = _positive_limits(
+        "error_bound", error_bound, (n,), f"{n} of them (one per coordinate)"
+    )
 
     states0 = finite_array("x0", x0)
     if states0.ndim == 1:
@@ -452,7 +436,12 @@ def simulate(
     u_init = np.zeros(m) if u_init is None else np.array(finite_array("u_init", u_init, ndim=1))
     if u_init.shape != (m,):
         raise ValueError(f"u_init must have shape ({m},); got {u_init.shape}")
-    limits = _input_limits(input_limits, batch, m)
+    limits = _positive_limits(
+        "input_limits",
+        input_limits,
+        (batch, m),
+        f"{m} of them (one per input) or a ({batch}, {m}) array (one row per run)",
+    )
     measurement = _measurement(measurement_noise, batch, n)
     if np.any(np.abs(u_init) > limits):
         raise ValueError(

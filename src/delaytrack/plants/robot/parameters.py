@@ -125,12 +125,18 @@ P3DX_SOURCES: dict[str, str] = {
         "m_w (3 R² + w²) / 12 = 1.29e-3 kg·m²"
     ),
     "viscous_friction": (
-        "[assumed] 0.01 N·m·s/rad at the wheel (motor viscous damping ~1e-6 N·m·s/rad "
-        "through a ~40:1 gearbox, plus gear losses)"
+        "[assumed] 0.01 N·m·s/rad at the wheel, inside the range 1e-3 to 2e-2 N·m·s/rad derived "
+        "from a motor of the Pittman 9000 series that P3-DX models name (the 9233S013 "
+        "datasheet: viscous damping 2.3e-6 N·m·s) reflected through a gear ratio N of 20 to "
+        "65 (D N², efficiency 0.7-0.9, gear drag up to 2×); the ratio itself is not published "
+        "(38:1 matches the 1.6 m/s top speed of the Webots Pioneer 3-DX guide); back-EMF "
+        "damping belongs to the motor drive, not here"
     ),
     "coulomb_friction": (
-        "[assumed] 0.1 N·m at the wheel (motor brush/gear Coulomb friction reflected through the "
-        "gearbox plus rolling resistance ≈ 0.015 × 9 kg × 9.81 m/s² × R / 2 ≈ 0.06 N·m)"
+        "[assumed] 0.1 N·m at the wheel, inside the range 0.07 to 0.35 N·m derived from the "
+        "motor's friction torque (9233S013 datasheet: 4.2e-3 N·m) reflected through N = 20 to "
+        "40, plus rolling resistance c_rr W R with c_rr = 0.005 to 0.02 (Engineering Toolbox, "
+        "rolling friction coefficients) and a wheel load W of 35 to 61 N"
     ),
     "friction_speed": (
         "[assumed] 0.05 rad/s (≈ 5 mm/s at the rim): tanh smoothing of the Coulomb term, "

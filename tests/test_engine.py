@@ -8,7 +8,7 @@ import pytest
 from scipy.linalg import expm
 from scipy.optimize import brentq
 
-from delaytrack._counter_noise import standard_noise
+from delaytrack._counter_noise import standard_noise, uniform
 from delaytrack.controllers import AROLC, OuterLoop
 from delaytrack.delays import (
     AbsSineDelay,
@@ -20,7 +20,7 @@ from delaytrack.delays import (
 )
 from delaytrack.plants import CallablePlant, CompiledPlant, LinearPlant, TwoLinkArm
 from delaytrack.references import SinusoidalReference
-from delaytrack.sim import MeasurementNoise, simulate
+from delaytrack.sim import MeasurementNoise, PacketLoss, simulate
 from delaytrack.sim.history import latest_tick_index
 from delaytrack.sim.integrator import beyond
 
@@ -543,15 +543,14 @@ def test_saturated_actuators_apply_the_clipped_delayed_command() -> None:
     )
     assert not np.array_equal(free.x, result.x)
     # Per run: a batch with a limited and an unlimited element equals the two alone.
-    batch = simulate(
-        TwoLinkArm(),
-        arm_arolc(),
-        [delay, delay],
-        np.zeros(4),
-        **{**settings, "input_limits": [limits, [np.inf, np.inf]]},
+    unlimited = {key: value for key, value in settings.items() if key != "input_limits"}
+    batch_equals_alone(
+        (TwoLinkArm(), arm_arolc(), delay),
+        unlimited,
+        "input_limits",
+        [limits, [np.inf, np.inf]],
+        [result, free],
     )
-    np.testing.assert_array_equal(batch.x[0], result.x[0])
-    np.testing.assert_array_equal(batch.x[1], free.x[0])
     python = simulate(TwoLinkArm(), arm_arolc(), delay, np.zeros(4), engine="python", **settings)
     np.testing.assert_array_equal(python.x, result.x)
 
@@ -580,6 +579,17 @@ def test_bad_input_limits_are_refused(limits, u_init, message) -> None:
             input_limits=limits,
             u_init=u_init,
         )
+
+
+def batch_equals_alone(components, settings, option, values, alone):
+    """A batch of the same closed loop with ``option`` set per run to ``values`` equals the
+    runs ``alone`` (one per value), bit for bit."""
+    plant, controller, delay = components
+    batch = simulate(
+        plant, controller, [delay] * len(values), np.zeros(4), **{option: values}, **settings
+    )
+    for b, run in enumerate(alone):
+        np.testing.assert_array_equal(batch.x[b], run.x[0])
 
 
 def _measured(x, k, noise, n):
@@ -637,16 +647,13 @@ def test_the_controller_reads_the_measured_state(noise) -> None:
         **settings,
     )
     np.testing.assert_array_equal(silent.x, exact.x)  # no noise: the true state, bit for bit
-    batch = simulate(
-        TwoLinkArm(),
-        controller,
-        [ConstantDelay(0.01)] * 2,
-        np.zeros(4),
-        measurement_noise=[MeasurementNoise(), noise],
-        **settings,
+    batch_equals_alone(
+        (TwoLinkArm(), controller, ConstantDelay(0.01)),
+        settings,
+        "measurement_noise",
+        [MeasurementNoise(), noise],
+        [exact, result],
     )
-    np.testing.assert_array_equal(batch.x[0], exact.x[0])
-    np.testing.assert_array_equal(batch.x[1], result.x[0])
 
 
 @pytest.mark.parametrize(
@@ -686,3 +693,53 @@ def test_measurement_noise_of_the_wrong_size_is_refused() -> None:
             measurement_noise=[0.1],
             **settings,
         )
+
+
+def test_a_lost_packet_leaves_the_latest_received_command_applied() -> None:
+    # Each applied input is the brute-force lookup's command, or, if that packet was lost, the
+    # latest received one before it (u_init = 0 before any).
+    dt, t_c = 5e-4, 2e-3
+    delay = AbsSineDelay.S1()
+    loss = PacketLoss(probability=0.3, seed=5)
+    settings = dict(reference=ARM_REFERENCE, t1=2.0, dt=dt, T_c=t_c)
+    result = simulate(TwoLinkArm(), arm_arolc(), delay, np.zeros(4), packet_loss=loss, **settings)
+    commands = result.commands[0]
+    lost = np.array([uniform(5, k) < 0.3 for k in range(commands.shape[0])])
+    assert 0.25 < lost.mean() < 0.35
+    received = np.zeros_like(commands)  # the command the actuators hold after tick k's packet
+    held = np.zeros(2)
+    for k in range(commands.shape[0]):
+        if not lost[k]:
+            held = commands[k]
+        received[k] = held
+    probe = result.t + 0.5e-9 * dt
+    indices = np.array([brute_force_index(t, delay, result.t) for t in probe])
+    expected = np.where(indices[:, None] >= 0, received[np.maximum(indices, 0)], 0.0)
+    np.testing.assert_array_equal(result.applied[0], expected)
+    assert result.settings["packet_loss"] == [{"probability": 0.3, "seed": 5}]
+    none = simulate(
+        TwoLinkArm(), arm_arolc(), delay, np.zeros(4), packet_loss=PacketLoss(), **settings
+    )
+    exact = simulate(TwoLinkArm(), arm_arolc(), delay, np.zeros(4), **settings)
+    np.testing.assert_array_equal(none.x, exact.x)
+    batch_equals_alone(
+        (TwoLinkArm(), arm_arolc(), delay),
+        settings,
+        "packet_loss",
+        [PacketLoss(), loss],
+        [exact, result],
+    )
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        (dict(probability=1.0), r"packet_loss.probability must be a number in \[0, 1\)"),
+        (dict(probability=-0.1), "packet_loss.probability"),
+        (dict(probability="half"), "packet_loss.probability"),
+        (dict(seed=-3), "packet_loss.seed must be an integer from 0 to 4294967295"),
+    ],
+)
+def test_bad_packet_loss_is_refused(arguments, message) -> None:
+    with pytest.raises(ValueError, match=message):
+        PacketLoss(**arguments)

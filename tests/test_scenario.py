@@ -390,3 +390,16 @@ def test_measurement_noise_is_a_table_of_the_scenario(tmp_path):
         "measurement_noise.position must be a number >= 0",
     )
     refused(data | {"measurement_noise": 0.1}, "'measurement_noise' must be a table")
+
+
+def test_packet_loss_is_a_table_of_the_scenario(tmp_path):
+    data = base_dict() | {"packet_loss": {"probability": 0.2, "seed": 1}}
+    path = tmp_path / "lossy.toml"
+    Scenario.from_dict(data).to_toml(path)
+    again = Scenario.from_toml(path)
+    assert dict(again.packet_loss) == {"probability": 0.2, "seed": 1}
+    result = again.run()
+    assert result.settings["packet_loss"] == [{"probability": 0.2, "seed": 1}]
+    assert not np.array_equal(result.x, Scenario.from_dict(base_dict()).run().x)
+    refused(data | {"packet_loss": {"rate": 0.1}}, "'packet_loss' must be a table with keys among")
+    refused(data | {"packet_loss": {"probability": 1.5}}, r"packet_loss.probability must be")

@@ -72,7 +72,7 @@ from delaytrack.plants import (
     plant_from_spec,
 )
 from delaytrack.references import Reference, SinusoidalReference, SplineReference
-from delaytrack.sim import MeasurementNoise, SimResult, simulate
+from delaytrack.sim import MeasurementNoise, PacketLoss, SimResult, simulate
 
 __all__ = [
     "AROLC",
@@ -98,6 +98,7 @@ __all__ = [
     "Scenario",
     "ScenarioError",
     "MeasurementNoise",
+    "PacketLoss",
     "SimResult",
     "SinusoidalReference",
     "SplineReference",

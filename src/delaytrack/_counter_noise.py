@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from delaytrack._jit import hot_kernel
 
-__all__ = ["NOISE_BOUND", "hash32", "standard_noise"]
+__all__ = ["NOISE_BOUND", "hash32", "standard_noise", "uniform"]
 
 #: ``|standard_noise(...)| <= 6`` always (twelve uniforms minus 6).
 NOISE_BOUND = 6.0
@@ -29,6 +29,13 @@ def hash32(x):
     x = (x * 0x735A2D97) & _MASK
     x ^= x >> 15
     return x
+
+
+@hot_kernel
+def uniform(seed, index):
+    """A uniform number in (0, 1) for ``seed`` and ``index`` (integers): one of the twelve that
+    :func:`standard_noise` sums, of a stream of its own (the index's hash, not ``12 index``)."""
+    return (hash32(hash32(seed) ^ hash32(index + 0x5BD1E995)) + 0.5) / _TWO_32
 
 
 @hot_kernel

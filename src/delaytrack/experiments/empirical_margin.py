@@ -328,6 +328,7 @@ def empirical_margin(
                 error_bound=scenario.simulated_error_bound,
                 input_limits=scenario.simulated_input_limits,
                 measurement_noise=scenario.simulated_measurement_noise,
+                packet_loss=scenario.simulated_packet_loss,
                 workers=workers,
                 progress=progress,
             )

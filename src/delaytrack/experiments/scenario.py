@@ -13,6 +13,7 @@ controller and its gains, the delay profile, the reference, and the numerical se
     error_bound = 10.0          # optional "left the path" rule: |e1_j| beyond it stops the run
     input_limits = [5.0, 2.0]   # optional actuator saturation: |u_j| applied at most this
     measurement_noise = { quantization = 0.0015, velocity = 0.01, seed = 3 }   # optional
+    packet_loss = { probability = 0.05, seed = 3 }   # optional: lost command packets
 
     [plant]                     # the truth: type and parameters
     type = "two-link-arm"
@@ -85,7 +86,7 @@ from delaytrack.controllers import CONTROLLER_SPECS, Controller, controller_from
 from delaytrack.delays import DELAY_SPECS, DelayProfile, delay_from_spec
 from delaytrack.plants import PLANT_SPECS, ELPlant, plant_from_spec
 from delaytrack.references import REFERENCE_SPECS, Reference, reference_from_spec
-from delaytrack.sim import MeasurementNoise, SimResult, simulate
+from delaytrack.sim import MeasurementNoise, PacketLoss, SimResult, simulate
 from delaytrack.sim.simulate import MAX_STEPS, physical_memory
 
 __all__ = [
@@ -113,6 +114,7 @@ _TOP_LEVEL_SCALARS: dict[str, Callable[[object], str | None]] = {
     "error_bound": lambda v: _error_bound_phrase(v),
     "input_limits": lambda v: _input_limits_phrase(v),
     "measurement_noise": lambda v: _measurement_noise_phrase(v),
+    "packet_loss": lambda v: _packet_loss_phrase(v),
 }
 _TABLES = ("plant", "model", "controller", "delay", "reference")
 _REQUIRED = ("name", "duration", "dt", "T_c", *_TABLES)
@@ -160,6 +162,17 @@ def _measurement_noise_phrase(value: object) -> str | None:
             return f"is refused: {error}"
         return None
     return f"must be a table with keys among {list(_NOISE_KEYS)}"
+
+
+def _packet_loss_phrase(value: object) -> str | None:
+    """Check ``packet_loss``: a table of :class:`PacketLoss`'s keys."""
+    if isinstance(value, dict) and set(value) <= {"probability", "seed"}:
+        try:
+            PacketLoss(**value)
+        except (TypeError, ValueError) as error:
+            return f"is refused: {error}"
+        return None
+    return "must be a table with keys among ['probability', 'seed']"
 
 
 def _check_value(key: str, value: object, check: Callable[[object], str | None]) -> None:
@@ -279,6 +292,9 @@ class Scenario:
     measurement_noise : mapping or None
         What the controller reads: ``{quantization, position, velocity, seed}``
         (:class:`~delaytrack.sim.measurement.MeasurementNoise`); the true state when None.
+    packet_loss : mapping or None
+        Lost command packets: ``{probability, seed}``
+        (:class:`~delaytrack.sim.packet_loss.PacketLoss`); none lost when None.
     """
 
     name: str
@@ -296,6 +312,7 @@ class Scenario:
     error_bound: float | tuple[float, ...] | None = None
     input_limits: float | tuple[float, ...] | None = None
     measurement_noise: Mapping[str, Any] | None = None
+    packet_loss: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
         _check_value("name", self.name, string)
@@ -347,10 +364,14 @@ class Scenario:
                     key,
                     tuple(map(float, value)) if isinstance(value, list) else float(value),
                 )
-        if self.measurement_noise is not None:
-            noise = _plain(self.measurement_noise)
-            _check_value("measurement_noise", noise, _measurement_noise_phrase)
-            object.__setattr__(self, "measurement_noise", MappingProxyType(noise))
+        for key, phrase in (
+            ("measurement_noise", _measurement_noise_phrase),
+            ("packet_loss", _packet_loss_phrase),
+        ):
+            if getattr(self, key) is not None:
+                table = _plain(getattr(self, key))
+                _check_value(key, table, phrase)
+                object.__setattr__(self, key, MappingProxyType(table))
         tables = {table: _plain(getattr(self, table)) for table in _TABLES}
         check_table("plant", tables["plant"], PLANT_SPECS)
         check_table("model", tables["model"], PLANT_SPECS)
@@ -433,8 +454,9 @@ class Scenario:
             value = getattr(self, key)
             if value is not None:
                 data[key] = list(value) if isinstance(value, tuple) else value
-        if self.measurement_noise is not None:
-            data["measurement_noise"] = _plain(self.measurement_noise)
+        for key in ("measurement_noise", "packet_loss"):
+            if getattr(self, key) is not None:
+                data[key] = _plain(getattr(self, key))
         for table in _TABLES:
             data[table] = _plain(getattr(self, table))
         return data
@@ -523,6 +545,11 @@ class Scenario:
         if self.measurement_noise is None:
             return None
         return MeasurementNoise(**_plain(self.measurement_noise))
+
+    @property
+    def simulated_packet_loss(self) -> PacketLoss | None:
+        """``packet_loss`` as :func:`~delaytrack.sim.simulate` takes it."""
+        return None if self.packet_loss is None else PacketLoss(**_plain(self.packet_loss))
 
     @property
     def simulated_input_limits(self) -> float | tuple[float, ...]:
@@ -632,6 +659,7 @@ def _simulate(
             error_bound=scenario.simulated_error_bound,
             input_limits=scenario.simulated_input_limits,
             measurement_noise=scenario.simulated_measurement_noise,
+            packet_loss=scenario.simulated_packet_loss,
             progress=progress,
         )
     except ValueError as error:

@@ -2,7 +2,8 @@
 
 from delaytrack.sim.engine import STATUS_NAMES
 from delaytrack.sim.measurement import MeasurementNoise
+from delaytrack.sim.packet_loss import PacketLoss
 from delaytrack.sim.result import SimResult
 from delaytrack.sim.simulate import simulate
 
-__all__ = ["STATUS_NAMES", "MeasurementNoise", "SimResult", "simulate"]
+__all__ = ["STATUS_NAMES", "MeasurementNoise", "PacketLoss", "SimResult", "simulate"]

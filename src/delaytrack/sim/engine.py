@@ -31,6 +31,7 @@ from delaytrack.sim.integrator import (
     rk4_workspace,
 )
 from delaytrack.sim.measurement import measure
+from delaytrack.sim.packet_loss import packet_lost
 from delaytrack.sim.running_metrics import accumulate_tick
 
 __all__ = [
@@ -70,11 +71,13 @@ def run_closed_loop(handles, run, settings, records):
         for the runs whose profile is a kernel of the user's).
     run : tuple
         This run's arrays ``(plant_params, model_params, controller_params, controller_state,
-        delay_kind, delay_params, x0, capacity, input_limits, measurement)``;
+        delay_kind, delay_params, x0, capacity, input_limits, measurement, loss)``;
         ``controller_state`` is advanced in place. The actuators apply each command saturated
         to ``[-input_limits, input_limits]`` (m,): the history holds the saturated commands,
         the record ``commands`` what the controller issued. The controller reads the state
-        through :func:`~delaytrack.sim.measurement.measure` with ``measurement`` (3n + 1,).
+        through :func:`~delaytrack.sim.measurement.measure` with ``measurement`` (3n + 1,);
+        a packet lost on the channel (:func:`~delaytrack.sim.packet_loss.packet_lost`,
+        ``loss = [p, seed]``) leaves the latest received command in its history slot.
     settings : tuple
         ``(reference_params, u_init, t0, dt, steps_per_tick, n_ticks, record_every,
         divergence_bound, error_bound, metrics_from)``, shared by every run of a batch;
@@ -102,6 +105,7 @@ def run_closed_loop(handles, run, settings, records):
         capacity,
         input_limits,
         measurement,
+        loss,
     ) = run
     (
         reference_params,
@@ -163,8 +167,12 @@ def run_closed_loop(handles, run, settings, records):
             controller_work,
         )
         slot = k % capacity
-        for j in range(m):  # the actuator saturates what it applies (inf: no limit)
-            history[slot, j] = min(max(command[j], -input_limits[j]), input_limits[j])
+        if packet_lost(k, loss):  # the actuators keep the latest command they received
+            for j in range(m):
+                history[slot, j] = u_init[j] if k == 0 else history[(k - 1) % capacity, j]
+        else:
+            for j in range(m):  # the actuator saturates what it applies (inf: no limit)
+                history[slot, j] = min(max(command[j], -input_limits[j]), input_limits[j])
         if record:
             commands[row] = command
         if beyond(command, np.inf):
@@ -219,6 +227,7 @@ def run_batch(handles, runs, settings, records, status, t_stop):
         capacity,
         input_limits,
         measurement,
+        loss,
     ) = runs
     states, commands, applied, delays, controller_states, sums = records
     for b in range(x0.shape[0]):
@@ -233,6 +242,7 @@ def run_batch(handles, runs, settings, records, status, t_stop):
             capacity[b],
             input_limits[b],
             measurement[b],
+            loss[b],
         )
         run_records = (
             states[b],

@@ -28,6 +28,7 @@ from delaytrack.sim.fallback import PythonFallbackWarning
 from delaytrack.sim.first_compile import announce_compile, engine_ready
 from delaytrack.sim.history import history_capacity, tick_time
 from delaytrack.sim.measurement import MeasurementNoise
+from delaytrack.sim.packet_loss import PacketLoss
 from delaytrack.sim.result import SimResult
 from delaytrack.sim.running_metrics import accumulator_size, finish_metrics
 
@@ -186,32 +187,18 @@ def _positive_limits(key: str, value: object, shape: tuple[int, ...], entries: s
     return array
 
 
-def _as_noise_list(measurement_noise: object) -> list[MeasurementNoise]:
-    items = (
-        [measurement_noise]
-        if isinstance(measurement_noise, MeasurementNoise)
-        else list(measurement_noise)  # type: ignore[call-overload]
-    )
+def _per_run(key: str, value: object, cls: type[_T], batch: int) -> list[_T]:
+    """``value``: one ``cls`` for every run, or a sequence of one per run; as a list of
+    ``batch``."""
+    items = [value] if isinstance(value, cls) else list(value)  # type: ignore[call-overload]
     for i, item in enumerate(items):
-        if not isinstance(item, MeasurementNoise):
-            raise TypeError(
-                f"measurement_noise[{i}] must be a MeasurementNoise; got {type(item).__name__}"
-            )
-    return items
-
-
-def _measurement(measurement_noise: object, batch: int, n: int) -> np.ndarray:
-    """One row ``[Δ (n), σ_q (n), σ_v (n), seed]`` per run (zeros: the true state)."""
-    if measurement_noise is None:
-        return np.zeros((batch, 3 * n + 1))
-    items = _as_noise_list(measurement_noise)
+        if not isinstance(item, cls):
+            raise TypeError(f"{key}[{i}] must be a {cls.__name__}; got {type(item).__name__}")
     if len(items) not in (1, batch):
         raise ValueError(
-            f"measurement_noise must be one MeasurementNoise or {batch} (one per run); got "
-            f"{len(items)}"
+            f"{key} must be one {cls.__name__} or {batch} (one per run); got {len(items)}"
         )
-    rows = np.array([item.params(n) for item in items])
-    return np.array(np.broadcast_to(rows, (batch, 3 * n + 1)))
+    return items * batch if len(items) == 1 else items
 
 
 def _stack_padded(vectors: list[np.ndarray]) -> np.ndarray:
@@ -241,6 +228,7 @@ def simulate(
     error_bound: float | Sequence[float] = math.inf,
     input_limits: float | Sequence[float] | np.ndarray = math.inf,
     measurement_noise: MeasurementNoise | Sequence[MeasurementNoise] | None = None,
+    packet_loss: PacketLoss | Sequence[PacketLoss] | None = None,
     workers: int | None = None,
     engine: str = "auto",
     progress: bool = False,
@@ -303,6 +291,10 @@ def simulate(
         seeded white noise (:class:`~delaytrack.sim.measurement.MeasurementNoise`; one for the
         batch or one per element). None: the true state. The metrics and ``error_bound`` use
         the true state.
+    packet_loss : PacketLoss or sequence of PacketLoss, optional
+        Command packets lost on the delayed channel, seeded
+        (:class:`~delaytrack.sim.packet_loss.PacketLoss`; one for the batch or one per
+        element): the actuators keep the latest command they received. None: none lost.
     workers : int, optional
         Threads that run the batch in parallel (compiled plants only; all cores by default).
         Each run is computed by one thread exactly as it would be alone, so results do not
@@ -442,7 +434,10 @@ def simulate(
         (batch, m),
         f"{m} of them (one per input) or a ({batch}, {m}) array (one row per run)",
     )
-    measurement = _measurement(measurement_noise, batch, n)
+    noises = _per_run(
+        "measurement_noise", measurement_noise or MeasurementNoise(), MeasurementNoise, batch
+    )
+    losses = _per_run("packet_loss", packet_loss or PacketLoss(), PacketLoss, batch)
     if np.any(np.abs(u_init) > limits):
         raise ValueError(
             f"u_init = {u_init.tolist()} lies beyond input_limits: the actuators cannot apply it"
@@ -535,7 +530,8 @@ def simulate(
         states0,
         capacities,
         limits,
-        measurement,
+        np.array([noise.params(n) for noise in noises]),
+        np.array([loss.params() for loss in losses]),
     )
     settings = (
         np.array(reference.params),
@@ -631,7 +627,8 @@ def simulate(
         "input_limits": limits[0].tolist() if np.all(limits == limits[0]) else limits.tolist(),
         "measurement_noise": None
         if measurement_noise is None
-        else [noise.to_spec() for noise in _as_noise_list(measurement_noise)],
+        else [noise.to_spec() for noise in noises],
+        "packet_loss": None if packet_loss is None else [loss.to_spec() for loss in losses],
         "compiled": compiled,
         "plant": [p.to_spec() for p in plants]
         if len(set(map(id, plants))) > 1

@@ -24,7 +24,7 @@ import pyarrow.parquet as pq
 
 from delaytrack._io import atomic_path
 from delaytrack.metrics import metrics_table
-from delaytrack.sim import MeasurementNoise, simulate
+from delaytrack.sim import MeasurementNoise, PacketLoss, simulate
 from delaytrack.sweeps.spec import Run, SweepError, SweepSpec, Unit, canonical_json
 
 __all__ = ["PartsScan", "finished_units", "run_unit", "value_column", "write_part"]
@@ -81,6 +81,7 @@ def _simulate_batch(runs: list[Run], workers: int | None) -> pd.DataFrame:
             measurement_noise=[
                 run.scenario.simulated_measurement_noise or MeasurementNoise() for run in runs
             ],
+            packet_loss=[run.scenario.simulated_packet_loss or PacketLoss() for run in runs],
             trajectories=False,
             workers=workers,
         )

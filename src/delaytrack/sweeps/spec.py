@@ -81,6 +81,7 @@ _SCALARS = (
     "error_bound",
     "input_limits",
     "measurement_noise",
+    "packet_loss",
 )
 
 #: Distribution name -> its parameters, for ``[random]`` entries.

@@ -190,7 +190,12 @@ def _positive_limits(key: str, value: object, shape: tuple[int, ...], entries: s
 def _per_run(key: str, value: object, cls: type[_T], batch: int) -> list[_T]:
     """``value``: one ``cls`` for every run, or a sequence of one per run; as a list of
     ``batch``."""
-    items = [value] if isinstance(value, cls) else list(value)  # type: ignore[call-overload]
+    try:
+        items = [value] if isinstance(value, cls) else list(value)  # type: ignore[call-overload]
+    except TypeError:
+        raise TypeError(
+            f"{key} must be a {cls.__name__} or a sequence of them; got {value!r}"
+        ) from None
     for i, item in enumerate(items):
         if not isinstance(item, cls):
             raise TypeError(f"{key}[{i}] must be a {cls.__name__}; got {type(item).__name__}")
@@ -435,9 +440,14 @@ def simulate(
         f"{m} of them (one per input) or a ({batch}, {m}) array (one row per run)",
     )
     noises = _per_run(
-        "measurement_noise", measurement_noise or MeasurementNoise(), MeasurementNoise, batch
+        "measurement_noise",
+        MeasurementNoise() if measurement_noise is None else measurement_noise,
+        MeasurementNoise,
+        batch,
     )
-    losses = _per_run("packet_loss", packet_loss or PacketLoss(), PacketLoss, batch)
+    losses = _per_run(
+        "packet_loss", PacketLoss() if packet_loss is None else packet_loss, PacketLoss, batch
+    )
     if np.any(np.abs(u_init) > limits):
         raise ValueError(
             f"u_init = {u_init.tolist()} lies beyond input_limits: the actuators cannot apply it"

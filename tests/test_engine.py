@@ -684,7 +684,7 @@ def test_measurement_noise_of_the_wrong_size_is_refused() -> None:
             measurement_noise=MeasurementNoise(position=[0.1, 0.2, 0.3]),
             **settings,
         )
-    with pytest.raises(TypeError, match=r"measurement_noise must be a MeasurementNoise or a seq"):
+    with pytest.raises(TypeError, match=r"measurement_noise\[0\] must be an instance of Meas"):
         simulate(
             TwoLinkArm(),
             arm_arolc(),
@@ -693,7 +693,7 @@ def test_measurement_noise_of_the_wrong_size_is_refused() -> None:
             measurement_noise=0.1,
             **settings,
         )
-    with pytest.raises(TypeError, match=r"measurement_noise\[0\] must be a MeasurementNoise"):
+    with pytest.raises(TypeError, match=r"measurement_noise\[0\] must be an instance of Meas"):
         simulate(
             TwoLinkArm(),
             arm_arolc(),

@@ -73,6 +73,7 @@ from delaytrack.plants.robot import (
     MujocoWheeledRobot,
     NominalRobot,
     PayloadRobot,
+    WheeledRobot,
     initial_state,
     paper_reference,
     wheel_rates,
@@ -674,28 +675,32 @@ def _certified_text(h_m: float, duration: float, who: str) -> str:
     )
 
 
+def _delay_samples(scenario: str, duration: float) -> tuple[np.ndarray, np.ndarray]:
+    """Times (s, every ``DT`` over ``[0, duration]``) and the scenario's delay (s) at them."""
+    t = np.linspace(0.0, duration, int(round(duration / DT)) + 1)
+    return t, SCENARIOS[scenario].h(t)
+
+
 def _delay_range(scenario: str, duration: float) -> tuple[float, float]:
-    """Smallest and largest delay (s) of a scenario over ``[0, duration]`` (1 ms grid)."""
-    h = SCENARIOS[scenario].h(np.linspace(0.0, duration, int(round(duration / DT)) + 1))
+    """Smallest and largest delay (s) of a scenario over ``[0, duration]``."""
+    h = _delay_samples(scenario, duration)[1]
     return float(h.min()), float(h.max())
 
 
 def _dwells(scenario: str, duration: float, level: float) -> list[tuple[float, float]]:
     """``(start, end)`` (s) of the stretches where the scenario's delay exceeds ``level`` (s)."""
-    t = np.linspace(0.0, duration, int(round(duration / DT)) + 1)
-    above = np.concatenate([[False], SCENARIOS[scenario].h(t) > level, [False]])
+    t, h = _delay_samples(scenario, duration)
+    above = np.concatenate([[False], h > level, [False]])
     edges = np.flatnonzero(np.diff(above.astype(int)))
     return [(float(t[a]), float(t[b - 1])) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
 def _wheel_friction_torques() -> tuple[np.ndarray, np.ndarray]:
-    """The consistent path's wheel rates (rad/s) and the truth's friction torque at them (N·m):
-    ``b_v θ̇ + f_c tanh(θ̇ / v_s)``."""
-    rates = np.abs(wheel_rates("consistent"))
-    torque = P3DX.viscous_friction * rates + P3DX.coulomb_friction * np.tanh(
-        rates / P3DX.friction_speed
-    )
-    return rates, torque
+    """The consistent path's wheel rates (rad/s) and the truth's friction torque at them (N·m),
+    from the truth plant's own friction law."""
+    rates = wheel_rates("consistent")
+    qdot = np.concatenate([np.zeros(3), rates])
+    return rates, WheeledRobot().reduced_terms(qdot)[2][0]
 
 
 def _explanation(study: PaperStudy) -> list[str]:

@@ -187,25 +187,6 @@ def _positive_limits(key: str, value: object, shape: tuple[int, ...], entries: s
     return array
 
 
-def _per_run(key: str, value: object, cls: type[_T], batch: int) -> list[_T]:
-    """``value``: one ``cls`` for every run, or a sequence of one per run; as a list of
-    ``batch``."""
-    try:
-        items = [value] if isinstance(value, cls) else list(value)  # type: ignore[call-overload]
-    except TypeError:
-        raise TypeError(
-            f"{key} must be a {cls.__name__} or a sequence of them; got {value!r}"
-        ) from None
-    for i, item in enumerate(items):
-        if not isinstance(item, cls):
-            raise TypeError(f"{key}[{i}] must be a {cls.__name__}; got {type(item).__name__}")
-    if len(items) not in (1, batch):
-        raise ValueError(
-            f"{key} must be one {cls.__name__} or {batch} (one per run); got {len(items)}"
-        )
-    return items * batch if len(items) == 1 else items
-
-
 def _stack_padded(vectors: list[np.ndarray]) -> np.ndarray:
     width = max(1, max(vector.size for vector in vectors))
     out = np.zeros((len(vectors), width))
@@ -439,14 +420,19 @@ def simulate(
         (batch, m),
         f"{m} of them (one per input) or a ({batch}, {m}) array (one row per run)",
     )
-    noises = _per_run(
+    noises = _broadcast(
         "measurement_noise",
-        MeasurementNoise() if measurement_noise is None else measurement_noise,
-        MeasurementNoise,
+        _as_batch(
+            "measurement_noise",
+            MeasurementNoise() if measurement_noise is None else measurement_noise,
+            MeasurementNoise,
+        ),
         batch,
     )
-    losses = _per_run(
-        "packet_loss", PacketLoss() if packet_loss is None else packet_loss, PacketLoss, batch
+    losses = _broadcast(
+        "packet_loss",
+        _as_batch("packet_loss", PacketLoss() if packet_loss is None else packet_loss, PacketLoss),
+        batch,
     )
     if np.any(np.abs(u_init) > limits):
         raise ValueError(

@@ -557,3 +557,92 @@ def test_a_batch_of_predictors_with_different_histories_is_refused(arm, arm_gain
             dt=0.001,
             T_c=T_C,
         )
+
+
+# --------------------------------------------------------------------------------------------
+# The law in actuator space (for the wheeled robot: wheel space)
+# --------------------------------------------------------------------------------------------
+
+
+def test_actuator_space_law_on_the_robot_integrates_the_wheel_commands():
+    # ϱ = S(q)ᵀ(ė1 + κ e1) − ϑ e_z, u = k_b ϱ, with e_z the exact integral of the wheel commands
+    # u actually sent (the oracle integrates the returned commands over absolute tick intervals).
+    from delaytrack.plants.robot import NominalRobot
+    from delaytrack.plants.robot.kinematics import kinematic_map
+
+    robot = NominalRobot()
+    rng = np.random.default_rng(21)
+    kappa, vartheta, k_b = 1.3, random_spd(rng, 2), random_spd(rng, 2)
+    controller = PCON(robot, kappa, vartheta, k_b, HISTORY, T_C, space="actuator")
+    assert controller.law_size == 2 and controller.state_size == 4 + 1 + controller.slots * 2
+    assert controller.state_names == (
+        "e_z_previous_0",
+        "e_z_previous_1",
+        "rho_previous_0",
+        "rho_previous_1",
+    )
+    state = controller.initial_state()
+    commands = []
+    for k in range(30):
+        h = float(rng.uniform(0.0, HISTORY))
+        q, qdot, (qd, qd_dot, qd_ddot) = random_sample(rng, 5)
+        command, state = controller.step(
+            3.0 + k * T_C, q, qdot, (qd, qd_dot, qd_ddot), state, T_c=T_C, h=h
+        )
+        e_z = exact_window_integral(commands, k, h, T_C, n=2)
+        np.testing.assert_allclose(state[:2], e_z, rtol=1e-12, atol=1e-15)
+        S = kinematic_map(q, robot.wheel_radius, robot.half_track, robot.d)
+        rho = S.T @ ((qd_dot - qdot) + kappa * (qd - q)) - vartheta @ e_z
+        np.testing.assert_allclose(state[2:4], rho, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(command, k_b @ rho, rtol=1e-12, atol=1e-12)
+        commands.append(command)
+    assert np.linalg.norm(vartheta @ state[:2]) > 1e-3  # the predictor term is not vacuous
+
+
+def test_both_spaces_coincide_for_scalar_gains_only():
+    # With scalar ϑ and k_b the map commutes with them, S(q)ᵀ(k_b(v − ϑ ∫τ)) = k_b(Sᵀv − ϑ ∫Sᵀτ)
+    # at a fixed q, so both spaces give the same commands; a matrix ϑ (the estimate of M⁻¹ in
+    # five coordinates against one of M_r⁻¹ in two) makes them different laws.
+    from delaytrack.plants.robot import NominalRobot
+
+    robot = NominalRobot()
+    rng = np.random.default_rng(4)
+    q, qdot, reference = random_sample(rng, 5)
+
+    def commands(vartheta, space):
+        controller = PCONf(robot, 2.0, vartheta, 3.0, HISTORY, T_C, h_bar=0.05, space=space)
+        state, out = controller.initial_state(), []
+        for k in range(8):
+            command, state = controller.step(k * T_C, q, qdot, reference, state, T_c=T_C)
+            out.append(command)
+        return np.array(out)
+
+    same = commands(0.5, "actuator")
+    np.testing.assert_allclose(commands(0.5, "generalised"), same, rtol=1e-12)
+    other = commands(np.diag([0.5, 0.5, 2.0, 0.5, 0.5]), "generalised")
+    assert np.abs(other - same).max() > 1e-3 * np.abs(same).max()
+
+
+def test_actuator_space_in_a_spec_a_batch_and_refusals(arm, arm_gains):
+    spec = {"type": "pconf", "kappa": 2.0, "vartheta": 0.3, "k_b": 10.0, "history": 0.1}
+    spec |= {"T_c": 0.002, "h_bar": 0.06, "space": "actuator"}
+    pconf = controller_from_spec(spec, arm)
+    assert pconf.space == "actuator" and pconf.to_spec()["space"] == "actuator"
+    np.testing.assert_array_equal(controller_from_spec(pconf.to_spec(), arm).params, pconf.params)
+    assert "space" not in PCONf(arm, **arm_gains, history=0.1, T_c=0.002, h_bar=0.06).to_spec()
+    # The arm's G = I: in actuator space the law is the generalised one (to rounding) and it
+    # tracks; a batch of both spaces equals the runs alone.
+    controllers = [
+        PCONf(arm, **arm_gains, history=0.1, T_c=0.002, h_bar=0.06),
+        PCONf(arm, **arm_gains, history=0.1, T_c=0.002, h_bar=0.06, space="actuator"),
+    ]
+    settings = dict(reference=ARM_REFERENCE, t1=2.0, dt=0.001, T_c=0.002)
+    batch = simulate(arm, controllers, ConstantDelay(0.06), np.zeros(4), **settings)
+    assert batch.ok.all()
+    np.testing.assert_allclose(batch.x[1], batch.x[0], rtol=0, atol=1e-10)
+    alone = simulate(arm, controllers[1], ConstantDelay(0.06), np.zeros(4), **settings)
+    np.testing.assert_array_equal(batch.x[1], alone.x[0])
+    with pytest.raises(ValueError, match=r"space must be one of \('generalised', 'actuator'\)"):
+        PCON(arm, **arm_gains, history=0.1, T_c=0.002, space="wheel")
+    with pytest.raises(ValueError, match=r"scenario key 'controller\.space' must be a string"):
+        controller_from_spec({**spec, "space": 1}, arm)

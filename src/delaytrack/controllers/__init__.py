@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from delaytrack._spec import TypeSpec, build_from_table, gain, integer, number
+from delaytrack._spec import TypeSpec, build_from_table, gain, integer, number, string
 from delaytrack.controllers.arolc import AROLC
 from delaytrack.controllers.base import Controller
 from delaytrack.controllers.outer_loop import OuterLoop
@@ -31,6 +31,8 @@ _PREDICTOR_KEYS = {
     "history": ("history", number),
     "T_c": ("T_c", number),
 }
+_REQUIRED = tuple(_PREDICTOR_KEYS)
+_PREDICTOR_KEYS["space"] = ("space", string)
 
 #: Controllers that can be built from plain data, by scenario-file name.
 CONTROLLER_SPECS: dict[str, TypeSpec] = {
@@ -57,12 +59,12 @@ CONTROLLER_SPECS: dict[str, TypeSpec] = {
             **{key: (key, number) for key in ("delay_scale", "delay_offset", "delay_noise")},
             "noise_seed": ("noise_seed", integer),
         },
-        required=tuple(_PREDICTOR_KEYS),
+        required=_REQUIRED,
     ),
     "pconf": TypeSpec(
         PCONf,
         {**_PREDICTOR_KEYS, "h_bar": ("h_bar", number)},
-        required=(*_PREDICTOR_KEYS, "h_bar"),
+        required=(*_REQUIRED, "h_bar"),
     ),
 }
 

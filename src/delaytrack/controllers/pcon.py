@@ -27,6 +27,12 @@ Decisions where the paper is silent (docs/decisions.md, D23):
 * Before the first tick ``τ = 0`` (the simulator's default ``u_init``): ticks before the first
   contribute nothing.
 * ``τ_j`` is the law's generalised force, stored before the command map.
+* ``space="actuator"`` runs the same law on the actuator commands (for the wheeled robot the
+  wheel-space law of the cited controllers, ``e_z = ∫ τ_w``, ``ϑ ≈ M_r⁻¹``): the error term is
+  mapped to the actuators first, ``ϱ = B̂(q)(ė1 + κ e1) − ϑ e_z``, and the ring stores the
+  commands themselves. The projected five-coordinate law (the default) integrates forces the
+  robot never receives (``S(q)ᵀ`` discards three of five coordinates), so its ``e_z`` is not
+  the integral of the delayed input; the actuator-space ``e_z`` is.
 * The past ``τ_j`` live in the explicit state, in a ring of ``ceil(history / T_c) + 2`` ticks.
   The period ``T_c`` the ring is sized for is a constructor argument (the state size must be
   known before a run); a step called with another period, or asked for a window longer than
@@ -56,10 +62,11 @@ from delaytrack.controllers.base import Controller, terms_views
 from delaytrack.controllers.delay_knowledge import told_delay
 from delaytrack.plants.base import ELPlant
 
-__all__ = ["PCON", "PCONf", "PredictorBaseline", "pcon_step", "ring_slots"]
+__all__ = ["PCON", "PCONf", "SPACES", "PredictorBaseline", "pcon_step", "ring_slots"]
 
-# Layout of the parameter vector: [κ, T_c, history, fixed, h̄, slots, s, b, σ, seed, k_b (n²),
-# ϑ (n²)] (s, b, σ, seed: what PCON is told of the delay).
+# Layout of the parameter vector: [κ, T_c, history, fixed, h̄, slots, s, b, σ, seed, actuator,
+# k_b (d²), ϑ (d²)] (s, b, σ, seed: what PCON is told of the delay; d = n, or m when the law runs
+# in actuator space).
 _KAPPA = 0
 _PERIOD = 1
 _HISTORY = 2
@@ -70,7 +77,10 @@ _SCALE = 6
 _OFFSET = 7
 _NOISE = 8
 _SEED = 9
-_MATRICES = 10
+_ACTUATOR = 10
+_MATRICES = 11
+#: The spaces the law can run in (:class:`PredictorBaseline`'s ``space``).
+SPACES = ("generalised", "actuator")
 #: Largest seed of the delay estimate's noise (it lives in the float parameter vector).
 MAX_NOISE_SEED = 2**32 - 1
 
@@ -94,14 +104,19 @@ def pcon_step(
 ):
     """One PCON / PCONf tick (see the module docstring).
 
-    ``params = [κ, T_c, history, fixed, h̄, slots, s, b, σ, seed, k_b, ϑ]`` (matrices flattened
-    row-major); the window is ``h̄`` when ``fixed`` is non-zero (PCONf), else what PCON is told of
-    the true delay ``h``: ``max(0, s h + b + σ ξ_k)`` (:func:`told_delay`).
-    ``state = [e_z (n), ϱ (n), count, ring (slots × n)]``: ``e_z`` and ``ϱ`` of the latest
-    tick, the number of ticks taken, and ``τ`` of tick ``j`` in ring slot ``j % slots``.
-    ``work`` is :func:`~delaytrack.controllers.base.step_workspace` scratch.
+    ``params = [κ, T_c, history, fixed, h̄, slots, s, b, σ, seed, actuator, k_b, ϑ]`` (matrices
+    flattened row-major); the window is ``h̄`` when ``fixed`` is non-zero (PCONf), else what PCON
+    is told of the true delay ``h``: ``max(0, s h + b + σ ξ_k)`` (:func:`told_delay`). With
+    ``actuator`` zero the law runs on generalised forces (``d = n``), else on actuator commands
+    (``d = m``, ``ϱ = B̂(q)(ė1 + κ e1) − ϑ e_z``, ``B̂`` the nominal command map).
+    ``state = [e_z (d), ϱ (d), count, ring (slots × d)]``: ``e_z`` and ``ϱ`` of the latest
+    tick, the number of ticks taken, and the law's output of tick ``j`` in ring slot
+    ``j % slots``. ``work`` is :func:`~delaytrack.controllers.base.step_workspace` scratch.
     """
     n = q.shape[0]
+    m = command.shape[0]
+    actuator = params[_ACTUATOR] != 0.0
+    d = m if actuator else n
     period = params[_PERIOD]
     if params[_FIXED] != 0.0:
         window = params[_H_BAR]
@@ -114,15 +129,15 @@ def pcon_step(
         return
     kappa = params[_KAPPA]
     slots = int(params[_SLOTS])
-    k_b = params[_MATRICES : _MATRICES + n * n].reshape((n, n))
-    vartheta = params[_MATRICES + n * n : _MATRICES + 2 * n * n].reshape((n, n))
-    count = int(state[2 * n])
-    ring = 2 * n + 1
-    mass, nonlinear, input_map, vectors = terms_views(work, n, command.shape[0])
-    e_z = vectors[:n]
-    predicted = vectors[n : 2 * n]
-    rho = vectors[2 * n : 3 * n]
-    tau = vectors[3 * n : 4 * n]
+    k_b = params[_MATRICES : _MATRICES + d * d].reshape((d, d))
+    vartheta = params[_MATRICES + d * d : _MATRICES + 2 * d * d].reshape((d, d))
+    count = int(state[2 * d])
+    ring = 2 * d + 1
+    mass, nonlinear, input_map, vectors = terms_views(work, n, m)
+    e_z = vectors[:d]
+    predicted = vectors[n : n + d]
+    rho = vectors[2 * n : 2 * n + d]
+    tau = vectors[3 * n : 3 * n + d]
     # e_z(t_k) = T_c (τ_{k−1} + … + τ_{k−w} + f τ_{k−w−1}), H = h / T_c = w + f; ticks before
     # the first (j < 0) carry τ = 0.
     ticks = window / T_c
@@ -130,33 +145,51 @@ def pcon_step(
     fraction = ticks - whole
     e_z[:] = 0.0
     for i in range(1, min(whole, count) + 1):
-        start = ring + ((count - i) % slots) * n
-        e_z += state[start : start + n]
+        start = ring + ((count - i) % slots) * d
+        e_z += state[start : start + d]
     if fraction > 0.0 and whole < count:
-        start = ring + ((count - whole - 1) % slots) * n
-        for j in range(n):
+        start = ring + ((count - whole - 1) % slots) * d
+        for j in range(d):
             e_z[j] += fraction * state[start + j]
     e_z *= T_c
     matvec(vartheta, e_z, predicted)
-    for i in range(n):
-        rho[i] = ((qd_dot[i] - qdot[i]) + kappa * (qd[i] - q[i])) - predicted[i]
-    matvec(k_b, rho, tau)
     call_terms(model_terms, t, q, qdot, model_params, mass, nonlinear, input_map)
     finite = True
     for i in range(n):
-        finite = finite and math.isfinite(tau[i])
-        for j in range(command.shape[0]):
+        for j in range(m):
             finite = finite and math.isfinite(input_map[i, j])
-    if not finite:
-        command[:] = np.nan
-        return
-    call_command_map(model_terms, q, model_params, input_map, tau, command)
-    start = ring + (count % slots) * n
-    for i in range(n):  # loops: an array-to-slice copy needs numba's runtime
+    if actuator:
+        # ϱ = B̂(q)(ė1 + κ e1) − ϑ e_z: the error term mapped to the actuators first (tau holds
+        # ė1 + κ e1 for the map, its first m entries then take the command).
+        velocity_error = vectors[3 * n : 4 * n]
+        for i in range(n):
+            velocity_error[i] = (qd_dot[i] - qdot[i]) + kappa * (qd[i] - q[i])
+        call_command_map(model_terms, q, model_params, input_map, velocity_error, command)
+        for i in range(m):
+            rho[i] = command[i] - predicted[i]
+        matvec(k_b, rho, command)
+        for i in range(m):
+            tau[i] = command[i]
+            finite = finite and math.isfinite(tau[i])
+        if not finite:
+            command[:] = np.nan
+            return
+    else:
+        for i in range(n):
+            rho[i] = ((qd_dot[i] - qdot[i]) + kappa * (qd[i] - q[i])) - predicted[i]
+        matvec(k_b, rho, tau)
+        for i in range(n):
+            finite = finite and math.isfinite(tau[i])
+        if not finite:
+            command[:] = np.nan
+            return
+        call_command_map(model_terms, q, model_params, input_map, tau, command)
+    start = ring + (count % slots) * d
+    for i in range(d):  # loops: an array-to-slice copy needs numba's runtime
         state[i] = e_z[i]
-        state[n + i] = rho[i]
+        state[d + i] = rho[i]
         state[start + i] = tau[i]
-    state[2 * n] = count + 1
+    state[2 * d] = count + 1
 
 
 #: Most controller periods a predictor's history may hold (8 bytes per coordinate each, per run).
@@ -183,6 +216,19 @@ class PredictorBaseline(Controller):
         Seconds of ``τ`` kept, ``> 0``; must cover the longest window the law will be asked for.
     T_c : float
         Controller period the history is sized for (the simulator's ``T_c``), ``> 0``.
+    space : {"generalised", "actuator"}, keyword only
+        Where the law runs. ``"generalised"`` (default): on generalised forces, ``ϱ, τ, e_z`` of
+        size ``n``, ``ϑ`` and ``k_b`` (n, n), the result mapped to the actuators by the
+        nominal command map ``B̂(q)`` (``S(q)ᵀ`` for the wheeled robot). ``"actuator"``: on the
+        actuator commands themselves,
+
+            ϱ = B̂(q)(ė1 + κ e1) − ϑ e_z,   e_z(t) = ∫_{t−h}^{t} u(θ) dθ,   u = k_b ϱ,
+
+        with ``ϑ`` and ``k_b`` (m, m) and ``e_z`` the integral of the commands actually sent
+        (for the wheeled robot the wheel-space law, ``ϑ`` an estimate of the inverse of the
+        reduced mass matrix ``M_r = SᵀMS``). Needs ``m <= n``. For scalar ``ϑ`` and ``k_b``
+        both spaces give the same commands (the map commutes with scalars); with matrices they
+        are different laws.
     """
 
     model: ELPlant
@@ -191,16 +237,24 @@ class PredictorBaseline(Controller):
     k_b: np.ndarray
     history: float
     T_c: float
+    space: str = field(default="generalised", kw_only=True)
     _params: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if type(self) is PredictorBaseline:
             raise TypeError("PredictorBaseline is the shared law; build a PCON or a PCONf")
         self._check_model()
-        n = self.model.n
+        if not isinstance(self.space, str) or self.space not in SPACES:
+            raise ValueError(f"space must be one of {SPACES}; got {self.space!r}")
+        if self.space == "actuator" and self.model.m > self.model.n:
+            raise ValueError(
+                f"space = 'actuator' needs at most as many inputs as coordinates; the model has "
+                f"m = {self.model.m} inputs and n = {self.model.n} coordinates"
+            )
+        d = self.law_size
         object.__setattr__(self, "kappa", positive_scalar("kappa", self.kappa))
-        object.__setattr__(self, "vartheta", as_spd_matrix("vartheta", self.vartheta, n))
-        object.__setattr__(self, "k_b", as_spd_matrix("k_b", self.k_b, n))
+        object.__setattr__(self, "vartheta", as_spd_matrix("vartheta", self.vartheta, d))
+        object.__setattr__(self, "k_b", as_spd_matrix("k_b", self.k_b, d))
         object.__setattr__(self, "history", positive_scalar("history", self.history))
         object.__setattr__(self, "T_c", positive_scalar("T_c", self.T_c))
         if self.history / self.T_c > MAX_HISTORY_TICKS:
@@ -217,9 +271,16 @@ class PredictorBaseline(Controller):
             0.0 if self.fixed_delay is None else self.fixed_delay,
             float(ring_slots(self.history, self.T_c)),
             *self.delay_knowledge,
+            1.0 if self.space == "actuator" else 0.0,
         ]
         packed = np.concatenate([scalars, self.k_b.ravel(), self.vartheta.ravel()])
         object.__setattr__(self, "_params", packed)
+
+    @property
+    def law_size(self) -> int:
+        """``d``: the size of ``ϱ``, ``e_z`` and each stored output (``n``, or ``m`` in actuator
+        space)."""
+        return self.model.m if self.space == "actuator" else self.model.n
 
     @property
     def fixed_delay(self) -> float | None:
@@ -248,14 +309,14 @@ class PredictorBaseline(Controller):
     def state_names(self) -> tuple[str, ...]:
         """``e_z`` and ``ϱ`` of the latest tick: recorded at tick ``k`` they belong to ``k − 1``."""
         return (
-            *(f"e_z_previous_{i}" for i in range(self.n)),
-            *(f"rho_previous_{i}" for i in range(self.n)),
+            *(f"e_z_previous_{i}" for i in range(self.law_size)),
+            *(f"rho_previous_{i}" for i in range(self.law_size)),
         )
 
     @property
     def state_size(self) -> int:
-        """``2n`` recorded entries, the tick count, and the ring of ``slots × n`` past ``τ``."""
-        return 2 * self.n + 1 + self.slots * self.n
+        """``2d`` recorded entries, the tick count, and the ring of ``slots × d`` past outputs."""
+        return 2 * self.law_size + 1 + self.slots * self.law_size
 
     def initial_state(self) -> np.ndarray:
         return np.zeros(self.state_size)
@@ -287,7 +348,7 @@ class PredictorBaseline(Controller):
             )
 
     def to_spec(self) -> dict[str, Any]:
-        return {
+        spec = {
             "type": self.type_name,
             "kappa": self.kappa,
             "vartheta": self.vartheta.tolist(),
@@ -295,6 +356,9 @@ class PredictorBaseline(Controller):
             "history": self.history,
             "T_c": self.T_c,
         }
+        if self.space != "generalised":
+            spec["space"] = self.space
+        return spec
 
 
 @dataclass(frozen=True, eq=False)

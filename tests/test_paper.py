@@ -76,7 +76,7 @@ def test_short_run_writes_every_promised_file(tmp_path):
         "Literal path",
         "PCONf",
         "AROLC tuned by the same procedure",
-        "NOT certified",
+        "The tuned AROLC is certified for",
         "Which conclusion holds for which AROLC",
     ):
         assert text in report
@@ -184,34 +184,42 @@ def test_claims_are_computed_from_the_summary():
 def test_shipped_gains_file_is_complete():
     gains = tuning.load_gains()
     record = tuning.load_tuning_record()
-    assert set(gains) == {"PCON", "PCONf"}
-    assert paper.PAYLOAD_SEED not in (record["payload_seed"], record["second_payload_seed"])
-    for kind in gains:
-        table = pd.DataFrame(record[kind]["rows"], columns=record[kind]["columns"])
-        assert len(table) == np.prod([len(record[f"grid_{g}"]) for g in ("kappa", "k_b", "c")])
-        best = table.loc[table.objective.idxmin()]
-        assert (best.kappa, best.k_b, best.c) == (
-            gains[kind]["kappa"],
-            gains[kind]["k_b"],
-            gains[kind]["c"],
-        )
-        # Not tuned on any reported condition.
-        assert len(record[kind]["conditions"]) >= 3
-        for text in record[kind]["conditions"]:
-            assert "60 ms" not in text and "120 ms" not in text and "seed 2024" not in text
-    # The tuned AROLC: same file, same objective, its certified bound stored.
-    arolc = record["AROLC"]
-    table = pd.DataFrame(arolc["rows"], columns=arolc["columns"])
-    assert len(table) == len(record["arolc_grid_k"]) * len(record["arolc_grid_alpha"])
-    best = table.loc[table.objective.idxmin()]
-    assert (best.k, best.alpha) == (arolc["k"], arolc["alpha"])
-    assert arolc["conditions"] == record["PCON"]["conditions"] + record["PCONf"]["conditions"]
-    tuned = tuning.load_arolc_gains()
-    assert tuned["K1"] == arolc["k"] ** 2
-    assert tuned["K2"] == pytest.approx(2 * tuning.AROLC_ZETA * arolc["k"])
-    bound = razumikhin_bound(tuned["K1"], tuned["K2"], 1.0, beta=1.0, r=1.1, n=5).h_m
-    assert arolc["h_m"] == pytest.approx(bound)
-    assert arolc["certified_for_S1_S4"] == (bound > 0.125)
+    assert set(gains) == set(tuning.KINDS)
+    # The same drawn conditions for every controller; none is a reported condition.
+    conditions = tuning.draw_conditions(record["condition_seed"])
+    assert record["conditions"] == [c.text for c in conditions]
+    assert record["condition_classes"] == ["varying"] * 3 + ["constant"] * 3
+    for c in conditions:
+        assert c.seed != paper.PAYLOAD_SEED
+    for kind in tuning.KINDS:
+        assert set(gains[kind]) == set(tuning.GAIN_SETS)
+        for gain_set in tuning.GAIN_SETS:
+            table = tuning.grid_table(kind, gain_set)
+            assert len(table) >= 125  # the common budget, plus any edge extension
+            best = table.loc[table.objective.idxmin()]
+            chosen = gains[kind][gain_set]
+            assert all(best[name] == chosen[name] for name in tuning.GAIN_NAMES[kind])
+            assert chosen["objective"] == best.objective
+            if kind == "AROLC":
+                g = tuning.arolc_gains(chosen["k"], chosen["zeta"], chosen["alpha"])
+                bound = razumikhin_bound(g["K1"], g["K2"], 1.0, beta=1.0, r=1.1, n=5).h_m
+                assert chosen["h_m"] == pytest.approx(bound)
+                assert (chosen["K1"], chosen["K2"]) == (g["K1"], g["K2"])
+
+
+def test_conditions_are_drawn_from_the_documented_distribution():
+    conditions = tuning.draw_conditions(seed=3, per_class=200)
+    varying = [c for c in conditions if c.delay_class == "varying"]
+    constant = [c for c in conditions if c.delay_class == "constant"]
+    assert len(varying) == len(constant) == 200
+    a = np.array([c.delay.offset for c in varying])
+    b = np.array([c.delay.amplitude for c in varying])
+    assert 0.005 <= a.min() and a.max() <= 0.03 and 0.04 <= b.min() and b.max() <= 0.11
+    np.testing.assert_allclose([c.h_bar for c in varying], a + 2 * b / np.pi)
+    h = np.array([c.h_bar for c in constant])
+    assert 0.02 <= h.min() and h.max() <= 0.14 and h.std() > 0.02
+    assert tuning.draw_conditions(seed=3, per_class=200) == conditions
+    assert tuning.draw_conditions(seed=4, per_class=200) != conditions
 
 
 TINY = {"kappa": (4.0, 8.0), "k_b": (1.5,), "c": (0.15, 0.25)}
@@ -219,48 +227,59 @@ TINY = {"kappa": (4.0, 8.0), "k_b": (1.5,), "c": (0.15, 0.25)}
 
 @pytest.mark.slow
 def test_tuning_is_deterministic_and_minimises_the_worst_condition(tmp_path):
-    first = tuning.tune("PCONf", grid=TINY, duration=2.0)
-    second = tuning.tune("PCONf", grid=TINY, duration=2.0)
+    first = tuning.tune("PCONf", grid=TINY, duration=2.0, extensions=0)
+    second = tuning.tune("PCONf", grid=TINY, duration=2.0, extensions=0)
     pd.testing.assert_frame_equal(first.table, second.table)
     assert first.best == second.best
     assert len(first.table) == 4
-    per_condition = first.table[[f"obj_{i + 1}" for i in range(len(first.conditions))]]
-    assert per_condition.shape[1] == 3
-    # The objective is the worst condition's mean AE, and the winner minimises it.
-    np.testing.assert_array_equal(first.table.objective, per_condition.max(axis=1))
-    best = first.table.loc[first.table.objective.idxmin()]
-    assert first.best["objective"] == per_condition.max(axis=1).min()
-    assert (first.best["kappa"], first.best["k_b"], first.best["c"]) == (
-        best.kappa,
-        best.k_b,
-        best.c,
+    ae = first.table[[f"ae_mm_{i + 1}" for i in range(6)]]
+    # Each set's objective is the worst of its conditions' mean AE, and the winner minimises it.
+    for gain_set, columns in (
+        ("all", ae),
+        ("varying", ae.iloc[:, :3]),
+        ("constant", ae.iloc[:, 3:]),
+    ):
+        worst = columns.max(axis=1)
+        assert first.best[gain_set]["objective"] == worst.min()
+        best = first.table.loc[worst.idxmin()]
+        assert first.best[gain_set]["kappa"] == best.kappa and first.best[gain_set]["c"] == best.c
+    assert not np.allclose(ae.max(axis=1), ae.mean(axis=1))
+    assert first.interior["all"] == {"kappa": False, "k_b": False, "c": False}
+    arolc = tuning.tune(
+        "AROLC",
+        grid={"k": (1.0, 2.0), "zeta": (0.7,), "alpha": (2.0,)},
+        duration=2.0,
+        extensions=0,
     )
-    # Not the same as minimising the mean over conditions everywhere: check the definition.
-    assert not np.allclose(per_condition.max(axis=1), per_condition.mean(axis=1))
-    assert first.interior == {"kappa": False, "k_b": False, "c": False}
-    arolc = tuning.tune("AROLC", grid={"k": (1.0, 2.0), "alpha": (2.0,)}, duration=2.0)
     assert len(arolc.conditions) == 6 and len(arolc.table) == 2
-    np.testing.assert_array_equal(
-        arolc.table.objective, arolc.table[[f"obj_{i}" for i in range(1, 7)]].max(axis=1)
-    )
     assert arolc.table.h_m.iloc[0] > arolc.table.h_m.iloc[1]  # stiffer: smaller bound
-    path = tuning.write_gains(
-        {"PCON": first, "PCONf": first, "AROLC": arolc}, tmp_path / "g.toml", grid=TINY
+    path = tuning.write_gains({"PCONf": first, "AROLC": arolc}, tmp_path / "g.toml")
+    loaded = tuning.load_gains(path)
+    assert loaded["PCONf"]["all"] == first.best["all"]
+    assert loaded["AROLC"]["varying"]["k"] == arolc.best["varying"]["k"]
+    pd.testing.assert_series_equal(
+        tuning.grid_table("PCONf", "all", path).objective, ae.max(axis=1), check_names=False
     )
-    assert tuning.load_gains(path)["PCONf"] == {k: first.best[k] for k in ("kappa", "k_b", "c")}
-    assert tuning.load_arolc_gains(path)["k"] == arolc.best["k"]
-    other_seed = tuning.tune("PCONf", grid=TINY, duration=6.0, seed=12)
-    assert not np.allclose(other_seed.table.objective, first.table.objective)
+
+
+@pytest.mark.slow
+def test_an_optimum_on_the_grid_edge_extends_the_grid():
+    # One value per gain is an edge for every gain: each round extends all three until the
+    # rounds run out; the choice of every set lies in the final grid.
+    grid = {"kappa": (8.0,), "k_b": (1.5,), "c": (0.2,)}
+    result = tuning.tune("PCON", grid=grid, duration=1.0, extensions=1)
+    assert sorted(set(result.table.kappa)) == [8.0 / 1.5, 8.0, 12.0]
+    assert len(result.table) == 27
 
 
 def test_worst_case_objective_excludes_any_divergence(monkeypatch):
     """With fake runs: a point that wins on average but diverges once is excluded, and the
     winner minimises the max over conditions (not the mean)."""
     values = {  # grid point -> mean AE per condition (NaN: diverged)
-        (1.0, 1.0): (1.0, 9.0, 1.0),  # mean 3.67, worst 9
-        (1.0, 2.0): (5.0, 5.0, 5.0),  # mean 5, worst 5  <- winner
-        (2.0, 1.0): (0.5, np.nan, 0.5),  # best where it runs, but diverges once
-        (2.0, 2.0): (6.0, 6.0, 6.0),
+        (1.0, 1.0): (1.0, 9.0, 1.0, 2.0, 2.0, 2.0),  # worst 9 (varying), 2 (constant)
+        (1.0, 2.0): (5.0, 5.0, 5.0, 5.0, 5.0, 5.0),  # worst 5  <- winner of "all", "varying"
+        (2.0, 1.0): (0.5, np.nan, 0.5, 0.5, 0.5, 0.5),  # best where it runs, diverges once
+        (2.0, 2.0): (6.0, 6.0, 6.0, 6.0, 6.0, 6.0),
     }
     calls = itertools.count()
 
@@ -272,17 +291,20 @@ def test_worst_case_objective_excludes_any_divergence(monkeypatch):
             self.n = n
 
     def fake_simulate(plant, controllers, delay, x0, **kwargs):
-        return Fake(next(calls) % 3, len(controllers))
+        return Fake(next(calls) % 6, len(controllers))
 
     monkeypatch.setattr(tuning, "simulate", fake_simulate)
     monkeypatch.setattr(tuning, "mean_absolute_error", lambda r: r.ae / 1e3)
     monkeypatch.setattr(tuning, "total_variation", lambda r: np.zeros(r.n))
-    monkeypatch.setattr(tuning, "make_arolc", lambda k, alpha: None)
-    result = tuning.tune("AROLC", grid={"k": (1.0, 2.0), "alpha": (1.0, 2.0)}, duration=1.0)
-    assert (result.best["k"], result.best["alpha"]) == (1.0, 2.0)
-    assert result.best["objective"] == 5.0
-    assert np.isnan(result.table.objective.iloc[2])
-    assert result.table.status.iloc[2].startswith("diverged")
+    monkeypatch.setattr(tuning, "make_controller", lambda kind, gains, **kw: None)
+    grid = {"k": (1.0, 2.0), "zeta": (0.7,), "alpha": (1.0, 2.0)}
+    result = tuning.tune("AROLC", grid=grid, duration=1.0, extensions=0)
+    assert (result.best["all"]["k"], result.best["all"]["alpha"]) == (1.0, 2.0)
+    assert result.best["all"]["objective"] == 5.0
+    assert result.best["varying"]["objective"] == 5.0
+    # Constant class: (2, 1) diverged only in a varying condition, so it wins there.
+    assert (result.best["constant"]["k"], result.best["constant"]["alpha"]) == (2.0, 1.0)
+    assert result.table.status.iloc[2].startswith("diverged (condition 2)")
 
 
 def test_certification_and_dwell_text_are_computed_from_the_profiles():

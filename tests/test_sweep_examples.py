@@ -36,7 +36,8 @@ def test_robot_example_gains_are_the_papers_and_the_tuned_ones(robot):
     arolc, pcon, outer = (robot.runs[i].scenario.build().controller for i in (0, 1000, 2000))
     expected = AROLC(NominalRobot(), **paper.AROLC_GAINS)
     np.testing.assert_array_equal(arolc.params, expected.params)
-    tuned = tuning.make_baseline("PCON", **tuning.load_gains()["PCON"], history=0.25)
+    gains = tuning.load_gains()["PCON"]["varying"]
+    tuned = tuning.make_controller("PCON", gains, history=0.25)
     np.testing.assert_array_equal(pcon.params, tuned.params)
     expected = OuterLoop(NominalRobot(), K1=paper.AROLC_GAINS["K1"], K2=paper.AROLC_GAINS["K2"])
     np.testing.assert_array_equal(outer.params, expected.params)

@@ -587,7 +587,12 @@ def _count(flag: str, text: str) -> int:
 
 
 def _tune_baselines(args: argparse.Namespace) -> int:
-    from delaytrack.experiments.tuning import default_gains_path, tune_baselines, write_gains
+    from delaytrack.experiments.tuning import (
+        default_gains_path,
+        gains_text,
+        tune_controllers,
+        write_gains,
+    )
 
     if args.out is not None:
         check_writable_location(args.out, "--out")
@@ -596,13 +601,16 @@ def _tune_baselines(args: argparse.Namespace) -> int:
                 f"--out {args.out!r} is a folder; it must name the gains file to write"
             )
     start = time.perf_counter()
-    results = tune_baselines(progress=not args.quiet)
+    results = tune_controllers(progress=not args.quiet)
     path = write_gains(results, args.out)
     seconds = time.perf_counter() - start
     for kind, result in results.items():
-        best = ", ".join(f"{k} = {v:g}" for k, v in result.best.items())
-        interior = "interior" if all(result.interior.values()) else "ON THE GRID'S EDGE"
-        print(f"{kind}: {best} ({interior})")
+        for gain_set, best in result.best.items():
+            edge = "" if all(result.interior[gain_set].values()) else ", ON THE GRID'S EDGE"
+            print(
+                f"{kind} ({gain_set}): {gains_text(kind, best)} "
+                f"(worst mean AE {best['objective']:.3g} mm{edge})"
+            )
     print(f"wrote {path} in {seconds:.1f} s")
     if args.out is not None and Path(args.out).resolve() != default_gains_path().resolve():
         print(f"note: the paper job reads {default_gains_path()}; copy the file there to use it")
@@ -856,9 +864,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     tune = commands.add_parser(
         "tune-baselines",
-        help="grid-search the PCON/PCONf/AROLC gains on held-out conditions",
-        description="Tune PCON, PCONf and AROLC by the seeded worst-case grid search of "
-        "delaytrack.experiments.tuning and write the chosen gains, grid and objective values "
+        help="tune AROLC, PCON (two spaces) and PCONf by one protocol on drawn conditions",
+        description="Tune AROLC, PCON, PCON in wheel space and PCONf by the same seeded "
+        "worst-case grid search (delaytrack.experiments.tuning), one gain set for all delays and "
+        "one per delay class each, and write the chosen gains, grids and per-condition results "
         "as TOML (default: the package's data/baseline_gains.toml, which the paper job reads).",
     )
     tune.add_argument("--out", default=None, metavar="PATH", help="gains file to write")

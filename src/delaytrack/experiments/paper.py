@@ -111,6 +111,8 @@ SCENARIOS: dict[str, DelayProfile] = {
 }
 #: The predictor baseline the paper compares with in each scenario.
 BASELINE = {"S1": "PCON", "S2": "PCON", "S3": "PCONf", "S4": "PCONf"}
+#: The tuning's delay class of each scenario: its gain set for the baselines and AROLC-tuned.
+DELAY_CLASS = {"S1": "varying", "S2": "varying", "S3": "constant", "S4": "constant"}
 _SCENARIO_TEXT = {
     "S1": "h(t) = 20 + 80 |sin t| ms",
     "S2": "h(t) = 5 + 120 |sin 0.1t| ms",
@@ -185,11 +187,11 @@ class PaperStudy:
     dt_check : DataFrame or None
         Metrics at ``dt/2`` with the largest relative change per run.
     gains : dict
-        The baselines' gains as read from the gains file.
+        The chosen gains as read from the gains file (:func:`tuning.load_gains`: kind -> gain
+        set -> gains).
     tuned_summary : DataFrame
-        :data:`SUMMARY_COLUMNS` for the tuned AROLC (controller ``AROLC-tuned``).
-    tuned_gains : dict
-        The tuned AROLC's gains (:func:`tuning.load_arolc_gains`), with its bound ``h_m``.
+        :data:`SUMMARY_COLUMNS` for the tuned AROLC (controller ``AROLC-tuned``; the gain set
+        of each scenario's delay class).
     contact : DataFrame or None
         Every run on the robot with real wheels beside the analytic robot
         (:func:`~delaytrack.experiments.contact.comparison`); None when not run.
@@ -203,10 +205,9 @@ class PaperStudy:
     summary: pd.DataFrame
     status: pd.DataFrame
     dt_check: pd.DataFrame | None
-    gains: dict[str, dict[str, float]]
+    gains: dict[str, dict[str, dict[str, float]]]
     bound: RazumikhinBound
     tuned_summary: pd.DataFrame
-    tuned_gains: dict[str, float]
     contact: pd.DataFrame | None
     duration: float
     seconds: float
@@ -222,25 +223,21 @@ class PaperStudy:
         return largest_change(self.dt_check)
 
 
-def _controllers(
-    gains: dict[str, dict[str, float]], tuned: dict[str, float], reference: str
-) -> dict[str, list]:
+def _controllers(gains: dict[str, dict[str, dict[str, float]]], reference: str) -> dict[str, list]:
     nominal = NominalRobot()
-    baselines = []
+    baselines, tuned = [], []
     for scenario, delay in SCENARIOS.items():
-        kind = BASELINE[scenario]
-        g = gains[kind]
+        kind, gain_set = BASELINE[scenario], DELAY_CLASS[scenario]
         h_bar = float(delay.h_max) if kind == "PCONf" else None
         baselines.append(
-            tuning.make_baseline(
-                kind, g["kappa"], g["k_b"], g["c"], h_bar=h_bar, reference=reference
-            )
+            tuning.make_controller(kind, gains[kind][gain_set], h_bar=h_bar, reference=reference)
         )
+        tuned.append(tuning.make_controller("AROLC", gains["AROLC"][gain_set]))
     return {
         "AROLC": [AROLC(nominal, **AROLC_GAINS)],
         "baseline": baselines,
         "OuterLoop": [OuterLoop(nominal, K1=AROLC_GAINS["K1"], K2=AROLC_GAINS["K2"])],
-        TUNED: [tuning.make_arolc(tuned["k"], tuned["alpha"])],
+        TUNED: tuned,
     }
 
 
@@ -340,8 +337,7 @@ def run_study(
     if contact is None:
         contact = reference == "consistent" and _mujoco_installed()
     gains = tuning.load_gains(gains_path)
-    tuned = tuning.load_arolc_gains(gains_path)
-    controllers = _controllers(gains, tuned, reference)
+    controllers = _controllers(gains, reference)
     bound = razumikhin_bound(
         AROLC_GAINS["K1"], AROLC_GAINS["K2"], AROLC_GAINS["Q"], BETA, R, n=NominalRobot.n
     )
@@ -377,7 +373,6 @@ def run_study(
         gains=gains,
         bound=bound,
         tuned_summary=tuned_summary,
-        tuned_gains=tuned,
         contact=_contact_table(analytic, wheels) if wheels else None,
         duration=duration,
         seconds=seconds,
@@ -647,14 +642,18 @@ def _verdicts(checks: dict[str, dict[str, bool]]) -> str:
 def _claims_summary(study: PaperStudy) -> str:
     paper_gain = claims(study.summary)
     tuned = claims(with_tuned_arolc(study))
-    h_m = study.tuned_gains["h_m"]
+    sets = "; ".join(
+        f"{gain_set} delays: {tuning.gains_text('AROLC', g)}, certified up to h_m = "
+        f"{g['h_m']:.4f} s"
+        for gain_set, g in study.gains["AROLC"].items()
+        if gain_set in DELAY_CLASS.values()
+    )
     return (
         f"Which conclusion holds for which AROLC. With the paper's gains (certified by Theorem 1 "
         f"up to h_m = {study.bound.h_m:.4f} s): {_verdicts(paper_gain)}. Tuned by the same "
-        f"worst-case procedure as the baselines (k = {study.tuned_gains['k']:g}, "
-        f"α = {study.tuned_gains['alpha']:g}; certified only up to h_m = {h_m:.4f} s, so NOT "
-        f"certified for S1–S4): {_verdicts(tuned)}. The bullets above check the paper-gain "
-        "AROLC; the section 'AROLC tuned by the same procedure' gives the tuned numbers."
+        f"protocol as the baselines, per delay class as they are ({sets}): {_verdicts(tuned)}. "
+        "The bullets above check the paper-gain AROLC; the section 'AROLC tuned by the same "
+        "procedure' gives the tuned numbers."
     )
 
 
@@ -709,16 +708,16 @@ def _explanation(study: PaperStudy) -> list[str]:
     arolc = summary[summary.controller == "AROLC"]
     outer = summary[summary.controller == "OuterLoop"]
     base = summary[summary.controller.isin(["PCON", "PCONf"])]
-    g = study.gains
+    g = {kind: study.gains[kind][DELAY_CLASS[case]] for case, kind in BASELINE.items()}
     c_hat = {case: study.run(case, "AROLC").controller_state[0, :, 0] for case in SCENARIOS}
     c_case = max(c_hat, key=lambda case: float(np.nanmax(c_hat[case])))
     c_max = float(np.nanmax(c_hat[c_case]))
     c_time = float(study.run(c_case, "AROLC").t[int(np.nanargmax(c_hat[c_case]))])
     alpha = AROLC_GAINS["alpha"]
-    record = tuning.load_tuning_record()
     spread = {}
-    for kind in ("PCON", "PCONf"):
-        objective = pd.DataFrame(record[kind]["rows"], columns=record[kind]["columns"]).objective
+    for case in ("S1", "S3"):
+        kind = BASELINE[case]
+        objective = tuning.grid_table(kind, DELAY_CLASS[case]).objective
         spread[kind] = (
             float(objective.min()),
             float(objective.median()),
@@ -751,7 +750,7 @@ def _explanation(study: PaperStudy) -> list[str]:
                 else ""
             )
             + f"; so ‖Δu‖ ≤ α ĉ = {alpha * c_max:.3g}) but cannot replace stiffer gains. The "
-            "baselines were tuned (on held-out conditions) to minimise "
+            "baselines were tuned (on conditions of their delay class, none of S1–S4) to minimise "
             f"exactly this AE, and the optimum is a stiff law: PCON κ = {g['PCON']['kappa']:g}, "
             f"k_b = {g['PCON']['k_b']:g}, ϑ = {g['PCON']['c']:g} M̂⁻¹; PCONf "
             f"κ = {g['PCONf']['kappa']:g}, k_b = {g['PCONf']['k_b']:g}, "
@@ -821,56 +820,56 @@ def _explanation(study: PaperStudy) -> list[str]:
     return out
 
 
+def chosen_gains_table(gains: dict[str, dict[str, dict[str, float]]]) -> pd.DataFrame:
+    """Every controller's chosen gain sets: gains as text, the objective (worst mean AE over the
+    set's tuning conditions, mm) and, for AROLC, Theorem 1's certified ``h_m`` (ms)."""
+    rows = []
+    for kind, sets in gains.items():
+        for gain_set, g in sets.items():
+            rows.append(
+                {
+                    "controller": kind,
+                    "gain set": gain_set,
+                    "gains": tuning.gains_text(kind, g),
+                    "objective_mm": g["objective"],
+                    "certified_h_m_ms": 1e3 * g["h_m"] if "h_m" in g else float("nan"),
+                }
+            )
+    return pd.DataFrame(rows)
+
+
 def _tuned_section(report: HtmlReport, study: PaperStudy) -> None:
     """The section 'AROLC tuned by the same procedure'."""
-    g = study.tuned_gains
     report.heading("AROLC tuned by the same procedure")
     report.paragraph(
-        "To make the comparison symmetric, AROLC is also tuned by the baselines' procedure "
-        "(delaytrack.experiments.tuning): a grid over a gain scale k with K1 = k² I, "
-        f"K2 = 2·{tuning.AROLC_ZETA:g}·k I (outer loop with natural frequency k rad/s and damping "
-        f"{tuning.AROLC_ZETA:g}) and the switching gain α, with Q = I, ε = 0.1, γ = 0.001 fixed, "
-        "on all six held-out conditions of the baselines (AROLC never reads the delay), "
-        "objective the worst mean AE over the conditions. Chosen: "
-        f"k = {g['k']:g} (K1 = {g['K1']:g} I, K2 = {g['K2']:g} I), α = {g['alpha']:g}, "
-        f"objective {g['objective']:.3f} mm. One gain set serves S1–S4. The rows below are "
-        "summary_tuned_arolc.csv beside the tuned baselines of summary.csv."
+        "Every controller is tuned by one protocol (delaytrack.experiments.tuning, fixed before "
+        "the test conditions were run): the same six drawn conditions (three time-varying and "
+        "three constant delays, none of S1–S4), three gains with five values each, the same "
+        "rule for extending a grid whose optimum sits on its edge, and the same objective, the "
+        "worst mean AE over a gain set's conditions with any divergence excluded. Each "
+        "controller gets one gain set for all delays and one per delay class. AROLC's grid "
+        "spans a gain scale k (K1 = k² I, K2 = 2 ζ k I), the damping ζ and the switching gain "
+        "α, with Q = I, ε = 0.1, γ = 0.001 fixed. In the table below, AROLC-tuned and the "
+        "baselines use their class's set (S1, S2: varying; S3, S4: constant). The chosen gains "
+        "of every controller and set follow, with Theorem 1's certified bound where it applies "
+        "(AROLC; the predictors have no certificate)."
     )
+    report.table(
+        chosen_gains_table(study.gains),
+        "Chosen gains per controller and gain set (objective: worst mean AE over the set's "
+        "tuning conditions, mm; certified h_m in ms, AROLC only).",
+    )
+    tuned_h_m = min(study.gains["AROLC"][c]["h_m"] for c in set(DELAY_CLASS.values()))
     report.paragraph(
-        f"Certification caveat: Theorem 1 certifies these gains only up to h_m = {g['h_m']:.4f} s "
-        f"(β = {BETA:g}, r = {R:g}), against {study.bound.h_m:.4f} s for the paper's gains. "
-        + _certified_text(g["h_m"], study.duration, "the tuned AROLC")
+        f"Certification caveat: Theorem 1 certifies the tuned AROLC only up to h_m = "
+        f"{tuned_h_m:.4f} s (β = {BETA:g}, r = {R:g}; the smaller of its two class sets), "
+        f"against {study.bound.h_m:.4f} s for the paper's gains. "
+        + _certified_text(tuned_h_m, study.duration, "the tuned AROLC")
         + " Where it is not certified, its stability is an empirical finding of the simulation, "
         "like the baselines'. Theorem 1's bound is conservative (a sufficient condition), and "
         "stiffer gains shrink it quickly.",
         note=True,
     )
-    record = tuning.load_tuning_record()["AROLC"]
-    grid = pd.DataFrame(record["rows"], columns=record["columns"])
-    stiffer = grid[grid.k > g["k"]]
-    if len(stiffer):
-        parts = []
-        conditions = [column for column in grid.columns if column.startswith("obj_")]
-        for k, rows in stiffer.groupby("k"):
-            finite = rows.objective.dropna()
-            failing = [
-                f"({column.removeprefix('obj_')})"
-                for column in conditions
-                if rows[column].isna().any()
-            ]
-            where = f"under conditions {', '.join(failing)}"
-            parts.append(
-                f"k = {k:g}: every α diverged or left the path ({where})"
-                if finite.empty
-                else f"k = {k:g}: best worst-case objective {finite.min():.3g} mm "
-                f"({int(rows.objective.isna().sum())} of {len(rows)} α diverged or left the "
-                f"path{', ' + where if failing else ''})"
-            )
-        report.paragraph(
-            "Why the tuned AROLC stops at this stiffness (worst case over the held-out "
-            f"conditions, stiffer than k = {g['k']:g}; the conditions are numbered as under "
-            "'Baseline tuning'): " + "; ".join(parts) + "."
-        )
     base = study.summary[study.summary.controller.isin(["PCON", "PCONf"])]
     side = pd.concat([study.tuned_summary, base], ignore_index=True)
     side = side.sort_values(["scenario", "controller"], kind="stable").reset_index(drop=True)
@@ -1046,27 +1045,27 @@ def _settings(study: PaperStudy) -> dict[str, str]:
             )
         )
         + ", ĉ(0) = γ (the paper's gains)",
-        "AROLC-tuned": f"k = {study.tuned_gains['k']:g}: K1 = {study.tuned_gains['K1']:g} I, "
-        f"K2 = {study.tuned_gains['K2']:g} I, α = {study.tuned_gains['alpha']:g}, Q = I, "
-        f"ε = {AROLC_GAINS['epsilon']:g}, γ = {AROLC_GAINS['gamma']:g} (tuned; certified only "
-        "up to h_m = "
-        f"{study.tuned_gains['h_m']:.4f} s)",
+        "AROLC-tuned": "; ".join(
+            f"{', '.join(c for c, k in DELAY_CLASS.items() if k == gain_set)}: "
+            + tuning.gains_text("AROLC", g["AROLC"][gain_set])
+            + f" (certified up to h_m = {g['AROLC'][gain_set]['h_m']:.4f} s)"
+            for gain_set in dict.fromkeys(DELAY_CLASS.values())
+        )
+        + f"; Q = I, ε = {AROLC_GAINS['epsilon']:g}, γ = {AROLC_GAINS['gamma']:g}",
         "OuterLoop": f"K1 = {AROLC_GAINS['K1']:g} I, K2 = {AROLC_GAINS['K2']:g} I (AROLC "
         "without Δu; an ablation)",
-        "PCON (S1, S2)": f"κ = {g['PCON']['kappa']:g}, k_b = {g['PCON']['k_b']:g} I, "
-        f"ϑ = {g['PCON']['c']:g} M̂(q_d(0))⁻¹, given the true h(t), history "
-        f"{tuning.HISTORY:g} s (≥ h_max = {max(d.h_max for d in SCENARIOS.values()):g} s)",
-        "PCONf (S3, S4)": f"κ = {g['PCONf']['kappa']:g}, k_b = {g['PCONf']['k_b']:g} I, "
-        f"ϑ = {g['PCONf']['c']:g} M̂(q_d(0))⁻¹, h̄ = the scenario's constant delay",
-        "tuning": "grid search (delaytrack tune-baselines; "
-        "delaytrack/data/baseline_gains.toml); baselines over κ ∈ "
-        f"{record['grid_kappa']}, k_b ∈ {record['grid_k_b']}, c ∈ {record['grid_c']}; AROLC "
-        f"over k ∈ {record['arolc_grid_k']}, α ∈ {record['arolc_grid_alpha']}; objective the "
-        f"worst over the held-out conditions of mean(AE-x, AE-y) over {record['duration']:g} s, "
-        "any divergence excluded; conditions: PCON "
-        f"{record['PCON']['condition']}; PCONf {record['PCONf']['condition']}; AROLC all six; "
-        f"payload seeds {record['payload_seed']} and {record['second_payload_seed']} (not "
-        f"{PAYLOAD_SEED}); none of S1–S4",
+        "PCON (S1, S2)": tuning.gains_text("PCON", g["PCON"]["varying"])
+        + f" (q_d(0)), given the true h(t), history {tuning.HISTORY:g} s (≥ h_max = "
+        f"{max(d.h_max for d in SCENARIOS.values()):g} s)",
+        "PCONf (S3, S4)": tuning.gains_text("PCONf", g["PCONf"]["constant"])
+        + " (q_d(0)), h̄ = the scenario's constant delay",
+        "tuning": "the same protocol for every controller (delaytrack tune-baselines; "
+        "delaytrack/data/baseline_gains.toml): a grid of three gains per controller, each run "
+        f"on the same {len(record['conditions'])} conditions drawn with seed "
+        f"{record['condition_seed']} ("
+        + "; ".join(record["conditions"])
+        + f"), {record['duration']:g} s each; objective the worst mean(AE-x, AE-y) over a "
+        "gain set's conditions, any divergence excluded; none of S1–S4",
         "delays": "; ".join(f"{k}: {v}" for k, v in _SCENARIO_TEXT.items())
         + " (unknown to AROLC and the outer loop)",
         "duration": f"{study.duration:g} s (not in the paper; six payload cycles)",
@@ -1153,28 +1152,34 @@ def _report(
     report.heading("Literal path")
     report.paragraph(_literal_paragraph(study, literal_summary))
     write_dt_check(report, study.dt_check, DT / 2)
-    report.heading("Baseline tuning")
+    report.heading("Tuning")
     record = tuning.load_tuning_record()
     report.paragraph(
-        "Objective, the same for PCON, PCONf and AROLC: every grid point is run under each "
-        "held-out condition; per condition the mean of AE-x and AE-y (mm); the objective is the "
-        "worst (largest) over the conditions, and a point that diverges under any condition is "
-        "excluded. obj_i is condition i's mean AE; ae_x_mm, ae_y_mm are the worst condition's."
+        "Objective, the same for every controller: every grid point is run under each tuning "
+        "condition; per condition the mean of AE-x and AE-y (mm), ae_mm_i for condition i; a "
+        "gain set's objective is the worst (largest) over its conditions, and a point that "
+        "diverges under any of them is excluded. Conditions: "
+        + "; ".join(
+            f"({i}) {text} [{delay_class}]"
+            for i, (text, delay_class) in enumerate(
+                zip(record["conditions"], record["condition_classes"], strict=True), start=1
+            )
+        )
+        + "."
     )
     for kind in tuning.KINDS:
-        table = pd.DataFrame(record[kind]["rows"], columns=record[kind]["columns"])
-        best = table.sort_values("objective").head(8)
-        gains = ", ".join(f"{name} = {record[kind][name]:g}" for name in tuning.GAIN_NAMES[kind])
-        conditions = "; ".join(
-            f"({i + 1}) {text}" for i, text in enumerate(record[kind]["conditions"])
-        )
-        report.paragraph(
-            f"{kind} on {conditions}: chosen {gains} (objective "
-            f"{record[kind]['objective']:.3f} mm; optimum interior in every gain: "
-            f"{record[kind]['interior']}); {int(table.objective.isna().sum())} of {len(table)} "
-            "grid points diverged or left the path under some condition."
-        )
-        report.table(best, f"{kind}: the eight best grid points (objective = worst mean AE, mm).")
+        for gain_set in tuning.GAIN_SETS:
+            table = tuning.grid_table(kind, gain_set)
+            chosen = record[kind][gain_set]
+            best = table.drop(columns="status").sort_values("objective").head(5)
+            report.paragraph(
+                f"{kind}, gain set '{gain_set}': chosen {tuning.gains_text(kind, chosen)} "
+                f"(objective {chosen['objective']:.3f} mm; "
+                + ("inside its grid in every gain" if chosen["interior"] else "ON ITS GRID'S EDGE")
+                + f"); {int(table.objective.isna().sum())} of {len(table)} grid points diverged "
+                "or left the path under one of the set's conditions."
+            )
+            report.table(best, f"{kind} ({gain_set}): the five best grid points.")
     report.heading("Settings and modelling decisions")
     report.settings(_settings(study))
     report.paragraph(

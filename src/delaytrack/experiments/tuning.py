@@ -1,56 +1,68 @@
-"""Tuning of the compared controllers for the paper's robot experiment: PCON, PCONf, AROLC.
+"""The tuning protocol: one procedure, one budget and one condition set for every controller.
 
 The paper gives no gains for its baselines, and a comparison against an untuned baseline is
-worthless; a comparison of tuned baselines against an untuned AROLC is not symmetric
-either. This module is the documented, seeded and reproducible procedure that chooses the gains of
-all three, by the SAME objective; ``delaytrack tune-baselines`` runs it and writes
-``delaytrack/data/baseline_gains.toml``, which :mod:`delaytrack.experiments.paper` reads.
+worthless; a comparison of tuned baselines against an untuned AROLC is not fair either. This
+module chooses the gains of AROLC, PCON (in five coordinates and in wheel space) and PCONf by the
+SAME procedure; ``delaytrack tune-baselines`` runs it and writes
+``delaytrack/data/baseline_gains.toml``, which the paper job and the robustness study read. The
+protocol (conditions, grids, objective) was fixed before any of the reported test conditions
+(S1–S4, the robustness study's distributions) was run with its result.
 
-Procedure (one full-factorial grid search per controller):
+**Conditions** (:func:`draw_conditions`, drawn, not designed). Six 30 s runs of the paper's robot
+(truth: the payload robot with the package's wheel friction, the ``consistent`` circle started on
+it, ``dt = 1 ms``, ``T_c = 10 ms``), three per delay class, drawn with
+``numpy.random.default_rng(TUNING_SEED)``:
 
-- **Baselines' gains searched.** ``κ`` (scalar), ``k_b`` (scalar, i.e. ``k_b I``) and
-  ``ϑ = c · M̂(q_d(0))⁻¹`` with ``M̂`` the nominal robot's
-  (:class:`~delaytrack.plants.robot.NominalRobot`) mass matrix at the reference's initial pose:
-  ``ϑ`` is the law's estimate of ``M⁻¹`` (paper Refs 31–32), scaled by ``c``. decisions D23: the
-  sampled law is stable only for roughly ``T_c · k_b · λ_max(ϑ) < 2``; ``λ_max(M̂⁻¹) = 1/I_w =
-  100`` (the wheels), so with ``T_c = 10 ms`` this needs ``k_b · c < 2``. The grid straddles that
-  boundary (:attr:`TuningResult.interior` reports whether the optimum is interior).
-- **AROLC's gains searched** (:data:`AROLC_GRID`). A gain scale ``k`` with ``K1 = k² I`` and
-  ``K2 = 2 ζ k I``, ``ζ = 0.7`` (:data:`AROLC_ZETA`): the outer loop ``ë + K2 ė + K1 e = 0`` then
-  has natural frequency ``k`` rad/s and damping 0.7 in every coordinate (one knob for its
-  stiffness, a well-damped shape), and the switching gain ``α``. ``Q = I``, ``ε = 0.1`` and
-  ``γ = 0.001`` stay the paper's. (``k = 1`` is not the paper's point: that has ``K2 = I``, i.e.
-  damping 0.5.) A first grid, ``k ∈ {1, 1.5, 2, 3, 4}``, ``α ∈ {1, 2, 4, 8}``, put the optimum on
-  its edge (``k = 4``, ``α = 8``), so the grid was extended until the optimum in ``k`` is
-  interior, as the baselines' is (k = 4 is interior; α = 16 is on the edge but moves the
-  objective by < 2 % over 1–16 at k = 4). For every grid point Theorem 1's certified delay bound
-  ``h_m = razumikhin_bound(K1, K2, Q, β = 1, r = 1.1)`` is stored. It falls quickly with ``k``
-  (92 ms at ``k = 1``, 34 ms at ``k = 2``, 6 ms at ``k = 4``), so a tuned AROLC with ``k > 1`` is
-  NOT certified by Theorem 1 for S1–S4 (up to 125 ms): it is an empirical tuning, like the
-  baselines'.
-- **Held-out conditions** (:data:`CONDITIONS`; none of S1–S4). PCON: ``h(t) = 10 + 120
-  |sin(0.5 t + 0.7)|`` ms (fast variation up to 130 ms), ``h(t) = 10 + 120 |sin(0.1 t + 0.4)|``
-  ms (slow: dwells above 120 ms for about 8 s, the situation that destabilised AE-only tuned gains
-  under S2) with payload seed :data:`TUNING_SEED` and again with :data:`SECOND_SEED`; the true
-  ``h(t)`` is given to PCON. PCONf: constant 130 ms and 110 ms (``h̄`` = the delay) with
-  :data:`TUNING_SEED`, and 130 ms with :data:`SECOND_SEED`. AROLC (one gain set for every delay,
-  which it never reads, as in S1–S4): all six conditions. Truth plant: the payload robot with
-  friction (package defaults); the ``consistent`` reference started on it; 30 s runs with the
-  reported runs' ``dt = 1 ms``, ``T_c = 10 ms``. Neither seed is the reported runs' (2024).
-- **Objective (the same for all three)**: for each condition the mean of AE-x and AE-y (mm) over
-  the whole run; the objective is the WORST (largest) of these over the conditions. A grid point
-  that diverges under ANY condition (the run stops as diverged, or its mean AE exceeds
-  :data:`DIVERGED_AE_MM`: the robot left the path although the state stayed finite) is excluded.
-  The grid point with the smallest objective wins (ties: the first in grid order). The worst case
-  keeps the chosen gains away from the stability edge that an average-AE optimum sits on.
+- *varying*: ``h(t) = a + b |sin(ω t + φ)|`` with ``a ~ U(5, 30) ms``, ``b ~ U(40, 110) ms``,
+  ``ω ~ U(0.1, 1.5) rad/s``, ``φ ~ U(0, π)`` (so ``h`` stays within 5–140 ms, ``|ḣ| < 0.17``);
+- *constant*: ``h ~ U(20, 140) ms``;
+- each with a payload seed ``~ integers(0, 2³¹)`` (the paper job's 2024 excluded).
 
-Everything is deterministic (no random element besides the seeded payload placements), so the same
-seeds and grid give the same result.
+What each controller is told of the delay: AROLC nothing; PCON the true ``h(t)`` (its
+assumption); PCONf the constant ``h̄`` = the profile's long-run mean ``a + 2b/π`` (the delay
+itself in the constant class).
+
+**Budget and grids** (:data:`GRIDS`): three gains per controller, five values each, 125 grid
+points, every one run on every condition.
+
+- PCON, PCON in wheel space, PCONf: ``κ``, ``k_b`` (times I) and ``ϑ = c ϑ₀`` with ``ϑ₀`` the
+  nominal model's estimate of the inverse mass matrix at the reference's initial pose
+  (:func:`vartheta_base`): ``M̂⁻¹`` (5×5) for the five-coordinate law, ``M̂_r⁻¹ = (SᵀM̂S)⁻¹``
+  (2×2) for the wheel-space law (paper Refs 31–32: ``ϑ`` estimates ``M⁻¹``). The same ``c``
+  grid for all three; it reaches ``c = 1`` (the model's own estimate) and straddles each law's
+  sampled stability edge ``T_c k_b c λ_max(ϑ₀) ≈ 2`` (decisions D23; ``λ_max`` is 100 for
+  ``M̂⁻¹``, about 19 for ``M̂_r⁻¹``).
+- AROLC: a gain scale ``k``, ``K1 = k² I``, ``K2 = 2 ζ k I`` (outer loop of natural frequency
+  ``k`` rad/s and damping ``ζ``), the damping ``ζ`` and the switching gain ``α``; ``Q = I``,
+  ``ε = 0.1``, ``γ = 0.001`` are the paper's. The paper's own gains are the point ``k = 1``,
+  ``ζ = 0.5`` (``K1 = K2 = I``), with ``α = 2`` between grid values.
+
+**Edges** (the same rule for all). When a gain set's chosen value of a gain is the largest
+(smallest) of its grid, the grid of that gain is extended by one value, 1.5 times the largest
+(the smallest divided by 1.5), the new points are run, and the choice is made again; at most
+:data:`MAX_EXTENSIONS` rounds. A choice still on an edge after them is reported as such.
+
+**Objective** (the same for all): for each condition the mean of AE-x and AE-y (mm) over the
+whole run; a gain set's objective is the WORST (largest) of these over its conditions. A grid
+point that diverges under any of its conditions (the run stops, or its mean AE exceeds
+:data:`DIVERGED_AE_MM`: it left the path with a finite state) is excluded. Smallest objective
+wins; ties go to the first in grid order.
+
+**Gain sets** (:data:`GAIN_SETS`), for every controller: ``all`` (one gain set for every delay,
+all six conditions), ``varying`` and ``constant`` (one gain set per delay class, its three
+conditions). Every run is simulated once; the sets differ only in which conditions the worst
+case is taken over.
+
+For AROLC, Theorem 1's certified delay bound ``h_m`` (``razumikhin_bound(K1, K2, Q, β = 1,
+r = 1.1)``) is published beside each choice; the predictors have no such certificate.
+
+Everything is deterministic (the draws and payload placements are seeded).
 """
 
 from __future__ import annotations
 
 import itertools
+import math
 import time
 import tomllib
 from collections.abc import Mapping, Sequence
@@ -61,118 +73,139 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import tomli_w
 from tqdm.auto import tqdm
 
 from delaytrack._io import write_text
 from delaytrack.analysis import razumikhin_bound
 from delaytrack.controllers import AROLC, PCON, PCONf
+from delaytrack.controllers.base import Controller
 from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
-from delaytrack.experiments.scenario import dumps_toml
 from delaytrack.metrics import mean_absolute_error, total_variation
 from delaytrack.plants.robot import NominalRobot, PayloadRobot, initial_state, paper_reference
+from delaytrack.plants.robot.kinematics import kinematic_map
 from delaytrack.sim import simulate
 
 __all__ = [
     "AROLC_FIXED",
-    "AROLC_GRID",
-    "AROLC_ZETA",
-    "BASELINES",
     "CONDITIONS",
+    "DELAY_CLASSES",
     "DIVERGED_AE_MM",
     "GAIN_NAMES",
-    "GRID",
+    "GAIN_SETS",
+    "GRIDS",
     "KINDS",
-    "SECOND_SEED",
+    "PREDICTORS",
     "TUNING_SEED",
     "Condition",
     "TuningResult",
     "arolc_gains",
+    "certified_bound",
     "default_gains_path",
-    "load_arolc_gains",
+    "draw_conditions",
+    "gains_text",
+    "grid_table",
     "load_gains",
-    "make_arolc",
-    "make_baseline",
+    "load_tuning_record",
+    "make_controller",
     "tune",
-    "tune_baselines",
+    "tune_controllers",
     "vartheta_base",
     "write_gains",
 ]
 
-#: Payload seed of the tuning runs (the reported runs use another one).
+#: Seed of the conditions' draws (:func:`draw_conditions`).
 TUNING_SEED = 7
-#: A second payload seed for one condition per baseline (not the reported runs' either).
-SECOND_SEED = 11
+#: Conditions drawn per delay class.
+CONDITIONS_PER_CLASS = 3
 #: Seconds simulated per tuning run.
 TUNING_DURATION = 30.0
+#: Most rounds of grid extension (module docstring, "Edges").
+MAX_EXTENSIONS = 3
+#: Factor of one grid extension.
+EXTENSION_FACTOR = 1.5
 #: Plant step and controller period (those of the reported runs).
 DT, T_C = 1e-3, 0.01
-#: Seconds of command history PCON keeps (covers every delay used: S2's maximum is 125 ms).
+#: Seconds of command history the predictors keep (every tuning delay is below 140 ms).
 HISTORY = 0.15
 #: A run whose mean AE exceeds this (mm) left the path and counts as diverged.
 DIVERGED_AE_MM = 1000.0
-#: The baselines' grid: ``kappa``, ``k_b`` and ``c`` (``ϑ = c M̂(q_d(0))⁻¹``).
-GRID: dict[str, tuple[float, ...]] = {
+#: The paper job's payload seed, never drawn for a tuning condition.
+_REPORTED_SEED = 2024
+#: The tuned controllers. ``PCON-wheel`` is PCON in wheel space (``space="actuator"``).
+KINDS: tuple[str, ...] = ("AROLC", "PCON", "PCON-wheel", "PCONf")
+#: The controllers that are told the delay.
+PREDICTORS: tuple[str, ...] = ("PCON", "PCON-wheel", "PCONf")
+#: Delay classes of the conditions.
+DELAY_CLASSES: tuple[str, ...] = ("varying", "constant")
+#: Gain sets chosen per controller: one for every delay, one per delay class.
+GAIN_SETS: tuple[str, ...] = ("all", *DELAY_CLASSES)
+_PREDICTOR_GRID: dict[str, tuple[float, ...]] = {
     "kappa": (4.0, 6.0, 8.0, 12.0, 16.0),
     "k_b": (1.0, 1.5, 2.0, 3.0, 4.0),
-    "c": (0.1, 0.15, 0.25, 0.35, 0.5),
+    "c": (0.1, 0.2, 0.35, 0.6, 1.0),
 }
-#: AROLC's grid: gain scale ``k`` (K1 = k² I, K2 = 2 ζ k I) and switching gain ``alpha``.
-AROLC_GRID: dict[str, tuple[float, ...]] = {
-    "k": (1.0, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0),
-    "alpha": (1.0, 2.0, 4.0, 8.0, 16.0),
+#: Each controller's grid (gain name -> values; three gains, five values each).
+GRIDS: dict[str, dict[str, tuple[float, ...]]] = {
+    "AROLC": {
+        "k": (1.0, 2.0, 3.0, 4.0, 6.0),
+        "zeta": (0.5, 0.7, 1.0, 1.4, 2.0),
+        "alpha": (1.0, 2.0, 4.0, 8.0, 16.0),
+    },
+    **{kind: dict(_PREDICTOR_GRID) for kind in PREDICTORS},
 }
-#: Damping ratio of the tuned AROLC's outer loop.
-AROLC_ZETA = 0.7
+GAIN_NAMES: dict[str, tuple[str, ...]] = {kind: tuple(grid) for kind, grid in GRIDS.items()}
 #: AROLC's gains that are not tuned (the paper's).
 AROLC_FIXED = dict(Q=1.0, epsilon=0.1, gamma=0.001)
 #: Theorem 1's free weights used for the certified bound (those of the paper job).
 BETA, R = 1.0, 1.1
-#: The baselines (each with its own held-out conditions); AROLC is tuned on all of them.
-BASELINES: tuple[str, ...] = ("PCON", "PCONf")
-KINDS: tuple[str, ...] = ("PCON", "PCONf", "AROLC")
-GAIN_NAMES = {
-    "PCON": ("kappa", "k_b", "c"),
-    "PCONf": ("kappa", "k_b", "c"),
-    "AROLC": ("k", "alpha"),
-}
 
 
 @dataclass(frozen=True)
 class Condition:
-    """One held-out tuning condition: delay, PCONf's ``h̄`` (None: PCON), payload seed (None: the
-    ``seed`` argument of :func:`tune`) and a description."""
+    """One tuning condition: the true delay, its class, the constant ``h̄`` PCONf is told, the
+    payload seed and a description."""
 
     delay: DelayProfile
-    h_bar: float | None
-    seed: int | None
+    delay_class: str
+    h_bar: float
+    seed: int
     text: str
 
 
-_FAST = AbsSineDelay(offset=0.01, amplitude=0.12, frequency=0.5, phase=0.7)
-_DWELL = AbsSineDelay(offset=0.01, amplitude=0.12, frequency=0.1, phase=0.4)
-#: Held-out tuning conditions of the baselines; AROLC uses all of them (ignoring ``h_bar``).
-CONDITIONS: dict[str, tuple[Condition, ...]] = {
-    "PCON": (
-        Condition(_FAST, None, None, "h(t) = 10 + 120 |sin(0.5 t + 0.7)| ms, payload seed 7"),
-        Condition(_DWELL, None, None, "h(t) = 10 + 120 |sin(0.1 t + 0.4)| ms, payload seed 7"),
-        Condition(
-            _DWELL, None, SECOND_SEED, "h(t) = 10 + 120 |sin(0.1 t + 0.4)| ms, payload seed 11"
-        ),
-    ),
-    "PCONf": (
-        Condition(ConstantDelay(0.13), 0.13, None, "h = 130 ms constant, payload seed 7"),
-        Condition(ConstantDelay(0.11), 0.11, None, "h = 110 ms constant, payload seed 7"),
-        Condition(ConstantDelay(0.13), 0.13, SECOND_SEED, "h = 130 ms constant, payload seed 11"),
-    ),
-}
+def draw_conditions(
+    seed: int = TUNING_SEED, per_class: int = CONDITIONS_PER_CLASS
+) -> tuple[Condition, ...]:
+    """The tuning conditions: ``per_class`` varying, then ``per_class`` constant delays, drawn
+    from the distributions of the module docstring with ``numpy.random.default_rng(seed)``."""
+    rng = np.random.default_rng(seed)
+    conditions = []
+    for _ in range(per_class):
+        a, b = rng.uniform(0.005, 0.03), rng.uniform(0.04, 0.11)
+        omega, phi = rng.uniform(0.1, 1.5), rng.uniform(0.0, math.pi)
+        payload = _payload_seed(rng)
+        text = (
+            f"h(t) = {1e3 * a:.1f} + {1e3 * b:.1f} |sin({omega:.3f} t + {phi:.3f})| ms, "
+            f"payload seed {payload}"
+        )
+        delay = AbsSineDelay(offset=a, amplitude=b, frequency=omega, phase=phi)
+        conditions.append(Condition(delay, "varying", a + 2.0 * b / math.pi, payload, text))
+    for _ in range(per_class):
+        h = rng.uniform(0.02, 0.14)
+        payload = _payload_seed(rng)
+        text = f"h = {1e3 * h:.1f} ms constant, payload seed {payload}"
+        conditions.append(Condition(ConstantDelay(h), "constant", h, payload, text))
+    return tuple(conditions)
 
 
-def _conditions(kind: str) -> tuple[Condition, ...]:
-    if kind == "AROLC":
-        return CONDITIONS["PCON"] + CONDITIONS["PCONf"]
-    if kind not in CONDITIONS:
-        raise ValueError(f"kind must be one of {KINDS}; got {kind!r}")
-    return CONDITIONS[kind]
+def _payload_seed(rng: np.random.Generator) -> int:
+    while (seed := int(rng.integers(0, 2**31))) == _REPORTED_SEED:
+        pass
+    return seed
+
+
+#: The conditions every controller is tuned on.
+CONDITIONS: tuple[Condition, ...] = draw_conditions()
 
 
 def default_gains_path() -> Path:
@@ -180,49 +213,66 @@ def default_gains_path() -> Path:
     return Path(str(resources.files("delaytrack").joinpath("data", "baseline_gains.toml")))
 
 
-def vartheta_base(reference: str = "consistent") -> np.ndarray:
-    """``M̂(q_d(0))⁻¹`` of the nominal robot at the reference's initial pose (5×5)."""
-    x0 = initial_state(paper_reference(reference))
-    mass = NominalRobot().mass_matrix(x0[:5])[0]
+def vartheta_base(kind: str = "PCON", reference: str = "consistent") -> np.ndarray:
+    """``ϑ₀``: the nominal robot's inverse mass matrix at the reference's initial pose.
+
+    ``M̂⁻¹`` (5×5) for the five-coordinate law (``PCON``, ``PCONf``), ``(S(q)ᵀ M̂ S(q))⁻¹``
+    (2×2, the reduced mass matrix's inverse) for ``PCON-wheel``.
+    """
+    robot = NominalRobot()
+    q = initial_state(paper_reference(reference))[:5]
+    mass = robot.mass_matrix(q)[0]
+    if kind == "PCON-wheel":
+        S = kinematic_map(q, robot.wheel_radius, robot.half_track, robot.d)
+        mass = S.T @ mass @ S
     inverse = np.linalg.inv(mass)
     return 0.5 * (inverse + inverse.T)
 
 
-def make_baseline(
+def arolc_gains(k: float, zeta: float, alpha: float) -> dict[str, float]:
+    """AROLC's gains for scale ``k`` and damping ``ζ``: ``K1 = k²``, ``K2 = 2 ζ k`` (times I),
+    ``α``, and the paper's ``Q, ε, γ``."""
+    return dict(K1=k * k, K2=2.0 * zeta * k, alpha=alpha, **AROLC_FIXED)
+
+
+def certified_bound(k: float, zeta: float) -> float:
+    """Theorem 1's ``h_m`` (s) for AROLC with :func:`arolc_gains` (``β = 1``, ``r = 1.1``)."""
+    g = arolc_gains(k, zeta, 1.0)
+    return float(razumikhin_bound(g["K1"], g["K2"], g["Q"], BETA, R, n=NominalRobot.n).h_m)
+
+
+def make_controller(
     kind: str,
-    kappa: float,
-    k_b: float,
-    c: float,
+    gains: Mapping[str, float],
     *,
     h_bar: float | None = None,
     history: float = HISTORY,
     reference: str = "consistent",
-) -> PCON | PCONf:
-    """PCON (``kind="PCON"``) or PCONf (``kind="PCONf"``, needs ``h_bar``) on the nominal robot."""
-    vartheta = c * vartheta_base(reference)
-    common = dict(kappa=kappa, vartheta=vartheta, k_b=k_b, history=history, T_c=T_C)
-    if kind == "PCON":
-        return PCON(NominalRobot(), **common)
+    **knowledge: float,
+) -> Controller:
+    """One of :data:`KINDS` on the nominal robot with the grid's ``gains`` (names of
+    :data:`GAIN_NAMES`).
+
+    ``PCONf`` needs ``h_bar``; ``knowledge`` (``delay_scale``, ``delay_offset``, ``delay_noise``,
+    ``noise_seed``) is what PCON is told of the delay (:class:`~delaytrack.controllers.PCON`).
+    """
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {KINDS}; got {kind!r}")
+    if kind == "AROLC":
+        return AROLC(NominalRobot(), **arolc_gains(gains["k"], gains["zeta"], gains["alpha"]))
+    common = dict(
+        kappa=gains["kappa"],
+        vartheta=gains["c"] * vartheta_base(kind, reference),
+        k_b=gains["k_b"],
+        history=history,
+        T_c=T_C,
+        space="actuator" if kind == "PCON-wheel" else "generalised",
+    )
     if kind == "PCONf":
         if h_bar is None:
             raise ValueError("PCONf needs h_bar")
         return PCONf(NominalRobot(), h_bar=h_bar, **common)
-    raise ValueError(f"kind must be 'PCON' or 'PCONf'; got {kind!r}")
-
-
-def arolc_gains(k: float, alpha: float) -> dict[str, float]:
-    """AROLC's gains for scale ``k``: ``K1 = k²``, ``K2 = 2 ζ k`` (times I), ``α``, fixed rest."""
-    return dict(K1=k * k, K2=2.0 * AROLC_ZETA * k, alpha=alpha, **AROLC_FIXED)
-
-
-def make_arolc(k: float, alpha: float) -> AROLC:
-    """AROLC on the nominal robot with :func:`arolc_gains`."""
-    return AROLC(NominalRobot(), **arolc_gains(k, alpha))
-
-
-def _certified_bound(k: float) -> float:
-    g = arolc_gains(k, 1.0)
-    return float(razumikhin_bound(g["K1"], g["K2"], g["Q"], BETA, R, n=NominalRobot.n).h_m)
+    return PCON(NominalRobot(), **common, **knowledge)
 
 
 @dataclass(frozen=True)
@@ -232,67 +282,55 @@ class TuningResult:
     Attributes
     ----------
     kind : str
-        ``"PCON"``, ``"PCONf"`` or ``"AROLC"``.
+        One of :data:`KINDS`.
     table : DataFrame
-        One row per grid point (grid order): the gains (``kappa, k_b, c`` or ``k, alpha``; AROLC
-        also ``h_m``), ``ae_x_mm, ae_y_mm`` of the worst condition, ``objective`` (NaN when any
-        condition diverged), ``tv`` (largest over the conditions), ``obj_1 … obj_m`` (mean AE per
-        condition, NaN when that run diverged) and ``status``.
+        One row per grid point (grid order): the gains, AROLC's ``h_m`` (s), ``ae_mm_1 …
+        ae_mm_m`` (mean AE in mm per condition, NaN when the run diverged), ``tv_1 … tv_m``
+        (N·m) and ``status`` (``ok`` or what diverged first, naming the condition).
     best : dict
-        The chosen gains and their ``objective`` (AROLC also ``h_m``).
+        Per gain set (:data:`GAIN_SETS`): the chosen gains and their ``objective`` (mm; AROLC also
+        ``h_m``).
     interior : dict
-        Per gain, whether the chosen value is strictly inside the grid's range.
-    conditions : tuple of str
-        The conditions' descriptions (``obj_i`` is condition ``i``).
+        Per gain set and gain: whether the chosen value is strictly inside the grid's range.
+    conditions : tuple of Condition
+        The conditions (``ae_mm_i`` is condition ``i``).
+    duration : float
+        Simulated seconds per run.
     seconds : float
         Wall time.
     """
 
     kind: str
     table: pd.DataFrame
-    best: dict[str, float]
-    interior: dict[str, bool]
-    conditions: tuple[str, ...]
+    best: dict[str, dict[str, float]]
+    interior: dict[str, dict[str, bool]]
+    conditions: tuple[Condition, ...]
+    duration: float
     seconds: float
 
 
-def _controllers(kind: str, points: list[tuple[float, ...]], condition: Condition) -> list:
-    if kind == "AROLC":
-        return [make_arolc(*p) for p in points]
-    return [make_baseline(kind, *p, h_bar=condition.h_bar) for p in points]
+def _objective(table: pd.DataFrame, columns: list[str]) -> np.ndarray:
+    """Worst mean AE over ``columns``; NaN when any of them diverged."""
+    values = table[columns].to_numpy()
+    return np.where(np.isnan(values).any(axis=1), np.nan, np.nanmax(values, axis=1, initial=-1.0))
 
 
-def tune(
+def _evaluate(
     kind: str,
-    *,
-    grid: Mapping[str, Sequence[float]] | None = None,
-    seed: int = TUNING_SEED,
-    duration: float = TUNING_DURATION,
-    progress: bool = False,
-) -> TuningResult:
-    """Grid-search one controller on its held-out conditions (module docstring).
-
-    One batched simulation (all grid points) per condition; ``seed`` is the payload seed of the
-    conditions that do not fix their own."""
-    conditions = _conditions(kind)
-    names = GAIN_NAMES[kind]
-    if grid is None:
-        grid = AROLC_GRID if kind == "AROLC" else GRID
-    points = list(itertools.product(*(grid[name] for name in names)))
+    points: list[dict[str, float]],
+    conditions: Sequence[Condition],
+    duration: float,
+) -> list[tuple[list[float], list[float], str]]:
+    """Mean AE (mm, NaN when diverged), TV (N·m) per condition and the status of each point: one
+    batched simulation (all points) per condition."""
     reference = paper_reference()
-    n, m = len(points), len(conditions)
-    per_condition = np.full((n, m), np.nan)
-    ae_all = np.full((n, m, 2), np.nan)
-    tv_all = np.full((n, m), np.nan)
-    status = ["ok"] * n
-    start = time.perf_counter()
-    for j, condition in enumerate(
-        tqdm(conditions, desc=f"tuning {kind}", unit="condition", disable=not progress)
-    ):
-        plant_seed = seed if condition.seed is None else condition.seed
+    ae_all = np.full((len(points), len(conditions)), np.nan)
+    tv_all = np.full((len(points), len(conditions)), np.nan)
+    status = ["ok"] * len(points)
+    for j, condition in enumerate(conditions):
         result = simulate(
-            PayloadRobot(seed=plant_seed, duration=duration),
-            _controllers(kind, points, condition),
+            PayloadRobot(seed=condition.seed, duration=duration),
+            [make_controller(kind, p, h_bar=condition.h_bar) for p in points],
             condition.delay,
             initial_state(reference),
             reference=reference,
@@ -300,140 +338,221 @@ def tune(
             dt=DT,
             T_c=T_C,
         )
-        ae = 1e3 * mean_absolute_error(result)[:, :2]
-        objective = ae.mean(axis=1)
-        tv = total_variation(result)
-        for i, value in enumerate(objective):
-            name = result.status_names[i]
-            if name != "ok" or not np.isfinite(value) or value > DIVERGED_AE_MM:
-                if status[i] == "ok":
-                    status[i] = f"{'left path' if name == 'ok' else name} (condition {j + 1})"
-                continue
-            per_condition[i, j] = value
-            ae_all[i, j] = ae[i]
-            tv_all[i, j] = tv[i]
-    seconds = time.perf_counter() - start
-    diverged = np.array([s != "ok" for s in status])
-    objective = np.where(
-        diverged, np.nan, np.max(np.where(diverged[:, None], 0.0, per_condition), axis=1)
-    )
-    worst = np.argmax(np.nan_to_num(per_condition, nan=-np.inf), axis=1)
-    columns: dict[str, Any] = {name: [float(p[k]) for p in points] for k, name in enumerate(names)}
-    if kind == "AROLC":
-        bounds = {k: _certified_bound(k) for k in grid["k"]}
-        columns["h_m"] = [bounds[p[0]] for p in points]
-    columns["ae_x_mm"] = np.where(diverged, np.nan, ae_all[np.arange(n), worst, 0])
-    columns["ae_y_mm"] = np.where(diverged, np.nan, ae_all[np.arange(n), worst, 1])
-    columns["objective"] = objective
-    columns["tv"] = np.where(diverged, np.nan, np.max(np.nan_to_num(tv_all, nan=-np.inf), axis=1))
-    for j in range(m):
-        columns[f"obj_{j + 1}"] = per_condition[:, j]
-    columns["status"] = status
-    table = pd.DataFrame(columns)
-    if not np.any(np.isfinite(objective)):
-        raise RuntimeError(f"every {kind} grid point diverged; widen the grid")
-    index = int(np.nanargmin(objective))
-    best: dict[str, float] = {name: float(points[index][k]) for k, name in enumerate(names)}
-    best["objective"] = float(objective[index])
-    if kind == "AROLC":
-        best["h_m"] = float(table["h_m"].iloc[index])
-    interior = {name: min(grid[name]) < best[name] < max(grid[name]) for name in names}
-    texts = tuple(c.text for c in conditions)
-    return TuningResult(kind, table, best, interior, texts, seconds)
+        ae = 1e3 * mean_absolute_error(result)[:, :2].mean(axis=1)
+        names = np.asarray(result.status_names)
+        left = (names != "ok") | ~np.isfinite(ae) | (ae > DIVERGED_AE_MM)
+        for i in np.flatnonzero(left):
+            if status[i] == "ok":
+                name = "left path" if names[i] == "ok" else names[i]
+                status[i] = f"{name} (condition {j + 1})"
+        ae_all[:, j] = np.where(left, np.nan, ae)
+        tv_all[:, j] = np.where(left, np.nan, total_variation(result))
+    return [(list(a), list(t), s) for a, t, s in zip(ae_all, tv_all, status, strict=True)]
 
 
-def tune_baselines(
+def _choose(
+    kind: str, table: pd.DataFrame, conditions: Sequence[Condition]
+) -> dict[str, dict[str, float]]:
+    """The chosen point per gain set (smallest worst-case AE; ties: first in table order)."""
+    best = {}
+    for gain_set in GAIN_SETS:
+        members = [
+            f"ae_mm_{j}"
+            for j, c in enumerate(conditions, start=1)
+            if gain_set == "all" or c.delay_class == gain_set
+        ]
+        objective = _objective(table, members)
+        if not np.any(np.isfinite(objective)):
+            raise RuntimeError(f"every {kind} grid point diverged on gain set {gain_set!r}")
+        index = int(np.nanargmin(objective))
+        chosen = {name: float(table[name].iloc[index]) for name in GAIN_NAMES[kind]}
+        chosen["objective"] = float(objective[index])
+        if kind == "AROLC":
+            chosen["h_m"] = float(table["h_m"].iloc[index])
+        best[gain_set] = chosen
+    return best
+
+
+def _extend(grid: dict[str, tuple[float, ...]], best: dict[str, dict[str, float]]) -> bool:
+    """Extend every gain whose choice (in any gain set) is on its grid's edge; True if any."""
+    extended = False
+    for name, values in grid.items():
+        chosen = {b[name] for b in best.values()}
+        low, high = min(values), max(values)
+        if high in chosen:
+            values = (*values, high * EXTENSION_FACTOR)
+        if low in chosen:
+            values = (low / EXTENSION_FACTOR, *values)
+        extended = extended or values != grid[name]
+        grid[name] = values
+    return extended
+
+
+def tune(
+    kind: str,
     *,
-    seed: int = TUNING_SEED,
+    grid: Mapping[str, Sequence[float]] | None = None,
+    conditions: Sequence[Condition] = CONDITIONS,
     duration: float = TUNING_DURATION,
+    extensions: int = MAX_EXTENSIONS,
     progress: bool = False,
+) -> TuningResult:
+    """Grid-search one controller on the conditions, extending edge choices at most
+    ``extensions`` times (module docstring)."""
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {KINDS}; got {kind!r}")
+    names = GAIN_NAMES[kind]
+    grid = {
+        name: tuple(float(v) for v in (GRIDS[kind] if grid is None else grid)[name])
+        for name in names
+    }
+    results: dict[tuple[float, ...], tuple[list[float], list[float], str]] = {}
+    start = time.perf_counter()
+    with tqdm(desc=f"tuning {kind}", unit="round", disable=not progress) as bar:
+        for round_ in range(extensions + 1):
+            points = [dict(zip(names, p, strict=True)) for p in itertools.product(*grid.values())]
+            new = [p for p in points if tuple(p.values()) not in results]
+            for p, outcome in zip(new, _evaluate(kind, new, conditions, duration), strict=True):
+                results[tuple(p.values())] = outcome
+            table = _table(kind, points, [results[tuple(p.values())] for p in points])
+            best = _choose(kind, table, conditions)
+            bar.update()
+            if round_ == extensions or not _extend(grid, best):
+                break
+    interior = {
+        gain_set: {name: min(grid[name]) < chosen[name] < max(grid[name]) for name in names}
+        for gain_set, chosen in best.items()
+    }
+    seconds = time.perf_counter() - start
+    return TuningResult(kind, table, best, interior, tuple(conditions), duration, seconds)
+
+
+def _table(
+    kind: str,
+    points: list[dict[str, float]],
+    outcomes: list[tuple[list[float], list[float], str]],
+) -> pd.DataFrame:
+    columns: dict[str, Any] = {name: [p[name] for p in points] for name in GAIN_NAMES[kind]}
+    if kind == "AROLC":
+        bounds = {key: certified_bound(*key) for key in {(p["k"], p["zeta"]) for p in points}}
+        columns["h_m"] = [bounds[(p["k"], p["zeta"])] for p in points]
+    m = len(outcomes[0][0])
+    for j in range(m):
+        columns[f"ae_mm_{j + 1}"] = [o[0][j] for o in outcomes]
+    for j in range(m):
+        columns[f"tv_{j + 1}"] = [o[1][j] for o in outcomes]
+    columns["status"] = [o[2] for o in outcomes]
+    return pd.DataFrame(columns)
+
+
+def tune_controllers(
+    *,
     kinds: Sequence[str] = KINDS,
     grids: Mapping[str, Mapping[str, Sequence[float]]] | None = None,
+    conditions: Sequence[Condition] = CONDITIONS,
+    duration: float = TUNING_DURATION,
+    progress: bool = False,
 ) -> dict[str, TuningResult]:
-    """Tune PCON, PCONf and AROLC (:func:`tune` each); returns ``kind -> TuningResult``."""
-    results = {}
+    """:func:`tune` every controller of ``kinds``; returns ``kind -> TuningResult``."""
     grids = grids or {}
+    results = {}
     with tqdm(total=len(kinds), desc="tuning", unit="controller", disable=not progress) as bar:
         for kind in kinds:
             bar.set_postfix_str(kind)
-            results[kind] = tune(kind, grid=grids.get(kind), seed=seed, duration=duration)
+            results[kind] = tune(
+                kind, grid=grids.get(kind), conditions=conditions, duration=duration
+            )
             bar.update()
     return results
 
 
-def write_gains(
-    results: Mapping[str, TuningResult],
-    path: str | Path | None = None,
-    *,
-    grid: Mapping[str, Sequence[float]] = GRID,
-    arolc_grid: Mapping[str, Sequence[float]] = AROLC_GRID,
-    seed: int = TUNING_SEED,
-    duration: float = TUNING_DURATION,
-) -> Path:
-    """Write the chosen gains, the grids, the objective values and the conditions as TOML."""
+def write_gains(results: Mapping[str, TuningResult], path: str | Path | None = None) -> Path:
+    """Write the protocol, the conditions, every grid with its per-condition results and the
+    chosen gains per gain set as TOML (default: :func:`default_gains_path`)."""
     path = default_gains_path() if path is None else Path(path)
+    first = next(iter(results.values()))
     data: dict[str, Any] = {
         "generated_by": "delaytrack tune-baselines (delaytrack.experiments.tuning)",
-        "procedure": "full-factorial grid search per controller (PCON, PCONf: kappa, k_b and c, "
-        "vartheta = c inv(Mhat(q_d(0))); AROLC: k and alpha, K1 = k^2 I, K2 = 2 zeta k I); "
-        "each grid point run on several held-out conditions; objective = the WORST (max) over "
-        "the conditions of mean(AE-x, AE-y) in mm over the whole run; a point that diverges "
-        f"under any condition (status not ok, or mean AE > {DIVERGED_AE_MM:g} mm) is excluded; "
-        "smallest objective wins",
-        "payload_seed": int(seed),
-        "second_payload_seed": SECOND_SEED,
-        "duration": float(duration),
+        "procedure": "full-factorial grid of 3 gains x 5 values per controller, every point run "
+        "on every condition; a gain set's objective is the WORST over its conditions of "
+        "mean(AE-x, AE-y) in mm over the whole run; a point that diverges under any of its "
+        f"conditions (status not ok, or mean AE > {DIVERGED_AE_MM:g} mm) is excluded; smallest "
+        "objective wins (ties: first in grid order)",
+        "duration": first.duration,
         "dt": DT,
         "T_c": T_C,
         "history": HISTORY,
         "reference": "consistent",
-        "grid_kappa": [float(v) for v in grid["kappa"]],
-        "grid_k_b": [float(v) for v in grid["k_b"]],
-        "grid_c": [float(v) for v in grid["c"]],
-        "arolc_grid_k": [float(v) for v in arolc_grid["k"]],
-        "arolc_grid_alpha": [float(v) for v in arolc_grid["alpha"]],
-        "arolc_zeta": AROLC_ZETA,
+        "condition_seed": TUNING_SEED,
+        "conditions": [c.text for c in first.conditions],
+        "condition_classes": [c.delay_class for c in first.conditions],
+        "condition_h_bar": [c.h_bar for c in first.conditions],
         "arolc_fixed": {k: float(v) for k, v in AROLC_FIXED.items()},
     }
     for kind, result in results.items():
         columns = [c for c in result.table.columns if c != "status"]
-        table: dict[str, Any] = {
-            "conditions": list(result.conditions),
-            "condition": "; ".join(result.conditions),
-            **{k: v for k, v in result.best.items()},
+        section: dict[str, Any] = {
+            "grid": {name: sorted(set(map(float, result.table[name]))) for name in GAIN_NAMES[kind]}
         }
-        if kind == "AROLC":
-            gains = arolc_gains(result.best["k"], result.best["alpha"])
-            table.update(K1=gains["K1"], K2=gains["K2"])
-            table["certified_for_S1_S4"] = bool(result.best["h_m"] > 0.125)
-        table.update(
-            interior=all(result.interior.values()),
-            columns=columns,
-            rows=[[float(v) for v in row] for row in result.table[columns].to_numpy()],
-        )
-        data[kind] = table
-    return write_text(path, dumps_toml(data))
-
-
-def load_gains(path: str | Path | None = None) -> dict[str, dict[str, float]]:
-    """The chosen gains per baseline: ``{"PCON": {"kappa", "k_b", "c"}, "PCONf": {...}}``."""
-    data = load_tuning_record(path)
-    return {
-        kind: {key: float(data[kind][key]) for key in ("kappa", "k_b", "c")} for kind in BASELINES
-    }
-
-
-def load_arolc_gains(path: str | Path | None = None) -> dict[str, float]:
-    """The tuned AROLC: ``k``, ``alpha``, ``h_m`` and the gains ``K1, K2, Q, alpha, epsilon,
-    gamma`` (scalars, times I)."""
-    record = load_tuning_record(path)["AROLC"]
-    k, alpha = float(record["k"]), float(record["alpha"])
-    return dict(
-        k=k, h_m=float(record["h_m"]), objective=float(record["objective"]), **arolc_gains(k, alpha)
-    )
+        for gain_set, chosen in result.best.items():
+            entry: dict[str, Any] = dict(chosen)
+            if kind == "AROLC":
+                gains = arolc_gains(chosen["k"], chosen["zeta"], chosen["alpha"])
+                entry.update(K1=gains["K1"], K2=gains["K2"])
+            entry["interior"] = all(result.interior[gain_set].values())
+            section[gain_set] = entry
+        section["columns"] = columns
+        section["status"] = list(result.table["status"])
+        section["rows"] = [[float(v) for v in row] for row in result.table[columns].to_numpy()]
+        data[kind] = section
+    return write_text(path, tomli_w.dumps(data))
 
 
 def load_tuning_record(path: str | Path | None = None) -> dict[str, Any]:
-    """The whole gains file as data (grids, objective rows, conditions)."""
+    """The whole gains file as data (protocol, conditions, grids, per-condition results)."""
     path = default_gains_path() if path is None else Path(path)
     return tomllib.loads(Path(path).read_text(encoding="utf-8"))
+
+
+def load_gains(path: str | Path | None = None) -> dict[str, dict[str, dict[str, float]]]:
+    """The chosen gains: ``kind -> gain set -> {gain: value, "objective": mm}`` (AROLC also
+    ``h_m``, ``K1``, ``K2``), for every kind and gain set in the file."""
+    record = load_tuning_record(path)
+    out: dict[str, dict[str, dict[str, float]]] = {}
+    for kind in KINDS:
+        if kind not in record:
+            continue
+        keys = (*GAIN_NAMES[kind], "objective", *(("h_m", "K1", "K2") if kind == "AROLC" else ()))
+        out[kind] = {
+            gain_set: {key: float(record[kind][gain_set][key]) for key in keys}
+            for gain_set in GAIN_SETS
+            if gain_set in record[kind]
+        }
+    return out
+
+
+def grid_table(kind: str, gain_set: str = "all", path: str | Path | None = None) -> pd.DataFrame:
+    """One controller's grid from the gains file: gains, per-condition results, ``status`` and
+    the gain set's ``objective`` (mm, NaN where a run of the set diverged)."""
+    record = load_tuning_record(path)
+    section = record[kind]
+    table = pd.DataFrame(section["rows"], columns=section["columns"])
+    table["status"] = section["status"]
+    members = [
+        f"ae_mm_{j}"
+        for j, delay_class in enumerate(record["condition_classes"], start=1)
+        if gain_set == "all" or delay_class == gain_set
+    ]
+    return table.assign(objective=_objective(table, members))
+
+
+def gains_text(kind: str, gains: Mapping[str, float]) -> str:
+    """The gains of one chosen set as text (``κ = 8, k_b = 3 I, ϑ = 0.35 M̂⁻¹``)."""
+    if kind == "AROLC":
+        g = arolc_gains(gains["k"], gains["zeta"], gains["alpha"])
+        return (
+            f"k = {gains['k']:g}, ζ = {gains['zeta']:g} (K1 = {g['K1']:g} I, "
+            f"K2 = {g['K2']:g} I), α = {gains['alpha']:g}"
+        )
+    inverse = "M̂_r⁻¹" if kind == "PCON-wheel" else "M̂⁻¹"
+    return f"κ = {gains['kappa']:g}, k_b = {gains['k_b']:g} I, ϑ = {gains['c']:g} {inverse}"

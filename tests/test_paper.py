@@ -13,7 +13,7 @@ import pytest
 
 from delaytrack import razumikhin_bound
 from delaytrack.cli import main
-from delaytrack.experiments import paper, tuning
+from delaytrack.experiments import paper, robustness, tuning
 from delaytrack.experiments.contact import contact_findings
 
 ROWS = [
@@ -98,10 +98,14 @@ def test_short_run_writes_every_promised_file(tmp_path):
 
 
 @pytest.mark.slow
-def test_reproduce_writes_both_folders(tmp_path, capsys):
+def test_reproduce_writes_both_folders(tmp_path, capsys, monkeypatch):
+    # The robustness study at a tiny size (its own tests check it); its verdicts reach the report.
+    monkeypatch.setitem(robustness.SIZES, "default", robustness.StudySize(1, 1, 2))
     args = ["reproduce", "--out", str(tmp_path), "--duration", "1", "--no-dt-check", "--quiet"]
     assert main(args) == 0
     assert "report.html" in capsys.readouterr().out
+    verdicts = pd.read_csv(tmp_path / "robustness" / "verdicts.csv")
+    assert len(verdicts) == 2 * (4 * 2 * 2 + 2)  # noise x (scenarios x AROLCs x metrics + growth)
     for folder in ("paper", "paper-literal"):
         assert (tmp_path / folder / "summary.csv").exists()
         assert (tmp_path / folder / "report.html").exists()
@@ -109,6 +113,8 @@ def test_reproduce_writes_both_folders(tmp_path, capsys):
     assert "literal path" in literal and "Measured in this run" in literal
     consistent = (tmp_path / "paper" / "report.html").read_text()
     assert "Measured in the sibling run" in consistent
+    assert "The claims over distributions (robustness study)" in consistent
+    assert "../robustness/report.html" in consistent
 
 
 def test_reproduce_refuses_a_duration_off_the_controller_grid(tmp_path, capsys):

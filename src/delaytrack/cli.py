@@ -438,6 +438,34 @@ def _reproduce(args: argparse.Namespace) -> int:
         raise UsageError(f"--out {args.out!r}: {error}") from None
 
 
+def _study_executor(args: argparse.Namespace):
+    """A factory of the robustness study's executors (``--scheduler``), checked before running."""
+    from delaytrack.sweeps import SweepError, make_executor
+    from delaytrack.sweeps.executors import checked_scheduler
+
+    if args.duration is not None and args.job == "robustness":
+        raise UsageError("--duration does not apply to --job robustness (its runs are 60 s)")
+    try:
+        checked_scheduler(args.scheduler, None)
+    except SweepError as error:
+        raise UsageError(str(error)) from None
+    return lambda: make_executor(args.scheduler)
+
+
+def _reproduce_robustness(args: argparse.Namespace, executor) -> int:
+    from delaytrack.experiments.robustness import findings, run_robustness
+
+    folder = check_output_folder(Path(args.out) / "robustness", "--out", marks=("sweeps",))
+    start = time.perf_counter()
+    study = run_robustness(folder, size=args.size, executor=executor, progress=not args.quiet)
+    seconds = time.perf_counter() - start
+    print(f"robustness job done in {seconds:.1f} s wall time; wrote {folder}/")
+    for line in findings(study):
+        print(f"- {line}")
+    print(f"report: {folder / 'report.html'}")
+    return 0
+
+
 def _reproduce_job(args: argparse.Namespace) -> int:
     if args.duration is not None:
         args.duration = _scalar("--duration", args.duration)
@@ -449,6 +477,9 @@ def _reproduce_job(args: argparse.Namespace) -> int:
         return _reproduce_two_link(args)
     if args.job == "margins":
         return _reproduce_margins(args)
+    executor = _study_executor(args)
+    if args.job == "robustness":
+        return _reproduce_robustness(args, executor)
     from delaytrack.experiments.paper import DURATION, SUMMARY_COLUMNS, reproduce
 
     if args.duration is not None:
@@ -465,6 +496,8 @@ def _reproduce_job(args: argparse.Namespace) -> int:
         check_dt=not args.no_dt_check,
         progress=not args.quiet,
         contact=False if args.no_contact else None,
+        robustness=None if args.no_robustness else args.size,
+        executor=executor,
     )
     seconds = time.perf_counter() - start
     out = Path(args.out)
@@ -817,9 +850,29 @@ def build_parser() -> argparse.ArgumentParser:
     )
     reproduce.add_argument(
         "--job",
-        choices=("paper", "two-link", "margins"),
+        choices=("paper", "two-link", "margins", "robustness"),
         default="paper",
-        help="which job to run (default paper)",
+        help="which job to run (default paper, which includes the robustness study at "
+        "--size; robustness: the study alone into <out>/robustness/)",
+    )
+    reproduce.add_argument(
+        "--size",
+        choices=("default", "full"),
+        default="default",
+        help="size of the robustness study (default: about 2500 runs, a minute or two on two "
+        "cores; full: ten times the draws, meant for a Dask cluster)",
+    )
+    reproduce.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run the robustness study's sweeps on a Dask cluster: a scheduler address "
+        "(tcp://host:8786) or local-cluster",
+    )
+    reproduce.add_argument(
+        "--no-robustness",
+        action="store_true",
+        help="paper job without the robustness study (its report then judges one run per case)",
     )
     reproduce.add_argument("--no-dt-check", action="store_true", help="skip the dt/2 rerun")
     reproduce.add_argument(

@@ -42,6 +42,7 @@ import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -57,6 +58,8 @@ from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
 from delaytrack.experiments import tuning
 from delaytrack.experiments.contact import SLIP_COLUMNS, comparison, contact_findings, wheel_slip
 from delaytrack.experiments.convergence import dt_check_table, largest_change, write_dt_check
+from delaytrack.experiments.robustness import RobustnessStudy, run_robustness
+from delaytrack.experiments.robustness import findings as robustness_findings
 from delaytrack.metrics import (
     max_abs_error,
     mean_absolute_error,
@@ -838,6 +841,29 @@ def chosen_gains_table(gains: dict[str, dict[str, dict[str, float]]]) -> pd.Data
     return pd.DataFrame(rows)
 
 
+def _distribution_section(report: HtmlReport, robustness: RobustnessStudy) -> None:
+    """The claims over distributions of robots (the robustness study's verdicts)."""
+    report.heading("The claims over distributions (robustness study)")
+    verdicts = robustness.verdicts
+    counts = verdicts.verdict.value_counts()
+    report.paragraph(
+        "The bullets above judge one run per case. The robustness study (../robustness/"
+        f"report.html) repeats every case over {robustness.size.claims} drawn robots (payload "
+        "seed and wheel friction from their documented ranges), without and with measurement "
+        "noise, and judges each claim by the share of draws in which it holds, with its 95 % "
+        f"interval: {counts.get('holds', 0)} verdicts hold, {counts.get('fails', 0)} fail and "
+        f"{counts.get('undecided', 0)} are undecided at this size."
+    )
+    report.table(verdicts, "Verdict per claim over draws (robustness/verdicts.csv).")
+    report.bullets(robustness_findings(robustness))
+    report.table(
+        robustness.attribution,
+        "Attribution (robustness/attribution.csv): paired change of AE (mm) and TV (N·m) from "
+        "the controller without the part to the one with it; medians over draws with bootstrap "
+        "95 % intervals.",
+    )
+
+
 def _tuned_section(report: HtmlReport, study: PaperStudy) -> None:
     """The section 'AROLC tuned by the same procedure'."""
     report.heading("AROLC tuned by the same procedure")
@@ -1083,9 +1109,14 @@ def _settings(study: PaperStudy) -> dict[str, str]:
 
 
 def write_study(
-    study: PaperStudy, folder: str | Path, *, literal_summary: pd.DataFrame | None = None
+    study: PaperStudy,
+    folder: str | Path,
+    *,
+    literal_summary: pd.DataFrame | None = None,
+    robustness: RobustnessStudy | None = None,
 ) -> list[Path]:
-    """Write ``summary.csv``, ``tables.md``, ``dt_check.csv``, figures and ``report.html``."""
+    """Write ``summary.csv``, ``tables.md``, ``dt_check.csv``, figures and ``report.html`` (with
+    the robustness study's verdicts when it is given)."""
     folder = Path(folder)
     files = [write_frame(study.summary, folder / "summary.csv")]
     files.append(write_frame(study.tuned_summary, folder / "summary_tuned_arolc.csv"))
@@ -1097,7 +1128,7 @@ def write_study(
     figures = _figures(study)
     for name, (figure, _) in figures.items():
         files += save_figure(figure, folder / "figures" / name)
-    report = _report(study, figures, literal_summary)
+    report = _report(study, figures, literal_summary, robustness)
     files.append(report.write(folder / "report.html"))
     record_outputs(folder, files)
     return files
@@ -1107,6 +1138,7 @@ def _report(
     study: PaperStudy,
     figures: dict[str, tuple[Figure, str]],
     literal_summary: pd.DataFrame | None,
+    robustness: RobustnessStudy | None = None,
 ) -> HtmlReport:
     report = HtmlReport(f"delaytrack: the paper's robot experiment (S1–S4, {study.reference} path)")
     report.paragraph(
@@ -1141,6 +1173,8 @@ def _report(
         )
     report.bullets(_claims_text(study))
     report.paragraph(_claims_summary(study))
+    if robustness is not None:
+        _distribution_section(report, robustness)
     for text in _explanation(study):
         report.paragraph(text)
     report.heading("Summary")
@@ -1207,6 +1241,7 @@ def run_paper(
     check_dt: bool = True,
     literal_summary: pd.DataFrame | None = None,
     contact: bool | None = None,
+    robustness: RobustnessStudy | None = None,
 ) -> PaperStudy:
     """Run the paper's experiment and write ``out_dir`` (module docstring); return the study."""
     if not (math.isfinite(duration) and duration > 0):
@@ -1218,7 +1253,7 @@ def run_paper(
         check_dt=check_dt,
         contact=contact,
     )
-    write_study(study, out_dir, literal_summary=literal_summary)
+    write_study(study, out_dir, literal_summary=literal_summary, robustness=robustness)
     return study
 
 
@@ -1229,18 +1264,27 @@ def reproduce(
     check_dt: bool = True,
     progress: bool = True,
     contact: bool | None = None,
-) -> dict[str, PaperStudy]:
-    """``<out>/paper-literal/`` then ``<out>/paper/`` (whose report cites the literal run, and
-    has the runs with contact physics when ``contact``; by default when MuJoCo is installed)."""
+    robustness: str | None = "default",
+    executor: Any = None,
+) -> dict[str, Any]:
+    """``<out>/paper-literal/``, ``<out>/robustness/`` (the robustness study at size
+    ``robustness``; None skips it) and ``<out>/paper/`` (whose report cites the literal run and
+    the study's verdicts, and has the runs with contact physics when ``contact``; by default
+    when MuJoCo is installed). Returns ``{"consistent", "literal", "robustness"}``."""
     out = Path(out)
-    for name in ("paper-literal", "paper"):
-        check_output_folder(out / name)
+    for name in ("paper-literal", "paper", *(("robustness",) if robustness else ())):
+        check_output_folder(out / name, marks=("sweeps",) if name == "robustness" else ())
     literal = run_paper(
         out / "paper-literal",
         reference="literal",
         duration=duration,
         progress=progress,
         check_dt=check_dt,
+    )
+    study = (
+        run_robustness(out / "robustness", size=robustness, executor=executor, progress=progress)
+        if robustness
+        else None
     )
     consistent = run_paper(
         out / "paper",
@@ -1250,5 +1294,6 @@ def reproduce(
         check_dt=check_dt,
         literal_summary=literal.summary,
         contact=contact,
+        robustness=study,
     )
-    return {"consistent": consistent, "literal": literal}
+    return {"consistent": consistent, "literal": literal, "robustness": study}

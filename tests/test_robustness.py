@@ -1,0 +1,123 @@
+"""The robustness study (``delaytrack.experiments.robustness``): statistics, sweeps, a small run."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats
+
+from delaytrack.experiments import robustness, tuning
+
+
+def test_wilson_interval_matches_scipy():
+    for k, n in ((0, 8), (3, 8), (8, 8), (17, 40)):
+        expected = stats.binomtest(k, n).proportion_ci(method="wilson")
+        assert robustness.wilson_interval(k, n) == pytest.approx(
+            (expected.low, expected.high), abs=1e-12
+        )
+    assert all(math.isnan(v) for v in robustness.wilson_interval(0, 0))
+
+
+def test_median_interval_brackets_the_median():
+    values = np.random.default_rng(1).normal(5.0, 1.0, 200)
+    median, low, high = robustness.median_interval(values)
+    assert median == np.median(values) and low < median < high and high - low < 0.6
+    assert robustness.median_interval([2.0, 2.0, 2.0]) == (2.0, 2.0, 2.0)
+    assert math.isnan(robustness.median_interval([])[0])
+
+
+def fake_claims(ae_arolc, ae_base):
+    rows = []
+    for draw, (a, b) in enumerate(zip(ae_arolc, ae_base, strict=True)):
+        for name, ae in (("AROLC (paper gains)", a), ("PCON", b), ("AROLC (tuned)", a)):
+            rows.append(
+                dict(
+                    scenario="S1",
+                    noise="off",
+                    controller=name,
+                    draw=draw,
+                    ae_mm=ae,
+                    tv_Nm=1.0,
+                    diverged=not math.isfinite(ae),
+                )
+            )
+    return pd.DataFrame(rows)
+
+
+def test_a_claim_holds_fails_or_is_undecided_by_its_interval():
+    n = 20
+    holds = robustness.claim_verdicts(fake_claims([1.0] * n, [2.0] * n))
+    assert set(holds[holds.claim == "AE below PCON"].verdict) == {"holds"}
+    fails = robustness.claim_verdicts(fake_claims([3.0] * n, [2.0] * n))
+    assert set(fails[fails.claim == "AE below PCON"].verdict) == {"fails"}
+    mixed = robustness.claim_verdicts(fake_claims([1.0, 3.0] * (n // 2), [2.0] * n))
+    assert set(mixed[mixed.claim == "AE below PCON"].verdict) == {"undecided"}
+    # A diverged baseline loses; a diverged AROLC loses.
+    lost = robustness.claim_verdicts(fake_claims([1.0] * n, [math.inf] * n))
+    assert set(lost[lost.claim == "AE below PCON"].verdict) == {"holds"}
+
+
+def test_the_study_is_symmetric_and_uses_the_tuned_gains():
+    sweeps = {s.name: s for s in robustness.study_specs(robustness.StudySize(1, 1, 1))}
+    assert list(sweeps) == [
+        "map",
+        "knowledge-S1",
+        "knowledge-S2",
+        "claims-S1",
+        "claims-S2",
+        "claims-S3",
+        "claims-S4",
+    ]
+    gains = tuning.load_gains()
+    # The map's PCONf is PCON's law with PCONf's "all" gains, told s h.
+    runs = sweeps["map"].spec.runs
+    labels = sweeps["map"].labels
+    for run, label in zip(runs, labels, strict=True):
+        controller = run.scenario.controller
+        if label["controller"] == "PCONf":
+            assert controller["kappa"] == gains["PCONf"]["all"]["kappa"]
+            assert controller.get("delay_scale", 1.0) == label["scale"]
+        if label["controller"] == "PCON-wheel":
+            assert controller["space"] == "actuator"
+    # Claims: every scenario pairs its class's baseline; the same draws for every controller.
+    claims = sweeps["claims-S3"]
+    names = [label["controller"] for label in claims.labels]
+    assert "PCONf" in names and "PCON-wheel" in names
+    seeds = {run.values["plant.seed"] for run in claims.spec.runs}
+    assert len(seeds) == 1  # one draw: every controller and noise level sees the same robot
+
+
+@pytest.mark.slow
+def test_a_small_study_runs_resumes_and_writes_its_files(tmp_path):
+    size = robustness.StudySize(map=1, knowledge=1, claims=2)
+    first = robustness.run_robustness(tmp_path, size=size, progress=False)
+    for name in ("runs", "map", "knowledge", "claims", "verdicts", "attribution"):
+        assert (tmp_path / f"{name}.csv").is_file()
+    assert (tmp_path / "figures" / "robustness_map.png").is_file()
+    report = (tmp_path / "report.html").read_text()
+    assert "Findings" in report and "data:image/png;base64" in report
+    # AROLC never reads the delay: the map's non-predictors have no scale.
+    assert first.map[first.map.controller == "AROLC (paper gains)"].scale.isna().all()
+    assert first.computed > 0 and first.resumed == 0
+    again = robustness.run_robustness(tmp_path, size=size, progress=False)
+    assert again.computed == 0 and again.resumed == first.computed
+    pd.testing.assert_frame_equal(again.map, first.map)
+    # Every verdict's numbers come from the runs: recompute one share.
+    claims = pd.read_csv(tmp_path / "runs.csv")
+    s1 = claims[(claims.sweep == "claims-S1") & (claims.noise == "off")]
+    a = s1[s1.controller == "AROLC (paper gains)"].sort_values("draw")
+    b = s1[s1.controller == "PCON"].sort_values("draw")
+    share = np.mean(
+        np.where(a.diverged, np.inf, a.ae_mm).astype(float)
+        < np.where(b.diverged, np.inf, b.ae_mm).astype(float)
+    )
+    row = first.verdicts[
+        (first.verdicts.scenario == "S1")
+        & (first.verdicts.noise == "off")
+        & (first.verdicts.claim == "AE below PCON")
+        & (first.verdicts.controller == "AROLC (paper gains)")
+    ]
+    assert row.share_holds.iloc[0] == share

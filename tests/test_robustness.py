@@ -94,7 +94,15 @@ def test_the_study_is_symmetric_and_uses_the_tuned_gains():
 def test_a_small_study_runs_resumes_and_writes_its_files(tmp_path):
     size = robustness.StudySize(map=1, knowledge=1, claims=2)
     first = robustness.run_robustness(tmp_path, size=size, progress=False)
-    for name in ("runs", "map", "knowledge", "claims", "verdicts", "attribution"):
+    for name in (
+        "runs",
+        "map",
+        "knowledge",
+        "knowledge_table",
+        "claims",
+        "verdicts",
+        "attribution",
+    ):
         assert (tmp_path / f"{name}.csv").is_file()
     assert (tmp_path / "figures" / "robustness_map.png").is_file()
     report = (tmp_path / "report.html").read_text()
@@ -102,6 +110,13 @@ def test_a_small_study_runs_resumes_and_writes_its_files(tmp_path):
     # AROLC never reads the delay: the map's non-predictors have no scale.
     assert first.map[first.map.controller == "AROLC (paper gains)"].scale.isna().all()
     assert first.computed > 0 and first.resumed == 0
+    table = pd.read_csv(tmp_path / "knowledge_table.csv")
+    assert len(table) == 6 + 3 * 3  # S1, S2 cases, two wrong constants, three delays x three
+    row = table[(table.truth == "60 ms constant") & (table["predictor told"] == "h̄ = 120 ms")]
+    cell = first.map[
+        (first.map.delay_ms == 60.0) & (first.map.controller == "PCONf") & (first.map.scale == 2.0)
+    ]
+    assert row.predictor_divergence_rate.iloc[0] == cell.divergence_rate.iloc[0]
     again = robustness.run_robustness(tmp_path, size=size, progress=False)
     assert again.computed == 0 and again.resumed == first.computed
     pd.testing.assert_frame_equal(again.map, first.map)

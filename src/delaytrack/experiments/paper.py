@@ -63,7 +63,13 @@ from delaytrack.experiments.convergence import (
     largest_change,
     write_dt_check,
 )
-from delaytrack.experiments.robustness import RobustnessStudy, knowledge_table, run_robustness
+from delaytrack.experiments.robustness import (
+    RobustnessStudy,
+    display_attribution,
+    display_verdicts,
+    knowledge_table,
+    run_robustness,
+)
 from delaytrack.experiments.robustness import findings as robustness_findings
 from delaytrack.metrics import (
     max_abs_error,
@@ -852,14 +858,17 @@ def _distribution_section(report: HtmlReport, robustness: RobustnessStudy) -> No
     verdicts = robustness.verdicts
     counts = verdicts.verdict.value_counts()
     report.paragraph(
-        "The bullets above judge one run per case. The robustness study (../robustness/"
+        "One run per case (the next section) can be a lucky or an unlucky draw. The robustness "
+        "study (../robustness/"
         f"report.html) repeats every case over {robustness.size.claims} drawn robots (payload "
         "seed and wheel friction from their documented ranges), without and with measurement "
         "noise, and judges each claim by the share of draws in which it holds, with its 95 % "
         f"interval: {counts.get('holds', 0)} verdicts hold, {counts.get('fails', 0)} fail and "
         f"{counts.get('undecided', 0)} are undecided at this size."
     )
-    report.table(verdicts, "Verdict per claim over draws (robustness/verdicts.csv).")
+    report.table(
+        display_verdicts(verdicts), "Verdict per claim over draws (robustness/verdicts.csv)."
+    )
     report.bullets(robustness_findings(robustness))
     report.table(
         knowledge_table(robustness),
@@ -868,7 +877,7 @@ def _distribution_section(report: HtmlReport, robustness: RobustnessStudy) -> No
         "stayed, beside AROLC with the paper's gains.",
     )
     report.table(
-        robustness.attribution,
+        display_attribution(robustness.attribution),
         "Attribution (robustness/attribution.csv): paired change of AE (mm) and TV (N·m) from "
         "the controller without the part to the one with it; medians over draws with bootstrap "
         "95 % intervals.",
@@ -1179,7 +1188,9 @@ def _report(
             ),
             note=True,
         )
-    report.heading("Claims check")
+    if robustness is not None:
+        _distribution_section(report, robustness)
+    report.heading(f"Claims check, one run per case (payload seed {PAYLOAD_SEED})")
     if study.reference == "literal":
         report.paragraph(
             "This is the literal path, which no robot can follow (see 'Literal path' below): "
@@ -1190,8 +1201,6 @@ def _report(
         )
     report.bullets(_claims_text(study))
     report.paragraph(_claims_summary(study))
-    if robustness is not None:
-        _distribution_section(report, robustness)
     for text in _explanation(study):
         report.paragraph(text)
     report.heading("Summary")

@@ -187,3 +187,21 @@ def test_cli_local_cluster(spec, local_runs, tmp_path, capsys):
 def test_a_scheduler_that_does_not_answer_is_a_clear_error():
     with pytest.raises(SweepError, match=r"--scheduler 'tcp://127.0.0.1:9': no Dask scheduler"):
         DaskExecutor("tcp://127.0.0.1:9", timeout=1.0)
+
+
+def test_the_robustness_study_runs_on_the_cluster(cluster, tmp_path):
+    # The study's sweeps on the cluster give the local executor's tables, bit for bit.
+    from delaytrack.experiments import robustness
+
+    size = robustness.StudySize(map=1, knowledge=1, claims=1)
+    local = robustness.run_robustness(tmp_path / "local", size=size, progress=False)
+    on_cluster = robustness.run_robustness(
+        tmp_path / "dask",
+        size=size,
+        executor=lambda: DaskExecutor(cluster.scheduler_address),
+        progress=False,
+    )
+    assert on_cluster.computed == local.computed > 0
+    for name, frame in local.runs.items():
+        pd.testing.assert_frame_equal(on_cluster.runs[name], frame, check_exact=True)
+    pd.testing.assert_frame_equal(on_cluster.verdicts, local.verdicts, check_exact=True)

@@ -9,8 +9,10 @@ ones, and the jobs built from them.
   gains (``delaytrack reproduce --job margins``).
 - :mod:`delaytrack.experiments.paper`: the main job, the paper's robot experiment (S1–S4, AROLC vs
   PCON/PCONf vs the outer loop; ``delaytrack reproduce``).
-- :mod:`delaytrack.experiments.tuning`: the seeded grid search that chooses the baselines' gains
-  (``delaytrack tune-baselines``).
+- :mod:`delaytrack.experiments.tuning`: the tuning protocol that chooses every compared
+  controller's gains (``delaytrack tune-baselines``).
+- :mod:`delaytrack.experiments.robustness`: the robustness study, the paper's claims over drawn
+  robots and wrong delay estimates (``delaytrack reproduce --job robustness``).
 - :mod:`delaytrack.experiments.two_link`: the earlier interim job, AROLC vs the plain outer loop
   on the two-link arm under S1 and S3 (``delaytrack reproduce --job two-link``).
 

@@ -66,6 +66,7 @@ from delaytrack.experiments.convergence import (
 from delaytrack.experiments.robustness import (
     RobustnessStudy,
     display_attribution,
+    display_knowledge,
     display_verdicts,
     knowledge_table,
     run_robustness,
@@ -889,7 +890,7 @@ def _distribution_section(report: HtmlReport, robustness: RobustnessStudy) -> No
     )
     report.bullets(robustness_findings(robustness))
     report.table(
-        knowledge_table(robustness),
+        display_knowledge(knowledge_table(robustness)),
         "What the predictors tolerate of a wrong delay (robustness/knowledge_table.csv): "
         "divergence rate, median time of leaving the path, median AE (mm) of the runs that "
         "stayed, beside AROLC with the paper's gains.",

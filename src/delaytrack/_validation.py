@@ -41,6 +41,31 @@ def beyond_choice(value: object) -> str:
     return str(value)
 
 
+def coordinate_labels(label: str, value: object, n: int) -> tuple[str, ...]:
+    """``n`` different names (letters, digits and ``_``) for ``coordinate_names``, or ``n``
+    non-empty unit strings for ``coordinate_units``, as a tuple; else a ValueError naming
+    ``label``."""
+    names = tuple(value) if isinstance(value, list | tuple) else None
+    if label.endswith("names"):
+        valid = (
+            names is not None
+            and len(names) == n
+            and len(set(names)) == n
+            and all(isinstance(name, str) and name.isidentifier() for name in names)
+        )
+        what = f"n = {n} different names (letters, digits and '_')"
+    else:
+        valid = (
+            names is not None
+            and len(names) == n
+            and all(isinstance(unit, str) and unit.strip() for unit in names)
+        )
+        what = f"n = {n} unit strings (such as 'm' or 'rad')"
+    if not valid:
+        raise ValueError(f"{label} must be a list of {what}; got {value!r}")
+    return names
+
+
 def is_integer_at_least(value: object, least: int) -> bool:
     """Whether ``value`` is an integer (Python or NumPy, not a bool) ``>= least``.
 

@@ -1,6 +1,12 @@
 """Stability analysis of AROLC: Theorem 1's delay bound, Theorem 2's ultimate bounds, the exact
-delay margin of the nominal error dynamics and a gain design for the certified bound."""
+delay margin of the nominal error dynamics, its error loop as python-control systems and a gain
+design for the certified bound."""
 
+from delaytrack.analysis.control_export import (
+    error_loop,
+    error_loop_frequency_response,
+    error_loop_sampled,
+)
 from delaytrack.analysis.exact_margin import ExactDelayMargin, exact_delay_margin
 from delaytrack.analysis.gain_design import GainDesign, design_gains
 from delaytrack.analysis.razumikhin import (
@@ -18,6 +24,9 @@ __all__ = [
     "UltimateBounds",
     "design_gains",
     "error_dynamics_matrices",
+    "error_loop",
+    "error_loop_frequency_response",
+    "error_loop_sampled",
     "exact_delay_margin",
     "lyapunov_matrix",
     "psi_min",

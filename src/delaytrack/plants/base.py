@@ -72,6 +72,11 @@ class ELPlant(ABC):
     m: int
     #: Names of the coordinates in result tables (``ae_<name>``); None means ``q1 .. qn``.
     coordinate_names: ClassVar[tuple[str, ...] | None] = None
+    #: Units of the coordinates (``"m"``, ``"rad"``) for figure axes and table columns; None
+    #: when the plant does not say.
+    coordinate_units: ClassVar[tuple[str, ...] | None] = None
+    #: Units of the actuator inputs (``"N·m"``); None when the plant does not say.
+    input_units: ClassVar[tuple[str, ...] | None] = None
     #: True for a plant whose terms kernel always fills ``M(q) = I`` (a constrained robot
     #: integrated as ``q̈ = a + b τ``): the simulator then skips the solve for ``q̈``.
     identity_mass: ClassVar[bool] = False

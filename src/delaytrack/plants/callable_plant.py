@@ -8,7 +8,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._validation import as_spd_matrix, format_values
+from delaytrack._validation import as_spd_matrix, coordinate_labels, format_values
 from delaytrack.plants.base import ELPlant
 
 __all__ = ["CallablePlant"]
@@ -22,14 +22,19 @@ class CallablePlant(ELPlant):
     ----------
     n : int
         Number of coordinates.
-    mass_matrix : callable
-        ``mass_matrix(q) -> (n, n)`` symmetric positive definite.
-    nonlinear_terms : callable
-        ``nonlinear_terms(q, qdot) -> (n,)``: Coriolis, gravity, friction, disturbances.
-    input_map : callable or array_like, optional
-        ``input_map(q) -> (n, m)`` or a constant (n, m) matrix; the identity by default.
+    mass_matrix_fn : callable
+        ``mass_matrix_fn(q) -> (n, n)`` symmetric positive definite ``M(q)``.
+    nonlinear_terms_fn : callable
+        ``nonlinear_terms_fn(q, qdot) -> (n,)``: ``N(q, q̇)``, Coriolis, gravity, friction,
+        disturbances.
+    input_map_fn : callable or array_like, optional
+        ``input_map_fn(q) -> (n, m)`` or a constant (n, m) matrix ``G``; the identity by default.
     name : str
         Shown in results and reports.
+    coordinate_names : sequence of str, optional
+        Names of the coordinates in result tables and figures; ``q1 .. qn`` by default.
+    coordinate_units : sequence of str, optional
+        Units of the coordinates (``"m"``, ``"rad"``) for figure axes and table columns.
 
     Notes
     -----
@@ -43,6 +48,8 @@ class CallablePlant(ELPlant):
     nonlinear_terms_fn: Callable[[np.ndarray, np.ndarray], np.ndarray]
     input_map_fn: Callable[[np.ndarray], np.ndarray] | np.ndarray | None = None
     name: str = "callable"
+    coordinate_names: tuple[str, ...] | None = None
+    coordinate_units: tuple[str, ...] | None = None
     m: int = field(init=False)
     type_name: ClassVar[str] = "callable"
 
@@ -55,6 +62,10 @@ class CallablePlant(ELPlant):
         ):
             if not callable(fn):
                 raise TypeError(f"{label} must be callable; got {type(fn).__name__}")
+        for label in ("coordinate_names", "coordinate_units"):
+            if getattr(self, label) is not None:
+                labels = coordinate_labels(label, getattr(self, label), self.n)
+                object.__setattr__(self, label, labels)
         if self.input_map_fn is not None and not callable(self.input_map_fn):
             constant = np.array(self.input_map_fn, dtype=float)
             if constant.ndim != 2 or constant.shape[0] != self.n:

@@ -10,6 +10,7 @@ import numpy as np
 
 from delaytrack._validation import (
     as_spd_matrix,
+    coordinate_labels,
     finite_array,
     format_values,
     is_integer_at_least,
@@ -38,6 +39,8 @@ class CompiledPlant(ELPlant):
         Shown in results and reports.
     coordinate_names : sequence of str, optional
         Names of the coordinates in result tables (``ae_<name>``); ``q1 .. qn`` by default.
+    coordinate_units : sequence of str, optional
+        Units of the coordinates (``"m"``, ``"rad"``) for figure axes and table columns.
 
     Notes
     -----
@@ -58,6 +61,7 @@ class CompiledPlant(ELPlant):
     parameters: np.ndarray = field(default_factory=lambda: np.zeros(0))
     name: str = "compiled"
     coordinate_names: tuple[str, ...] | None = None
+    coordinate_units: tuple[str, ...] | None = None
     type_name: ClassVar[str] = "compiled"
 
     def __post_init__(self) -> None:
@@ -70,18 +74,10 @@ class CompiledPlant(ELPlant):
                 "kernel must be a numba-compiled function (decorate it with @numba.njit); got "
                 f"{type(self.kernel).__name__}. For plain Python functions use CallablePlant."
             )
-        if self.coordinate_names is not None:
-            names = tuple(self.coordinate_names)
-            if (
-                len(names) != self.n
-                or len(set(names)) != self.n
-                or not all(isinstance(name, str) and name.isidentifier() for name in names)
-            ):
-                raise ValueError(
-                    f"coordinate_names must be n = {self.n} different names (letters, digits "
-                    f"and '_'); got {self.coordinate_names!r}"
-                )
-            object.__setattr__(self, "coordinate_names", names)
+        for label in ("coordinate_names", "coordinate_units"):
+            if getattr(self, label) is not None:
+                labels = coordinate_labels(label, getattr(self, label), self.n)
+                object.__setattr__(self, label, labels)
         parameters = finite_array("parameters", self.parameters, ndim=1)
         object.__setattr__(self, "parameters", np.ascontiguousarray(parameters))
         mass, nonlinear, input_map = self.terms(np.zeros(self.n), np.zeros(self.n))

@@ -65,6 +65,8 @@ class TwoLinkArm(ELPlant):
     n: ClassVar[int] = 2
     m: ClassVar[int] = 2
     type_name: ClassVar[str] = "two-link-arm"
+    coordinate_units: ClassVar[tuple[str, ...]] = ("rad", "rad")
+    input_units: ClassVar[tuple[str, ...]] = ("N·m", "N·m")
 
     def __post_init__(self) -> None:
         for name in ("p1", "p2", "p3"):

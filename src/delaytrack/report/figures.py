@@ -29,6 +29,7 @@ __all__ = [
     "delay_figure",
     "error_figure",
     "margins_figure",
+    "overview_figure",
     "png_bytes",
     "save_figure",
     "tracking_figure",
@@ -291,3 +292,77 @@ def write_run_figures(
     for name, figure in figures.items():
         paths += save_figure(figure, folder / name, formats)
     return paths
+
+
+def _label(name: str, unit: str | None) -> str:
+    return f"{name} ({unit})" if unit else name
+
+
+def overview_figure(result: SimResult, run: int = 0) -> Figure:
+    """One run at a glance: each coordinate against its reference (left) and its tracking error
+    ``e1 = q_d − q`` (right), the commanded and applied inputs, the delay ``h(t)`` and the
+    controller's state, with the plant's coordinate names and units where it gives them."""
+    if not result.has_trajectories:
+        raise ValueError(
+            "this result has no recorded trajectories (simulate(..., trajectories=False)); "
+            "simulate again with trajectories=True to plot it"
+        )
+    if not -result.batch_size <= run < result.batch_size:
+        raise ValueError(f"run must be 0 .. {result.batch_size - 1}; got {run!r}")
+    n, m = result.n, result.commands.shape[2]
+    names = _names(n, result.coordinate_names, "q")
+    units = result.coordinate_units or (None,) * n
+    inputs = _names(m, None, "u")
+    input_units = result.input_units or (None,) * m
+    states = list(result.controller_state_names)
+    shown = ["c_hat"] if "c_hat" in states else states[:4]
+    rows = [[f"q{j}", f"e{j}"] for j in range(n)] + [["u", "u"], ["h", "h"]]
+    if shown:
+        rows.append(["state", "state"])
+    figure = Figure(figsize=(10.0, 1.9 * len(rows) + 1.0), dpi=_DPI, layout="constrained")
+    axes = figure.subplot_mosaic(rows, sharex=True)
+    t = result.t
+    for j in range(n):
+        ax = axes[f"q{j}"]
+        ax.plot(t, result.reference[:, 0, j], color="black", ls="--", lw=1.0)
+        ax.plot(t, result.q[run, :, j], lw=1.0)
+        ax.set_ylabel(_label(names[j], units[j]))
+        ax = axes[f"e{j}"]
+        ax.plot(t, result.e1[run, :, j], lw=1.0, color="C3")
+        ax.set_ylabel(_label(f"e1 of {names[j]}", units[j]))
+    axes["q0"].set_title("plant (solid) and reference (dashed)")
+    axes["e0"].set_title("tracking error e1 = q_d − q")
+    ax = axes["u"]
+    for j in range(m):
+        ax.plot(t, result.commands[run, :, j], lw=1.0, color=f"C{j}", label=f"{inputs[j]} sent")
+        ax.plot(
+            t,
+            result.applied[run, :, j],
+            lw=1.0,
+            color=f"C{j}",
+            ls="--",
+            alpha=0.8,
+            label=f"{inputs[j]} applied",
+        )
+    same = len(set(input_units)) == 1
+    ax.set_ylabel(_label("inputs", input_units[0] if same else None))
+    _legend(ax, min(2 * m, 6))
+    ax = axes["h"]
+    ax.plot(t, 1e3 * result.h[run], lw=1.0, color="black")
+    ax.set_ylabel("h(t) (ms)")
+    ax.set_ylim(bottom=0.0)
+    if shown:
+        ax = axes["state"]
+        for name in shown:
+            ax.plot(t, result.controller_state[run, :, states.index(name)], lw=1.0, label=name)
+        ax.set_ylabel("ĉ (dimensionless)" if shown == ["c_hat"] else "controller state")
+        if len(shown) > 1:
+            _legend(ax, len(shown))
+    for ax in axes.values():
+        ax.grid(True, alpha=0.3)
+    bottom = axes["state" if shown else "h"]
+    bottom.set_xlabel("t (s)")
+    status = result.status_names[run]
+    stop = f" at t = {result.t_stop[run]:g} s" if status != "ok" else ""
+    figure.suptitle(f"run {run % result.batch_size} of {result.batch_size}: {status}{stop}")
+    return figure

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
 from delaytrack.sim.engine import STATUS_NAMES
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["SimResult"]
 
@@ -50,6 +53,9 @@ class SimResult:
     coordinate_names : tuple of str, optional
         The plant's names of its coordinates (``x, y, phi, ...`` for the robot), used by
         :func:`~delaytrack.metrics.metrics_table` and the figures; None means ``q1 .. qn``.
+    coordinate_units, input_units : tuple of str, optional
+        The plant's units of its coordinates and inputs (``m``, ``rad``, ``N·m``), for figure
+        axes and table columns; None when the plant does not say.
     """
 
     t: np.ndarray
@@ -65,6 +71,8 @@ class SimResult:
     metrics: dict[str, np.ndarray] = field(default_factory=dict)
     settings: dict[str, Any] = field(default_factory=dict)
     coordinate_names: tuple[str, ...] | None = None
+    coordinate_units: tuple[str, ...] | None = None
+    input_units: tuple[str, ...] | None = None
 
     @property
     def has_trajectories(self) -> bool:
@@ -124,6 +132,51 @@ class SimResult:
             metrics={name: values[select] for name, values in self.metrics.items()},
             settings=settings,
             coordinate_names=self.coordinate_names,
+            coordinate_units=self.coordinate_units,
+            input_units=self.input_units,
+        )
+
+    def plot(self, run: int = 0) -> Figure:
+        """One run at a glance (:func:`~delaytrack.report.figures.overview_figure`): each
+        coordinate against its reference and its tracking error, the commanded and applied
+        inputs, the delay ``h(t)`` and the controller state, with the plant's coordinate names
+        and units. Returns a matplotlib Figure (shown inline in a notebook; save it with
+        ``figure.savefig(path)``)."""
+        from delaytrack.report.figures import overview_figure
+
+        return overview_figure(self, run)
+
+    def _summary_frame(self) -> pd.DataFrame:
+        """Status, stop time, AE per coordinate (in its unit) and TV per run."""
+        names = self.coordinate_names or tuple(f"q{i + 1}" for i in range(self.n))
+        units = self.coordinate_units or (None,) * self.n
+        frame = pd.DataFrame({"status": self.status_names, "t_stop (s)": self.t_stop})
+        if "ae" in self.metrics:
+            for j, (name, unit) in enumerate(zip(names, units, strict=True)):
+                frame[f"AE {name}" + (f" ({unit})" if unit else "")] = self.metrics["ae"][:, j]
+        if "tv" in self.metrics:
+            frame["TV"] = self.metrics["tv"]
+        frame.index.name = "run"
+        return frame
+
+    def __repr__(self) -> str:
+        names = self.coordinate_names or tuple(f"q{i + 1}" for i in range(self.n))
+        span = (
+            f"t = {self.t[0]:g} .. {self.t[-1]:g} s ({self.t.size} records)"
+            if self.has_trajectories
+            else "metrics only (no trajectories)"
+        )
+        return (
+            f"SimResult(runs={self.batch_size}, ok={int(self.ok.sum())}, {span}, "
+            f"n={self.n} ({', '.join(names)}), m={self.commands.shape[2]}, "
+            f"controller state=({_shortened(self.controller_state_names)}), "
+            f"metrics=({', '.join(self.metrics)}))"
+        )
+
+    def _repr_html_(self) -> str:
+        head = repr(self).replace("&", "&amp;").replace("<", "&lt;")
+        return f"<p><code>{head}</code></p>" + self._summary_frame().to_html(
+            float_format=lambda v: f"{v:.4g}", max_rows=20
         )
 
     def to_frame(self) -> pd.DataFrame:
@@ -149,3 +202,9 @@ class SimResult:
         for j, name in enumerate(self.controller_state_names):
             columns[name] = self.controller_state[:, :, j].ravel()
         return pd.DataFrame(columns)
+
+
+def _shortened(names: tuple[str, ...], shown: int = 4) -> str:
+    """The first ``shown`` names, then how many more."""
+    more = len(names) - shown
+    return ", ".join(names[:shown]) + (f", … {more} more" if more > 0 else "")

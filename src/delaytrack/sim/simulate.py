@@ -650,4 +650,6 @@ def simulate(
         metrics=finish_metrics(sums, status == 0),
         settings=record,
         coordinate_names=first_plant.coordinate_names,
+        coordinate_units=first_plant.coordinate_units,
+        input_units=first_plant.input_units,
     )

@@ -26,6 +26,9 @@ __all__ = ["BODY_KEYS", "COORDINATES", "RobotBody"]
 
 #: The robot's coordinates q: look-ahead point x, y (m), heading phi and wheel angles (rad).
 COORDINATES = ("x", "y", "phi", "theta_r", "theta_l")
+#: Units of :data:`COORDINATES` and of the two wheel torques.
+COORDINATE_UNITS = ("m", "m", "rad", "rad", "rad")
+INPUT_UNITS = ("N·m", "N·m")
 
 #: Names of the body fields, in the order of their scenario keys.
 BODY_KEYS = (
@@ -84,6 +87,8 @@ class RobotBody:
     n: ClassVar[int] = 5
     m: ClassVar[int] = 2
     coordinate_names: ClassVar[tuple[str, ...]] = COORDINATES
+    coordinate_units: ClassVar[tuple[str, ...]] = COORDINATE_UNITS
+    input_units: ClassVar[tuple[str, ...]] = INPUT_UNITS
 
     def _check_body(self) -> None:
         for name in ("wheel_radius", "half_track", "mass", "yaw_inertia", "wheel_spin_inertia"):

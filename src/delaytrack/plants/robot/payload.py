@@ -41,7 +41,7 @@ from delaytrack._validation import (
     positive_scalar,
 )
 from delaytrack.plants.base import ELPlant
-from delaytrack.plants.robot.body import COORDINATES
+from delaytrack.plants.robot.body import COORDINATE_UNITS, COORDINATES, INPUT_UNITS
 from delaytrack.plants.robot.parameters import P3DX_PAYLOAD
 from delaytrack.plants.robot.truth import (
     TRUTH_PARAMS,
@@ -278,6 +278,8 @@ class PayloadRobot(PayloadSchedule, ConstrainedRobotPhysics, ELPlant):
     n: ClassVar[int] = 5
     m: ClassVar[int] = 2
     coordinate_names: ClassVar[tuple[str, ...]] = COORDINATES
+    coordinate_units: ClassVar[tuple[str, ...]] = COORDINATE_UNITS
+    input_units: ClassVar[tuple[str, ...]] = INPUT_UNITS
     type_name: ClassVar[str] = "wheeled-robot-payload"
     identity_mass: ClassVar[bool] = True
 

@@ -50,7 +50,7 @@ import numpy as np
 from delaytrack._jit import kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
-from delaytrack.plants.robot.body import COORDINATES
+from delaytrack.plants.robot.body import COORDINATE_UNITS, COORDINATES, INPUT_UNITS
 from delaytrack.plants.robot.kinematics import robot_command_map
 from delaytrack.plants.robot.parameters import P3DX
 
@@ -143,6 +143,8 @@ class PrintedRobotModel(ELPlant):
     n: ClassVar[int] = 5
     m: ClassVar[int] = 2
     coordinate_names: ClassVar[tuple[str, ...]] = COORDINATES
+    coordinate_units: ClassVar[tuple[str, ...]] = COORDINATE_UNITS
+    input_units: ClassVar[tuple[str, ...]] = INPUT_UNITS
     type_name: ClassVar[str] = "wheeled-robot-printed"
 
     def __post_init__(self) -> None:

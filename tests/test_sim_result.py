@@ -1,0 +1,129 @@
+"""SimResult for a user at a notebook: plot(), a compact repr, an HTML summary, units."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+from delaytrack.controllers import AROLC, OuterLoop
+from delaytrack.delays import AbsSineDelay
+from delaytrack.plants import CallablePlant, LinearPlant, TwoLinkArm
+from delaytrack.references import SinusoidalReference
+from delaytrack.sim import simulate
+
+REFERENCE = SinusoidalReference([0.0, 0.0], amplitude=[0.8, 0.5], frequency=[0.5, 0.7])
+
+
+@pytest.fixture(scope="module")
+def arm_result():
+    arm = TwoLinkArm()
+    controllers = [
+        AROLC(arm, K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001),
+        AROLC(arm, K1=2.0, K2=2.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001),
+    ]
+    return simulate(
+        arm,
+        controllers,
+        AbsSineDelay.S1(),
+        np.zeros(4),
+        reference=REFERENCE,
+        t1=2.0,
+        dt=0.001,
+        T_c=0.01,
+    )
+
+
+def test_plot_labels_every_axis_with_names_and_units(arm_result):
+    figure = arm_result.plot(1)
+    assert isinstance(figure, Figure)
+    labels = [ax.get_ylabel() for ax in figure.axes]
+    assert labels[:4] == ["q1 (rad)", "e1 of q1 (rad)", "q2 (rad)", "e1 of q2 (rad)"]
+    assert "inputs (N·m)" in labels and "h(t) (ms)" in labels and "ĉ (dimensionless)" in labels
+    assert figure.axes[-1].get_xlabel() == "t (s)"
+    assert figure._suptitle.get_text() == "run 1 of 2: ok"
+    # The lines are the run's data: the second panel is e1 of q1 of run 1.
+    error = figure.axes[1].lines[0].get_ydata()
+    np.testing.assert_array_equal(error, arm_result.e1[1, :, 0])
+    with pytest.raises(ValueError, match=r"run must be 0 \.\. 1; got 2"):
+        arm_result.plot(2)
+
+
+def test_a_user_plant_carries_its_names_and_units_into_the_figure():
+    plant = CallablePlant(
+        1,
+        lambda q: np.eye(1),
+        lambda q, qdot: np.zeros(1),
+        coordinate_names=["angle"],
+        coordinate_units=["rad"],
+    )
+    result = simulate(
+        plant,
+        OuterLoop(plant, K1=1.0, K2=1.0),
+        AbsSineDelay.S1(),
+        np.zeros(2),
+        reference=SinusoidalReference([0.0], amplitude=[0.5], frequency=[0.5]),
+        t1=1.0,
+        dt=0.001,
+        T_c=0.01,
+    )
+    assert result.coordinate_names == ("angle",) and result.coordinate_units == ("rad",)
+    figure = result.plot()
+    assert figure.axes[0].get_ylabel() == "angle (rad)"
+    assert "AE angle (rad)" in result._repr_html_()
+    # No units given: the labels say only the name, never a made-up unit.
+    bare = LinearPlant(np.eye(1))
+    result = simulate(
+        bare,
+        OuterLoop(bare, K1=1.0, K2=1.0),
+        AbsSineDelay.S1(),
+        np.zeros(2),
+        reference=SinusoidalReference([0.0], amplitude=[0.5], frequency=[0.5]),
+        t1=0.5,
+        dt=0.001,
+        T_c=0.01,
+    )
+    assert result.plot().axes[0].get_ylabel() == "q1"
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        (dict(coordinate_names=["a", "b"]), r"coordinate_names must be a list of n = 1"),
+        (dict(coordinate_names=["1a"]), r"coordinate_names must be a list of n = 1 different"),
+        (dict(coordinate_units=[""]), r"coordinate_units must be a list of n = 1 unit strings"),
+        (dict(coordinate_units="rad"), r"coordinate_units must be a list .* got 'rad'"),
+    ],
+)
+def test_bad_names_and_units_are_refused(changes, message):
+    with pytest.raises(ValueError, match=message):
+        CallablePlant(1, lambda q: np.eye(1), lambda q, qdot: np.zeros(1), **changes)
+
+
+def test_repr_is_one_line_and_html_summarises_each_run(arm_result):
+    text = repr(arm_result)
+    assert "\n" not in text and len(text) < 400
+    assert text.startswith("SimResult(runs=2, ok=2, t = 0 .. 2 s (201 records), n=2 (q1, q2)")
+    assert "c_hat, has_previous_s, s_previous_0, s_previous_1" in text
+    html = arm_result._repr_html_()
+    assert html.count("<tr>") >= 3 and "AE q1 (rad)" in html and "TV" in html
+    ae = f"{arm_result.metrics['ae'][1, 0]:.4g}"
+    assert ae in html
+
+
+def test_a_metrics_only_result_cannot_be_plotted_and_says_why(arm_result):
+    settings = arm_result.settings
+    result = simulate(
+        TwoLinkArm(),
+        AROLC(TwoLinkArm(), K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001),
+        AbsSineDelay.S1(),
+        np.zeros(4),
+        reference=REFERENCE,
+        t1=0.5,
+        dt=0.001,
+        T_c=0.01,
+        trajectories=False,
+    )
+    assert settings and "metrics only" in repr(result)
+    with pytest.raises(ValueError, match="no recorded trajectories"):
+        result.plot()

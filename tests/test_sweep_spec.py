@@ -100,6 +100,20 @@ def test_random_delay_takes_the_drawn_scenario_seed():
     assert all(run.scenario.delay["duration"] == 30.0 for run in runs)
 
 
+def test_the_noise_seed_can_be_drawn_per_run():
+    noise = {"quantization": 0.0, "position": 0.001, "velocity": 0.01, "seed": 0}
+    data = spec_dict(
+        grid={"measurement_noise": [noise]},
+        random={"measurement_noise.seed": {"dist": "integers", "low": 0, "high": 10**6}},
+    )
+    data["draws"], data["seed"] = 4, 3
+    runs = SweepSpec.from_dict(data).runs
+    seeds = [run.scenario.measurement_noise["seed"] for run in runs]
+    assert seeds == [run.values["measurement_noise.seed"] for run in runs]
+    assert len(set(seeds)) == 4
+    assert all(run.scenario.measurement_noise["position"] == 0.001 for run in runs)
+
+
 @pytest.mark.parametrize(
     ("changes", "message"),
     [
@@ -128,7 +142,11 @@ def test_random_delay_takes_the_drawn_scenario_seed():
         ),
         (
             {"random": {"delay": {"dist": "choice", "values": ["S1"]}}, "grid": {"delay.h": [0.1]}},
-            'sweep key "delay" must give tables',
+            'sweep key "delay.h" needs a [delay] table in the scenario or the sweep',
+        ),
+        (
+            {"grid": {"measurement_noise.seed": [1]}},
+            'sweep key "measurement_noise.seed" needs a [measurement_noise] table',
         ),
         ({"grid": {"foo": [1]}}, 'grid."foo": unknown key; a sweep key is'),
         ({"grid": {"controller.K1.x": [1]}}, 'grid."controller.K1.x": unknown key'),

@@ -52,6 +52,7 @@ from delaytrack._io import write_frame
 from delaytrack._output import record_outputs
 from delaytrack.delays import delay_from_spec
 from delaytrack.experiments import tuning
+from delaytrack.experiments.scenario import load_builtin
 from delaytrack.report import HtmlReport
 from delaytrack.sweeps import SweepSpec, run_sweep
 from delaytrack.sweeps.executors import LocalExecutor
@@ -90,6 +91,8 @@ _NO_NOISE: dict[str, Any] = {"quantization": 0.0, "position": 0.0, "velocity": 0
 DIVERGED_AE_MM = tuning.DIVERGED_AE_MM
 #: Seed of the study's draws.
 SEED = 2027
+#: The shipped scenario every run starts from (the paper job's AROLC / S1 run).
+BASE_SCENARIO = "robot_S1"
 _FRICTION = {
     "plant.viscous_friction": {"dist": "uniform", "low": 0.001, "high": 0.02},
     "plant.coulomb_friction": {"dist": "uniform", "low": 0.07, "high": 0.35},
@@ -168,16 +171,18 @@ class _Sweep:
     labels: list[dict[str, Any]]
 
 
-def _spec(grid: Mapping[str, list[Any]], draws: int) -> SweepSpec:
+def _spec(
+    grid: Mapping[str, list[Any]], draws: int, extra: Mapping[str, Any] | None = None
+) -> SweepSpec:
     return SweepSpec.from_dict(
         {
-            "scenario": "robot_S1",
+            "scenario": BASE_SCENARIO,
             "unit_size": 64,
             "draws": draws,
             "seed": SEED,
             "metrics": ["ae_x", "ae_y", "tv"],
             "grid": dict(grid),
-            "random": {**_PAYLOAD, **_FRICTION},
+            "random": {**_PAYLOAD, **_FRICTION, **(extra or {})},
         }
     )
 
@@ -246,7 +251,8 @@ def _claims_sweep(case: str, draws: int) -> _Sweep:
         "measurement_noise": [table for _, table in noise],
         "controller": [table for _, table in rows],
     }
-    return _Sweep(f"claims-{case}", _spec(grid, draws), labels)
+    noise_seed = {"measurement_noise.seed": {"dist": "integers", "low": 0, "high": 2**32 - 1}}
+    return _Sweep(f"claims-{case}", _spec(grid, draws, noise_seed), labels)
 
 
 def study_specs(size: str | StudySize = "default") -> list[_Sweep]:
@@ -344,26 +350,56 @@ def outcome_table(frame: pd.DataFrame, by: list[str]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def _per_draw(frame: pd.DataFrame, who: str, column: str) -> pd.Series:
+    """``column`` of controller ``who`` indexed by draw (diverged runs: +inf); each draw once."""
+    rows = frame[frame.controller == who]
+    if rows.draw.duplicated().any():
+        raise ValueError(f"{who!r} has more than one run per draw")
+    return pd.Series(np.where(rows.diverged, np.inf, rows[column]), index=rows.draw.to_numpy())
+
+
 def _paired(frame: pd.DataFrame, a: str, b: str, column: str) -> tuple[np.ndarray, np.ndarray]:
-    """``column`` of controllers ``a`` and ``b`` per draw (diverged runs: +inf)."""
-    values = []
-    for name in (a, b):
-        rows = frame[frame.controller == name].sort_values("draw")
-        values.append(np.where(rows.diverged, np.inf, rows[column]).astype(float))
-    return values[0], values[1]
+    """``column`` of controllers ``a`` and ``b`` on the same draws (diverged runs: +inf)."""
+    first, second = _per_draw(frame, a, column), _per_draw(frame, b, column)
+    if set(first.index) != set(second.index):
+        raise ValueError(f"{a!r} and {b!r} were not run on the same draws")
+    draws = np.sort(first.index.to_numpy())
+    return first[draws].to_numpy(float), second[draws].to_numpy(float)
 
 
-def _verdict(holds: np.ndarray) -> dict[str, Any]:
+def _verdict(a: np.ndarray, b: np.ndarray) -> dict[str, Any]:
+    """Whether ``a < b`` draw by draw. Draws where both diverged decide nothing and are left
+    out (counted); the share and its Wilson interval are over the decided draws. The paired
+    median difference ``a − b`` over draws where both stayed on the path gives the size."""
+    both = np.isinf(a) & np.isinf(b)
+    holds = (a < b)[~both]
     k, n = int(holds.sum()), len(holds)
     low, high = wilson_interval(k, n)
-    verdict = "holds" if low > 0.5 else "fails" if high < 0.5 else "undecided"
-    return {"share_holds": k / n, "ci_low": low, "ci_high": high, "verdict": verdict}
+    if n == 0:
+        verdict = "no decision (both diverged in every draw)"
+    else:
+        verdict = "holds" if low > 0.5 else "fails" if high < 0.5 else "undecided"
+    finite = np.isfinite(a) & np.isfinite(b)
+    median, d_low, d_high = median_interval(a[finite] - b[finite], seed=2)
+    return {
+        "share_holds": k / n if n else math.nan,
+        "ci_low": low,
+        "ci_high": high,
+        "verdict": verdict,
+        "draws_decided": n,
+        "draws_both_diverged": int(both.sum()),
+        "median_difference": median,
+        "difference_ci_low": d_low,
+        "difference_ci_high": d_high,
+    }
 
 
 def claim_verdicts(claims: pd.DataFrame) -> pd.DataFrame:
     """The paper's claims per scenario and noise level, for AROLC with the paper's and the
-    tuned gains: AE below the baseline, TV below the baseline (per draw; a diverged run loses),
-    and AROLC's AE larger in S4 than in S3 (paired by draw)."""
+    tuned gains: AE below the baseline, TV below the baseline, and AROLC's AE larger in S4 than
+    in S3 — each decided draw by draw on the same robots (:func:`_verdict`: a diverged run
+    loses, a draw where both diverged is left out). ``median_difference`` is in mm for AE and
+    N·m for TV (AROLC minus the baseline; S4 minus S3)."""
     rows = []
     for (case, noise), frame in claims.groupby(["scenario", "noise"], sort=False):
         baseline = _BASELINE[case]
@@ -376,42 +412,33 @@ def claim_verdicts(claims: pd.DataFrame) -> pd.DataFrame:
                         "noise": noise,
                         "claim": f"{metric} below {baseline}",
                         "controller": who,
-                        **_verdict(a < b),
-                        f"median_{column}": _finite_median(a),
-                        f"baseline_median_{column}": _finite_median(b),
+                        **_verdict(a, b),
                     }
                 )
     for noise in claims.noise.unique():
+        s3 = claims[(claims.scenario == "S3") & (claims.noise == noise)]
+        s4 = claims[(claims.scenario == "S4") & (claims.noise == noise)]
+        if s3.empty or s4.empty:
+            continue
         for who in ("AROLC (paper gains)", "AROLC (tuned)"):
-            s3 = claims[(claims.scenario == "S3") & (claims.noise == noise)]
-            s4 = claims[(claims.scenario == "S4") & (claims.noise == noise)]
-            if s3.empty or s4.empty:
-                continue
-            a3, a4 = _ae_per_draw(s3, who), _ae_per_draw(s4, who)
+            first, second = _per_draw(s3, who, "ae_mm"), _per_draw(s4, who, "ae_mm")
+            draws = np.sort(first.index.to_numpy())
+            # "AE grows": S3's AE below S4's, draw by draw.
+            verdict = _verdict(first[draws].to_numpy(float), second[draws].to_numpy(float))
+            for key in ("median_difference", "difference_ci_low", "difference_ci_high"):
+                verdict[key] = -verdict[key]  # S4 minus S3
+            low, high = verdict["difference_ci_low"], verdict["difference_ci_high"]
+            verdict["difference_ci_low"], verdict["difference_ci_high"] = high, low
             rows.append(
                 {
                     "scenario": "S3 -> S4",
                     "noise": noise,
                     "claim": "AE grows from S3 to S4",
                     "controller": who,
-                    **_verdict(a4 > a3),
-                    "median_ae_mm": _finite_median(a4),
-                    "baseline_median_ae_mm": _finite_median(a3),
+                    **verdict,
                 }
             )
     return pd.DataFrame(rows)
-
-
-def _ae_per_draw(frame: pd.DataFrame, who: str) -> np.ndarray:
-    """AE (mm) of ``who`` per draw, +inf where it diverged."""
-    rows = frame[frame.controller == who].sort_values("draw")
-    return np.where(rows.diverged, np.inf, rows.ae_mm).astype(float)
-
-
-def _finite_median(values: np.ndarray) -> float:
-    """Median over draws; a diverged run counts as +inf (NaN when most diverged)."""
-    median = float(np.median(values))
-    return median if math.isfinite(median) else math.nan
 
 
 #: Attribution pairs: (what, the controller with it, the controller without it).
@@ -689,7 +716,20 @@ def findings(study: RobustnessStudy) -> list[str]:
         out.append(
             "At the paper's gains AROLC and the plain outer loop both stay on the path at every "
             f"tested delay up to {table.delay_ms.max():g} ms: the robustness to the delay "
-            "belongs to the low gains of the outer loop, not to the switching term Δu."
+            "observed here does not come from the switching term Δu, since the outer loop "
+            "without it is as robust in this test."
+        )
+    record = tuning.load_tuning_record()
+    edges = [
+        f"{kind} ({gain_set})"
+        for kind in tuning.KINDS
+        for gain_set in tuning.GAIN_SETS
+        if not record[kind][gain_set]["interior"]
+    ]
+    if edges:
+        out.append(
+            "Tuned gain sets still on an edge of their grid after the extensions, so possibly "
+            "not fully tuned: " + ", ".join(edges) + " (gains file, 'interior')."
         )
     quiet = study.attribution[study.attribution.noise == "off"]
     for part, rows in quiet.groupby("part", sort=False):
@@ -740,6 +780,16 @@ def display_verdicts(verdicts: pd.DataFrame) -> pd.DataFrame:
             "claim": verdicts.claim,
             "holds in % of draws (95 % CI)": [
                 _interval_text(r.share_holds, r.ci_low, r.ci_high, 100.0)
+                for r in verdicts.itertuples()
+            ],
+            "draws (both diverged)": [
+                f"{r.draws_decided} ({r.draws_both_diverged})" for r in verdicts.itertuples()
+            ],
+            "median difference (95 % CI)": [
+                _interval_text(r.median_difference, r.difference_ci_low, r.difference_ci_high)
+                + (" N·m" if r.claim.startswith("TV") else " mm")
+                if math.isfinite(r.median_difference)
+                else "—"
                 for r in verdicts.itertuples()
             ],
             "verdict": verdicts.verdict,
@@ -836,13 +886,18 @@ def write_robustness(study: RobustnessStudy, out: str | Path) -> list[Path]:
         figure.savefig(path, dpi=110)
         files.append(path)
     report = HtmlReport("delaytrack: robustness study (which controller when the delay is unknown)")
+    base = load_builtin(BASE_SCENARIO)
+    viscous = _FRICTION["plant.viscous_friction"]
+    coulomb = _FRICTION["plant.coulomb_friction"]
     report.paragraph(
         "The paper's case for AROLC is that it needs no knowledge of the delay, while its "
         "predictor baselines assume they know it. This study asks which controller to use over "
         "distributions of robots rather than one run: every run is the paper job's robot run "
-        "(60 s, the consistent circle, dt = 1 ms, T_c = 10 ms) with a drawn payload seed and "
-        "wheel friction drawn from its documented ranges (viscous 0.001–0.02 N·m·s/rad, Coulomb "
-        "0.07–0.35 N·m); draw i is the same robot for every controller and condition. Three "
+        f"({base.duration:g} s, the consistent circle, dt = {1e3 * base.dt:g} ms, T_c = "
+        f"{1e3 * base.T_c:g} ms) with a drawn payload seed and wheel friction drawn uniformly "
+        f"from its documented ranges (viscous {viscous['low']:g}–{viscous['high']:g} N·m·s/rad, "
+        f"Coulomb {coulomb['low']:g}–{coulomb['high']:g} N·m); draw i is the same robot for "
+        "every controller and condition, and each draw has its own noise seed. Three "
         "parts: a robustness map (constant true delays "
         + ", ".join(f"{1e3 * h:g}" for h in TRUE_DELAYS)
         + " ms against what the predictors are told, "

@@ -19,7 +19,8 @@ A sweep file (TOML)::
 
 A key is a top-level scenario key (``duration``, ``seed``, ...), a table name (``delay``: the
 value replaces the whole table) or a dotted ``table.key`` (``controller.K1``: the value replaces
-one key of the table, after any whole-table replacement). Every run is validated as a
+one key of the table, after any whole-table replacement; also ``measurement_noise.seed`` and
+``packet_loss.seed`` when the run has that table). Every run is validated as a
 :class:`~delaytrack.experiments.Scenario` when the spec is loaded; a refusal names the sweep key
 (``grid."controller.K9" = 1.0 (run 0): unknown key 'controller.K9' in scenario; ...``).
 
@@ -70,6 +71,8 @@ _INT64_MIN, _INT64_MAX = -(2**63), 2**63 - 1
 MAX_RUNS = 100_000
 _TOP_LEVEL = ("scenario", "unit_size", "draws", "seed", "metrics", "grid", "random")
 _TABLES = ("plant", "model", "controller", "delay", "reference")
+#: Optional scenario tables whose keys a sweep may also set one by one (``measurement_noise.seed``).
+_OPTIONAL_TABLES = ("measurement_noise", "packet_loss")
 _SCALARS = (
     "name",
     "duration",
@@ -267,14 +270,14 @@ def _check_key(source: str, key: object) -> str:
     if not isinstance(key, str):
         raise SweepError(f"{source} key {key!r} must be a string")
     table, dot, field = key.partition(".")
-    if dot and table in _TABLES and field and "." not in field:
+    if dot and table in (*_TABLES, *_OPTIONAL_TABLES) and field and "." not in field:
         return key
     if not dot and key in (*_TABLES, *_SCALARS):
         return key
     raise SweepError(
         f'{source}."{key}": unknown key; a sweep key is a top-level scenario key '
         f"{list(_SCALARS)}, a table name {list(_TABLES)} (its value replaces the table) or "
-        "'table.key' such as 'controller.K1' or 'delay.h'"
+        "'table.key' such as 'controller.K1', 'delay.h' or 'measurement_noise.seed'"
     )
 
 
@@ -342,9 +345,10 @@ def _apply(base: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str, Any]
     for key, value in values.items():
         table, dot, field = key.partition(".")
         if dot:
-            if not isinstance(data[table], dict):
+            if not isinstance(data.get(table), dict):
                 raise SweepError(
-                    f'sweep key "{table}" must give tables ([{table}]); got {data[table]!r}'
+                    f'sweep key "{key}" needs a [{table}] table in the scenario or the sweep; '
+                    f"got {data.get(table)!r}"
                 )
             data[table][field] = value
     return data

@@ -130,6 +130,8 @@ class AROLC(Controller):
     c_hat0 : float, optional
         Initial ĉ, ``> 0``; ``γ`` by default.
 
+    Notes
+    -----
     The paper's robot gains are ``K1 = K2 = Q = I``, ``α = 2``, ``ε = 0.1``, ``γ = 0.001``.
     """
 

@@ -449,59 +449,78 @@ def _fmt(value: float, digits: int = 2) -> str:
     return "NaN" if not np.isfinite(value) else f"{value:.{digits}f}"
 
 
-def tables_markdown(summary: pd.DataFrame, reference: str = "consistent") -> str:
-    """The paper's Tables I–III with our numbers beside the paper's (markdown)."""
+TABLES_NOTE = (
+    "AE in mm, %AE = AE / 2500 mm × 100, TV in N·m (commanded wheel torques at the controller "
+    "ticks). Paper values from its Tables I–III; '—': not in the paper. Compare the pattern, "
+    "not the digits."
+)
+
+
+def paper_tables(summary: pd.DataFrame) -> dict[str, pd.DataFrame]:
+    """The paper's Tables I–III with our numbers beside the paper's: title -> table of text."""
 
     def row_of(scenario: str, controller: str) -> pd.Series:
         return summary[(summary.scenario == scenario) & (summary.controller == controller)].iloc[0]
 
-    lines = [
-        f"# The paper's Tables I–III: ours (simulation, `{reference}` path) beside the paper's "
-        "(real robot)",
-        "",
-        "AE in mm, %AE = AE / 2500 mm × 100, TV in N·m (commanded wheel torques at the controller "
-        "ticks). Paper values from its Tables I–III; `—`: not in the paper. Compare the pattern, "
-        "not the "
-        "digits.",
-        "",
-    ]
+    tables = {}
     for title, cases, baseline in (
         ("Table I: S1, S2 (time-varying delay) vs PCON", ("S1", "S2"), "PCON"),
         ("Table II: S3, S4 (constant delay) vs PCONf", ("S3", "S4"), "PCONf"),
     ):
-        lines += [
-            f"## {title}",
-            "",
-            "| case | controller | AE-x ours | AE-x paper | %AE-x ours | %AE-x paper | AE-y ours | "
-            "AE-y paper | %AE-y ours | %AE-y paper |",
-            "|---|---|---|---|---|---|---|---|---|---|",
-        ]
+        rows = []
         for case in cases:
             for controller in (baseline, "AROLC", "OuterLoop"):
                 ours = row_of(case, controller)
                 paper = PAPER_TABLE.get((case, controller))
                 p = [_fmt(v) for v in paper] if paper else ["—"] * 5
-                lines.append(
-                    f"| {case} | {controller} | {_fmt(ours.ae_x_mm)} | {p[0]} | "
-                    f"{_fmt(ours.pct_ae_x)} | {p[1]} | {_fmt(ours.ae_y_mm)} | {p[2]} | "
-                    f"{_fmt(ours.pct_ae_y)} | {p[3]} |"
+                rows.append(
+                    {
+                        "case": case,
+                        "controller": controller,
+                        "AE-x ours (mm)": _fmt(ours.ae_x_mm),
+                        "AE-x paper (mm)": p[0],
+                        "%AE-x ours": _fmt(ours.pct_ae_x),
+                        "%AE-x paper": p[1],
+                        "AE-y ours (mm)": _fmt(ours.ae_y_mm),
+                        "AE-y paper (mm)": p[2],
+                        "%AE-y ours": _fmt(ours.pct_ae_y),
+                        "%AE-y paper": p[3],
+                    }
                 )
-        lines.append("")
-    lines += [
-        "## Table III: total variation of the control input",
-        "",
-        "| case | baseline | TV baseline ours | TV baseline paper | TV AROLC ours | "
-        "TV AROLC paper | TV OuterLoop ours |",
-        "|---|---|---|---|---|---|---|",
-    ]
+        tables[title] = pd.DataFrame(rows)
+    rows = []
     for case in SCENARIOS:
         baseline = BASELINE[case]
-        lines.append(
-            f"| {case} | {baseline} | {_fmt(row_of(case, baseline).tv)} | "
-            f"{_fmt(PAPER_TABLE[case, baseline][4])} | {_fmt(row_of(case, 'AROLC').tv)} | "
-            f"{_fmt(PAPER_TABLE[case, 'AROLC'][4])} | {_fmt(row_of(case, 'OuterLoop').tv)} |"
+        rows.append(
+            {
+                "case": case,
+                "baseline": baseline,
+                "TV baseline ours (N·m)": _fmt(row_of(case, baseline).tv),
+                "TV baseline paper": _fmt(PAPER_TABLE[case, baseline][4]),
+                "TV AROLC ours (N·m)": _fmt(row_of(case, "AROLC").tv),
+                "TV AROLC paper": _fmt(PAPER_TABLE[case, "AROLC"][4]),
+                "TV OuterLoop ours (N·m)": _fmt(row_of(case, "OuterLoop").tv),
+            }
         )
-    return "\n".join(lines) + "\n"
+    tables["Table III: total variation of the control input"] = pd.DataFrame(rows)
+    return tables
+
+
+def tables_markdown(summary: pd.DataFrame, reference: str = "consistent") -> str:
+    """:func:`paper_tables` as Markdown (``tables.md``)."""
+    lines = [
+        f"# The paper's Tables I–III: ours (simulation, `{reference}` path) beside the paper's "
+        "(real robot)",
+        "",
+        TABLES_NOTE,
+        "",
+    ]
+    for title, table in paper_tables(summary).items():
+        lines += [f"## {title}", "", "| " + " | ".join(table.columns) + " |"]
+        lines.append("|" + "---|" * len(table.columns))
+        lines += ["| " + " | ".join(map(str, row)) + " |" for row in table.to_numpy()]
+        lines.append("")
+    return "\n".join(lines)
 
 
 # --------------------------------------------------------------------------------------------
@@ -520,7 +539,7 @@ def _path_figure(study: PaperStudy, scenario: str) -> Figure:
     ax.set_ylabel("y (m)")
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize="small")
+    ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
     ax.set_title(f"x–y path under {scenario} ({_SCENARIO_TEXT[scenario]})")
     return figure
 
@@ -540,9 +559,13 @@ def _error_figure(study: PaperStudy, cases: tuple[str, ...]) -> Figure:
                     label=controller_name(case, kind),
                 )
             ax.set_ylabel(f"{case} |e_{coordinate}| (mm)")
-            ax.set_ylim(bottom=0.0)
-            ax.grid(True, alpha=0.3)
-            ax.legend(loc="upper right", fontsize="x-small", ncols=3)
+            # Log scale: the predictors' few-mm errors and the outer loop's 100 mm both show.
+            ax.set_yscale("log")
+            ax.set_ylim(bottom=1e-2)
+            ax.grid(True, alpha=0.3, which="both")
+    axes[0].legend(
+        loc="lower left", bbox_to_anchor=(0.0, 1.0), fontsize="small", ncols=3, frameon=False
+    )
     axes[-1].set_xlabel("t (s)")
     return figure
 
@@ -567,7 +590,7 @@ def _figures(study: PaperStudy) -> dict[str, tuple[Figure, str]]:
         ),
         "c_hat": (
             c_hat_figure(arolc, title="AROLC adaptive gain ĉ(t)"),
-            "AROLC's adaptive gain ĉ(t) in each scenario (ĉ(0) = γ = 0.001).",
+            "AROLC's adaptive gain ĉ(t) in each scenario (ĉ(0) = γ = 0.001; dimensionless).",
         ),
         "delay": (
             delay_figure(arolc, h_m=study.bound.h_m, title="Input delay h(t)"),
@@ -1235,7 +1258,9 @@ def _report(
     _tuned_section(report, study)
     _contact_section(report, study)
     report.heading("Tables I–III beside the paper's")
-    report.code(tables_markdown(study.summary, study.reference))
+    report.paragraph(TABLES_NOTE)
+    for title, table in paper_tables(study.summary).items():
+        report.table(table, title)
     report.heading("Literal path")
     report.paragraph(_literal_paragraph(study, literal_summary))
     write_dt_check(report, study.dt_check, DT / 2)

@@ -42,7 +42,7 @@ class LinearPlant(ELPlant):
         ``M``, symmetric positive definite (n, n); a scalar or 1-D value means a diagonal.
     damping, stiffness : array_like, optional
         ``D`` and ``K`` (n, n); zero by default.
-    input_map : array_like, optional
+    input_map_matrix : array_like, optional
         ``G`` (n, m); the identity by default.
     """
 

@@ -181,8 +181,8 @@ def delay_figure(
         )
     ax.set_ylabel("h(t) (ms)")
     highest = max([np.nanmax(1e3 * r.h[0]) for r in runs.values()] + [1e3 * (h_m or 0.0)])
-    ax.set_ylim(0.0, 1.45 * highest if highest > 0 else 1.0)  # room for the legend above
-    ax.legend(loc="upper right", fontsize="small", ncols=len(runs) + (h_m is not None))
+    ax.set_ylim(0.0, 1.1 * highest if highest > 0 else 1.0)
+    _legend(ax, len(runs) + (h_m is not None))
     return figure
 
 
@@ -206,8 +206,8 @@ def c_hat_figure(
         raise ValueError(
             "none of the runs has a controller state 'c_hat' (is the controller AROLC?)"
         )
-    ax.set_ylabel("ĉ(t)")
-    ax.legend(loc="upper right", fontsize="small")
+    ax.set_ylabel("ĉ(t) (dimensionless)")
+    _legend(ax, plotted)
     return figure
 
 

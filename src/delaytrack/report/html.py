@@ -40,6 +40,8 @@ table.data th, table.data td, table.settings th, table.settings td {
 table.settings th { text-align: left; background: #f5f5f5; }
 table.settings td { text-align: left; }
 table.data th { background: #f0f0f0; }
+.wide { overflow-x: auto; max-width: 100%; }
+table.data th { white-space: normal; }
 figure { margin: 1.2rem 0; }
 figure img { max-width: 100%; border: 1px solid #eee; }
 figcaption { font-size: .9rem; color: #555; }
@@ -84,13 +86,14 @@ class HtmlReport:
             f"<tr><th>{html.escape(str(k))}</th><td>{html.escape(str(v))}</td></tr>"
             for k, v in rows.items()
         )
-        self._blocks.append(f'<table class="settings">{body}</table>')
+        self._blocks.append(f'<div class="wide"><table class="settings">{body}</table></div>')
 
     def table(self, frame: pd.DataFrame, caption: str | None = None, *, digits: int = 4) -> None:
         """A DataFrame as a table, with an optional caption above it."""
         if caption:
             self._blocks.append(f"<p><em>{html.escape(caption)}</em></p>")
-        self._blocks.append(frame_to_html(frame, digits=digits))
+        # A wide table scrolls inside its own box; the page never gets wider than the window.
+        self._blocks.append(f'<div class="wide">{frame_to_html(frame, digits=digits)}</div>')
 
     def code(self, text: str) -> None:
         """Preformatted text (e.g. a scenario file)."""

@@ -1,4 +1,4 @@
-"""Symbolic derivation of the wheeled robot's dynamics (SPEC §6), checked against the kernels.
+"""Symbolic derivation of the wheeled robot's dynamics, checked against the kernels.
 
 Run from the repository root (needs sympy, in the ``test`` extra)::
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -231,3 +232,60 @@ def test_simulate_refusal_at_build_exits_2(tmp_path, capsys):
         "scenario key 'controller.K1' must be symmetric positive definite"
         in capsys.readouterr().err
     )
+
+
+# ---- one convention for every command ---------------------------------------------------------
+
+
+def test_a_bare_call_prints_the_commands(capsys):
+    assert main([]) == 2
+    out = capsys.readouterr().out
+    assert out.startswith("usage: delaytrack") and "reproduce" in out and "tune-baselines" in out
+
+
+def test_bound_defaults_q_like_margin_and_the_python_api(capsys):
+    from delaytrack.analysis import razumikhin_bound
+
+    assert main(["bound", "--k1", "1", "--k2", "1", "--json"]) == 0
+    default = json.loads(capsys.readouterr().out)
+    assert main(["bound", "--k1", "1", "--k2", "1", "--q", "1", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out) == default
+    assert default["h_m"] == razumikhin_bound(1.0, 1.0).h_m  # Q = I, beta = 1, r = 1.1
+
+
+@pytest.mark.parametrize("command", ["simulate", "empirical", "reproduce", "sweep"])
+def test_every_long_command_takes_quiet_and_still_accepts_progress(command):
+    from delaytrack.cli import build_parser
+
+    extra = {"simulate": ["x"], "empirical": ["x", "--threshold", "1"], "sweep": ["x"]}
+    args = build_parser().parse_args([command, *extra.get(command, []), "--quiet", "--progress"])
+    assert args.quiet
+
+
+def test_tune_baselines_never_writes_into_the_package_by_default():
+    from delaytrack.cli import build_parser
+    from delaytrack.experiments.tuning import shipped_gains_path
+
+    out = Path(build_parser().parse_args(["tune-baselines"]).out)
+    assert out == Path("results") / "baseline_gains.toml"
+    assert out.resolve() != shipped_gains_path().resolve()
+
+
+def test_reproduce_gains_must_be_a_complete_gains_file(tmp_path, capsys):
+    from delaytrack.cli import _checked_gains
+    from delaytrack.experiments.tuning import shipped_gains_path
+
+    assert _checked_gains(str(shipped_gains_path())) == shipped_gains_path().resolve()
+    assert main(["reproduce", "--gains", str(tmp_path / "none.toml"), "--out", str(tmp_path)]) == 2
+    assert "--gains" in capsys.readouterr().err
+    partial = tmp_path / "partial.toml"
+    partial.write_text("[AROLC.all]\nk = 1.0\n")
+    assert main(["reproduce", "--gains", str(partial), "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --gains") and len(err.strip().splitlines()) == 1
+
+
+def test_simulate_prints_the_metrics(short_scenario, tmp_path, capsys):
+    assert main(["simulate", str(short_scenario), "--out", str(tmp_path / "r"), "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "AE q1 (rad)" in out and "TV" in out

@@ -2,15 +2,20 @@
 
 Commands::
 
-    delaytrack bound --k1 1 --k2 1 --q 1 --beta 1 --r 1.1 [--n 5] [--json]
+    delaytrack bound --k1 1 --k2 1 [--q 1] [--beta 1] [--r 1.1] [--n 5] [--json]
     delaytrack margin --k1 1 --k2 1 [--q 1] [--beta 1] [--r 1.1] [--n 5] [--json]
     delaytrack design [--n 2] [--gain-bound 1] [--min-bandwidth W] [--r 1.1] [--seed 0] [--json]
-    delaytrack simulate SCENARIO.toml [--out DIR] [--format parquet|csv|both]
+    delaytrack simulate SCENARIO.toml [--out DIR] [--format parquet|csv|both] [--quiet]
     delaytrack empirical SCENARIO.toml --threshold RAD [--profile constant|abs-sine|abs-sine-offset]
         [--metric ae|rms|max] [--settle S] [--resolution S] [--upper S] [--frequency W] [--json]
+        [--quiet]
     delaytrack reproduce [--out results] [--duration SECONDS] [--no-dt-check] [--no-contact]
-        [--job paper|two-link|margins]
+        [--no-robustness] [--size default|full] [--scheduler ADDRESS] [--gains PATH] [--quiet]
+        [--job paper|two-link|margins|robustness]
+    delaytrack sweep SPEC.toml [--out DIR] [--scheduler ADDRESS] [--workers N] [--quiet]
     delaytrack tune-baselines [--out PATH] [--quiet]
+
+Long work shows progress bars on stderr; ``--quiet`` turns them off, in every command.
 
 Bad input ends with exit code 2 and a one-line ``error: ...`` naming the argument, the value and
 what is valid; never a traceback.
@@ -21,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import re
 import sys
 import time
@@ -348,13 +354,14 @@ def _simulate(args: argparse.Namespace) -> int:
     )
     formats = ("parquet", "csv") if args.format == "both" else (args.format,)
     start = time.perf_counter()
-    output = run_to_folder(scenario, folder, formats=formats, progress=args.progress)
+    output = run_to_folder(scenario, folder, formats=formats, progress=not args.quiet)
     seconds = time.perf_counter() - start
     status = ", ".join(output.result.status_names)
     print(
         f"simulated {scenario.name!r}: {scenario.duration:g} s in {seconds:.1f} s wall time, "
         f"status {status}"
     )
+    print(output.result._summary_frame().to_string(float_format=lambda v: f"{v:.4g}"))
     print(f"wrote {len(output.files)} files to {folder}/:")
     for path in output.files:
         print(f"  {path.relative_to(folder)}")
@@ -385,7 +392,7 @@ def _empirical(args: argparse.Namespace) -> int:
             controller,
             profile=args.profile,
             metric=args.metric,
-            progress=args.progress,
+            progress=not args.quiet,
             **options,
         )
     except ValueError as error:
@@ -431,11 +438,49 @@ def _empirical(args: argparse.Namespace) -> int:
 
 
 def _reproduce(args: argparse.Namespace) -> int:
+    from delaytrack.experiments.tuning import GAINS_VARIABLE
+
     check_writable_location(args.out, "--out")
+    previous = os.environ.get(GAINS_VARIABLE)
+    if args.gains is not None:
+        os.environ[GAINS_VARIABLE] = str(_checked_gains(args.gains))
     try:
         return _reproduce_job(args)
     except OutputFolderError as error:  # a job's folder under --out, checked before computing
         raise UsageError(f"--out {args.out!r}: {error}") from None
+    finally:
+        if previous is None:
+            os.environ.pop(GAINS_VARIABLE, None)
+        else:
+            os.environ[GAINS_VARIABLE] = previous
+
+
+def _checked_gains(text: str) -> Path:
+    """``--gains``: a gains file with every controller and gain set, as an absolute path."""
+    import tomllib
+
+    from delaytrack.experiments.tuning import GAIN_SETS, KINDS, load_gains
+
+    path = Path(text).resolve()
+    if not path.is_file():
+        raise UsageError(f"--gains {text!r} is not a file; give a file written by tune-baselines")
+    try:
+        gains = load_gains(path)
+    except (tomllib.TOMLDecodeError, KeyError, ValueError, TypeError) as error:
+        raise UsageError(
+            f"--gains {text!r} is not a gains file written by tune-baselines: {error}"
+        ) from None
+    missing = [
+        f"{kind} ({gain_set})"
+        for kind in KINDS
+        for gain_set in GAIN_SETS
+        if gain_set not in gains.get(kind, {})
+    ]
+    if missing:
+        raise UsageError(
+            f"--gains {text!r} lacks {', '.join(missing)}; write it with delaytrack tune-baselines"
+        )
+    return path
 
 
 def _study_executor(args: argparse.Namespace):
@@ -620,19 +665,11 @@ def _count(flag: str, text: str) -> int:
 
 
 def _tune_baselines(args: argparse.Namespace) -> int:
-    from delaytrack.experiments.tuning import (
-        default_gains_path,
-        gains_text,
-        tune_controllers,
-        write_gains,
-    )
+    from delaytrack.experiments.tuning import gains_text, tune_controllers, write_gains
 
-    if args.out is not None:
-        check_writable_location(args.out, "--out")
-        if Path(args.out).is_dir():
-            raise UsageError(
-                f"--out {args.out!r} is a folder; it must name the gains file to write"
-            )
+    check_writable_location(args.out, "--out")
+    if Path(args.out).is_dir():
+        raise UsageError(f"--out {args.out!r} is a folder; it must name the gains file to write")
     start = time.perf_counter()
     results = tune_controllers(progress=not args.quiet)
     path = write_gains(results, args.out)
@@ -645,8 +682,7 @@ def _tune_baselines(args: argparse.Namespace) -> int:
                 f"(worst mean AE {best['objective']:.3g} mm{edge})"
             )
     print(f"wrote {path} in {seconds:.1f} s")
-    if args.out is not None and Path(args.out).resolve() != default_gains_path().resolve():
-        print(f"note: the paper job reads {default_gains_path()}; copy the file there to use it")
+    print(f"use these gains with: delaytrack reproduce --gains {path}")
     return 0
 
 
@@ -666,7 +702,7 @@ def _theorem_1_arguments(command: argparse.ArgumentParser, q_default: str | None
         "--k1",
         required=True,
         metavar="K1",
-        help="proportional gain K1 (n); write --k1=-1,2 for a list starting with a minus",
+        help="proportional gain K1: a number (times I) or a comma list (the diagonal), e.g. 1,2",
     )
     command.add_argument("--k2", required=True, metavar="K2", help="derivative gain K2 (n)")
     command.add_argument(
@@ -696,6 +732,13 @@ def _r_and_json_arguments(command: argparse.ArgumentParser) -> None:
     )
 
 
+def _quiet_argument(command: argparse.ArgumentParser) -> None:
+    """``--quiet`` (no progress bars), and ``--progress`` kept as an accepted no-op: progress
+    is shown by default."""
+    command.add_argument("--quiet", action="store_true", help="no progress bars")
+    command.add_argument("--progress", action="store_true", help=argparse.SUPPRESS)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``delaytrack`` command."""
     parser = _Parser(
@@ -716,7 +759,7 @@ def build_parser() -> argparse.ArgumentParser:
         "number means a multiple of the identity, a comma list a diagonal (k1, k2 of length n, "
         "q of length 2n). Example: delaytrack bound --k1 1 --k2 1 --q 1 --beta 1 --r 1.1",
     )
-    _theorem_1_arguments(bound, q_default=None)
+    _theorem_1_arguments(bound, q_default="1")
     bound.set_defaults(handler=_bound)
 
     margin = commands.add_parser(
@@ -775,9 +818,7 @@ def build_parser() -> argparse.ArgumentParser:
         default="parquet",
         help="trajectory file format (default parquet)",
     )
-    simulate.add_argument(
-        "--progress", action="store_true", help="show the simulator's progress bar"
-    )
+    _quiet_argument(simulate)
     simulate.set_defaults(handler=_simulate)
 
     empirical = commands.add_parser(
@@ -826,7 +867,7 @@ def build_parser() -> argparse.ArgumentParser:
     empirical.add_argument(
         "--json", action="store_true", help="print one JSON object instead of text"
     )
-    empirical.add_argument("--progress", action="store_true", help="show progress bars")
+    _quiet_argument(empirical)
     empirical.set_defaults(handler=_empirical)
 
     reproduce = commands.add_parser(
@@ -881,7 +922,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="skip the runs on the robot with real wheels (MuJoCo; run by default when it is "
         "installed)",
     )
-    reproduce.add_argument("--quiet", action="store_true", help="no progress bar")
+    reproduce.add_argument(
+        "--gains",
+        default=None,
+        metavar="PATH",
+        help="gains file to use instead of the shipped one (written by tune-baselines)",
+    )
+    _quiet_argument(reproduce)
     reproduce.set_defaults(handler=_reproduce)
 
     sweep = commands.add_parser(
@@ -912,7 +959,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="threads of the local executor, or worker processes of --scheduler local-cluster "
         "(default: all cores)",
     )
-    sweep.add_argument("--quiet", action="store_true", help="no progress bar")
+    _quiet_argument(sweep)
     sweep.set_defaults(handler=_sweep)
 
     tune = commands.add_parser(
@@ -923,8 +970,14 @@ def build_parser() -> argparse.ArgumentParser:
         "one per delay class each, and write the chosen gains, grids and per-condition results "
         "as TOML (default: the package's data/baseline_gains.toml, which the paper job reads).",
     )
-    tune.add_argument("--out", default=None, metavar="PATH", help="gains file to write")
-    tune.add_argument("--quiet", action="store_true", help="no progress bar")
+    tune.add_argument(
+        "--out",
+        default=str(Path("results") / "baseline_gains.toml"),
+        metavar="PATH",
+        help="gains file to write (default results/baseline_gains.toml; use it with "
+        "delaytrack reproduce --gains PATH)",
+    )
+    _quiet_argument(tune)
     tune.set_defaults(handler=_tune_baselines)
     return parser
 
@@ -934,6 +987,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     from delaytrack.experiments import ScenarioError
 
     parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if not argv:  # a bare call: the commands and what they do
+        parser.print_help()
+        return EXIT_USAGE
     args = parser.parse_args(argv)
     try:
         return args.handler(args)

@@ -475,7 +475,13 @@ class RazumikhinBound:
 
 
 def razumikhin_bound(
-    K1: object, K2: object, Q: object, beta: float, r: float, *, n: int | None = None
+    K1: object,
+    K2: object,
+    Q: object = 1.0,
+    beta: float = 1.0,
+    r: float = 1.1,
+    *,
+    n: int | None = None,
 ) -> RazumikhinBound:
     """Theorem 1: the largest input delay h_m that AROLC is certified to tolerate.
 
@@ -504,13 +510,14 @@ def razumikhin_bound(
     K1, K2 : array_like
         Symmetric positive definite gains of û = q̈_d + K2 ė1 + K1 e1 (aux), ``(n, n)``; a 1-D
         array means a diagonal matrix and a scalar means ``K * I`` (n = 1 unless ``n`` is given).
-    Q : array_like
+    Q : array_like, optional
         Symmetric positive definite ``(2n, 2n)`` Lyapunov weight; 1-D of length 2n means
-        diagonal, a scalar means ``Q * I``.
-    beta : float
-        beta > 0, the free weight of (ineq 1).
-    r : float
-        r > 1, the Razumikhin factor of (razu): V(e(xi)) < r V(e(t)) for t - 2h <= xi <= t.
+        diagonal, a scalar means ``Q * I``. ``I`` by default (the paper's robot experiment).
+    beta : float, optional
+        beta > 0, the free weight of (ineq 1); 1 by default.
+    r : float, optional
+        r > 1, the Razumikhin factor of (razu): V(e(xi)) < r V(e(t)) for t - 2h <= xi <= t;
+        1.1 by default (the defaults are those of ``delaytrack bound``).
     n : int, optional
         Number of joints; needed only to expand a scalar K1 with n > 1.
 

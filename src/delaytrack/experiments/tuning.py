@@ -66,6 +66,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
 import time
 import tomllib
 from collections.abc import Mapping, Sequence
@@ -105,6 +106,7 @@ __all__ = [
     "arolc_gains",
     "certified_bound",
     "default_gains_path",
+    "shipped_gains_path",
     "draw_conditions",
     "gains_text",
     "grid_table",
@@ -211,9 +213,21 @@ def _payload_seed(rng: np.random.Generator) -> int:
 CONDITIONS: tuple[Condition, ...] = draw_conditions()
 
 
-def default_gains_path() -> Path:
+#: Environment variable naming a gains file to use instead of the shipped one
+#: (``delaytrack reproduce --gains PATH`` sets it for its run).
+GAINS_VARIABLE = "DELAYTRACK_GAINS"
+
+
+def shipped_gains_path() -> Path:
     """The shipped gains file, ``delaytrack/data/baseline_gains.toml``."""
     return Path(str(resources.files("delaytrack").joinpath("data", "baseline_gains.toml")))
+
+
+def default_gains_path() -> Path:
+    """The gains file the paper job and the robustness study read: the file named by the
+    environment variable ``DELAYTRACK_GAINS`` when it is set, else :func:`shipped_gains_path`."""
+    chosen = os.environ.get(GAINS_VARIABLE)
+    return Path(chosen) if chosen else shipped_gains_path()
 
 
 def vartheta_base(kind: str = "PCON", reference: str = "consistent") -> np.ndarray:

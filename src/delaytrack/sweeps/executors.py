@@ -120,7 +120,7 @@ def _distributed() -> Any:
     except ImportError:
         raise SweepError(
             "--scheduler needs dask.distributed, which is not installed: "
-            "pip install 'delaytrack[dask]'"
+            "pip install -e '.[dask]' (from a clone of delaytrack)"
         ) from None
     return distributed
 

@@ -2,9 +2,9 @@
 
 The paper adds 3.5 kg for 5 s, removes it for 5 s, and repeats, "at different places on the
 robotic platform every time". :class:`PayloadRobot` wraps a
-:class:`~delaytrack.plants.robot.truth.WheeledRobot` (perturbations are wrappers, STYLE.md) and its
-parameter vector carries the whole schedule, so the compiled terms kernel picks the payload in
-force from ``t``:
+:class:`~delaytrack.plants.robot.truth.WheeledRobot` (the payload is a wrapper around the robot,
+not a flag inside it) and its parameter vector carries the whole schedule, so the compiled terms
+kernel picks the payload in force from ``t``:
 
 * placement ``k = 0, 1, …`` is on during ``[t_k, t_k + time_on)``, ``t_k = first_on + k (time_on +
   time_off)``, and off otherwise; after the last placement the robot stays unloaded;

@@ -182,14 +182,29 @@ def test_simulate_writes_every_promised_file(short_scenario, tmp_path, capsys):
     assert np.isfinite(metrics.loc[0, "ae_q1"]) and metrics.loc[0, "ae_q1"] > 0
 
     frame = pd.read_parquet(out / "trajectories.parquet")
-    assert len(frame) == 251 and frame["t"].iloc[-1] == pytest.approx(0.5)
+    assert len(frame) == 251 and frame["t_s"].iloc[-1] == pytest.approx(0.5)
+    # One convention: coordinates counted from 1 as in metrics.csv, units in the names, the
+    # controller's bookkeeping left out.
+    assert list(frame.columns[:7]) == [
+        "run",
+        "t_s",
+        "h_s",
+        "q1_rad",
+        "q1_dot_rad_per_s",
+        "q1_d_rad",
+        "e1_q1_rad",
+    ]
+    assert {"u1_sent_Nm", "u2_applied_Nm", "c_hat"} <= set(frame.columns)
+    assert not any("previous" in column for column in frame.columns)
     csv = pd.read_csv(out / "trajectories.csv")
-    np.testing.assert_allclose(csv["e1_0"].to_numpy(), frame["e1_0"].to_numpy(), rtol=1e-12)
+    np.testing.assert_allclose(
+        csv["e1_q1_rad"].to_numpy(), frame["e1_q1_rad"].to_numpy(), rtol=1e-12
+    )
 
     as_run = Scenario.from_toml(out / "scenario.toml")
     assert as_run == Scenario.from_toml(short_scenario).resolved()
     # Re-running the saved scenario reproduces the metrics.
-    assert as_run.run().e1[0, -1, 0] == pytest.approx(frame["e1_0"].iloc[-1], rel=1e-12)
+    assert as_run.run().e1[0, -1, 0] == pytest.approx(frame["e1_q1_rad"].iloc[-1], rel=1e-12)
 
 
 def test_simulate_default_folder_and_builtin_name(tmp_path, monkeypatch, capsys):

@@ -72,8 +72,8 @@ def test_the_scenario_tracks_the_reference_through_the_cli(folder):
     errors = metrics[["ae_root_x", "ae_root_y"]].to_numpy()[0]
     assert np.all(np.isfinite(errors))
     trajectory = pd.read_csv(out / "trajectories.csv")
-    q = trajectory[["q_0", "q_1"]].to_numpy()
-    qd = trajectory[["qd_0", "qd_1"]].to_numpy()
+    q = trajectory[["root_x_m", "root_y_m"]].to_numpy()
+    qd = trajectory[["root_x_d_m", "root_y_d_m"]].to_numpy()
     # Left alone, the mass coasts a couple of centimetres and stops: its error is of the
     # order of the reference's amplitude. The controller's is far below both.
     x0 = np.array(Scenario.from_toml(scenario).x0)
@@ -83,7 +83,7 @@ def test_the_scenario_tracks_the_reference_through_the_cli(folder):
     # The reference stays inside the joint range and the commands inside the control range,
     # which MuJoCo would otherwise enforce.
     assert np.max(np.abs(q)) < 0.29
-    commands = trajectory[["command_0", "command_1"]].to_numpy()
+    commands = trajectory[["u1_sent", "u2_sent"]].to_numpy()
     assert np.max(np.abs(commands)) < 1.0
 
 

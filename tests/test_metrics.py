@@ -130,7 +130,7 @@ def test_metrics_table_rows_and_columns():
     table = metrics_table(constructed(), coordinate_names=["x", "y"], label="case")
     assert list(table.columns) == [
         "label",
-        "batch",
+        "run",
         "status",
         "t_stop",
         "ae_x",

@@ -44,7 +44,7 @@ def test_reproduce_smoke(tmp_path, capsys):
     for case in ("S1", "S3"):
         for controller in ("arolc", "outer-loop"):
             frame = pd.read_parquet(folder / "trajectories" / f"{case}_{controller}.parquet")
-            assert len(frame) == 501 and frame["t"].iloc[-1] == pytest.approx(1.0)
+            assert len(frame) == 501 and frame["t_s"].iloc[-1] == pytest.approx(1.0)
     for name in ("error_S1", "error_S3", "c_hat", "delay"):
         for ext in ("png", "svg"):
             assert (folder / "figures" / f"{name}.{ext}").stat().st_size > 1000

@@ -89,6 +89,12 @@ def test_a_sweep_gives_every_run_once_with_its_files(reference):
     assert "Sweep over two_link_S1" in html and html.count("data:image/png;base64,") == 2
     summary = pd.read_csv(reference.folder / "summary.csv")
     assert summary["runs"].sum() == 24 and len(summary) == 6
+    # Units in the column names (the two-link arm: rad, N·m), findings computed in the report.
+    assert "ae_q1_median_rad" in summary.columns and "tv_median_Nm" in summary.columns
+    assert "Findings" in html and "Smallest median ae_q1, per delay class" in html
+    best = summary.loc[summary.groupby("delay_class").ae_q1_median_rad.idxmin()]
+    for row in best.itertuples():
+        assert f"{row.delay_class}: {row.controller} ({row.ae_q1_median_rad:.3g} rad)" in html
 
 
 def test_batched_unit_equals_runs_one_by_one(reference):

@@ -228,7 +228,7 @@ def metrics_table(
     Returns
     -------
     DataFrame
-        Columns ``[label,] batch, status, t_stop, ae_<c>.., rms_<c>.., max_<c>.., tv``; metric
+        Columns ``[label,] run, status, t_stop, ae_<c>.., rms_<c>.., max_<c>.., tv``; metric
         values are NaN for runs whose status is not ``ok``. Every metric counts every
         controller tick of the window (module docstring): the running metrics without
         ``t_from``, the recorded trajectories (every tick) with it.
@@ -244,7 +244,7 @@ def metrics_table(
     columns: dict[str, object] = {}
     if label is not None:
         columns["label"] = [label] * result.batch_size
-    columns["batch"] = np.arange(result.batch_size)
+    columns["run"] = np.arange(result.batch_size)
     columns["status"] = result.status_names
     columns["t_stop"] = np.asarray(result.t_stop, dtype=float)
     values = _metrics(result, t_from)

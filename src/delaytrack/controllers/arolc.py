@@ -188,6 +188,11 @@ class AROLC(Controller):
     def state_names(self) -> tuple[str, ...]:
         return ("c_hat", "has_previous_s", *(f"s_previous_{i}" for i in range(self.n)))
 
+    @property
+    def reported_state_names(self) -> tuple[str, ...]:
+        """``ĉ`` only: the previous ``s`` is the adaptive law's bookkeeping."""
+        return ("c_hat",)
+
     def initial_state(self) -> np.ndarray:
         state = np.zeros(2 + self.n)
         state[_C_HAT] = self.c_hat0

@@ -149,6 +149,12 @@ class Controller(ABC):
     def state_names(self) -> tuple[str, ...]:
         """Names of the leading state entries that the simulator records (may be empty)."""
 
+    @property
+    def reported_state_names(self) -> tuple[str, ...]:
+        """The recorded state entries worth a column in result files (``SimResult.to_frame``);
+        all of :attr:`state_names` unless a controller keeps bookkeeping there."""
+        return self.state_names
+
     @abstractmethod
     def initial_state(self) -> np.ndarray:
         """State at the first tick."""

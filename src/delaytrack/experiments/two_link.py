@@ -118,7 +118,7 @@ def _summary(results: dict[str, SimResult]) -> pd.DataFrame:
         table = metrics_table(result, coordinate_names=_COORDINATES)
         table.insert(0, "controller", controller)
         table.insert(0, "scenario", list(CASES))
-        frames.append(table.drop(columns=["batch"]))
+        frames.append(table.drop(columns=["run"]))
     summary = pd.concat(frames, ignore_index=True)
     order = ["scenario", "controller"]
     metrics = [f"{p}_{c}" for p in ("ae", "rms", "max") for c in _COORDINATES] + ["tv"]
@@ -178,7 +178,7 @@ def run_study(
                     run_batched([no_delay]), coordinate_names=_COORDINATES, label=controller
                 )
                 .rename(columns={"label": "controller"})
-                .drop(columns=["batch"])
+                .drop(columns=["run"])
             )
             bar.update()
         if check_dt:
@@ -382,7 +382,7 @@ def write_study(study: TwoLinkStudy, folder: str | Path) -> list[Path]:
     for (case, controller), scenario in study.scenarios.items():
         files.append(folder / "scenarios" / f"{scenario.name}.toml")
         scenario.to_toml(files[-1])
-        frame = study.run(case, controller).to_frame().drop(columns=["batch"])
+        frame = study.run(case, controller).to_frame().drop(columns=["run"])
         files.append(write_frame(frame, folder / "trajectories" / f"{case}_{controller}.parquet"))
     figures = _figures(study)
     for name, (figure, _) in figures.items():

@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from delaytrack.sim.engine import STATUS_NAMES
+from delaytrack.units import coordinate_labels, with_unit
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -56,6 +57,9 @@ class SimResult:
     coordinate_units, input_units : tuple of str, optional
         The plant's units of its coordinates and inputs (``m``, ``rad``, ``N·m``), for figure
         axes and table columns; None when the plant does not say.
+    reported_state_names : tuple of str, optional
+        The controller state entries that :meth:`to_frame` writes (the controller's
+        bookkeeping left out); None means all of ``controller_state_names``.
     """
 
     t: np.ndarray
@@ -73,6 +77,7 @@ class SimResult:
     coordinate_names: tuple[str, ...] | None = None
     coordinate_units: tuple[str, ...] | None = None
     input_units: tuple[str, ...] | None = None
+    reported_state_names: tuple[str, ...] | None = None
 
     @property
     def has_trajectories(self) -> bool:
@@ -134,6 +139,7 @@ class SimResult:
             coordinate_names=self.coordinate_names,
             coordinate_units=self.coordinate_units,
             input_units=self.input_units,
+            reported_state_names=self.reported_state_names,
         )
 
     def plot(self, run: int = 0) -> Figure:
@@ -148,7 +154,7 @@ class SimResult:
 
     def _summary_frame(self) -> pd.DataFrame:
         """Status, stop time, AE per coordinate (in its unit) and TV per run."""
-        names = self.coordinate_names or tuple(f"q{i + 1}" for i in range(self.n))
+        names = coordinate_labels(self.coordinate_names, self.n)
         units = self.coordinate_units or (None,) * self.n
         frame = pd.DataFrame({"status": self.status_names, "t_stop (s)": self.t_stop})
         if "ae" in self.metrics:
@@ -160,7 +166,7 @@ class SimResult:
         return frame
 
     def __repr__(self) -> str:
-        names = self.coordinate_names or tuple(f"q{i + 1}" for i in range(self.n))
+        names = coordinate_labels(self.coordinate_names, self.n)
         span = (
             f"t = {self.t[0]:g} .. {self.t[-1]:g} s ({self.t.size} records)"
             if self.has_trajectories
@@ -180,27 +186,38 @@ class SimResult:
         )
 
     def to_frame(self) -> pd.DataFrame:
-        """Long table, one row per (batch element, record time).
+        """Long table, one row per (run, record time), with units in the column names
+        (:mod:`delaytrack.units`).
 
-        Columns: ``batch, t, h, q_i, qdot_i, qd_i, e1_i, command_j, applied_j`` and the
-        controller state by name.
+        Columns: ``run``, ``t_s``, ``h_s`` (the true delay); per coordinate ``c`` with unit
+        ``U``: ``c_U`` (position), ``c_dot_U_per_s``, ``c_d_U`` (the reference ``q_d``),
+        ``e1_c_U`` (``q_d − q``); per input ``uj`` with unit ``V``: ``uj_sent_V`` and
+        ``uj_applied_V``; then the controller's reported state by name (for AROLC ``c_hat``).
+        A unit the plant does not declare is left out of the name.
         """
         batch, records = self.batch_size, self.t.size
+        names = coordinate_labels(self.coordinate_names, self.n)
+        units = self.coordinate_units or (None,) * self.n
+        inputs = self.commands.shape[2]
+        input_units = self.input_units or (None,) * inputs
         columns: dict[str, np.ndarray] = {
-            "batch": np.repeat(np.arange(batch), records),
-            "t": np.tile(self.t, batch),
-            "h": self.h.ravel(),
+            "run": np.repeat(np.arange(batch), records),
+            "t_s": np.tile(self.t, batch),
+            "h_s": self.h.ravel(),
         }
-        for i in range(self.n):
-            columns[f"q_{i}"] = self.q[:, :, i].ravel()
-            columns[f"qdot_{i}"] = self.qdot[:, :, i].ravel()
-            columns[f"qd_{i}"] = np.tile(self.reference[:, 0, i], batch)
-            columns[f"e1_{i}"] = self.e1[:, :, i].ravel()
-        for j in range(self.commands.shape[2]):
-            columns[f"command_{j}"] = self.commands[:, :, j].ravel()
-            columns[f"applied_{j}"] = self.applied[:, :, j].ravel()
+        for i, (name, unit) in enumerate(zip(names, units, strict=True)):
+            rate = f"{unit}/s" if unit else None
+            columns[with_unit(name, unit)] = self.q[:, :, i].ravel()
+            columns[with_unit(f"{name}_dot", rate)] = self.qdot[:, :, i].ravel()
+            columns[with_unit(f"{name}_d", unit)] = np.tile(self.reference[:, 0, i], batch)
+            columns[with_unit(f"e1_{name}", unit)] = self.e1[:, :, i].ravel()
+        for j, unit in enumerate(input_units):
+            columns[with_unit(f"u{j + 1}_sent", unit)] = self.commands[:, :, j].ravel()
+            columns[with_unit(f"u{j + 1}_applied", unit)] = self.applied[:, :, j].ravel()
+        reported = self.reported_state_names
         for j, name in enumerate(self.controller_state_names):
-            columns[name] = self.controller_state[:, :, j].ravel()
+            if reported is None or name in reported:
+                columns[name] = self.controller_state[:, :, j].ravel()
         return pd.DataFrame(columns)
 
 

@@ -645,6 +645,7 @@ def simulate(
         h=delay_records,
         controller_state=controller_states,
         controller_state_names=first_controller.state_names,
+        reported_state_names=first_controller.reported_state_names,
         status=status,
         t_stop=t_stop,
         metrics=finish_metrics(sums, status == 0),

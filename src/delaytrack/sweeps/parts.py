@@ -91,7 +91,7 @@ def _simulate_batch(runs: list[Run], workers: int | None) -> pd.DataFrame:
     except ValueError as error:
         indices = [run.index for run in runs]
         raise SweepError(f"runs {indices} cannot be simulated together: {error}") from None
-    frame = metrics_table(result, built[0].plant.coordinate_names).drop(columns="batch")
+    frame = metrics_table(result, built[0].plant.coordinate_names).drop(columns="run")
     frame.insert(0, "h_max", [float(b.delay.h_max) for b in built])
     return frame
 

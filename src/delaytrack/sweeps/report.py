@@ -25,18 +25,23 @@ from delaytrack import __version__
 from delaytrack._io import write_frame
 from delaytrack.report import HtmlReport, save_figure
 from delaytrack.sweeps.runner import SweepOutcome, folder_lock
+from delaytrack.sweeps.spec import SweepSpec
 from delaytrack.sweeps.summary import (
     STATISTICS,
     controller_labels,
     default_metrics,
     summary_table,
 )
+from delaytrack.units import with_unit
 
 __all__ = [
     "ae_vs_h_max_figure",
     "distribution_figure",
+    "findings",
+    "metric_units",
     "sweep_figures",
     "sweep_section",
+    "with_units",
     "write_sweep_outputs",
 ]
 
@@ -61,8 +66,30 @@ def _log_scale_if_wide(ax, values: np.ndarray) -> None:
             ax.set_yscale("log")
 
 
+def metric_units(spec: SweepSpec) -> dict[str, str]:
+    """Unit of each metric column a sweep's runs can have, from the base scenario's plant:
+    ``ae_<c>``, ``rms_<c>``, ``max_<c>`` in the coordinate's unit, ``tv`` in the inputs' unit
+    (when they share one); metrics whose unit the plant does not give are left out."""
+    plant = spec.base.build().plant
+    names = plant.coordinate_names or [f"q{i + 1}" for i in range(plant.n)]
+    units: dict[str, str] = {}
+    for name, unit in zip(names, plant.coordinate_units or [None] * plant.n, strict=True):
+        if unit:
+            units.update({f"{prefix}_{name}": unit for prefix in ("ae", "rms", "max")})
+    if plant.input_units and len(set(plant.input_units)) == 1:
+        units["tv"] = plant.input_units[0]
+    return units
+
+
+def _axis_label(metric: str, units: Mapping[str, str]) -> str:
+    return f"{metric} ({units[metric]})" if metric in units else metric
+
+
 def distribution_figure(
-    runs: pd.DataFrame, metrics: Sequence[str], label_keys: Sequence[str] | None = None
+    runs: pd.DataFrame,
+    metrics: Sequence[str],
+    label_keys: Sequence[str] | None = None,
+    units: Mapping[str, str] | None = None,
 ) -> Figure:
     """Per metric, one box per controller over its ``ok`` runs; the share not ok below it."""
     labels = controller_labels(runs, label_keys)
@@ -78,13 +105,17 @@ def distribution_figure(
         ax.boxplot(data, whis=(5, 95), flierprops={"markersize": 2})
         ax.set_xticks(range(1, len(order) + 1), names, fontsize="small")
         ax.set_title(metric)
+        ax.set_ylabel(_axis_label(metric, units or {}))
         _log_scale_if_wide(ax, np.concatenate(data) if data else np.array([]))
         ax.grid(True, axis="y", alpha=0.3)
     return figure
 
 
 def ae_vs_h_max_figure(
-    runs: pd.DataFrame, metrics: Sequence[str], label_keys: Sequence[str] | None = None
+    runs: pd.DataFrame,
+    metrics: Sequence[str],
+    label_keys: Sequence[str] | None = None,
+    units: Mapping[str, str] | None = None,
 ) -> Figure:
     """Each AE metric (or the first metric, if none is an AE) against ``h_max`` in ms."""
     shown = [metric for metric in metrics if metric.startswith("ae_")] or list(metrics[:1])
@@ -102,6 +133,7 @@ def ae_vs_h_max_figure(
                 label=label,
             )
         ax.set_xlabel("h_max (ms)")
+        ax.set_ylabel(_axis_label(metric, units or {}))
         ax.set_title(metric)
         _log_scale_if_wide(ax, runs.loc[ok, metric].to_numpy(float))
         ax.grid(True, alpha=0.3)
@@ -109,10 +141,47 @@ def ae_vs_h_max_figure(
     return figure
 
 
-def _metric_table(summary: pd.DataFrame, metric: str) -> pd.DataFrame:
-    columns = {f"{metric}_{name}": name for name in STATISTICS}
+def _metric_table(summary: pd.DataFrame, metric: str, unit: str | None) -> pd.DataFrame:
+    suffix = f" ({unit})" if unit else ""
+    columns = {f"{metric}_{name}": f"{name}{suffix}" for name in STATISTICS}
     frame = summary[["controller", "delay_class", "runs", *columns]]
     return frame.rename(columns=columns)
+
+
+def with_units(summary: pd.DataFrame, units: Mapping[str, str]) -> pd.DataFrame:
+    """The summary with each metric statistic's unit in its column name (``ae_x_median_m``)."""
+    renamed = {}
+    for metric, unit in units.items():
+        for name in STATISTICS:
+            if f"{metric}_{name}" in summary.columns:
+                renamed[f"{metric}_{name}"] = with_unit(f"{metric}_{name}", unit)
+    return summary.rename(columns=renamed)
+
+
+def findings(summary: pd.DataFrame, metrics: Sequence[str], units: Mapping[str, str]) -> list[str]:
+    """Sentences computed from the summary: divergence per controller, and per delay class the
+    controller with the smallest median of each metric."""
+    out = []
+    by_controller = summary.groupby("controller", sort=False)[["runs", "diverged", "failed"]].sum()
+    parts = [
+        f"{name} {int(row.diverged)} of {int(row.runs)}"
+        + (f" ({int(row.failed)} more failed)" if row.failed else "")
+        for name, row in by_controller.iterrows()
+    ]
+    out.append("Runs that diverged or left the path, per controller: " + "; ".join(parts) + ".")
+    for metric in metrics:
+        column = f"{metric}_median"
+        unit = f" {units[metric]}" if metric in units else ""
+        best = []
+        for delay_class, rows in summary.groupby("delay_class", sort=False):
+            rows = rows[np.isfinite(rows[column].to_numpy(float))]
+            if len(rows) < 2:
+                continue
+            winner = rows.loc[rows[column].idxmin()]
+            best.append(f"{delay_class}: {winner.controller} ({winner[column]:.3g}{unit})")
+        if best:
+            out.append(f"Smallest median {metric}, per delay class: " + "; ".join(best) + ".")
+    return out
 
 
 def sweep_section(
@@ -121,11 +190,14 @@ def sweep_section(
     summary: pd.DataFrame,
     metrics: Sequence[str],
     figures: Mapping[str, tuple[Figure, str]],
+    units: Mapping[str, str] | None = None,
 ) -> None:
-    """Add the sweep's section to ``report``: set-up, outcome counts, summary tables, figures.
+    """Add the sweep's section to ``report``: set-up, findings, outcome counts, summary tables
+    with units, figures.
 
-    ``figures`` is :func:`sweep_figures`'s mapping.
+    ``figures`` is :func:`sweep_figures`'s mapping; ``units`` is :func:`metric_units`'.
     """
+    units = units or {}
     spec = outcome.spec
     report.heading(f"Sweep over {spec.base.name}")
     report.settings(
@@ -155,6 +227,8 @@ def sweep_section(
             note=True,
         )
         report.bullets(f"{name}: {reason}" for name, reason in outcome.rejected.items())
+    report.heading("Findings", level=3)
+    report.bullets(findings(summary, metrics, units))
     report.heading("Outcomes", level=3)
     report.paragraph(
         "Divergence rate: share of runs whose state left the engine's bound or became non-finite. "
@@ -164,25 +238,28 @@ def sweep_section(
     outcomes = ["controller", "delay_class", "runs", "diverged", "divergence_rate", "failed"]
     report.table(summary[outcomes])
     for metric in metrics:
-        report.heading(metric, level=3)
-        report.table(_metric_table(summary, metric))
+        report.heading(_axis_label(metric, units), level=3)
+        report.table(_metric_table(summary, metric, units.get(metric)))
     report.heading("Figures", level=3)
     for figure, caption in figures.values():
         report.figure(figure, caption)
 
 
 def sweep_figures(
-    runs: pd.DataFrame, metrics: Sequence[str], label_keys: Sequence[str] | None = None
+    runs: pd.DataFrame,
+    metrics: Sequence[str],
+    label_keys: Sequence[str] | None = None,
+    units: Mapping[str, str] | None = None,
 ) -> dict[str, tuple[Figure, str]]:
     """File stem -> (figure, caption) of the sweep's figures."""
     return {
         "distributions": (
-            distribution_figure(runs, metrics, label_keys),
+            distribution_figure(runs, metrics, label_keys, units),
             "Distribution per controller (runs that ended ok; box: quartiles, whiskers: 5th and "
             "95th percentiles).",
         ),
         "ae_vs_h_max": (
-            ae_vs_h_max_figure(runs, metrics, label_keys),
+            ae_vs_h_max_figure(runs, metrics, label_keys, units),
             "Mean absolute tracking error against the delay bound h_max of each run (runs that "
             "ended ok).",
         ),
@@ -206,11 +283,12 @@ def _write_outputs(outcome: SweepOutcome, formats: Sequence[str]) -> list[Path]:
     metrics = list(outcome.spec.metrics or default_metrics(outcome.runs))
     keys = outcome.spec.label_keys
     summary = summary_table(outcome.runs, metrics, keys)
-    paths = [write_frame(summary, folder / "summary.csv")]
-    figures = sweep_figures(outcome.runs, metrics, keys)
+    units = metric_units(outcome.spec)
+    paths = [write_frame(with_units(summary, units), folder / "summary.csv")]
+    figures = sweep_figures(outcome.runs, metrics, keys, units)
     for stem, (figure, _) in figures.items():
         paths += save_figure(figure, folder / "figures" / stem, formats)
     report = HtmlReport(f"delaytrack sweep: {outcome.spec.base.name}")
-    sweep_section(report, outcome, summary, metrics, figures)
+    sweep_section(report, outcome, summary, metrics, figures, units)
     paths.append(report.write(folder / "report.html"))
     return paths

@@ -218,6 +218,7 @@ class MujocoPlant(ELPlant):
     n: int = field(init=False)
     m: int = field(init=False)
     coordinate_names: tuple[str, ...] | None = field(init=False)
+    coordinate_units: tuple[str, ...] | None = field(init=False)
     _model: Any = field(init=False, repr=False)
     _data: Any = field(init=False, repr=False)
     _scratch: np.ndarray = field(init=False, repr=False)
@@ -290,6 +291,8 @@ class MujocoPlant(ELPlant):
             ("n", len(joints)),
             ("m", int(model.nu)),
             ("coordinate_names", names if usable else None),
+            # Slide joints move in metres, hinge joints turn in radians (MuJoCo's units).
+            ("coordinate_units", tuple("m" if model.jnt_type[j] == 2 else "rad" for j in joints)),
             ("_model", model),
             ("_data", data),
             ("_scratch", scratch),

@@ -1,0 +1,33 @@
+"""How results name quantities and their units in table columns and figure axes.
+
+Every table a run or a sweep writes names a column ``<quantity>[_<coordinate>][_<unit>]``:
+
+- coordinates by the plant's names (``x, y, phi, theta_r, theta_l`` for the robot), otherwise
+  ``q1 .. qn`` counted from 1; inputs ``u1 .. um``;
+- units in ASCII (:func:`ascii_unit`): ``m``, ``rad``, ``Nm``, ``m_per_s``, ``rad_per_s``,
+  ``s``, ``mm``; a quantity whose unit the plant does not declare has no unit suffix (its unit
+  is the plant's own);
+- metric columns ``ae_<c>``, ``rms_<c>``, ``max_<c>`` (in the coordinate's unit) and ``tv`` (in
+  the inputs' unit) keep these short names where sweep files refer to them (``metrics = [...]``);
+  the tables written for reading (a sweep's ``summary.csv``, the paper job's ``summary.csv``)
+  carry the unit in the column name.
+"""
+
+from __future__ import annotations
+
+__all__ = ["ascii_unit", "coordinate_labels", "with_unit"]
+
+
+def ascii_unit(unit: str) -> str:
+    """A unit as it appears in column names: ``N·m`` -> ``Nm``, ``m/s`` -> ``m_per_s``."""
+    return unit.replace("·", "").replace("/", "_per_").replace(" ", "")
+
+
+def with_unit(name: str, unit: str | None) -> str:
+    """``name_<unit>``, or ``name`` when the unit is not known."""
+    return f"{name}_{ascii_unit(unit)}" if unit else name
+
+
+def coordinate_labels(names: tuple[str, ...] | None, n: int) -> tuple[str, ...]:
+    """The plant's coordinate names, or ``q1 .. qn``."""
+    return tuple(names) if names is not None else tuple(f"q{i + 1}" for i in range(n))

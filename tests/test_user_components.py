@@ -197,7 +197,13 @@ def test_a_kernel_numba_cannot_compile_is_a_one_line_error(example, capsys):
     assert main(["simulate", str(path), "--out", str(example / "out")]) == 2
     err = capsys.readouterr().err
     assert "numba could not compile the engine" in err and "Traceback" not in err
-    assert err.strip().count("\n") <= 1
+    # The error is one line, the last; before it only the compile notice and the progress bar
+    # (shown by default) may stand.
+    lines = err.strip().splitlines()
+    assert [line for line in lines if line.startswith("error:")] == [lines[-1]]
+    assert main(["simulate", str(path), "--out", str(example / "out"), "--quiet"]) == 2
+    quiet = capsys.readouterr().err.strip().splitlines()
+    assert quiet[-1].startswith("error: ") and len(quiet) <= 2  # the notice, then the error
 
 
 def test_sweep_parts_follow_the_users_code(example):

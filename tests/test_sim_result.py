@@ -49,15 +49,9 @@ def test_plot_labels_every_axis_with_names_and_units(arm_result):
         arm_result.plot(2)
 
 
-def test_a_user_plant_carries_its_names_and_units_into_the_figure():
-    plant = CallablePlant(
-        1,
-        lambda q: np.eye(1),
-        lambda q, qdot: np.zeros(1),
-        coordinate_names=["angle"],
-        coordinate_units=["rad"],
-    )
-    result = simulate(
+def outer_loop_run(plant):
+    """One second of a one-coordinate plant under the outer loop and S1."""
+    return simulate(
         plant,
         OuterLoop(plant, K1=1.0, K2=1.0),
         AbsSineDelay.S1(),
@@ -67,22 +61,23 @@ def test_a_user_plant_carries_its_names_and_units_into_the_figure():
         dt=0.001,
         T_c=0.01,
     )
+
+
+def test_a_user_plant_carries_its_names_and_units_into_the_figure():
+    plant = CallablePlant(
+        1,
+        lambda q: np.eye(1),
+        lambda q, qdot: np.zeros(1),
+        coordinate_names=["angle"],
+        coordinate_units=["rad"],
+    )
+    result = outer_loop_run(plant)
     assert result.coordinate_names == ("angle",) and result.coordinate_units == ("rad",)
     figure = result.plot()
     assert figure.axes[0].get_ylabel() == "angle (rad)"
     assert "AE angle (rad)" in result._repr_html_()
     # No units given: the labels say only the name, never a made-up unit.
-    bare = LinearPlant(np.eye(1))
-    result = simulate(
-        bare,
-        OuterLoop(bare, K1=1.0, K2=1.0),
-        AbsSineDelay.S1(),
-        np.zeros(2),
-        reference=SinusoidalReference([0.0], amplitude=[0.5], frequency=[0.5]),
-        t1=0.5,
-        dt=0.001,
-        T_c=0.01,
-    )
+    result = outer_loop_run(LinearPlant(np.eye(1)))
     assert result.plot().axes[0].get_ylabel() == "q1"
 
 

@@ -1,9 +1,10 @@
-"""AROLC and the outer loop, checked tick by tick against the laws of SPEC §2 written out here.
+"""AROLC and the outer loop, checked tick by tick against Roy & Kar's laws, written out here.
 
 Reference computations are independent of the code under test: the two-link arm's M̂, N̂ are
 re-typed from the closed form in ``delaytrack.plants.two_link_arm``'s docstring, P comes from a
 Kronecker-product solve of AᵀP + PA = −Q (not scipy's Lyapunov solver), and the adaptive law is
-the three-case rule of SPEC §2 with the backward-difference sign of sᵀṡ and forward-Euler ĉ.
+the three-case rule of the paper's (ATRC) with the backward-difference sign of sᵀṡ and
+forward-Euler ĉ (docs/decisions.md D4 and D2).
 """
 
 from __future__ import annotations
@@ -18,7 +19,8 @@ from delaytrack.controllers import AROLC, OuterLoop, controller_from_spec
 from delaytrack.controllers.arolc import adaptive_gain_rate
 from delaytrack.plants import CallablePlant, LinearPlant, TwoLinkArm
 
-# SPEC §2: the paper's gains K1 = K2 = Q = I, alpha = 2, epsilon = 0.1, gamma = 0.001.
+# The paper's gains (Roy & Kar, Section III): K1 = K2 = Q = I, alpha = 2, epsilon = 0.1,
+# gamma = 0.001.
 PAPER = dict(K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
 T_C = 0.01
 
@@ -49,7 +51,7 @@ def reference_sample(rng, n=2, scale=1.0):
 
 
 def sliding_variable(P, q, qdot, qd, qd_dot):
-    """s = Bᵀ P e with B = [0; I], e = [q_d − q; q̇_d − q̇] (SPEC §2)."""
+    """s = Bᵀ P e with B = [0; I], e = [q_d − q; q̇_d − q̇] (Roy & Kar, Section II)."""
     n = q.size
     e = np.concatenate([qd - q, qd_dot - qdot])
     return P[n:, :] @ e
@@ -150,7 +152,8 @@ def test_arolc_command_is_outer_loop_plus_switching_term(rng, arm, regime):
         c_hat = rng.uniform(0.01, 3.0)
         state = np.array([c_hat, 1.0, *rng.standard_normal(2)])
         command, _ = controller.step(1.0, q, qdot, reference, state, T_c=T_C)
-        # SPEC §2: Δu = α ĉ s/‖s‖ if ‖s‖ >= ε, α ĉ s/ε otherwise; ĉ is the value at this tick.
+        # Roy & Kar (delta u): Δu = α ĉ s/‖s‖ if ‖s‖ >= ε, α ĉ s/ε otherwise; ĉ is the value
+        # at this tick (docs/decisions.md D2).
         delta_u = alpha * c_hat * s / max(norm_s, epsilon)
         expected = outer_loop_command(K1, K2, q, qdot, reference, delta_u)
         np.testing.assert_allclose(command, expected, rtol=1e-10, atol=1e-10)
@@ -173,7 +176,8 @@ def test_arolc_alpha_to_zero_is_the_outer_loop(rng, arm):
 
 
 # --------------------------------------------------------------------------------------------
-# Adaptive law (SPEC §2, (ATRC) with backward-difference sᵀṡ and forward Euler at T_c)
+# Adaptive law (the paper's (ATRC), with backward-difference sᵀṡ and forward Euler at T_c;
+# docs/decisions.md D4, D2)
 # --------------------------------------------------------------------------------------------
 
 GAMMA = 0.001

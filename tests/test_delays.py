@@ -1,10 +1,10 @@
-"""Delay profiles h(t) and the compiled kernel behind them (SPEC §5, §6 "Delay scenarios").
+"""Delay profiles h(t) and the compiled kernel behind them (docs/decisions.md D11, D12, D21).
 
 Every reference value is an independent numpy formula written here, never a call back into the
-code under test: the rectified sines of the paper's S1/S2 (SPEC §6), a right-continuous step
+code under test: the rectified sines of the paper's S1/S2 (Section III), a right-continuous step
 function for the piecewise-constant profile, ``np.interp`` for traces, and closed-form kink and
-extremum instants of ``t - h(t)`` for the breakpoint search the simulator relies on (SPEC §5,
-"split the step at those instants").
+extremum instants of ``t - h(t)`` for the breakpoint search the simulator relies on (it splits
+each RK4 step at those instants: docs/decisions.md D12).
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ def step_function(times: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.nd
 
 
 def test_s1_matches_paper_formula():
-    # SPEC §6: S1 h = 20 + 80 |sin t| ms.
+    # Roy & Kar, Section III: S1 h = 20 + 80 |sin t| ms.
     profile = AbsSineDelay.S1()
     expected = 0.020 + 0.080 * np.abs(np.sin(TIMES))
     np.testing.assert_allclose(profile.h(TIMES), expected, rtol=1e-15, atol=1e-17)
@@ -64,7 +64,7 @@ def test_s1_matches_paper_formula():
 
 
 def test_s2_matches_paper_formula():
-    # SPEC §6: S2 h = 5 + 120 |sin 0.1 t| ms.
+    # Roy & Kar, Section III: S2 h = 5 + 120 |sin 0.1 t| ms.
     profile = AbsSineDelay.S2()
     expected = 0.005 + 0.120 * np.abs(np.sin(0.1 * TIMES))
     np.testing.assert_allclose(profile.h(TIMES), expected, rtol=1e-15, atol=1e-17)
@@ -79,7 +79,7 @@ def test_abs_sine_with_phase_matches_formula():
 
 @pytest.mark.parametrize("name, value", [("S3", 0.060), ("S4", 0.120)])
 def test_paper_constant_delays(name, value):
-    # SPEC §6: S3 60 ms, S4 120 ms.
+    # Roy & Kar, Section III: S3 60 ms, S4 120 ms.
     profile = DELAY_SPECS[name].build()
     assert isinstance(profile, ConstantDelay)
     np.testing.assert_array_equal(profile.h(TIMES), np.full(TIMES.shape, value))
@@ -200,8 +200,9 @@ def test_random_delay_rate_bound(max_rate):
     slopes = np.diff(knot_values) / np.diff(knot_times)
     assert np.max(np.abs(slopes)) <= max_rate * (1 + 1e-9)
     assert np.all(knot_values >= 0.0) and np.all(knot_values <= 0.2)
-    # The rate bound is used in both directions, not silently clamped to 1 (SPEC §5 allows
-    # dh/dt < -1): with ~200 uniform slope draws some come within a factor 2 of +-max_rate.
+    # The rate bound is used in both directions, not silently clamped to 1 (docs/decisions.md
+    # D11 allows dh/dt < -1): with ~200 uniform slope draws some come within a factor 2 of
+    # +-max_rate.
     assert np.max(slopes) > 0.5 * max_rate
     assert np.min(slopes) < -0.5 * max_rate
 
@@ -369,7 +370,7 @@ def test_crossing_time_abs_sine(profile, t0, t1):
             target = g_a + fraction * (g_b - g_a)
             root = crossing_time(profile.kind, profile.params, a, b, g_a, g_b, target)
             assert a <= root <= b
-            # SPEC §5: the crossing instant is solved, to ~1e-14 in g.
+            # The crossing instant is solved (docs/decisions.md D12), to ~1e-14 in g.
             assert abs(g(root) - target) <= 1e-14 * max(1.0, abs(target))
             # Independent bracketing oracle.
             reference = scipy.optimize.brentq(

@@ -1,4 +1,5 @@
-"""The simulation engine (SPEC §5): delayed lookup, step splitting, order, batching, status."""
+"""The simulation engine (docs/decisions.md D10–D17): delayed lookup, step splitting, order,
+batching, status."""
 
 from __future__ import annotations
 

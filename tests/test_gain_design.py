@@ -9,7 +9,7 @@ import pytest
 
 from delaytrack.analysis import GainDesign, design_gains, exact_delay_margin, razumikhin_bound
 
-PAPER_H_M = 0.12487  # K1 = K2 = Q = I, beta = 1, r = 1.1 (SPEC §3)
+PAPER_H_M = 0.12487  # K1 = K2 = Q = I, beta = 1, r = 1.1 (docs/decisions.md D8)
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,5 @@
-"""Metrics of SPEC §6 against values computed by hand on a tiny constructed result.
+"""Metrics (AE, %AE and TV as in Roy & Kar, Section III; RMS and max) against values computed
+by hand on a tiny constructed result.
 
 The result below has two runs of a 2-coordinate, 2-input system over four records
 t = 0, 1, 2, 3. The reference is q_d = (1, 0) throughout, so e1 = q_d - q is easy to read off:

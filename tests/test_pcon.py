@@ -1,9 +1,10 @@
-"""PCON and PCONf (SPEC §4), checked against the law and an independent integral of τ.
+"""PCON and PCONf (Roy & Kar (filter), (int error); docs/decisions.md D23), checked against the
+law and an independent integral of τ.
 
 The oracle for ``e_z(t_k) = ∫_{t_k−h}^{t_k} τ(θ) dθ`` is written out here with exact rational
 arithmetic over absolute tick intervals ``[j T_c, (j+1) T_c)`` (``fractions.Fraction`` of the very
 floats the controller sees), not with the controller's relative-tick weights. The predictor
-property is the identity of ROBOT-NOTES ("The predictor baselines"): with ``ϑ = M⁻¹`` and a
+property is the identity in docs/decisions.md D23 ("Property"): with ``ϑ = M⁻¹`` and a
 constant delay, ``M ϱ̇ = M(q̈_d + κ ė1) + N − τ(t)``, in which the delayed input does not appear.
 """
 
@@ -171,7 +172,7 @@ def test_command_is_k_b_rho_through_the_command_map(arm, model_kind):
                 0.5, q, qdot, (qd, qd_dot, qd_ddot), state, T_c=T_C, h=0.071
             )
             e_z = after[:2]
-            # SPEC §4: ϱ = ė1 + κ e1 − ϑ e_z, τ = k_b ϱ, command = Ĝ⁻¹ τ.
+            # Roy & Kar (filter) and D23: ϱ = ė1 + κ e1 − ϑ e_z, τ = k_b ϱ, command = Ĝ⁻¹ τ.
             rho = (qd_dot - qdot) + kappa * (qd - q) - vartheta @ e_z
             np.testing.assert_allclose(after[2:4], rho, rtol=1e-12, atol=1e-12)
             np.testing.assert_allclose(
@@ -260,7 +261,8 @@ def test_without_its_predictor_the_same_law_diverges(arm, arm_gains):
 @pytest.mark.parametrize("delay", [0.05, 0.047])
 def test_predictor_cancels_the_delayed_input(delay):
     # Pure inertia M q̈ = τ(t − h) (D = K = 0, N = 0), exact model, ϑ = M⁻¹, q_d linear in t
-    # (q̈_d = 0). ROBOT-NOTES: M ϱ̇ = M(q̈_d + κ ė1) + N − τ(t) + [(1 − ḣ) M ϑ − I] τ(t − h), so
+    # (q̈_d = 0). Differentiating (filter) with (int error) (docs/decisions.md D23):
+    # M ϱ̇ = M(q̈_d + κ ė1) + N − τ(t) + [(1 − ḣ) M ϑ − I] τ(t − h), so
     # over one tick  M (ϱ_{k+1} − ϱ_k − κ (e1_{k+1} − e1_k)) = −T_c τ_k  exactly (RK4 is exact
     # for the piecewise-quadratic q). A wrong ϑ leaves the delayed input in: the residual is
     # then −T_c ((1 − M ϑ) τ_{k−…}) ≠ 0.

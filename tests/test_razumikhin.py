@@ -16,8 +16,8 @@ from delaytrack.analysis import (
     razumikhin_bound,
 )
 
-# The paper's gains (Section 3, SPEC §2): K1 = K2 = Q = I, beta = 1, r = 1.1.
-PAPER_H_M = 0.12487  # SPEC §3; the paper states "125 ms".
+# The paper's gains (Roy & Kar, Section III): K1 = K2 = Q = I, beta = 1, r = 1.1.
+PAPER_H_M = 0.12487  # docs/decisions.md D8; the paper states "125 ms".
 
 
 def random_spd(rng: np.random.Generator, n: int, shift: float = 0.5) -> np.ndarray:

@@ -55,7 +55,8 @@ def test_derivatives_match_finite_differences(reference):
 
 
 def test_paper_circle_x_y():
-    # SPEC §6: x_d = 1.25 sin(0.35 t) + 0.1, y_d = 1.25 cos(0.35 t) + 1.35 = 1.25 sin(0.35 t + π/2).
+    # Roy & Kar, Section III: x_d = 1.25 sin(0.35 t) + 0.1,
+    # y_d = 1.25 cos(0.35 t) + 1.35 = 1.25 sin(0.35 t + π/2).
     circle = SinusoidalReference(
         [0.1, 1.35], amplitude=[1.25, 1.25], frequency=[0.35, 0.35], phase=[0.0, np.pi / 2]
     )
@@ -63,7 +64,7 @@ def test_paper_circle_x_y():
     qd, qd_dot, qd_ddot = circle.evaluate(t)
     np.testing.assert_allclose(qd[:, 0], 1.25 * np.sin(0.35 * t) + 0.1, rtol=1e-14, atol=1e-14)
     np.testing.assert_allclose(qd[:, 1], 1.25 * np.cos(0.35 * t) + 1.35, rtol=1e-14, atol=1e-14)
-    # Speed on the circle: 1.25 * 0.35 = 0.4375 m/s (SPEC §6).
+    # Speed on the circle: 1.25 * 0.35 = 0.4375 m/s (docs/robot.md, "Reference path").
     np.testing.assert_allclose(np.linalg.norm(qd_dot, axis=1), 0.4375, rtol=1e-14)
     np.testing.assert_allclose(np.linalg.norm(qd_ddot, axis=1), 1.25 * 0.35**2, rtol=1e-14)
 

@@ -1,8 +1,9 @@
 """The robot's nominal model, its command map ``τ_w = S(q)ᵀ τ`` and the plant registry.
 
-References: ROBOT-NOTES' reduced mass matrix (re-typed in ``robot_notes_reduced_mass``), the
-kinematic map ``S(q)`` and input map ``G = [0; 0; 0; I]`` as printed in SPEC §6 and in
-``delaytrack.plants.robot.kinematics`` (re-typed in ``kinematic_map_by_hand``).
+References: the published reduced mass matrix M_r (docs/robot.md; re-typed in
+``robot_notes_reduced_mass``), the kinematic map ``S(q)`` of docs/robot.md and in
+``delaytrack.plants.robot.kinematics`` (re-typed in ``kinematic_map_by_hand``), and the input map
+``G = [0; 0; 0; I]`` as printed in Roy & Kar, Section III.
 """
 
 from __future__ import annotations
@@ -92,7 +93,8 @@ def test_nominal_closed_form_at_p3dx_values():
 
 
 def test_projected_nominal_mass_is_the_reduced_mass(angles):
-    """Sᵀ M̂ S = M_r of ROBOT-NOTES (nominal parameters, CoM on the heading axis), and SᵀG = I."""
+    """Sᵀ M̂ S = the published M_r (docs/robot.md; nominal parameters, CoM on the heading axis), and
+    SᵀG = I."""
     model = NominalRobot()
     for phi in angles:
         q = np.array([0.0, 0.0, phi, 0.0, 0.0])

@@ -2,8 +2,9 @@
 
 Independent references used here (not the plant's own code):
 
-* ROBOT-NOTES' reduced mass matrix for a centre of mass on the heading axis (Dhaouadi & Abu Hatab
-  2013): ``M_r = [[I_w + R²(mL² + I)/(4L²), R²(mL² - I)/(4L²)], [R²(mL² - I)/(4L²), I_w + ...]]``;
+* the reduced mass matrix of Dhaouadi & Abu Hatab (2013) for a centre of mass on the heading
+  axis, re-typed here:
+  ``M_r = [[I_w + R²(mL² + I)/(4L²), R²(mL² - I)/(4L²)], [R²(mL² - I)/(4L²), I_w + ...]]``;
 * the power balance ``dT/dt = η·τ - η·f`` with ``f_i = b_v θ̇_i + f_c tanh(θ̇_i / v_s)``, which
   holds for any correct reduced dynamics (the Coriolis terms do no work);
 * a payload's kinetic energy ``½ m_p |v_p|²`` with ``v_p = v e + ω k × p`` (rigid-body kinematics),
@@ -39,7 +40,7 @@ def rk4_step(f, t, x, h):
 
 
 def robot_notes_reduced_mass(mass, inertia, Iw=P3DX.wheel_spin_inertia, R=R, L=L):
-    """ROBOT-NOTES' M_r (module docstring), re-typed."""
+    """Dhaouadi & Abu Hatab's M_r (module docstring), re-typed."""
     diagonal = Iw + R**2 * (mass * L**2 + inertia) / (4 * L**2)
     off = R**2 * (mass * L**2 - inertia) / (4 * L**2)
     return np.array([[diagonal, off], [off, diagonal]])
@@ -54,8 +55,8 @@ def start(eta=(4.0, 5.5), q=(0.1, 0.2, 0.3, 0.0, 0.0)):
 
 
 def test_p3dx_parameters_and_sources():
-    # SPEC §6 values; derived: m_c = 9 - 2*0.5 = 8 kg, K = 2 m_w d = 0.05 kg m,
-    # I_c = 0.264 - 8*0.05² - 2*0.5*0.165² - 2*I_m > 0.
+    # The values of docs/robot.md ("Parameters"); derived: m_c = 9 - 2*0.5 = 8 kg,
+    # K = 2 m_w d = 0.05 kg m, I_c = 0.264 - 8*0.05² - 2*0.5*0.165² - 2*I_m > 0.
     assert (R, L, D, P3DX.mass, P3DX.yaw_inertia, P3DX.wheel_spin_inertia) == (
         0.0975,
         0.165,
@@ -107,7 +108,7 @@ def test_kinetic_energy_conserved_without_torque_and_friction(com_lateral):
 
 
 def test_power_balance_at_random_states():
-    """ηᵀ M_r η̇ = η·τ - η·f exactly (M_r from ROBOT-NOTES, η̇ from the plant)."""
+    """ηᵀ M_r η̇ = η·τ - η·f exactly (M_r of Dhaouadi & Abu Hatab, η̇ from the plant)."""
     b_v, f_c, v_s = 0.03, 0.12, 0.05
     robot = WheeledRobot(viscous_friction=b_v, coulomb_friction=f_c, friction_speed=v_s)
     reduced_mass = robot_notes_reduced_mass(P3DX.mass, P3DX.yaw_inertia)

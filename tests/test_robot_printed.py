@@ -4,7 +4,7 @@ The printed formulas are re-typed here from the paper's Section 3 (``paper_mass`
 ``paper_bias``) to check the kernel, then used to pin:
 
 * ``λ_min(M̄) < 0`` at P3-DX values (m = 9, d = 0.05, r̄ = 0.0975, b = 0.165, Ī = 0.264,
-  I_w = 0.01; ROBOT-NOTES quotes ≈ -0.11, which is the K = m d case: -0.1068);
+  I_w = 0.01; docs/robot.md quotes ≈ -0.11, which is the K = m d case: -0.1068);
 * the relation to the unconstrained Lagrangian found in ``delaytrack.plants.robot.printed``:
   rows 1–3 of ``M̄ q̈ + V̄`` vanish along every motion with ``q̇ = S_b(q) η`` (``S_b``: the kinematic
   map with ω = r̄ (θ̇_r - θ̇_l)/b), except the printed row 2, whose cos/sin are swapped.
@@ -103,7 +103,7 @@ def test_printed_mass_matrix_is_not_positive_definite_at_p3_values(K, lambda_min
 @pytest.mark.parametrize(("K", "threshold"), [(0.05, 0.19658), (m * d, 0.16865)])
 def test_printed_mass_matrix_needs_a_huge_wheel_inertia(K, threshold):
     """M̄ ≻ 0 iff I_w > λ_max(S_bᵀ M̂₁₁ S_b) (Schur complement): about 0.17–0.20 kg m², 17–20
-    times the P3-DX wheel (ROBOT-NOTES: 'only for I_w ≳ 0.17')."""
+    times the P3-DX wheel (docs/robot.md: 'I_w > 0.169 kg·m²' for K = m d)."""
     S, _ = full_track_kinematics(0.4)
     block = paper_mass(0.4, K)[:3, :3]
     exact = np.linalg.eigvalsh(S[:3].T @ block @ S[:3]).max()
@@ -160,8 +160,9 @@ def test_row_2_of_v_bar_has_cos_and_sin_swapped(K):
 
 
 def test_half_track_kinematics_do_not_satisfy_the_printed_rows():
-    """With ω = r̄ (θ̇_r - θ̇_l)/(2b) (b = 0.165 as the half track, SPEC's reading) rows 1 and 3
-    do not vanish: the printed formulas use b where the half-track kinematics need 2b."""
+    """With ω = r̄ (θ̇_r - θ̇_l)/(2b) (b = 0.165 read as the half track, as in docs/robot.md)
+    rows 1 and 3 do not vanish: the printed formulas use b where the half-track kinematics
+    need 2b."""
     model = PrintedRobotModel(corrected_row2=True)
     rng = np.random.default_rng(33)
     phi, eta, eta_dot = 0.3, np.array([4.0, 5.0]), rng.normal(size=2)

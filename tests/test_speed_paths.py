@@ -1,4 +1,4 @@
-"""The fast paths of issue 4 agree with the plain ones.
+"""The engine's fast paths agree with the plain ones.
 
 * running metrics (accumulated at every tick) == :func:`metrics_table` of a full record;
 * ``trajectories=False`` gives the same metrics without any trajectory;

@@ -13,7 +13,7 @@ import scipy.optimize
 from delaytrack.analysis import UltimateBounds, psi_min, razumikhin_bound, ultimate_bounds
 
 # The paper's gains K1 = K2 = Q = I, beta = 1, r = 1.1 (h_m = 0.12487 s) and its AROLC
-# parameters alpha = 2, epsilon = 0.1, gamma = 0.001 (SPEC §2). Gamma, Theta, c and c_hat are
+# parameters alpha = 2, epsilon = 0.1, gamma = 0.001 (Section III). Gamma, Theta, c and c_hat are
 # not in the paper; the values below are arbitrary but chosen so every coefficient is positive.
 PAPER = razumikhin_bound(np.eye(2), np.eye(2), np.eye(4), beta=1.0, r=1.1)
 B = np.vstack([np.zeros((2, 2)), np.eye(2)])

@@ -1201,10 +1201,14 @@ def write_study(
     files.append(write_text(folder / "tables.md", tables_markdown(study.summary, study.reference)))
     if study.dt_check is not None:
         files.append(write_frame(study.dt_check, folder / "dt_check.csv"))
-    figures = _figures(study)
-    for name, (figure, _) in figures.items():
-        files += save_figure(figure, folder / "figures" / name)
-    report = _report(study, figures, literal_summary, robustness)
+    images = {}
+    for name, (figure, caption) in _figures(study).items():
+        saved = save_figure(figure, folder / "figures" / name)
+        files += saved
+        # The report embeds the PNG just written (rendering the figure again would double the
+        # time spent drawing).
+        images[name] = (next(p for p in saved if p.suffix == ".png").read_bytes(), caption)
+    report = _report(study, images, literal_summary, robustness)
     files.append(report.write(folder / "report.html"))
     record_outputs(folder, files)
     return files
@@ -1212,7 +1216,7 @@ def write_study(
 
 def _report(
     study: PaperStudy,
-    figures: dict[str, tuple[Figure, str]],
+    figures: dict[str, tuple[Figure | bytes, str]],
     literal_summary: pd.DataFrame | None,
     robustness: RobustnessStudy | None = None,
 ) -> HtmlReport:

@@ -64,6 +64,8 @@ Everything is deterministic (the draws and payload placements are seeded).
 
 from __future__ import annotations
 
+import copy
+import functools
 import itertools
 import math
 import os
@@ -526,8 +528,17 @@ def write_gains(results: Mapping[str, TuningResult], path: str | Path | None = N
 
 
 def load_tuning_record(path: str | Path | None = None) -> dict[str, Any]:
-    """The whole gains file as data (protocol, conditions, grids, per-condition results)."""
-    path = default_gains_path() if path is None else Path(path)
+    """The whole gains file as data (protocol, conditions, grids, per-condition results).
+
+    Parsed once per file version (path, size and modification time) and copied for each
+    caller: the paper job reads it a dozen times."""
+    path = Path(default_gains_path() if path is None else path).resolve()
+    status = path.stat()
+    return copy.deepcopy(_parsed_record(str(path), status.st_size, status.st_mtime_ns))
+
+
+@functools.lru_cache(maxsize=4)
+def _parsed_record(path: str, size: int, mtime_ns: int) -> dict[str, Any]:
     return tomllib.loads(Path(path).read_text(encoding="utf-8"))
 
 

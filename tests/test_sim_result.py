@@ -17,21 +17,17 @@ REFERENCE = SinusoidalReference([0.0, 0.0], amplitude=[0.8, 0.5], frequency=[0.5
 
 @pytest.fixture(scope="module")
 def arm_result():
+    return arm_run([1.0, 2.0], t1=2.0)
+
+
+def arm_run(gains, **options):
+    """The two-link arm under AROLC with ``K1 = K2 = k`` for each ``k`` of ``gains``, and S1."""
     arm = TwoLinkArm()
     controllers = [
-        AROLC(arm, K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001),
-        AROLC(arm, K1=2.0, K2=2.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001),
+        AROLC(arm, K1=k, K2=k, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001) for k in gains
     ]
-    return simulate(
-        arm,
-        controllers,
-        AbsSineDelay.S1(),
-        np.zeros(4),
-        reference=REFERENCE,
-        t1=2.0,
-        dt=0.001,
-        T_c=0.01,
-    )
+    settings = dict(reference=REFERENCE, dt=0.001, T_c=0.01) | options
+    return simulate(arm, controllers, AbsSineDelay.S1(), np.zeros(4), **settings)
 
 
 def test_plot_labels_every_axis_with_names_and_units(arm_result):
@@ -107,18 +103,7 @@ def test_repr_is_one_line_and_html_summarises_each_run(arm_result):
 
 
 def test_a_metrics_only_result_cannot_be_plotted_and_says_why(arm_result):
-    settings = arm_result.settings
-    result = simulate(
-        TwoLinkArm(),
-        AROLC(TwoLinkArm(), K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001),
-        AbsSineDelay.S1(),
-        np.zeros(4),
-        reference=REFERENCE,
-        t1=0.5,
-        dt=0.001,
-        T_c=0.01,
-        trajectories=False,
-    )
-    assert settings and "metrics only" in repr(result)
+    result = arm_run([1.0], t1=0.5, trajectories=False)
+    assert arm_result.has_trajectories and "metrics only" in repr(result)
     with pytest.raises(ValueError, match="no recorded trajectories"):
         result.plot()

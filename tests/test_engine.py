@@ -45,6 +45,21 @@ def arm_arolc() -> AROLC:
     return AROLC(nominal, K1=4.0, K2=4.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
 
 
+def short_arm_run(**options):
+    """0.1 s of the arm under AROLC and a 10 ms delay (for checks of what simulate refuses)."""
+    return simulate(
+        TwoLinkArm(),
+        arm_arolc(),
+        ConstantDelay(0.01),
+        np.zeros(4),
+        reference=ARM_REFERENCE,
+        t1=0.1,
+        dt=1e-3,
+        T_c=2e-3,
+        **options,
+    )
+
+
 def brute_force_index(t: float, delay: DelayProfile, tick_times: np.ndarray) -> int:
     """Index of the latest command issued at or before ``t - h(t)``, by scanning the whole log."""
     issued = np.flatnonzero(tick_times <= t - float(delay.h(t)))
@@ -568,18 +583,7 @@ def test_saturated_actuators_apply_the_clipped_delayed_command() -> None:
 )
 def test_bad_input_limits_are_refused(limits, u_init, message) -> None:
     with pytest.raises(ValueError, match=message):
-        simulate(
-            TwoLinkArm(),
-            arm_arolc(),
-            ConstantDelay(0.01),
-            np.zeros(4),
-            reference=ARM_REFERENCE,
-            t1=0.1,
-            dt=1e-3,
-            T_c=2e-3,
-            input_limits=limits,
-            u_init=u_init,
-        )
+        short_arm_run(input_limits=limits, u_init=u_init)
 
 
 def batch_equals_alone(components, settings, option, values, alone):
@@ -673,36 +677,13 @@ def test_bad_measurement_noise_is_refused(arguments, message) -> None:
 
 
 def test_measurement_noise_of_the_wrong_size_is_refused() -> None:
-    settings = dict(reference=ARM_REFERENCE, t1=0.1, dt=1e-3, T_c=2e-3)
     with pytest.raises(
         ValueError, match=r"measurement_noise.position must have 1 or n = 2 entries"
     ):
-        simulate(
-            TwoLinkArm(),
-            arm_arolc(),
-            ConstantDelay(0.01),
-            np.zeros(4),
-            measurement_noise=MeasurementNoise(position=[0.1, 0.2, 0.3]),
-            **settings,
-        )
-    with pytest.raises(TypeError, match=r"measurement_noise\[0\] must be an instance of Meas"):
-        simulate(
-            TwoLinkArm(),
-            arm_arolc(),
-            ConstantDelay(0.01),
-            np.zeros(4),
-            measurement_noise=0.1,
-            **settings,
-        )
-    with pytest.raises(TypeError, match=r"measurement_noise\[0\] must be an instance of Meas"):
-        simulate(
-            TwoLinkArm(),
-            arm_arolc(),
-            ConstantDelay(0.01),
-            np.zeros(4),
-            measurement_noise=[0.1],
-            **settings,
-        )
+        short_arm_run(measurement_noise=MeasurementNoise(position=[0.1, 0.2, 0.3]))
+    for wrong in (0.1, [0.1]):
+        with pytest.raises(TypeError, match=r"measurement_noise\[0\] must be an instance of"):
+            short_arm_run(measurement_noise=wrong)
 
 
 def test_a_lost_packet_leaves_the_latest_received_command_applied() -> None:

@@ -361,7 +361,7 @@ def _simulate(args: argparse.Namespace) -> int:
         f"simulated {scenario.name!r}: {scenario.duration:g} s in {seconds:.1f} s wall time, "
         f"status {status}"
     )
-    print(output.result._summary_frame().to_string(float_format=lambda v: f"{v:.4g}"))
+    print(output.result.summary().to_string(float_format=lambda v: f"{v:.4g}"))
     print(f"wrote {len(output.files)} files to {folder}/:")
     for path in output.files:
         print(f"  {path.relative_to(folder)}")

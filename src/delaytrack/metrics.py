@@ -39,6 +39,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
+from delaytrack.units import default_names
+
 if TYPE_CHECKING:
     from delaytrack.sim.result import SimResult
 
@@ -236,7 +238,7 @@ def metrics_table(
     n = result.n
     if coordinate_names is None:
         coordinate_names = result.coordinate_names
-    names = [f"q{i + 1}" for i in range(n)] if coordinate_names is None else list(coordinate_names)
+    names = list(default_names(coordinate_names, n))
     if len(names) != n or len(set(names)) != n:
         raise ValueError(
             f"coordinate_names must have n = {n} different entries; got {len(names)}: {names}"

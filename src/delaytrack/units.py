@@ -15,7 +15,9 @@ Every table a run or a sweep writes names a column ``<quantity>[_<coordinate>][_
 
 from __future__ import annotations
 
-__all__ = ["ascii_unit", "coordinate_labels", "with_unit"]
+from collections.abc import Sequence
+
+__all__ = ["ascii_unit", "default_names", "with_unit"]
 
 
 def ascii_unit(unit: str) -> str:
@@ -28,6 +30,7 @@ def with_unit(name: str, unit: str | None) -> str:
     return f"{name}_{ascii_unit(unit)}" if unit else name
 
 
-def coordinate_labels(names: tuple[str, ...] | None, n: int) -> tuple[str, ...]:
-    """The plant's coordinate names, or ``q1 .. qn``."""
-    return tuple(names) if names is not None else tuple(f"q{i + 1}" for i in range(n))
+def default_names(names: Sequence[str] | None, n: int, prefix: str = "q") -> tuple[str, ...]:
+    """``names`` as a tuple, or ``q1 .. qn`` (``prefix`` and a count from 1) when there are
+    none."""
+    return tuple(names) if names is not None else tuple(f"{prefix}{i + 1}" for i in range(n))

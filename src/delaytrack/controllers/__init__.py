@@ -31,8 +31,8 @@ _PREDICTOR_KEYS = {
     "history": ("history", number),
     "T_c": ("T_c", number),
 }
-_REQUIRED = tuple(_PREDICTOR_KEYS)
-_PREDICTOR_KEYS["space"] = ("space", string)
+#: Optional keys of both predictors.
+_PREDICTOR_OPTIONS = {"space": ("space", string)}
 
 #: Controllers that can be built from plain data, by scenario-file name.
 CONTROLLER_SPECS: dict[str, TypeSpec] = {
@@ -56,15 +56,16 @@ CONTROLLER_SPECS: dict[str, TypeSpec] = {
         PCON,
         {
             **_PREDICTOR_KEYS,
+            **_PREDICTOR_OPTIONS,
             **{key: (key, number) for key in ("delay_scale", "delay_offset", "delay_noise")},
             "noise_seed": ("noise_seed", integer),
         },
-        required=_REQUIRED,
+        required=tuple(_PREDICTOR_KEYS),
     ),
     "pconf": TypeSpec(
         PCONf,
-        {**_PREDICTOR_KEYS, "h_bar": ("h_bar", number)},
-        required=(*_REQUIRED, "h_bar"),
+        {**_PREDICTOR_KEYS, **_PREDICTOR_OPTIONS, "h_bar": ("h_bar", number)},
+        required=(*_PREDICTOR_KEYS, "h_bar"),
     ),
 }
 

@@ -63,6 +63,7 @@ from delaytrack.experiments.convergence import (
     largest_change,
     write_dt_check,
 )
+from delaytrack.experiments.pairing import AROLC_GAINS, BASELINE, DELAY_CLASS
 from delaytrack.experiments.robustness import (
     RobustnessStudy,
     display_attribution,
@@ -124,10 +125,6 @@ SCENARIOS: dict[str, DelayProfile] = {
     "S3": ConstantDelay.S3(),
     "S4": ConstantDelay.S4(),
 }
-#: The predictor baseline the paper compares with in each scenario.
-BASELINE = {"S1": "PCON", "S2": "PCON", "S3": "PCONf", "S4": "PCONf"}
-#: The tuning's delay class of each scenario: its gain set for the baselines and AROLC-tuned.
-DELAY_CLASS = {"S1": "varying", "S2": "varying", "S3": "constant", "S4": "constant"}
 _SCENARIO_TEXT = {
     "S1": "h(t) = 20 + 80 |sin t| ms",
     "S2": "h(t) = 5 + 120 |sin 0.1t| ms",
@@ -140,8 +137,6 @@ CONTACT_TIME_CONSTANTS = (0.02, 0.005)
 #: One payload seed for every reported run (the tuning uses another, tuning.TUNING_SEED).
 PAYLOAD_SEED = 2024
 DURATION, DT, T_C = 60.0, 1e-3, 0.01
-#: AROLC's gains (the paper's).
-AROLC_GAINS = dict(K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
 BETA, R = 1.0, 1.1
 #: %AE scale: the circle's diameter in mm (the paper's).
 DIAMETER_MM = 2500.0

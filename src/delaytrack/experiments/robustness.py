@@ -39,7 +39,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +52,7 @@ from delaytrack._io import write_frame
 from delaytrack._output import record_outputs
 from delaytrack.delays import delay_from_spec
 from delaytrack.experiments import tuning
+from delaytrack.experiments.pairing import AROLC_GAINS, BASELINE, DELAY_CLASS
 from delaytrack.experiments.scenario import load_builtin
 from delaytrack.report import HtmlReport
 from delaytrack.sweeps import SweepSpec, run_sweep
@@ -104,9 +105,6 @@ _SCENARIOS = {
     "S3": {"type": "S3"},
     "S4": {"type": "S4"},
 }
-_BASELINE = {"S1": "PCON", "S2": "PCON", "S3": "PCONf", "S4": "PCONf"}
-_CLASS = {"S1": "varying", "S2": "varying", "S3": "constant", "S4": "constant"}
-_PAPER_GAINS = dict(K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
 
 
 @dataclass(frozen=True)
@@ -189,9 +187,9 @@ def _spec(
 
 def _map_sweep(draws: int) -> _Sweep:
     rows: list[tuple[str, float, dict[str, Any]]] = [
-        ("AROLC (paper gains)", math.nan, _arolc_table(_PAPER_GAINS)),
+        ("AROLC (paper gains)", math.nan, _arolc_table(AROLC_GAINS)),
         ("AROLC (tuned)", math.nan, _arolc_table(_tuned_arolc("all"))),
-        ("outer loop (paper gains)", math.nan, _outer_table(_PAPER_GAINS)),
+        ("outer loop (paper gains)", math.nan, _outer_table(AROLC_GAINS)),
     ]
     for kind in ("PCON", "PCON-wheel", "PCONf"):
         law = "PCON" if kind == "PCONf" else None
@@ -214,7 +212,7 @@ def _long_run_mean(case: str) -> float:
 
 def _knowledge_sweep(case: str, draws: int) -> _Sweep:
     rows: list[tuple[str, float, dict[str, Any]]] = [
-        ("AROLC (paper gains)", math.nan, _arolc_table(_PAPER_GAINS)),
+        ("AROLC (paper gains)", math.nan, _arolc_table(AROLC_GAINS)),
         ("AROLC (tuned)", math.nan, _arolc_table(_tuned_arolc("varying"))),
     ]
     mean = _long_run_mean(case)
@@ -228,13 +226,13 @@ def _knowledge_sweep(case: str, draws: int) -> _Sweep:
 
 
 def _claims_sweep(case: str, draws: int) -> _Sweep:
-    gain_set = _CLASS[case]
+    gain_set = DELAY_CLASS[case]
     tuned = _tuned_arolc(gain_set)
-    baseline = _BASELINE[case]
+    baseline = BASELINE[case]
     h_bar = float(delay_from_spec(_SCENARIOS[case]).h_max) if baseline == "PCONf" else None
     rows = [
-        ("AROLC (paper gains)", _arolc_table(_PAPER_GAINS)),
-        ("outer loop (paper gains)", _outer_table(_PAPER_GAINS)),
+        ("AROLC (paper gains)", _arolc_table(AROLC_GAINS)),
+        ("outer loop (paper gains)", _outer_table(AROLC_GAINS)),
         ("AROLC (tuned)", _arolc_table(tuned)),
         ("outer loop (tuned gains)", _outer_table(tuned)),
         (baseline, _predictor_table(baseline, gain_set, h_bar=h_bar)),
@@ -402,7 +400,7 @@ def claim_verdicts(claims: pd.DataFrame) -> pd.DataFrame:
     N·m for TV (AROLC minus the baseline; S4 minus S3)."""
     rows = []
     for (case, noise), frame in claims.groupby(["scenario", "noise"], sort=False):
-        baseline = _BASELINE[case]
+        baseline = BASELINE[case]
         for who in ("AROLC (paper gains)", "AROLC (tuned)"):
             for metric, column in (("AE", "ae_mm"), ("TV", "tv_Nm")):
                 a, b = _paired(frame, who, baseline, column)
@@ -558,7 +556,6 @@ class RobustnessStudy:
     seconds: float
     computed: int = 0
     resumed: int = 0
-    extra: dict[str, Any] = field(default_factory=dict)
 
 
 def run_robustness(

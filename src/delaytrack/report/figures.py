@@ -19,6 +19,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from delaytrack._io import atomic_path
+from delaytrack.units import default_names
 
 if TYPE_CHECKING:
     from delaytrack.sim.result import SimResult
@@ -59,11 +60,9 @@ def _runs(runs: Mapping[str, SimResult] | SimResult) -> dict[str, SimResult]:
 
 
 def _names(count: int, names: Sequence[str] | None, prefix: str) -> list[str]:
-    if names is None:
-        return [f"{prefix}{i + 1}" for i in range(count)]
-    if len(names) != count:
+    if names is not None and len(names) != count:
         raise ValueError(f"expected {count} names; got {len(names)}: {list(names)}")
-    return list(names)
+    return list(default_names(names, count, prefix))
 
 
 def _stacked(rows: int, title: str | None) -> tuple[Figure, list]:

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 
 from delaytrack.sim.engine import STATUS_NAMES
-from delaytrack.units import coordinate_labels, with_unit
+from delaytrack.units import default_names, with_unit
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -152,9 +152,9 @@ class SimResult:
 
         return overview_figure(self, run)
 
-    def _summary_frame(self) -> pd.DataFrame:
+    def summary(self) -> pd.DataFrame:
         """Status, stop time, AE per coordinate (in its unit) and TV per run."""
-        names = coordinate_labels(self.coordinate_names, self.n)
+        names = default_names(self.coordinate_names, self.n)
         units = self.coordinate_units or (None,) * self.n
         frame = pd.DataFrame({"status": self.status_names, "t_stop (s)": self.t_stop})
         if "ae" in self.metrics:
@@ -166,7 +166,7 @@ class SimResult:
         return frame
 
     def __repr__(self) -> str:
-        names = coordinate_labels(self.coordinate_names, self.n)
+        names = default_names(self.coordinate_names, self.n)
         span = (
             f"t = {self.t[0]:g} .. {self.t[-1]:g} s ({self.t.size} records)"
             if self.has_trajectories
@@ -181,7 +181,7 @@ class SimResult:
 
     def _repr_html_(self) -> str:
         head = repr(self).replace("&", "&amp;").replace("<", "&lt;")
-        return f"<p><code>{head}</code></p>" + self._summary_frame().to_html(
+        return f"<p><code>{head}</code></p>" + self.summary().to_html(
             float_format=lambda v: f"{v:.4g}", max_rows=20
         )
 
@@ -196,7 +196,7 @@ class SimResult:
         A unit the plant does not declare is left out of the name.
         """
         batch, records = self.batch_size, self.t.size
-        names = coordinate_labels(self.coordinate_names, self.n)
+        names = default_names(self.coordinate_names, self.n)
         units = self.coordinate_units or (None,) * self.n
         inputs = self.commands.shape[2]
         input_units = self.input_units or (None,) * inputs

@@ -32,7 +32,7 @@ from delaytrack.sweeps.summary import (
     default_metrics,
     summary_table,
 )
-from delaytrack.units import with_unit
+from delaytrack.units import default_names, with_unit
 
 __all__ = [
     "ae_vs_h_max_figure",
@@ -71,7 +71,7 @@ def metric_units(spec: SweepSpec) -> dict[str, str]:
     ``ae_<c>``, ``rms_<c>``, ``max_<c>`` in the coordinate's unit, ``tv`` in the inputs' unit
     (when they share one); metrics whose unit the plant does not give are left out."""
     plant = spec.base.build().plant
-    names = plant.coordinate_names or [f"q{i + 1}" for i in range(plant.n)]
+    names = default_names(plant.coordinate_names, plant.n)
     units: dict[str, str] = {}
     for name, unit in zip(names, plant.coordinate_units or [None] * plant.n, strict=True):
         if unit:

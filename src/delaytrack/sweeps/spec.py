@@ -57,6 +57,7 @@ from delaytrack.experiments.scenario import (
     builtin_scenario_path,
     resolve_file_keys,
 )
+from delaytrack.units import default_names
 
 __all__ = ["DISTRIBUTIONS", "MAX_RUNS", "Run", "SweepError", "SweepSpec", "Unit"]
 
@@ -561,7 +562,7 @@ def _check_runnable(scenario: Scenario, built: BuiltScenario) -> None:
 
 def _check_metrics(metrics: tuple[str, ...], base: Scenario) -> None:
     built = base.build()
-    names = built.plant.coordinate_names or [f"q{i + 1}" for i in range(built.plant.n)]
+    names = default_names(built.plant.coordinate_names, built.plant.n)
     valid = [f"{prefix}_{name}" for prefix in ("ae", "rms", "max") for name in names] + ["tv"]
     unknown = [metric for metric in metrics if metric not in valid]
     if unknown:

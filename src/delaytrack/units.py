@@ -17,12 +17,18 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-__all__ = ["ascii_unit", "default_names", "with_unit"]
+__all__ = ["ascii_unit", "default_names", "labelled", "with_unit"]
 
 
 def ascii_unit(unit: str) -> str:
     """A unit as it appears in column names: ``N·m`` -> ``Nm``, ``m/s`` -> ``m_per_s``."""
     return unit.replace("·", "").replace("/", "_per_").replace(" ", "")
+
+
+def labelled(name: str, unit: str | None) -> str:
+    """``name (unit)`` for figure axes and table headers, or ``name`` when the unit is not
+    known."""
+    return f"{name} ({unit})" if unit else name
 
 
 def with_unit(name: str, unit: str | None) -> str:

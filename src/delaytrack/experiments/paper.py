@@ -679,7 +679,7 @@ def _claims_summary(study: PaperStudy) -> str:
         f"{gain_set} delays: {tuning.gains_text('AROLC', g)}, certified up to h_m = "
         f"{g['h_m']:.4f} s"
         for gain_set, g in study.gains["AROLC"].items()
-        if gain_set in DELAY_CLASS.values()
+        if gain_set in tuning.DELAY_CLASSES
     )
     return (
         f"Which conclusion holds for which AROLC. With the paper's gains (certified by Theorem 1 "
@@ -950,7 +950,7 @@ def _tuned_section(report: HtmlReport, study: PaperStudy) -> None:
         "Chosen gains per controller and gain set (objective: worst mean AE over the set's "
         "tuning conditions, mm; certified h_m in ms, AROLC only).",
     )
-    tuned_h_m = min(study.gains["AROLC"][c]["h_m"] for c in set(DELAY_CLASS.values()))
+    tuned_h_m = min(study.gains["AROLC"][c]["h_m"] for c in tuning.DELAY_CLASSES)
     report.paragraph(
         f"Certification caveat: Theorem 1 certifies the tuned AROLC only up to h_m = "
         f"{tuned_h_m:.4f} s (β = {BETA:g}, r = {R:g}; the smaller of its two class sets), "
@@ -1140,7 +1140,7 @@ def _settings(study: PaperStudy) -> dict[str, str]:
             f"{', '.join(c for c, k in DELAY_CLASS.items() if k == gain_set)}: "
             + tuning.gains_text("AROLC", g["AROLC"][gain_set])
             + f" (certified up to h_m = {g['AROLC'][gain_set]['h_m']:.4f} s)"
-            for gain_set in dict.fromkeys(DELAY_CLASS.values())
+            for gain_set in tuning.DELAY_CLASSES
         )
         + f"; Q = I, ε = {AROLC_GAINS['epsilon']:g}, γ = {AROLC_GAINS['gamma']:g}",
         "OuterLoop": f"K1 = {AROLC_GAINS['K1']:g} I, K2 = {AROLC_GAINS['K2']:g} I (AROLC "

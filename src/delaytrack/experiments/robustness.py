@@ -54,7 +54,7 @@ from delaytrack.delays import delay_from_spec
 from delaytrack.experiments import tuning
 from delaytrack.experiments.pairing import AROLC_GAINS, BASELINE, DELAY_CLASS
 from delaytrack.experiments.scenario import load_builtin
-from delaytrack.report import HtmlReport
+from delaytrack.report import HtmlReport, save_figure
 from delaytrack.sweeps import SweepSpec, run_sweep
 from delaytrack.sweeps.executors import LocalExecutor
 
@@ -191,7 +191,7 @@ def _map_sweep(draws: int) -> _Sweep:
         ("AROLC (tuned)", math.nan, _arolc_table(_tuned_arolc("all"))),
         ("outer loop (paper gains)", math.nan, _outer_table(AROLC_GAINS)),
     ]
-    for kind in ("PCON", "PCON-wheel", "PCONf"):
+    for kind in tuning.PREDICTORS:
         law = "PCON" if kind == "PCONf" else None
         rows += [(kind, s, _predictor_table(kind, "all", scale=s, law=law)) for s in SCALES]
     delays = [{"type": "constant", "h": h} for h in TRUE_DELAYS]
@@ -204,18 +204,12 @@ def _map_sweep(draws: int) -> _Sweep:
     return _Sweep("map", _spec(grid, draws), labels)
 
 
-def _long_run_mean(case: str) -> float:
-    """``a + 2b/π``: the long-run mean (s) of S1 / S2 (``a + b |sin(ω t)|``)."""
-    profile = delay_from_spec(_SCENARIOS[case])
-    return float(profile.offset + 2.0 * profile.amplitude / math.pi)
-
-
 def _knowledge_sweep(case: str, draws: int) -> _Sweep:
     rows: list[tuple[str, float, dict[str, Any]]] = [
         ("AROLC (paper gains)", math.nan, _arolc_table(AROLC_GAINS)),
         ("AROLC (tuned)", math.nan, _arolc_table(_tuned_arolc("varying"))),
     ]
-    mean = _long_run_mean(case)
+    mean = tuning.long_run_mean(delay_from_spec(_SCENARIOS[case]))
     for s in SCALES:
         rows.append(("PCON", s, _predictor_table("PCON", "varying", scale=s)))
         rows.append(("PCON-wheel", s, _predictor_table("PCON-wheel", "varying", scale=s)))
@@ -491,7 +485,7 @@ def robustness_map(table: pd.DataFrame) -> Figure:
     image = None
     for ax, name in zip(axes.ravel(), MAP_CONTROLLERS, strict=True):
         rows = table[table.controller == name]
-        told = name in ("PCON", "PCON-wheel", "PCONf")
+        told = name in tuning.PREDICTORS
         columns = list(SCALES) if told else [math.nan]
         rate = np.full((len(delays), len(columns)), np.nan)
         for i, h in enumerate(delays):
@@ -645,7 +639,7 @@ def knowledge_table(study: RobustnessStudy) -> pd.DataFrame:
             )
         )
     for h in (150.0, 200.0, 300.0):
-        for predictor in ("PCON", "PCON-wheel", "PCONf"):
+        for predictor in tuning.PREDICTORS:
             cases.append(
                 (
                     f"{h:g} ms constant",
@@ -682,7 +676,7 @@ def findings(study: RobustnessStudy) -> list[str]:
         rows = exact[exact.controller == name].sort_values("delay_ms")
         clean = rows[rows.diverged == 0]
         lost = rows[rows.divergence_rate >= 0.5]
-        told = " (told the true delay)" if name in ("PCON", "PCON-wheel", "PCONf") else ""
+        told = " (told the true delay)" if name in tuning.PREDICTORS else ""
         text = f"{name}{told}: " + (
             f"no run diverged up to {_longest_clean(rows):g} ms"
             if not clean.empty and rows.diverged.iloc[0] == 0
@@ -692,7 +686,7 @@ def findings(study: RobustnessStudy) -> list[str]:
             text += f"; at least half of the runs diverged from {lost.delay_ms.min():g} ms on"
         text += f" ({rows.runs.iloc[0]} draws per delay; tested up to {rows.delay_ms.max():g} ms)."
         out.append(text)
-    for name in ("PCON", "PCON-wheel", "PCONf"):
+    for name in tuning.PREDICTORS:
         parts = []
         for scale in SCALES:
             rows = table[(table.controller == name) & (table.scale == scale)]
@@ -876,12 +870,9 @@ def write_robustness(study: RobustnessStudy, out: str | Path) -> list[Path]:
     for name in ("map", "knowledge", "claims", "verdicts", "attribution"):
         files.append(write_frame(getattr(study, name), out / f"{name}.csv"))
     files.append(write_frame(knowledge_table(study), out / "knowledge_table.csv"))
-    figure = robustness_map(study.map)
-    for suffix in ("png", "svg"):
-        path = out / "figures" / f"robustness_map.{suffix}"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        figure.savefig(path, dpi=110)
-        files.append(path)
+    saved = save_figure(robustness_map(study.map), out / "figures" / "robustness_map")
+    files += saved
+    image = next(path for path in saved if path.suffix == ".png").read_bytes()
     report = HtmlReport("delaytrack: robustness study (which controller when the delay is unknown)")
     base = load_builtin(BASE_SCENARIO)
     viscous = _FRICTION["plant.viscous_friction"]
@@ -917,7 +908,7 @@ def write_robustness(study: RobustnessStudy, out: str | Path) -> list[Path]:
     report.heading("Findings")
     report.bullets(findings(study))
     report.figure(
-        figure,
+        image,
         "Robustness map: divergence rate (colour) and median AE in mm of the "
         "runs that stayed on the path (text), per controller, against the true "
         "constant delay and what the predictors are told of it.",

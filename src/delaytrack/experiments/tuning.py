@@ -112,6 +112,7 @@ __all__ = [
     "draw_conditions",
     "gains_text",
     "grid_table",
+    "long_run_mean",
     "load_gains",
     "load_tuning_record",
     "make_controller",
@@ -196,13 +197,19 @@ def draw_conditions(
             f"payload seed {payload}"
         )
         delay = AbsSineDelay(offset=a, amplitude=b, frequency=omega, phase=phi)
-        conditions.append(Condition(delay, "varying", a + 2.0 * b / math.pi, payload, text))
+        conditions.append(Condition(delay, "varying", long_run_mean(delay), payload, text))
     for _ in range(per_class):
         h = rng.uniform(0.02, 0.14)
         payload = _payload_seed(rng)
         text = f"h = {1e3 * h:.1f} ms constant, payload seed {payload}"
         conditions.append(Condition(ConstantDelay(h), "constant", h, payload, text))
     return tuple(conditions)
+
+
+def long_run_mean(delay: AbsSineDelay) -> float:
+    """``a + 2b/π``: the long-run mean (s) of ``h(t) = a + b |sin(ω t + φ)|``, the constant
+    PCONf is told of a time-varying delay."""
+    return float(delay.offset + 2.0 * delay.amplitude / math.pi)
 
 
 def _payload_seed(rng: np.random.Generator) -> int:
@@ -328,6 +335,16 @@ class TuningResult:
     seconds: float
 
 
+def _members(classes: Sequence[str], gain_set: str) -> list[str]:
+    """The ``ae_mm_<j>`` columns of a gain set's conditions (``classes``: each condition's
+    delay class, in order)."""
+    return [
+        f"ae_mm_{j}"
+        for j, delay_class in enumerate(classes, start=1)
+        if gain_set == "all" or delay_class == gain_set
+    ]
+
+
 def _objective(table: pd.DataFrame, columns: list[str]) -> np.ndarray:
     """Worst mean AE over ``columns``; NaN when any of them diverged."""
     values = table[columns].to_numpy()
@@ -375,11 +392,7 @@ def _choose(
     """The chosen point per gain set (smallest worst-case AE; ties: first in table order)."""
     best = {}
     for gain_set in GAIN_SETS:
-        members = [
-            f"ae_mm_{j}"
-            for j, c in enumerate(conditions, start=1)
-            if gain_set == "all" or c.delay_class == gain_set
-        ]
+        members = _members([c.delay_class for c in conditions], gain_set)
         objective = _objective(table, members)
         if not np.any(np.isfinite(objective)):
             raise RuntimeError(f"every {kind} grid point diverged on gain set {gain_set!r}")
@@ -566,11 +579,7 @@ def grid_table(kind: str, gain_set: str = "all", path: str | Path | None = None)
     section = record[kind]
     table = pd.DataFrame(section["rows"], columns=section["columns"])
     table["status"] = section["status"]
-    members = [
-        f"ae_mm_{j}"
-        for j, delay_class in enumerate(record["condition_classes"], start=1)
-        if gain_set == "all" or delay_class == gain_set
-    ]
+    members = _members(record["condition_classes"], gain_set)
     return table.assign(objective=_objective(table, members))
 
 

@@ -19,7 +19,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from delaytrack._io import atomic_path
-from delaytrack.units import default_names
+from delaytrack.units import default_names, labelled
 
 if TYPE_CHECKING:
     from delaytrack.sim.result import SimResult
@@ -293,10 +293,6 @@ def write_run_figures(
     return paths
 
 
-def _label(name: str, unit: str | None) -> str:
-    return f"{name} ({unit})" if unit else name
-
-
 def overview_figure(result: SimResult, run: int = 0) -> Figure:
     """One run at a glance: each coordinate against its reference (left) and its tracking error
     ``e1 = q_d − q`` (right), the commanded and applied inputs, the delay ``h(t)`` and the
@@ -325,10 +321,10 @@ def overview_figure(result: SimResult, run: int = 0) -> Figure:
         ax = axes[f"q{j}"]
         ax.plot(t, result.reference[:, 0, j], color="black", ls="--", lw=1.0)
         ax.plot(t, result.q[run, :, j], lw=1.0)
-        ax.set_ylabel(_label(names[j], units[j]))
+        ax.set_ylabel(labelled(names[j], units[j]))
         ax = axes[f"e{j}"]
         ax.plot(t, result.e1[run, :, j], lw=1.0, color="C3")
-        ax.set_ylabel(_label(f"e1 of {names[j]}", units[j]))
+        ax.set_ylabel(labelled(f"e1 of {names[j]}", units[j]))
     axes["q0"].set_title("plant (solid) and reference (dashed)")
     axes["e0"].set_title("tracking error e1 = q_d − q")
     ax = axes["u"]
@@ -344,7 +340,7 @@ def overview_figure(result: SimResult, run: int = 0) -> Figure:
             label=f"{inputs[j]} applied",
         )
     same = len(set(input_units)) == 1
-    ax.set_ylabel(_label("inputs", input_units[0] if same else None))
+    ax.set_ylabel(labelled("inputs", input_units[0] if same else None))
     _legend(ax, min(2 * m, 6))
     ax = axes["h"]
     ax.plot(t, 1e3 * result.h[run], lw=1.0, color="black")

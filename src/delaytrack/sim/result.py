@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 
 from delaytrack.sim.engine import STATUS_NAMES
-from delaytrack.units import default_names, with_unit
+from delaytrack.units import default_names, labelled, with_unit
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -159,7 +159,7 @@ class SimResult:
         frame = pd.DataFrame({"status": self.status_names, "t_stop (s)": self.t_stop})
         if "ae" in self.metrics:
             for j, (name, unit) in enumerate(zip(names, units, strict=True)):
-                frame[f"AE {name}" + (f" ({unit})" if unit else "")] = self.metrics["ae"][:, j]
+                frame[labelled(f"AE {name}", unit)] = self.metrics["ae"][:, j]
         if "tv" in self.metrics:
             frame["TV"] = self.metrics["tv"]
         frame.index.name = "run"

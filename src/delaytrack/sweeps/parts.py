@@ -51,9 +51,9 @@ def _batch_key(run: Run) -> str:
             "plant": scenario.plant["type"],
             "model": scenario.model["type"],
             "controller": scenario.controller["type"],
-            # A predictor's state is sized by its history and its space: runs that differ in
-            # them cannot be stacked into one batch.
-            "state": [scenario.controller.get(k) for k in ("history", "space")],
+            # Controller states of different sizes (a predictor's history, its space) cannot be
+            # stacked into one batch.
+            "state_size": run.state_size,
             "times": [scenario.duration, scenario.dt, scenario.T_c],
             "error_bound": scenario.error_bound,
             "reference": dict(scenario.reference),

@@ -32,7 +32,7 @@ from delaytrack.sweeps.summary import (
     default_metrics,
     summary_table,
 )
-from delaytrack.units import default_names, with_unit
+from delaytrack.units import default_names, labelled, with_unit
 
 __all__ = [
     "ae_vs_h_max_figure",
@@ -82,7 +82,7 @@ def metric_units(spec: SweepSpec) -> dict[str, str]:
 
 
 def _axis_label(metric: str, units: Mapping[str, str]) -> str:
-    return f"{metric} ({units[metric]})" if metric in units else metric
+    return labelled(metric, units.get(metric))
 
 
 def distribution_figure(
@@ -142,8 +142,7 @@ def ae_vs_h_max_figure(
 
 
 def _metric_table(summary: pd.DataFrame, metric: str, unit: str | None) -> pd.DataFrame:
-    suffix = f" ({unit})" if unit else ""
-    columns = {f"{metric}_{name}": f"{name}{suffix}" for name in STATISTICS}
+    columns = {f"{metric}_{name}": labelled(name, unit) for name in STATISTICS}
     frame = summary[["controller", "delay_class", "runs", *columns]]
     return frame.rename(columns=columns)
 

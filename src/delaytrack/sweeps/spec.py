@@ -101,20 +101,22 @@ DISTRIBUTIONS: Mapping[str, tuple[str, ...]] = MappingProxyType(
 
 @dataclass(frozen=True)
 class Run:
-    """One run of a sweep: its stable index, the swept values, the resolved scenario, and what
-    the engine receives for it (:func:`engine_inputs`: the kernels' keys and a hash of every
-    parameter vector)."""
+    """One run of a sweep: its stable index, the swept values, the resolved scenario, what the
+    engine receives for it (:func:`engine_inputs`: the kernels' keys and a hash of every
+    parameter vector) and its controller's state size (runs of different sizes cannot share a
+    batch)."""
 
     index: int
     values: Mapping[str, Any]
     scenario: Scenario
     kernels: tuple[str, ...]
     parameters: str
+    state_size: int
 
     @classmethod
     def of(cls, index: int, values: Mapping[str, Any], scenario: Scenario, built: Any) -> Run:
         """The run of a scenario and its construction (:meth:`Scenario.build`)."""
-        return cls(index, values, scenario, *engine_inputs(built))
+        return cls(index, values, scenario, *engine_inputs(built), built.controller.state_size)
 
     def canonical(self) -> dict[str, Any]:
         """Plain data identifying the run (what unit hashes cover)."""

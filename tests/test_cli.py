@@ -279,18 +279,18 @@ def test_every_long_command_takes_quiet_and_still_accepts_progress(command):
 
 def test_tune_baselines_never_writes_into_the_package_by_default():
     from delaytrack.cli import build_parser
-    from delaytrack.experiments.tuning import shipped_gains_path
+    from delaytrack.experiments.tuning import default_gains_path
 
     out = Path(build_parser().parse_args(["tune-baselines"]).out)
     assert out == Path("results") / "baseline_gains.toml"
-    assert out.resolve() != shipped_gains_path().resolve()
+    assert out.resolve() != default_gains_path().resolve()
 
 
 def test_reproduce_gains_must_be_a_complete_gains_file(tmp_path, capsys):
     from delaytrack.cli import _checked_gains
-    from delaytrack.experiments.tuning import shipped_gains_path
+    from delaytrack.experiments.tuning import default_gains_path
 
-    assert _checked_gains(str(shipped_gains_path())) == shipped_gains_path().resolve()
+    assert _checked_gains(str(default_gains_path())) == default_gains_path().resolve()
     assert main(["reproduce", "--gains", str(tmp_path / "none.toml"), "--out", str(tmp_path)]) == 2
     assert "--gains" in capsys.readouterr().err
     partial = tmp_path / "partial.toml"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -146,3 +147,17 @@ def test_a_small_study_runs_resumes_and_writes_its_files(tmp_path):
     assert row.share_holds.iloc[0] == share or (
         np.isnan(share) and np.isnan(row.share_holds.iloc[0])
     )
+
+
+def test_the_study_uses_the_gains_it_is_given():
+    # A gains record with another tuned AROLC: the study's tuned AROLC is that one.
+    record = copy.deepcopy(dict(tuning.load_tuning_record()))
+    record["AROLC"]["all"] |= {"k": 3.0, "zeta": 1.0, "alpha": 5.0}
+    sweeps = robustness.study_specs(robustness.StudySize(1, 1, 1), record)
+    first = sweeps[0]
+    tuned = [
+        run.scenario.controller
+        for run, label in zip(first.spec.runs, first.labels, strict=True)
+        if label["controller"] == "AROLC (tuned)"
+    ]
+    assert tuned and all((c["K1"], c["K2"], c["alpha"]) == (9.0, 6.0, 5.0) for c in tuned)

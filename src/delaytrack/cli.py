@@ -26,7 +26,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import re
 import sys
 import time
@@ -438,21 +437,13 @@ def _empirical(args: argparse.Namespace) -> int:
 
 
 def _reproduce(args: argparse.Namespace) -> int:
-    from delaytrack.experiments.tuning import GAINS_VARIABLE
-
     check_writable_location(args.out, "--out")
-    previous = os.environ.get(GAINS_VARIABLE)
     if args.gains is not None:
-        os.environ[GAINS_VARIABLE] = str(_checked_gains(args.gains))
+        args.gains = _checked_gains(args.gains)
     try:
         return _reproduce_job(args)
     except OutputFolderError as error:  # a job's folder under --out, checked before computing
         raise UsageError(f"--out {args.out!r}: {error}") from None
-    finally:
-        if previous is None:
-            os.environ.pop(GAINS_VARIABLE, None)
-        else:
-            os.environ[GAINS_VARIABLE] = previous
 
 
 def _checked_gains(text: str) -> Path:
@@ -502,7 +493,9 @@ def _reproduce_robustness(args: argparse.Namespace, executor) -> int:
 
     folder = check_output_folder(Path(args.out) / "robustness", "--out", marks=("sweeps",))
     start = time.perf_counter()
-    study = run_robustness(folder, size=args.size, executor=executor, progress=not args.quiet)
+    study = run_robustness(
+        folder, size=args.size, executor=executor, progress=not args.quiet, gains=args.gains
+    )
     seconds = time.perf_counter() - start
     print(f"robustness job done in {seconds:.1f} s wall time; wrote {folder}/")
     for line in findings(study):
@@ -543,6 +536,7 @@ def _reproduce_job(args: argparse.Namespace) -> int:
         contact=False if args.no_contact else None,
         robustness=None if args.no_robustness else args.size,
         executor=executor,
+        gains=args.gains,
     )
     seconds = time.perf_counter() - start
     out = Path(args.out)

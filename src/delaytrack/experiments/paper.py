@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -199,6 +200,8 @@ class PaperStudy:
     gains : dict
         The chosen gains as read from the gains file (:func:`tuning.load_gains`: kind -> gain
         set -> gains).
+    tuning_record : mapping
+        The whole gains file (:func:`tuning.load_tuning_record`), read once.
     tuned_summary : DataFrame
         :data:`SUMMARY_COLUMNS` for the tuned AROLC (controller ``AROLC-tuned``; the gain set
         of each scenario's delay class).
@@ -216,6 +219,7 @@ class PaperStudy:
     status: pd.DataFrame
     dt_check: pd.DataFrame | None
     gains: dict[str, dict[str, dict[str, float]]]
+    tuning_record: Mapping[str, Any]
     bound: RazumikhinBound
     tuned_summary: pd.DataFrame
     contact: pd.DataFrame | None
@@ -338,7 +342,7 @@ def run_study(
     duration: float = DURATION,
     progress: bool = True,
     check_dt: bool = True,
-    gains_path: str | Path | None = None,
+    gains_path: tuning.GainsSource = None,
     contact: bool | None = None,
 ) -> PaperStudy:
     """Run S1–S4 for every controller (and again at ``dt/2`` if ``check_dt``; and on the
@@ -346,7 +350,8 @@ def run_study(
     the consistent one)."""
     if contact is None:
         contact = reference == "consistent" and _mujoco_installed()
-    gains = tuning.load_gains(gains_path)
+    record = tuning.load_tuning_record(gains_path)
+    gains = tuning.load_gains(record)
     controllers = _controllers(gains, reference)
     bound = razumikhin_bound(
         AROLC_GAINS["K1"], AROLC_GAINS["K2"], AROLC_GAINS["Q"], BETA, R, n=NominalRobot.n
@@ -381,6 +386,7 @@ def run_study(
         status=status,
         dt_check=dt_check,
         gains=gains,
+        tuning_record=record,
         bound=bound,
         tuned_summary=tuned_summary,
         contact=_contact_table(analytic, wheels) if wheels else None,
@@ -757,7 +763,7 @@ def _explanation(study: PaperStudy) -> list[str]:
     spread = {}
     for case in ("S1", "S3"):
         kind = BASELINE[case]
-        objective = tuning.grid_table(kind, DELAY_CLASS[case]).objective
+        objective = tuning.grid_table(kind, DELAY_CLASS[case], study.tuning_record).objective
         spread[kind] = (
             float(objective.min()),
             float(objective.median()),
@@ -810,7 +816,7 @@ def _explanation(study: PaperStudy) -> list[str]:
         study.status.controller.isin(["PCON", "PCONf"]) & (study.status.status != "ok")
     ]
     if len(bad):
-        conditions = tuning.draw_conditions(tuning.load_tuning_record()["condition_seed"])
+        conditions = tuning.draw_conditions(study.tuning_record["condition_seed"])
         parts = []
         for r in bad.itertuples():
             delay_class = DELAY_CLASS[r.scenario]
@@ -1097,7 +1103,7 @@ def _consistent_path_text() -> str:
 
 def _settings(study: PaperStudy) -> dict[str, str]:
     g = study.gains
-    record = tuning.load_tuning_record()
+    record = study.tuning_record
     return {
         "reference path": f"'{study.reference}' (paper_reference): x_d = 1.25 sin(0.35t) + 0.1, "
         "y_d = 1.25 cos(0.35t) + 1.35 m; "
@@ -1264,7 +1270,7 @@ def _report(
     report.paragraph(_literal_paragraph(study, literal_summary))
     write_dt_check(report, study.dt_check, DT / 2)
     report.heading("Tuning")
-    record = tuning.load_tuning_record()
+    record = study.tuning_record
     report.paragraph(
         "Objective, the same for every controller: every grid point is run under each tuning "
         "condition; per condition the mean of AE-x and AE-y (mm), ae_mm_i for condition i; a "
@@ -1280,7 +1286,7 @@ def _report(
     )
     for kind in tuning.KINDS:
         for gain_set in tuning.GAIN_SETS:
-            table = tuning.grid_table(kind, gain_set)
+            table = tuning.grid_table(kind, gain_set, record)
             chosen = record[kind][gain_set]
             best = table.drop(columns="status").sort_values("objective").head(5)
             report.paragraph(
@@ -1319,8 +1325,11 @@ def run_paper(
     literal_summary: pd.DataFrame | None = None,
     contact: bool | None = None,
     robustness: RobustnessStudy | None = None,
+    gains: tuning.GainsSource = None,
 ) -> PaperStudy:
-    """Run the paper's experiment and write ``out_dir`` (module docstring); return the study."""
+    """Run the paper's experiment and write ``out_dir`` (module docstring); return the study.
+    ``gains``: the gains file (or its record) of the tuned controllers; the shipped one by
+    default."""
     if not (math.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be a positive number of seconds; got {duration!r}")
     study = run_study(
@@ -1328,6 +1337,7 @@ def run_paper(
         duration=duration,
         progress=progress,
         check_dt=check_dt,
+        gains_path=gains,
         contact=contact,
     )
     write_study(study, out_dir, literal_summary=literal_summary, robustness=robustness)
@@ -1343,12 +1353,15 @@ def reproduce(
     contact: bool | None = None,
     robustness: str | None = "default",
     executor: Any = None,
+    gains: tuning.GainsSource = None,
 ) -> dict[str, Any]:
     """``<out>/paper-literal/``, ``<out>/robustness/`` (the robustness study at size
     ``robustness``; None skips it) and ``<out>/paper/`` (whose report cites the literal run and
     the study's verdicts, and has the runs with contact physics when ``contact``; by default
-    when MuJoCo is installed). Returns ``{"consistent", "literal", "robustness"}``."""
+    when MuJoCo is installed), with the tuned gains of ``gains`` (a gains file; the shipped one
+    by default). Returns ``{"consistent", "literal", "robustness"}``."""
     out = Path(out)
+    gains = tuning.load_tuning_record(gains)
     for name in ("paper-literal", "paper", *(("robustness",) if robustness else ())):
         check_output_folder(out / name, marks=("sweeps",) if name == "robustness" else ())
     literal = run_paper(
@@ -1357,9 +1370,16 @@ def reproduce(
         duration=duration,
         progress=progress,
         check_dt=check_dt,
+        gains=gains,
     )
     study = (
-        run_robustness(out / "robustness", size=robustness, executor=executor, progress=progress)
+        run_robustness(
+            out / "robustness",
+            size=robustness,
+            executor=executor,
+            progress=progress,
+            gains=gains,
+        )
         if robustness
         else None
     )
@@ -1372,5 +1392,6 @@ def reproduce(
         literal_summary=literal.summary,
         contact=contact,
         robustness=study,
+        gains=gains,
     )
     return {"consistent": consistent, "literal": literal, "robustness": study}

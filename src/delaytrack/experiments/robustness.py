@@ -134,12 +134,17 @@ def _outer_table(gains: Mapping[str, float]) -> dict[str, Any]:
     return {"type": "outer-loop", "K1": float(gains["K1"]), "K2": float(gains["K2"])}
 
 
-def _tuned_arolc(gain_set: str) -> dict[str, float]:
-    g = tuning.load_gains()["AROLC"][gain_set]
+#: The chosen gains as :func:`~delaytrack.experiments.tuning.load_gains` gives them.
+Gains = Mapping[str, Mapping[str, Mapping[str, float]]]
+
+
+def _tuned_arolc(gains: Gains, gain_set: str) -> dict[str, float]:
+    g = gains["AROLC"][gain_set]
     return tuning.arolc_gains(g["k"], g["zeta"], g["alpha"])
 
 
 def _predictor_table(
+    gains: Gains,
     kind: str,
     gain_set: str,
     *,
@@ -151,8 +156,8 @@ def _predictor_table(
     told ``scale · h``, PCONf with ``h_bar``; ``law`` runs the gains with another kind's law
     (``"PCON"``: PCONf's gains told ``scale · h``, which for a constant delay ``h`` is PCONf
     told ``h̄ = scale · h``)."""
-    gains = tuning.load_gains()[kind][gain_set]
-    controller = tuning.make_controller(law or kind, gains, h_bar=h_bar, history=HISTORY)
+    chosen = gains[kind][gain_set]
+    controller = tuning.make_controller(law or kind, chosen, h_bar=h_bar, history=HISTORY)
     table = controller.to_spec()
     if table["type"] == "pcon" and scale != 1.0:
         table["delay_scale"] = float(scale)
@@ -185,15 +190,15 @@ def _spec(
     )
 
 
-def _map_sweep(draws: int) -> _Sweep:
+def _map_sweep(gains: Gains, draws: int) -> _Sweep:
     rows: list[tuple[str, float, dict[str, Any]]] = [
         ("AROLC (paper gains)", math.nan, _arolc_table(AROLC_GAINS)),
-        ("AROLC (tuned)", math.nan, _arolc_table(_tuned_arolc("all"))),
+        ("AROLC (tuned)", math.nan, _arolc_table(_tuned_arolc(gains, "all"))),
         ("outer loop (paper gains)", math.nan, _outer_table(AROLC_GAINS)),
     ]
     for kind in tuning.PREDICTORS:
         law = "PCON" if kind == "PCONf" else None
-        rows += [(kind, s, _predictor_table(kind, "all", scale=s, law=law)) for s in SCALES]
+        rows += [(kind, s, _predictor_table(gains, kind, "all", scale=s, law=law)) for s in SCALES]
     delays = [{"type": "constant", "h": h} for h in TRUE_DELAYS]
     labels = [
         {"delay_ms": 1e3 * h, "controller": name, "scale": scale}
@@ -204,24 +209,24 @@ def _map_sweep(draws: int) -> _Sweep:
     return _Sweep("map", _spec(grid, draws), labels)
 
 
-def _knowledge_sweep(case: str, draws: int) -> _Sweep:
+def _knowledge_sweep(gains: Gains, case: str, draws: int) -> _Sweep:
     rows: list[tuple[str, float, dict[str, Any]]] = [
         ("AROLC (paper gains)", math.nan, _arolc_table(AROLC_GAINS)),
-        ("AROLC (tuned)", math.nan, _arolc_table(_tuned_arolc("varying"))),
+        ("AROLC (tuned)", math.nan, _arolc_table(_tuned_arolc(gains, "varying"))),
     ]
     mean = tuning.long_run_mean(delay_from_spec(_SCENARIOS[case]))
     for s in SCALES:
-        rows.append(("PCON", s, _predictor_table("PCON", "varying", scale=s)))
-        rows.append(("PCON-wheel", s, _predictor_table("PCON-wheel", "varying", scale=s)))
-        rows.append(("PCONf", s, _predictor_table("PCONf", "varying", h_bar=s * mean)))
+        rows.append(("PCON", s, _predictor_table(gains, "PCON", "varying", scale=s)))
+        rows.append(("PCON-wheel", s, _predictor_table(gains, "PCON-wheel", "varying", scale=s)))
+        rows.append(("PCONf", s, _predictor_table(gains, "PCONf", "varying", h_bar=s * mean)))
     labels = [{"scenario": case, "controller": name, "scale": s} for name, s, _ in rows]
     grid = {"delay": [_SCENARIOS[case]], "controller": [table for _, _, table in rows]}
     return _Sweep(f"knowledge-{case}", _spec(grid, draws), labels)
 
 
-def _claims_sweep(case: str, draws: int) -> _Sweep:
+def _claims_sweep(gains: Gains, case: str, draws: int) -> _Sweep:
     gain_set = DELAY_CLASS[case]
-    tuned = _tuned_arolc(gain_set)
+    tuned = _tuned_arolc(gains, gain_set)
     baseline = BASELINE[case]
     h_bar = float(delay_from_spec(_SCENARIOS[case]).h_max) if baseline == "PCONf" else None
     rows = [
@@ -229,8 +234,8 @@ def _claims_sweep(case: str, draws: int) -> _Sweep:
         ("outer loop (paper gains)", _outer_table(AROLC_GAINS)),
         ("AROLC (tuned)", _arolc_table(tuned)),
         ("outer loop (tuned gains)", _outer_table(tuned)),
-        (baseline, _predictor_table(baseline, gain_set, h_bar=h_bar)),
-        ("PCON-wheel", _predictor_table("PCON-wheel", gain_set)),
+        (baseline, _predictor_table(gains, baseline, gain_set, h_bar=h_bar)),
+        ("PCON-wheel", _predictor_table(gains, "PCON-wheel", gain_set)),
     ]
     noise = [("off", _NO_NOISE), ("on", NOISE)]
     labels = [
@@ -247,13 +252,17 @@ def _claims_sweep(case: str, draws: int) -> _Sweep:
     return _Sweep(f"claims-{case}", _spec(grid, draws, noise_seed), labels)
 
 
-def study_specs(size: str | StudySize = "default") -> list[_Sweep]:
-    """The study's sweeps at a size (:data:`SIZES`): map, knowledge-S1/S2, claims-S1..S4."""
+def study_specs(
+    size: str | StudySize = "default", gains: tuning.GainsSource = None
+) -> list[_Sweep]:
+    """The study's sweeps at a size (:data:`SIZES`): map, knowledge-S1/S2, claims-S1..S4, with
+    the tuned gains of ``gains`` (a gains file or its record; the shipped file by default)."""
     size = SIZES[size] if isinstance(size, str) else size
+    chosen = tuning.load_gains(gains)
     return [
-        _map_sweep(size.map),
-        *(_knowledge_sweep(case, size.knowledge) for case in ("S1", "S2")),
-        *(_claims_sweep(case, size.claims) for case in _SCENARIOS),
+        _map_sweep(chosen, size.map),
+        *(_knowledge_sweep(chosen, case, size.knowledge) for case in ("S1", "S2")),
+        *(_claims_sweep(chosen, case, size.claims) for case in _SCENARIOS),
     ]
 
 
@@ -536,6 +545,8 @@ class RobustnessStudy:
         :func:`outcome_table` per (scenario, noise, controller).
     verdicts, attribution : DataFrame
         :func:`claim_verdicts` and :func:`attribution`.
+    tuning_record : mapping
+        The gains file the tuned controllers came from (:func:`tuning.load_tuning_record`).
     seconds : float
         Wall time of the sweeps.
     """
@@ -547,6 +558,7 @@ class RobustnessStudy:
     claims: pd.DataFrame
     verdicts: pd.DataFrame
     attribution: pd.DataFrame
+    tuning_record: Mapping[str, Any]
     seconds: float
     computed: int = 0
     resumed: int = 0
@@ -558,19 +570,22 @@ def run_robustness(
     size: str | StudySize = "default",
     executor: Any = None,
     progress: bool = True,
+    gains: tuning.GainsSource = None,
 ) -> RobustnessStudy:
     """Run (or resume) the study's sweeps into ``out/sweeps/<name>/`` and write its tables,
     figure and report into ``out``.
 
     ``executor`` makes an :class:`~delaytrack.sweeps.executors.Executor` per sweep (a callable
-    without arguments; default: all local cores).
+    without arguments; default: all local cores); ``gains`` is where the tuned gains come
+    from (a gains file or its record; the shipped file by default).
     """
+    record = tuning.load_tuning_record(gains)
     size = SIZES[size] if isinstance(size, str) else size
     make = executor if executor is not None else LocalExecutor
     out = Path(out)
     start = time.perf_counter()
     frames, computed, resumed = {}, 0, 0
-    for sweep in study_specs(size):
+    for sweep in study_specs(size, record):
         if progress:
             print(f"robustness: sweep {sweep.name} ({len(sweep.spec.runs)} runs)", flush=True)
         outcome = run_sweep(
@@ -590,6 +605,7 @@ def run_robustness(
         claims=outcome_table(claims, ["scenario", "noise", "controller"]),
         verdicts=claim_verdicts(claims),
         attribution=attribution(claims),
+        tuning_record=record,
         seconds=seconds,
         computed=computed,
         resumed=resumed,
@@ -710,7 +726,7 @@ def findings(study: RobustnessStudy) -> list[str]:
             "observed here does not come from the switching term Δu, since the outer loop "
             "without it is as robust in this test."
         )
-    record = tuning.load_tuning_record()
+    record = study.tuning_record
     edges = [
         f"{kind} ({gain_set})"
         for kind in tuning.KINDS

@@ -64,11 +64,8 @@ Everything is deterministic (the draws and payload placements are seeded).
 
 from __future__ import annotations
 
-import copy
-import functools
 import itertools
 import math
-import os
 import time
 import tomllib
 from collections.abc import Mapping, Sequence
@@ -108,7 +105,6 @@ __all__ = [
     "arolc_gains",
     "certified_bound",
     "default_gains_path",
-    "shipped_gains_path",
     "draw_conditions",
     "gains_text",
     "grid_table",
@@ -222,21 +218,14 @@ def _payload_seed(rng: np.random.Generator) -> int:
 CONDITIONS: tuple[Condition, ...] = draw_conditions()
 
 
-#: Environment variable naming a gains file to use instead of the shipped one
-#: (``delaytrack reproduce --gains PATH`` sets it for its run).
-GAINS_VARIABLE = "DELAYTRACK_GAINS"
-
-
-def shipped_gains_path() -> Path:
+def default_gains_path() -> Path:
     """The shipped gains file, ``delaytrack/data/baseline_gains.toml``."""
     return Path(str(resources.files("delaytrack").joinpath("data", "baseline_gains.toml")))
 
 
-def default_gains_path() -> Path:
-    """The gains file the paper job and the robustness study read: the file named by the
-    environment variable ``DELAYTRACK_GAINS`` when it is set, else :func:`shipped_gains_path`."""
-    chosen = os.environ.get(GAINS_VARIABLE)
-    return Path(chosen) if chosen else shipped_gains_path()
+#: Where gains come from: a gains file, its contents as :func:`load_tuning_record` gives them,
+#: or None for :func:`default_gains_path`.
+GainsSource = str | Path | Mapping[str, Any] | None
 
 
 def vartheta_base(kind: str = "PCON", reference: str = "consistent") -> np.ndarray:
@@ -540,25 +529,19 @@ def write_gains(results: Mapping[str, TuningResult], path: str | Path | None = N
     return write_text(path, tomli_w.dumps(data))
 
 
-def load_tuning_record(path: str | Path | None = None) -> dict[str, Any]:
-    """The whole gains file as data (protocol, conditions, grids, per-condition results).
-
-    Parsed once per file version (path, size and modification time) and copied for each
-    caller: the paper job reads it a dozen times."""
-    path = Path(default_gains_path() if path is None else path).resolve()
-    status = path.stat()
-    return copy.deepcopy(_parsed_record(str(path), status.st_size, status.st_mtime_ns))
-
-
-@functools.lru_cache(maxsize=4)
-def _parsed_record(path: str, size: int, mtime_ns: int) -> dict[str, Any]:
-    return tomllib.loads(Path(path).read_text(encoding="utf-8"))
+def load_tuning_record(source: GainsSource = None) -> Mapping[str, Any]:
+    """The whole gains file as data (protocol, conditions, grids, per-condition results); a
+    record already loaded is returned as it is (load it once, pass it on)."""
+    if isinstance(source, Mapping):
+        return source
+    path = default_gains_path() if source is None else Path(source)
+    return tomllib.loads(path.read_text(encoding="utf-8"))
 
 
-def load_gains(path: str | Path | None = None) -> dict[str, dict[str, dict[str, float]]]:
+def load_gains(source: GainsSource = None) -> dict[str, dict[str, dict[str, float]]]:
     """The chosen gains: ``kind -> gain set -> {gain: value, "objective": mm}`` (AROLC also
     ``h_m``, ``K1``, ``K2``), for every kind and gain set in the file."""
-    record = load_tuning_record(path)
+    record = load_tuning_record(source)
     out: dict[str, dict[str, dict[str, float]]] = {}
     for kind in KINDS:
         if kind not in record:
@@ -572,10 +555,10 @@ def load_gains(path: str | Path | None = None) -> dict[str, dict[str, dict[str, 
     return out
 
 
-def grid_table(kind: str, gain_set: str = "all", path: str | Path | None = None) -> pd.DataFrame:
+def grid_table(kind: str, gain_set: str = "all", source: GainsSource = None) -> pd.DataFrame:
     """One controller's grid from the gains file: gains, per-condition results, ``status`` and
     the gain set's ``objective`` (mm, NaN where a run of the set diverged)."""
-    record = load_tuning_record(path)
+    record = load_tuning_record(source)
     section = record[kind]
     table = pd.DataFrame(section["rows"], columns=section["columns"])
     table["status"] = section["status"]

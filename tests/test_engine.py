@@ -22,7 +22,7 @@ from delaytrack.delays import (
 from delaytrack.plants import CallablePlant, CompiledPlant, LinearPlant, TwoLinkArm
 from delaytrack.references import SinusoidalReference
 from delaytrack.sim import MeasurementNoise, PacketLoss, simulate
-from delaytrack.sim.history import latest_tick_index
+from delaytrack.sim.history import latest_tick_index, latest_tick_index_from
 from delaytrack.sim.integrator import beyond
 
 # A damped point mass q̈ = -c q̇ + u under a sampled PD law u = -K2 q̇ - K1 q (q_d = 0): linear,
@@ -107,6 +107,8 @@ def test_latest_tick_index_equals_a_scan_of_all_tick_times() -> None:
         issued = np.flatnonzero(ticks <= g)
         expected = int(issued[-1]) if issued.size else -1
         assert latest_tick_index(g, t0, dt, steps) == expected
+        hint = int(rng.integers(-1, 2000))
+        assert latest_tick_index_from(g, hint, t0, dt, steps) == expected
 
 
 @pytest.mark.parametrize(

@@ -38,7 +38,7 @@ from delaytrack.delays._kernel import (
     profile_value,
 )
 from delaytrack.plants.base import el_rhs, rhs_scratch
-from delaytrack.sim.history import latest_tick_index, tick_time
+from delaytrack.sim.history import latest_tick_index, latest_tick_index_from, tick_time
 
 __all__ = [
     "DELAY_BEYOND_HISTORY",
@@ -76,13 +76,14 @@ def rk4_workspace(x, m):
 
     ``(slopes (4, 2n), stage (2n,), stage_q, stage_q̇, scratch, profile)``: the views are taken
     once per run, so the inner loop neither allocates nor slices. ``profile`` remembers, from
-    one step to the next, the delay profile's current piece ``[from, breakpoint)`` and
-    ``h(t_end)`` of the last piece (see :func:`_piece`).
+    one step to the next, the delay profile's current piece ``[from, breakpoint)``, ``h(t_end)``
+    of the last piece (see :func:`_piece`), and ``g(t_end)`` of the last piece with its tick
+    index (see :func:`integrate_tick`).
     """
     n = x.shape[0] // 2
     slopes = np.empty((4, 2 * n))
     stage = np.empty(2 * n)
-    profile = np.array([np.inf, -np.inf, np.nan, np.nan])
+    profile = np.array([np.inf, -np.inf, np.nan, np.nan, np.nan, -1.0])
     return slopes, stage, stage[:n], stage[n:], rhs_scratch(n, m), profile
 
 
@@ -117,14 +118,20 @@ def _rk4_substep(plant_terms, plant_params, t, x, u, length, work):
 
 
 @hot_inline_kernel
-def _history_slot(k, newest, capacity):
-    """Ring slot of command ``k`` (-1 for ``u_init`` before the first tick, -2 when it has left
-    the history of ``capacity`` commands whose newest is ``newest``)."""
+def _history_slot(k, newest, newest_slot, capacity):
+    """Ring slot ``k % capacity`` of command ``k`` (-1 for ``u_init`` before the first tick, -2
+    when it has left the history of ``capacity`` commands whose newest, ``newest``, is in slot
+    ``newest_slot``), counted from the newest slot without an integer division."""
     if k < 0:
         return -1
     if k <= newest - capacity:
         return -2
-    return k % capacity
+    slot = newest_slot - (newest - k)
+    if slot < 0:
+        return slot + capacity
+    if slot >= capacity:
+        return slot - capacity
+    return slot
 
 
 @hot_inline_kernel
@@ -185,6 +192,7 @@ def integrate_tick(
     """
     tolerance = _SPLIT_TOLERANCE * dt
     capacity = history.shape[0]
+    newest_slot = k % capacity
     profile = work[5]
     first_slot = -3
     for j in range(steps_per_tick):
@@ -200,8 +208,15 @@ def integrate_tick(
                 k_a = latest_tick_index(g_a + tolerance, t0, dt, steps_per_tick)
                 k_b = k_a
             else:
-                k_a = latest_tick_index(g_a, t0, dt, steps_per_tick)
-                k_b = latest_tick_index(g_b, t0, dt, steps_per_tick)
+                # g(a) is mostly g(b) of the last piece, whose tick index is remembered; the
+                # index at b is then found by walking from the one at a.
+                if g_a == profile[4]:
+                    k_a = int(profile[5])
+                else:
+                    k_a = latest_tick_index(g_a, t0, dt, steps_per_tick)
+                k_b = latest_tick_index_from(g_b, k_a, t0, dt, steps_per_tick)
+                profile[4] = g_b
+                profile[5] = k_b
             # Sub-intervals end at each tick crossed by g on this piece, in time order, then b.
             crossings = abs(k_b - k_a)
             direction = 1 if k_b >= k_a else -1
@@ -219,7 +234,7 @@ def integrate_tick(
                     if b - end <= tolerance:
                         end = b  # the rest of the piece is a sliver: integrated with this input
                 # On sub-interval i, g lies between the ticks crossed at its ends: command k_a ± i.
-                slot = _history_slot(k_a + direction * i, k, capacity)
+                slot = _history_slot(k_a + direction * i, k, newest_slot, capacity)
                 if slot == -2:
                     return DELAY_BEYOND_HISTORY, t_start, first_slot
                 if first_slot == -3:

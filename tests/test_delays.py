@@ -33,6 +33,7 @@ from delaytrack.delays._kernel import (
     delay_value,
     next_breakpoint,
     piece_end_values,
+    slope_bound,
 )
 
 TIMES = np.linspace(-3.0, 40.0, 4001)  # dense grid including negative times
@@ -647,3 +648,33 @@ def test_a_number_given_as_text_or_bool_is_refused():
         ConstantDelay("0.06")
     with pytest.raises(TypeError, match=r"frequency must be a real number; got True"):
         AbsSineDelay(0.01, 0.02, True)
+
+
+@pytest.mark.parametrize(
+    "profile",
+    [
+        ConstantDelay(0.04),
+        AbsSineDelay.S1(),
+        AbsSineDelay(0.05, 0.3, 5.0, 0.7),  # A ω = 1.5
+        PiecewiseConstantDelay([0.0, 0.5, 0.9], [0.03, 0.011, 0.07]),
+        RandomDelay(0.01, 0.12, 2.0, 5.0, seed=4),
+    ],
+    ids=["constant", "S1", "fast-sine", "piecewise-constant", "random-walk"],
+)
+def test_slope_bound_bounds_the_slope_of_h_on_every_piece(profile) -> None:
+    # The simulator skips evaluating h over steps where g = t - h cannot reach a tick; that is
+    # exact only if |h(s) - h(t)| <= L |s - t| for s, t in one piece.
+    t = -0.5
+    checked = 0
+    while t < 5.0:
+        end = min(next_breakpoint(profile.kind, profile.params, t), 5.0)
+        bound = slope_bound(profile.kind, profile.params, t)
+        inside = np.linspace(t, end, 202)[1:-1]  # h jumps at a piecewise-constant breakpoint
+        values = np.array([delay_value(profile.kind, profile.params, s) for s in inside])
+        slopes = np.abs(np.diff(values)) / np.diff(inside)
+        assert np.all(slopes <= bound * (1 + 1e-9) + 1e-12), (t, end, slopes.max(), bound)
+        checked += 1
+        t = end
+    assert checked >= (1 if isinstance(profile, ConstantDelay) else 2)
+    if isinstance(profile, RandomDelay):  # the bound is the piece's own slope, not a global one
+        assert slope_bound(profile.kind, profile.params, 1.0) > 0.0

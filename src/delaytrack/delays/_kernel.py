@@ -25,6 +25,8 @@ The simulator integrates across the instants where ``g(t) = t - h(t)`` crosses a
 To find them it needs pieces on which ``g`` is continuous and monotone: :func:`next_breakpoint`
 returns the next end of such a piece (a kink or jump of ``h``, or an extremum of ``g`` where
 ``dh/dt = 1``), and :func:`crossing_time` solves ``g(t) = target`` inside one piece.
+:func:`slope_bound` bounds ``|dh/dt|`` on a piece, so that the simulator can tell, without
+evaluating ``h``, that ``g`` cannot reach the next tick within a step.
 """
 
 from __future__ import annotations
@@ -114,6 +116,27 @@ def next_breakpoint(kind, params, t):
     if i + 1 < m:
         return params[2 + i]
     return np.inf
+
+
+@inline_kernel
+def slope_bound(kind, params, t):
+    """A bound on ``|dh/dt|`` over the piece that starts at ``t`` (up to :func:`next_breakpoint`).
+
+    ``|A ω|`` for ``ABS_SINE``, the knot interval's slope for ``PIECEWISE_LINEAR``, 0 for the
+    constant kinds (within a piece) and ``inf`` for a kernel of the user's, whose slope is not
+    known. On such a piece ``g = t - h`` moves at a speed between ``1 - L`` and ``1 + L``.
+    """
+    if kind == CONSTANT or kind == PIECEWISE_CONSTANT:
+        return 0.0
+    if kind == ABS_SINE:
+        return abs(params[1] * params[2])
+    if kind == KERNEL:
+        return np.inf
+    m = int(params[0])
+    i = _knot_index(params, t)
+    if i < 0 or i >= m - 1:
+        return 0.0
+    return abs((params[2 + m + i] - params[1 + m + i]) / (params[2 + i] - params[1 + i]))
 
 
 @inline_kernel

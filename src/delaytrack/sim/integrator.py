@@ -10,6 +10,13 @@ the input of a sub-step is the command of the crossing count, without evaluating
 Crossings closer than ``1e-9 dt`` to either end of a sub-step are not split off (the sliver is
 integrated with its neighbour's input).
 
+Most steps contain no switch, and ``h`` need not be evaluated to know it: on a piece where
+``|dh/dt| <= L`` (:func:`~delaytrack.delays._kernel.slope_bound`), ``g`` moves at a speed between
+``1 - L`` and ``1 + L``, so from the last point where ``g`` was evaluated, with its tick index
+``k``, a step whose end keeps ``g`` strictly between ``t_k`` and ``t_{k+1}`` (with a margin far
+above rounding) is integrated with command ``k`` directly. A step that may contain a switch is
+treated as above, with ``g`` evaluated at its ends; both ways give the same numbers.
+
 A plant stepped by an integrator of its own (a MuJoCo model, :attr:`Kernel.stepper
 <delaytrack.components.Kernel>`) takes whole steps instead: the command in force at a step's
 start, that of the latest tick ``<= t_start - h(t_start)`` (``+ 1e-9 dt``, so that a tick
@@ -36,6 +43,7 @@ from delaytrack.delays._kernel import (
     piece_end_values,
     profile_crossing_time,
     profile_value,
+    slope_bound,
 )
 from delaytrack.plants.base import el_rhs, rhs_scratch
 from delaytrack.sim.history import latest_tick_index, latest_tick_index_from, tick_time
@@ -51,6 +59,9 @@ __all__ = [
 ]
 
 _SPLIT_TOLERANCE = 1e-9
+#: Margin of :func:`_no_switch_until`, relative to ``dt`` and to ``1 + |t|`` (far above the
+#: rounding of ``g = t - h(t)``).
+_SWITCH_MARGIN = 1e-9
 
 #: Outcomes of :func:`integrate_tick`, and the status codes of a run.
 OK = 0
@@ -76,14 +87,15 @@ def rk4_workspace(x, m):
 
     ``(slopes (4, 2n), stage (2n,), stage_q, stage_q̇, scratch, profile)``: the views are taken
     once per run, so the inner loop neither allocates nor slices. ``profile`` remembers, from
-    one step to the next, the delay profile's current piece ``[from, breakpoint)``, ``h(t_end)``
-    of the last piece (see :func:`_piece`), and ``g(t_end)`` of the last piece with its tick
-    index (see :func:`integrate_tick`).
+    one step to the next, the delay profile's current piece ``[from, breakpoint)``, the last
+    point ``t`` where ``h`` was evaluated with ``h(t)``, ``g(t)`` and its tick index, and the
+    piece's slope bound: ``[from, breakpoint, t, h, g, k, L]`` (see :func:`_piece` and
+    :func:`_no_switch_until`).
     """
     n = x.shape[0] // 2
     slopes = np.empty((4, 2 * n))
     stage = np.empty(2 * n)
-    profile = np.array([np.inf, -np.inf, np.nan, np.nan, np.nan, -1.0])
+    profile = np.array([np.inf, -np.inf, np.nan, np.nan, np.nan, -1.0, np.inf])
     return slopes, stage, stage[:n], stage[n:], rhs_scratch(n, m), profile
 
 
@@ -143,19 +155,49 @@ def _piece(delay, delay_kind, delay_params, a, t_end, profile):
     one ended, so the breakpoint and, for a continuous profile, ``h`` at the start are taken from
     the ``profile`` memory of :func:`rk4_workspace`: the same numbers, computed once.
     """
-    # next_breakpoint(a) is the same for every a in [from, breakpoint).
-    if not profile[0] <= a < profile[1]:
-        profile[0] = a
-        profile[1] = next_breakpoint(delay_kind, delay_params, a)
-    b = min(profile[1], t_end)
+    b = _piece_end(delay_kind, delay_params, a, t_end, profile)
     if delay_kind == PIECEWISE_CONSTANT:
         h_a, h_b = piece_end_values(delay_kind, delay_params, a, b)
     else:  # continuous: h(a+) = h(a), remembered when a ended the last piece
         h_a = profile[3] if a == profile[2] else profile_value(delay, delay_kind, delay_params, a)
         h_b = profile_value(delay, delay_kind, delay_params, b)
-        profile[2] = b
-        profile[3] = h_b
+    profile[2] = b
+    profile[3] = h_b
     return b, a - h_a, b - h_b
+
+
+@hot_inline_kernel
+def _piece_end(delay_kind, delay_params, a, t_end, profile):
+    """End ``b`` of the piece that starts at ``a`` within a step ending ``t_end``.
+
+    The profile's piece ``[from, breakpoint)`` and its slope bound are remembered in ``profile``
+    and found again only when ``a`` has left it (``next_breakpoint(a)`` is the same for every
+    ``a`` in a piece).
+    """
+    if not profile[0] <= a < profile[1]:
+        profile[0] = a
+        profile[1] = next_breakpoint(delay_kind, delay_params, a)
+        profile[6] = slope_bound(delay_kind, delay_params, a)
+    return min(profile[1], t_end)
+
+
+@hot_inline_kernel
+def _no_switch_until(b, profile, t0, dt, steps_per_tick):
+    """Whether ``g`` provably keeps the remembered tick index ``k`` from the remembered point to
+    ``b``, both in the current piece: ``g`` then stays within ``[t_k, t_{k+1})`` (module
+    docstring), with a margin of ``1e-9 (dt + (1 + |b|) (1 + L))``."""
+    t = profile[2]
+    if not (profile[0] <= t and profile[4] == profile[4]):  # NaN: no g remembered
+        return False
+    k = int(profile[5])
+    slope = profile[6]
+    span = b - t
+    margin = _SWITCH_MARGIN * (dt + (1.0 + abs(b)) * (1.0 + slope))
+    highest = profile[4] + span + slope * span + margin
+    lowest = profile[4] + span - slope * span - margin
+    return highest < tick_time(k + 1, t0, dt, steps_per_tick) and (
+        k < 0 or lowest >= tick_time(k, t0, dt, steps_per_tick)
+    )
 
 
 @borrowing_kernel
@@ -200,23 +242,32 @@ def integrate_tick(
         t_end = t0 + (k * steps_per_tick + j + 1) * dt
         a = t_start
         while a < t_end:
-            b, g_a, g_b = _piece(delay, delay_kind, delay_params, a, t_end, profile)
             if has_stepper(plant_terms):
                 # The plant's own integrator takes the whole step, with the command in force at
                 # its start (a switch within the sliver tolerance after it counts as at it).
+                b, g_a, g_b = _piece(delay, delay_kind, delay_params, a, t_end, profile)
                 b = t_end
                 k_a = latest_tick_index(g_a + tolerance, t0, dt, steps_per_tick)
                 k_b = k_a
             else:
-                # g(a) is mostly g(b) of the last piece, whose tick index is remembered; the
-                # index at b is then found by walking from the one at a.
-                if g_a == profile[4]:
+                b = _piece_end(delay_kind, delay_params, a, t_end, profile)
+                if _no_switch_until(b, profile, t0, dt, steps_per_tick):
                     k_a = int(profile[5])
+                    k_b = k_a
+                    g_a = g_b = 0.0  # not needed: no crossing
                 else:
-                    k_a = latest_tick_index(g_a, t0, dt, steps_per_tick)
-                k_b = latest_tick_index_from(g_b, k_a, t0, dt, steps_per_tick)
-                profile[4] = g_b
-                profile[5] = k_b
+                    b, g_a, g_b = _piece(delay, delay_kind, delay_params, a, t_end, profile)
+                    # g(a) is mostly g(b) of the last piece, whose tick index is remembered;
+                    # the index at b is then found by walking from the one at a.
+                    if g_a == profile[4]:
+                        k_a = int(profile[5])
+                    else:
+                        k_a = latest_tick_index(g_a, t0, dt, steps_per_tick)
+                    k_b = latest_tick_index_from(g_b, k_a, t0, dt, steps_per_tick)
+                    profile[4] = g_b
+                    profile[5] = k_b
+                    if delay_kind == PIECEWISE_CONSTANT and b == profile[1]:
+                        profile[4] = np.nan  # g jumps at the breakpoint: nothing to start from
             # Sub-intervals end at each tick crossed by g on this piece, in time order, then b.
             crossings = abs(k_b - k_a)
             direction = 1 if k_b >= k_a else -1

@@ -59,7 +59,7 @@ __all__ = [
 ]
 
 _SPLIT_TOLERANCE = 1e-9
-#: Margin of :func:`_no_switch_until`, relative to ``dt`` and to ``1 + |t|`` (far above the
+#: Margin of :func:`_quiet_until`, relative to ``dt`` and to ``1 + |t|`` (far above the
 #: rounding of ``g = t - h(t)``).
 _SWITCH_MARGIN = 1e-9
 
@@ -87,15 +87,15 @@ def rk4_workspace(x, m):
 
     ``(slopes (4, 2n), stage (2n,), stage_q, stage_q̇, scratch, profile)``: the views are taken
     once per run, so the inner loop neither allocates nor slices. ``profile`` remembers, from
-    one step to the next, the delay profile's current piece ``[from, breakpoint)``, the last
-    point ``t`` where ``h`` was evaluated with ``h(t)``, ``g(t)`` and its tick index, and the
-    piece's slope bound: ``[from, breakpoint, t, h, g, k, L]`` (see :func:`_piece` and
-    :func:`_no_switch_until`).
+    one step to the next, the delay profile's current piece ``[from, breakpoint)`` and its slope
+    bound ``L``, the last point ``t`` where ``h`` was evaluated with ``h(t)``, ``g(t)`` and its
+    tick index, and until when that index certainly holds: ``[from, breakpoint, t, h, g, k, L,
+    quiet_until]`` (see :func:`_piece` and :func:`_quiet_until`).
     """
     n = x.shape[0] // 2
     slopes = np.empty((4, 2 * n))
     stage = np.empty(2 * n)
-    profile = np.array([np.inf, -np.inf, np.nan, np.nan, np.nan, -1.0, np.inf])
+    profile = np.array([np.inf, -np.inf, np.nan, np.nan, np.nan, -1.0, np.inf, -np.inf])
     return slopes, stage, stage[:n], stage[n:], rhs_scratch(n, m), profile
 
 
@@ -182,22 +182,29 @@ def _piece_end(delay_kind, delay_params, a, t_end, profile):
 
 
 @hot_inline_kernel
-def _no_switch_until(b, profile, t0, dt, steps_per_tick):
-    """Whether ``g`` provably keeps the remembered tick index ``k`` from the remembered point to
-    ``b``, both in the current piece: ``g`` then stays within ``[t_k, t_{k+1})`` (module
-    docstring), with a margin of ``1e-9 (dt + (1 + |b|) (1 + L))``."""
-    t = profile[2]
-    if not (profile[0] <= t and profile[4] == profile[4]):  # NaN: no g remembered
-        return False
-    k = int(profile[5])
+def _quiet_until(b, g_b, k_b, profile, t0, dt, steps_per_tick):
+    """Until when ``g`` certainly keeps the tick index ``k_b`` it has at ``b`` (module docstring).
+
+    On the current piece ``g`` moves at a speed between ``1 - L`` and ``1 + L``, so it stays in
+    ``[t_k, t_{k+1})`` until it could first reach ``t_{k+1}`` rising at ``1 + L`` or, when
+    ``L > 1``, ``t_k`` falling at ``L - 1``, each less a margin of ``1e-9 (dt + (1 + |b|) (1 +
+    L))``; and at most until the piece ends. Before ``b`` when ``g(b)`` lies within the margin
+    of ``t_k`` (``g`` may then fall below it by rounding).
+    """
     slope = profile[6]
-    span = b - t
+    if not slope < np.inf:  # a kernel of the user's: no bound, h is evaluated at every step
+        return -np.inf
     margin = _SWITCH_MARGIN * (dt + (1.0 + abs(b)) * (1.0 + slope))
-    highest = profile[4] + span + slope * span + margin
-    lowest = profile[4] + span - slope * span - margin
-    return highest < tick_time(k + 1, t0, dt, steps_per_tick) and (
-        k < 0 or lowest >= tick_time(k, t0, dt, steps_per_tick)
-    )
+    horizon = b + (tick_time(k_b + 1, t0, dt, steps_per_tick) - g_b - margin) / (1.0 + slope)
+    if k_b >= 0:
+        above = g_b - tick_time(k_b, t0, dt, steps_per_tick) - margin
+        if not above >= 0.0:
+            return -np.inf
+        if slope > 1.0:
+            horizon = min(horizon, b + above / (slope - 1.0))
+    if not horizon <= profile[1]:  # the piece ends first (or NaN: nothing is certain)
+        return profile[1] if horizon > profile[1] else -np.inf
+    return horizon
 
 
 @borrowing_kernel
@@ -251,7 +258,7 @@ def integrate_tick(
                 k_b = k_a
             else:
                 b = _piece_end(delay_kind, delay_params, a, t_end, profile)
-                if _no_switch_until(b, profile, t0, dt, steps_per_tick):
+                if b <= profile[7]:  # no switch up to b: g keeps the remembered index
                     k_a = int(profile[5])
                     k_b = k_a
                     g_a = g_b = 0.0  # not needed: no crossing
@@ -266,8 +273,7 @@ def integrate_tick(
                     k_b = latest_tick_index_from(g_b, k_a, t0, dt, steps_per_tick)
                     profile[4] = g_b
                     profile[5] = k_b
-                    if delay_kind == PIECEWISE_CONSTANT and b == profile[1]:
-                        profile[4] = np.nan  # g jumps at the breakpoint: nothing to start from
+                    profile[7] = _quiet_until(b, g_b, k_b, profile, t0, dt, steps_per_tick)
             # Sub-intervals end at each tick crossed by g on this piece, in time order, then b.
             crossings = abs(k_b - k_a)
             direction = 1 if k_b >= k_a else -1

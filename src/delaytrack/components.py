@@ -52,6 +52,7 @@ from numba.extending import (
 )
 
 from delaytrack._jit import inline_kernel
+from delaytrack._native_call import NativeFunctionType, call_native
 from delaytrack._small_linalg import solve_in_place
 
 __all__ = [
@@ -528,8 +529,9 @@ def _call_command_map_compiled(model, q, params, input_map, tau, command):
 def call_step(
     step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command, work
 ):
-    """Run one controller tick with the controller's :class:`Kernel` ``step``; the other
-    arguments are those of the step kernel (:mod:`delaytrack.controllers.base`)."""
+    """Run one controller tick with the controller's :class:`Kernel` ``step`` (in the compiled
+    engine, its :class:`~delaytrack._native_call.NativeFunction`); the other arguments are those
+    of the step kernel (:mod:`delaytrack.controllers.base`)."""
     step(t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command, work)
 
 
@@ -539,6 +541,15 @@ def _call_step_compiled(
 ):
     # Inlined, so that the tick calls the step directly (a call level cost about 0.13 µs a tick;
     # numba's inliner does not take *arguments).
+    if isinstance(step, NativeFunctionType):  # the engine: through the step's address
+
+        def native(
+            step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, mp, u, work
+        ):
+            arguments = (t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, mp, u, work)
+            call_native(step, arguments)
+
+        return native
     if isinstance(step, KernelType):
         function = step.kernel().function
 

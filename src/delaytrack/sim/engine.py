@@ -14,10 +14,10 @@ Python (a user plant given as Python callables): see :mod:`delaytrack.sim.simula
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, typeof, types
 
 from delaytrack._jit import KERNEL_OPTIONS, borrowing_kernel, inline_kernel
-from delaytrack.components import call_reference, call_step
+from delaytrack.components import Kernel, call_reference, call_step
 from delaytrack.controllers.base import step_workspace
 from delaytrack.delays._kernel import profile_value
 from delaytrack.sim.history import tick_time
@@ -40,6 +40,7 @@ __all__ = [
     "LEFT_PATH",
     "OK",
     "STATUS_NAMES",
+    "controller_step_signature",
     "run_batch",
     "run_batch_compiled",
     "run_closed_loop",
@@ -232,6 +233,26 @@ def _run_ticks(handles, run, settings, records, memory):
         if outcome != OK:
             return outcome, t_stop
     return OK, tick_time(n_ticks, t0, dt, steps_per_tick)
+
+
+def controller_step_signature(model: Kernel, n: int, m: int) -> tuple:
+    """The numba types of the arguments :func:`run_closed_loop` passes to a controller's step
+    (:func:`~delaytrack.components.call_step`) for a nominal ``model`` with ``n`` coordinates
+    and ``m`` inputs: the signature its step is compiled for in the compiled engine, which
+    calls it through its address (:mod:`delaytrack._native_call`)."""
+    vector = typeof(np.empty(n))
+    return (
+        types.float64,  # t
+        *(vector,) * 5,  # q, q̇, q_d, q̇_d, q̈_d
+        types.float64,  # T_c
+        types.float64,  # h
+        vector,  # params
+        vector,  # state
+        typeof(model),
+        vector,  # the model's params
+        vector,  # command
+        typeof(step_workspace(n, m)),
+    )
 
 
 @inline_kernel

@@ -10,8 +10,10 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any, TypeVar
 
 import numpy as np
+from numba import typeof
 from tqdm.auto import tqdm
 
+from delaytrack._native_call import NativeFunction
 from delaytrack._validation import (
     finite_array,
     integer_multiple,
@@ -23,9 +25,9 @@ from delaytrack.delays._kernel import NO_KERNEL
 from delaytrack.delays.base import DelayProfile
 from delaytrack.plants.base import ELPlant
 from delaytrack.references import Reference
-from delaytrack.sim.engine import run_batch, run_batch_compiled
+from delaytrack.sim.engine import controller_step_signature, run_batch, run_batch_compiled
 from delaytrack.sim.fallback import PythonFallbackWarning
-from delaytrack.sim.first_compile import announce_compile, engine_ready
+from delaytrack.sim.first_compile import announce_compile, code_ready
 from delaytrack.sim.history import history_capacity, tick_time
 from delaytrack.sim.measurement import MeasurementNoise
 from delaytrack.sim.packet_loss import PacketLoss
@@ -503,18 +505,35 @@ def simulate(
             PythonFallbackWarning.describe(first_plant, first_controller, reference), stacklevel=2
         )
 
-    def handles(b: int) -> tuple:
-        """Element ``b``'s kernels (:class:`~delaytrack.components.Kernel`), compiled or as
-        plain Python."""
-        plant_b, controller_b = plants[b], controllers[b]
-        kernels = (
-            plant_b.engine_kernel,
-            controller_b.model.engine_kernel,
+    step_signature = (
+        controller_step_signature(first_controller.model.engine_kernel, n, m) if compiled else ()
+    )
+
+    def kernels(b: int) -> tuple:
+        """Element ``b``'s kernels (:class:`~delaytrack.components.Kernel`): plant, nominal model,
+        reference, controller step, delay."""
+        return (
+            plants[b].engine_kernel,
+            controllers[b].model.engine_kernel,
             reference.engine_kernel,
-            controller_b.engine_kernel,
+            controllers[b].engine_kernel,
             delay_kernel,
         )
-        return kernels if compiled else tuple(kernel.as_python() for kernel in kernels)
+
+    def handles(b: int, probe: bool = False) -> tuple:
+        """Element ``b``'s kernels as the engine takes them, compiled or as plain Python.
+        Compiled, the controller's step is called through its address
+        (:class:`~delaytrack._native_call.NativeFunction`, compiled for itself); ``probe``: an
+        address of 0, for the types alone, without compiling the step."""
+        plant, model, reference_kernel, step, delay_handle = kernels(b)
+        if not compiled:
+            return tuple(kernel.as_python() for kernel in kernels(b))
+        native = (
+            NativeFunction(step.function, step_signature, 0)
+            if probe
+            else NativeFunction.of(step.function, step_signature)
+        )
+        return plant, model, reference_kernel, native, delay_handle
 
     runs = (
         _stack_padded([p.params for p in plants]),
@@ -545,7 +564,7 @@ def simulate(
 
     runner = run_batch_compiled if compiled else run_batch
 
-    def chunk_arguments(index: int) -> tuple:
+    def chunk_arguments(index: int, probe: bool = False) -> tuple:
         chunk = chunks[index]
         part = slice(chunk[0], chunk[-1] + 1)
         chunk_runs = [array[part] for array in runs]
@@ -555,7 +574,7 @@ def simulate(
                 [controllers[b].model.for_worker(index).params for b in chunk]
             )
         return (
-            handles(int(chunk[0])),
+            handles(int(chunk[0]), probe),
             tuple(chunk_runs),
             settings,
             tuple(array[part] for array in outputs),
@@ -577,14 +596,21 @@ def simulate(
         pieces = batch
     chunks = np.array_split(np.arange(batch), pieces)
     in_parallel = compiled and workers > 1 and len(chunks) > 1
-    kernel_keys = tuple(kernel.key for kernel in handles(0)) if compiled else None
-    if compiled and not engine_ready(runner, chunk_arguments(0), kernel_keys):
-        announce_compile(
-            first_plant,
-            first_controller,
-            reference,
-            delays[own_delays[0]] if own_delays else None,
+    if compiled:
+        engine_ready = code_ready(
+            runner,
+            tuple(str(typeof(kernel)) for kernel in handles(0, probe=True)),
+            lambda: tuple(runner.typeof_pyval(item) for item in chunk_arguments(0, probe=True)),
         )
+        step_ready = code_ready(first_controller.step_kernel, step_signature, step_signature)
+        if not (engine_ready and step_ready):
+            announce_compile(
+                first_plant,
+                first_controller,
+                reference,
+                delays[own_delays[0]] if own_delays else None,
+                engine=not engine_ready,
+            )
     try:
         with tqdm(total=batch, desc="simulate", unit="run", disable=not progress) as bar:
             if in_parallel:
@@ -599,7 +625,7 @@ def simulate(
             raise
         # numba could not compile a kernel of the user's: their error, in one line.
         raise ValueError(
-            f"numba could not compile the engine for the kernels {list(kernel_keys)}: "
+            f"numba could not compile the engine for the kernels {[k.key for k in kernels(0)]}: "
             f"{_numba_cause(error)} (call a kernel of yours alone, compiled, to see numba's "
             "whole message)"
         ) from None

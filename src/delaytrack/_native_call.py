@@ -1,0 +1,143 @@
+"""Calling a compiled function through its address, so that its caller is compiled without it.
+
+numba compiles a call of one ``njit`` function from another by linking the callee's code into
+the caller's and optimising the two together. The engine calls a controller's step once a
+tick, so compiled that way it would be compiled again, tick loop and all, for every controller.
+Called through the address of the step's compiled code (:class:`NativeFunction`), the engine is
+compiled once for a plant, model, reference and delay kernel, and each controller's step once
+for itself (its own file in numba's disk cache): a controller of the user's then compiles in
+about a second, not in the several seconds of a whole engine.
+
+The call uses numba's own calling convention (the step's compiled code, not a C wrapper), so
+arrays, tuples and kernels pass as they would in a linked call; the step's argument types are
+part of the numba type of a :class:`NativeFunction` and must equal those of the call, which
+compiling the caller checks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+from llvmlite import ir
+from numba import types
+from numba.core import cgutils
+from numba.core.errors import TypingError
+from numba.extending import (
+    NativeValue,
+    intrinsic,
+    models,
+    overload,
+    register_model,
+    typeof_impl,
+    unbox,
+)
+
+__all__ = ["NativeFunction", "NativeFunctionType", "call_native"]
+
+
+@dataclass(frozen=True)
+class NativeFunction:
+    """A ``numba.njit`` function compiled for ``signature`` (its argument types, returning
+    nothing), known to compiled code by the address of that compiled code.
+
+    Parameters
+    ----------
+    function : numba dispatcher
+        The compiled function.
+    signature : tuple of numba types
+        The types of its arguments.
+    address : int
+        Where its compiled code is, in this process.
+    """
+
+    function: Any
+    signature: tuple
+    address: int
+
+    @classmethod
+    def of(cls, function: Any, signature: tuple) -> NativeFunction:
+        """``function`` compiled (or loaded from numba's disk cache) for ``signature``."""
+        return _native_function(function, tuple(signature))
+
+    @property
+    def runs_as_python(self) -> bool:
+        """Never: the function is compiled (see :mod:`delaytrack._jit`)."""
+        return False
+
+
+@lru_cache(maxsize=1024)
+def _native_function(function: Any, signature: tuple) -> NativeFunction:
+    function.compile(signature)
+    result = function.overloads[signature]
+    address = result.library.get_pointer_to_function(result.fndesc.llvm_func_name)
+    return NativeFunction(function, signature, address)
+
+
+class NativeFunctionType(types.Type):
+    """numba type of a :class:`NativeFunction`: its argument types, not which function it is
+    (the address is a run-time value), so one caller serves every function of that signature."""
+
+    def __init__(self, signature: tuple) -> None:
+        self.signature = tuple(signature)
+        super().__init__(name=f"NativeFunction({', '.join(map(str, self.signature))})")
+
+
+@register_model(NativeFunctionType)
+class _NativeFunctionModel(models.PrimitiveModel):
+    def __init__(self, dmm: Any, fe_type: NativeFunctionType) -> None:
+        super().__init__(dmm, fe_type, ir.IntType(64))
+
+
+@typeof_impl.register(NativeFunction)
+def _typeof_native_function(value: NativeFunction, context: Any) -> NativeFunctionType:
+    return NativeFunctionType(value.signature)
+
+
+@unbox(NativeFunctionType)
+def _unbox_native_function(typ: NativeFunctionType, obj: Any, c: Any) -> NativeValue:
+    address = c.pyapi.object_getattr_string(obj, "address")
+    value = c.pyapi.long_as_longlong(address)
+    c.pyapi.decref(address)
+    return NativeValue(value, is_error=c.pyapi.c_api_error())
+
+
+def call_native(function, arguments):
+    """Call the :class:`NativeFunction` ``function`` with the tuple ``arguments``."""
+    function.function(*arguments)
+
+
+@intrinsic
+def _call_at(typingctx: Any, function: NativeFunctionType, arguments: types.BaseTuple) -> Any:
+    argument_types = tuple(arguments.types)
+    if argument_types != function.signature:
+        raise TypingError(
+            f"a native function compiled for ({', '.join(map(str, function.signature))}) is "
+            f"called with ({', '.join(map(str, argument_types))})"
+        )
+
+    def codegen(context: Any, builder: Any, signature: Any, values: Any) -> Any:
+        address, packed = values
+        unpacked = [builder.extract_value(packed, i) for i in range(len(argument_types))]
+        function_type = context.call_conv.get_function_type(types.none, argument_types)
+        callee = builder.inttoptr(address, function_type.as_pointer())
+        status, _ = context.call_conv.call_function(
+            builder, callee, types.none, argument_types, unpacked
+        )
+        with cgutils.if_unlikely(builder, status.is_error):
+            context.call_conv.return_status_propagate(builder, status)
+        return context.get_dummy_value()
+
+    return types.none(function, arguments), codegen
+
+
+@overload(call_native, inline="always")
+def _call_native_compiled(function, arguments):
+    if isinstance(function, NativeFunctionType):
+
+        def impl(function, arguments):
+            _call_at(function, arguments)
+
+        return impl
+    return None

@@ -1,0 +1,62 @@
+"""Calling a compiled function through its address: the engine compiled once per plant."""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+import pytest
+from numba.core.errors import TypingError
+
+from delaytrack._native_call import NativeFunction, call_native
+from delaytrack.controllers import AROLC, OuterLoop
+from delaytrack.delays import AbsSineDelay
+from delaytrack.plants import TwoLinkArm
+from delaytrack.references import SinusoidalReference
+from delaytrack.sim import simulate
+from delaytrack.sim.engine import run_batch_compiled
+
+
+@numba.njit
+def add_to_first(values, amount):
+    values[0] += amount
+
+
+@numba.njit
+def call_add(function, values, amount):
+    call_native(function, (values, amount))
+
+
+VECTOR = numba.typeof(np.zeros(1))
+
+
+def test_a_native_function_is_called_through_its_address() -> None:
+    native = NativeFunction.of(add_to_first, (VECTOR, numba.float64))
+    assert native.address != 0
+    values = np.zeros(3)
+    call_add(native, values, 2.5)
+    call_add(native, values, 1.0)
+    np.testing.assert_array_equal(values, [3.5, 0.0, 0.0])
+    call_native(native, (values, 1.0))  # from Python: the function itself
+    assert values[0] == 4.5
+
+
+def test_a_native_function_called_with_other_types_is_refused_when_compiling() -> None:
+    native = NativeFunction.of(add_to_first, (VECTOR, numba.float64))
+    with pytest.raises(TypingError, match="compiled for"):
+        call_add(native, np.zeros(3, dtype=np.int64), 1)
+
+
+def test_another_controller_on_the_same_plant_reuses_the_compiled_engine() -> None:
+    # The engine calls a controller's step through its address: a second controller type
+    # compiles its step alone, never the engine again.
+    arm = TwoLinkArm()
+    reference = SinusoidalReference([0.0, 0.0], amplitude=[[0.8], [0.5]], frequency=[[1.0], [1.7]])
+    settings = dict(reference=reference, t1=0.1, dt=1e-3, T_c=1e-2, trajectories=False)
+    arolc = AROLC(TwoLinkArm(), K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=1e-3)
+    simulate(arm, arolc, AbsSineDelay.S1(), np.zeros(4), **settings)
+    engines = len(run_batch_compiled.overloads)
+    outer = simulate(
+        arm, OuterLoop(TwoLinkArm(), 1.0, 1.0), AbsSineDelay.S1(), np.zeros(4), **settings
+    )
+    assert len(run_batch_compiled.overloads) == engines
+    assert outer.status.tolist() == [0]

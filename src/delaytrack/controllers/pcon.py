@@ -170,19 +170,16 @@ def pcon_step(
         matvec(k_b, rho, command)
         for i in range(m):
             tau[i] = command[i]
-            finite = finite and math.isfinite(tau[i])
-        if not finite:
-            command[:] = np.nan
-            return
     else:
         for i in range(n):
             rho[i] = ((qd_dot[i] - qdot[i]) + kappa * (qd[i] - q[i])) - predicted[i]
         matvec(k_b, rho, tau)
-        for i in range(n):
-            finite = finite and math.isfinite(tau[i])
-        if not finite:
-            command[:] = np.nan
-            return
+    for i in range(d):
+        finite = finite and math.isfinite(tau[i])
+    if not finite:
+        command[:] = np.nan
+        return
+    if not actuator:
         call_command_map(model_terms, q, model_params, input_map, tau, command)
     start = ring + (count % slots) * d
     for i in range(d):  # loops: an array-to-slice copy needs numba's runtime

@@ -159,6 +159,32 @@ def test_applied_input_is_the_latest_command_issued_before_t_minus_h(delay: Dela
         assert np.any(np.diff(indices) < 0), "a fast-growing delay must re-apply older commands"
 
 
+def test_a_step_starting_a_rounding_step_before_a_knot_is_not_skipped() -> None:
+    # From t0 = 0.1 the step of tick 71 starts at 0.1 + 710 dt = 0.8099999999999999, one
+    # rounding step before the knot at 0.81; its first piece, that sliver, takes h at its
+    # midpoint, which rounds onto the knot. The steps that skip evaluating h (no switch certain)
+    # must stop short of such a piece, or its input would be another command.
+    dt = 1e-3
+    delay = PiecewiseConstantDelay([0.0, 0.81], [0.0033, 0.1])
+    result = simulate(
+        TwoLinkArm(),
+        arm_arolc(),
+        delay,
+        np.zeros(4),
+        reference=ARM_REFERENCE,
+        t0=0.1,
+        t1=1.0,
+        dt=dt,
+        T_c=1e-2,
+    )
+    assert 0.1 + 710 * dt < 0.81
+    commands = result.commands[0]
+    probe = result.t + 0.5e-9 * dt
+    indices = np.array([brute_force_index(t, delay, result.t) for t in probe])
+    expected = np.where(indices[:, None] >= 0, commands[np.maximum(indices, 0)], 0.0)
+    np.testing.assert_array_equal(result.applied[0], expected)
+
+
 @pytest.mark.parametrize("offset", [1e-13, -1e-13])
 def test_a_crossing_within_the_sliver_tolerance_of_a_step_end_is_not_split_off(
     offset: float,

@@ -46,9 +46,18 @@ def test_a_native_function_called_with_other_types_is_refused_when_compiling() -
         call_add(native, np.zeros(3, dtype=np.int64), 1)
 
 
+def test_an_object_mode_function_is_refused() -> None:
+    @numba.jit(forceobj=True)
+    def in_object_mode(values, amount):
+        values[0] += amount
+
+    with pytest.raises(TypeError, match="object mode"):
+        NativeFunction.of(in_object_mode, (VECTOR, numba.float64))
+
+
 def test_another_controller_on_the_same_plant_reuses_the_compiled_engine() -> None:
-    # The engine calls a controller's step through its address: a second controller type
-    # compiles its step alone, never the engine again.
+    # The engine calls this package's controller steps through their address: a second
+    # controller type compiles its step alone, never the engine again.
     arm = TwoLinkArm()
     reference = SinusoidalReference([0.0, 0.0], amplitude=[[0.8], [0.5]], frequency=[[1.0], [1.7]])
     settings = dict(reference=reference, t1=0.1, dt=1e-3, T_c=1e-2, trajectories=False)

@@ -4,9 +4,12 @@ numba compiles a call of one ``njit`` function from another by linking the calle
 the caller's and optimising the two together. The engine calls a controller's step once a
 tick, so compiled that way it would be compiled again, tick loop and all, for every controller.
 Called through the address of the step's compiled code (:class:`NativeFunction`), the engine is
-compiled once for a plant, model, reference and delay kernel, and each controller's step once
-for itself (its own file in numba's disk cache): a controller of the user's then compiles in
-about a second, not in the several seconds of a whole engine.
+compiled once for a plant, model, reference and delay kernel, and each of this package's
+controller steps once for itself (its own entry in numba's disk cache): the paper's second and
+third controllers then compile in about a second each, not in the several seconds of a whole
+engine. A step of the user's stays linked into the engine, whose disk cache is keyed by a
+fingerprint of all the code the step reaches (:mod:`delaytrack.components`); numba's own cache
+of a function checks only that function's file.
 
 The call uses numba's own calling convention (the step's compiled code, not a C wrapper), so
 arrays, tuples and kernels pass as they would in a linked call; the step's argument types are
@@ -17,7 +20,6 @@ compiling the caller checks.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 from typing import Any
 
 from llvmlite import ir
@@ -58,21 +60,31 @@ class NativeFunction:
 
     @classmethod
     def of(cls, function: Any, signature: tuple) -> NativeFunction:
-        """``function`` compiled (or loaded from numba's disk cache) for ``signature``."""
-        return _native_function(function, tuple(signature))
+        """``function`` compiled (or loaded from numba's disk cache) for ``signature``.
+
+        Its compiled code is looked up at every call (a dictionary look-up): numba keeps every
+        compiled version of a function for the life of the process, so the address stays valid,
+        and a recompiled function gives its new code's.
+        """
+        signature = tuple(signature)
+        result = function.overloads.get(signature)
+        if result is None:
+            function.compile(signature)
+            result = function.overloads[signature]
+        if result.objectmode:
+            raise TypeError(
+                f"{function.__name__} is compiled in object mode; the engine calls only "
+                "nopython code (numba.njit)"
+            )
+        address = result.library.get_pointer_to_function(result.fndesc.llvm_func_name)
+        if not address:
+            raise RuntimeError(f"numba gave no address for the compiled {function.__name__}")
+        return cls(function, signature, address)
 
     @property
     def runs_as_python(self) -> bool:
         """Never: the function is compiled (see :mod:`delaytrack._jit`)."""
         return False
-
-
-@lru_cache(maxsize=1024)
-def _native_function(function: Any, signature: tuple) -> NativeFunction:
-    function.compile(signature)
-    result = function.overloads[signature]
-    address = result.library.get_pointer_to_function(result.fndesc.llvm_func_name)
-    return NativeFunction(function, signature, address)
 
 
 class NativeFunctionType(types.Type):
@@ -82,6 +94,11 @@ class NativeFunctionType(types.Type):
     def __init__(self, signature: tuple) -> None:
         self.signature = tuple(signature)
         super().__init__(name=f"NativeFunction({', '.join(map(str, self.signature))})")
+
+    @property
+    def key(self) -> tuple:
+        """The argument types themselves (not their text) identify the type."""
+        return self.signature
 
 
 @register_model(NativeFunctionType)

@@ -294,6 +294,12 @@ class Kernel:
         return ",".join(parts)
 
     @property
+    def built_in(self) -> bool:
+        """Whether the kernel is one of this package's (its code is covered by the cache folder,
+        :mod:`delaytrack._numba_cache`, not by a fingerprint)."""
+        return _qualified_name(self.function).partition(".")[0] == _PACKAGE
+
+    @property
     def runs_as_python(self) -> bool:
         """Whether the engine's helpers handed this kernel run as plain Python."""
         return not self.compiled
@@ -539,9 +545,10 @@ def call_step(
 def _call_step_compiled(
     step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, mp, u, work
 ):
-    # Inlined, so that the tick calls the step directly (a call level cost about 0.13 µs a tick;
-    # numba's inliner does not take *arguments).
-    if isinstance(step, NativeFunctionType):  # the engine: through the step's address
+    # Inlined, so that the tick calls the step itself (a call level cost about 0.13 µs a tick;
+    # numba's inliner does not take *arguments): through its address (this package's steps in
+    # the compiled engine, delaytrack._native_call) or linked into the caller.
+    if isinstance(step, NativeFunctionType):
 
         def native(
             step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, mp, u, work

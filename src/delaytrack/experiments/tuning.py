@@ -70,6 +70,7 @@ import time
 import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -228,11 +229,13 @@ def default_gains_path() -> Path:
 GainsSource = str | Path | Mapping[str, Any] | None
 
 
+@lru_cache(maxsize=16)
 def vartheta_base(kind: str = "PCON", reference: str = "consistent") -> np.ndarray:
     """``ϑ₀``: the nominal robot's inverse mass matrix at the reference's initial pose.
 
     ``M̂⁻¹`` (5×5) for the five-coordinate law (``PCON``, ``PCONf``), ``(S(q)ᵀ M̂ S(q))⁻¹``
-    (2×2, the reduced mass matrix's inverse) for ``PCON-wheel``.
+    (2×2, the reduced mass matrix's inverse) for ``PCON-wheel``. Computed once per kind and
+    reference (read-only).
     """
     robot = NominalRobot()
     q = initial_state(paper_reference(reference))[:5]
@@ -241,7 +244,9 @@ def vartheta_base(kind: str = "PCON", reference: str = "consistent") -> np.ndarr
         S = kinematic_map(q, robot.wheel_radius, robot.half_track, robot.d)
         mass = S.T @ mass @ S
     inverse = np.linalg.inv(mass)
-    return 0.5 * (inverse + inverse.T)
+    base = 0.5 * (inverse + inverse.T)
+    base.setflags(write=False)
+    return base
 
 
 def arolc_gains(k: float, zeta: float, alpha: float) -> dict[str, float]:

@@ -69,7 +69,9 @@ def run_closed_loop(handles, run, settings, records):
     handles : tuple
         ``(plant_terms, model_terms, reference, controller_step, delay)``: the components'
         :class:`~delaytrack.components.Kernel` objects (``delay``: the batch's delay kernel,
-        for the runs whose profile is a kernel of the user's).
+        for the runs whose profile is a kernel of the user's); in the compiled engine a step of
+        this package's is a :class:`~delaytrack._native_call.NativeFunction`, called through
+        its address.
     run : tuple
         This run's arrays ``(plant_params, model_params, controller_params, controller_state,
         delay_kind, delay_params, x0, capacity, input_limits, measurement, loss)``;
@@ -126,7 +128,7 @@ def _run_ticks(handles, run, settings, records, memory):
         controller_state,
         delay_kind,
         delay_params,
-        x0,
+        _,  # x0: x starts from it (run_closed_loop)
         capacity,
         input_limits,
         measurement,

@@ -42,20 +42,16 @@ def latest_tick_index(g, t0, dt, steps_per_tick):
     """Largest ``k`` with ``tick_time(k) <= g`` (``-1`` when ``g < t0``)."""
     if g < t0:
         return -1
-    k = int(math.floor((g - t0) / (steps_per_tick * dt)))
-    while tick_time(k + 1, t0, dt, steps_per_tick) <= g:
-        k += 1
-    while k >= 0 and tick_time(k, t0, dt, steps_per_tick) > g:
-        k -= 1
-    return k
+    estimate = int(math.floor((g - t0) / (steps_per_tick * dt)))
+    return latest_tick_index_from(g, estimate, t0, dt, steps_per_tick)
 
 
 @inline_kernel
 def latest_tick_index_from(g, hint, t0, dt, steps_per_tick):
     """:func:`latest_tick_index` found by walking from the tick index ``hint``.
 
-    The same number, without a division: for the end of a plant step, whose tick index is a
-    tick or two from that of the step's start, a walk of ``|result - hint|`` comparisons.
+    The same number: for the end of a plant step, whose tick index is a tick or two from that of
+    the step's start, a walk of ``|result - hint|`` comparisons instead of a division.
     """
     if g < t0:
         return -1

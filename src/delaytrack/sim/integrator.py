@@ -88,9 +88,10 @@ def rk4_workspace(x, m):
     ``(slopes (4, 2n), stage (2n,), stage_q, stage_q̇, scratch, profile)``: the views are taken
     once per run, so the inner loop neither allocates nor slices. ``profile`` remembers, from
     one step to the next, the delay profile's current piece ``[from, breakpoint)`` and its slope
-    bound ``L``, the last point ``t`` where ``h`` was evaluated with ``h(t)``, ``g(t)`` and its
-    tick index, and until when that index certainly holds: ``[from, breakpoint, t, h, g, k, L,
-    quiet_until]`` (see :func:`_piece` and :func:`_quiet_until`).
+    bound ``L``, for a continuous profile the last point ``t`` where ``h`` was evaluated and
+    ``h(t)``, the last ``g`` evaluated with its tick index, and until when that index certainly
+    holds: ``[from, breakpoint, t, h, g, k, L, quiet_until]`` (see :func:`_piece` and
+    :func:`_quiet_until`).
     """
     n = x.shape[0] // 2
     slopes = np.empty((4, 2 * n))
@@ -161,8 +162,8 @@ def _piece(delay, delay_kind, delay_params, a, t_end, profile):
     else:  # continuous: h(a+) = h(a), remembered when a ended the last piece
         h_a = profile[3] if a == profile[2] else profile_value(delay, delay_kind, delay_params, a)
         h_b = profile_value(delay, delay_kind, delay_params, b)
-    profile[2] = b
-    profile[3] = h_b
+        profile[2] = b
+        profile[3] = h_b
     return b, a - h_a, b - h_b
 
 
@@ -187,14 +188,14 @@ def _quiet_until(b, g_b, k_b, profile, t0, dt, steps_per_tick):
 
     On the current piece ``g`` moves at a speed between ``1 - L`` and ``1 + L``, so it stays in
     ``[t_k, t_{k+1})`` until it could first reach ``t_{k+1}`` rising at ``1 + L`` or, when
-    ``L > 1``, ``t_k`` falling at ``L - 1``, each less a margin of ``1e-9 (dt + (1 + |b|) (1 +
-    L))``; and at most until the piece ends. Before ``b`` when ``g(b)`` lies within the margin
-    of ``t_k`` (``g`` may then fall below it by rounding).
+    ``L > 1``, ``t_k`` falling at ``L - 1``, each less a margin of
+    ``1e-9 (dt + (1 + |b| + |g(b)|) (1 + L))``; and at most until the piece ends. Before ``b``
+    when ``g(b)`` lies within the margin of ``t_k`` (``g`` may then fall below it by rounding).
     """
     slope = profile[6]
     if not slope < np.inf:  # a kernel of the user's: no bound, h is evaluated at every step
         return -np.inf
-    margin = _SWITCH_MARGIN * (dt + (1.0 + abs(b)) * (1.0 + slope))
+    margin = _SWITCH_MARGIN * (dt + (1.0 + abs(b) + abs(g_b)) * (1.0 + slope))
     horizon = b + (tick_time(k_b + 1, t0, dt, steps_per_tick) - g_b - margin) / (1.0 + slope)
     if k_b >= 0:
         above = g_b - tick_time(k_b, t0, dt, steps_per_tick) - margin
@@ -258,7 +259,10 @@ def integrate_tick(
                 k_b = k_a
             else:
                 b = _piece_end(delay_kind, delay_params, a, t_end, profile)
-                if b <= profile[7]:  # no switch up to b: g keeps the remembered index
+                # No switch up to b: g keeps the remembered index. Strictly before the horizon,
+                # which may be the piece's end: a piece-wise constant profile evaluated on a
+                # piece ending there takes h at its midpoint, which may round onto the next piece.
+                if b < profile[7]:
                     k_a = int(profile[5])
                     k_b = k_a
                     g_a = g_b = 0.0  # not needed: no crossing

@@ -505,8 +505,11 @@ def simulate(
             PythonFallbackWarning.describe(first_plant, first_controller, reference), stacklevel=2
         )
 
+    # This package's steps are called through their address: the engine is then compiled once
+    # for every controller (delaytrack._native_call). A step of the user's is linked into it.
+    native_step = compiled and first_controller.engine_kernel.built_in
     step_signature = (
-        controller_step_signature(first_controller.model.engine_kernel, n, m) if compiled else ()
+        controller_step_signature(first_controller.model.engine_kernel, n, m) if native_step else ()
     )
 
     def kernels(b: int) -> tuple:
@@ -522,12 +525,14 @@ def simulate(
 
     def handles(b: int, probe: bool = False) -> tuple:
         """Element ``b``'s kernels as the engine takes them, compiled or as plain Python.
-        Compiled, the controller's step is called through its address
+        Compiled, a step of this package's is called through its address
         (:class:`~delaytrack._native_call.NativeFunction`, compiled for itself); ``probe``: an
         address of 0, for the types alone, without compiling the step."""
         plant, model, reference_kernel, step, delay_handle = kernels(b)
         if not compiled:
             return tuple(kernel.as_python() for kernel in kernels(b))
+        if not native_step:
+            return plant, model, reference_kernel, step, delay_handle
         native = (
             NativeFunction(step.function, step_signature, 0)
             if probe
@@ -602,7 +607,9 @@ def simulate(
             tuple(str(typeof(kernel)) for kernel in handles(0, probe=True)),
             lambda: tuple(runner.typeof_pyval(item) for item in chunk_arguments(0, probe=True)),
         )
-        step_ready = code_ready(first_controller.step_kernel, step_signature, step_signature)
+        step_ready = not native_step or code_ready(
+            first_controller.step_kernel, step_signature, step_signature
+        )
         if not (engine_ready and step_ready):
             announce_compile(
                 first_plant,

@@ -134,16 +134,16 @@ def test_latest_tick_index_equals_a_scan_of_all_tick_times() -> None:
     ],
 )
 def test_applied_input_is_the_latest_command_issued_before_t_minus_h(delay: DelayProfile) -> None:
-    dt, t_c = 5e-4, 2e-3
+    indices = assert_applied_is_the_latest_command(delay, t0=0.0, t1=2.0, dt=5e-4, T_c=2e-3)
+    if isinstance(delay, RandomDelay):
+        assert np.any(np.diff(indices) < 0), "a fast-growing delay must re-apply older commands"
+
+
+def assert_applied_is_the_latest_command(delay: DelayProfile, **times: float) -> np.ndarray:
+    """Run the arm under ``delay`` and check each recorded applied input against a brute-force
+    lookup; return the command indices found."""
     result = simulate(
-        TwoLinkArm(),
-        arm_arolc(),
-        delay,
-        np.zeros(4),
-        reference=ARM_REFERENCE,
-        t1=2.0,
-        dt=dt,
-        T_c=t_c,
+        TwoLinkArm(), arm_arolc(), delay, np.zeros(4), reference=ARM_REFERENCE, **times
     )
     commands = result.commands[0]
     assert np.all(np.abs(np.diff(commands, axis=0)).sum(axis=1) > 0), (
@@ -151,12 +151,11 @@ def test_applied_input_is_the_latest_command_issued_before_t_minus_h(delay: Dela
     )
     # The record at tick j is the input over the first sub-step after t_j; sample just inside it.
     # The last row too: it is the input a step from t1 would start with.
-    probe = result.t + 0.5e-9 * dt
+    probe = result.t + 0.5e-9 * times["dt"]
     indices = np.array([brute_force_index(t, delay, result.t) for t in probe])
     expected = np.where(indices[:, None] >= 0, commands[np.maximum(indices, 0)], 0.0)
     np.testing.assert_array_equal(result.applied[0], expected)
-    if isinstance(delay, RandomDelay):
-        assert np.any(np.diff(indices) < 0), "a fast-growing delay must re-apply older commands"
+    return indices
 
 
 def test_a_step_starting_a_rounding_step_before_a_knot_is_not_skipped() -> None:
@@ -165,24 +164,9 @@ def test_a_step_starting_a_rounding_step_before_a_knot_is_not_skipped() -> None:
     # midpoint, which rounds onto the knot. The steps that skip evaluating h (no switch certain)
     # must stop short of such a piece, or its input would be another command.
     dt = 1e-3
-    delay = PiecewiseConstantDelay([0.0, 0.81], [0.0033, 0.1])
-    result = simulate(
-        TwoLinkArm(),
-        arm_arolc(),
-        delay,
-        np.zeros(4),
-        reference=ARM_REFERENCE,
-        t0=0.1,
-        t1=1.0,
-        dt=dt,
-        T_c=1e-2,
-    )
     assert 0.1 + 710 * dt < 0.81
-    commands = result.commands[0]
-    probe = result.t + 0.5e-9 * dt
-    indices = np.array([brute_force_index(t, delay, result.t) for t in probe])
-    expected = np.where(indices[:, None] >= 0, commands[np.maximum(indices, 0)], 0.0)
-    np.testing.assert_array_equal(result.applied[0], expected)
+    delay = PiecewiseConstantDelay([0.0, 0.81], [0.0033, 0.1])
+    assert_applied_is_the_latest_command(delay, t0=0.1, t1=1.0, dt=dt, T_c=1e-2)
 
 
 @pytest.mark.parametrize("offset", [1e-13, -1e-13])

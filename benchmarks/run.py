@@ -50,7 +50,6 @@ import argparse
 import json
 import os
 import platform
-import resource
 import statistics
 import subprocess
 import sys
@@ -286,6 +285,20 @@ def _resident_bytes() -> int:
         return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
+def _peak_resident_bytes() -> int:
+    """Peak resident size of this process's own address space (``VmHWM``).
+
+    Not ``getrusage``'s ``ru_maxrss``: Linux carries it over from the parent's address space
+    through fork and exec, so a worker started by a large benchmark process would report the
+    parent's size as its own peak.
+    """
+    with open("/proc/self/status") as status:
+        for line in status:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024
+    raise RuntimeError("no VmHWM in /proc/self/status")
+
+
 def batch_worker(batch: int, duration: float, repeats: int, workers: int | None) -> dict:
     """Run in a fresh process: median time and peak memory growth of one batch size."""
     inputs = batch_inputs(batch, duration)
@@ -296,7 +309,7 @@ def batch_worker(batch: int, duration: float, repeats: int, workers: int | None)
         start = time.perf_counter()
         result = simulate(**inputs, workers=workers)
         times.append(time.perf_counter() - start)
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    peak = _peak_resident_bytes()
     return {
         "median_s": statistics.median(times),
         "peak_memory_growth_mib": max(0, peak - resting) / 2**20,

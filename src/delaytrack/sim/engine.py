@@ -303,7 +303,8 @@ def run_batch(handles, runs, settings, records, status, t_stop):
         status[b], t_stop[b] = run_closed_loop(handles, run, settings, run_records)
 
 
-#: :func:`run_batch` compiled, once for each set of kernels (their numba types name them), and
-#: cached on disk, user kernels included. It releases the GIL, so threads run sub-batches in
-#: parallel.
+#: :func:`run_batch` compiled, once for each set of kernels (their numba types name them; a
+#: built-in controller's step is passed by the address of its own compiled code, so one engine
+#: serves every built-in controller), and cached on disk, user kernels included. It releases
+#: the GIL, so threads run sub-batches in parallel.
 run_batch_compiled = njit(nogil=True, **KERNEL_OPTIONS)(run_batch)

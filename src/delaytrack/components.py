@@ -297,7 +297,7 @@ class Kernel:
     def built_in(self) -> bool:
         """Whether the kernel is one of this package's (its code is covered by the cache folder,
         :mod:`delaytrack._numba_cache`, not by a fingerprint)."""
-        return _qualified_name(self.function).partition(".")[0] == _PACKAGE
+        return _in_package(self.function)
 
     @property
     def runs_as_python(self) -> bool:
@@ -362,9 +362,14 @@ def _kernel_of(
     return cls(function, command_map, identity_mass, sizes, stepper)
 
 
+def _in_package(function: Callable[..., Any]) -> bool:
+    """Whether ``function`` is one of this package's."""
+    return _qualified_name(function).partition(".")[0] == _PACKAGE
+
+
 def _name_with_code(function: Callable[..., Any]) -> str:
     name = _qualified_name(function)
-    if name.partition(".")[0] == _PACKAGE:
+    if _in_package(function):
         return name
     return f"{name}#{code_fingerprint(function)}"
 

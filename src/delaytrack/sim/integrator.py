@@ -59,7 +59,7 @@ __all__ = [
 ]
 
 _SPLIT_TOLERANCE = 1e-9
-#: Margin of :func:`_quiet_until`, relative to ``dt`` and to ``1 + |t|`` (far above the
+#: Margin of :func:`_quiet_until`, relative to ``dt`` and to ``1 + |t| + |g|`` (far above the
 #: rounding of ``g = t - h(t)``).
 _SWITCH_MARGIN = 1e-9
 
@@ -148,15 +148,13 @@ def _history_slot(k, newest, newest_slot, capacity):
 
 
 @hot_inline_kernel
-def _piece(delay, delay_kind, delay_params, a, t_end, profile):
-    """The piece ``[a, b]`` of the profile that starts at ``a`` within a step ending ``t_end``,
-    and ``g = t - h(t)`` at its ends: ``(b, g(a+), g(b-))``.
+def _piece(delay, delay_kind, delay_params, a, b, profile):
+    """``g = t - h(t)`` at the ends of the piece ``[a, b]`` (:func:`_piece_end`):
+    ``(g(a+), g(b-))``.
 
-    Consecutive steps mostly lie on one piece of the profile, and a piece starts where the last
-    one ended, so the breakpoint and, for a continuous profile, ``h`` at the start are taken from
-    the ``profile`` memory of :func:`rk4_workspace`: the same numbers, computed once.
+    A piece starts where the last one ended, so for a continuous profile ``h`` at the start is
+    taken from the ``profile`` memory of :func:`rk4_workspace`: the same number, computed once.
     """
-    b = _piece_end(delay_kind, delay_params, a, t_end, profile)
     if delay_kind == PIECEWISE_CONSTANT:
         h_a, h_b = piece_end_values(delay_kind, delay_params, a, b)
     else:  # continuous: h(a+) = h(a), remembered when a ended the last piece
@@ -164,7 +162,7 @@ def _piece(delay, delay_kind, delay_params, a, t_end, profile):
         h_b = profile_value(delay, delay_kind, delay_params, b)
         profile[2] = b
         profile[3] = h_b
-    return b, a - h_a, b - h_b
+    return a - h_a, b - h_b
 
 
 @hot_inline_kernel
@@ -250,15 +248,15 @@ def integrate_tick(
         t_end = t0 + (k * steps_per_tick + j + 1) * dt
         a = t_start
         while a < t_end:
+            b = _piece_end(delay_kind, delay_params, a, t_end, profile)
             if has_stepper(plant_terms):
                 # The plant's own integrator takes the whole step, with the command in force at
                 # its start (a switch within the sliver tolerance after it counts as at it).
-                b, g_a, g_b = _piece(delay, delay_kind, delay_params, a, t_end, profile)
+                g_a, g_b = _piece(delay, delay_kind, delay_params, a, b, profile)
                 b = t_end
                 k_a = latest_tick_index(g_a + tolerance, t0, dt, steps_per_tick)
                 k_b = k_a
             else:
-                b = _piece_end(delay_kind, delay_params, a, t_end, profile)
                 # No switch up to b: g keeps the remembered index. Strictly before the horizon,
                 # which may be the piece's end: a piece-wise constant profile evaluated on a
                 # piece ending there takes h at its midpoint, which may round onto the next piece.
@@ -267,7 +265,7 @@ def integrate_tick(
                     k_b = k_a
                     g_a = g_b = 0.0  # not needed: no crossing
                 else:
-                    b, g_a, g_b = _piece(delay, delay_kind, delay_params, a, t_end, profile)
+                    g_a, g_b = _piece(delay, delay_kind, delay_params, a, b, profile)
                     # g(a) is mostly g(b) of the last piece, whose tick index is remembered;
                     # the index at b is then found by walking from the one at a.
                     if g_a == profile[4]:

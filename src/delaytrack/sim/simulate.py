@@ -10,7 +10,6 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any, TypeVar
 
 import numpy as np
-from numba import typeof
 from tqdm.auto import tqdm
 
 from delaytrack._native_call import NativeFunction
@@ -523,22 +522,14 @@ def simulate(
             delay_kernel,
         )
 
-    def handles(b: int, probe: bool = False) -> tuple:
-        """Element ``b``'s kernels as the engine takes them, compiled or as plain Python.
-        Compiled, a step of this package's is called through its address
-        (:class:`~delaytrack._native_call.NativeFunction`, compiled for itself); ``probe``: an
-        address of 0, for the types alone, without compiling the step."""
-        plant, model, reference_kernel, step, delay_handle = kernels(b)
+    def handles(b: int, step: NativeFunction | None) -> tuple:
+        """Element ``b``'s kernels as the engine takes them, compiled or as plain Python;
+        compiled, ``step`` replaces the controller's step when it is called through its address
+        (a step of this package's, :class:`~delaytrack._native_call.NativeFunction`)."""
+        own = kernels(b)
         if not compiled:
-            return tuple(kernel.as_python() for kernel in kernels(b))
-        if not native_step:
-            return plant, model, reference_kernel, step, delay_handle
-        native = (
-            NativeFunction(step.function, step_signature, 0)
-            if probe
-            else NativeFunction.of(step.function, step_signature)
-        )
-        return plant, model, reference_kernel, native, delay_handle
+            return tuple(kernel.as_python() for kernel in own)
+        return own if step is None else (*own[:3], step, own[4])
 
     runs = (
         _stack_padded([p.params for p in plants]),
@@ -569,7 +560,7 @@ def simulate(
 
     runner = run_batch_compiled if compiled else run_batch
 
-    def chunk_arguments(index: int, probe: bool = False) -> tuple:
+    def chunk_arguments(index: int, step: NativeFunction | None) -> tuple:
         chunk = chunks[index]
         part = slice(chunk[0], chunk[-1] + 1)
         chunk_runs = [array[part] for array in runs]
@@ -579,17 +570,13 @@ def simulate(
                 [controllers[b].model.for_worker(index).params for b in chunk]
             )
         return (
-            handles(int(chunk[0]), probe),
+            handles(int(chunk[0]), step),
             tuple(chunk_runs),
             settings,
             tuple(array[part] for array in outputs),
             status[part],
             t_stop[part],
         )
-
-    def run_chunk(index: int) -> int:
-        runner(*chunk_arguments(index))
-        return chunks[index].size
 
     # Compiled kernels are shared by the whole batch and release the GIL: chunks run on
     # `workers` threads. Python callables may differ per element and hold the GIL, so the
@@ -601,15 +588,16 @@ def simulate(
         pieces = batch
     chunks = np.array_split(np.arange(batch), pieces)
     in_parallel = compiled and workers > 1 and len(chunks) > 1
+    step_function = first_controller.step_kernel  # one step kernel for the batch (checked)
     if compiled:
+        # An address of 0 gives the engine's argument types without compiling the step.
+        probe = NativeFunction(step_function, step_signature, 0) if native_step else None
         engine_ready = code_ready(
             runner,
-            tuple(str(typeof(kernel)) for kernel in handles(0, probe=True)),
-            lambda: tuple(runner.typeof_pyval(item) for item in chunk_arguments(0, probe=True)),
+            tuple(kernel.key for kernel in kernels(0)),
+            lambda: tuple(runner.typeof_pyval(item) for item in chunk_arguments(0, probe)),
         )
-        step_ready = not native_step or code_ready(
-            first_controller.step_kernel, step_signature, step_signature
-        )
+        step_ready = not native_step or code_ready(step_function, step_signature, step_signature)
         if not (engine_ready and step_ready):
             announce_compile(
                 first_plant,
@@ -618,6 +606,12 @@ def simulate(
                 delays[own_delays[0]] if own_delays else None,
                 engine=not engine_ready,
             )
+    native = NativeFunction.of(step_function, step_signature) if native_step else None
+
+    def run_chunk(index: int) -> int:
+        runner(*chunk_arguments(index, native))
+        return chunks[index].size
+
     try:
         with tqdm(total=batch, desc="simulate", unit="run", disable=not progress) as bar:
             if in_parallel:

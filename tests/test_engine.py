@@ -746,3 +746,13 @@ def test_a_lost_packet_leaves_the_latest_received_command_applied() -> None:
 def test_bad_packet_loss_is_refused(arguments, message) -> None:
     with pytest.raises(ValueError, match=message):
         PacketLoss(**arguments)
+
+
+def test_one_noise_entry_serves_every_coordinate() -> None:
+    for key in ("quantization", "position", "velocity"):
+        one = MeasurementNoise(**{key: [0.1]}, seed=3).params(4)
+        assert np.array_equal(one, MeasurementNoise(**{key: 0.1}, seed=3).params(4))
+    assert np.array_equal(
+        MeasurementNoise(quantization=0.1, position=[0.2, 0.3], seed=5).params(2),
+        [0.1, 0.1, 0.2, 0.3, 0.0, 0.0, 5.0],
+    )

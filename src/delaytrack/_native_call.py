@@ -20,6 +20,7 @@ compiling the caller checks.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 from llvmlite import ir
@@ -86,6 +87,11 @@ class NativeFunction:
         """Never: the function is compiled (see :mod:`delaytrack._jit`)."""
         return False
 
+    @cached_property
+    def numba_type(self) -> NativeFunctionType:
+        """Its numba type, made once (numba types it at every call of the engine)."""
+        return NativeFunctionType(self.signature)
+
 
 class NativeFunctionType(types.Type):
     """numba type of a :class:`NativeFunction`: its argument types, not which function it is
@@ -100,6 +106,18 @@ class NativeFunctionType(types.Type):
         """The argument types themselves (not their text) identify the type."""
         return self.signature
 
+    def __hash__(self) -> int:
+        """The signature's hash, computed once in this process: numba hashes the engine's
+        argument types at every call, and hashing the signature anew cost 20 µs a call."""
+        value = self.__dict__.get("_hash")
+        if value is None:
+            value = self.__dict__["_hash"] = hash(self.signature)
+        return value
+
+    def __getstate__(self) -> dict:
+        """Pickled (numba's disk cache) without the hash, which differs between processes."""
+        return {name: value for name, value in self.__dict__.items() if name != "_hash"}
+
 
 @register_model(NativeFunctionType)
 class _NativeFunctionModel(models.PrimitiveModel):
@@ -109,7 +127,7 @@ class _NativeFunctionModel(models.PrimitiveModel):
 
 @typeof_impl.register(NativeFunction)
 def _typeof_native_function(value: NativeFunction, context: Any) -> NativeFunctionType:
-    return NativeFunctionType(value.signature)
+    return value.numba_type
 
 
 @unbox(NativeFunctionType)

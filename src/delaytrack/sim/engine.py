@@ -13,10 +13,14 @@ Python (a user plant given as Python callables): see :mod:`delaytrack.sim.simula
 
 from __future__ import annotations
 
+import functools
+from typing import Any
+
 import numpy as np
 from numba import njit, typeof, types
 
 from delaytrack._jit import KERNEL_OPTIONS, borrowing_kernel, inline_kernel
+from delaytrack._native_call import NativeFunction
 from delaytrack.components import Kernel, call_reference, call_step
 from delaytrack.controllers.base import step_workspace
 from delaytrack.delays._kernel import profile_value
@@ -41,6 +45,7 @@ __all__ = [
     "OK",
     "STATUS_NAMES",
     "controller_step_signature",
+    "native_controller_step",
     "run_batch",
     "run_batch_compiled",
     "run_closed_loop",
@@ -242,6 +247,13 @@ def controller_step_signature(model: Kernel, n: int, m: int) -> tuple:
     (:func:`~delaytrack.components.call_step`) for a nominal ``model`` with ``n`` coordinates
     and ``m`` inputs: the signature its step is compiled for in the compiled engine, which
     calls it through its address (:mod:`delaytrack._native_call`)."""
+    return _step_signature(model.numba_type, n, m)
+
+
+@functools.cache
+def _step_signature(model_type: types.Type, n: int, m: int) -> tuple:
+    """:func:`controller_step_signature`, typed once per model type and sizes (typing it costs
+    about 40 µs, more than a short run)."""
     vector = typeof(np.empty(n))
     return (
         types.float64,  # t
@@ -250,11 +262,22 @@ def controller_step_signature(model: Kernel, n: int, m: int) -> tuple:
         types.float64,  # h
         vector,  # params
         vector,  # state
-        typeof(model),
+        model_type,
         vector,  # the model's params
         vector,  # command
         typeof(step_workspace(n, m)),
     )
+
+
+@functools.cache
+def native_controller_step(step: Any, model_type: types.Type, n: int, m: int) -> NativeFunction:
+    """The compiled controller ``step`` (a numba dispatcher of this package's) as the compiled
+    engine calls it, for a nominal model of numba type ``model_type`` with ``n`` coordinates
+    and ``m`` inputs: :meth:`NativeFunction.of <delaytrack._native_call.NativeFunction.of>`
+    for :func:`controller_step_signature`, compiled (or loaded from the disk cache) on the
+    first call and then found in memory. The address kept is that of the code compiled first,
+    which numba keeps for the life of the process."""
+    return NativeFunction.of(step, _step_signature(model_type, n, m))
 
 
 @inline_kernel

@@ -92,16 +92,17 @@ class MeasurementNoise:
 
     def params(self, n: int) -> np.ndarray:
         """``[Δ (n), σ_q (n), σ_v (n), seed]`` for a plant of ``n`` coordinates."""
-        parts = []
-        for key in ("quantization", "position", "velocity"):
-            value = np.asarray(getattr(self, key), dtype=float)
-            if value.ndim == 1 and value.shape != (n,):
+        out = np.empty(3 * n + 1)
+        for i, key in enumerate(("quantization", "position", "velocity")):
+            value = getattr(self, key)
+            if isinstance(value, tuple) and len(value) not in (1, n):
                 raise ValueError(
                     f"measurement_noise.{key} must have 1 or n = {n} entries (one per "
                     f"coordinate); got {list(value)}"
                 )
-            parts.append(np.broadcast_to(value, (n,)))
-        return np.concatenate([*parts, [float(self.seed)]])
+            out[i * n : (i + 1) * n] = value
+        out[3 * n] = float(self.seed)
+        return out
 
     def to_spec(self) -> dict[str, Any]:
         """Plain data (a scenario's ``measurement_noise`` table)."""

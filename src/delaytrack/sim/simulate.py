@@ -24,7 +24,12 @@ from delaytrack.delays._kernel import NO_KERNEL
 from delaytrack.delays.base import DelayProfile
 from delaytrack.plants.base import ELPlant
 from delaytrack.references import Reference
-from delaytrack.sim.engine import controller_step_signature, run_batch, run_batch_compiled
+from delaytrack.sim.engine import (
+    controller_step_signature,
+    native_controller_step,
+    run_batch,
+    run_batch_compiled,
+)
 from delaytrack.sim.fallback import PythonFallbackWarning
 from delaytrack.sim.first_compile import announce_compile, code_ready
 from delaytrack.sim.history import history_capacity, tick_time
@@ -47,6 +52,9 @@ MAX_STEPS = 10**8
 #: Chunks per worker thread: enough for load balance and a moving progress bar, few enough
 #: that the per-call overhead stays negligible.
 _CHUNKS_PER_WORKER = 8
+#: What the controller reads and loses when no noise and no loss are given.
+_TRUE_STATE = MeasurementNoise()
+_NO_LOSS = PacketLoss()
 
 
 def _as_batch(name: str, value: _T | Sequence[_T], kind: type) -> list[_T]:
@@ -425,14 +433,14 @@ def simulate(
         "measurement_noise",
         _as_batch(
             "measurement_noise",
-            MeasurementNoise() if measurement_noise is None else measurement_noise,
+            _TRUE_STATE if measurement_noise is None else measurement_noise,
             MeasurementNoise,
         ),
         batch,
     )
     losses = _broadcast(
         "packet_loss",
-        _as_batch("packet_loss", PacketLoss() if packet_loss is None else packet_loss, PacketLoss),
+        _as_batch("packet_loss", _NO_LOSS if packet_loss is None else packet_loss, PacketLoss),
         batch,
     )
     if np.any(np.abs(u_init) > limits):
@@ -507,9 +515,9 @@ def simulate(
     # This package's steps are called through their address: the engine is then compiled once
     # for every controller (delaytrack._native_call). A step of the user's is linked into it.
     native_step = compiled and first_controller.engine_kernel.built_in
-    step_signature = (
-        controller_step_signature(first_controller.model.engine_kernel, n, m) if native_step else ()
-    )
+    model = first_controller.model.engine_kernel
+    model_type = model.numba_type if native_step else None
+    step_signature = controller_step_signature(model, n, m) if native_step else ()
 
     def kernels(b: int) -> tuple:
         """Element ``b``'s kernels (:class:`~delaytrack.components.Kernel`): plant, nominal model,
@@ -597,7 +605,9 @@ def simulate(
             tuple(kernel.key for kernel in kernels(0)),
             lambda: tuple(runner.typeof_pyval(item) for item in chunk_arguments(0, probe)),
         )
-        step_ready = not native_step or code_ready(step_function, step_signature, step_signature)
+        step_ready = not native_step or code_ready(
+            step_function, (model_type, n, m), step_signature
+        )
         if not (engine_ready and step_ready):
             announce_compile(
                 first_plant,
@@ -606,7 +616,7 @@ def simulate(
                 delays[own_delays[0]] if own_delays else None,
                 engine=not engine_ready,
             )
-    native = NativeFunction.of(step_function, step_signature) if native_step else None
+    native = native_controller_step(step_function, model_type, n, m) if native_step else None
 
     def run_chunk(index: int) -> int:
         runner(*chunk_arguments(index, native))

@@ -393,3 +393,28 @@ def test_a_delay_kernel_runs_the_same_in_the_plain_python_engine():
     python = _point_mass_run(delay, engine="python")
     np.testing.assert_array_equal(python.x, compiled.x)
     np.testing.assert_array_equal(python.applied, compiled.applied)
+
+
+def test_recorded_reference_is_what_the_controller_read_and_fills_rows_after_a_stop():
+    """The engine records q_d, q̇_d, q̈_d as it computes them at the recorded ticks (run 0 of
+    the batch); the rows after run 0 stops are evaluated afterwards: the same numbers."""
+    plant = dt.TwoLinkArm()
+    controller = dt.OuterLoop(plant, K1=1.0, K2=1.0)
+    reference = dt.SplineReference(TIMES, VALUES)
+    result = dt.simulate(
+        plant,
+        controller,
+        dt.ConstantDelay(0.01),
+        np.array([[0.0, 1.0, 0.0, 20.0], [0.0, 1.0, 0.0, 0.0]]),  # run 0 is thrown off the path
+        reference=reference,
+        t1=3.0,
+        dt=1e-3,
+        T_c=2e-3,
+        record_every=7,
+        error_bound=0.5,
+    )
+    assert result.status_names == ["left the path", "ok"]
+    assert 0.0 < result.t_stop[0] < result.t[-1]
+    expected = np.stack(reference.evaluate(result.t), axis=1)
+    assert result.reference.shape == (result.t.size, 3, 2)
+    np.testing.assert_array_equal(result.reference, expected)

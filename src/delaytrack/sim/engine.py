@@ -79,19 +79,24 @@ def run_closed_loop(handles, run, settings, records):
         its address.
     run : tuple
         This run's arrays ``(plant_params, model_params, controller_params, controller_state,
-        delay_kind, delay_params, x0, capacity, input_limits, measurement, loss)``;
-        ``controller_state`` is advanced in place. The actuators apply each command saturated
-        to ``[-input_limits, input_limits]`` (m,): the history holds the saturated commands,
-        the record ``commands`` what the controller issued. The controller reads the state
+        delay_kind, delay_params, x0, capacity, input_limits, measurement, loss,
+        records_reference)``; ``controller_state`` is advanced in place. The actuators apply
+        each command saturated to ``[-input_limits, input_limits]`` (m,): the history holds
+        the saturated commands, the record ``commands`` what the controller issued. The
+        controller reads the state
         through :func:`~delaytrack.sim.measurement.measure` with ``measurement`` (3n + 1,);
         a packet lost on the channel (:func:`~delaytrack.sim.packet_loss.packet_lost`,
-        ``loss = [p, seed]``) leaves the latest received command in its history slot.
+        ``loss = [p, seed]``) leaves the latest received command in its history slot. The run
+        with ``records_reference`` (one per batch) writes the reference it computes at the
+        recorded ticks into ``reference_record``.
     settings : tuple
         ``(reference_params, u_init, t0, dt, steps_per_tick, n_ticks, record_every,
-        divergence_bound, error_bound, metrics_from)``, shared by every run of a batch;
+        divergence_bound, error_bound, metrics_from, reference_record)``, shared by every run
+        of a batch;
         ``record_every = 0`` records nothing, the run stops with ``LEFT_PATH`` at the first tick
-        where ``|e1_j| > error_bound[j]`` (n,), and the running metrics count the ticks
-        ``k >= metrics_from``.
+        where ``|e1_j| > error_bound[j]`` (n,), the running metrics count the ticks
+        ``k >= metrics_from``, and ``reference_record (R, 3, n)`` receives ``q_d, q̇_d, q̈_d``
+        at the recorded ticks (from one run: the reference is the same for all).
     records : (states, commands, applied, delays, controller_states, sums)
         ``sums`` (3n + 2,) accumulates the running metrics at every tick
         (:mod:`delaytrack.sim.running_metrics`). The others are written every ``record_every``
@@ -138,6 +143,7 @@ def _run_ticks(handles, run, settings, records, memory):
         input_limits,
         measurement,
         loss,
+        records_reference,
     ) = run
     (
         reference_params,
@@ -150,6 +156,7 @@ def _run_ticks(handles, run, settings, records, memory):
         divergence_bound,
         error_bound,
         metrics_from,
+        reference_record,
     ) = settings
     states, commands, applied, delays, controller_states, sums = records
     x, history, work, desired, commands_now, controller_work, measured = memory
@@ -177,6 +184,11 @@ def _run_ticks(handles, run, settings, records, memory):
                 controller_states[row, i] = controller_state[i]
             delays[row] = h_k
         call_reference(reference, t_k, reference_params, qd, qd_dot, qd_ddot)
+        if record and records_reference:
+            for i in range(n):
+                reference_record[row, 0, i] = qd[i]
+                reference_record[row, 1, i] = qd_dot[i]
+                reference_record[row, 2, i] = qd_ddot[i]
         if left_path(qd, q, error_bound):
             return LEFT_PATH, t_k
         measure(q, qdot, k, measurement, q_measured, qdot_measured)
@@ -299,6 +311,7 @@ def run_batch(handles, runs, settings, records, status, t_stop):
         input_limits,
         measurement,
         loss,
+        records_reference,
     ) = runs
     states, commands, applied, delays, controller_states, sums = records
     for b in range(x0.shape[0]):
@@ -314,6 +327,7 @@ def run_batch(handles, runs, settings, records, status, t_stop):
             input_limits[b],
             measurement[b],
             loss[b],
+            records_reference[b],
         )
         run_records = (
             states[b],

@@ -28,7 +28,7 @@ class SimResult:
     x : ndarray, shape (batch, R, 2n)
         Plant state ``[q, q̇]`` at the record times (before the tick's command).
     reference : ndarray, shape (R, 3, n)
-        ``q_d, q̇_d, q̈_d`` at the record times.
+        ``q_d, q̇_d, q̈_d`` at the record times, as the controller read them.
     commands : ndarray, shape (batch, R, m)
         Command issued by the controller at each record time.
     applied : ndarray, shape (batch, R, m)

@@ -467,7 +467,7 @@ def simulate(
     records = n_ticks // every + 1 if trajectories else 0
     state_size = first_controller.state_size
     recorded_state = len(first_controller.state_names)
-    size = batch * records * (2 * n + 2 * m + 1 + recorded_state) * 8
+    size = records * (batch * (2 * n + 2 * m + 1 + recorded_state) + 3 * n) * 8
     too_big = (
         f"recording {batch} run(s) x {records} samples needs {size / 2**30:.3g} GiB, more than "
         "{what}; raise record_every, pass trajectories=False (running metrics only), shorten "
@@ -491,6 +491,7 @@ def simulate(
         applied = np.full((batch, records, m), np.nan)
         delay_records = np.full((batch, records), np.nan)
         controller_states = np.full((batch, records, recorded_state), np.nan)
+        desired = np.full((records, 3, n), np.nan)  # q_d, q̇_d, q̈_d, recorded by run 0
     except MemoryError:
         raise ValueError(too_big.format(what="is free")) from None
     sums = np.zeros((batch, accumulator_size(n)))
@@ -551,6 +552,7 @@ def simulate(
         limits,
         np.array([noise.params(n) for noise in noises]),
         np.array([loss.params() for loss in losses]),
+        np.arange(batch) == 0,  # the run that records the reference
     )
     settings = (
         np.array(reference.params),
@@ -563,6 +565,7 @@ def simulate(
         divergence_bound,
         error_bounds,
         metrics_from_tick,
+        desired,
     )
     outputs = (states, commands, applied, delay_records, controller_states, sums)
 
@@ -646,7 +649,9 @@ def simulate(
         after = times > t_stop[b]
         for array in (states, commands, applied, delay_records, controller_states):
             array[b, after] = np.nan
-    qd, qd_dot, qd_ddot = reference.evaluate(times)
+    unrecorded = np.isnan(desired).any(axis=(1, 2))  # after run 0 stopped
+    if np.any(unrecorded):
+        desired[unrecorded] = np.stack(reference.evaluate(times[unrecorded]), axis=1)
     record: dict[str, Any] = {
         "t0": t0,
         "t1": t1,
@@ -676,7 +681,7 @@ def simulate(
     return SimResult(
         t=times,
         x=states,
-        reference=np.stack([qd, qd_dot, qd_ddot], axis=1),
+        reference=desired,
         commands=commands,
         applied=applied,
         h=delay_records,

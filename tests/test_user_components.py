@@ -9,6 +9,7 @@ failure cases of a factory end in an error naming the table.
 from __future__ import annotations
 
 import json
+import math
 import shutil
 import sys
 from pathlib import Path
@@ -395,26 +396,86 @@ def test_a_delay_kernel_runs_the_same_in_the_plain_python_engine():
     np.testing.assert_array_equal(python.applied, compiled.applied)
 
 
-def test_recorded_reference_is_what_the_controller_read_and_fills_rows_after_a_stop():
+@numba.njit(fastmath=True)
+def fused_ripple(t, params, qd, qd_dot, qd_ddot):
+    """A reference of a user's compiled with fastmath: compiled, its numbers may differ from
+    its plain-Python version's in the last bits."""
+    for i in range(qd.shape[0]):
+        qd[i] = params[0] * t * t + params[1] * t + 0.1 * math.sin(3.0 * t + i)
+        qd_dot[i] = 2.0 * params[0] * t + params[1] + 0.3 * math.cos(3.0 * t + i)
+        qd_ddot[i] = 2.0 * params[0] - 0.9 * math.sin(3.0 * t + i)
+
+
+@pytest.mark.parametrize("kind", ["spline", "sinusoidal"])
+@pytest.mark.parametrize("engine, workers", [("compiled", 1), ("compiled", 2), ("python", 1)])
+@pytest.mark.parametrize("first_stops", [True, False])
+def test_recorded_reference_is_what_the_controller_read(kind, engine, workers, first_stops):
     """The engine records q_d, q̇_d, q̈_d as it computes them at the recorded ticks (run 0 of
     the batch); the rows after run 0 stops are evaluated afterwards: the same numbers."""
     plant = dt.TwoLinkArm()
     controller = dt.OuterLoop(plant, K1=1.0, K2=1.0)
-    reference = dt.SplineReference(TIMES, VALUES)
+    if kind == "spline":
+        reference = dt.SplineReference(TIMES, VALUES)
+    else:
+        reference = dt.SinusoidalReference([0.0, 1.0], amplitude=[0.3, 0.2], frequency=[2, 3])
+    start = np.concatenate([reference.evaluate(0.0)[0], [0.0, 0.0]])
+    thrown = start + [0.0, 0.0, 0.0, 20.0]  # thrown off the path: leaves it
     result = dt.simulate(
         plant,
         controller,
         dt.ConstantDelay(0.01),
-        np.array([[0.0, 1.0, 0.0, 20.0], [0.0, 1.0, 0.0, 0.0]]),  # run 0 is thrown off the path
+        np.array([thrown if first_stops else start, thrown, start, start]),
         reference=reference,
-        t1=3.0,
+        t1=0.3 if engine == "python" else 3.0,
         dt=1e-3,
         T_c=2e-3,
         record_every=7,
         error_bound=0.5,
+        engine=engine,
+        workers=workers,
     )
-    assert result.status_names == ["left the path", "ok"]
-    assert 0.0 < result.t_stop[0] < result.t[-1]
+    assert result.status_names[1:] == ["left the path", "ok", "ok"]
+    assert (result.status_names[0] == "left the path") == first_stops
+    if first_stops:
+        assert 0.0 < result.t_stop[0] < result.t[-1]
     expected = np.stack(reference.evaluate(result.t), axis=1)
     assert result.reference.shape == (result.t.size, 3, 2)
+    np.testing.assert_array_equal(result.reference, expected)
+
+
+class FusedRipple(dt.Reference):
+    """Two coordinates following :func:`fused_ripple`."""
+
+    n = 2
+    params = np.array([0.7, 0.3])
+    reference_kernel = staticmethod(fused_ripple)
+
+    def to_spec(self):
+        return {"type": "fused-ripple"}
+
+
+def test_the_plain_python_engine_records_the_reference_its_kernel_gives():
+    """A reference whose compiled and plain-Python versions differ in the last bits: the
+    plain-Python engine's record holds the plain-Python numbers in every row, those after the
+    first run stopped included."""
+    plant = dt.TwoLinkArm()
+    controller = dt.OuterLoop(plant, K1=1.0, K2=1.0)
+    reference = FusedRipple()
+    start = np.concatenate([reference.evaluate(0.0)[0], reference.evaluate(0.0)[1]])
+    result = dt.simulate(
+        plant,
+        controller,
+        dt.ConstantDelay(0.01),
+        np.array([start + [0.0, 0.0, 0.0, 20.0], start]),
+        reference=reference,
+        t1=0.2,
+        dt=1e-3,
+        T_c=2e-3,
+        error_bound=0.5,
+        engine="python",
+    )
+    assert result.status_names == ["left the path", "ok"]
+    expected = np.empty((result.t.size, 3, 2))
+    for row, t in enumerate(result.t):
+        fused_ripple.py_func(float(t), reference.params, *expected[row])
     np.testing.assert_array_equal(result.reference, expected)

@@ -63,9 +63,11 @@ class NativeFunction:
     def of(cls, function: Any, signature: tuple) -> NativeFunction:
         """``function`` compiled (or loaded from numba's disk cache) for ``signature``.
 
-        Its compiled code is looked up at every call (a dictionary look-up): numba keeps every
-        compiled version of a function for the life of the process, so the address stays valid,
-        and a recompiled function gives its new code's.
+        Its compiled code is looked up at every call of this method: numba keeps every compiled
+        version of a function for the life of the process, so the address stays valid, and a
+        recompiled function gives its new code's. (The simulator keeps the first one it finds
+        for each controller step, :func:`~delaytrack.sim.engine.native_controller_step`: this
+        package's steps are not recompiled.)
         """
         signature = tuple(signature)
         result = function.overloads.get(signature)

@@ -19,6 +19,7 @@ from delaytrack._validation import (
     is_integer_at_least,
     positive_scalar,
 )
+from delaytrack.components import call_reference
 from delaytrack.controllers.base import Controller
 from delaytrack.delays._kernel import NO_KERNEL
 from delaytrack.delays.base import DelayProfile
@@ -491,7 +492,7 @@ def simulate(
         applied = np.full((batch, records, m), np.nan)
         delay_records = np.full((batch, records), np.nan)
         controller_states = np.full((batch, records, recorded_state), np.nan)
-        desired = np.full((records, 3, n), np.nan)  # q_d, q̇_d, q̈_d, recorded by run 0
+        reference_rows = np.full((records, 3, n), np.nan)  # q_d, q̇_d, q̈_d, by run 0
     except MemoryError:
         raise ValueError(too_big.format(what="is free")) from None
     sums = np.zeros((batch, accumulator_size(n)))
@@ -565,7 +566,7 @@ def simulate(
         divergence_bound,
         error_bounds,
         metrics_from_tick,
-        desired,
+        reference_rows,
     )
     outputs = (states, commands, applied, delay_records, controller_states, sums)
 
@@ -649,9 +650,14 @@ def simulate(
         after = times > t_stop[b]
         for array in (states, commands, applied, delay_records, controller_states):
             array[b, after] = np.nan
-    unrecorded = np.isnan(desired).any(axis=(1, 2))  # after run 0 stopped
-    if np.any(unrecorded):
-        desired[unrecorded] = np.stack(reference.evaluate(times[unrecorded]), axis=1)
+    # Rows run 0 did not record (it stopped before them), from the kernel the engine ran.
+    unrecorded = np.flatnonzero(np.isnan(reference_rows).any(axis=(1, 2)))
+    if unrecorded.size and compiled:
+        reference_rows[unrecorded] = np.stack(reference.evaluate(times[unrecorded]), axis=1)
+    elif unrecorded.size:
+        python_kernel = handles(0, None)[2]
+        for row in unrecorded:
+            call_reference(python_kernel, float(times[row]), settings[0], *reference_rows[row])
     record: dict[str, Any] = {
         "t0": t0,
         "t1": t1,
@@ -681,7 +687,7 @@ def simulate(
     return SimResult(
         t=times,
         x=states,
-        reference=desired,
+        reference=reference_rows,
         commands=commands,
         applied=applied,
         h=delay_records,

@@ -752,6 +752,7 @@ def test_one_noise_entry_serves_every_coordinate() -> None:
     for key in ("quantization", "position", "velocity"):
         one = MeasurementNoise(**{key: [0.1]}, seed=3).params(4)
         assert np.array_equal(one, MeasurementNoise(**{key: 0.1}, seed=3).params(4))
+    # The documented layout [Δ (n), σ_q (n), σ_v (n), seed]: one value spread, a list as given.
     assert np.array_equal(
         MeasurementNoise(quantization=0.1, position=[0.2, 0.3], seed=5).params(2),
         [0.1, 0.1, 0.2, 0.3, 0.0, 0.0, 5.0],

@@ -160,4 +160,9 @@ def test_the_study_uses_the_gains_it_is_given():
         for run, label in zip(first.spec.runs, first.labels, strict=True)
         if label["controller"] == "AROLC (tuned)"
     ]
-    assert tuned and all((c["K1"], c["K2"], c["alpha"]) == (9.0, 6.0, 5.0) for c in tuned)
+    expected = tuning.arolc_gains(3.0, 1.0, 5.0)  # the given k, ζ, α as AROLC's gains
+    assert tuned and all(
+        (c["K1"], c["K2"], c["alpha"]) == (expected["K1"], expected["K2"], 5.0) for c in tuned
+    )
+    shipped = tuning.load_gains()["AROLC"]["all"]  # the study must not have read these
+    assert (expected["K1"], expected["K2"]) != (shipped["K1"], shipped["K2"])

@@ -63,6 +63,20 @@ _SPLIT_TOLERANCE = 1e-9
 #: rounding of ``g = t - h(t)``).
 _SWITCH_MARGIN = 1e-9
 
+#: Entries of the ``profile`` memory of :func:`rk4_workspace`: the current piece
+#: ``[from, breakpoint)``, the last point where ``h`` was evaluated and ``h`` there, the last
+#: ``g`` evaluated and its tick index, the piece's slope bound and the quiet horizon.
+(
+    _FROM,
+    _BREAKPOINT,
+    _EVALUATED_AT,
+    _H_THERE,
+    _LAST_G,
+    _LAST_TICK,
+    _SLOPE,
+    _QUIET_UNTIL,
+) = range(8)
+
 #: Outcomes of :func:`integrate_tick`, and the status codes of a run.
 OK = 0
 DIVERGED = 1
@@ -90,8 +104,9 @@ def rk4_workspace(x, m):
     one step to the next, the delay profile's current piece ``[from, breakpoint)`` and its slope
     bound ``L``, for a continuous profile the last point ``t`` where ``h`` was evaluated and
     ``h(t)``, the last ``g`` evaluated with its tick index, and until when that index certainly
-    holds: ``[from, breakpoint, t, h, g, k, L, quiet_until]`` (see :func:`_piece` and
-    :func:`_quiet_until`).
+    holds: ``[from, breakpoint, t, h, g, k, L, quiet_until]``, indexed by :data:`_FROM` ..
+    :data:`_QUIET_UNTIL` (see :func:`_piece` and :func:`_quiet_until`). It starts with no piece,
+    nothing evaluated and nothing certain.
     """
     n = x.shape[0] // 2
     slopes = np.empty((4, 2 * n))
@@ -158,10 +173,14 @@ def _piece(delay, delay_kind, delay_params, a, b, profile):
     if delay_kind == PIECEWISE_CONSTANT:
         h_a, h_b = piece_end_values(delay_kind, delay_params, a, b)
     else:  # continuous: h(a+) = h(a), remembered when a ended the last piece
-        h_a = profile[3] if a == profile[2] else profile_value(delay, delay_kind, delay_params, a)
+        h_a = (
+            profile[_H_THERE]
+            if a == profile[_EVALUATED_AT]
+            else profile_value(delay, delay_kind, delay_params, a)
+        )
         h_b = profile_value(delay, delay_kind, delay_params, b)
-        profile[2] = b
-        profile[3] = h_b
+        profile[_EVALUATED_AT] = b
+        profile[_H_THERE] = h_b
     return a - h_a, b - h_b
 
 
@@ -173,11 +192,11 @@ def _piece_end(delay_kind, delay_params, a, t_end, profile):
     and found again only when ``a`` has left it (``next_breakpoint(a)`` is the same for every
     ``a`` in a piece).
     """
-    if not profile[0] <= a < profile[1]:
-        profile[0] = a
-        profile[1] = next_breakpoint(delay_kind, delay_params, a)
-        profile[6] = slope_bound(delay_kind, delay_params, a)
-    return min(profile[1], t_end)
+    if not profile[_FROM] <= a < profile[_BREAKPOINT]:
+        profile[_FROM] = a
+        profile[_BREAKPOINT] = next_breakpoint(delay_kind, delay_params, a)
+        profile[_SLOPE] = slope_bound(delay_kind, delay_params, a)
+    return min(profile[_BREAKPOINT], t_end)
 
 
 @hot_inline_kernel
@@ -190,7 +209,7 @@ def _quiet_until(b, g_b, k_b, profile, t0, dt, steps_per_tick):
     ``1e-9 (dt + (1 + |b| + |g(b)|) (1 + L))``; and at most until the piece ends. Before ``b``
     when ``g(b)`` lies within the margin of ``t_k`` (``g`` may then fall below it by rounding).
     """
-    slope = profile[6]
+    slope = profile[_SLOPE]
     if not slope < np.inf:  # a kernel of the user's: no bound, h is evaluated at every step
         return -np.inf
     margin = _SWITCH_MARGIN * (dt + (1.0 + abs(b) + abs(g_b)) * (1.0 + slope))
@@ -201,8 +220,8 @@ def _quiet_until(b, g_b, k_b, profile, t0, dt, steps_per_tick):
             return -np.inf
         if slope > 1.0:
             horizon = min(horizon, b + above / (slope - 1.0))
-    if not horizon <= profile[1]:  # the piece ends first (or NaN: nothing is certain)
-        return profile[1] if horizon > profile[1] else -np.inf
+    if not horizon <= profile[_BREAKPOINT]:  # the piece ends first (or NaN: nothing is certain)
+        return profile[_BREAKPOINT] if horizon > profile[_BREAKPOINT] else -np.inf
     return horizon
 
 
@@ -260,22 +279,24 @@ def integrate_tick(
                 # No switch up to b: g keeps the remembered index. Strictly before the horizon,
                 # which may be the piece's end: a piece-wise constant profile evaluated on a
                 # piece ending there takes h at its midpoint, which may round onto the next piece.
-                if b < profile[7]:
-                    k_a = int(profile[5])
+                if b < profile[_QUIET_UNTIL]:
+                    k_a = int(profile[_LAST_TICK])
                     k_b = k_a
                     g_a = g_b = 0.0  # not needed: no crossing
                 else:
                     g_a, g_b = _piece(delay, delay_kind, delay_params, a, b, profile)
                     # g(a) is mostly g(b) of the last piece, whose tick index is remembered;
                     # the index at b is then found by walking from the one at a.
-                    if g_a == profile[4]:
-                        k_a = int(profile[5])
+                    if g_a == profile[_LAST_G]:
+                        k_a = int(profile[_LAST_TICK])
                     else:
                         k_a = latest_tick_index(g_a, t0, dt, steps_per_tick)
                     k_b = latest_tick_index_from(g_b, k_a, t0, dt, steps_per_tick)
-                    profile[4] = g_b
-                    profile[5] = k_b
-                    profile[7] = _quiet_until(b, g_b, k_b, profile, t0, dt, steps_per_tick)
+                    profile[_LAST_G] = g_b
+                    profile[_LAST_TICK] = k_b
+                    profile[_QUIET_UNTIL] = _quiet_until(
+                        b, g_b, k_b, profile, t0, dt, steps_per_tick
+                    )
             # Sub-intervals end at each tick crossed by g on this piece, in time order, then b.
             crossings = abs(k_b - k_a)
             direction = 1 if k_b >= k_a else -1

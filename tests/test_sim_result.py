@@ -10,6 +10,7 @@ from delaytrack.controllers import AROLC, OuterLoop
 from delaytrack.delays import AbsSineDelay
 from delaytrack.plants import CallablePlant, LinearPlant, TwoLinkArm
 from delaytrack.references import SinusoidalReference
+from delaytrack.report import commands_figure, error_figure, tracking_figure, write_run_figures
 from delaytrack.sim import simulate
 
 REFERENCE = SinusoidalReference([0.0, 0.0], amplitude=[0.8, 0.5], frequency=[0.5, 0.7])
@@ -77,12 +78,39 @@ def test_a_user_plant_carries_its_names_and_units_into_the_figure():
     assert result.plot().axes[0].get_ylabel() == "q1"
 
 
+def test_the_run_figures_label_each_axis_with_the_plants_own_units_or_none(tmp_path):
+    def labels(result):
+        write_run_figures(result, tmp_path, formats=("png",))
+        return (
+            [ax.get_ylabel() for ax in tracking_figure(result).axes],
+            [ax.get_ylabel() for ax in error_figure(result).axes],
+            [ax.get_ylabel() for ax in commands_figure(result).axes],
+        )
+
+    plant = CallablePlant(
+        1,
+        lambda q: np.eye(1),
+        lambda q, qdot: np.zeros(1),
+        coordinate_names=["cart"],
+        coordinate_units=["m"],
+        input_units=["N"],
+    )
+    assert labels(outer_loop_run(plant)) == (["cart (m)"], ["|e1| of cart (m)"], ["u1 (N)"])
+    # A plant that declares no units gets none, not radians and newton-metres.
+    bare = labels(outer_loop_run(LinearPlant(np.eye(1))))
+    assert bare == (["q1"], ["|e1| of q1"], ["u1"])
+    # A unit given by the caller labels every panel.
+    result = outer_loop_run(LinearPlant(np.eye(1)))
+    assert tracking_figure(result, unit="deg").axes[0].get_ylabel() == "q1 (deg)"
+
+
 @pytest.mark.parametrize(
     "changes, message",
     [
         (dict(coordinate_names=["a", "b"]), r"coordinate_names must be a list of n = 1"),
         (dict(coordinate_names=["1a"]), r"coordinate_names must be a list of n = 1 different"),
-        (dict(coordinate_units=[""]), r"coordinate_units must be a list of n = 1 unit strings"),
+        (dict(coordinate_units=[""]), r"coordinate_units must be a list of 1 unit strings, one per"),
+        (dict(input_units=["N", "N"]), r"input_units must be a list of 1 unit strings, one per input"),
         (dict(coordinate_units="rad"), r"coordinate_units must be a list .* got 'rad'"),
     ],
 )

@@ -43,8 +43,8 @@ def beyond_choice(value: object) -> str:
 
 def coordinate_labels(label: str, value: object, n: int) -> tuple[str, ...]:
     """``n`` different names (letters, digits and ``_``) for ``coordinate_names``, or ``n``
-    non-empty unit strings for ``coordinate_units``, as a tuple; else a ValueError naming
-    ``label``."""
+    non-empty unit strings for ``coordinate_units`` or ``input_units``, as a tuple; else a
+    ValueError naming ``label``."""
     names = tuple(value) if isinstance(value, list | tuple) else None
     if label.endswith("names"):
         valid = (
@@ -60,7 +60,8 @@ def coordinate_labels(label: str, value: object, n: int) -> tuple[str, ...]:
             and len(names) == n
             and all(isinstance(unit, str) and unit.strip() for unit in names)
         )
-        what = f"n = {n} unit strings (such as 'm' or 'rad')"
+        one = "input" if label.startswith("input") else "coordinate"
+        what = f"{n} unit strings, one per {one} (such as 'm', 'rad' or 'N')"
     if not valid:
         raise ValueError(f"{label} must be a list of {what}; got {value!r}")
     return names

@@ -35,6 +35,9 @@ class CallablePlant(ELPlant):
         Names of the coordinates in result tables and figures; ``q1 .. qn`` by default.
     coordinate_units : sequence of str, optional
         Units of the coordinates (``"m"``, ``"rad"``) for figure axes and table columns.
+    input_units : sequence of str, optional
+        Units of the inputs (``"N"``, ``"N·m"``), one per input, for figure axes and table
+        columns.
 
     Notes
     -----
@@ -50,6 +53,7 @@ class CallablePlant(ELPlant):
     name: str = "callable"
     coordinate_names: tuple[str, ...] | None = None
     coordinate_units: tuple[str, ...] | None = None
+    input_units: tuple[str, ...] | None = None
     m: int = field(init=False)
     type_name: ClassVar[str] = "callable"
 
@@ -76,6 +80,9 @@ class CallablePlant(ELPlant):
         as_spd_matrix("mass_matrix(0)", mass, self.n)
         self._evaluate("nonlinear_terms", self.nonlinear_terms_fn, (zero, zero), (self.n,))
         object.__setattr__(self, "m", self._input_map(zero).shape[1])
+        if self.input_units is not None:
+            units = coordinate_labels("input_units", self.input_units, self.m)
+            object.__setattr__(self, "input_units", units)
 
     def _evaluate(
         self, label: str, fn: Callable[..., Any], args: tuple, shape: tuple[int, ...]

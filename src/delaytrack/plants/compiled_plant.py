@@ -41,6 +41,9 @@ class CompiledPlant(ELPlant):
         Names of the coordinates in result tables (``ae_<name>``); ``q1 .. qn`` by default.
     coordinate_units : sequence of str, optional
         Units of the coordinates (``"m"``, ``"rad"``) for figure axes and table columns.
+    input_units : sequence of str, optional
+        Units of the inputs (``"N"``, ``"N·m"``), one per input, for figure axes and table
+        columns.
 
     Notes
     -----
@@ -62,6 +65,7 @@ class CompiledPlant(ELPlant):
     name: str = "compiled"
     coordinate_names: tuple[str, ...] | None = None
     coordinate_units: tuple[str, ...] | None = None
+    input_units: tuple[str, ...] | None = None
     type_name: ClassVar[str] = "compiled"
 
     def __post_init__(self) -> None:
@@ -78,6 +82,9 @@ class CompiledPlant(ELPlant):
             if getattr(self, label) is not None:
                 labels = coordinate_labels(label, getattr(self, label), self.n)
                 object.__setattr__(self, label, labels)
+        if self.input_units is not None:
+            units = coordinate_labels("input_units", self.input_units, self.m)
+            object.__setattr__(self, "input_units", units)
         parameters = finite_array("parameters", self.parameters, ndim=1)
         object.__setattr__(self, "parameters", np.ascontiguousarray(parameters))
         mass, nonlinear, input_map = self.terms(np.zeros(self.n), np.zeros(self.n))

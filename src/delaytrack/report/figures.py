@@ -65,6 +65,14 @@ def _names(count: int, names: Sequence[str] | None, prefix: str) -> list[str]:
     return list(default_names(names, count, prefix))
 
 
+def _units(count: int, declared: Sequence[str] | None, unit: str | None) -> list[str | None]:
+    """The axis unit of each of ``count`` panels: ``unit`` for all when given, else the units
+    the plant declared, else none."""
+    if unit is not None:
+        return [unit] * count
+    return list(declared) if declared else [None] * count
+
+
 def _stacked(rows: int, title: str | None) -> tuple[Figure, list]:
     figure = Figure(figsize=(_WIDTH, _ROW_HEIGHT * rows + 0.9), dpi=_DPI, layout="constrained")
     axes = figure.subplots(rows, 1, sharex=True, squeeze=False)[:, 0]
@@ -87,21 +95,25 @@ def tracking_figure(
     runs: Mapping[str, SimResult] | SimResult,
     *,
     coordinate_names: Sequence[str] | None = None,
-    unit: str = "rad",
+    unit: str | None = None,
     title: str | None = None,
 ) -> Figure:
-    """``q_j(t)`` of each run against the reference ``q_d,j(t)``, one panel per coordinate."""
+    """``q_j(t)`` of each run against the reference ``q_d,j(t)``, one panel per coordinate.
+
+    ``unit`` labels every axis; by default each coordinate's unit as the plant gives it
+    (:attr:`SimResult.coordinate_units`), or none."""
     runs = _runs(runs)
     first = next(iter(runs.values()))
     names = _names(
         first.n, first.coordinate_names if coordinate_names is None else coordinate_names, "q"
     )
+    units = _units(first.n, first.coordinate_units, unit)
     figure, axes = _stacked(first.n, title)
     for j, ax in enumerate(axes):
         ax.plot(first.t, first.reference[:, 0, j], color="black", lw=1.2, ls="--", label="q_d")
         for label, result in runs.items():
             ax.plot(result.t, result.q[0, :, j], lw=1.0, label=label)
-        ax.set_ylabel(f"{names[j]} ({unit})")
+        ax.set_ylabel(labelled(names[j], units[j]))
     _legend(axes[0], len(runs) + 1)
     return figure
 
@@ -110,20 +122,23 @@ def error_figure(
     runs: Mapping[str, SimResult] | SimResult,
     *,
     coordinate_names: Sequence[str] | None = None,
-    unit: str = "rad",
+    unit: str | None = None,
     title: str | None = None,
 ) -> Figure:
-    """Absolute tracking error ``|e1_j(t)| = |q_d,j - q_j|`` of each run, a panel per coordinate."""
+    """Absolute tracking error ``|e1_j(t)| = |q_d,j - q_j|`` of each run, a panel per coordinate.
+
+    ``unit`` as in :func:`tracking_figure`."""
     runs = _runs(runs)
     first = next(iter(runs.values()))
     names = _names(
         first.n, first.coordinate_names if coordinate_names is None else coordinate_names, "q"
     )
+    units = _units(first.n, first.coordinate_units, unit)
     figure, axes = _stacked(first.n, title)
     for j, ax in enumerate(axes):
         for label, result in runs.items():
             ax.plot(result.t, np.abs(result.e1[0, :, j]), lw=1.0, label=label)
-        ax.set_ylabel(f"|e1| of {names[j]} ({unit})")
+        ax.set_ylabel(labelled(f"|e1| of {names[j]}", units[j]))
         ax.set_ylim(bottom=0.0)
     _legend(axes[0], len(runs))
     return figure
@@ -133,14 +148,18 @@ def commands_figure(
     runs: Mapping[str, SimResult] | SimResult,
     *,
     input_names: Sequence[str] | None = None,
-    unit: str = "N·m",
+    unit: str | None = None,
     title: str | None = None,
 ) -> Figure:
-    """Commanded ``τ_j(t)`` (solid) and applied, delayed ``τ_j(t - h(t))`` (dashed) inputs."""
+    """Commanded ``τ_j(t)`` (solid) and applied, delayed ``τ_j(t - h(t))`` (dashed) inputs.
+
+    ``unit`` labels every axis; by default each input's unit as the plant gives it
+    (:attr:`SimResult.input_units`), or none."""
     runs = _runs(runs)
     first = next(iter(runs.values()))
     m = first.commands.shape[2]
     names = _names(m, input_names, "u")
+    units = _units(m, first.input_units, unit)
     figure, axes = _stacked(m, title)
     for j, ax in enumerate(axes):
         for k, (label, result) in enumerate(runs.items()):
@@ -157,7 +176,7 @@ def commands_figure(
                 alpha=0.8,
                 label=f"{label} applied",
             )
-        ax.set_ylabel(f"{names[j]} ({unit})")
+        ax.set_ylabel(labelled(names[j], units[j]))
     _legend(axes[0], 2 * len(runs))
     return figure
 

@@ -198,6 +198,7 @@ def test_a_kernel_numba_cannot_compile_is_a_one_line_error(example, capsys):
     assert main(["simulate", str(path), "--out", str(example / "out")]) == 2
     err = capsys.readouterr().err
     assert "numba could not compile the engine" in err and "Traceback" not in err
+    assert "\x1b[" not in err  # numba's terminal colour codes are left out
     # The error is one line, the last; before it only the compile notice and the progress bar
     # (shown by default) may stand.
     lines = err.strip().splitlines()
@@ -479,3 +480,96 @@ def test_the_plain_python_engine_records_the_reference_its_kernel_gives():
     for row, t in enumerate(result.t):
         fused_ripple.py_func(float(t), reference.params, *expected[row])
     np.testing.assert_array_equal(result.reference, expected)
+
+
+@numba.njit
+def _three_coefficients(t, q, qdot, params, mass, nonlinear, input_map):
+    mass[0, 0] = params[0]
+    nonlinear[0] = params[1] * qdot[0] + params[2] * q[0]
+    input_map[0, 0] = 1.0
+
+
+def test_a_compiled_plant_refuses_parameters_shorter_than_its_kernel_reads():
+    # Compiled, the kernel would read past the end of params and run on with whatever lies there.
+    with pytest.raises(
+        ValueError, match=r"kernel reads beyond an array .*index 2 .*parameters has 2 entries"
+    ):
+        dt.CompiledPlant(1, 1, _three_coefficients, [1.0, 0.5])
+    assert dt.CompiledPlant(1, 1, _three_coefficients, [1.0, 0.5, 2.0]).params.size == 3
+
+
+@numba.njit
+def _terms_without_input_map(t, q, qdot, params, mass, nonlinear):
+    mass[0, 0] = 1.0
+    nonlinear[0] = 0.0
+
+
+@numba.njit
+def _reference_without_acceleration(t, params, qd, qd_dot):
+    qd[0] = 0.0
+    qd_dot[0] = 0.0
+
+
+@numba.njit
+def _step_without_work(t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, mp, u):
+    u[0] = 0.0
+
+
+class _ShortReference(dt.Reference):
+    n = 1
+    params = np.zeros(0)
+    reference_kernel = staticmethod(_reference_without_acceleration)
+
+    def to_spec(self):
+        return {"type": "short"}
+
+
+class _ShortStep(dt.OuterLoop):
+    @property
+    def step_kernel(self):
+        return _step_without_work
+
+
+def test_a_kernel_with_the_wrong_arguments_is_refused_by_name_before_compiling():
+    with pytest.raises(
+        ValueError,
+        match=r"CompiledPlant: its terms kernel must take the 7 arguments \(t, q, qdot, params, "
+        r"M, N, G\); _terms_without_input_map takes \(t, q, qdot, params, mass, nonlinear\)",
+    ):
+        dt.CompiledPlant(1, 1, _terms_without_input_map)
+    with pytest.raises(ValueError, match=r"CompiledDelay: its delay kernel must take the 2"):
+        dt.CompiledDelay(numba.njit(lambda t: 0.01), h_max=0.01)
+    plant = dt.LinearPlant(mass=1.0)
+    with pytest.raises(
+        ValueError, match=r"^reference: its reference kernel must take the 5 arguments"
+    ):
+        dt.simulate(
+            plant,
+            dt.OuterLoop(plant, 1.0, 2.0),
+            dt.ConstantDelay(0.01),
+            [0.1, 0.0],
+            reference=_ShortReference(),
+            t1=0.1,
+            dt=1e-3,
+            T_c=0.01,
+        )
+    with pytest.raises(ValueError, match=r"^controller: its step kernel must take the 14"):
+        dt.simulate(
+            plant,
+            _ShortStep(plant, 1.0, 2.0),
+            dt.ConstantDelay(0.01),
+            [0.1, 0.0],
+            reference=dt.SinusoidalReference([0.0]),
+            t1=0.1,
+            dt=1e-3,
+            T_c=0.01,
+        )
+
+
+def test_numbas_colour_codes_are_left_out_of_the_cause():
+    from delaytrack.sim.simulate import _numba_cause
+
+    error = TypeError(
+        "Failed in nopython mode\n\x1b[1m\x1b[1mNameError: name 'x' is not defined\x1b[0m"
+    )
+    assert _numba_cause(error) == "NameError: name 'x' is not defined"

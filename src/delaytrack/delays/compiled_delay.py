@@ -12,6 +12,7 @@ import delaytrack.delays._kernel as _kernel
 from delaytrack._validation import finite_array, positive_scalar
 from delaytrack.components import Kernel, is_compiled
 from delaytrack.delays.base import DelayProfile
+from delaytrack.kernel_arguments import check_kernel_arguments
 
 __all__ = ["CompiledDelay"]
 
@@ -72,6 +73,7 @@ class CompiledDelay(DelayProfile):
                 "kernel must be a numba-compiled function (decorate it with @numba.njit); got "
                 f"{type(self.kernel).__name__}"
             )
+        check_kernel_arguments("CompiledDelay", "delay", self.kernel)
         parameters = finite_array("parameters", self.parameters, ndim=1)
         object.__setattr__(self, "parameters", np.ascontiguousarray(parameters))
         object.__setattr__(self, "h_max", positive_scalar("h_max", self.h_max, strictly=False))

@@ -16,6 +16,7 @@ from delaytrack._validation import (
     is_integer_at_least,
 )
 from delaytrack.components import is_compiled
+from delaytrack.kernel_arguments import check_kernel_arguments
 from delaytrack.plants.base import ELPlant
 
 __all__ = ["CompiledPlant"]
@@ -47,14 +48,15 @@ class CompiledPlant(ELPlant):
 
     Notes
     -----
-    The kernel is checked once at ``q = q̇ = 0``, ``t = 0`` (finite values, ``M`` symmetric
-    positive definite). The simulator's loop is compiled for your kernel on the first
-    ``simulate`` call and kept on disk, keyed by a hash of the kernel's code (and of the
-    functions and constants it uses): later processes load it, and an edit to the kernel
-    compiles it again. Compile the kernel with
-    ``numba.njit(error_model="numpy")`` to have a division by zero end only that run (as
-    ``diverged``) instead of raising. A plant given as
-    plain Python callables (:class:`CallablePlant`) needs no compilation but runs about 100x
+    The kernel is checked once at ``q = q̇ = 0``, ``t = 0`` (its arguments, finite values, ``M``
+    symmetric positive definite, and, run as Python, no read past the end of ``parameters``:
+    compiled code would read on silently; a read only on another branch is not seen). The
+    simulator's loop is compiled for your kernel on the first ``simulate`` call and kept on
+    disk, keyed by a hash of the kernel's code (and of the functions and constants it uses):
+    later processes load it, and an edit to the kernel compiles it again. Compile the kernel
+    with ``numba.njit(error_model="numpy")`` to have a division by zero end only that run (as
+    ``diverged``) instead of raising. A plant given as plain Python callables
+    (:class:`CallablePlant`) needs no compilation but runs about 100x
     slower.
     """
 
@@ -78,6 +80,7 @@ class CompiledPlant(ELPlant):
                 "kernel must be a numba-compiled function (decorate it with @numba.njit); got "
                 f"{type(self.kernel).__name__}. For plain Python functions use CallablePlant."
             )
+        check_kernel_arguments("CompiledPlant", "terms", self.kernel)
         for label in ("coordinate_names", "coordinate_units"):
             if getattr(self, label) is not None:
                 labels = coordinate_labels(label, getattr(self, label), self.n)
@@ -87,6 +90,7 @@ class CompiledPlant(ELPlant):
             object.__setattr__(self, "input_units", units)
         parameters = finite_array("parameters", self.parameters, ndim=1)
         object.__setattr__(self, "parameters", np.ascontiguousarray(parameters))
+        self._check_reads()
         mass, nonlinear, input_map = self.terms(np.zeros(self.n), np.zeros(self.n))
         for label, value in (("M", mass), ("N", nonlinear), ("G", input_map)):
             if not np.all(np.isfinite(value)):
@@ -94,6 +98,32 @@ class CompiledPlant(ELPlant):
                     f"kernel gave a non-finite {label} at q = qdot = 0: {format_values(value)}"
                 )
         as_spd_matrix("the kernel's M(0)", mass[0], self.n)
+
+    def _check_reads(self) -> None:
+        """Run the kernel's Python version once at ``q = q̇ = 0``, ``t = 0``: compiled code reads
+        past the end of ``params`` (or of another array) without a word and runs on with
+        whatever lies there; Python raises IndexError. Other errors are left to the compiled
+        kernel, which is what runs (Python may lack what numba provides)."""
+        n, m = self.n, self.m
+        zero = np.zeros(n)
+        try:
+            self.kernel.py_func(
+                0.0,
+                zero,
+                zero.copy(),
+                self.parameters.copy(),
+                np.zeros((n, n)),
+                np.zeros(n),
+                np.zeros((n, m)),
+            )
+        except IndexError as error:
+            raise ValueError(
+                f"kernel reads beyond an array at q = qdot = 0 ({error}); parameters has "
+                f"{self.parameters.size} entries and n = {n}, m = {m}: give the parameters "
+                "the kernel reads, and M (n, n), N (n,), G (n, m) as it fills them"
+            ) from None
+        except Exception:  # noqa: BLE001 - only reads past an array's end are checked here
+            return
 
     @property
     def params(self) -> np.ndarray:

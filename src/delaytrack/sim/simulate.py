@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import warnings
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -23,6 +24,7 @@ from delaytrack.components import call_reference
 from delaytrack.controllers.base import Controller
 from delaytrack.delays._kernel import NO_KERNEL
 from delaytrack.delays.base import DelayProfile
+from delaytrack.kernel_arguments import check_kernel_arguments
 from delaytrack.plants.base import ELPlant
 from delaytrack.references import Reference
 from delaytrack.sim.engine import (
@@ -83,10 +85,15 @@ def _integer_ratio(name: str, value: float, unit: float, what: str, scale: float
 _NUMBA_CAUSES = ("Error: ", "Untyped global name", "Unknown attribute", "Cannot unify")
 
 
+#: The colour and bold codes numba writes into its messages.
+_TERMINAL_CODES = re.compile(r"\x1b\[[0-9;]*m")
+
+
 def _numba_cause(error: Exception) -> str:
     """The innermost cause in a numba error's message (``NameError: name 'x' is not
     defined``), else its first line."""
-    lines = [line.strip() for line in str(error).splitlines() if line.strip()]
+    text = _TERMINAL_CODES.sub("", str(error))  # numba colours its messages for a terminal
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
     causes = [
         line
         for line in lines
@@ -158,6 +165,27 @@ def _broadcast(name: str, items: list[_T], batch: int) -> list[_T]:
     raise ValueError(
         f"{name} has {len(items)} entries but the batch has {batch}; give 1 or {batch}"
     )
+
+
+def _check_kernel_arguments(
+    plant: ELPlant,
+    controller: Controller,
+    reference: Reference,
+    delays: Sequence[DelayProfile],
+) -> None:
+    """Check that each kernel takes the arguments the engine passes it
+    (:mod:`delaytrack.kernel_arguments`), before anything is compiled."""
+    for owner, component in (("plant", plant), ("controller's model", controller.model)):
+        kernel = component.engine_kernel
+        check_kernel_arguments(owner, "terms", kernel.function)
+        for kind in ("command_map", "stepper"):
+            if getattr(kernel, kind) is not None:
+                check_kernel_arguments(owner, kind, getattr(kernel, kind))
+    check_kernel_arguments("controller", "step", controller.step_kernel)
+    check_kernel_arguments("reference", "reference", reference.reference_kernel)
+    for i, delay in enumerate(delays):
+        if delay.engine_kernel != NO_KERNEL:
+            check_kernel_arguments(f"delay[{i}]", "delay", delay.engine_kernel.function)
 
 
 def _check_horizons(
@@ -374,6 +402,7 @@ def simulate(
             )
     if reference.n != n:
         raise ValueError(f"reference has n = {reference.n} coordinates; the plant has n = {n}")
+    _check_kernel_arguments(first_plant, first_controller, reference, delays)
     error_bounds = _positive_limits(
         "error_bound", error_bound, (n,), f"{n} of them (one per coordinate)"
     )

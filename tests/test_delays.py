@@ -467,7 +467,7 @@ def test_delay_value_scalar_kernel_matches_profiles():
         (lambda: TraceDelay([], []), r"at least one knot"),
         (
             lambda: TraceDelay([0.0, float("nan")], [0.1, 0.1]),
-            r"times must be finite; entry \(1,\) is nan",
+            r"times must be finite; times\[1\] is nan",
         ),
         (lambda: TraceDelay([[0.0, 1.0]], [[0.1, 0.1]]), r"times must be 1-dimensional"),
         (lambda: RandomDelay(0.1, 0.05, 1.0, 1.0, seed=0), r"h_low = 0\.1, h_high = 0\.05"),

@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import importlib
 import importlib.util
+import inspect
 import math
 import sys
 from collections.abc import Callable, Mapping
@@ -258,6 +259,26 @@ def _check_alternatives(
         )
 
 
+def _check_factory_keys(
+    table: str, kind: str, factory: Callable[..., Any], arguments: Mapping[str, Any]
+) -> None:
+    """Refuse a key of ``[table]`` that the user's factory does not take, listing those it
+    takes (nothing is checked for a factory with ``**kwargs`` or no readable signature)."""
+    try:
+        parameters = inspect.signature(factory).parameters.values()
+    except (TypeError, ValueError):
+        return
+    if any(parameter.kind is parameter.VAR_KEYWORD for parameter in parameters):
+        return
+    named = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+    takes = [parameter.name for parameter in parameters if parameter.kind in named]
+    for key in arguments:
+        if key not in takes:
+            raise SpecError(
+                f"unknown key '{table}.{key}' in scenario; {kind} takes the keys {takes}"
+            )
+
+
 def build_from_table(
     table: str,
     value: object,
@@ -276,11 +297,19 @@ def build_from_table(
     kind = value["type"]
     user = kind.startswith(PYTHON_TYPE)
     arguments = {spec.keys[key][0]: item for key, item in value.items() if key != "type"}
+    if user:
+        _check_factory_keys(table, kind, spec.build, arguments)
     try:
         built = spec.build(**extra, **arguments)
     except SpecError:
         raise
-    except (ValueError, TypeError, FileNotFoundError, ImportError) as error:
+    except Exception as error:
+        if user:  # the factory's own message, whole, with the factory that raised it
+            raise SpecError(
+                f"scenario table [{table}]: {kind} raised {type(error).__name__}: {error}"
+            ) from None
+        if not isinstance(error, ValueError | TypeError | FileNotFoundError | ImportError):
+            raise
         # ImportError: an optional extra the type needs is not installed (the message says how).
         message = str(error)
         for key, (argument, _) in spec.keys.items():
@@ -289,12 +318,6 @@ def build_from_table(
                     f"scenario key '{table}.{key}' {message[len(argument) + 1 :]}"
                 ) from None
         raise SpecError(f"scenario table [{table}]: {message}") from None
-    except Exception as error:
-        if not user:
-            raise
-        raise SpecError(
-            f"scenario table [{table}]: {kind} raised {type(error).__name__}: {error}"
-        ) from None
     if returns is not None and not isinstance(built, returns):
         raise SpecError(
             f"scenario table [{table}]: {kind} returned a {type(built).__name__}; a [{table}] "

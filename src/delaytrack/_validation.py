@@ -129,10 +129,9 @@ def finite_array(name: str, value: object, *, ndim: int | None = None) -> np.nda
     if ndim is not None and array.ndim != ndim:
         raise ValueError(f"{name} must be {ndim}-dimensional; got shape {array.shape}")
     if not np.all(np.isfinite(array)):
-        bad = np.argwhere(~np.isfinite(array))[0]
-        raise ValueError(
-            f"{name} must be finite; entry {tuple(int(i) for i in bad)} is {array[tuple(bad)]}"
-        )
+        bad = tuple(int(i) for i in np.argwhere(~np.isfinite(array))[0])
+        where = f"{name}[{', '.join(map(str, bad))}]" if bad else name
+        raise ValueError(f"{name} must be finite; {where} is {array[bad]}")
     return array
 
 

@@ -39,7 +39,7 @@ def test_empirical_text_states_threshold_resolution_and_the_analytic_margins(sce
     assert main(args) == 0
     out = capsys.readouterr().out
     assert "Empirical delay margin of 'double_integrator' (outer-loop; constant delay h)" in out
-    assert "max <= 1 rad after t = 50 s; resolution 0.005 s" in out
+    assert "max <= 1 (in each coordinate's unit) after t = 50 s; resolution 0.005 s" in out
     assert "h_exact     = 0.711119 s" in out
     assert "h_m         = " in out
 

@@ -122,7 +122,7 @@ def test_result_states_its_settings():
     }.items():
         assert data[key] == value
     assert len(data["evaluated"]) == result.simulations
-    assert "rms <= 0.3 rad after t = 5 s" in result.describe()
+    assert "rms <= 0.3 (in each coordinate's unit) after t = 5 s" in result.describe()
 
 
 @pytest.mark.parametrize(

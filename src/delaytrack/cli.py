@@ -6,7 +6,8 @@ Commands::
     delaytrack margin --k1 1 --k2 1 [--q 1] [--beta 1] [--r 1.1] [--n 5] [--json]
     delaytrack design [--n 2] [--gain-bound 1] [--min-bandwidth W] [--r 1.1] [--seed 0] [--json]
     delaytrack simulate SCENARIO.toml [--out DIR] [--format parquet|csv|both] [--quiet]
-    delaytrack empirical SCENARIO.toml --threshold RAD [--profile constant|abs-sine|abs-sine-offset]
+    delaytrack empirical SCENARIO.toml --threshold VALUE
+        [--profile constant|abs-sine|abs-sine-offset]
         [--metric ae|rms|max] [--settle S] [--resolution S] [--upper S] [--frequency W] [--json]
         [--quiet]
     delaytrack reproduce [--out results] [--duration SECONDS] [--no-dt-check] [--no-contact]
@@ -830,8 +831,9 @@ def build_parser() -> argparse.ArgumentParser:
     empirical.add_argument(
         "--threshold",
         required=True,
-        metavar="RAD",
-        help="largest acceptable tracking metric, rad (required: what 'still tracks' means)",
+        metavar="VALUE",
+        help="largest acceptable tracking metric, in each coordinate's own unit (m, rad, ...; "
+        "required: what 'still tracks' means)",
     )
     empirical.add_argument(
         "--profile",
@@ -843,7 +845,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--metric",
         choices=("ae", "rms", "max"),
         default="ae",
-        help="mean |e1|, RMS or max |e1| over [settle, duration], largest joint (default ae)",
+        help="mean |e1|, RMS or max |e1| over [settle, duration], largest over the coordinates "
+        "(default ae)",
     )
     empirical.add_argument(
         "--settle",

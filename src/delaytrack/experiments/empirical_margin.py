@@ -120,7 +120,10 @@ class EmpiricalMargin:
 
     def describe(self) -> str:
         """One line: the margin with its threshold and resolution, or that none was found."""
-        rule = f"{self.metric} <= {self.threshold:g} rad after t = {self.settle:g} s"
+        rule = (
+            f"{self.metric} <= {self.threshold:g} (in each coordinate's unit) after "
+            f"t = {self.settle:g} s"
+        )
         if not self.failure_found:
             return (
                 f"no failure up to upper = {self.upper:g} s ({rule}): the margin is at least "

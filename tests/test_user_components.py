@@ -122,35 +122,37 @@ def test_a_factory_that_cannot_be_used_is_refused_naming_the_table(example, kind
     assert main(["simulate", str(path), "--out", str(example / "out")]) == 2
 
 
-def test_unknown_keyword_of_a_factory_names_the_table(example):
-    path = short(example)
-    text = path.read_text().replace('make_arm"\n', 'make_arm"\nmass_scael = 0.8\n', 1)
-    path.write_text(text)
-    with pytest.raises(
-        ScenarioError,
-        match=r"unknown key 'plant.mass_scael' in scenario; python:.*arm.py:make_arm takes the "
-        r"keys \[.*'mass_scale'",
-    ):
-        Scenario.from_toml(path).build()
-
-
-def test_a_factorys_own_error_is_reported_whole_with_the_factory(example):
-    """A factory's ValueError or TypeError keeps its text (not rewritten into a key) and says
-    which factory raised it; so does a refusal by the component it builds."""
+@pytest.mark.parametrize(
+    ("factory", "key", "message"),
+    [
+        (
+            "arm.py:make_arm",
+            "mass_scael = 0.8",
+            r"unknown key 'plant.mass_scael' in scenario; python:.*arm.py:make_arm takes the "
+            r"keys \[.*'mass_scale'",
+        ),
+        (
+            "checks.py:make",
+            "kp = -1.0",
+            r"^scenario table \[plant\]: python:.*checks.py:make raised ValueError: kp and kd "
+            r"must be positive; got -1.0, 1.0$",
+        ),
+    ],
+)
+def test_a_factorys_keys_and_own_errors_are_reported_with_the_factory(
+    example, factory, key, message
+):
+    """A key the factory does not take is refused with those it takes; the factory's own
+    ValueError keeps its text (not rewritten into a key) and names the factory."""
     (example / "checks.py").write_text(
         "def make(kp=1.0, kd=1.0):\n"
         "    raise ValueError(f'kp and kd must be positive; got {kp}, {kd}')\n"
     )
     path = short(example)
-    text = path.read_text().replace(
-        f"python:{example / 'arm.py'}:make_arm", "python:checks.py:make"
-    )
-    path.write_text(text.replace('make"\n', 'make"\nkp = -1.0\n', 1))
-    with pytest.raises(
-        ScenarioError,
-        match=r"^scenario table \[plant\]: python:.*checks.py:make raised ValueError: kp and kd "
-        r"must be positive; got -1.0, 1.0$",
-    ):
+    kind = f"python:{example / factory}"
+    text = path.read_text().replace(f"python:{example / 'arm.py'}:make_arm", kind)
+    path.write_text(text.replace(f'{kind}"\n', f'{kind}"\n{key}\n', 1))
+    with pytest.raises(ScenarioError, match=message):
         Scenario.from_toml(path).build()
 
 

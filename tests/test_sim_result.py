@@ -10,7 +10,7 @@ from delaytrack.controllers import AROLC, OuterLoop
 from delaytrack.delays import AbsSineDelay
 from delaytrack.plants import CallablePlant, LinearPlant, TwoLinkArm
 from delaytrack.references import SinusoidalReference
-from delaytrack.report import commands_figure, error_figure, tracking_figure, write_run_figures
+from delaytrack.report import commands_figure, error_figure, tracking_figure
 from delaytrack.sim import simulate
 
 REFERENCE = SinusoidalReference([0.0, 0.0], amplitude=[0.8, 0.5], frequency=[0.5, 0.7])
@@ -78,9 +78,8 @@ def test_a_user_plant_carries_its_names_and_units_into_the_figure():
     assert result.plot().axes[0].get_ylabel() == "q1"
 
 
-def test_the_run_figures_label_each_axis_with_the_plants_own_units_or_none(tmp_path):
+def test_the_run_figures_label_each_axis_with_the_plants_own_units_or_none():
     def labels(result):
-        write_run_figures(result, tmp_path, formats=("png",))
         return (
             [ax.get_ylabel() for ax in tracking_figure(result).axes],
             [ax.get_ylabel() for ax in error_figure(result).axes],

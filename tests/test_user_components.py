@@ -560,7 +560,8 @@ def test_a_kernel_with_the_wrong_arguments_is_refused_by_name_before_compiling()
     with pytest.raises(
         ValueError,
         match=r"CompiledPlant: its terms kernel must take the 7 arguments \(t, q, qdot, params, "
-        r"M, N, G\); _terms_without_input_map takes \(t, q, qdot, params, mass, nonlinear\)",
+        r"mass, nonlinear, input_map\); _terms_without_input_map takes \(t, q, qdot, params, "
+        r"mass, nonlinear\)",
     ):
         dt.CompiledPlant(1, 1, _terms_without_input_map)
     with pytest.raises(ValueError, match=r"CompiledDelay: its delay kernel must take the 2"):

@@ -12,32 +12,34 @@ from collections.abc import Callable
 from functools import lru_cache
 from typing import Any
 
+from delaytrack.components import (
+    call_command_map,
+    call_delay,
+    call_reference,
+    call_step,
+    call_stepper,
+    call_terms,
+)
+
 __all__ = ["KERNEL_ARGUMENTS", "check_kernel_arguments"]
 
-#: The arguments of each kind of kernel, in the order the engine passes them
-#: (:mod:`delaytrack.components`).
+
+def _passed_on(call: Callable[..., Any], *kept: str) -> tuple[str, ...]:
+    """The arguments a ``call_*`` function of :mod:`delaytrack.components` passes to the kernel
+    it is given first: its own after the kernel, less those it keeps for itself (``kept``)."""
+    names = list(inspect.signature(call).parameters)[1:]
+    return tuple(name for name in names if name not in kept)
+
+
+#: The arguments of each kind of kernel, in the order the engine passes them: those of the
+#: component protocol's functions (:mod:`delaytrack.components`).
 KERNEL_ARGUMENTS: dict[str, tuple[str, ...]] = {
-    "terms": ("t", "q", "qdot", "params", "M", "N", "G"),
-    "command_map": ("q", "params", "tau", "command"),
-    "stepper": ("t", "x", "u", "dt", "params", "first"),
-    "step": (
-        "t",
-        "q",
-        "qdot",
-        "qd",
-        "qd_dot",
-        "qd_ddot",
-        "T_c",
-        "h",
-        "params",
-        "state",
-        "model",
-        "model_params",
-        "command",
-        "work",
-    ),
-    "reference": ("t", "params", "qd", "qd_dot", "qd_ddot"),
-    "delay": ("t", "params"),
+    "terms": _passed_on(call_terms),
+    "command_map": _passed_on(call_command_map, "input_map"),  # used only by the solve
+    "stepper": _passed_on(call_stepper),
+    "step": _passed_on(call_step),
+    "reference": _passed_on(call_reference),
+    "delay": _passed_on(call_delay),
 }
 
 

@@ -325,9 +325,9 @@ def overview_figure(result: SimResult, run: int = 0) -> Figure:
         raise ValueError(f"run must be 0 .. {result.batch_size - 1}; got {run!r}")
     n, m = result.n, result.commands.shape[2]
     names = _names(n, result.coordinate_names, "q")
-    units = result.coordinate_units or (None,) * n
+    units = _units(n, result.coordinate_units, None)
     inputs = _names(m, None, "u")
-    input_units = result.input_units or (None,) * m
+    input_units = _units(m, result.input_units, None)
     states = list(result.controller_state_names)
     shown = ["c_hat"] if "c_hat" in states else states[:4]
     rows = [[f"q{j}", f"e{j}"] for j in range(n)] + [["u", "u"], ["h", "h"]]

@@ -167,14 +167,9 @@ def _broadcast(name: str, items: list[_T], batch: int) -> list[_T]:
     )
 
 
-def _check_kernel_arguments(
-    plant: ELPlant,
-    controller: Controller,
-    reference: Reference,
-    delays: Sequence[DelayProfile],
-) -> None:
-    """Check that each kernel takes the arguments the engine passes it
-    (:mod:`delaytrack.kernel_arguments`), before anything is compiled."""
+def _check_kernel_arguments(plant: ELPlant, controller: Controller, reference: Reference) -> None:
+    """Check that the plant's, the controller's and the reference's kernels take the arguments
+    the engine passes them (:mod:`delaytrack.kernel_arguments`), before anything is compiled."""
     for owner, component in (("plant", plant), ("controller's model", controller.model)):
         kernel = component.engine_kernel
         check_kernel_arguments(owner, "terms", kernel.function)
@@ -183,9 +178,6 @@ def _check_kernel_arguments(
                 check_kernel_arguments(owner, kind, getattr(kernel, kind))
     check_kernel_arguments("controller", "step", controller.step_kernel)
     check_kernel_arguments("reference", "reference", reference.reference_kernel)
-    for i, delay in enumerate(delays):
-        if delay.engine_kernel != NO_KERNEL:
-            check_kernel_arguments(f"delay[{i}]", "delay", delay.engine_kernel.function)
 
 
 def _check_horizons(
@@ -402,7 +394,7 @@ def simulate(
             )
     if reference.n != n:
         raise ValueError(f"reference has n = {reference.n} coordinates; the plant has n = {n}")
-    _check_kernel_arguments(first_plant, first_controller, reference, delays)
+    _check_kernel_arguments(first_plant, first_controller, reference)
     error_bounds = _positive_limits(
         "error_bound", error_bound, (n,), f"{n} of them (one per coordinate)"
     )
@@ -439,6 +431,8 @@ def simulate(
                 f"delay[{i}] has another kernel than delay[{own_delays[0]}]; a batch runs one "
                 "delay kernel of yours (split it into one simulate call per kernel)"
             )
+    if own_delays:
+        check_kernel_arguments(f"delay[{own_delays[0]}]", "delay", delay_kernel.function)
     for delay_b in {id(delay_b): delay_b for delay_b in delays}.values():  # once per profile
         delay_b.check_run(t0, dt, n_ticks * steps_per_tick + 1)
     for i, delay_b in enumerate(delays):

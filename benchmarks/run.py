@@ -11,8 +11,9 @@ compiles or loads numba's disk cache):
 ``ceiling``
     The engine against the ceiling, a hand-written allocation-free numba loop of the same robot
     run (:mod:`hand_loop`: no step splitting, nothing general), in the same process: one 60 s
-    run on one thread, and ``B`` = 1000 runs of 60 s (|sin| delays and payload placements drawn
-    per run) on all cores; ``ratio`` is the hand loop's time over the engine's (1 = as fast).
+    run on one thread, the same with the controller at every step (``T_c = dt``), and ``B`` =
+    1000 runs of 60 s (|sin| delays and payload placements drawn per run) on all cores, each
+    pair timed alternately; ``ratio`` is the hand loop's time over the engine's (1 = as fast).
 ``batch``
     ``B`` runs, each with its own delay profile (|sin|, random-walk and constant families with
     drawn parameters) and payload placements, metrics only (``trajectories=False``), on all
@@ -93,6 +94,20 @@ def median_seconds(run, repeats: int) -> float:
     return statistics.median(times)
 
 
+def alternating_medians(first, second, repeats: int) -> tuple[float, float]:
+    """Median wall times of ``first`` and ``second`` called alternately ``repeats`` times each,
+    after one untimed call of each."""
+    first()
+    second()
+    times: tuple[list[float], list[float]] = ([], [])
+    for _ in range(repeats):
+        for run, timed in zip((first, second), times, strict=True):
+            start = time.perf_counter()
+            run()
+            timed.append(time.perf_counter() - start)
+    return statistics.median(times[0]), statistics.median(times[1])
+
+
 def steps(duration: float, batch: int = 1) -> int:
     """Plant RK4 steps of ``batch`` runs of ``duration`` seconds."""
     return batch * round(duration / DT)
@@ -136,16 +151,26 @@ def single_case(duration: float, repeats: int, baseline_repeats: int) -> list[di
 
 
 def ceiling_case(duration: float, batch: int, repeats: int) -> list[dict]:
-    """The engine and :mod:`hand_loop` on the same runs, in this process, metrics only."""
+    """The engine and :mod:`hand_loop` on the same runs, in this process, metrics only.
+
+    Each pair is timed alternately (engine, loop, engine, ...), so that the machine's drift
+    between minutes falls on both alike. Two single runs: at the paper's ``T_c`` = 10 ms, and
+    with the controller at every step (``T_c = dt``), where the delayed command switches inside
+    every step and the engine splits each step in two.
+    """
     plant, controller, delay, reference, x0 = robot_case(duration)
-    common = dict(reference=reference, t1=duration, dt=DT, T_c=T_C, trajectories=False)
-    hand = median_seconds(
-        lambda: hand_run(plant, controller, delay, reference, x0, duration, DT, T_C), repeats
-    )
-    engine = median_seconds(
-        lambda: simulate(plant, controller, delay, x0, **common, workers=1), repeats
-    )
-    ae_engine = simulate(plant, controller, delay, x0, **common).metrics["ae"][0]
+    common = dict(reference=reference, t1=duration, dt=DT, trajectories=False)
+
+    def pair(period: float) -> tuple[float, float]:
+        return alternating_medians(
+            lambda: simulate(plant, controller, delay, x0, **common, T_c=period, workers=1),
+            lambda: hand_run(plant, controller, delay, reference, x0, duration, DT, period),
+            repeats,
+        )
+
+    engine, hand = pair(T_C)
+    engine_every_step, hand_every_step = pair(DT)
+    ae_engine = simulate(plant, controller, delay, x0, **common, T_c=T_C).metrics["ae"][0]
     ae_hand = hand_run(plant, controller, delay, reference, x0, duration, DT, T_C)[1][: plant.n]
     rng = np.random.default_rng(7)
     plants = [PayloadRobot(seed=b, duration=duration) for b in range(batch)]
@@ -153,18 +178,22 @@ def ceiling_case(duration: float, batch: int, repeats: int) -> list[dict]:
         AbsSineDelay(rng.uniform(0.0, 0.05), rng.uniform(0.02, 0.1), rng.uniform(0.5, 2.0))
         for _ in range(batch)
     ]
-    batch_repeats = max(1, repeats // 3)
-    hand_many = median_seconds(
+    engine_many, hand_many = alternating_medians(
+        lambda: simulate(plants, controller, delays, x0, **common, T_c=T_C),
         lambda: hand_batch(plants, controller, delays, reference, x0, duration, DT, T_C),
-        batch_repeats,
-    )
-    engine_many = median_seconds(
-        lambda: simulate(plants, controller, delays, x0, **common), batch_repeats
+        max(1, repeats // 3),
     )
     rows = []
     for name, count, seconds, baseline in (
         (f"engine, one {duration:g} s run, 1 thread", 1, engine, hand),
         ("ceiling: hand-written numba loop, same run", 1, hand, hand),
+        (
+            f"engine, controller every step (T_c = dt), {duration:g} s run, 1 thread",
+            1,
+            engine_every_step,
+            hand_every_step,
+        ),
+        ("ceiling: hand-written loop, T_c = dt", 1, hand_every_step, hand_every_step),
         (f"engine, B={batch} runs of {duration:g} s, all cores", batch, engine_many, hand_many),
         (f"ceiling: hand-written loop, B={batch}, prange", batch, hand_many, hand_many),
     ):

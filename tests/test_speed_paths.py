@@ -17,6 +17,7 @@ from numba import njit
 from delaytrack.controllers import AROLC, OuterLoop
 from delaytrack.delays import AbsSineDelay, ConstantDelay, RandomDelay
 from delaytrack.experiments.paper import AROLC_GAINS
+from delaytrack.experiments.scenario import Scenario
 from delaytrack.metrics import mean_absolute_error, metrics_table
 from delaytrack.plants import CallablePlant, CompiledPlant, TwoLinkArm
 from delaytrack.plants.robot import NominalRobot, PayloadRobot, initial_state, paper_reference
@@ -25,6 +26,7 @@ from delaytrack.references import SinusoidalReference
 from delaytrack.sim import simulate
 from delaytrack.sim.fallback import PythonFallbackWarning
 from test_golden import golden
+from test_scenario import base_dict
 
 ARM_REFERENCE = SinusoidalReference([0.0, 0.0], amplitude=[0.8, 0.5], frequency=[0.5, 0.7])
 METRIC_COLUMNS = ["ae_q1", "ae_q2", "rms_q1", "rms_q2", "max_q1", "max_q2", "tv"]
@@ -204,9 +206,19 @@ def simulate_python_arm(**options):
 
 
 def test_a_python_plant_warns_that_it_runs_as_plain_python() -> None:
-    with pytest.warns(PythonFallbackWarning, match=r"plant CallablePlant .*CompiledPlant"):
+    with pytest.warns(PythonFallbackWarning, match=r"plant CallablePlant .*CompiledPlant") as seen:
         result = simulate_python_arm()
     assert not result.settings["compiled"]
+    assert [w.filename for w in seen] == [__file__]  # the line of the caller
+
+
+def test_the_plain_python_warning_points_at_the_users_line_through_a_scenario() -> None:
+    scenario = Scenario.from_dict(
+        {**base_dict(), "plant": {"type": "python:test_speed_paths:python_arm"}}
+    )
+    with pytest.warns(PythonFallbackWarning) as seen:
+        scenario.run()
+    assert [w.filename for w in seen] == [__file__], [w.filename for w in seen]
 
 
 # --- the reference path ----------------------------------------------------------------------

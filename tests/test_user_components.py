@@ -107,7 +107,7 @@ def test_the_user_controller_runs_compiled_and_matches_its_law(example):
         ("python:arm.py:make_robot", r"'.*arm.py' has no function 'make_robot'"),
         ("python:arm.py:GRAVITY", r"has no function 'GRAVITY'"),
         ("python:broken.py:make", r"cannot import .*ZeroDivisionError"),
-        ("python:wrong.py:make", r"returned a float; a \[plant\] factory must return a ELPlant"),
+        ("python:wrong.py:make", r"returned a float; a \[plant\] factory must return an ELPlant"),
         ("python:raises.py:make", r"\[plant\]: python:.* raised KeyError"),
     ],
 )

@@ -320,7 +320,12 @@ def build_from_table(
         raise SpecError(f"scenario table [{table}]: {message}") from None
     if returns is not None and not isinstance(built, returns):
         raise SpecError(
-            f"scenario table [{table}]: {kind} returned a {type(built).__name__}; a [{table}] "
-            f"factory must return a {returns.__name__}"
+            f"scenario table [{table}]: {kind} returned {_with_article(type(built).__name__)}; "
+            f"a [{table}] factory must return {_with_article(returns.__name__)}"
         )
     return built
+
+
+def _with_article(name: str) -> str:
+    """``name`` after its indefinite article: "a float", "an ELPlant", "an int"."""
+    return f"{'an' if name[:1].lower() in 'aeiou' else 'a'} {name}"

@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
+import sys
+import warnings
+from pathlib import Path
 from typing import Any
+
+#: The folder of this package: frames of files under it are not the user's.
+_PACKAGE = str(Path(__file__).resolve().parents[1])
 
 __all__ = ["PythonFallbackWarning"]
 
@@ -14,6 +20,17 @@ class PythonFallbackWarning(UserWarning):
     magnitude slower. Write the plant's terms as a numba-compiled function and wrap it in
     :class:`~delaytrack.plants.CompiledPlant` to run at the built-in plants' speed.
     """
+
+    @classmethod
+    def warn(cls, plant: Any, controller: Any, reference: Any) -> None:
+        """Issue :meth:`describe`'s warning at the user's line: the first caller outside this
+        package (``simulate`` may be reached through a scenario, a sweep or the command line)."""
+        frame = sys._getframe(1)  # stack level 2 (level 1 is this method)
+        level = 2
+        while frame is not None and frame.f_code.co_filename.startswith(_PACKAGE):
+            frame = frame.f_back
+            level += 1
+        warnings.warn(cls.describe(plant, controller, reference), stacklevel=level)
 
     @classmethod
     def describe(cls, plant: Any, controller: Any, reference: Any) -> PythonFallbackWarning:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import os
 import re
-import warnings
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, TypeVar
@@ -533,9 +532,7 @@ def simulate(
     if engine == "python":
         compiled = False
     elif not compiled:
-        warnings.warn(
-            PythonFallbackWarning.describe(first_plant, first_controller, reference), stacklevel=2
-        )
+        PythonFallbackWarning.warn(first_plant, first_controller, reference)
 
     # This package's steps are called through their address: the engine is then compiled once
     # for every controller (delaytrack._native_call). A step of the user's is linked into it.

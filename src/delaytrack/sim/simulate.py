@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import re
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
+from types import SimpleNamespace
 from typing import Any, TypeVar
 
 import numpy as np
@@ -51,6 +53,8 @@ ENGINES = ("auto", "compiled", "python")
 #: computing. A longer run is refused before anything is allocated.
 MAX_STEPS = 10**8
 
+#: What a run without ``progress`` updates instead of a progress bar.
+_NO_PROGRESS_BAR = SimpleNamespace(update=lambda done: None)
 #: Chunks per worker thread: enough for load balance and a moving progress bar, few enough
 #: that the per-call overhead stays negligible.
 _CHUNKS_PER_WORKER = 8
@@ -647,7 +651,12 @@ def simulate(
         return chunks[index].size
 
     try:
-        with tqdm(total=batch, desc="simulate", unit="run", disable=not progress) as bar:
+        bar_context = (
+            tqdm(total=batch, desc="simulate", unit="run")
+            if progress
+            else contextlib.nullcontext(_NO_PROGRESS_BAR)  # a disabled tqdm costs ~0.1 ms
+        )
+        with bar_context as bar:
             if in_parallel:
                 with ThreadPoolExecutor(max_workers=workers) as pool:
                     for done in pool.map(run_chunk, range(len(chunks))):

@@ -530,7 +530,8 @@ class SweepSpec:
                 raise SweepError(
                     f'{source}."{key}" = {values[key]!r} (run {index}): {message}'
                 ) from None
-            raise SweepError(f"run {index} ({values}): {message}") from None
+            shown = ", ".join(f"{key} = {value!r}" for key, value in values.items())
+            raise SweepError(f"run {index} ({shown}): {message}") from None
         return Run.of(index, MappingProxyType(values), scenario, built)
 
     def units(self) -> tuple[Unit, ...]:

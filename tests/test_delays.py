@@ -193,6 +193,16 @@ def test_random_delay_same_seed_identical_different_seed_differs():
     )
 
 
+def test_a_random_walk_shows_its_knots_as_a_trace_does():
+    walk = RandomDelay(0.01, 0.1, 0.8, 3.0, seed=42, knot_spacing=0.05)
+    np.testing.assert_allclose(walk.times, np.arange(61) * 0.05)
+    np.testing.assert_array_equal(walk.h(walk.times), walk.values)
+    with pytest.raises(ValueError, match="read-only"):
+        walk.values[0] = 1.0
+    trace = TraceDelay(walk.times, walk.values)
+    np.testing.assert_array_equal(trace.h(TIMES[TIMES <= 3.0]), walk.h(TIMES[TIMES <= 3.0]))
+
+
 @pytest.mark.parametrize("max_rate", [0.3, 1.0, 3.0, 8.0])  # max_rate * spacing < h_high - h_low
 def test_random_delay_rate_bound(max_rate):
     spacing = 0.02

@@ -100,6 +100,25 @@ class RandomDelay(DelayProfile):
         return times, values
 
     @property
+    def times(self) -> np.ndarray:
+        """The walk's knot times ``t_i`` (read-only), seconds: ``0, knot_spacing, ...``, the
+        last at or after ``duration``. The same attribute as a trace's
+        (:class:`~delaytrack.delays.TraceDelay`)."""
+        return self._knots(0)
+
+    @property
+    def values(self) -> np.ndarray:
+        """The walk's delays ``h_i`` at :attr:`times` (read-only), seconds; ``h`` is linear
+        between knots."""
+        return self._knots(1)
+
+    def _knots(self, which: int) -> np.ndarray:
+        count = int(self._params[0])
+        view = self._params[1 + which * count : 1 + (which + 1) * count].view()
+        view.flags.writeable = False
+        return view
+
+    @property
     def kind(self) -> int:
         return _kernel.PIECEWISE_LINEAR
 

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
+import subprocess
 import sys
 from pathlib import Path
 
@@ -192,6 +194,58 @@ def test_a_users_file_neither_shadows_a_module_nor_misses_its_neighbours(example
     assert sys.modules["statistics"] is statistics
 
 
+_CACHED_KERNEL = """
+import numba
+import delaytrack as dt
+
+@numba.njit(cache=True)
+def terms(t, q, qdot, params, M, N, G):
+    M[0, 0] = params[0]
+    N[0] = 0.0
+    G[0, 0] = 1.0
+
+def make(mass=2.0):
+    return dt.CompiledPlant(1, 1, terms, [mass])
+"""
+#: The kernel's file run as a scenario names it, and as a session imports it.
+_THROUGH_A_SCENARIO = (
+    "import sys, numpy as np; from delaytrack._spec import user_factory; "
+    "print(user_factory('plant', 'python:' + sys.argv[1] + '/robot.py:make')()"
+    ".mass_matrix(np.zeros(1))[0, 0, 0])"
+)
+_IMPORTED = (
+    "import sys, numpy as np; sys.path.insert(0, sys.argv[1]); import robot; "
+    "print(robot.make().mass_matrix(np.zeros(1))[0, 0, 0])"
+)
+
+
+@pytest.mark.parametrize(
+    "order", [(_IMPORTED, _THROUGH_A_SCENARIO), (_THROUGH_A_SCENARIO, _IMPORTED)]
+)
+def test_a_cached_kernel_loads_in_a_scenario_and_in_a_session_whichever_compiled_it(
+    order, tmp_path
+):
+    """numba's cache of a ``cache=True`` kernel names the kernel's module: a file named in a
+    scenario is imported under the name that importing it gives, so either may use the other's
+    compiled code (under another name, the second process failed with ModuleNotFoundError)."""
+    folder = tmp_path / "user"
+    folder.mkdir()
+    (folder / "robot.py").write_text(_CACHED_KERNEL)
+    environment = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    for code in order:
+        completed = subprocess.run(
+            [sys.executable, "-c", code, str(folder)],
+            cwd=tmp_path,
+            env=environment,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+        assert completed.returncode == 0, completed.stderr[-2000:]
+        assert completed.stdout.split() == ["2.0"]
+    assert list((tmp_path / "cache").rglob("*.nbi"))  # the kernel's compiled code was cached
+
+
 def test_swept_files_are_relative_to_the_sweep_file(example):
     (example / "poses.csv").write_text("t,a,b\n0,-1.2,0.6\n0.5,-1.0,0.8\n1,-0.9,0.7\n")
     short(example)
@@ -232,6 +286,48 @@ def test_a_kernel_numba_cannot_compile_is_a_one_line_error(example, capsys):
     assert main(["simulate", str(path), "--out", str(example / "out"), "--quiet"]) == 2
     quiet = capsys.readouterr().err.strip().splitlines()
     assert quiet[-1].startswith("error: ") and len(quiet) <= 2  # the notice, then the error
+
+
+_FAULTY_PLANT = """
+import numba
+import numpy as np
+import delaytrack as dt
+from arm import arm_terms, make_arm
+
+@numba.njit  # numba's default error model: an integer division by zero raises
+def faulty_terms(t, q, qdot, params, M, N, G):
+    arm_terms(t, q, qdot, params, M, N, G)
+    if t > 0.05:
+        if params[5] > 0.0:
+            raise ValueError("sensor fault")
+        N[0] += 1 // int(params[5])
+
+def make_faulty(fault=0.0):
+    return dt.CompiledPlant(2, 2, faulty_terms, np.append(make_arm().params, fault))
+"""
+
+
+@pytest.mark.slow  # compiles the engine around the faulty kernel (about 15 s)
+@pytest.mark.parametrize(
+    ("fault", "raised"),
+    [
+        (0.0, "ZeroDivisionError during the run: integer division by zero (a kernel compiled"),
+        (1.0, "ValueError during the run: sensor fault"),
+    ],
+)
+def test_an_error_a_kernel_raises_during_the_run_is_one_line_naming_it(
+    fault, raised, example, capsys
+):
+    (example / "faulty.py").write_text(_FAULTY_PLANT)
+    faulty = f"python:{example / 'faulty.py'}:make_faulty"
+    path = short(example, plant={"type": faulty, "fault": fault})
+    assert main(["simulate", str(path), "--out", str(example / "out"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "Traceback" not in "\n".join(err)
+    assert err[-1].startswith(
+        "error: scenario 'arm_S1': one of your kernels (arm.arm_terms, faulty.faulty_terms) "
+        f"raised {raised}"
+    )
 
 
 def test_sweep_parts_follow_the_users_code(example):

@@ -27,6 +27,12 @@ _PACKAGE = Path(__file__).resolve().parent
 _MARKERS = (b"from delaytrack._jit import", b"import numba", b"from numba")
 
 
+#: Changed when the entries that an earlier version wrote must not be read: numba's cached kernel
+#: refers to its module by name, and a user's file named in a scenario is now imported under its
+#: own name (it was ``<stem>_<hash>``, which a session importing the file could not find).
+_LAYOUT = b"user files under their own name"
+
+
 def kernel_files() -> list[Path]:
     """The package's Python files that hold compiled code, sorted."""
     return [
@@ -37,9 +43,9 @@ def kernel_files() -> list[Path]:
 
 
 def source_hash() -> str:
-    """SHA-256 (16 hex digits) of numba's version and the paths and contents of
-    :func:`kernel_files`."""
-    digest = hashlib.sha256(numba.__version__.encode())
+    """SHA-256 (16 hex digits) of numba's version, the cache's layout and the paths and
+    contents of :func:`kernel_files`."""
+    digest = hashlib.sha256(numba.__version__.encode() + _LAYOUT)
     for path in kernel_files():
         digest.update(str(path.relative_to(_PACKAGE)).encode())
         digest.update(path.read_bytes())

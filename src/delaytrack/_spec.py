@@ -12,6 +12,7 @@ import hashlib
 import importlib
 import importlib.util
 import inspect
+import keyword
 import math
 import sys
 from collections.abc import Callable, Mapping
@@ -129,28 +130,57 @@ PYTHON_TYPE = "python:"
 _FILE_MODULES: dict[Path, tuple[str, ModuleType]] = {}
 
 
+def _module_name(path: Path) -> str:
+    """The name the Python file ``path`` is imported under: its stem, the name that ``import
+    <stem>`` from its folder gives it, unless another module has that name (loaded, or
+    importable from ``sys.path``); then ``<stem>_<hash of its path>``.
+
+    numba's disk cache of a kernel with ``cache=True`` refers to the kernel's module by name, so
+    that a kernel compiled in a session that imported the file itself loads here, and the other
+    way round, only when both use the same name.
+    """
+    stem = path.stem
+    if stem.isidentifier() and not keyword.iskeyword(stem):
+        loaded = sys.modules.get(stem)
+        if loaded is not None:
+            origin = getattr(loaded, "__file__", None)
+        else:
+            try:
+                spec = importlib.util.find_spec(stem)
+            except (ImportError, ValueError):
+                spec = None
+            origin = path if spec is None else spec.origin
+        if origin is not None and Path(origin).resolve() == path:
+            return stem
+    return f"{stem}_{hashlib.sha256(str(path).encode()).hexdigest()[:8]}"
+
+
 def _module_from_file(path: Path) -> ModuleType:
     """Import the Python file ``path`` (again when its content changed since the last import).
 
-    It is imported as ``<stem>_<hash of its path>`` (never shadowing a module of that stem),
-    with its folder first on ``sys.path`` while it runs, so that it can import its neighbours.
+    It is imported under :func:`_module_name` (its stem, never shadowing another module), with
+    its folder first on ``sys.path`` while it runs, so that it can import its neighbours.
     """
     path = path.expanduser().resolve()
     content = hashlib.sha256(path.read_bytes()).hexdigest()
     known = _FILE_MODULES.get(path)
     if known is not None and known[0] == content:
         return known[1]
-    name = f"{path.stem}_{hashlib.sha256(str(path).encode()).hexdigest()[:8]}"
+    name = _module_name(path)
     spec = importlib.util.spec_from_file_location(name, path)
     if spec is None or spec.loader is None:
         raise ImportError(f"{str(path)!r} is not a Python file")
     module = importlib.util.module_from_spec(spec)
+    previous = sys.modules.get(name)
     sys.modules[name] = module
     sys.path.insert(0, str(path.parent))
     try:
         spec.loader.exec_module(module)
     except BaseException:
-        del sys.modules[name]
+        if previous is None:
+            del sys.modules[name]
+        else:
+            sys.modules[name] = previous
         raise
     finally:
         sys.path.remove(str(path.parent))

@@ -92,6 +92,24 @@ _NUMBA_CAUSES = ("Error: ", "Untyped global name", "Unknown attribute", "Cannot 
 _TERMINAL_CODES = re.compile(r"\x1b\[[0-9;]*m")
 
 
+def _raised_during_the_run(error: Exception, yours: list) -> str:
+    """The one-line message for ``error``, raised by one of the user's kernels ``yours``
+    (:class:`~delaytrack.components.Kernel`) while the closed loop ran."""
+    names = sorted({f"{k.function.__module__}.{k.function.__qualname__}" for k in yours})
+    which = (
+        f"your kernel {names[0]}"
+        if len(names) == 1
+        else f"one of your kernels ({', '.join(names)})"
+    )
+    hint = (
+        " (a kernel compiled with numba.njit(error_model='numpy') divides by zero into inf or "
+        "nan instead, which ends only that run, with the status 'diverged')"
+        if isinstance(error, ZeroDivisionError)
+        else ""
+    )
+    return f"{which} raised {type(error).__name__} during the run: {error}{hint}"
+
+
 def _numba_cause(error: Exception) -> str:
     """The innermost cause in a numba error's message (``NameError: name 'x' is not
     defined``), else its first line."""
@@ -665,14 +683,18 @@ def simulate(
                 for index in range(len(chunks)):
                     bar.update(run_chunk(index))
     except Exception as error:
-        if not (compiled and type(error).__module__.startswith("numba")):
+        if compiled and type(error).__module__.startswith("numba"):
+            # numba could not compile a kernel of the user's: their error, in one line.
+            raise ValueError(
+                f"numba could not compile the engine for the kernels "
+                f"{[k.key for k in kernels(0)]}: {_numba_cause(error)} (call a kernel of yours "
+                "alone, compiled, to see numba's whole message)"
+            ) from None
+        yours = [k for k in kernels(0) if not k.built_in and k is not NO_KERNEL]
+        if not yours:
             raise
-        # numba could not compile a kernel of the user's: their error, in one line.
-        raise ValueError(
-            f"numba could not compile the engine for the kernels {[k.key for k in kernels(0)]}: "
-            f"{_numba_cause(error)} (call a kernel of yours alone, compiled, to see numba's "
-            "whole message)"
-        ) from None
+        # Raised by a kernel of the user's during the run (ours do not raise there).
+        raise ValueError(_raised_during_the_run(error, yours)) from error
 
     times = t0 + (np.arange(records) * every * steps_per_tick) * dt
     for b in np.flatnonzero(status != 0):

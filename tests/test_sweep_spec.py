@@ -245,7 +245,10 @@ def test_bad_specs_are_refused_naming_the_key(changes, message):
 def test_random_needs_draws_and_seed():
     data = spec_dict()
     del data["draws"]
-    with pytest.raises(SweepError, match=re.escape("has [random] and needs 'draws'")):
+    with pytest.raises(SweepError, match=re.escape("has [random] and needs 'draws' (draws:")):
+        SweepSpec.from_dict(data)
+    del data["seed"]  # both missing: both named at once
+    with pytest.raises(SweepError, match=re.escape("needs 'draws' and 'seed' (draws: how many")):
         SweepSpec.from_dict(data)
 
 

@@ -157,9 +157,14 @@ def with_units(summary: pd.DataFrame, units: Mapping[str, str]) -> pd.DataFrame:
     return summary.rename(columns=renamed)
 
 
+#: Relative difference of two medians under which :func:`findings` calls them a tie.
+TIE = 0.01
+
+
 def findings(summary: pd.DataFrame, metrics: Sequence[str], units: Mapping[str, str]) -> list[str]:
     """Sentences computed from the summary: divergence per controller, and per delay class the
-    controller with the smallest median of each metric."""
+    controller with the smallest median of each metric, or the two smallest when they are
+    within :data:`TIE` of each other."""
     out = []
     by_controller = summary.groupby("controller", sort=False)[["runs", "diverged", "failed"]].sum()
     parts = [
@@ -176,8 +181,16 @@ def findings(summary: pd.DataFrame, metrics: Sequence[str], units: Mapping[str, 
             rows = rows[np.isfinite(rows[column].to_numpy(float))]
             if len(rows) < 2:
                 continue
-            winner = rows.loc[rows[column].idxmin()]
-            best.append(f"{delay_class}: {winner.controller} ({winner[column]:.3g}{unit})")
+            ordered = rows.sort_values(column, kind="stable")
+            first, second = ordered.iloc[0], ordered.iloc[1]
+            low, high = first[column], second[column]
+            if high - low <= TIE * max(abs(low), abs(high)):
+                best.append(
+                    f"{delay_class}: {first['controller']} and {second['controller']} within "
+                    f"{TIE:.0%} of each other ({low:.4g} and {high:.4g}{unit})"
+                )
+            else:
+                best.append(f"{delay_class}: {first['controller']} ({low:.3g}{unit})")
         if best:
             out.append(f"Smallest median {metric}, per delay class: " + "; ".join(best) + ".")
     return out
@@ -281,7 +294,7 @@ def _write_outputs(outcome: SweepOutcome, formats: Sequence[str]) -> list[Path]:
     folder = outcome.folder
     metrics = list(outcome.spec.metrics or default_metrics(outcome.runs))
     keys = outcome.spec.label_keys
-    summary = summary_table(outcome.runs, metrics, keys)
+    summary = summary_table(outcome.runs, metrics, keys, outcome.spec.delay_label_keys)
     units = metric_units(outcome.spec)
     paths = [write_frame(with_units(summary, units), folder / "summary.csv")]
     figures = sweep_figures(outcome.runs, metrics, keys, units)

@@ -443,9 +443,12 @@ class SweepSpec:
         if not isinstance(random, Mapping):
             raise SweepError(f"sweep key 'random' must be a table; got {random!r}")
         if random:
-            for key in ("draws", "seed"):
-                if key not in data:
-                    raise SweepError(f"sweep spec has [random] and needs {key!r} (an integer)")
+            missing = [key for key in ("draws", "seed") if key not in data]
+            if missing:
+                raise SweepError(
+                    f"sweep spec has [random] and needs {' and '.join(map(repr, missing))} "
+                    "(draws: how many draws, an integer >= 1; seed: their seed, an integer >= 0)"
+                )
         else:
             for key in ("draws", "seed"):
                 if key in data:
@@ -550,6 +553,21 @@ class SweepSpec:
         ``choice`` draws (a continuous draw would make one group per run)."""
         chosen = [key for key, dist in self.random.items() if dist["dist"] == "choice"]
         return tuple(k for k in (*self.grid, *chosen) if k.startswith("controller."))
+
+    @property
+    def delay_label_keys(self) -> tuple[str, ...] | None:
+        """Swept delay keys (``delay``, ``delay.*``) that tell the summary's delay classes apart
+        (:func:`~delaytrack.sweeps.summary.delay_classes`): grid keys and ``choice`` draws.
+        None when a delay key is drawn from a continuous distribution: the classes are then
+        bands of ``h_max``."""
+        if any(_is_delay_key(key) and d["dist"] != "choice" for key, d in self.random.items()):
+            return None
+        chosen = [key for key, dist in self.random.items() if dist["dist"] == "choice"]
+        return tuple(key for key in (*self.grid, *chosen) if _is_delay_key(key))
+
+
+def _is_delay_key(key: str) -> bool:
+    return key == "delay" or key.startswith("delay.")
 
 
 def _check_runnable(scenario: Scenario, built: BuiltScenario) -> None:

@@ -7,8 +7,12 @@ Rows of the runs table (:func:`delaytrack.sweeps.run_unit`) are grouped by
   (``arolc (K1=2)``; a sweep shows its grid and ``choice`` keys only); when a swept
   ``controller`` table list holds several tables of one type, they are told apart as
   ``pcon #1``, ``pcon #2`` in the order they first appear;
-- **delay class**: the delay family and the band its bound ``h_max`` falls in
-  (``random, h_max 100-150 ms``; bands at :data:`DELAY_BAND_EDGES`).
+- **delay class**: when the sweep chooses its delays from lists (a grid, or ``choice`` draws),
+  each delay of the lists is a class of its own: its family and bound (``constant, h_max 50
+  ms``), then the values of swept ``delay.*`` keys (``abs-sine, h_max 100 ms (frequency=2)``;
+  whole ``delay`` tables of one family and bound are told apart as ``#1``, ``#2``). When a
+  delay key is drawn from a continuous distribution, the class is the family and the band its
+  bound falls in (``random, h_max 100-150 ms``; bands at :data:`DELAY_BAND_EDGES`).
 
 Per group: ``runs``; ``diverged`` and ``divergence_rate`` (status ``diverged``: the state left
 the engine's bound or became non-finite, or ``left the path``: a tracking error passed the
@@ -65,13 +69,39 @@ def _band(h_max: float) -> str:
     return f"h_max > {1e3 * lower:g} ms"
 
 
-def delay_classes(runs: pd.DataFrame) -> pd.Series:
-    """``"<delay_type>, h_max <band>"`` per run (bands: :data:`DELAY_BAND_EDGES`, upper edge in)."""
-    return pd.Series(
-        [f"{kind}, {_band(h)}" for kind, h in zip(runs["delay_type"], runs["h_max"], strict=True)],
-        index=runs.index,
-        name="delay_class",
-    )
+def delay_classes(runs: pd.DataFrame, keys: Sequence[str] | None = None) -> pd.Series:
+    """The delay class of every run (module docstring).
+
+    ``keys``: the swept delay keys (``delay`` or ``delay.*``) whose values were chosen from
+    lists (:attr:`SweepSpec.delay_label_keys`): each delay is then a class of its own. None:
+    some delay key was drawn continuously, and classes are bands of ``h_max``
+    (:data:`DELAY_BAND_EDGES`, upper edge in).
+    """
+    kinds = list(runs["delay_type"])
+    if keys is None:
+        classes = [f"{kind}, {_band(h)}" for kind, h in zip(kinds, runs["h_max"], strict=True)]
+        return pd.Series(classes, index=runs.index, name="delay_class")
+    bounds = [f"h_max {1e3 * h:g} ms" for h in runs["h_max"]]
+    if "delay" in keys:  # whole tables, told apart within a family and bound
+        groups = [f"{kind}, {bound}" for kind, bound in zip(kinds, bounds, strict=True)]
+        numbers = _numbers(groups, list(runs["delay"]))
+        kinds = [k if i is None else f"{k} #{i}" for k, i in zip(kinds, numbers, strict=True)]
+    classes = [f"{kind}, {bound}" for kind, bound in zip(kinds, bounds, strict=True)]
+    classes = _with_swept(classes, runs, [key for key in keys if key.startswith("delay.")])
+    return pd.Series(classes, index=runs.index, name="delay_class")
+
+
+def _numbers(groups: list[str], tables: list[object]) -> list[int | None]:
+    """For each run, the number (from 1, in order of first appearance) of its table among the
+    different ``tables`` of its group, or None when the group has one table only."""
+    seen: dict[str, list[object]] = {}
+    for group, table in zip(groups, tables, strict=True):
+        if table not in seen.setdefault(group, []):
+            seen[group].append(table)
+    return [
+        seen[group].index(table) + 1 if len(seen[group]) > 1 else None
+        for group, table in zip(groups, tables, strict=True)
+    ]
 
 
 def controller_labels(runs: pd.DataFrame, keys: Sequence[str] | None = None) -> pd.Series:
@@ -83,26 +113,26 @@ def controller_labels(runs: pd.DataFrame, keys: Sequence[str] | None = None) -> 
     kinds = [kind.rpartition(":")[2] for kind in runs["controller_type"]]
     labels = kinds
     if "controller" in runs:
-        numbering: dict[str, list[str]] = {}
-        for kind, table in zip(kinds, runs["controller"], strict=True):
-            seen = numbering.setdefault(kind, [])
-            if table not in seen:
-                seen.append(table)
+        numbers = _numbers(kinds, list(runs["controller"]))
         labels = [
-            f"{kind} #{numbering[kind].index(table) + 1}" if len(numbering[kind]) > 1 else kind
-            for kind, table in zip(kinds, runs["controller"], strict=True)
+            kind if i is None else f"{kind} #{i}" for kind, i in zip(kinds, numbers, strict=True)
         ]
     if keys is None:
         keys = [column for column in runs.columns if column.startswith("controller.")]
-    keys = list(keys)
-    if keys:
-        names = [key.partition(".")[2] for key in keys]
-        swept = [
-            ", ".join(f"{name}={_shown(value)}" for name, value in zip(names, row, strict=True))
-            for row in runs[keys].itertuples(index=False)
-        ]
-        labels = [f"{label} ({text})" for label, text in zip(labels, swept, strict=True)]
-    return pd.Series(labels, index=runs.index, name="controller")
+    return pd.Series(_with_swept(labels, runs, list(keys)), index=runs.index, name="controller")
+
+
+def _with_swept(labels: list[str], runs: pd.DataFrame, keys: list[str]) -> list[str]:
+    """``labels`` followed by each run's values of the swept ``<table>.<name>`` columns
+    ``keys``: ``arolc (K1=2)``."""
+    if not keys:
+        return labels
+    names = [key.partition(".")[2] for key in keys]
+    swept = [
+        ", ".join(f"{name}={_shown(value)}" for name, value in zip(names, row, strict=True))
+        for row in runs[keys].itertuples(index=False)
+    ]
+    return [f"{label} ({text})" for label, text in zip(labels, swept, strict=True)]
 
 
 def default_metrics(runs: pd.DataFrame) -> list[str]:
@@ -114,6 +144,7 @@ def summary_table(
     runs: pd.DataFrame,
     metrics: Sequence[str] | None = None,
     label_keys: Sequence[str] | None = None,
+    delay_keys: Sequence[str] | None = None,
 ) -> pd.DataFrame:
     """The summary (module docstring), groups in order of first appearance.
 
@@ -125,6 +156,9 @@ def summary_table(
         Metric columns to summarise; :func:`default_metrics` by default.
     label_keys : sequence of str, optional
         Swept ``controller.*`` columns shown in controller labels (:func:`controller_labels`).
+    delay_keys : sequence of str, optional
+        Swept delay keys chosen from lists (:func:`delay_classes`); by default, bands of
+        ``h_max``.
 
     Raises
     ------
@@ -141,7 +175,7 @@ def summary_table(
     if unknown:
         raise ValueError(f"summary metrics {unknown} are not columns of the runs; valid: {valid}")
     labels = controller_labels(runs, label_keys)
-    frame = runs.assign(controller=labels, delay_class=delay_classes(runs))
+    frame = runs.assign(controller=labels, delay_class=delay_classes(runs, delay_keys))
     rows = []
     for (controller, delay_class), group in frame.groupby(
         ["controller", "delay_class"], sort=False

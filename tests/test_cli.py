@@ -213,9 +213,10 @@ def test_simulate_default_folder_and_builtin_name(tmp_path, monkeypatch, capsys)
     scenario.to_toml(tmp_path / "tiny.toml")
     assert main(["simulate", "tiny.toml"]) == 0
     assert (tmp_path / "results" / "tiny" / "trajectories.parquet").is_file()
-    assert not (
-        tmp_path / "results" / "tiny" / "figures" / "c_hat.png"
-    ).exists()  # no ĉ for the outer loop
+    figures = tmp_path / "results" / "tiny" / "figures"
+    assert not (figures / "c_hat.png").exists()  # no ĉ for the outer loop
+    # The legends name the run by its scenario (matplotlib writes each text as a comment).
+    assert "<!-- tiny -->" in (figures / "tracking.svg").read_text()
     capsys.readouterr()
 
 

@@ -811,6 +811,8 @@ def run_to_folder(
     frame = result.to_frame()
     for fmt in formats:
         files.append(write_frame(frame, folder / f"trajectories.{fmt}"))
-    files += write_run_figures(result, folder / "figures", formats=figure_formats)
+    files += write_run_figures(
+        result, folder / "figures", formats=figure_formats, label=resolved.name
+    )
     record_outputs(folder, files)
     return RunOutput(resolved, result, folder, tuple(files))

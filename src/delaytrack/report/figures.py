@@ -290,22 +290,25 @@ def write_run_figures(
     *,
     coordinate_names: Sequence[str] | None = None,
     formats: Sequence[str] = ("png", "svg"),
+    label: str | None = None,
 ) -> list[Path]:
     """The standard figures of one simulation, written to ``folder``.
 
     ``tracking`` (q vs q_d), ``error`` (|e1| over time), ``commands`` (commanded vs applied),
     ``delay`` (h(t)) and, when the controller has a ``c_hat`` state (AROLC), ``c_hat``. A batched
-    result is drawn with one line per batch element.
+    result is drawn with one line per batch element (``run 0``, ``run 1``, ...); a single run is
+    named ``label`` in the legends (``run`` without it).
     """
     folder = Path(folder)
+    runs = {label: result} if label is not None and result.batch_size == 1 else result
     figures = {
-        "tracking": tracking_figure(result, coordinate_names=coordinate_names),
-        "error": error_figure(result, coordinate_names=coordinate_names),
-        "commands": commands_figure(result),
-        "delay": delay_figure(result),
+        "tracking": tracking_figure(runs, coordinate_names=coordinate_names),
+        "error": error_figure(runs, coordinate_names=coordinate_names),
+        "commands": commands_figure(runs),
+        "delay": delay_figure(runs),
     }
     if "c_hat" in result.controller_state_names:
-        figures["c_hat"] = c_hat_figure(result)
+        figures["c_hat"] = c_hat_figure(runs)
     paths: list[Path] = []
     for name, figure in figures.items():
         paths += save_figure(figure, folder / name, formats)

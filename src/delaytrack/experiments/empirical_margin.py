@@ -46,6 +46,7 @@ from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
 from delaytrack.experiments.scenario import Scenario, ScenarioError
 from delaytrack.sim import STATUS_NAMES, simulate
 from delaytrack.sim.simulate import MAX_STEPS
+from delaytrack.units import default_names
 
 __all__ = ["METRICS", "MIN_RESOLUTION", "PROFILES", "EmpiricalMargin", "empirical_margin"]
 
@@ -306,6 +307,9 @@ def empirical_margin(
                 f"simulation); got {value}"
             )
     built = scenario.build()
+    names = default_names(built.plant.coordinate_names, built.plant.n)
+    units = [f" {unit}" if unit else "" for unit in built.plant.coordinate_units or ()]
+    units = units or [""] * built.plant.n
     make = PROFILES[settings["profile"]]
     switches = make(settings["upper"], frequency).switch_bound(0.0, scenario.duration, scenario.T_c)
     if not switches <= MAX_STEPS:
@@ -340,26 +344,33 @@ def empirical_margin(
         ok = result.status == 0
         worst = np.full(len(values), np.nan)
         worst[ok] = result.metrics[settings["metric"]][ok].max(axis=1)
-        return worst, result.status, ok & (worst <= settings["threshold"])
+        coordinate = np.full(len(values), -1)
+        coordinate[ok] = result.metrics[settings["metric"]][ok].argmax(axis=1)
+        return worst, result.status, ok & (worst <= settings["threshold"]), coordinate
 
     searches = [_Search() for _ in controllers]
     coarse = [settings["upper"] * k / grid for k in range(grid + 1)]
     jobs = {i: coarse for i in range(len(controllers))}
     while jobs:
         flat = [(i, v) for i, values in jobs.items() for v in values]
-        worst, status, passes = evaluate([v for _, v in flat], [controllers[i] for i, _ in flat])
+        worst, status, passes, coordinate = evaluate(
+            [v for _, v in flat], [controllers[i] for i, _ in flat]
+        )
         start = 0
         for i, values in jobs.items():
             part = slice(start, start + len(values))
             start += len(values)
             if values is coarse and not passes[part][0]:
                 where = "" if single else f" (controller[{i}])"
+                j = int(coordinate[part][0])
+                found = (
+                    f"{settings['metric']} of {names[j]} = {worst[part][0]:.4g}{units[j]}"
+                    if j >= 0
+                    else f"status {STATUS_NAMES[int(status[part][0])]!r}"
+                )
                 raise ValueError(
                     f"threshold = {settings['threshold']:g} is missed already without delay: "
-                    f"{settings['metric']} = {worst[part][0]:.4g} rad, status "
-                    f"{STATUS_NAMES[int(status[part][0])]!r} at h = 0{where}; give a larger "
-                    "threshold or a later "
-                    "settle time"
+                    f"{found} at h = 0{where}; give a larger threshold or a later settle time"
                 )
             searches[i].take(values, worst[part], status[part], passes[part])
         jobs = {}

@@ -247,6 +247,17 @@ def test_a_cached_kernel_loads_in_a_scenario_and_in_a_session_whichever_compiled
     assert list((tmp_path / "cache").rglob("*.nbi"))  # the kernel's compiled code was cached
 
 
+def test_a_file_the_user_imported_is_that_module_in_a_scenario(example, monkeypatch):
+    """Not a second copy: the scenario's plant uses the user's own kernel and classes."""
+    monkeypatch.syspath_prepend(str(example))
+    monkeypatch.delitem(sys.modules, "arm", raising=False)
+    import arm
+
+    built = Scenario.from_toml(short(example)).build()
+    assert built.plant.kernel is arm.arm_terms
+    assert sys.modules["arm"] is arm
+
+
 def test_swept_files_are_relative_to_the_sweep_file(example):
     (example / "poses.csv").write_text("t,a,b\n0,-1.2,0.6\n0.5,-1.0,0.8\n1,-0.9,0.7\n")
     short(example)
@@ -314,7 +325,7 @@ def test_an_error_a_kernel_raises_during_the_run_is_one_line_naming_it(example, 
     faulty = f"python:{example / 'faulty.py'}:make_faulty"
     # The files' modules have their own names, or <name>_<hash> when a module of that name is
     # loaded already (in this process: from another test's copy of the example).
-    kernels = r"one of your kernels \(arm(_\w{8})?\.arm_terms, faulty(_\w{8})?\.faulty_terms\)"
+    kernels = r"one of your kernels \(arm(_\w{8})?:arm_terms, faulty(_\w{8})?:faulty_terms\)"
     for fault, raised in [
         (0.0, r"ZeroDivisionError during the run: integer division by zero \(a kernel compiled"),
         (1.0, "ValueError during the run: sensor fault"),

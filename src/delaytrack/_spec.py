@@ -149,7 +149,8 @@ def _module_name(path: Path) -> str:
                 spec = importlib.util.find_spec(stem)
             except (ImportError, ValueError):
                 spec = None
-            origin = path if spec is None else spec.origin
+            # A folder of that name (a namespace package, no origin) is not a module to keep.
+            origin = path if spec is None or spec.origin is None else spec.origin
         if origin is not None and Path(origin).resolve() == path:
             return stem
     return f"{stem}_{hashlib.sha256(str(path).encode()).hexdigest()[:8]}"
@@ -159,7 +160,8 @@ def _module_from_file(path: Path) -> ModuleType:
     """Import the Python file ``path`` (again when its content changed since the last import).
 
     It is imported under :func:`_module_name` (its stem, never shadowing another module), with
-    its folder first on ``sys.path`` while it runs, so that it can import its neighbours.
+    its folder first on ``sys.path`` while it runs, so that it can import its neighbours. A file
+    the user imported already is that module, not a second copy.
     """
     path = path.expanduser().resolve()
     content = hashlib.sha256(path.read_bytes()).hexdigest()
@@ -167,6 +169,10 @@ def _module_from_file(path: Path) -> ModuleType:
     if known is not None and known[0] == content:
         return known[1]
     name = _module_name(path)
+    loaded = sys.modules.get(name)
+    if known is None and loaded is not None:  # imported by the user: the same objects
+        _FILE_MODULES[path] = (content, loaded)
+        return loaded
     spec = importlib.util.spec_from_file_location(name, path)
     if spec is None or spec.loader is None:
         raise ImportError(f"{str(path)!r} is not a Python file")

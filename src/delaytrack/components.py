@@ -294,6 +294,13 @@ class Kernel:
         return ",".join(parts)
 
     @property
+    def callable_names(self) -> tuple[str, ...]:
+        """``module:name`` of the kernel's function, and of its command map and stepper when it
+        has them (for messages)."""
+        parts = (self.function, self.command_map, self.stepper)
+        return tuple(_qualified_name(part) for part in parts if part is not None)
+
+    @property
     def built_in(self) -> bool:
         """Whether the kernel is one of this package's (its code is covered by the cache folder,
         :mod:`delaytrack._numba_cache`, not by a fingerprint)."""

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import os
 import sys
 import warnings
 from pathlib import Path
 from typing import Any
 
-#: The folder of this package: frames of files under it are not the user's.
-_PACKAGE = str(Path(__file__).resolve().parents[1])
+#: The folder of this package, as its files' code names it: frames of files under it are not
+#: the user's.
+_PACKAGE = str(Path(__file__).parents[1]) + os.sep
 
 __all__ = ["PythonFallbackWarning"]
 

@@ -95,7 +95,7 @@ _TERMINAL_CODES = re.compile(r"\x1b\[[0-9;]*m")
 def _raised_during_the_run(error: Exception, yours: list) -> str:
     """The one-line message for ``error``, raised by one of the user's kernels ``yours``
     (:class:`~delaytrack.components.Kernel`) while the closed loop ran."""
-    names = sorted({f"{k.function.__module__}.{k.function.__qualname__}" for k in yours})
+    names = sorted({name for kernel in yours for name in kernel.callable_names})
     which = (
         f"your kernel {names[0]}"
         if len(names) == 1
@@ -664,11 +664,22 @@ def simulate(
             )
     native = native_controller_step(step_function, model_type, n, m) if native_step else None
 
+    yours = [k for k in kernels(0) if not k.built_in and k is not NO_KERNEL]
+
     def run_chunk(index: int) -> int:
-        runner(*chunk_arguments(index, native))
+        try:
+            runner(*chunk_arguments(index, native))
+        except Exception as error:
+            if compiled and yours and not type(error).__module__.startswith("numba"):
+                # Raised by a kernel of the user's as it ran (ours do not raise there; the
+                # engine was compiled before the first chunk).
+                raise ValueError(_raised_during_the_run(error, yours)) from error
+            raise
         return chunks[index].size
 
     try:
+        if compiled and not engine_ready:  # compiled here, so that a chunk's error is a run's
+            runner.compile(tuple(runner.typeof_pyval(a) for a in chunk_arguments(0, native)))
         bar_context = (
             tqdm(total=batch, desc="simulate", unit="run")
             if progress
@@ -690,11 +701,7 @@ def simulate(
                 f"{[k.key for k in kernels(0)]}: {_numba_cause(error)} (call a kernel of yours "
                 "alone, compiled, to see numba's whole message)"
             ) from None
-        yours = [k for k in kernels(0) if not k.built_in and k is not NO_KERNEL]
-        if not yours:
-            raise
-        # Raised by a kernel of the user's during the run (ours do not raise there).
-        raise ValueError(_raised_during_the_run(error, yours)) from error
+        raise
 
     times = t0 + (np.arange(records) * every * steps_per_tick) * dt
     for b in np.flatnonzero(status != 0):

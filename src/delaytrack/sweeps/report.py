@@ -163,8 +163,8 @@ TIE = 0.01
 
 def findings(summary: pd.DataFrame, metrics: Sequence[str], units: Mapping[str, str]) -> list[str]:
     """Sentences computed from the summary: divergence per controller, and per delay class the
-    controller with the smallest median of each metric, or the two smallest when they are
-    within :data:`TIE` of each other."""
+    controller with the smallest median of each metric, or every controller within :data:`TIE`
+    of the smallest (a tie)."""
     out = []
     by_controller = summary.groupby("controller", sort=False)[["runs", "diverged", "failed"]].sum()
     parts = [
@@ -182,15 +182,17 @@ def findings(summary: pd.DataFrame, metrics: Sequence[str], units: Mapping[str, 
             if len(rows) < 2:
                 continue
             ordered = rows.sort_values(column, kind="stable")
-            first, second = ordered.iloc[0], ordered.iloc[1]
-            low, high = first[column], second[column]
-            if high - low <= TIE * max(abs(low), abs(high)):
+            low = ordered[column].iloc[0]
+            values = ordered[column].to_numpy(float)
+            tied = ordered[values - low <= TIE * np.maximum(abs(low), np.abs(values))]
+            if len(tied) > 1:
+                names = " and ".join(tied["controller"])
+                medians = " and ".join(f"{value:.4g}" for value in tied[column])
                 best.append(
-                    f"{delay_class}: {first['controller']} and {second['controller']} within "
-                    f"{TIE:.0%} of each other ({low:.4g} and {high:.4g}{unit})"
+                    f"{delay_class}: {names} within {TIE:.0%} of each other ({medians}{unit})"
                 )
             else:
-                best.append(f"{delay_class}: {first['controller']} ({low:.3g}{unit})")
+                best.append(f"{delay_class}: {tied['controller'].iloc[0]} ({low:.3g}{unit})")
         if best:
             out.append(f"Smallest median {metric}, per delay class: " + "; ".join(best) + ".")
     return out

@@ -85,27 +85,21 @@ SWEEP_EXAMPLE = HERE.parent / "examples" / "sweep_robot.toml"
 
 def median_seconds(run, repeats: int) -> float:
     """Median wall time of ``repeats`` calls of ``run`` after one untimed call."""
-    run()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
+    return alternating_medians(repeats, run)[0]
+
+
+def alternating_medians(repeats: int, *runs) -> tuple[float, ...]:
+    """Median wall times of ``runs`` called in turn ``repeats`` times each (so that the
+    machine's drift falls on all alike), after one untimed call of each."""
+    for run in runs:
         run()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
-
-
-def alternating_medians(first, second, repeats: int) -> tuple[float, float]:
-    """Median wall times of ``first`` and ``second`` called alternately ``repeats`` times each,
-    after one untimed call of each."""
-    first()
-    second()
-    times: tuple[list[float], list[float]] = ([], [])
+    times: list[list[float]] = [[] for _ in runs]
     for _ in range(repeats):
-        for run, timed in zip((first, second), times, strict=True):
+        for run, timed in zip(runs, times, strict=True):
             start = time.perf_counter()
             run()
             timed.append(time.perf_counter() - start)
-    return statistics.median(times[0]), statistics.median(times[1])
+    return tuple(statistics.median(timed) for timed in times)
 
 
 def steps(duration: float, batch: int = 1) -> int:
@@ -163,9 +157,9 @@ def ceiling_case(duration: float, batch: int, repeats: int) -> list[dict]:
 
     def pair(period: float) -> tuple[float, float]:
         return alternating_medians(
+            repeats,
             lambda: simulate(plant, controller, delay, x0, **common, T_c=period, workers=1),
             lambda: hand_run(plant, controller, delay, reference, x0, duration, DT, period),
-            repeats,
         )
 
     engine, hand = pair(T_C)
@@ -179,9 +173,9 @@ def ceiling_case(duration: float, batch: int, repeats: int) -> list[dict]:
         for _ in range(batch)
     ]
     engine_many, hand_many = alternating_medians(
+        max(1, repeats // 3),
         lambda: simulate(plants, controller, delays, x0, **common, T_c=T_C),
         lambda: hand_batch(plants, controller, delays, reference, x0, duration, DT, T_C),
-        max(1, repeats // 3),
     )
     rows = []
     for name, count, seconds, baseline in (

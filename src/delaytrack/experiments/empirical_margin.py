@@ -44,6 +44,7 @@ from delaytrack._validation import is_integer_at_least, positive_scalar
 from delaytrack.controllers import Controller
 from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
 from delaytrack.experiments.scenario import Scenario, ScenarioError
+from delaytrack.plants.base import ELPlant
 from delaytrack.sim import STATUS_NAMES, simulate
 from delaytrack.sim.simulate import MAX_STEPS
 from delaytrack.units import default_names
@@ -307,9 +308,6 @@ def empirical_margin(
                 f"simulation); got {value}"
             )
     built = scenario.build()
-    names = default_names(built.plant.coordinate_names, built.plant.n)
-    units = [f" {unit}" if unit else "" for unit in built.plant.coordinate_units or ()]
-    units = units or [""] * built.plant.n
     make = PROFILES[settings["profile"]]
     switches = make(settings["upper"], frequency).switch_bound(0.0, scenario.duration, scenario.T_c)
     if not switches <= MAX_STEPS:
@@ -342,18 +340,17 @@ def empirical_margin(
         except ValueError as error:
             raise ScenarioError(f"scenario {scenario.name!r}: {error}") from None
         ok = result.status == 0
-        worst = np.full(len(values), np.nan)
-        worst[ok] = result.metrics[settings["metric"]][ok].max(axis=1)
-        coordinate = np.full(len(values), -1)
-        coordinate[ok] = result.metrics[settings["metric"]][ok].argmax(axis=1)
-        return worst, result.status, ok & (worst <= settings["threshold"]), coordinate
+        metrics = np.full((len(values), built.plant.n), np.nan)  # per coordinate, ok runs only
+        metrics[ok] = result.metrics[settings["metric"]][ok]
+        worst = metrics.max(axis=1)
+        return worst, result.status, ok & (worst <= settings["threshold"]), metrics
 
     searches = [_Search() for _ in controllers]
     coarse = [settings["upper"] * k / grid for k in range(grid + 1)]
     jobs = {i: coarse for i in range(len(controllers))}
     while jobs:
         flat = [(i, v) for i, values in jobs.items() for v in values]
-        worst, status, passes, coordinate = evaluate(
+        worst, status, passes, metrics = evaluate(
             [v for _, v in flat], [controllers[i] for i, _ in flat]
         )
         start = 0
@@ -362,12 +359,7 @@ def empirical_margin(
             start += len(values)
             if values is coarse and not passes[part][0]:
                 where = "" if single else f" (controller[{i}])"
-                j = int(coordinate[part][0])
-                found = (
-                    f"{settings['metric']} of {names[j]} = {worst[part][0]:.4g}{units[j]}"
-                    if j >= 0
-                    else f"status {STATUS_NAMES[int(status[part][0])]!r}"
-                )
+                found = _missed(settings["metric"], metrics[part][0], status[part][0], built.plant)
                 raise ValueError(
                     f"threshold = {settings['threshold']:g} is missed already without delay: "
                     f"{found} at h = 0{where}; give a larger threshold or a later settle time"
@@ -383,6 +375,17 @@ def empirical_margin(
         for search, item in zip(searches, controllers, strict=True)
     ]
     return results[0] if single else results
+
+
+def _missed(metric: str, values: np.ndarray, status: int, plant: ELPlant) -> str:
+    """What failed a run: its status, or its largest ``metric`` with the coordinate and unit
+    (``ae of x = 0.31 m``); ``values`` holds the run's metric per coordinate."""
+    if status != 0:
+        return f"status {STATUS_NAMES[int(status)]!r}"
+    j = int(np.argmax(values))
+    unit = (plant.coordinate_units or [None] * plant.n)[j]
+    name = default_names(plant.coordinate_names, plant.n)[j]
+    return f"{metric} of {name} = {values[j]:.4g}" + (f" {unit}" if unit else "")
 
 
 def _settings(

@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-import os
 import sys
 import warnings
-from pathlib import Path
+from types import FrameType
 from typing import Any
 
-#: The folder of this package, as its files' code names it: frames of files under it are not
-#: the user's.
-_PACKAGE = str(Path(__file__).parents[1]) + os.sep
+#: This package's name: frames of its modules are not the user's.
+_PACKAGE = __name__.partition(".")[0]
 
 __all__ = ["PythonFallbackWarning"]
 
@@ -29,7 +27,7 @@ class PythonFallbackWarning(UserWarning):
         package (``simulate`` may be reached through a scenario, a sweep or the command line)."""
         frame = sys._getframe(1)  # stack level 2 (level 1 is this method)
         level = 2
-        while frame is not None and frame.f_code.co_filename.startswith(_PACKAGE):
+        while frame is not None and _in_package(frame):
             frame = frame.f_back
             level += 1
         warnings.warn(cls.describe(plant, controller, reference), stacklevel=level)
@@ -57,3 +55,8 @@ class PythonFallbackWarning(UserWarning):
             f"simulate() runs as plain Python because {what} is not numba-compiled (about 100x "
             "slower than compiled). For compiled speed, decorate it with @numba.njit."
         )
+
+
+def _in_package(frame: FrameType) -> bool:
+    """Whether ``frame`` runs code of one of this package's modules."""
+    return frame.f_globals.get("__name__", "").partition(".")[0] == _PACKAGE

@@ -551,8 +551,7 @@ class SweepSpec:
     def label_keys(self) -> tuple[str, ...]:
         """Swept ``controller.*`` keys that name a controller in summaries: grid keys and
         ``choice`` draws (a continuous draw would make one group per run)."""
-        chosen = [key for key, dist in self.random.items() if dist["dist"] == "choice"]
-        return tuple(k for k in (*self.grid, *chosen) if k.startswith("controller."))
+        return tuple(key for key in self._listed_keys if key.startswith("controller."))
 
     @property
     def delay_label_keys(self) -> tuple[str, ...] | None:
@@ -560,10 +559,15 @@ class SweepSpec:
         (:func:`~delaytrack.sweeps.summary.delay_classes`): grid keys and ``choice`` draws.
         None when a delay key is drawn from a continuous distribution: the classes are then
         bands of ``h_max``."""
-        if any(_is_delay_key(key) and d["dist"] != "choice" for key, d in self.random.items()):
+        if any(_is_delay_key(key) for key in self.random if key not in self._listed_keys):
             return None
+        return tuple(key for key in self._listed_keys if _is_delay_key(key))
+
+    @property
+    def _listed_keys(self) -> tuple[str, ...]:
+        """The swept keys whose values come from lists: the grid's and ``choice`` draws."""
         chosen = [key for key, dist in self.random.items() if dist["dist"] == "choice"]
-        return tuple(key for key in (*self.grid, *chosen) if _is_delay_key(key))
+        return (*self.grid, *chosen)
 
 
 def _is_delay_key(key: str) -> bool:

@@ -122,3 +122,20 @@ def test_bad_options_are_refused_with_a_clear_message(options, error, words):
     with pytest.raises(error) as raised:
         design_gains(**options)
     assert words in str(raised.value)
+
+
+def test_the_searched_closed_form_is_theorem_1_of_one_axis():
+    # The search maximises a closed form of Theorem 1 for one axis; it must be razumikhin_bound.
+    from delaytrack.analysis.gain_design import _closed_form_h_m
+
+    rng = np.random.default_rng(3)
+    for log_parameters in rng.uniform(-3.0, 3.0, (300, 4)):
+        k1, k2, q_v, gamma = np.exp(log_parameters)
+        r = 1.0 + np.exp(rng.uniform(-5.0, 5.0))
+        expected = razumikhin_bound(k1, k2, [1.0, q_v], math.sqrt(r) * gamma, r).h_m
+        assert _closed_form_h_m(log_parameters, r) == pytest.approx(expected, rel=1e-10)
+    assert _closed_form_h_m(np.zeros(4), 1.0) > 0.0
+    assert _closed_form_h_m(np.log([1.0, 1.0, 1.0, 1.0 / math.sqrt(1.1)]), 1.1) == pytest.approx(
+        PAPER_H_M, abs=1e-5
+    )
+    assert _closed_form_h_m(np.array([800.0, 800.0, 0.0, 0.0]), 1.1) == 0.0  # overflows

@@ -132,8 +132,8 @@ class GainDesign:
         }
 
 
-def _axis_h_m(log_parameters: np.ndarray, r: float) -> float:
-    """h_m of one axis at (k1, k2, q_v, γ) = exp(log_parameters); 0 where it cannot be computed.
+def _certified_axis_h_m(log_parameters: np.ndarray, r: float) -> float:
+    """razumikhin_bound's h_m of one axis at (k1, k2, q_v, γ) = exp(log_parameters), else 0.
 
     The axis has gains k1, k2, Q = diag(1, q_v) and β = √r γ.
     """
@@ -142,6 +142,48 @@ def _axis_h_m(log_parameters: np.ndarray, r: float) -> float:
         return razumikhin_bound(k1, k2, [1.0, q_v], math.sqrt(r) * gamma, r).h_m
     except ValueError:  # out of the range where the bound can be computed
         return 0.0
+
+
+def _closed_form_h_m(log_parameters: np.ndarray, r: float) -> float:
+    """Theorem 1's h_m of one axis at (k1, k2, q_v, γ) = exp(log_parameters), in closed form.
+
+    The search's objective: :func:`razumikhin_bound` of the same axis (gains k1, k2,
+    Q = diag(1, q_v), β = √r γ) to its own accuracy, a thousand times faster. For
+    A = [[0, 1], [−k1, −k2]] the Lyapunov equation AᵀP + PA = −Q has the solution::
+
+        P = [[a, b], [b, c]],  b = 1 / (2 k1),  c = (q_v + 1/k1) / (2 k2),
+        a = k2 / (2 k1) + (k1 q_v + 1) / (2 k2),
+        det P = q_v / (4 k1) + (k1 q_v + 1)² / (4 k1 k2²).
+
+    With A1 = e₁e₂ᵀ and B1 = e₂wᵀ, w = (−k1, −k2), (delay cal) reduces to
+    E = β s p pᵀ + (2r/β) P, where p = (b, c) is P's second column and
+    s = (1 + k2²) wᵀP⁻¹w + k1² (P⁻¹)₂₂. Every term is written as a sum of positive terms,
+    for instance wᵀP⁻¹w det P = ((k2² − k1/2)² + ¾ k1²) / (2 k1 k2) + k1 k2 q_v / 2 +
+    k1² q_v / (2 k2), so nothing cancels; ‖E‖₂ is the larger eigenvalue of the 2x2 E.
+    Returns 0 where a term overflows or underflows to 0.
+    """
+    try:
+        k1, k2, q_v, gamma = (math.exp(v) for v in log_parameters)
+        beta = math.sqrt(r) * gamma
+        a = k2 / (2.0 * k1) + (k1 * q_v + 1.0) / (2.0 * k2)
+        b = 1.0 / (2.0 * k1)
+        c = (q_v + 1.0 / k1) / (2.0 * k2)
+        determinant = q_v / (4.0 * k1) + (k1 * q_v + 1.0) * (k1 * q_v + 1.0) / (4.0 * k1 * k2 * k2)
+        w_P_inv_w = (
+            ((k2 * k2 - 0.5 * k1) * (k2 * k2 - 0.5 * k1) + 0.75 * k1 * k1) / (2.0 * k1 * k2)
+            + 0.5 * k1 * k2 * q_v
+            + k1 * k1 * q_v / (2.0 * k2)
+        ) / determinant
+        s = (1.0 + k2 * k2) * w_P_inv_w + k1 * k1 * a / determinant
+        weight = 2.0 * r / beta
+        E11 = beta * s * b * b + weight * a
+        E12 = beta * s * b * c + weight * b
+        E22 = beta * s * c * c + weight * c
+        norm = 0.5 * (E11 + E22) + math.hypot(0.5 * (E11 - E22), E12)
+        h_m = min(1.0, q_v) / norm
+    except (ZeroDivisionError, OverflowError):  # a gain or det P underflowed to 0
+        return 0.0
+    return h_m if math.isfinite(h_m) and h_m > 0.0 else 0.0
 
 
 def _seed(seed: object) -> int:
@@ -193,7 +235,7 @@ def _check_optimum(
     neighbours = [
         np.clip(x + step * np.eye(4)[i], lows, highs) for i in range(4) for step in (-_EDGE, _EDGE)
     ]
-    computable = all(_axis_h_m(point, r) > 0.0 for point in [x, *neighbours])
+    computable = all(_certified_axis_h_m(point, r) > 0.0 for point in [x, *neighbours])
     if computable and not any(edges):
         return
     k1, k2, q_v, gamma = np.exp(x)
@@ -264,15 +306,18 @@ def design_gains(
     **Search.** :func:`scipy.optimize.differential_evolution` over the logarithms of
     k1 in [max(gain_bound / 1e4, min_bandwidth²), gain_bound], k2 in [gain_bound / 1e4,
     gain_bound], q_v and γ = β / √r in [1e-4, 1e4] (the optimal γ does not depend on r, so any
-    r is searched alike), seeded, then polished with L-BFGS-B (scipy's default). A point where
-    Theorem 1's bound cannot be computed (:func:`razumikhin_bound` refuses it) counts as
-    h_m = 0. The returned h_m is recomputed by :func:`razumikhin_bound` for the returned
-    n-joint matrices, so it is exactly what Theorem 1 certifies for them.
+    r is searched alike), seeded, then polished with L-BFGS-B (scipy's default). Each point is
+    evaluated by a closed form of Theorem 1 for one axis (2x2 P and E written out, equal to
+    :func:`razumikhin_bound` to its accuracy and about a thousand times faster; a point where
+    it overflows counts as h_m = 0). The returned h_m is recomputed by
+    :func:`razumikhin_bound` for the returned n-joint matrices, so it is exactly what
+    Theorem 1 certifies for them.
 
     **Trust.** The best point found is refused, with a ValueError naming gain_bound or
     min_bandwidth, when it lies on an edge of the box that is not a constraint (gains at
-    gain_bound / 1e4, q_v or γ at 1e-4 or 1e4) or next to points where the bound cannot be
-    computed: the optimum then lies outside the search. Measured at r = 1.1, that leaves
+    gain_bound / 1e4, q_v or γ at 1e-4 or 1e4) or where, or next to where,
+    :func:`razumikhin_bound` refuses to compute the bound: the optimum then lies outside what
+    can be certified. Measured at r = 1.1, that leaves
     gain_bound from about 1e-7 to 8000 (8000 min_bandwidth with one above 1 rad/s) and
     min_bandwidth up to about 3000 rad/s.
 
@@ -334,7 +379,7 @@ def design_gains(
     lows, highs = [least_log_k1, top - span, -span, -span], [top, top, span, span]
     start = time.perf_counter()
     search = scipy.optimize.differential_evolution(
-        lambda x: -_axis_h_m(x, r_value),
+        lambda x: -_closed_form_h_m(x, r_value),
         bounds=list(zip(lows, highs, strict=True)),
         seed=seed_value,
         tol=1e-10,

@@ -34,14 +34,19 @@ EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "user_arm"
 
 @pytest.fixture
 def example(tmp_path: Path) -> Path:
-    """A copy of the example folder (tests may edit it)."""
+    """A copy of the example folder, for tests that edit it.
+
+    Tests that only read it use ``EXAMPLE`` itself: numba keys its disk cache by the kernel
+    file's path, so every test that runs the shipped files shares one compiled engine.
+    """
     folder = tmp_path / "user_arm"
     shutil.copytree(EXAMPLE, folder, ignore=shutil.ignore_patterns("__pycache__"))
     return folder
 
 
-def short(folder: Path, **changes) -> Path:
-    """The example scenario, 1 s long, with ``changes`` to its tables, written beside it."""
+def short(folder: Path, into: Path | None = None, **changes) -> Path:
+    """The example scenario, 1 s long, with ``changes`` to its tables, written into ``into``
+    (beside it by default; its files are named by absolute path)."""
     scenario = Scenario.from_toml(folder / "arm_S1.toml")
     data = scenario.to_dict()
     data["duration"] = 1.0
@@ -52,24 +57,24 @@ def short(folder: Path, **changes) -> Path:
     }
     for key, value in changes.items():
         data[key] = value
-    path = folder / "short.toml"
+    path = (into or folder) / "short.toml"
     path.write_text(Scenario.from_dict(data).to_toml())
     return path
 
 
-def test_a_user_plant_model_and_reference_run_compiled_from_a_scenario_file(example):
-    scenario = Scenario.from_toml(example / "arm_S1.toml")
-    assert scenario.plant["type"] == f"python:{example / 'arm.py'}:make_arm"  # made absolute
+def test_a_user_plant_model_and_reference_run_compiled_from_a_scenario_file(tmp_path):
+    scenario = Scenario.from_toml(EXAMPLE / "arm_S1.toml")
+    assert scenario.plant["type"] == f"python:{EXAMPLE / 'arm.py'}:make_arm"  # made absolute
     built = scenario.build()
     assert type(built.plant).__name__ == "CompiledPlant"
     assert built.plant.coordinate_names == ("shoulder", "elbow")
     assert built.model.params[0] == pytest.approx(0.8 * built.plant.params[0])
-    result = Scenario.from_toml(short(example)).run()
+    result = Scenario.from_toml(short(EXAMPLE, tmp_path)).run()
     assert result.settings["compiled"] and result.status_names == ["ok"]
 
 
-def test_simulate_empirical_and_sweep_commands_take_them(example, tmp_path, capsys):
-    path = short(example)
+def test_simulate_empirical_and_sweep_commands_take_them(tmp_path, capsys):
+    path = short(EXAMPLE, tmp_path)
     out = tmp_path / "run"
     assert main(["simulate", str(path), "--out", str(out)]) == 0
     metrics = pd.read_csv(out / "metrics.csv")
@@ -77,20 +82,23 @@ def test_simulate_empirical_and_sweep_commands_take_them(example, tmp_path, caps
     assert main(["empirical", str(path), "--threshold", "0.5", "--upper", "0.5", "--json"]) == 0
     margin = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert margin["margin"] > 0
-    sweep = example / "sweep_arm.toml"
-    text = sweep.read_text().replace("draws = 6", "draws = 1")
-    sweep.write_text(text.replace('scenario = "arm_S1.toml"', 'scenario = "short.toml"'))
+    text = (EXAMPLE / "sweep_arm.toml").read_text().replace("draws = 6", "draws = 1")
+    text = text.replace('scenario = "arm_S1.toml"', 'scenario = "short.toml"')
+    for name in ("pd_gravity.py", "congested_link.py"):  # the sweep is beside short.toml
+        text = text.replace(f"python:{name}", f"python:{EXAMPLE / name}")
+    sweep = tmp_path / "sweep_arm.toml"
+    sweep.write_text(text)
     assert main(["sweep", str(sweep), "--out", str(tmp_path / "sweep"), "--quiet"]) == 0
     summary = pd.read_csv(tmp_path / "sweep" / "summary.csv")
     assert set(summary["controller"]) == {"arolc", "make_pd_gravity"}
     assert (summary["runs"] > 0).all()
 
 
-def test_the_user_controller_runs_compiled_and_matches_its_law(example):
-    scenario = Scenario.from_toml(short(example))
+def test_the_user_controller_runs_compiled_and_matches_its_law(tmp_path):
+    scenario = Scenario.from_toml(short(EXAMPLE, tmp_path))
     table = {"type": "python:pd_gravity.py:make_pd_gravity", "K_P": [10.0, 2.0], "K_D": 1.0}
     data = scenario.to_dict()
-    data["controller"] = {**table, "type": f"python:{example / 'pd_gravity.py'}:make_pd_gravity"}
+    data["controller"] = {**table, "type": f"python:{EXAMPLE / 'pd_gravity.py'}:make_pd_gravity"}
     built = Scenario.from_dict(data).build()
     controller = built.controller
     assert controller.compiled
@@ -445,8 +453,8 @@ def test_spline_reference_refuses_bad_samples(arguments, message):
         dt.SplineReference(**arguments)
 
 
-def test_results_carry_the_plants_coordinate_names(example):
-    result = Scenario.from_toml(short(example)).run()
+def test_results_carry_the_plants_coordinate_names(tmp_path):
+    result = Scenario.from_toml(short(EXAMPLE, tmp_path)).run()
     assert result.coordinate_names == ("shoulder", "elbow")
     table = dt.metrics_table(result)
     assert {"ae_shoulder", "rms_elbow", "max_shoulder"} <= set(table.columns)
@@ -464,8 +472,8 @@ def test_results_carry_the_plants_coordinate_names(example):
     assert plain.coordinate_names is None and "ae_q1" in dt.metrics_table(plain).columns
 
 
-def test_a_delay_kernel_of_ones_own_runs_from_a_scenario_file(example):
-    scenario = Scenario.from_toml(example / "arm_congested.toml")
+def test_a_delay_kernel_of_ones_own_runs_from_a_scenario_file():
+    scenario = Scenario.from_toml(EXAMPLE / "arm_congested.toml")
     built = scenario.build()
     assert isinstance(built.delay, dt.CompiledDelay)
     assert built.delay.h_max == pytest.approx(0.12)

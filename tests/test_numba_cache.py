@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import shutil
+import threading
+import time
 from pathlib import Path
 
 import numba
@@ -52,3 +54,43 @@ def test_editing_a_file_without_compiled_code_keeps_the_key(package_copy) -> Non
 def test_user_cache_root_is_respected(monkeypatch, tmp_path) -> None:
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     assert _numba_cache.cache_directory().parent == tmp_path / "delaytrack"
+
+
+def test_processes_saving_entries_at_once_keep_every_entry(tmp_path, monkeypatch) -> None:
+    """numba saves an entry by reading the kernel's index, adding it and writing it back: two
+    processes compiling two overloads at once must not write back each other's loss."""
+    files = _numba_cache._LockedIndexDataCacheFile
+    load = files._load_index
+
+    def slow_load(self):  # widen the window between reading and writing the index
+        overloads = load(self)
+        time.sleep(0.3)
+        return overloads
+
+    monkeypatch.setattr(files, "_load_index", slow_load)
+    # Two objects open the lock file each, as two processes would (flock is per open file).
+    writers = [
+        threading.Thread(target=files(str(tmp_path), "engine", "stamp").save, args=(key, key))
+        for key in ("plant A", "plant B")
+    ]
+    for writer in writers:
+        writer.start()
+        time.sleep(0.05)
+    for writer in writers:
+        writer.join()
+    reader = files(str(tmp_path), "engine", "stamp")
+    overloads = load(reader)
+    assert set(overloads) == {"plant A", "plant B"}
+    assert [reader._load_data(overloads[key]) for key in ("plant A", "plant B")] == [
+        "plant A",
+        "plant B",
+    ]
+
+
+def test_every_compiled_kernel_saves_under_the_lock() -> None:
+    from delaytrack.controllers.arolc import arolc_step
+    from delaytrack.plants.robot.payload import robot_payload_terms
+    from delaytrack.sim.engine import run_batch_compiled
+
+    for dispatcher in (run_batch_compiled, arolc_step, robot_payload_terms):
+        assert type(dispatcher._cache._cache_file) is _numba_cache._LockedIndexDataCacheFile

@@ -1,6 +1,8 @@
 """The decorators of every compiled kernel, so that all of them share one set of numba options.
 
-* ``cache=True``: compiled code is kept on disk (see :mod:`delaytrack._numba_cache`).
+* ``cache=True``: compiled code is kept on disk (see :mod:`delaytrack._numba_cache`), each entry
+  saved under a file lock so that processes compiling at once keep each other's entries
+  (:func:`compiled` makes every compiled kernel of the package, the engine included).
 * ``error_model="numpy"``: a floating-point division by zero gives ``inf``/``NaN`` as in NumPy
   instead of raising. The simulator turns non-finite values into a ``diverged`` status for that
   run alone, whereas an exception would end the whole batch; it also drops a branch per division
@@ -40,13 +42,18 @@ therefore one.
 
 from __future__ import annotations
 
+import functools
+
 from numba import njit
 from numba.core.registry import CPUDispatcher
 from numba.extending import register_jitable
 
+from delaytrack._numba_cache import locked_cache
+
 __all__ = [
     "KERNEL_OPTIONS",
     "borrowing_kernel",
+    "compiled",
     "hot_inline_kernel",
     "hot_kernel",
     "inline_kernel",
@@ -57,11 +64,20 @@ __all__ = [
 #: numba options of every compiled kernel.
 KERNEL_OPTIONS = {"cache": True, "error_model": "numpy"}
 
-kernel = njit(**KERNEL_OPTIONS)
+
+def compiled(function=None, **options):
+    """``njit`` with :data:`KERNEL_OPTIONS` and ``options``, its disk cache written under a lock
+    (:func:`delaytrack._numba_cache.locked_cache`); a decorator when ``function`` is None."""
+    if function is None:
+        return functools.partial(compiled, **options)
+    return locked_cache(njit(**KERNEL_OPTIONS, **options)(function))
+
+
+kernel = compiled()
 inline_kernel = register_jitable(error_model=KERNEL_OPTIONS["error_model"])
-hot_kernel = njit(**KERNEL_OPTIONS, inline="always")
+hot_kernel = compiled(inline="always")
 borrowing_kernel = register_jitable(error_model=KERNEL_OPTIONS["error_model"], _nrt=False)
-tick_kernel = njit(**KERNEL_OPTIONS, _nrt=False)
+tick_kernel = compiled(_nrt=False)
 
 
 class _PythonOrCompiled(CPUDispatcher):
@@ -87,6 +103,6 @@ def hot_inline_kernel(function):
     caller, which then types it once; a ``register_jitable`` one is inlined after typing, compiled
     alone first and typed again inside each caller, which cost most of the compile time.
     """
-    dispatcher = njit(**KERNEL_OPTIONS, inline="always")(function)
+    dispatcher = compiled(function, inline="always")
     dispatcher.__class__ = _PythonOrCompiled
     return dispatcher

@@ -10,17 +10,28 @@ ones importing numba or :mod:`delaytrack._jit`); an edit to a report, the comman
 recompiles nothing. A user's kernels are covered by their numba type instead
 (:mod:`delaytrack.components`). The cache root is ``$NUMBA_CACHE_DIR`` when the user sets it,
 else ``$XDG_CACHE_HOME/delaytrack/numba`` (``~/.cache/delaytrack/numba``).
+
+Processes share that folder (pytest or dask workers, a notebook beside a sweep), so every
+compiled kernel of the package writes its entries under a file lock (:func:`locked_cache`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
+from collections.abc import Iterator
 from pathlib import Path
 
 import numba
+from numba.core.caching import IndexDataCacheFile
 
-__all__ = ["cache_directory", "kernel_files", "source_hash"]
+try:
+    import fcntl
+except ImportError:  # Windows: numba's own writes, unlocked
+    fcntl = None
+
+__all__ = ["cache_directory", "kernel_files", "locked_cache", "source_hash"]
 
 _PACKAGE = Path(__file__).resolve().parent
 #: Text that marks a file holding compiled code.
@@ -59,6 +70,41 @@ def cache_directory() -> Path:
         return Path(root) / "delaytrack" / source_hash()
     base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
     return base / "delaytrack" / "numba" / source_hash()
+
+
+@contextlib.contextmanager
+def _exclusive(path: str) -> Iterator[None]:
+    """Hold an exclusive lock on the file ``path`` (created if missing) while inside."""
+    if fcntl is None:
+        yield
+        return
+    with open(path, "a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+class _LockedIndexDataCacheFile(IndexDataCacheFile):
+    """numba's index and data files of one kernel, each entry saved under a file lock.
+
+    numba saves a compiled overload by reading the kernel's index, adding the entry and writing
+    the index back. Two processes that compile different overloads of one kernel at once (the
+    engine for two plants, say) each write back the index they read, so one entry is lost and
+    compiled again by the next process, and both may number their data file alike. Under the
+    lock each process reads the index the other wrote.
+    """
+
+    def save(self, key, data):
+        with _exclusive(self._index_path + ".lock"):
+            super().save(key, data)
+
+
+def locked_cache(dispatcher):
+    """Have the cached numba ``dispatcher`` save its entries under a file lock; return it."""
+    dispatcher._cache._cache_file.__class__ = _LockedIndexDataCacheFile
+    return dispatcher
 
 
 numba.config.CACHE_DIR = str(cache_directory())

@@ -17,9 +17,9 @@ import functools
 from typing import Any
 
 import numpy as np
-from numba import njit, typeof, types
+from numba import typeof, types
 
-from delaytrack._jit import KERNEL_OPTIONS, borrowing_kernel, inline_kernel
+from delaytrack._jit import borrowing_kernel, compiled, inline_kernel
 from delaytrack._native_call import NativeFunction
 from delaytrack.components import Kernel, call_reference, call_step
 from delaytrack.controllers.base import step_workspace
@@ -344,4 +344,4 @@ def run_batch(handles, runs, settings, records, status, t_stop):
 #: built-in controller's step is passed by the address of its own compiled code, so one engine
 #: serves every built-in controller), and cached on disk, user kernels included. It releases
 #: the GIL, so threads run sub-batches in parallel.
-run_batch_compiled = njit(nogil=True, **KERNEL_OPTIONS)(run_batch)
+run_batch_compiled = compiled(run_batch, nogil=True)

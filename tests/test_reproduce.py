@@ -99,7 +99,9 @@ def test_readme_python_examples_run(tmp_path, monkeypatch, capsys):
     blocks = _readme_blocks("python")
     assert len(blocks) >= 3
     for number, block in enumerate(blocks):
-        exec(compile(block, f"README.md python block {number}", "exec"), {})
+        # Run as a script is: a kernel is then the one the docs pages define with the same code
+        # (same name), whose engine one of them compiles and the other loads from disk.
+        exec(compile(block, f"README.md python block {number}", "exec"), {"__name__": "__main__"})
     out = capsys.readouterr().out
     assert "(2, 2501, 2) ['ok', 'ok']" in out and "0.12487" in out
     assert Scenario.from_toml(tmp_path / "my_scenario.toml").duration == 2.0

@@ -54,6 +54,11 @@ def test_empirical_reports_no_failure_below_upper(scenario_file, capsys):
     [
         (["--threshold", "-1"], "error: --threshold must be > 0; got -1"),
         (["--threshold", "x"], "error: --threshold must be a number"),
+        (
+            ["--threshold", "1,2"],
+            "error: --threshold must be a number > 0, or a list of one number > 0 per coordinate "
+            "(1: q1); got [1, 2]",
+        ),
         (["--threshold", "1", "--resolution", "2"], "error: --resolution must be smaller than"),
         (["--threshold", "1", "--settle", "500"], "error: --settle must be below the scenario"),
     ],
@@ -94,3 +99,14 @@ def test_margins_job_too_short_for_its_tracking_rule_is_a_usage_error(tmp_path, 
     assert "error: margins job: threshold = 0.2 is missed already without delay" in (
         capsys.readouterr().err
     )
+
+
+def test_empirical_takes_a_threshold_per_coordinate(tmp_path, capsys):
+    path = tmp_path / "two_axes.toml"
+    double_integrator([1.0, 1.0], [1.0, 1.0], duration=10.0, x0=[1.0, 10.0, 0.0, 0.0]).to_toml(path)
+    args = ["empirical", str(path), "--threshold", "0.5, 5", "--metric", "max", "--upper", "1"]
+    assert main([*args, "--json", "--quiet"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["threshold"] == [0.5, 5.0] and data["coordinate_names"] == ["q1", "q2"]
+    assert main([*args, "--quiet"]) == 0
+    assert "max <= (q1 0.5, q2 5) (each in its coordinate's unit)" in capsys.readouterr().out

@@ -163,3 +163,44 @@ def test_bad_scenario_and_controllers_are_refused():
         empirical_margin(double_integrator(1.0, 1.0), [], threshold=1.0)
     with pytest.raises(TypeError, match=r"controller\[0\] must be a Controller; got str"):
         empirical_margin(double_integrator(1.0, 1.0), ["arolc"], threshold=1.0)
+
+
+def test_a_threshold_per_coordinate_bounds_each_in_its_own_scale():
+    # Two identical axes, the second started ten times farther: its error is ten times the
+    # first's at every instant, so (0.5, 5) is the one-axis search at 0.5, and 0.5 for both is
+    # stricter.
+    options = {"metric": "max", "settle": 10.0, "resolution": 0.01, "upper": 1.2, "grid": 6}
+    alone = empirical_margin(double_integrator(1.0, 1.0, duration=20.0), threshold=0.5, **options)
+    scaled = double_integrator([1.0, 1.0], [1.0, 1.0], duration=20.0, x0=[1.0, 10.0, 0.0, 0.0])
+    each = empirical_margin(scaled, threshold=[0.5, 5.0], **options)
+    both = empirical_margin(scaled, threshold=0.5, **options)
+    assert alone.failure_found and each.failure_found
+    assert each.margin == alone.margin and each.first_failure == alone.first_failure
+    assert both.margin < each.margin
+    assert each.threshold == (0.5, 5.0) and each.coordinate_names == ("q1", "q2")
+    np.testing.assert_allclose(
+        each.coordinate_metrics[:, 1], 10.0 * each.coordinate_metrics[:, 0], rtol=1e-9
+    )
+    np.testing.assert_array_equal(
+        each.passes, (each.statuses == 0) & np.all(each.coordinate_metrics <= [0.5, 5.0], axis=1)
+    )
+    assert "max <= (q1 0.5, q2 5) (each in its coordinate's unit)" in each.describe()
+    data = each.to_dict()
+    assert data["threshold"] == [0.5, 5.0] and data["coordinate_names"] == ["q1", "q2"]
+    assert len(data["coordinate_metrics"]) == each.simulations
+    assert {"metric_q1", "metric_q2"} <= set(each.to_frame().columns)
+
+
+@pytest.mark.parametrize(
+    ("threshold", "message"),
+    [
+        ([0.5, 5.0, 1.0], r"threshold must be a number > 0, or a list of one number > 0 per "),
+        ([0.5, -1.0], r"per coordinate \(2: q1, q2\); got \[0.5, -1\]"),
+        ([0.5, np.nan], r"threshold must be finite"),
+        ([[0.5, 1.0]], r"threshold must be 1-dimensional"),
+    ],
+)
+def test_a_threshold_per_coordinate_needs_one_positive_number_each(threshold, message):
+    scenario = double_integrator([1.0, 1.0], [1.0, 1.0], duration=4.0, x0=[1.0, 1.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match=message):
+        empirical_margin(scenario, threshold=threshold, upper=0.4)

@@ -6,7 +6,7 @@ Commands::
     delaytrack margin --k1 1 --k2 1 [--q 1] [--beta 1] [--r 1.1] [--n 5] [--json]
     delaytrack design [--n 2] [--gain-bound 1] [--min-bandwidth W] [--r 1.1] [--seed 0] [--json]
     delaytrack simulate SCENARIO.toml [--out DIR] [--format parquet|csv|both] [--quiet]
-    delaytrack empirical SCENARIO.toml --threshold VALUE
+    delaytrack empirical SCENARIO.toml --threshold VALUE[,VALUE...]
         [--profile constant|abs-sine|abs-sine-offset]
         [--metric ae|rms|max] [--settle S] [--resolution S] [--upper S] [--frequency W] [--json]
         [--quiet]
@@ -101,6 +101,12 @@ def _numbers(flag: str, text: str) -> np.ndarray:
 def _scalar(flag: str, text: str) -> float:
     """Parse one finite float."""
     return _float(flag, text.strip(), text, "a single number" if "," in text else "a number")
+
+
+def _threshold(text: str) -> float | np.ndarray:
+    """``--threshold``: one number for every coordinate, or a comma list of one per coordinate."""
+    bounds = _numbers("--threshold", text)
+    return float(bounds[0]) if bounds.size == 1 else bounds
 
 
 def _dimension(args: argparse.Namespace, k1: np.ndarray, k2: np.ndarray, q: np.ndarray) -> int:
@@ -379,7 +385,7 @@ def _empirical(args: argparse.Namespace) -> int:
     scenario = Scenario.from_toml(_scenario_source(args.scenario))
     controller = scenario.build().controller
     options = {
-        "threshold": _scalar("--threshold", args.threshold),
+        "threshold": _threshold(args.threshold),
         "settle": None if args.settle is None else _scalar("--settle", args.settle),
         "resolution": _scalar("--resolution", args.resolution),
         "upper": _scalar("--upper", args.upper),
@@ -832,8 +838,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--threshold",
         required=True,
         metavar="VALUE",
-        help="largest acceptable tracking metric, in each coordinate's own unit (m, rad, ...; "
-        "required: what 'still tracks' means)",
+        help="largest acceptable tracking metric: one number for every coordinate, or a comma "
+        "list of one per coordinate, each in its own unit (0.05,0.1 for a plant whose coordinates "
+        "are in m and rad; required: what 'still tracks' means)",
     )
     empirical.add_argument(
         "--profile",

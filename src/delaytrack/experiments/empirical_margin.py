@@ -11,9 +11,11 @@ of a one-parameter family and searches the parameter ``v`` (seconds):
   below half its maximum ``v``.
 
 A run **passes** when it ends with status ``ok`` (no divergence, see
-:func:`delaytrack.sim.simulate`) and its tracking metric is at most ``threshold``. The metric
-is the largest over the coordinates of one of the running metrics over the window
-``[settle, duration]``: ``"ae"`` (mean ``|e1|``), ``"rms"`` or ``"max"`` (``max |e1|``).
+:func:`delaytrack.sim.simulate`) and, in every coordinate ``j``, its tracking metric is at most
+``threshold`` (one number for every coordinate, or ``threshold[j]`` in coordinate ``j``'s own
+unit: a robot's ``x`` in m beside its heading in rad). The metric is one of the running metrics
+over the window ``[settle, duration]``: ``"ae"`` (mean ``|e1|``), ``"rms"`` or ``"max"``
+(``max |e1|``).
 
 **Search.** One batched simulation over the coarse grid ``0, upper/grid, ..., upper``; the
 first failing grid point ``f`` and the point before it ``p`` bracket the margin. Then rounds
@@ -40,7 +42,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from delaytrack._validation import is_integer_at_least, positive_scalar
+from delaytrack._validation import finite_array, is_integer_at_least, positive_scalar
 from delaytrack.controllers import Controller
 from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
 from delaytrack.experiments.scenario import Scenario, ScenarioError
@@ -57,7 +59,7 @@ PROFILES: dict[str, Callable[[float, float], DelayProfile]] = {
     "abs-sine": lambda v, w: AbsSineDelay(offset=0.0, amplitude=v, frequency=w),
     "abs-sine-offset": lambda v, w: AbsSineDelay(offset=v / 2, amplitude=v / 2, frequency=w),
 }
-#: Tracking metrics (keys of ``SimResult.metrics``), each taken as the largest over coordinates.
+#: Tracking metrics (keys of ``SimResult.metrics``), each per coordinate.
 METRICS = {"ae": "mean |e1|", "rms": "RMS of e1", "max": "max |e1|"}
 #: Finest search resolution (s): a nanosecond, far below any plant step a scenario uses.
 MIN_RESOLUTION = 1e-9
@@ -83,14 +85,20 @@ class EmpiricalMargin:
         Smallest failing value found (s); ``first_failure - margin <= resolution``.
     profile, frequency : str, float
         Delay family and its angular frequency (rad/s; not used by ``"constant"``).
-    metric, threshold, settle : str, float, float
-        A run passes when it is ok and the largest over coordinates of ``metric`` over
-        ``[settle, duration]`` is ``<= threshold``.
+    metric, threshold, settle : str, float or tuple of float, float
+        A run passes when it is ok and ``metric`` over ``[settle, duration]`` is
+        ``<= threshold`` in every coordinate (a tuple: one bound per coordinate, each in that
+        coordinate's unit).
     resolution, upper : float
         Requested width of the final bracket and the search limit (s).
     values, metric_values, statuses : ndarray, shape (k,)
-        Every evaluated value in increasing order, its metric (NaN when the run is not ok) and
-        its status (0 ok, 1 diverged, 2 delay beyond history).
+        Every evaluated value in increasing order, its metric's largest value over the
+        coordinates (NaN when the run is not ok) and its status (0 ok, 1 diverged, 2 delay
+        beyond history).
+    coordinate_metrics : ndarray, shape (k, n)
+        The metric of every evaluated value in each coordinate (NaN when the run is not ok).
+    coordinate_names : tuple of str
+        The plant's coordinate names (``q1``, ``q2``, ... when it has none).
     scenario, controller : str
         Scenario name and controller type.
     simulations, rounds : int
@@ -103,13 +111,15 @@ class EmpiricalMargin:
     profile: str
     frequency: float
     metric: str
-    threshold: float
+    threshold: float | tuple[float, ...]
     settle: float
     resolution: float
     upper: float
     values: np.ndarray
     metric_values: np.ndarray
     statuses: np.ndarray
+    coordinate_metrics: np.ndarray
+    coordinate_names: tuple[str, ...]
     scenario: str
     controller: str
     simulations: int
@@ -118,14 +128,20 @@ class EmpiricalMargin:
     @property
     def passes(self) -> np.ndarray:
         """Whether each evaluated value passes (ok and metric within the threshold)."""
-        return (self.statuses == 0) & (self.metric_values <= self.threshold)
+        within = self.coordinate_metrics <= np.asarray(self.threshold)
+        return (self.statuses == 0) & np.all(within, axis=1)
 
     def describe(self) -> str:
         """One line: the margin with its threshold and resolution, or that none was found."""
-        rule = (
-            f"{self.metric} <= {self.threshold:g} (in each coordinate's unit) after "
-            f"t = {self.settle:g} s"
-        )
+        if isinstance(self.threshold, tuple):
+            bounds = ", ".join(
+                f"{name} {bound:g}"
+                for name, bound in zip(self.coordinate_names, self.threshold, strict=True)
+            )
+            rule = f"{self.metric} <= ({bounds}) (each in its coordinate's unit)"
+        else:
+            rule = f"{self.metric} <= {self.threshold:g} (in each coordinate's unit)"
+        rule += f" after t = {self.settle:g} s"
         if not self.failure_found:
             return (
                 f"no failure up to upper = {self.upper:g} s ({rule}): the margin is at least "
@@ -137,15 +153,12 @@ class EmpiricalMargin:
         )
 
     def to_frame(self) -> pd.DataFrame:
-        """Every evaluated value: ``value, metric, status, passes``."""
-        return pd.DataFrame(
-            {
-                "value": self.values,
-                "metric": self.metric_values,
-                "status": self.statuses,
-                "passes": self.passes,
-            }
-        )
+        """Every evaluated value: ``value, metric, status, passes`` and the metric of each
+        coordinate, ``metric_<name>``."""
+        columns = {"value": self.values, "metric": self.metric_values}
+        for j, name in enumerate(self.coordinate_names):
+            columns[f"metric_{name}"] = self.coordinate_metrics[:, j]
+        return pd.DataFrame({**columns, "status": self.statuses, "passes": self.passes})
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (JSON-ready)."""
@@ -156,7 +169,9 @@ class EmpiricalMargin:
             "profile": self.profile,
             "frequency": self.frequency,
             "metric": self.metric,
-            "threshold": self.threshold,
+            "threshold": list(self.threshold)
+            if isinstance(self.threshold, tuple)
+            else self.threshold,
             "settle": self.settle,
             "resolution": self.resolution,
             "upper": self.upper,
@@ -167,6 +182,11 @@ class EmpiricalMargin:
             "evaluated": [
                 [float(v), None if math.isnan(m) else float(m), int(s)]
                 for v, m, s in zip(self.values, self.metric_values, self.statuses, strict=True)
+            ],
+            "coordinate_names": list(self.coordinate_names),
+            "coordinate_metrics": [
+                [None if math.isnan(m) else float(m) for m in row]
+                for row in self.coordinate_metrics
             ],
         }
 
@@ -189,12 +209,18 @@ class _Search:
     def __init__(self) -> None:
         self.passed = 0.0
         self.failed: float | None = None
-        self.rows: list[tuple[float, float, int]] = []
+        self.rows: list[tuple[float, float, int, np.ndarray]] = []
         self.rounds = 0
 
-    def take(self, values: list[float], metric: np.ndarray, status: np.ndarray, ok) -> None:
-        """Record a batch of increasing values; move the bracket to its first failure."""
-        self.rows += [(v, float(m), int(s)) for v, m, s in zip(values, metric, status, strict=True)]
+    def take(
+        self, values: list[float], metrics: np.ndarray, status: np.ndarray, ok: np.ndarray
+    ) -> None:
+        """Record a batch of increasing values with their metrics per coordinate ``(k, n)``;
+        move the bracket to its first failure."""
+        self.rows += [
+            (v, float(row.max()), int(s), row)
+            for v, row, s in zip(values, metrics, status, strict=True)
+        ]
         self.rounds += 1
         for value, passes in zip(values, ok, strict=True):
             if not passes:
@@ -242,13 +268,14 @@ def empirical_margin(
         The scenario's controller by default. A list (of one kind) is searched in lockstep: each
         round is one batched simulation of every unfinished search, and each result equals
         the search of that controller alone.
-    threshold : float
-        Largest acceptable value of ``metric`` (rad), > 0.
+    threshold : float or sequence of float
+        Largest acceptable value of ``metric``, > 0: one number for every coordinate, or one
+        per coordinate, each in that coordinate's unit (the plant's ``coordinate_units``).
     profile : {"constant", "abs-sine", "abs-sine-offset"}
         Delay family (module docstring); the searched value ``v`` is the largest delay of each.
     metric : {"ae", "rms", "max"}
-        Mean ``|e1|``, RMS of ``e1`` or ``max |e1|`` over ``[settle, duration]``, the largest over
-        the coordinates.
+        Mean ``|e1|``, RMS of ``e1`` or ``max |e1|`` over ``[settle, duration]``, in each
+        coordinate.
     settle : float, optional
         Start of the metric window, seconds in ``[0, duration)``; half the duration by default.
     resolution : float
@@ -308,6 +335,8 @@ def empirical_margin(
                 f"simulation); got {value}"
             )
     built = scenario.build()
+    settings["threshold"] = _per_coordinate(settings["threshold"], built.plant)
+    limits = np.broadcast_to(np.asarray(settings["threshold"], dtype=float), (built.plant.n,))
     make = PROFILES[settings["profile"]]
     switches = make(settings["upper"], frequency).switch_bound(0.0, scenario.duration, scenario.T_c)
     if not switches <= MAX_STEPS:
@@ -342,47 +371,76 @@ def empirical_margin(
         ok = result.status == 0
         metrics = np.full((len(values), built.plant.n), np.nan)  # per coordinate, ok runs only
         metrics[ok] = result.metrics[settings["metric"]][ok]
-        worst = metrics.max(axis=1)
-        return worst, result.status, ok & (worst <= settings["threshold"]), metrics
+        return result.status, ok & np.all(metrics <= limits, axis=1), metrics
 
     searches = [_Search() for _ in controllers]
     coarse = [settings["upper"] * k / grid for k in range(grid + 1)]
     jobs = {i: coarse for i in range(len(controllers))}
     while jobs:
         flat = [(i, v) for i, values in jobs.items() for v in values]
-        worst, status, passes, metrics = evaluate(
-            [v for _, v in flat], [controllers[i] for i, _ in flat]
-        )
+        status, passes, metrics = evaluate([v for _, v in flat], [controllers[i] for i, _ in flat])
         start = 0
         for i, values in jobs.items():
             part = slice(start, start + len(values))
             start += len(values)
             if values is coarse and not passes[part][0]:
                 where = "" if single else f" (controller[{i}])"
-                found = _missed(settings["metric"], metrics[part][0], status[part][0], built.plant)
-                raise ValueError(
-                    f"threshold = {settings['threshold']:g} is missed already without delay: "
-                    f"{found} at h = 0{where}; give a larger threshold or a later settle time"
+                found = _missed(
+                    settings["metric"], metrics[part][0], status[part][0], limits, built.plant
                 )
-            searches[i].take(values, worst[part], status[part], passes[part])
+                raise ValueError(
+                    f"threshold = {_shown(settings['threshold'])} is missed already without "
+                    f"delay: {found} at h = 0{where}; give a larger threshold or a later settle "
+                    f"time"
+                )
+            searches[i].take(values, metrics[part], status[part], passes[part])
         jobs = {}
         for i, search in enumerate(searches):
             values = search.next_values(points, settings["resolution"])
             if values:
                 jobs[i] = values
+    names = default_names(built.plant.coordinate_names, built.plant.n)
     results = [
-        _result(search, scenario, item, frequency, settings)
+        _result(search, scenario, item, frequency, settings, names)
         for search, item in zip(searches, controllers, strict=True)
     ]
     return results[0] if single else results
 
 
-def _missed(metric: str, values: np.ndarray, status: int, plant: ELPlant) -> str:
-    """What failed a run: its status, or its largest ``metric`` with the coordinate and unit
-    (``ae of x = 0.31 m``); ``values`` holds the run's metric per coordinate."""
+def _shown(threshold: float | tuple[float, ...]) -> str:
+    """``0.2`` or ``[0.01, 0.01, 0.05]``."""
+    if isinstance(threshold, tuple):
+        return "[" + ", ".join(f"{bound:g}" for bound in threshold) + "]"
+    return f"{threshold:g}"
+
+
+def _per_coordinate(threshold: object, plant: ELPlant) -> float | tuple[float, ...]:
+    """The threshold as given: one number, or a tuple of one per coordinate of ``plant``."""
+    if np.ndim(threshold) == 0:
+        return positive_scalar("threshold", threshold)
+    bounds = finite_array("threshold", threshold, ndim=1)
+    names = default_names(plant.coordinate_names, plant.n)
+    units = plant.coordinate_units or [None] * plant.n
+    coordinates = ", ".join(
+        name + (f" [{unit}]" if unit else "") for name, unit in zip(names, units, strict=True)
+    )
+    if bounds.size != plant.n or not np.all(bounds > 0.0):
+        raise ValueError(
+            f"threshold must be a number > 0, or a list of one number > 0 per coordinate "
+            f"({plant.n}: {coordinates}); got {_shown(tuple(float(b) for b in bounds))}"
+        )
+    return tuple(float(bound) for bound in bounds)
+
+
+def _missed(
+    metric: str, values: np.ndarray, status: int, limits: np.ndarray, plant: ELPlant
+) -> str:
+    """What failed a run: its status, or the coordinate whose ``metric`` exceeds its bound in
+    ``limits`` the most, relative to it, with its unit (``ae of x = 0.31 m``); ``values`` holds
+    the run's metric per coordinate."""
     if status != 0:
         return f"status {STATUS_NAMES[int(status)]!r}"
-    j = int(np.argmax(values))
+    j = int(np.argmax(values / limits))
     unit = (plant.coordinate_units or [None] * plant.n)[j]
     name = default_names(plant.coordinate_names, plant.n)[j]
     return f"{metric} of {name} = {values[j]:.4g}" + (f" {unit}" if unit else "")
@@ -427,7 +485,7 @@ def _settings(
     return {
         "profile": _choice("profile", profile, tuple(PROFILES)),
         "metric": _choice("metric", metric, tuple(METRICS)),
-        "threshold": positive_scalar("threshold", threshold),
+        "threshold": threshold,  # checked against the plant's coordinates once it is built
         "settle": settle,
         "resolution": resolution,
         "upper": upper,
@@ -440,8 +498,9 @@ def _result(
     controller: Controller,
     frequency: float,
     settings: dict[str, Any],
+    names: tuple[str, ...],
 ) -> EmpiricalMargin:
-    rows = sorted(search.rows)
+    rows = sorted(search.rows, key=lambda row: row[0])
     found = search.failed is not None
     return EmpiricalMargin(
         margin=search.passed,
@@ -451,6 +510,8 @@ def _result(
         values=np.array([row[0] for row in rows]),
         metric_values=np.array([row[1] for row in rows]),
         statuses=np.array([row[2] for row in rows], dtype=int),
+        coordinate_metrics=np.array([row[3] for row in rows]),
+        coordinate_names=names,
         scenario=scenario.name,
         controller=controller.type_name,
         simulations=len(rows),

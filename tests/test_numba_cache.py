@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import os
 import shutil
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -94,3 +97,17 @@ def test_every_compiled_kernel_saves_under_the_lock() -> None:
 
     for dispatcher in (run_batch_compiled, arolc_step, robot_payload_terms):
         assert type(dispatcher._cache._cache_file) is _numba_cache._LockedIndexDataCacheFile
+
+
+def test_importing_with_numbas_compiler_disabled_is_a_clear_error() -> None:
+    completed = subprocess.run(
+        [sys.executable, "-c", "import delaytrack"],
+        env={**os.environ, "NUMBA_DISABLE_JIT": "1"},
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert completed.returncode != 0
+    last = completed.stderr.strip().splitlines()[-1]
+    assert last.startswith("ImportError: delaytrack cannot be imported with NUMBA_DISABLE_JIT=1")
+    assert "engine='python'" in last

@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import functools
 
+import numba
 from numba import njit
 from numba.core.registry import CPUDispatcher
 from numba.extending import register_jitable
@@ -60,6 +61,13 @@ __all__ = [
     "kernel",
     "tick_kernel",
 ]
+
+if numba.config.DISABLE_JIT:  # njit would give plain functions, which the engine cannot call
+    raise ImportError(
+        "delaytrack cannot be imported with NUMBA_DISABLE_JIT=1: its engine and kernels are "
+        "compiled by numba. Unset it; to step through a kernel of yours in Python, run "
+        "simulate(..., engine='python'), which runs every kernel's Python function"
+    )
 
 #: numba options of every compiled kernel.
 KERNEL_OPTIONS = {"cache": True, "error_model": "numpy"}

@@ -107,11 +107,4 @@ def locked_cache(dispatcher):
     return dispatcher
 
 
-if numba.config.DISABLE_JIT:
-    raise ImportError(
-        "delaytrack cannot be imported with NUMBA_DISABLE_JIT=1: its engine and kernels are "
-        "compiled by numba. Unset it; to step through a kernel of yours in Python, run "
-        "simulate(..., engine='python'), which runs every kernel's Python function"
-    )
-
 numba.config.CACHE_DIR = str(cache_directory())

@@ -91,9 +91,8 @@ class EmpiricalMargin:
         coordinate's unit).
     resolution, upper : float
         Requested width of the final bracket and the search limit (s).
-    values, metric_values, statuses : ndarray, shape (k,)
-        Every evaluated value in increasing order, its metric's largest value over the
-        coordinates (NaN when the run is not ok) and its status (0 ok, 1 diverged, 2 delay
+    values, statuses : ndarray, shape (k,)
+        Every evaluated value in increasing order and its status (0 ok, 1 diverged, 2 delay
         beyond history).
     coordinate_metrics : ndarray, shape (k, n)
         The metric of every evaluated value in each coordinate (NaN when the run is not ok).
@@ -116,7 +115,6 @@ class EmpiricalMargin:
     resolution: float
     upper: float
     values: np.ndarray
-    metric_values: np.ndarray
     statuses: np.ndarray
     coordinate_metrics: np.ndarray
     coordinate_names: tuple[str, ...]
@@ -124,6 +122,12 @@ class EmpiricalMargin:
     controller: str
     simulations: int
     rounds: int
+
+    @property
+    def metric_values(self) -> np.ndarray:
+        """The metric of every evaluated value, the largest over the coordinates (NaN when the
+        run is not ok), shape (k,)."""
+        return self.coordinate_metrics.max(axis=1)
 
     @property
     def passes(self) -> np.ndarray:
@@ -209,7 +213,7 @@ class _Search:
     def __init__(self) -> None:
         self.passed = 0.0
         self.failed: float | None = None
-        self.rows: list[tuple[float, float, int, np.ndarray]] = []
+        self.rows: list[tuple[float, int, np.ndarray]] = []
         self.rounds = 0
 
     def take(
@@ -217,10 +221,7 @@ class _Search:
     ) -> None:
         """Record a batch of increasing values with their metrics per coordinate ``(k, n)``;
         move the bracket to its first failure."""
-        self.rows += [
-            (v, float(row.max()), int(s), row)
-            for v, row, s in zip(values, metrics, status, strict=True)
-        ]
+        self.rows += [(v, int(s), row) for v, s, row in zip(values, status, metrics, strict=True)]
         self.rounds += 1
         for value, passes in zip(values, ok, strict=True):
             if not passes:
@@ -419,12 +420,12 @@ def _per_coordinate(threshold: object, plant: ELPlant) -> float | tuple[float, .
     if np.ndim(threshold) == 0:
         return positive_scalar("threshold", threshold)
     bounds = finite_array("threshold", threshold, ndim=1)
-    names = default_names(plant.coordinate_names, plant.n)
-    units = plant.coordinate_units or [None] * plant.n
-    coordinates = ", ".join(
-        name + (f" [{unit}]" if unit else "") for name, unit in zip(names, units, strict=True)
-    )
     if bounds.size != plant.n or not np.all(bounds > 0.0):
+        names = default_names(plant.coordinate_names, plant.n)
+        units = plant.coordinate_units or [None] * plant.n
+        coordinates = ", ".join(
+            name + (f" [{unit}]" if unit else "") for name, unit in zip(names, units, strict=True)
+        )
         raise ValueError(
             f"threshold must be a number > 0, or a list of one number > 0 per coordinate "
             f"({plant.n}: {coordinates}); got {_shown(tuple(float(b) for b in bounds))}"
@@ -508,9 +509,8 @@ def _result(
         first_failure=search.failed,
         frequency=frequency,
         values=np.array([row[0] for row in rows]),
-        metric_values=np.array([row[1] for row in rows]),
-        statuses=np.array([row[2] for row in rows], dtype=int),
-        coordinate_metrics=np.array([row[3] for row in rows]),
+        statuses=np.array([row[1] for row in rows], dtype=int),
+        coordinate_metrics=np.array([row[2] for row in rows]),
         coordinate_names=names,
         scenario=scenario.name,
         controller=controller.type_name,

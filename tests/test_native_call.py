@@ -8,10 +8,11 @@ import pytest
 from numba.core.errors import TypingError
 
 from delaytrack._native_call import NativeFunction, call_native
+from delaytrack.components import Kernel
 from delaytrack.controllers import AROLC, OuterLoop
 from delaytrack.delays import AbsSineDelay
-from delaytrack.plants import TwoLinkArm
-from delaytrack.references import SinusoidalReference
+from delaytrack.plants import LinearPlant, TwoLinkArm
+from delaytrack.references import SinusoidalReference, SplineReference
 from delaytrack.sim import simulate
 from delaytrack.sim.engine import run_batch_compiled
 
@@ -26,7 +27,20 @@ def call_add(function, values, amount):
     call_native(function, (values, amount))
 
 
+@numba.njit
+def add_and_double(kernel, values, amount):
+    values[0] += amount
+    return 2.0 * values[0]
+
+
+@numba.njit
+def call_and_return(function, values, amount):
+    return call_native(function, (values, amount))
+
+
 VECTOR = numba.typeof(np.zeros(1))
+#: An argument with no run-time data: a component's kernel, whose numba type names its code.
+OPAQUE = Kernel.of(add_to_first).numba_type
 
 
 def test_a_native_function_is_called_through_its_address() -> None:
@@ -44,6 +58,33 @@ def test_a_native_function_called_with_other_types_is_refused_when_compiling() -
     native = NativeFunction.of(add_to_first, (VECTOR, numba.float64))
     with pytest.raises(TypingError, match="compiled for"):
         call_add(native, np.zeros(3, dtype=np.int64), 1)
+
+
+def test_a_bound_argument_is_filled_in_and_the_result_returned() -> None:
+    native = NativeFunction.of(
+        add_and_double, (OPAQUE, VECTOR, numba.float64), bound=(0,), returns=numba.float64
+    )
+    values = np.zeros(2)
+    assert call_and_return(native, values, 1.5) == 3.0
+    assert call_native(native, (values, 1.0)) == 5.0  # from Python: the function itself
+    np.testing.assert_array_equal(values, [2.5, 0.0])
+    # Its numba type names only what the caller passes: another kernel in the bound position
+    # is the same type, so one caller serves both.
+    other = Kernel.of(add_and_double).numba_type
+    assert other != OPAQUE
+    again = NativeFunction.of(
+        add_and_double, (other, VECTOR, numba.float64), bound=(0,), returns=numba.float64
+    )
+    assert again.numba_type == native.numba_type and again.address != native.address
+
+
+def test_binding_an_argument_with_data_or_a_wrong_result_type_is_refused() -> None:
+    with pytest.raises(TypeError, match="carries data"):
+        NativeFunction.of(add_to_first, (VECTOR, numba.float64), bound=(0,))
+    with pytest.raises(ValueError, match="outside the 2 arguments"):
+        NativeFunction.of(add_to_first, (VECTOR, numba.float64), bound=(2,))
+    with pytest.raises(TypeError, match="returns float64, not none"):
+        NativeFunction.of(add_and_double, (OPAQUE, VECTOR, numba.float64), bound=(0,))
 
 
 def test_an_object_mode_function_is_refused() -> None:
@@ -69,3 +110,30 @@ def test_another_controller_on_the_same_plant_reuses_the_compiled_engine() -> No
     )
     assert len(run_batch_compiled.overloads) == engines
     assert outer.status.tolist() == [0]
+
+
+def test_another_plant_and_reference_reuse_the_compiled_engine() -> None:
+    # The plant's integrator and the reference are called through their address too: a new
+    # plant or reference compiles its own part, never the engine again.
+    settings = dict(t1=0.1, dt=1e-3, T_c=1e-2, trajectories=False)
+    arm_reference = SinusoidalReference(
+        [0.0, 0.0], amplitude=[[0.8], [0.5]], frequency=[[1.0], [1.7]]
+    )
+    arolc = AROLC(TwoLinkArm(), K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=1e-3)
+    simulate(
+        TwoLinkArm(), arolc, AbsSineDelay.S1(), np.zeros(4), reference=arm_reference, **settings
+    )
+    engines = len(run_batch_compiled.overloads)
+    times = np.linspace(0.0, 1.0, 5)
+    spline = SplineReference(times, np.sin(times)[:, None])
+    line = LinearPlant(1.0, 0.5, 2.0)
+    linear = simulate(
+        line,
+        OuterLoop(LinearPlant(1.0), 1.0, 1.0),
+        AbsSineDelay.S1(),
+        np.zeros(2),
+        reference=spline,
+        **settings,
+    )
+    assert len(run_batch_compiled.overloads) == engines
+    assert linear.status.tolist() == [0]

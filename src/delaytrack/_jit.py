@@ -26,7 +26,8 @@ every caller, which took the paper job's first compile from 28 s to 50 s at the 
 is one (the plain-Python engine).
 
 :data:`tick_kernel` is :data:`kernel` compiled without numba's runtime (``_nrt=False``): the
-functions called once a controller tick (the controllers' steps, the references). They only
+functions called once a controller tick (the controllers' steps, the references, the plant's
+integrator :func:`delaytrack.sim.integrator.integrate_tick`). They only
 work in arrays their callers own (a copy into a slice is written as a loop, since numba's slice
 copy needs the runtime); with the runtime, the reference counts of the views they make (about
 fifty atomic operations a tick) took more than half of the time of a tick's compiled code, and
@@ -36,8 +37,8 @@ a 60 s robot run went from 20 ms to 18.7 ms without them.
 (``_nrt=False``): no reference counts at all, so it may neither allocate nor return an array
 (numba refuses to compile it if it does), only work in arrays its caller owns. Inlining does not
 remove every count: a loop over sub-steps kept about 30 atomic operations per RK4 step, a third of
-the step's time, in the plant's step; :func:`delaytrack.sim.integrator.integrate_tick` is
-therefore one.
+the step's time, in the plant's step; the engine's tick loop
+(:func:`delaytrack.sim.engine.run_closed_loop`'s) is therefore one.
 """
 
 from __future__ import annotations

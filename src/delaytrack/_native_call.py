@@ -15,6 +15,12 @@ The call uses numba's own calling convention (the step's compiled code, not a C 
 arrays, tuples and kernels pass as they would in a linked call; the step's argument types are
 part of the numba type of a :class:`NativeFunction` and must equal those of the call, which
 compiling the caller checks.
+
+An argument that carries no data at run time (a component's kernel, whose numba type names the
+code it calls) can be *bound*: the caller does not pass it, the call fills it in, and its type is
+not part of the :class:`NativeFunction`'s numba type. The plant's step, the reference and the
+nominal model are bound that way, so that one compiled engine calls the code compiled for any
+of them.
 """
 
 from __future__ import annotations
@@ -26,6 +32,8 @@ from typing import Any
 from llvmlite import ir
 from numba import types
 from numba.core import cgutils
+from numba.core.datamodel import default_manager
+from numba.core.datamodel.models import OpaqueModel
 from numba.core.errors import TypingError
 from numba.extending import (
     NativeValue,
@@ -42,8 +50,8 @@ __all__ = ["NativeFunction", "NativeFunctionType", "call_native"]
 
 @dataclass(frozen=True)
 class NativeFunction:
-    """A ``numba.njit`` function compiled for ``signature`` (its argument types, returning
-    nothing), known to compiled code by the address of that compiled code.
+    """A ``numba.njit`` function compiled for ``signature`` (its argument types), known to
+    compiled code by the address of that compiled code.
 
     Parameters
     ----------
@@ -53,23 +61,34 @@ class NativeFunction:
         The types of its arguments.
     address : int
         Where its compiled code is, in this process.
+    bound : tuple of int
+        Positions of the arguments that carry no data (an opaque numba type, such as a
+        component's kernel): the caller leaves them out and the call fills them in.
+    returns : numba type
+        What it returns (``none`` for nothing).
     """
 
     function: Any
     signature: tuple
     address: int
+    bound: tuple = ()
+    returns: types.Type = types.none
 
     @classmethod
-    def of(cls, function: Any, signature: tuple) -> NativeFunction:
-        """``function`` compiled (or loaded from numba's disk cache) for ``signature``.
+    def of(
+        cls, function: Any, signature: tuple, bound: tuple = (), returns: types.Type = types.none
+    ) -> NativeFunction:
+        """``function`` compiled (or loaded from numba's disk cache) for ``signature``, returning
+        ``returns``, with the arguments at the positions ``bound`` filled in by the call.
 
         Its compiled code is looked up at every call of this method: numba keeps every compiled
         version of a function for the life of the process, so the address stays valid, and a
         recompiled function gives its new code's. (The simulator keeps the first one it finds
-        for each controller step, :func:`~delaytrack.sim.engine.native_controller_step`: this
-        package's steps are not recompiled.)
+        for each function and signature, :func:`~delaytrack.sim.engine.native`: this package's
+        functions are not recompiled.)
         """
         signature = tuple(signature)
+        _check_bound(signature, bound)
         result = function.overloads.get(signature)
         if result is None:
             function.compile(signature)
@@ -79,10 +98,14 @@ class NativeFunction:
                 f"{function.__name__} is compiled in object mode; the engine calls only "
                 "nopython code (numba.njit)"
             )
+        if result.signature.return_type != returns:
+            raise TypeError(
+                f"{function.__name__} returns {result.signature.return_type}, not {returns}"
+            )
         address = result.library.get_pointer_to_function(result.fndesc.llvm_func_name)
         if not address:
             raise RuntimeError(f"numba gave no address for the compiled {function.__name__}")
-        return cls(function, signature, address)
+        return cls(function, signature, address, tuple(bound), returns)
 
     @property
     def runs_as_python(self) -> bool:
@@ -92,28 +115,47 @@ class NativeFunction:
     @cached_property
     def numba_type(self) -> NativeFunctionType:
         """Its numba type, made once (numba types it at every call of the engine)."""
-        return NativeFunctionType(self.signature)
+        free = tuple(t for i, t in enumerate(self.signature) if i not in self.bound)
+        return NativeFunctionType(free, self.bound, self.returns)
+
+
+def _check_bound(signature: tuple, bound: tuple) -> None:
+    """Refuse to bind an argument that is out of range or carries data."""
+    for position in bound:
+        if not 0 <= position < len(signature):
+            raise ValueError(f"bound position {position} is outside the {len(signature)} arguments")
+        if not isinstance(default_manager.lookup(signature[position]), OpaqueModel):
+            raise TypeError(
+                f"argument {position} ({signature[position]}) carries data: it cannot be bound"
+            )
 
 
 class NativeFunctionType(types.Type):
-    """numba type of a :class:`NativeFunction`: its argument types, not which function it is
-    (the address is a run-time value), so one caller serves every function of that signature."""
+    """numba type of a :class:`NativeFunction`: the types of the arguments its callers pass, the
+    positions of those it fills in and what it returns, not which function it is (the address
+    is a run-time value), so one caller serves every function of that signature."""
 
-    def __init__(self, signature: tuple) -> None:
+    def __init__(
+        self, signature: tuple, bound: tuple = (), returns: types.Type = types.none
+    ) -> None:
         self.signature = tuple(signature)
-        super().__init__(name=f"NativeFunction({', '.join(map(str, self.signature))})")
+        self.bound = tuple(bound)
+        self.returns = returns
+        arguments = ", ".join(map(str, self.signature))
+        filled = f"; bound {list(self.bound)}" if self.bound else ""
+        super().__init__(name=f"NativeFunction({arguments}{filled}) -> {returns}")
 
     @property
     def key(self) -> tuple:
-        """The argument types themselves (not their text) identify the type."""
-        return self.signature
+        """The types themselves (not their text) identify the type."""
+        return self.signature, self.bound, self.returns
 
     def __hash__(self) -> int:
-        """The signature's hash, computed once in this process: numba hashes the engine's
-        argument types at every call, and hashing the signature anew cost 20 µs a call."""
+        """The key's hash, computed once in this process: numba hashes the engine's argument
+        types at every call, and hashing the signature anew cost 20 µs a call."""
         value = self.__dict__.get("_hash")
         if value is None:
-            value = self.__dict__["_hash"] = hash(self.signature)
+            value = self.__dict__["_hash"] = hash(self.key)
         return value
 
     def __getstate__(self) -> dict:
@@ -141,8 +183,12 @@ def _unbox_native_function(typ: NativeFunctionType, obj: Any, c: Any) -> NativeV
 
 
 def call_native(function, arguments):
-    """Call the :class:`NativeFunction` ``function`` with the tuple ``arguments``."""
-    function.function(*arguments)
+    """Call the :class:`NativeFunction` ``function`` with the tuple ``arguments`` (those it does
+    not bind) and return what it returns."""
+    full = list(arguments)
+    for position in function.bound:
+        full.insert(position, None)
+    return function.function(*full)
 
 
 @intrinsic
@@ -153,20 +199,25 @@ def _call_at(typingctx: Any, function: NativeFunctionType, arguments: types.Base
             f"a native function compiled for ({', '.join(map(str, function.signature))}) is "
             f"called with ({', '.join(map(str, argument_types))})"
         )
+    # A bound argument's type is opaque: any opaque type has its data model (one null pointer).
+    full_types = list(argument_types)
+    for position in function.bound:
+        full_types.insert(position, types.voidptr)
+    returns = function.returns
 
     def codegen(context: Any, builder: Any, signature: Any, values: Any) -> Any:
         address, packed = values
-        unpacked = [builder.extract_value(packed, i) for i in range(len(argument_types))]
-        function_type = context.call_conv.get_function_type(types.none, argument_types)
+        full = [builder.extract_value(packed, i) for i in range(len(argument_types))]
+        for position in function.bound:
+            full.insert(position, context.get_constant_null(types.voidptr))
+        function_type = context.call_conv.get_function_type(returns, full_types)
         callee = builder.inttoptr(address, function_type.as_pointer())
-        status, _ = context.call_conv.call_function(
-            builder, callee, types.none, argument_types, unpacked
-        )
+        status, value = context.call_conv.call_function(builder, callee, returns, full_types, full)
         with cgutils.if_unlikely(builder, status.is_error):
             context.call_conv.return_status_propagate(builder, status)
-        return context.get_dummy_value()
+        return value if returns != types.none else context.get_dummy_value()
 
-    return types.none(function, arguments), codegen
+    return returns(function, arguments), codegen
 
 
 @overload(call_native, inline="always")
@@ -174,7 +225,7 @@ def _call_native_compiled(function, arguments):
     if isinstance(function, NativeFunctionType):
 
         def impl(function, arguments):
-            _call_at(function, arguments)
+            return _call_at(function, arguments)
 
         return impl
     return None

@@ -51,7 +51,7 @@ from numba.extending import (
     unbox,
 )
 
-from delaytrack._jit import inline_kernel
+from delaytrack._jit import inline_kernel, tick_kernel
 from delaytrack._native_call import NativeFunctionType, call_native
 from delaytrack._small_linalg import solve_in_place
 
@@ -64,6 +64,7 @@ __all__ = [
     "call_step",
     "call_stepper",
     "call_terms",
+    "evaluate_reference",
     "code_fingerprint",
     "has_identity_mass",
     "has_stepper",
@@ -560,12 +561,12 @@ def _call_step_compiled(
     # Inlined, so that the tick calls the step itself (a call level cost about 0.13 µs a tick;
     # numba's inliner does not take *arguments): through its address (this package's steps in
     # the compiled engine, delaytrack._native_call) or linked into the caller.
-    if isinstance(step, NativeFunctionType):
+    if isinstance(step, NativeFunctionType):  # the nominal model's kernel bound
 
         def native(
             step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, mp, u, work
         ):
-            arguments = (t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, mp, u, work)
+            arguments = (t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, mp, u, work)
             call_native(step, arguments)
 
         return native
@@ -586,6 +587,12 @@ def call_reference(reference, t, params, qd, qd_dot, qd_ddot):
 
 @overload(call_reference)
 def _call_reference_compiled(reference, t, params, qd, qd_dot, qd_ddot):
+    if isinstance(reference, NativeFunctionType):  # evaluate_reference, the kernel bound
+
+        def native(reference, t, params, qd, qd_dot, qd_ddot):
+            call_native(reference, (t, params, qd, qd_dot, qd_ddot))
+
+        return native
     if isinstance(reference, KernelType):
         function = reference.kernel().function
 
@@ -594,6 +601,13 @@ def _call_reference_compiled(reference, t, params, qd, qd_dot, qd_ddot):
 
         return impl
     return None
+
+
+@tick_kernel
+def evaluate_reference(reference, t, params, qd, qd_dot, qd_ddot):
+    """:func:`call_reference`, compiled on its own for each reference kernel: the compiled engine
+    calls it through its address (:mod:`delaytrack.sim.native_parts`)."""
+    call_reference(reference, t, params, qd, qd_dot, qd_ddot)
 
 
 def call_delay(delay, t, params):

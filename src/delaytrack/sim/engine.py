@@ -13,15 +13,10 @@ Python (a user plant given as Python callables): see :mod:`delaytrack.sim.simula
 
 from __future__ import annotations
 
-import functools
-from typing import Any
-
 import numpy as np
-from numba import typeof, types
 
 from delaytrack._jit import borrowing_kernel, compiled, inline_kernel
-from delaytrack._native_call import NativeFunction
-from delaytrack.components import Kernel, call_reference, call_step
+from delaytrack.components import call_reference, call_step
 from delaytrack.controllers.base import step_workspace
 from delaytrack.delays._kernel import profile_value
 from delaytrack.sim.history import tick_time
@@ -31,7 +26,7 @@ from delaytrack.sim.integrator import (
     LEFT_PATH,
     OK,
     beyond,
-    integrate_tick,
+    integrate,
     rk4_workspace,
 )
 from delaytrack.sim.measurement import measure
@@ -44,8 +39,6 @@ __all__ = [
     "LEFT_PATH",
     "OK",
     "STATUS_NAMES",
-    "controller_step_signature",
-    "native_controller_step",
     "run_batch",
     "run_batch_compiled",
     "run_closed_loop",
@@ -72,11 +65,13 @@ def run_closed_loop(handles, run, settings, records):
     Parameters (tuples, so that :func:`run_batch` can pass them on whole)
     ----------------------------------------------------------------------
     handles : tuple
-        ``(plant_terms, model_terms, reference, controller_step, delay)``: the components'
-        :class:`~delaytrack.components.Kernel` objects (``delay``: the batch's delay kernel,
-        for the runs whose profile is a kernel of the user's); in the compiled engine a step of
-        this package's is a :class:`~delaytrack._native_call.NativeFunction`, called through
-        its address.
+        ``(plant_step, model_terms, reference, controller_step, delay)``: the components'
+        :class:`~delaytrack.components.Kernel` objects (``plant_step``: the plant's;
+        ``delay``: the batch's delay kernel, for the runs whose profile is a kernel of the
+        user's). In the compiled engine the plant's step, the reference and a step of this
+        package's are :class:`~delaytrack._native_call.NativeFunction` objects, called through
+        their address (:mod:`delaytrack.sim.native_parts`), and ``model_terms`` is then any
+        kernel: only a step of the user's, linked into the engine, reads it.
     run : tuple
         This run's arrays ``(plant_params, model_params, controller_params, controller_state,
         delay_kind, delay_params, x0, capacity, input_limits, measurement, loss,
@@ -130,7 +125,7 @@ def _run_ticks(handles, run, settings, records, memory):
     arrays handed to the controller's step, the reference and the metrics at every tick cost
     about 44 atomic operations a tick, 8 % of a robot run's time.
     """
-    plant_terms, model_terms, reference, controller_step, delay = handles
+    plant_step, model_terms, reference, controller_step, delay = handles
     (
         plant_params,
         model_params,
@@ -229,8 +224,8 @@ def _run_ticks(handles, run, settings, records, memory):
         last = k == n_ticks
         if last and not record:
             break
-        outcome, t_stop, slot = integrate_tick(
-            plant_terms,
+        outcome, t_stop, slot = integrate(
+            plant_step,
             plant_params,
             delay,
             delay_kind,
@@ -252,44 +247,6 @@ def _run_ticks(handles, run, settings, records, memory):
         if outcome != OK:
             return outcome, t_stop
     return OK, tick_time(n_ticks, t0, dt, steps_per_tick)
-
-
-def controller_step_signature(model: Kernel, n: int, m: int) -> tuple:
-    """The numba types of the arguments :func:`run_closed_loop` passes to a controller's step
-    (:func:`~delaytrack.components.call_step`) for a nominal ``model`` with ``n`` coordinates
-    and ``m`` inputs: the signature its step is compiled for in the compiled engine, which
-    calls it through its address (:mod:`delaytrack._native_call`)."""
-    return _step_signature(model.numba_type, n, m)
-
-
-@functools.cache
-def _step_signature(model_type: types.Type, n: int, m: int) -> tuple:
-    """:func:`controller_step_signature`, typed once per model type and sizes (typing it costs
-    about 40 µs, more than a short run)."""
-    vector = typeof(np.empty(n))
-    return (
-        types.float64,  # t
-        *(vector,) * 5,  # q, q̇, q_d, q̇_d, q̈_d
-        types.float64,  # T_c
-        types.float64,  # h
-        vector,  # params
-        vector,  # state
-        model_type,
-        vector,  # the model's params
-        vector,  # command
-        typeof(step_workspace(n, m)),
-    )
-
-
-@functools.cache
-def native_controller_step(step: Any, model_type: types.Type, n: int, m: int) -> NativeFunction:
-    """The compiled controller ``step`` (a numba dispatcher of this package's) as the compiled
-    engine calls it, for a nominal model of numba type ``model_type`` with ``n`` coordinates
-    and ``m`` inputs: :meth:`NativeFunction.of <delaytrack._native_call.NativeFunction.of>`
-    for :func:`controller_step_signature`, compiled (or loaded from the disk cache) on the
-    first call and then found in memory. The address kept is that of the code compiled first,
-    which numba keeps for the life of the process."""
-    return NativeFunction.of(step, _step_signature(model_type, n, m))
 
 
 @inline_kernel
@@ -340,8 +297,9 @@ def run_batch(handles, runs, settings, records, status, t_stop):
         status[b], t_stop[b] = run_closed_loop(handles, run, settings, run_records)
 
 
-#: :func:`run_batch` compiled, once for each set of kernels (their numba types name them; a
-#: built-in controller's step is passed by the address of its own compiled code, so one engine
-#: serves every built-in controller), and cached on disk, user kernels included. It releases
-#: the GIL, so threads run sub-batches in parallel.
+#: :func:`run_batch` compiled and cached on disk. The plant's step, the reference and a built-in
+#: controller's step are passed by the address of their own compiled code
+#: (:mod:`delaytrack.sim.native_parts`), so one engine serves all of them; it is compiled again
+#: only for a controller step or a delay kernel of the user's (their numba types name them). It
+#: releases the GIL, so threads run sub-batches in parallel.
 run_batch_compiled = compiled(run_batch, nogil=True)

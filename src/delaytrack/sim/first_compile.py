@@ -1,10 +1,11 @@
-"""Say so before the engine is compiled for a new set of kernels (it takes seconds to a minute).
+"""Say so before code is compiled for a new component (it takes seconds to a minute).
 
-numba compiles :func:`~delaytrack.sim.engine.run_batch_compiled` once for each set of kernels
-(plant, nominal model, reference, a delay kernel of the user's), and each controller's step once
-for itself (the engine calls it through its address, :mod:`delaytrack._native_call`), and
-keeps them on disk; later calls load them in well under a second. :func:`code_ready` tells
-which case a call is, so that the first one can be announced instead of looking like a hang.
+numba compiles :func:`~delaytrack.sim.engine.run_batch_compiled` once (again for a controller
+step or a delay kernel of the user's), and each plant's integrator, reference and built-in
+controller step once for itself (the engine calls them through their address,
+:mod:`delaytrack.sim.native_parts`), and keeps them on disk; later calls load them in well
+under a second. :func:`code_ready` tells which case a call is, so that the first one can be
+announced instead of looking like a hang.
 """
 
 from __future__ import annotations
@@ -43,26 +44,12 @@ def code_ready(dispatcher: Any, key: object, signature: tuple | Callable[[], tup
         return False
 
 
-def announce_compile(
-    plant: Any, controller: Any, reference: Any, delay: Any = None, engine: bool = True
-) -> None:
-    """One line on standard error before a first compile (``delay``: a profile of the user's
-    kernel, when the batch has one; ``engine``: False when only the controller's step is to be
-    compiled, the engine for the plant being ready)."""
-    if not engine:
-        print(
-            f"delaytrack: compiling {type(controller).__name__}'s step on "
-            f"{type(controller.model).__name__} (once; a few seconds, then kept on disk)",
-            file=sys.stderr,
-            flush=True,
-        )
-        return
-    own_delay = f" + {type(delay).__name__} {delay.name!r}" if delay is not None else ""
+def announce_compile(parts: list[str]) -> None:
+    """One line on standard error before a first compile of ``parts`` (what is compiled, such as
+    ``"the engine"`` or ``"AROLC's step on NominalRobot"``)."""
+    listed = parts[0] if len(parts) == 1 else f"{', '.join(parts[:-1])} and {parts[-1]}"
     print(
-        f"delaytrack: compiling the engine for {type(plant).__name__} + "
-        f"{type(controller).__name__} on {type(controller.model).__name__} + "
-        f"{type(reference).__name__}{own_delay} (once; from seconds to a minute, then kept on "
-        "disk)",
+        f"delaytrack: compiling {listed} (once; from seconds to a minute, then kept on disk)",
         file=sys.stderr,
         flush=True,
     )

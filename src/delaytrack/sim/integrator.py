@@ -26,7 +26,9 @@ step then takes effect at the next step.
 
 This is the innermost loop of every simulation: nothing here allocates (the working memory is
 :func:`rk4_workspace`, made once per run), and :func:`integrate_tick` is compiled without
-reference counting (:data:`delaytrack._jit.borrowing_kernel`).
+reference counting (:data:`delaytrack._jit.tick_kernel`). It is compiled on its own for each
+plant and called by the engine through its address (:func:`integrate`), so that the engine's
+tick loop is compiled once for every plant.
 """
 
 from __future__ import annotations
@@ -34,8 +36,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba.extending import overload
 
-from delaytrack._jit import borrowing_kernel, hot_inline_kernel, inline_kernel
+from delaytrack._jit import hot_inline_kernel, inline_kernel, tick_kernel
+from delaytrack._native_call import NativeFunctionType, call_native
 from delaytrack.components import call_stepper, has_stepper, plant_sizes
 from delaytrack.delays._kernel import (
     PIECEWISE_CONSTANT,
@@ -54,6 +58,7 @@ __all__ = [
     "LEFT_PATH",
     "OK",
     "beyond",
+    "integrate",
     "integrate_tick",
     "rk4_workspace",
 ]
@@ -225,7 +230,7 @@ def _quiet_until(b, g_b, k_b, profile, t0, dt, steps_per_tick):
     return horizon
 
 
-@borrowing_kernel
+@tick_kernel
 def integrate_tick(
     plant_terms,
     plant_params,
@@ -255,7 +260,8 @@ def integrate_tick(
     not start). With ``probe_only`` nothing is integrated: only ``first_slot`` is found.
 
     One call per tick, compiled without reference counts: a call per step, with its arguments,
-    cost about a tenth of the step.
+    cost about a tenth of the step. Compiled on its own for each plant (its kernel is a
+    compile-time constant, bound when the engine calls it through its address: :func:`integrate`).
     """
     tolerance = _SPLIT_TOLERANCE * dt
     capacity = history.shape[0]
@@ -333,3 +339,107 @@ def integrate_tick(
         if beyond(x, divergence_bound):
             return DIVERGED, t_end, first_slot
     return OK, tick_time(k + 1, t0, dt, steps_per_tick), first_slot
+
+
+def integrate(
+    plant_step,
+    plant_params,
+    delay,
+    delay_kind,
+    delay_params,
+    x,
+    k,
+    history,
+    u_init,
+    t0,
+    dt,
+    steps_per_tick,
+    divergence_bound,
+    work,
+    probe_only,
+):
+    """:func:`integrate_tick` for the plant of ``plant_step``; the other arguments and the result
+    are :func:`integrate_tick`'s.
+
+    In the compiled engine ``plant_step`` is :func:`integrate_tick` compiled for the plant's
+    kernel, called through its address with the kernel bound
+    (:class:`~delaytrack._native_call.NativeFunction`, :func:`delaytrack.sim.engine.native`),
+    so that the engine is not compiled again for each plant; in the plain-Python engine it is
+    the plant's :class:`~delaytrack.components.Kernel`, run as Python.
+    """
+    return integrate_tick.py_func(
+        plant_step,
+        plant_params,
+        delay,
+        delay_kind,
+        delay_params,
+        x,
+        k,
+        history,
+        u_init,
+        t0,
+        dt,
+        steps_per_tick,
+        divergence_bound,
+        work,
+        probe_only,
+    )
+
+
+@overload(integrate, inline="always")
+def _integrate_compiled(
+    plant_step,
+    plant_params,
+    delay,
+    delay_kind,
+    delay_params,
+    x,
+    k,
+    history,
+    u_init,
+    t0,
+    dt,
+    steps_per_tick,
+    divergence_bound,
+    work,
+    probe_only,
+):
+    if isinstance(plant_step, NativeFunctionType):
+
+        def native(
+            plant_step,
+            plant_params,
+            delay,
+            delay_kind,
+            delay_params,
+            x,
+            k,
+            history,
+            u_init,
+            t0,
+            dt,
+            steps_per_tick,
+            divergence_bound,
+            work,
+            probe_only,
+        ):
+            arguments = (
+                plant_params,
+                delay,
+                delay_kind,
+                delay_params,
+                x,
+                k,
+                history,
+                u_init,
+                t0,
+                dt,
+                steps_per_tick,
+                divergence_bound,
+                work,
+                probe_only,
+            )
+            return call_native(plant_step, arguments)
+
+        return native
+    return None

@@ -14,7 +14,6 @@ from typing import Any, TypeVar
 import numpy as np
 from tqdm.auto import tqdm
 
-from delaytrack._native_call import NativeFunction
 from delaytrack._validation import (
     finite_array,
     integer_multiple,
@@ -28,16 +27,12 @@ from delaytrack.delays.base import DelayProfile
 from delaytrack.kernel_arguments import check_kernel_arguments
 from delaytrack.plants.base import ELPlant
 from delaytrack.references import Reference
-from delaytrack.sim.engine import (
-    controller_step_signature,
-    native_controller_step,
-    run_batch,
-    run_batch_compiled,
-)
+from delaytrack.sim.engine import run_batch, run_batch_compiled
 from delaytrack.sim.fallback import PythonFallbackWarning
 from delaytrack.sim.first_compile import announce_compile, code_ready
 from delaytrack.sim.history import history_capacity, tick_time
 from delaytrack.sim.measurement import MeasurementNoise
+from delaytrack.sim.native_parts import controller_step_part, plant_tick_part, reference_part
 from delaytrack.sim.packet_loss import PacketLoss
 from delaytrack.sim.result import SimResult
 from delaytrack.sim.running_metrics import accumulator_size, finish_metrics
@@ -556,12 +551,19 @@ def simulate(
     elif not compiled:
         PythonFallbackWarning.warn(first_plant, first_controller, reference)
 
-    # This package's steps are called through their address: the engine is then compiled once
-    # for every controller (delaytrack._native_call). A step of the user's is linked into it.
-    native_step = compiled and first_controller.engine_kernel.built_in
-    model = first_controller.model.engine_kernel
-    model_type = model.numba_type if native_step else None
-    step_signature = controller_step_signature(model, n, m) if native_step else ()
+    # The plant's step, the reference and a step of this package's are called through their
+    # address, each compiled for its component alone: one engine serves them all
+    # (delaytrack.sim.native_parts). A step of the user's is linked into the engine.
+    step_function = first_controller.step_kernel  # one step kernel for the batch (checked)
+    parts: tuple = ()
+    if compiled:
+        parts = (
+            plant_tick_part(first_plant.engine_kernel, delay_kernel, n, m),
+            reference_part(reference.engine_kernel, n),
+            controller_step_part(step_function, first_controller.model.engine_kernel, n, m)
+            if first_controller.engine_kernel.built_in
+            else None,
+        )
 
     def kernels(b: int) -> tuple:
         """Element ``b``'s kernels (:class:`~delaytrack.components.Kernel`): plant, nominal model,
@@ -574,14 +576,17 @@ def simulate(
             delay_kernel,
         )
 
-    def handles(b: int, step: NativeFunction | None) -> tuple:
-        """Element ``b``'s kernels as the engine takes them, compiled or as plain Python;
-        compiled, ``step`` replaces the controller's step when it is called through its address
-        (a step of this package's, :class:`~delaytrack._native_call.NativeFunction`)."""
+    def handles(b: int, natives: tuple) -> tuple:
+        """Element ``b``'s kernels as the engine takes them: as plain Python, or compiled with
+        ``natives``, the :class:`~delaytrack._native_call.NativeFunction` of each of ``parts``
+        (None for a step of the user's, linked into the engine with its model)."""
         own = kernels(b)
         if not compiled:
             return tuple(kernel.as_python() for kernel in own)
-        return own if step is None else (*own[:3], step, own[4])
+        plant_step, reference_native, step = natives
+        if step is None:
+            return (plant_step, own[1], reference_native, own[3], own[4])
+        return (plant_step, NO_KERNEL, reference_native, step, own[4])
 
     runs = (
         _stack_padded([p.params for p in plants]),
@@ -614,7 +619,7 @@ def simulate(
 
     runner = run_batch_compiled if compiled else run_batch
 
-    def chunk_arguments(index: int, step: NativeFunction | None) -> tuple:
+    def chunk_arguments(index: int, natives: tuple) -> tuple:
         chunk = chunks[index]
         part = slice(chunk[0], chunk[-1] + 1)
         chunk_runs = [array[part] for array in runs]
@@ -624,7 +629,7 @@ def simulate(
                 [controllers[b].model.for_worker(index).params for b in chunk]
             )
         return (
-            handles(int(chunk[0]), step),
+            handles(int(chunk[0]), natives),
             tuple(chunk_runs),
             settings,
             tuple(array[part] for array in outputs),
@@ -642,33 +647,37 @@ def simulate(
         pieces = batch
     chunks = np.array_split(np.arange(batch), pieces)
     in_parallel = compiled and workers > 1 and len(chunks) > 1
-    step_function = first_controller.step_kernel  # one step kernel for the batch (checked)
     if compiled:
-        # An address of 0 gives the engine's argument types without compiling the step.
-        probe = NativeFunction(step_function, step_signature, 0) if native_step else None
+        # Stand-ins with an address of 0 give the engine's argument types without compiling.
+        probes = tuple(part and part.probe() for part in parts)
         engine_ready = code_ready(
             runner,
             tuple(kernel.key for kernel in kernels(0)),
-            lambda: tuple(runner.typeof_pyval(item) for item in chunk_arguments(0, probe)),
+            lambda: tuple(runner.typeof_pyval(item) for item in chunk_arguments(0, probes)),
         )
-        step_ready = not native_step or code_ready(
-            step_function, (model_type, n, m), step_signature
-        )
-        if not (engine_ready and step_ready):
-            announce_compile(
-                first_plant,
-                first_controller,
-                reference,
-                delays[own_delays[0]] if own_delays else None,
-                engine=not engine_ready,
+        to_compile = [
+            name
+            for name, ready in (
+                ("the engine", engine_ready),
+                (f"{type(first_plant).__name__}'s integrator", parts[0].ready()),
+                (f"{type(reference).__name__}", parts[1].ready()),
+                (
+                    f"{type(first_controller).__name__}'s step on "
+                    f"{type(first_controller.model).__name__}",
+                    parts[2] is None or parts[2].ready(),
+                ),
             )
-    native = native_controller_step(step_function, model_type, n, m) if native_step else None
+            if not ready
+        ]
+        if to_compile:
+            announce_compile(to_compile)
+    natives: tuple = ()
 
     yours = [k for k in kernels(0) if not k.built_in and k is not NO_KERNEL]
 
     def run_chunk(index: int) -> int:
         try:
-            runner(*chunk_arguments(index, native))
+            runner(*chunk_arguments(index, natives))
         except Exception as error:
             if compiled and yours and not type(error).__module__.startswith("numba"):
                 # Raised by a kernel of the user's as it ran (ours do not raise there; the
@@ -678,8 +687,10 @@ def simulate(
         return chunks[index].size
 
     try:
-        if compiled and not engine_ready:  # compiled here, so that a chunk's error is a run's
-            runner.compile(tuple(runner.typeof_pyval(a) for a in chunk_arguments(0, native)))
+        if compiled:  # compiled here, so that a chunk's error is a run's
+            natives = tuple(part and part.native() for part in parts)
+            if not engine_ready:
+                runner.compile(tuple(runner.typeof_pyval(a) for a in chunk_arguments(0, natives)))
         bar_context = (
             tqdm(total=batch, desc="simulate", unit="run")
             if progress
@@ -713,7 +724,7 @@ def simulate(
     if unrecorded.size and compiled:
         reference_rows[unrecorded] = np.stack(reference.evaluate(times[unrecorded]), axis=1)
     elif unrecorded.size:
-        python_kernel = handles(0, None)[2]
+        python_kernel = handles(0, ())[2]
         for row in unrecorded:
             call_reference(python_kernel, float(times[row]), settings[0], *reference_rows[row])
     record: dict[str, Any] = {

@@ -1,0 +1,156 @@
+"""The functions the compiled engine calls through their address, each compiled for one component.
+
+numba compiles a call of one ``njit`` function from another by linking the callee into the
+caller, so an engine that called the plant's, the reference's and the controller's code directly
+would be compiled again, tick loop and all, for every combination of them. The engine instead
+calls three functions through the address of their compiled code
+(:mod:`delaytrack._native_call`), each compiled once for the component it serves and kept on
+disk:
+
+* the plant's tick, :func:`~delaytrack.sim.integrator.integrate_tick` compiled for the plant's
+  kernel (and for a delay kernel of the user's, when the batch has one);
+* the reference, :func:`~delaytrack.components.evaluate_reference` compiled for its kernel;
+* a controller step of this package's, compiled for the nominal model's kernel.
+
+The component's kernel is *bound* (it carries no data: its numba type names the code), so the
+engine's own numba type does not name it, and one compiled engine serves every plant, reference,
+nominal model and built-in controller. A controller step of the user's is still linked into the
+engine (with its model), which is then compiled for it.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numba import typeof, types
+
+from delaytrack._native_call import NativeFunction
+from delaytrack.components import Kernel, evaluate_reference
+from delaytrack.controllers.base import step_workspace
+from delaytrack.sim.first_compile import code_ready
+from delaytrack.sim.integrator import integrate_tick, rk4_workspace
+
+__all__ = ["NativePart", "controller_step_part", "plant_tick_part", "reference_part"]
+
+#: What :func:`~delaytrack.sim.integrator.integrate_tick` returns: ``(outcome, t_stop,
+#: first_slot)``.
+_TICK_OUTCOME = types.Tuple((types.int64, types.float64, types.int64))
+#: Position of the nominal model's kernel among a controller step's arguments.
+_MODEL_POSITION = 10
+
+
+@dataclass(frozen=True)
+class NativePart:
+    """One function the compiled engine calls through its address, for one component.
+
+    Parameters
+    ----------
+    function : numba dispatcher
+        The function, compiled on its own.
+    signature : tuple of numba types
+        Its argument types, the component's kernel among them.
+    bound : tuple of int
+        Positions of the arguments the call fills in (the component's kernel).
+    returns : numba type
+        What it returns.
+    """
+
+    function: Any
+    signature: tuple
+    bound: tuple
+    returns: types.Type
+
+    def ready(self) -> bool:
+        """Whether its compiled code is in memory or in the disk cache (nothing to compile)."""
+        return code_ready(self.function, self.signature, self.signature)
+
+    def probe(self) -> NativeFunction:
+        """A stand-in with the same numba type, to type the engine's arguments before the
+        function is compiled (its address is 0: it must not be called)."""
+        return NativeFunction(self.function, self.signature, 0, self.bound, self.returns)
+
+    def native(self) -> NativeFunction:
+        """The function compiled (or loaded from the disk cache) and its address, found once per
+        process: numba keeps the code it compiled first for the life of the process."""
+        return _native(self.function, self.signature, self.bound, self.returns)
+
+
+@functools.cache
+def _native(function: Any, signature: tuple, bound: tuple, returns: types.Type) -> NativeFunction:
+    return NativeFunction.of(function, signature, bound, returns)
+
+
+@functools.cache
+def _vector(n: int) -> types.Type:
+    return typeof(np.empty(n))
+
+
+def plant_tick_part(plant: Kernel, delay: Kernel, n: int, m: int) -> NativePart:
+    """:func:`~delaytrack.sim.integrator.integrate_tick` for the kernel ``plant`` with ``n``
+    coordinates and ``m`` inputs, and the delay kernel ``delay`` (the batch's, or
+    :data:`~delaytrack.delays._kernel.NO_KERNEL`)."""
+    return _plant_tick_part(plant.numba_type, delay.numba_type, n, m)
+
+
+@functools.cache
+def _plant_tick_part(plant: types.Type, delay: types.Type, n: int, m: int) -> NativePart:
+    vector = _vector(n)
+    signature = (
+        plant,
+        vector,  # plant_params
+        delay,
+        types.int64,  # delay_kind
+        vector,  # delay_params
+        vector,  # x
+        types.int64,  # k
+        typeof(np.empty((1, m))),  # history
+        vector,  # u_init
+        types.float64,  # t0
+        types.float64,  # dt
+        types.int64,  # steps_per_tick
+        types.float64,  # divergence_bound
+        typeof(rk4_workspace(np.empty(2 * n), m)),
+        types.boolean,  # probe_only
+    )
+    return NativePart(integrate_tick, signature, (0,), _TICK_OUTCOME)
+
+
+def reference_part(reference: Kernel, n: int) -> NativePart:
+    """:func:`~delaytrack.components.evaluate_reference` for the reference kernel ``reference``
+    of ``n`` coordinates."""
+    return _reference_part(reference.numba_type, n)
+
+
+@functools.cache
+def _reference_part(reference: types.Type, n: int) -> NativePart:
+    vector = _vector(n)
+    signature = (reference, types.float64, vector, vector, vector, vector)
+    return NativePart(evaluate_reference, signature, (0,), types.none)
+
+
+def controller_step_part(step: Any, model: Kernel, n: int, m: int) -> NativePart:
+    """A controller ``step`` of this package's (a numba dispatcher) for the nominal ``model``
+    with ``n`` coordinates and ``m`` inputs, as :func:`~delaytrack.components.call_step`
+    calls it."""
+    return _controller_step_part(step, model.numba_type, n, m)
+
+
+@functools.cache
+def _controller_step_part(step: Any, model: types.Type, n: int, m: int) -> NativePart:
+    vector = _vector(n)
+    signature = (
+        types.float64,  # t
+        *(vector,) * 5,  # q, q̇, q_d, q̇_d, q̈_d
+        types.float64,  # T_c
+        types.float64,  # h
+        vector,  # params
+        vector,  # state
+        model,
+        vector,  # the model's params
+        vector,  # command
+        typeof(step_workspace(n, m)),
+    )
+    return NativePart(step, signature, (_MODEL_POSITION,), types.none)

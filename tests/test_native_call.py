@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numba
 import numpy as np
 import pytest
@@ -10,7 +13,7 @@ from numba.core.errors import TypingError
 from delaytrack._native_call import NativeFunction, call_native
 from delaytrack.components import Kernel
 from delaytrack.controllers import AROLC, OuterLoop
-from delaytrack.delays import AbsSineDelay
+from delaytrack.delays import AbsSineDelay, CompiledDelay
 from delaytrack.plants import LinearPlant, TwoLinkArm
 from delaytrack.references import SinusoidalReference, SplineReference
 from delaytrack.sim import simulate
@@ -39,6 +42,8 @@ def call_and_return(function, values, amount):
 
 
 VECTOR = numba.typeof(np.zeros(1))
+#: The shipped example of a user's arm and controller.
+USER_ARM = Path(__file__).resolve().parents[1] / "examples" / "user_arm"
 #: An argument with no run-time data: a component's kernel, whose numba type names its code.
 OPAQUE = Kernel.of(add_to_first).numba_type
 
@@ -137,3 +142,39 @@ def test_another_plant_and_reference_reuse_the_compiled_engine() -> None:
     )
     assert len(run_batch_compiled.overloads) == engines
     assert linear.status.tolist() == [0]
+
+
+@numba.njit
+def slow_rise(t, params):
+    return params[0] + 0.01 * np.tanh(t)
+
+
+def test_a_controller_and_a_delay_kernel_of_the_users_reuse_the_compiled_engine() -> None:
+    # A user's step and delay kernel are compiled into parts of their own, keyed by their code.
+    sys.path.insert(0, str(USER_ARM))
+    try:
+        from pd_gravity import PDGravity
+    finally:
+        sys.path.remove(str(USER_ARM))
+    settings = dict(t1=0.1, dt=1e-3, T_c=1e-2, trajectories=False)
+    line = LinearPlant(1.0, 0.5, 2.0)
+    reference = SinusoidalReference([0.0], amplitude=[[0.5]], frequency=[[1.0]])
+    simulate(
+        line,
+        OuterLoop(LinearPlant(1.0), 1.0, 1.0),
+        AbsSineDelay.S1(),
+        np.zeros(2),
+        reference=reference,
+        **settings,
+    )
+    engines = len(run_batch_compiled.overloads)
+    own = simulate(
+        line,
+        PDGravity(LinearPlant(1.0), 2.0, 1.0),
+        CompiledDelay(slow_rise, [0.02], h_max=0.05, name="slow rise"),
+        np.zeros(2),
+        reference=reference,
+        **settings,
+    )
+    assert len(run_batch_compiled.overloads) == engines
+    assert own.status.tolist() == [0]

@@ -21,9 +21,10 @@ its kernel and its class.
 
 In compiled code a :class:`Kernel` has a numba type of its own, named by :attr:`Kernel.key`:
 the function's module and name and, for a function outside this package, a hash of its code
-(and of the functions and constants it reaches). numba compiles the engine once for each set
-of kernels and caches that specialisation on disk under this name, so a user's compiled plant
-is compiled once, not once per process, and an edit to its code compiles it again. The code
+(and of the functions and constants it reaches). numba compiles the code that calls a kernel
+(its part of the engine, :mod:`delaytrack.sim.native_parts`) once for each kernel and caches
+it on disk under this name, so a user's compiled plant is compiled once, not once per process,
+and an edit to its code compiles it again. The code
 of this package is covered by the cache folder instead (:mod:`delaytrack._numba_cache`).
 """
 
@@ -65,6 +66,7 @@ __all__ = [
     "call_stepper",
     "call_terms",
     "evaluate_reference",
+    "evaluate_step",
     "code_fingerprint",
     "has_identity_mass",
     "has_stepper",
@@ -559,9 +561,9 @@ def _call_step_compiled(
     step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, mp, u, work
 ):
     # Inlined, so that the tick calls the step itself (a call level cost about 0.13 µs a tick;
-    # numba's inliner does not take *arguments): through its address (this package's steps in
-    # the compiled engine, delaytrack._native_call) or linked into the caller.
-    if isinstance(step, NativeFunctionType):  # the nominal model's kernel bound
+    # numba's inliner does not take *arguments): through its address (in the compiled engine,
+    # delaytrack.sim.native_parts) or linked into the caller (evaluate_step).
+    if isinstance(step, NativeFunctionType):  # evaluate_step; the step's and model's kernels bound
 
         def native(
             step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, mp, u, work
@@ -601,6 +603,31 @@ def _call_reference_compiled(reference, t, params, qd, qd_dot, qd_ddot):
 
         return impl
     return None
+
+
+@tick_kernel
+def evaluate_step(
+    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command, work
+):
+    """:func:`call_step`, compiled on its own for each controller step and nominal model: the
+    compiled engine calls it through its address (:mod:`delaytrack.sim.native_parts`)."""
+    call_step(
+        step,
+        t,
+        q,
+        qdot,
+        qd,
+        qd_dot,
+        qd_ddot,
+        T_c,
+        h,
+        params,
+        state,
+        model,
+        model_params,
+        command,
+        work,
+    )
 
 
 @tick_kernel

@@ -1,7 +1,7 @@
 """The arguments the engine passes to each kind of kernel, checked before anything is compiled.
 
 A kernel of yours with a parameter too many or too few would otherwise fail only when numba
-compiles the engine for it, seconds later and with a long message about types; this check says
+compiles the code that calls it, seconds later and with a long message about types; this check says
 at once which kernel, what it takes and what it must take.
 """
 

@@ -34,8 +34,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba.extending import overload
 
-from delaytrack._jit import inline_kernel, kernel
+from delaytrack._jit import inline_kernel, kernel, tick_kernel
+from delaytrack._native_call import NativeFunctionType, call_native
 from delaytrack.components import Kernel, call_delay
 
 CONSTANT = 0
@@ -226,6 +228,31 @@ def profile_value(delay, kind, params, t):
     if kind == KERNEL:
         return call_delay(delay, t, params)
     return delay_value(kind, params, t)
+
+
+@tick_kernel
+def evaluate_profile(delay, kind, params, t):
+    """:func:`profile_value`, compiled on its own for each delay kernel: the compiled engine calls
+    it through its address (:mod:`delaytrack.sim.native_parts`)."""
+    return profile_value(delay, kind, params, t)
+
+
+def delay_at(delay, kind, params, t):
+    """``h(t)`` of a profile of any kind, in the engine's tick loop: ``delay`` is the batch's
+    delay kernel (plain-Python engine) or, compiled, :func:`evaluate_profile` compiled for it
+    and called through its address with the kernel bound."""
+    return profile_value(delay, kind, params, t)
+
+
+@overload(delay_at, inline="always")
+def _delay_at_compiled(delay, kind, params, t):
+    if isinstance(delay, NativeFunctionType):
+
+        def native(delay, kind, params, t):
+            return call_native(delay, (kind, params, t))
+
+        return native
+    return None
 
 
 @inline_kernel

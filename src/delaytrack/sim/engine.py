@@ -18,7 +18,7 @@ import numpy as np
 from delaytrack._jit import borrowing_kernel, compiled, inline_kernel
 from delaytrack.components import call_reference, call_step
 from delaytrack.controllers.base import step_workspace
-from delaytrack.delays._kernel import profile_value
+from delaytrack.delays._kernel import delay_at
 from delaytrack.sim.history import tick_time
 from delaytrack.sim.integrator import (
     DELAY_BEYOND_HISTORY,
@@ -68,10 +68,10 @@ def run_closed_loop(handles, run, settings, records):
         ``(plant_step, model_terms, reference, controller_step, delay)``: the components'
         :class:`~delaytrack.components.Kernel` objects (``plant_step``: the plant's;
         ``delay``: the batch's delay kernel, for the runs whose profile is a kernel of the
-        user's). In the compiled engine the plant's step, the reference and a step of this
-        package's are :class:`~delaytrack._native_call.NativeFunction` objects, called through
-        their address (:mod:`delaytrack.sim.native_parts`), and ``model_terms`` is then any
-        kernel: only a step of the user's, linked into the engine, reads it.
+        user's). In the compiled engine the plant's step, the reference, the controller's step
+        and the delay are :class:`~delaytrack._native_call.NativeFunction` objects, each
+        compiled for its component and called through its address
+        (:mod:`delaytrack.sim.native_parts`), and ``model_terms`` is not read.
     run : tuple
         This run's arrays ``(plant_params, model_params, controller_params, controller_state,
         delay_kind, delay_params, x0, capacity, input_limits, measurement, loss,
@@ -171,7 +171,7 @@ def _run_ticks(handles, run, settings, records, memory):
         t_k = tick_time(k, t0, dt, steps_per_tick)
         record = record_every > 0 and k % record_every == 0
         row = k // record_every if record else 0
-        h_k = profile_value(delay, delay_kind, delay_params, t_k)
+        h_k = delay_at(delay, delay_kind, delay_params, t_k)
         if record:  # copies written as loops: a slice copy needs numba's runtime
             for i in range(2 * n):
                 states[row, i] = x[i]
@@ -297,9 +297,8 @@ def run_batch(handles, runs, settings, records, status, t_stop):
         status[b], t_stop[b] = run_closed_loop(handles, run, settings, run_records)
 
 
-#: :func:`run_batch` compiled and cached on disk. The plant's step, the reference and a built-in
-#: controller's step are passed by the address of their own compiled code
-#: (:mod:`delaytrack.sim.native_parts`), so one engine serves all of them; it is compiled again
-#: only for a controller step or a delay kernel of the user's (their numba types name them). It
-#: releases the GIL, so threads run sub-batches in parallel.
+#: :func:`run_batch` compiled and cached on disk. The plant's step, the reference, the
+#: controller's step and the delay profile are passed by the address of their own compiled code
+#: (:mod:`delaytrack.sim.native_parts`), so one engine serves every combination of components.
+#: It releases the GIL, so threads run sub-batches in parallel.
 run_batch_compiled = compiled(run_batch, nogil=True)

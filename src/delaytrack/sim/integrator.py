@@ -362,10 +362,10 @@ def integrate(
     are :func:`integrate_tick`'s.
 
     In the compiled engine ``plant_step`` is :func:`integrate_tick` compiled for the plant's
-    kernel, called through its address with the kernel bound
-    (:class:`~delaytrack._native_call.NativeFunction`, :func:`delaytrack.sim.engine.native`),
-    so that the engine is not compiled again for each plant; in the plain-Python engine it is
-    the plant's :class:`~delaytrack.components.Kernel`, run as Python.
+    kernel and the batch's delay kernel, called through its address with both kernels bound
+    (:class:`~delaytrack._native_call.NativeFunction`, :mod:`delaytrack.sim.native_parts`), so
+    that the engine is not compiled again for each plant, and ``delay`` is not read; in the
+    plain-Python engine it is the plant's :class:`~delaytrack.components.Kernel`, run as Python.
     """
     return integrate_tick.py_func(
         plant_step,
@@ -423,9 +423,8 @@ def _integrate_compiled(
             work,
             probe_only,
         ):
-            arguments = (
+            arguments = (  # the plant's and the delay's kernels are bound
                 plant_params,
-                delay,
                 delay_kind,
                 delay_params,
                 x,

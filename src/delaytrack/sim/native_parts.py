@@ -1,21 +1,25 @@
 """The functions the compiled engine calls through their address, each compiled for one component.
 
 numba compiles a call of one ``njit`` function from another by linking the callee into the
-caller, so an engine that called the plant's, the reference's and the controller's code directly
-would be compiled again, tick loop and all, for every combination of them. The engine instead
-calls three functions through the address of their compiled code
+caller, so an engine that called the plant's, the reference's, the controller's and the delay's
+code directly would be compiled again, tick loop and all, for every combination of them. The
+engine instead calls four functions through the address of their compiled code
 (:mod:`delaytrack._native_call`), each compiled once for the component it serves and kept on
 disk:
 
 * the plant's tick, :func:`~delaytrack.sim.integrator.integrate_tick` compiled for the plant's
-  kernel (and for a delay kernel of the user's, when the batch has one);
+  kernel and the batch's delay kernel;
 * the reference, :func:`~delaytrack.components.evaluate_reference` compiled for its kernel;
-* a controller step of this package's, compiled for the nominal model's kernel.
+* the controller's step, :func:`~delaytrack.components.evaluate_step` compiled for the step's
+  kernel and the nominal model's;
+* the delay at a tick, :func:`~delaytrack.delays._kernel.evaluate_profile` compiled for the
+  batch's delay kernel (a profile of the user's, or none).
 
-The component's kernel is *bound* (it carries no data: its numba type names the code), so the
-engine's own numba type does not name it, and one compiled engine serves every plant, reference,
-nominal model and built-in controller. A controller step of the user's is still linked into the
-engine (with its model), which is then compiled for it.
+The components' kernels are *bound* (they carry no data: their numba types name the code), so
+the engine's own numba type names none of them, and one compiled engine serves every
+combination. A part is keyed on disk by its kernels' numba types, which for a kernel of the
+user's include a fingerprint of all the code it reaches (:mod:`delaytrack.components`), so an
+edit to that code compiles its part again.
 """
 
 from __future__ import annotations
@@ -28,18 +32,23 @@ import numpy as np
 from numba import typeof, types
 
 from delaytrack._native_call import NativeFunction
-from delaytrack.components import Kernel, evaluate_reference
+from delaytrack.components import Kernel, evaluate_reference, evaluate_step
 from delaytrack.controllers.base import step_workspace
+from delaytrack.delays._kernel import evaluate_profile
 from delaytrack.sim.first_compile import code_ready
 from delaytrack.sim.integrator import integrate_tick, rk4_workspace
 
-__all__ = ["NativePart", "controller_step_part", "plant_tick_part", "reference_part"]
+__all__ = [
+    "NativePart",
+    "controller_step_part",
+    "delay_part",
+    "plant_tick_part",
+    "reference_part",
+]
 
 #: What :func:`~delaytrack.sim.integrator.integrate_tick` returns: ``(outcome, t_stop,
 #: first_slot)``.
 _TICK_OUTCOME = types.Tuple((types.int64, types.float64, types.int64))
-#: Position of the nominal model's kernel among a controller step's arguments.
-_MODEL_POSITION = 10
 
 
 @dataclass(frozen=True)
@@ -115,7 +124,7 @@ def _plant_tick_part(plant: types.Type, delay: types.Type, n: int, m: int) -> Na
         typeof(rk4_workspace(np.empty(2 * n), m)),
         types.boolean,  # probe_only
     )
-    return NativePart(integrate_tick, signature, (0,), _TICK_OUTCOME)
+    return NativePart(integrate_tick, signature, (0, 2), _TICK_OUTCOME)
 
 
 def reference_part(reference: Kernel, n: int) -> NativePart:
@@ -131,17 +140,17 @@ def _reference_part(reference: types.Type, n: int) -> NativePart:
     return NativePart(evaluate_reference, signature, (0,), types.none)
 
 
-def controller_step_part(step: Any, model: Kernel, n: int, m: int) -> NativePart:
-    """A controller ``step`` of this package's (a numba dispatcher) for the nominal ``model``
-    with ``n`` coordinates and ``m`` inputs, as :func:`~delaytrack.components.call_step`
-    calls it."""
-    return _controller_step_part(step, model.numba_type, n, m)
+def controller_step_part(step: Kernel, model: Kernel, n: int, m: int) -> NativePart:
+    """:func:`~delaytrack.components.evaluate_step` for the controller's step kernel ``step``
+    on the nominal ``model`` with ``n`` coordinates and ``m`` inputs."""
+    return _controller_step_part(step.numba_type, model.numba_type, n, m)
 
 
 @functools.cache
-def _controller_step_part(step: Any, model: types.Type, n: int, m: int) -> NativePart:
+def _controller_step_part(step: types.Type, model: types.Type, n: int, m: int) -> NativePart:
     vector = _vector(n)
     signature = (
+        step,
         types.float64,  # t
         *(vector,) * 5,  # q, q̇, q_d, q̇_d, q̈_d
         types.float64,  # T_c
@@ -153,4 +162,16 @@ def _controller_step_part(step: Any, model: types.Type, n: int, m: int) -> Nativ
         vector,  # command
         typeof(step_workspace(n, m)),
     )
-    return NativePart(step, signature, (_MODEL_POSITION,), types.none)
+    return NativePart(evaluate_step, signature, (0, 11), types.none)
+
+
+def delay_part(delay: Kernel) -> NativePart:
+    """:func:`~delaytrack.delays._kernel.evaluate_profile` for the batch's delay kernel
+    ``delay`` (:data:`~delaytrack.delays._kernel.NO_KERNEL` when it has none)."""
+    return _delay_part(delay.numba_type)
+
+
+@functools.cache
+def _delay_part(delay: types.Type) -> NativePart:
+    signature = (delay, types.int64, _vector(1), types.float64)
+    return NativePart(evaluate_profile, signature, (0,), types.float64)

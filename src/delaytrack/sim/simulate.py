@@ -32,7 +32,12 @@ from delaytrack.sim.fallback import PythonFallbackWarning
 from delaytrack.sim.first_compile import announce_compile, code_ready
 from delaytrack.sim.history import history_capacity, tick_time
 from delaytrack.sim.measurement import MeasurementNoise
-from delaytrack.sim.native_parts import controller_step_part, plant_tick_part, reference_part
+from delaytrack.sim.native_parts import (
+    controller_step_part,
+    delay_part,
+    plant_tick_part,
+    reference_part,
+)
 from delaytrack.sim.packet_loss import PacketLoss
 from delaytrack.sim.result import SimResult
 from delaytrack.sim.running_metrics import accumulator_size, finish_metrics
@@ -551,18 +556,18 @@ def simulate(
     elif not compiled:
         PythonFallbackWarning.warn(first_plant, first_controller, reference)
 
-    # The plant's step, the reference and a step of this package's are called through their
-    # address, each compiled for its component alone: one engine serves them all
-    # (delaytrack.sim.native_parts). A step of the user's is linked into the engine.
-    step_function = first_controller.step_kernel  # one step kernel for the batch (checked)
+    # The plant's step, the reference, the controller's step and the delay are called through
+    # their address, each compiled for its component alone: one engine serves every combination
+    # (delaytrack.sim.native_parts).
     parts: tuple = ()
     if compiled:
         parts = (
             plant_tick_part(first_plant.engine_kernel, delay_kernel, n, m),
             reference_part(reference.engine_kernel, n),
-            controller_step_part(step_function, first_controller.model.engine_kernel, n, m)
-            if first_controller.engine_kernel.built_in
-            else None,
+            controller_step_part(
+                first_controller.engine_kernel, first_controller.model.engine_kernel, n, m
+            ),
+            delay_part(delay_kernel),
         )
 
     def kernels(b: int) -> tuple:
@@ -577,16 +582,12 @@ def simulate(
         )
 
     def handles(b: int, natives: tuple) -> tuple:
-        """Element ``b``'s kernels as the engine takes them: as plain Python, or compiled with
-        ``natives``, the :class:`~delaytrack._native_call.NativeFunction` of each of ``parts``
-        (None for a step of the user's, linked into the engine with its model)."""
-        own = kernels(b)
+        """Element ``b``'s kernels as the engine takes them: as plain Python, or compiled, the
+        :class:`~delaytrack._native_call.NativeFunction` objects ``natives`` of ``parts``."""
         if not compiled:
-            return tuple(kernel.as_python() for kernel in own)
-        plant_step, reference_native, step = natives
-        if step is None:
-            return (plant_step, own[1], reference_native, own[3], own[4])
-        return (plant_step, NO_KERNEL, reference_native, step, own[4])
+            return tuple(kernel.as_python() for kernel in kernels(b))
+        plant_step, reference_native, step, delay = natives
+        return (plant_step, NO_KERNEL, reference_native, step, delay)
 
     runs = (
         _stack_padded([p.params for p in plants]),
@@ -649,12 +650,13 @@ def simulate(
     in_parallel = compiled and workers > 1 and len(chunks) > 1
     if compiled:
         # Stand-ins with an address of 0 give the engine's argument types without compiling.
-        probes = tuple(part and part.probe() for part in parts)
+        probes = tuple(part.probe() for part in parts)
         engine_ready = code_ready(
             runner,
-            tuple(kernel.key for kernel in kernels(0)),
+            "the engine",
             lambda: tuple(runner.typeof_pyval(item) for item in chunk_arguments(0, probes)),
         )
+        own_delay = f"the delay kernel {delay_kernel.callable_names[0]}" if own_delays else ""
         to_compile = [
             name
             for name, ready in (
@@ -664,8 +666,9 @@ def simulate(
                 (
                     f"{type(first_controller).__name__}'s step on "
                     f"{type(first_controller.model).__name__}",
-                    parts[2] is None or parts[2].ready(),
+                    parts[2].ready(),
                 ),
+                (own_delay or "the delay profiles", parts[3].ready()),
             )
             if not ready
         ]
@@ -688,7 +691,7 @@ def simulate(
 
     try:
         if compiled:  # compiled here, so that a chunk's error is a run's
-            natives = tuple(part and part.native() for part in parts)
+            natives = tuple(part.native() for part in parts)
             if not engine_ready:
                 runner.compile(tuple(runner.typeof_pyval(a) for a in chunk_arguments(0, natives)))
         bar_context = (

@@ -226,20 +226,22 @@ def _run_ticks(handles, run, settings, records, memory):
             break
         outcome, t_stop, slot = integrate(
             plant_step,
-            plant_params,
             delay,
-            delay_kind,
-            delay_params,
-            x,
-            k,
-            history,
-            u_init,
-            t0,
-            dt,
-            steps_per_tick,
-            divergence_bound,
-            work,
-            last,
+            (
+                plant_params,
+                delay_kind,
+                delay_params,
+                x,
+                k,
+                history,
+                u_init,
+                t0,
+                dt,
+                steps_per_tick,
+                divergence_bound,
+                work,
+                last,
+            ),
         )
         if record and slot != -3:
             for j in range(m):

@@ -233,8 +233,8 @@ def _quiet_until(b, g_b, k_b, profile, t0, dt, steps_per_tick):
 @tick_kernel
 def integrate_tick(
     plant_terms,
-    plant_params,
     delay,
+    plant_params,
     delay_kind,
     delay_params,
     x,
@@ -341,25 +341,9 @@ def integrate_tick(
     return OK, tick_time(k + 1, t0, dt, steps_per_tick), first_slot
 
 
-def integrate(
-    plant_step,
-    plant_params,
-    delay,
-    delay_kind,
-    delay_params,
-    x,
-    k,
-    history,
-    u_init,
-    t0,
-    dt,
-    steps_per_tick,
-    divergence_bound,
-    work,
-    probe_only,
-):
-    """:func:`integrate_tick` for the plant of ``plant_step``; the other arguments and the result
-    are :func:`integrate_tick`'s.
+def integrate(plant_step, delay, arguments):
+    """:func:`integrate_tick` for the plant of ``plant_step`` and the delay kernel ``delay``, with
+    its other ``arguments`` (a tuple, from ``plant_params`` on); returns its result.
 
     In the compiled engine ``plant_step`` is :func:`integrate_tick` compiled for the plant's
     kernel and the batch's delay kernel, called through its address with both kernels bound
@@ -367,77 +351,14 @@ def integrate(
     that the engine is not compiled again for each plant, and ``delay`` is not read; in the
     plain-Python engine it is the plant's :class:`~delaytrack.components.Kernel`, run as Python.
     """
-    return integrate_tick.py_func(
-        plant_step,
-        plant_params,
-        delay,
-        delay_kind,
-        delay_params,
-        x,
-        k,
-        history,
-        u_init,
-        t0,
-        dt,
-        steps_per_tick,
-        divergence_bound,
-        work,
-        probe_only,
-    )
+    return integrate_tick.py_func(plant_step, delay, *arguments)
 
 
 @overload(integrate, inline="always")
-def _integrate_compiled(
-    plant_step,
-    plant_params,
-    delay,
-    delay_kind,
-    delay_params,
-    x,
-    k,
-    history,
-    u_init,
-    t0,
-    dt,
-    steps_per_tick,
-    divergence_bound,
-    work,
-    probe_only,
-):
+def _integrate_compiled(plant_step, delay, arguments):
     if isinstance(plant_step, NativeFunctionType):
 
-        def native(
-            plant_step,
-            plant_params,
-            delay,
-            delay_kind,
-            delay_params,
-            x,
-            k,
-            history,
-            u_init,
-            t0,
-            dt,
-            steps_per_tick,
-            divergence_bound,
-            work,
-            probe_only,
-        ):
-            arguments = (  # the plant's and the delay's kernels are bound
-                plant_params,
-                delay_kind,
-                delay_params,
-                x,
-                k,
-                history,
-                u_init,
-                t0,
-                dt,
-                steps_per_tick,
-                divergence_bound,
-                work,
-                probe_only,
-            )
+        def native(plant_step, delay, arguments):
             return call_native(plant_step, arguments)
 
         return native

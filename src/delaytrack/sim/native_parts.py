@@ -109,8 +109,8 @@ def _plant_tick_part(plant: types.Type, delay: types.Type, n: int, m: int) -> Na
     vector = _vector(n)
     signature = (
         plant,
-        vector,  # plant_params
         delay,
+        vector,  # plant_params
         types.int64,  # delay_kind
         vector,  # delay_params
         vector,  # x
@@ -124,7 +124,7 @@ def _plant_tick_part(plant: types.Type, delay: types.Type, n: int, m: int) -> Na
         typeof(rk4_workspace(np.empty(2 * n), m)),
         types.boolean,  # probe_only
     )
-    return NativePart(integrate_tick, signature, (0, 2), _TICK_OUTCOME)
+    return NativePart(integrate_tick, signature, (0, 1), _TICK_OUTCOME)
 
 
 def reference_part(reference: Kernel, n: int) -> NativePart:

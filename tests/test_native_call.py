@@ -84,8 +84,10 @@ def test_a_bound_argument_is_filled_in_and_the_result_returned() -> None:
 
 
 def test_binding_an_argument_with_data_or_a_wrong_result_type_is_refused() -> None:
-    with pytest.raises(TypeError, match="carries data"):
+    with pytest.raises(TypeError, match="may carry data"):
         NativeFunction.of(add_to_first, (VECTOR, numba.float64), bound=(0,))
+    with pytest.raises(TypeError, match="may carry data"):  # a pointer's null would be passed
+        NativeFunction.of(add_to_first, (numba.types.voidptr, numba.float64), bound=(0,))
     with pytest.raises(ValueError, match="outside the 2 arguments"):
         NativeFunction.of(add_to_first, (VECTOR, numba.float64), bound=(2,))
     with pytest.raises(TypeError, match="returns float64, not none"):

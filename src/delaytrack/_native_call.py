@@ -1,26 +1,22 @@
 """Calling a compiled function through its address, so that its caller is compiled without it.
 
 numba compiles a call of one ``njit`` function from another by linking the callee's code into
-the caller's and optimising the two together. The engine calls a controller's step once a
-tick, so compiled that way it would be compiled again, tick loop and all, for every controller.
-Called through the address of the step's compiled code (:class:`NativeFunction`), the engine is
-compiled once for a plant, model, reference and delay kernel, and each of this package's
-controller steps once for itself (its own entry in numba's disk cache): the paper's second and
-third controllers then compile in about a second each, not in the several seconds of a whole
-engine. A step of the user's stays linked into the engine, whose disk cache is keyed by a
-fingerprint of all the code the step reaches (:mod:`delaytrack.components`); numba's own cache
-of a function checks only that function's file.
+the caller's and optimising the two together. The engine calls the plant's integrator, the
+reference, the controller's step and the delay profile once a tick, so compiled that way it
+would be compiled again, tick loop and all, for every combination of them. Called through the
+address of their compiled code (:class:`NativeFunction`), the engine is compiled once, and each
+of them once for its own component (its own entry in numba's disk cache, keyed by the
+component's kernel: :mod:`delaytrack.sim.native_parts`).
 
-The call uses numba's own calling convention (the step's compiled code, not a C wrapper), so
-arrays, tuples and kernels pass as they would in a linked call; the step's argument types are
+The call uses numba's own calling convention (the callee's compiled code, not a C wrapper), so
+arrays, tuples and kernels pass as they would in a linked call; the callee's argument types are
 part of the numba type of a :class:`NativeFunction` and must equal those of the call, which
 compiling the caller checks.
 
 An argument that carries no data at run time (a component's kernel, whose numba type names the
-code it calls) can be *bound*: the caller does not pass it, the call fills it in, and its type is
-not part of the :class:`NativeFunction`'s numba type. The plant's step, the reference and the
-nominal model are bound that way, so that one compiled engine calls the code compiled for any
-of them.
+code it calls, marked ``carries_no_data``) can be *bound*: the caller does not pass it, the call
+fills it in, and its type is not part of the :class:`NativeFunction`'s numba type, so that one
+compiled caller calls the code compiled for any component.
 """
 
 from __future__ import annotations
@@ -32,8 +28,6 @@ from typing import Any
 from llvmlite import ir
 from numba import types
 from numba.core import cgutils
-from numba.core.datamodel import default_manager
-from numba.core.datamodel.models import OpaqueModel
 from numba.core.errors import TypingError
 from numba.extending import (
     NativeValue,
@@ -84,11 +78,11 @@ class NativeFunction:
         Its compiled code is looked up at every call of this method: numba keeps every compiled
         version of a function for the life of the process, so the address stays valid, and a
         recompiled function gives its new code's. (The simulator keeps the first one it finds
-        for each function and signature, :func:`~delaytrack.sim.engine.native`: this package's
-        functions are not recompiled.)
+        for each function and signature, :meth:`delaytrack.sim.native_parts.NativePart.native`:
+        this package's functions are not recompiled.)
         """
         signature = tuple(signature)
-        _check_bound(signature, bound)
+        bound = _check_bound(signature, bound)
         result = function.overloads.get(signature)
         if result is None:
             function.compile(signature)
@@ -105,7 +99,7 @@ class NativeFunction:
         address = result.library.get_pointer_to_function(result.fndesc.llvm_func_name)
         if not address:
             raise RuntimeError(f"numba gave no address for the compiled {function.__name__}")
-        return cls(function, signature, address, tuple(bound), returns)
+        return cls(function, signature, address, bound, returns)
 
     @property
     def runs_as_python(self) -> bool:
@@ -119,15 +113,18 @@ class NativeFunction:
         return NativeFunctionType(free, self.bound, self.returns)
 
 
-def _check_bound(signature: tuple, bound: tuple) -> None:
-    """Refuse to bind an argument that is out of range or carries data."""
-    for position in bound:
+def _check_bound(signature: tuple, bound: tuple) -> tuple:
+    """The positions ``bound`` in increasing order; refuse one that is out of range or whose
+    type does not declare that it carries no data (``carries_no_data``: a null is passed)."""
+    positions = tuple(sorted(set(bound)))
+    for position in positions:
         if not 0 <= position < len(signature):
             raise ValueError(f"bound position {position} is outside the {len(signature)} arguments")
-        if not isinstance(default_manager.lookup(signature[position]), OpaqueModel):
+        if not getattr(signature[position], "carries_no_data", False):
             raise TypeError(
-                f"argument {position} ({signature[position]}) carries data: it cannot be bound"
+                f"argument {position} ({signature[position]}) may carry data: it cannot be bound"
             )
+    return positions
 
 
 class NativeFunctionType(types.Type):
@@ -184,10 +181,11 @@ def _unbox_native_function(typ: NativeFunctionType, obj: Any, c: Any) -> NativeV
 
 def call_native(function, arguments):
     """Call the :class:`NativeFunction` ``function`` with the tuple ``arguments`` (those it does
-    not bind) and return what it returns."""
+    not bind) and return what it returns. From Python, a bound argument is the object its type
+    names (``type.kernel()``)."""
     full = list(arguments)
     for position in function.bound:
-        full.insert(position, None)
+        full.insert(position, function.signature[position].kernel())
     return function.function(*full)
 
 

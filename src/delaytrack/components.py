@@ -387,6 +387,9 @@ def _name_with_code(function: Callable[..., Any]) -> str:
 class KernelType(types.Type):
     """numba type of a :class:`Kernel`: no runtime data, the kernel is known when compiling."""
 
+    #: A call through an address may fill it in (:mod:`delaytrack._native_call`).
+    carries_no_data = True
+
     def __init__(self, kernel_key: str) -> None:
         self.kernel_key = kernel_key
         super().__init__(name=f"Kernel({kernel_key})")

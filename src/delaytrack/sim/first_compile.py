@@ -1,11 +1,10 @@
 """Say so before code is compiled for a new component (it takes seconds to a minute).
 
-numba compiles :func:`~delaytrack.sim.engine.run_batch_compiled` once (again for a controller
-step or a delay kernel of the user's), and each plant's integrator, reference and built-in
-controller step once for itself (the engine calls them through their address,
-:mod:`delaytrack.sim.native_parts`), and keeps them on disk; later calls load them in well
-under a second. :func:`code_ready` tells which case a call is, so that the first one can be
-announced instead of looking like a hang.
+numba compiles :func:`~delaytrack.sim.engine.run_batch_compiled` once, and each plant's
+integrator, reference, controller step and delay kernel once for itself (the engine calls them
+through their address, :mod:`delaytrack.sim.native_parts`), and keeps them on disk; later
+calls load them in well under a second. :func:`code_ready` tells which case a call is, so that
+the first one can be announced instead of looking like a hang.
 """
 
 from __future__ import annotations

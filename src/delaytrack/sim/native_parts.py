@@ -74,7 +74,9 @@ class NativePart:
 
     def ready(self) -> bool:
         """Whether its compiled code is in memory or in the disk cache (nothing to compile)."""
-        return code_ready(self.function, self.signature, self.signature)
+        if not self.__dict__.get("_ready"):
+            self.__dict__["_ready"] = code_ready(self.function, self.signature, self.signature)
+        return self.__dict__["_ready"]
 
     def probe(self) -> NativeFunction:
         """A stand-in with the same numba type, to type the engine's arguments before the
@@ -83,13 +85,14 @@ class NativePart:
 
     def native(self) -> NativeFunction:
         """The function compiled (or loaded from the disk cache) and its address, found once per
-        process: numba keeps the code it compiled first for the life of the process."""
-        return _native(self.function, self.signature, self.bound, self.returns)
-
-
-@functools.cache
-def _native(function: Any, signature: tuple, bound: tuple, returns: types.Type) -> NativeFunction:
-    return NativeFunction.of(function, signature, bound, returns)
+        process (a part is made once for its types): numba keeps the code it compiled first for
+        the life of the process."""
+        found = self.__dict__.get("_native")
+        if found is None:
+            found = self.__dict__["_native"] = NativeFunction.of(
+                self.function, self.signature, self.bound, self.returns
+            )
+        return found
 
 
 @functools.cache

@@ -238,6 +238,19 @@ def _positive_limits(key: str, value: object, shape: tuple[int, ...], entries: s
     return array
 
 
+def _float_vector(name: str, value: object) -> np.ndarray:
+    """``value`` as a 1-D float64 array: the type the engine's compiled parts take."""
+    try:
+        if np.iscomplexobj(value):
+            raise TypeError
+        vector = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise TypeError(f"{name} must be a 1-D array of real numbers; got {value!r}") from None
+    if vector.ndim != 1:
+        raise ValueError(f"{name} must be 1-D; got shape {vector.shape}")
+    return vector
+
+
 def _stack_padded(vectors: list[np.ndarray]) -> np.ndarray:
     width = max(1, max(vector.size for vector in vectors))
     out = np.zeros((len(vectors), width))
@@ -560,6 +573,14 @@ def simulate(
     # their address, each compiled for its component alone: one engine serves every combination
     # (delaytrack.sim.native_parts).
     parts: tuple = ()
+    part_names = (
+        f"{type(first_plant).__name__}'s integrator",
+        type(reference).__name__,
+        f"{type(first_controller).__name__}'s step on {type(first_controller.model).__name__}",
+        f"the delay kernel {delay_kernel.callable_names[0]}"
+        if own_delays
+        else "the delay profiles",
+    )
     if compiled:
         parts = (
             plant_tick_part(first_plant.engine_kernel, delay_kernel, n, m),
@@ -593,7 +614,12 @@ def simulate(
         _stack_padded([p.params for p in plants]),
         _stack_padded([c.model.params for c in controllers]),
         _stack_padded([c.params for c in controllers]),
-        np.array([c.initial_state() for c in controllers]).reshape(batch, state_size),
+        np.array(
+            [
+                _float_vector(f"controller[{b}].initial_state()", c.initial_state())
+                for b, c in enumerate(controllers)
+            ]
+        ).reshape(batch, state_size),
         np.array([d.kind for d in delays], dtype=np.int64),
         _stack_padded([d.params for d in delays]),
         states0,
@@ -604,7 +630,7 @@ def simulate(
         np.arange(batch) == 0,  # the run that records the reference
     )
     settings = (
-        np.array(reference.params),
+        _float_vector("reference.params", reference.params),
         u_init,
         t0,
         dt,
@@ -656,21 +682,9 @@ def simulate(
             "the engine",
             lambda: tuple(runner.typeof_pyval(item) for item in chunk_arguments(0, probes)),
         )
-        own_delay = f"the delay kernel {delay_kernel.callable_names[0]}" if own_delays else ""
-        to_compile = [
-            name
-            for name, ready in (
-                ("the engine", engine_ready),
-                (f"{type(first_plant).__name__}'s integrator", parts[0].ready()),
-                (f"{type(reference).__name__}", parts[1].ready()),
-                (
-                    f"{type(first_controller).__name__}'s step on "
-                    f"{type(first_controller.model).__name__}",
-                    parts[2].ready(),
-                ),
-                (own_delay or "the delay profiles", parts[3].ready()),
-            )
-            if not ready
+        to_compile = ["the engine"] if not engine_ready else []
+        to_compile += [
+            name for name, part in zip(part_names, parts, strict=True) if not part.ready()
         ]
         if to_compile:
             announce_compile(to_compile)
@@ -689,9 +703,13 @@ def simulate(
             raise
         return chunks[index].size
 
+    compiling = "the engine"  # what the message of a compile error names
     try:
         if compiled:  # compiled here, so that a chunk's error is a run's
-            natives = tuple(part.native() for part in parts)
+            for name, part in zip(part_names, parts, strict=True):
+                compiling = name
+                natives += (part.native(),)
+            compiling = "the engine"
             if not engine_ready:
                 runner.compile(tuple(runner.typeof_pyval(a) for a in chunk_arguments(0, natives)))
         bar_context = (
@@ -711,7 +729,7 @@ def simulate(
         if compiled and type(error).__module__.startswith("numba"):
             # numba could not compile a kernel of the user's: their error, in one line.
             raise ValueError(
-                f"numba could not compile the engine for the kernels "
+                f"numba could not compile {compiling} for the kernels "
                 f"{[k.key for k in kernels(0)]}: {_numba_cause(error)} (call a kernel of yours "
                 "alone, compiled, to see numba's whole message)"
             ) from None

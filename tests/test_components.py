@@ -10,6 +10,7 @@ import subprocess
 import sys
 import textwrap
 
+import numba
 import numpy as np
 import pytest
 
@@ -63,6 +64,20 @@ def test_a_user_kernel_is_named_by_its_code_and_what_it_reaches(tmp_path):
     )
     edited = load(tmp_path, "user_a", extra="\n# an edit elsewhere in the file\n")
     assert code_fingerprint(edited.pendulum_terms) == code_fingerprint(first)  # its code only
+
+
+def _scaled(t, params):
+    return params[0] * t
+
+
+def test_a_kernels_numba_options_are_part_of_its_name():
+    # The same code compiled with other options is other machine code: never loaded for it.
+    plain = code_fingerprint(numba.njit(_scaled))
+    assert code_fingerprint(numba.njit(_scaled)) == plain
+    assert code_fingerprint(numba.njit(fastmath=True)(_scaled)) != plain
+    assert code_fingerprint(numba.njit(error_model="numpy")(_scaled)) != plain
+    flags = code_fingerprint(numba.njit(fastmath={"nnan", "ninf"})(_scaled))
+    assert code_fingerprint(numba.njit(fastmath={"ninf", "nnan"})(_scaled)) == flags
 
 
 def test_the_name_does_not_depend_on_where_or_how_the_code_was_loaded(tmp_path):

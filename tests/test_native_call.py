@@ -151,8 +151,9 @@ def slow_rise(t, params):
     return params[0] + 0.01 * np.tanh(t)
 
 
-def test_a_controller_and_a_delay_kernel_of_the_users_reuse_the_compiled_engine() -> None:
-    # A user's step and delay kernel are compiled into parts of their own, keyed by their code.
+def test_controllers_and_delay_kernels_of_the_users_reuse_the_compiled_engine() -> None:
+    # A user's step and delay kernel are compiled into parts of their own, keyed by their code;
+    # the engine has one variant for the user's steps, whatever the step, model, plant or delay.
     sys.path.insert(0, str(USER_ARM))
     try:
         from pd_gravity import PDGravity
@@ -160,22 +161,24 @@ def test_a_controller_and_a_delay_kernel_of_the_users_reuse_the_compiled_engine(
         sys.path.remove(str(USER_ARM))
     settings = dict(t1=0.1, dt=1e-3, T_c=1e-2, trajectories=False)
     line = LinearPlant(1.0, 0.5, 2.0)
-    reference = SinusoidalReference([0.0], amplitude=[[0.5]], frequency=[[1.0]])
     simulate(
         line,
-        OuterLoop(LinearPlant(1.0), 1.0, 1.0),
+        PDGravity(LinearPlant(1.0), 2.0, 1.0),
         AbsSineDelay.S1(),
         np.zeros(2),
-        reference=reference,
+        reference=SinusoidalReference([0.0], amplitude=[[0.5]], frequency=[[1.0]]),
         **settings,
     )
     engines = len(run_batch_compiled.overloads)
+    arm_reference = SinusoidalReference(
+        [0.0, 0.0], amplitude=[[0.8], [0.5]], frequency=[[1.0], [1.7]]
+    )
     own = simulate(
-        line,
-        PDGravity(LinearPlant(1.0), 2.0, 1.0),
+        TwoLinkArm(),
+        PDGravity(TwoLinkArm(), 2.0, 1.0),
         CompiledDelay(slow_rise, [0.02], h_max=0.05, name="slow rise"),
-        np.zeros(2),
-        reference=reference,
+        np.zeros(4),
+        reference=arm_reference,
         **settings,
     )
     assert len(run_batch_compiled.overloads) == engines

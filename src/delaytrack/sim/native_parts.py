@@ -10,16 +10,18 @@ disk:
 * the plant's tick, :func:`~delaytrack.sim.integrator.integrate_tick` compiled for the plant's
   kernel and the batch's delay kernel;
 * the reference, :func:`~delaytrack.components.evaluate_reference` compiled for its kernel;
-* the controller's step, :func:`~delaytrack.components.evaluate_step` compiled for the step's
-  kernel and the nominal model's;
+* the controller's step: one of this package's compiled for the nominal model's kernel, one of
+  the user's in :func:`~delaytrack.components.evaluate_step` compiled for the step's kernel
+  and the model's;
 * the delay at a tick, :func:`~delaytrack.delays._kernel.evaluate_profile` compiled for the
   batch's delay kernel (a profile of the user's, or none).
 
 The components' kernels are *bound* (they carry no data: their numba types name the code), so
 the engine's own numba type names none of them, and one compiled engine serves every
-combination. A part is keyed on disk by its kernels' numba types, which for a kernel of the
-user's include a fingerprint of all the code it reaches (:mod:`delaytrack.components`), so an
-edit to that code compiles its part again.
+combination (two variants: one for this package's controller steps, one for the user's). A
+part is keyed on disk by its kernels' numba types, which for a kernel of the user's include a
+fingerprint of all the code it reaches (:mod:`delaytrack.components`), so an edit to that code
+compiles its part again.
 """
 
 from __future__ import annotations
@@ -46,6 +48,8 @@ __all__ = [
     "reference_part",
 ]
 
+#: Position of the nominal model's kernel among a step kernel's arguments.
+_MODEL = 10
 #: What :func:`~delaytrack.sim.integrator.integrate_tick` returns: ``(outcome, t_stop,
 #: first_slot)``.
 _TICK_OUTCOME = types.Tuple((types.int64, types.float64, types.int64))
@@ -144,16 +148,24 @@ def _reference_part(reference: types.Type, n: int) -> NativePart:
 
 
 def controller_step_part(step: Kernel, model: Kernel, n: int, m: int) -> NativePart:
-    """:func:`~delaytrack.components.evaluate_step` for the controller's step kernel ``step``
-    on the nominal ``model`` with ``n`` coordinates and ``m`` inputs."""
-    return _controller_step_part(step.numba_type, model.numba_type, n, m)
+    """The controller's step kernel ``step`` on the nominal ``model`` with ``n`` coordinates and
+    ``m`` inputs: one of this package's compiled for the model alone, the model bound; one of
+    the user's in :func:`~delaytrack.components.evaluate_step`, compiled for both, both bound.
+
+    Either way the engine passes the same arguments; only the bound positions differ, so the
+    engine has one variant for this package's steps and one for the user's. A step of this
+    package's is not wrapped: the wrapper, compiled with the step linked into it, cost about
+    4 s more per controller in a cold cache (the paper job's three controllers).
+    """
+    if step.built_in:
+        return _builtin_step_part(step.function, model.numba_type, n, m)
+    return _users_step_part(step.numba_type, model.numba_type, n, m)
 
 
-@functools.cache
-def _controller_step_part(step: types.Type, model: types.Type, n: int, m: int) -> NativePart:
+def _step_arguments(model: types.Type, n: int, m: int) -> tuple:
+    """The types of a step kernel's arguments (:mod:`delaytrack.controllers.base`)."""
     vector = _vector(n)
-    signature = (
-        step,
+    return (
         types.float64,  # t
         *(vector,) * 5,  # q, q̇, q_d, q̇_d, q̈_d
         types.float64,  # T_c
@@ -165,7 +177,17 @@ def _controller_step_part(step: types.Type, model: types.Type, n: int, m: int) -
         vector,  # command
         typeof(step_workspace(n, m)),
     )
-    return NativePart(evaluate_step, signature, (0, 11), types.none)
+
+
+@functools.cache
+def _builtin_step_part(step: Any, model: types.Type, n: int, m: int) -> NativePart:
+    return NativePart(step, _step_arguments(model, n, m), (_MODEL,), types.none)
+
+
+@functools.cache
+def _users_step_part(step: types.Type, model: types.Type, n: int, m: int) -> NativePart:
+    signature = (step, *_step_arguments(model, n, m))
+    return NativePart(evaluate_step, signature, (0, _MODEL + 1), types.none)
 
 
 def delay_part(delay: Kernel) -> NativePart:

@@ -679,7 +679,7 @@ def simulate(
         probes = tuple(part.probe() for part in parts)
         engine_ready = code_ready(
             runner,
-            "the engine",
+            ("the engine", parts[2].bound),  # one variant for built-in steps, one for the user's
             lambda: tuple(runner.typeof_pyval(item) for item in chunk_arguments(0, probes)),
         )
         to_compile = ["the engine"] if not engine_ready else []

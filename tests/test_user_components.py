@@ -606,33 +606,23 @@ def test_a_reference_with_integer_parameters_runs_as_with_floats():
     # The compiled parts take float64 vectors: integers are converted, not refused by numba.
     plant = dt.TwoLinkArm()
     controller = dt.OuterLoop(plant, K1=1.0, K2=1.0)
-    results = [
+    floats = type("FloatRipple", (FusedRipple,), {"params": np.array([1.0, 0.0])})
+    whole, same, other = (
         dt.simulate(
             plant,
             controller,
             dt.ConstantDelay(0.01),
             np.zeros(4),
-            reference=reference,
+            reference=kind(),
             t1=0.05,
             dt=1e-3,
             T_c=2e-3,
         )
-        for reference in (WholeRipple(), FusedRipple())
-    ]
-    assert results[0].status_names == ["ok"]
-    floats = type("FloatRipple", (FusedRipple,), {"params": np.array([1.0, 0.0])})()
-    same = dt.simulate(
-        plant,
-        controller,
-        dt.ConstantDelay(0.01),
-        np.zeros(4),
-        reference=floats,
-        t1=0.05,
-        dt=1e-3,
-        T_c=2e-3,
+        for kind in (WholeRipple, floats, FusedRipple)
     )
-    np.testing.assert_array_equal(results[0].x, same.x)
-    assert not np.array_equal(results[1].x, same.x)
+    assert whole.status_names == ["ok"]
+    np.testing.assert_array_equal(whole.x, same.x)
+    assert not np.array_equal(other.x, same.x)  # the parameters matter
 
 
 def test_the_plain_python_engine_records_the_reference_its_kernel_gives():

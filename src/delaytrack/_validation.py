@@ -21,6 +21,7 @@ __all__ = [
     "format_values",
     "positive_scalar",
     "finite_array",
+    "real_array",
 ]
 
 _SYMMETRY_RTOL = 1e-10
@@ -118,8 +119,8 @@ def positive_scalar(name: str, value: object, *, strictly: bool = True) -> float
     return number
 
 
-def finite_array(name: str, value: object, *, ndim: int | None = None) -> np.ndarray:
-    """Return ``value`` as a float64 array with only finite entries."""
+def real_array(name: str, value: object, *, ndim: int | None = None) -> np.ndarray:
+    """Return ``value`` as a float64 array (a new one), of ``ndim`` dimensions when given."""
     try:
         if np.iscomplexobj(value):
             raise TypeError
@@ -128,6 +129,12 @@ def finite_array(name: str, value: object, *, ndim: int | None = None) -> np.nda
         raise TypeError(f"{name} must be an array of real numbers; got {value!r}") from None
     if ndim is not None and array.ndim != ndim:
         raise ValueError(f"{name} must be {ndim}-dimensional; got shape {array.shape}")
+    return array
+
+
+def finite_array(name: str, value: object, *, ndim: int | None = None) -> np.ndarray:
+    """Return ``value`` as a float64 array with only finite entries."""
+    array = real_array(name, value, ndim=ndim)
     if not np.all(np.isfinite(array)):
         bad = tuple(int(i) for i in np.argwhere(~np.isfinite(array))[0])
         where = f"{name}[{', '.join(map(str, bad))}]" if bad else name

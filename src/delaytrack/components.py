@@ -577,7 +577,7 @@ def _call_step_compiled(
     # Inlined, so that the tick calls the step itself (a call level cost about 0.13 µs a tick;
     # numba's inliner does not take *arguments): through its address (in the compiled engine,
     # delaytrack.sim.native_parts) or linked into the caller (evaluate_step).
-    if isinstance(step, NativeFunctionType):  # evaluate_step; the step's and model's kernels bound
+    if isinstance(step, NativeFunctionType):  # native_parts.controller_step_part: kernels bound
 
         def native(
             step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, mp, u, work

@@ -19,6 +19,7 @@ from delaytrack._validation import (
     integer_multiple,
     is_integer_at_least,
     positive_scalar,
+    real_array,
 )
 from delaytrack.components import call_reference
 from delaytrack.controllers.base import Controller
@@ -236,19 +237,6 @@ def _positive_limits(key: str, value: object, shape: tuple[int, ...], entries: s
     if np.any(np.isnan(array)) or np.any(array <= 0.0):
         raise ValueError(f"{key} must be > 0 (inf for none) in every entry; got {value!r}")
     return array
-
-
-def _float_vector(name: str, value: object) -> np.ndarray:
-    """``value`` as a 1-D float64 array: the type the engine's compiled parts take."""
-    try:
-        if np.iscomplexobj(value):
-            raise TypeError
-        vector = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError, OverflowError):
-        raise TypeError(f"{name} must be a 1-D array of real numbers; got {value!r}") from None
-    if vector.ndim != 1:
-        raise ValueError(f"{name} must be 1-D; got shape {vector.shape}")
-    return vector
 
 
 def _stack_padded(vectors: list[np.ndarray]) -> np.ndarray:
@@ -614,11 +602,9 @@ def simulate(
         _stack_padded([p.params for p in plants]),
         _stack_padded([c.model.params for c in controllers]),
         _stack_padded([c.params for c in controllers]),
-        np.array(
-            [
-                _float_vector(f"controller[{b}].initial_state()", c.initial_state())
-                for b, c in enumerate(controllers)
-            ]
+        # float64, as the compiled parts take them (a user's class may give integers)
+        real_array(
+            "the controllers' initial states", [c.initial_state() for c in controllers]
         ).reshape(batch, state_size),
         np.array([d.kind for d in delays], dtype=np.int64),
         _stack_padded([d.params for d in delays]),
@@ -630,7 +616,7 @@ def simulate(
         np.arange(batch) == 0,  # the run that records the reference
     )
     settings = (
-        _float_vector("reference.params", reference.params),
+        real_array("reference.params", reference.params, ndim=1),
         u_init,
         t0,
         dt,

@@ -37,6 +37,7 @@ from delaytrack._native_call import NativeFunction
 from delaytrack.components import Kernel, evaluate_reference, evaluate_step
 from delaytrack.controllers.base import step_workspace
 from delaytrack.delays._kernel import evaluate_profile
+from delaytrack.sim.compile_helper import CompileJob
 from delaytrack.sim.first_compile import code_ready
 from delaytrack.sim.integrator import integrate_tick, rk4_workspace
 
@@ -50,6 +51,9 @@ __all__ = [
 
 #: Position of the nominal model's kernel among a step kernel's arguments.
 _MODEL = 10
+#: Rough seconds of a first compile of each part (the paper's robot, measured with numba's
+#: compile times: the integrator with the robot's dynamics inlined is the longest).
+_INTEGRATOR_COST, _STEP_COST, _REFERENCE_COST, _DELAY_COST = 12.0, 5.0, 1.5, 1.5
 #: What :func:`~delaytrack.sim.integrator.integrate_tick` returns: ``(outcome, t_stop,
 #: first_slot)``.
 _TICK_OUTCOME = types.Tuple((types.int64, types.float64, types.int64))
@@ -69,12 +73,16 @@ class NativePart:
         Positions of the arguments the call fills in (the component's kernel).
     returns : numba type
         What it returns.
+    cost : float
+        Rough seconds its first compile takes, relative to the others' (to share first
+        compiles between two processes, :mod:`delaytrack.sim.compile_helper`).
     """
 
     function: Any
     signature: tuple
     bound: tuple
     returns: types.Type
+    cost: float
 
     def ready(self) -> bool:
         """Whether its compiled code is in memory or in the disk cache (nothing to compile)."""
@@ -86,6 +94,11 @@ class NativePart:
         """A stand-in with the same numba type, to type the engine's arguments before the
         function is compiled (its address is 0: it must not be called)."""
         return NativeFunction(self.function, self.signature, 0, self.bound, self.returns)
+
+    def compile_job(self) -> CompileJob:
+        """Its compile, for :func:`delaytrack.sim.compile_helper.start`."""
+        kernels = tuple(self.signature[position].kernel() for position in self.bound)
+        return CompileJob(self.function, self.signature, kernels, self.cost)
 
     def native(self) -> NativeFunction:
         """The function compiled (or loaded from the disk cache) and its address, found once per
@@ -131,7 +144,7 @@ def _plant_tick_part(plant: types.Type, delay: types.Type, n: int, m: int) -> Na
         typeof(rk4_workspace(np.empty(2 * n), m)),
         types.boolean,  # probe_only
     )
-    return NativePart(integrate_tick, signature, (0, 1), _TICK_OUTCOME)
+    return NativePart(integrate_tick, signature, (0, 1), _TICK_OUTCOME, _INTEGRATOR_COST)
 
 
 def reference_part(reference: Kernel, n: int) -> NativePart:
@@ -144,7 +157,7 @@ def reference_part(reference: Kernel, n: int) -> NativePart:
 def _reference_part(reference: types.Type, n: int) -> NativePart:
     vector = _vector(n)
     signature = (reference, types.float64, vector, vector, vector, vector)
-    return NativePart(evaluate_reference, signature, (0,), types.none)
+    return NativePart(evaluate_reference, signature, (0,), types.none, _REFERENCE_COST)
 
 
 def controller_step_part(step: Kernel, model: Kernel, n: int, m: int) -> NativePart:
@@ -181,13 +194,13 @@ def _step_arguments(model: types.Type, n: int, m: int) -> tuple:
 
 @functools.cache
 def _builtin_step_part(step: Any, model: types.Type, n: int, m: int) -> NativePart:
-    return NativePart(step, _step_arguments(model, n, m), (_MODEL,), types.none)
+    return NativePart(step, _step_arguments(model, n, m), (_MODEL,), types.none, _STEP_COST)
 
 
 @functools.cache
 def _users_step_part(step: types.Type, model: types.Type, n: int, m: int) -> NativePart:
     signature = (step, *_step_arguments(model, n, m))
-    return NativePart(evaluate_step, signature, (0, _MODEL + 1), types.none)
+    return NativePart(evaluate_step, signature, (0, _MODEL + 1), types.none, _STEP_COST)
 
 
 def delay_part(delay: Kernel) -> NativePart:
@@ -199,4 +212,4 @@ def delay_part(delay: Kernel) -> NativePart:
 @functools.cache
 def _delay_part(delay: types.Type) -> NativePart:
     signature = (delay, types.int64, _vector(1), types.float64)
-    return NativePart(evaluate_profile, signature, (0,), types.float64)
+    return NativePart(evaluate_profile, signature, (0,), types.float64, _DELAY_COST)

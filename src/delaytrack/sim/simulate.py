@@ -28,6 +28,8 @@ from delaytrack.delays.base import DelayProfile
 from delaytrack.kernel_arguments import check_kernel_arguments
 from delaytrack.plants.base import ELPlant
 from delaytrack.references import Reference
+from delaytrack.sim.compile_helper import CompileJob
+from delaytrack.sim.compile_helper import start as start_helper
 from delaytrack.sim.engine import run_batch, run_batch_compiled
 from delaytrack.sim.fallback import PythonFallbackWarning
 from delaytrack.sim.first_compile import announce_compile, code_ready
@@ -59,6 +61,9 @@ _NO_PROGRESS_BAR = SimpleNamespace(update=lambda done: None)
 #: Chunks per worker thread: enough for load balance and a moving progress bar, few enough
 #: that the per-call overhead stays negligible.
 _CHUNKS_PER_WORKER = 8
+#: Rough seconds of the engine's first compile, in the units of the parts' costs
+#: (:mod:`delaytrack.sim.native_parts`), to share first compiles between two processes.
+_ENGINE_COST = 9.0
 #: What the controller reads and loses when no noise and no loss are given.
 _TRUE_STATE = MeasurementNoise()
 _NO_LOSS = PacketLoss()
@@ -561,6 +566,7 @@ def simulate(
     # their address, each compiled for its component alone: one engine serves every combination
     # (delaytrack.sim.native_parts).
     parts: tuple = ()
+    helper, handed_over = None, set()
     part_names = (
         f"{type(first_plant).__name__}'s integrator",
         type(reference).__name__,
@@ -663,17 +669,28 @@ def simulate(
     if compiled:
         # Stand-ins with an address of 0 give the engine's argument types without compiling.
         probes = tuple(part.probe() for part in parts)
+
+        def engine_signature() -> tuple:
+            return tuple(runner.typeof_pyval(item) for item in chunk_arguments(0, probes))
+
         engine_ready = code_ready(
             runner,
             ("the engine", parts[2].bound),  # one variant for built-in steps, one for the user's
-            lambda: tuple(runner.typeof_pyval(item) for item in chunk_arguments(0, probes)),
+            engine_signature,
         )
-        to_compile = ["the engine"] if not engine_ready else []
-        to_compile += [
-            name for name, part in zip(part_names, parts, strict=True) if not part.ready()
+        waiting = [
+            (name, part.compile_job())
+            for name, part in zip(part_names, parts, strict=True)
+            if not part.ready()
         ]
-        if to_compile:
-            announce_compile(to_compile)
+        if not engine_ready:
+            engine_job = CompileJob(runner, engine_signature(), (NO_KERNEL,), _ENGINE_COST)
+            waiting.insert(0, ("the engine", engine_job))
+        if waiting:
+            announce_compile([name for name, _ in waiting])
+            # Two or more to compile: a helper process compiles some of them on another core.
+            helper, handed = start_helper([job for _, job in waiting])
+            handed_over = {waiting[i][0] for i in handed}
     natives: tuple = ()
 
     yours = [k for k in kernels(0) if not k.built_in and k is not NO_KERNEL]
@@ -692,6 +709,12 @@ def simulate(
     compiling = "the engine"  # what the message of a compile error names
     try:
         if compiled:  # compiled here, so that a chunk's error is a run's
+            for name, part in zip(part_names, parts, strict=True):
+                if name not in handed_over:
+                    compiling = name
+                    part.native()
+            if helper is not None:
+                helper.wait()  # what it did not compile is compiled below
             for name, part in zip(part_names, parts, strict=True):
                 compiling = name
                 natives += (part.native(),)
@@ -720,6 +743,9 @@ def simulate(
                 "alone, compiled, to see numba's whole message)"
             ) from None
         raise
+    finally:
+        if helper is not None:
+            helper.stop()
 
     times = t0 + (np.arange(records) * every * steps_per_tick) * dt
     for b in np.flatnonzero(status != 0):

@@ -1,0 +1,119 @@
+"""First compiles shared with a helper process (delaytrack.sim.compile_helper)."""
+
+from __future__ import annotations
+
+import io
+import pickle
+import sys
+
+import pytest
+
+from delaytrack._numba_cache import cache_directory
+from delaytrack.components import Kernel
+from delaytrack.controllers.arolc import arolc_step
+from delaytrack.delays._kernel import NO_KERNEL
+from delaytrack.plants import TwoLinkArm
+from delaytrack.sim import compile_helper
+from delaytrack.sim.compile_helper import START_UP, CompileJob, Helper, share, start
+from delaytrack.sim.engine import run_batch_compiled
+from delaytrack.sim.native_parts import controller_step_part, plant_tick_part
+
+
+def test_the_work_is_shared_longest_first_so_both_finish_together():
+    # the engine, the integrator, the reference, a step, the delay
+    costs = [9.0, 12.0, 1.5, 5.0, 1.5]
+    given = share(costs, [True] * 5)
+    assert given == [0, 3]  # the engine and the step: 9 + 5 + start-up against 12 + 1.5 + 1.5
+    helper = START_UP + sum(costs[i] for i in given)
+    here = sum(costs) - sum(costs[i] for i in given)
+    assert max(helper, here) < sum(costs)
+    # what the helper cannot import stays here
+    assert 1 not in share(costs, [True, False, True, True, True])
+    assert share(costs, [False] * 5) == []
+
+
+def test_no_helper_when_it_would_not_finish_sooner():
+    assert share([1.0, 1.0], [True, True]) == []  # its start-up is longer than the work
+    assert share([9.0], [True]) == []
+    assert start([]) == (None, [])
+
+
+def test_no_helper_when_turned_off(monkeypatch):
+    job = plant_tick_part(TwoLinkArm().engine_kernel, NO_KERNEL, 2, 2).compile_job()
+    monkeypatch.setenv(compile_helper.ENVIRONMENT, "0")
+    assert start([job, job]) == (None, [])
+
+
+def test_a_helper_runs_only_beside_a_spare_core(monkeypatch):
+    monkeypatch.setattr(compile_helper, "_cores", lambda: 2)
+    monkeypatch.delenv(compile_helper.ENVIRONMENT, raising=False)
+    monkeypatch.setattr(compile_helper.os, "getloadavg", lambda: (1.2, 0.0, 0.0))
+    assert compile_helper.spare_core()  # this process's own load
+    monkeypatch.setattr(compile_helper.os, "getloadavg", lambda: (1.9, 0.0, 0.0))
+    assert not compile_helper.spare_core()  # both cores busy (pytest's workers, a sweep)
+    monkeypatch.setenv(compile_helper.ENVIRONMENT, "1")
+    assert compile_helper.spare_core()  # asked for, whatever the load
+    monkeypatch.setenv(compile_helper.ENVIRONMENT, "0")
+    monkeypatch.setattr(compile_helper.os, "getloadavg", lambda: (0.0, 0.0, 0.0))
+    assert not compile_helper.spare_core()
+    monkeypatch.delenv(compile_helper.ENVIRONMENT)
+    monkeypatch.setattr(compile_helper, "_cores", lambda: 1)
+    assert not compile_helper.spare_core()
+
+
+def test_functions_are_named_as_another_process_imports_them():
+    assert compile_helper._name(run_batch_compiled) == (
+        "delaytrack.sim.engine",
+        "run_batch_compiled",  # a dispatcher made from run_batch: found by its module's name
+    )
+    assert compile_helper._name(arolc_step) == ("delaytrack.controllers.arolc", "arolc_step")
+    assert compile_helper._name(lambda: None) is None
+
+    def inner():
+        pass
+
+    assert compile_helper._name(inner) is None
+
+
+def test_a_part_whose_kernel_cannot_be_imported_stays_here():
+    def local_terms(t, q, qdot, params, mass, nonlinear, input_map):
+        pass
+
+    mine = CompileJob(run_batch_compiled, (), (Kernel(local_terms),), 1.0)
+    assert compile_helper._recipe(mine) is None
+    step = controller_step_part(Kernel.of(arolc_step), TwoLinkArm().engine_kernel, 2, 2)
+    assert compile_helper._recipe(step.compile_job()) is not None
+
+
+def _payload(cache: str, recipes: list) -> io.BytesIO:
+    file = io.BytesIO()
+    pickle.dump((cache, recipes), file)
+    file.seek(0)
+    return file
+
+
+def test_the_helper_refuses_another_cache_folder_and_reports_a_failed_job():
+    assert compile_helper.main(_payload("/elsewhere", [])) == 2
+    missing = (("delaytrack.sim.engine", "no_such_function"), (), ())
+    assert compile_helper.main(_payload(str(cache_directory()), [missing])) == 1
+    assert compile_helper.main(_payload(str(cache_directory()), [])) == 0
+
+
+def test_the_helper_refuses_a_kernel_whose_code_changed():
+    kernel = TwoLinkArm().engine_kernel
+    key, names, identity_mass, sizes = compile_helper._kernel_recipe(kernel)
+    compile_helper._make_kernel((key, names, identity_mass, sizes))  # the same code: made
+    with pytest.raises(RuntimeError, match="changed on disk"):
+        compile_helper._make_kernel((key + "#0123", names, identity_mass, sizes))
+
+
+def test_a_failed_helper_is_reported_and_a_running_one_can_be_stopped(tmp_path):
+    import subprocess
+
+    marker = tmp_path / "payload"
+    marker.write_bytes(b"")
+    failed = Helper(subprocess.Popen([sys.executable, "-c", "raise SystemExit(1)"]), [marker])
+    assert failed.wait() is False and not marker.exists()
+    running = Helper(subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"]), [])
+    running.stop()
+    assert running.process.returncode is not None

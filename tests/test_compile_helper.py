@@ -47,18 +47,45 @@ def test_no_helper_when_turned_off(monkeypatch):
 def test_a_helper_runs_only_beside_a_spare_core(monkeypatch):
     monkeypatch.setattr(compile_helper, "_cores", lambda: 2)
     monkeypatch.delenv(compile_helper.ENVIRONMENT, raising=False)
-    monkeypatch.setattr(compile_helper.os, "getloadavg", lambda: (1.2, 0.0, 0.0))
+    monkeypatch.setattr(compile_helper, "_busy", lambda: (1.2, 0))
     assert compile_helper.spare_core()  # this process's own load
-    monkeypatch.setattr(compile_helper.os, "getloadavg", lambda: (1.9, 0.0, 0.0))
-    assert not compile_helper.spare_core()  # both cores busy (pytest's workers, a sweep)
+    monkeypatch.setattr(compile_helper, "_busy", lambda: (1.9, 0))
+    assert not compile_helper.spare_core()  # both cores busy this last minute
+    monkeypatch.setattr(compile_helper, "_busy", lambda: (0.3, 1))
+    assert not compile_helper.spare_core()  # another task running now (pytest's, a sweep's)
     monkeypatch.setenv(compile_helper.ENVIRONMENT, "1")
     assert compile_helper.spare_core()  # asked for, whatever the load
+    monkeypatch.setattr(compile_helper, "locks_cache", lambda: False)
+    assert not compile_helper.spare_core()  # no lock on the cache's index (Windows)
+    monkeypatch.setattr(compile_helper, "locks_cache", lambda: True)
+    monkeypatch.setattr(sys, "frozen", True, raising=False)
+    assert not compile_helper.spare_core()  # sys.executable is the application, not Python
+    monkeypatch.delattr(sys, "frozen")
     monkeypatch.setenv(compile_helper.ENVIRONMENT, "0")
-    monkeypatch.setattr(compile_helper.os, "getloadavg", lambda: (0.0, 0.0, 0.0))
+    monkeypatch.setattr(compile_helper, "_busy", lambda: (0.0, 0))
     assert not compile_helper.spare_core()
     monkeypatch.delenv(compile_helper.ENVIRONMENT)
     monkeypatch.setattr(compile_helper, "_cores", lambda: 1)
     assert not compile_helper.spare_core()
+
+
+def test_a_helper_compiles_its_share_into_the_cache(monkeypatch):
+    from delaytrack.references import SinusoidalReference
+    from delaytrack.sim.native_parts import delay_part, reference_part
+
+    reference = reference_part(SinusoidalReference([0.0], [1.0], [1.0]).engine_kernel, 1)
+    delay = delay_part(NO_KERNEL)
+    jobs = [
+        CompileJob(part.function, part.signature, part.compile_job().kernels, 10.0)
+        for part in (reference, delay)
+    ]
+    monkeypatch.setenv(compile_helper.ENVIRONMENT, "1")
+    helper, given = start(jobs)
+    if helper is None:
+        pytest.skip("one core, or no lock on numba's cache")
+    assert given == [1]
+    assert helper.wait() is True  # imported both and compiled (or loaded) the delay part
+    assert delay.signature in delay.function.overloads or delay.ready()
 
 
 def test_functions_are_named_as_another_process_imports_them():
@@ -107,13 +134,14 @@ def test_the_helper_refuses_a_kernel_whose_code_changed():
         compile_helper._make_kernel((key + "#0123", names, identity_mass, sizes))
 
 
-def test_a_failed_helper_is_reported_and_a_running_one_can_be_stopped(tmp_path):
+def test_a_failed_or_slow_helper_is_reported_and_stopped():
     import subprocess
 
-    marker = tmp_path / "payload"
-    marker.write_bytes(b"")
-    failed = Helper(subprocess.Popen([sys.executable, "-c", "raise SystemExit(1)"]), [marker])
-    assert failed.wait() is False and not marker.exists()
-    running = Helper(subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"]), [])
+    failed = Helper(subprocess.Popen([sys.executable, "-c", "raise SystemExit(1)"]), 30.0)
+    assert failed.wait() is False
+    slow = Helper(subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"]), 0.5)
+    assert slow.wait() is False  # waited half a second, then stopped
+    assert slow.process.returncode is not None
+    running = Helper(subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"]), 60)
     running.stop()
     assert running.process.returncode is not None

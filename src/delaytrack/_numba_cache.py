@@ -31,7 +31,7 @@ try:
 except ImportError:  # Windows: numba's own writes, unlocked
     fcntl = None
 
-__all__ = ["cache_directory", "kernel_files", "locked_cache", "source_hash"]
+__all__ = ["cache_directory", "kernel_files", "locked_cache", "locks_cache", "source_hash"]
 
 _PACKAGE = Path(__file__).resolve().parent
 #: Text that marks a file holding compiled code.
@@ -70,6 +70,11 @@ def cache_directory() -> Path:
         return Path(root) / "delaytrack" / source_hash()
     base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
     return base / "delaytrack" / "numba" / source_hash()
+
+
+def locks_cache() -> bool:
+    """Whether entries are saved under a file lock (not on Windows, which has no ``fcntl``)."""
+    return fcntl is not None
 
 
 @contextlib.contextmanager

@@ -11,14 +11,18 @@ helper (:meth:`Helper.wait`), and then loads the helper's share from the cache.
 The helper imports each function and kernel by its module and name, and checks that a kernel of
 the user's has the same fingerprint as here (:attr:`delaytrack.components.Kernel.key`); a
 function it cannot import (defined in ``__main__`` or inside another function) stays in this
-process. Whatever the helper does not deliver, because it failed or was stopped, this process
-compiles as it would without it, so results and error messages do not depend on the helper.
+process. Importing the module of a kernel of yours runs its top-level code in the helper (with
+the helper turned off there, so it starts no helper of its own). Whatever the helper does not
+deliver, because it failed, was stopped or took too long (:meth:`Helper.wait`), this process
+compiles as it would without it, and a compile error is reported by this process.
 
-The helper is for a core with nothing to do: it is started when the load average of the last
-minute is below the number of cores less one half (so not in a batch of processes already
-using every core, such as pytest or dask workers, where it would only compete with them). Set
-the environment variable ``DELAYTRACK_COMPILE_HELPER`` to ``0`` to compile in one process, or to
-``1`` to start the helper whenever there are two cores, whatever the load.
+The helper is for a core with nothing to do: it is started when fewer tasks than cores are
+running, this process included, and the load average of the last minute is below the number of
+cores less one half (so not beside processes already using every core, such as pytest's or
+dask's workers, where it would only compete with them), and only where numba's cache is saved
+under a file lock (not on Windows). Set the environment variable
+``DELAYTRACK_COMPILE_HELPER`` to ``0`` to compile in one process, or to ``1`` to start the
+helper whatever the load.
 """
 
 from __future__ import annotations
@@ -29,12 +33,12 @@ import os
 import pickle
 import subprocess
 import sys
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import IO, Any
 
-from delaytrack._numba_cache import cache_directory
+from delaytrack._numba_cache import cache_directory, locks_cache
 from delaytrack.components import Kernel
 
 __all__ = ["ENVIRONMENT", "CompileJob", "Helper", "main", "share", "spare_core", "start"]
@@ -46,16 +50,21 @@ ENVIRONMENT = "DELAYTRACK_COMPILE_HELPER"
 #: :attr:`CompileJob.cost`.
 START_UP = 2.5
 
-#: What the helper runs: it sets its module search path to this process's before importing
+#: What the helper runs (``python -P``: no folder is put before the module search path). It
+#: reads the whole payload, then sets its module search path to this process's before importing
 #: delaytrack, so that it imports the same package and the user's modules.
 _BOOTSTRAP = (
-    "import pickle, sys\n"
-    "with open(sys.argv[1], 'rb') as file:\n"
-    "    sys.path[:] = pickle.load(file)\n"
-    "    from delaytrack.sim.compile_helper import main\n"
-    "    code = main(file)\n"
-    "sys.exit(code)\n"
+    "import io, pickle, sys\n"
+    "payload = io.BytesIO(sys.stdin.buffer.read())\n"
+    "sys.path[:] = pickle.load(payload)\n"
+    "from delaytrack.sim.compile_helper import main\n"
+    "sys.exit(main(payload))\n"
 )
+
+#: How long to wait for a helper: this many seconds, plus :data:`PATIENCE` times its share's
+#: cost, then this process compiles what is left.
+GRACE = 60.0
+PATIENCE = 10.0
 
 
 @dataclass(frozen=True)
@@ -82,26 +91,41 @@ class CompileJob:
 
 
 def _cores() -> int:
-    """The cores this process may run on."""
+    """The cores this process may use: those it may run on, at most its cgroup's CPU quota."""
     try:
-        return len(os.sched_getaffinity(0))
+        cores = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
+        cores = os.cpu_count() or 1
+    with contextlib.suppress(OSError, ValueError):
+        quota, period = Path("/sys/fs/cgroup/cpu.max").read_text().split()[:2]
+        if quota != "max":
+            cores = min(cores, max(1, int(int(quota) // int(period))))
+    return cores
+
+
+def _busy() -> tuple[float, int]:
+    """The load average of the last minute and the tasks running now besides this one
+    (``/proc/loadavg``); ``(0, 0)`` where they are not known."""
+    try:
+        fields = Path("/proc/loadavg").read_text().split()
+        return float(fields[0]), int(fields[3].split("/")[0]) - 1
+    except (OSError, ValueError, IndexError):
+        with contextlib.suppress(AttributeError, OSError):
+            return os.getloadavg()[0], 0
+    return 0.0, 0
 
 
 def spare_core() -> bool:
-    """Whether a helper may run beside this process (:data:`ENVIRONMENT`, the cores, the load)."""
+    """Whether a helper may run beside this process (:data:`ENVIRONMENT`, the cores, the load;
+    never in a frozen application or where the cache is saved without a lock)."""
     setting = os.environ.get(ENVIRONMENT, "").strip()
     cores = _cores()
-    if setting == "0" or cores < 2:
+    if setting == "0" or cores < 2 or getattr(sys, "frozen", False) or not locks_cache():
         return False
     if setting == "1":
         return True
-    try:
-        load = os.getloadavg()[0]
-    except (AttributeError, OSError):  # no load average (Windows): assume a core is free
-        return True
-    return load < cores - 0.5
+    load, others = _busy()
+    return load < cores - 0.5 and others < cores - 1
 
 
 def _name(function: Any) -> tuple[str, str] | None:
@@ -167,30 +191,34 @@ def share(costs: Sequence[float], movable: Sequence[bool]) -> list[int]:
 
 
 class Helper:
-    """A helper process compiling its share of the jobs (made by :func:`start`)."""
+    """A helper process compiling its share of the jobs (made by :func:`start`).
 
-    def __init__(self, process: subprocess.Popen, files: Sequence[str]) -> None:
+    Parameters
+    ----------
+    process : subprocess.Popen
+        The helper.
+    patience : float
+        Seconds :meth:`wait` waits for it.
+    """
+
+    def __init__(self, process: subprocess.Popen, patience: float) -> None:
         self.process = process
-        self._files = files
+        self.patience = patience
 
     def wait(self) -> bool:
-        """Wait for the helper to finish; whether it compiled its whole share."""
+        """Wait for the helper to finish (at most :attr:`patience` seconds, then stop it);
+        whether it compiled its whole share."""
         try:
-            return self.process.wait() == 0
-        finally:
-            self._remove_files()
+            return self.process.wait(timeout=self.patience) == 0
+        except subprocess.TimeoutExpired:
+            self.stop()
+            return False
 
     def stop(self) -> None:
         """End the helper if it still runs (this process failed or was interrupted)."""
         if self.process.poll() is None:
             self.process.kill()
             self.process.wait()
-        self._remove_files()
-
-    def _remove_files(self) -> None:
-        for path in self._files:
-            with contextlib.suppress(OSError):
-                os.remove(path)
 
 
 def start(jobs: Sequence[CompileJob]) -> tuple[Helper | None, list[int]]:
@@ -206,21 +234,26 @@ def start(jobs: Sequence[CompileJob]) -> tuple[Helper | None, list[int]]:
     given = share([job.cost for job in jobs], [recipe is not None for recipe in recipes])
     if not given:
         return None, []
+    process = None
     try:
-        with tempfile.NamedTemporaryFile("wb", suffix=".pickle", delete=False) as file:
-            pickle.dump(list(sys.path), file)
-            pickle.dump((str(cache_directory()), [recipes[i] for i in given]), file)
+        payload = pickle.dumps(list(sys.path)) + pickle.dumps(
+            (str(cache_directory()), [recipes[i] for i in given])
+        )
         process = subprocess.Popen(
-            [sys.executable, "-c", _BOOTSTRAP, file.name],
-            stdin=subprocess.DEVNULL,
+            [sys.executable, "-P", "-c", _BOOTSTRAP],
+            stdin=subprocess.PIPE,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
+            env={**os.environ, ENVIRONMENT: "0"},  # its imports start no helper of their own
         )
+        process.stdin.write(payload)
+        process.stdin.close()
     except Exception:  # noqa: BLE001 - no helper: everything is compiled here
-        with contextlib.suppress(Exception):
-            os.remove(file.name)
+        if process is not None:
+            Helper(process, 0.0).stop()
         return None, []
-    return Helper(process, [file.name]), given
+    patience = GRACE + PATIENCE * sum(jobs[i].cost for i in given)
+    return Helper(process, patience), given
 
 
 def _imported(name: tuple[str, str]) -> Any:

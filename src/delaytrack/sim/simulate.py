@@ -566,7 +566,7 @@ def simulate(
     # their address, each compiled for its component alone: one engine serves every combination
     # (delaytrack.sim.native_parts).
     parts: tuple = ()
-    helper, handed_over = None, set()
+    helper, handed_over, waiting = None, set(), []
     part_names = (
         f"{type(first_plant).__name__}'s integrator",
         type(reference).__name__,
@@ -688,9 +688,6 @@ def simulate(
             waiting.insert(0, ("the engine", engine_job))
         if waiting:
             announce_compile([name for name, _ in waiting])
-            # Two or more to compile: a helper process compiles some of them on another core.
-            helper, handed = start_helper([job for _, job in waiting])
-            handed_over = {waiting[i][0] for i in handed}
     natives: tuple = ()
 
     yours = [k for k in kernels(0) if not k.built_in and k is not NO_KERNEL]
@@ -709,6 +706,9 @@ def simulate(
     compiling = "the engine"  # what the message of a compile error names
     try:
         if compiled:  # compiled here, so that a chunk's error is a run's
+            # Two or more to compile: a helper process compiles some of them on another core.
+            helper, handed = start_helper([job for _, job in waiting])
+            handed_over = {waiting[i][0] for i in handed}
             for name, part in zip(part_names, parts, strict=True):
                 if name not in handed_over:
                     compiling = name

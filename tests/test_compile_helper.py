@@ -69,6 +69,21 @@ def test_a_helper_runs_only_beside_a_spare_core(monkeypatch):
     assert not compile_helper.spare_core()
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_another_process_running_is_counted():
+    import subprocess
+    import time
+
+    assert compile_helper._own_running() >= 1  # this thread, reading
+    other = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        time.sleep(0.5)  # started and spinning
+        assert compile_helper._busy()[1] >= 1
+    finally:
+        other.kill()
+        other.wait()
+
+
 def test_a_helper_compiles_its_share_into_the_cache(monkeypatch):
     from delaytrack.references import SinusoidalReference
     from delaytrack.sim.native_parts import delay_part, reference_part

@@ -16,8 +16,8 @@ the helper turned off there, so it starts no helper of its own). Whatever the he
 deliver, because it failed, was stopped or took too long (:meth:`Helper.wait`), this process
 compiles as it would without it, and a compile error is reported by this process.
 
-The helper is for a core with nothing to do: it is started when fewer tasks than cores are
-running, this process included, and the load average of the last minute is below the number of
+The helper is for a core with nothing to do: it is started when fewer tasks of other processes
+than cores less one are running, and the load average of the last minute is below the number of
 cores less one half (so not beside processes already using every core, such as pytest's or
 dask's workers, where it would only compete with them), and only where numba's cache is saved
 under a file lock (not on Windows). Set the environment variable
@@ -33,6 +33,7 @@ import os
 import pickle
 import subprocess
 import sys
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -103,12 +104,28 @@ def _cores() -> int:
     return cores
 
 
-def _busy() -> tuple[float, int]:
-    """The load average of the last minute and the tasks running now besides this one
-    (``/proc/loadavg``); ``(0, 0)`` where they are not known."""
+def _own_running() -> int:
+    """How many threads of this process are running now (``/proc/self/task``)."""
+    running = 0
+    for task in Path("/proc/self/task").iterdir():
+        with contextlib.suppress(OSError):
+            running += task.joinpath("stat").read_text().rpartition(")")[2].split()[0] == "R"
+    return running
+
+
+def _busy(samples: int = 5, interval: float = 0.01) -> tuple[float, int]:
+    """The load average of the last minute, and the fewest tasks of other processes running in
+    ``samples`` readings ``interval`` seconds apart (a task that runs only for a moment, such as
+    a thread waking up, is not counted), from ``/proc/loadavg``; ``(0, 0)`` where they are not
+    known."""
     try:
-        fields = Path("/proc/loadavg").read_text().split()
-        return float(fields[0]), int(fields[3].split("/")[0]) - 1
+        others = []
+        for sample in range(samples):
+            if sample:
+                time.sleep(interval)
+            fields = Path("/proc/loadavg").read_text().split()
+            others.append(int(fields[3].split("/")[0]) - max(1, _own_running()))
+        return float(fields[0]), max(0, min(others))
     except (OSError, ValueError, IndexError):
         with contextlib.suppress(AttributeError, OSError):
             return os.getloadavg()[0], 0

@@ -104,17 +104,30 @@ def test_a_helper_compiles_its_share_into_the_cache(monkeypatch):
 
 
 def test_functions_are_named_as_another_process_imports_them():
-    assert compile_helper._name(run_batch_compiled) == (
-        "delaytrack.sim.engine",
-        "run_batch_compiled",  # a dispatcher made from run_batch: found by its module's name
-    )
-    assert compile_helper._name(arolc_step) == ("delaytrack.controllers.arolc", "arolc_step")
+    engine = compile_helper._name(run_batch_compiled)
+    # a dispatcher made from run_batch: found by its module's name
+    assert engine[:2] == ("delaytrack.sim.engine", "run_batch_compiled")
+    assert compile_helper._name(arolc_step)[:2] == ("delaytrack.controllers.arolc", "arolc_step")
     assert compile_helper._name(lambda: None) is None
 
     def inner():
         pass
 
     assert compile_helper._name(inner) is None
+
+
+def test_a_kernel_from_a_file_named_in_a_scenario_is_loaded_from_that_file(tmp_path):
+    from delaytrack._spec import module_from_file
+
+    (tmp_path / "helper_scenario_kernel.py").write_text("def kernel_of_a_file(x):\n    return x\n")
+    module = module_from_file(tmp_path / "helper_scenario_kernel.py")
+    try:
+        name = compile_helper._name(module.kernel_of_a_file)
+        assert name == (module.__name__, "kernel_of_a_file", module.__file__)
+        del sys.modules[module.__name__]  # as in the helper: its folder is not on the path
+        assert compile_helper._imported(name)(3) == 3
+    finally:
+        sys.modules.pop(module.__name__, None)
 
 
 def test_a_part_whose_kernel_cannot_be_imported_stays_here():
@@ -136,7 +149,7 @@ def _payload(cache: str, recipes: list) -> io.BytesIO:
 
 def test_the_helper_refuses_another_cache_folder_and_reports_a_failed_job():
     assert compile_helper.main(_payload("/elsewhere", [])) == 2
-    missing = (("delaytrack.sim.engine", "no_such_function"), (), ())
+    missing = (("delaytrack.sim.engine", "no_such_function", None), (), ())
     assert compile_helper.main(_payload(str(cache_directory()), [missing])) == 1
     assert compile_helper.main(_payload(str(cache_directory()), [])) == 0
 

@@ -31,6 +31,7 @@ __all__ = [
     "check_table",
     "gain",
     "integer",
+    "module_from_file",
     "number",
     "string",
     "user_factory",
@@ -156,7 +157,7 @@ def _module_name(path: Path) -> str:
     return f"{stem}_{hashlib.sha256(str(path).encode()).hexdigest()[:8]}"
 
 
-def _module_from_file(path: Path) -> ModuleType:
+def module_from_file(path: Path) -> ModuleType:
     """Import the Python file ``path`` (again when its content changed since the last import).
 
     It is imported under :func:`_module_name` (its stem, never shadowing another module), with
@@ -211,7 +212,7 @@ def user_factory(table: str, kind: str) -> Callable[..., Any]:
         )
     try:
         if location.endswith(".py"):
-            module = _module_from_file(Path(location))
+            module = module_from_file(Path(location))
         else:
             module = importlib.import_module(location)
     except Exception as error:  # noqa: BLE001 - anything the user's module raises is reported

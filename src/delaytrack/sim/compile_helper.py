@@ -8,13 +8,14 @@ a helper process, chosen so that the two processes finish at about the same time
 (:func:`share`). Both write the disk cache; this process compiles its own share, waits for the
 helper (:meth:`Helper.wait`), and then loads the helper's share from the cache.
 
-The helper imports each function and kernel by its module and name, and checks that a kernel of
-the user's has the same fingerprint as here (:attr:`delaytrack.components.Kernel.key`); a
-function it cannot import (defined in ``__main__`` or inside another function) stays in this
-process. Importing the module of a kernel of yours runs its top-level code in the helper (with
-the helper turned off there, so it starts no helper of its own). Whatever the helper does not
-deliver, because it failed, was stopped or took too long (:meth:`Helper.wait`), this process
-compiles as it would without it, and a compile error is reported by this process.
+The helper imports each function and kernel by its module and name (a module loaded from a file
+named in a scenario, from that file), and checks that a kernel of the user's has the same
+fingerprint as here (:attr:`delaytrack.components.Kernel.key`); a function it cannot import
+(defined in ``__main__`` or inside another function) stays in this process. Importing the
+module of a kernel of yours runs its top-level code in the helper (with the helper turned off
+there, so it starts no helper of its own). Whatever the helper does not deliver, because it
+failed, was stopped or took too long (:meth:`Helper.wait`), this process compiles as it would
+without it, and a compile error is reported by this process.
 
 The helper is for a core with nothing to do: it is started when fewer tasks of other processes
 than cores less one are running, and the load average of the last minute is below the number of
@@ -40,6 +41,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from delaytrack._numba_cache import cache_directory, locks_cache
+from delaytrack._spec import module_from_file
 from delaytrack.components import Kernel
 
 __all__ = ["ENVIRONMENT", "CompileJob", "Helper", "main", "share", "spare_core", "start"]
@@ -145,22 +147,25 @@ def spare_core() -> bool:
     return load < cores - 0.5 and others < cores - 1
 
 
-def _name(function: Any) -> tuple[str, str] | None:
-    """``(module, name)`` under which another process imports ``function`` (a numba dispatcher
-    or a plain function): its qualified name, or a name its module gives it (a dispatcher made
-    from another function, such as ``run_batch_compiled``); None when there is none."""
+def _name(function: Any) -> tuple[str, str, str | None] | None:
+    """``(module, name, file)`` under which another process imports ``function`` (a numba
+    dispatcher or a plain function): its qualified name, or a name its module gives it (a
+    dispatcher made from another function, such as ``run_batch_compiled``), and the module's
+    file (to load it from when no folder of the search path holds it: a file named in a
+    scenario); None when there is none."""
     python = getattr(function, "py_func", function)
     module_name = getattr(python, "__module__", None)
     module = sys.modules.get(module_name) if module_name != "__main__" else None
     if module is None:
         return None
+    file = getattr(module, "__file__", None)
     found: Any = module
     for attribute in getattr(python, "__qualname__", "").split("."):
         found = getattr(found, attribute, None)
     if found is function:
-        return (module_name, python.__qualname__)
+        return (module_name, python.__qualname__, file)
     names = [name for name, value in vars(module).items() if value is function]
-    return (module_name, names[0]) if names else None
+    return (module_name, names[0], file) if names else None
 
 
 def _kernel_recipe(kernel: Kernel) -> tuple | None:
@@ -273,9 +278,18 @@ def start(jobs: Sequence[CompileJob]) -> tuple[Helper | None, list[int]]:
     return Helper(process, patience), given
 
 
-def _imported(name: tuple[str, str]) -> Any:
-    found: Any = importlib.import_module(name[0])
-    for attribute in name[1].split("."):
+def _imported(name: tuple[str, str, str | None]) -> Any:
+    """The function :func:`_name` named: imported from the search path, else from its file."""
+    module_name, qualname, file = name
+    try:
+        found: Any = importlib.import_module(module_name)
+    except ImportError:
+        if file is None:
+            raise
+        found = module_from_file(Path(file))
+        if found.__name__ != module_name:
+            raise
+    for attribute in qualname.split("."):
         found = getattr(found, attribute)
     return found
 

@@ -288,7 +288,8 @@ def test_swept_files_are_relative_to_the_sweep_file(example):
     assert spec.runs[0].scenario.reference["path"] == str(example / "poses.csv")
 
 
-def test_a_kernel_numba_cannot_compile_is_a_one_line_error(example, capsys):
+def _scenario_with_a_law_numba_cannot_compile(example: Path) -> Path:
+    """A scenario of the arm under ``pd_gravity.py`` with a misspelt name."""
     law = example / "pd_gravity.py"
     law.write_text(law.read_text().replace("tau[i] = nonlinear[i]", "tau[i] = nonlinaer[i]"))
     path = short(example)
@@ -299,6 +300,11 @@ def test_a_kernel_numba_cannot_compile_is_a_one_line_error(example, capsys):
         "K_D": 1.0,
     }
     path.write_text(Scenario.from_dict(data).to_toml())
+    return path
+
+
+def test_a_kernel_numba_cannot_compile_is_a_one_line_error(example, capsys):
+    path = _scenario_with_a_law_numba_cannot_compile(example)
     assert main(["simulate", str(path), "--out", str(example / "out")]) == 2
     err = capsys.readouterr().err
     assert "numba could not compile PDGravity's step on " in err and "Traceback" not in err
@@ -310,6 +316,36 @@ def test_a_kernel_numba_cannot_compile_is_a_one_line_error(example, capsys):
     assert main(["simulate", str(path), "--out", str(example / "out"), "--quiet"]) == 2
     quiet = capsys.readouterr().err.strip().splitlines()
     assert quiet[-1].startswith("error: ") and len(quiet) <= 2  # the notice, then the error
+
+
+@pytest.mark.slow
+def test_a_kernel_the_compile_helper_cannot_compile_is_reported_here(example, capsys, monkeypatch):
+    from delaytrack.sim import compile_helper
+
+    simulate = sys.modules["delaytrack.sim.simulate"]
+    # A new arm (another fingerprint): its integrator and the failing step both to compile, the
+    # step handed to a helper, which fails on it; this process names it and stops the helper.
+    arm = example / "arm.py"
+    edited = arm.read_text().replace("c2 = math.cos(q[1])", "c2 = 1.0 * math.cos(q[1])")
+    arm.write_text(edited)
+    monkeypatch.setenv(compile_helper.ENVIRONMENT, "1")
+    started = []
+
+    def spy(jobs):
+        helper, given = compile_helper.start(jobs)
+        started.append((helper, given))
+        return helper, given
+
+    monkeypatch.setattr(simulate, "start_helper", spy)
+    path = _scenario_with_a_law_numba_cannot_compile(example)
+    assert main(["simulate", str(path), "--out", str(example / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "numba could not compile PDGravity's step on " in err and "Traceback" not in err
+    if not compile_helper.spare_core():
+        pytest.skip("one core, or no lock on numba's cache: no helper")
+    [(helper, given)] = started
+    assert helper is not None and given  # the step went to the helper
+    assert helper.process.returncode == 1  # it failed on the step and was waited for
 
 
 _FAULTY_PLANT = """

@@ -157,19 +157,19 @@ def _module_name(path: Path) -> str:
     return f"{stem}_{hashlib.sha256(str(path).encode()).hexdigest()[:8]}"
 
 
-def module_from_file(path: Path) -> ModuleType:
+def module_from_file(path: Path, name: str | None = None) -> ModuleType:
     """Import the Python file ``path`` (again when its content changed since the last import).
 
-    It is imported under :func:`_module_name` (its stem, never shadowing another module), with
-    its folder first on ``sys.path`` while it runs, so that it can import its neighbours. A file
-    the user imported already is that module, not a second copy.
+    It is imported under ``name``, by default :func:`_module_name` (its stem, never shadowing
+    another module), with its folder first on ``sys.path`` while it runs, so that it can import
+    its neighbours. A file the user imported already is that module, not a second copy.
     """
     path = path.expanduser().resolve()
     content = hashlib.sha256(path.read_bytes()).hexdigest()
     known = _FILE_MODULES.get(path)
     if known is not None and known[0] == content:
         return known[1]
-    name = _module_name(path)
+    name = name or _module_name(path)
     loaded = sys.modules.get(name)
     if known is None and loaded is not None:  # imported by the user: the same objects
         _FILE_MODULES[path] = (content, loaded)

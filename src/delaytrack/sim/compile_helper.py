@@ -286,9 +286,7 @@ def _imported(name: tuple[str, str, str | None]) -> Any:
     except ImportError:
         if file is None:
             raise
-        found = module_from_file(Path(file))
-        if found.__name__ != module_name:
-            raise
+        found = module_from_file(Path(file), module_name)  # under the name it has here
     for attribute in qualname.split("."):
         found = getattr(found, attribute)
     return found

@@ -67,6 +67,24 @@ def test_a_user_kernel_is_named_by_its_code_and_what_it_reaches(tmp_path):
     assert code_fingerprint(edited.pendulum_terms) == code_fingerprint(first)  # its code only
 
 
+def test_a_constant_read_from_a_module_of_yours_is_part_of_the_name(tmp_path, monkeypatch):
+    # numba compiles the value of ``settings.GAIN`` into the kernel, so a new value is new code.
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(sys, "dont_write_bytecode", True)  # no .pyc of the same size and second
+    law = "import user_settings\n\n\ndef law(x):\n    return user_settings.GAIN * x\n"
+    (tmp_path / "user_law.py").write_text(law)
+
+    def fingerprint(gain: float, name: str = "arm") -> str:
+        (tmp_path / "user_settings.py").write_text(f"GAIN = {gain}\nNAME = {name!r}\n")
+        for module in ("user_settings", "user_law"):
+            monkeypatch.delitem(sys.modules, module, raising=False)
+        return code_fingerprint(importlib.import_module("user_law").law)
+
+    assert fingerprint(2.0) == fingerprint(2.0)
+    assert fingerprint(3.0) != fingerprint(2.0)
+    assert fingerprint(2.0, name="another arm") == fingerprint(2.0)  # a constant it does not read
+
+
 def _scaled(t, params):
     return params[0] * t
 

@@ -199,14 +199,18 @@ def code_fingerprint(function: Callable[..., Any]) -> str:
     It covers the code as loaded (bytecode, constants and names, not the file on disk, which may
     have changed since) of ``function`` and of every function it reaches through its globals and
     closure, through the user modules and classes it names (their functions, methods,
-    properties and jitclass methods), the values of the constants they read, and the numba
-    options each compiled one was decorated with (``fastmath``, ``error_model``...). Functions
-    of this package are covered by the cache folder and not walked. A value with no stable text
-    (an arbitrary object) is taken by identity: the key then holds in this process only.
+    properties and jitclass methods; a class's public constants; the constants of a module that
+    the code reads as attributes, such as ``config.GAIN``, which numba compiles in), the values
+    of the constants they read, and the numba options each compiled one was decorated with
+    (``fastmath``, ``error_model``...). Functions of this package are covered by the cache
+    folder and not walked. A value with no stable text (an arbitrary object) is taken by
+    identity: the key then holds in this process only.
     """
     digest = hashlib.sha256()
     walk: list[object] = [function]
     seen: set[int] = set()
+    modules: list[python_types.ModuleType] = []
+    names_read: set[str] = set()
     while walk:
         current = walk.pop()
         if id(current) in seen:
@@ -218,6 +222,8 @@ def code_fingerprint(function: Callable[..., Any]) -> str:
                 for key, value in sorted(vars(current).items()):
                     if not key.startswith("_") and isinstance(value, _CONSTANTS):
                         digest.update(f"{key}={_value_text(value, walk)}".encode())
+            else:
+                modules.append(current)
             continue
         inner = _python_function(current)
         if inner is None:
@@ -230,7 +236,9 @@ def code_fingerprint(function: Callable[..., Any]) -> str:
         digest.update(_qualified_name(inner).encode())
         digest.update(_code_text(inner.__code__))
         digest.update(_options_text(current).encode())
-        for name in sorted(_code_names(inner.__code__)):
+        names = _code_names(inner.__code__)
+        names_read |= names
+        for name in sorted(names):
             if name in inner.__globals__:
                 text = _value_text(inner.__globals__[name], walk)
                 if text is not None:
@@ -239,6 +247,12 @@ def code_fingerprint(function: Callable[..., Any]) -> str:
             text = _value_text(cell.cell_contents, walk)
             if text is not None:
                 digest.update(text.encode())
+    # The constants of a user's module that the code reads as attributes (``config.GAIN``):
+    # numba compiles their values in.
+    for module in modules:
+        for key, value in sorted(vars(module).items()):
+            if key in names_read and isinstance(value, (*_CONSTANTS, np.ndarray)):
+                digest.update(f"{module.__name__}.{key}={_value_text(value, [])}".encode())
     return digest.hexdigest()[:16]
 
 

@@ -86,9 +86,12 @@ def test_margins_job_writes_its_files(tmp_path, capsys):
         assert (folder / name).is_file(), name
     for suffix in ("png", "svg"):
         assert (folder / "figures" / f"margins.{suffix}").is_file()
-    table = pd.read_csv(folder / "margins.csv")
+    table = pd.read_csv(folder / "margins.csv")  # units in the column names
     assert len(table) == len(GAINS) ** 2
-    assert (table["h_m"] < table["h_exact"]).all()
+    assert (table["h_m_s"] < table["h_exact_s"]).all()
+    assert {"k1_per_s2", "k2_per_s", "arolc_abs_sine_s", "h_m_over_h_exact"} <= set(table)
+    evaluated = pd.read_csv(folder / "evaluated.csv")
+    assert {"k1_per_s2", "delay_s", "metric_rad", "metric_q1_rad", "status"} <= set(evaluated)
     html = (folder / "report.html").read_text()
     assert "data:image/png;base64," in html and "What the gap means" in html
 

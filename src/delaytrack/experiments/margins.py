@@ -2,12 +2,14 @@
 
 ``delaytrack reproduce --job margins`` runs :func:`reproduce`, which writes ``<out>/margins/``:
 
-- ``margins.csv``: one row per gain pair ``K1 = k1 I``, ``K2 = k2 I`` (:data:`GAINS`): Theorem 1's
-  certified ``h_m`` (AROLC with ``Q = I``, ``β = 1``, ``r = 1.1``), the exact constant-delay margin
-  ``h_exact`` of the nominal error dynamics, and the empirical margins of AROLC and of the plain
-  outer loop under a constant delay ``h`` and under ``h(t) = a |sin t|`` (the largest delay
-  ``a``), with ``h_m / h_exact`` and ``h_m`` over AROLC's empirical constant-delay margin;
-- ``evaluated.csv``: every simulated (gains, controller, profile, delay, metric, status);
+- ``margins.csv``: one row per gain pair ``K1 = k1 I``, ``K2 = k2 I`` (:data:`GAINS`; columns
+  ``k1_per_s2``, ``k2_per_s``): Theorem 1's certified ``h_m`` (AROLC with ``Q = I``, ``β = 1``,
+  ``r = 1.1``), the exact constant-delay margin ``h_exact`` of the nominal error dynamics, and
+  the empirical margins of AROLC and of the plain outer loop under a constant delay ``h`` and
+  under ``h(t) = a |sin t|`` (the largest delay ``a``), in seconds (columns ending ``_s``), with
+  ``h_m / h_exact`` and ``h_m`` over AROLC's empirical constant-delay margin;
+- ``evaluated.csv``: every simulated (gains, controller, profile, delay ``delay_s``, the tracking
+  metric of each joint in radians, status);
 - ``figures/margins.png|svg``: the margins of each gain pair side by side, log scale;
 - ``scenario.toml``: the scenario (two_link_margins) with the paper's gains;
 - ``report.html``: settings, the table, the figure and what the gap means.
@@ -133,12 +135,21 @@ _LABELS = {
 }
 
 
+def _with_units(frame: pd.DataFrame, units: dict[str, str]) -> pd.DataFrame:
+    """``frame`` with the unit ``units[column]`` appended to each column's name it gives."""
+    return frame.rename(columns={name: f"{name}_{unit}" for name, unit in units.items()})
+
+
 def write_study(study: MarginStudy, folder: str | Path) -> list[Path]:
     """Write the job's files into ``folder``; return their paths."""
     folder = Path(folder)
     table = study.table
-    files = [write_frame(table, folder / "margins.csv")]
-    files.append(write_frame(_evaluated(study), folder / "evaluated.csv"))
+    margins = _with_units(table, {"k1": "per_s2", "k2": "per_s", **dict.fromkeys(_LABELS, "s")})
+    files = [write_frame(margins, folder / "margins.csv")]
+    evaluated = _evaluated(study).rename(columns={"value": "delay"})
+    joints = [column for column in evaluated if column.startswith("metric")]
+    units = {"k1": "per_s2", "k2": "per_s", "delay": "s", **dict.fromkeys(joints, "rad")}
+    files.append(write_frame(_with_units(evaluated, units), folder / "evaluated.csv"))
     study.scenario.to_toml(folder / "scenario.toml")
     files.append(folder / "scenario.toml")
     labels = [f"k1={k1:g}, k2={k2:g}" for k1, k2 in table[["k1", "k2"]].to_numpy()]

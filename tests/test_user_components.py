@@ -15,6 +15,7 @@ import re
 import shutil
 import subprocess
 import sys
+import uuid
 from pathlib import Path
 
 import numba
@@ -323,11 +324,13 @@ def test_a_kernel_the_compile_helper_cannot_compile_is_reported_here(example, ca
     from delaytrack.sim import compile_helper
 
     simulate = sys.modules["delaytrack.sim.simulate"]
-    # A new arm (another fingerprint): its integrator and the failing step both to compile, the
-    # step handed to a helper, which fails on it; this process names it and stops the helper.
+    # A new arm (another fingerprint at every run, never in the cache): its integrator and the
+    # failing step both to compile, the step handed to a helper, which fails on it; this process
+    # names it and stops the helper.
     arm = example / "arm.py"
-    edited = arm.read_text().replace("c2 = math.cos(q[1])", "c2 = 1.0 * math.cos(q[1])")
-    arm.write_text(edited)
+    token = uuid.uuid4().int % 10**12
+    unique = f"c2 = math.cos(q[1]) + 0.0 * params[0] * {token}"  # not folded: in the code
+    arm.write_text(arm.read_text().replace("c2 = math.cos(q[1])", unique))
     monkeypatch.setenv(compile_helper.ENVIRONMENT, "1")
     started = []
 
@@ -346,6 +349,7 @@ def test_a_kernel_the_compile_helper_cannot_compile_is_reported_here(example, ca
     [(helper, given)] = started
     assert helper is not None and given  # the step went to the helper
     assert helper.process.returncode == 1  # it failed on the step and was waited for
+    assert "(once in two processes;" in err  # the notice says so
 
 
 _FAULTY_PLANT = """

@@ -43,12 +43,15 @@ def code_ready(dispatcher: Any, key: object, signature: tuple | Callable[[], tup
         return False
 
 
-def announce_compile(parts: list[str]) -> None:
+def announce_compile(parts: list[str], helped: bool = False) -> None:
     """One line on standard error before a first compile of ``parts`` (what is compiled, such as
-    ``"the engine"`` or ``"AROLC's step on NominalRobot"``)."""
+    ``"the engine"`` or ``"AROLC's step on NominalRobot"``); ``helped``: a helper process
+    compiles some of them (:mod:`delaytrack.sim.compile_helper`)."""
     listed = parts[0] if len(parts) == 1 else f"{', '.join(parts[:-1])} and {parts[-1]}"
+    where = " in two processes" if helped else ""
     print(
-        f"delaytrack: compiling {listed} (once; from seconds to a minute, then kept on disk)",
+        f"delaytrack: compiling {listed} (once{where}; from seconds to a minute, then kept on "
+        "disk)",
         file=sys.stderr,
         flush=True,
     )

@@ -686,8 +686,6 @@ def simulate(
         if not engine_ready:
             engine_job = CompileJob(runner, engine_signature(), (NO_KERNEL,), _ENGINE_COST)
             waiting.insert(0, ("the engine", engine_job))
-        if waiting:
-            announce_compile([name for name, _ in waiting])
     natives: tuple = ()
 
     yours = [k for k in kernels(0) if not k.built_in and k is not NO_KERNEL]
@@ -709,6 +707,8 @@ def simulate(
             # Two or more to compile: a helper process compiles some of them on another core.
             helper, handed = start_helper([job for _, job in waiting])
             handed_over = {waiting[i][0] for i in handed}
+            if waiting:
+                announce_compile([name for name, _ in waiting], helped=helper is not None)
             for name, part in zip(part_names, parts, strict=True):
                 if name not in handed_over:
                     compiling = name

@@ -84,13 +84,15 @@ def test_another_process_running_is_counted():
         other.wait()
 
 
-def test_a_helper_compiles_its_share_into_the_cache(monkeypatch):
+def test_a_real_helper_compiles_its_share_and_says_so(monkeypatch):
+    # (That the run then loads the helper's code from the cache is shown by
+    # test_components.py::test_a_user_compiled_plant_is_compiled_once_then_loaded_from_disk.)
     from delaytrack.references import SinusoidalReference
     from delaytrack.sim.native_parts import delay_part, reference_part
 
     reference = reference_part(SinusoidalReference([0.0], [1.0], [1.0]).engine_kernel, 1)
     delay = delay_part(NO_KERNEL)
-    jobs = [
+    jobs = [  # equal costs of 10: the first stays here, the second goes to the helper
         CompileJob(part.function, part.signature, part.compile_job().kernels, 10.0)
         for part in (reference, delay)
     ]
@@ -99,8 +101,9 @@ def test_a_helper_compiles_its_share_into_the_cache(monkeypatch):
     if helper is None:
         pytest.skip("one core, or no lock on numba's cache")
     assert given == [1]
-    assert helper.wait() is True  # imported both and compiled (or loaded) the delay part
-    assert delay.signature in delay.function.overloads or delay.ready()
+    # its bootstrap ran, it imported the function and kernel by name and compiled (or, with a
+    # warm cache, loaded) the delay part; a failure on any of these exits with 1
+    assert helper.wait() is True
 
 
 def test_functions_are_named_as_another_process_imports_them():

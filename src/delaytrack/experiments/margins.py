@@ -135,21 +135,20 @@ _LABELS = {
 }
 
 
-def _with_units(frame: pd.DataFrame, units: dict[str, str]) -> pd.DataFrame:
-    """``frame`` with the unit ``units[column]`` appended to each column's name it gives."""
-    return frame.rename(columns={name: f"{name}_{unit}" for name, unit in units.items()})
+#: The gains' columns in the files, with their units (``e'' + K2 e' + K1 e = 0``).
+_GAIN_COLUMNS = {"k1": "k1_per_s2", "k2": "k2_per_s"}
 
 
 def write_study(study: MarginStudy, folder: str | Path) -> list[Path]:
     """Write the job's files into ``folder``; return their paths."""
     folder = Path(folder)
     table = study.table
-    margins = _with_units(table, {"k1": "per_s2", "k2": "per_s", **dict.fromkeys(_LABELS, "s")})
-    files = [write_frame(margins, folder / "margins.csv")]
-    evaluated = _evaluated(study).rename(columns={"value": "delay"})
-    joints = [column for column in evaluated if column.startswith("metric")]
-    units = {"k1": "per_s2", "k2": "per_s", "delay": "s", **dict.fromkeys(joints, "rad")}
-    files.append(write_frame(_with_units(evaluated, units), folder / "evaluated.csv"))
+    delays = {column: f"{column}_s" for column in _LABELS}
+    files = [write_frame(table.rename(columns={**_GAIN_COLUMNS, **delays}), folder / "margins.csv")]
+    evaluated = _evaluated(study)
+    metrics = {column: f"{column}_rad" for column in evaluated if column.startswith("metric")}
+    evaluated = evaluated.rename(columns={**_GAIN_COLUMNS, "value": "delay_s", **metrics})
+    files.append(write_frame(evaluated, folder / "evaluated.csv"))
     study.scenario.to_toml(folder / "scenario.toml")
     files.append(folder / "scenario.toml")
     labels = [f"k1={k1:g}, k2={k2:g}" for k1, k2 in table[["k1", "k2"]].to_numpy()]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import os
 import re
@@ -670,7 +671,9 @@ def simulate(
         # Stand-ins with an address of 0 give the engine's argument types without compiling.
         probes = tuple(part.probe() for part in parts)
 
+        @functools.cache
         def engine_signature() -> tuple:
+            """The engine's argument types (those of the compiled parts' stand-ins)."""
             return tuple(runner.typeof_pyval(item) for item in chunk_arguments(0, probes))
 
         engine_ready = code_ready(
@@ -709,18 +712,23 @@ def simulate(
             handed_over = {waiting[i][0] for i in handed}
             if waiting:
                 announce_compile([name for name, _ in waiting], helped=helper is not None)
+            # This process's share first, the engine included, then the helper's (loaded from
+            # the cache it wrote, or compiled here if it did not deliver).
             for name, part in zip(part_names, parts, strict=True):
                 if name not in handed_over:
                     compiling = name
                     part.native()
+            compiling = "the engine"
+            if not engine_ready and "the engine" not in handed_over:
+                runner.compile(engine_signature())
             if helper is not None:
-                helper.wait()  # what it did not compile is compiled below
+                helper.wait()
             for name, part in zip(part_names, parts, strict=True):
                 compiling = name
                 natives += (part.native(),)
             compiling = "the engine"
             if not engine_ready:
-                runner.compile(tuple(runner.typeof_pyval(a) for a in chunk_arguments(0, natives)))
+                runner.compile(engine_signature())
         bar_context = (
             tqdm(total=batch, desc="simulate", unit="run")
             if progress

@@ -121,13 +121,15 @@ def rk4_workspace(x, m):
 
 
 @hot_inline_kernel
-def _rk4_substep(plant_terms, plant_params, t, x, u, length, work):
+def _rk4_substep(plant_terms, plant_params, t, x, u, length, work, bound):
     """One classical RK4 step of length ``length`` with constant input ``u``; updates ``x``.
 
     Stage ``s`` evaluates the slope ``k_s = f(t + c_s length, x + c_s length k_{s-1})``,
     ``c = (0, 1/2, 1/2, 1)``, and ``x += length (k_0 + 2 k_1 + 2 k_2 + k_3) / 6``. ``work`` is
     :func:`rk4_workspace` of this ``x``; written as loops so that nothing is allocated, with one
-    call of the (inlined) right-hand side.
+    call of the (inlined) right-hand side. Returns whether an entry of the new ``x`` is
+    non-finite or larger than ``bound`` in magnitude (:func:`beyond`, checked as it is written:
+    a loop over ``x`` less per step, about 2 % of a robot run).
     """
     slopes, stage, stage_q, stage_qdot, scratch, _ = work
     n, _ = plant_sizes(plant_terms, stage_q, u)
@@ -146,8 +148,15 @@ def _rk4_substep(plant_terms, plant_params, t, x, u, length, work):
         for i in range(n):
             slopes[s, i] = stage_qdot[i]
     sixth = length / 6.0
+    outside = False
     for i in range(2 * n):
-        x[i] += sixth * (slopes[0, i] + 2.0 * slopes[1, i] + 2.0 * slopes[2, i] + slopes[3, i])
+        increment = slopes[0, i] + 2.0 * slopes[1, i] + 2.0 * slopes[2, i] + slopes[3, i]
+        value = x[i] + sixth * increment
+        x[i] = value
+        magnitude = abs(value)
+        if not (magnitude <= bound and magnitude < math.inf):  # NaN fails both
+            outside = True
+    return outside
 
 
 @hot_inline_kernel
@@ -268,6 +277,7 @@ def integrate_tick(
     newest_slot = k % capacity
     profile = work[5]
     first_slot = -3
+    outside = False  # whether x left the bound at the end of the last sub-step
     for j in range(steps_per_tick):
         t_start = t0 + (k * steps_per_tick + j) * dt
         t_end = t0 + (k * steps_per_tick + j + 1) * dt
@@ -330,13 +340,16 @@ def integrate_tick(
                 u = u_init if slot == -1 else history[slot]
                 if has_stepper(plant_terms):
                     call_stepper(plant_terms, start, x, u, dt, plant_params, k == 0 and j == 0)
+                    outside = beyond(x, divergence_bound)
                 else:
-                    _rk4_substep(plant_terms, plant_params, start, x, u, end - start, work)
+                    outside = _rk4_substep(
+                        plant_terms, plant_params, start, x, u, end - start, work, divergence_bound
+                    )
                 start = end
                 if end == b:
                     break
             a = b
-        if beyond(x, divergence_bound):
+        if outside:
             return DIVERGED, t_end, first_slot
     return OK, tick_time(k + 1, t0, dt, steps_per_tick), first_slot
 

@@ -272,7 +272,13 @@ def png_bytes(figure: Figure) -> bytes:
 def save_figure(
     figure: Figure, stem: str | Path, formats: Sequence[str] = ("png", "svg")
 ) -> list[Path]:
-    """Write ``stem.<format>`` for each format, atomically; return the paths."""
+    """Write ``stem.<format>`` for each format, atomically; return the paths.
+
+    The figure's layout (matplotlib's constrained layout) is computed when the first format is
+    drawn and then kept (its layout engine set to none), so that the other formats, and any
+    later drawing of the figure, do not lay out every label again: that took about half the
+    time of writing a figure in two formats.
+    """
     paths = []
     for fmt in formats:
         path = Path(stem).with_suffix(f".{fmt}")
@@ -280,6 +286,7 @@ def save_figure(
             # SVG output embeds a date by default; drop it so identical runs give identical files.
             metadata = {"Date": None} if fmt == "svg" else None
             figure.savefig(temporary, format=fmt, dpi=_DPI, metadata=metadata)
+        figure.set_layout_engine("none")
         paths.append(path)
     return paths
 

@@ -34,8 +34,23 @@ MAX_SEED = 2**32 - 1
 @hot_kernel
 def measure(q, qdot, k, noise, q_measured, qdot_measured):
     """Fill ``q̃, q̃̇`` of the module docstring at tick ``k``; ``noise = [Δ (n), σ_q (n),
-    σ_v (n), seed]`` (all zero: the true state, unchanged)."""
+    σ_v (n), seed]`` (all zero: the true state, unchanged).
+
+    Without noise or quantisation the state is copied and nothing else is done: compiled, the
+    loop below computes the noise of several coordinates at once (vectorised, its conditions
+    applied afterwards), which cost 0.7 ms of a 60 s robot run of 22 ms even with every
+    ``σ`` zero.
+    """
     n = q.shape[0]
+    exact = True
+    for i in range(3 * n):
+        if noise[i] > 0.0:
+            exact = False
+    if exact:
+        for j in range(n):
+            q_measured[j] = q[j]
+            qdot_measured[j] = qdot[j]
+        return
     seed = int(noise[3 * n])
     for j in range(n):
         value = q[j]

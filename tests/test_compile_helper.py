@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import os
 import pickle
 import sys
 
@@ -47,12 +48,15 @@ def test_no_helper_when_turned_off(monkeypatch):
 def test_a_helper_runs_only_beside_a_spare_core(monkeypatch):
     monkeypatch.setattr(compile_helper, "_cores", lambda: 2)
     monkeypatch.delenv(compile_helper.ENVIRONMENT, raising=False)
-    monkeypatch.setattr(compile_helper, "_busy", lambda: (1.2, 0))
-    assert compile_helper.spare_core()  # this process's own load
-    monkeypatch.setattr(compile_helper, "_busy", lambda: (1.9, 0))
-    assert not compile_helper.spare_core()  # both cores busy this last minute
-    monkeypatch.setattr(compile_helper, "_busy", lambda: (0.3, 1))
-    assert not compile_helper.spare_core()  # another task running now (pytest's, a sweep's)
+    monkeypatch.setattr(compile_helper, "idle_cpus", lambda: 1.9)
+    assert compile_helper.spare_core()  # this process's core (it waits) and another one idle
+    monkeypatch.setattr(compile_helper, "idle_cpus", lambda: 1.2)
+    assert not compile_helper.spare_core()  # another process busy on the other core
+    monkeypatch.setattr(compile_helper, "idle_cpus", lambda: None)  # not measured here
+    monkeypatch.setattr(os, "getloadavg", lambda: (1.2, 0.0, 0.0), raising=False)
+    assert compile_helper.spare_core()  # then the load average of the last minute decides
+    monkeypatch.setattr(os, "getloadavg", lambda: (1.9, 0.0, 0.0), raising=False)
+    assert not compile_helper.spare_core()
     monkeypatch.setenv(compile_helper.ENVIRONMENT, "1")
     assert compile_helper.spare_core()  # asked for, whatever the load
     monkeypatch.setattr(compile_helper, "locks_cache", lambda: False)
@@ -62,7 +66,7 @@ def test_a_helper_runs_only_beside_a_spare_core(monkeypatch):
     assert not compile_helper.spare_core()  # sys.executable is the application, not Python
     monkeypatch.delattr(sys, "frozen")
     monkeypatch.setenv(compile_helper.ENVIRONMENT, "0")
-    monkeypatch.setattr(compile_helper, "_busy", lambda: (0.0, 0))
+    monkeypatch.setattr(compile_helper, "idle_cpus", lambda: 2.0)
     assert not compile_helper.spare_core()
     monkeypatch.delenv(compile_helper.ENVIRONMENT)
     monkeypatch.setattr(compile_helper, "_cores", lambda: 1)
@@ -70,18 +74,38 @@ def test_a_helper_runs_only_beside_a_spare_core(monkeypatch):
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
-def test_another_process_running_is_counted():
+def test_a_process_busy_on_a_cpu_is_not_idle_time():
     import subprocess
     import time
 
-    assert compile_helper._own_running() >= 1  # this thread, reading
+    cpus = compile_helper._cpu_times()[3]
+    assert cpus >= 1
     other = subprocess.Popen([sys.executable, "-c", "while True: pass"])
     try:
         time.sleep(0.5)  # started and spinning
-        assert compile_helper._busy()[1] >= 1
+        idle = compile_helper.idle_cpus(0.3)
+        assert idle is not None
+        assert 0.0 <= idle < cpus - 0.5
     finally:
         other.kill()
         other.wait()
+
+
+def test_the_cpus_this_process_uses_count_as_free(monkeypatch):
+    # Over the window the machine's two CPUs ran 10 of 20 clock ticks. When this process ran
+    # them (a linear algebra thread still spinning after a call), both CPUs are free for a
+    # helper; when another process did, one is.
+    def readings(own_busy: int):
+        values = iter([(100, 200, 50, 2), (110, 220, 50 + own_busy, 2)])
+        return lambda: next(values)
+
+    monkeypatch.setattr(compile_helper.time, "sleep", lambda seconds: None)
+    monkeypatch.setattr(compile_helper, "_cpu_times", readings(10))
+    assert compile_helper.idle_cpus() == 2.0
+    monkeypatch.setattr(compile_helper, "_cpu_times", readings(0))
+    assert compile_helper.idle_cpus() == 1.0
+    monkeypatch.setattr(compile_helper, "_cpu_times", lambda: (100, 200, 50, 2))
+    assert compile_helper.idle_cpus() is None  # no time passed: nothing measured
 
 
 def test_a_real_helper_compiles_its_share_and_says_so(monkeypatch):

@@ -17,10 +17,10 @@ there, so it starts no helper of its own). Whatever the helper does not deliver,
 failed, was stopped or took too long (:meth:`Helper.wait`), this process compiles as it would
 without it, and a compile error is reported by this process.
 
-The helper is for a core with nothing to do: it is started when fewer tasks of other processes
-than cores less one are running, and the load average of the last minute is below the number of
-cores less one half (so not beside processes already using every core, such as pytest's or
-dask's workers, where it would only compete with them), and only where numba's cache is saved
+The helper is for a core with nothing to do: it is started when, over a tenth of a second, two
+of the machine's CPUs were idle on average (this process's own, as it waits, and one more;
+:func:`spare_core`), so not beside processes already using every core, such as pytest's or
+dask's workers, where it would only compete with them; and only where numba's cache is saved
 under a file lock (not on Windows). Set the environment variable
 ``DELAYTRACK_COMPILE_HELPER`` to ``0`` to compile in one process, or to ``1`` to start the
 helper whatever the load.
@@ -106,45 +106,66 @@ def _cores() -> int:
     return cores
 
 
-def _own_running() -> int:
-    """How many threads of this process are running now (``/proc/self/task``)."""
-    running = 0
-    for task in Path("/proc/self/task").iterdir():
-        with contextlib.suppress(OSError):
-            running += task.joinpath("stat").read_text().rpartition(")")[2].split()[0] == "R"
-    return running
+#: How long the machine's use is measured before a helper is started, in seconds.
+IDLE_WINDOW = 0.1
+#: CPUs that other processes must leave free over that window: this process's and one for the
+#: helper, less a margin for the moments other processes take.
+IDLE_NEEDED = 1.75
 
 
-def _busy(samples: int = 5, interval: float = 0.01) -> tuple[float, int]:
-    """The load average of the last minute, and the fewest tasks of other processes running in
-    ``samples`` readings ``interval`` seconds apart (a task that runs only for a moment, such as
-    a thread waking up, is not counted), from ``/proc/loadavg``; ``(0, 0)`` where they are not
-    known."""
+def _cpu_times() -> tuple[int, int, int, int]:
+    """``(idle, total, own, cpus)``: the machine's idle and total CPU time so far (in clock
+    ticks, waiting for input or output counted as idle), this process's (all its threads), and
+    the machine's number of CPUs, from ``/proc/stat`` and ``/proc/self/stat``."""
+    lines = Path("/proc/stat").read_text().splitlines()
+    fields = [int(field) for field in lines[0].split()[1:9]]  # user .. steal
+    cpus = sum(line.startswith("cpu") and line[3:4].isdigit() for line in lines)
+    mine = Path("/proc/self/stat").read_text().rpartition(")")[2].split()
+    return fields[3] + fields[4], sum(fields), int(mine[11]) + int(mine[12]), cpus
+
+
+def idle_cpus(window: float = IDLE_WINDOW) -> float | None:
+    """How many of the machine's CPUs other processes left free, on average, over the next
+    ``window`` seconds (this process sleeping through them), from ``/proc``; None where it is
+    not known.
+
+    A measure of now, not of the last minute: the load average lags, and kept a helper off for
+    a minute after another job had ended. This process's own threads count as free: a thread
+    of the linear algebra library still spinning after a call would otherwise keep the helper
+    off, and it soon stops.
+    """
     try:
-        others = []
-        for sample in range(samples):
-            if sample:
-                time.sleep(interval)
-            fields = Path("/proc/loadavg").read_text().split()
-            others.append(int(fields[3].split("/")[0]) - max(1, _own_running()))
-        return float(fields[0]), max(0, min(others))
+        idle, total, own, cpus = _cpu_times()
+        time.sleep(window)
+        idle_after, total_after, own_after, _ = _cpu_times()
     except (OSError, ValueError, IndexError):
-        with contextlib.suppress(AttributeError, OSError):
-            return os.getloadavg()[0], 0
-    return 0.0, 0
+        return None
+    if total_after <= total or cpus < 1:
+        return None
+    free = (idle_after - idle) + (own_after - own)
+    return min(float(cpus), cpus * free / (total_after - total))
 
 
 def spare_core() -> bool:
-    """Whether a helper may run beside this process (:data:`ENVIRONMENT`, the cores, the load;
-    never in a frozen application or where the cache is saved without a lock)."""
+    """Whether a helper may run beside this process (:data:`ENVIRONMENT`, the cores, the idle
+    CPUs; never in a frozen application or where the cache is saved without a lock).
+
+    Automatically, when :data:`IDLE_NEEDED` CPUs were idle over :data:`IDLE_WINDOW` seconds
+    (:func:`idle_cpus`); where that cannot be measured, when the load average of the last
+    minute is below the number of cores less one half.
+    """
     setting = os.environ.get(ENVIRONMENT, "").strip()
     cores = _cores()
     if setting == "0" or cores < 2 or getattr(sys, "frozen", False) or not locks_cache():
         return False
     if setting == "1":
         return True
-    load, others = _busy()
-    return load < cores - 0.5 and others < cores - 1
+    idle = idle_cpus()
+    if idle is not None:
+        return idle >= IDLE_NEEDED
+    with contextlib.suppress(AttributeError, OSError):
+        return os.getloadavg()[0] < cores - 0.5
+    return False
 
 
 def _name(function: Any) -> tuple[str, str, str | None] | None:
@@ -250,11 +271,11 @@ def start(jobs: Sequence[CompileJob]) -> tuple[Helper | None, list[int]]:
     no helper: fewer than two jobs, no spare core (:func:`spare_core`), no job the helper can
     import, or a helper that could not be started.
     """
-    if len(jobs) < 2 or not spare_core():
+    if len(jobs) < 2:
         return None, []
     recipes = [_recipe(job) for job in jobs]
     given = share([job.cost for job in jobs], [recipe is not None for recipe in recipes])
-    if not given:
+    if not given or not spare_core():
         return None, []
     process = None
     try:

@@ -29,13 +29,14 @@ helper whatever the load.
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import importlib
 import os
 import pickle
 import subprocess
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -166,6 +167,29 @@ def spare_core() -> bool:
     with contextlib.suppress(AttributeError, OSError):
         return os.getloadavg()[0] < cores - 0.5
     return False
+
+
+#: Parts a caller will need after the next first compile, as ``(name, part)`` pairs
+#: (:func:`ahead`).
+_AHEAD: contextvars.ContextVar[tuple] = contextvars.ContextVar("compile_ahead", default=())
+
+
+@contextlib.contextmanager
+def ahead(parts: Sequence[tuple[str, Any]]) -> Iterator[None]:
+    """Within this context, a first compile also compiles ``parts`` (``(name, part)`` pairs of
+    :class:`~delaytrack.sim.native_parts.NativePart` objects that are not compiled yet), shared
+    with the same helper process: for a job that runs several controllers in turn, so that
+    their steps are compiled beside the first run's parts, not one by one after it."""
+    token = _AHEAD.set(tuple(parts))
+    try:
+        yield
+    finally:
+        _AHEAD.reset(token)
+
+
+def parts_ahead() -> tuple:
+    """The ``(name, part)`` pairs of :func:`ahead`, or none outside it."""
+    return _AHEAD.get()
 
 
 def _name(function: Any) -> tuple[str, str, str | None] | None:

@@ -43,6 +43,7 @@ from delaytrack.sim.integrator import integrate_tick, rk4_workspace
 
 __all__ = [
     "NativePart",
+    "controller_step_name",
     "controller_step_part",
     "delay_part",
     "plant_tick_part",
@@ -173,6 +174,11 @@ def controller_step_part(step: Kernel, model: Kernel, n: int, m: int) -> NativeP
     if step.built_in:
         return _builtin_step_part(step.function, model.numba_type, n, m)
     return _users_step_part(step.numba_type, model.numba_type, n, m)
+
+
+def controller_step_name(controller: Any) -> str:
+    """How the first-compile notice names the step part of ``controller``."""
+    return f"{type(controller).__name__}'s step on {type(controller.model).__name__}"
 
 
 def _step_arguments(model: types.Type, n: int, m: int) -> tuple:

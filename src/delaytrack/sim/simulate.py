@@ -29,7 +29,7 @@ from delaytrack.delays.base import DelayProfile
 from delaytrack.kernel_arguments import check_kernel_arguments
 from delaytrack.plants.base import ELPlant
 from delaytrack.references import Reference
-from delaytrack.sim.compile_helper import CompileJob
+from delaytrack.sim.compile_helper import CompileJob, parts_ahead
 from delaytrack.sim.compile_helper import start as start_helper
 from delaytrack.sim.engine import run_batch, run_batch_compiled
 from delaytrack.sim.fallback import PythonFallbackWarning
@@ -37,6 +37,7 @@ from delaytrack.sim.first_compile import announce_compile, code_ready
 from delaytrack.sim.history import history_capacity, tick_time
 from delaytrack.sim.measurement import MeasurementNoise
 from delaytrack.sim.native_parts import (
+    controller_step_name,
     controller_step_part,
     delay_part,
     plant_tick_part,
@@ -567,11 +568,11 @@ def simulate(
     # their address, each compiled for its component alone: one engine serves every combination
     # (delaytrack.sim.native_parts).
     parts: tuple = ()
-    helper, handed_over, waiting = None, set(), []
+    helper, waiting = None, []
     part_names = (
         f"{type(first_plant).__name__}'s integrator",
         type(reference).__name__,
-        f"{type(first_controller).__name__}'s step on {type(first_controller.model).__name__}",
+        controller_step_name(first_controller),
         f"the delay kernel {delay_kernel.callable_names[0]}"
         if own_delays
         else "the delay profiles",
@@ -681,14 +682,23 @@ def simulate(
             ("the engine", parts[2].bound),  # one variant for built-in steps, one for the user's
             engine_signature,
         )
+        # (name, job, how this process compiles it or loads it from the cache)
         waiting = [
-            (name, part.compile_job())
+            (name, part.compile_job(), part.native)
             for name, part in zip(part_names, parts, strict=True)
             if not part.ready()
         ]
         if not engine_ready:
             engine_job = CompileJob(runner, engine_signature(), (NO_KERNEL,), _ENGINE_COST)
-            waiting.insert(0, ("the engine", engine_job))
+            waiting.insert(
+                0, ("the engine", engine_job, lambda: runner.compile(engine_signature()))
+            )
+        if waiting:  # a first compile: with the parts the caller will need next, if any
+            waiting += [
+                (name, part.compile_job(), part.native)
+                for name, part in parts_ahead()
+                if part not in parts and not part.ready()
+            ]
     natives: tuple = ()
 
     yours = [k for k in kernels(0) if not k.built_in and k is not NO_KERNEL]
@@ -708,27 +718,23 @@ def simulate(
     try:
         if compiled:  # compiled here, so that a chunk's error is a run's
             # Two or more to compile: a helper process compiles some of them on another core.
-            helper, handed = start_helper([job for _, job in waiting])
-            handed_over = {waiting[i][0] for i in handed}
+            helper, handed = start_helper([job for _, job, _ in waiting])
             if waiting:
-                announce_compile([name for name, _ in waiting], helped=helper is not None)
+                announce_compile([name for name, _, _ in waiting], helped=helper is not None)
             # This process's share first, the engine included, then the helper's (loaded from
             # the cache it wrote, or compiled here if it did not deliver).
-            for name, part in zip(part_names, parts, strict=True):
-                if name not in handed_over:
+            for position, (name, _, make) in enumerate(waiting):
+                if position not in handed:
                     compiling = name
-                    part.native()
-            compiling = "the engine"
-            if not engine_ready and "the engine" not in handed_over:
-                runner.compile(engine_signature())
+                    make()
             if helper is not None:
                 helper.wait()
+            for name, _, make in waiting:
+                compiling = name
+                make()
             for name, part in zip(part_names, parts, strict=True):
                 compiling = name
                 natives += (part.native(),)
-            compiling = "the engine"
-            if not engine_ready:
-                runner.compile(engine_signature())
         bar_context = (
             tqdm(total=batch, desc="simulate", unit="run")
             if progress

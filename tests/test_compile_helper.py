@@ -78,7 +78,7 @@ def test_a_process_busy_on_a_cpu_is_not_idle_time():
     import subprocess
     import time
 
-    cpus = compile_helper._cpu_times()[3]
+    cpus = compile_helper._cpu_times().cpus  # those this process may run on
     assert cpus >= 1
     other = subprocess.Popen([sys.executable, "-c", "while True: pass"])
     try:
@@ -91,21 +91,67 @@ def test_a_process_busy_on_a_cpu_is_not_idle_time():
         other.wait()
 
 
-def test_the_cpus_this_process_uses_count_as_free(monkeypatch):
-    # Over the window the machine's two CPUs ran 10 of 20 clock ticks. When this process ran
-    # them (a linear algebra thread still spinning after a call), both CPUs are free for a
-    # helper; when another process did, one is.
-    def readings(own_busy: int):
-        values = iter([(100, 200, 50, 2), (110, 220, 50 + own_busy, 2)])
-        return lambda: next(values)
-
+def _readings(monkeypatch, *readings):
     monkeypatch.setattr(compile_helper.time, "sleep", lambda seconds: None)
-    monkeypatch.setattr(compile_helper, "_cpu_times", readings(10))
+    times = iter([0.0, 0.1])  # the window: 0.1 s
+    monkeypatch.setattr(compile_helper.time, "monotonic", lambda: next(times))
+    values = iter(readings)
+    monkeypatch.setattr(compile_helper, "_cpu_times", lambda: next(values))
+
+
+def test_the_cpus_this_process_uses_count_as_free(monkeypatch):
+    # Over the window two CPUs ran 10 of 20 clock ticks. When this process ran them (a linear
+    # algebra thread still spinning after a call), both are free for a helper; when another
+    # process did, one is.
+    before = compile_helper.CpuTimes(100, 200, 50, 2, None)
+    _readings(monkeypatch, before, compile_helper.CpuTimes(110, 220, 60, 2, None))
     assert compile_helper.idle_cpus() == 2.0
-    monkeypatch.setattr(compile_helper, "_cpu_times", readings(0))
+    _readings(monkeypatch, before, compile_helper.CpuTimes(110, 220, 50, 2, None))
     assert compile_helper.idle_cpus() == 1.0
-    monkeypatch.setattr(compile_helper, "_cpu_times", lambda: (100, 200, 50, 2))
+    _readings(monkeypatch, before, before)
     assert compile_helper.idle_cpus() is None  # no time passed: nothing measured
+
+
+def test_under_a_cgroup_quota_what_the_cgroup_used_counts(monkeypatch):
+    # A container limited to two CPUs on a larger machine whose CPUs are idle: another process
+    # of the container used a whole CPU over the window (0.1 s of CPU in 0.1 s), so one is free.
+    monkeypatch.setattr(compile_helper, "_quota", lambda: 2.0)
+    monkeypatch.setattr(compile_helper.os, "sysconf", lambda name: 100, raising=False)
+    before = compile_helper.CpuTimes(1000, 1000, 0, 8, 5.0)
+    _readings(monkeypatch, before, compile_helper.CpuTimes(1080, 1080, 0, 8, 5.1))
+    assert compile_helper.idle_cpus() == pytest.approx(1.0)
+    # The cgroup's time spent by this process (1 clock tick of 10 ms) is its own, left free.
+    _readings(monkeypatch, before, compile_helper.CpuTimes(1080, 1080, 1, 8, 5.01))
+    assert compile_helper.idle_cpus() == pytest.approx(2.0)
+
+
+def test_only_the_cpus_this_process_may_run_on_are_counted(monkeypatch):
+    stat = (
+        "cpu  10 0 10 980 0 0 0 0 0 0\n"
+        "cpu0 10 0 10 80 0 0 0 0 0 0\n"  # busy
+        "cpu1 0 0 0 900 0 0 0 0 0 0\n"  # idle, but not this process's
+        "intr 0\n"
+    )
+    files = {
+        "/proc/stat": stat,
+        "/proc/self/stat": "1 (python) R " + " ".join(["0"] * 10) + " 7 3 0 0",
+        "/sys/fs/cgroup/cpu.stat": "",
+    }
+
+    class FakePath:
+        def __init__(self, path):
+            self.path = str(path)
+
+        def read_text(self):
+            if self.path not in files:
+                raise OSError(self.path)
+            return files[self.path]
+
+    monkeypatch.setattr(compile_helper, "Path", FakePath)
+    monkeypatch.setattr(compile_helper, "_allowed", lambda: {0})
+    assert compile_helper._cpu_times() == compile_helper.CpuTimes(80, 100, 10, 1, None)
+    monkeypatch.setattr(compile_helper, "_allowed", lambda: None)
+    assert compile_helper._cpu_times() == compile_helper.CpuTimes(980, 1000, 10, 2, None)
 
 
 def test_a_real_helper_compiles_its_share_and_says_so(monkeypatch):

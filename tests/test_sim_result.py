@@ -134,3 +134,19 @@ def test_a_metrics_only_result_cannot_be_plotted_and_says_why(arm_result):
     assert arm_result.has_trajectories and "metrics only" in repr(result)
     with pytest.raises(ValueError, match="no recorded trajectories"):
         result.plot()
+
+
+def test_a_figure_saved_in_two_formats_keeps_its_layout_engine(tmp_path):
+    import numpy as np
+    from matplotlib.figure import Figure
+
+    from delaytrack.report.figures import save_figure
+
+    figure = Figure(layout="constrained")
+    axes = figure.subplots()
+    figure.colorbar(axes.imshow(np.eye(3)))
+    engine = figure.get_layout_engine()
+    paths = save_figure(figure, tmp_path / "eye")
+    assert [p.name for p in paths] == ["eye.png", "eye.svg"]
+    assert all(p.stat().st_size > 0 for p in paths)
+    assert figure.get_layout_engine() is engine  # laid out once for both, then given back

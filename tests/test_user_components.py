@@ -352,42 +352,51 @@ def test_a_kernel_the_compile_helper_cannot_compile_is_reported_here(example, ca
     assert "(once in two processes;" in err  # the notice says so
 
 
-@pytest.mark.slow  # compiles a new arm's integrator and two steps (about 15 s)
-def test_steps_asked_for_ahead_are_compiled_at_the_first_compile(example, capsys, monkeypatch):
+@pytest.mark.slow  # compiles a new arm's integrator and two steps (about 15 s each)
+@pytest.mark.parametrize("helper", ["0", "1"])
+def test_steps_asked_for_ahead_are_compiled_at_the_first_compile(
+    example, capsys, monkeypatch, helper
+):
     from delaytrack._spec import module_from_file
     from delaytrack.sim import compile_helper
     from delaytrack.sim.native_parts import controller_step_name, controller_step_part
 
-    # A new arm and a new law (another fingerprint at every run, never in the cache), in one
-    # process: AROLC's run compiles the arm's parts and, asked for ahead, the law's step.
-    monkeypatch.setenv(compile_helper.ENVIRONMENT, "0")
+    # A new arm and a new law (another fingerprint at every run, never in the cache): AROLC's
+    # run compiles the arm's parts and, asked for ahead, the law's step, in one process or with
+    # a helper; and a law that numba cannot compile, whose error is left to its own run.
+    monkeypatch.setenv(compile_helper.ENVIRONMENT, helper)
     token = uuid.uuid4().int % 10**12
     arm = example / "arm.py"
     unique = f"c2 = math.cos(q[1]) + 0.0 * params[0] * {token}"  # not folded: in the code
     arm.write_text(arm.read_text().replace("c2 = math.cos(q[1])", unique))
     law = example / "pd_gravity.py"
-    law.write_text(
-        law.read_text().replace(
-            "tau[i] = nonlinear[i]", f"tau[i] = nonlinear[i] + 0.0 * params[0] * {token}"
-        )
+    text = law.read_text().replace(
+        "tau[i] = nonlinear[i]", f"tau[i] = nonlinear[i] + 0.0 * params[0] * {token}"
     )
+    law.write_text(text)
+    (example / "bad_law.py").write_text(text.replace("tau[i] = nonlinear", "tau[i] = nonlinaer"))
     built = Scenario.from_toml(short(example)).build()
     rival = module_from_file(law).make_pd_gravity(built.model, 16.0, 8.0)
+    bad = module_from_file(example / "bad_law.py").make_pd_gravity(built.model, 16.0, 8.0)
     n, m = built.plant.n, built.plant.m
-    step = controller_step_part(rival.engine_kernel, rival.model.engine_kernel, n, m)
+    step, bad_step = (
+        controller_step_part(c.engine_kernel, c.model.engine_kernel, n, m) for c in (rival, bad)
+    )
     assert not step.ready()
-    arguments = (built.plant, built.controller, built.delay, built.x0)
     settings = dict(reference=built.reference, t1=0.2, dt=0.001, T_c=0.002)
-    with compile_helper.ahead([(controller_step_name(rival), step)]):
-        first = dt.simulate(*arguments, **settings)
+    named = [(controller_step_name(rival), step), (controller_step_name(bad), bad_step)]
+    with compile_helper.ahead(named):
+        first = dt.simulate(built.plant, built.controller, built.delay, built.x0, **settings)
     notice = capsys.readouterr().err
     assert "PDGravity's step on " in notice and "AROLC's step on " in notice
     assert step.ready()  # compiled with the first run's parts
+    assert np.all(np.isfinite(first.metrics["ae"]))
     second = dt.simulate(built.plant, rival, built.delay, built.x0, **settings)
     assert "PDGravity's step" not in capsys.readouterr().err  # nothing left to compile
-    assert np.all(np.isfinite(first.metrics["ae"])) and np.all(np.isfinite(second.metrics["ae"]))
-    # Outside the context, a first compile compiles only its own parts.
-    assert compile_helper.parts_ahead() == ()
+    assert np.all(np.isfinite(second.metrics["ae"]))
+    with pytest.raises(ValueError, match="numba could not compile PDGravity's step on "):
+        dt.simulate(built.plant, bad, built.delay, built.x0, **settings)
+    assert compile_helper.parts_ahead() == ()  # the context is left
 
 
 _FAULTY_PLANT = """

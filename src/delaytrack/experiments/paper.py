@@ -322,7 +322,8 @@ def _simulate_all(
     if plant is None:
         plant = PayloadRobot(seed=PAYLOAD_SEED, duration=max(duration, DURATION))
     results = {}
-    # Every controller's step is compiled at the first run's first compile (with its helper).
+    # Every controller's step is compiled with the first run that compiles anything (and its
+    # helper), not one by one before each controller's run.
     steps = {
         controller_step_part(c.engine_kernel, c.model.engine_kernel, plant.n, plant.m): (
             controller_step_name(c)

@@ -274,20 +274,25 @@ def save_figure(
 ) -> list[Path]:
     """Write ``stem.<format>`` for each format, atomically; return the paths.
 
-    The figure's layout (matplotlib's constrained layout) is computed when the first format is
-    drawn and then kept (its layout engine set to none), so that the other formats, and any
-    later drawing of the figure, do not lay out every label again: that took about half the
-    time of writing a figure in two formats.
+    The figure's layout (by its layout engine, such as matplotlib's constrained layout) is
+    computed when the first format is drawn and kept for the other formats, which do not lay out
+    every label again (that took about half the time of writing a figure in two formats); the
+    figure's layout engine is given back afterwards.
     """
     paths = []
-    for fmt in formats:
-        path = Path(stem).with_suffix(f".{fmt}")
-        with atomic_path(path) as temporary:
-            # SVG output embeds a date by default; drop it so identical runs give identical files.
-            metadata = {"Date": None} if fmt == "svg" else None
-            figure.savefig(temporary, format=fmt, dpi=_DPI, metadata=metadata)
-        figure.set_layout_engine("none")
-        paths.append(path)
+    engine = figure.get_layout_engine()
+    try:
+        for fmt in formats:
+            path = Path(stem).with_suffix(f".{fmt}")
+            with atomic_path(path) as temporary:
+                # SVG embeds a date by default; drop it so identical runs give identical files.
+                metadata = {"Date": None} if fmt == "svg" else None
+                figure.savefig(temporary, format=fmt, dpi=_DPI, metadata=metadata)
+            figure.set_layout_engine("none")
+            paths.append(path)
+    finally:
+        if engine is not None:
+            figure.set_layout_engine(engine)
     return paths
 
 

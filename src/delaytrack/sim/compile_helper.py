@@ -17,13 +17,13 @@ there, so it starts no helper of its own). Whatever the helper does not deliver,
 failed, was stopped or took too long (:meth:`Helper.wait`), this process compiles as it would
 without it, and a compile error is reported by this process.
 
-The helper is for a core with nothing to do: it is started when, over a tenth of a second, two
-of the machine's CPUs were idle on average (this process's own, as it waits, and one more;
-:func:`spare_core`), so not beside processes already using every core, such as pytest's or
-dask's workers, where it would only compete with them; and only where numba's cache is saved
-under a file lock (not on Windows). Set the environment variable
-``DELAYTRACK_COMPILE_HELPER`` to ``0`` to compile in one process, or to ``1`` to start the
-helper whatever the load.
+The helper is for a core with nothing to do: it is started when, over a tenth of a second,
+other processes left 1.75 of the CPUs this process may use free on average (this process's
+own, as it waits, and one more, less a margin; :func:`spare_core`), so not beside processes
+already using every core, such as pytest's or dask's workers, where it would only compete
+with them; and only where numba's cache is saved under a file lock (not on Windows). Set the
+environment variable ``DELAYTRACK_COMPILE_HELPER`` to ``0`` to compile in one process, or to
+``1`` to start the helper whatever the load.
 """
 
 from __future__ import annotations
@@ -39,13 +39,27 @@ import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, NamedTuple
 
 from delaytrack._numba_cache import cache_directory, locks_cache
 from delaytrack._spec import module_from_file
 from delaytrack.components import Kernel
 
-__all__ = ["ENVIRONMENT", "CompileJob", "Helper", "main", "share", "spare_core", "start"]
+__all__ = [
+    "ENVIRONMENT",
+    "IDLE_NEEDED",
+    "IDLE_WINDOW",
+    "CompileJob",
+    "CpuTimes",
+    "Helper",
+    "ahead",
+    "idle_cpus",
+    "main",
+    "parts_ahead",
+    "share",
+    "spare_core",
+    "start",
+]
 
 #: The environment variable that turns the helper off (``0``) or on whatever the load (``1``).
 ENVIRONMENT = "DELAYTRACK_COMPILE_HELPER"
@@ -94,17 +108,29 @@ class CompileJob:
     cost: float
 
 
-def _cores() -> int:
-    """The cores this process may use: those it may run on, at most its cgroup's CPU quota."""
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        cores = os.cpu_count() or 1
-    with contextlib.suppress(OSError, ValueError):
+def _quota() -> float | None:
+    """The CPUs this process's cgroup may use (its ``cpu.max`` quota), None without a quota."""
+    with contextlib.suppress(OSError, ValueError, ZeroDivisionError):
         quota, period = Path("/sys/fs/cgroup/cpu.max").read_text().split()[:2]
         if quota != "max":
-            cores = min(cores, max(1, int(int(quota) // int(period))))
-    return cores
+            return int(quota) / int(period)
+    return None
+
+
+def _allowed() -> set[int] | None:
+    """The CPUs this process may run on, None where that is not known."""
+    try:
+        return set(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return None
+
+
+def _cores() -> int:
+    """The cores this process may use: those it may run on, at most its cgroup's CPU quota."""
+    allowed = _allowed()
+    cores = len(allowed) if allowed is not None else os.cpu_count() or 1
+    quota = _quota()
+    return cores if quota is None else min(cores, max(1, int(quota)))
 
 
 #: How long the machine's use is measured before a helper is started, in seconds.
@@ -114,37 +140,68 @@ IDLE_WINDOW = 0.1
 IDLE_NEEDED = 1.75
 
 
-def _cpu_times() -> tuple[int, int, int, int]:
-    """``(idle, total, own, cpus)``: the machine's idle and total CPU time so far (in clock
-    ticks, waiting for input or output counted as idle), this process's (all its threads), and
-    the machine's number of CPUs, from ``/proc/stat`` and ``/proc/self/stat``."""
-    lines = Path("/proc/stat").read_text().splitlines()
-    fields = [int(field) for field in lines[0].split()[1:9]]  # user .. steal
-    cpus = sum(line.startswith("cpu") and line[3:4].isdigit() for line in lines)
+class CpuTimes(NamedTuple):
+    """CPU time so far: of the CPUs this process may run on, idle (waiting for input or output
+    counted as idle) and in all, and this process's (all its threads), in clock ticks; the
+    number of those CPUs; and the CPU seconds of this process's cgroup (None without)."""
+
+    idle: int
+    total: int
+    own: int
+    cpus: int
+    cgroup: float | None
+
+
+def _cpu_times() -> CpuTimes:
+    """:class:`CpuTimes` now, from ``/proc/stat``, ``/proc/self/stat`` and the cgroup's
+    ``cpu.stat``."""
+    allowed = _allowed()
+    idle = total = cpus = 0
+    for line in Path("/proc/stat").read_text().splitlines():
+        name, _, values = line.partition(" ")
+        if not (name.startswith("cpu") and name[3:].isdigit()):
+            continue
+        if allowed is not None and int(name[3:]) not in allowed:
+            continue
+        fields = [int(field) for field in values.split()[:8]]  # user .. steal
+        idle, total, cpus = idle + fields[3] + fields[4], total + sum(fields), cpus + 1
     mine = Path("/proc/self/stat").read_text().rpartition(")")[2].split()
-    return fields[3] + fields[4], sum(fields), int(mine[11]) + int(mine[12]), cpus
+    cgroup = None
+    with contextlib.suppress(OSError, ValueError):
+        for line in Path("/sys/fs/cgroup/cpu.stat").read_text().splitlines():
+            if line.startswith("usage_usec "):
+                cgroup = int(line.split()[1]) / 1e6
+    return CpuTimes(idle, total, int(mine[11]) + int(mine[12]), cpus, cgroup)
 
 
 def idle_cpus(window: float = IDLE_WINDOW) -> float | None:
-    """How many of the machine's CPUs other processes left free, on average, over the next
-    ``window`` seconds (this process sleeping through them), from ``/proc``; None where it is
-    not known.
+    """How many CPUs other processes left free, on average, over the next ``window`` seconds
+    (this process sleeping through them), from ``/proc``; None where it is not known.
 
-    A measure of now, not of the last minute: the load average lags, and kept a helper off for
-    a minute after another job had ended. This process's own threads count as free: a thread
-    of the linear algebra library still spinning after a call would otherwise keep the helper
-    off, and it soon stops.
+    Counted on the CPUs this process may run on and, under a cgroup quota, at most the quota
+    less what the cgroup's other processes used. A measure of now, not of the last minute: the
+    load average lags, and kept a helper off for a minute after another job had ended. All of
+    this process's threads count as free: one of the linear algebra library still spinning
+    after a call would otherwise keep the helper off, and it soon stops (a thread of yours
+    that keeps computing is not seen, and the helper then shares its core).
     """
     try:
-        idle, total, own, cpus = _cpu_times()
+        before, start = _cpu_times(), time.monotonic()
         time.sleep(window)
-        idle_after, total_after, own_after, _ = _cpu_times()
-    except (OSError, ValueError, IndexError):
+        after, elapsed = _cpu_times(), time.monotonic() - start
+        ticks = os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError, AttributeError):
         return None
-    if total_after <= total or cpus < 1:
+    if after.total <= before.total or before.cpus < 1 or elapsed <= 0.0:
         return None
-    free = (idle_after - idle) + (own_after - own)
-    return min(float(cpus), cpus * free / (total_after - total))
+    own = after.own - before.own
+    free = before.cpus * (after.idle - before.idle + own) / (after.total - before.total)
+    free = min(float(before.cpus), free)
+    quota = _quota()
+    if quota is not None and before.cgroup is not None and after.cgroup is not None:
+        others = (after.cgroup - before.cgroup - own / ticks) / elapsed
+        free = min(free, quota - max(0.0, others))
+    return free
 
 
 def spare_core() -> bool:

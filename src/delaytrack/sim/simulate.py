@@ -100,6 +100,19 @@ _NUMBA_CAUSES = ("Error: ", "Untyped global name", "Unknown attribute", "Cannot 
 _TERMINAL_CODES = re.compile(r"\x1b\[[0-9;]*m")
 
 
+def _compiled_if_it_can(part: Any) -> Any:
+    """How a part compiled ahead for a later run is compiled here: an error is left to that
+    run, which compiles the part again and reports it with its own kernels."""
+
+    def compile_it() -> None:
+        try:
+            part.native()
+        except Exception:  # noqa: BLE001, S110 - reported by the run that needs the part
+            pass
+
+    return compile_it
+
+
 def _raised_during_the_run(error: Exception, yours: list) -> str:
     """The one-line message for ``error``, raised by one of the user's kernels ``yours``
     (:class:`~delaytrack.components.Kernel`) while the closed loop ran."""
@@ -694,11 +707,9 @@ def simulate(
                 0, ("the engine", engine_job, lambda: runner.compile(engine_signature()))
             )
         if waiting:  # a first compile: with the parts the caller will need next, if any
-            waiting += [
-                (name, part.compile_job(), part.native)
-                for name, part in parts_ahead()
-                if part not in parts and not part.ready()
-            ]
+            for part, name in {part: name for name, part in parts_ahead()}.items():
+                if part not in parts and not part.ready():
+                    waiting.append((name, part.compile_job(), _compiled_if_it_can(part)))
     natives: tuple = ()
 
     yours = [k for k in kernels(0) if not k.built_in and k is not NO_KERNEL]

@@ -105,7 +105,7 @@ from delaytrack.report import (
 )
 from delaytrack.sim import SimResult, simulate
 from delaytrack.sim.compile_helper import ahead as compile_ahead
-from delaytrack.sim.native_parts import controller_step_name, controller_step_part
+from delaytrack.sim.native_parts import step_parts
 
 __all__ = [
     "PAPER_TABLE",
@@ -324,14 +324,8 @@ def _simulate_all(
     results = {}
     # Every controller's step is compiled with the first run that compiles anything (and its
     # helper), not one by one before each controller's run.
-    steps = {
-        controller_step_part(c.engine_kernel, c.model.engine_kernel, plant.n, plant.m): (
-            controller_step_name(c)
-        )
-        for batch in controllers.values()
-        for c in batch
-    }
-    with compile_ahead([(name, part) for part, name in steps.items()]):
+    every = [c for batch in controllers.values() for c in batch]
+    with compile_ahead(step_parts(every, plant.n, plant.m)):
         for kind, batch in controllers.items():
             bar.set_postfix_str(f"{kind}, {type(plant).__name__}, dt = {dt:g} s")
             results[kind] = simulate(

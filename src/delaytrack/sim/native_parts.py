@@ -45,6 +45,7 @@ __all__ = [
     "NativePart",
     "controller_step_name",
     "controller_step_part",
+    "step_parts",
     "delay_part",
     "plant_tick_part",
     "reference_part",
@@ -179,6 +180,17 @@ def controller_step_part(step: Kernel, model: Kernel, n: int, m: int) -> NativeP
 def controller_step_name(controller: Any) -> str:
     """How the first-compile notice names the step part of ``controller``."""
     return f"{type(controller).__name__}'s step on {type(controller.model).__name__}"
+
+
+def step_parts(controllers: Any, n: int, m: int) -> list[tuple[str, NativePart]]:
+    """``(name, part)`` of each distinct step part of ``controllers`` (an iterable) for a plant
+    of ``n`` coordinates and ``m`` inputs: what a job that runs them in turn names for
+    :func:`delaytrack.sim.compile_helper.ahead`."""
+    parts = {
+        controller_step_part(c.engine_kernel, c.model.engine_kernel, n, m): controller_step_name(c)
+        for c in controllers
+    }
+    return [(name, part) for part, name in parts.items()]
 
 
 def _step_arguments(model: types.Type, n: int, m: int) -> tuple:

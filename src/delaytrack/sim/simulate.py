@@ -746,6 +746,7 @@ def simulate(
             for name, part in zip(part_names, parts, strict=True):
                 compiling = name
                 natives += (part.native(),)
+            compiling = "the engine"  # loaded from the cache at the first chunk's call
         bar_context = (
             tqdm(total=batch, desc="simulate", unit="run")
             if progress

@@ -246,3 +246,10 @@ def test_a_failed_or_slow_helper_is_reported_and_stopped():
     running = Helper(subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"]), 60)
     running.stop()
     assert running.process.returncode is not None
+
+
+def test_parts_named_ahead_are_kept_once_and_only_within_the_context():
+    first, second = object(), object()  # stand-ins for two parts
+    with compile_helper.ahead([("PCON's step", first), ("PCONf's step", first), ("x", second)]):
+        assert compile_helper.parts_ahead() == (("PCONf's step", first), ("x", second))
+    assert compile_helper.parts_ahead() == ()

@@ -234,10 +234,12 @@ _AHEAD: contextvars.ContextVar[tuple] = contextvars.ContextVar("compile_ahead", 
 @contextlib.contextmanager
 def ahead(parts: Sequence[tuple[str, Any]]) -> Iterator[None]:
     """Within this context, a first compile also compiles ``parts`` (``(name, part)`` pairs of
-    :class:`~delaytrack.sim.native_parts.NativePart` objects that are not compiled yet), shared
-    with the same helper process: for a job that runs several controllers in turn, so that
-    their steps are compiled beside the first run's parts, not one by one after it."""
-    token = _AHEAD.set(tuple(parts))
+    :class:`~delaytrack.sim.native_parts.NativePart` objects that are not compiled yet; a part
+    given twice is kept once), shared with the same helper process: for a job that runs several
+    controllers in turn, so that their steps are compiled beside the first run's parts, not one
+    by one after it."""
+    distinct = {part: name for name, part in parts}
+    token = _AHEAD.set(tuple((name, part) for part, name in distinct.items()))
     try:
         yield
     finally:

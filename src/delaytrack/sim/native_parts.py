@@ -45,10 +45,10 @@ __all__ = [
     "NativePart",
     "controller_step_name",
     "controller_step_part",
-    "step_parts",
     "delay_part",
     "plant_tick_part",
     "reference_part",
+    "step_parts",
 ]
 
 #: Position of the nominal model's kernel among a step kernel's arguments.
@@ -183,14 +183,16 @@ def controller_step_name(controller: Any) -> str:
 
 
 def step_parts(controllers: Any, n: int, m: int) -> list[tuple[str, NativePart]]:
-    """``(name, part)`` of each distinct step part of ``controllers`` (an iterable) for a plant
-    of ``n`` coordinates and ``m`` inputs: what a job that runs them in turn names for
+    """``(name, part)`` of the step part of each of ``controllers`` (an iterable) for a plant of
+    ``n`` coordinates and ``m`` inputs: what a job that runs them in turn names for
     :func:`delaytrack.sim.compile_helper.ahead`."""
-    parts = {
-        controller_step_part(c.engine_kernel, c.model.engine_kernel, n, m): controller_step_name(c)
+    return [
+        (
+            controller_step_name(c),
+            controller_step_part(c.engine_kernel, c.model.engine_kernel, n, m),
+        )
         for c in controllers
-    }
-    return [(name, part) for part, name in parts.items()]
+    ]
 
 
 def _step_arguments(model: types.Type, n: int, m: int) -> tuple:

@@ -707,7 +707,7 @@ def simulate(
                 0, ("the engine", engine_job, lambda: runner.compile(engine_signature()))
             )
         if waiting:  # a first compile: with the parts the caller will need next, if any
-            for part, name in {part: name for name, part in parts_ahead()}.items():
+            for name, part in parts_ahead():
                 if part not in parts and not part.ready():
                     waiting.append((name, part.compile_job(), _compiled_if_it_can(part)))
     natives: tuple = ()

@@ -149,6 +149,7 @@ def test_only_the_cpus_this_process_may_run_on_are_counted(monkeypatch):
 
     monkeypatch.setattr(compile_helper, "Path", FakePath)
     monkeypatch.setattr(compile_helper, "_allowed", lambda: {0})
+    # cpu0 alone: idle 80 of 10 + 10 + 80 ticks; own time utime 7 + stime 3; no cgroup
     assert compile_helper._cpu_times() == compile_helper.CpuTimes(80, 100, 10, 1, None)
     monkeypatch.setattr(compile_helper, "_allowed", lambda: None)
     assert compile_helper._cpu_times() == compile_helper.CpuTimes(980, 1000, 10, 2, None)

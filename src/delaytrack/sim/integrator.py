@@ -25,7 +25,8 @@ split steps), is held over the step, as a zero-order hold sampled at ``dt``. A s
 step then takes effect at the next step.
 
 This is the innermost loop of every simulation: nothing here allocates (the working memory is
-:func:`rk4_workspace`, made once per run), and :func:`integrate_tick` is compiled without
+:func:`rk4_workspace`, made once per run, or, for the stages, arrays on the stack:
+:func:`rk4_memory`), and :func:`integrate_tick` is compiled without
 reference counting (:data:`delaytrack._jit.tick_kernel`). It is compiled on its own for each
 plant and called by the engine through its address (:func:`integrate`), so that the engine's
 tick loop is compiled once for every plant.
@@ -40,7 +41,8 @@ from numba.extending import overload
 
 from delaytrack._jit import hot_inline_kernel, inline_kernel, tick_kernel
 from delaytrack._native_call import NativeFunctionType, call_native
-from delaytrack.components import call_stepper, has_stepper, plant_sizes
+from delaytrack._stack_arrays import MOST_STACK_ENTRIES, stack_matrix, stack_vector
+from delaytrack.components import KernelType, call_stepper, has_stepper, plant_sizes
 from delaytrack.delays._kernel import (
     PIECEWISE_CONSTANT,
     next_breakpoint,
@@ -60,6 +62,7 @@ __all__ = [
     "beyond",
     "integrate",
     "integrate_tick",
+    "rk4_memory",
     "rk4_workspace",
 ]
 
@@ -118,6 +121,36 @@ def rk4_workspace(x, m):
     stage = np.empty(2 * n)
     profile = np.array([np.inf, -np.inf, np.nan, np.nan, np.nan, -1.0, np.inf, -np.inf])
     return slopes, stage, stage[:n], stage[n:], rhs_scratch(n, m), profile
+
+
+def rk4_memory(plant_terms, work):
+    """The working memory of :func:`_rk4_substep` for one call of :func:`integrate_tick`.
+
+    Compiled, for a plant whose sizes ``(n, m)`` are known when compiling, the slopes, the stage
+    state and the plant's ``M, N, G`` are arrays on the stack of :func:`integrate_tick`
+    (:mod:`delaytrack._stack_arrays`), and only ``profile``, which lasts from one tick to the
+    next, is taken from ``work`` (:func:`rk4_workspace`); otherwise ``work`` itself. The stage
+    arrays hold nothing between calls, so the two give the same numbers.
+    """
+    return work
+
+
+@overload(rk4_memory, inline="always")
+def _rk4_memory_compiled(plant_terms, work):
+    sizes = plant_terms.kernel().sizes if isinstance(plant_terms, KernelType) else None
+    if sizes is None:
+        return lambda plant_terms, work: work
+    n, m = sizes
+    width = 2 * n
+    if 5 * width + n * n + n + n * m > MOST_STACK_ENTRIES:
+        return lambda plant_terms, work: work
+
+    def on_stack(plant_terms, work):
+        stage = stack_vector(width)
+        scratch = (stack_matrix(n, n), stack_vector(n), stack_matrix(n, m))
+        return stack_matrix(4, width), stage, stage[:n], stage[n:], scratch, work[5]
+
+    return on_stack
 
 
 @hot_inline_kernel
@@ -276,6 +309,7 @@ def integrate_tick(
     capacity = history.shape[0]
     newest_slot = k % capacity
     profile = work[5]
+    work = rk4_memory(plant_terms, work)
     first_slot = -3
     outside = False  # whether x left the bound at the end of the last sub-step
     for j in range(steps_per_tick):

@@ -1,0 +1,115 @@
+"""Working arrays on the stack of a compiled function, and the RK4 memory made of them."""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+import pytest
+from numba.core.errors import TypingError
+
+from delaytrack._stack_arrays import MOST_STACK_ENTRIES, stack_matrix, stack_vector
+from delaytrack.components import Kernel
+from delaytrack.plants.robot.truth import robot_truth_terms
+from delaytrack.sim.integrator import rk4_memory, rk4_workspace
+
+
+@numba.njit
+def _fill_and_read(offset):
+    """Two stack arrays written through their indices, read back as copies on the heap."""
+    matrix = stack_matrix(3, 4)
+    vector = stack_vector(5)
+    for i in range(3):
+        for j in range(4):
+            matrix[i, j] = offset + 10 * i + j
+    for i in range(5):
+        vector[i] = -offset - i
+    return (
+        matrix.copy(),
+        vector.copy(),
+        matrix.strides,
+        matrix.flags.c_contiguous,
+        matrix[1:].shape,
+        matrix.ctypes.data != vector.ctypes.data,
+    )
+
+
+def test_stack_arrays_have_their_shape_strides_and_own_memory():
+    matrix, vector, strides, contiguous, rows_after_first, distinct = _fill_and_read(7.0)
+    np.testing.assert_array_equal(matrix, 7.0 + 10 * np.arange(3)[:, None] + np.arange(4))
+    np.testing.assert_array_equal(vector, -7.0 - np.arange(5))
+    assert strides == (32, 8)
+    assert contiguous
+    assert rows_after_first == (2, 4)
+    assert distinct
+
+
+@numba.njit
+def _in_a_loop(count):
+    """A stack array made inside a loop is one array of the frame, not one per iteration."""
+    total = 0.0
+    for k in range(count):
+        values = stack_vector(2)
+        values[0] = k
+        values[1] = 1.0
+        total += values[0] + values[1]
+    return total
+
+
+def test_a_stack_array_made_in_a_loop_does_not_grow_the_stack():
+    count = 1_000_000  # 16 MB of stack if each iteration had its own array
+    assert _in_a_loop(count) == pytest.approx(count * (count - 1) / 2 + count)
+
+
+@numba.njit
+def _zero_rows():
+    return stack_matrix(0, 3).shape
+
+
+@numba.njit
+def _rows_not_constant(rows):
+    return stack_matrix(rows, 3).shape
+
+
+@pytest.mark.parametrize("function, arguments", [(_zero_rows, ()), (_rows_not_constant, (2,))])
+def test_an_extent_that_is_not_a_positive_constant_is_refused_when_compiling(function, arguments):
+    with pytest.raises(TypingError, match="positive compile-time constant"):
+        function(*arguments)
+
+
+@numba.njit
+def _memory_addresses(terms, work):
+    memory = rk4_memory(terms, work)
+    mass, nonlinear, input_map = memory[4]
+    return (
+        memory[0].ctypes.data == work[0].ctypes.data,
+        memory[1].ctypes.data == work[1].ctypes.data,
+        mass.ctypes.data == work[4][0].ctypes.data,
+        memory[5].ctypes.data == work[5].ctypes.data,  # the profile's memory lasts: shared
+        memory[0].shape,
+        mass.shape,
+        input_map.shape,
+        nonlinear.shape,
+        memory[2].shape,
+        memory[3].shape,
+    )
+
+
+def test_rk4_memory_is_on_the_stack_for_a_plant_of_known_sizes():
+    n, m = 5, 2
+    work = rk4_workspace(np.zeros(2 * n), m)
+    same_slopes, same_stage, same_mass, same_profile, *shapes = _memory_addresses(
+        Kernel(robot_truth_terms, identity_mass=True, sizes=(n, m)), work
+    )
+    assert (same_slopes, same_stage, same_mass, same_profile) == (False, False, False, True)
+    assert shapes == [(4, 2 * n), (n, n), (n, m), (n,), (n,), (n,)]
+
+
+@pytest.mark.parametrize("sizes", [None, (200, 2)], ids=["sizes unknown", "beyond the bound"])
+def test_rk4_memory_is_the_workspace_without_sizes_or_beyond_the_bound(sizes):
+    n, m = sizes or (5, 2)
+    assert 5 * 2 * 200 + 200 * 200 + 200 + 200 * 2 > MOST_STACK_ENTRIES
+    work = rk4_workspace(np.zeros(2 * n), m)
+    same_slopes, same_stage, same_mass, same_profile, *_ = _memory_addresses(
+        Kernel(robot_truth_terms, identity_mass=True, sizes=sizes), work
+    )
+    assert (same_slopes, same_stage, same_mass, same_profile) == (True, True, True, True)

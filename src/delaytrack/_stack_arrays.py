@@ -7,7 +7,7 @@ sees whole is memory it can optimise: the RK4 stages of the plant's integrator
 (:func:`delaytrack.sim.integrator.integrate_tick`) keep their slopes, their stage state and the
 plant's ``M, N, G`` there, so that a terms kernel inlined into the stage no longer stores the
 entries nobody reads (``M = I`` of a robot whose right-hand side skips the solve) and hands the
-others to the right-hand side in registers. A 60 s robot run took 19.5 ms instead of 21.6 ms.
+others to the right-hand side in registers (what that gains: ``docs/performance.md``).
 
 The arrays hold no reference count (numba's runtime ignores them) and must not outlive the call
 of the function that made them: they are working memory, never results. Their content starts
@@ -16,6 +16,8 @@ that a large model cannot overflow a thread's stack.
 """
 
 from __future__ import annotations
+
+import math
 
 from llvmlite import ir
 from numba import types
@@ -43,15 +45,8 @@ def _literal_extent(value: types.Type, name: str) -> int:
 def _stack_array(context, builder, shape: tuple[int, ...]):
     """A C-contiguous float64 array of ``shape`` in the entry block of the function being built."""
     double = context.get_value_type(types.float64)
-    size = 1
-    for extent in shape:
-        size *= extent
-    memory = cgutils.alloca_once(builder, ir.ArrayType(double, size))
-    strides = []
-    stride = _ITEM_SIZE
-    for extent in reversed(shape):
-        strides.insert(0, stride)
-        stride *= extent
+    memory = cgutils.alloca_once(builder, ir.ArrayType(double, math.prod(shape)))
+    strides = [_ITEM_SIZE * math.prod(shape[axis + 1 :]) for axis in range(len(shape))]
     intp = context.get_value_type(types.intp)
     array = make_array(types.Array(types.float64, len(shape), "C"))(context, builder)
     populate_array(

@@ -138,11 +138,10 @@ def rk4_memory(plant_terms, work):
 @overload(rk4_memory, inline="always")
 def _rk4_memory_compiled(plant_terms, work):
     sizes = plant_terms.kernel().sizes if isinstance(plant_terms, KernelType) else None
-    if sizes is None:
-        return lambda plant_terms, work: work
-    n, m = sizes
+    n, m = sizes or (0, 0)
     width = 2 * n
-    if 5 * width + n * n + n + n * m > MOST_STACK_ENTRIES:
+    entries = 4 * width + width + n * n + n + n * m  # slopes, stage, M, N, G
+    if sizes is None or entries > MOST_STACK_ENTRIES:
         return lambda plant_terms, work: work
 
     def on_stack(plant_terms, work):

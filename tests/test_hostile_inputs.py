@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import importlib
 import math
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -460,6 +461,38 @@ def test_api_values_that_would_change_the_experiment_are_refused():
         metrics_table(result, coordinate_names=["a", "a"])
     with pytest.raises(ValueError, match="t_from must be a time"):
         mean_absolute_error(result, t_from=True)
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "error", "message"),
+    [
+        ("t1", "0.2", TypeError, "t1 must be a real number; got '0.2'"),
+        ("t1", True, TypeError, "t1 must be a real number; got True"),
+        ("t0", np.bool_(False), TypeError, "t0 must be a real number"),
+        ("t0", math.nan, ValueError, "t0 must be finite"),
+        ("t1", math.inf, ValueError, "t1 must be finite"),
+        ("t1", np.array([0.2]), ValueError, "t1 must be 0-dimensional"),
+    ],
+)
+def test_times_that_are_not_finite_real_numbers_are_refused_naming_them(key, value, error, message):
+    built = short().build()
+    times = {"t0": 0.0, "t1": 0.2, key: value}
+    settings = {"reference": built.reference, "dt": 1e-3, "T_c": 2e-3}
+    with pytest.raises(error, match=re.escape(message)):
+        simulate(built.plant, built.controller, built.delay, built.x0, **settings, **times)
+
+
+def test_times_as_int_float_or_numpy_numbers_give_the_same_run():
+    built = short().build()
+    settings = {"reference": built.reference, "dt": 1e-3, "T_c": 2e-3, "trajectories": False}
+    runs = [
+        simulate(
+            built.plant, built.controller, built.delay, built.x0, t0=t0, t1=t1, **settings
+        ).metrics["ae"]
+        for t0, t1 in ((0, 1), (0.0, 1.0), (np.float64(0.0), np.int64(1)))
+    ]
+    for other in runs[1:]:
+        assert np.array_equal(other, runs[0])
 
 
 def test_a_key_with_a_newline_still_gives_one_line(tmp_path, capsys):

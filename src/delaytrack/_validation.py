@@ -21,6 +21,7 @@ __all__ = [
     "format_values",
     "positive_scalar",
     "finite_array",
+    "finite_scalar",
     "real_array",
 ]
 
@@ -140,6 +141,21 @@ def finite_array(name: str, value: object, *, ndim: int | None = None) -> np.nda
         where = f"{name}[{', '.join(map(str, bad))}]" if bad else name
         raise ValueError(f"{name} must be finite; {where} is {array[bad]}")
     return array
+
+
+def finite_scalar(name: str, value: object) -> float:
+    """Return ``value`` as a finite float; strings and booleans are refused.
+
+    A Python ``float`` or a small ``int`` is taken as it is, without a NumPy array (a
+    ``simulate`` call checks several such numbers, and a short run is worth microseconds).
+    """
+    if type(value) is float and math.isfinite(value):
+        return value
+    if type(value) is int and abs(value) <= 2**53:
+        return float(value)
+    if isinstance(value, str | bool | np.bool_):
+        raise TypeError(f"{name} must be a real number; got {value!r}")
+    return float(finite_array(name, value, ndim=0))
 
 
 def as_square_matrix(name: str, value: object, n: int | None = None) -> np.ndarray:

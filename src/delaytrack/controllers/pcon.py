@@ -53,7 +53,7 @@ from delaytrack._jit import tick_kernel
 from delaytrack._small_linalg import matvec
 from delaytrack._validation import (
     as_spd_matrix,
-    finite_array,
+    finite_scalar,
     is_integer_at_least,
     positive_scalar,
 )
@@ -395,9 +395,7 @@ class PCON(PredictorBaseline):
         object.__setattr__(
             self, "delay_scale", positive_scalar("delay_scale", self.delay_scale, strictly=False)
         )
-        object.__setattr__(
-            self, "delay_offset", float(finite_array("delay_offset", self.delay_offset, ndim=0))
-        )
+        object.__setattr__(self, "delay_offset", finite_scalar("delay_offset", self.delay_offset))
         object.__setattr__(
             self, "delay_noise", positive_scalar("delay_noise", self.delay_noise, strictly=False)
         )

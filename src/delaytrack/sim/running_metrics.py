@@ -52,18 +52,17 @@ def finish_metrics(sums: np.ndarray, ok: np.ndarray) -> dict[str, np.ndarray]:
     """
     n = (sums.shape[1] - 2) // 3
     count = sums[:, 3 * n + 1 : 3 * n + 2]
-    # A run that stopped before its window opened counted no tick (and is not ok).
-    counted = np.broadcast_to(count > 0.0, (sums.shape[0], n))
-    mean_abs = np.divide(sums[:, :n], count, out=np.full((sums.shape[0], n), np.nan), where=counted)
-    mean_sq = np.divide(
-        sums[:, n : 2 * n], count, out=np.full((sums.shape[0], n), np.nan), where=counted
+    # Σ|e1| and Σe1² over K; a run that stopped before its window opened counted no tick.
+    means = np.divide(
+        sums[:, : 2 * n], count, out=np.full((sums.shape[0], 2 * n), np.nan), where=count > 0.0
     )
     metrics = {
-        "ae": mean_abs,
-        "rms": np.sqrt(mean_sq),
+        "ae": means[:, :n],
+        "rms": np.sqrt(means[:, n:]),
         "max": sums[:, 2 * n : 3 * n].copy(),
         "tv": sums[:, 3 * n].copy(),
     }
-    for values in metrics.values():
-        values[~ok] = np.nan
+    if not ok.all():
+        for values in metrics.values():
+            values[~ok] = np.nan
     return metrics

@@ -17,6 +17,7 @@ from tqdm.auto import tqdm
 
 from delaytrack._validation import (
     finite_array,
+    finite_scalar,
     integer_multiple,
     is_integer_at_least,
     positive_scalar,
@@ -160,7 +161,7 @@ def _metrics_from_tick(
     """First tick counted by the running metrics: the first one at or after ``metrics_from``."""
     if metrics_from is None:
         return 0
-    start = float(finite_array("metrics_from", metrics_from, ndim=0))
+    start = finite_scalar("metrics_from", metrics_from)
     if not t0 <= start <= t1:
         raise ValueError(
             f"metrics_from must lie in [t0, t1] = [{t0:g}, {t1:g}] s; got {metrics_from!r}"
@@ -245,6 +246,8 @@ def _check_horizons(
 def _positive_limits(key: str, value: object, shape: tuple[int, ...], entries: str) -> np.ndarray:
     """``value`` broadcast to ``shape`` (a leading row of one spreads to every run), each entry
     ``> 0`` (``inf``: none); refusals name ``key`` and what ``entries`` it takes."""
+    if (type(value) is float or type(value) is int) and value > 0:  # one for all, the default
+        return np.full(shape, float(value))
     try:
         array = np.asarray(value, dtype=float)
         if array.ndim == 2 and array.shape[0] == 1 and len(shape) == 2:
@@ -376,8 +379,8 @@ def simulate(
     delays = _as_batch("delay", delay, DelayProfile)
     dt = positive_scalar("dt", dt)
     T_c = positive_scalar("T_c", T_c)
-    t0 = float(finite_array("t0", t0, ndim=0))
-    t1 = float(finite_array("t1", t1, ndim=0))
+    t0 = finite_scalar("t0", t0)
+    t1 = finite_scalar("t1", t1)
     if t1 <= t0:
         raise ValueError(f"t1 must be later than t0; got t0 = {t0:g}, t1 = {t1:g}")
     if max(abs(t0), abs(t1)) * np.finfo(float).eps > 1e-3 * dt:
@@ -453,7 +456,7 @@ def simulate(
     # A writable C-contiguous copy: numba compiles the engine once per argument type, and a
     # read-only broadcast view would be another type (another two-minute compile).
     states0 = np.array(
-        np.broadcast_to(states0, (batch, 2 * n)) if states0.shape[0] == 1 else states0,
+        np.broadcast_to(states0, (batch, 2 * n)) if states0.shape[0] == 1 < batch else states0,
         order="C",
     )
     if states0.shape[0] != batch:
@@ -679,15 +682,15 @@ def simulate(
         pieces = min(batch, workers * per_worker if (progress or workers > 1) else 1)
     else:
         pieces = batch
-    chunks = np.array_split(np.arange(batch), pieces)
+    chunks = [np.arange(batch)] if pieces == 1 else np.array_split(np.arange(batch), pieces)
     in_parallel = compiled and workers > 1 and len(chunks) > 1
     if compiled:
-        # Stand-ins with an address of 0 give the engine's argument types without compiling.
-        probes = tuple(part.probe() for part in parts)
 
         @functools.cache
         def engine_signature() -> tuple:
-            """The engine's argument types (those of the compiled parts' stand-ins)."""
+            """The engine's argument types: those of the compiled parts' stand-ins, which have
+            an address of 0 and give the types without compiling."""
+            probes = tuple(part.probe() for part in parts)
             return tuple(runner.typeof_pyval(item) for item in chunk_arguments(0, probes))
 
         engine_ready = code_ready(
@@ -712,12 +715,11 @@ def simulate(
                     waiting.append((name, part.compile_job(), _compiled_if_it_can(part)))
     natives: tuple = ()
 
-    yours = [k for k in kernels(0) if not k.built_in and k is not NO_KERNEL]
-
     def run_chunk(index: int) -> int:
         try:
             runner(*chunk_arguments(index, natives))
         except Exception as error:
+            yours = [k for k in kernels(0) if not k.built_in and k is not NO_KERNEL]
             if compiled and yours and not type(error).__module__.startswith("numba"):
                 # Raised by a kernel of the user's as it ran (ours do not raise there; the
                 # engine was compiled before the first chunk).

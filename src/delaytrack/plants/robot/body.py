@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._validation import finite_array, positive_scalar
+from delaytrack._validation import finite_scalar, positive_scalar
 from delaytrack.plants.robot.parameters import P3DX
 
 __all__ = ["BODY_KEYS", "COORDINATES", "RobotBody"]
@@ -42,12 +42,6 @@ BODY_KEYS = (
     "com_forward",
     "com_lateral",
 )
-
-
-def _finite(name: str, value: object) -> float:
-    if isinstance(value, str | bool | np.bool_):
-        raise TypeError(f"{name} must be a real number; got {value!r}")
-    return float(finite_array(name, value, ndim=0))
 
 
 @dataclass(frozen=True, eq=False)
@@ -96,10 +90,10 @@ class RobotBody:
         object.__setattr__(
             self, "wheel_mass", positive_scalar("wheel_mass", self.wheel_mass, strictly=False)
         )
-        object.__setattr__(self, "d", _finite("d", self.d))
+        object.__setattr__(self, "d", finite_scalar("d", self.d))
         forward = self.d if self.com_forward is None else self.com_forward
-        object.__setattr__(self, "com_forward", _finite("com_forward", forward))
-        object.__setattr__(self, "com_lateral", _finite("com_lateral", self.com_lateral))
+        object.__setattr__(self, "com_forward", finite_scalar("com_forward", forward))
+        object.__setattr__(self, "com_lateral", finite_scalar("com_lateral", self.com_lateral))
         if not 2.0 * self.wheel_mass < self.mass:
             raise ValueError(
                 f"wheel_mass must be less than half the total mass (the platform needs mass); "

@@ -37,6 +37,7 @@ from delaytrack._jit import hot_kernel
 from delaytrack._validation import (
     beyond_choice,
     finite_array,
+    finite_scalar,
     is_integer_at_least,
     positive_scalar,
 )
@@ -179,9 +180,7 @@ class PayloadSchedule:
         object.__setattr__(
             self, "first_on", positive_scalar("first_on", self.first_on, strictly=False)
         )
-        object.__setattr__(
-            self, "plate_center", float(finite_array("plate_center", self.plate_center, ndim=0))
-        )
+        object.__setattr__(self, "plate_center", finite_scalar("plate_center", self.plate_center))
         random = self.seed is not None or self.duration is not None
         if (self.placements is None) == (not random):
             raise ValueError(

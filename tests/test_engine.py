@@ -582,6 +582,18 @@ def test_saturated_actuators_apply_the_clipped_delayed_command() -> None:
     np.testing.assert_array_equal(python.x, result.x)
 
 
+def test_limits_per_input_for_a_batch_need_no_other_engine() -> None:
+    # Broadcast to (batch, m), a row of limits was laid out in Fortran order: another argument
+    # type, so the engine compiled again (silently, once its first compile had been announced).
+    from delaytrack.sim.engine import run_batch_compiled
+
+    runs = dict(reference=ARM_REFERENCE, t1=0.1, dt=1e-3, T_c=T_C, x0=np.zeros((2, 4)))
+    simulate(TwoLinkArm(), arm_arolc(), AbsSineDelay.S1(), **runs, input_limits=np.inf)
+    compiled = len(run_batch_compiled.overloads)
+    simulate(TwoLinkArm(), arm_arolc(), AbsSineDelay.S1(), **runs, input_limits=[4.0, 1.5])
+    assert len(run_batch_compiled.overloads) == compiled
+
+
 @pytest.mark.parametrize(
     ("limits", "u_init", "message"),
     [

@@ -472,6 +472,7 @@ def test_api_values_that_would_change_the_experiment_are_refused():
         ("t0", math.nan, ValueError, "t0 must be finite"),
         ("t1", math.inf, ValueError, "t1 must be finite"),
         ("t1", np.array([0.2]), ValueError, "t1 must be 0-dimensional"),
+        ("metrics_from", "0.1", TypeError, "metrics_from must be a real number; got '0.1'"),
     ],
 )
 def test_times_that_are_not_finite_real_numbers_are_refused_naming_them(key, value, error, message):
@@ -480,6 +481,12 @@ def test_times_that_are_not_finite_real_numbers_are_refused_naming_them(key, val
     settings = {"reference": built.reference, "dt": 1e-3, "T_c": 2e-3}
     with pytest.raises(error, match=re.escape(message)):
         simulate(built.plant, built.controller, built.delay, built.x0, **settings, **times)
+
+
+def test_a_payload_placed_at_a_string_or_a_boolean_is_refused():
+    for value in ("0.2", True):
+        with pytest.raises(TypeError, match=f"plate_center must be a real number; got {value!r}"):
+            PayloadRobot(seed=1, duration=10.0, plate_center=value)
 
 
 def test_times_as_int_float_or_numpy_numbers_give_the_same_run():

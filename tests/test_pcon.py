@@ -524,6 +524,7 @@ def test_the_noise_is_near_standard_normal():
     [
         (dict(delay_scale=-1.0), "delay_scale"),
         (dict(delay_offset=float("nan")), "delay_offset"),
+        (dict(delay_offset="0.01"), "delay_offset must be a real number; got '0.01'"),
         (dict(delay_noise=-0.01), "delay_noise"),
         (dict(noise_seed=-1), "noise_seed must be an integer from 0 to 4294967295"),
         (dict(noise_seed=1.5), "noise_seed"),

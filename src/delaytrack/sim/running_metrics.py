@@ -57,7 +57,7 @@ def finish_metrics(sums: np.ndarray, ok: np.ndarray) -> dict[str, np.ndarray]:
         sums[:, : 2 * n], count, out=np.full((sums.shape[0], 2 * n), np.nan), where=count > 0.0
     )
     metrics = {
-        "ae": means[:, :n],
+        "ae": means[:, :n].copy(),
         "rms": np.sqrt(means[:, n:]),
         "max": sums[:, 2 * n : 3 * n].copy(),
         "tv": sums[:, 3 * n].copy(),

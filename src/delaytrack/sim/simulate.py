@@ -47,6 +47,7 @@ from delaytrack.sim.native_parts import (
 from delaytrack.sim.packet_loss import PacketLoss
 from delaytrack.sim.result import SimResult
 from delaytrack.sim.running_metrics import accumulator_size, finish_metrics
+from delaytrack.sim.stale_caches import compile_from_source
 
 __all__ = ["MAX_STEPS", "physical_memory", "simulate"]
 
@@ -252,7 +253,8 @@ def _positive_limits(key: str, value: object, shape: tuple[int, ...], entries: s
         array = np.asarray(value, dtype=float)
         if array.ndim == 2 and array.shape[0] == 1 and len(shape) == 2:
             array = array[0]
-        array = np.array(np.broadcast_to(array, shape))
+        # C order whatever was broadcast: another layout would be another engine to compile
+        array = np.array(np.broadcast_to(array, shape), order="C")
     except (TypeError, ValueError):
         raise ValueError(
             f"{key} must be a number > 0 or {entries}; inf for none; got {value!r}"
@@ -730,6 +732,8 @@ def simulate(
     compiling = "the engine"  # what the message of a compile error names
     try:
         if compiled:  # compiled here, so that a chunk's error is a run's
+            # Your functions' own disk caches may hold code older than the kernels' names.
+            compile_from_source(kernel for _, job, _ in waiting for kernel in job.kernels)
             # Two or more to compile: a helper process compiles some of them on another core.
             helper, handed = start_helper([job for _, job, _ in waiting])
             if waiting:

@@ -8,9 +8,10 @@ The engine's parts are compiled for a kernel named by a hash of all the code it 
 not take that old code, nor keep it on disk under the new name.
 
 Before a first compile, :func:`compile_from_source` empties the disk cache of each of your
-compiled functions that the kernels reach and that has one (numba fills it again from the source
-as it compiles), and drops the code this process loaded from it. A call of such a function after
-that compiles it once more, from its source.
+compiled functions that the kernels reach and that has one, drops the code this process loaded
+from it, and saves again what this process compiled from the source (numba saves the rest as it
+compiles it). A call of a function whose code was dropped compiles it once more, from its
+source.
 """
 
 from __future__ import annotations
@@ -42,7 +43,8 @@ def compile_from_source(kernels: Iterable[Kernel]) -> None:
 
 def _from_source(function: Any) -> None:
     """Empty ``function``'s disk cache (a no-op without one) and drop the code this process
-    loaded from it (numba compiles it again when it is next needed). Parts of numba's
+    loaded from it (numba compiles it again when it is next needed); code this process compiled
+    from the source is saved again, so that the next process loads it. Parts of numba's
     dispatcher that are not a public interface: if they change, nothing is done."""
     with contextlib.suppress(AttributeError):
         function._cache.flush()
@@ -50,3 +52,5 @@ def _from_source(function: Any) -> None:
             function._make_finalizer()()  # as numba's Dispatcher.recompile does, not compiling
             function._reset_overloads()
             function._cache_hits.clear()
+        for signature, compiled in function.overloads.items():
+            function._cache.save_overload(signature, compiled)

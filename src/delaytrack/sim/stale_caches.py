@@ -20,6 +20,8 @@ import contextlib
 from collections.abc import Iterable
 from typing import Any
 
+from numba.core.compiler_lock import global_compiler_lock
+
 from delaytrack.components import Kernel, compiled_functions_reached
 
 __all__ = ["compile_from_source"]
@@ -37,8 +39,9 @@ def compile_from_source(kernels: Iterable[Kernel]) -> None:
         if part is not None
         for function in compiled_functions_reached(part)
     }
-    for function in functions.values():
-        _from_source(function)
+    with global_compiler_lock:  # not while another thread compiles
+        for function in functions.values():
+            _from_source(function)
 
 
 def _from_source(function: Any) -> None:

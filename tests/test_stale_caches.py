@@ -1,5 +1,5 @@
-"""A kernel with numba's own disk cache (``cache=True``) whose helper in another file was edited:
-numba keeps serving the old code, and the engine must not take it."""
+"""A kernel that reaches a function with numba's own disk cache (``cache=True``) whose helper in
+another file was edited: numba keeps serving the old code, and the engine must not take it."""
 
 from __future__ import annotations
 
@@ -27,15 +27,44 @@ def swing(q):
     return {gravity} * math.sin(q)
 """
 
+_SIGNATURE = (
+    '"void(float64, float64[::1], float64[::1], float64[::1], float64[:, ::1], float64[::1], '
+    'float64[:, ::1])", '
+)
+
 _KERNEL = """
 import numba
 from {helper} import swing
 
 
-@numba.njit(cache=True)
+@numba.njit({signature}cache=True)
 def terms(t, q, qdot, params, M, N, G):
     M[0, 0] = params[0] * params[1] ** 2
     N[0] = params[0] * params[1] * swing(q[0]) + params[2] * qdot[0]
+    G[0, 0] = 1.0
+"""
+
+#: A kernel without a cache of its own, calling a cached function in another file, which calls
+#: the helper in a third.
+_MIDDLE = """
+import numba
+from {helper} import swing
+
+
+@numba.njit(cache=True)
+def middle(q):
+    return swing(q)
+"""
+
+_OUTER = """
+import numba
+from {middle} import middle
+
+
+@numba.njit
+def terms(t, q, qdot, params, M, N, G):
+    M[0, 0] = params[0] * params[1] ** 2
+    N[0] = params[0] * params[1] * middle(q[0]) + params[2] * qdot[0]
     G[0, 0] = 1.0
 """
 
@@ -44,17 +73,26 @@ PARAMS = np.array([1.0, 0.5, 0.1])
 
 @pytest.fixture
 def pendulum(tmp_path, monkeypatch):
-    """``load(gravity)``: the kernel module (its helper written with ``gravity`` in a file of
-    its own), imported afresh under names no other test run has used."""
+    """``load(gravity, layout="cached kernel")``: the pendulum's kernel module, its helper written
+    with ``gravity``, all imported afresh under names no other test run has used. Layouts:
+    ``"cached kernel"`` (the kernel has a cache and calls the helper), ``"explicit signature"``
+    (the same, compiled when decorated), ``"cached middle"`` (a kernel without a cache calls a
+    cached function in another file, which calls the helper)."""
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.setattr(sys, "dont_write_bytecode", True)
     suffix = uuid.uuid4().hex[:12]
-    helper, kernel = f"helper_{suffix}", f"pendulum_{suffix}"
-    (tmp_path / f"{kernel}.py").write_text(_KERNEL.format(helper=helper))
+    helper, middle, kernel = (f"{name}_{suffix}" for name in ("helper", "middle", "pendulum"))
 
-    def load(gravity: float):
+    def load(gravity: float, layout: str = "cached kernel"):
         (tmp_path / f"{helper}.py").write_text(_HELPER.format(gravity=gravity))
-        for name in (helper, kernel):
+        (tmp_path / f"{middle}.py").write_text(_MIDDLE.format(helper=helper))
+        text = {
+            "cached kernel": _KERNEL.format(helper=helper, signature=""),
+            "explicit signature": _KERNEL.format(helper=helper, signature=_SIGNATURE),
+            "cached middle": _OUTER.format(middle=middle),
+        }[layout]
+        (tmp_path / f"{kernel}.py").write_text(text)
+        for name in (helper, middle, kernel):
             monkeypatch.delitem(sys.modules, name, raising=False)
         return importlib.import_module(kernel)
 
@@ -68,57 +106,73 @@ def nonlinear_term(terms) -> float:
     return float(N[0])
 
 
-def test_the_functions_reached_are_those_the_fingerprint_walks(pendulum):
-    module = pendulum(9.81)
-    reached = {function.py_func.__name__ for function in compiled_functions_reached(module.terms)}
-    assert reached == {"terms", "swing"}
+def expected(gravity: float) -> float:
+    return pytest.approx(0.5 * gravity * np.sin(1.0))
 
 
 def hits_and_misses(function) -> tuple[int, int]:
     return sum(function.stats.cache_hits.values()), sum(function.stats.cache_misses.values())
 
 
-def test_a_disk_cache_is_emptied_and_the_code_loaded_from_it_dropped(pendulum):
-    expected = 0.5 * 9.81 * np.sin(1.0)
-    assert nonlinear_term(pendulum(9.81).terms) == pytest.approx(expected)  # compiled, saved
+def test_the_functions_reached_are_the_users_that_the_fingerprint_walks(pendulum):
+    terms = pendulum(9.81, "cached middle").terms
+    reached = {function.py_func.__name__ for function in compiled_functions_reached(terms)}
+    assert reached == {"terms", "middle", "swing"}
+    from delaytrack.references.sinusoidal import sinusoidal_reference_values
+
+    assert compiled_functions_reached(sinusoidal_reference_values) == ()  # this package's
+
+
+def test_the_cache_is_emptied_and_what_was_loaded_compiled_from_the_source(pendulum):
+    assert nonlinear_term(pendulum(9.81).terms) == expected(9.81)  # compiled, saved
     loaded = pendulum(9.81).terms
-    assert nonlinear_term(loaded) == pytest.approx(expected)
+    assert nonlinear_term(loaded) == expected(9.81)
     assert hits_and_misses(loaded) == (1, 0)  # from the disk cache
     compile_from_source([Kernel(loaded)])
-    assert not loaded.overloads and hits_and_misses(loaded) == (0, 0)  # dropped
-    compiled_again = pendulum(9.81).terms
-    assert nonlinear_term(compiled_again) == pytest.approx(expected)
-    assert hits_and_misses(compiled_again) == (0, 1)  # the disk cache was emptied
-
-
-def test_code_compiled_from_the_source_is_saved_again(pendulum):
-    compiled = pendulum(9.81).terms
-    nonlinear_term(compiled)
-    assert hits_and_misses(compiled) == (0, 1)
-    compile_from_source([Kernel(compiled)])
-    assert compiled.overloads  # from the source: kept, and saved again for the next process
+    assert hits_and_misses(loaded) == (0, 1)  # compiled again: the disk cache was emptied
+    assert nonlinear_term(loaded) == expected(9.81)
     later = pendulum(9.81).terms
     nonlinear_term(later)
-    assert hits_and_misses(later) == (1, 0)
+    assert hits_and_misses(later) == (1, 0)  # and filled again by that compile
 
 
-def test_only_the_users_functions_are_touched(pendulum, monkeypatch):
-    from delaytrack.controllers.arolc import arolc_step
-    from delaytrack.sim import stale_caches
+def test_code_compiled_in_this_process_is_compiled_again_once(pendulum):
+    terms = pendulum(9.81, "cached middle").terms
+    nonlinear_term(terms)  # compiled from the source, but linking the middle function's code
+    [signature] = terms.overloads
+    first = terms.overloads[signature]
+    compile_from_source([Kernel(terms)])
+    again = terms.overloads[signature]
+    assert again is not first  # it may have held another file's old code
+    compile_from_source([Kernel(terms)])
+    assert terms.overloads[signature] is again  # compiled since from the source: kept
 
-    touched = []
-    monkeypatch.setattr(stale_caches, "_from_source", touched.append)
-    terms = pendulum(9.81).terms
-    compile_from_source([Kernel(arolc_step), Kernel(terms)])  # ours: the package's cache folder
-    assert sorted(function.py_func.__name__ for function in touched) == ["swing", "terms"]
+
+def test_a_kernel_with_explicit_signatures_is_compiled_again_at_once(pendulum):
+    nonlinear_term(pendulum(9.81, "explicit signature").terms)
+    loaded = pendulum(9.81, "explicit signature").terms
+    compile_from_source([Kernel(loaded)])
+    assert loaded.overloads and not loaded._can_compile  # as it was decorated
+    assert nonlinear_term(loaded) == expected(9.81)
+
+
+def test_this_packages_functions_are_left_alone():
+    from delaytrack.references.sinusoidal import sinusoidal_reference_values
+
+    reference = SinusoidalReference(offset=[0.0], amplitude=[0.5], frequency=[1.0])
+    reference.evaluate(np.zeros(2))  # compiled or loaded
+    before = dict(sinusoidal_reference_values.overloads)
+    compile_from_source([Kernel(sinusoidal_reference_values)])
+    assert dict(sinusoidal_reference_values.overloads) == before
 
 
 @pytest.mark.slow  # compiles the engine's parts around a new pendulum (about 10 s)
-def test_a_helper_edited_in_another_file_reaches_the_simulation(pendulum):
-    nonlinear_term(pendulum(9.81).terms)  # numba's disk cache now holds the code with 9.81
-    edited = pendulum(1.62).terms
+@pytest.mark.parametrize("layout", ["cached kernel", "cached middle"])
+def test_a_helper_edited_in_another_file_reaches_the_simulation(pendulum, layout):
+    nonlinear_term(pendulum(9.81, layout).terms)  # numba's disk cache now holds g = 9.81
+    edited = pendulum(1.62, layout).terms
     # numba's own limit: the edit is in another file, and the old code is loaded.
-    assert nonlinear_term(edited) == pytest.approx(0.5 * 9.81 * np.sin(1.0))
+    assert nonlinear_term(edited) == expected(9.81)
 
     def run(engine: str) -> np.ndarray:
         plant = dt.CompiledPlant(1, 1, edited, PARAMS)
@@ -132,4 +186,18 @@ def test_a_helper_edited_in_another_file_reaches_the_simulation(pendulum):
     compiled = run("compiled")
     from_source = run("python")  # the kernels' Python source, as it is now
     np.testing.assert_allclose(compiled, from_source, rtol=1e-9)
-    assert nonlinear_term(edited) == pytest.approx(0.5 * 1.62 * np.sin(1.0))  # repaired
+    assert nonlinear_term(edited) == expected(1.62)  # the user's own call, repaired
+
+
+def test_a_cache_that_cannot_be_emptied_is_no_longer_read(pendulum, monkeypatch):
+    terms = pendulum(9.81).terms
+    nonlinear_term(terms)
+
+    def gone() -> None:
+        raise FileNotFoundError("the cache folder was removed")
+
+    monkeypatch.setattr(terms._cache, "flush", gone)
+    compile_from_source([Kernel(terms)])  # no error
+    assert not terms._cache._enabled
+    assert hits_and_misses(terms) == (0, 1)  # compiled again from the source
+    assert nonlinear_term(terms) == expected(9.81)

@@ -9,6 +9,7 @@ import uuid
 
 import numpy as np
 import pytest
+from numba.core.errors import TypingError
 
 import delaytrack as dt
 from delaytrack.components import Kernel, compiled_functions_reached
@@ -154,6 +155,18 @@ def test_a_kernel_with_explicit_signatures_is_compiled_again_at_once(pendulum):
     compile_from_source([Kernel(loaded)])
     assert loaded.overloads and not loaded._can_compile  # as it was decorated
     assert nonlinear_term(loaded) == expected(9.81)
+
+
+def test_a_call_numba_refused_is_not_compiled_again(pendulum):
+    # numba counts a signature it could not compile as a cache miss; only the code it holds
+    # is compiled again.
+    terms = pendulum(9.81).terms
+    with pytest.raises(TypingError):
+        terms("not a time", 1, 2, 3, 4, 5, 6)
+    nonlinear_term(terms)
+    compile_from_source([Kernel(terms)])  # no TypingError
+    assert len(terms.overloads) == 1
+    assert nonlinear_term(terms) == expected(9.81)
 
 
 def test_this_packages_functions_are_left_alone():

@@ -46,7 +46,7 @@ def compile_from_source(kernels: Iterable[Kernel]) -> None:
     }
     with global_compiler_lock:  # not while another thread compiles
         new = [function for function in reached.values() if function not in _DROPPED]
-        held = [(function, _signatures(function)) for function in new if function.overloads]
+        held = [(function, list(function.overloads)) for function in new if function.overloads]
         # All are dropped before any is compiled again (a compile links the others' code), and
         # compiled again here, kernels first, as they were: a function compiled inside the
         # engine's compile would take its options (numba's error_model, fastmath) from it.
@@ -54,11 +54,6 @@ def compile_from_source(kernels: Iterable[Kernel]) -> None:
             _drop(function)
         for function, signatures in held:
             _compile_again(function, signatures)
-
-
-def _signatures(function: Any) -> list:
-    """The signatures ``function`` was compiled or loaded for, as numba was given them."""
-    return list(function.stats.cache_hits) + list(function.stats.cache_misses)
 
 
 def _drop(function: Any) -> None:
@@ -78,8 +73,9 @@ def _drop(function: Any) -> None:
 
 
 def _compile_again(function: Any, signatures: list) -> None:
-    """Compile ``function`` for ``signatures`` (from its source: its cache is empty), also when
-    it is closed to new compiles (explicit signatures), as numba's Dispatcher.recompile does."""
+    """Compile ``function`` for ``signatures`` (the argument types it held code for, from its
+    source: its cache is empty), also when it is closed to new compiles (explicit
+    signatures), as numba's Dispatcher.recompile does."""
     previous = function._can_compile
     function._can_compile = True
     try:

@@ -14,7 +14,7 @@ import numba
 import numpy as np
 import pytest
 
-from delaytrack.components import Kernel, code_fingerprint
+from delaytrack.components import Kernel, code_fingerprint, evaluate_reference
 from delaytrack.controllers.arolc import arolc_step
 from delaytrack.plants import TwoLinkArm
 from delaytrack.sim.compile_helper import spare_core
@@ -97,6 +97,32 @@ def test_a_kernels_numba_options_are_part_of_its_name():
     assert code_fingerprint(numba.njit(error_model="numpy")(_scaled)) != plain
     flags = code_fingerprint(numba.njit(fastmath={"nnan", "ninf"})(_scaled))
     assert code_fingerprint(numba.njit(fastmath={"ninf", "nnan"})(_scaled)) == flags
+
+
+def test_numbas_own_defaults_written_out_are_the_same_name():
+    plain = code_fingerprint(numba.njit(_scaled))
+    assert code_fingerprint(numba.njit(error_model="python", fastmath=False)(_scaled)) == plain
+
+
+def _reference_dividing(t, params, qd, qd_dot, qd_ddot):
+    qd[0] = 1 // int(params[0])  # numba's default error model: raises ZeroDivisionError
+
+
+@pytest.mark.parametrize("options", [{}, {"error_model": "numpy"}])
+def test_a_kernel_of_yours_keeps_its_own_error_model_inside_the_engine(options):
+    # First compiled inside a part of the engine (compiled with error_model="numpy"), numba
+    # would compile it with the part's options: the division would give 0 instead of raising.
+    reference = numba.njit(**options)(_reference_dividing)
+    name = code_fingerprint(reference)
+    kernel = Kernel.of(reference)
+    params, qd = np.zeros(1), np.full(1, np.nan)
+    if options:
+        evaluate_reference(kernel, 0.0, params, qd, np.zeros(1), np.zeros(1))
+        assert qd[0] == 0.0  # numpy's model: an integer division by zero gives 0
+    else:
+        with pytest.raises(ZeroDivisionError):
+            evaluate_reference(kernel, 0.0, params, qd, np.zeros(1), np.zeros(1))
+    assert code_fingerprint(reference) == name  # the defaults it was given change no name
 
 
 def test_the_name_does_not_depend_on_where_or_how_the_code_was_loaded(tmp_path):

@@ -184,13 +184,29 @@ def _value_text(value: object, walk: list[object], depth: int = 0) -> str | None
     return f"object@{id(value)}"  # known only in this process: compiled again in the next
 
 
+#: numba's defaults of the options that a function compiled inside another function's compile
+#: takes from that function when it sets none itself (numba's ``CPUTargetOptions.finalize``).
+_OWN_DEFAULTS = {"error_model": "python", "fastmath": False}
+
+
 def _options_text(function: object) -> str:
-    """The numba options of a compiled ``function`` (none for a plain one), in a stable order."""
+    """The numba options of a compiled ``function`` (none for a plain one), in a stable order;
+    an option set to its default in ``_OWN_DEFAULTS`` reads as not set (the same code)."""
     options = getattr(function, "targetoptions", None) or {}
     return ";".join(
         f"{name}={sorted(map(str, value)) if isinstance(value, set | frozenset) else value!r}"
         for name, value in sorted(options.items())
+        if name not in _OWN_DEFAULTS or _OWN_DEFAULTS[name] != value
     )
+
+
+def _keep_own_options(function: Any) -> None:
+    """Give a compiled ``function`` of the user's numba's defaults for the options it does not
+    set (``_OWN_DEFAULTS``), so that it keeps them when it is first compiled inside the
+    engine's compile, whose kernels use ``error_model="numpy"``: numba would otherwise compile it
+    with the caller's options, and a division by zero that should raise would give ``inf``."""
+    for name, default in _OWN_DEFAULTS.items():
+        function.targetoptions.setdefault(name, default)
 
 
 def code_fingerprint(function: Callable[..., Any]) -> str:
@@ -380,7 +396,13 @@ class Kernel:
 
     @cached_property
     def numba_type(self) -> KernelType:
-        """This kernel's numba type (:class:`KernelType`)."""
+        """This kernel's numba type (:class:`KernelType`). The user's compiled functions it
+        reaches keep their own numba options when the engine compiles them
+        (:func:`_keep_own_options`)."""
+        for root in (self.function, self.command_map, self.stepper):
+            if root is not None:
+                for function in compiled_functions_reached(root):
+                    _keep_own_options(function)
         _KERNELS.setdefault(self.key, self)
         return KernelType(self.key)
 

@@ -108,21 +108,61 @@ def _reference_dividing(t, params, qd, qd_dot, qd_ddot):
     qd[0] = 1 // int(params[0])  # numba's default error model: raises ZeroDivisionError
 
 
-@pytest.mark.parametrize("options", [{}, {"error_model": "numpy"}])
-def test_a_kernel_of_yours_keeps_its_own_error_model_inside_the_engine(options):
-    # First compiled inside a part of the engine (compiled with error_model="numpy"), numba
-    # would compile it with the part's options: the division would give 0 instead of raising.
-    reference = numba.njit(**options)(_reference_dividing)
-    name = code_fingerprint(reference)
-    kernel = Kernel.of(reference)
+def _divide(value):
+    return 1 // value
+
+
+def _calling(helper):
+    """A reference kernel that divides by zero in ``helper``."""
+
+    def reference(t, params, qd, qd_dot, qd_ddot):
+        qd[0] = helper(int(params[0]))
+
+    return reference
+
+
+def _reference_at_zero(reference):
+    """``q_d`` of ``reference`` at t = 0 through the engine's compiled call (its own part, compiled
+    with error_model="numpy"), or the exception it raises."""
     params, qd = np.zeros(1), np.full(1, np.nan)
+    try:
+        evaluate_reference(Kernel.of(reference), 0.0, params, qd, np.zeros(1), np.zeros(1))
+    except ZeroDivisionError as error:
+        return error
+    return qd[0]
+
+
+@pytest.mark.parametrize("in_a_helper", [False, True])
+@pytest.mark.parametrize("options", [{}, {"error_model": "numpy"}])
+def test_a_kernel_of_yours_keeps_its_own_error_model_inside_the_engine(in_a_helper, options):
+    # First compiled inside a part of the engine (compiled with error_model="numpy"), numba
+    # would compile the kernel with the part's options: the division would give 0 instead of
+    # raising. A helper it calls follows the kernel's options, as when you call it yourself.
+    from delaytrack.components import _walk
+
+    # A new helper each time: numba keeps the first compile of a function for all its callers.
+    helper = numba.njit(_divide)  # no options: it takes them from the kernel that calls it
+    function = _calling(helper) if in_a_helper else _reference_dividing
+    reference = numba.njit(**options)(function)
+    _walk.cache_clear()
+    name = code_fingerprint(reference)
+    outcome = _reference_at_zero(reference)
     if options:
-        evaluate_reference(kernel, 0.0, params, qd, np.zeros(1), np.zeros(1))
-        assert qd[0] == 0.0  # numpy's model: an integer division by zero gives 0
+        assert outcome == 0.0  # numpy's model: an integer division by zero gives 0
     else:
-        with pytest.raises(ZeroDivisionError):
-            evaluate_reference(kernel, 0.0, params, qd, np.zeros(1), np.zeros(1))
+        assert isinstance(outcome, ZeroDivisionError)
+    _walk.cache_clear()
     assert code_fingerprint(reference) == name  # the defaults it was given change no name
+    assert "error_model" not in helper.targetoptions
+
+
+def test_only_the_kernel_is_given_numbas_defaults():
+    decorator = numba.njit()
+    kernel = decorator(_reference_dividing)
+    sibling = decorator(_scaled)  # made by the same decorator: numba shares their options
+    Kernel.of(kernel).numba_type  # noqa: B018
+    assert kernel.targetoptions["error_model"] == "python"
+    assert "error_model" not in sibling.targetoptions
 
 
 def test_the_name_does_not_depend_on_where_or_how_the_code_was_loaded(tmp_path):

@@ -30,6 +30,7 @@ of this package is covered by the cache folder instead (:mod:`delaytrack._numba_
 
 from __future__ import annotations
 
+import contextlib
 import enum
 import hashlib
 import math
@@ -189,24 +190,35 @@ def _value_text(value: object, walk: list[object], depth: int = 0) -> str | None
 _OWN_DEFAULTS = {"error_model": "python", "fastmath": False}
 
 
-def _options_text(function: object) -> str:
-    """The numba options of a compiled ``function`` (none for a plain one), in a stable order;
-    an option set to its default in ``_OWN_DEFAULTS`` reads as not set (the same code)."""
+def _options_text(function: object, root: bool = False) -> str:
+    """The numba options of a compiled ``function`` (none for a plain one), in a stable order.
+    For the ``root`` of a walk (a kernel itself), an option set to its default in
+    ``_OWN_DEFAULTS`` reads as not set: a kernel compiles with those defaults either way
+    (:func:`_keep_own_options`); a function it calls takes its options from it instead."""
     options = getattr(function, "targetoptions", None) or {}
     return ";".join(
         f"{name}={sorted(map(str, value)) if isinstance(value, set | frozenset) else value!r}"
         for name, value in sorted(options.items())
-        if name not in _OWN_DEFAULTS or _OWN_DEFAULTS[name] != value
+        if not (root and name in _OWN_DEFAULTS and _OWN_DEFAULTS[name] == value)
     )
 
 
 def _keep_own_options(function: Any) -> None:
-    """Give a compiled ``function`` of the user's numba's defaults for the options it does not
-    set (``_OWN_DEFAULTS``), so that it keeps them when it is first compiled inside the
+    """Give a kernel of the user's, ``function`` (compiled), numba's defaults for the options it
+    does not set (``_OWN_DEFAULTS``), so that it keeps them when it is first compiled inside the
     engine's compile, whose kernels use ``error_model="numpy"``: numba would otherwise compile it
-    with the caller's options, and a division by zero that should raise would give ``inf``."""
-    for name, default in _OWN_DEFAULTS.items():
-        function.targetoptions.setdefault(name, default)
+    with the caller's options, and a division by zero that should raise would give ``inf``. The
+    functions it calls keep taking their options from it, as when you call it yourself.
+
+    The options are a new dictionary, given to the dispatcher and to the compiler it holds
+    (numba's own reference), so that functions made by one decorator, which share theirs, are
+    not changed with it. Parts of numba's dispatcher that are not a public interface: if they
+    change, nothing is done."""
+    options = {**_OWN_DEFAULTS, **function.targetoptions}
+    if options != function.targetoptions:
+        with contextlib.suppress(AttributeError):
+            function._compiler.targetoptions = options
+            function.targetoptions = options
 
 
 def code_fingerprint(function: Callable[..., Any]) -> str:
@@ -266,7 +278,7 @@ def _walk(function: Callable[..., Any]) -> tuple[str, tuple[Any, ...]]:
             reached.append(current)
         digest.update(_qualified_name(inner).encode())
         digest.update(_code_text(inner.__code__))
-        digest.update(_options_text(current).encode())
+        digest.update(_options_text(current, root=current is function).encode())
         names = _code_names(inner.__code__)
         names_read |= names
         for name in sorted(names):
@@ -396,13 +408,12 @@ class Kernel:
 
     @cached_property
     def numba_type(self) -> KernelType:
-        """This kernel's numba type (:class:`KernelType`). The user's compiled functions it
-        reaches keep their own numba options when the engine compiles them
+        """This kernel's numba type (:class:`KernelType`). The user's compiled kernel (and
+        command map and stepper) keep their own numba options when the engine compiles them
         (:func:`_keep_own_options`)."""
         for root in (self.function, self.command_map, self.stepper):
-            if root is not None:
-                for function in compiled_functions_reached(root):
-                    _keep_own_options(function)
+            if is_compiled(root) and not _in_package(root):
+                _keep_own_options(root)
         _KERNELS.setdefault(self.key, self)
         return KernelType(self.key)
 

@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from delaytrack._validation import real_array
 from delaytrack.cli import main
 from delaytrack.delays import ConstantDelay, RandomDelay, TraceDelay
 from delaytrack.experiments import (
@@ -473,6 +474,8 @@ def test_api_values_that_would_change_the_experiment_are_refused():
         ("t1", math.inf, ValueError, "t1 must be finite"),
         ("t1", np.array([0.2]), ValueError, "t1 must be 0-dimensional"),
         ("metrics_from", "0.1", TypeError, "metrics_from must be a real number; got '0.1'"),
+        ("t1", b"0.2", TypeError, "t1 must be a real number; got b'0.2'"),
+        ("t1", np.array("0.2"), TypeError, "t1 must be an array of real numbers"),
     ],
 )
 def test_times_that_are_not_finite_real_numbers_are_refused_naming_them(key, value, error, message):
@@ -481,6 +484,27 @@ def test_times_that_are_not_finite_real_numbers_are_refused_naming_them(key, val
     settings = {"reference": built.reference, "dt": 1e-3, "T_c": 2e-3}
     with pytest.raises(error, match=re.escape(message)):
         simulate(built.plant, built.controller, built.delay, built.x0, **settings, **times)
+
+
+@pytest.mark.parametrize(
+    "value", [10**400, "5", ["5", "5"], [b"5", b"5"], np.array([True, True]), [1j, 1.0]]
+)
+def test_input_limits_that_are_not_positive_real_numbers_are_one_clear_error(value):
+    # A string, bytes or a boolean would convert to a float; an int beyond the floats would
+    # overflow converting.
+    built = short().build()
+    settings = {"reference": built.reference, "dt": 1e-3, "T_c": 2e-3, "t1": 0.01}
+    with pytest.raises(ValueError, match="input_limits must be a number > 0 or 2 of them"):
+        simulate(
+            built.plant, built.controller, built.delay, built.x0, input_limits=value, **settings
+        )
+
+
+def test_arrays_of_strings_bytes_or_booleans_are_not_read_as_numbers():
+    for value in (["1", "2"], [b"1"], [True, False], np.array(["0.2"]), [np.datetime64(1, "s")]):
+        with pytest.raises(TypeError, match="x0 must be an array of real numbers"):
+            real_array("x0", value)
+    assert real_array("x0", [1, 2.5, np.float32(3)]).tolist() == [1.0, 2.5, 3.0]
 
 
 def test_a_payload_placed_at_a_string_or_a_boolean_is_refused():

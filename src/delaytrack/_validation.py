@@ -103,9 +103,10 @@ def integer_multiple(value: float, unit: float, *, scale: float = 0.0) -> int | 
 def positive_scalar(name: str, value: object, *, strictly: bool = True) -> float:
     """Return ``value`` as a finite float that is > 0 (or >= 0 when ``strictly`` is False).
 
-    Strings and booleans are refused (``"2"`` or ``True`` for a gain is a mistake, not a number).
+    Strings, bytes and booleans are refused (``"2"`` or ``True`` for a gain is a mistake, not a
+    number).
     """
-    if isinstance(value, str | bool | np.bool_):
+    if isinstance(value, str | bytes | bool | np.bool_):
         raise TypeError(f"{name} must be a real number; got {value!r}")
     try:
         number = float(value)  # type: ignore[arg-type]
@@ -120,10 +121,15 @@ def positive_scalar(name: str, value: object, *, strictly: bool = True) -> float
     return number
 
 
+#: NumPy dtype kinds that are not real numbers, though NumPy converts them to floats.
+_NOT_REAL = frozenset("bcSUVMm")
+
+
 def real_array(name: str, value: object, *, ndim: int | None = None) -> np.ndarray:
     """Return ``value`` as a float64 array (a new one), of ``ndim`` dimensions when given."""
     try:
-        if np.iscomplexobj(value):
+        # Strings, bytes, booleans, complex numbers and dates would convert to floats.
+        if np.asarray(value).dtype.kind in _NOT_REAL:
             raise TypeError
         array = np.array(value, dtype=float)
     except (TypeError, ValueError, OverflowError, RecursionError):
@@ -144,7 +150,7 @@ def finite_array(name: str, value: object, *, ndim: int | None = None) -> np.nda
 
 
 def finite_scalar(name: str, value: object) -> float:
-    """Return ``value`` as a finite float; strings and booleans are refused.
+    """Return ``value`` as a finite float; strings, bytes and booleans are refused.
 
     A Python ``float`` or a small ``int`` is taken as it is, without a NumPy array (a
     ``simulate`` call checks several such numbers, and a short run is worth microseconds).
@@ -153,7 +159,7 @@ def finite_scalar(name: str, value: object) -> float:
         return value
     if type(value) is int and abs(value) <= 2**53:
         return float(value)
-    if isinstance(value, str | bool | np.bool_):
+    if isinstance(value, str | bytes | bool | np.bool_):
         raise TypeError(f"{name} must be a real number; got {value!r}")
     return float(finite_array(name, value, ndim=0))
 

@@ -247,10 +247,10 @@ def _check_horizons(
 def _positive_limits(key: str, value: object, shape: tuple[int, ...], entries: str) -> np.ndarray:
     """``value`` broadcast to ``shape`` (a leading row of one spreads to every run), each entry
     ``> 0`` (``inf``: none); refusals name ``key`` and what ``entries`` it takes."""
-    if (type(value) is float or type(value) is int) and value > 0:  # one for all, the default
-        return np.full(shape, float(value))
+    if (type(value) is float and value > 0) or (type(value) is int and 0 < value <= 2**53):
+        return np.full(shape, float(value))  # one for all, the default
     try:
-        array = np.asarray(value, dtype=float)
+        array = real_array(key, value)
         if array.ndim == 2 and array.shape[0] == 1 and len(shape) == 2:
             array = array[0]
         # C order whatever was broadcast: another layout would be another engine to compile

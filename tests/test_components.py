@@ -101,7 +101,8 @@ def test_a_kernels_numba_options_are_part_of_its_name():
 
 def test_numbas_own_defaults_written_out_are_the_same_name():
     plain = code_fingerprint(numba.njit(_scaled))
-    assert code_fingerprint(numba.njit(error_model="python", fastmath=False)(_scaled)) == plain
+    defaults = numba.njit(error_model="python", fastmath=False, _nrt=True)(_scaled)
+    assert code_fingerprint(defaults) == plain
 
 
 def _reference_dividing(t, params, qd, qd_dot, qd_ddot):
@@ -154,6 +155,24 @@ def test_a_kernel_of_yours_keeps_its_own_error_model_inside_the_engine(in_a_help
     _walk.cache_clear()
     assert code_fingerprint(reference) == name  # the defaults it was given change no name
     assert "error_model" not in helper.targetoptions
+
+
+def _reference_with_scratch(t, params, qd, qd_dot, qd_ddot):
+    scratch = np.full(qd.shape[0], params[0] * t)  # an array of its own, freed by numba
+    for i in range(qd.shape[0]):
+        qd[i] = scratch[i]
+        qd_dot[i] = params[0]
+        qd_ddot[i] = 0.0
+
+
+def test_a_kernel_of_yours_may_make_arrays_inside_the_engine():
+    # The engine's parts run without numba's runtime; a kernel first compiled inside one would
+    # take that and be refused (numba: "Only accept returning of array passed into the
+    # function as argument").
+    reference = numba.njit(_reference_with_scratch)
+    qd, qd_dot, qd_ddot = np.zeros(2), np.zeros(2), np.zeros(2)
+    evaluate_reference(Kernel.of(reference), 2.0, np.array([0.5]), qd, qd_dot, qd_ddot)
+    assert qd.tolist() == [1.0, 1.0] and qd_dot.tolist() == [0.5, 0.5]
 
 
 def test_only_the_kernel_is_given_numbas_defaults():

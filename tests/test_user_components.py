@@ -397,6 +397,20 @@ def test_steps_asked_for_ahead_are_compiled_at_the_first_compile(
     with pytest.raises(ValueError, match="numba could not compile PDGravity's step on "):
         dt.simulate(built.plant, bad, built.delay, built.x0, **settings)
     assert compile_helper.parts_ahead() == ()  # the context is left
+    # Inlined into the step's part, which runs without numba's runtime, an array the law makes
+    # cannot be freed: the error says so (a kernel that is not inlined frees its own).
+    inlined = text.replace(
+        '@numba.njit(cache=True, error_model="numpy")', "@numba.njit(inline='always')"
+    )
+    inlined = inlined.replace(
+        "    n = q.shape[0]\n", "    n = q.shape[0]\n    scratch = np.zeros(n)\n", 1
+    )
+    (example / "allocating_law.py").write_text(inlined)
+    allocating = module_from_file(example / "allocating_law.py").make_pd_gravity(
+        built.model, 16.0, 8.0
+    )
+    with pytest.raises(ValueError, match="a kernel of yours makes a new array"):
+        dt.simulate(built.plant, allocating, built.delay, built.x0, **settings)
 
 
 _FAULTY_PLANT = """

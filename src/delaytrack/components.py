@@ -187,7 +187,8 @@ def _value_text(value: object, walk: list[object], depth: int = 0) -> str | None
 
 #: numba's defaults of the options that a function compiled inside another function's compile
 #: takes from that function when it sets none itself (numba's ``CPUTargetOptions.finalize``).
-_OWN_DEFAULTS = {"error_model": "python", "fastmath": False}
+#: ``_nrt`` is numba's runtime, which frees the arrays a function makes.
+_OWN_DEFAULTS = {"error_model": "python", "fastmath": False, "_nrt": True}
 
 
 def _options_text(function: object, root: bool = False) -> str:

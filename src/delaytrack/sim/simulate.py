@@ -96,6 +96,9 @@ def _integer_ratio(name: str, value: float, unit: float, what: str, scale: float
 
 
 _NUMBA_CAUSES = ("Error: ", "Untyped global name", "Unknown attribute", "Cannot unify")
+#: What numba says of an array made (``np.zeros``, ``np.empty``, array arithmetic) in code
+#: compiled without its memory manager, as the simulator's loop is.
+_ALLOCATION = "Only accept returning of array passed into the function as argument"
 
 
 #: The colour and bold codes numba writes into its messages.
@@ -769,10 +772,17 @@ def simulate(
     except Exception as error:
         if compiled and type(error).__module__.startswith("numba"):
             # numba could not compile a kernel of the user's: their error, in one line.
+            cause = (
+                "a kernel of yours makes a new array (np.zeros, np.empty, array arithmetic, a "
+                "copy), which the simulator's loop cannot free: write into the arrays the "
+                "kernel is given instead"
+                if _ALLOCATION in str(error)
+                else f"{_numba_cause(error)} (call a kernel of yours alone, compiled, to see "
+                "numba's whole message)"
+            )
             raise ValueError(
                 f"numba could not compile {compiling} for the kernels "
-                f"{[k.key for k in kernels(0)]}: {_numba_cause(error)} (call a kernel of yours "
-                "alone, compiled, to see numba's whole message)"
+                f"{[k.key for k in kernels(0)]}: {cause}"
             ) from None
         raise
     finally:

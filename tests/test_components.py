@@ -175,6 +175,27 @@ def test_a_kernel_of_yours_may_make_arrays_inside_the_engine():
     assert qd.tolist() == [1.0, 1.0] and qd_dot.tolist() == [0.5, 0.5]
 
 
+def _reference_returning_an_array(t, params, qd, qd_dot, qd_ddot):
+    qd[0] = t
+    return np.zeros(1000)  # compiled with numba's runtime: the engine would never free it
+
+
+def _reference_returning_an_argument(t, params, qd, qd_dot, qd_ddot):
+    qd[0] = t
+    return qd
+
+
+@pytest.mark.parametrize(
+    "function", [_reference_returning_an_array, _reference_returning_an_argument]
+)
+def test_a_kernel_that_returns_an_array_is_refused_naming_it(function):
+    from numba.core.errors import TypingError
+
+    zeros = [np.zeros(1) for _ in range(4)]
+    with pytest.raises(TypingError, match=r"the reference kernel \S+ returns array\(float64"):
+        evaluate_reference(Kernel.of(numba.njit(function)), 0.5, *zeros)
+
+
 def test_only_the_kernel_is_given_numbas_defaults():
     decorator = numba.njit()
     kernel = decorator(_reference_dividing)

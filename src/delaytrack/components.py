@@ -43,7 +43,9 @@ from typing import Any
 import numpy as np
 from llvmlite import ir
 from numba import types
+from numba.core.datamodel import default_manager
 from numba.core.dispatcher import Dispatcher
+from numba.core.errors import TypingError
 from numba.extending import (
     NativeValue,
     models,
@@ -220,6 +222,25 @@ def _keep_own_options(function: Any) -> None:
         with contextlib.suppress(AttributeError):
             function._compiler.targetoptions = options
             function.targetoptions = options
+
+
+def _refuse_managed_result(function: Any, argument_types: tuple, role: str, returns: str) -> None:
+    """At the typing of a call of ``function`` (a compiled kernel of the user's, the ``role`` of a
+    component) with ``argument_types``: refuse a result that holds an array, which a kernel
+    compiled with numba's runtime hands to the engine's parts, compiled without it, that
+    would never free it (a leak at every call). ``returns`` is what the kernel may return."""
+    if not is_compiled(function) or _in_package(function):
+        return
+    _, _, arguments, _ = function.get_call_template(tuple(argument_types), {})
+    compiled = function.overloads.get(tuple(arguments))
+    if compiled is None:  # numba converts the arguments to a signature given in advance
+        return
+    result = compiled.signature.return_type
+    if default_manager.lookup(result).contains_nrt_meminfo():
+        raise TypingError(
+            f"the {role} kernel {_qualified_name(function)} returns {result}; it must return "
+            f"{returns} (write its results into the arrays it is given)"
+        )
 
 
 def code_fingerprint(function: Callable[..., Any]) -> str:
@@ -500,6 +521,8 @@ def call_terms(terms, t, q, qdot, params, mass, nonlinear, input_map):
 def _call_terms_compiled(terms, t, q, qdot, params, mass, nonlinear, input_map):
     if isinstance(terms, KernelType):
         function = terms.kernel().function
+        arguments = (t, q, qdot, params, mass, nonlinear, input_map)
+        _refuse_managed_result(function, arguments, "terms", "nothing")
 
         def impl(terms, t, q, qdot, params, mass, nonlinear, input_map):
             function(t, q, qdot, params, mass, nonlinear, input_map)
@@ -549,6 +572,7 @@ def _call_stepper_compiled(terms, t, x, u, dt, params, first):
         stepper = terms.kernel().stepper
         if stepper is None:
             return lambda terms, t, x, u, dt, params, first: None
+        _refuse_managed_result(stepper, (t, x, u, dt, params, first), "stepper", "nothing")
 
         def impl(terms, t, x, u, dt, params, first):
             stepper(t, x, u, dt, params, first)
@@ -616,6 +640,7 @@ def _call_command_map_compiled(model, q, params, input_map, tau, command):
                 solve_input_map(input_map, tau, command)
 
             return solve
+        _refuse_managed_result(command_map, (q, params, tau, command), "command map", "nothing")
 
         def own(model, q, params, input_map, tau, command):
             command_map(q, params, tau, command)
@@ -651,6 +676,8 @@ def _call_step_compiled(
         return native
     if isinstance(step, KernelType):
         function = step.kernel().function
+        arguments = (t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, mp, u, work)
+        _refuse_managed_result(function, arguments, "controller step", "nothing")
 
         def impl(step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, mp, u, work):
             function(t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, mp, u, work)
@@ -674,6 +701,8 @@ def _call_reference_compiled(reference, t, params, qd, qd_dot, qd_ddot):
         return native
     if isinstance(reference, KernelType):
         function = reference.kernel().function
+        arguments = (t, params, qd, qd_dot, qd_ddot)
+        _refuse_managed_result(function, arguments, "reference", "nothing")
 
         def impl(reference, t, params, qd, qd_dot, qd_ddot):
             function(t, params, qd, qd_dot, qd_ddot)
@@ -723,6 +752,7 @@ def call_delay(delay, t, params):
 def _call_delay_compiled(delay, t, params):
     if isinstance(delay, KernelType):
         function = delay.kernel().function
+        _refuse_managed_result(function, (t, params), "delay profile", "a number")
 
         def impl(delay, t, params):
             return float(function(t, params))

@@ -96,9 +96,12 @@ def _integer_ratio(name: str, value: float, unit: float, what: str, scale: float
 
 
 _NUMBA_CAUSES = ("Error: ", "Untyped global name", "Unknown attribute", "Cannot unify")
-#: What numba says of an array made (``np.zeros``, ``np.empty``, array arithmetic) in code
-#: compiled without its memory manager, as the simulator's loop is.
-_ALLOCATION = "Only accept returning of array passed into the function as argument"
+#: What numba says of an array made (``np.zeros``, array arithmetic, a copy) in code compiled
+#: without its runtime, as the simulator's loop is.
+_ALLOCATION = (
+    "Only accept returning of array passed into the function as argument",
+    "NRT required but not enabled",
+)
 
 
 #: The colour and bold codes numba writes into its messages.
@@ -773,10 +776,11 @@ def simulate(
         if compiled and type(error).__module__.startswith("numba"):
             # numba could not compile a kernel of the user's: their error, in one line.
             cause = (
-                "a kernel of yours makes a new array (np.zeros, np.empty, array arithmetic, a "
-                "copy), which the simulator's loop cannot free: write into the arrays the "
-                "kernel is given instead"
-                if _ALLOCATION in str(error)
+                "code of yours inlined into the simulator's loop (inline='always') makes a new "
+                "array (np.zeros, array arithmetic, a copy), which the loop, compiled without "
+                "numba's runtime, cannot free: do not inline it, or write into the arrays it "
+                "is given"
+                if any(marker in str(error) for marker in _ALLOCATION)
                 else f"{_numba_cause(error)} (call a kernel of yours alone, compiled, to see "
                 "numba's whole message)"
             )

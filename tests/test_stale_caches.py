@@ -108,6 +108,8 @@ def nonlinear_term(terms) -> float:
 
 
 def expected(gravity: float) -> float:
+    """:func:`nonlinear_term` for ``g = gravity``: ``m l g sin(1)`` with PARAMS' ``m = 1``,
+    ``l = 0.5``."""
     return pytest.approx(0.5 * gravity * np.sin(1.0))
 
 

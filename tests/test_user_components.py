@@ -848,4 +848,17 @@ def test_numbas_colour_codes_are_left_out_of_the_cause():
     error = TypeError(
         "Failed in nopython mode\n\x1b[1m\x1b[1mNameError: name 'x' is not defined\x1b[0m"
     )
-    assert _numba_cause(error) == "NameError: name 'x' is not defined"
+    assert _numba_cause(error) == (
+        "NameError: name 'x' is not defined (call a kernel of yours alone, compiled, to see "
+        "numba's whole message)"
+    )
+
+
+@pytest.mark.parametrize(
+    "words", ["Only accept returning of array passed into the function as argument", "NRT required"]
+)
+def test_an_array_made_in_the_loop_is_named_whatever_numba_calls_it(words):
+    from delaytrack.sim.simulate import _numba_cause
+
+    error = TypeError(f"Failed in nopython mode\n\x1b[1m{words} but not enabled\x1b[0m")
+    assert _numba_cause(error).startswith("code of yours inlined into the simulator's loop")

@@ -128,10 +128,11 @@ _NOT_REAL = frozenset("bcSUVMm")
 def real_array(name: str, value: object, *, ndim: int | None = None) -> np.ndarray:
     """Return ``value`` as a float64 array (a new one), of ``ndim`` dimensions when given."""
     try:
+        given = np.asarray(value)
         # Strings, bytes, booleans, complex numbers and dates would convert to floats.
-        if np.asarray(value).dtype.kind in _NOT_REAL:
+        if given.dtype.kind in _NOT_REAL:
             raise TypeError
-        array = np.array(value, dtype=float)
+        array = np.array(given, dtype=float)
     except (TypeError, ValueError, OverflowError, RecursionError):
         raise TypeError(f"{name} must be an array of real numbers; got {value!r}") from None
     if ndim is not None and array.ndim != ndim:

@@ -229,7 +229,7 @@ def _refuse_managed_result(function: Any, argument_types: tuple, role: str, retu
     component) with ``argument_types``: refuse a result that holds an array, which a kernel
     compiled with numba's runtime hands to the engine's parts, compiled without it, that
     would never free it (a leak at every call). ``returns`` is what the kernel may return."""
-    if not is_compiled(function) or _in_package(function):
+    if not _users_compiled(function):
         return
     _, _, arguments, _ = function.get_call_template(tuple(argument_types), {})
     compiled = function.overloads.get(tuple(arguments))
@@ -434,7 +434,7 @@ class Kernel:
         command map and stepper) keep their own numba options when the engine compiles them
         (:func:`_keep_own_options`)."""
         for root in (self.function, self.command_map, self.stepper):
-            if is_compiled(root) and not _in_package(root):
+            if _users_compiled(root):
                 _keep_own_options(root)
         _KERNELS.setdefault(self.key, self)
         return KernelType(self.key)
@@ -465,6 +465,11 @@ def _kernel_of(
     cls: type, function: Any, command_map: Any, identity_mass: bool, sizes: Any, stepper: Any
 ) -> Kernel:
     return cls(function, command_map, identity_mass, sizes, stepper)
+
+
+def _users_compiled(function: object) -> bool:
+    """Whether ``function`` is numba-compiled and not one of this package's."""
+    return is_compiled(function) and not _in_package(function)
 
 
 def _in_package(function: Callable[..., Any]) -> bool:

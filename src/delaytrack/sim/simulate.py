@@ -140,9 +140,18 @@ def _raised_during_the_run(error: Exception, yours: list) -> str:
 
 
 def _numba_cause(error: Exception) -> str:
-    """The innermost cause in a numba error's message (``NameError: name 'x' is not
-    defined``), else its first line."""
+    """What to tell of a numba error in compiling a kernel of the user's: an array made by code
+    inlined into the simulator's loop, named as such; else the innermost cause in numba's
+    message (``NameError: name 'x' is not defined``), or its first line, and where to see the
+    whole message."""
     text = _TERMINAL_CODES.sub("", str(error))  # numba colours its messages for a terminal
+    if any(marker in text for marker in _ALLOCATION):
+        return (
+            "code of yours inlined into the simulator's loop (inline='always') makes a new "
+            "array (np.zeros, array arithmetic, a copy), which the loop, compiled without "
+            "numba's runtime, cannot free: do not inline it, or write into the arrays it is "
+            "given"
+        )
     lines = [line.strip() for line in text.splitlines() if line.strip()]
     causes = [
         line
@@ -150,7 +159,8 @@ def _numba_cause(error: Exception) -> str:
         if any(marker in line for marker in _NUMBA_CAUSES)
         and not line.startswith(("Failed in", "During", "File", "raised from"))
     ]
-    return causes[-1] if causes else f"{type(error).__name__}: {lines[0] if lines else ''}"
+    cause = causes[-1] if causes else f"{type(error).__name__}: {lines[0] if lines else ''}"
+    return f"{cause} (call a kernel of yours alone, compiled, to see numba's whole message)"
 
 
 def _check_same_kernel(name: str, plant: ELPlant, first: ELPlant) -> None:
@@ -775,18 +785,9 @@ def simulate(
     except Exception as error:
         if compiled and type(error).__module__.startswith("numba"):
             # numba could not compile a kernel of the user's: their error, in one line.
-            cause = (
-                "code of yours inlined into the simulator's loop (inline='always') makes a new "
-                "array (np.zeros, array arithmetic, a copy), which the loop, compiled without "
-                "numba's runtime, cannot free: do not inline it, or write into the arrays it "
-                "is given"
-                if any(marker in str(error) for marker in _ALLOCATION)
-                else f"{_numba_cause(error)} (call a kernel of yours alone, compiled, to see "
-                "numba's whole message)"
-            )
             raise ValueError(
                 f"numba could not compile {compiling} for the kernels "
-                f"{[k.key for k in kernels(0)]}: {cause}"
+                f"{[k.key for k in kernels(0)]}: {_numba_cause(error)}"
             ) from None
         raise
     finally:

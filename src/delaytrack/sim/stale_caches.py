@@ -49,7 +49,7 @@ def compile_from_source(kernels: Iterable[Kernel]) -> None:
         held = [(function, list(function.overloads)) for function in new if function.overloads]
         # All are dropped before any is compiled again (a compile links the others' code), and
         # compiled again here, kernels first, as they were: a function compiled inside the
-        # engine's compile would take its options (numba's error_model, fastmath) from it.
+        # engine's compile would take its options (numba's error_model, fastmath, runtime) from it.
         for function in new:
             _drop(function)
         for function, signatures in held:

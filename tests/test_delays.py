@@ -618,14 +618,14 @@ def test_from_csv_missing_file(tmp_path):
 def test_from_csv_non_numeric_row(tmp_path):
     path = tmp_path / "bad.csv"
     path.write_text("t,h\n0,0.1\n1,abc\n")
-    with pytest.raises(ValueError, match=r"bad\.csv: data row 2 is not numeric: \['1', 'abc'\]"):
+    with pytest.raises(ValueError, match=r"bad\.csv: line 3, column 'h' must be a number"):
         TraceDelay.from_csv(path)
 
 
 def test_from_csv_wrong_column_count(tmp_path):
     path = tmp_path / "cols.csv"
     path.write_text("0,0.1,7\n1,0.2\n")
-    with pytest.raises(ValueError, match=r"cols\.csv: data row 1 must have 2 columns \(t, h\)"):
+    with pytest.raises(ValueError, match=r"cols\.csv: line 1 must have 2 columns \(t, h\)"):
         TraceDelay.from_csv(path)
 
 

@@ -196,7 +196,7 @@ def test_limits_are_used_without_their_clamps_only_when_asked(tmp_path):
 @pytest.mark.parametrize(
     ("changes", "message"),
     [
-        ({"path": "missing.xml"}, "no MuJoCo model file"),
+        ({"path": "missing.xml"}, r"'model.path' = '.*missing\.xml' does not exist"),
         ({"mass_scale": 0.0}, "model.mass_scale' must be > 0"),
         ({"mass_scale": "heavy"}, "model.mass_scale"),
         ({"constraints": "maybe"}, "model.constraints' must be 'refuse' or 'ignore'"),

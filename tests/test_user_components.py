@@ -70,17 +70,22 @@ def test_a_user_plant_model_and_reference_run_compiled_from_a_scenario_file(tmp_
     assert type(built.plant).__name__ == "CompiledPlant"
     assert built.plant.coordinate_names == ("shoulder", "elbow")
     assert built.model.params[0] == pytest.approx(0.8 * built.plant.params[0])
-    result = Scenario.from_toml(short(EXAMPLE, tmp_path)).run()
+    # The scenario in tmp_path names the example's files: trusted, or they would be refused.
+    result = Scenario.from_toml(short(EXAMPLE, tmp_path), trust=[str(EXAMPLE)]).run()
     assert result.settings["compiled"] and result.status_names == ["ok"]
 
 
 def test_simulate_empirical_and_sweep_commands_take_them(tmp_path, capsys):
     path = short(EXAMPLE, tmp_path)
     out = tmp_path / "run"
-    assert main(["simulate", str(path), "--out", str(out)]) == 0
+    trust = ["--trust", str(EXAMPLE)]  # the files are the example's, not beside the scenario
+    assert main(["simulate", str(path), "--out", str(out), *trust]) == 0
     metrics = pd.read_csv(out / "metrics.csv")
     assert {"ae_shoulder", "ae_elbow"} <= set(metrics.columns)
-    assert main(["empirical", str(path), "--threshold", "0.5", "--upper", "0.5", "--json"]) == 0
+    assert (
+        main(["empirical", str(path), "--threshold", "0.5", "--upper", "0.5", "--json", *trust])
+        == 0
+    )
     margin = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert margin["margin"] > 0
     text = (EXAMPLE / "sweep_arm.toml").read_text().replace("draws = 6", "draws = 1")
@@ -89,14 +94,14 @@ def test_simulate_empirical_and_sweep_commands_take_them(tmp_path, capsys):
         text = text.replace(f"python:{name}", f"python:{EXAMPLE / name}")
     sweep = tmp_path / "sweep_arm.toml"
     sweep.write_text(text)
-    assert main(["sweep", str(sweep), "--out", str(tmp_path / "sweep"), "--quiet"]) == 0
+    assert main(["sweep", str(sweep), "--out", str(tmp_path / "sweep"), "--quiet", *trust]) == 0
     summary = pd.read_csv(tmp_path / "sweep" / "summary.csv")
     assert set(summary["controller"]) == {"arolc", "make_pd_gravity"}
     assert (summary["runs"] > 0).all()
 
 
 def test_the_user_controller_runs_compiled_and_matches_its_law(tmp_path):
-    scenario = Scenario.from_toml(short(EXAMPLE, tmp_path))
+    scenario = Scenario.from_toml(short(EXAMPLE, tmp_path), trust=[str(EXAMPLE)])
     table = {"type": "python:pd_gravity.py:make_pd_gravity", "K_P": [10.0, 2.0], "K_D": 1.0}
     data = scenario.to_dict()
     data["controller"] = {**table, "type": f"python:{EXAMPLE / 'pd_gravity.py'}:make_pd_gravity"}
@@ -129,9 +134,10 @@ def test_a_factory_that_cannot_be_used_is_refused_naming_the_table(example, kind
     (example / "raises.py").write_text("def make():\n    raise KeyError('mass')\n")
     path = short(example)
     path.write_text(path.read_text().replace(f"python:{example / 'arm.py'}:make_arm", kind, 1))
+    trust = "no_such_module_xyz"  # a module is imported only when trusted
     with pytest.raises(ScenarioError, match=message):
-        Scenario.from_toml(path).build()
-    assert main(["simulate", str(path), "--out", str(example / "out")]) == 2
+        Scenario.from_toml(path, trust=[trust]).build()
+    assert main(["simulate", str(path), "--out", str(example / "out"), "--trust", trust]) == 2
 
 
 @pytest.mark.parametrize(
@@ -537,7 +543,7 @@ def test_spline_reference_from_a_csv_file_and_a_scenario_table(tmp_path):
     base["x0"] = [0.0, 1.0, 0.0, 0.0]
     base["reference"] = {"type": "spline", "path": "poses.csv", "columns": ["shoulder", "elbow"]}
     scenario.write_text(Scenario.from_dict(base).to_toml())
-    loaded = Scenario.from_toml(scenario)
+    loaded = Scenario.from_toml(scenario, trust=[str(EXAMPLE)])
     assert loaded.reference["path"] == str(path)
     np.testing.assert_array_equal(loaded.build().reference.params, read.params)
 
@@ -559,7 +565,7 @@ def test_spline_reference_refuses_bad_samples(arguments, message):
 
 
 def test_results_carry_the_plants_coordinate_names(tmp_path):
-    result = Scenario.from_toml(short(EXAMPLE, tmp_path)).run()
+    result = Scenario.from_toml(short(EXAMPLE, tmp_path), trust=[str(EXAMPLE)]).run()
     assert result.coordinate_names == ("shoulder", "elbow")
     table = dt.metrics_table(result)
     assert {"ae_shoulder", "rms_elbow", "max_shoulder"} <= set(table.columns)

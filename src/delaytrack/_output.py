@@ -1,11 +1,21 @@
-"""Results folders: checked before any computing, and never holding the files of two runs.
+"""Results folders: checked before any computing, marked before any writing, and never
+holding the files of two runs.
 
-:func:`check_output_folder` is called before a command computes anything: the location must be
-a folder that can be created and written, and a folder that already holds files must be one
-this toolkit wrote (it keeps a list of them, :data:`MANIFEST`), so that a user's own files are
-never overwritten. :func:`record_outputs` is called after a run has written its files: files of
-the previous run in that folder that this run did not write again are removed, and the list is
-replaced. A folder therefore holds the files of its latest run only.
+:func:`check_output_folder` is called before a command computes anything: the location, with
+``..`` and links resolved (``NEW/../MINE`` is ``MINE``), must be a folder that can be created
+and written, and a folder that already holds files must be one this toolkit wrote. A folder is
+this toolkit's when it holds the toolkit's marker, :data:`MANIFEST`, and nothing else makes it
+so (a ``parts`` subfolder does not). :func:`claim_output_folder` writes the marker before a run
+writes its first file, so that a run interrupted half-way (Ctrl-C while figures are drawn) leaves
+a folder the next run accepts; it marks only a folder that is new or empty, so it never adopts a
+folder holding anything else. :func:`record_outputs` is called after a run has written its
+files: files of the previous run in that folder that this run did not write again are removed,
+and the marker lists the new ones. A folder therefore holds the files of its latest run only.
+
+``reproduce --out`` names the folder that holds its jobs' results folders
+(:func:`check_results_root`): it must be new, empty, or hold only what this toolkit writes there
+(results folders, folders of them, a gains file of ``tune-baselines``). A name that becomes a
+folder's name (a sweep file's stem) must be a plain name (:func:`plain_folder_name`).
 """
 
 from __future__ import annotations
@@ -23,12 +33,22 @@ __all__ = [
     "MANIFEST",
     "OutputFolderError",
     "check_output_folder",
+    "check_results_root",
     "check_writable_location",
+    "claim_output_folder",
+    "is_gains_file",
+    "plain_folder_name",
     "record_outputs",
 ]
 
-#: File (in each results folder) listing the files the latest run wrote, relative to it.
+#: The toolkit's marker in each results folder: the files the latest run wrote, relative to it.
 MANIFEST = ".delaytrack-files.json"
+
+#: How a gains file written by ``tune-baselines`` begins (its first key).
+_GAINS_FILE_START = b'generated_by = "delaytrack tune-baselines'
+
+#: How deep :func:`check_results_root` looks for results folders (``results/sweeps/<name>``).
+_ROOT_DEPTH = 2
 
 
 class OutputFolderError(ValueError):
@@ -42,30 +62,39 @@ def _nearest_existing(path: Path) -> Path:
     return Path(".")
 
 
+def _shown(names: list[str]) -> str:
+    return ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
+
+
 def check_writable_location(path: str | os.PathLike[str], argument: str) -> Path:
     """Check that ``path`` can be created as a folder or file: not empty, no file among its
-    parents, and its nearest existing folder writable. Returns it as a :class:`Path`."""
+    parents, and its nearest existing folder writable. Returns it as an absolute
+    :class:`Path` with ``..`` and links resolved: the location that will be written."""
     text = os.fspath(path)
     if not text.strip():
         raise OutputFolderError(f"{argument} must name a location; got {text!r}")
     try:
-        target = Path(text).expanduser()
+        given = Path(text).expanduser()
     except RuntimeError as error:  # "~user" of no such user
         raise OutputFolderError(f"{argument} {text!r}: {error}") from None
-    too_long = [part for part in target.parts if len(os.fsencode(part)) > 255]
+    too_long = [part for part in given.parts if len(os.fsencode(part)) > 255]
     if too_long:
         raise OutputFolderError(
             f"{argument} {text!r} has a name longer than 255 bytes ({too_long[0][:20]!r}...)"
         )
+    if given.is_symlink() and not given.exists():
+        raise OutputFolderError(
+            f"{argument} {text!r} is a link to nothing ({os.readlink(given)!r})"
+        )
+    try:
+        target = given.resolve()
+    except (OSError, RuntimeError) as error:  # a loop of links
+        raise OutputFolderError(f"{argument} {text!r} cannot be resolved: {error}") from None
     for parent in target.parents:
         if parent.exists() and not parent.is_dir():
             raise OutputFolderError(
                 f"{argument} {text!r} lies under {str(parent)!r}, which is a file, not a folder"
             )
-    if target.is_symlink() and not target.exists():
-        raise OutputFolderError(
-            f"{argument} {text!r} is a link to nothing ({os.readlink(target)!r})"
-        )
     existing = _nearest_existing(target if target.is_dir() else target.parent)
     try:  # the one reliable test (root passes os.access everywhere, /proc refuses files)
         probe = tempfile.NamedTemporaryFile(dir=existing, prefix=".delaytrack-probe-")
@@ -77,18 +106,14 @@ def check_writable_location(path: str | os.PathLike[str], argument: str) -> Path
     return target
 
 
-def check_output_folder(
-    folder: str | os.PathLike[str], argument: str = "folder", *, marks: tuple[str, ...] = ()
-) -> Path:
-    """Check a results folder before computing (module docstring); return it as a Path.
-
-    ``marks`` are entries that also show a folder to be this toolkit's (a sweep's ``parts``).
+def check_output_folder(folder: str | os.PathLike[str], argument: str = "folder") -> Path:
+    """Check a results folder before computing (module docstring); return it, resolved.
 
     Raises
     ------
     OutputFolderError
         If ``folder`` is empty text, is a file, lies under a file, cannot be written, or already
-        holds files that this toolkit did not write there. The message names ``argument``.
+        holds files without this toolkit's marker. The message names ``argument``.
     """
     target = check_writable_location(folder, argument)
     if target.exists() and not target.is_dir():
@@ -96,18 +121,107 @@ def check_output_folder(
             f"{argument} {os.fspath(folder)!r} is a file; it must name a folder (new or empty, "
             "or one that holds earlier results of this toolkit)"
         )
-    ours = (target / MANIFEST).is_file() or any((target / mark).exists() for mark in marks)
-    if target.is_dir() and not ours:
+    if target.is_dir() and not (target / MANIFEST).is_file():
         foreign = sorted(entry.name for entry in target.iterdir())
         if foreign:
-            shown = ", ".join(foreign[:3]) + (", ..." if len(foreign) > 3 else "")
             raise OutputFolderError(
-                f"{argument} {os.fspath(folder)!r} already holds files that this toolkit did not "
-                f"write ({shown}); choose a new or empty folder, so that nothing of yours is "
-                "overwritten and the folder holds one run's results only (results of an earlier "
-                "version of this toolkit: delete the folder)"
+                f"{argument} {os.fspath(folder)!r}{_resolved(folder, target)} already holds "
+                f"files that this toolkit did not write ({_shown(foreign)}); choose a new or "
+                "empty folder, so that nothing of yours is overwritten and the folder holds one "
+                "run's results only (results of an earlier version of this toolkit: delete the "
+                "folder)"
             )
     return target
+
+
+def _resolved(given: str | os.PathLike[str], target: Path) -> str:
+    """`` (that is, <target>)`` when ``given`` names ``target`` through ``..`` or a link."""
+    plain = Path(os.fspath(given)).expanduser().absolute()
+    return "" if plain == target else f" (that is, {str(target)!r})"
+
+
+def is_gains_file(path: Path) -> bool:
+    """Whether ``path`` is a gains file written by ``tune-baselines`` (by its first key)."""
+    if path.is_symlink() or not path.is_file() or path.suffix != ".toml":
+        return False
+    try:
+        with open(path, "rb") as handle:
+            return handle.read(len(_GAINS_FILE_START)) == _GAINS_FILE_START
+    except OSError:
+        return False
+
+
+def _ours(entry: Path, depth: int) -> bool:
+    """Whether ``entry`` is what this toolkit writes in a results root: a results folder, a
+    folder of them (up to ``depth`` levels), an empty folder, or a gains file."""
+    if entry.is_symlink() or not entry.is_dir():
+        return is_gains_file(entry)
+    if (entry / MANIFEST).is_file():
+        return True
+    try:
+        return depth > 0 and all(_ours(inner, depth - 1) for inner in entry.iterdir())
+    except OSError:
+        return False
+
+
+def check_results_root(folder: str | os.PathLike[str], argument: str) -> Path:
+    """Check the folder of a command's results folders (``reproduce --out``) before computing:
+    new, empty, or holding only what this toolkit writes there (module docstring); return it,
+    resolved.
+
+    Raises
+    ------
+    OutputFolderError
+        As :func:`check_output_folder`, naming the entries this toolkit did not write.
+    """
+    target = check_writable_location(folder, argument)
+    if target.exists() and not target.is_dir():
+        raise OutputFolderError(
+            f"{argument} {os.fspath(folder)!r} is a file; it must name a folder (new or empty, "
+            "or one that holds results folders of this toolkit)"
+        )
+    if target.is_dir():
+        foreign = sorted(e.name for e in target.iterdir() if not _ours(e, _ROOT_DEPTH))
+        if foreign:
+            raise OutputFolderError(
+                f"{argument} {os.fspath(folder)!r}{_resolved(folder, target)} holds entries that "
+                f"this toolkit did not write ({_shown(foreign)}); choose a new or empty folder, "
+                "or one that holds only results of this toolkit, so that the results do not "
+                "land among files of yours"
+            )
+    return target
+
+
+def plain_folder_name(name: str, what: str) -> str:
+    """``name`` when it can name a folder as it is: not empty, not starting with ``.`` (``.``,
+    ``..``, a hidden folder), no ``/``, ``\\`` or control characters, no space at either end.
+    ``what`` says where it comes from, for the message."""
+    plain = (
+        name.strip() == name
+        and name
+        and not name.startswith(".")
+        and not any(c in "/\\" or ord(c) < 32 or ord(c) == 127 for c in name)
+        and len(os.fsencode(name)) <= 255
+    )
+    if not plain:
+        raise OutputFolderError(
+            f"{what} gives the folder name {name!r}, which is not a plain name: a folder name "
+            "must not be empty, start with '.', hold '/', '\\' or control characters, or "
+            "begin or end with a space; rename the file or choose the folder with --out"
+        )
+    return name
+
+
+def claim_output_folder(folder: str | os.PathLike[str]) -> Path:
+    """Before a run writes its first file into ``folder`` (checked by
+    :func:`check_output_folder`): create it and put the toolkit's marker in it when it is new
+    or empty, so that an interrupted run leaves a folder the next run accepts. A folder that
+    holds anything else without the marker is left unmarked. Returns the folder."""
+    root = Path(folder)
+    root.mkdir(parents=True, exist_ok=True)
+    if not (root / MANIFEST).is_file() and not any(root.iterdir()):
+        write_text(root / MANIFEST, json.dumps({"files": []}, indent=1) + "\n")
+    return root
 
 
 def _listed(folder: Path) -> list[str]:

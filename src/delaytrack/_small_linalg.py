@@ -26,21 +26,38 @@ def _is_diagonal(a):
 
 
 @inline_kernel
+def _diagonal_is_positive(a):
+    for i in range(a.shape[0]):
+        if not a[i, i] > 0.0:
+            return False
+    return True
+
+
+@inline_kernel
 def solve_in_place(a, b):
     """Solve ``a x = b`` by Gaussian elimination with partial pivoting; ``b`` becomes ``x``.
 
-    ``a`` (n, n) is overwritten by its elimination factors. Returns False (and leaves ``b``
-    unspecified) when a pivot is exactly zero or not finite (``a`` singular or holding NaN). A
-    nearly singular ``a`` gives a huge solution, which the simulator's divergence bound stops.
+    ``a`` (n, n) is overwritten by its elimination factors. Returns ``(solved, definite)``.
+    ``solved`` is False (and ``b`` unspecified) when a pivot is exactly zero or not finite
+    (``a`` singular or holding NaN). A nearly singular ``a`` gives a huge solution, which the
+    simulator's divergence bound stops. ``definite`` is False when the elimination shows that
+    ``a``, taken as symmetric (a mass matrix), is not positive definite: a pivot of exactly
+    zero; without row exchanges a pivot ``<= 0`` (the pivots are then those of ``a``'s
+    ``L D Lᵀ``: exact); with them a determinant ``<= 0`` or a diagonal entry ``<= 0``
+    (necessary conditions, exact for ``n <= 2``). It is True when a pivot is not finite
+    (nothing is known). The checks only read the pivots: the solution is the same bit for bit.
     A diagonal ``a`` (the constrained robot's ``M = I``) is solved by division.
     """
     n = b.shape[0]
     if _is_diagonal(a):
         for i in range(n):
             if not (a[i, i] != 0.0 and math.isfinite(a[i, i])):
-                return False
+                return False, a[i, i] != 0.0
             b[i] /= a[i, i]
-        return True
+        return True, _diagonal_is_positive(a)
+    positive_diagonal = _diagonal_is_positive(a)
+    exchanges = 0
+    negative_pivots = 0
     for column in range(n):
         pivot_row = column
         largest = abs(a[column, column])
@@ -49,11 +66,14 @@ def solve_in_place(a, b):
                 largest = abs(a[row, column])
                 pivot_row = row
         if not (largest > 0.0 and largest < float("inf")):
-            return False
+            return False, largest != 0.0
         if pivot_row != column:
+            exchanges += 1
             for j in range(column, n):
                 a[column, j], a[pivot_row, j] = a[pivot_row, j], a[column, j]
             b[column], b[pivot_row] = b[pivot_row], b[column]
+        if a[column, column] < 0.0:
+            negative_pivots += 1
         inverse = 1.0 / a[column, column]
         for row in range(column + 1, n):
             factor = a[row, column] * inverse
@@ -66,7 +86,9 @@ def solve_in_place(a, b):
         for j in range(row + 1, n):
             total -= a[row, j] * b[j]
         b[row] = total / a[row, row]
-    return True
+    if exchanges == 0:
+        return True, negative_pivots == 0
+    return True, positive_diagonal and (negative_pivots + exchanges) % 2 == 0
 
 
 @inline_kernel

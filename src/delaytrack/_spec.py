@@ -21,6 +21,8 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+from delaytrack._io import regular_file
+
 __all__ = [
     "PYTHON_TYPE",
     "Check",
@@ -29,8 +31,10 @@ __all__ = [
     "array",
     "build_from_table",
     "check_table",
+    "factory_parts",
     "gain",
     "integer",
+    "is_module_name",
     "module_from_file",
     "number",
     "string",
@@ -164,7 +168,7 @@ def module_from_file(path: Path, name: str | None = None) -> ModuleType:
     another module), with its folder first on ``sys.path`` while it runs, so that it can import
     its neighbours. A file the user imported already is that module, not a second copy.
     """
-    path = path.expanduser().resolve()
+    path = regular_file(path.expanduser().resolve(), "factory file")
     content = hashlib.sha256(path.read_bytes()).hexdigest()
     known = _FILE_MODULES.get(path)
     if known is not None and known[0] == content:
@@ -195,21 +199,44 @@ def module_from_file(path: Path, name: str | None = None) -> ModuleType:
     return module
 
 
+def is_module_name(text: str) -> bool:
+    """Whether ``text`` is a dotted module name (``mylab.robots``)."""
+    return all(part.isidentifier() for part in text.split("."))
+
+
+def factory_parts(key: str, kind: str) -> tuple[str, str]:
+    """The location (a ``.py`` file or a module name) and the function of the factory type
+    ``kind`` (:data:`PYTHON_TYPE`) given as scenario key ``key`` (``plant.type``).
+
+    Raises
+    ------
+    SpecError
+        When ``kind`` has neither form.
+    """
+    location, colon, name = kind[len(PYTHON_TYPE) :].rpartition(":")
+    if colon and name.isidentifier() and (location.endswith(".py") or is_module_name(location)):
+        return location, name
+    raise SpecError(
+        f"scenario key {key!r} must name a factory as 'python:<module>:<function>' "
+        f"or 'python:<file.py>:<function>'; got {kind!r}"
+    )
+
+
 def user_factory(table: str, kind: str) -> Callable[..., Any]:
     """The factory named by the type ``kind`` (:data:`PYTHON_TYPE`) of ``[table]``.
+
+    Its module is imported here, unchecked: the factories of a file read from disk are checked
+    against what the user trusts (:mod:`delaytrack._trust`) before.
 
     Raises
     ------
     SpecError
         Naming ``<table>.type`` when the name is malformed, the module cannot be imported (with
-        the error it raised) or has no such function.
+        the error it raised, ``SystemExit`` included) or has no such function.
+    KeyboardInterrupt
+        Saying which factory's module was being imported.
     """
-    location, colon, name = kind[len(PYTHON_TYPE) :].rpartition(":")
-    if not (colon and location and name.isidentifier()):
-        raise SpecError(
-            f"scenario key '{table}.type' must name a factory as 'python:<module>:<function>' "
-            f"or 'python:<file.py>:<function>'; got {kind!r}"
-        )
+    location, name = factory_parts(f"{table}.type", kind)
     try:
         if location.endswith(".py"):
             module = module_from_file(Path(location))
@@ -219,6 +246,15 @@ def user_factory(table: str, kind: str) -> Callable[..., Any]:
         raise SpecError(
             f"scenario key '{table}.type' = {kind!r}: cannot import {location!r} "
             f"({type(error).__name__}: {error})"
+        ) from None
+    except KeyboardInterrupt:
+        raise KeyboardInterrupt(
+            f"interrupted while importing {location!r} for scenario key '{table}.type' = {kind!r}"
+        ) from None
+    except BaseException as error:  # SystemExit: the module's, not the command's
+        raise SpecError(
+            f"scenario key '{table}.type' = {kind!r} raised {error!r} while importing "
+            f"{location!r} (a factory's module must not exit)"
         ) from None
     factory = getattr(module, name, None)
     if not callable(factory):
@@ -328,7 +364,9 @@ def build_from_table(
     A refusal by the constructor is re-raised naming the table, and the key when the message
     starts with the constructor argument of one (``"K1 must be ..."`` becomes
     ``"scenario key 'controller.K1' must be ..."``). A user's factory (:data:`PYTHON_TYPE`) may
-    raise anything, reported with its type; it must return an instance of ``returns``.
+    raise anything, reported with its type (``SystemExit`` too, as a :class:`SpecError`; a
+    ``KeyboardInterrupt`` is raised again naming the factory); it must return an instance of
+    ``returns``.
     """
     spec = check_table(table, value, types)
     kind = value["type"]
@@ -355,6 +393,19 @@ def build_from_table(
                     f"scenario key '{table}.{key}' {message[len(argument) + 1 :]}"
                 ) from None
         raise SpecError(f"scenario table [{table}]: {message}") from None
+    except KeyboardInterrupt:
+        if not user:
+            raise
+        raise KeyboardInterrupt(
+            f"interrupted in the factory of scenario key '{table}.type' = {kind!r}"
+        ) from None
+    except BaseException as error:  # SystemExit: the factory's, not the command's
+        if not user:
+            raise
+        raise SpecError(
+            f"scenario key '{table}.type' = {kind!r} raised {error!r} (a factory returns "
+            f"{_with_article(returns.__name__) if returns else 'its component'}; it must not exit)"
+        ) from None
     if returns is not None and not isinstance(built, returns):
         raise SpecError(
             f"scenario table [{table}]: {kind} returned {_with_article(type(built).__name__)}; "

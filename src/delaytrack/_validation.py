@@ -7,13 +7,17 @@ None of them clamps, rounds or repairs a value.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Sequence
 
 import numpy as np
 
 __all__ = [
     "BEYOND_CHOICES",
+    "DECIMAL_NOTATION",
+    "NumberTextError",
     "beyond_choice",
+    "decimal_number",
     "integer_multiple",
     "is_integer_at_least",
     "as_spd_matrix",
@@ -148,6 +152,81 @@ def finite_array(name: str, value: object, *, ndim: int | None = None) -> np.nda
         where = f"{name}[{', '.join(map(str, bad))}]" if bad else name
         raise ValueError(f"{name} must be finite; {where} is {array[bad]}")
     return array
+
+
+#: How a number is written in text the toolkit reads: command-line arguments and CSV data files.
+DECIMAL_NOTATION = "decimal notation such as 2, 0.5 or 1e-3"
+
+# ASCII digits only, no "_" between them, no hexadecimal: Python's float() reads "1_000", "٣"
+# and "１" too, where another tool (or a typo) meant something else. inf and nan are read so
+# that they are refused as not finite rather than as not numbers.
+_DECIMAL = re.compile(
+    r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|[+-]?(?:inf|infinity|nan)", re.I
+)
+
+#: Blanks around a number that are not part of it (a CSV cell "0, 0.05", an argument " 2").
+_BLANKS = " \t\n\r\f\v"
+
+
+class NumberTextError(ValueError):
+    """Text that :func:`decimal_number` refuses.
+
+    The message is a predicate on the text without quoting it (``"must be finite (...)"``), to
+    follow the place it came from (``"--r "``, ``"line 3, column 2 "``); ``notation`` is True
+    when the text is not written in :data:`DECIMAL_NOTATION` at all.
+    """
+
+    def __init__(self, message: str, *, notation: bool) -> None:
+        super().__init__(message)
+        self.notation = notation
+
+
+def _notation_hint(text: str) -> str:
+    """What makes ``text`` not decimal notation, when it is a common form of another one."""
+    if not text:
+        return "; it is empty"
+    if "_" in text:
+        return "; '_' is not read as a digit separator (write 1000, not 1_000)"
+    if "," in text:
+        return "; ',' is not a decimal point (write 1.5, not 1,5)"
+    if any(character.isdigit() and not character.isascii() for character in text):
+        return "; only the digits 0-9 are read"
+    if re.match(r"[+-]?0[xob]", text, re.I):
+        return "; hexadecimal, octal and binary are not read"
+    return ""
+
+
+def decimal_number(text: str) -> float:
+    """The finite float that ``text`` writes in :data:`DECIMAL_NOTATION`: the one rule for
+    numbers on the command line and in CSV data files (delay traces, waypoints).
+
+    Accepted: an optional sign, ASCII digits with an optional point, an optional exponent
+    (``2``, ``+1``, ``-0.5``, ``.5``, ``5.``, ``1e-3``), with blanks around. Refused: digit
+    separators (``1_000``, ``0_05``), a decimal comma (``1,5``), hexadecimal (``0x10``), digits
+    of other scripts (``٣``, ``１``), empty text, ``nan``, ``inf``, numbers beyond double
+    precision (``1e400``) and nonzero numbers that round to 0 (``1e-400``).
+
+    Raises
+    ------
+    NumberTextError
+        Saying what is wrong and what is valid, without quoting ``text`` (the caller names
+        where it came from).
+    """
+    number = text.strip(_BLANKS)
+    if not _DECIMAL.fullmatch(number):
+        raise NumberTextError(
+            f"must be a number in {DECIMAL_NOTATION}{_notation_hint(number)}", notation=True
+        )
+    value = float(number)
+    if not math.isfinite(value):
+        raise NumberTextError("must be finite (doubles reach about 1.8e308)", notation=False)
+    if value == 0.0 and any(digit in number.lower().partition("e")[0] for digit in "123456789"):
+        raise NumberTextError(
+            "is too close to 0 for double precision: it rounds to 0 (nonzero doubles have a "
+            "magnitude of at least about 4.9e-324)",
+            notation=False,
+        )
+    return value
 
 
 def finite_scalar(name: str, value: object) -> float:

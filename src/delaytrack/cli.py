@@ -5,18 +5,24 @@ Commands::
     delaytrack bound --k1 1 --k2 1 [--q 1] [--beta 1] [--r 1.1] [--n 5] [--json]
     delaytrack margin --k1 1 --k2 1 [--q 1] [--beta 1] [--r 1.1] [--n 5] [--json]
     delaytrack design [--n 2] [--gain-bound 1] [--min-bandwidth W] [--r 1.1] [--seed 0] [--json]
-    delaytrack simulate SCENARIO.toml [--out DIR] [--format parquet|csv|both] [--quiet]
+    delaytrack simulate SCENARIO.toml [--out DIR] [--format parquet|csv|both] [--trust NAME]
+        [--quiet]
     delaytrack empirical SCENARIO.toml --threshold VALUE[,VALUE...]
         [--profile constant|abs-sine|abs-sine-offset]
         [--metric ae|rms|max] [--settle S] [--resolution S] [--upper S] [--frequency W] [--json]
-        [--quiet]
+        [--trust NAME] [--quiet]
     delaytrack reproduce [--out results] [--duration SECONDS] [--no-dt-check] [--no-contact]
         [--no-robustness] [--size default|full] [--scheduler ADDRESS] [--gains PATH] [--quiet]
         [--job paper|two-link|margins|robustness]
-    delaytrack sweep SPEC.toml [--out DIR] [--scheduler ADDRESS] [--workers N] [--quiet]
+    delaytrack sweep SPEC.toml [--out DIR] [--scheduler ADDRESS] [--workers N] [--trust NAME]
+        [--quiet]
     delaytrack tune-baselines [--out PATH] [--quiet]
 
 Long work shows progress bars on stderr; ``--quiet`` turns them off, in every command.
+
+A factory that a scenario or sweep file names (``type = "python:..."``) is Python code: only a
+``.py`` file beside that file (or below) runs unless ``--trust NAME`` (repeatable: a module name,
+or a path to a ``.py`` file or a folder) allows more.
 
 Bad input ends with exit code 2 and a one-line ``error: ...`` naming the argument, the value and
 what is valid; never a traceback.
@@ -26,7 +32,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import re
 import sys
 import time
@@ -39,9 +44,13 @@ import numpy as np
 from delaytrack._output import (
     OutputFolderError,
     check_output_folder,
+    check_results_root,
     check_writable_location,
+    is_gains_file,
+    plain_folder_name,
     record_outputs,
 )
+from delaytrack._validation import DECIMAL_NOTATION, NumberTextError, decimal_number
 
 if TYPE_CHECKING:
     from delaytrack.analysis import RazumikhinBound
@@ -59,30 +68,21 @@ class UsageError(Exception):
 # bound
 
 
-_DECIMAL = re.compile(
-    r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|[+-]?(?:inf|infinity|nan)", re.I | re.ASCII
-)
-
-
 def _float(flag: str, part: str, text: str, what: str) -> float:
-    """One decimal number of ``text`` (``1``, ``-2.5``, ``3e-2``), finite and not rounded to 0.
-
-    Python's own forms beyond plain decimals (``1_000``) are refused, as every other tool
-    reading the same argument would.
+    """One number of ``text`` by the rule of every number the toolkit reads
+    (:func:`~delaytrack._validation.decimal_number`): ``1``, ``-2.5``, ``3e-2``, finite and
+    not rounded to 0; ``1_000``, ``0x10`` and ``٣`` are refused.
     """
-    if not _DECIMAL.fullmatch(part):
-        raise UsageError(
-            f"{flag} must be {what} in decimal notation such as 2, 0.5 or 1e-3; got {text!r}"
-        )
-    value = float(part)
-    if not math.isfinite(value):
-        raise UsageError(f"{flag} must be finite (doubles reach about 1.8e308); got {text!r}")
-    if value == 0.0 and any(digit in part.lower().partition("e")[0] for digit in "123456789"):
-        raise UsageError(
-            f"{flag} entry {part} is too close to 0 for double precision: it rounds to 0 "
-            f"(nonzero doubles have a magnitude of at least about 4.9e-324); got {text!r}"
-        )
-    return value
+    try:
+        return decimal_number(part)
+    except NumberTextError as error:
+        if error.notation:
+            message = f"{flag} must be {what} in {DECIMAL_NOTATION}"
+        elif part.strip() == text.strip():
+            message = f"{flag} {error}"
+        else:
+            message = f"{flag} entry {part.strip()} {error}"
+        raise UsageError(f"{message}; got {text!r}") from None
 
 
 def _integer(text: str) -> int:
@@ -95,12 +95,12 @@ def _integer(text: str) -> int:
 def _numbers(flag: str, text: str) -> np.ndarray:
     """Parse ``"1"`` or ``"1,2.5,3"`` into a 1-D array of finite floats."""
     what = "a number or a comma-separated list of numbers"
-    return np.array([_float(flag, part.strip(), text, what) for part in text.split(",")])
+    return np.array([_float(flag, part, text, what) for part in text.split(",")])
 
 
 def _scalar(flag: str, text: str) -> float:
     """Parse one finite float."""
-    return _float(flag, text.strip(), text, "a single number" if "," in text else "a number")
+    return _float(flag, text, text, "a single number" if "," in text else "a number")
 
 
 def _threshold(text: str) -> float | np.ndarray:
@@ -349,10 +349,21 @@ def _scenario_source(text: str) -> Path:
     )
 
 
+def _trusted(args: argparse.Namespace) -> list[str]:
+    """The ``--trust`` names, checked (:class:`delaytrack._trust.Trust`)."""
+    from delaytrack._trust import Trust
+
+    try:
+        Trust.of(args.trust, "--trust")
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    return args.trust
+
+
 def _simulate(args: argparse.Namespace) -> int:
     from delaytrack.experiments import Scenario, run_to_folder
 
-    scenario = Scenario.from_toml(_scenario_source(args.scenario))
+    scenario = Scenario.from_toml(_scenario_source(args.scenario), trust=_trusted(args))
     folder = (
         check_output_folder(args.out, "--out")
         if args.out is not None
@@ -382,7 +393,7 @@ def _empirical(args: argparse.Namespace) -> int:
     from delaytrack.analysis import exact_delay_margin, razumikhin_bound
     from delaytrack.experiments import Scenario, empirical_margin
 
-    scenario = Scenario.from_toml(_scenario_source(args.scenario))
+    scenario = Scenario.from_toml(_scenario_source(args.scenario), trust=_trusted(args))
     controller = scenario.build().controller
     options = {
         "threshold": _threshold(args.threshold),
@@ -444,9 +455,9 @@ def _empirical(args: argparse.Namespace) -> int:
 
 
 def _reproduce(args: argparse.Namespace) -> int:
-    check_writable_location(args.out, "--out")
     if args.gains is not None:
         args.gains = _checked_gains(args.gains)
+    args.out = str(check_results_root(args.out, "--out"))
     try:
         return _reproduce_job(args)
     except OutputFolderError as error:  # a job's folder under --out, checked before computing
@@ -498,7 +509,7 @@ def _study_executor(args: argparse.Namespace):
 def _reproduce_robustness(args: argparse.Namespace, executor) -> int:
     from delaytrack.experiments.robustness import findings, run_robustness
 
-    folder = check_output_folder(Path(args.out) / "robustness", "--out", marks=("sweeps",))
+    folder = check_output_folder(Path(args.out) / "robustness", "--out")
     start = time.perf_counter()
     study = run_robustness(
         folder, size=args.size, executor=executor, progress=not args.quiet, gains=args.gains
@@ -619,18 +630,21 @@ def _sweep(args: argparse.Namespace) -> int:
     from delaytrack.sweeps.executors import checked_scheduler
 
     workers = None if args.workers is None else _count("--workers", args.workers)
+    trust = _trusted(args)
     try:
         checked_scheduler(args.scheduler, workers)
     except SweepError as error:
         raise UsageError(_with_flag(str(error), {"workers": "--workers"}, {})) from None
     folder = (
-        check_output_folder(args.out, "--out", marks=("parts",))
+        check_output_folder(args.out, "--out")
         if args.out is not None
         else check_output_folder(
-            Path("results/sweeps") / Path(args.spec).stem, "the results folder", marks=("parts",)
+            Path("results/sweeps")
+            / plain_folder_name(Path(args.spec).stem, f"sweep file {args.spec!r}"),
+            "the results folder",
         )
     )
-    spec = SweepSpec.from_toml(args.spec)
+    spec = SweepSpec.from_toml(args.spec, trust=trust)
     print(f"sweep {args.spec}: {len(spec.runs)} runs in {len(spec.units())} units -> {folder}/")
     executor = make_executor(args.scheduler, workers=workers)
     try:
@@ -668,12 +682,18 @@ def _count(flag: str, text: str) -> int:
 def _tune_baselines(args: argparse.Namespace) -> int:
     from delaytrack.experiments.tuning import gains_text, tune_controllers, write_gains
 
-    check_writable_location(args.out, "--out")
-    if Path(args.out).is_dir():
+    path = check_writable_location(args.out, "--out")
+    if path.is_dir():
         raise UsageError(f"--out {args.out!r} is a folder; it must name the gains file to write")
+    if path.exists() and not is_gains_file(path):
+        raise UsageError(
+            f"--out {args.out!r} is a file that tune-baselines did not write; name a new file "
+            "(or a gains file of an earlier run, which is replaced), so that nothing of yours is "
+            "overwritten"
+        )
     start = time.perf_counter()
     results = tune_controllers(progress=not args.quiet)
-    path = write_gains(results, args.out)
+    path = write_gains(results, path)
     seconds = time.perf_counter() - start
     for kind, result in results.items():
         for gain_set, best in result.best.items():
@@ -730,6 +750,21 @@ def _r_and_json_arguments(command: argparse.ArgumentParser) -> None:
     )
     command.add_argument(
         "--json", action="store_true", help="print one JSON object instead of text"
+    )
+
+
+def _trust_argument(command: argparse.ArgumentParser) -> None:
+    """``--trust NAME``, repeatable: factories a scenario or sweep file may name beyond the
+    ``.py`` files beside it."""
+    command.add_argument(
+        "--trust",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help='allow the factories (type = "python:...", Python code that runs with your '
+        "rights) of a module and its submodules (mylab.robots), or of a .py file or of every "
+        "file below a folder (a path: ./robots, ~/lab/arm.py); repeatable. Without it only "
+        ".py files in the scenario or sweep file's folder or below it run",
     )
 
 
@@ -819,6 +854,7 @@ def build_parser() -> argparse.ArgumentParser:
         default="parquet",
         help="trajectory file format (default parquet)",
     )
+    _trust_argument(simulate)
     _quiet_argument(simulate)
     simulate.set_defaults(handler=_simulate)
 
@@ -871,6 +907,7 @@ def build_parser() -> argparse.ArgumentParser:
     empirical.add_argument(
         "--json", action="store_true", help="print one JSON object instead of text"
     )
+    _trust_argument(empirical)
     _quiet_argument(empirical)
     empirical.set_defaults(handler=_empirical)
 
@@ -963,6 +1000,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="threads of the local executor, or worker processes of --scheduler local-cluster "
         "(default: all cores)",
     )
+    _trust_argument(sweep)
     _quiet_argument(sweep)
     sweep.set_defaults(handler=_sweep)
 
@@ -1005,8 +1043,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OSError as error:
         print(f"error: {error}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
+    except KeyboardInterrupt as interrupted:  # where, when a factory was interrupted
+        print(str(interrupted).replace("\n", "\\n") or "interrupted", file=sys.stderr)
         return 130
 
 

@@ -76,6 +76,7 @@ __all__ = [
     "has_stepper",
     "is_compiled",
     "plant_sizes",
+    "refuse_changed_globals",
     "solve_input_map",
 ]
 
@@ -237,9 +238,10 @@ def _refuse_managed_result(function: Any, argument_types: tuple, role: str, retu
         return
     result = compiled.signature.return_type
     if default_manager.lookup(result).contains_nrt_meminfo():
+        into = " (write its results into the arrays it is given)" if returns == "nothing" else ""
         raise TypingError(
             f"the {role} kernel {_qualified_name(function)} returns {result}; it must return "
-            f"{returns} (write its results into the arrays it is given)"
+            f"{returns}{into}"
         )
 
 
@@ -266,10 +268,13 @@ def compiled_functions_reached(function: Callable[..., Any]) -> tuple[Any, ...]:
 
 
 @lru_cache(maxsize=1024)
-def _walk(function: Callable[..., Any]) -> tuple[str, tuple[Any, ...]]:
-    """:func:`code_fingerprint` of ``function`` and :func:`compiled_functions_reached`."""
+def _walk(function: Callable[..., Any]) -> tuple[str, tuple[Any, ...], tuple[_Frozen, ...]]:
+    """:func:`code_fingerprint` of ``function``, :func:`compiled_functions_reached`, and the
+    module globals their compiled code reads as constants, with their values now (taken once
+    per process, as numba compiles them once: :func:`refuse_changed_globals`)."""
     digest = hashlib.sha256()
     reached: list[Any] = []
+    frozen: list[_Frozen] = []
     walk: list[object] = [function]
     seen: set[int] = set()
     modules: list[python_types.ModuleType] = []
@@ -305,9 +310,16 @@ def _walk(function: Callable[..., Any]) -> tuple[str, tuple[Any, ...]]:
         names_read |= names
         for name in sorted(names):
             if name in inner.__globals__:
-                text = _value_text(inner.__globals__[name], walk)
+                value = inner.__globals__[name]
+                text = _value_text(value, walk)
                 if text is not None:
                     digest.update(f"{name}={text}".encode())
+                if is_compiled(current) and isinstance(value, _FROZEN):
+                    frozen.append(
+                        _Frozen(
+                            _qualified_name(inner), inner.__globals__, name, text, _shown(value)
+                        )
+                    )
         for cell in inner.__closure__ or ():
             text = _value_text(cell.cell_contents, walk)
             if text is not None:
@@ -317,8 +329,62 @@ def _walk(function: Callable[..., Any]) -> tuple[str, tuple[Any, ...]]:
     for module in modules:
         for key, value in sorted(vars(module).items()):
             if key in names_read and isinstance(value, (*_CONSTANTS, np.ndarray)):
-                digest.update(f"{module.__name__}.{key}={_value_text(value, [])}".encode())
-    return digest.hexdigest()[:16], tuple(reached)
+                text = _value_text(value, [])
+                digest.update(f"{module.__name__}.{key}={text}".encode())
+                frozen.append(_Frozen(module.__name__, vars(module), key, text, _shown(value)))
+    return digest.hexdigest()[:16], tuple(reached), tuple(frozen)
+
+
+#: Values of module globals that numba compiles into a function as constants.
+_FROZEN = (*_CONSTANTS, np.ndarray, tuple)
+
+
+@dataclass(frozen=True)
+class _Frozen:
+    """A module global ``name`` in ``namespace`` that compiled code of ``owner`` reads, the
+    text of its value (:func:`_value_text`) when the code's fingerprint was taken, and that
+    value ``shown`` in a message."""
+
+    owner: str
+    namespace: dict
+    name: str
+    text: str | None
+    shown: str
+
+    def changed(self) -> bool:
+        return _value_text(self.namespace.get(self.name), []) != self.text
+
+
+def refuse_changed_globals(kernel: Kernel) -> None:
+    """Raise a ValueError when a module global that compiled code of ``kernel`` reads (a number,
+    an array, a tuple, or a constant of a module it reads as an attribute) has another value
+    than when the kernel was first named in this process (its fingerprint, :attr:`Kernel.key`).
+
+    numba compiles such a value into the code once; a later change (a factory's keyword that
+    sets a module global, a notebook cell) would reach neither the run nor the kernel's name, so
+    runs with different values would give the same numbers under the same name.
+    """
+    for root in (kernel.function, kernel.command_map, kernel.stepper):
+        if not _users_compiled(root):
+            continue
+        for frozen in _walk(root)[2]:
+            if frozen.changed():
+                name = _qualified_name(root)
+                where = "" if frozen.owner == name else f" (in {frozen.owner})"
+                now = _shown(frozen.namespace.get(frozen.name))
+                raise ValueError(
+                    f"your kernel {name} reads the module global {frozen.name}{where}, which "
+                    f"was {frozen.shown} when the kernel was first used in this process and "
+                    f"is {now} now: numba compiled {frozen.shown} into the kernel, so the run "
+                    "would not see the change; pass the value in the kernel's parameter vector "
+                    "(through your factory's parameters), not in a module global"
+                )
+
+
+def _shown(value: object) -> str:
+    """A short text of ``value`` for a message."""
+    text = repr(value)
+    return text if len(text) <= 40 else f"{text[:37]}..."
 
 
 #: Every Kernel numba has typed in this process (:attr:`Kernel.numba_type`), by key: the
@@ -618,7 +684,8 @@ def solve_input_map(input_map, tau, command):
     """
     for i in range(command.shape[0]):
         command[i] = tau[i]
-    if not solve_in_place(input_map, command):
+    solved, _ = solve_in_place(input_map, command)  # Ĝ need not be positive definite
+    if not solved:
         command[:] = math.nan
 
 

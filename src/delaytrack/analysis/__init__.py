@@ -7,9 +7,15 @@ from delaytrack.analysis.control_export import (
     error_loop_frequency_response,
     error_loop_sampled,
 )
-from delaytrack.analysis.exact_margin import ExactDelayMargin, exact_delay_margin
+from delaytrack.analysis.exact_margin import (
+    MAX_SCANNED_JOINTS,
+    ExactDelayMargin,
+    exact_delay_margin,
+)
 from delaytrack.analysis.gain_design import GainDesign, design_gains
 from delaytrack.analysis.razumikhin import (
+    MAX_COUPLED_JOINTS,
+    MAX_JOINTS,
     RazumikhinBound,
     error_dynamics_matrices,
     lyapunov_matrix,
@@ -18,6 +24,9 @@ from delaytrack.analysis.razumikhin import (
 from delaytrack.analysis.ultimate_bounds import UltimateBounds, psi_min, ultimate_bounds
 
 __all__ = [
+    "MAX_COUPLED_JOINTS",
+    "MAX_JOINTS",
+    "MAX_SCANNED_JOINTS",
     "ExactDelayMargin",
     "GainDesign",
     "RazumikhinBound",

@@ -25,10 +25,15 @@ import scipy.optimize
 
 from delaytrack.analysis.razumikhin import _gains
 
-__all__ = ["ExactDelayMargin", "exact_delay_margin"]
+__all__ = ["MAX_SCANNED_JOINTS", "ExactDelayMargin", "exact_delay_margin"]
 
 #: Number of frequencies sampled across the bracket that holds every crossing frequency.
 _SCAN_POINTS = 2048
+
+#: Most coupled joints the scan takes: its cost grows as n³ (0.7 s at n = 30, so about 3 s at
+#: n = 50 and minutes beyond 100, in eigenvalue routines that Ctrl-C does not stop).
+MAX_SCANNED_JOINTS = 50
+_SCAN_SECONDS_AT_30 = 0.7
 
 #: Relative widening of the bracket, so that a crossing on its edge (all gains equal, where the
 #: bracket is a single point) is a sign change inside it.
@@ -194,7 +199,9 @@ def exact_delay_margin(K1: object, K2: object, *, n: int | None = None) -> Exact
     frequency and delay to a relative 1e-9 are merged (repeated gains give repeated
     crossings); distinct delays at one frequency (two axes with one crossover) are all kept.
 
-    Cost: 2 ms for n = 1, 80 ms for a dense n = 10, 0.7 s for a dense n = 30 (one core).
+    Cost: 2 ms for n = 1, 80 ms for a dense n = 10, 0.7 s for a dense n = 30 (one core); dense
+    gains of more than :data:`MAX_SCANNED_JOINTS` joints are refused, saying what the scan
+    would take.
     Diagonal gains decouple and are not scanned: each axis crosses once, at ω_c = ω_c(k1, k2),
     with h = atan(ω_c k2 / k1) / ω_c (closed form, O(n)); K1 = K2 = I gives h = 0.7111 s.
 
@@ -255,9 +262,10 @@ def exact_delay_margin(K1: object, K2: object, *, n: int | None = None) -> Exact
             "ensures; rescale time"
         )
     crossings: list[tuple[float, float]] = []
-    for h, omega in _axis_crossings(K1_matrix, K2_matrix) or _scanned_crossings(
-        K1_matrix, K2_matrix, low, high
-    ):
+    axes = _axis_crossings(K1_matrix, K2_matrix)
+    if not axes:
+        _check_scan_size(K1_matrix.shape[0])
+    for h, omega in axes or _scanned_crossings(K1_matrix, K2_matrix, low, high):
         if not any(_same(omega, w) and _same(h, d) for d, w in crossings):
             crossings.append((h, omega))
     crossings.sort()
@@ -273,6 +281,21 @@ def exact_delay_margin(K1: object, K2: object, *, n: int | None = None) -> Exact
         omega=crossings[0][1],
         crossing_omegas=tuple(w for _, w in crossings),
         crossing_delays=tuple(d for d, _ in crossings),
+    )
+
+
+def _check_scan_size(n: int) -> None:
+    """Refuse a scan of more than :data:`MAX_SCANNED_JOINTS` coupled joints, saying what it
+    would take, before any eigenvalue is computed."""
+    if n <= MAX_SCANNED_JOINTS:
+        return
+    seconds = _SCAN_SECONDS_AT_30 * (n / 30) ** 3
+    raise ValueError(
+        f"K1 is {n}x{n} and K1, K2 couple the joints: the exact margin scans the eigenvalues "
+        f"of K1 + j omega K2 at {_SCAN_POINTS} frequencies (about {seconds:.0f} s of compiled "
+        f"code on one core that Ctrl-C cannot stop); it scans at most n = "
+        f"{MAX_SCANNED_JOINTS} coupled joints (diagonal gains are solved in closed form for "
+        "any n)"
     )
 
 

@@ -18,6 +18,7 @@ h_m = 0.12487 s, the paper's "125 ms", for every n.
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from dataclasses import dataclass
@@ -35,6 +36,8 @@ from delaytrack._validation import (
 )
 
 __all__ = [
+    "MAX_COUPLED_JOINTS",
+    "MAX_JOINTS",
     "RazumikhinBound",
     "error_dynamics_matrices",
     "lyapunov_matrix",
@@ -77,15 +80,56 @@ _LARGEST_ENTRY = float(np.finfo(float).max) / 2
 #: Smallest positive normal double; a smaller h_m or eigenvalue of P has lost precision.
 _TINY = float(np.finfo(float).tiny)
 
+#: Most joints the analyses take: their matrices are dense 2n x 2n (32 MB each at n = 1000),
+#: and checking a 2n x 2n Q takes about a second there.
+MAX_JOINTS = 1000
+
+#: Most joints whose Lyapunov equation is solved as one dense 2n x 2n problem (gains or a Q that
+#: couple the joints, and AROLC's P): about a second at n = 400 on one core. Its time grows as
+#: n³ in compiled code that Ctrl-C does not stop: n = 2000 took minutes and 2.3 GB.
+MAX_COUPLED_JOINTS = 400
+
+#: Cost of one dense Lyapunov solve with its checks, for messages: seconds per (2n)³ on one
+#: core and double-precision matrices held at once (measured: 2n = 800 in 1.1 s; 2n = 4000
+#: held 2.3 GB, 18 matrices).
+_LYAPUNOV_SECONDS_PER_CUBE = 2e-9
+_LYAPUNOV_MATRICES = 18
+
 
 def _dimension(K1: object, n: int | None) -> int:
-    """Return n: the keyword when given, else the size of K1 (a scalar K1 means n = 1)."""
+    """Return n: the keyword when given, else the size of K1 (a scalar K1 means n = 1); at most
+    :data:`MAX_JOINTS`, checked before any matrix is built."""
     if n is None:
         shape = np.shape(K1)
-        return 1 if len(shape) == 0 else int(shape[0])
-    if not is_integer_at_least(n, 1):
+        size, name = (1 if len(shape) == 0 else int(shape[0])), "K1"
+    elif not is_integer_at_least(n, 1):
         raise ValueError(f"n must be a positive integer (the number of joints); got {n!r}")
-    return int(n)
+    else:
+        size, name = int(n), "n"
+    if size > MAX_JOINTS:
+        raise ValueError(
+            f"{name} gives n = {size} joints; the analyses work on dense 2n x 2n matrices "
+            f"({2 * size}x{2 * size}, {8 * (2 * size) ** 2 / 2**20:.0f} MB each), for at most "
+            f"n = {MAX_JOINTS} joints"
+        )
+    return size
+
+
+def _check_coupled(n: int, what: str) -> None:
+    """Refuse a Lyapunov equation of more than :data:`MAX_COUPLED_JOINTS` coupled joints, with
+    what it would ask, before anything of its size is computed; ``what`` says why it is one
+    problem."""
+    if n <= MAX_COUPLED_JOINTS:
+        return
+    size = 2 * n
+    seconds = _LYAPUNOV_SECONDS_PER_CUBE * size**3
+    memory = _LYAPUNOV_MATRICES * 8 * size**2 / 2**30
+    raise ValueError(
+        f"K1 is {n}x{n}: {what}, the Lyapunov equation A^T P + P A = -Q is one dense "
+        f"{size}x{size} problem (about {memory:.2g} GB and {seconds:.0f} s of compiled code "
+        f"on one core that Ctrl-C cannot stop); it is solved for at most n = "
+        f"{MAX_COUPLED_JOINTS} coupled joints"
+    )
 
 
 def _matrix_of_size(name: str, value: object, size: int, expected: str, spd: bool) -> np.ndarray:
@@ -237,10 +281,32 @@ def lyapunov_matrix(K1: object, K2: object, Q: object, *, n: int | None = None) 
         gives the eigenvalues of A with the largest real part; gains with K1 symmetric positive
         definite and K2 + K2ᵀ positive definite always give a Hurwitz A), or P cannot be
         computed accurately in double precision (the checks of :func:`razumikhin_bound`; the
-        message starts with the argument to change and says which range works).
+        message starts with the argument to change and says which range works), or n exceeds
+        :data:`MAX_COUPLED_JOINTS` (P is one dense 2n x 2n problem).
     """
     K1_matrix, K2_matrix = _gains(K1, K2, n, spd=False)
+    _check_coupled(K1_matrix.shape[0], "for AROLC's P (solved whole, whatever the gains)")
     Q_matrix = _weight_matrix(Q, K1_matrix.shape[0])
+    size = K1_matrix.shape[0]
+    matrices = b"".join(matrix.tobytes() for matrix in (K1_matrix, K2_matrix, Q_matrix))
+    solve = _solved_lyapunov if size <= _REMEMBERED_JOINTS else _solved_lyapunov.__wrapped__
+    return solve(size, matrices).copy()
+
+
+#: Solutions of :func:`lyapunov_matrix` kept for gains met again (a sweep's runs), for up to
+#: this many joints: at most 256 solutions of under 80 kB each with their inputs.
+_REMEMBERED_JOINTS = 32
+
+
+@functools.lru_cache(maxsize=256)
+def _solved_lyapunov(size: int, matrices: bytes) -> np.ndarray:
+    """:func:`lyapunov_matrix` of validated K1, K2 (size x size) and Q, given as their bytes,
+    read-only: the gains a sweep repeats over its runs are solved once."""
+    values = np.frombuffer(matrices, dtype=float)
+    square = size * size
+    K1_matrix = values[:square].reshape(size, size)
+    K2_matrix = values[square : 2 * square].reshape(size, size)
+    Q_matrix = values[2 * square :].reshape(2 * size, 2 * size)
     A = _block_matrices(K1_matrix, K2_matrix)[0]
     _require_hurwitz(A, K1_matrix, K2_matrix)
     largest_Q = float(np.linalg.eigvalsh(Q_matrix)[-1])
@@ -249,7 +315,7 @@ def lyapunov_matrix(K1: object, K2: object, Q: object, *, n: int | None = None) 
     # keeps its digits. (razumikhin_bound solves joint by joint where it can.)
     whole = [np.ix_(np.arange(A.shape[0]), np.arange(A.shape[0]))]
     P_unit = _solve_lyapunov(A, Q_matrix, scale, whole, K1_matrix, K2_matrix)
-    return _rescaled(scale, largest_Q, whole, P_unit)[0]
+    return _read_only(_rescaled(scale, largest_Q, whole, P_unit)[0])
 
 
 def _scale_of(largest_Q: float) -> float:
@@ -260,6 +326,21 @@ def _scale_of(largest_Q: float) -> float:
     gives the same h_m, and P, E bit for bit the same digits.
     """
     return math.ldexp(1.0, math.frexp(largest_Q)[1] - 1)
+
+
+def _diagonal(K1: np.ndarray, K2: np.ndarray) -> bool:
+    """Whether both gains are diagonal (the joints are then independent, for a Q that does not
+    couple them)."""
+    return not (
+        np.count_nonzero(K1 - np.diag(np.diag(K1))) or np.count_nonzero(K2 - np.diag(np.diag(K2)))
+    )
+
+
+#: Why :func:`razumikhin_bound` solves one coupled Lyapunov equation, for :func:`_check_coupled`.
+_COUPLED = (
+    "as K1, K2 or Q couple the joints (diagonal gains with a Q that pairs each joint's e1 and "
+    "e1_dot only are solved joint by joint, for any n)"
+)
 
 
 def _independent_blocks(K1: np.ndarray, K2: np.ndarray, Q: np.ndarray) -> list[tuple]:
@@ -273,10 +354,7 @@ def _independent_blocks(K1: np.ndarray, K2: np.ndarray, Q: np.ndarray) -> list[t
     """
     n = K1.shape[0]
     joint = np.arange(2 * n) % n
-    diagonal = not (
-        np.count_nonzero(K1 - np.diag(np.diag(K1))) or np.count_nonzero(K2 - np.diag(np.diag(K2)))
-    )
-    if diagonal and not np.any(Q[joint[:, None] != joint[None, :]]):
+    if _diagonal(K1, K2) and not np.any(Q[joint[:, None] != joint[None, :]]):
         return [np.ix_([i, n + i], [i, n + i]) for i in range(n)]
     return [np.ix_(np.arange(2 * n), np.arange(2 * n))]
 
@@ -532,7 +610,9 @@ def razumikhin_bound(
         If r <= 1, beta <= 0 or not finite, a gain or Q is not symmetric positive definite (the
         message gives its eigenvalues) or has the wrong shape (the message names the argument and
         the expected shape), or the result cannot be trusted in double precision (see above; the
-        message starts with K1, K2, Q, beta or r, gives the value and the range that works).
+        message starts with K1, K2, Q, beta or r, gives the value and the range that works), or
+        n exceeds :data:`MAX_JOINTS`, or :data:`MAX_COUPLED_JOINTS` for gains or a Q that couple
+        the joints (the message says what the dense problem would ask).
 
     Examples
     --------
@@ -549,6 +629,8 @@ def razumikhin_bound(
             f"r must be > 1 (Razumikhin condition V(e(xi)) < r V(e(t))); got {r_value:g}"
         )
     K1_matrix, K2_matrix = _gains(K1, K2, n, spd=True)
+    if not _diagonal(K1_matrix, K2_matrix):  # refused before Q, a 2n x 2n matrix, is checked
+        _check_coupled(K1_matrix.shape[0], _COUPLED)
     Q_matrix = _weight_matrix(Q, K1_matrix.shape[0])
 
     A, A1, B1, _ = _block_matrices(K1_matrix, K2_matrix)
@@ -556,6 +638,8 @@ def razumikhin_bound(
     lambda_min_Q, largest_Q = (float(v) for v in np.linalg.eigvalsh(Q_matrix)[[0, -1]])
     scale = _scale_of(largest_Q)
     blocks = _independent_blocks(K1_matrix, K2_matrix, Q_matrix)
+    if len(blocks) == 1:
+        _check_coupled(K1_matrix.shape[0], _COUPLED)
     P_unit = _solve_lyapunov(A, Q_matrix, scale, blocks, K1_matrix, K2_matrix)
     lambda_Q = (lambda_min_Q / scale, largest_Q / scale)
     E_unit = np.zeros_like(A)

@@ -45,9 +45,10 @@ def step_workspace(n, m):
 
     ``(M̂ (n, n), N̂ (n,), Ĝ (n, m), rest (4 n,))``: the nominal model's terms, then the law's
     vectors (:func:`terms_views`). Separate arrays rather than views of one: reshaping a view
-    compiles numba's shape-error path into every step (about 2 s of a first compile).
+    compiles numba's shape-error path into every step (about 2 s of a first compile). Zeroed
+    (once a run): an entry a kernel leaves unwritten holds the same number in every run.
     """
-    return np.empty((n, n)), np.empty(n), np.empty((n, m)), np.empty(4 * n)
+    return np.zeros((n, n)), np.zeros(n), np.zeros((n, m)), np.zeros(4 * n)
 
 
 @hot_inline_kernel

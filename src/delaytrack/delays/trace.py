@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-import csv
+import itertools
 import math
 import re
+from array import array
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
@@ -12,6 +13,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 import delaytrack.delays._kernel as _kernel
+from delaytrack._io import column_label, csv_number, csv_rows, shown_header
 from delaytrack._validation import beyond_choice
 from delaytrack.delays.knots import KnotDelay
 
@@ -44,12 +46,9 @@ _HEADER_UNIT = re.compile(
 )
 
 
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
+#: The start of a cell that is meant as a number (read by the number rule, refused when it is not
+#: one), unlike a header name: a digit of any script, a sign, a point, inf or nan.
+_NUMBER_START = re.compile(r"\s*(?:[+-]|\.?\d|inf|nan)", re.IGNORECASE)
 
 
 def _header_unit(name: str) -> str | None:
@@ -112,9 +111,11 @@ class TraceDelay(KnotDelay):
     ) -> TraceDelay:
         """Read a trace from a CSV file.
 
-        Without column names the file has two columns ``t, h`` (a non-numeric header row is
-        skipped). A log with more columns (``stamp, delay, seq``) is read by naming the two
-        columns of its header row.
+        Without column names the file has two columns ``t, h`` (a header row, one whose first
+        cell does not start like a number, is skipped). A log with more columns (``stamp, delay,
+        seq``) is read by naming the two columns of its header row. Numbers are read as on the
+        command line: ``0_05``, ``0x10``, ``nan`` or a decimal comma are refused, naming the
+        line and column.
 
         Units are seconds unless ``time_unit`` / ``delay_unit`` say otherwise (``"s"``,
         ``"ms"``, ``"us"``). A header that names another unit than the one applied
@@ -133,10 +134,6 @@ class TraceDelay(KnotDelay):
             See the class.
         """
         path = Path(path)
-        if not path.exists():
-            raise FileNotFoundError(f"delay trace file {str(path)!r} does not exist")
-        if not path.is_file():
-            raise ValueError(f"delay trace file {str(path)!r} is not a file")
         if (time_column is None) != (delay_column is None):
             raise ValueError(
                 "time_column and delay_column name the two columns of a CSV header; give both "
@@ -146,16 +143,11 @@ class TraceDelay(KnotDelay):
             _unit("time_unit", "s" if time_unit is None else time_unit),
             _unit("delay_unit", "s" if delay_unit is None else delay_unit),
         ]
-        try:
-            with path.open(newline="", encoding="utf-8-sig") as handle:
-                rows = [
-                    row for row in csv.reader(handle) if row and any(cell.strip() for cell in row)
-                ]
-        except (UnicodeDecodeError, csv.Error) as error:
-            raise ValueError(f"{path}: not a readable CSV text file: {error}") from None
-        header = rows[0] if rows and not _is_number(rows[0][0]) else None
-        if header is not None:
-            rows = rows[1:]
+        rows = csv_rows(path)
+        first = next(rows, None)
+        if first is None:
+            raise ValueError(f"{path}: the file holds no rows; a trace needs two columns t, h")
+        header = None if _NUMBER_START.match(first[1][0]) else first[1]
         columns = _columns(path, header, time_column, delay_column)
         given = (time_unit, delay_unit)
         for k, (argument, name) in enumerate(
@@ -164,17 +156,19 @@ class TraceDelay(KnotDelay):
             named = None if name is None else _header_unit(name)
             applied = "s" if given[k] is None else given[k]
             if named is not None and named != applied:
+                label = column_label(columns[0][k] + 1, name)
                 raise ValueError(
-                    f"{path}: column {name!r} looks like {named}, but it would be read in "
-                    f"{applied}; give {argument} = {named!r} (or {argument} = {applied!r} if "
-                    "the header is wrong)"
+                    f"{path}: {label} looks like {named}, but it would be read in {applied}; "
+                    f"give {argument} = {named!r} (or {argument} = {applied!r} if the header is "
+                    "wrong)"
                     if given[k] is None
-                    else f"{path}: column {name!r} names {named}, but {argument} = "
-                    f"{applied!r}; make them agree"
+                    else f"{path}: {label} names {named}, but {argument} = {applied!r}; make "
+                    "them agree"
                 )
-        times, values = [], []
+        times, values = array("d"), array("d")
         width = len(header) if header is not None else 2
-        for number, row in enumerate(rows, start=1):
+        data = rows if header is not None else itertools.chain([first], rows)
+        for line, row in data:
             if len(row) != width:
                 what = "2 columns (t, h)" if header is None else f"{width} columns as its header"
                 hint = (
@@ -182,13 +176,11 @@ class TraceDelay(KnotDelay):
                     if header is None and len(row) > 2
                     else ""
                 )
-                raise ValueError(f"{path}: data row {number} must have {what}; got {row}{hint}")
-            try:
-                t, h = float(row[columns[0][0]]), float(row[columns[0][1]])
-            except ValueError:
-                raise ValueError(f"{path}: data row {number} is not numeric: {row}") from None
-            times.append(t * scales[0])
-            values.append(h * scales[1])
+                raise ValueError(f"{path}: line {line} must have {what}; it has {len(row)}{hint}")
+            for column, target, scale, name in zip(
+                columns[0], (times, values), scales, columns[1], strict=True
+            ):
+                target.append(scale * csv_number(path, line, column + 1, row[column], name))
         options = {
             key: value
             for key, value in {
@@ -233,8 +225,14 @@ def _columns(
     if time_column is None:
         if header is not None and len(header) != 2:
             raise ValueError(
-                f"{path}: the header {header} has {len(header)} columns; name the time and "
-                "delay columns (time_column, delay_column) to read it"
+                f"{path}: the header row{shown_header(header)} must have 2 columns (t, h); it "
+                f"has {len(header)}"
+                + (
+                    "; name the time and delay columns (time_column, delay_column) to read a "
+                    "wider log"
+                    if len(header) > 2
+                    else ""
+                )
             )
         names = (None, None) if header is None else (header[0].strip(), header[1].strip())
         return (0, 1), names
@@ -252,6 +250,8 @@ def _columns(
     indices = []
     for argument, name in (("time_column", time_column), ("delay_column", delay_column)):
         if name not in stripped:
-            raise ValueError(f"{path}: {argument} = {name!r} is not in the header {stripped}")
+            raise ValueError(
+                f"{path}: {argument} = {name!r} is not in the header{shown_header(header)}"
+            )
         indices.append(stripped.index(name))
     return (indices[0], indices[1]), (time_column, delay_column)

@@ -32,7 +32,12 @@ import pandas as pd
 
 from delaytrack import __version__
 from delaytrack._io import write_frame
-from delaytrack._output import check_output_folder, record_outputs
+from delaytrack._output import (
+    check_output_folder,
+    check_results_root,
+    claim_output_folder,
+    record_outputs,
+)
 from delaytrack.analysis import exact_delay_margin, razumikhin_bound
 from delaytrack.experiments.empirical_margin import EmpiricalMargin, empirical_margin
 from delaytrack.experiments.scenario import Scenario, load_builtin
@@ -141,7 +146,7 @@ _GAIN_COLUMNS = {"k1": "k1_per_s2", "k2": "k2_per_s"}
 
 def write_study(study: MarginStudy, folder: str | Path) -> list[Path]:
     """Write the job's files into ``folder``; return their paths."""
-    folder = Path(folder)
+    folder = claim_output_folder(folder)
     table = study.table
     delays = {column: f"{column}_s" for column in _LABELS}
     files = [write_frame(table.rename(columns={**_GAIN_COLUMNS, **delays}), folder / "margins.csv")]
@@ -235,6 +240,6 @@ def reproduce(
     out: str | Path = "results", *, duration: float | None = None, progress: bool = True
 ) -> tuple[MarginStudy, list[Path]]:
     """Run the job and write ``<out>/margins/``; return the study and the files written."""
-    folder = check_output_folder(Path(out) / FOLDER)
+    folder = check_output_folder(check_results_root(out, "out") / FOLDER)
     study = run_study(duration=duration, progress=progress)
     return study, write_study(study, folder)

@@ -52,7 +52,12 @@ from tqdm.auto import tqdm
 
 from delaytrack import __version__
 from delaytrack._io import write_frame, write_text
-from delaytrack._output import check_output_folder, record_outputs
+from delaytrack._output import (
+    check_output_folder,
+    check_results_root,
+    claim_output_folder,
+    record_outputs,
+)
 from delaytrack.analysis import RazumikhinBound, razumikhin_bound
 from delaytrack.controllers import AROLC, OuterLoop
 from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
@@ -1200,7 +1205,7 @@ def write_study(
 ) -> list[Path]:
     """Write ``summary.csv``, ``tables.md``, ``dt_check.csv``, figures and ``report.html`` (with
     the robustness study's verdicts when it is given)."""
-    folder = Path(folder)
+    folder = claim_output_folder(folder)
     files = [write_frame(study.summary, folder / "summary.csv")]
     files.append(write_frame(study.tuned_summary, folder / "summary_tuned_arolc.csv"))
     if study.contact is not None:
@@ -1365,13 +1370,17 @@ def reproduce(
     ``robustness``; None skips it) and ``<out>/paper/`` (whose report cites the literal run and
     the study's verdicts, and has the runs with contact physics when ``contact``; by default
     when MuJoCo is installed), with the tuned gains of ``gains`` (a gains file; the shipped one
-    by default). Returns ``{"consistent", "literal", "robustness"}``."""
-    out = Path(out)
+    by default). Returns ``{"consistent", "literal", "robustness"}``. ``out`` must be new, empty
+    or hold only results of this toolkit, and each job's folder new, empty or its own earlier
+    results (checked before anything runs)."""
+    root = check_results_root(out, "out")
     gains = tuning.load_tuning_record(gains)
-    for name in ("paper-literal", "paper", *(("robustness",) if robustness else ())):
-        check_output_folder(out / name, marks=("sweeps",) if name == "robustness" else ())
+    folders = {
+        name: check_output_folder(root / name)
+        for name in ("paper-literal", "paper", *(("robustness",) if robustness else ()))
+    }
     literal = run_paper(
-        out / "paper-literal",
+        folders["paper-literal"],
         reference="literal",
         duration=duration,
         progress=progress,
@@ -1380,7 +1389,7 @@ def reproduce(
     )
     study = (
         run_robustness(
-            out / "robustness",
+            folders["robustness"],
             size=robustness,
             executor=executor,
             progress=progress,
@@ -1390,7 +1399,7 @@ def reproduce(
         else None
     )
     consistent = run_paper(
-        out / "paper",
+        folders["paper"],
         reference="consistent",
         duration=duration,
         progress=progress,

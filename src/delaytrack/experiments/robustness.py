@@ -49,7 +49,7 @@ from matplotlib.figure import Figure
 from scipy import stats
 
 from delaytrack._io import write_frame
-from delaytrack._output import record_outputs
+from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack.delays import delay_from_spec
 from delaytrack.experiments import tuning
 from delaytrack.experiments.pairing import AROLC_GAINS, BASELINE, DELAY_CLASS
@@ -582,7 +582,7 @@ def run_robustness(
     record = tuning.load_tuning_record(gains)
     size = SIZES[size] if isinstance(size, str) else size
     make = executor if executor is not None else LocalExecutor
-    out = Path(out)
+    out = claim_output_folder(out)
     start = time.perf_counter()
     frames, computed, resumed = {}, 0, 0
     for sweep in study_specs(size, record):

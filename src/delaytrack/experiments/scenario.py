@@ -40,6 +40,18 @@ valid. The valid keys of each table depend on its ``type``; they are listed in t
 arguments (a controller's also with ``model=``) and returns the plant, controller, reference or
 delay profile.
 
+**A factory is code.** It runs with your rights when the file is loaded, and a file you were
+sent could name any function (``python:os:remove``). So :meth:`Scenario.from_toml` (and every
+command that reads a scenario or sweep file) allows a factory only from a ``.py`` file in the
+scenario file's folder or below it, after resolving ``..`` and symbolic links, or from what you
+trust: ``--trust NAME`` on the command line, ``trust=[NAME, ...]`` in Python, where NAME is a
+module name (``mylab.robots``: it and its submodules) or a path with a ``/`` or ending in ``.py``
+(``./robots``, ``~/lab/arm.py``: that file, or every file below that folder). No module is
+trusted by default, not even this package's. Anything else is refused, naming the key, before
+anything is imported. A dict given to :meth:`Scenario.from_dict` is your own code and is not
+checked. The scenario as run that ``delaytrack simulate`` saves names factory files by absolute
+path: loading it again from another folder needs ``--trust`` for them (the error says which).
+
 **Seed.** ``seed`` is the scenario's random seed. Every random element without a seed of its own
 takes it: today that is a ``[delay]`` of type ``"random"`` without ``seed``. Such a delay also
 takes the scenario's ``duration`` when it has none. A random delay with neither its own seed nor a
@@ -56,24 +68,29 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import json
 import math
 import re
 import tomllib
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections import OrderedDict
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
-from delaytrack._io import write_frame, write_text
-from delaytrack._output import check_output_folder, record_outputs
+from delaytrack._io import regular_file, write_frame, write_text
+from delaytrack._output import check_output_folder, claim_output_folder, record_outputs
 from delaytrack._spec import (
     PYTHON_TYPE,
     check_table,
+    factory_parts,
     fail,
     integer,
     number,
@@ -81,6 +98,7 @@ from delaytrack._spec import (
     vector,
 )
 from delaytrack._spec import SpecError as ScenarioError
+from delaytrack._trust import Trust, check_factory
 from delaytrack._validation import integer_multiple
 from delaytrack.controllers import CONTROLLER_SPECS, Controller, controller_from_spec
 from delaytrack.delays import DELAY_SPECS, DelayProfile, delay_from_spec
@@ -175,6 +193,11 @@ def _packet_loss_phrase(value: object) -> str | None:
     return "must be a table with keys among ['probability', 'seed']"
 
 
+#: Exact types whose values :func:`_plain` returns as they are (a NumPy scalar, a subclass of
+#: float or int, is converted).
+_IMMUTABLE = frozenset({str, int, float, bool, type(None)})
+
+
 def _check_value(key: str, value: object, check: Callable[[object], str | None]) -> None:
     phrase = check(value)
     if phrase is not None:
@@ -183,6 +206,8 @@ def _check_value(key: str, value: object, check: Callable[[object], str | None])
 
 def _plain(value: Any) -> Any:
     """Deep copy of TOML-like data as plain dicts and lists (tuples become lists)."""
+    if type(value) in _IMMUTABLE:  # the common case first: a copy would be the value itself
+        return value
     if isinstance(value, Mapping):
         return {str(key): _plain(item) for key, item in value.items()}
     if isinstance(value, list | tuple):
@@ -373,13 +398,15 @@ class Scenario:
                 _check_value(key, table, phrase)
                 object.__setattr__(self, key, MappingProxyType(table))
         tables = {table: _plain(getattr(self, table)) for table in _TABLES}
-        check_table("plant", tables["plant"], PLANT_SPECS)
-        check_table("model", tables["model"], PLANT_SPECS)
-        check_table("controller", tables["controller"], CONTROLLER_SPECS)
-        check_table(
-            "delay", _with_delay_defaults(tables["delay"], self.seed, self.duration), DELAY_SPECS
-        )
-        check_table("reference", _with_reference_type(tables["reference"]), REFERENCE_SPECS)
+        for table, content, types in (
+            ("plant", tables["plant"], PLANT_SPECS),
+            ("model", tables["model"], PLANT_SPECS),
+            ("controller", tables["controller"], CONTROLLER_SPECS),
+            ("delay", _with_delay_defaults(tables["delay"], self.seed, self.duration), DELAY_SPECS),
+            ("reference", _with_reference_type(tables["reference"]), REFERENCE_SPECS),
+        ):
+            check = functools.partial(check_table, table, content, types)
+            _remembered(check, "checked", table, content)
         for table, content in tables.items():
             object.__setattr__(self, table, MappingProxyType(content))
 
@@ -388,6 +415,10 @@ class Scenario:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any]) -> Scenario:
         """Build from a dict with the layout of a scenario file (see the module docstring).
+
+        The dict is your own code: its factories (``"python:..."`` types) are imported without
+        the check of :meth:`from_toml`, and a ``"python:<file.py>:..."`` file is taken relative
+        to the working folder.
 
         Raises
         ------
@@ -407,20 +438,40 @@ class Scenario:
                     f"table [{key}] ({_TABLE_PURPOSE[key]})" if key in _TABLES else f"key {key!r}"
                 )
                 raise ScenarioError(f"scenario is missing the required {what}")
-        return cls(**{key: _plain(value) for key, value in data.items()})
+        # Tables are copied once, by the constructor.
+        return cls(**{k: v if isinstance(v, Mapping) else _plain(v) for k, v in data.items()})
 
     @classmethod
-    def from_toml(cls, path: str | Path) -> Scenario:
-        """Read a scenario file. Relative trace paths are resolved against its folder.
+    def from_toml(cls, path: str | Path, *, trust: Sequence[str] = ()) -> Scenario:
+        """Read a scenario file. Relative paths (traces, factory files) are taken relative to
+        its folder.
+
+        A factory (``type = "python:..."``) is Python code: it is allowed only from a ``.py``
+        file in the scenario file's folder or below it (after resolving ``..`` and links), or
+        when ``trust`` names it (see the module docstring). Nothing is imported before.
+
+        Parameters
+        ----------
+        path : path
+        trust : sequence of str
+            What you trust beyond the file's folder: module names (``"mylab.robots"``: it and
+            its submodules) and paths with a ``/`` or ending in ``.py`` (``"./robots"``,
+            ``"~/lab/arm.py"``: that file, or every file below that folder). The command
+            line's ``--trust``.
 
         Raises
         ------
         ScenarioError
-            If the file is missing, is not TOML, or is not a valid scenario; the message starts
-            with the file name.
+            If the file is missing, is not TOML, names a factory it may not, or is not a valid
+            scenario; the message starts with the file name.
+        ValueError
+            If ``trust`` holds a name that is neither a module name nor an existing ``.py`` file
+            or folder.
         """
+        trusted = Trust.of(trust)
         source = Path(path)
         try:
+            regular_file(source, "scenario file", ScenarioError)
             text = source.read_text(encoding="utf-8-sig")  # a byte-order mark is not TOML
         except FileNotFoundError:
             raise ScenarioError(f"scenario file {str(source)!r} does not exist") from None
@@ -430,9 +481,9 @@ class Scenario:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as error:
             raise ScenarioError(f"{source}: not valid TOML: {error}") from None
-        for table in _TABLES:
-            resolve_file_keys(source, table, data.get(table))
         try:
+            for table in _TABLES:
+                resolve_file_keys(source, table, data.get(table), trusted)
             return cls.from_dict(data)
         except ScenarioError as error:
             raise ScenarioError(f"{source}: {error}") from None
@@ -486,16 +537,23 @@ class Scenario:
             If a table's values are refused by its constructor (for example a gain that is not
             positive definite) or the dimensions disagree; the message names the table.
         """
-        plant = plant_from_spec(_plain(self.plant))
-        model = plant_from_spec(_plain(self.model), table="model")
+        tables = {table: dict(getattr(self, table)) for table in _TABLES}
+        tables["delay"] = self._delay_spec()
+        plant = _built(lambda: plant_from_spec(_plain(self.plant)), "plant", tables)
+        model = _built(lambda: plant_from_spec(_plain(self.model), table="model"), "model", tables)
         if (model.n, model.m) != (plant.n, plant.m):
             raise ScenarioError(
                 f"scenario table [model] has n = {model.n}, m = {model.m}; [plant] has "
                 f"n = {plant.n}, m = {plant.m} (they must describe the same kind of system)"
             )
-        controller = controller_from_spec(_plain(self.controller), model)
-        delay = delay_from_spec(self._delay_spec())
-        reference = reference_from_spec(_plain(self.reference))
+        controller = _built(
+            lambda: controller_from_spec(_plain(self.controller), model),
+            "controller",
+            tables,
+            "model",
+        )
+        delay = _built(lambda: delay_from_spec(tables["delay"]), "delay", tables)
+        reference = _built(lambda: reference_from_spec(_plain(self.reference)), "reference", tables)
         if reference.n != plant.n:
             raise ScenarioError(
                 f"scenario table [reference] gives n = {reference.n} coordinates; the plant has "
@@ -532,7 +590,10 @@ class Scenario:
     def resolved_and_built(self) -> tuple[Scenario, BuiltScenario]:
         """:meth:`resolved` and :meth:`build` from one construction (sweeps check every run)."""
         built = self.build()
-        return self.replace(x0=tuple(built.x0.tolist()), delay=self._delay_spec()), built
+        x0, delay = tuple(built.x0.tolist()), self._delay_spec()
+        if x0 == self.x0 and delay == self.delay:  # resolved already: nothing to check again
+            return self, built
+        return self.replace(x0=x0, delay=delay), built
 
     @property
     def simulated_error_bound(self) -> float | tuple[float, ...]:
@@ -562,6 +623,74 @@ class Scenario:
         return _simulate(self, built.plant, built.controller, built.delay, built, progress)
 
 
+# --------------------------------------------------------------------------------------------
+# Tables met again (a sweep's runs share a few distinct tables): checked and built once.
+
+_T = TypeVar("_T")
+
+#: Most checked tables and built components a :func:`remembered_tables` block keeps, the least
+#: recently used dropped first: a sweep's runs share a few distinct values per key, and a table
+#: drawn anew for every run is not met again. A check is remembered as a name; a component may
+#: hold a model file's arrays, so fewer of them are kept.
+_REMEMBERED_TABLES = MappingProxyType({"checked": 4096, "built": 256})
+_REMEMBERED: ContextVar[dict[str, OrderedDict[str, Any]] | None] = ContextVar(
+    "_REMEMBERED", default=None
+)
+#: The text that identifies tables: JSON with sorted keys (a float's exact digits; 1, 1.0 and
+#: true apart).
+_identity_text = json.JSONEncoder(sort_keys=True, separators=(",", ":")).encode
+
+
+@contextmanager
+def remembered_tables() -> Iterator[None]:
+    """Within the block, a scenario table met again is neither checked nor built again.
+
+    Tables are the same when their name and content are (compared as JSON text with sorted
+    keys); a ``[delay]`` is compared with the defaults it takes from the scenario written in, a
+    ``[controller]`` with its ``[model]``. The rest of every scenario is checked every time. A
+    table whose type is a factory of yours is checked once but its factory is called for every
+    scenario (it may depend on more than its arguments). A file a table names is read when the
+    table is first built: the block is for one load (a sweep's expansion), not for a session.
+    """
+    token = _REMEMBERED.set({kind: OrderedDict() for kind in _REMEMBERED_TABLES})
+    try:
+        yield
+    finally:
+        _REMEMBERED.reset(token)
+
+
+def _remembered(make: Callable[[], _T], kind: str, *identity: object) -> _T:
+    """``make()``, or what it returned for the same ``identity`` (names and tables) earlier in
+    the :func:`remembered_tables` block, among the ``kind`` ("checked", "built") it keeps; a
+    refusal is never remembered."""
+    memories = _REMEMBERED.get()
+    if memories is None:
+        return make()
+    try:
+        key = _identity_text(identity)
+    except (TypeError, ValueError):  # not JSON data (a date): not compared
+        return make()
+    memory = memories[kind]
+    if key in memory:
+        memory.move_to_end(key)
+        return memory[key]
+    value = memory[key] = make()
+    if len(memory) > _REMEMBERED_TABLES[kind]:
+        memory.popitem(last=False)
+    return value
+
+
+def _built(make: Callable[[], _T], table: str, tables: Mapping[str, Any], *using: str) -> _T:
+    """The component of ``tables[table]`` (built with those named in ``using``), remembered
+    (:func:`remembered_tables`) unless one of them names a factory of yours."""
+    names = (table, *using)
+    for name in names:
+        kind = tables[name].get("type")
+        if isinstance(kind, str) and kind.startswith(PYTHON_TYPE):
+            return make()
+    return _remembered(make, "built", *((name, tables[name]) for name in names))
+
+
 def _construct(table: str, make: Callable[[], Any], keys: Iterable[str] = ()) -> Any:
     """Call a constructor; re-raise its refusal naming the table (and the key when it names one).
 
@@ -583,16 +712,20 @@ def _construct(table: str, make: Callable[[], Any], keys: Iterable[str] = ()) ->
         raise ScenarioError(f"scenario table [{table}]: {message}") from None
 
 
-def resolve_file_keys(source: Path, table: str, value: object) -> None:
+def resolve_file_keys(source: Path, table: str, value: object, trust: Trust) -> None:
     """Make the files a table names (``path``, and the file of a ``"python:<file.py>:..."``
-    type) absolute, relative to the file ``source`` that holds it; in place."""
+    type) absolute, relative to the file ``source`` that holds it, in place; refuse a factory
+    that is neither beside ``source`` (or below) nor trusted (:mod:`delaytrack._trust`), before
+    anything is imported."""
     if not isinstance(value, dict):
         return
     kind = value.get("type")
     if isinstance(kind, str) and kind.startswith(PYTHON_TYPE):
-        location, colon, name = kind[len(PYTHON_TYPE) :].rpartition(":")
-        if colon and location.endswith(".py"):
-            value["type"] = f"{PYTHON_TYPE}{_absolute(source, f'{table}.type', location)}:{name}"
+        location, name = factory_parts(f"{table}.type", kind)
+        if location.endswith(".py"):
+            location = _absolute(source, f"{table}.type", location)
+            value["type"] = f"{PYTHON_TYPE}{location}:{name}"
+        check_factory(f"{table}.type", kind, location, source, trust)
     if isinstance(value.get("path"), str):
         value["path"] = _absolute(source, f"{table}.path", value["path"])
 
@@ -600,9 +733,9 @@ def resolve_file_keys(source: Path, table: str, value: object) -> None:
 def _absolute(source: Path, key: str, text: str) -> str:
     try:
         path = Path(text).expanduser()
-    except RuntimeError as error:  # "~user" of no such user
-        raise ScenarioError(f"{source}: scenario key {key!r}: {error}") from None
-    return str(path if path.is_absolute() else (source.parent / path).resolve())
+        return str(path if path.is_absolute() else (source.parent / path).resolve())
+    except (OSError, RuntimeError) as error:  # "~user" of no such user, a link loop
+        raise ScenarioError(f"scenario key {key!r}: {error}") from None
 
 
 def _with_reference_type(reference: object) -> object:
@@ -802,6 +935,7 @@ def run_to_folder(
             "records the scenario as run, could not hold it: rename the folder or file"
         ) from None
     result = _simulate(resolved, built.plant, built.controller, built.delay, built, progress)
+    claim_output_folder(folder)  # first: a run interrupted while writing leaves a folder of ours
     files = [folder / "scenario.toml"]
     write_text(files[0], text)
     # The metrics first: they are the result a user waits for; trajectories and figures follow.

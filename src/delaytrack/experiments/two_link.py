@@ -34,7 +34,12 @@ from tqdm.auto import tqdm
 
 from delaytrack import __version__
 from delaytrack._io import write_frame
-from delaytrack._output import check_output_folder, record_outputs
+from delaytrack._output import (
+    check_output_folder,
+    check_results_root,
+    claim_output_folder,
+    record_outputs,
+)
 from delaytrack.analysis import RazumikhinBound, razumikhin_bound
 from delaytrack.experiments.convergence import dt_check_table, largest_change, write_dt_check
 from delaytrack.experiments.scenario import Scenario, load_builtin, run_batched
@@ -383,7 +388,7 @@ def _settings_rows(study: TwoLinkStudy) -> dict[str, str]:
 
 def write_study(study: TwoLinkStudy, folder: str | Path) -> list[Path]:
     """Write the study's files into ``folder`` (see the module docstring); return the paths."""
-    folder = Path(folder)
+    folder = claim_output_folder(folder)
     files = [write_frame(study.summary, folder / "summary.csv")]
     if study.dt_check is not None:
         files.append(write_frame(study.dt_check, folder / "dt_check.csv"))
@@ -462,7 +467,7 @@ def reproduce(
     progress: bool = True,
 ) -> tuple[TwoLinkStudy, list[Path]]:
     """Run the job and write ``<out>/two-link/``; return the study and the files written."""
-    folder = check_output_folder(Path(out) / FOLDER)
+    folder = check_output_folder(check_results_root(out, "out") / FOLDER)
     study = run_study(duration=duration, check_dt=check_dt, progress=progress)
     files = write_study(study, folder)
     return study, files

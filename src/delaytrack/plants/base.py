@@ -28,8 +28,9 @@ __all__ = ["ELPlant", "el_rhs", "rhs_scratch"]
 
 @inline_kernel
 def rhs_scratch(n, m):
-    """Working arrays ``(M (n, n), N (n,), G (n, m))`` of :func:`el_rhs`, allocated once a run."""
-    return np.empty((n, n)), np.empty(n), np.empty((n, m))
+    """Working arrays ``(M (n, n), N (n,), G (n, m))`` of :func:`el_rhs`, allocated once a run,
+    zeroed: an entry a kernel leaves unwritten holds the same number in every run."""
+    return np.zeros((n, n)), np.zeros(n), np.zeros((n, m))
 
 
 @hot_inline_kernel
@@ -40,7 +41,8 @@ def el_rhs(terms, t, q, qdot, u, params, qddot, scratch):
     derivative is ``[q̇, q̈]``. ``scratch`` is :func:`rhs_scratch` ``(n, m)``: nothing is
     allocated, so the compiled inner loop stays cheap. ``terms`` is the plant's
     :class:`~delaytrack.components.Kernel`; one that always has ``M = I``
-    (:attr:`ELPlant.identity_mass`) skips the solve.
+    (:attr:`ELPlant.identity_mass`) skips the solve. Returns False when the solve shows that
+    ``M`` is not positive definite (:func:`~delaytrack._small_linalg.solve_in_place`).
     """
     mass, nonlinear, input_map = scratch
     call_terms(terms, t, q, qdot, params, mass, nonlinear, input_map)
@@ -53,8 +55,12 @@ def el_rhs(terms, t, q, qdot, u, params, qddot, scratch):
     # A singular M is reported through q̈ (the simulator then stops the run with a status)
     # instead of raising and ending the whole batch; a non-finite force gives a non-finite q̈,
     # and the state that the simulator checks after each step becomes non-finite with it.
-    if not (has_identity_mass(terms) or solve_in_place(mass, qddot)):
+    if has_identity_mass(terms):
+        return True
+    solved, definite = solve_in_place(mass, qddot)
+    if not solved:
         qddot[:] = np.nan
+    return definite
 
 
 class ELPlant(ABC):
@@ -170,9 +176,9 @@ class ELPlant(ABC):
                 f"q and qdot must have the same batch size; got {q.shape[0]} and {qdot.shape[0]}"
             )
         batch = q.shape[0]
-        mass = np.empty((batch, self.n, self.n))
-        nonlinear = np.empty((batch, self.n))
-        input_map = np.empty((batch, self.n, self.m))
+        mass = np.zeros((batch, self.n, self.n))
+        nonlinear = np.zeros((batch, self.n))
+        input_map = np.zeros((batch, self.n, self.m))
         for b in range(batch):
             self.terms_kernel(
                 float(t), q[b], qdot[b], self.params, mass[b], nonlinear[b], input_map[b]

@@ -8,6 +8,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from delaytrack._result_columns import trajectory_columns
 from delaytrack._validation import as_spd_matrix, coordinate_labels, format_values
 from delaytrack.plants.base import ELPlant
 
@@ -33,6 +34,8 @@ class CallablePlant(ELPlant):
         Shown in results and reports.
     coordinate_names : sequence of str, optional
         Names of the coordinates in result tables and figures; ``q1 .. qn`` by default.
+        Different identifiers whose result columns differ: ``x`` and ``x_d`` are refused (the
+        reference of ``x`` and the position of ``x_d`` would share a column), as is ``run``.
     coordinate_units : sequence of str, optional
         Units of the coordinates (``"m"``, ``"rad"``) for figure axes and table columns.
     input_units : sequence of str, optional
@@ -83,6 +86,9 @@ class CallablePlant(ELPlant):
         if self.input_units is not None:
             units = coordinate_labels("input_units", self.input_units, self.m)
             object.__setattr__(self, "input_units", units)
+        trajectory_columns(
+            self.coordinate_names, self.coordinate_units, self.n, self.input_units, self.m
+        )
 
     def _evaluate(
         self, label: str, fn: Callable[..., Any], args: tuple, shape: tuple[int, ...]

@@ -8,6 +8,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from delaytrack._result_columns import trajectory_columns
 from delaytrack._validation import (
     as_spd_matrix,
     coordinate_labels,
@@ -15,7 +16,7 @@ from delaytrack._validation import (
     format_values,
     is_integer_at_least,
 )
-from delaytrack.components import is_compiled
+from delaytrack.components import Kernel, is_compiled
 from delaytrack.kernel_arguments import check_kernel_arguments
 from delaytrack.plants.base import ELPlant
 
@@ -40,6 +41,8 @@ class CompiledPlant(ELPlant):
         Shown in results and reports.
     coordinate_names : sequence of str, optional
         Names of the coordinates in result tables (``ae_<name>``); ``q1 .. qn`` by default.
+        Different identifiers whose result columns differ: ``x`` and ``x_d`` are refused (the
+        reference of ``x`` and the position of ``x_d`` would share a column), as is ``run``.
     coordinate_units : sequence of str, optional
         Units of the coordinates (``"m"``, ``"rad"``) for figure axes and table columns.
     input_units : sequence of str, optional
@@ -49,8 +52,11 @@ class CompiledPlant(ELPlant):
     Notes
     -----
     The kernel is checked once at ``q = q̇ = 0``, ``t = 0`` (its arguments, finite values, ``M``
-    symmetric positive definite, and, run as Python, no read past the end of ``parameters``:
-    compiled code would read on silently; a read only on another branch is not seen). The
+    symmetric positive definite, every entry of ``M, N, G`` written, zeros included, and, run
+    as Python, no read past the end of ``parameters``: compiled code would read on silently; a
+    read only on another branch is not seen), and ``simulate`` checks ``M`` and the reads
+    again at the run's ``x0``. A run whose ``M`` stops being positive definite ends with the
+    status ``mass matrix not positive definite`` at that time. The
     simulator's loop is compiled for your kernel on the first ``simulate`` call and kept on
     disk, keyed by a hash of the kernel's code (and of the functions and constants it uses):
     later processes load it, and an edit to the kernel compiles it again. Compile the kernel
@@ -88,9 +94,13 @@ class CompiledPlant(ELPlant):
         if self.input_units is not None:
             units = coordinate_labels("input_units", self.input_units, self.m)
             object.__setattr__(self, "input_units", units)
+        trajectory_columns(
+            self.coordinate_names, self.coordinate_units, self.n, self.input_units, self.m
+        )
         parameters = finite_array("parameters", self.parameters, ndim=1)
         object.__setattr__(self, "parameters", np.ascontiguousarray(parameters))
         self._check_reads()
+        self._check_every_entry_written()
         mass, nonlinear, input_map = self.terms(np.zeros(self.n), np.zeros(self.n))
         for label, value in (("M", mass), ("N", nonlinear), ("G", input_map)):
             if not np.all(np.isfinite(value)):
@@ -98,6 +108,33 @@ class CompiledPlant(ELPlant):
                     f"kernel gave a non-finite {label} at q = qdot = 0: {format_values(value)}"
                 )
         as_spd_matrix("the kernel's M(0)", mass[0], self.n)
+
+    def _check_every_entry_written(self) -> None:
+        """Call the kernel at ``q = q̇ = 0``, ``t = 0`` on ``M, N, G`` filled with NaN, then with
+        zeros, and refuse it, naming the entries, when they differ: an entry the kernel leaves
+        unwritten (or reads before writing it) would hold whatever the array held, which in the
+        simulator is the solve's factors of an earlier stage (the solve for ``q̈`` works in
+        ``M``), so results would depend on what ran before. Zeros are not assumed."""
+        n, m = self.n, self.m
+        zero = np.zeros(n)
+        outputs = []
+        for fill in (np.nan, 0.0):
+            arrays = (np.full((n, n), fill), np.full(n, fill), np.full((n, m), fill))
+            self.kernel(0.0, zero, zero.copy(), self.parameters.copy(), *arrays)
+            outputs.append(arrays)
+        unwritten = []
+        for label, with_nan, with_zeros in zip("MNG", *outputs, strict=True):
+            same = (with_nan == with_zeros) | (np.isnan(with_nan) & np.isnan(with_zeros))
+            unwritten += [f"{label}[{', '.join(map(str, index))}]" for index in np.argwhere(~same)]
+        if unwritten:
+            shown = ", ".join(unwritten[:6])
+            if len(unwritten) > 6:
+                shown += f" and {len(unwritten) - 6} more entries"
+            raise ValueError(
+                f"kernel {Kernel.of(self.kernel).callable_names[0]} does not write {shown} at "
+                "q = qdot = 0 (or reads them before writing them): write every entry of M, N "
+                "and G, zeros included (the simulator reuses these arrays from step to step)"
+            )
 
     def _check_reads(self) -> None:
         """Run the kernel's Python version once at ``q = q̇ = 0``, ``t = 0``: compiled code reads

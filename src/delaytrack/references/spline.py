@@ -12,8 +12,8 @@ measured or planned trajectory); the controller needs ``q̈_d``, which the splin
 
 from __future__ import annotations
 
-import csv
 import math
+from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from delaytrack._io import csv_number, csv_rows, shown_header
 from delaytrack._jit import tick_kernel
 from delaytrack._validation import beyond_choice, finite_array
 from delaytrack.references.base import Reference
@@ -138,39 +139,44 @@ class SplineReference(Reference):
         """Read samples from a CSV file with a header row.
 
         ``time_column`` (the first column by default) holds the times in seconds; ``columns``
-        (all the others by default) the coordinates, in order.
+        (all the others by default) the coordinates, in order. Every row has as many cells as
+        the header, and numbers are read as on the command line: ``0_5``, ``0x10``, ``nan`` or
+        a decimal comma are refused, naming the line and column.
         """
         source = Path(path).expanduser()
-        try:
-            with source.open(newline="", encoding="utf-8-sig") as handle:
-                rows = list(csv.reader(handle))
-        except (OSError, UnicodeDecodeError) as error:
-            raise ValueError(f"path {str(source)!r} cannot be read: {error}") from None
-        if len(rows) < 3:
-            raise ValueError(
-                f"path {str(source)!r} needs a header row and at least two samples; got "
-                f"{len(rows)} rows"
-            )
-        header = [name.strip() for name in rows[0]]
+        rows = csv_rows(source)
+        first = next(rows, None)
+        if first is None:
+            raise ValueError(f"path {str(source)!r} is empty; it needs a header row and samples")
+        header = [name.strip() for name in first[1]]
         time_name = header[0] if time_column is None else time_column
         wanted = [name for name in header if name != time_name] if columns is None else columns
         for option, names in (("time_column", [time_name]), ("columns", wanted)):
             for name in names:
                 if name not in header:
                     raise ValueError(
-                        f"{option} names {name!r}, which is not in the header of "
-                        f"{str(source)!r}: {header}"
+                        f"{option} names {name!r}, which is not in the header"
+                        f"{shown_header(header)} of {str(source)!r}"
                     )
         if not wanted:
             raise ValueError(f"path {str(source)!r} has no coordinate column besides the time")
         indices = [header.index(name) for name in (time_name, *wanted)]
-        try:
-            table = np.array([[float(row[i]) for i in indices] for row in rows[1:] if row])
-        except (ValueError, IndexError):
+        samples = array("d")
+        for line, row in rows:
+            if len(row) != len(header):
+                raise ValueError(
+                    f"{source}: line {line} must have {len(header)} columns as its header; it "
+                    f"has {len(row)}"
+                )
+            samples.extend(
+                csv_number(source, line, index + 1, row[index], header[index]) for index in indices
+            )
+        table = np.array(samples).reshape(-1, len(indices))
+        if len(table) < 2:
             raise ValueError(
-                f"path {str(source)!r}: every row needs a number in each of the columns "
-                f"{[time_name, *wanted]}"
-            ) from None
+                f"path {str(source)!r} needs a header row and at least two samples; got "
+                f"{len(table)}"
+            )
         return cls(table[:, 0], table[:, 1:], boundary=boundary, beyond=beyond)
 
     @property

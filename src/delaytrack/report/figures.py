@@ -6,6 +6,12 @@ global backend or opens a window, and it runs the same on a head-less machine an
 Every plotting function takes *runs*: a mapping ``label -> SimResult`` where each result holds one
 run (batch of one; select one with ``result[i]``), or a single result, which is then plotted for
 every batch element with labels ``run 0, run 1, ...``.
+
+A figure draws at most :data:`MAX_PANELS` coordinates (and inputs): with more, those with the
+largest tracking error (largest command), in their order, and its title says how many of how
+many it shows; every coordinate is in the result's table (:meth:`SimResult.to_frame`, the
+results folder's ``trajectories.parquet``). Drawing time and file size so stay bounded
+whatever the plant's size.
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ if TYPE_CHECKING:
     from delaytrack.sim.result import SimResult
 
 __all__ = [
+    "MAX_PANELS",
     "c_hat_figure",
     "commands_figure",
     "delay_figure",
@@ -40,6 +47,12 @@ __all__ = [
 _ROW_HEIGHT = 2.1
 _WIDTH = 8.0
 _DPI = 110
+
+#: Most coordinates (or inputs) a figure draws, one panel each (one line each in the inputs
+#: panel of :func:`overview_figure`). One panel per coordinate had drawn one of a simulation's
+#: ten figure files of a plant of 400 coordinates after nine minutes of CPU; with twelve, all
+#: ten take about five seconds.
+MAX_PANELS = 12
 
 
 def _runs(runs: Mapping[str, SimResult] | SimResult) -> dict[str, SimResult]:
@@ -73,6 +86,40 @@ def _units(count: int, declared: Sequence[str] | None, unit: str | None) -> list
     return list(declared) if declared else [None] * count
 
 
+def _largest(values: np.ndarray) -> np.ndarray:
+    """Indices of the columns to draw, ascending: every column up to :data:`MAX_PANELS`, else
+    the :data:`MAX_PANELS` whose largest magnitude (NaN left out: rows after a run stopped) is
+    largest, the first on a tie. ``values`` has the columns on its last axis."""
+    count = values.shape[-1]
+    if count <= MAX_PANELS:
+        return np.arange(count)
+    magnitudes = np.abs(values.reshape(-1, count))
+    finite = np.where(np.isnan(magnitudes), -np.inf, magnitudes)
+    peaks = finite.max(axis=0, initial=-np.inf)
+    return np.sort(np.argsort(-peaks, kind="stable")[:MAX_PANELS])
+
+
+def _title(title: str | None, shown: int, total: int, what: str, by: str) -> str | None:
+    """``title``, and when not every one of ``total`` panels is drawn, which are."""
+    if shown == total:
+        return title
+    note = (
+        f"{shown} of {total} {what} shown: those with the largest {by}; all {total} are in "
+        "the trajectories table"
+    )
+    return note if not title else f"{title}\n{note}"
+
+
+#: What the coordinates and inputs are and how the drawn ones are chosen, for :func:`_title`.
+_BY_ERROR = ("coordinates", "|e1|")
+_BY_COMMAND = ("inputs", "|command|")
+
+
+def _largest_errors(runs: dict[str, SimResult]) -> np.ndarray:
+    """The coordinates to draw: those whose ``|e1|`` is largest in any of the runs."""
+    return _largest(np.concatenate([result.e1[0] for result in runs.values()]))
+
+
 def _stacked(rows: int, title: str | None) -> tuple[Figure, list]:
     figure = Figure(figsize=(_WIDTH, _ROW_HEIGHT * rows + 0.9), dpi=_DPI, layout="constrained")
     axes = figure.subplots(rows, 1, sharex=True, squeeze=False)[:, 0]
@@ -98,7 +145,8 @@ def tracking_figure(
     unit: str | None = None,
     title: str | None = None,
 ) -> Figure:
-    """``q_j(t)`` of each run against the reference ``q_d,j(t)``, one panel per coordinate.
+    """``q_j(t)`` of each run against the reference ``q_d,j(t)``, one panel per coordinate (at
+    most :data:`MAX_PANELS`: those with the largest ``|e1|``, as in :func:`error_figure`).
 
     ``unit`` labels every axis; by default each coordinate's unit as the plant gives it
     (:attr:`SimResult.coordinate_units`), or none."""
@@ -108,8 +156,9 @@ def tracking_figure(
         first.n, first.coordinate_names if coordinate_names is None else coordinate_names, "q"
     )
     units = _units(first.n, first.coordinate_units, unit)
-    figure, axes = _stacked(first.n, title)
-    for j, ax in enumerate(axes):
+    shown = _largest_errors(runs)
+    figure, axes = _stacked(shown.size, _title(title, shown.size, first.n, *_BY_ERROR))
+    for j, ax in zip(shown, axes, strict=True):
         ax.plot(first.t, first.reference[:, 0, j], color="black", lw=1.2, ls="--", label="q_d")
         for label, result in runs.items():
             ax.plot(result.t, result.q[0, :, j], lw=1.0, label=label)
@@ -125,7 +174,8 @@ def error_figure(
     unit: str | None = None,
     title: str | None = None,
 ) -> Figure:
-    """Absolute tracking error ``|e1_j(t)| = |q_d,j - q_j|`` of each run, a panel per coordinate.
+    """Absolute tracking error ``|e1_j(t)| = |q_d,j - q_j|`` of each run, a panel per coordinate
+    (at most :data:`MAX_PANELS`: those whose ``|e1|`` reaches the largest value in any run).
 
     ``unit`` as in :func:`tracking_figure`."""
     runs = _runs(runs)
@@ -134,8 +184,9 @@ def error_figure(
         first.n, first.coordinate_names if coordinate_names is None else coordinate_names, "q"
     )
     units = _units(first.n, first.coordinate_units, unit)
-    figure, axes = _stacked(first.n, title)
-    for j, ax in enumerate(axes):
+    shown = _largest_errors(runs)
+    figure, axes = _stacked(shown.size, _title(title, shown.size, first.n, *_BY_ERROR))
+    for j, ax in zip(shown, axes, strict=True):
         for label, result in runs.items():
             ax.plot(result.t, np.abs(result.e1[0, :, j]), lw=1.0, label=label)
         ax.set_ylabel(labelled(f"|e1| of {names[j]}", units[j]))
@@ -151,7 +202,8 @@ def commands_figure(
     unit: str | None = None,
     title: str | None = None,
 ) -> Figure:
-    """Commanded ``τ_j(t)`` (solid) and applied, delayed ``τ_j(t - h(t))`` (dashed) inputs.
+    """Commanded ``τ_j(t)`` (solid) and applied, delayed ``τ_j(t - h(t))`` (dashed) inputs, a
+    panel per input (at most :data:`MAX_PANELS`: those with the largest commands).
 
     ``unit`` labels every axis; by default each input's unit as the plant gives it
     (:attr:`SimResult.input_units`), or none."""
@@ -160,8 +212,9 @@ def commands_figure(
     m = first.commands.shape[2]
     names = _names(m, input_names, "u")
     units = _units(m, first.input_units, unit)
-    figure, axes = _stacked(m, title)
-    for j, ax in enumerate(axes):
+    shown = _largest(np.concatenate([result.commands[0] for result in runs.values()]))
+    figure, axes = _stacked(shown.size, _title(title, shown.size, m, *_BY_COMMAND))
+    for j, ax in zip(shown, axes, strict=True):
         for k, (label, result) in enumerate(runs.items()):
             color = f"C{k}"
             ax.plot(
@@ -330,7 +383,9 @@ def write_run_figures(
 def overview_figure(result: SimResult, run: int = 0) -> Figure:
     """One run at a glance: each coordinate against its reference (left) and its tracking error
     ``e1 = q_d − q`` (right), the commanded and applied inputs, the delay ``h(t)`` and the
-    controller's state, with the plant's coordinate names and units where it gives them."""
+    controller's state, with the plant's coordinate names and units where it gives them. At
+    most :data:`MAX_PANELS` coordinates (those with the largest ``|e1|``) and inputs (the
+    largest commands) are drawn; the title then says how many of how many."""
     if not result.has_trajectories:
         raise ValueError(
             "this result has no recorded trajectories (simulate(..., trajectories=False)); "
@@ -345,13 +400,15 @@ def overview_figure(result: SimResult, run: int = 0) -> Figure:
     input_units = _units(m, result.input_units, None)
     states = list(result.controller_state_names)
     shown = ["c_hat"] if "c_hat" in states else states[:4]
-    rows = [[f"q{j}", f"e{j}"] for j in range(n)] + [["u", "u"], ["h", "h"]]
+    coordinates = _largest(result.e1[run])
+    drawn_inputs = _largest(result.commands[run])
+    rows = [[f"q{j}", f"e{j}"] for j in coordinates] + [["u", "u"], ["h", "h"]]
     if shown:
         rows.append(["state", "state"])
     figure = Figure(figsize=(10.0, 1.9 * len(rows) + 1.0), dpi=_DPI, layout="constrained")
     axes = figure.subplot_mosaic(rows, sharex=True)
     t = result.t
-    for j in range(n):
+    for j in coordinates:
         ax = axes[f"q{j}"]
         ax.plot(t, result.reference[:, 0, j], color="black", ls="--", lw=1.0)
         ax.plot(t, result.q[run, :, j], lw=1.0)
@@ -359,10 +416,10 @@ def overview_figure(result: SimResult, run: int = 0) -> Figure:
         ax = axes[f"e{j}"]
         ax.plot(t, result.e1[run, :, j], lw=1.0, color="C3")
         ax.set_ylabel(labelled(f"e1 of {names[j]}", units[j]))
-    axes["q0"].set_title("plant (solid) and reference (dashed)")
-    axes["e0"].set_title("tracking error e1 = q_d − q")
+    axes[f"q{coordinates[0]}"].set_title("plant (solid) and reference (dashed)")
+    axes[f"e{coordinates[0]}"].set_title("tracking error e1 = q_d − q")
     ax = axes["u"]
-    for j in range(m):
+    for j in drawn_inputs:
         ax.plot(t, result.commands[run, :, j], lw=1.0, color=f"C{j}", label=f"{inputs[j]} sent")
         ax.plot(
             t,
@@ -375,7 +432,7 @@ def overview_figure(result: SimResult, run: int = 0) -> Figure:
         )
     same = len(set(input_units)) == 1
     ax.set_ylabel(labelled("inputs", input_units[0] if same else None))
-    _legend(ax, min(2 * m, 6))
+    _legend(ax, min(2 * drawn_inputs.size, 6))
     ax = axes["h"]
     ax.plot(t, 1e3 * result.h[run], lw=1.0, color="black")
     ax.set_ylabel("h(t) (ms)")
@@ -393,5 +450,10 @@ def overview_figure(result: SimResult, run: int = 0) -> Figure:
     bottom.set_xlabel("t (s)")
     status = result.status_names[run]
     stop = f" at t = {result.t_stop[run]:g} s" if status != "ok" else ""
-    figure.suptitle(f"run {run % result.batch_size} of {result.batch_size}: {status}{stop}")
+    heading = f"run {run % result.batch_size} of {result.batch_size}: {status}{stop}"
+    notes = [
+        _title(None, coordinates.size, n, *_BY_ERROR),
+        _title(None, drawn_inputs.size, m, *_BY_COMMAND),
+    ]
+    figure.suptitle("\n".join([heading, *(note for note in notes if note)]))
     return figure

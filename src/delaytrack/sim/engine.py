@@ -24,6 +24,7 @@ from delaytrack.sim.integrator import (
     DELAY_BEYOND_HISTORY,
     DIVERGED,
     LEFT_PATH,
+    MASS_NOT_POSITIVE_DEFINITE,
     OK,
     beyond,
     integrate,
@@ -37,6 +38,7 @@ __all__ = [
     "DELAY_BEYOND_HISTORY",
     "DIVERGED",
     "LEFT_PATH",
+    "MASS_NOT_POSITIVE_DEFINITE",
     "OK",
     "STATUS_NAMES",
     "run_batch",
@@ -45,8 +47,14 @@ __all__ = [
 ]
 
 #: Human-readable names of the status codes of a run (``OK``, ``DIVERGED``,
-#: ``DELAY_BEYOND_HISTORY``, ``LEFT_PATH``).
-STATUS_NAMES = ("ok", "diverged", "delay beyond history", "left the path")
+#: ``DELAY_BEYOND_HISTORY``, ``LEFT_PATH``, ``MASS_NOT_POSITIVE_DEFINITE``).
+STATUS_NAMES = (
+    "ok",
+    "diverged",
+    "delay beyond history",
+    "left the path",
+    "mass matrix not positive definite",
+)
 
 
 @inline_kernel
@@ -105,14 +113,15 @@ def run_closed_loop(handles, run, settings, records):
     n = x0.shape[0] // 2
     m = u_init.shape[0]
     x = x0.copy()
+    # Zeroed, as all working memory: an entry a kernel leaves unwritten is the same in every run.
     memory = (
         x,
         np.zeros((capacity, m)),  # the command history
         rk4_workspace(x, m),
-        np.empty((3, n)),  # q_d, q̇_d, q̈_d
-        np.empty((2, m)),  # the command and the previous one
+        np.zeros((3, n)),  # q_d, q̇_d, q̈_d
+        np.zeros((2, m)),  # the command and the previous one
         step_workspace(n, m),
-        np.empty((2, n)),  # q and q̇ as the controller reads them
+        np.zeros((2, n)),  # q and q̇ as the controller reads them
     )
     return _run_ticks(handles, run, settings, records, memory)
 

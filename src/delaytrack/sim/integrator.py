@@ -58,6 +58,7 @@ __all__ = [
     "DELAY_BEYOND_HISTORY",
     "DIVERGED",
     "LEFT_PATH",
+    "MASS_NOT_POSITIVE_DEFINITE",
     "OK",
     "beyond",
     "integrate",
@@ -91,6 +92,9 @@ DIVERGED = 1
 DELAY_BEYOND_HISTORY = 2
 #: A tracking error exceeded the run's ``error_bound`` (:func:`delaytrack.sim.simulate`).
 LEFT_PATH = 3
+#: The solve for ``q̈`` met a mass matrix that is not positive definite (a plant's kernel
+#: fault, not a divergence of the loop: :func:`~delaytrack._small_linalg.solve_in_place`).
+MASS_NOT_POSITIVE_DEFINITE = 4
 
 
 @hot_inline_kernel
@@ -114,11 +118,12 @@ def rk4_workspace(x, m):
     ``h(t)``, the last ``g`` evaluated with its tick index, and until when that index certainly
     holds: ``[from, breakpoint, t, h, g, k, L, quiet_until]``, indexed by :data:`_FROM` ..
     :data:`_QUIET_UNTIL` (see :func:`_piece` and :func:`_quiet_until`). It starts with no piece,
-    nothing evaluated and nothing certain.
+    nothing evaluated and nothing certain. Zeroed, as the plant's ``M, N, G`` on the stack
+    (:func:`rk4_memory`): an entry a kernel leaves unwritten is the same in every run.
     """
     n = x.shape[0] // 2
-    slopes = np.empty((4, 2 * n))
-    stage = np.empty(2 * n)
+    slopes = np.zeros((4, 2 * n))
+    stage = np.zeros(2 * n)
     profile = np.array([np.inf, -np.inf, np.nan, np.nan, np.nan, -1.0, np.inf, -np.inf])
     return slopes, stage, stage[:n], stage[n:], rhs_scratch(n, m), profile
 
@@ -130,7 +135,10 @@ def rk4_memory(plant_terms, work):
     state and the plant's ``M, N, G`` are arrays on the stack of :func:`integrate_tick`
     (:mod:`delaytrack._stack_arrays`), and only ``profile``, which lasts from one tick to the
     next, is taken from ``work`` (:func:`rk4_workspace`); otherwise ``work`` itself. The stage
-    arrays hold nothing between calls, so the two give the same numbers.
+    arrays hold nothing between calls, so the two give the same numbers. ``M, N, G`` on the
+    stack are zeroed at each call (once a tick), so that an entry a kernel leaves unwritten is
+    the same in every run, not what the stack held (a kernel that writes every entry, as the
+    start-up check of :class:`~delaytrack.plants.CompiledPlant` asks, sees no difference).
     """
     return work
 
@@ -146,7 +154,14 @@ def _rk4_memory_compiled(plant_terms, work):
 
     def on_stack(plant_terms, work):
         stage = stack_vector(width)
-        scratch = (stack_matrix(n, n), stack_vector(n), stack_matrix(n, m))
+        mass, nonlinear, input_map = stack_matrix(n, n), stack_vector(n), stack_matrix(n, m)
+        for i in range(n):
+            nonlinear[i] = 0.0
+            for j in range(n):
+                mass[i, j] = 0.0
+            for j in range(m):
+                input_map[i, j] = 0.0
+        scratch = (mass, nonlinear, input_map)
         return stack_matrix(4, width), stage, stage[:n], stage[n:], scratch, work[5]
 
     return on_stack
@@ -159,13 +174,15 @@ def _rk4_substep(plant_terms, plant_params, t, x, u, length, work, bound):
     Stage ``s`` evaluates the slope ``k_s = f(t + c_s length, x + c_s length k_{s-1})``,
     ``c = (0, 1/2, 1/2, 1)``, and ``x += length (k_0 + 2 k_1 + 2 k_2 + k_3) / 6``. ``work`` is
     :func:`rk4_workspace` of this ``x``; written as loops so that nothing is allocated, with one
-    call of the (inlined) right-hand side. Returns whether an entry of the new ``x`` is
-    non-finite or larger than ``bound`` in magnitude (:func:`beyond`, checked as it is written:
-    a loop over ``x`` less per step, about 2 % of a robot run).
+    call of the (inlined) right-hand side. Returns ``(outside, indefinite_at)``: whether an
+    entry of the new ``x`` is non-finite or larger than ``bound`` in magnitude (:func:`beyond`,
+    checked as it is written: a loop over ``x`` less per step, about 2 % of a robot run), and
+    the time of the first stage whose mass matrix was not positive definite (NaN if none).
     """
     slopes, stage, stage_q, stage_qdot, scratch, _ = work
     n, _ = plant_sizes(plant_terms, stage_q, u)
     half = 0.5 * length
+    indefinite_at = math.nan
     for s in range(4):
         if s == 0:
             offset = 0.0
@@ -176,7 +193,10 @@ def _rk4_substep(plant_terms, plant_params, t, x, u, length, work, bound):
             for i in range(2 * n):
                 stage[i] = x[i] + offset * slopes[s - 1, i]
         acceleration = slopes[s, n:]
-        el_rhs(plant_terms, t + offset, stage_q, stage_qdot, u, plant_params, acceleration, scratch)
+        if not el_rhs(
+            plant_terms, t + offset, stage_q, stage_qdot, u, plant_params, acceleration, scratch
+        ) and math.isnan(indefinite_at):
+            indefinite_at = t + offset
         for i in range(n):
             slopes[s, i] = stage_qdot[i]
     sixth = length / 6.0
@@ -188,7 +208,7 @@ def _rk4_substep(plant_terms, plant_params, t, x, u, length, work, bound):
         magnitude = abs(value)
         if not (magnitude <= bound and magnitude < math.inf):  # NaN fails both
             outside = True
-    return outside
+    return outside, indefinite_at
 
 
 @hot_inline_kernel
@@ -295,7 +315,9 @@ def integrate_tick(
     input switches (module docstring). Command ``k`` is the newest in ``history``. Returns
     ``(outcome, t_stop, first_slot)``: :data:`OK` with ``t_stop`` the next tick's time;
     :data:`DIVERGED` when, at the end ``t_stop`` of a step, an entry of ``x`` is non-finite or
-    beyond ``divergence_bound``; or :data:`DELAY_BEYOND_HISTORY` when the step starting at
+    beyond ``divergence_bound``; :data:`MASS_NOT_POSITIVE_DEFINITE` when an RK4 stage at
+    ``t_stop`` met a mass matrix that is not positive definite; or
+    :data:`DELAY_BEYOND_HISTORY` when the step starting at
     ``t_stop`` needs a command that has left the history. ``first_slot`` is the ring slot of the
     input of the first sub-step after the tick (-1 for ``u_init``; -3 when even that one could
     not start). With ``probe_only`` nothing is integrated: only ``first_slot`` is found.
@@ -375,9 +397,11 @@ def integrate_tick(
                     call_stepper(plant_terms, start, x, u, dt, plant_params, k == 0 and j == 0)
                     outside = beyond(x, divergence_bound)
                 else:
-                    outside = _rk4_substep(
+                    outside, indefinite_at = _rk4_substep(
                         plant_terms, plant_params, start, x, u, end - start, work, divergence_bound
                     )
+                    if not math.isnan(indefinite_at):
+                        return MASS_NOT_POSITIVE_DEFINITE, indefinite_at, first_slot
                 start = end
                 if end == b:
                     break

@@ -8,8 +8,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
+from delaytrack._result_columns import trajectory_columns
 from delaytrack.sim.engine import STATUS_NAMES
-from delaytrack.units import default_names, labelled, with_unit
+from delaytrack.units import default_names, labelled
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -41,7 +42,9 @@ class SimResult:
     controller_state_names : tuple of str
     status : ndarray of int, shape (batch,)
         0 ok, 1 diverged, 2 delay beyond the history buffer, 3 left the path (a tracking
-        error beyond ``error_bound``); see :attr:`status_names`.
+        error beyond ``error_bound``), 4 mass matrix not positive definite (the plant's
+        ``M(q)`` met in the solve for ``q̈`` at ``t_stop``: a fault of its kernel);
+        see :attr:`status_names`.
     t_stop : ndarray, shape (batch,)
         Time at which each run ended; rows recorded after it are NaN.
     metrics : dict of str to ndarray
@@ -193,31 +196,38 @@ class SimResult:
         ``U``: ``c_U`` (position), ``c_dot_U_per_s``, ``c_d_U`` (the reference ``q_d``),
         ``e1_c_U`` (``q_d − q``); per input ``uj`` with unit ``V``: ``uj_sent_V`` and
         ``uj_applied_V``; then the controller's reported state by name (for AROLC ``c_hat``).
-        A unit the plant does not declare is left out of the name.
+        A unit the plant does not declare is left out of the name. Two columns never share a
+        name: coordinate names that would give them one are refused (a ValueError naming them
+        and the column), as plants and :func:`~delaytrack.sim.simulate` refuse them before.
         """
         batch, records = self.batch_size, self.t.size
-        names = default_names(self.coordinate_names, self.n)
-        units = self.coordinate_units or (None,) * self.n
         inputs = self.commands.shape[2]
-        input_units = self.input_units or (None,) * inputs
-        columns: dict[str, np.ndarray] = {
-            "run": np.repeat(np.arange(batch), records),
-            "t_s": np.tile(self.t, batch),
-            "h_s": self.h.ravel(),
-        }
-        for i, (name, unit) in enumerate(zip(names, units, strict=True)):
-            rate = f"{unit}/s" if unit else None
-            columns[with_unit(name, unit)] = self.q[:, :, i].ravel()
-            columns[with_unit(f"{name}_dot", rate)] = self.qdot[:, :, i].ravel()
-            columns[with_unit(f"{name}_d", unit)] = np.tile(self.reference[:, 0, i], batch)
-            columns[with_unit(f"e1_{name}", unit)] = self.e1[:, :, i].ravel()
-        for j, unit in enumerate(input_units):
-            columns[with_unit(f"u{j + 1}_sent", unit)] = self.commands[:, :, j].ravel()
-            columns[with_unit(f"u{j + 1}_applied", unit)] = self.applied[:, :, j].ravel()
         reported = self.reported_state_names
-        for j, name in enumerate(self.controller_state_names):
-            if reported is None or name in reported:
-                columns[name] = self.controller_state[:, :, j].ravel()
+        states = [
+            (j, name)
+            for j, name in enumerate(self.controller_state_names)
+            if reported is None or name in reported
+        ]
+        names = trajectory_columns(
+            self.coordinate_names,
+            self.coordinate_units,
+            self.n,
+            self.input_units,
+            inputs,
+            [name for _, name in states],
+        )
+        values = [np.repeat(np.arange(batch), records), np.tile(self.t, batch), self.h.ravel()]
+        for i in range(self.n):
+            values += [
+                self.q[:, :, i].ravel(),
+                self.qdot[:, :, i].ravel(),
+                np.tile(self.reference[:, 0, i], batch),
+                self.e1[:, :, i].ravel(),
+            ]
+        for j in range(inputs):
+            values += [self.commands[:, :, j].ravel(), self.applied[:, :, j].ravel()]
+        values += [self.controller_state[:, :, j].ravel() for j, _ in states]
+        columns = dict(zip(names, values, strict=True))
         return pd.DataFrame(columns)
 
 

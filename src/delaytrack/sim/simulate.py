@@ -15,7 +15,9 @@ from typing import Any, TypeVar
 import numpy as np
 from tqdm.auto import tqdm
 
+from delaytrack._result_columns import trajectory_columns
 from delaytrack._validation import (
+    as_spd_matrix,
     finite_array,
     finite_scalar,
     integer_multiple,
@@ -23,11 +25,11 @@ from delaytrack._validation import (
     positive_scalar,
     real_array,
 )
-from delaytrack.components import call_reference
+from delaytrack.components import Kernel, call_reference, refuse_changed_globals
 from delaytrack.controllers.base import Controller
 from delaytrack.delays._kernel import NO_KERNEL
 from delaytrack.delays.base import DelayProfile
-from delaytrack.kernel_arguments import check_kernel_arguments
+from delaytrack.kernel_arguments import KERNEL_ARGUMENTS, check_kernel_arguments
 from delaytrack.plants.base import ELPlant
 from delaytrack.references import Reference
 from delaytrack.sim.compile_helper import CompileJob, parts_ahead
@@ -121,9 +123,9 @@ def _compiled_if_it_can(part: Any) -> Any:
     return compile_it
 
 
-def _raised_during_the_run(error: Exception, yours: list) -> str:
+def _raised_during_the_run(error: Exception, yours: list, when: str = "during the run") -> str:
     """The one-line message for ``error``, raised by one of the user's kernels ``yours``
-    (:class:`~delaytrack.components.Kernel`) while the closed loop ran."""
+    (:class:`~delaytrack.components.Kernel`) while the closed loop ran (or ``when`` it did)."""
     names = sorted({name for kernel in yours for name in kernel.callable_names})
     which = (
         f"your kernel {names[0]}"
@@ -136,7 +138,71 @@ def _raised_during_the_run(error: Exception, yours: list) -> str:
         if isinstance(error, ZeroDivisionError)
         else ""
     )
-    return f"{which} raised {type(error).__name__} during the run: {error}{hint}"
+    return f"{which} raised {type(error).__name__} {when}: {error}{hint}"
+
+
+def _checked_before_the_run(kernel: Kernel, what: str, check: Any) -> Any:
+    """``check()``, a call of the user's ``kernel`` before the run (``what`` it checks), with
+    what it raises other than a ValueError of ours in one line naming the kernel: an error of
+    the kernel itself, or numba's when it cannot compile the check around it."""
+    try:
+        return check()
+    except ValueError:
+        raise
+    except Exception as error:
+        if type(error).__module__.startswith("numba"):
+            raise ValueError(
+                f"numba could not compile {what} for your kernel {kernel.callable_names[0]}: "
+                f"{_numba_cause(error)}"
+            ) from None
+        raise ValueError(
+            _raised_during_the_run(error, [kernel], when=f"before the run ({what})")
+        ) from None
+
+
+def _refuse_reads_past(kernel: Kernel, kind: str, arguments: tuple, where: str) -> None:
+    """Run the plain-Python version of the user's ``kernel`` (a ``kind`` of
+    :data:`~delaytrack.kernel_arguments.KERNEL_ARGUMENTS`) once on copies of ``arguments``, the
+    arrays the engine passes it, of their sizes: compiled, a read past an array's end runs on
+    silently with whatever lies there; Python raises IndexError, refused here naming the
+    kernel and the arrays' sizes. Other errors are left to the compiled kernel, which is what
+    runs (Python may lack what numba provides). A read only on another branch, or in a compiled
+    helper the kernel calls, is not seen."""
+    python = getattr(kernel.function, "py_func", None)
+    if kernel.built_in or python is None:
+        return
+    copies = [value.copy() if isinstance(value, np.ndarray) else value for value in arguments]
+    try:
+        python(*copies)
+    except IndexError as error:
+        sizes = ", ".join(
+            f"{name} {value.shape[0] if value.ndim == 1 else value.shape}"
+            for name, value in zip(KERNEL_ARGUMENTS[kind], arguments, strict=True)
+            if isinstance(value, np.ndarray)
+        )
+        raise ValueError(
+            f"your {kind} kernel {kernel.callable_names[0]} reads beyond an array {where} "
+            f"({error}); the arrays it is given have these sizes: {sizes}. Give the "
+            "parameters it reads (compiled, it would read on silently)"
+        ) from None
+    except Exception:  # noqa: BLE001 - only reads past an array's end are checked here
+        return
+
+
+def _check_plant_at_x0(plant: ELPlant, x0: np.ndarray, t0: float) -> None:
+    """A plant of the user's (solved for ``q̈``) at the run's start: its kernel reads no index
+    past an array's end (:func:`_refuse_reads_past`) and gives an ``M`` that is symmetric
+    positive definite, or it is refused naming the kernel (the run would stop at once)."""
+    kernel = plant.engine_kernel
+    if kernel.built_in or kernel.stepper is not None or kernel.identity_mass:
+        return
+    n = plant.n
+    terms = (t0, x0[:n], x0[n:], plant.params, np.zeros((n, n)), np.zeros(n))
+    _refuse_reads_past(kernel, "terms", (*terms, np.zeros((n, plant.m))), "at x0")
+    mass = _checked_before_the_run(
+        kernel, "the check of M at x0", lambda: plant.terms(x0[None, :n], x0[None, n:], t0)[0][0]
+    )
+    as_spd_matrix(f"the plant's M at x0 (from your kernel {kernel.callable_names[0]})", mass, n)
 
 
 def _numba_cause(error: Exception) -> str:
@@ -458,6 +524,14 @@ def simulate(
     if reference.n != n:
         raise ValueError(f"reference has n = {reference.n} coordinates; the plant has n = {n}")
     _check_kernel_arguments(first_plant, first_controller, reference)
+    trajectory_columns(  # the result's table: names that would share a column are refused
+        first_plant.coordinate_names,
+        first_plant.coordinate_units,
+        n,
+        first_plant.input_units,
+        m,
+        first_controller.reported_state_names,
+    )
     error_bounds = _positive_limits(
         "error_bound", error_bound, (n,), f"{n} of them (one per coordinate)"
     )
@@ -496,8 +570,14 @@ def simulate(
             )
     if own_delays:
         check_kernel_arguments(f"delay[{own_delays[0]}]", "delay", delay_kernel.function)
+    if own_delays:
+        _refuse_reads_past(delay_kernel, "delay", (t0, delays[own_delays[0]].params), "at t0")
     for delay_b in {id(delay_b): delay_b for delay_b in delays}.values():  # once per profile
-        delay_b.check_run(t0, dt, n_ticks * steps_per_tick + 1)
+        _checked_before_the_run(
+            delay_b.engine_kernel,
+            "the check of h at every plant step",
+            functools.partial(delay_b.check_run, t0, dt, n_ticks * steps_per_tick + 1),
+        )
     for i, delay_b in enumerate(delays):
         switches = delay_b.switch_bound(t0, t1, T_c)
         if not switches <= MAX_STEPS:
@@ -540,6 +620,9 @@ def simulate(
             f"x0 must lie within divergence_bound = {divergence_bound:g}; "
             f"max |x0| = {np.max(np.abs(states0)):g}"
         )
+    _check_plant_at_x0(first_plant, states0[0], t0)
+    reference_arrays = (real_array("reference.params", reference.params, ndim=1), *np.zeros((3, n)))
+    _refuse_reads_past(reference.engine_kernel, "reference", (t0, *reference_arrays), "at t0")
 
     if not isinstance(trajectories, bool | np.bool_):
         raise TypeError(f"trajectories must be True or False; got {trajectories!r}")
@@ -612,6 +695,9 @@ def simulate(
         else "the delay profiles",
     )
     if compiled:
+        for component in (first_plant, first_controller.model, first_controller, reference):
+            refuse_changed_globals(component.engine_kernel)
+        refuse_changed_globals(delay_kernel)
         parts = (
             plant_tick_part(first_plant.engine_kernel, delay_kernel, n, m),
             reference_part(reference.engine_kernel, n),

@@ -246,7 +246,8 @@ def sweep_section(
     report.heading("Outcomes", level=3)
     report.paragraph(
         "Divergence rate: share of runs whose state left the engine's bound or became non-finite. "
-        "'failed': any other status that is not ok (a delay beyond the history buffer). Metric "
+        "'failed': any other status that is not ok (a delay beyond the history buffer, a mass "
+        "matrix that stopped being positive definite). Metric "
         "statistics are over the runs that ended ok."
     )
     outcomes = ["controller", "delay_class", "runs", "diverged", "divergence_rate", "failed"]

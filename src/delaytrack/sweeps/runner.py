@@ -3,6 +3,7 @@
 Folder layout (``out``)::
 
     parts/part-<unit>-<hash12>.parquet   one per finished unit, written atomically
+    .delaytrack-files.json               the toolkit's marker, written first (``_output``)
     runs.parquet, runs.csv               every run, in run order (when the sweep is complete)
     .lock                                held while a sweep or its report writes here
 
@@ -28,6 +29,7 @@ import pyarrow.parquet as pq
 from tqdm.auto import tqdm
 
 from delaytrack._io import write_frame
+from delaytrack._output import claim_output_folder
 from delaytrack.sweeps.executors import Executor, LocalExecutor
 from delaytrack.sweeps.parts import finished_units, value_column, write_part
 from delaytrack.sweeps.spec import SweepError, SweepSpec
@@ -164,7 +166,9 @@ def run_sweep(
     ----------
     spec : SweepSpec
     out : path
-        Results folder (created if missing).
+        Results folder (created if missing). A new or empty one gets the toolkit's marker
+        before anything else, so that the command line resumes an interrupted sweep there; the
+        command line checks the folder first (new, empty or marked), this function does not.
     executor : Executor, optional
         Where units run; :class:`~delaytrack.sweeps.executors.LocalExecutor` (all cores) by
         default. It is closed on return.
@@ -192,7 +196,8 @@ def run_sweep(
     executor = executor if executor is not None else LocalExecutor()
     units = spec.units()
     try:
-        parts.mkdir(parents=True, exist_ok=True)
+        claim_output_folder(folder)  # first: an interrupted sweep leaves a folder of ours
+        parts.mkdir(exist_ok=True)
         with folder_lock(folder):
             _remove_temporaries(parts)
             scan = finished_units(parts, spec)

@@ -24,6 +24,12 @@ one key of the table, after any whole-table replacement; also ``measurement_nois
 :class:`~delaytrack.experiments.Scenario` when the spec is loaded; a refusal names the sweep key
 (``grid."controller.K9" = 1.0 (run 0): unknown key 'controller.K9' in scenario; ...``).
 
+A table's ``type`` may name a factory of yours (``"python:<file.py>:<function>"``, the file
+relative to the file that names it, or ``"python:<module>:<function>"``). A factory is Python code
+that runs with your rights: one named in the sweep file must be a ``.py`` file in its folder or
+below it, one named in the scenario file a ``.py`` file in that file's folder or below it, unless
+you trust it (``--trust``, ``trust=``; see :mod:`delaytrack.experiments.scenario`).
+
 Run ``i`` is grid point ``i // draws`` with draw ``i % draws`` (one draw without ``[random]``).
 Draws of a key come from ``numpy.random.default_rng([seed, *key.encode()])``: they depend on the
 seed, the key, its distribution and ``draws`` only, not on the other keys.
@@ -47,7 +53,9 @@ from typing import Any
 import numpy as np
 
 import delaytrack
+from delaytrack._io import regular_file
 from delaytrack._numba_cache import source_hash
+from delaytrack._trust import Trust
 from delaytrack._validation import is_integer_at_least
 from delaytrack.experiments.scenario import (
     BuiltScenario,
@@ -55,6 +63,7 @@ from delaytrack.experiments.scenario import (
     ScenarioError,
     builtin_scenario_names,
     builtin_scenario_path,
+    remembered_tables,
     resolve_file_keys,
 )
 from delaytrack.units import default_names
@@ -129,22 +138,28 @@ class Run:
         }
 
 
-def _resolve_swept_files(source: Path, key: str, values: object) -> None:
+def _resolve_swept_files(
+    source: Path, section: str, key: str, values: object, trust: Trust
+) -> None:
     """Make the files named by swept values absolute, relative to the sweep file ``source``, in
     place: whole tables (``controller = [{type = "python:pd.py:make", ...}]``) and the keys
-    ``<table>.path`` and ``<table>.type``."""
+    ``<table>.path`` and ``<table>.type``; refuse a factory that is neither beside the sweep
+    file (or below) nor trusted, naming ``<section>."<key>"``."""
     if isinstance(values, dict):  # a "choice" draw
         values = values.get("values")
     if not isinstance(values, list):
         return
     table, _, field = key.partition(".")
-    for i, value in enumerate(values):
-        if key in _TABLES:
-            resolve_file_keys(source, key, value)
-        elif table in _TABLES and field in ("path", "type") and isinstance(value, str):
-            holder = {field: value}
-            resolve_file_keys(source, table, holder)
-            values[i] = holder[field]
+    try:
+        for i, value in enumerate(values):
+            if key in _TABLES:
+                resolve_file_keys(source, key, value, trust)
+            elif table in _TABLES and field in ("path", "type") and isinstance(value, str):
+                holder = {field: value}
+                resolve_file_keys(source, table, holder, trust)
+                values[i] = holder[field]
+    except ScenarioError as error:
+        raise SweepError(f'{section}."{key}": {error}') from None
 
 
 def engine_inputs(built: BuiltScenario) -> tuple[tuple[str, ...], str]:
@@ -206,6 +221,9 @@ class Unit:
     def from_payload(cls, payload: Mapping[str, Any]) -> Unit:
         """Rebuild a unit from :meth:`to_payload`, checking that it hashes the same here.
 
+        The payload comes from a spec that was checked where it was loaded (its factories
+        included, :meth:`SweepSpec.from_toml`); its factories are imported here unchecked.
+
         Raises
         ------
         SweepError
@@ -219,12 +237,13 @@ class Unit:
                 f"process has {code_version()}: install the same code on every Dask worker"
             )
         runs = []
-        for run in payload["runs"]:
-            scenario = Scenario.from_dict(run["scenario"])
-            values = MappingProxyType(run["values"])
-            runs.append(Run.of(run["index"], values, scenario, scenario.build()))
+        with remembered_tables():
+            for run in payload["runs"]:
+                scenario = Scenario.from_dict(run["scenario"])
+                values = MappingProxyType(run["values"])
+                runs.append(Run.of(run["index"], values, scenario, scenario.build()))
         runs = tuple(runs)
-        unit = cls(index, runs, _unit_hash(runs))
+        unit = cls(index, runs, _unit_hash(runs, version))
         if unit.hash != payload["hash"]:
             raise SweepError(
                 f"unit {index} hashes to {unit.hash[:12]} here and {payload['hash'][:12]} where "
@@ -246,7 +265,10 @@ def _json_safe(data: Any) -> Any:
 
 def canonical_json(data: Any) -> str:
     """Sorted keys, no spaces; a non-finite float as its TOML text: equal data give equal text."""
-    return json.dumps(_json_safe(data), sort_keys=True, separators=(",", ":"), allow_nan=False)
+    try:  # most data is JSON as it is: the same text without a walk through it in Python
+        return json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    except (TypeError, ValueError):  # a non-finite float, a read-only mapping
+        return json.dumps(_json_safe(data), sort_keys=True, separators=(",", ":"), allow_nan=False)
 
 
 #: Files without compiled code that still decide a sweep's numbers: how a run is set up for the
@@ -264,8 +286,8 @@ def code_version() -> str:
     return f"{delaytrack.__version__}+{digest.hexdigest()[:16]}"
 
 
-def _unit_hash(runs: Sequence[Run]) -> str:
-    payload = {"version": code_version(), "runs": [run.canonical() for run in runs]}
+def _unit_hash(runs: Sequence[Run], version: str) -> str:
+    payload = {"version": version, "runs": [run.canonical() for run in runs]}
     return hashlib.sha256(canonical_json(payload).encode("utf-8")).hexdigest()
 
 
@@ -340,11 +362,16 @@ def _draw(key: str, table: object, draws: int, seed: int) -> list[Any]:
 
 
 def _apply(base: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str, Any]:
-    """The base scenario data with the run's values written in (whole tables first)."""
-    data = json.loads(json.dumps(base))
+    """The base scenario data with the run's values written in (whole tables first).
+
+    Values and tables are shared with ``base`` and ``values`` (a :class:`Scenario` copies what
+    it keeps), except a table a dotted key writes into: the run's own copy.
+    """
+    data = dict(base)
     for key, value in values.items():
         if "." not in key:
-            data[key] = copy.deepcopy(value)  # the run's own copy: dotted keys write into it
+            data[key] = value
+    own = set()
     for key, value in values.items():
         table, dot, field = key.partition(".")
         if dot:
@@ -353,6 +380,9 @@ def _apply(base: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str, Any]
                     f'sweep key "{key}" needs a [{table}] table in the scenario or the sweep; '
                     f"got {data.get(table)!r}"
                 )
+            if table not in own:
+                data[table] = dict(data[table])
+                own.add(table)
             data[table][field] = value
     return data
 
@@ -407,8 +437,13 @@ class SweepSpec:
     metrics: tuple[str, ...] | None = None
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any], *, root: str | Path = ".") -> SweepSpec:
+    def from_dict(
+        cls, data: Mapping[str, Any], *, root: str | Path = ".", trust: Sequence[str] = ()
+    ) -> SweepSpec:
         """Build from the layout of a sweep file; a relative ``scenario`` path is under ``root``.
+
+        The dict is your own code: the factories its ``[grid]`` and ``[random]`` name are not
+        checked. A scenario file it names is read by :meth:`Scenario.from_toml` with ``trust``.
 
         Raises
         ------
@@ -462,7 +497,7 @@ class SweepSpec:
             if key in checked_grid:
                 raise SweepError(f'sweep key "{key}" is in both [grid] and [random]; keep one')
         return cls(
-            base=_load_base(data["scenario"], Path(root)),
+            base=_load_base(data["scenario"], Path(root), trust),
             grid=MappingProxyType(checked_grid),
             random=MappingProxyType(copy.deepcopy(dict(random))),
             draws=draws,
@@ -472,10 +507,27 @@ class SweepSpec:
         )
 
     @classmethod
-    def from_toml(cls, path: str | Path) -> SweepSpec:
-        """Read a sweep file; a relative ``scenario`` path is taken relative to the file."""
+    def from_toml(cls, path: str | Path, *, trust: Sequence[str] = ()) -> SweepSpec:
+        """Read a sweep file; a relative ``scenario`` path is taken relative to the file.
+
+        A factory a swept value names (``controller = [{type = "python:pd.py:make"}]``) is
+        allowed only from a ``.py`` file in the sweep file's folder or below it, and one in the
+        scenario file only from that file's folder or below, unless ``trust`` names it, as for
+        :meth:`Scenario.from_toml`; nothing is imported before.
+
+        Raises
+        ------
+        SweepError
+            If the file is missing, is not TOML, names a factory it may not, or is not a valid
+            sweep; the message starts with the file name.
+        ValueError
+            If ``trust`` holds a name that is neither a module name nor an existing ``.py`` file
+            or folder.
+        """
+        trusted = Trust.of(trust)
         source = Path(path)
         try:
+            regular_file(source, "sweep file", SweepError)
             data = tomllib.loads(source.read_text(encoding="utf-8-sig"))
         except FileNotFoundError:
             raise SweepError(f"sweep file {str(source)!r} does not exist") from None
@@ -483,11 +535,12 @@ class SweepSpec:
             raise SweepError(f"cannot read sweep file {str(source)!r}: {error}") from None
         except tomllib.TOMLDecodeError as error:
             raise SweepError(f"{source}: not valid TOML: {error}") from None
-        for section in ("grid", "random"):
-            for key, values in (data.get(section) or {}).items():
-                _resolve_swept_files(source, key, values)
         try:
-            return cls.from_dict(data, root=source.parent)
+            for section in ("grid", "random"):
+                swept = data.get(section)
+                for key, values in swept.items() if isinstance(swept, Mapping) else ():
+                    _resolve_swept_files(source, section, key, values, trusted)
+            return cls.from_dict(data, root=source.parent, trust=trust)
         except ScenarioError as error:
             raise SweepError(f"{source}: {error}") from None
 
@@ -513,11 +566,12 @@ class SweepSpec:
         drawn = {key: _draw(key, dist, self.draws, self.seed) for key, dist in self.random.items()}
         base = self.base.to_dict()
         runs = []
-        for point in itertools.product(*self.grid.values()):
-            for d in range(self.draws):
-                values = dict(zip(self.grid, point, strict=True))
-                values.update({key: column[d] for key, column in drawn.items()})
-                runs.append(self._run(len(runs), values, base))
+        with remembered_tables():  # each distinct table checked and built once
+            for point in itertools.product(*self.grid.values()):
+                for d in range(self.draws):
+                    values = dict(zip(self.grid, point, strict=True))
+                    values.update({key: column[d] for key, column in drawn.items()})
+                    runs.append(self._run(len(runs), values, base))
         return tuple(runs)
 
     def _run(self, index: int, values: dict[str, Any], base: Mapping[str, Any]) -> Run:
@@ -543,9 +597,9 @@ class SweepSpec:
 
     @cached_property
     def _units(self) -> tuple[Unit, ...]:
-        size = self.unit_size
+        size, version = self.unit_size, code_version()
         chunks = [self.runs[i : i + size] for i in range(0, len(self.runs), size)]
-        return tuple(Unit(k, chunk, _unit_hash(chunk)) for k, chunk in enumerate(chunks))
+        return tuple(Unit(k, chunk, _unit_hash(chunk, version)) for k, chunk in enumerate(chunks))
 
     @property
     def label_keys(self) -> tuple[str, ...]:
@@ -594,8 +648,9 @@ def _check_metrics(metrics: tuple[str, ...], base: Scenario) -> None:
         raise SweepError(f"sweep key 'metrics': {unknown} unknown; valid metrics are {valid}")
 
 
-def _load_base(source: object, root: Path) -> Scenario:
-    """A scenario file (relative to ``root``) or the name of a shipped scenario."""
+def _load_base(source: object, root: Path, trust: Sequence[str]) -> Scenario:
+    """A scenario file (relative to ``root``, read with ``trust``) or the name of a shipped
+    scenario."""
     if not isinstance(source, str):
         raise SweepError(
             f"sweep key 'scenario' must be a scenario file or a shipped scenario name; got "
@@ -606,7 +661,7 @@ def _load_base(source: object, root: Path) -> Scenario:
     except RuntimeError as error:  # "~user" of no such user
         raise SweepError(f"sweep key 'scenario' = {source!r}: {error}") from None
     if path.is_file():
-        return Scenario.from_toml(path)
+        return Scenario.from_toml(path, trust=trust)
     if source in builtin_scenario_names():
         return Scenario.from_toml(builtin_scenario_path(source))
     raise SweepError(

@@ -17,7 +17,8 @@ Rows of the runs table (:func:`delaytrack.sweeps.run_unit`) are grouped by
 Per group: ``runs``; ``diverged`` and ``divergence_rate`` (status ``diverged``: the state left
 the engine's bound or became non-finite, or ``left the path``: a tracking error passed the
 scenario's ``error_bound``); ``failed`` (any other status that is not ``ok``, such
-as a delay beyond the history buffer); then ``<metric>_mean``, ``_median``, ``_p95`` (95th
+as a delay beyond the history buffer or a mass matrix that stopped being positive definite);
+then ``<metric>_mean``, ``_median``, ``_p95`` (95th
 percentile, linear interpolation) and ``_max`` over the runs whose status is ``ok`` (NaN when
 there is none).
 """

@@ -32,7 +32,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from delaytrack._io import regular_file
 from delaytrack._jit import kernel
+from delaytrack._result_columns import trajectory_columns
 from delaytrack._validation import as_spd_matrix, positive_scalar
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.mujoco.capi import (
@@ -200,6 +202,11 @@ class MujocoPlant(ELPlant):
     left out of ``coordinates``, activations, the solver's warm start) lives in its data, reset
     at the start of each run (the file's reference pose ``qpos0``, at rest).
 
+    The coordinates are named after their joints in results (``ae_<joint>``, columns
+    ``<joint>_rad``) when those names are different identifiers that give every column a name
+    of its own; otherwise (a joint without a name, ``joint-1``, or joints ``a`` and ``a_d``,
+    whose columns would share the name ``a_d_rad``) they are ``q1 .. qn``, in this order.
+
     The plant holds MuJoCo's ``mjData``, which every evaluation writes (``thread_safe`` is
     False): each thread of a batch runs a copy of its own (:meth:`for_worker`), made from the
     file once and kept. Run one ``simulate`` call at a time with a given plant (two threads of
@@ -232,8 +239,7 @@ class MujocoPlant(ELPlant):
         mujoco = import_mujoco()
         path = Path(self.path)
         object.__setattr__(self, "path", path)
-        if not path.is_file():
-            raise FileNotFoundError(f"path: no MuJoCo model file {str(path)!r}")
+        regular_file(path, "path =")  # MuJoCo would wait on a FIFO, or read a device forever
         scale = positive_scalar("mass_scale", self.mass_scale)
         object.__setattr__(self, "mass_scale", scale)
         for key in ("actuator_limits", "constraints"):
@@ -259,9 +265,9 @@ class MujocoPlant(ELPlant):
         data = mujoco.MjData(model)
         mujoco.mj_setConst(model, data)
         names = tuple(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joints)
-        usable = all(name and name.isidentifier() for name in names) and len(set(names)) == len(
-            names
-        )
+        # Slide joints move in metres, hinge joints turn in radians (MuJoCo's units).
+        units = tuple("m" if model.jnt_type[j] == 2 else "rad" for j in joints)
+        usable = _names_usable(names, units, int(model.nu))
         scratch = np.zeros((2, model.nv))
         params = np.zeros(_INDICES + 2 * len(joints))
         params[_INDICES : _INDICES + len(joints)] = model.jnt_qposadr[joints]
@@ -291,8 +297,7 @@ class MujocoPlant(ELPlant):
             ("n", len(joints)),
             ("m", int(model.nu)),
             ("coordinate_names", names if usable else None),
-            # Slide joints move in metres, hinge joints turn in radians (MuJoCo's units).
-            ("coordinate_units", tuple("m" if model.jnt_type[j] == 2 else "rad" for j in joints)),
+            ("coordinate_units", units),
             ("_model", model),
             ("_data", data),
             ("_scratch", scratch),
@@ -519,6 +524,19 @@ class MujocoPlant(ELPlant):
         if self.contact_time_constant is not None:
             spec["contact_time_constant"] = self.contact_time_constant
         return spec
+
+
+def _names_usable(names: tuple[str, ...], units: tuple[str, ...], m: int) -> bool:
+    """Whether the joints' names can name the coordinates in results: different identifiers
+    whose columns are all different (joints ``a`` and ``a_d`` are not: ``a``'s reference and
+    ``a_d``'s angle are both ``a_d_rad``)."""
+    if not all(name and name.isidentifier() for name in names) or len(set(names)) < len(names):
+        return False
+    try:
+        trajectory_columns(names, units, len(names), None, m)
+    except ValueError:
+        return False
+    return True
 
 
 def _made_again(cls: type, arguments: dict[str, Any]) -> MujocoPlant:

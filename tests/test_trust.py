@@ -1,0 +1,409 @@
+"""A scenario or sweep file is not a program: the factories it may name, and factories that exit.
+
+A factory (``type = "python:..."``) in a file read from disk runs only from a ``.py`` file in
+that file's folder or below it, or when the user trusts it (``--trust``, ``trust=``); anything
+else is refused, naming the key, before anything is imported. A factory that exits or is
+interrupted is reported as that factory's.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import re
+import sys
+import tempfile
+import uuid
+from pathlib import Path
+from types import SimpleNamespace
+from unittest import mock
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from delaytrack import _spec
+from delaytrack.cli import main
+from delaytrack.experiments import Scenario, ScenarioError
+from delaytrack.experiments.scenario import dumps_toml
+from delaytrack.sweeps import SweepError, SweepSpec
+from test_hostile_inputs import one_line_error
+from test_scenario import base_dict
+
+#: A factory that builds the package's two-link arm.
+ARM_FACTORY = "import delaytrack as dt\n\ndef make():\n    return dt.TwoLinkArm()\n"
+
+
+def scenario_file(folder: Path, plant: dict, name: str = "case.toml") -> Path:
+    """A short two-link scenario in ``folder`` whose ``[plant]`` is ``plant``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / name
+    path.write_text(dumps_toml({**base_dict(), "duration": 0.1, "plant": plant}))
+    return path
+
+
+def refused(capsys, argv: list[str], *words: str) -> str:
+    """The command ends with exit 2 and one line naming ``words`` and why a factory is refused."""
+    assert main(argv) == 2
+    return one_line_error(capsys, *words, "Python code that runs with your rights", "--trust")
+
+
+# ---- the campaign's two cases ------------------------------------------------------------------
+
+
+def test_a_scenario_file_naming_a_shell_command_runs_nothing(tmp_path, capsys):
+    touched = tmp_path / "touched"
+    path = scenario_file(
+        tmp_path / "sent",
+        {"type": "python:subprocess:getoutput", "cmd": f"touch {touched}"},
+    )
+    refused(
+        capsys,
+        ["simulate", str(path), "--out", str(tmp_path / "out")],
+        "'plant.type'",
+        "'python:subprocess:getoutput'",
+        "module 'subprocess', which is not trusted",
+        "--trust subprocess",
+    )
+    with pytest.raises(ScenarioError, match=r"'plant.type' = 'python:subprocess:getoutput'"):
+        Scenario.from_toml(path)
+    assert main(["empirical", str(path), "--threshold", "1"]) == 2
+    one_line_error(capsys, "'plant.type'", "not trusted")
+    assert not touched.exists()
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_scenario_file_naming_os_remove_deletes_nothing(tmp_path, capsys):
+    thesis = tmp_path / "mine" / "thesis.tex"
+    thesis.parent.mkdir()
+    thesis.write_text("years of work\n")
+    path = scenario_file(tmp_path / "sent", {"type": "python:os:remove", "path": str(thesis)})
+    argv = ["simulate", str(path), "--out", str(tmp_path / "out")]
+    refused(capsys, argv, "'plant.type' = 'python:os:remove'", "module 'os'")
+    with pytest.raises(ScenarioError, match="not trusted"):
+        Scenario.from_toml(path).build()
+    assert thesis.read_text() == "years of work\n"
+
+
+def test_a_sweep_file_naming_a_shell_command_runs_nothing(tmp_path, capsys):
+    touched = tmp_path / "touched"
+    sweep = tmp_path / "sent" / "sweep.toml"
+    sweep.parent.mkdir()
+    sweep.write_text(
+        'scenario = "two_link_S1"\nunit_size = 1\n[grid]\n'
+        f'plant = [{{type = "python:subprocess:getoutput", cmd = "touch {touched}"}}]\n'
+    )
+    refused(
+        capsys,
+        ["sweep", str(sweep), "--out", str(tmp_path / "out"), "--quiet"],
+        'grid."plant"',
+        "'python:subprocess:getoutput'",
+    )
+    sweep.write_text(
+        'scenario = "two_link_S1"\nunit_size = 1\n[random]\n'
+        '"delay.type" = {dist = "choice", values = ["S1", "python:delaytrack._io:write_text"]}\n'
+        "draws = 2\nseed = 0\n"
+    )
+    with pytest.raises(
+        SweepError, match=r"random.\"delay.type\": .*'delaytrack._io'.* not trusted"
+    ):
+        SweepSpec.from_toml(sweep)
+    assert not touched.exists()
+
+
+# ---- files: beside the scenario, or trusted ------------------------------------------------
+
+
+def test_a_factory_file_beside_or_below_the_scenario_runs_without_trust(tmp_path, capsys):
+    (tmp_path / "parts").mkdir()
+    (tmp_path / "parts" / "arm_below.py").write_text(ARM_FACTORY)
+    path = scenario_file(tmp_path, {"type": "python:parts/arm_below.py:make"})
+    assert Scenario.from_toml(path).build().plant.n == 2
+
+
+def test_a_factory_file_that_escapes_the_folder_is_refused_and_not_imported(tmp_path, capsys):
+    marker = tmp_path / "imported"
+    (tmp_path / "escape_evil.py").write_text(
+        f"open({str(marker)!r}, 'w').close()\n\ndef make():\n    return None\n"
+    )
+    path = scenario_file(tmp_path / "sent", {"type": "python:../escape_evil.py:make"})
+    err = refused(
+        capsys,
+        ["simulate", str(path), "--out", str(tmp_path / "out")],
+        "'plant.type' = 'python:../escape_evil.py:make'",
+        f"names {tmp_path / 'escape_evil.py'}",
+        f"neither in {tmp_path / 'sent'}",
+        f"--trust {tmp_path}",
+    )
+    assert err.count("\n") == 1
+    with pytest.raises(ScenarioError, match="nor trusted"):
+        Scenario.from_toml(path)
+    assert not marker.exists()
+
+
+def test_a_link_inside_the_folder_to_a_file_outside_is_refused(tmp_path, capsys):
+    marker = tmp_path / "imported"
+    outside = tmp_path / "elsewhere" / "linked_evil.py"
+    outside.parent.mkdir()
+    outside.write_text(f"open({str(marker)!r}, 'w').close()\n\ndef make():\n    return None\n")
+    folder = tmp_path / "sent"
+    folder.mkdir()
+    (folder / "robot.py").symlink_to(outside)
+    path = scenario_file(folder, {"type": "python:robot.py:make"})
+    refused(capsys, ["simulate", str(path)], "'plant.type'", f"names {outside}")
+    (folder / "lib").symlink_to(outside.parent, target_is_directory=True)
+    path = scenario_file(folder, {"type": "python:lib/linked_evil.py:make"})
+    with pytest.raises(ScenarioError, match="nor trusted"):
+        Scenario.from_toml(path)
+    assert not marker.exists()
+
+
+def test_a_file_elsewhere_runs_when_its_folder_or_itself_is_trusted(tmp_path, capsys):
+    lab = tmp_path / "lab"
+    lab.mkdir()
+    (lab / "arm_elsewhere.py").write_text(ARM_FACTORY)
+    factory = f"python:{lab / 'arm_elsewhere.py'}:make"
+    path = scenario_file(tmp_path / "case", {"type": factory})
+    with pytest.raises(ScenarioError, match="nor trusted"):
+        Scenario.from_toml(path)
+    for trust in ([str(lab)], [str(lab / "arm_elsewhere.py")], [f"{lab}/sub/.."]):
+        assert Scenario.from_toml(path, trust=trust).plant["type"] == factory
+    (lab / "other.py").write_text("")
+    with pytest.raises(ScenarioError, match="nor trusted"):  # another file of that folder
+        Scenario.from_toml(path, trust=[str(lab / "other.py")])
+    out = tmp_path / "out"
+    assert main(["simulate", str(path), "--out", str(out), "--trust", str(lab), "--quiet"]) == 0
+    capsys.readouterr()
+    # The scenario as run names the file by absolute path: loading it again from its results
+    # folder needs the trust the message names.
+    refused(
+        capsys,
+        ["simulate", str(out / "scenario.toml"), "--out", str(out)],
+        f"--trust {lab}",
+        f"trust=['{lab}']",
+    )
+    assert (
+        main(
+            [
+                "simulate",
+                str(out / "scenario.toml"),
+                "--out",
+                str(out),
+                "--trust",
+                str(lab),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
+
+
+def test_the_scenario_as_run_loads_again_where_its_factory_is_below_it(tmp_path, capsys):
+    (tmp_path / "arm_as_run.py").write_text(ARM_FACTORY)
+    path = scenario_file(tmp_path, {"type": "python:arm_as_run.py:make"})
+    assert main(["simulate", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    saved = tmp_path / "out" / "scenario.toml"
+    moved = tmp_path / "again.toml"  # the factory is below this file's folder
+    moved.write_text(saved.read_text())
+    assert f"python:{tmp_path / 'arm_as_run.py'}:make" in moved.read_text()
+    assert Scenario.from_toml(moved).build().plant.n == 2
+    with pytest.raises(ScenarioError, match=re.escape(f"--trust {tmp_path}")):
+        Scenario.from_toml(saved)
+
+
+def test_a_sweep_checks_its_own_factories_and_its_scenarios_in_their_folders(tmp_path, capsys):
+    (tmp_path / "scenarios").mkdir()
+    (tmp_path / "scenarios" / "arm_of_scenario.py").write_text(ARM_FACTORY)
+    scenario_file(tmp_path / "scenarios", {"type": "python:arm_of_scenario.py:make"})
+    sweep = tmp_path / "sweeps" / "sweep.toml"
+    sweep.parent.mkdir()
+    (sweep.parent / "arm_of_sweep.py").write_text(ARM_FACTORY)
+    sweep.write_text(
+        'scenario = "../scenarios/case.toml"\nunit_size = 1\n[grid]\n'
+        'model = [{type = "python:arm_of_sweep.py:make"}, '
+        '{type = "python:../scenarios/arm_of_scenario.py:make"}]\n'
+    )
+    with pytest.raises(SweepError, match=r'grid."model": .*arm_of_scenario.py.* nor trusted'):
+        SweepSpec.from_toml(sweep)
+    spec = SweepSpec.from_toml(sweep, trust=[str(tmp_path / "scenarios")])
+    assert len(spec.runs) == 2
+    out = ["--out", str(tmp_path / "out"), "--quiet"]
+    refused(capsys, ["sweep", str(sweep), *out], 'grid."model"', "arm_of_scenario.py")
+    assert main(["sweep", str(sweep), *out, "--trust", str(tmp_path / "scenarios")]) == 0
+
+
+# ---- modules: trusted by name ----------------------------------------------------------------
+
+
+@pytest.fixture
+def lab(tmp_path, monkeypatch) -> str:
+    """An importable package ``trustlab_<n>`` with a submodule ``robots`` holding ``make``."""
+    name = f"trustlab_{uuid.uuid4().hex[:8]}"
+    package = tmp_path / "site" / name
+    package.mkdir(parents=True)
+    (package / "__init__.py").write_text("")
+    (package / "robots.py").write_text(ARM_FACTORY)
+    monkeypatch.syspath_prepend(str(tmp_path / "site"))
+    return name
+
+
+def test_a_module_runs_only_when_it_or_its_package_is_trusted(tmp_path, lab, capsys):
+    path = scenario_file(tmp_path / "case", {"type": f"python:{lab}.robots:make"})
+    with pytest.raises(ScenarioError, match=f"module '{lab}.robots', which is not trusted"):
+        Scenario.from_toml(path)
+    with pytest.raises(ScenarioError, match="not trusted"):  # a name that merely starts alike
+        Scenario.from_toml(path, trust=[lab[:-1]])
+    with pytest.raises(ScenarioError, match="not trusted"):  # a submodule trusts no parent
+        Scenario.from_toml(path, trust=[f"{lab}.robots.arm"])
+    assert f"{lab}.robots" not in sys.modules
+    for trust in ([lab], [f"{lab}.robots"]):
+        assert Scenario.from_toml(path, trust=trust).build().plant.n == 2
+    out = ["--out", str(tmp_path / "out"), "--quiet"]
+    refused(capsys, ["simulate", str(path), *out], f"--trust {lab}.robots")
+    assert main(["simulate", str(path), *out, "--trust", "os", "--trust", lab]) == 0
+
+
+def test_the_packages_own_modules_are_not_trusted_by_default(tmp_path):
+    written = tmp_path / "written"
+    path = scenario_file(
+        tmp_path / "sent",
+        {"type": "python:delaytrack._io:write_text", "text": "x", "path": str(written)},
+    )
+    with pytest.raises(ScenarioError, match="module 'delaytrack._io', which is not trusted"):
+        Scenario.from_toml(path)
+    assert not written.exists()
+
+
+@pytest.mark.parametrize(
+    ("names", "message"),
+    [
+        ("mylab", r"trust must be a list of module names or paths"),
+        (["my-lab"], r"trust 'my-lab' is neither a module name"),
+        ([""], r"trust takes module names or paths \(text\); got ''"),
+        ([3], r"trust takes module names or paths"),
+        (["./no_such_folder"], r"trust './no_such_folder': no such file or folder"),
+        (["case.toml.py"], r"no such file or folder"),
+    ],
+)
+def test_trust_names_that_are_not_a_module_or_a_python_file_or_folder_are_refused(
+    tmp_path, names, message
+):
+    path = scenario_file(tmp_path, {"type": "two-link-arm"})
+    with pytest.raises(ValueError, match=message):
+        Scenario.from_toml(path, trust=names)
+    with pytest.raises(ValueError, match=message):
+        SweepSpec.from_toml(tmp_path / "sweep.toml", trust=names)
+
+
+def test_trust_options_that_are_not_a_module_or_a_python_file_or_folder_are_refused(
+    tmp_path, capsys
+):
+    path = scenario_file(tmp_path, {"type": "two-link-arm"})
+    for name, words in [
+        ("my-lab", ["--trust 'my-lab' is neither a module name"]),
+        (str(path), ["is a file but not Python (.py)"]),
+        (str(tmp_path / "missing"), ["no such file or folder"]),
+    ]:
+        assert main(["simulate", str(path), "--trust", name]) == 2
+        one_line_error(capsys, *words)
+        assert main(["sweep", str(tmp_path / "sweep.toml"), "--trust", name]) == 2
+        one_line_error(capsys, *words)
+
+
+# ---- factories that exit or are interrupted --------------------------------------------------
+
+
+def test_a_factory_that_exits_is_an_error_naming_it(tmp_path, capsys):
+    (tmp_path / "exits_zero.py").write_text("def make():\n    raise SystemExit(0)\n")
+    path = scenario_file(tmp_path, {"type": "python:exits_zero.py:make"})
+    kind = f"python:{tmp_path / 'exits_zero.py'}:make"
+    with pytest.raises(
+        ScenarioError, match=re.escape(f"'plant.type' = '{kind}' raised SystemExit(0)")
+    ):
+        Scenario.from_toml(path).build()
+    assert main(["simulate", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    one_line_error(capsys, f"'plant.type' = '{kind}' raised SystemExit(0)", "must not exit")
+
+
+def test_a_factory_module_that_exits_on_import_is_an_error_naming_it(tmp_path, capsys):
+    (tmp_path / "exits_three.py").write_text("import sys\nsys.exit(3)\n")
+    path = scenario_file(tmp_path, {"type": "python:exits_three.py:make"})
+    with pytest.raises(ScenarioError, match=r"'plant.type' = .* raised SystemExit\(3\) while"):
+        Scenario.from_toml(path)
+    assert main(["simulate", str(path), "--out", str(tmp_path / "out")]) == 2
+    one_line_error(capsys, "'plant.type'", "exits_three.py:make' raised SystemExit(3)")
+    assert "exits_three" not in sys.modules
+
+
+def test_a_factory_interrupted_says_which_and_exits_130(tmp_path, capsys):
+    (tmp_path / "interrupted_make.py").write_text("def make():\n    raise KeyboardInterrupt\n")
+    (tmp_path / "interrupted_import.py").write_text("raise KeyboardInterrupt\n")
+    for module, words in [
+        ("interrupted_make", "interrupted in the factory of scenario key 'plant.type' = "),
+        ("interrupted_import", "interrupted while importing "),
+    ]:
+        path = scenario_file(tmp_path, {"type": f"python:{module}.py:make"})
+        with pytest.raises(KeyboardInterrupt, match=f"{words}.*{module}.py"):
+            Scenario.from_toml(path).build()
+        assert main(["simulate", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 130
+        err = capsys.readouterr().err
+        assert err.startswith(words) and err.count("\n") == 1 and f"{module}.py" in err, err
+
+
+# ---- the property ------------------------------------------------------------------------------
+
+segments = st.lists(st.sampled_from(["..", ".", "lab", "sent", "deep"]), max_size=5)
+identifiers = st.from_regex(r"[a-z_][a-z0-9_]{0,6}", fullmatch=True)
+#: Dotted names; one ending in ".py" would be a file.
+dotted = (
+    st.lists(identifiers, min_size=1, max_size=3)
+    .map(".".join)
+    .filter(lambda name: not name.endswith(".py"))
+)
+
+
+@settings(
+    max_examples=60,
+    derandomize=True,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+@given(
+    parts=segments,
+    module=dotted,
+    trusted=st.lists(dotted, max_size=2),
+)
+def test_a_factory_is_imported_exactly_when_it_is_allowed(parts, module, trusted):
+    """For any relative path and any module name, the factory is imported only when its file
+    lies in the scenario's folder or below, or its module (or a package above it) is trusted;
+    anything else is refused naming the key, with nothing imported."""
+    imported = []
+
+    def spy(location):
+        imported.append(str(location))
+        raise ImportError("spied")
+
+    with tempfile.TemporaryDirectory() as root:
+        folder = Path(root).resolve() / "sent"
+        relative = "/".join([*parts, "factory.py"])
+        inside = Path(os.path.normpath(folder / relative)).is_relative_to(folder)
+        allowed = any(module == name or module.startswith(f"{name}.") for name in trusted)
+        with (
+            mock.patch.object(_spec, "module_from_file", spy),
+            mock.patch.object(
+                _spec, "importlib", SimpleNamespace(import_module=spy, util=importlib.util)
+            ),
+        ):
+            for kind, expected in [
+                (f"python:{relative}:make", inside),
+                (f"python:{module}:make", allowed),
+            ]:
+                imported.clear()
+                path = scenario_file(folder, {"type": kind})
+                with pytest.raises(ScenarioError) as refusal:
+                    Scenario.from_toml(path, trust=trusted)
+                message = str(refusal.value)
+                assert ("cannot import" in message) == expected, message
+                assert bool(imported) == expected, (kind, imported)
+                if not expected:
+                    assert "'plant.type'" in message and "trust" in message

@@ -27,6 +27,7 @@ from delaytrack.delays import TraceDelay
 from delaytrack.experiments import Scenario, ScenarioError
 from delaytrack.references import SplineReference
 from delaytrack.sweeps import SweepSpec
+from test_hostile_inputs import one_line_error
 from test_scenario import base_dict
 
 #: Long enough for a first import of MuJoCo or numba on a busy machine; a read that waits on a
@@ -34,15 +35,6 @@ from test_scenario import base_dict
 _HANG_GUARD_SECONDS = 120
 
 _SPLINE = {"type": "spline", "path": "", "beyond": "hold"}
-
-
-def one_line_error(capsys, *words: str) -> str:
-    err = capsys.readouterr().err
-    assert err.startswith("error: ") and err.count("\n") == 1, err
-    assert "Traceback" not in err
-    for word in words:
-        assert word in err, (word, err)
-    return err
 
 
 def promptly(fifo: Path, call: Callable[..., object], *arguments: object) -> object:

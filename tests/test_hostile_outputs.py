@@ -114,28 +114,22 @@ def test_names_that_would_share_a_column_are_refused_by_a_user_plant(names, unit
         )
 
 
-def test_a_plant_class_with_clashing_names_is_refused_before_the_run():
-    arm = _ArmWithClashingNames()
-    controller = AROLC(arm, K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
-    reference = SinusoidalReference([0.0, 0.0], amplitude=[0.5, 0.3], frequency=[0.5, 0.7])
-    with pytest.raises(ValueError, match=r"two columns 'a_d_rad' \(the reference of coordinate "):
-        simulate(
-            arm,
-            controller,
-            AbsSineDelay.S1(),
-            np.zeros(4),
-            reference=reference,
-            t1=0.1,
-            dt=0.001,
-            T_c=0.01,
-        )
-
-
-def test_a_coordinate_named_like_the_controllers_state_is_refused_before_the_run():
-    plant = _callable_plant(["c_hat", "y"])
+@pytest.mark.parametrize(
+    ("make_plant", "message"),
+    [
+        (_ArmWithClashingNames, r"two columns 'a_d_rad' \(the reference of coordinate "),
+        (
+            lambda: _callable_plant(["c_hat", "y"]),
+            r"two columns 'c_hat'.*controller's state 'c_hat'",
+        ),
+    ],
+    ids=["a plant class whose names clash", "a coordinate named like the controller's state"],
+)
+def test_clashing_names_are_refused_by_simulate_before_the_run(make_plant, message):
+    plant = make_plant()
     controller = AROLC(plant, K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
     reference = SinusoidalReference([0.0, 0.0], amplitude=[0.5, 0.3], frequency=[0.5, 0.7])
-    with pytest.raises(ValueError, match=r"two columns 'c_hat'.*controller's state 'c_hat'"):
+    with pytest.raises(ValueError, match=message):
         simulate(
             plant,
             controller,

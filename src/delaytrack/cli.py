@@ -644,8 +644,10 @@ def _sweep(args: argparse.Namespace) -> int:
             "the results folder",
         )
     )
-    spec = SweepSpec.from_toml(args.spec, trust=trust)
+    spec = SweepSpec.from_toml(args.spec, trust=trust, progress=not args.quiet)
     print(f"sweep {args.spec}: {len(spec.runs)} runs in {len(spec.units())} units -> {folder}/")
+    if not args.quiet:  # the size of the work before it starts, as simulate says its own
+        print(f"delaytrack: sweeping {spec.size_summary()}", file=sys.stderr, flush=True)
     executor = make_executor(args.scheduler, workers=workers)
     try:
         outcome = run_sweep(spec, folder, executor=executor, progress=not args.quiet)

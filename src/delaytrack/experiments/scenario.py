@@ -137,6 +137,15 @@ _TOP_LEVEL_SCALARS: dict[str, Callable[[object], str | None]] = {
 _TABLES = ("plant", "model", "controller", "delay", "reference")
 _REQUIRED = ("name", "duration", "dt", "T_c", *_TABLES)
 _TOP_LEVEL_KEYS = (*_TOP_LEVEL_SCALARS, *_TABLES)
+_TABLE_TYPES = MappingProxyType(
+    {
+        "plant": PLANT_SPECS,
+        "model": PLANT_SPECS,
+        "controller": CONTROLLER_SPECS,
+        "delay": DELAY_SPECS,
+        "reference": REFERENCE_SPECS,
+    }
+)
 _TABLE_PURPOSE = {
     "plant": "the true plant",
     "model": "the nominal plant the controller uses; copy [plant] for a perfect model",
@@ -397,18 +406,14 @@ class Scenario:
                 table = _plain(getattr(self, key))
                 _check_value(key, table, phrase)
                 object.__setattr__(self, key, MappingProxyType(table))
-        tables = {table: _plain(getattr(self, table)) for table in _TABLES}
-        for table, content, types in (
-            ("plant", tables["plant"], PLANT_SPECS),
-            ("model", tables["model"], PLANT_SPECS),
-            ("controller", tables["controller"], CONTROLLER_SPECS),
-            ("delay", _with_delay_defaults(tables["delay"], self.seed, self.duration), DELAY_SPECS),
-            ("reference", _with_reference_type(tables["reference"]), REFERENCE_SPECS),
-        ):
-            check = functools.partial(check_table, table, content, types)
-            _remembered(check, "checked", table, content)
-        for table, content in tables.items():
-            object.__setattr__(self, table, MappingProxyType(content))
+        for table in _TABLES:
+            content = _plain(getattr(self, table))
+            if isinstance(content, dict):  # anything else is refused by its check below
+                content = MappingProxyType(content)
+            object.__setattr__(self, table, content)
+        for table, types in _TABLE_TYPES.items():
+            check = functools.partial(check_table, table, self._checked_form(table), types)
+            _remembered(check, "checked", self, table)
 
     # ---- reading and writing -----------------------------------------------------------------
 
@@ -528,6 +533,30 @@ class Scenario:
     def _delay_spec(self) -> dict[str, Any]:
         return _with_delay_defaults(_plain(self.delay), self.seed, self.duration)
 
+    def _checked_form(self, table: str) -> Any:
+        """``[table]`` as it is checked and built: a delay with the defaults it takes from the
+        scenario, a reference with its type."""
+        if table == "delay":
+            return _with_delay_defaults(self.delay, self.seed, self.duration)
+        if table == "reference":
+            return _with_reference_type(self.reference)
+        return getattr(self, table)
+
+    @functools.cached_property
+    def _identities(self) -> Mapping[str, str | None]:
+        """How :func:`remembered_tables` tells each table apart: its checked form
+        (:meth:`_checked_form`) as JSON text with sorted keys, None when it is not JSON data."""
+        identities = {}
+        for table in _TABLES:
+            form = self._checked_form(table)
+            try:
+                identities[table] = _identity_text(
+                    dict(form) if isinstance(form, Mapping) else form
+                )
+            except (TypeError, ValueError):  # not JSON data (a date): never taken for another
+                identities[table] = None
+        return identities
+
     def build(self) -> BuiltScenario:
         """Construct plant, model, controller, delay, reference and ``x0``.
 
@@ -537,23 +566,18 @@ class Scenario:
             If a table's values are refused by its constructor (for example a gain that is not
             positive definite) or the dimensions disagree; the message names the table.
         """
-        tables = {table: dict(getattr(self, table)) for table in _TABLES}
-        tables["delay"] = self._delay_spec()
-        plant = _built(lambda: plant_from_spec(_plain(self.plant)), "plant", tables)
-        model = _built(lambda: plant_from_spec(_plain(self.model), table="model"), "model", tables)
+        plant = self._built(lambda: plant_from_spec(_plain(self.plant)), "plant")
+        model = self._built(lambda: plant_from_spec(_plain(self.model), table="model"), "model")
         if (model.n, model.m) != (plant.n, plant.m):
             raise ScenarioError(
                 f"scenario table [model] has n = {model.n}, m = {model.m}; [plant] has "
                 f"n = {plant.n}, m = {plant.m} (they must describe the same kind of system)"
             )
-        controller = _built(
-            lambda: controller_from_spec(_plain(self.controller), model),
-            "controller",
-            tables,
-            "model",
+        controller = self._built(
+            lambda: controller_from_spec(_plain(self.controller), model), "controller", "model"
         )
-        delay = _built(lambda: delay_from_spec(tables["delay"]), "delay", tables)
-        reference = _built(lambda: reference_from_spec(_plain(self.reference)), "reference", tables)
+        delay = self._built(lambda: delay_from_spec(self._delay_spec()), "delay")
+        reference = self._built(lambda: reference_from_spec(_plain(self.reference)), "reference")
         if reference.n != plant.n:
             raise ScenarioError(
                 f"scenario table [reference] gives n = {reference.n} coordinates; the plant has "
@@ -578,6 +602,15 @@ class Scenario:
             if x0.shape != (2 * plant.n,):
                 raise fail("x0", f"must have 2n = {2 * plant.n} entries [q, qdot]", list(self.x0))
         return BuiltScenario(plant, model, controller, delay, reference, x0)
+
+    def _built(self, make: Callable[[], _T], *tables: str) -> _T:
+        """The component ``make`` builds from ``tables``, remembered (:func:`remembered_tables`)
+        unless one of them names a factory of yours: a factory is called every time."""
+        for table in tables:
+            kind = getattr(self, table).get("type")
+            if isinstance(kind, str) and kind.startswith(PYTHON_TYPE):
+                return make()
+        return _remembered(make, "built", self, *tables)
 
     def resolved(self) -> Scenario:
         """The scenario with its defaults written in: ``x0``, and a random delay's seed/duration.
@@ -633,7 +666,7 @@ _T = TypeVar("_T")
 #: drawn anew for every run is not met again. A check is remembered as a name; a component may
 #: hold a model file's arrays, so fewer of them are kept.
 _REMEMBERED_TABLES = MappingProxyType({"checked": 4096, "built": 256})
-_REMEMBERED: ContextVar[dict[str, OrderedDict[str, Any]] | None] = ContextVar(
+_REMEMBERED: ContextVar[dict[str, OrderedDict[tuple[str, ...], Any]] | None] = ContextVar(
     "_REMEMBERED", default=None
 )
 #: The text that identifies tables: JSON with sorted keys (a float's exact digits; 1, 1.0 and
@@ -659,16 +692,16 @@ def remembered_tables() -> Iterator[None]:
         _REMEMBERED.reset(token)
 
 
-def _remembered(make: Callable[[], _T], kind: str, *identity: object) -> _T:
-    """``make()``, or what it returned for the same ``identity`` (names and tables) earlier in
-    the :func:`remembered_tables` block, among the ``kind`` ("checked", "built") it keeps; a
-    refusal is never remembered."""
+def _remembered(make: Callable[[], _T], kind: str, scenario: Scenario, *tables: str) -> _T:
+    """``make()``, or what it returned earlier in the :func:`remembered_tables` block for the
+    same ``tables`` (names and contents) of a scenario, among the ``kind`` ("checked", "built")
+    it keeps; a refusal is never remembered."""
     memories = _REMEMBERED.get()
     if memories is None:
         return make()
-    try:
-        key = _identity_text(identity)
-    except (TypeError, ValueError):  # not JSON data (a date): not compared
+    identities = scenario._identities
+    key = (*tables, *(identities[table] for table in tables))
+    if None in key:
         return make()
     memory = memories[kind]
     if key in memory:
@@ -678,17 +711,6 @@ def _remembered(make: Callable[[], _T], kind: str, *identity: object) -> _T:
     if len(memory) > _REMEMBERED_TABLES[kind]:
         memory.popitem(last=False)
     return value
-
-
-def _built(make: Callable[[], _T], table: str, tables: Mapping[str, Any], *using: str) -> _T:
-    """The component of ``tables[table]`` (built with those named in ``using``), remembered
-    (:func:`remembered_tables`) unless one of them names a factory of yours."""
-    names = (table, *using)
-    for name in names:
-        kind = tables[name].get("type")
-        if isinstance(kind, str) and kind.startswith(PYTHON_TYPE):
-            return make()
-    return _remembered(make, "built", *((name, tables[name]) for name in names))
 
 
 def _construct(table: str, make: Callable[[], Any], keys: Iterable[str] = ()) -> Any:

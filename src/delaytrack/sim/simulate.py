@@ -7,6 +7,7 @@ import functools
 import math
 import os
 import re
+import sys
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from types import SimpleNamespace
@@ -654,6 +655,16 @@ def simulate(
             f"history there) and {int(capacities.max())} commands of history per thread (the "
             "delay bound or the run's length, whichever is shorter, over T_c); shorten the "
             "predictor's history, the delay or the run, or split the batch"
+        )
+    if progress:  # the size of the work before it starts (the library is quiet without)
+        scale, unit = (2**30, "GiB") if size >= 2**30 else (2**20, "MiB")
+        recorded = f"about {size / scale:.3g} {unit} of trajectories ({records} samples per run)"
+        print(
+            f"delaytrack: simulating {batch} run(s) of {n_ticks * steps_per_tick} steps "
+            f"(dt = {dt:g} s), n = {n} coordinates; "
+            + (recorded if trajectories else "metrics only, no trajectories recorded"),
+            file=sys.stderr,
+            flush=True,
         )
     try:
         states = np.full((batch, records, 2 * n), np.nan)

@@ -1023,6 +1023,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _quiet_argument(tune)
     tune.set_defaults(handler=_tune_baselines)
+
+    from delaytrack.live.cli import add_live_commands  # the real-time loop (delaytrack[live])
+
+    add_live_commands(commands, _Parser)
     return parser
 
 

@@ -1,0 +1,256 @@
+"""Command line of the live loop: ``delaytrack live run|replay|controller|delay|robot``.
+
+:func:`add_live_commands` adds the ``live`` group to the ``delaytrack`` parser;
+``python -m delaytrack.live ...`` runs the same commands without the rest of the CLI (the
+launcher starts its nodes this way).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from typing import Any
+
+from delaytrack._validation import NumberTextError, decimal_number
+
+__all__ = ["add_live_commands", "main"]
+
+_PAPER = (
+    "as in the paper's experiment, where the delay was injected \"by halting the programme "
+    'for h(t)" between computing a command and applying it'
+)
+
+
+def _seconds(text: str) -> float:
+    """argparse type: seconds >= 0 in the command line's number rule (``1_000`` is refused)."""
+    try:
+        value = decimal_number(text)
+    except NumberTextError as error:
+        raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}: {error}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected seconds >= 0, got {text!r}")
+    return value
+
+
+def _node_arguments(command: argparse.ArgumentParser, role: str) -> None:
+    command.add_argument("scenario", help="scenario file, or the name of a shipped scenario")
+    command.add_argument(
+        "--out",
+        required=True,
+        metavar="DIR",
+        help=f"folder for this node's log ({role}.mcap) and tables",
+    )
+    command.add_argument(
+        "--duration",
+        type=_seconds,
+        default=None,
+        metavar="S",
+        help="session length in seconds (default: the scenario's duration)",
+    )
+    command.add_argument(
+        "--session",
+        default="live",
+        metavar="NAME",
+        help="session name: the key prefix delaytrack/NAME (default live)",
+    )
+    command.add_argument(
+        "--listen",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help="Zenoh endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable)",
+    )
+    command.add_argument(
+        "--connect",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help="Zenoh endpoint of a peer, e.g. tcp/10.0.0.2:7447 (repeatable)",
+    )
+    command.add_argument(
+        "--handshake-timeout",
+        type=_seconds,
+        default=60.0,
+        metavar="S",
+        help="give up when the other nodes have not appeared (default 60 s)",
+    )
+    command.add_argument(
+        "--start-delay", type=_seconds, default=0.5, metavar="S", help=argparse.SUPPRESS
+    )
+    command.add_argument(
+        "--trust",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="trust a factory module or .py file/folder the scenario names",
+    )
+    command.add_argument("--quiet", action="store_true", help="no status line")
+    command.add_argument("--progress", action="store_true", help=argparse.SUPPRESS)
+    if role == "controller":
+        command.add_argument(
+            "--phase",
+            type=_seconds,
+            default=None,
+            metavar="S",
+            help="wake this long after each tick time to read the state "
+            "sampled then (default min(T_c/2, 1 ms))",
+        )
+        command.add_argument(
+            "--state-timeout",
+            type=_seconds,
+            default=None,
+            metavar="S",
+            help="a state older than this is stale (default max(5 T_c, 50 ms))",
+        )
+        command.add_argument(
+            "--stale",
+            choices=("hold", "zero"),
+            default="hold",
+            help="on a stale state, hold the last command or send zeros",
+        )
+    elif role == "delay":
+        command.add_argument(
+            "--loss",
+            type=float,
+            default=None,
+            metavar="P",
+            help="packet loss probability (default: the scenario's packet_loss)",
+        )
+        command.add_argument("--loss-seed", type=int, default=0, metavar="SEED")
+        command.add_argument(
+            "--lead",
+            type=_seconds,
+            default=None,
+            metavar="S",
+            help="release this long before the robot step it is for (default min(dt/2, 0.5 ms))",
+        )
+    else:
+        command.add_argument(
+            "--state-every",
+            type=int,
+            default=None,
+            metavar="STEPS",
+            help="publish the state every STEPS plant steps (default T_c/dt)",
+        )
+        command.add_argument(
+            "--command-timeout",
+            type=_seconds,
+            default=None,
+            metavar="S",
+            help="no command for this long: zero input (default max(0.1 s, 10 T_c))",
+        )
+
+
+def _node_handler(role: str) -> Any:
+    def handler(args: argparse.Namespace) -> int:
+        if role == "controller":
+            from delaytrack.live.controller import main as node_main
+        elif role == "delay":
+            from delaytrack.live.delay import main as node_main
+        else:
+            from delaytrack.live.robot import main as node_main
+        return node_main(args)
+
+    return handler
+
+
+def _run(args: argparse.Namespace) -> int:
+    from delaytrack.live.session import run_session
+
+    return run_session(args)
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from delaytrack.live.replay import replay_main
+
+    return replay_main(args)
+
+
+def add_live_commands(commands: Any, parser_class: type[argparse.ArgumentParser]) -> None:
+    """Add ``live`` and its subcommands to the subparsers ``commands`` of a parser."""
+    live = commands.add_parser(
+        "live",
+        help="run a controller in real time against a robot over Zenoh, with the delay injected",
+        description="Run the loop in real time: a controller node, a delay node and a robot "
+        f"node over Zenoh, {_PAPER}. 'run' starts all three on this machine; 'controller', "
+        "'delay' and 'robot' start one for a distributed setup; 'replay' re-simulates a "
+        "session with its realised delays.",
+    )
+    sub = live.add_subparsers(
+        dest="live_command", metavar="LIVE_COMMAND", parser_class=parser_class
+    )
+    sub.required = True
+    run = sub.add_parser(
+        "run",
+        help="start the three nodes as processes, wait, and write the session folder",
+        description="Start the controller, delay and robot nodes as separate processes on this "
+        "machine (Zenoh peers on tcp/127.0.0.1), wait for the session to end, and write the "
+        "MCAP logs, ticks.csv, delays.csv and summary.json into --out.",
+    )
+    run.add_argument("scenario", help="scenario file, or the name of a shipped scenario")
+    run.add_argument(
+        "--duration",
+        type=_seconds,
+        default=None,
+        metavar="S",
+        help="session length in seconds (default: the scenario's duration)",
+    )
+    run.add_argument("--out", required=True, metavar="DIR", help="session folder to write")
+    run.add_argument(
+        "--port",
+        type=int,
+        default=None,
+        metavar="PORT",
+        help="first of three TCP ports on 127.0.0.1 (default: free ports)",
+    )
+    run.add_argument(
+        "--loss",
+        type=float,
+        default=None,
+        metavar="P",
+        help="packet loss probability (default: the scenario's packet_loss)",
+    )
+    run.add_argument("--loss-seed", type=int, default=0, metavar="SEED")
+    run.add_argument("--handshake-timeout", type=_seconds, default=60.0, metavar="S")
+    run.add_argument(
+        "--trust",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="trust a factory module or .py file/folder the scenario names",
+    )
+    run.add_argument("--quiet", action="store_true", help="no status line")
+    run.add_argument("--progress", action="store_true", help=argparse.SUPPRESS)
+    run.set_defaults(handler=_run)
+    replay = sub.add_parser(
+        "replay",
+        help="re-simulate a live session with its realised delays and report the agreement",
+        description="Re-simulate a session folder written by 'live run' offline: same plant, "
+        "controller and reference, the realised delays as a trace (TraceDelay), the same "
+        "packet losses; print and write the agreement of tracking errors and commands.",
+    )
+    replay.add_argument("folder", help="session folder written by 'delaytrack live run'")
+    replay.add_argument("--trust", action="append", default=[], metavar="NAME")
+    replay.add_argument("--quiet", action="store_true", help="no progress")
+    replay.set_defaults(handler=_replay)
+    for role in ("controller", "delay", "robot"):
+        node = sub.add_parser(
+            role,
+            help=f"run the {role} node alone (for a distributed setup)",
+            description=f"Run the {role} node of a live session; the other two nodes run "
+            "elsewhere with the same scenario and --session, reachable through --listen and "
+            "--connect endpoints.",
+        )
+        _node_arguments(node, role)
+        node.set_defaults(handler=_node_handler(role))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m delaytrack.live``: the ``live`` commands alone."""
+    parser = argparse.ArgumentParser(prog="delaytrack")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND")
+    commands.required = True
+    add_live_commands(commands, argparse.ArgumentParser)
+    args = parser.parse_args(["live", *(sys.argv[1:] if argv is None else argv)])
+    return args.handler(args)

@@ -1,0 +1,244 @@
+"""The real-time controller node.
+
+It runs the scenario's controller — built in, or a user's compiled (or Python) step kernel — at
+the period ``T_c`` on the monotonic clock, with absolute deadlines ``t0 + t_k + phase``,
+``t_k = k·T_c``: a late wake-up does not shift later ticks, and a wake-up past the next deadline
+counts the ticks in between as missed and runs the latest one (no burst). At each tick it reads
+the newest robot state sampled at or before ``t_k`` (the robot publishes ``x(t_k)`` at
+``t0 + t_k``; the sampling ``phase``, default ``min(T_c/2, 1 ms)``, gives it time to arrive),
+evaluates the reference at ``t_k``, runs one step of the control law (the same kernel the
+simulator runs), and publishes the command stamped with its sequence number ``k`` and sample
+time ``t_k``.
+
+The delay rule counts from ``t_k``, so the sampling phase, the computing time and the transport
+are part of the delay the robot sees, as in the paper's experiment, where the delay was
+injected "by halting the programme for h(t) amount of time ... between the control input
+computation and feeding it to the system" (that halting is the delay node's job here,
+:mod:`delaytrack.live.delay`).
+
+Per tick it records the wake-up lateness, the compute time (reference and law), the age
+``t_k - s`` of the state used, ticks skipped, and whether it held its command because the
+newest state was older than ``--state-timeout`` (safety: the law is not run on a stale state;
+``--stale zero`` sends zeros instead).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from typing import Any
+
+import numpy as np
+
+from delaytrack.controllers.base import step_workspace
+from delaytrack.live._node import NodeBase, percentile
+from delaytrack.live.clock import Ticker
+from delaytrack.live.log import McapLog, write_csv
+from delaytrack.live.messages import HELD_STALE, CommandMessage, StateMessage
+
+__all__ = ["ControllerNode"]
+
+
+class ControllerNode(NodeBase):
+    """The controller node (module docstring)."""
+
+    role = "controller"
+
+    def __init__(self, scenario: Any, built: Any, args: Any) -> None:
+        super().__init__(scenario, built, args)
+        controller, delay = built.controller, built.delay
+        self.n, self.m = controller.n, controller.m
+        controller.check_run(self.T_c, delay.h_max)
+        self.phase = min(self.T_c / 2, 1e-3) if getattr(args, "phase", None) is None else args.phase
+        self.state_timeout = (
+            max(5 * self.T_c, 0.05) if args.state_timeout is None else args.state_timeout
+        )
+        self.stale_zero = args.stale == "zero"
+        self._step = controller.step_callable
+        self._model = (
+            controller.model.engine_kernel
+            if controller.compiled
+            else controller.model.engine_kernel.as_python()
+        )
+        self._params, self._model_params = controller.params, controller.model.params
+        self._state = np.array(controller.initial_state(), dtype=float)
+        self._work = step_workspace(self.n, self.m)
+        self._command = np.zeros(self.m)
+        reference = built.reference
+        self._reference_kernel = reference.reference_kernel
+        if not reference.compiled:
+            self._reference_kernel = getattr(
+                self._reference_kernel, "py_func", self._reference_kernel
+            )
+        self._reference_params = reference.params
+        self._qd, self._qd_dot, self._qd_ddot = np.zeros(self.n), np.zeros(self.n), np.zeros(self.n)
+        self._needs_delay = controller.needs_delay
+        self._delay = delay
+        # Warm up (compile) on x0 with a throw-away copy of the state.
+        saved = self._state.copy()
+        self._tick(0.0, built.x0)
+        self._state[:] = saved
+        self._states: deque[tuple[StateMessage, float]] = deque(maxlen=64)
+        self._lock = threading.Lock()
+        self.rows: list[list[Any]] = []
+
+    def _on_state(self, sample: Any) -> None:
+        received = time.monotonic()
+        try:
+            message = StateMessage.decode(sample.payload.to_bytes())
+        except Exception:  # noqa: BLE001 - a malformed payload is ignored
+            return
+        with self._lock:
+            self._states.append((message, received))
+
+    def declare(self, session: Any, prefix: str) -> None:
+        self._publisher = session.declare_publisher(f"{prefix}/command", express=True)
+        self._subscriber = session.declare_subscriber(f"{prefix}/state", self._on_state)
+        self.entities += [self._subscriber, self._publisher]
+
+    def _tick(self, t_k: float, x: np.ndarray) -> np.ndarray:
+        q = np.ascontiguousarray(x[: self.n])
+        qdot = np.ascontiguousarray(x[self.n :])
+        self._reference_kernel(t_k, self._reference_params, self._qd, self._qd_dot, self._qd_ddot)
+        h = float(self._delay.h(t_k)) if self._needs_delay else 0.0
+        self._step(
+            float(t_k),
+            q,
+            qdot,
+            self._qd,
+            self._qd_dot,
+            self._qd_ddot,
+            self.T_c,
+            h,
+            self._params,
+            self._state,
+            self._model,
+            self._model_params,
+            self._command,
+            self._work,
+        )
+        return self._command.copy()
+
+    def _latest_state(self, t_k: float) -> tuple[StateMessage, float] | None:
+        with self._lock:
+            states = list(self._states)
+        tolerance = 1e-9 * self.dt
+        for message, received in reversed(states):
+            if message.sample_time <= t_k + tolerance:
+                return message, received
+        return None
+
+    def loop(self, t0: float, stop: Any, handshake: Any) -> None:
+        self.log = McapLog(self.out / "controller.mcap", t0, self.metadata())
+        ticker = Ticker(
+            t0, self.T_c, phase=self.phase, until=self.duration, stop=stop, idle=self.log.work
+        )
+        self.ticker = ticker
+        last_command: np.ndarray | None = None
+        last_hello = 0.0
+        for wake in ticker:
+            t_k = wake.k * self.T_c
+            chosen = self._latest_state(t_k)
+            if chosen is None:  # nothing from the robot yet: nothing to compute on
+                self.rows.append(
+                    [
+                        wake.k,
+                        t_k,
+                        wake.lateness * 1e3,
+                        np.nan,
+                        np.nan,
+                        wake.skipped,
+                        "no-state",
+                        np.nan,
+                        *([np.nan] * self.m),
+                    ]
+                )
+                continue
+            state, _received = chosen
+            age = t_k - state.sample_time
+            start = time.perf_counter()
+            flags, what = 0, "ok"
+            if age > self.state_timeout:
+                flags, what = HELD_STALE, "stale-zero" if self.stale_zero else "stale-hold"
+                if self.stale_zero or last_command is None:
+                    u = np.zeros(self.m)
+                else:
+                    u = last_command
+            else:
+                u = self._tick(t_k, state.x)
+            compute = time.perf_counter() - start
+            send = ticker.now()
+            self._publisher.put(
+                CommandMessage(wake.k, t_k, send, state.sample_time, flags, u).encode()
+            )
+            last_command = u
+            self.log.command(
+                "/command",
+                seq=wake.k,
+                sample_time=t_k,
+                log_time=send,
+                u=u,
+                send_time=send,
+                state_time=state.sample_time,
+                flags=flags,
+            )
+            self.rows.append(
+                [
+                    wake.k,
+                    t_k,
+                    wake.lateness * 1e3,
+                    compute * 1e3,
+                    age * 1e3,
+                    wake.skipped,
+                    what,
+                    send,
+                    *u.tolist(),
+                ]
+            )
+            if send - last_hello > 0.2:
+                handshake.publish()
+                last_hello = send
+                recent = [r[2] for r in self.rows[-200:]]
+                self.status(
+                    send,
+                    f"ticks {len(self.rows)}  misses {ticker.missed}  "
+                    f"lateness p99 {percentile(recent, 99):.3f} ms",
+                )
+
+    def outputs(self) -> dict[str, Any]:
+        header = [
+            "k",
+            "t_s",
+            "lateness_ms",
+            "compute_ms",
+            "state_age_ms",
+            "skipped_before",
+            "status",
+            "send_s",
+            *[f"u{j + 1}" for j in range(self.m)],
+        ]
+        write_csv(self.out / "ticks.csv", header, self.rows)
+        rows = self.rows
+        lateness = [r[2] for r in rows]
+        compute = [r[3] for r in rows]
+        return {
+            "ticks": len(rows),
+            "missed": getattr(self, "ticker", None).missed if hasattr(self, "ticker") else 0,
+            "commands_sent": sum(1 for r in rows if r[6] != "no-state"),
+            "no_state": sum(1 for r in rows if r[6] == "no-state"),
+            "stale": sum(1 for r in rows if str(r[6]).startswith("stale")),
+            "lateness_ms_p50": percentile(lateness, 50),
+            "lateness_ms_p99": percentile(lateness, 99),
+            "lateness_ms_max": percentile(lateness, 100),
+            "compute_ms_p50": percentile(compute, 50),
+            "compute_ms_p99": percentile(compute, 99),
+            "state_age_ms_p99": percentile([r[4] for r in rows], 99),
+            "phase_ms": self.phase * 1e3,
+        }
+
+
+def main(args: Any) -> int:
+    from delaytrack.live._node import run_node
+
+    return run_node(ControllerNode, args)

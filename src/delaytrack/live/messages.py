@@ -1,0 +1,172 @@
+"""Wire format of the live loop's messages, and their ROS 2 message definitions for the logs.
+
+On the wire (Zenoh payloads) every message is a fixed little-endian header followed by float64
+arrays, so that a node decodes it in a few microseconds. Times are seconds on the *session
+clock*: ``time.monotonic() - t0`` of the process that stamped them, where ``t0`` is the session
+start agreed at the handshake (:mod:`delaytrack.live.transport`). Model times (a state's sample
+time, a command's tick time ``t_k``) are the times of the simulated world, on the grid
+``j·dt`` / ``k·T_c``; the session clock is locked to them (the robot steps ``j`` at
+``t0 + j·dt``).
+
+Three kinds travel:
+
+- :class:`StateMessage` (robot → controller): ``x(s)`` at the sample time ``s``;
+- :class:`CommandMessage` (controller → delay node): the command of tick ``k``, its sample time
+  ``t_k``, the sample time of the state it was computed from;
+- :class:`ReleaseMessage` (delay node → robot): a command released under the delay rule, with
+  the robot step ``apply_at`` from which it is in force.
+
+In the MCAP logs the same contents are written with ROS 2 schemas: the state as
+``sensor_msgs/msg/JointState`` and the commands as ``delaytrack_msgs/msg/LiveCommand``
+(:data:`COMMAND_MSG`), so that ``ros2 bag``, Foxglove and the ``mcap`` readers open them.
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "COMMAND_MSG",
+    "COMMAND_TYPE",
+    "JOINT_STATE_MSG",
+    "JOINT_STATE_TYPE",
+    "CommandMessage",
+    "ReleaseMessage",
+    "StateMessage",
+]
+
+_STATE = struct.Struct("<qddI")  # seq, sample time, send time, n
+_COMMAND = struct.Struct("<qdddqI")  # seq, t_k, send time, state sample time, flags, m
+_RELEASE = struct.Struct("<qddddI")  # seq, t_k, controller send, release send, apply_at, m
+
+#: Flags of a command: the controller held its previous command because its latest state was
+#: older than the limit (``--state-timeout``).
+HELD_STALE = 1
+
+
+@dataclass(frozen=True)
+class StateMessage:
+    """The robot's state ``x(s) = [q, q̇]`` at sample time ``s`` (model time, seconds)."""
+
+    seq: int
+    sample_time: float
+    send_time: float
+    x: np.ndarray
+
+    def encode(self) -> bytes:
+        return _STATE.pack(self.seq, self.sample_time, self.send_time, self.x.size // 2) + (
+            np.ascontiguousarray(self.x, dtype="<f8").tobytes()
+        )
+
+    @classmethod
+    def decode(cls, data: bytes) -> StateMessage:
+        seq, sample, send, n = _STATE.unpack_from(data)
+        x = np.frombuffer(data, dtype="<f8", count=2 * n, offset=_STATE.size).copy()
+        return cls(seq, sample, send, x)
+
+
+@dataclass(frozen=True)
+class CommandMessage:
+    """The command of tick ``seq`` computed for sample time ``t_k`` from the state sampled at
+    ``state_time``."""
+
+    seq: int
+    t_k: float
+    send_time: float
+    state_time: float
+    flags: int
+    u: np.ndarray
+
+    def encode(self) -> bytes:
+        return (
+            _COMMAND.pack(
+                self.seq, self.t_k, self.send_time, self.state_time, self.flags, self.u.size
+            )
+            + np.ascontiguousarray(self.u, dtype="<f8").tobytes()
+        )
+
+    @classmethod
+    def decode(cls, data: bytes) -> CommandMessage:
+        seq, t_k, send, state_time, flags, m = _COMMAND.unpack_from(data)
+        u = np.frombuffer(data, dtype="<f8", count=m, offset=_COMMAND.size).copy()
+        return cls(seq, t_k, send, state_time, flags, u)
+
+
+@dataclass(frozen=True)
+class ReleaseMessage:
+    """Command ``seq`` released by the delay node at ``release_time`` (session clock), in force
+    at the robot from its step at model time ``apply_at`` on."""
+
+    seq: int
+    t_k: float
+    command_send_time: float
+    release_time: float
+    apply_at: float
+    u: np.ndarray
+
+    def encode(self) -> bytes:
+        return (
+            _RELEASE.pack(
+                self.seq,
+                self.t_k,
+                self.command_send_time,
+                self.release_time,
+                self.apply_at,
+                self.u.size,
+            )
+            + np.ascontiguousarray(self.u, dtype="<f8").tobytes()
+        )
+
+    @classmethod
+    def decode(cls, data: bytes) -> ReleaseMessage:
+        seq, t_k, sent, released, apply_at, m = _RELEASE.unpack_from(data)
+        u = np.frombuffer(data, dtype="<f8", count=m, offset=_RELEASE.size).copy()
+        return cls(seq, t_k, sent, released, apply_at, u)
+
+
+# ---- ROS 2 message definitions for the MCAP logs ---------------------------------------------
+
+#: ``sensor_msgs/msg/JointState`` with its dependencies, in the concatenated form that ROS 2
+#: bags store (``MSG:`` sections separated by a line of ``=``).
+JOINT_STATE_TYPE = "sensor_msgs/msg/JointState"
+JOINT_STATE_MSG = """std_msgs/Header header
+string[] name
+float64[] position
+float64[] velocity
+float64[] effort
+================================================================================
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+================================================================================
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+"""
+
+#: The live loop's command message. Times are session-clock seconds (``time.monotonic() - t0``
+#: of the process that stamped them; ``t0`` is in the log's ``session`` metadata); ``header``
+#: carries ``t_k`` mapped to UNIX time for tools that sort by stamps.
+COMMAND_TYPE = "delaytrack_msgs/msg/LiveCommand"
+COMMAND_MSG = """std_msgs/Header header
+int64 seq
+float64 sample_time
+float64 send_time
+float64 receive_time
+float64 release_time
+float64 apply_at
+float64 state_time
+uint32 flags
+float64[] command
+================================================================================
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+================================================================================
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+"""

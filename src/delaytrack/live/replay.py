@@ -1,0 +1,174 @@
+"""``delaytrack live replay DIR``: re-simulate a live session with its realised delays.
+
+The sim-to-real check of the delay model. The robot node logged, for every change of the
+command in force, the step ``a_i`` from which command ``k_i`` (sample time ``t_{k_i}``) was
+applied (``applied.csv``). The replay turns these into a :class:`~delaytrack.delays.TraceDelay`
+with knots ``(a_i, a_i - t_{k_i} - ε)``: between two knots ``t - h(t)`` runs linearly from
+``t_{k_i}`` to ``t_{k_{i+1}}`` (plus ``ε``), so the simulator's rule (the latest command with
+``t_k <= t - h(t)``) switches to command ``k_{i+1}`` at ``a_{i+1} - ε``, where the robot
+switched (``ε = 10⁻⁶ dt`` keeps the switch clear of rounding). Lost packets are lost again with
+the same seed (:class:`~delaytrack.sim.packet_loss.PacketLoss`), so the held commands agree.
+
+It then simulates the scenario (same plant, controller, reference, ``x0``, input limits) for the
+session's duration, rounded down to a whole number of ``T_c``, and compares, at every controller
+tick of the live session, the tracking errors ``e1 = q_d - q`` and the commands: max and RMS of
+live minus replayed, against the RMS of the live tracking error, and the first time the
+difference in tracking error exceeds 10 % of that RMS. What the simulation cannot reproduce is
+listed with the result: zero input the robot applied on its safety timeout, ticks the controller
+missed, states older than ``t_k`` that it computed on.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from delaytrack.live.log import write_csv
+from delaytrack.live.session import _f, _read_csv
+
+__all__ = ["replay", "replay_main"]
+
+
+def replay(folder: str | Path, trust: list[str] | None = None) -> dict[str, Any]:
+    """Re-simulate the session in ``folder``; write ``replay.csv`` and ``replay.json`` there and
+    return the agreement (module docstring)."""
+    from delaytrack.delays import TraceDelay
+    from delaytrack.experiments.scenario import Scenario
+    from delaytrack.sim import simulate
+    from delaytrack.sim.packet_loss import PacketLoss
+
+    folder = Path(folder)
+    scenario = Scenario.from_toml(folder / "scenario.toml", trust=list(trust or []))
+    built = scenario.build()
+    summary = json.loads((folder / "summary.json").read_text())
+    nodes = summary["nodes"]
+    robot, delay_node = nodes.get("robot") or {}, nodes.get("delay") or {}
+    dt, T_c = scenario.dt, scenario.T_c
+    steps = _read_csv(folder / "steps.csv")
+    end = (len(steps)) * dt
+    n_ticks = int(math.floor(end / T_c + 1e-9))
+    if n_ticks < 2:
+        raise ValueError(f"{folder}: the session is shorter than two controller periods")
+    t1 = n_ticks * T_c
+    applied = _read_csv(folder / "applied.csv")
+    if not applied:
+        raise ValueError(f"{folder}: the robot applied no command; nothing to replay")
+    epsilon = 1e-6 * dt
+    times = np.array([_f(r["applied_s"]) for r in applied]) - epsilon
+    values = np.maximum(times - np.array([_f(r["t_k_s"]) for r in applied]), 0.0)
+    trace = TraceDelay(times, values, beyond="hold", source=str(folder / "applied.csv"))
+    loss_spec = delay_node.get("packet_loss") or {"probability": 0.0, "seed": 0}
+    loss = PacketLoss(loss_spec["probability"], int(loss_spec["seed"]))
+    result = simulate(
+        built.plant,
+        built.controller,
+        trace,
+        built.x0,
+        reference=built.reference,
+        t1=t1,
+        dt=dt,
+        T_c=T_c,
+        input_limits=scenario.simulated_input_limits,
+        packet_loss=loss if loss.probability > 0 else None,
+    )
+    n = built.plant.n
+    sim_t = result.t
+    sim_e1 = result.e1[0]
+    sim_u = result.commands[0]
+    states = {int(r["j"]): r for r in _read_csv(folder / "states.csv")}
+    names = [k for k in next(iter(states.values())) if k not in ("j", "t_s")][:n]
+    ticks = {int(r["k"]): r for r in _read_csv(folder / "ticks.csv")}
+    m = built.plant.m
+    rows, e_live, e_sim, u_live, u_sim = [], [], [], [], []
+    steps_per_tick = round(T_c / dt)
+    for i, t in enumerate(sim_t):
+        k = int(round(t / T_c))
+        state = states.get(k * steps_per_tick)
+        if state is None:
+            continue
+        qd = built.reference.evaluate(float(t))[0]
+        e = qd - np.array([_f(state[c]) for c in names])
+        tick = ticks.get(k)
+        u = np.array([_f(tick[f"u{j + 1}"]) for j in range(m)]) if tick else np.full(m, np.nan)
+        e_live.append(e), e_sim.append(sim_e1[i]), u_live.append(u), u_sim.append(sim_u[i])
+        rows.append(
+            [k, float(t), *e.tolist(), *sim_e1[i].tolist(), *u.tolist(), *sim_u[i].tolist()]
+        )
+    e_live, e_sim = np.array(e_live), np.array(e_sim)
+    u_live, u_sim = np.array(u_live), np.array(u_sim)
+    de, du = e_live - e_sim, u_live - u_sim
+    rms_live = float(np.sqrt(np.nanmean(e_live**2)))
+    times_compared = np.array([r[1] for r in rows])
+    beyond = np.nonzero(np.nanmax(np.abs(de), axis=1) > 0.1 * rms_live)[0]
+    worst = int(np.nanargmax(np.nanmax(np.abs(de), axis=1)))
+    report = {
+        "ticks_compared": len(rows),
+        "t1_s": t1,
+        "status": result.status_names[0],
+        "tracking_error_rms_live": rms_live,
+        "tracking_error_rms_replayed": float(np.sqrt(np.nanmean(e_sim**2))),
+        "error_difference_max": float(np.nanmax(np.abs(de))),
+        "error_difference_rms": float(np.sqrt(np.nanmean(de**2))),
+        "error_difference_rms_relative": float(np.sqrt(np.nanmean(de**2))) / rms_live,
+        "error_difference_max_at_s": float(times_compared[worst]),
+        "diverges_from_s": float(times_compared[beyond[0]]) if beyond.size else None,
+        "command_difference_max": float(np.nanmax(np.abs(du))),
+        "command_difference_rms": float(np.sqrt(np.nanmean(du**2))),
+        "not_reproduced": {
+            "robot_zero_input_on_timeout_steps": robot.get("timeout_zero_steps"),
+            "controller_missed_ticks": (nodes.get("controller") or {}).get("missed"),
+            "controller_stale_ticks": (nodes.get("controller") or {}).get("stale"),
+            "controller_state_age_ms_p99": (nodes.get("controller") or {}).get("state_age_ms_p99"),
+        },
+    }
+    header = [
+        "k",
+        "t_s",
+        *[f"e1_{c}_live" for c in names],
+        *[f"e1_{c}_replay" for c in names],
+        *[f"u{j + 1}_live" for j in range(m)],
+        *[f"u{j + 1}_replay" for j in range(m)],
+    ]
+    write_csv(folder / "replay.csv", header, rows)
+    (folder / "replay.json").write_text(json.dumps(report, indent=1) + "\n")
+    return report
+
+
+def replay_main(args: Any) -> int:
+    """The ``live replay`` command."""
+    from delaytrack._output import record_outputs
+    from delaytrack.experiments import ScenarioError
+
+    folder = Path(args.folder)
+    if not (folder / "summary.json").is_file():
+        print(
+            f"error: {folder} is not a live session folder (no summary.json; write one with "
+            "delaytrack live run)",
+            file=sys.stderr,
+        )
+        return 2
+    try:
+        report = replay(folder, args.trust)
+    except (ScenarioError, ValueError) as error:
+        print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
+        return 2
+    listed = [p for p in folder.iterdir() if p.is_file()]
+    record_outputs(folder, listed)
+    print(
+        f"replay of {folder} ({report['ticks_compared']} ticks, status {report['status']}):\n"
+        f"  tracking error RMS live {report['tracking_error_rms_live']:.4g}, replayed "
+        f"{report['tracking_error_rms_replayed']:.4g}\n"
+        f"  live - replayed tracking error: max {report['error_difference_max']:.3g} "
+        f"(at t = {report['error_difference_max_at_s']:g} s), RMS "
+        f"{report['error_difference_rms']:.3g} "
+        f"({100 * report['error_difference_rms_relative']:.2f} % of the live RMS error)\n"
+        f"  live - replayed commands: max {report['command_difference_max']:.3g}, RMS "
+        f"{report['command_difference_rms']:.3g}\n"
+        f"  not reproduced by the simulation: {report['not_reproduced']}"
+    )
+    return 0

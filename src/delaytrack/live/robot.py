@@ -1,0 +1,247 @@
+"""The robot node: the scenario's plant stepped in real time, standing in for the hardware.
+
+It integrates ``M(q) q̈ + N(q, q̇) = G(q) u`` — any plant of the toolkit whose terms the
+simulator integrates (analytic, a user's compiled or Python plant, a MuJoCo model's terms, the
+P3-DX with its payload schedule) — by one RK4 step of ``dt`` per wake-up, at the absolute
+deadlines ``t0 + j·dt``, so that model time stays locked to the session clock. At the start of
+step ``j`` (model time ``s = j·dt``) it publishes ``x(s)`` (every ``--state-every`` steps,
+default every controller period, at the tick times), picks the command in force — the released
+command with the latest ``apply_at <= s`` (:mod:`delaytrack.live.delay`) — saturates it to the
+scenario's ``input_limits`` (D12b) and holds it over the step, as a zero-order hold sampled at
+``dt``. Steps whose wake-up came too late are integrated on the next wake-up with the command
+then in force, and counted.
+
+Safety: before the first command, and when no released command has arrived for
+``--command-timeout`` seconds (default ``max(0.1 s, 10·T_c)``), the input is zero; those steps
+are counted and logged.
+
+A real robot would replace this node by a bridge that publishes its measured state on the
+``state`` key and applies what arrives on the ``release`` key (not written yet; the live
+documentation page describes the interface).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from delaytrack.live._node import NodeBase, Received, percentile
+from delaytrack.live.clock import Ticker
+from delaytrack.live.log import McapLog, write_csv
+from delaytrack.live.messages import ReleaseMessage, StateMessage
+
+__all__ = ["PlantStepper", "RobotNode"]
+
+
+class PlantStepper:
+    """One RK4 step of ``dt`` of a plant's terms with a held input, from Python.
+
+    The same scheme as the simulator's (which also splits a step where the delayed input
+    switches; here the input switches only at step boundaries, so no split is needed).
+    """
+
+    def __init__(self, plant: Any) -> None:
+        if plant.stepper_kernel is not None:
+            raise ValueError(
+                f"the live robot node integrates a plant's terms M, N, G; {type(plant).__name__} "
+                "is stepped by an integrator of its own (MuJoCo stepping), which the live robot "
+                "node does not drive yet: use the model with its default stepping"
+            )
+        self.n, self.m = plant.n, plant.m
+        self._terms = plant.terms_kernel
+        self._params = plant.params
+        self._M = np.zeros((self.n, self.n))
+        self._N = np.zeros(self.n)
+        self._G = np.zeros((self.n, self.m))
+        self._stage = np.zeros(2 * self.n)
+
+    def derivative(self, t: float, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        n = self.n
+        self._terms(t, x[:n], x[n:], self._params, self._M, self._N, self._G)
+        out = np.empty(2 * n)
+        out[:n] = x[n:]
+        out[n:] = np.linalg.solve(self._M, self._G @ u - self._N)
+        return out
+
+    def step(self, t: float, x: np.ndarray, u: np.ndarray, dt: float) -> np.ndarray:
+        k1 = self.derivative(t, x, u)
+        k2 = self.derivative(t + dt / 2, np.ascontiguousarray(x + dt / 2 * k1), u)
+        k3 = self.derivative(t + dt / 2, np.ascontiguousarray(x + dt / 2 * k2), u)
+        k4 = self.derivative(t + dt, np.ascontiguousarray(x + dt * k3), u)
+        return x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
+class RobotNode(NodeBase):
+    """The robot node (module docstring)."""
+
+    role = "robot"
+
+    def __init__(self, scenario: Any, built: Any, args: Any) -> None:
+        super().__init__(scenario, built, args)
+        plant = built.plant
+        self.stepper = PlantStepper(plant)
+        self.n, self.m = plant.n, plant.m
+        plant.check_step(self.dt)
+        for what, horizon in (("plant", plant.horizon), ("reference", built.reference.horizon)):
+            if self.duration > horizon:
+                raise ValueError(
+                    f"the {what} is defined up to t = {horizon:g} s; the session lasts "
+                    f"{self.duration:g} s (shorten --duration)"
+                )
+        self.names = list(plant.coordinate_names or [f"q{i + 1}" for i in range(self.n)])
+        limits = scenario.simulated_input_limits
+        self.limits = np.broadcast_to(np.asarray(limits, dtype=float), (self.m,)).copy()
+        self.x = np.array(built.x0, dtype=float)
+        self.state_every = (
+            self.steps_per_tick if getattr(args, "state_every", None) is None else args.state_every
+        )
+        self.command_timeout = (
+            max(0.1, 10 * self.T_c) if args.command_timeout is None else args.command_timeout
+        )
+        self.stepper.step(0.0, self.x, np.zeros(self.m), self.dt)  # warm up (compile)
+        self.steps: list[list[Any]] = []
+        self.states: list[list[Any]] = []
+        self.applied: list[list[Any]] = []
+
+    def declare(self, session: Any, prefix: str) -> None:
+        self._received = Received(ReleaseMessage.decode)
+        self._publisher = session.declare_publisher(f"{prefix}/state", express=True)
+        self._subscriber = session.declare_subscriber(f"{prefix}/release", self._received)
+        self.entities += [self._subscriber, self._publisher]
+
+    def loop(self, t0: float, stop: Any, handshake: Any) -> None:
+        self.log = McapLog(self.out / "robot.mcap", t0, self.metadata())
+        ticker = Ticker(t0, self.dt, until=self.duration, stop=stop, idle=self.log.work)
+        self.ticker = ticker
+        pending: list[tuple[ReleaseMessage, float]] = []
+        current: ReleaseMessage | None = None
+        last_arrival = -math.inf
+        zero = np.zeros(self.m)
+        u = zero
+        status = "no-command"
+        j_model = 0  # the next step to integrate
+        last_hello = 0.0
+        tolerance = 1e-9 * self.dt
+        for wake in ticker:
+            j = wake.k
+            while j_model < j:  # steps whose wake-up was missed: integrate them now
+                self.x = self.stepper.step(j_model * self.dt, self.x, u, self.dt)
+                self.steps.append(
+                    [
+                        j_model,
+                        j_model * self.dt,
+                        math.nan,
+                        "missed",
+                        -1 if current is None else current.seq,
+                        *u.tolist(),
+                    ]
+                )
+                j_model += 1
+            s = j * self.dt
+            now = wake.now
+            if j % self.state_every == 0:
+                self._publisher.put(StateMessage(j, s, ticker.now(), self.x).encode())
+            if j % self.steps_per_tick == 0:
+                self.states.append([j, s, *self.x.tolist()])
+                self.log.state(j, s, now, self.names, self.x, u)
+            for message, received in self._received.drain():
+                pending.append((message, received - t0))
+                last_arrival = max(last_arrival, received - t0)
+            due = [p for p in pending if p[0].apply_at <= s + tolerance]
+            if due:
+                chosen, arrived = max(due, key=lambda p: (p[0].apply_at, p[1]))
+                pending = [p for p in pending if p[0].apply_at > s + tolerance]
+                if (
+                    current is None
+                    or chosen.seq != current.seq
+                    or chosen.apply_at != current.apply_at
+                ):
+                    current = chosen
+                    self.applied.append(
+                        [chosen.seq, chosen.t_k, s, chosen.apply_at, chosen.release_time, arrived]
+                    )
+                    self.log.command(
+                        "/applied",
+                        seq=chosen.seq,
+                        sample_time=chosen.t_k,
+                        log_time=now,
+                        u=chosen.u,
+                        send_time=chosen.command_send_time,
+                        receive_time=arrived,
+                        release_time=chosen.release_time,
+                        apply_at=s,
+                    )
+            if current is None:
+                u, status = zero, "no-command"
+            elif now - last_arrival > self.command_timeout:
+                u, status = zero, "timeout-zero"
+            else:
+                u = np.minimum(np.maximum(current.u, -self.limits), self.limits)
+                status = "ok"
+            self.steps.append(
+                [
+                    j,
+                    s,
+                    wake.lateness * 1e3,
+                    status,
+                    -1 if current is None else current.seq,
+                    *u.tolist(),
+                ]
+            )
+            self.x = self.stepper.step(s, self.x, u, self.dt)
+            j_model = j + 1
+            if not np.all(np.isfinite(self.x)):
+                print(
+                    f"error: the robot's state is not finite at t = {s + self.dt:g} s; stopping",
+                    flush=True,
+                )
+                stop.set()
+                break
+            if now - last_hello > 0.2:
+                handshake.publish()
+                last_hello = now
+                self.status(
+                    now, f"step {j}  applied #{-1 if current is None else current.seq}  {status}"
+                )
+        self.end_time = j_model * self.dt
+        self.states.append([j_model, self.end_time, *self.x.tolist()])
+        self.log.state(j_model, self.end_time, ticker.now(), self.names, self.x)
+
+    def outputs(self) -> dict[str, Any]:
+        u_names = [f"u{j + 1}" for j in range(self.m)]
+        write_csv(
+            self.out / "steps.csv",
+            ["j", "t_s", "lateness_ms", "status", "seq", *u_names],
+            self.steps,
+        )
+        write_csv(
+            self.out / "states.csv",
+            ["j", "t_s", *self.names, *[f"{c}_dot" for c in self.names]],
+            self.states,
+        )
+        write_csv(
+            self.out / "applied.csv",
+            ["seq", "t_k_s", "applied_s", "apply_at_s", "released_s", "arrived_s"],
+            self.applied,
+        )
+        statuses = [row[3] for row in self.steps]
+        return {
+            "steps": len(self.steps),
+            "missed_steps": self.ticker.missed if hasattr(self, "ticker") else 0,
+            "lateness_ms_p50": percentile([r[2] for r in self.steps], 50),
+            "lateness_ms_p99": percentile([r[2] for r in self.steps], 99),
+            "no_command_steps": statuses.count("no-command"),
+            "timeout_zero_steps": statuses.count("timeout-zero"),
+            "applications": len(self.applied),
+            "late_applications": sum(1 for r in self.applied if r[2] > r[3] + 1e-9 * self.dt),
+            "dropped_by_queue": self._received.dropped if hasattr(self, "_received") else 0,
+            "coordinates": self.names,
+        }
+
+
+def main(args: Any) -> int:
+    from delaytrack.live._node import run_node
+
+    return run_node(RobotNode, args)

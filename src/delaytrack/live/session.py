@@ -1,0 +1,271 @@
+"""``delaytrack live run``: start the three nodes as processes, wait, collect the session folder.
+
+The launcher checks the scenario and the output folder, picks three free TCP ports on
+127.0.0.1 (or ``--port``, ``--port + 1``, ``--port + 2``), and starts the robot, delay and
+controller nodes as ``python -m delaytrack.live <role> ...`` in a full mesh (each listens on its
+port and connects to the ports of the nodes started before it). The nodes shake hands and the
+robot announces the start ``t0`` on the shared monotonic clock (:mod:`delaytrack.live.transport`);
+each node stops by itself at ``t0 + duration``. SIGINT/SIGTERM to the launcher is passed on to
+the nodes as SIGTERM, which stop cleanly and finish their logs.
+
+It then writes ``delays.csv`` (one row per command: its stamps, lost or not, when the robot
+first applied it, the realised delay and ``h`` there), ``summary.json``, the scenario as run
+(``scenario.toml``), and prints a short summary.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from delaytrack.live._node import load_scenario, percentile
+from delaytrack.live.log import write_csv
+
+__all__ = ["collect", "run_session"]
+
+ROLES = ("robot", "delay", "controller")
+
+
+def _free_ports(count: int) -> list[int]:
+    sockets = []
+    try:
+        for _ in range(count):
+            s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            s.bind(("127.0.0.1", 0))
+            sockets.append(s)
+        return [s.getsockname()[1] for s in sockets]
+    finally:
+        for s in sockets:
+            s.close()
+
+
+def _read_csv(path: Path) -> list[dict[str, str]]:
+    if not path.is_file():
+        return []
+    with open(path, newline="", encoding="utf-8") as handle:
+        return list(csv.DictReader(handle))
+
+
+def _f(text: str | None) -> float:
+    try:
+        return float(text) if text not in (None, "") else math.nan
+    except ValueError:
+        return math.nan
+
+
+def node_commands(args: Any, folder: Path, ports: list[int], session: str) -> dict[str, list[str]]:
+    """The command line of each node."""
+    endpoint = {role: f"tcp/127.0.0.1:{port}" for role, port in zip(ROLES, ports, strict=True)}
+    commands = {}
+    for i, role in enumerate(ROLES):
+        command = [
+            sys.executable,
+            "-m",
+            "delaytrack.live",
+            role,
+            str(args.scenario),
+            "--out",
+            str(folder),
+            "--session",
+            session,
+            "--listen",
+            endpoint[role],
+            "--handshake-timeout",
+            repr(args.handshake_timeout),
+        ]
+        for earlier in ROLES[:i]:
+            command += ["--connect", endpoint[earlier]]
+        if args.duration is not None:
+            command += ["--duration", repr(args.duration)]
+        for name in args.trust:
+            command += ["--trust", name]
+        if role != "controller" or args.quiet:
+            command.append("--quiet")
+        if role == "delay" and args.loss is not None:
+            command += ["--loss", repr(args.loss), "--loss-seed", str(args.loss_seed)]
+        commands[role] = command
+    return commands
+
+
+def run_session(args: Any) -> int:
+    """Run a session (module docstring); return the exit code."""
+    from delaytrack._output import check_output_folder, claim_output_folder, record_outputs
+    from delaytrack.experiments import ScenarioError
+    from delaytrack.live._node import missing_extra
+
+    if (problem := missing_extra()) is not None:
+        print(f"error: {problem}", file=sys.stderr)
+        return 2
+    try:
+        scenario = load_scenario(str(args.scenario), list(args.trust))
+        scenario.build()
+        folder = check_output_folder(args.out, "--out")
+    except (ScenarioError, ValueError, OSError) as error:
+        print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
+        return 2
+    claim_output_folder(folder)
+    # The nodes read the scenario as written here, so a shipped name and the replay agree.
+    scenario.to_toml(folder / "scenario.toml")
+    ports = _free_ports(3) if args.port is None else [args.port + i for i in range(3)]
+    session = f"run-{os.getpid()}-{int(time.time())}"
+    commands = node_commands(args, folder, ports, session)
+    processes: dict[str, subprocess.Popen[bytes]] = {}
+    interrupted: list[int] = []
+
+    def forward(signum: int, _frame: Any) -> None:
+        interrupted.append(signum)
+        for process in processes.values():
+            if process.poll() is None:
+                process.send_signal(signal.SIGTERM)
+
+    previous = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM)}
+    duration = scenario.duration if args.duration is None else args.duration
+    started = time.monotonic()
+    try:
+        for role in ROLES:
+            processes[role] = subprocess.Popen(commands[role])
+        limit = started + args.handshake_timeout + duration + 30.0
+        while any(p.poll() is None for p in processes.values()):
+            if time.monotonic() > limit:
+                forward(signal.SIGTERM, None)
+                time.sleep(5.0)
+                for process in processes.values():
+                    if process.poll() is None:
+                        process.kill()
+                break
+            time.sleep(0.05)
+        codes = {role: process.wait() for role, process in processes.items()}
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+    failed = {role: code for role, code in codes.items() if code not in (0,)}
+    summary = collect(folder, scenario)
+    summary["exit_codes"] = codes
+    summary["wall_s"] = time.monotonic() - started
+    (folder / "summary.json").write_text(json.dumps(summary, indent=1, default=str) + "\n")
+    record_outputs(folder, [p for p in folder.iterdir() if p.is_file()])
+    if not args.quiet or failed:
+        print(format_summary(summary, folder))
+    if interrupted:
+        return 130
+    if failed:
+        print(
+            f"error: node(s) {', '.join(f'{r} (exit {c})' for r, c in failed.items())} "
+            "did not finish cleanly",
+            file=sys.stderr,
+        )
+        return max(failed.values()) if all(c > 0 for c in failed.values()) else 1
+    return 0
+
+
+def collect(folder: Path, scenario: Any) -> dict[str, Any]:
+    """Merge the nodes' tables into ``delays.csv``; return the session's summary."""
+    built = scenario.build()
+    delay = built.delay
+    sent = {int(r["k"]): r for r in _read_csv(folder / "ticks.csv") if r["status"] != "no-state"}
+    received = {int(r["seq"]): r for r in _read_csv(folder / "releases.csv")}
+    first_applied: dict[int, float] = {}
+    for row in _read_csv(folder / "applied.csv"):
+        first_applied.setdefault(int(row["seq"]), _f(row["applied_s"]))
+    rows = []
+    for k in sorted(set(sent) | set(received)):
+        tick, rel = sent.get(k, {}), received.get(k, {})
+        t_k = _f(tick.get("t_s")) if tick else _f(rel.get("t_k_s"))
+        applied = first_applied.get(k, math.nan)
+        h_applied = float(delay.h(applied)) if math.isfinite(applied) else math.nan
+        realised = applied - t_k
+        rows.append(
+            [
+                k,
+                t_k,
+                _f(tick.get("send_s")),
+                _f(rel.get("received_s")),
+                int(_f(rel.get("lost")) == 1) if rel else -1,
+                _f(rel.get("released_s")),
+                applied,
+                realised,
+                h_applied,
+                float(delay.h(t_k)),
+                (realised - h_applied) * 1e3,
+            ]
+        )
+    write_csv(
+        folder / "delays.csv",
+        [
+            "seq",
+            "t_k_s",
+            "sent_s",
+            "received_s",
+            "lost",
+            "released_s",
+            "applied_s",
+            "realised_delay_s",
+            "h_s",
+            "h_at_t_k_s",
+            "realised_minus_h_ms",
+        ],
+        rows,
+    )
+    nodes = {}
+    for role in ROLES:
+        path = folder / f"{role}.json"
+        nodes[role] = json.loads(path.read_text()) if path.is_file() else None
+    error = np.array([r[10] for r in rows], dtype=float)
+    end = len(_read_csv(folder / "steps.csv")) * scenario.dt
+    return {
+        "scenario": scenario.name,
+        "T_c_s": scenario.T_c,
+        "dt_s": scenario.dt,
+        "commands": len(rows),
+        "lost": sum(1 for r in rows if r[4] == 1),
+        # Commands the rule would have applied before the session ended that never were (the
+        # last ones, still held when it ended, are not counted).
+        "never_applied": sum(
+            1
+            for r in rows
+            if r[4] == 0 and not math.isfinite(r[6]) and r[1] + r[9] + 2 * scenario.dt < end
+        ),
+        "realised_minus_h_ms_p50": percentile(error, 50),
+        "realised_minus_h_abs_ms_p99": percentile(np.abs(error), 99),
+        "realised_minus_h_abs_ms_max": percentile(np.abs(error), 100),
+        "nodes": nodes,
+    }
+
+
+def format_summary(summary: dict[str, Any], folder: Path) -> str:
+    """A few lines for the terminal."""
+    c = summary["nodes"].get("controller") or {}
+    r = summary["nodes"].get("robot") or {}
+    d = summary["nodes"].get("delay") or {}
+
+    def ms(value: Any) -> str:
+        return "n/a" if value is None or not math.isfinite(value) else f"{value:.3f} ms"
+
+    return "\n".join(
+        [
+            f"live session {summary['scenario']} (T_c = {summary['T_c_s'] * 1e3:g} ms, "
+            f"dt = {summary['dt_s'] * 1e3:g} ms) -> {folder}",
+            f"  controller: {c.get('ticks', 0)} ticks, {c.get('missed', 0)} missed, lateness p50 "
+            f"{ms(c.get('lateness_ms_p50'))} p99 {ms(c.get('lateness_ms_p99'))}, compute p99 "
+            f"{ms(c.get('compute_ms_p99'))}, stale {c.get('stale', 0)}",
+            f"  delay node: {d.get('received', 0)} received, {d.get('lost', 0)} lost (injected), "
+            f"{d.get('released', 0)} releases",
+            f"  robot: {r.get('steps', 0)} steps, {r.get('missed_steps', 0)} missed, lateness p99 "
+            f"{ms(r.get('lateness_ms_p99'))}, zero input {r.get('no_command_steps', 0)} steps "
+            f"before the first command + {r.get('timeout_zero_steps', 0)} on timeout",
+            f"  realised delay - h(t_applied): p50 {ms(summary['realised_minus_h_ms_p50'])}, "
+            f"|.| p99 {ms(summary['realised_minus_h_abs_ms_p99'])}; "
+            f"{summary['never_applied']} commands never applied",
+        ]
+    )

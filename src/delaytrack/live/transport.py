@@ -1,0 +1,227 @@
+"""Zenoh sessions, key expressions and the handshake of the live loop.
+
+Every node opens a Zenoh session in *peer* mode with multicast scouting off and explicit TCP
+endpoints (``--listen tcp/127.0.0.1:7447``, ``--connect tcp/10.0.0.2:7447``), so a session
+reaches exactly the peers it is told about, on one machine or across machines. Zenoh is the
+transport under ROS 2's ``rmw_zenoh``.
+
+Keys live under a session prefix (``delaytrack/<session>/``):
+
+- ``state``    robot → controller, :class:`~delaytrack.live.messages.StateMessage`;
+- ``command``  controller → delay node, :class:`~delaytrack.live.messages.CommandMessage`;
+- ``release``  delay node → robot, :class:`~delaytrack.live.messages.ReleaseMessage`;
+- ``hello``    every node, JSON: role, process id, the hashes of what it runs, the roles it has
+  seen agree with it, and (robot) the session start ``t0`` once everyone has shaken hands.
+
+The handshake (:class:`Handshake`): each node publishes its hello every 0.1 s. A node that sees
+a peer whose hashes differ from its own refuses to run, naming the parts that differ (plant,
+coordinates, ``T_c``, ``dt``, scenario). When every node has seen the other two agree with it,
+the robot node — the owner of the plant's clock — announces ``t0`` a little in the future on
+the shared monotonic clock, and every node starts its loop at ``t0``. Nodes may start in any
+order; a node that sees no peer within ``--handshake-timeout`` gives up with a message naming
+the missing roles.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import threading
+import time
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+__all__ = [
+    "ROLES",
+    "Handshake",
+    "HandshakeError",
+    "open_session",
+    "scenario_hashes",
+]
+
+ROLES = ("controller", "delay", "robot")
+
+
+class HandshakeError(RuntimeError):
+    """The peers could not agree (a different scenario) or did not appear in time."""
+
+
+def zenoh_config(listen: Sequence[str], connect: Sequence[str]) -> Any:
+    """A peer-mode Zenoh configuration with multicast scouting off and the given endpoints."""
+    import zenoh
+
+    config: dict[str, Any] = {
+        "mode": "peer",
+        "scouting": {"multicast": {"enabled": False}},
+    }
+    if listen:
+        config["listen"] = {"endpoints": list(listen)}
+    if connect:
+        # Retry connecting while a peer is not up yet: nodes may start in any order.
+        config["connect"] = {
+            "endpoints": list(connect),
+            "timeout_ms": -1,
+            "exit_on_failure": False,
+        }
+    return zenoh.Config.from_json5(json.dumps(config))
+
+
+def open_session(listen: Sequence[str], connect: Sequence[str]) -> Any:
+    """Open the Zenoh session; a listen endpoint that cannot be bound (a port in use) is an
+    :class:`OSError` naming it."""
+    import zenoh
+
+    try:
+        return zenoh.open(zenoh_config(listen, connect))
+    except zenoh.ZError as error:
+        text = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise OSError(
+            f"cannot open the Zenoh session (listen {list(listen)}, connect {list(connect)}): "
+            f"{text}; is a port in use? choose another with --listen/--connect or --port"
+        ) from None
+
+
+def _digest(value: Any) -> str:
+    text = json.dumps(value, sort_keys=True, separators=(",", ":"), default=repr)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def scenario_hashes(scenario: Any, plant: Any) -> dict[str, str]:
+    """Hashes of what two nodes must agree on: the plant (its table and size), its coordinates
+    (names and units), ``T_c``, ``dt`` and the whole scenario."""
+    data = scenario.to_dict()
+    data.pop("duration", None)  # each node may be told another duration on its command line
+    return {
+        "plant": _digest([data["plant"], plant.n, plant.m]),
+        "coordinates": _digest([plant.coordinate_names, plant.coordinate_units]),
+        "T_c": _digest(scenario.T_c),
+        "dt": _digest(scenario.dt),
+        "scenario": _digest(data),
+    }
+
+
+class Handshake:
+    """Hello exchange and start agreement (module docstring).
+
+    Parameters
+    ----------
+    session : zenoh.Session
+    prefix : str
+        Key prefix of the session, ``delaytrack/<name>``.
+    role : {"controller", "delay", "robot"}
+    hashes : mapping
+        :func:`scenario_hashes` of this node.
+    start_delay : float
+        Seconds between the moment the robot sees everyone agree and ``t0``.
+    """
+
+    def __init__(
+        self,
+        session: Any,
+        prefix: str,
+        role: str,
+        hashes: Mapping[str, str],
+        *,
+        start_delay: float = 0.5,
+    ) -> None:
+        self.role, self.hashes, self.start_delay = role, dict(hashes), start_delay
+        self._lock = threading.Lock()
+        self._peers: dict[str, dict[str, Any]] = {}
+        self.t0: float | None = None
+        self._publisher = session.declare_publisher(f"{prefix}/hello")
+        self._subscriber = session.declare_subscriber(f"{prefix}/hello", self._on_hello)
+
+    def _on_hello(self, sample: Any) -> None:
+        try:
+            hello = json.loads(sample.payload.to_bytes())
+        except ValueError:
+            return
+        role = hello.get("role")
+        if role in ROLES and role != self.role:
+            with self._lock:
+                self._peers[role] = hello
+
+    def _agreeing(self) -> list[str]:
+        with self._lock:
+            return sorted(r for r, h in self._peers.items() if h.get("hashes") == self.hashes)
+
+    def _hello(self) -> bytes:
+        return json.dumps(
+            {
+                "role": self.role,
+                "pid": os.getpid(),
+                "hashes": self.hashes,
+                "agree": self._agreeing(),
+                "t0": self.t0,
+            }
+        ).encode()
+
+    def publish(self) -> None:
+        """Publish this node's hello once (also while running: a late peer still sees it)."""
+        self._publisher.put(self._hello())
+
+    def _mismatch(self) -> str | None:
+        with self._lock:
+            peers = dict(self._peers)
+        for role, hello in sorted(peers.items()):
+            theirs = hello.get("hashes") or {}
+            differ = [part for part in self.hashes if theirs.get(part) != self.hashes[part]]
+            if differ:
+                parts = ", ".join(p for p in differ if p != "scenario") or "scenario"
+                return (
+                    f"the {role} node (pid {hello.get('pid')}) runs another scenario than this "
+                    f"{self.role} node: its {parts} differ; start every node with the same "
+                    "scenario file"
+                )
+        return None
+
+    def wait(self, timeout: float, stop: Any = lambda: False) -> float:
+        """Exchange hellos until the session start ``t0`` is agreed; return it.
+
+        Raises
+        ------
+        HandshakeError
+            On a peer with other hashes, or when not every peer appeared within ``timeout``.
+        """
+        deadline = time.monotonic() + timeout
+        others = [r for r in ROLES if r != self.role]
+        while not stop():
+            problem = self._mismatch()
+            if problem is not None:
+                for _ in range(3):  # let the others see this node's hello and refuse too
+                    self.publish()
+                    time.sleep(0.1)
+                raise HandshakeError(problem)
+            with self._lock:
+                peers = dict(self._peers)
+            if self.role == "robot":
+                everyone = all(
+                    r in peers and set(peers[r].get("agree", [])) >= set(ROLES) - {r}
+                    for r in others
+                ) and set(self._agreeing()) == set(others)
+                if everyone and self.t0 is None:
+                    self.t0 = time.monotonic() + self.start_delay
+            else:
+                robot = peers.get("robot")
+                if robot is not None and robot.get("t0") is not None:
+                    self.t0 = float(robot["t0"])
+            self.publish()
+            if self.t0 is not None and (self.role != "robot" or time.monotonic() > self.t0 - 0.3):
+                return self.t0
+            if time.monotonic() > deadline:
+                missing = [r for r in others if r not in peers]
+                raise HandshakeError(
+                    f"no {' and no '.join(missing) or 'start'} node answered within {timeout:g} s "
+                    f"(this {self.role} node waited for the others' hello; check that they run "
+                    "with matching --listen/--connect endpoints and the same --session)"
+                )
+            time.sleep(0.1)
+        raise HandshakeError("stopped during the handshake")
+
+    def close(self) -> None:
+        for entity in (self._subscriber, self._publisher):
+            try:
+                entity.undeclare()
+            except Exception:  # noqa: BLE001 - closing a session undeclares anyway
+                pass

@@ -1,0 +1,218 @@
+"""The live loop end to end: three node processes over Zenoh on loopback (delaytrack.live).
+
+Three sessions run at once (one module fixture, to keep the wall time down): a normal
+``delaytrack live run``; a controller and a robot started with scenarios that differ in ``T_c``;
+and a session with packet loss whose robot node is killed with SIGKILL in the middle. Nothing
+here asserts a timing: only order, completeness, the delay rule, exit codes and readable logs.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip("zenoh")
+pytest.importorskip("mcap_ros2")
+
+from mcap.exceptions import EndOfFile  # noqa: E402
+from mcap.reader import NonSeekingReader, make_reader  # noqa: E402
+from mcap_ros2.decoder import DecoderFactory  # noqa: E402
+
+from delaytrack.experiments import load_builtin  # noqa: E402
+from delaytrack.sim.packet_loss import packet_lost  # noqa: E402
+
+SCENARIO = "two_link_S1"
+PYTHON = [sys.executable, "-m", "delaytrack.live"]
+
+
+def _ports(count):
+    sockets = [socket.socket() for _ in range(count)]
+    for s in sockets:
+        s.bind(("127.0.0.1", 0))
+    ports = [s.getsockname()[1] for s in sockets]
+    for s in sockets:
+        s.close()
+    return ports
+
+
+def _node(role, scenario, out, session, listen, connect, *extra):
+    command = [
+        *PYTHON,
+        role,
+        str(scenario),
+        "--out",
+        str(out),
+        "--session",
+        session,
+        "--listen",
+        f"tcp/127.0.0.1:{listen}",
+        "--handshake-timeout",
+        "40",
+        "--quiet",
+    ]
+    for port in connect:
+        command += ["--connect", f"tcp/127.0.0.1:{port}"]
+    return subprocess.Popen([*command, *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+
+
+def _rows(path):
+    with open(path, newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def _messages(path, *, finished=True):
+    """Decoded messages of an MCAP file with the public readers: (topic, message)."""
+    out = []
+    with open(path, "rb") as handle:
+        if finished:
+            reader = make_reader(handle, decoder_factories=[DecoderFactory()])
+            for _schema, channel, _message, decoded in reader.iter_decoded_messages():
+                out.append((channel.topic, decoded))
+        else:
+            reader = NonSeekingReader(handle, decoder_factories=[DecoderFactory()])
+            try:
+                for _schema, channel, _message, decoded in reader.iter_decoded_messages(
+                    log_time_order=False
+                ):
+                    out.append((channel.topic, decoded))
+            except EndOfFile:  # the cut where the process was killed
+                pass
+    return out
+
+
+@pytest.fixture(scope="module")
+def sessions(tmp_path_factory):
+    root = tmp_path_factory.mktemp("live")
+    env_ports = _ports(5)
+    # 1. A normal session through the launcher.
+    run_out = root / "run"
+    run = subprocess.Popen(
+        [*PYTHON, "run", SCENARIO, "--duration", "2", "--out", str(run_out), "--quiet"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    # 2. Two nodes whose scenarios differ in T_c.
+    other = root / "other_T_c.toml"
+    load_builtin(SCENARIO).replace(T_c=0.004).to_toml(other)
+    mismatch = [
+        _node("robot", SCENARIO, root / "mismatch", "mm", env_ports[0], []),
+        _node("controller", other, root / "mismatch", "mm", env_ports[1], [env_ports[0]]),
+    ]
+    # 3. A session with packet loss whose robot is killed in the middle.
+    kill_out = root / "kill"
+    p = env_ports[2:]
+    kill = {
+        "robot": _node("robot", SCENARIO, kill_out, "kill", p[0], [], "--duration", "3"),
+        "delay": _node(
+            "delay",
+            SCENARIO,
+            kill_out,
+            "kill",
+            p[1],
+            [p[0]],
+            "--duration",
+            "3",
+            "--loss",
+            "0.2",
+            "--loss-seed",
+            "7",
+        ),
+        "controller": _node(
+            "controller", SCENARIO, kill_out, "kill", p[2], [p[0], p[1]], "--duration", "3"
+        ),
+    }
+    deadline = time.monotonic() + 90
+    robot_log = kill_out / "robot.mcap"
+    while time.monotonic() < deadline:  # kill once the robot has logged a while
+        if robot_log.exists() and robot_log.stat().st_size > 40_000:
+            break
+        time.sleep(0.05)
+    os.kill(kill["robot"].pid, signal.SIGKILL)
+    results = {
+        "run": (run_out, run.communicate(timeout=120)),
+        "run_code": run.returncode,
+        "mismatch": [(m.communicate(timeout=120), m.returncode) for m in mismatch],
+        "kill": (
+            kill_out,
+            {r: (n.communicate(timeout=120), n.returncode) for r, n in kill.items()},
+        ),
+    }
+    return results
+
+
+def test_a_session_runs_and_every_node_exits_cleanly(sessions):
+    folder, (stdout, stderr) = sessions["run"]
+    assert sessions["run_code"] == 0, stderr.decode()
+    import json
+
+    summary = json.loads((folder / "summary.json").read_text())
+    assert summary["exit_codes"] == {"robot": 0, "delay": 0, "controller": 0}
+    for name in ("controller.mcap", "delay.mcap", "robot.mcap", "ticks.csv", "delays.csv"):
+        assert (folder / name).is_file(), name
+
+
+def test_commands_keep_their_order_and_none_is_lost_without_packet_loss(sessions):
+    folder, _ = sessions["run"]
+    ticks = [int(r["k"]) for r in _rows(folder / "ticks.csv")]
+    assert ticks == sorted(set(ticks))  # sequence numbers increase
+    sent = {int(r["k"]) for r in _rows(folder / "ticks.csv") if r["status"] != "no-state"}
+    received = _rows(folder / "releases.csv")
+    assert {int(r["seq"]) for r in received} == sent
+    assert all(r["lost"] == "0" for r in received)
+    arrival = [float(r["received_s"]) for r in sorted(received, key=lambda r: int(r["seq"]))]
+    assert arrival == sorted(arrival)
+    applied = [m.seq for topic, m in _messages(folder / "robot.mcap") if topic == "/applied"]
+    assert applied == sorted(applied) and applied  # S1 never makes t - h(t) run backwards
+
+
+def test_every_applied_command_respects_the_delay_rule(sessions):
+    """From the robot's MCAP log: each command is applied at a step t with t_k <= t - h(t)."""
+    folder, _ = sessions["run"]
+    delay = load_builtin(SCENARIO).build().delay
+    dt = load_builtin(SCENARIO).dt
+    applied = [m for topic, m in _messages(folder / "robot.mcap") if topic == "/applied"]
+    t = np.array([m.apply_at for m in applied])
+    t_k = np.array([m.sample_time for m in applied])
+    assert np.all(t_k <= t - delay.h(t) + 1e-9 * dt)
+    states = [m for topic, m in _messages(folder / "robot.mcap") if topic == "/state"]
+    assert states and len(states[0].position) == 2
+
+
+def test_scenarios_that_differ_are_refused_at_the_handshake(sessions):
+    for (_stdout, stderr), code in sessions["mismatch"]:
+        assert code == 2
+        message = stderr.decode()
+        assert "runs another scenario" in message and "T_c" in message
+        assert len(message.strip().splitlines()) == 1
+
+
+def test_a_killed_node_leaves_a_readable_log_and_the_others_finish(sessions):
+    folder, nodes = sessions["kill"]
+    assert nodes["robot"][1] == -signal.SIGKILL
+    assert nodes["controller"][1] == 0 and nodes["delay"][1] == 0
+    states = [
+        m for topic, m in _messages(folder / "robot.mcap", finished=False) if topic == "/state"
+    ]
+    assert states, "the killed robot's log holds no state"
+    seqs = [s.header.stamp.sec * 10**9 + s.header.stamp.nanosec for s in states]
+    assert seqs == sorted(seqs)
+
+
+def test_packet_loss_drops_the_commands_the_toolkit_draws(sessions):
+    folder, _ = sessions["kill"]
+    rows = _rows(folder / "releases.csv")
+    assert rows
+    loss = np.array([0.2, 7.0])
+    for row in rows:
+        assert row["lost"] == str(int(bool(packet_lost(int(row["seq"]), loss))))
+        if row["lost"] == "1":
+            assert row["released_s"] == "nan"
+    assert any(r["lost"] == "1" for r in rows)

@@ -41,6 +41,10 @@ compiles or loads numba's disk cache):
     local executor and with a Dask local cluster of one worker process per core (its start-up
     included), against the bare engine in the same run: the same runs built beforehand and
     simulated with one :func:`simulate` call per controller type.
+``live``
+    ``delaytrack live run`` of the P3-DX in real time, ``T_c`` = 10 ms and 1 ms, 60 s each, with
+    the load average (:mod:`live_loop`); ``--skip-live`` or ``DELAYTRACK_BENCH_SKIP_LIVE=1``
+    skips them.
 
 ``python benchmarks/run.py --quick`` runs shorter versions of every case (for a smoke test).
 """
@@ -66,6 +70,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from baselines import numpy_loop, robot_case, solve_ivp_loop  # noqa: E402
 from hand_loop import hand_batch, hand_run  # noqa: E402
+from live_loop import format_live, live_cases  # noqa: E402
 
 from delaytrack.controllers import AROLC  # noqa: E402
 from delaytrack.delays import AbsSineDelay, ConstantDelay, RandomDelay  # noqa: E402
@@ -505,6 +510,12 @@ def sweep_case(draws: int, duration: float) -> list[dict]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="short versions of every case")
+    parser.add_argument(
+        "--skip-live",
+        action="store_true",
+        default=os.environ.get("DELAYTRACK_BENCH_SKIP_LIVE", "") not in ("", "0"),
+        help="skip the live-loop sessions (live_loop.py; also DELAYTRACK_BENCH_SKIP_LIVE=1)",
+    )
     parser.add_argument("--batch-worker", nargs="+", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.batch_worker:
@@ -531,6 +542,8 @@ def main() -> None:
     cases.append(controller_step_case(5))
     agreement = agreement_case(2.0 if quick else 10.0)
     cases += sweep_case(20 if quick else 1000, 6.0 if quick else 60.0)
+    live = [] if args.skip_live else live_cases(quick)  # real time: 2-3 minutes
+    cases += live
     cases.append(agreement)
 
     print(f"{'case':<68} {'median s':>10} {'steps/s':>10} {'ratio':>8} {'peak MiB':>9}")
@@ -554,6 +567,8 @@ def main() -> None:
         f"start-up: first result {startup['first_result_s']:.2f} s, "
         f"command done {startup['command_total_s']:.2f} s"
     )
+    if live:
+        print(format_live(live))
     agreement = cases[-1]
     print(
         f"agreement: threads vs one thread {agreement['threads_vs_single']:.1e}, "

@@ -1,10 +1,14 @@
 """Data files are read with the command line's number rule, only from regular files of bounded
-size, and errors about them do not quote their text.
+size, with units, header names and errors that cannot mislead; files a MuJoCo model names are
+checked as its own path is.
 
-The cases of the campaign (``0_05`` in a trace read as 5 s, ``0_5`` in waypoints read as 5, a
-FIFO that hangs a read, ``/etc/passwd``'s first line in an error) as regression tests, through
-the Python API and the command line, and one property: a CSV cell and a command-line argument
-are read by the same rule.
+The cases of the campaigns (``0_05`` in a trace read as 5 s, ``0_5`` in waypoints read as 5, a
+FIFO that hangs a read, ``/etc/passwd``'s or a token's first line in an error, ``delay_ms_mean``
+read as seconds, a repeated waypoint column read twice, a header-less waypoint file losing its
+first sample, a FIFO included by a MuJoCo model) as regression tests, through the Python API and
+the command line, and two properties: a CSV cell and a command-line argument are read by the
+same rule; whatever a header row holds, no error quotes it and no column named in another unit
+is read as seconds.
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from delaytrack._io import MAX_READ_BYTES, regular_file
+from delaytrack._io import MAX_READ_BYTES, named_time_units, regular_file
 from delaytrack.cli import UsageError, _scalar, main
 from delaytrack.delays import TraceDelay
 from delaytrack.experiments import Scenario, ScenarioError
@@ -90,11 +94,11 @@ def test_a_digit_separator_in_a_trace_is_refused_naming_line_and_column(tmp_path
 def test_a_digit_separator_in_waypoints_is_refused_naming_line_and_column(tmp_path, capsys):
     path = tmp_path / "poses.csv"
     path.write_text("t,q1,q2\n0,0,0\n1,0_5,0\n2,1,1\n")  # 0_5 was read as 5.0
-    with pytest.raises(ValueError, match=r"poses\.csv: line 3, column 'q1' must be a"):
+    with pytest.raises(ValueError, match=r"poses\.csv: line 3, column 2 must be a"):
         SplineReference.from_csv(path)
     scenario = scenario_file(tmp_path, reference={**_SPLINE, "path": "poses.csv"})
     assert main(["simulate", str(scenario), "--out", str(tmp_path / "out")]) == 2
-    one_line_error(capsys, "poses.csv: line 3, column 'q1'", "'_'")
+    one_line_error(capsys, "poses.csv: line 3, column 2 ", "'_'")
 
 
 def test_a_decimal_comma_splitting_a_row_is_refused_not_read_as_two_columns(tmp_path):
@@ -111,7 +115,7 @@ def test_a_decimal_comma_splitting_a_row_is_refused_not_read_as_two_columns(tmp_
 def test_a_first_row_that_is_a_malformed_number_is_not_taken_for_a_header(tmp_path):
     path = tmp_path / "trace.csv"
     path.write_text("0_0,0.05\n10,0.05\n")  # a header would have dropped the first knot
-    with pytest.raises(ValueError, match=r"line 1, column 1 must be a number"):
+    with pytest.raises(ValueError, match=r"line 1, column 't' must be a number"):
         TraceDelay.from_csv(path)
 
 
@@ -144,7 +148,7 @@ def test_the_command_line_and_a_data_file_agree_on_a_number(tmp_path, text, valu
     if value is None:
         with pytest.raises(UsageError):
             _scalar("--x", text)
-        with pytest.raises(ValueError, match=r"line 2, column 'q' (must|is too)"):
+        with pytest.raises(ValueError, match=r"line 2, column 2 (must|is too)"):
             SplineReference.from_csv(path)
     else:
         assert _scalar("--x", text) == value
@@ -175,7 +179,7 @@ def test_data_files_and_the_command_line_read_the_same_numbers(tmp_path_factory,
     try:
         value = _scalar("--x", text)
     except UsageError:
-        with pytest.raises(ValueError, match=r"line 2, column 'q' (must|is too)"):
+        with pytest.raises(ValueError, match=r"line 2, column 2 (must|is too)"):
             SplineReference.from_csv(path)
     else:
         read = SplineReference.from_csv(path).values[0, 0]
@@ -315,3 +319,286 @@ def test_a_bad_cell_is_named_by_its_place_not_quoted(tmp_path):
     with pytest.raises(ValueError, match="line 2 must have 2 columns") as error:
         TraceDelay.from_csv(path)
     assert "secret" not in str(error.value)
+
+
+@pytest.mark.parametrize(
+    ("text", "count"),
+    [
+        ("sk_live_4eC39HqLyjWDarjtT1zdp7dc\n", 1),  # a line that looks like a name was quoted
+        ("machine api.example.com password Hunter2\n", 1),
+        ("vm-host-7\n", 1),
+        ("sk_live_4eC39HqLyjWDarjtT1zdp7dc,Hunter2,api.example.com\n0,0,0\n", 3),
+    ],
+)
+def test_a_first_line_that_looks_like_names_is_not_quoted(tmp_path, capsys, text, count):
+    path = tmp_path / "token"
+    path.write_text(text)
+    secrets = [word for word in text.replace(",", " ").split() if len(word) > 3]
+    messages = []
+    for read in (
+        lambda: TraceDelay.from_csv(path),
+        lambda: TraceDelay.from_csv(path, time_column="t", delay_column="h"),
+        lambda: SplineReference.from_csv(path),
+        lambda: SplineReference.from_csv(path, time_column="t", columns=["q"]),
+    ):
+        with pytest.raises(ValueError) as error:
+            read()
+        messages.append(str(error.value))
+    scenario = scenario_file(tmp_path, delay={"type": "trace", "path": "token"})
+    assert main(["simulate", str(scenario), "--out", str(tmp_path / "out")]) == 2
+    messages.append(one_line_error(capsys, "token: the header row has"))
+    for message in messages:
+        assert not any(secret in message for secret in secrets), message
+    columns = "1 column" if count == 1 else f"{count} columns"
+    wider = "; name the time and delay columns (time_column, delay_column) to read a wider log"
+    assert messages[0] == (
+        f"{path}: the header row has {columns}; a trace has 2 (t, h)" + (wider if count > 2 else "")
+    )
+    assert messages[1] == f"{path}: time_column = 't' is not in the header row (of {columns})"
+    assert (
+        messages[3]
+        == f"{path}: time_column names 't', which is not in the header row (of {columns})"
+    )
+
+
+# ---- 4. units named inside a column's name --------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("header", "options", "outcome"),
+    [
+        # read as seconds with exit 0 before: the unit was not at the end of the name
+        ("t_s,delay_ms_mean", {}, "column 2 (the delay) names a unit (ms: milliseconds), but it"),
+        ("t_s,delay_ms_mean", {"delay_unit": "ms"}, 0.05),
+        ("t,h_min", {}, "column 2 (the delay) may name a unit (min: minutes); say which unit"),
+        ("t,h_min", {"delay_unit": "s"}, 50.0),  # the user says min is a minimum
+        ("t,h_min", {"delay_unit": "ms"}, 0.05),
+        ("t,h (ms) avg", {}, "give delay_unit = 'ms'"),
+        ("t,rtt/MS", {}, "give delay_unit = 'ms'"),
+        ("t,delay-µs", {"delay_unit": "us"}, 50e-6),  # the micro sign, NFKC-normalised
+        ("t,h_minutes", {}, "names a unit (min: minutes), which is not read"),
+        ("t,h_minutes", {"delay_unit": "s"}, "but delay_unit = 's'; make them agree"),
+        ("t,delay_ms", {"delay_unit": "s"}, "but delay_unit = 's'; make them agree"),
+        ("t,h", {}, 50.0),  # h is the delay, not hours
+        ("t [s],h (s)", {}, 50.0),
+        ("t,h_s_mean", {}, 50.0),
+        ("t,h_max", {}, 50.0),
+        # the time column gets the same treatment
+        ("t_ms,h", {}, "column 1 (the time) names a unit (ms: milliseconds), but it would be"),
+        ("t_min,h", {}, "column 1 (the time) may name a unit (min: minutes); say which unit"),
+        ("t_min,h", {"time_unit": "s"}, 50.0),
+        ("stamp hrs,h", {}, "column 1 (the time) names a unit (hr: hours), which is not read"),
+        ("stamp_us,delay_s", {"time_unit": "us"}, 50.0),
+    ],
+)
+def test_a_unit_anywhere_in_a_column_name_is_not_read_as_seconds(
+    tmp_path, header, options, outcome
+):
+    path = tmp_path / "trace.csv"
+    path.write_text(f"{header}\n0,50\n1,50\n")
+    if isinstance(outcome, str):
+        with pytest.raises(ValueError) as error:
+            TraceDelay.from_csv(path, **options)
+        assert str(error.value).startswith(f"{path}: the name of "), str(error.value)
+        assert outcome in str(error.value)
+    else:
+        np.testing.assert_allclose(TraceDelay.from_csv(path, **options).values, [outcome] * 2)
+
+
+def test_units_in_column_names_the_user_gave_and_on_the_command_line(tmp_path, capsys):
+    path = tmp_path / "trace.csv"
+    path.write_text("seq,t_s,delay_ms_mean\n1,0,50\n2,1,50\n")
+    with pytest.raises(ValueError) as error:
+        TraceDelay.from_csv(path, time_column="t_s", delay_column="delay_ms_mean")
+    assert str(error.value) == (
+        f"{path}: delay_column = 'delay_ms_mean' names a unit (ms: milliseconds), but it would "
+        "be read in seconds; give delay_unit = 'ms' (or correct the column's name)"
+    )
+    path.write_text("t_s,delay_ms_mean\n0,50\n1,50\n")
+    scenario = scenario_file(
+        tmp_path, delay={"type": "trace", "path": "trace.csv", "beyond": "hold"}
+    )
+    assert main(["simulate", str(scenario), "--out", str(tmp_path / "out")]) == 2  # was h = 50 s
+    one_line_error(capsys, "column 2 (the delay) names a unit (ms: milliseconds)")
+
+
+def test_waypoint_times_named_in_another_unit_are_refused(tmp_path):
+    path = tmp_path / "poses.csv"
+    path.write_text("t_ms,q1,q2\n0,0,0\n100,1,1\n")
+    with pytest.raises(ValueError) as error:
+        SplineReference.from_csv(path)
+    assert str(error.value) == (
+        f"{path}: the name of column 1 (the time) names a unit (ms: milliseconds), but it is "
+        "read in seconds; give the values in seconds, under a name that names no other unit"
+    )
+    path.write_text("time (s),q1_ms,q2\n0,0,0\n0.1,1,1\n")  # a coordinate's name is its own
+    np.testing.assert_array_equal(SplineReference.from_csv(path).times, [0.0, 0.1])
+
+
+# ---- 5. repeated column names; files without a header row ----------------------------------
+
+
+def test_repeated_column_names_are_refused_by_position(tmp_path, capsys):
+    path = tmp_path / "w.csv"
+    path.write_text("t,x,x\n0,0,5\n0.1,0.1,5\n0.2,0.2,5\n")  # q2_d followed column 2, exit 0
+    message = (
+        f"{path}: columns 2 and 3 of the header row (line 1) have the same name; each column "
+        "needs a name of its own"
+    )
+    with pytest.raises(ValueError) as error:
+        SplineReference.from_csv(path)
+    assert str(error.value) == message
+    scenario = scenario_file(tmp_path, reference={**_SPLINE, "path": "w.csv"})
+    assert main(["simulate", str(scenario), "--out", str(tmp_path / "out")]) == 2
+    one_line_error(capsys, "columns 2 and 3 of the header row (line 1) have the same name")
+    path.write_text("\n t ,x , \uff58,y\n0,0,5,1\n1,1,5,1\n")  # a full-width x is an x (NFKC)
+    with pytest.raises(ValueError, match=r"columns 2 and 3 of the header row \(line 2\) have"):
+        SplineReference.from_csv(path, columns=["y"])
+    path.write_text("stamp,delay,seq,delay\n0,0.01,1,5\n1,0.01,2,5\n")
+    with pytest.raises(ValueError, match=r"columns 2 and 4 of the header row \(line 1\) have"):
+        TraceDelay.from_csv(path, time_column="stamp", delay_column="delay")
+    path.write_text("t,h,,\n0,0.01,,\n1,0.01,,\n")
+    with pytest.raises(ValueError, match=r"columns 3 and 4 of the header row \(line 1\) have no"):
+        TraceDelay.from_csv(path)
+
+
+def test_waypoints_without_a_header_are_read_as_a_trace_is(tmp_path):
+    path = tmp_path / "w.csv"
+    path.write_text("0,0.1,0.2\n0.1,0.5,0.6\n0.2,1,1.1\n")  # the first sample was a header
+    spline = SplineReference.from_csv(path)
+    np.testing.assert_array_equal(spline.times, [0.0, 0.1, 0.2])
+    np.testing.assert_array_equal(spline.values[0], [0.1, 0.2])
+    for options in ({"time_column": "t"}, {"columns": ["q1"]}):
+        with pytest.raises(ValueError, match=r"names header columns, but the file has no header"):
+            SplineReference.from_csv(path, **options)
+    path.write_text("0,0.1,0.2\n0.1,0.5\n")
+    with pytest.raises(ValueError, match=r"line 2 must have 3 columns as its first row; it has 2"):
+        SplineReference.from_csv(path)
+    path.write_text("0\n1\n")
+    with pytest.raises(ValueError, match=r"line 1 has 1 column; waypoints need a column of"):
+        SplineReference.from_csv(path)
+
+
+@st.composite
+def headers(draw) -> tuple[list[str], list[str]]:
+    """Header rows whose names mix unit words, other words and a secret, and the secrets."""
+    words = st.sampled_from(
+        ["t", "h", "delay", "stamp", "mean", "x", "s", "sec", "ms", "MS", "us", "\u00b5s", "ns"]
+        + ["min", "Min", "minutes", "hr", "hours", "millis", "h_max"]
+    )
+    cells, secrets = [], []
+    for _ in range(draw(st.integers(1, 4))):
+        secret = draw(st.from_regex(r"[a-z]{2}[0-9]{4}[a-z]{2}", fullmatch=True))
+        parts = [*draw(st.lists(words, max_size=2)), secret, *draw(st.lists(words, max_size=2))]
+        cells.append(draw(st.sampled_from(["_", " ", "-", "/", " (", "["])).join(parts))
+        secrets.append(secret)
+    return cells, secrets
+
+
+@given(header=headers())
+@settings(max_examples=200, deadline=None)
+def test_errors_never_quote_a_header_and_units_are_never_read_as_seconds(tmp_path_factory, header):
+    """Whatever a header row holds, no error quotes it, and a trace or waypoints read with
+    default options have no time or delay column whose name names another unit."""
+    cells, secrets = header
+    path = tmp_path_factory.mktemp("headers") / "data.csv"
+    width = len(cells)
+    with path.open("w", newline="") as handle:
+        csv.writer(handle).writerows([cells, ["0"] + ["0.01"] * (width - 1), ["1"] * width])
+    for read, checked in ((TraceDelay.from_csv, cells[:2]), (SplineReference.from_csv, cells[:1])):
+        try:
+            read(path)
+        except ValueError as error:
+            message = str(error).replace(str(path), "")
+            assert not any(secret in message for secret in secrets), message
+        else:
+            for cell in checked:
+                assert all(unit == "s" for unit, _ in named_time_units(cell)), cell
+
+
+# ---- 6. files a MuJoCo model names ----------------------------------------------------------
+
+
+_ARM = Path(__file__).resolve().parents[1] / "examples" / "mujoco_arm" / "arm3.xml"
+
+
+def _model(folder: Path, extra: str, suffix: str = ".xml") -> Path:
+    """The example arm with ``extra`` right after its opening tag."""
+    text = _ARM.read_text().replace('<mujoco model="arm3">', f'<mujoco model="arm3">\n{extra}')
+    path = folder / f"arm{suffix}"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("fifo_name", "extra", "element"),
+    [
+        ("f1", '<include file="{fifo}"/>', "<include file>"),
+        ("f2.stl", '<asset><mesh name="x" file="{fifo}"/></asset>', "<mesh file>"),
+        ("p.stl", '<compiler meshdir="meshes"/><asset><mesh name="x" file="p.stl"/></asset>', ""),
+        ("t.png", '<asset><texture type="cube" name="x" fileright="{fifo}"/></asset>', "fileright"),
+        ("deep.xml", '<include file="sub/one.xml"/>', "of '"),
+    ],
+)
+def test_a_fifo_a_mujoco_model_includes_or_names_is_refused(tmp_path, fifo_name, extra, element):
+    pytest.importorskip("mujoco")
+    from delaytrack.plants import MujocoPlant
+
+    if not hasattr(os, "mkfifo"):
+        pytest.skip("no FIFOs on this system")
+    (tmp_path / "meshes").mkdir()
+    (tmp_path / "sub").mkdir()
+    fifo = tmp_path / ("meshes" if fifo_name == "p.stl" else "") / fifo_name
+    os.mkfifo(fifo)
+    (tmp_path / "sub" / "one.xml").write_text(f'<mujoco>\n<include file="{fifo}"/>\n</mujoco>\n')
+    model = _model(tmp_path, extra.format(fifo=fifo))
+    error = promptly(fifo, MujocoPlant, model)  # hung in MuJoCo's read before
+    assert isinstance(error, ValueError), error
+    assert str(error).startswith(f"path {str(model)!r}: line ")
+    assert element in str(error) and "is not a file but a FIFO (named pipe)" in str(error)
+
+
+def test_a_fifo_a_urdf_names_as_a_mesh_is_refused(tmp_path):
+    pytest.importorskip("mujoco")
+    from delaytrack.plants import MujocoPlant
+
+    if not hasattr(os, "mkfifo"):
+        pytest.skip("no FIFOs on this system")
+    fifo = tmp_path / "link.stl"
+    os.mkfifo(fifo)
+    urdf = Path(__file__).resolve().parents[1] / "examples" / "mujoco_urdf" / "two_link.urdf"
+    text = urdf.read_text().replace(
+        '<link name="fore">',
+        '<link name="fore"><collision><geometry><mesh filename="package://arm/meshes/link.stl"/>'
+        "</geometry></collision>",
+    )
+    model = tmp_path / "arm.urdf"
+    model.write_text(text)
+    error = promptly(fifo, MujocoPlant, model)
+    assert isinstance(error, ValueError), error
+    assert f"<mesh filename> {str(fifo)!r} is not a file but a FIFO" in str(error)
+
+
+def test_devices_and_bounds_of_files_a_model_names(tmp_path):
+    pytest.importorskip("mujoco")
+    from delaytrack.plants import MujocoPlant
+    from delaytrack.plants.mujoco.model_files import MAX_INCLUDE_DEPTH, check_model_files
+
+    if Path("/dev/zero").exists():
+        model = _model(tmp_path, '<asset><hfield name="x" file="/dev/zero"/></asset>')
+        with pytest.raises(ValueError, match=r"<hfield file> '/dev/zero' is not a file but a char"):
+            MujocoPlant(model)
+    chain = tmp_path / "chain"
+    chain.mkdir()
+    for level in range(MAX_INCLUDE_DEPTH + 2):
+        (chain / f"{level}.xml").write_text(f'<mujoco><include file="{level + 1}.xml"/></mujoco>')
+    with pytest.raises(ValueError, match=rf"is included {MAX_INCLUDE_DEPTH + 1} levels deep"):
+        check_model_files(chain / "0.xml")
+    # comments with "--" (MuJoCo reads them), commented-out names and a name that resolves to
+    # nothing are left to MuJoCo, as before
+    check_model_files(Path(__file__).resolve().parents[1] / "src/delaytrack/data/p3dx.xml")
+    model = _model(tmp_path, '<!-- <include file="/dev/zero"/> -- -->')
+    check_model_files(model)
+    model = _model(tmp_path, '<include file="absent.xml"/>')
+    with pytest.raises(ValueError, match=r"MuJoCo could not read it"):
+        MujocoPlant(model)

@@ -1,17 +1,23 @@
 """A scenario or sweep file is not a program: the factories it may name, and factories that exit.
 
 A factory (``type = "python:..."``) in a file read from disk runs only from a ``.py`` file in
-that file's folder or below it, or when the user trusts it (``--trust``, ``trust=``); anything
-else is refused, naming the key, before anything is imported. A factory that exits or is
+that file's folder or below it (not in a hidden folder, a folder of installed code, a Python
+environment or installation, nor where Python or this package is installed), or when the user
+trusts it (``--trust``, ``trust=``); anything else is refused, naming the key, before anything
+is imported. What runs is the file as read, never a ``.pyc`` shipped beside it, and numba's
+disk cache of its kernels never binds them to another module. A factory that exits or is
 interrupted is reported as that factory's.
 """
 
 from __future__ import annotations
 
 import importlib
+import marshal
 import os
 import re
+import subprocess
 import sys
+import sysconfig
 import tempfile
 import uuid
 from pathlib import Path
@@ -22,7 +28,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from delaytrack import _spec
+import delaytrack
+from delaytrack import _spec, _trust
 from delaytrack.cli import main
 from delaytrack.experiments import Scenario, ScenarioError
 from delaytrack.experiments.scenario import dumps_toml
@@ -232,6 +239,97 @@ def test_a_sweep_checks_its_own_factories_and_its_scenarios_in_their_folders(tmp
     assert main(["sweep", str(sweep), *out, "--trust", str(tmp_path / "scenarios")]) == 0
 
 
+# ---- below the folder, but not its own code ----------------------------------------------------
+
+
+def marking(marker: Path) -> str:
+    """A module that creates ``marker`` when it is imported and has a factory ``make``."""
+    return f"open({str(marker)!r}, 'w').close()\n\ndef make(**keys):\n    return None\n"
+
+
+@pytest.mark.parametrize(
+    ("folders", "setup", "reason"),
+    [
+        # A scenario saved in a home folder naming Python's own library under ~/.pyenv
+        ((".pyenv", "versions", "3.11.7", "lib", "python3.11"), None, "inside the hidden folder"),
+        (
+            ("env", "lib", "python3.11", "site-packages", "pkg"),
+            "env/pyvenv.cfg",
+            "it holds pyvenv.cfg",
+        ),
+        (("lab", "site-packages", "pkg"), None, "a folder of installed Python packages"),
+        (("tools", "dist-packages"), None, "a folder of installed Python packages"),
+        (("web", "node_modules", "pkg"), None, "a folder of installed packages"),
+        (("robots", "__pycache__"), None, "a folder of compiled Python code"),
+        (("python", "lib", "python3.12"), None, "a Python installation (it holds lib/python3.12)"),
+    ],
+)
+def test_a_file_below_the_folder_in_installed_or_hidden_code_is_refused(
+    tmp_path, capsys, folders, setup, reason
+):
+    marker = tmp_path / "imported"
+    below = tmp_path.joinpath(*folders)
+    below.mkdir(parents=True)
+    if setup:
+        (tmp_path / setup).write_text("home = /usr/bin\n")
+    (below / "shutil_like.py").write_text(marking(marker))
+    relative = "/".join([*folders, "shutil_like.py"])
+    path = scenario_file(tmp_path, {"type": f"python:{relative}:make", "path": "victim"})
+    file = below / "shutil_like.py"
+    err = refused(
+        capsys,
+        ["simulate", str(path), "--out", str(tmp_path / "out")],
+        f"'plant.type' = 'python:{relative}:make' names {file}",
+        f"which is below {tmp_path} (the folder of case.toml) but",
+        reason,
+        f"--trust {file}",
+    )
+    assert "nor below" not in err
+    with pytest.raises(ScenarioError, match=re.escape(reason)):
+        Scenario.from_toml(path)
+    assert not marker.exists()
+    # Trusted, it is imported (its factory returns no plant).
+    with pytest.raises(ScenarioError, match="must return an ELPlant"):
+        Scenario.from_toml(path, trust=[str(file)]).build()
+    assert marker.exists()
+
+
+def test_a_file_where_python_or_this_package_is_installed_is_refused_below_the_folder(
+    tmp_path, monkeypatch
+):
+    package = Path(delaytrack.__file__).resolve().parent
+    stdlib = Path(sysconfig.get_paths()["stdlib"]).resolve()
+    prefix = Path(sys.prefix).resolve()
+    for folder, place, file, what in [
+        # a scenario saved above the source of this package, naming its writing function
+        (package.parent, package, package / "_io.py", "where delaytrack is installed"),
+        (stdlib, stdlib, stdlib / "shutil.py", "Python's standard library"),
+        (prefix, prefix, prefix / "any.py", "where this Python is installed (sys.prefix)"),
+    ]:
+        source = folder / "case.toml"  # only its folder is read
+        with pytest.raises(_spec.SpecError, match=re.escape(f"but inside {place}, {what}")):
+            _trust.check_factory("plant.type", "python:f.py:g", str(file), source, _trust.Trust())
+    # From a scenario file: a folder of installed code that no name gives away.
+    marker = tmp_path / "imported"
+    (tmp_path / "lib").mkdir()
+    (tmp_path / "lib" / "installed_mod.py").write_text(marking(marker))
+    installed = ((tmp_path / "lib", "a folder of installed Python packages"),)
+    monkeypatch.setattr(_trust, "installed_locations", lambda: installed)
+    path = scenario_file(tmp_path, {"type": "python:lib/installed_mod.py:make"})
+    with pytest.raises(
+        ScenarioError, match=f"but inside {tmp_path / 'lib'}, a folder of installed"
+    ):
+        Scenario.from_toml(path)
+    assert not marker.exists()
+
+
+def test_the_example_folder_runs_without_trust():
+    example = Path(__file__).resolve().parent.parent / "examples" / "user_arm"
+    scenario = Scenario.from_toml(example / "arm_S1.toml")
+    assert scenario.plant["type"] == f"python:{example / 'arm.py'}:make_arm"
+    assert len(SweepSpec.from_toml(example / "sweep_arm.toml").runs) > 1
+
+
 # ---- modules: trusted by name ----------------------------------------------------------------
 
 
@@ -350,9 +448,111 @@ def test_a_factory_interrupted_says_which_and_exits_130(tmp_path, capsys):
         assert err.startswith(words) and err.count("\n") == 1 and f"{module}.py" in err, err
 
 
+# ---- what runs: the file as read, and kernels bound to their own module ---------------------
+
+
+def shipped_pyc(source: Path, code: str) -> Path:
+    """A ``__pycache__`` entry beside ``source`` whose header matches the source's time and size
+    (Python's import runs it instead of the source) and whose code is ``code``."""
+    stat = source.stat()
+    pyc = Path(importlib.util.cache_from_source(str(source)))
+    pyc.parent.mkdir(exist_ok=True)
+    header = importlib.util.MAGIC_NUMBER + (0).to_bytes(4, "little")
+    header += int(stat.st_mtime).to_bytes(4, "little") + (stat.st_size & 0xFFFFFFFF).to_bytes(
+        4, "little"
+    )
+    pyc.write_bytes(header + marshal.dumps(compile(code, str(source), "exec")))
+    return pyc
+
+
+def test_a_pyc_shipped_beside_a_factory_file_or_its_neighbour_never_runs(tmp_path, monkeypatch):
+    """A harmless ``.py`` (what one reviews, and trusts by path) with a harmful ``.pyc``."""
+    monkeypatch.setattr(sys, "dont_write_bytecode", False)
+    harmful = f"open({str(tmp_path / 'ran')!r}, 'w').close()\n"
+    neighbour = f"pyc_neighbour_{uuid.uuid4().hex[:8]}"
+    folder = tmp_path / "sent"
+    folder.mkdir()
+    (folder / f"{neighbour}.py").write_text("SIZE = 2\n")
+    (folder / "pyc_arm.py").write_text(f"import {neighbour}\n\n{ARM_FACTORY}")
+    shipped_pyc(folder / "pyc_arm.py", f"{harmful}import {neighbour}\n\n{ARM_FACTORY}")
+    shipped_pyc(folder / f"{neighbour}.py", f"{harmful}SIZE = 2\n")
+    # Imported the usual way, the .pyc runs: the trick works on this Python.
+    spec = importlib.util.spec_from_file_location("pyc_probe", folder / f"{neighbour}.py")
+    spec.loader.exec_module(importlib.util.module_from_spec(spec))
+    assert (tmp_path / "ran").exists()
+    (tmp_path / "ran").unlink()
+    path = scenario_file(folder, {"type": "python:pyc_arm.py:make"})
+    assert Scenario.from_toml(path).build().plant.n == 2
+    assert sys.modules[neighbour].SIZE == 2
+    assert not (tmp_path / "ran").exists()
+
+
+#: A file whose kernel numba caches on disk, a scenario's factory that calls it.
+_CACHED_ARM = """
+import numba
+import delaytrack as dt
+
+@numba.njit(cache=True)
+def terms(t, q, qdot, params, M, N, G):
+    M[0, 0] = params[0]
+    N[0] = 0.0
+    G[0, 0] = 1.0
+
+def make(mass=2.0):
+    return dt.CompiledPlant(1, 1, terms, [mass])
+"""
+#: Builds the factory of each folder's ``robot.py`` in turn and prints, for each, the name of
+#: its module, whether numba loaded its kernel from the disk cache, and the file of the module
+#: the loaded kernel is bound to.
+_BUILD_EACH = (
+    "import sys; from delaytrack._spec import user_factory\n"
+    "for folder in sys.argv[1:]:\n"
+    "    kernel = user_factory('plant', f'python:{folder}/robot.py:make')().kernel\n"
+    "    (compiled,) = kernel.overloads.values()\n"
+    "    print(kernel.py_func.__module__, sum(kernel.stats.cache_hits.values()),\n"
+    "          compiled.environment.globals['__file__'])\n"
+)
+
+
+def test_a_cached_kernel_is_bound_to_its_own_file_whatever_name_its_module_had(tmp_path):
+    """Two ``robot.py`` in one process (a sweep): the second is ``robot_<hash>``, and numba's
+    cache entry of its kernel names that module. Alone, it is ``robot``: that entry failed with
+    ModuleNotFoundError in every later process; and an entry made there, naming ``robot``, was
+    bound to the other file's module when both ran again."""
+    a, b = tmp_path / "A", tmp_path / "B"
+    for folder in (a, b):
+        folder.mkdir()
+        (folder / "robot.py").write_text(_CACHED_ARM)
+    environment = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+
+    def build(*folders: Path) -> list[list[str]]:
+        completed = subprocess.run(
+            [sys.executable, "-c", _BUILD_EACH, *map(str, folders)],
+            cwd=tmp_path,
+            env=environment,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+        assert completed.returncode == 0, completed.stderr[-2000:]
+        return [line.split() for line in completed.stdout.splitlines()]
+
+    first_a, first_b = build(a, b)
+    assert first_a == ["robot", "0", str(a / "robot.py")]
+    assert first_b[0].startswith("robot_") and first_b[1:] == ["0", str(b / "robot.py")]
+    assert build(b) == [["robot", "0", str(b / "robot.py")]]  # compiled again, not an error
+    # B's entry now names "robot", which is A here: it is not bound to A, B is compiled again.
+    assert build(a, b) == [
+        ["robot", "1", str(a / "robot.py")],
+        [first_b[0], "0", str(b / "robot.py")],
+    ]
+
+
 # ---- the property ------------------------------------------------------------------------------
 
-segments = st.lists(st.sampled_from(["..", ".", "lab", "sent", "deep"]), max_size=5)
+segments = st.lists(
+    st.sampled_from(["..", ".", "lab", "sent", "deep", ".hidden", "site-packages"]), max_size=5
+)
 identifiers = st.from_regex(r"[a-z_][a-z0-9_]{0,6}", fullmatch=True)
 #: Dotted names; one ending in ".py" would be a file.
 dotted = (
@@ -375,8 +575,9 @@ dotted = (
 )
 def test_a_factory_is_imported_exactly_when_it_is_allowed(parts, module, trusted):
     """For any relative path and any module name, the factory is imported only when its file
-    lies in the scenario's folder or below, or its module (or a package above it) is trusted;
-    anything else is refused naming the key, with nothing imported."""
+    lies in the scenario's folder or below, and not in a hidden folder or a folder of installed
+    packages on the way, or its module (or a package above it) is trusted; anything else is
+    refused naming the key, with nothing imported."""
     imported = []
 
     def spy(location):
@@ -386,7 +587,10 @@ def test_a_factory_is_imported_exactly_when_it_is_allowed(parts, module, trusted
     with tempfile.TemporaryDirectory() as root:
         folder = Path(root).resolve() / "sent"
         relative = "/".join([*parts, "factory.py"])
-        inside = Path(os.path.normpath(folder / relative)).is_relative_to(folder)
+        file = Path(os.path.normpath(folder / relative))
+        inside = file.is_relative_to(folder) and not (
+            {".hidden", "site-packages"} & set(file.relative_to(folder).parts)
+        )
         allowed = any(module == name or module.startswith(f"{name}.") for name in trusted)
         with (
             mock.patch.object(_spec, "module_from_file", spy),

@@ -4,8 +4,11 @@ Reading: every file the toolkit reads (a delay trace or waypoint CSV, a scenario
 model file, a factory's ``.py`` file) is first checked to be a regular file of bounded size
 (:func:`regular_file`): a FIFO would wait for a writer forever and a device such as
 ``/dev/zero`` never ends. CSV data files are read row by row with their line numbers
-(:func:`csv_rows`), their numbers by the command line's rule (:func:`csv_number`), and errors
-about them name the file, line and column without quoting the file's text.
+(:func:`csv_rows`); their first row is a header of distinct names unless it starts like a number
+(:func:`csv_table`); their numbers are read by the command line's rule (:func:`csv_number`); a
+column whose name names another time unit than the one it is read in is refused
+(:func:`check_column_unit`). Errors about them name the file, line and column without quoting
+the file's text, a header's names included.
 
 Writing is atomic: a reader sees the old file or the complete new one, never a half-written one.
 Each writer writes to a temporary file in the destination's folder (same file system) and then
@@ -18,10 +21,12 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import itertools
 import os
 import re
 import stat
 import tempfile
+import unicodedata
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -33,12 +38,18 @@ if TYPE_CHECKING:
 
 __all__ = [
     "MAX_READ_BYTES",
+    "TIME_UNITS",
+    "TIME_UNIT_NAMES",
     "atomic_path",
+    "check_column_unit",
+    "column_count",
     "column_label",
+    "column_name",
     "csv_number",
     "csv_rows",
+    "csv_table",
+    "named_time_units",
     "regular_file",
-    "shown_header",
     "write_bytes",
     "write_frame",
     "write_text",
@@ -130,35 +141,170 @@ def csv_rows(path: Path) -> Iterator[tuple[int, list[str]]]:
         raise ValueError(f"path = {str(path)!r} cannot be read: {problem.strerror}") from None
 
 
-#: A header cell shown in messages: a short name, not a line of some other file.
-_NAME = re.compile(r"[\w .()\[\]/%-]{1,40}")
+#: The start of a cell that is meant as a number (read by the number rule, refused when it is not
+#: one), unlike a column's name: a digit of any script, a sign, a point, inf or nan.
+_NUMBER_START = re.compile(r"\s*(?:[+-]|\.?\d|inf|nan)", re.IGNORECASE)
 
 
-def _name_like(cell: str) -> bool:
-    return _NAME.fullmatch(cell.strip()) is not None
+def column_name(text: str) -> str:
+    """A column's name as compared: Unicode NFKC form (``ｔ`` is ``t``), blanks around removed."""
+    return unicodedata.normalize("NFKC", text).strip()
 
 
-def shown_header(header: list[str]) -> str:
-    """``" ['t', 'h']"`` to follow the words "the header" in a message, or ``""`` when the
-    header row's cells are not short names (a row of a file that is not a table of numbers)."""
-    if len(header) > 20 or not all(_name_like(cell) for cell in header):
-        return ""
-    return f" {[cell.strip() for cell in header]}"
+def csv_table(path: Path, needs: str) -> tuple[list[str] | None, Iterator[tuple[int, list[str]]]]:
+    """The header row of the CSV file ``path`` and its rows of data, each with its line.
+
+    The first row is the header unless its first cell starts like a number (a sign, a digit, a
+    point, ``inf`` or ``nan``): then the file has no header (None) and that row is data. The
+    header's names are given by :func:`column_name`; two columns of the same name are refused,
+    naming their positions (a name read from the file is not quoted). ``needs`` ends the message
+    about a file without rows (``"a trace needs two columns t, h"``).
+    """
+    rows = csv_rows(path)
+    first = next(rows, None)
+    if first is None:
+        raise ValueError(f"{path}: the file holds no rows; {needs}")
+    if _NUMBER_START.match(first[1][0]):
+        return None, itertools.chain([first], rows)
+    header = [column_name(cell) for cell in first[1]]
+    for name in dict.fromkeys(header):
+        positions = [str(k + 1) for k, other in enumerate(header) if other == name]
+        if len(positions) > 1:
+            listed = f"{', '.join(positions[:-1])} and {positions[-1]}"
+            same = "have no name" if not name else "have the same name"
+            raise ValueError(
+                f"{path}: columns {listed} of the header row (line {first[0]}) {same}; each "
+                "column needs a name of its own"
+            )
+    return header, rows
 
 
-def column_label(column: int, header: str | None) -> str:
-    """``"column 'h'"`` for a message: the column's name in the header row when that is a
-    short name, else its number from 1 (``"column 2"``)."""
-    if header is None or not _name_like(header):
-        return f"column {column}"
-    return f"column {header.strip()!r}"
+def column_count(count: int) -> str:
+    """``"1 column"``, ``"3 columns"``."""
+    return "1 column" if count == 1 else f"{count} columns"
 
 
-def csv_number(path: Path, line: int, column: int, cell: str, header: str | None) -> float:
+def column_label(column: int, name: str | None) -> str:
+    """``"column 'h'"`` for a message: the column's name when it is not the file's text (a name
+    the user gave, or the documented ``t`` and ``h`` of a trace), else its number from 1
+    (``"column 2"``)."""
+    return f"column {column}" if name is None else f"column {name!r}"
+
+
+#: Units a data file's times and delays may be given in, with their size in seconds.
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+
+#: Time units by symbol, spelled out for messages; minutes and hours are recognised in column
+#: names but not read.
+TIME_UNIT_NAMES = {
+    "s": "seconds",
+    "ms": "milliseconds",
+    "us": "microseconds",
+    "ns": "nanoseconds",
+    "min": "minutes",
+    "hr": "hours",
+}
+
+#: The words of a column's name that name a time unit, by the unit's symbol. A lone ``h`` is the
+#: delay's own symbol, not hours.
+_UNIT_WORDS = {
+    word: symbol
+    for symbol, words in {
+        "s": ("s", "sec", "secs", "second", "seconds"),
+        "ms": ("ms", "msec", "msecs", "millis", "millisecond", "milliseconds"),
+        "us": ("us", "\u03bcs", "usec", "usecs", "micros", "microsecond", "microseconds"),
+        "ns": ("ns", "nsec", "nsecs", "nanos", "nanosecond", "nanoseconds"),
+        "min": ("min", "mins", "minute", "minutes"),
+        "hr": ("hr", "hrs", "hour", "hours"),
+    }.items()
+    for word in words
+}
+
+#: Unit words that may mean something else (``h_min``: a minimum, or minutes?).
+_UNCERTAIN_WORDS = frozenset({"min", "mins"})
+
+#: What separates the words of a column's name: ``delay_ms_mean``, ``h [ms]``, ``t (s)``,
+#: ``rtt/ms``, ``stamp-us``.
+_WORD_BREAK = re.compile(r"[\s_()\[\]{}/.,;:-]+")
+
+
+def named_time_units(name: str) -> list[tuple[str, bool]]:
+    """The time units the words of the column name ``name`` name, in order, without repeats:
+    each as its symbol and whether the word is certain (``ms``) or may mean something else
+    (``min``, a minimum).
+
+    Examples
+    --------
+    >>> named_time_units("delay_ms_mean"), named_time_units("h (s)"), named_time_units("h_min")
+    ([('ms', True)], [('s', True)], [('min', False)])
+    """
+    words = _WORD_BREAK.split(column_name(name).casefold())
+    named = [
+        (_UNIT_WORDS[word], word not in _UNCERTAIN_WORDS) for word in words if word in _UNIT_WORDS
+    ]
+    return list(dict.fromkeys(named))
+
+
+def check_column_unit(
+    path: Path, label: str, name: str, option: str | None, given: str | None
+) -> None:
+    """Refuse a column whose name names another time unit than the one it is read in.
+
+    ``label`` says which column, without the file's text (``"the name of column 2 (the
+    delay)"``, ``"delay_column = 'lag_ms'"``); ``option`` is the key that sets the column's unit
+    (``"delay_unit"``), None when the column is read in seconds only; ``given`` is its value
+    when the user gave one. With no unit given, a name that names another unit than seconds, or
+    may name one (``min``), is refused, asking for the unit; a unit the user gave stands unless
+    the name names another unit for certain.
+
+    Raises
+    ------
+    ValueError
+        One line naming the file, the column, the unit its name names and what to give.
+    """
+    named = named_time_units(name)
+    certain = {unit for unit, sure in named if sure}
+    units = [repr(unit) for unit in TIME_UNITS]
+    readable = f"{', '.join(units[:-1])} or {units[-1]}"
+    if given is not None:
+        if not certain or given in certain:
+            return
+        unit = next(unit for unit, sure in named if sure)
+        raise ValueError(
+            f"{path}: {label} names a unit ({unit}: {TIME_UNIT_NAMES[unit]}), but {option} = "
+            f"{given!r}; make them agree (correct the option or the column's name)"
+        )
+    others = [(unit, sure) for unit, sure in named if unit != "s"]
+    if not others:
+        return
+    unit, sure = others[0]
+    said = f"{'names' if sure else 'may name'} a unit ({unit}: {TIME_UNIT_NAMES[unit]})"
+    if option is None:
+        raise ValueError(
+            f"{path}: {label} {said}, but it is read in seconds; give the values in seconds, "
+            "under a name that names no other unit"
+        )
+    if not sure:
+        raise ValueError(
+            f"{path}: {label} {said}; say which unit the values are in with {option} = "
+            f"{readable} (the word may also mean a minimum)"
+        )
+    if unit not in TIME_UNITS:
+        raise ValueError(
+            f"{path}: {label} {said}, which is not read; {option} is one of {readable}: convert "
+            "the column"
+        )
+    raise ValueError(
+        f"{path}: {label} {said}, but it would be read in seconds; give {option} = {unit!r} "
+        "(or correct the column's name)"
+    )
+
+
+def csv_number(path: Path, line: int, column: int, cell: str, name: str | None) -> float:
     """The number in ``cell`` at ``line`` and ``column`` (from 1) of the CSV file ``path``, by
     the rule of the command line (:func:`~delaytrack._validation.decimal_number`).
 
-    ``header`` is the column's name in the header row (:func:`column_label`).
+    ``name`` is the column's name when it is not the file's text (:func:`column_label`).
 
     Raises
     ------
@@ -168,7 +314,7 @@ def csv_number(path: Path, line: int, column: int, cell: str, header: str | None
     try:
         return decimal_number(cell)
     except NumberTextError as error:
-        raise ValueError(f"{path}: line {line}, {column_label(column, header)} {error}") from None
+        raise ValueError(f"{path}: line {line}, {column_label(column, name)} {error}") from None
 
 
 def _umask() -> int:

@@ -12,6 +12,13 @@ folder holding anything else. :func:`record_outputs` is called after a run has w
 files: files of the previous run in that folder that this run did not write again are removed,
 and the marker lists the new ones. A folder therefore holds the files of its latest run only.
 
+This toolkit never writes a symbolic link. A results folder that holds one, at the top or in a
+subfolder (``figures -> ../elsewhere``, ``parts -> ~``), was changed by someone else, and
+writing or cleaning up through it would act outside the folder: each of the three functions
+looks for links (without following any, :data:`LINK_DEPTH` levels deep) and refuses the folder,
+naming the link and its target, so that the check is made again right before the first file is
+written and before the previous run's files are removed.
+
 ``reproduce --out`` names the folder that holds its jobs' results folders
 (:func:`check_results_root`): it must be new, empty, or hold only what this toolkit writes there
 (results folders, folders of them, a gains file of ``tune-baselines``). A name that becomes a
@@ -30,6 +37,7 @@ from pathlib import Path
 from delaytrack._io import write_text
 
 __all__ = [
+    "LINK_DEPTH",
     "MANIFEST",
     "OutputFolderError",
     "check_output_folder",
@@ -49,6 +57,13 @@ _GAINS_FILE_START = b'generated_by = "delaytrack tune-baselines'
 
 #: How deep :func:`check_results_root` looks for results folders (``results/sweeps/<name>``).
 _ROOT_DEPTH = 2
+
+#: Levels of subfolders of a results folder searched for links: the deepest the toolkit writes
+#: is ``robustness/sweeps/<name>/parts/<part>``.
+LINK_DEPTH = 4
+#: Entries examined at most: more than a results folder of this toolkit holds (a sweep has at
+#: most 100 000 runs, so at most as many parts).
+_LINK_ENTRIES = 1_000_000
 
 
 class OutputFolderError(ValueError):
@@ -131,7 +146,44 @@ def check_output_folder(folder: str | os.PathLike[str], argument: str = "folder"
                 "run's results only (results of an earlier version of this toolkit: delete the "
                 "folder)"
             )
+    if target.is_dir():
+        _refuse_links(target, argument, folder)
     return target
+
+
+def _refuse_links(folder: Path, argument: str, given: str | os.PathLike[str]) -> None:
+    """Raise :class:`OutputFolderError` when ``folder`` (given as ``given``, for the message) or
+    its subfolders down to :data:`LINK_DEPTH` levels hold a symbolic link, naming it and its
+    target; links are never followed."""
+    pending = [(folder, "", 1)]
+    examined = 0
+    while pending:
+        current, relative, depth = pending.pop()
+        try:
+            entries = sorted(os.scandir(current), key=lambda entry: entry.name)
+        except OSError:
+            continue  # unreadable: writing there fails with its own error
+        examined += len(entries)
+        if examined > _LINK_ENTRIES:
+            raise OutputFolderError(
+                f"{argument} {os.fspath(given)!r} holds more than {_LINK_ENTRIES} entries, more "
+                "than a results folder of this toolkit holds; choose a new or empty folder"
+            )
+        for entry in entries:
+            inner = f"{relative}{entry.name}"
+            if entry.is_symlink():
+                try:
+                    target = repr(os.readlink(entry.path))
+                except OSError as error:
+                    target = f"(unreadable: {error.strerror})"
+                link = os.path.join(os.fspath(given), inner)
+                raise OutputFolderError(
+                    f"{argument} {os.fspath(given)!r} holds the symbolic link {link!r} -> "
+                    f"{target}; this toolkit never writes links, and writing or cleaning up "
+                    "through it would act outside the folder: remove it"
+                )
+            if depth < LINK_DEPTH and entry.is_dir(follow_symlinks=False):
+                pending.append((Path(entry.path), f"{inner}/", depth + 1))
 
 
 def _resolved(given: str | os.PathLike[str], target: Path) -> str:
@@ -216,9 +268,16 @@ def claim_output_folder(folder: str | os.PathLike[str]) -> Path:
     """Before a run writes its first file into ``folder`` (checked by
     :func:`check_output_folder`): create it and put the toolkit's marker in it when it is new
     or empty, so that an interrupted run leaves a folder the next run accepts. A folder that
-    holds anything else without the marker is left unmarked. Returns the folder."""
+    holds anything else without the marker is left unmarked. Returns the folder.
+
+    Raises
+    ------
+    OutputFolderError
+        When the folder holds a symbolic link (module docstring), naming it and its target.
+    """
     root = Path(folder)
     root.mkdir(parents=True, exist_ok=True)
+    _refuse_links(root, "results folder", root)
     if not (root / MANIFEST).is_file() and not any(root.iterdir()):
         write_text(root / MANIFEST, json.dumps({"files": []}, indent=1) + "\n")
     return root
@@ -235,11 +294,16 @@ def _listed(folder: Path) -> list[str]:
 
 def record_outputs(folder: str | os.PathLike[str], files: Iterable[str | os.PathLike[str]]) -> None:
     """After a run wrote ``files`` into ``folder``: remove the previous run's other files and
-    record these (module docstring)."""
+    record these (module docstring).
+
+    Raises
+    ------
+    OutputFolderError
+        When the folder holds a symbolic link (module docstring) or a file lies outside it.
+    """
     root = Path(folder).resolve()
-    written = sorted(
-        {Path(file).resolve().relative_to(root).as_posix() for file in files if Path(file).exists()}
-    )
+    _refuse_links(root, "results folder", folder)
+    written = sorted({_inside(root, Path(file).resolve()) for file in files if Path(file).exists()})
     for name in set(_listed(root)) - set(written):
         stale = (root / name).resolve()
         if stale.is_relative_to(root) and stale.is_file():
@@ -248,3 +312,13 @@ def record_outputs(folder: str | os.PathLike[str], files: Iterable[str | os.Path
                 with contextlib.suppress(OSError):  # a subfolder left empty goes too
                     stale.parent.rmdir()
     write_text(root / MANIFEST, json.dumps({"files": written}, indent=1) + "\n")
+
+
+def _inside(root: Path, file: Path) -> str:
+    """``file``'s path relative to ``root`` (both resolved), or :class:`OutputFolderError`."""
+    if not file.is_relative_to(root):
+        raise OutputFolderError(
+            f"results folder {str(root)!r}: the file {str(file)!r} lies outside it (a symbolic "
+            "link on its way was there while the run was writing); remove the link and run again"
+        )
+    return file.relative_to(root).as_posix()

@@ -1,4 +1,4 @@
-"""The columns of a run's trajectory table, named after the plant's coordinates: never shared.
+"""The columns of a run's results, named after the plant's coordinates and units: never shared.
 
 A coordinate ``c`` with unit ``U`` gives four columns (``c_U``, ``c_dot_U_per_s``, ``c_d_U``,
 ``e1_c_U``; :mod:`delaytrack.units`), next to the table's own ``run``, ``t_s``, ``h_s``, the
@@ -9,21 +9,145 @@ columns of one name, and the later would silently replace the earlier in the tab
 column; plants call it where they accept their names, :func:`~delaytrack.sim.simulate` before
 it runs (with the controller's state) and :meth:`~delaytrack.sim.SimResult.to_frame` where it
 builds the table.
+
+The same names and units make a sweep's summary columns ``<metric>_<statistic>_<unit>``
+(``ae_x_median_m``; :func:`summary_columns`): :func:`trajectory_columns` refuses names and units
+whose summary columns would be shared too, so that a plant that can run can also be swept. A
+unit is therefore plain unit text (:func:`plain_unit`): with ``_`` in units, coordinates ``x``
+in ``max_m`` and ``x_mean`` in ``m`` would both give ``ae_x_mean_max_m``. Columns are compared
+as Python compares identifiers, after Unicode normalisation (NFKC): ``é`` written as one
+character or as ``e`` and a combining accent is one name.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import unicodedata
+from collections.abc import Iterable, Mapping, Sequence
 
 from delaytrack.units import default_names, with_unit
 
-__all__ = ["FIXED_COLUMNS", "trajectory_columns"]
+__all__ = [
+    "FIXED_COLUMNS",
+    "SUMMARY_STATISTICS",
+    "UNIT_SYMBOLS",
+    "metric_units",
+    "plain_unit",
+    "summary_columns",
+    "trajectory_columns",
+]
 
 #: The columns of every trajectory table, whatever the plant: run index, time and true delay.
 FIXED_COLUMNS = ("run", "t_s", "h_s")
 
 _FIXED_MEANING = ("the run index", "the time", "the delay")
 _COORDINATE_MEANING = ("position", "velocity", "reference", "tracking error")
+
+#: The statistics of a sweep's summary, each a column ``<metric>_<statistic>[_<unit>]``.
+SUMMARY_STATISTICS = ("mean", "median", "p95", "max")
+#: The metrics of every coordinate ``c`` (``ae_c``, ``rms_c``, ``max_c``, in ``c``'s unit).
+_COORDINATE_METRICS = ("ae", "rms", "max")
+
+#: What a unit may hold besides letters (``µ``, ``Ω``) and digits (``²``): ``N·m``, ``m/s^2``,
+#: ``kg*m``, ``m^-1``, ``N.m``, ``%``, ``°``. Never ``_`` (it separates the parts of a column
+#: name) nor spaces.
+UNIT_SYMBOLS = "·/^*-.%°"
+
+
+def plain_unit(unit: object, label: str) -> str:
+    """``unit`` when it is plain unit text: letters, digits and :data:`UNIT_SYMBOLS`, starting
+    with a letter, a digit or ``%``/``°``. ``label`` names it for the message (``coordinate_units
+    ['m', 'max_m']``).
+
+    Raises
+    ------
+    ValueError
+        Naming ``label``, the unit and what is valid.
+    """
+    plain = (
+        isinstance(unit, str)
+        and bool(unit)
+        and all(c.isalnum() or c in UNIT_SYMBOLS for c in unit)
+        and (unit[0].isalnum() or unit[0] in "%°")
+    )
+    if not plain:
+        raise ValueError(
+            f"{label} holds the unit {unit!r}, which is not plain unit text: a unit is letters "
+            f"and digits with {' '.join(UNIT_SYMBOLS)} (such as 'm', 'rad', 'N·m', 'm/s^2'), "
+            "without '_' or spaces, which would make the result columns named after it ambiguous"
+        )
+    return unit
+
+
+def _key(column: str) -> str:
+    """A column as compared: NFKC-normalised, as Python compares identifiers."""
+    return unicodedata.normalize("NFKC", column)
+
+
+def _first_duplicate(
+    described: Iterable[tuple[str, str]],
+) -> tuple[tuple[str, str], tuple[str, str]] | None:
+    """The first two ``(column, meaning)`` whose columns are one name (:func:`_key`), or None."""
+    seen: dict[str, tuple[str, str]] = {}
+    for column, meaning in described:
+        if _key(column) in seen:
+            return seen[_key(column)], (column, meaning)
+        seen[_key(column)] = (column, meaning)
+    return None
+
+
+def _columns_text(first: str, second: str) -> str:
+    """``'x_d_m'``, or both spellings when they are one name only after normalisation."""
+    if first == second:
+        return repr(first)
+    return f"{ascii(first)} and {ascii(second)} (one name after Unicode normalisation, NFKC)"
+
+
+def metric_units(
+    coordinate_names: Sequence[str] | None,
+    coordinate_units: Sequence[str | None] | None,
+    n: int,
+    input_units: Sequence[str | None] | None,
+) -> dict[str, str | None]:
+    """Each metric of a run (``ae_c``, ``rms_c``, ``max_c`` per coordinate, then ``tv``) and its
+    unit: the coordinate's, and for ``tv`` the inputs' when they share one (else None)."""
+    names = default_names(coordinate_names, n)
+    units = tuple(coordinate_units) if coordinate_units is not None else (None,) * n
+    out: dict[str, str | None] = {}
+    for prefix in _COORDINATE_METRICS:
+        out.update({f"{prefix}_{name}": unit for name, unit in zip(names, units, strict=True)})
+    shared = set(input_units) if input_units else set()
+    out["tv"] = shared.pop() if len(shared) == 1 else None
+    return out
+
+
+def summary_columns(units: Mapping[str, str | None]) -> dict[str, str]:
+    """A sweep summary's statistic columns: for each metric of ``units`` (metric -> unit or
+    None) and statistic of :data:`SUMMARY_STATISTICS`, ``<metric>_<statistic>`` -> the column as
+    written, ``<metric>_<statistic>_<unit>``.
+
+    Raises
+    ------
+    ValueError
+        When two of them would be one column, naming the column, both metrics and their units.
+    """
+    described = [
+        (
+            f"{metric}_{statistic}",
+            with_unit(f"{metric}_{statistic}", unit),
+            f"the {statistic} of {metric}" + (f" in {unit!r}" if unit else ""),
+        )
+        for metric, unit in units.items()
+        for statistic in SUMMARY_STATISTICS
+    ]
+    duplicate = _first_duplicate((written, meaning) for _, written, meaning in described)
+    if duplicate is not None:
+        (first, first_meaning), (second, second_meaning) = duplicate
+        raise ValueError(
+            f"a sweep's summary would have two columns {_columns_text(first, second)} "
+            f"({first_meaning} and {second_meaning}; a summary column is "
+            "<metric>_<statistic>_<unit>)"
+        )
+    return {plain: written for plain, written, _ in described}
 
 
 def _coordinate_columns(name: str, unit: str | None) -> tuple[str, str, str, str]:
@@ -66,8 +190,9 @@ def trajectory_columns(
     Raises
     ------
     ValueError
-        When two columns would have one name (naming the names, the column and what is valid),
-        or for names or units that are not one per coordinate or input.
+        When two columns would have one name, here or in a sweep's summary (naming the names,
+        the column and what is valid), for a unit that is not plain unit text
+        (:func:`plain_unit`), or for names or units that are not one per coordinate or input.
     """
     names = default_names(coordinate_names, n)
     units = tuple(coordinate_units) if coordinate_units is not None else (None,) * n
@@ -79,6 +204,10 @@ def trajectory_columns(
     ):
         if len(given) != size:
             raise ValueError(f"{label} must have {size} entries, one each; got {list(given)}")
+        if label.endswith("units"):
+            for unit in given:
+                if unit is not None:
+                    plain_unit(unit, f"{label} {list(given)}")
     described: list[tuple[str, str]] = list(zip(FIXED_COLUMNS, _FIXED_MEANING, strict=True))
     for name, unit in zip(names, units, strict=True):
         columns = _coordinate_columns(name, unit)
@@ -90,32 +219,43 @@ def trajectory_columns(
         sent, applied = _input_columns(j, unit)
         described += [(sent, f"input u{j + 1} as sent"), (applied, f"input u{j + 1} as applied")]
     described += [(name, f"the controller's state {name!r}") for name in state_names]
-    seen: dict[str, str] = {}
-    for column, meaning in described:
-        if column in seen:
-            raise ValueError(_clash(column, seen[column], meaning, names, coordinate_units))
-        seen[column] = meaning
+    duplicate = _first_duplicate(described)
+    if duplicate is not None:
+        raise ValueError(_clash(*duplicate, names, coordinate_units))
+    try:
+        summary_columns(metric_units(names, units, n, inputs))
+    except ValueError as error:
+        raise ValueError(
+            f"{_given(names, coordinate_units)}: {error}; rename the coordinate or change its unit"
+        ) from None
     return [column for column, _ in described]
 
 
+def _given(names: tuple[str, ...], units: Sequence[str | None] | None) -> str:
+    """``coordinate_names [...] with coordinate_units [...]``; names that NFKC changes are shown
+    with escapes, so that two spellings of one name are told apart."""
+    shown = ascii(list(names)) if any(_key(name) != name for name in names) else list(names)
+    return f"coordinate_names {shown}" + (
+        f" with coordinate_units {list(units)}" if units is not None else ""
+    )
+
+
 def _clash(
-    column: str,
-    first: str,
-    second: str,
+    first: tuple[str, str],
+    second: tuple[str, str],
     names: tuple[str, ...],
     units: Sequence[str | None] | None,
 ) -> str:
-    if "coordinate" not in first + second:
+    (column, first_meaning), (other, second_meaning) = first, second
+    if "coordinate" not in first_meaning + second_meaning:
         return (
-            f"the controller's state names repeat {column!r}; each state entry needs a name of "
-            "its own (a column of the results)"
+            f"the controller's state names repeat {_columns_text(column, other)}; each state "
+            "entry needs a name of its own (a column of the results)"
         )
-    given = f"coordinate_names {list(names)}" + (
-        f" with coordinate_units {list(units)}" if units is not None else ""
-    )
     return (
-        f"{given} would give the results two columns {column!r} ({first} and {second}); a "
-        "coordinate c has the columns c, c_dot, c_d and e1_c (each with c's unit, as in x_m), "
-        f"which must differ from every other coordinate's and from {', '.join(FIXED_COLUMNS)}, "
-        "the inputs' uj_sent and uj_applied and the controller's state: rename the coordinate"
+        f"{_given(names, units)} would give the results two columns "
+        f"{_columns_text(column, other)} ({first_meaning} and {second_meaning}); a coordinate c "
+        "has the columns c, c_dot, c_d and e1_c (each with c's unit, as in x_m), which must "
+        f"differ from every other coordinate's and from {', '.join(FIXED_COLUMNS)}, the inputs' "
+        "uj_sent and uj_applied and the controller's state: rename the coordinate"
     )

@@ -8,6 +8,8 @@ that declaration and builds the object; every refusal is a :class:`SpecError` na
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import hashlib
 import importlib
 import importlib.util
@@ -15,13 +17,16 @@ import inspect
 import keyword
 import math
 import sys
-from collections.abc import Callable, Mapping
+import threading
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+from delaytrack._file_caches import guard_caches
 from delaytrack._io import regular_file
+from delaytrack._numba_cache import cache_directory
 
 __all__ = [
     "PYTHON_TYPE",
@@ -37,6 +42,7 @@ __all__ = [
     "is_module_name",
     "module_from_file",
     "number",
+    "own_bytecode",
     "string",
     "user_factory",
     "vector",
@@ -133,6 +139,8 @@ PYTHON_TYPE = "python:"
 
 #: Modules loaded from a file, by path: ``(sha256 of the file, module)``.
 _FILE_MODULES: dict[Path, tuple[str, ModuleType]] = {}
+#: Held while a file is loaded: one at a time (``sys.pycache_prefix`` is the process's).
+_LOADING = threading.RLock()
 
 
 def _module_name(path: Path) -> str:
@@ -166,37 +174,78 @@ def module_from_file(path: Path, name: str | None = None) -> ModuleType:
 
     It is imported under ``name``, by default :func:`_module_name` (its stem, never shadowing
     another module), with its folder first on ``sys.path`` while it runs, so that it can import
-    its neighbours. A file the user imported already is that module, not a second copy.
+    its neighbours. What runs is the file's content as read and hashed here, compiled from the
+    source: never a ``.pyc`` from a ``__pycache__`` beside it, neither its own nor, while it
+    runs, a neighbour's it imports (:func:`own_bytecode`). Its functions and its neighbours'
+    with a numba disk cache load only entries bound to their own module
+    (:mod:`delaytrack._file_caches`). A file the user imported already is that module, not a
+    second copy.
     """
     path = regular_file(path.expanduser().resolve(), "factory file")
-    content = hashlib.sha256(path.read_bytes()).hexdigest()
-    known = _FILE_MODULES.get(path)
-    if known is not None and known[0] == content:
-        return known[1]
-    name = name or _module_name(path)
-    loaded = sys.modules.get(name)
-    if known is None and loaded is not None:  # imported by the user: the same objects
-        _FILE_MODULES[path] = (content, loaded)
-        return loaded
-    spec = importlib.util.spec_from_file_location(name, path)
-    if spec is None or spec.loader is None:
-        raise ImportError(f"{str(path)!r} is not a Python file")
-    module = importlib.util.module_from_spec(spec)
-    previous = sys.modules.get(name)
-    sys.modules[name] = module
-    sys.path.insert(0, str(path.parent))
+    with _LOADING:
+        source = path.read_bytes()
+        content = hashlib.sha256(source).hexdigest()
+        known = _FILE_MODULES.get(path)
+        if known is not None and known[0] == content:
+            return known[1]
+        name = name or _module_name(path)
+        loaded = sys.modules.get(name)
+        if known is None and loaded is not None:  # imported by the user: the same objects
+            _FILE_MODULES[path] = (content, loaded)
+            return loaded
+        spec = importlib.util.spec_from_file_location(name, path)
+        if spec is None:
+            raise ImportError(f"{str(path)!r} is not a Python file")
+        module = importlib.util.module_from_spec(spec)
+        code = compile(source, str(path), "exec", dont_inherit=True)
+        previous = sys.modules.get(name)
+        before = set(sys.modules)
+        sys.modules[name] = module
+        sys.path.insert(0, str(path.parent))
+        try:
+            with own_bytecode():
+                exec(code, vars(module))  # the user's file, allowed by delaytrack._trust
+        except BaseException:
+            if previous is None:
+                del sys.modules[name]
+            else:
+                sys.modules[name] = previous
+            raise
+        finally:
+            sys.path.remove(str(path.parent))
+        neighbours = [sys.modules[other] for other in set(sys.modules) - before]
+        for found in [module, *neighbours]:
+            if _file_below(found, path.parent):
+                guard_caches(found)
+        _FILE_MODULES[path] = (content, module)
+        return module
+
+
+def _file_below(module: ModuleType, folder: Path) -> bool:
+    """Whether ``module`` was loaded from a file in ``folder`` or below it."""
+    file = getattr(module, "__file__", None)
+    return isinstance(file, str) and Path(file).resolve().is_relative_to(folder)
+
+
+@contextlib.contextmanager
+def own_bytecode() -> Iterator[None]:
+    """While inside, Python reads and writes the bytecode of what it imports in this package's
+    cache folder (``sys.pycache_prefix``), not in a ``__pycache__`` beside the source: a
+    ``.pyc`` shipped there, whose header matches its source's time and size, is not run instead
+    of the source."""
+    previous = sys.pycache_prefix
+    sys.pycache_prefix = str(_bytecode_folder())
     try:
-        spec.loader.exec_module(module)
-    except BaseException:
-        if previous is None:
-            del sys.modules[name]
-        else:
-            sys.modules[name] = previous
-        raise
+        yield
     finally:
-        sys.path.remove(str(path.parent))
-    _FILE_MODULES[path] = (content, module)
-    return module
+        sys.pycache_prefix = previous
+
+
+@functools.cache
+def _bytecode_folder() -> Path:
+    """The folder of the bytecode of what the files that scenarios name import
+    (:func:`own_bytecode`), beside numba's cache folders (any version of this package)."""
+    return cache_directory().parent / "bytecode"
 
 
 def is_module_name(text: str) -> bool:

@@ -6,7 +6,11 @@ name any function (``python:os:remove``). In a file read from disk a factory is 
 allowed only when
 
 - its file, after resolving ``..`` and symbolic links, lies in the folder of the scenario or
-  sweep file that names it, or below it; or
+  sweep file that names it, or below it, and is that folder's own code: no folder on the way
+  down is hidden (``.pyenv``), a folder of installed or generated code (``site-packages``,
+  ``dist-packages``, ``node_modules``, ``__pycache__``), a Python environment (it holds
+  ``pyvenv.cfg``) or a Python installation (``lib/python3.*``), and the file is not where this
+  Python, its packages or this package are installed (:func:`installed_locations`); or
 - the user trusts it: a module name (that module and its submodules) or a path (a ``.py`` file,
   or a folder and every file below it), given as ``--trust NAME`` on the command line or
   ``trust=[NAME, ...]`` in Python.
@@ -19,19 +23,30 @@ from __future__ import annotations
 
 import os
 import shlex
+import site
+import sys
+import sysconfig
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
 from delaytrack._spec import SpecError, is_module_name
 
-__all__ = ["Trust", "check_factory"]
+__all__ = ["Trust", "check_factory", "installed_locations"]
 
 #: Why a factory must be allowed, in every refusal.
 _WHY = (
     "a factory is Python code that runs with your rights, and a file you were sent could name "
     "any function"
 )
+
+#: Folders of installed or generated code, by name, and what they are.
+_CODE_FOLDERS = {
+    "site-packages": "a folder of installed Python packages",
+    "dist-packages": "a folder of installed Python packages",
+    "node_modules": "a folder of installed packages",
+    "__pycache__": "a folder of compiled Python code",
+}
 
 
 def _is_path(name: str) -> bool:
@@ -99,6 +114,48 @@ class Trust:
         return any(path == trusted or path.is_relative_to(trusted) for trusted in self.paths)
 
 
+def installed_locations() -> tuple[tuple[Path, str], ...]:
+    """Where this package, Python's standard library, the installed packages and this Python
+    itself are installed (resolved), most specific first, each with what it is."""
+    paths = sysconfig.get_paths()
+    places = [
+        (Path(__file__).parent, "where delaytrack is installed"),
+        (paths["stdlib"], "Python's standard library"),
+        (paths["platstdlib"], "Python's standard library"),
+        *((folder, "a folder of installed Python packages") for folder in site.getsitepackages()),
+        (site.getusersitepackages(), "your folder of installed Python packages"),
+        (sys.prefix, "where this Python is installed (sys.prefix)"),
+        (sys.exec_prefix, "where this Python is installed (sys.exec_prefix)"),
+        (sys.base_prefix, "where this Python is installed (sys.base_prefix)"),
+    ]
+    return tuple((Path(place).resolve(), what) for place, what in places)
+
+
+def _not_its_own(path: Path, folder: Path) -> str | None:
+    """Why the file ``path`` (resolved, below the resolved ``folder``) is not that folder's own
+    code: the first folder on the way down from ``folder`` that is hidden, of installed or
+    generated code, a Python environment or a Python installation, or a place where Python or
+    this package is installed; None when it is its own."""
+    current = folder
+    for name in path.parent.relative_to(folder).parts:
+        current = current / name
+        if name.startswith("."):
+            return f"inside the hidden folder {current}"
+        if name in _CODE_FOLDERS:
+            return f"inside {current}, {_CODE_FOLDERS[name]}"
+        if (current / "pyvenv.cfg").is_file():
+            return f"inside {current}, a Python environment (it holds pyvenv.cfg)"
+        library = next(current.glob("lib/python3.*"), None)
+        if library is not None:
+            return f"inside {current}, a Python installation (it holds lib/{library.name})"
+        if name.startswith("python3.") and current.parent.name == "lib":
+            return f"inside {current}, a Python installation's library"
+    for place, what in installed_locations():
+        if path.is_relative_to(place):
+            return f"inside {place}, {what}"
+    return None
+
+
 def check_factory(key: str, kind: str, location: str, source: Path, trust: Trust) -> None:
     """Refuse the factory ``kind`` of scenario key ``key`` (``plant.type``) unless it is allowed.
 
@@ -124,8 +181,17 @@ def check_factory(key: str, kind: str, location: str, source: Path, trust: Trust
         folder = folder.resolve()
     except (OSError, RuntimeError) as error:  # a link loop
         raise SpecError(f"scenario key {key!r} = {kind!r}: {error}") from None
-    if path.is_relative_to(folder) or trust.allows_file(path):
+    if trust.allows_file(path):
         return
+    if path.is_relative_to(folder):
+        reason = _not_its_own(path, folder)
+        if reason is None:
+            return
+        raise SpecError(
+            f"scenario key {key!r} = {kind!r} names {path}, which is below {folder} (the "
+            f"folder of {source.name}) but {reason}, and is not trusted: {_WHY}; if you trust "
+            f"that file, pass --trust {shlex.quote(str(path))} (in Python: trust=[{str(path)!r}])"
+        )
     raise SpecError(
         f"scenario key {key!r} = {kind!r} names {path}, which is neither in {folder} (the "
         f"folder of {source.name}) nor below it, nor trusted: {_WHY}; if you trust the code in "

@@ -465,20 +465,17 @@ def _reproduce(args: argparse.Namespace) -> int:
 
 
 def _checked_gains(text: str) -> Path:
-    """``--gains``: a gains file with every controller and gain set, as an absolute path."""
-    import tomllib
-
-    from delaytrack.experiments.tuning import GAIN_SETS, KINDS, load_gains
+    """``--gains``: a gains file with every controller and gain set, each checked
+    (:func:`~delaytrack.experiments.tuning.load_tuning_record`), as an absolute path."""
+    from delaytrack.experiments.tuning import GAIN_SETS, KINDS, GainsFileError, load_gains
 
     path = Path(text).resolve()
     if not path.is_file():
         raise UsageError(f"--gains {text!r} is not a file; give a file written by tune-baselines")
     try:
         gains = load_gains(path)
-    except (tomllib.TOMLDecodeError, KeyError, ValueError, TypeError) as error:
-        raise UsageError(
-            f"--gains {text!r} is not a gains file written by tune-baselines: {error}"
-        ) from None
+    except GainsFileError as error:
+        raise UsageError(f"--gains {text!r}: {error.problem}") from None
     missing = [
         f"{kind} ({gain_set})"
         for kind in KINDS
@@ -687,6 +684,11 @@ def _tune_baselines(args: argparse.Namespace) -> int:
     path = check_writable_location(args.out, "--out")
     if path.is_dir():
         raise UsageError(f"--out {args.out!r} is a folder; it must name the gains file to write")
+    if Path(args.out).suffix != ".toml":
+        raise UsageError(
+            f"--out {args.out!r} must end in .toml: tune-baselines writes a TOML gains file "
+            "(read by delaytrack reproduce --gains), and a later run replaces only such a file"
+        )
     if path.exists() and not is_gains_file(path):
         raise UsageError(
             f"--out {args.out!r} is a file that tune-baselines did not write; name a new file "

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import itertools
 import math
-import re
 from array import array
 from dataclasses import dataclass
 from pathlib import Path
@@ -13,51 +11,21 @@ from typing import Any, ClassVar
 import numpy as np
 
 import delaytrack.delays._kernel as _kernel
-from delaytrack._io import column_label, csv_number, csv_rows, shown_header
+from delaytrack._io import (
+    TIME_UNITS,
+    check_column_unit,
+    column_count,
+    column_name,
+    csv_number,
+    csv_table,
+)
 from delaytrack._validation import beyond_choice
 from delaytrack.delays.knots import KnotDelay
 
 __all__ = ["TIME_UNITS", "TraceDelay"]
 
-#: Units a trace file's columns may be in, with their size in seconds.
-TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
-
-#: A unit written in a column header: ``delay_ms``, ``h [ms]``, ``t (s)``, ``stamp_us``,
-#: ``delay_milliseconds``.
-_UNIT_ALIASES = {
-    "sec": "s",
-    "secs": "s",
-    "second": "s",
-    "seconds": "s",
-    "msec": "ms",
-    "millisecond": "ms",
-    "milliseconds": "ms",
-    "usec": "us",
-    "µs": "us",
-    "microsecond": "us",
-    "microseconds": "us",
-    "nsec": "ns",
-    "nanosecond": "ns",
-    "nanoseconds": "ns",
-}
-_HEADER_UNIT = re.compile(
-    r"(?:^|[_\s(\[])(" + "|".join([*TIME_UNITS, *_UNIT_ALIASES]) + r")[)\]]?\s*$",
-    re.IGNORECASE,
-)
-
-
-#: The start of a cell that is meant as a number (read by the number rule, refused when it is not
-#: one), unlike a header name: a digit of any script, a sign, a point, inf or nan.
-_NUMBER_START = re.compile(r"\s*(?:[+-]|\.?\d|inf|nan)", re.IGNORECASE)
-
-
-def _header_unit(name: str) -> str | None:
-    """The unit a column header names (``"delay_ms"`` -> ``"ms"``), or None."""
-    match = _HEADER_UNIT.search(name.strip())
-    if match is None:
-        return None
-    unit = match.group(1).lower()
-    return _UNIT_ALIASES.get(unit, unit)
+#: The documented names of a trace's two columns, used for them in messages.
+_ROLES = ("t", "h")
 
 
 def _unit(argument: str, value: object) -> float:
@@ -111,16 +79,19 @@ class TraceDelay(KnotDelay):
     ) -> TraceDelay:
         """Read a trace from a CSV file.
 
-        Without column names the file has two columns ``t, h`` (a header row, one whose first
-        cell does not start like a number, is skipped). A log with more columns (``stamp, delay,
-        seq``) is read by naming the two columns of its header row. Numbers are read as on the
-        command line: ``0_05``, ``0x10``, ``nan`` or a decimal comma are refused, naming the
-        line and column.
+        Without column names the file has two columns ``t, h``; its first row is a header
+        unless its first cell starts like a number (then every row is data). A log with more
+        columns (``stamp, delay, seq``) is read by naming the two columns of its header row,
+        whose names must differ from each other. Numbers are read as on the command line:
+        ``0_05``, ``0x10``, ``nan`` or a decimal comma are refused, naming the line and column.
+        Errors never quote the file's text, its header included.
 
         Units are seconds unless ``time_unit`` / ``delay_unit`` say otherwise (``"s"``,
-        ``"ms"``, ``"us"``). A header that names another unit than the one applied
-        (``delay_ms`` read as seconds) is refused: a delay in milliseconds read as seconds is a
-        thousand times too long.
+        ``"ms"``, ``"us"``, ``"ns"``). A column whose name has a word naming another unit
+        (``delay_ms_mean``, ``h [ms]``, ``t_minutes``) is refused unless its unit is given: a
+        delay in milliseconds read as seconds is a thousand times too long. A word that may
+        mean something else (``min`` in ``h_min``: a minimum, or minutes?) asks for the unit
+        too, and a unit given stands unless the name names another one for certain.
 
         Parameters
         ----------
@@ -128,7 +99,7 @@ class TraceDelay(KnotDelay):
             The CSV file.
         time_column, delay_column : str, optional
             Header names of the time and delay columns; give both or neither.
-        time_unit, delay_unit : {"s", "ms", "us"}, optional
+        time_unit, delay_unit : {"s", "ms", "us", "ns"}, optional
             Units of the columns (seconds by default).
         beyond : {"refuse", "hold"}
             See the class.
@@ -139,36 +110,25 @@ class TraceDelay(KnotDelay):
                 "time_column and delay_column name the two columns of a CSV header; give both "
                 f"or neither; got time_column = {time_column!r}, delay_column = {delay_column!r}"
             )
-        scales = [
-            _unit("time_unit", "s" if time_unit is None else time_unit),
-            _unit("delay_unit", "s" if delay_unit is None else delay_unit),
-        ]
-        rows = csv_rows(path)
-        first = next(rows, None)
-        if first is None:
-            raise ValueError(f"{path}: the file holds no rows; a trace needs two columns t, h")
-        header = None if _NUMBER_START.match(first[1][0]) else first[1]
-        columns = _columns(path, header, time_column, delay_column)
         given = (time_unit, delay_unit)
-        for k, (argument, name) in enumerate(
-            zip(("time_unit", "delay_unit"), columns[1], strict=True)
-        ):
-            named = None if name is None else _header_unit(name)
-            applied = "s" if given[k] is None else given[k]
-            if named is not None and named != applied:
-                label = column_label(columns[0][k] + 1, name)
-                raise ValueError(
-                    f"{path}: {label} looks like {named}, but it would be read in {applied}; "
-                    f"give {argument} = {named!r} (or {argument} = {applied!r} if the header is "
-                    "wrong)"
-                    if given[k] is None
-                    else f"{path}: {label} names {named}, but {argument} = {applied!r}; make "
-                    "them agree"
+        scales = [
+            _unit(f"{role}_unit", "s" if unit is None else unit)
+            for role, unit in zip(("time", "delay"), given, strict=True)
+        ]
+        header, rows = csv_table(path, "a trace needs two columns t, h")
+        columns = _columns(path, header, time_column, delay_column)
+        names = _ROLES if time_column is None else (time_column, delay_column)
+        if header is not None:
+            for k, role in enumerate(("time", "delay")):
+                label = (
+                    f"the name of column {columns[k] + 1} (the {role})"
+                    if time_column is None
+                    else f"{role}_column = {names[k]!r}"
                 )
+                check_column_unit(path, label, header[columns[k]], f"{role}_unit", given[k])
         times, values = array("d"), array("d")
-        width = len(header) if header is not None else 2
-        data = rows if header is not None else itertools.chain([first], rows)
-        for line, row in data:
+        width = 2 if header is None else len(header)
+        for line, row in rows:
             if len(row) != width:
                 what = "2 columns (t, h)" if header is None else f"{width} columns as its header"
                 hint = (
@@ -178,7 +138,7 @@ class TraceDelay(KnotDelay):
                 )
                 raise ValueError(f"{path}: line {line} must have {what}; it has {len(row)}{hint}")
             for column, target, scale, name in zip(
-                columns[0], (times, values), scales, columns[1], strict=True
+                columns, (times, values), scales, names, strict=True
             ):
                 target.append(scale * csv_number(path, line, column + 1, row[column], name))
         options = {
@@ -220,13 +180,12 @@ class TraceDelay(KnotDelay):
 
 def _columns(
     path: Path, header: list[str] | None, time_column: str | None, delay_column: str | None
-) -> tuple[tuple[int, int], tuple[str | None, str | None]]:
-    """Indices and header names of the time and delay columns."""
+) -> tuple[int, int]:
+    """Indices of the time and delay columns."""
     if time_column is None:
         if header is not None and len(header) != 2:
             raise ValueError(
-                f"{path}: the header row{shown_header(header)} must have 2 columns (t, h); it "
-                f"has {len(header)}"
+                f"{path}: the header row has {column_count(len(header))}; a trace has 2 (t, h)"
                 + (
                     "; name the time and delay columns (time_column, delay_column) to read a "
                     "wider log"
@@ -234,24 +193,26 @@ def _columns(
                     else ""
                 )
             )
-        names = (None, None) if header is None else (header[0].strip(), header[1].strip())
-        return (0, 1), names
+        return 0, 1
     if header is None:
         raise ValueError(
             f"{path}: time_column = {time_column!r} names a header column, but the file has no "
-            "header row"
+            "header row (its first row is numbers)"
         )
-    stripped = [name.strip() for name in header]
-    if time_column == delay_column:
+    for argument, name in (("time_column", time_column), ("delay_column", delay_column)):
+        if not isinstance(name, str):
+            raise TypeError(f"{argument} must be a column's name (text); got {name!r}")
+    if column_name(time_column) == column_name(delay_column):
         raise ValueError(
             f"{path}: time_column and delay_column must name two different columns; both are "
             f"{time_column!r}"
         )
     indices = []
     for argument, name in (("time_column", time_column), ("delay_column", delay_column)):
-        if name not in stripped:
+        if column_name(name) not in header:
             raise ValueError(
-                f"{path}: {argument} = {name!r} is not in the header{shown_header(header)}"
+                f"{path}: {argument} = {name!r} is not in the header row (of "
+                f"{column_count(len(header))})"
             )
-        indices.append(stripped.index(name))
-    return (indices[0], indices[1]), (time_column, delay_column)
+        indices.append(header.index(column_name(name)))
+    return indices[0], indices[1]

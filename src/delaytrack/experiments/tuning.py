@@ -59,6 +59,13 @@ case is taken over.
 For AROLC, Theorem 1's certified delay bound ``h_m`` (``razumikhin_bound(K1, K2, Q, β = 1,
 r = 1.1)``) is published beside each choice; the predictors have no such certificate.
 
+**Reading a gains file** (:func:`load_tuning_record`, :func:`load_gains`): every chosen gain
+set is checked when the file is read, before anything runs: each gain a finite TOML number
+``> 0`` (never text, true/false, nan or inf; ``objective`` and ``h_m`` ``>= 0``), and the
+controller it is for built with them, so that its own checks apply (AROLC's ``α <= 1e100``).
+Errors (:class:`GainsFileError`) name the file, the table (``[AROLC.varying]``), the key, the
+value and what is valid.
+
 Everything is deterministic (the draws and payload placements are seeded).
 """
 
@@ -73,14 +80,14 @@ from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 import pandas as pd
 import tomli_w
 from tqdm.auto import tqdm
 
-from delaytrack._io import write_text
+from delaytrack._io import regular_file, write_text
 from delaytrack.analysis import razumikhin_bound
 from delaytrack.controllers import AROLC, PCON, PCONf
 from delaytrack.controllers.base import Controller
@@ -96,6 +103,7 @@ __all__ = [
     "DELAY_CLASSES",
     "DIVERGED_AE_MM",
     "GAIN_NAMES",
+    "GainsFileError",
     "GAIN_SETS",
     "GRIDS",
     "KINDS",
@@ -534,24 +542,118 @@ def write_gains(results: Mapping[str, TuningResult], path: str | Path | None = N
     return write_text(path, tomli_w.dumps(data))
 
 
+class GainsFileError(ValueError):
+    """A gains file (or record) that cannot be used: one line naming the file, the table and
+    key, the value and what is valid; ``problem`` is the same without the file."""
+
+    def __init__(self, message: str, problem: str | None = None) -> None:
+        super().__init__(message)
+        self.problem = message if problem is None else problem
+
+
+#: The numbers read from a chosen gain set besides its gains, and whether each may be zero.
+_AROLC_RECORDED = (("h_m", True), ("K1", False), ("K2", False))
+_RECORDED: dict[str, tuple[tuple[str, bool], ...]] = {
+    kind: (("objective", True), *(_AROLC_RECORDED if kind == "AROLC" else ())) for kind in KINDS
+}
+
+
 def load_tuning_record(source: GainsSource = None) -> Mapping[str, Any]:
-    """The whole gains file as data (protocol, conditions, grids, per-condition results); a
-    record already loaded is returned as it is (load it once, pass it on)."""
+    """The whole gains file as data (protocol, conditions, grids, per-condition results), its
+    chosen gain sets checked (module docstring, "Reading a gains file"); a record already
+    loaded is checked and returned as it is (load it once, pass it on).
+
+    Raises
+    ------
+    GainsFileError
+        For a file that is not a regular file or not TOML, or a chosen gain set that is not
+        usable, naming the file, the table, the key, the value and what is valid.
+    """
     if isinstance(source, Mapping):
+        _check_chosen(source, "the gains record")
         return source
     path = default_gains_path() if source is None else Path(source)
-    return tomllib.loads(path.read_text(encoding="utf-8"))
+    where = f"gains file {str(path)!r}"
+    regular_file(path, "gains file", GainsFileError)
+    try:
+        record = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
+        problem = f"is not TOML ({error}); give a gains file written by tune-baselines"
+        raise GainsFileError(f"{where} {problem}", problem) from None
+    _check_chosen(record, where)
+    return record
+
+
+def _check_chosen(record: Mapping[str, Any], where: str) -> None:
+    """Check every chosen gain set of ``record`` (module docstring); ``where`` names it."""
+    for kind in KINDS:
+        sets = record.get(kind)
+        if sets is None:
+            continue
+        if not isinstance(sets, Mapping):
+            _refuse(where, f"[{kind}] is {sets!r}; it must be a table of gain sets")
+        for gain_set in GAIN_SETS:
+            if gain_set not in sets:
+                continue
+            table = f"[{kind}.{gain_set}]"
+            chosen = sets[gain_set]
+            if not isinstance(chosen, Mapping):
+                _refuse(where, f"{table} is {chosen!r}; it must be a table of gains")
+            gains = {
+                key: _number(where, table, chosen, key, zero=False) for key in GAIN_NAMES[kind]
+            }
+            for key, zero in _RECORDED[kind]:
+                _number(where, table, chosen, key, zero=zero)
+            try:
+                make_controller(kind, gains, h_bar=0.0)
+            except (ValueError, TypeError) as error:
+                _refuse(
+                    where,
+                    f"{table} {gains_text(kind, gains)}: {kind} refuses these gains ({error})",
+                )
+
+
+def _number(where: str, table: str, chosen: Mapping[str, Any], key: str, *, zero: bool) -> float:
+    """``chosen[key]``: a finite TOML number, ``> 0`` (``>= 0`` when ``zero``)."""
+    valid = (
+        f"it must be a finite number {'>= 0' if zero else '> 0'}, written as a TOML number "
+        "(such as 6.0; not text, true/false, nan or inf)"
+    )
+    if key not in chosen:
+        _refuse(where, f"{table} lacks {key}; {valid}")
+    value = chosen[key]
+    if isinstance(value, bool):
+        wrong = "true/false"
+    elif isinstance(value, str):
+        wrong = "text"
+    elif not isinstance(value, int | float):
+        wrong = "not a number"
+    else:
+        try:
+            number = float(value)
+        except OverflowError:  # a TOML integer beyond double precision
+            number = math.inf
+        if math.isfinite(number) and (number > 0 or (zero and number == 0)):
+            return number
+        wrong = "not finite" if not math.isfinite(number) else "negative" if number < 0 else "zero"
+    shown = str(value).lower() if isinstance(value, bool) else repr(value)
+    _refuse(where, f"{table} {key} = {shown} is {wrong}; {valid}")
+
+
+def _refuse(where: str, problem: str) -> NoReturn:
+    raise GainsFileError(f"{where}: {problem}", problem)
 
 
 def load_gains(source: GainsSource = None) -> dict[str, dict[str, dict[str, float]]]:
     """The chosen gains: ``kind -> gain set -> {gain: value, "objective": mm}`` (AROLC also
-    ``h_m``, ``K1``, ``K2``), for every kind and gain set in the file."""
+    ``h_m``, ``K1``, ``K2``), for every kind and gain set in the file, checked
+    (:func:`load_tuning_record`)."""
     record = load_tuning_record(source)
     out: dict[str, dict[str, dict[str, float]]] = {}
     for kind in KINDS:
         if kind not in record:
             continue
-        keys = (*GAIN_NAMES[kind], "objective", *(("h_m", "K1", "K2") if kind == "AROLC" else ()))
+        keys = (*GAIN_NAMES[kind], *(key for key, _ in _RECORDED[kind]))
         out[kind] = {
             gain_set: {key: float(record[kind][gain_set][key]) for key in keys}
             for gain_set in GAIN_SETS

@@ -46,13 +46,17 @@ class StopFlag:
 
 class Received:
     """A bounded queue of decoded messages with their receive time (``time.monotonic``), filled
-    by a Zenoh callback thread and drained by the node's loop; what overflows is counted."""
+    by a Zenoh callback thread and drained by the node's loop; what overflows is counted. A
+    loop may sleep until something arrives (:meth:`wait`), or only something that
+    ``wake(message)`` says matters now (the others wait in the queue for the next drain)."""
 
-    def __init__(self, decode: Any, capacity: int = 4096) -> None:
+    def __init__(self, decode: Any, capacity: int = 4096, wake: Any = None) -> None:
         self._decode = decode
+        self._wake = wake
         self._queue: deque[tuple[Any, float]] = deque()
         self._capacity = capacity
         self._lock = threading.Lock()
+        self._arrived = threading.Event()
         self.dropped = 0
 
     def __call__(self, sample: Any) -> None:  # the Zenoh callback
@@ -67,12 +71,20 @@ class Received:
                 self._queue.popleft()
                 self.dropped += 1
             self._queue.append((message, received))
+        if self._wake is None or self._wake(message):
+            self._arrived.set()
 
     def drain(self) -> list[tuple[Any, float]]:
         with self._lock:
+            self._arrived.clear()
             items = list(self._queue)
             self._queue.clear()
         return items
+
+    def wait(self, timeout: float) -> bool:
+        """Sleep until a message arrives that :meth:`drain` has not taken yet, at most
+        ``timeout`` seconds; whether one did."""
+        return self._arrived.wait(max(timeout, 0.0))
 
 
 def percentile(values: Any, q: float) -> float:

@@ -123,7 +123,8 @@ def _node_arguments(command: argparse.ArgumentParser, role: str) -> None:
             type=_seconds,
             default=None,
             metavar="S",
-            help="release this long before the robot step it is for (default min(dt/2, 0.5 ms))",
+            help="release this long before the robot step it is for (default: a quarter of "
+            "the session's smallest delay, within 2 ms, at least min(dt/2, 0.5 ms))",
         )
     else:
         command.add_argument(
@@ -212,6 +213,15 @@ def add_live_commands(commands: Any, parser_class: type[argparse.ArgumentParser]
         help="packet loss probability (default: the scenario's packet_loss)",
     )
     run.add_argument("--loss-seed", type=int, default=0, metavar="SEED")
+    run.add_argument(
+        "--lead",
+        type=_seconds,
+        default=None,
+        metavar="S",
+        help="the delay node releases a command this long before the robot step it is for "
+        "(default: a quarter of the session's smallest delay, within 2 ms, at least "
+        "min(dt/2, 0.5 ms))",
+    )
     run.add_argument("--handshake-timeout", type=_seconds, default=60.0, metavar="S")
     run.add_argument(
         "--trust",

@@ -17,7 +17,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-__all__ = ["Ticker", "Wake"]
+__all__ = ["Ticker", "Wake", "steps_until"]
 
 
 @dataclass(frozen=True)
@@ -100,3 +100,15 @@ class Ticker:
                     return
             yield Wake(k, deadline, now, skipped)
             k += 1
+
+
+def steps_until(duration: float, dt: float) -> int:
+    """How many robot steps ``j = 0, 1, ...`` have ``j·dt < duration`` (up to rounding, as the
+    periodic loops count them, :class:`~delaytrack.live.clock.Ticker`)."""
+    tolerance = 1e-9 * dt
+    count = max(0, math.ceil(duration / dt) - 1)
+    while count * dt < duration - tolerance:
+        count += 1
+    while count > 0 and (count - 1) * dt >= duration - tolerance:
+        count -= 1
+    return count

@@ -13,11 +13,20 @@ over a step, as a zero-order hold sampled at ``dt``): ``lead`` seconds before th
 ``s_j`` it computes ``g = s_j - h(s_j)``, picks the latest command received with ``t_k <= g``
 and, when it differs from the one it last released, releases it stamped ``apply_at = s_j``. The
 robot applies a released command from its step ``apply_at`` on, never earlier, so the rule
-holds by construction; the ``lead`` (default ``min(dt/2, 0.5 ms)``) covers the transport to
-the robot. When ``t - h(t)`` runs backwards (``dh/dt > 1``) the rule picks an older command
-again and it is released again (D11). A command that reaches this node after its release time
-is released at the first step after it arrives; its realised delay is then longer than ``h``,
-and the logs show it.
+holds by construction; the ``lead`` (default :func:`default_lead`: a quarter of the session's
+smallest ``h``, within 2 ms, at least ``min(dt/2, 0.5 ms)``) covers the transport to the
+robot. When ``t - h(t)`` runs backwards (``dh/dt > 1``) the rule picks an older command again
+and it is released again (D11). A command that reaches this node after its release time is
+released at the first step after it arrives; its realised delay is then longer than ``h``, and
+the logs show it.
+
+The node does not wake at every step: at most steps the rule picks the command last released
+and nothing is sent. It computes ahead, from the commands it holds, the next step where the
+pick changes (``h`` evaluated on the coming steps at once) and sleeps until ``lead`` before
+that step, or until a command arrives that the rule could pick earlier (the plan is then made
+again), or at most :data:`_HORIZON`. At ``T_c`` = 10 ms that is about two wake-ups per command
+instead of one per millisecond. A wake-up so late that the step is less than
+``min(lead, dt/2, 0.5 ms)`` away evaluates the rule at the first step still that far ahead.
 
 Packet loss (D12d): with a probability ``p`` and a seed (the scenario's ``packet_loss`` table,
 or ``--loss P --loss-seed S``), command ``k`` is dropped when the toolkit's counter-based draw
@@ -38,12 +47,29 @@ from typing import Any
 import numpy as np
 
 from delaytrack.live._node import NodeBase, Received, percentile
-from delaytrack.live.clock import Ticker
+from delaytrack.live.clock import steps_until
 from delaytrack.live.log import McapLog, write_csv
 from delaytrack.live.messages import CommandMessage, ReleaseMessage
 from delaytrack.sim.packet_loss import PacketLoss, packet_lost
 
-__all__ = ["DelayNode"]
+__all__ = ["DelayNode", "default_lead"]
+
+#: Without commands to release, the node wakes at most this often (seconds) to plan again.
+_HORIZON = 0.1
+
+
+def default_lead(dt: float, h_min: float) -> float:
+    """How long before a robot step its release is sent by default: a quarter of the smallest
+    delay of the session, within 2 ms, and never less than ``min(dt/2, 0.5 ms)``.
+
+    The release must reach the robot before its step: on loopback under load the transport
+    took 0.4 ms median and up to 3 ms (p99), so ``min(dt/2, 0.5 ms)`` alone made about a
+    third of the applications one step late. A longer lead costs nothing while every command
+    reaches this node more than ``lead`` before its release step, that is while ``h`` exceeds
+    the controller's sampling phase, compute and transport time by ``lead``: with
+    ``lead <= h_min / 4`` that holds up to ``0.75 h_min``.
+    """
+    return max(min(dt / 2, 5e-4), min(2e-3, h_min / 4))
 
 
 class DelayNode(NodeBase):
@@ -65,103 +91,192 @@ class DelayNode(NodeBase):
             loss = PacketLoss(args.loss, args.loss_seed)
         self.loss = loss or PacketLoss()
         self._loss = np.array(self.loss.params(), dtype=float)
-        self.lead = min(self.dt / 2, 5e-4) if getattr(args, "lead", None) is None else args.lead
+        steps = np.arange(steps_until(self.duration, self.dt)) * self.dt
+        self.h_min = float(np.min(self.delay.h(steps))) if steps.size else 0.0
+        lead = getattr(args, "lead", None)
+        self.lead = default_lead(self.dt, self.h_min) if lead is None else lead
         self.h_max = float(self.delay.h_max)
         self.h(0.0)  # warm up (compile)
         packet_lost(0, self._loss)
         self.commands: dict[int, list[Any]] = {}
         self.releases: list[list[Any]] = []
+        self._tolerance = 1e-9 * self.dt
+        # The commands that may still be released, sorted by t_k, and their t_k.
+        self._held_times: list[float] = []
+        self._held: list[CommandMessage] = []
+        self.wakes = 0  # returns from sleep
+        self.missed_steps = 0  # steps skipped because a wake-up came after the next deadline
+        self.lateness_ms: list[float] = []  # of each step where the pick changed
+        self.session_s = 0.0
 
     def h(self, t: float) -> float:
         return float(self.delay.h(t))
 
     def declare(self, session: Any, prefix: str) -> None:
-        self._received = Received(CommandMessage.decode)
+        self._reach = math.inf
+        self._received = Received(
+            CommandMessage.decode, wake=lambda message: message.t_k <= self._reach
+        )
         self._publisher = session.declare_publisher(f"{prefix}/release", express=True)
         self._subscriber = session.declare_subscriber(f"{prefix}/command", self._received)
         self.entities += [self._subscriber, self._publisher]
 
-    def loop(self, t0: float, stop: Any, handshake: Any) -> None:
-        self.log = McapLog(self.out / "delay.mcap", t0, self.metadata())
-        ticker = Ticker(
-            t0, self.dt, phase=-self.lead, until=self.duration, stop=stop, idle=self.log.work
-        )
-        self.ticker = ticker
-        held_times: list[float] = []  # t_k of the commands that may still be released, sorted
-        held: list[CommandMessage] = []
-        last_released: int | None = None
-        last_hello = 0.0
-        tolerance = 1e-9 * self.dt
-        for wake in ticker:
-            s = wake.k * self.dt
-            for message, received in self._received.drain():
-                lost = bool(packet_lost(message.seq, self._loss))
-                self.commands[message.seq] = [
-                    message.seq,
-                    message.t_k,
-                    message.send_time,
-                    received - t0,
-                    int(lost),
-                    math.nan,
-                    math.nan,
-                    math.nan,
-                ]
-                if lost:
-                    continue
-                i = bisect.bisect_right(held_times, message.t_k)
-                held_times.insert(i, message.t_k)
-                held.insert(i, message)
-            h = self.h(s)
-            g = s - h
-            i = bisect.bisect_right(held_times, g + tolerance) - 1
-            if i >= 0 and held[i].seq != last_released:
-                chosen = held[i]
-                now = ticker.now()
-                self._publisher.put(
-                    ReleaseMessage(
-                        chosen.seq, chosen.t_k, chosen.send_time, now, s, chosen.u
-                    ).encode()
-                )
-                last_released = chosen.seq
-                record = self.commands.get(chosen.seq)
-                if record is not None and math.isnan(record[5]):
-                    record[5], record[6], record[7] = now, s, h
-                self.releases.append([chosen.seq, chosen.t_k, now, s, h])
-                self.log.command(
-                    "/release",
-                    seq=chosen.seq,
-                    sample_time=chosen.t_k,
-                    log_time=now,
-                    u=chosen.u,
-                    send_time=chosen.send_time,
-                    receive_time=record[3] if record else math.nan,
-                    release_time=now,
-                    apply_at=s,
-                )
-            # Forget what can never be picked again: g(t) >= t - h_max for every later t.
-            while len(held_times) >= 2 and held_times[1] <= s - self.h_max - tolerance:
-                del held_times[0], held[0]
-            if wake.now - last_hello > 0.2:
-                handshake.publish()
-                last_hello = wake.now
-                self.status(
-                    wake.now,
-                    f"received {len(self.commands)}  released {len(self.releases)}  "
-                    f"h {h * 1e3:.1f} ms",
-                )
-        # Commands in flight when the session ended: recorded as received, never released.
-        time.sleep(0.1)
-        for message, received in self._received.drain():
+    def _take(self, t0: float) -> bool:
+        """Take in the commands that arrived (lost ones recorded, not held); whether any did."""
+        arrived = self._received.drain()
+        for message, received in arrived:
+            lost = bool(packet_lost(message.seq, self._loss))
             self.commands[message.seq] = [
                 message.seq,
                 message.t_k,
                 message.send_time,
                 received - t0,
-                int(bool(packet_lost(message.seq, self._loss))),
+                int(lost),
                 math.nan,
                 math.nan,
                 math.nan,
             ]
+            if lost:
+                continue
+            i = bisect.bisect_right(self._held_times, message.t_k)
+            self._held_times.insert(i, message.t_k)
+            self._held.insert(i, message)
+        return bool(arrived)
+
+    def _next_change(self, start: int, stop_at: int, last_released: int | None) -> tuple:
+        """``(j, reach)``: ``j`` the first step in ``[start, stop_at)`` where the rule picks
+        another command than ``last_released`` from what is held now (None if none), ``reach``
+        the largest ``g = s - h(s)`` of the steps before it (a command with a later ``t_k``
+        cannot be picked there). ``h`` is evaluated on the steps at once, with the same
+        numbers as one by one."""
+        s = np.arange(start, stop_at) * self.dt
+        g = s - self.delay.h(s)
+        found = np.empty(0, dtype=np.int64)
+        if self._held_times:
+            index = (
+                np.searchsorted(np.asarray(self._held_times), g + self._tolerance, side="right") - 1
+            )
+            seqs = np.array([m.seq for m in self._held], dtype=np.int64)
+            previous = -1 if last_released is None else last_released  # sequence numbers >= 0
+            found = np.flatnonzero((index >= 0) & (seqs[np.maximum(index, 0)] != previous))
+        if not found.size:
+            return None, float(np.max(g)) + self._tolerance
+        change = int(found[0])
+        reach = float(np.max(g[:change])) + self._tolerance if change else -math.inf
+        return start + change, reach
+
+    def loop(self, t0: float, stop: Any, handshake: Any) -> None:
+        """Wake only where the rule can change (D42, event-driven).
+
+        The rule is evaluated at the steps ``s_j`` as before, ``lead`` before each, with the
+        commands received by then; but at a step where the command it picks is the one last
+        released nothing is sent, so the node computes ahead, from what it holds, the next step
+        where the pick changes and sleeps until ``lead`` before it, or until a command arrives
+        (which may change it: the plan is then made again from the first step still ahead).
+        Without commands it wakes at most every ``_HORIZON`` seconds. A wake-up so late that
+        the step is less than ``min(lead, dt/2, 0.5 ms)`` away evaluates the rule at the first
+        step that is still that far ahead instead (the steps in between count as missed).
+        """
+        self.log = McapLog(self.out / "delay.mcap", t0, self.metadata())
+        dt, lead, tolerance = self.dt, self.lead, self._tolerance
+        margin = min(lead, dt / 2, 5e-4)  # the least time a release is sent before its step
+        end = steps_until(self.duration, dt)  # steps 0 .. end - 1
+        horizon = max(1, round(_HORIZON / dt))
+        clock = time.monotonic
+        last_released: int | None = None
+        last_hello = -math.inf
+        j = 0  # the first step not yet dealt with
+        plan: tuple[int, bool] | None = None  # (step, whether the pick changes there)
+        while not stop():
+            self._reach = math.inf  # while planning, any arrival wakes the loop
+            arrived = self._take(t0)
+            now = clock() - t0
+            latest = math.floor((now + lead) / dt + 1e-9)  # the latest step whose deadline passed
+            feasible = math.ceil((now + margin) / dt - 1e-9)  # the first step still reachable
+            if arrived:
+                plan = None
+            if plan is None:
+                start = max(j, feasible)
+                if start >= end:
+                    break
+                self._forget(start * dt)
+                last = min(start + horizon, end)
+                change, reach = self._next_change(start, last, last_released)
+                plan = (last, False) if change is None else (change, True)
+                j = start
+            step, changes = plan
+            if latest >= step:  # its deadline has passed: deal with it
+                if changes:
+                    k = min(max(step, feasible), end - 1)
+                    self.missed_steps += k - step
+                    self.lateness_ms.append((now - (step * dt - lead)) * 1e3)
+                    s = k * dt
+                    h = self.h(s)
+                    i = bisect.bisect_right(self._held_times, s - h + tolerance) - 1
+                    if i >= 0 and self._held[i].seq != last_released:
+                        last_released = self._release(self._held[i], s, h, clock() - t0)
+                    j = k + 1
+                else:
+                    j = step
+                plan = None
+                if j >= end:
+                    break
+            else:
+                deadline = t0 + step * dt - lead
+                # Work that may wait (writing the log), until shortly before the deadline.
+                self.log.work(deadline - min(2e-4, dt / 4))
+                remaining = deadline - clock()
+                if remaining > 0:
+                    # Only a command that the rule could pick before the planned step wakes
+                    # the loop earlier; the others are taken in at that step.
+                    self._reach = reach
+                    # Until the deadline, a command or 50 ms (to see a stop request soon).
+                    self._received.wait(min(remaining, 0.05))
+                    self.wakes += 1
+            if now - last_hello > 0.2:
+                handshake.publish()
+                last_hello = now
+                self.status(
+                    now,
+                    f"received {len(self.commands)}  released {len(self.releases)}  "
+                    f"wakes {self.wakes}",
+                )
+        self.session_s = clock() - t0
+        # Commands in flight when the session ended: recorded as received, never released
+        # (taken in until none has come for 0.2 s, at most for a second).
+        self._reach = math.inf
+        until = clock() + 1.0
+        self._take(t0)
+        while clock() < until and self._received.wait(min(0.2, until - clock())):
+            self._take(t0)
+
+    def _forget(self, s: float) -> None:
+        """Drop what can never be picked again from ``s`` on: ``g(t) >= t - h_max``."""
+        held_times, held = self._held_times, self._held
+        while len(held_times) >= 2 and held_times[1] <= s - self.h_max - self._tolerance:
+            del held_times[0], held[0]
+
+    def _release(self, chosen: CommandMessage, s: float, h: float, now: float) -> int:
+        """Send ``chosen`` to be applied from the robot's step ``s``; record it."""
+        self._publisher.put(
+            ReleaseMessage(chosen.seq, chosen.t_k, chosen.send_time, now, s, chosen.u).encode()
+        )
+        record = self.commands.get(chosen.seq)
+        if record is not None and math.isnan(record[5]):
+            record[5], record[6], record[7] = now, s, h
+        self.releases.append([chosen.seq, chosen.t_k, now, s, h])
+        self.log.command(
+            "/release",
+            seq=chosen.seq,
+            sample_time=chosen.t_k,
+            log_time=now,
+            u=chosen.u,
+            send_time=chosen.send_time,
+            receive_time=record[3] if record else math.nan,
+            release_time=now,
+            apply_at=s,
+        )
+        return chosen.seq
 
     def outputs(self) -> dict[str, Any]:
         header = [
@@ -188,7 +303,11 @@ class DelayNode(NodeBase):
             "released": len(self.releases),
             "rereleased": len(self.releases) - sum(1 for r in rows if not math.isnan(r[6])),
             "dropped_by_queue": self._received.dropped,
-            "missed_steps": self.ticker.missed if hasattr(self, "ticker") else 0,
+            "missed_steps": self.missed_steps,
+            "wakes": self.wakes,
+            "wakes_per_s": self.wakes / self.session_s if self.session_s > 0 else math.nan,
+            "release_lateness_ms_p50": percentile(self.lateness_ms, 50),
+            "release_lateness_ms_p99": percentile(self.lateness_ms, 99),
             "release_minus_h_ms_p99": percentile(np.abs(early) * 1e3, 99) if early else math.nan,
             "packet_loss": self.loss.to_spec(),
             "lead_ms": self.lead * 1e3,

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from delaytrack.live.log import write_csv
-from delaytrack.live.session import _f, _read_csv
+from delaytrack.live.session import _f, _read_csv, session_files, write_report
 
 __all__ = ["replay", "replay_main"]
 
@@ -37,6 +37,11 @@ __all__ = ["replay", "replay_main"]
 def replay(folder: str | Path, trust: list[str] | None = None) -> dict[str, Any]:
     """Re-simulate the session in ``folder``; write ``replay.csv`` and ``replay.json`` there and
     return the agreement (module docstring)."""
+    return _replay(folder, trust)[0]
+
+
+def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[str, Any], Any, Any]:
+    """:func:`replay`'s agreement, the scenario and the replayed :class:`SimResult`."""
     from delaytrack.delays import TraceDelay
     from delaytrack.experiments.scenario import Scenario
     from delaytrack.sim import simulate
@@ -136,7 +141,7 @@ def replay(folder: str | Path, trust: list[str] | None = None) -> dict[str, Any]
     ]
     write_csv(folder / "replay.csv", header, rows)
     (folder / "replay.json").write_text(json.dumps(report, indent=1) + "\n")
-    return report
+    return report, scenario, result
 
 
 def replay_main(args: Any) -> int:
@@ -153,12 +158,13 @@ def replay_main(args: Any) -> int:
         )
         return 2
     try:
-        report = replay(folder, args.trust)
+        report, scenario, replayed = _replay(folder, args.trust)
     except (ScenarioError, ValueError) as error:
         print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
         return 2
-    listed = [p for p in folder.iterdir() if p.is_file()]
-    record_outputs(folder, listed)
+    # The session's report again, with the replayed run beside the live one.
+    report_failed = write_report(folder, scenario, replayed=replayed, agreement=report)
+    record_outputs(folder, session_files(folder))
     print(
         f"replay of {folder} ({report['ticks_compared']} ticks, status {report['status']}):\n"
         f"  tracking error RMS live {report['tracking_error_rms_live']:.4g}, replayed "
@@ -171,4 +177,4 @@ def replay_main(args: Any) -> int:
         f"{report['command_difference_rms']:.3g}\n"
         f"  not reproduced by the simulation: {report['not_reproduced']}"
     )
-    return 0
+    return 1 if report_failed else 0

@@ -94,6 +94,8 @@ def node_commands(args: Any, folder: Path, ports: list[int], session: str) -> di
             command.append("--quiet")
         if role == "delay" and args.loss is not None:
             command += ["--loss", repr(args.loss), "--loss-seed", str(args.loss_seed)]
+        if role == "delay" and getattr(args, "lead", None) is not None:
+            command += ["--lead", repr(args.lead)]
         commands[role] = command
     return commands
 
@@ -153,12 +155,16 @@ def run_session(args: Any) -> int:
     summary = collect(folder, scenario)
     summary["exit_codes"] = codes
     summary["wall_s"] = time.monotonic() - started
+    summary["load_average"] = list(os.getloadavg())
     (folder / "summary.json").write_text(json.dumps(summary, indent=1, default=str) + "\n")
-    record_outputs(folder, [p for p in folder.iterdir() if p.is_file()])
+    report_failed = write_report(folder, scenario)
+    record_outputs(folder, session_files(folder))
     if not args.quiet or failed:
         print(format_summary(summary, folder))
     if interrupted:
         return 130
+    if report_failed:
+        return 1
     if failed:
         print(
             f"error: node(s) {', '.join(f'{r} (exit {c})' for r, c in failed.items())} "
@@ -167,6 +173,28 @@ def run_session(args: Any) -> int:
         )
         return max(failed.values()) if all(c > 0 for c in failed.values()) else 1
     return 0
+
+
+def session_files(folder: Path) -> list[Path]:
+    """Every file in the session folder, figures included (for the folder's record)."""
+    return [p for p in sorted(folder.rglob("*")) if p.is_file()]
+
+
+def write_report(folder: Path, scenario: Any, **replay: Any) -> bool:
+    """Write the session's metrics, figures and report (:mod:`delaytrack.live.report`);
+    whether that failed (said on stderr: the logs and tables stay)."""
+    from delaytrack.live.report import write_session_report
+
+    try:
+        write_session_report(folder, scenario, **replay)
+    except (ValueError, OSError, KeyError) as error:
+        print(
+            f"error: the session's report (metrics.csv, figures, report.html) could not be "
+            f"written: {error}",
+            file=sys.stderr,
+        )
+        return True
+    return False
 
 
 def collect(folder: Path, scenario: Any) -> dict[str, Any]:

@@ -12,6 +12,7 @@ measured or planned trajectory); the controller needs ``q̈_d``, which the splin
 
 from __future__ import annotations
 
+import itertools
 import math
 from array import array
 from dataclasses import dataclass, field
@@ -21,7 +22,13 @@ from typing import Any
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from delaytrack._io import csv_number, csv_rows, shown_header
+from delaytrack._io import (
+    check_column_unit,
+    column_count,
+    column_name,
+    csv_number,
+    csv_table,
+)
 from delaytrack._jit import tick_kernel
 from delaytrack._validation import beyond_choice, finite_array
 from delaytrack.references.base import Reference
@@ -136,48 +143,60 @@ class SplineReference(Reference):
         boundary: str = "clamped",
         beyond: str = "refuse",
     ) -> SplineReference:
-        """Read samples from a CSV file with a header row.
+        """Read samples from a CSV file: a column of times in seconds, then one per coordinate.
 
-        ``time_column`` (the first column by default) holds the times in seconds; ``columns``
-        (all the others by default) the coordinates, in order. Every row has as many cells as
-        the header, and numbers are read as on the command line: ``0_5``, ``0x10``, ``nan`` or
-        a decimal comma are refused, naming the line and column.
+        The first row is a header unless its first cell starts like a number (then every row is
+        data, the times first), as for a delay trace. With a header, ``time_column`` (the first
+        column by default) holds the times and ``columns`` (all the others by default) the
+        coordinates, in order; the header's names must differ from each other, and the time
+        column's name may not name another unit than seconds (``t_ms``). Every row has as many
+        cells as the first, and numbers are read as on the command line: ``0_5``, ``0x10``,
+        ``nan`` or a decimal comma are refused, naming the line and column. Errors never quote
+        the file's text, its header included.
         """
         source = Path(path).expanduser()
-        rows = csv_rows(source)
-        first = next(rows, None)
-        if first is None:
-            raise ValueError(f"path {str(source)!r} is empty; it needs a header row and samples")
-        header = [name.strip() for name in first[1]]
-        time_name = header[0] if time_column is None else time_column
-        wanted = [name for name in header if name != time_name] if columns is None else columns
-        for option, names in (("time_column", [time_name]), ("columns", wanted)):
-            for name in names:
-                if name not in header:
+        header, rows = csv_table(
+            source, "waypoints need a column of times and one column per coordinate"
+        )
+        if header is not None:
+            indices, names = _header_columns(source, header, time_column, columns)
+            width = len(header)
+        else:
+            for option, value in (("time_column", time_column), ("columns", columns)):
+                if value is not None:
                     raise ValueError(
-                        f"{option} names {name!r}, which is not in the header"
-                        f"{shown_header(header)} of {str(source)!r}"
+                        f"{source}: {option} = {value!r} names header columns, but the file has "
+                        "no header row (its first row is numbers)"
                     )
-        if not wanted:
-            raise ValueError(f"path {str(source)!r} has no coordinate column besides the time")
-        indices = [header.index(name) for name in (time_name, *wanted)]
+            first = next(rows)
+            rows = itertools.chain([first], rows)
+            width = len(first[1])
+            indices, names = list(range(width)), [None] * width
+            if width < 2:
+                raise ValueError(
+                    f"{source}: line {first[0]} has 1 column; waypoints need a column of times "
+                    "and one column per coordinate"
+                )
         samples = array("d")
         for line, row in rows:
-            if len(row) != len(header):
+            if len(row) != width:
+                what = "its header" if header is not None else "its first row"
                 raise ValueError(
-                    f"{source}: line {line} must have {len(header)} columns as its header; it "
-                    f"has {len(row)}"
+                    f"{source}: line {line} must have {width} columns as {what}; it has {len(row)}"
                 )
             samples.extend(
-                csv_number(source, line, index + 1, row[index], header[index]) for index in indices
+                csv_number(source, line, index + 1, row[index], name)
+                for index, name in zip(indices, names, strict=True)
             )
         table = np.array(samples).reshape(-1, len(indices))
         if len(table) < 2:
             raise ValueError(
-                f"path {str(source)!r} needs a header row and at least two samples; got "
-                f"{len(table)}"
+                f"{source}: waypoints need at least two samples (rows of numbers); got {len(table)}"
             )
-        return cls(table[:, 0], table[:, 1:], boundary=boundary, beyond=beyond)
+        try:
+            return cls(table[:, 0], table[:, 1:], boundary=boundary, beyond=beyond)
+        except ValueError as error:
+            raise ValueError(f"{source}: {error}") from None
 
     @property
     def n(self) -> int:
@@ -207,3 +226,41 @@ class SplineReference(Reference):
             "boundary": self.boundary,
             "beyond": self.beyond,
         }
+
+
+def _header_columns(
+    source: Path, header: list[str], time_column: str | None, columns: list[str] | None
+) -> tuple[list[int], list[str | None]]:
+    """Positions of the time column and the coordinates' columns in ``header``, and their names
+    for messages (the user's, or None: a name read from the file is not quoted)."""
+    positions = []
+    for option, name in [
+        ("time_column", time_column),
+        *(("columns", name) for name in columns or []),
+    ]:
+        if name is None:
+            positions.append(0)
+        elif not isinstance(name, str):
+            raise TypeError(f"{option} must hold a column's name (text); got {name!r}")
+        elif column_name(name) in header:
+            positions.append(header.index(column_name(name)))
+        else:
+            raise ValueError(
+                f"{source}: {option} names {name!r}, which is not in the header row (of "
+                f"{column_count(len(header))})"
+            )
+    if columns is None:
+        positions += [k for k in range(len(header)) if k != positions[0]]
+    names = [time_column, *(columns or [None] * (len(positions) - 1))]
+    if len(positions) < 2:
+        raise ValueError(
+            f"{source}: the header row has no coordinate column besides the time; waypoints "
+            "need a column of times and one column per coordinate"
+        )
+    label = (
+        f"the name of column {positions[0] + 1} (the time)"
+        if time_column is None
+        else f"time_column = {time_column!r}"
+    )
+    check_column_unit(source, label, header[positions[0]], None, None)
+    return positions, names

@@ -42,7 +42,7 @@ from pathlib import Path
 from typing import IO, Any, NamedTuple
 
 from delaytrack._numba_cache import cache_directory, locks_cache
-from delaytrack._spec import module_from_file
+from delaytrack._spec import module_from_file, own_bytecode
 from delaytrack.components import Kernel
 
 __all__ = [
@@ -386,7 +386,8 @@ def _imported(name: tuple[str, str, str | None]) -> Any:
     """The function :func:`_name` named: imported from the search path, else from its file."""
     module_name, qualname, file = name
     try:
-        found: Any = importlib.import_module(module_name)
+        with own_bytecode():  # a file named in a scenario: never a .pyc shipped beside it
+            found: Any = importlib.import_module(module_name)
     except ImportError:
         if file is None:
             raise

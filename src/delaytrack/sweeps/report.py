@@ -22,6 +22,7 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from delaytrack import __version__
+from delaytrack import _result_columns as result_columns
 from delaytrack._io import write_frame
 from delaytrack.report import HtmlReport, save_figure
 from delaytrack.sweeps.runner import SweepOutcome, folder_lock
@@ -32,7 +33,7 @@ from delaytrack.sweeps.summary import (
     default_metrics,
     summary_table,
 )
-from delaytrack.units import default_names, labelled, with_unit
+from delaytrack.units import labelled
 
 __all__ = [
     "ae_vs_h_max_figure",
@@ -71,14 +72,10 @@ def metric_units(spec: SweepSpec) -> dict[str, str]:
     ``ae_<c>``, ``rms_<c>``, ``max_<c>`` in the coordinate's unit, ``tv`` in the inputs' unit
     (when they share one); metrics whose unit the plant does not give are left out."""
     plant = spec.base.build().plant
-    names = default_names(plant.coordinate_names, plant.n)
-    units: dict[str, str] = {}
-    for name, unit in zip(names, plant.coordinate_units or [None] * plant.n, strict=True):
-        if unit:
-            units.update({f"{prefix}_{name}": unit for prefix in ("ae", "rms", "max")})
-    if plant.input_units and len(set(plant.input_units)) == 1:
-        units["tv"] = plant.input_units[0]
-    return units
+    units = result_columns.metric_units(
+        plant.coordinate_names, plant.coordinate_units, plant.n, plant.input_units
+    )
+    return {metric: unit for metric, unit in units.items() if unit}
 
 
 def _axis_label(metric: str, units: Mapping[str, str]) -> str:
@@ -149,12 +146,7 @@ def _metric_table(summary: pd.DataFrame, metric: str, unit: str | None) -> pd.Da
 
 def with_units(summary: pd.DataFrame, units: Mapping[str, str]) -> pd.DataFrame:
     """The summary with each metric statistic's unit in its column name (``ae_x_median_m``)."""
-    renamed = {}
-    for metric, unit in units.items():
-        for name in STATISTICS:
-            if f"{metric}_{name}" in summary.columns:
-                renamed[f"{metric}_{name}"] = with_unit(f"{metric}_{name}", unit)
-    return summary.rename(columns=renamed)
+    return summary.rename(columns=result_columns.summary_columns(units))
 
 
 #: Relative difference of two medians under which :func:`findings` calls them a tie.

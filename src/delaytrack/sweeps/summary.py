@@ -20,7 +20,9 @@ scenario's ``error_bound``); ``failed`` (any other status that is not ``ok``, su
 as a delay beyond the history buffer or a mass matrix that stopped being positive definite);
 then ``<metric>_mean``, ``_median``, ``_p95`` (95th
 percentile, linear interpolation) and ``_max`` over the runs whose status is ``ok`` (NaN when
-there is none).
+there is none). The statistic columns are named by
+:func:`~delaytrack._result_columns.summary_columns`, which refuses two columns of one name (with
+or without the metrics' units, :func:`~delaytrack.sweeps.report.with_units`).
 """
 
 from __future__ import annotations
@@ -30,6 +32,8 @@ from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
+
+from delaytrack._result_columns import SUMMARY_STATISTICS, summary_columns
 
 __all__ = [
     "DELAY_BAND_EDGES",
@@ -47,12 +51,13 @@ DIVERGED_STATUSES = ("diverged", "left the path")
 #: Upper edges (s) of the ``h_max`` bands of a delay class; above the last: ``> 1000 ms``.
 DELAY_BAND_EDGES: tuple[float, ...] = (0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 1.0)
 #: Statistic suffix -> function of the ``ok`` runs' values.
-STATISTICS = {
-    "mean": np.mean,
-    "median": np.median,
-    "p95": lambda values: np.percentile(values, 95.0),
-    "max": np.max,
-}
+STATISTICS = dict(
+    zip(
+        SUMMARY_STATISTICS,
+        (np.mean, np.median, lambda values: np.percentile(values, 95.0), np.max),
+        strict=True,
+    )
+)
 
 
 def _shown(value: object) -> str:
@@ -164,7 +169,8 @@ def summary_table(
     Raises
     ------
     ValueError
-        For a metric that is not a numeric column of ``runs``, naming the valid ones.
+        For a metric that is not a numeric column of ``runs``, naming the valid ones, or
+        metrics whose statistic columns would share a name.
     """
     metrics = default_metrics(runs) if metrics is None else list(metrics)
     valid = [
@@ -175,6 +181,7 @@ def summary_table(
     unknown = [metric for metric in metrics if metric not in valid]
     if unknown:
         raise ValueError(f"summary metrics {unknown} are not columns of the runs; valid: {valid}")
+    columns = summary_columns(dict.fromkeys(metrics))
     labels = controller_labels(runs, label_keys)
     frame = runs.assign(controller=labels, delay_class=delay_classes(runs, delay_keys))
     rows = []
@@ -194,6 +201,7 @@ def summary_table(
         for metric in metrics:
             values = ok[metric].to_numpy(dtype=float)
             for name, statistic in STATISTICS.items():
-                row[f"{metric}_{name}"] = float(statistic(values)) if values.size else math.nan
+                column = columns[f"{metric}_{name}"]
+                row[column] = float(statistic(values)) if values.size else math.nan
         rows.append(row)
     return pd.DataFrame(rows)

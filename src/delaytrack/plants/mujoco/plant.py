@@ -26,6 +26,8 @@ from __future__ import annotations
 import copy
 import hashlib
 import importlib
+import unicodedata
+import warnings
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, ClassVar
@@ -44,8 +46,9 @@ from delaytrack.plants.mujoco.capi import (
     read_at,
     write_at,
 )
+from delaytrack.plants.mujoco.model_files import check_model_files
 
-__all__ = ["MujocoPlant", "extras_start", "mujoco_step", "mujoco_terms"]
+__all__ = ["JointNamesWarning", "MujocoPlant", "extras_start", "mujoco_step", "mujoco_terms"]
 
 #: Control used to read a column of ``G``: a power of two, so that dividing by it is exact.
 _PROBE = 2.0**-20
@@ -205,7 +208,10 @@ class MujocoPlant(ELPlant):
     The coordinates are named after their joints in results (``ae_<joint>``, columns
     ``<joint>_rad``) when those names are different identifiers that give every column a name
     of its own; otherwise (a joint without a name, ``joint-1``, or joints ``a`` and ``a_d``,
-    whose columns would share the name ``a_d_rad``) they are ``q1 .. qn``, in this order.
+    whose columns would share the name ``a_d_rad``) they are ``q1 .. qn``, in this order, with
+    a :class:`JointNamesWarning`. When one of ``q1 .. qn`` is the name of a joint of the model,
+    the prefix is repeated (``qq1 .. qqn``, then ``qqq1 ..``) until none is: a column named
+    ``q1`` never holds another joint than one named ``q1``.
 
     The plant holds MuJoCo's ``mjData``, which every evaluation writes (``thread_safe`` is
     False): each thread of a batch runs a copy of its own (:meth:`for_worker`), made from the
@@ -240,6 +246,7 @@ class MujocoPlant(ELPlant):
         path = Path(self.path)
         object.__setattr__(self, "path", path)
         regular_file(path, "path =")  # MuJoCo would wait on a FIFO, or read a device forever
+        check_model_files(path)  # and so on a file the model includes or names
         scale = positive_scalar("mass_scale", self.mass_scale)
         object.__setattr__(self, "mass_scale", scale)
         for key in ("actuator_limits", "constraints"):
@@ -267,7 +274,9 @@ class MujocoPlant(ELPlant):
         names = tuple(mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joints)
         # Slide joints move in metres, hinge joints turn in radians (MuJoCo's units).
         units = tuple("m" if model.jnt_type[j] == 2 else "rad" for j in joints)
-        usable = _names_usable(names, units, int(model.nu))
+        joint_names = _coordinate_names(
+            path, names, units, int(model.nu), _model_joint_names(mujoco, model)
+        )
         scratch = np.zeros((2, model.nv))
         params = np.zeros(_INDICES + 2 * len(joints))
         params[_INDICES : _INDICES + len(joints)] = model.jnt_qposadr[joints]
@@ -296,7 +305,7 @@ class MujocoPlant(ELPlant):
         for key, value in (
             ("n", len(joints)),
             ("m", int(model.nu)),
-            ("coordinate_names", names if usable else None),
+            ("coordinate_names", joint_names),
             ("coordinate_units", units),
             ("_model", model),
             ("_data", data),
@@ -526,17 +535,60 @@ class MujocoPlant(ELPlant):
         return spec
 
 
-def _names_usable(names: tuple[str, ...], units: tuple[str, ...], m: int) -> bool:
-    """Whether the joints' names can name the coordinates in results: different identifiers
-    whose columns are all different (joints ``a`` and ``a_d`` are not: ``a``'s reference and
-    ``a_d``'s angle are both ``a_d_rad``)."""
-    if not all(name and name.isidentifier() for name in names) or len(set(names)) < len(names):
-        return False
+class JointNamesWarning(UserWarning):
+    """A MuJoCo model's joint names cannot name the coordinates in results, which are named
+    ``q1 .. qn`` instead (:class:`MujocoPlant`); the message names the joints and why."""
+
+
+def _model_joint_names(mujoco: Any, model: Any) -> set[str]:
+    """The names of every joint of the model (chosen as coordinates or not), NFKC-normalised."""
+    joint = mujoco.mjtObj.mjOBJ_JOINT
+    named = (mujoco.mj_id2name(model, joint, j) for j in range(model.njnt))
+    return {unicodedata.normalize("NFKC", name) for name in named if name}
+
+
+def _names_problem(names: tuple[str | None, ...], units: tuple[str, ...], m: int) -> str | None:
+    """Why the joints' names cannot name the coordinates in results, or None when they can:
+    different identifiers whose columns are all different (joints ``a`` and ``a_d`` are not:
+    ``a``'s reference and ``a_d``'s angle are both ``a_d_rad``)."""
+    unnamed = [repr(name) for name in names if not (name and name.isidentifier())]
+    if unnamed:
+        verb = "is not a name" if len(unnamed) == 1 else "are not names"
+        return f"{', '.join(unnamed)} {verb} of letters, digits and '_'"
     try:
         trajectory_columns(names, units, len(names), None, m)
     except ValueError:
-        return False
-    return True
+        return "two of their result columns would share a name"
+    return None
+
+
+def _coordinate_names(
+    path: Path,
+    names: tuple[str | None, ...],
+    units: tuple[str, ...],
+    m: int,
+    taken: set[str],
+) -> tuple[str, ...]:
+    """The joints' ``names`` when they can name the coordinates, else ``q1 .. qn`` with the
+    prefix repeated until none is one of the model's joint names ``taken``, announced with a
+    :class:`JointNamesWarning` (:class:`MujocoPlant`)."""
+    problem = _names_problem(names, units, m)
+    if problem is None:
+        return tuple(names)
+    prefix = "q"
+    while any(f"{prefix}{i}" in taken for i in range(1, len(names) + 1)):
+        prefix += "q"
+    fallback = tuple(f"{prefix}{i}" for i in range(1, len(names) + 1))
+    avoided = "" if prefix == "q" else f" (q1 .. q{len(names)} are names of the model's joints)"
+    warnings.warn(
+        JointNamesWarning(
+            f"MuJoCo model {str(path)!r}: the joints {list(names)} cannot name the coordinates "
+            f"in results ({problem}); they are named {fallback[0]} .. {fallback[-1]} in this "
+            f"order{avoided}"
+        ),
+        stacklevel=4,
+    )
+    return fallback
 
 
 def _made_again(cls: type, arguments: dict[str, Any]) -> MujocoPlant:

@@ -1,0 +1,299 @@
+"""The report of a live session: ``metrics.csv``, figures and a self-contained ``report.html``.
+
+``delaytrack live run`` writes them when the session ends, and ``delaytrack live replay``
+writes them again with the replayed simulation beside the live one. The session's tracking is
+turned into a :class:`~delaytrack.sim.SimResult` of one run (:func:`live_result`): the robot's
+state and the reference at every controller tick ``t_k``, the command the controller sent at
+``t_k`` and the command the robot held over the step that starts there, ``h(t_k)``. So the
+tracking metrics are the simulator's (:func:`delaytrack.metrics.metrics_table`, every tick)
+and the tracking figures the simulator's (:mod:`delaytrack.report.figures`); the live loop's
+own figures show the realised delay against ``h(t)`` and the distributions of wake-up
+lateness and compute time.
+
+Files (in the session folder): ``metrics.csv`` (AE, RMS and max tracking error per coordinate
+and the commands' total variation, with units in the column names, :mod:`delaytrack.units`),
+``figures/{tracking,error,commands,delay,timing}.png`` and ``report.html``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from delaytrack.live.session import _f, _read_csv
+
+__all__ = ["live_result", "metrics_with_units", "write_session_report"]
+
+
+def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
+    """The session in ``folder`` as a :class:`~delaytrack.sim.SimResult` of one run, recorded
+    at every controller tick (module docstring).
+
+    A tick at which the controller sent nothing (no state yet) counts as the command in force
+    from the controller's side: zero before the first command (the simulator's ``u_init``),
+    else the last one sent. A session whose robot state became non-finite has the status
+    ``diverged``.
+    """
+    from delaytrack.sim.result import SimResult
+
+    folder = Path(folder)
+    plant, reference = built.plant, built.reference
+    m = plant.m
+    steps_per_tick = round(scenario.T_c / scenario.dt)
+    states = {int(r["j"]): r for r in _read_csv(folder / "states.csv")}
+    if not states:
+        raise ValueError(f"{folder}: the robot logged no state (states.csv)")
+    names = [c for c in next(iter(states.values())) if c not in ("j", "t_s")]
+    ticks = {int(r["k"]): r for r in _read_csv(folder / "ticks.csv")}
+    steps = {int(r["j"]): r for r in _read_csv(folder / "steps.csv")}
+    ks = sorted(j // steps_per_tick for j in states if j % steps_per_tick == 0)
+    t = np.array([k * scenario.T_c for k in ks], dtype=float)
+    x = np.array([[_f(states[k * steps_per_tick][c]) for c in names] for k in ks], dtype=float)
+    ref = np.stack(reference.evaluate(t), axis=1)  # (R, 3, n): q_d, q̇_d, q̈_d
+    commands = np.zeros((t.size, m))
+    applied = np.full((t.size, m), np.nan)
+    last = np.zeros(m)
+    for i, k in enumerate(ks):
+        tick = ticks.get(k)
+        sent = np.array([_f(tick[f"u{j + 1}"]) for j in range(m)]) if tick else np.full(m, np.nan)
+        if np.all(np.isfinite(sent)):
+            last = sent
+        commands[i] = last
+        step = steps.get(k * steps_per_tick)
+        if step is not None:
+            applied[i] = [_f(step[f"u{j + 1}"]) for j in range(m)]
+    finite = bool(np.all(np.isfinite(x)))
+    return SimResult(
+        t=t,
+        x=x[None],
+        reference=ref,
+        commands=commands[None],
+        applied=applied[None],
+        h=np.asarray(built.delay.h(t), dtype=float)[None],
+        controller_state=np.zeros((1, t.size, 0)),
+        controller_state_names=(),
+        status=np.array([0 if finite else 1]),
+        t_stop=np.array([t[-1]]),
+        settings={"dt": scenario.dt, "T_c": scenario.T_c, "record_every": 1},
+        coordinate_names=plant.coordinate_names,
+        coordinate_units=getattr(plant, "coordinate_units", None),
+        input_units=getattr(plant, "input_units", None),
+    )
+
+
+def metrics_with_units(result: Any, label: str) -> Any:
+    """:func:`delaytrack.metrics.metrics_table` of ``result`` with each metric's unit in its
+    column name (``ae_x_m``, ``rms_phi_rad``, ``tv_Nm`` when the inputs share a unit)."""
+    from delaytrack.metrics import metrics_table
+    from delaytrack.units import default_names, with_unit
+
+    table = metrics_table(result, label=label)
+    names = default_names(result.coordinate_names, result.n)
+    units = result.coordinate_units or (None,) * result.n
+    renamed = {
+        f"{prefix}_{name}": with_unit(f"{prefix}_{name}", unit)
+        for prefix in ("ae", "rms", "max")
+        for name, unit in zip(names, units, strict=True)
+    }
+    inputs = set(result.input_units or (None,))
+    if len(inputs) == 1:
+        renamed["tv"] = with_unit("tv", inputs.pop())
+    renamed["t_stop"] = "t_stop_s"
+    return table.rename(columns=renamed)
+
+
+def _delay_figure(folder: Path, delay: Any, dt: float) -> Any:
+    from matplotlib.figure import Figure
+
+    rows = [r for r in _read_csv(folder / "delays.csv") if math.isfinite(_f(r["applied_s"]))]
+    applied = np.array([_f(r["applied_s"]) for r in rows])
+    realised = np.array([_f(r["realised_delay_s"]) for r in rows])
+    difference = np.array([_f(r["realised_minus_h_ms"]) for r in rows])
+    figure = Figure(figsize=(8.0, 5.4), dpi=110, layout="constrained")
+    top, bottom = figure.subplots(2, 1, sharex=True)
+    if applied.size:
+        grid = np.linspace(0.0, float(applied.max()), 2000)
+        top.plot(grid, 1e3 * np.asarray(delay.h(grid)), color="black", lw=1.0, label="h(t)")
+    top.plot(applied, 1e3 * realised, ".", ms=2.5, color="C1", label="realised delay")
+    top.set_ylabel("delay (ms)")
+    top.legend(loc="upper right", fontsize="small")
+    top.set_title("Realised delay of each command (from the step it was applied) against h(t)")
+    bottom.plot(applied, difference, ".", ms=2.5, color="C1")
+    bottom.axhline(0.0, color="black", lw=0.8)
+    bottom.axhline(1e3 * dt, color="grey", lw=0.8, ls=":", label="one robot step")
+    bottom.set_ylabel("realised delay − h (ms)")
+    bottom.set_xlabel("t (s)")
+    bottom.legend(loc="upper right", fontsize="small")
+    for ax in (top, bottom):
+        ax.grid(True, alpha=0.3)
+    return figure
+
+
+def _histogram(ax: Any, values: np.ndarray, what: str) -> None:
+    values = values[np.isfinite(values)]
+    if values.size:
+        ax.hist(values, bins=60, color="C0")
+        p50, p99 = np.percentile(values, [50, 99])
+        for value, style, name in ((p50, "--", "p50"), (p99, ":", "p99")):
+            ax.axvline(value, color="black", ls=style, lw=1.0, label=f"{name} {value:.3f} ms")
+        ax.set_yscale("log")
+        ax.legend(loc="upper right", fontsize="small")
+    ax.set_xlabel(f"{what} (ms)")
+    ax.set_ylabel("count")
+    ax.grid(True, alpha=0.3)
+
+
+def _timing_figure(folder: Path) -> Any:
+    from matplotlib.figure import Figure
+
+    ticks = _read_csv(folder / "ticks.csv")
+    steps = _read_csv(folder / "steps.csv")
+    figure = Figure(figsize=(8.0, 7.2), dpi=110, layout="constrained")
+    axes = figure.subplots(3, 1)
+    _histogram(
+        axes[0],
+        np.array([_f(r["lateness_ms"]) for r in ticks]),
+        "controller wake-up lateness",
+    )
+    _histogram(axes[1], np.array([_f(r["compute_ms"]) for r in ticks]), "controller compute time")
+    _histogram(axes[2], np.array([_f(r["lateness_ms"]) for r in steps]), "robot step lateness")
+    figure.suptitle("Timing of the session's ticks and steps (counts on a log scale)")
+    return figure
+
+
+def _ms(value: Any) -> str:
+    return "n/a" if value is None or not math.isfinite(value) else f"{value:.3f} ms"
+
+
+def write_session_report(
+    folder: str | Path, scenario: Any, *, replayed: Any = None, agreement: Any = None
+) -> list[Path]:
+    """Write ``metrics.csv``, the figures and ``report.html`` of the session in ``folder``;
+    return their paths. With ``replayed`` (the replay's :class:`~delaytrack.sim.SimResult`)
+    and ``agreement`` (what :func:`~delaytrack.live.replay.replay` returns) the live and
+    replayed runs are drawn and measured side by side."""
+    from delaytrack._io import write_bytes, write_frame
+    from delaytrack.report.figures import (
+        commands_figure,
+        error_figure,
+        png_bytes,
+        tracking_figure,
+    )
+    from delaytrack.report.html import HtmlReport
+
+    folder = Path(folder)
+    built = scenario.build()
+    summary = json.loads((folder / "summary.json").read_text())
+    live = live_result(folder, scenario, built)
+    tables = [metrics_with_units(live, "live")]
+    runs = {"live": live}
+    if replayed is not None:
+        tables.append(metrics_with_units(replayed, "replayed"))
+        runs["replayed"] = replayed
+    import pandas as pd
+
+    metrics = pd.concat(tables, ignore_index=True).drop(columns=["run"])
+    paths = [write_frame(metrics, folder / "metrics.csv")]
+    figures = {
+        "tracking": (tracking_figure(runs), "Each coordinate against its reference q_d"),
+        "error": (error_figure(runs), "Absolute tracking error |q_d − q| at the ticks"),
+        "commands": (
+            commands_figure({"live": live}),
+            "Commands sent by the controller (solid) and held by the robot over the step after "
+            "each tick (dashed)",
+        ),
+        "delay": (
+            _delay_figure(folder, built.delay, scenario.dt),
+            "Realised delay of each command against h(t), and their difference",
+        ),
+        "timing": (
+            _timing_figure(folder),
+            "Wake-up lateness and compute time of the controller, lateness of the robot's steps",
+        ),
+    }
+    # Each figure drawn once: the same PNG in figures/ and in the report.
+    images = {name: png_bytes(figure) for name, (figure, _caption) in figures.items()}
+    for name, data in images.items():
+        paths.append(write_bytes(folder / "figures" / f"{name}.png", data))
+
+    nodes = summary.get("nodes") or {}
+    c, r, d = (nodes.get(role) or {} for role in ("controller", "robot", "delay"))
+    report = HtmlReport(f"delaytrack live session: {summary.get('scenario', scenario.name)}")
+    report.paragraph(
+        "The controller, delay and robot nodes ran as separate processes over Zenoh; the delay "
+        "node applied the toolkit's rule (the robot applies the latest command whose sample time "
+        "t_k satisfies t_k ≤ t − h(t)) on the robot's step grid. Timings depend on the load of "
+        "the machine at the time."
+    )
+    report.settings(
+        {
+            "scenario": summary.get("scenario", scenario.name),
+            "T_c": f"{scenario.T_c * 1e3:g} ms",
+            "dt": f"{scenario.dt * 1e3:g} ms",
+            "session": f"{live.t[-1]:g} s of model time ({summary.get('wall_s', math.nan):.1f} s "
+            "wall, start-up included)",
+            "exit codes": ", ".join(
+                f"{role} {code}" for role, code in (summary.get("exit_codes") or {}).items()
+            ),
+            "load average (1, 5, 15 min) at the end": ", ".join(
+                f"{v:.2f}" for v in summary.get("load_average", [])
+            )
+            or "n/a",
+        }
+    )
+    report.heading("Timing and the delay rule")
+    report.settings(
+        {
+            "controller ticks": f"{c.get('ticks', 0)} ({c.get('missed', 0)} missed, "
+            f"{c.get('stale', 0)} on a stale state)",
+            "controller wake-up lateness p50 / p99": f"{_ms(c.get('lateness_ms_p50'))} / "
+            f"{_ms(c.get('lateness_ms_p99'))}",
+            "controller compute time p50 / p99": f"{_ms(c.get('compute_ms_p50'))} / "
+            f"{_ms(c.get('compute_ms_p99'))}",
+            "robot steps": f"{r.get('steps', 0)} ({r.get('missed_steps', 0)} missed, "
+            f"{r.get('late_applications', 0)} applications later than their release step)",
+            "robot step lateness p50 / p99": f"{_ms(r.get('lateness_ms_p50'))} / "
+            f"{_ms(r.get('lateness_ms_p99'))}",
+            "delay node": f"{d.get('received', 0)} commands received, {d.get('lost', 0)} lost "
+            f"(injected), {d.get('released', 0)} releases, "
+            f"{d.get('wakes_per_s', math.nan):.0f} wake-ups/s, lead {d.get('lead_ms', 0):g} ms",
+            "realised delay − h(t) p50 / |.| p99": f"{_ms(summary.get('realised_minus_h_ms_p50'))}"
+            f" / {_ms(summary.get('realised_minus_h_abs_ms_p99'))}",
+            "commands never applied": str(summary.get("never_applied", 0)),
+        }
+    )
+    report.heading("Tracking")
+    report.table(metrics, "Tracking metrics over every controller tick (metrics.csv)")
+    if agreement is not None:
+        report.heading("Replay: the simulation with the realised delays")
+        report.settings(
+            {
+                "RMS tracking error, live / replayed": (
+                    f"{agreement['tracking_error_rms_live']:.4g} / "
+                    f"{agreement['tracking_error_rms_replayed']:.4g}"
+                ),
+                "live − replayed tracking error, max / RMS": (
+                    f"{agreement['error_difference_max']:.3g} (at t = "
+                    f"{agreement['error_difference_max_at_s']:g} s) / "
+                    f"{agreement['error_difference_rms']:.3g} "
+                    f"({100 * agreement['error_difference_rms_relative']:.2f} % of the live RMS)"
+                ),
+                "live − replayed commands, max / RMS": (
+                    f"{agreement['command_difference_max']:.3g} / "
+                    f"{agreement['command_difference_rms']:.3g}"
+                ),
+                "not reproduced by the simulation": json.dumps(agreement["not_reproduced"]),
+            }
+        )
+    for name, (_figure, caption) in figures.items():
+        report.figure(images[name], caption)
+    report.heading("Scenario")
+    scenario_file = folder / "scenario.toml"
+    if scenario_file.is_file():
+        report.code(scenario_file.read_text())
+    paths.append(report.write(folder / "report.html"))
+    return paths

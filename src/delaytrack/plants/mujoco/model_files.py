@@ -1,0 +1,185 @@
+"""The files a MuJoCo model names, checked before MuJoCo opens any of them.
+
+MuJoCo reads the files a model names itself, in C: the files it includes (``<include file>``),
+its meshes, textures, height fields and skins (``file``, and a cube texture's ``fileright`` ..
+``fileback``), its sub-models (``<model file>``) and a URDF's meshes (``<mesh filename>``). A FIFO
+among them makes it wait for a writer forever and a device never ends, so
+:func:`check_model_files` finds them all first and passes each through
+:func:`~delaytrack._io.regular_file`.
+
+The XML's start tags are read as leniently as MuJoCo reads them (a comment holding ``--`` is
+MuJoCo's, not XML's), in one pass whatever the text holds, expanding no entity. A name is
+resolved every way MuJoCo may resolve it, and every file found is checked: absolute as it is, or
+relative to the main model's folder, to the folder of the file that names it, and to the
+compiler's ``meshdir``, ``texturedir`` and ``assetdir``, with and without its folders
+(``strippath``, the default for URDF). Included XML files are read in turn, at most
+:data:`MAX_INCLUDE_DEPTH` deep and :data:`MAX_MODEL_FILES` in all. A name that resolves to
+nothing is left for MuJoCo to report.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from delaytrack._io import regular_file
+
+__all__ = ["MAX_INCLUDE_DEPTH", "MAX_MODEL_FILES", "check_model_files"]
+
+#: Deepest nesting of included files read (MuJoCo's own examples nest two or three).
+MAX_INCLUDE_DEPTH = 20
+#: Most XML files (the model and the files it includes) read for one model.
+MAX_MODEL_FILES = 1000
+
+#: Elements whose file is MJCF, read in turn for the files it names.
+_XML_ELEMENTS = ("include", "model")
+#: Compiler attributes naming folders that asset files are relative to.
+_ASSET_FOLDERS = ("meshdir", "texturedir", "assetdir")
+#: An element's name after ``<``, an attribute up to its opening quote, a character reference.
+_TAG_NAME = re.compile(r"[A-Za-z_:][\w.:-]*")
+_ATTRIBUTE = re.compile(r"\s+([^\s=<>/\"']+)\s*=\s*([\"'])")
+_REFERENCE = re.compile(r"&(?:#x([0-9a-fA-F]{1,6})|#([0-9]{1,7})|(amp|lt|gt|quot|apos));")
+_NAMED = {"amp": "&", "lt": "<", "gt": ">", "quot": '"', "apos": "'"}
+
+
+@dataclass(frozen=True)
+class _Name:
+    """A file name found in a model's XML: where, on which element and attribute, and depth."""
+
+    source: Path
+    line: int
+    element: str
+    attribute: str
+    value: str
+    depth: int
+
+
+def check_model_files(path: Path) -> None:
+    """Check every file the MuJoCo model (MJCF or URDF) at ``path`` names, before MuJoCo opens
+    it, following included files.
+
+    ``path`` itself is checked by the caller.
+
+    Raises
+    ------
+    ValueError
+        One line naming the model, where the name is (line and file) and why: a name resolving
+        to a FIFO, device, socket or a file over the size bound, or includes nested or
+        numbering beyond the bounds.
+    """
+    names: list[_Name] = []
+    folders: list[str] = []
+    read: set[str] = set()
+    checked: set[str] = set()
+    pending = [(path, 0)]
+    while pending:
+        for source, depth in pending:
+            if os.path.realpath(source) in read:
+                continue  # MuJoCo refuses a file included twice; its message says so
+            if len(read) == MAX_MODEL_FILES:
+                raise ValueError(
+                    f"path {str(path)!r}: the model includes more than {MAX_MODEL_FILES} XML "
+                    f"files; at most {MAX_MODEL_FILES} are read"
+                )
+            if depth > MAX_INCLUDE_DEPTH:
+                raise ValueError(
+                    f"path {str(path)!r}: {str(source)!r} is included {depth} levels deep; "
+                    f"includes nest at most {MAX_INCLUDE_DEPTH} levels"
+                )
+            read.add(os.path.realpath(source))
+            _scan(source, depth, names, folders)
+        pending = []
+        for name in names:
+            for candidate in _candidates(path, name, folders):
+                if candidate in checked:
+                    continue
+                checked.add(candidate)
+                if not os.path.exists(candidate) or os.path.isdir(candidate):
+                    continue  # MuJoCo says what is missing or not a file
+                where = f"line {name.line}" + (
+                    "" if name.source == path else f" of {str(name.source)!r}"
+                )
+                try:
+                    regular_file(
+                        candidate, f"path {str(path)!r}: {where}, <{name.element} {name.attribute}>"
+                    )
+                except FileNotFoundError:
+                    continue  # removed meanwhile: MuJoCo says so
+                if name.element in _XML_ELEMENTS:
+                    pending.append((Path(candidate), name.depth + 1))
+
+
+def _scan(source: Path, depth: int, names: list[_Name], folders: list[str]) -> None:
+    """Add the file names and asset folders the XML file ``source`` holds."""
+    try:
+        text = source.read_bytes().decode("utf-8-sig", errors="replace")
+    except OSError:
+        return  # unreadable: MuJoCo says why
+    for line, element, attributes in _elements(text):
+        for attribute, value in attributes:
+            if attribute.startswith("file") and value.strip():
+                names.append(_Name(source, line, element, attribute, value.strip(), depth))
+            elif element == "compiler" and attribute in _ASSET_FOLDERS:
+                folders.append(value.strip())
+
+
+def _elements(text: str) -> Iterator[tuple[int, str, list[tuple[str, str]]]]:
+    """The start tags of the XML ``text``, each as its line, name and attributes (values with
+    XML's character references replaced), skipping comments and CDATA sections.
+
+    As lenient as MuJoCo's XML reader (tinyxml2), which reads ``--`` inside a comment, and
+    linear in the text's length whatever it holds; it expands no entity.
+    """
+    position, line, counted = 0, 1, 0
+    while (start := text.find("<", position)) >= 0:
+        for opening, closing in (("<!--", "-->"), ("<![CDATA[", "]]>")):
+            if text.startswith(opening, start):
+                end = text.find(closing, start + len(opening))
+                if end < 0:
+                    return  # never closed: not XML that MuJoCo reads
+                position = end + len(closing)
+                break
+        else:
+            name = _TAG_NAME.match(text, start + 1)
+            position = start + 1 if name is None else name.end()
+            if name is None:
+                continue
+            attributes = []
+            while (attribute := _ATTRIBUTE.match(text, position)) is not None:
+                end = text.find(attribute.group(2), attribute.end())
+                if end < 0:
+                    return  # a value never closed
+                value = _REFERENCE.sub(_character, text[attribute.end() : end])
+                attributes.append((attribute.group(1), value))
+                position = end + 1
+            line += text.count("\n", counted, start)
+            counted = start
+            yield line, name.group(), attributes
+
+
+def _character(reference: re.Match[str]) -> str:
+    hexadecimal, decimal, named = reference.groups()
+    if named is not None:
+        return _NAMED[named]
+    code = int(hexadecimal, 16) if hexadecimal is not None else int(decimal)
+    return chr(code) if code <= sys.maxunicode else reference.group()
+
+
+def _candidates(model: Path, name: _Name, folders: list[str]) -> list[str]:
+    """Every path MuJoCo may read for ``name``: see the module docstring."""
+    bases = [model.parent, name.source.parent]
+    for folder in folders:
+        bases += [Path(folder)] if os.path.isabs(folder) else [model.parent / folder]
+    found = []
+    for value in dict.fromkeys([name.value, os.path.basename(name.value)]):
+        if not value:
+            continue
+        if os.path.isabs(value):
+            found.append(value)
+        else:
+            found += [str(base / value) for base in bases]
+    return list(dict.fromkeys(found))

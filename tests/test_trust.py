@@ -36,6 +36,7 @@ from delaytrack.experiments.scenario import dumps_toml
 from delaytrack.sweeps import SweepError, SweepSpec
 from test_hostile_inputs import one_line_error
 from test_scenario import base_dict
+from test_user_components import _CACHED_KERNEL
 
 #: A factory that builds the package's two-link arm.
 ARM_FACTORY = "import delaytrack as dt\n\ndef make():\n    return dt.TwoLinkArm()\n"
@@ -487,20 +488,6 @@ def test_a_pyc_shipped_beside_a_factory_file_or_its_neighbour_never_runs(tmp_pat
     assert not (tmp_path / "ran").exists()
 
 
-#: A file whose kernel numba caches on disk, a scenario's factory that calls it.
-_CACHED_ARM = """
-import numba
-import delaytrack as dt
-
-@numba.njit(cache=True)
-def terms(t, q, qdot, params, M, N, G):
-    M[0, 0] = params[0]
-    N[0] = 0.0
-    G[0, 0] = 1.0
-
-def make(mass=2.0):
-    return dt.CompiledPlant(1, 1, terms, [mass])
-"""
 #: Builds the factory of each folder's ``robot.py`` in turn and prints, for each, the name of
 #: its module, whether numba loaded its kernel from the disk cache, and the file of the module
 #: the loaded kernel is bound to.
@@ -522,7 +509,7 @@ def test_a_cached_kernel_is_bound_to_its_own_file_whatever_name_its_module_had(t
     a, b = tmp_path / "A", tmp_path / "B"
     for folder in (a, b):
         folder.mkdir()
-        (folder / "robot.py").write_text(_CACHED_ARM)
+        (folder / "robot.py").write_text(_CACHED_KERNEL)  # a kernel cached on disk
     environment = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
 
     def build(*folders: Path) -> list[list[str]]:

@@ -13,7 +13,11 @@ import math
 
 from delaytrack._jit import inline_kernel
 
-__all__ = ["matvec", "solve_in_place"]
+__all__ = ["SYMMETRY_TOLERANCE", "matvec", "solve_in_place", "solve_mass_in_place"]
+
+#: Relative asymmetry of a mass matrix that :func:`solve_mass_in_place` accepts, as the check of
+#: a symmetric matrix given as input (:func:`delaytrack._validation.as_spd_matrix`) does.
+SYMMETRY_TOLERANCE = 1e-10
 
 
 @inline_kernel
@@ -34,47 +38,55 @@ def _diagonal_is_positive(a):
 
 
 @inline_kernel
-def solve_in_place(a, b):
-    """Solve ``a x = b`` by Gaussian elimination with partial pivoting; ``b`` becomes ``x``.
+def _is_symmetric(a):
+    """Whether ``a[i, j]`` and ``a[j, i]`` agree to :data:`SYMMETRY_TOLERANCE` of
+    ``|a[i, i]| + |a[j, j]|`` for every pair (non-finite entries are left to the solve)."""
+    for i in range(a.shape[0]):
+        for j in range(i + 1, a.shape[0]):
+            difference = a[i, j] - a[j, i]
+            if difference != 0.0 and abs(difference) > SYMMETRY_TOLERANCE * (
+                abs(a[i, i]) + abs(a[j, j])
+            ):
+                return False
+    return True
 
-    ``a`` (n, n) is overwritten by its elimination factors. Returns ``(solved, definite)``.
-    ``solved`` is False (and ``b`` unspecified) when a pivot is exactly zero or not finite
-    (``a`` singular or holding NaN). A nearly singular ``a`` gives a huge solution, which the
-    simulator's divergence bound stops. ``definite`` is False when the elimination shows that
-    ``a``, taken as symmetric (a mass matrix), is not positive definite: a pivot of exactly
-    zero; without row exchanges a pivot ``<= 0`` (the pivots are then those of ``a``'s
-    ``L D Lᵀ``: exact); with them a determinant ``<= 0`` or a diagonal entry ``<= 0``
-    (necessary conditions, exact for ``n <= 2``). It is True when a pivot is not finite
-    (nothing is known). The checks only read the pivots: the solution is the same bit for bit.
-    A diagonal ``a`` (the constrained robot's ``M = I``) is solved by division.
-    """
+
+@inline_kernel
+def _solve_diagonal(a, b):
+    """:func:`solve_in_place` or :func:`solve_mass_in_place` of a diagonal ``a``: by division.
+    Returns ``(solved, definite)`` as :func:`solve_mass_in_place`."""
+    for i in range(b.shape[0]):
+        if not (a[i, i] != 0.0 and math.isfinite(a[i, i])):
+            return False, a[i, i] != 0.0
+        b[i] /= a[i, i]
+    return True, _diagonal_is_positive(a)
+
+
+@inline_kernel
+def _eliminate(a, b, exchange_rows):
+    """Solve ``a x = b`` in place by Gaussian elimination, with partial pivoting when
+    ``exchange_rows``, and back substitution. Returns ``(solved, positive)``: ``solved`` is
+    False (``b`` unspecified) at a pivot that is exactly zero or not finite, where ``positive``
+    is whether it is not zero; else ``positive`` is whether every pivot is ``> 0``."""
     n = b.shape[0]
-    if _is_diagonal(a):
-        for i in range(n):
-            if not (a[i, i] != 0.0 and math.isfinite(a[i, i])):
-                return False, a[i, i] != 0.0
-            b[i] /= a[i, i]
-        return True, _diagonal_is_positive(a)
-    positive_diagonal = _diagonal_is_positive(a)
-    exchanges = 0
-    negative_pivots = 0
+    positive = True
     for column in range(n):
-        pivot_row = column
-        largest = abs(a[column, column])
-        for row in range(column + 1, n):
-            if abs(a[row, column]) > largest:
-                largest = abs(a[row, column])
-                pivot_row = row
-        if not (largest > 0.0 and largest < float("inf")):
-            return False, largest != 0.0
-        if pivot_row != column:
-            exchanges += 1
-            for j in range(column, n):
-                a[column, j], a[pivot_row, j] = a[pivot_row, j], a[column, j]
-            b[column], b[pivot_row] = b[pivot_row], b[column]
-        if a[column, column] < 0.0:
-            negative_pivots += 1
-        inverse = 1.0 / a[column, column]
+        if exchange_rows:
+            pivot_row = column
+            largest = abs(a[column, column])
+            for row in range(column + 1, n):
+                if abs(a[row, column]) > largest:
+                    largest = abs(a[row, column])
+                    pivot_row = row
+            if pivot_row != column:
+                for j in range(column, n):
+                    a[column, j], a[pivot_row, j] = a[pivot_row, j], a[column, j]
+                b[column], b[pivot_row] = b[pivot_row], b[column]
+        pivot = a[column, column]
+        if not (pivot != 0.0 and math.isfinite(pivot)):
+            return False, pivot != 0.0
+        positive = positive and pivot > 0.0
+        inverse = 1.0 / pivot
         for row in range(column + 1, n):
             factor = a[row, column] * inverse
             if factor != 0.0:
@@ -86,9 +98,41 @@ def solve_in_place(a, b):
         for j in range(row + 1, n):
             total -= a[row, j] * b[j]
         b[row] = total / a[row, row]
-    if exchanges == 0:
-        return True, negative_pivots == 0
-    return True, positive_diagonal and (negative_pivots + exchanges) % 2 == 0
+    return True, positive
+
+
+@inline_kernel
+def solve_in_place(a, b):
+    """Solve ``a x = b`` by Gaussian elimination with partial pivoting; ``b`` becomes ``x``.
+
+    ``a`` (n, n) is overwritten by its elimination factors. Returns False (and ``b``
+    unspecified) when a pivot is exactly zero or not finite (``a`` singular or holding NaN). A
+    nearly singular ``a`` gives a huge solution. A diagonal ``a`` is solved by division.
+    """
+    solved, _ = _solve_diagonal(a, b) if _is_diagonal(a) else _eliminate(a, b, True)
+    return solved
+
+
+@inline_kernel
+def solve_mass_in_place(a, b):
+    """Solve ``M x = b`` for a mass matrix ``M = a``, which must be symmetric positive
+    definite; ``b`` becomes ``x``.
+
+    Gaussian elimination without row exchanges: on a symmetric positive definite matrix it is
+    stable without them, and its pivots are those of ``M``'s ``L D Lᵀ`` factors, so that ``M``
+    is positive definite exactly when every pivot is ``> 0``. Returns ``(solved, definite)``:
+    ``solved`` is False (and ``b`` unspecified) when a pivot is exactly zero or not finite;
+    ``definite`` is False when ``M`` is not symmetric (:func:`_is_symmetric`) or a pivot is
+    ``<= 0``, and True when a pivot is not finite (nothing is known: ``x`` is then NaN and the
+    run diverges). The solution is that of partial pivoting bit for bit where partial pivoting
+    would exchange no rows (a diagonal that dominates its column, as the two-link arm's does).
+    ``a`` is overwritten by its elimination factors; a diagonal ``a`` is solved by division.
+    """
+    if _is_diagonal(a):
+        return _solve_diagonal(a, b)
+    symmetric = _is_symmetric(a)
+    solved, positive = _eliminate(a, b, False)
+    return solved, positive and (symmetric or not solved)
 
 
 @inline_kernel

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
 import sys
 import time
@@ -58,6 +59,9 @@ if TYPE_CHECKING:
 __all__ = ["main"]
 
 EXIT_USAGE = 2
+#: A reader closed standard output (``| head``): 128 + SIGPIPE, as a shell reports a program
+#: that the pipe's signal ended.
+EXIT_BROKEN_PIPE = 141
 
 
 class UsageError(Exception):
@@ -1035,6 +1039,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``delaytrack`` command; return its exit code."""
     from delaytrack.experiments import ScenarioError
+    from delaytrack.sim.interruptible import every_run_interruptible, work_left_running
 
     parser = build_parser()
     argv = sys.argv[1:] if argv is None else list(argv)
@@ -1043,17 +1048,29 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_USAGE
     args = parser.parse_args(argv)
     try:
-        return args.handler(args)
+        with every_run_interruptible():  # Ctrl-C ends even a run whose kernel never returns
+            code = args.handler(args)
+        sys.stdout.flush()  # here, where a reader that closed the pipe is caught
+    except BrokenPipeError:
+        # The reader of the output closed it (| head): end quietly, as a program that the
+        # pipe's signal ends (Python's advice, "Note on SIGPIPE": no flush into the closed pipe).
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        code = EXIT_BROKEN_PIPE
     except (UsageError, ScenarioError, OutputFolderError) as error:
         # One line, whatever the input held (a key with a newline in it).
         print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
-        return EXIT_USAGE
+        code = EXIT_USAGE
     except OSError as error:
         print(f"error: {error}", file=sys.stderr)
-        return 1
+        code = 1
     except KeyboardInterrupt as interrupted:  # where, when a factory was interrupted
         print(str(interrupted).replace("\n", "\\n") or "interrupted", file=sys.stderr)
-        return 130
+        code = 130
+    if work_left_running():  # a compiled run that Ctrl-C left computing: nothing waits for it
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -31,6 +31,7 @@ of this package is covered by the cache folder instead (:mod:`delaytrack._numba_
 from __future__ import annotations
 
 import contextlib
+import dis
 import enum
 import hashlib
 import math
@@ -77,6 +78,7 @@ __all__ = [
     "is_compiled",
     "plant_sizes",
     "refuse_changed_globals",
+    "refuse_random_draws",
     "solve_input_map",
 ]
 
@@ -268,24 +270,32 @@ def compiled_functions_reached(function: Callable[..., Any]) -> tuple[Any, ...]:
 
 
 @lru_cache(maxsize=1024)
-def _walk(function: Callable[..., Any]) -> tuple[str, tuple[Any, ...], tuple[_Frozen, ...]]:
-    """:func:`code_fingerprint` of ``function``, :func:`compiled_functions_reached`, and the
+def _walk(
+    function: Callable[..., Any],
+) -> tuple[str, tuple[Any, ...], tuple[_Frozen, ...], tuple[tuple[str, str], ...]]:
+    """:func:`code_fingerprint` of ``function``, :func:`compiled_functions_reached`, the
     module globals their compiled code reads as constants, with their values now (taken once
-    per process, as numba compiles them once: :func:`refuse_changed_globals`)."""
+    per process, as numba compiles them once: :func:`refuse_changed_globals`), and the
+    functions that draw random numbers, with the random module each reads
+    (:func:`refuse_random_draws`)."""
     digest = hashlib.sha256()
     reached: list[Any] = []
     frozen: list[_Frozen] = []
+    draws: list[tuple[str, str, str | None]] = []  # function, random module, member name
     walk: list[object] = [function]
     seen: set[int] = set()
     modules: list[python_types.ModuleType] = []
     names_read: set[str] = set()
+    members: dict[int, str] = {}  # functions met as members of a module or class: their names
     while walk:
         current = walk.pop()
         if id(current) in seen:
             continue
         seen.add(id(current))
         if isinstance(current, python_types.ModuleType | type):
-            walk += _members(current)
+            found = _members(current)
+            members.update((id(item), getattr(item, "__name__", "")) for item in found)
+            walk += found
             if isinstance(current, type):  # class constants, enum members
                 for key, value in sorted(vars(current).items()):
                     if not key.startswith("_") and isinstance(value, _CONSTANTS):
@@ -308,6 +318,9 @@ def _walk(function: Callable[..., Any]) -> tuple[str, tuple[Any, ...], tuple[_Fr
         digest.update(_options_text(current, root=current is function).encode())
         names = _code_names(inner.__code__)
         names_read |= names
+        source = _random_module_read(inner.__code__, inner.__globals__)
+        if source is not None:
+            draws.append((_qualified_name(inner), source, members.get(id(current))))
         for name in sorted(names):
             if name in inner.__globals__:
                 value = inner.__globals__[name]
@@ -332,7 +345,57 @@ def _walk(function: Callable[..., Any]) -> tuple[str, tuple[Any, ...], tuple[_Fr
                 text = _value_text(value, [])
                 digest.update(f"{module.__name__}.{key}={text}".encode())
                 frozen.append(_Frozen(module.__name__, vars(module), key, text, _shown(value)))
-    return digest.hexdigest()[:16], tuple(reached), tuple(frozen)
+    # A member of a module or class that the code never names (a factory beside the kernel)
+    # is not called by it: its draws are not the kernel's.
+    called = tuple((owner, source) for owner, source, name in draws if name in (None, *names_read))
+    return digest.hexdigest()[:16], tuple(reached), tuple(frozen), called
+
+
+#: Modules whose functions draw random numbers from a generator that no run seeds.
+_RANDOM_MODULES = ("random", "numpy.random")
+
+
+def _random_module(value: object) -> str | None:
+    """The module of :data:`_RANDOM_MODULES` that ``value`` is, or whose function it is (a
+    function or bound method such as ``random.gauss`` or ``numpy.random.normal``), or None."""
+    if isinstance(value, python_types.ModuleType):
+        module = value.__name__
+    else:
+        owner = getattr(value, "__self__", None)
+        module = getattr(value, "__module__", None) or type(owner).__module__
+    if not isinstance(module, str):
+        return None
+    return next(
+        (name for name in _RANDOM_MODULES if module == name or module.startswith(f"{name}.")),
+        None,
+    )
+
+
+def _random_module_read(code: python_types.CodeType, namespace: dict) -> str | None:
+    """The random module of :data:`_RANDOM_MODULES` that ``code`` (or a function defined in it)
+    reads: through a global that is that module or one of its functions, or as the attribute
+    ``random`` of a global that is NumPy (``np.random.random()``); None if none."""
+    previous = None
+    for instruction in dis.get_instructions(code):
+        if instruction.opname in ("LOAD_GLOBAL", "LOAD_NAME"):
+            source = _random_module(namespace.get(instruction.argval))
+            if source is not None:
+                return source
+        elif (
+            instruction.opname in ("LOAD_ATTR", "LOAD_METHOD")
+            and instruction.argval == "random"
+            and previous is not None
+            and previous.opname in ("LOAD_GLOBAL", "LOAD_NAME")
+            and namespace.get(previous.argval) is np
+        ):
+            return "numpy.random"
+        previous = instruction
+    for constant in code.co_consts:
+        if isinstance(constant, python_types.CodeType):
+            source = _random_module_read(constant, namespace)
+            if source is not None:
+                return source
+    return None
 
 
 #: Values of module globals that numba compiles into a function as constants.
@@ -379,6 +442,31 @@ def refuse_changed_globals(kernel: Kernel) -> None:
                     "would not see the change; pass the value in the kernel's parameter vector "
                     "(through your factory's parameters), not in a module global"
                 )
+
+
+def refuse_random_draws(kernel: Kernel) -> None:
+    """Raise a ValueError when code of the user's ``kernel`` (its function, command map or
+    stepper, or a function they reach) reads Python's ``random`` or ``numpy.random``.
+
+    Compiled, these draw from numba's generator, seeded differently in every process and
+    thread and never by the run, so that two runs of one experiment give different numbers
+    under the same name (plain Python's differ the same way). Random numbers belong in the
+    parameter vector, drawn by the factory from a seeded generator, as the built-in
+    :class:`~delaytrack.delays.RandomDelay` draws its knots.
+    """
+    for root in (kernel.function, kernel.command_map, kernel.stepper):
+        if root is None or _in_package(root) or _python_function(root) is None:
+            continue
+        draws = _walk(root)[3]
+        if draws:
+            (owner, source), name = draws[0], _qualified_name(root)
+            where = "" if owner == name else f" (in {owner})"
+            raise ValueError(
+                f"your kernel {name} draws random numbers: it reads {source}{where}, whose "
+                "generator no run seeds, so every run would give other numbers; draw them in "
+                "your factory from a seeded generator (numpy.random.default_rng(seed)) and pass "
+                "them in the kernel's parameter vector"
+            )
 
 
 def _shown(value: object) -> str:
@@ -684,8 +772,7 @@ def solve_input_map(input_map, tau, command):
     """
     for i in range(command.shape[0]):
         command[i] = tau[i]
-    solved, _ = solve_in_place(input_map, command)  # Ĝ need not be positive definite
-    if not solved:
+    if not solve_in_place(input_map, command):  # Ĝ need not be symmetric: partial pivoting
         command[:] = math.nan
 
 

@@ -205,6 +205,24 @@ class Controller(ABC):
         ``reference`` is ``(q_d, q̇_d, q̈_d)`` at ``t``; ``state`` is not modified. ``h`` is the
         true delay, required only by controllers with :attr:`needs_delay`.
         """
+        arguments = self.step_arguments(t, q, qdot, reference, state, T_c=T_c, h=h)
+        self.step_callable(*arguments)
+        *_, next_state, _, _, command, _ = arguments  # the state is advanced in place
+        return command, next_state
+
+    def step_arguments(
+        self,
+        t: float,
+        q: np.ndarray,
+        qdot: np.ndarray,
+        reference: tuple[np.ndarray, np.ndarray, np.ndarray],
+        state: np.ndarray,
+        *,
+        T_c: float,
+        h: float | None = None,
+    ) -> tuple:
+        """The arguments of one call of the step kernel for :meth:`step` (checked, and of the
+        sizes the simulator passes: a copy of ``state``, a new ``command`` and ``work``)."""
         sample = positive_scalar("T_c", T_c)
         if h is None and self.needs_delay:
             raise ValueError(f"{type(self).__name__} needs the true delay: pass h=... (seconds)")
@@ -217,9 +235,8 @@ class Controller(ABC):
         next_state = np.array(state, dtype=float)
         if next_state.shape != (self.state_size,):
             raise ValueError(f"state must have shape ({self.state_size},); got {next_state.shape}")
-        command = np.empty(self.m)
         model = self.model.engine_kernel
-        self.step_callable(
+        return (
             float(t),
             *arrays,
             sample,
@@ -228,10 +245,9 @@ class Controller(ABC):
             next_state,
             model if self.compiled else model.as_python(),
             self.model.params,
-            command,
+            np.empty(self.m),
             step_workspace(self.n, self.m),
         )
-        return command, next_state
 
     def check_run(self, T_c: float, h_max: float) -> None:
         """Raise if the law cannot run at period ``T_c`` under delays up to ``h_max`` seconds.

@@ -20,7 +20,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from delaytrack._jit import hot_inline_kernel, inline_kernel
-from delaytrack._small_linalg import solve_in_place
+from delaytrack._small_linalg import solve_mass_in_place
 from delaytrack.components import Kernel, call_terms, has_identity_mass, plant_sizes
 
 __all__ = ["ELPlant", "el_rhs", "rhs_scratch"]
@@ -42,7 +42,8 @@ def el_rhs(terms, t, q, qdot, u, params, qddot, scratch):
     allocated, so the compiled inner loop stays cheap. ``terms`` is the plant's
     :class:`~delaytrack.components.Kernel`; one that always has ``M = I``
     (:attr:`ELPlant.identity_mass`) skips the solve. Returns False when the solve shows that
-    ``M`` is not positive definite (:func:`~delaytrack._small_linalg.solve_in_place`).
+    ``M`` is not symmetric positive definite
+    (:func:`~delaytrack._small_linalg.solve_mass_in_place`).
     """
     mass, nonlinear, input_map = scratch
     call_terms(terms, t, q, qdot, params, mass, nonlinear, input_map)
@@ -57,7 +58,7 @@ def el_rhs(terms, t, q, qdot, u, params, qddot, scratch):
     # and the state that the simulator checks after each step becomes non-finite with it.
     if has_identity_mass(terms):
         return True
-    solved, definite = solve_in_place(mass, qddot)
+    solved, definite = solve_mass_in_place(mass, qddot)
     if not solved:
         qddot[:] = np.nan
     return definite

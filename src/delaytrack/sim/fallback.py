@@ -1,4 +1,5 @@
-"""The message shown when a simulation cannot run compiled."""
+"""The plain-Python engine: the message shown when a simulation cannot run compiled, and the
+user's kernels as it runs them."""
 
 from __future__ import annotations
 
@@ -7,10 +8,13 @@ import warnings
 from types import FrameType
 from typing import Any
 
+from delaytrack._user_calls import named_errors
+from delaytrack.components import Kernel
+
 #: This package's name: frames of its modules are not the user's.
 _PACKAGE = __name__.partition(".")[0]
 
-__all__ = ["PythonFallbackWarning"]
+__all__ = ["PythonFallbackWarning", "python_kernel"]
 
 
 class PythonFallbackWarning(UserWarning):
@@ -55,6 +59,28 @@ class PythonFallbackWarning(UserWarning):
             f"simulate() runs as plain Python because {what} is not numba-compiled (about 100x "
             "slower than compiled). For compiled speed, decorate it with @numba.njit."
         )
+
+
+def python_kernel(kernel: Kernel) -> Kernel:
+    """``kernel`` as the plain-Python engine runs it (:meth:`Kernel.as_python`), its functions
+    of the user's with what they raise during the run in one line naming them
+    (:func:`~delaytrack._user_calls.named_errors`, as the compiled engine names a kernel that
+    raised). This package's kernels are left as they are: a
+    :class:`~delaytrack.plants.CallablePlant`'s names the user's functions it calls itself."""
+    python = kernel.as_python()
+
+    def named(function: Any, timed: bool) -> Any:
+        if function is None or Kernel(function).built_in:
+            return function
+        return named_errors(function, f"your kernel {Kernel(function).callable_names[0]}", timed)
+
+    return Kernel(
+        named(python.function, timed=True),
+        named(python.command_map, timed=False),  # command_map(q, params, tau, command)
+        python.identity_mass,
+        python.sizes,
+        named(python.stepper, timed=True),
+    )
 
 
 def _in_package(frame: FrameType) -> bool:

@@ -92,8 +92,9 @@ DIVERGED = 1
 DELAY_BEYOND_HISTORY = 2
 #: A tracking error exceeded the run's ``error_bound`` (:func:`delaytrack.sim.simulate`).
 LEFT_PATH = 3
-#: The solve for ``q̈`` met a mass matrix that is not positive definite (a plant's kernel
-#: fault, not a divergence of the loop: :func:`~delaytrack._small_linalg.solve_in_place`).
+#: The solve for ``q̈`` met a mass matrix that is not symmetric positive definite (a plant's
+#: kernel fault, not a divergence of the loop:
+#: :func:`~delaytrack._small_linalg.solve_mass_in_place`).
 MASS_NOT_POSITIVE_DEFINITE = 4
 
 

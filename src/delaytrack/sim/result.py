@@ -159,12 +159,13 @@ class SimResult:
         """Status, stop time, AE per coordinate (in its unit) and TV per run."""
         names = default_names(self.coordinate_names, self.n)
         units = self.coordinate_units or (None,) * self.n
-        frame = pd.DataFrame({"status": self.status_names, "t_stop (s)": self.t_stop})
-        if "ae" in self.metrics:
+        columns: dict[str, Any] = {"status": self.status_names, "t_stop (s)": self.t_stop}
+        if "ae" in self.metrics:  # built whole: a frame grown column by column fragments
             for j, (name, unit) in enumerate(zip(names, units, strict=True)):
-                frame[labelled(f"AE {name}", unit)] = self.metrics["ae"][:, j]
+                columns[labelled(f"AE {name}", unit)] = self.metrics["ae"][:, j]
         if "tv" in self.metrics:
-            frame["TV"] = self.metrics["tv"]
+            columns["TV"] = self.metrics["tv"]
+        frame = pd.DataFrame(columns)
         frame.index.name = "run"
         return frame
 

@@ -8,6 +8,7 @@ import math
 import os
 import re
 import sys
+import threading
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from types import SimpleNamespace
@@ -26,7 +27,13 @@ from delaytrack._validation import (
     positive_scalar,
     real_array,
 )
-from delaytrack.components import Kernel, call_reference, refuse_changed_globals
+from delaytrack.components import (
+    Kernel,
+    call_reference,
+    compiled_functions_reached,
+    refuse_changed_globals,
+    refuse_random_draws,
+)
 from delaytrack.controllers.base import Controller
 from delaytrack.delays._kernel import NO_KERNEL
 from delaytrack.delays.base import DelayProfile
@@ -36,9 +43,10 @@ from delaytrack.references import Reference
 from delaytrack.sim.compile_helper import CompileJob, parts_ahead
 from delaytrack.sim.compile_helper import start as start_helper
 from delaytrack.sim.engine import run_batch, run_batch_compiled
-from delaytrack.sim.fallback import PythonFallbackWarning
+from delaytrack.sim.fallback import PythonFallbackWarning, python_kernel
 from delaytrack.sim.first_compile import announce_compile, code_ready
 from delaytrack.sim.history import history_capacity, tick_time
+from delaytrack.sim.interruptible import run_interruptibly
 from delaytrack.sim.measurement import MeasurementNoise
 from delaytrack.sim.native_parts import (
     controller_step_name,
@@ -148,9 +156,9 @@ def _checked_before_the_run(kernel: Kernel, what: str, check: Any) -> Any:
     the kernel itself, or numba's when it cannot compile the check around it."""
     try:
         return check()
-    except ValueError:
-        raise
     except Exception as error:
+        if isinstance(error, ValueError) and not _raised_in_code_of(kernel, error):
+            raise  # a refusal of ours
         if type(error).__module__.startswith("numba"):
             raise ValueError(
                 f"numba could not compile {what} for your kernel {kernel.callable_names[0]}: "
@@ -161,14 +169,42 @@ def _checked_before_the_run(kernel: Kernel, what: str, check: Any) -> Any:
         ) from None
 
 
+def _raised_in_code_of(kernel: Kernel, error: Exception) -> bool:
+    """Whether ``error`` was raised in the code of the user's ``kernel``: a frame of its traceback
+    lies in a file of the kernel's functions or of the compiled functions they call (numba gives
+    the ``raise`` of compiled code a frame of its own)."""
+    functions = [
+        reached
+        for root in (kernel.function, kernel.command_map, kernel.stepper)
+        if root is not None
+        for reached in (root, *compiled_functions_reached(root))
+    ]
+    files = {
+        code.co_filename
+        for function in functions
+        if (code := getattr(getattr(function, "py_func", function), "__code__", None))
+    }
+    frame = error.__traceback__
+    while frame is not None:
+        if frame.tb_frame.f_code.co_filename in files:
+            return True
+        frame = frame.tb_next
+    return False
+
+
+#: How a message names a kernel of each kind (a key of ``KERNEL_ARGUMENTS``).
+_KIND_NAMES = {"step": "controller step"}
+
+
 def _refuse_reads_past(kernel: Kernel, kind: str, arguments: tuple, where: str) -> None:
     """Run the plain-Python version of the user's ``kernel`` (a ``kind`` of
     :data:`~delaytrack.kernel_arguments.KERNEL_ARGUMENTS`) once on copies of ``arguments``, the
     arrays the engine passes it, of their sizes: compiled, a read past an array's end runs on
-    silently with whatever lies there; Python raises IndexError, refused here naming the
-    kernel and the arrays' sizes. Other errors are left to the compiled kernel, which is what
-    runs (Python may lack what numba provides). A read only on another branch, or in a compiled
-    helper the kernel calls, is not seen."""
+    silently with whatever lies there, and a write past it overwrites other memory (or crashes
+    the process); Python raises IndexError, refused here naming the kernel and the arrays'
+    sizes. Other errors are left to the compiled kernel, which is what runs (Python may lack
+    what numba provides). An index only on another branch, or in a compiled helper the kernel
+    calls, is not seen."""
     python = getattr(kernel.function, "py_func", None)
     if kernel.built_in or python is None:
         return
@@ -182,9 +218,10 @@ def _refuse_reads_past(kernel: Kernel, kind: str, arguments: tuple, where: str) 
             if isinstance(value, np.ndarray)
         )
         raise ValueError(
-            f"your {kind} kernel {kernel.callable_names[0]} reads beyond an array {where} "
-            f"({error}); the arrays it is given have these sizes: {sizes}. Give the "
-            "parameters it reads (compiled, it would read on silently)"
+            f"your {_KIND_NAMES.get(kind, kind)} kernel {kernel.callable_names[0]} reads or "
+            f"writes beyond an array {where} ({error}); the arrays it is given have these "
+            f"sizes: {sizes}. Index only within them (compiled, it would read or write other "
+            "memory silently, or crash the process)"
         ) from None
     except Exception:  # noqa: BLE001 - only reads past an array's end are checked here
         return
@@ -204,6 +241,32 @@ def _check_plant_at_x0(plant: ELPlant, x0: np.ndarray, t0: float) -> None:
         kernel, "the check of M at x0", lambda: plant.terms(x0[None, :n], x0[None, n:], t0)[0][0]
     )
     as_spd_matrix(f"the plant's M at x0 (from your kernel {kernel.callable_names[0]})", mass, n)
+
+
+def _check_controller_at_x0(
+    controller: Controller, x0: np.ndarray, t0: float, T_c: float, delay: DelayProfile
+) -> None:
+    """A controller's kernels of the user's at the run's first tick: its nominal model's and
+    its step's read no index past an array's end (:func:`_refuse_reads_past`; the reference
+    taken as zeros, the delay as ``h(t0)``)."""
+    n, m = controller.n, controller.m
+    model = controller.model
+    q, qdot = x0[:n], x0[n:]
+    terms = (t0, q, qdot, model.params, np.zeros((n, n)), np.zeros(n), np.zeros((n, m)))
+    _refuse_reads_past(model.engine_kernel, "terms", terms, "at x0")
+    step = controller.engine_kernel
+    if step.built_in:
+        return
+    arguments = controller.step_arguments(
+        t0,
+        q,
+        qdot,
+        tuple(np.zeros((3, n))),
+        controller.initial_state(),
+        T_c=T_c,
+        h=float(delay.h(t0)),
+    )
+    _refuse_reads_past(step, "step", arguments, "at its first tick")
 
 
 def _numba_cause(error: Exception) -> str:
@@ -458,6 +521,14 @@ def simulate(
     Returns
     -------
     SimResult
+
+    Notes
+    -----
+    Ctrl-C interrupts a long compiled run at once (``KeyboardInterrupt``): it computes on a
+    thread of its own, which goes on to the run's end in the background, its results thrown
+    away (:mod:`delaytrack.sim.interruptible`). A kernel of the user's run as plain Python that
+    raises (or a :class:`~delaytrack.plants.CallablePlant` function that returns what it must
+    not) ends the run with a ValueError of one line naming it and the time.
     """
     plants = _as_batch("plant", plant, ELPlant)
     controllers = _as_batch("controller", controller, Controller)
@@ -571,6 +642,9 @@ def simulate(
             )
     if own_delays:
         check_kernel_arguments(f"delay[{own_delays[0]}]", "delay", delay_kernel.function)
+    for component in (first_plant, first_controller.model, first_controller, reference):
+        refuse_random_draws(component.engine_kernel)
+    refuse_random_draws(delay_kernel)
     if own_delays:
         _refuse_reads_past(delay_kernel, "delay", (t0, delays[own_delays[0]].params), "at t0")
     for delay_b in {id(delay_b): delay_b for delay_b in delays}.values():  # once per profile
@@ -624,6 +698,7 @@ def simulate(
     _check_plant_at_x0(first_plant, states0[0], t0)
     reference_arrays = (real_array("reference.params", reference.params, ndim=1), *np.zeros((3, n)))
     _refuse_reads_past(reference.engine_kernel, "reference", (t0, *reference_arrays), "at t0")
+    _check_controller_at_x0(first_controller, states0[0], t0, T_c, delays[0])
 
     if not isinstance(trajectories, bool | np.bool_):
         raise TypeError(f"trajectories must be True or False; got {trajectories!r}")
@@ -733,7 +808,7 @@ def simulate(
         """Element ``b``'s kernels as the engine takes them: as plain Python, or compiled, the
         :class:`~delaytrack._native_call.NativeFunction` objects ``natives`` of ``parts``."""
         if not compiled:
-            return tuple(kernel.as_python() for kernel in kernels(b))
+            return tuple(python_kernel(kernel) for kernel in kernels(b))
         plant_step, reference_native, step, delay = natives
         return (plant_step, NO_KERNEL, reference_native, step, delay)
 
@@ -829,8 +904,11 @@ def simulate(
                 if part not in parts and not part.ready():
                     waiting.append((name, part.compile_job(), _compiled_if_it_can(part)))
     natives: tuple = ()
+    interrupted = threading.Event()  # Ctrl-C: the chunks not yet started are left
 
     def run_chunk(index: int) -> int:
+        if interrupted.is_set():
+            return 0
         try:
             runner(*chunk_arguments(index, natives))
         except Exception as error:
@@ -871,14 +949,25 @@ def simulate(
             if progress
             else contextlib.nullcontext(_NO_PROGRESS_BAR)  # a disabled tqdm costs ~0.1 ms
         )
-        with bar_context as bar:
-            if in_parallel:
-                with ThreadPoolExecutor(max_workers=workers) as pool:
-                    for done in pool.map(run_chunk, range(len(chunks))):
-                        bar.update(done)
+        with bar_context as bar:  # closed here, on a new line, when Ctrl-C leaves the run
+
+            def run_chunks() -> None:
+                if in_parallel:
+                    with ThreadPoolExecutor(max_workers=workers) as pool:
+                        for done in pool.map(run_chunk, range(len(chunks))):
+                            bar.update(done)
+                else:
+                    for index in range(len(chunks)):
+                        bar.update(run_chunk(index))
+
+            if compiled:  # compiled code holds off Ctrl-C until it returns
+                try:
+                    run_interruptibly(run_chunks, size=batch * n_ticks * steps_per_tick * n)
+                except KeyboardInterrupt:
+                    interrupted.set()
+                    raise
             else:
-                for index in range(len(chunks)):
-                    bar.update(run_chunk(index))
+                run_chunks()
     except Exception as error:
         if compiled and type(error).__module__.startswith("numba"):
             # numba could not compile a kernel of the user's: their error, in one line.
@@ -901,9 +990,9 @@ def simulate(
     if unrecorded.size and compiled:
         reference_rows[unrecorded] = np.stack(reference.evaluate(times[unrecorded]), axis=1)
     elif unrecorded.size:
-        python_kernel = handles(0, ())[2]
+        reference_kernel = handles(0, ())[2]
         for row in unrecorded:
-            call_reference(python_kernel, float(times[row]), settings[0], *reference_rows[row])
+            call_reference(reference_kernel, float(times[row]), settings[0], *reference_rows[row])
     record: dict[str, Any] = {
         "t0": t0,
         "t1": t1,

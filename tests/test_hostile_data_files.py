@@ -57,8 +57,7 @@ def promptly(fifo: Path, call: Callable[..., object], *arguments: object) -> obj
     thread.start()
     thread.join(_HANG_GUARD_SECONDS)
     if thread.is_alive():
-        if fifo is not None:
-            os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+        os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
         pytest.fail(f"reading {fifo} waited for a writer instead of being refused")
     return outcome[0]
 
@@ -69,13 +68,25 @@ def scenario_file(folder: Path, **tables: object) -> Path:
     return path
 
 
-@pytest.fixture
-def fifo(tmp_path) -> Path:
+def make_fifo(path: Path) -> Path:
+    """A FIFO at ``path``; the test is skipped where the system has none."""
     if not hasattr(os, "mkfifo"):
         pytest.skip("no FIFOs on this system")
-    path = tmp_path / "pipe.csv"
     os.mkfifo(path)
     return path
+
+
+def mujoco_plant() -> type:
+    """The MuJoCo plant class; the test is skipped without MuJoCo."""
+    pytest.importorskip("mujoco")
+    from delaytrack.plants import MujocoPlant
+
+    return MujocoPlant
+
+
+@pytest.fixture
+def fifo(tmp_path) -> Path:
+    return make_fifo(tmp_path / "pipe.csv")
 
 
 # ---- 1. one number rule ---------------------------------------------------------------------
@@ -200,8 +211,7 @@ def test_a_fifo_is_refused_promptly_as_a_trace_or_waypoints(fifo, read):
 
 @pytest.mark.parametrize("table", ["delay", "reference"])
 def test_a_fifo_named_by_a_scenario_is_refused_on_the_command_line(fifo, tmp_path, capsys, table):
-    value = {"type": "trace", "path": fifo.name} if table == "delay" else {**_SPLINE}
-    value["path"] = fifo.name
+    value = {**({"type": "trace"} if table == "delay" else _SPLINE), "path": fifo.name}
     scenario = scenario_file(tmp_path, **{table: value})
     assert promptly(fifo, main, ["simulate", str(scenario), "--out", str(tmp_path / "o")]) == 2
     one_line_error(capsys, f"'{table}.path' = ", "is not a file but a FIFO (named pipe)")
@@ -209,10 +219,7 @@ def test_a_fifo_named_by_a_scenario_is_refused_on_the_command_line(fifo, tmp_pat
 
 @pytest.mark.parametrize("command", ["simulate", "sweep"])
 def test_a_scenario_or_sweep_file_that_is_a_fifo_is_refused(tmp_path, capsys, command):
-    if not hasattr(os, "mkfifo"):
-        pytest.skip("no FIFOs on this system")
-    fifo = tmp_path / "case.toml"
-    os.mkfifo(fifo)
+    fifo = make_fifo(tmp_path / "case.toml")
     read = Scenario.from_toml if command == "simulate" else SweepSpec.from_toml
     error = promptly(fifo, read, fifo)
     assert isinstance(error, ScenarioError) and "must be a regular file" in str(error)
@@ -230,10 +237,7 @@ def test_a_scenario_or_sweep_file_that_is_a_device_is_refused(tmp_path, capsys, 
 
 
 def test_a_factory_file_that_is_a_fifo_is_refused(tmp_path):
-    if not hasattr(os, "mkfifo"):
-        pytest.skip("no FIFOs on this system")
-    fifo = tmp_path / "make.py"
-    os.mkfifo(fifo)
+    fifo = make_fifo(tmp_path / "make.py")
     scenario = scenario_file(tmp_path)
     text = scenario.read_text().replace('type = "arolc"', 'type = "python:make.py:controller"')
     scenario.write_text(text)
@@ -243,13 +247,8 @@ def test_a_factory_file_that_is_a_fifo_is_refused(tmp_path):
 
 
 def test_a_mujoco_model_that_is_a_fifo_is_refused(tmp_path):
-    pytest.importorskip("mujoco")
-    from delaytrack.plants import MujocoPlant
-
-    if not hasattr(os, "mkfifo"):
-        pytest.skip("no FIFOs on this system")
-    fifo = tmp_path / "arm.xml"
-    os.mkfifo(fifo)
+    MujocoPlant = mujoco_plant()
+    fifo = make_fifo(tmp_path / "arm.xml")
     error = promptly(fifo, MujocoPlant, fifo)
     assert isinstance(error, ValueError) and "is not a file but a FIFO" in str(error)
 
@@ -541,15 +540,10 @@ def _model(folder: Path, extra: str, suffix: str = ".xml") -> Path:
     ],
 )
 def test_a_fifo_a_mujoco_model_includes_or_names_is_refused(tmp_path, fifo_name, extra, element):
-    pytest.importorskip("mujoco")
-    from delaytrack.plants import MujocoPlant
-
-    if not hasattr(os, "mkfifo"):
-        pytest.skip("no FIFOs on this system")
+    MujocoPlant = mujoco_plant()
     (tmp_path / "meshes").mkdir()
     (tmp_path / "sub").mkdir()
-    fifo = tmp_path / ("meshes" if fifo_name == "p.stl" else "") / fifo_name
-    os.mkfifo(fifo)
+    fifo = make_fifo(tmp_path / ("meshes" if fifo_name == "p.stl" else "") / fifo_name)
     (tmp_path / "sub" / "one.xml").write_text(f'<mujoco>\n<include file="{fifo}"/>\n</mujoco>\n')
     model = _model(tmp_path, extra.format(fifo=fifo))
     error = promptly(fifo, MujocoPlant, model)  # hung in MuJoCo's read before
@@ -559,13 +553,8 @@ def test_a_fifo_a_mujoco_model_includes_or_names_is_refused(tmp_path, fifo_name,
 
 
 def test_a_fifo_a_urdf_names_as_a_mesh_is_refused(tmp_path):
-    pytest.importorskip("mujoco")
-    from delaytrack.plants import MujocoPlant
-
-    if not hasattr(os, "mkfifo"):
-        pytest.skip("no FIFOs on this system")
-    fifo = tmp_path / "link.stl"
-    os.mkfifo(fifo)
+    MujocoPlant = mujoco_plant()
+    fifo = make_fifo(tmp_path / "link.stl")
     urdf = Path(__file__).resolve().parents[1] / "examples" / "mujoco_urdf" / "two_link.urdf"
     text = urdf.read_text().replace(
         '<link name="fore">',
@@ -580,8 +569,7 @@ def test_a_fifo_a_urdf_names_as_a_mesh_is_refused(tmp_path):
 
 
 def test_devices_and_bounds_of_files_a_model_names(tmp_path):
-    pytest.importorskip("mujoco")
-    from delaytrack.plants import MujocoPlant
+    MujocoPlant = mujoco_plant()
     from delaytrack.plants.mujoco.model_files import MAX_INCLUDE_DEPTH, check_model_files
 
     if Path("/dev/zero").exists():

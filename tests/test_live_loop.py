@@ -9,6 +9,7 @@ here asserts a timing: only order, completeness, the delay rule, exit codes and 
 from __future__ import annotations
 
 import csv
+import json
 import os
 import signal
 import socket
@@ -151,8 +152,6 @@ def sessions(tmp_path_factory):
 def test_a_session_runs_and_every_node_exits_cleanly(sessions):
     folder, (stdout, stderr) = sessions["run"]
     assert sessions["run_code"] == 0, stderr.decode()
-    import json
-
     summary = json.loads((folder / "summary.json").read_text())
     assert summary["exit_codes"] == {"robot": 0, "delay": 0, "controller": 0}
     for name in ("controller.mcap", "delay.mcap", "robot.mcap", "ticks.csv", "delays.csv"):
@@ -163,9 +162,18 @@ def test_commands_keep_their_order_and_none_is_lost_without_packet_loss(sessions
     folder, _ = sessions["run"]
     ticks = [int(r["k"]) for r in _rows(folder / "ticks.csv")]
     assert ticks == sorted(set(ticks))  # sequence numbers increase
-    sent = {int(r["k"]) for r in _rows(folder / "ticks.csv") if r["status"] != "no-state"}
+    sent = {
+        int(r["k"]): float(r["send_s"])
+        for r in _rows(folder / "ticks.csv")
+        if r["status"] != "no-state"
+    }
     received = _rows(folder / "releases.csv")
-    assert {int(r["seq"]) for r in received} == sent
+    seqs = {int(r["seq"]) for r in received}
+    assert seqs <= set(sent)
+    # Every command sent while the delay node's loop ran reaches it; one sent after its end is
+    # taken in only if it arrives within the node's last second (a loaded machine may miss it).
+    delay_end = json.loads((folder / "delay.json").read_text())["session_s"]
+    assert {k for k, send in sent.items() if send <= delay_end} <= seqs
     assert all(r["lost"] == "0" for r in received)
     arrival = [float(r["received_s"]) for r in sorted(received, key=lambda r: int(r["seq"]))]
     assert arrival == sorted(arrival)
@@ -292,11 +300,11 @@ def test_the_session_writes_metrics_figures_and_a_report(sessions):
             assert column in metrics.columns
             assert np.isfinite(metrics.loc[0, column]) and metrics.loc[0, column] >= 0
     assert "tv_Nm" in metrics.columns
-    for name in ("tracking", "error", "commands", "delay", "timing"):
+    figures = ("tracking", "error", "commands", "delay", "timing")  # the report's figures
+    for name in figures:
         assert (folder / "figures" / f"{name}.png").read_bytes().startswith(b"\x89PNG")
-    html = (folder / "report.html").read_text()
-    assert html.count("data:image/png;base64,") == 5 and "realised delay" in html
-    import json
+    html = (folder / "report.html").read_text()  # each figure embedded once
+    assert html.count("data:image/png;base64,") == len(figures) and "realised delay" in html
 
     from delaytrack._output import MANIFEST
 

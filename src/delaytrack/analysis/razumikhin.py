@@ -285,13 +285,17 @@ def lyapunov_matrix(K1: object, K2: object, Q: object, *, n: int | None = None) 
         :data:`MAX_COUPLED_JOINTS` (P is one dense 2n x 2n problem).
     """
     K1_matrix, K2_matrix = _gains(K1, K2, n, spd=False)
-    _check_coupled(K1_matrix.shape[0], "for AROLC's P (solved whole, whatever the gains)")
+    _check_coupled(K1_matrix.shape[0], _WHOLE_P)
     Q_matrix = _weight_matrix(Q, K1_matrix.shape[0])
     size = K1_matrix.shape[0]
     matrices = b"".join(matrix.tobytes() for matrix in (K1_matrix, K2_matrix, Q_matrix))
     solve = _solved_lyapunov if size <= _REMEMBERED_JOINTS else _solved_lyapunov.__wrapped__
     return solve(size, matrices).copy()
 
+
+#: Why :func:`lyapunov_matrix` (AROLC's P) solves one coupled Lyapunov equation, for
+#: :func:`_check_coupled`.
+_WHOLE_P = "for AROLC's P (solved whole, whatever the gains)"
 
 #: Solutions of :func:`lyapunov_matrix` kept for gains met again (a sweep's runs), for up to
 #: this many joints: at most 256 solutions of under 80 kB each with their inputs.

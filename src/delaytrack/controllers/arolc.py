@@ -31,6 +31,7 @@ from delaytrack._jit import hot_kernel, tick_kernel
 from delaytrack._small_linalg import matvec
 from delaytrack._validation import as_spd_matrix, positive_scalar
 from delaytrack.analysis.razumikhin import (
+    _WHOLE_P,
     _check_coupled,
     error_dynamics_matrices,
     lyapunov_matrix,
@@ -154,7 +155,7 @@ class AROLC(Controller):
     def __post_init__(self) -> None:
         self._check_model()
         n = self.model.n
-        _check_coupled(n, "for AROLC's P (solved whole, whatever the gains)")  # before Q's check
+        _check_coupled(n, _WHOLE_P)  # before Q's check
         object.__setattr__(self, "K1", as_spd_matrix("K1", self.K1, n))
         object.__setattr__(self, "K2", as_spd_matrix("K2", self.K2, n))
         object.__setattr__(self, "Q", as_spd_matrix("Q", self.Q, 2 * n))

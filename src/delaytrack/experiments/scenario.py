@@ -475,17 +475,7 @@ class Scenario:
         """
         trusted = Trust.of(trust)
         source = Path(path)
-        try:
-            regular_file(source, "scenario file", ScenarioError)
-            text = source.read_text(encoding="utf-8-sig")  # a byte-order mark is not TOML
-        except FileNotFoundError:
-            raise ScenarioError(f"scenario file {str(source)!r} does not exist") from None
-        except (OSError, UnicodeDecodeError) as error:
-            raise ScenarioError(f"cannot read scenario file {str(source)!r}: {error}") from None
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as error:
-            raise ScenarioError(f"{source}: not valid TOML: {error}") from None
+        data = read_toml_file(source, "scenario file", ScenarioError)
         try:
             for table in _TABLES:
                 resolve_file_keys(source, table, data.get(table), trusted)
@@ -732,6 +722,22 @@ def _construct(table: str, make: Callable[[], Any], keys: Iterable[str] = ()) ->
                     f"scenario key '{table}.{key}' {message[len(key) + 1 :]}"
                 ) from None
         raise ScenarioError(f"scenario table [{table}]: {message}") from None
+
+
+def read_toml_file(source: Path, what: str, error: type[ScenarioError]) -> dict[str, Any]:
+    """The TOML data of the file ``source`` (a regular file of bounded size, a byte-order mark
+    allowed), or ``error`` naming ``what`` (``"scenario file"``) and the file."""
+    try:
+        regular_file(source, what, error)
+        text = source.read_text(encoding="utf-8-sig")  # a byte-order mark is not TOML
+    except FileNotFoundError:
+        raise error(f"{what} {str(source)!r} does not exist") from None
+    except (OSError, UnicodeDecodeError) as problem:
+        raise error(f"cannot read {what} {str(source)!r}: {problem}") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as problem:
+        raise error(f"{source}: not valid TOML: {problem}") from None
 
 
 def resolve_file_keys(source: Path, table: str, value: object, trust: Trust) -> None:

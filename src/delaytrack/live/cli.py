@@ -33,6 +33,26 @@ def _seconds(text: str) -> float:
     return value
 
 
+def _loss_and_lead_arguments(command: argparse.ArgumentParser, releases: str) -> None:
+    """The delay node's --loss, --loss-seed and --lead (on ``live delay`` and ``live run``)."""
+    command.add_argument(
+        "--loss",
+        type=float,
+        default=None,
+        metavar="P",
+        help="packet loss probability (default: the scenario's packet_loss)",
+    )
+    command.add_argument("--loss-seed", type=int, default=0, metavar="SEED")
+    command.add_argument(
+        "--lead",
+        type=_seconds,
+        default=None,
+        metavar="S",
+        help=f"{releases} this long before the robot step it is for (default: a quarter of "
+        "the session's smallest delay, within 2 ms, at least min(dt/2, 0.5 ms))",
+    )
+
+
 def _node_arguments(command: argparse.ArgumentParser, role: str) -> None:
     command.add_argument("scenario", help="scenario file, or the name of a shipped scenario")
     command.add_argument(
@@ -110,22 +130,7 @@ def _node_arguments(command: argparse.ArgumentParser, role: str) -> None:
             help="on a stale state, hold the last command or send zeros",
         )
     elif role == "delay":
-        command.add_argument(
-            "--loss",
-            type=float,
-            default=None,
-            metavar="P",
-            help="packet loss probability (default: the scenario's packet_loss)",
-        )
-        command.add_argument("--loss-seed", type=int, default=0, metavar="SEED")
-        command.add_argument(
-            "--lead",
-            type=_seconds,
-            default=None,
-            metavar="S",
-            help="release this long before the robot step it is for (default: a quarter of "
-            "the session's smallest delay, within 2 ms, at least min(dt/2, 0.5 ms))",
-        )
+        _loss_and_lead_arguments(command, "release")
     else:
         command.add_argument(
             "--state-every",
@@ -205,23 +210,7 @@ def add_live_commands(commands: Any, parser_class: type[argparse.ArgumentParser]
         metavar="PORT",
         help="first of three TCP ports on 127.0.0.1 (default: free ports)",
     )
-    run.add_argument(
-        "--loss",
-        type=float,
-        default=None,
-        metavar="P",
-        help="packet loss probability (default: the scenario's packet_loss)",
-    )
-    run.add_argument("--loss-seed", type=int, default=0, metavar="SEED")
-    run.add_argument(
-        "--lead",
-        type=_seconds,
-        default=None,
-        metavar="S",
-        help="the delay node releases a command this long before the robot step it is for "
-        "(default: a quarter of the session's smallest delay, within 2 ms, at least "
-        "min(dt/2, 0.5 ms))",
-    )
+    _loss_and_lead_arguments(run, "the delay node releases a command")
     run.add_argument("--handshake-timeout", type=_seconds, default=60.0, metavar="S")
     run.add_argument(
         "--trust",

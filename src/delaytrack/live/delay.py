@@ -305,6 +305,7 @@ class DelayNode(NodeBase):
             "dropped_by_queue": self._received.dropped,
             "missed_steps": self.missed_steps,
             "wakes": self.wakes,
+            "session_s": self.session_s,
             "wakes_per_s": self.wakes / self.session_s if self.session_s > 0 else math.nan,
             "release_lateness_ms_p50": percentile(self.lateness_ms, 50),
             "release_lateness_ms_p99": percentile(self.lateness_ms, 99),

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from delaytrack.live.session import _f, _read_csv
+from delaytrack.live.session import _f, _ms, _read_csv
 
 __all__ = ["live_result", "metrics_with_units", "write_session_report"]
 
@@ -88,20 +88,15 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
 def metrics_with_units(result: Any, label: str) -> Any:
     """:func:`delaytrack.metrics.metrics_table` of ``result`` with each metric's unit in its
     column name (``ae_x_m``, ``rms_phi_rad``, ``tv_Nm`` when the inputs share a unit)."""
+    from delaytrack._result_columns import metric_units
     from delaytrack.metrics import metrics_table
-    from delaytrack.units import default_names, with_unit
+    from delaytrack.units import with_unit
 
     table = metrics_table(result, label=label)
-    names = default_names(result.coordinate_names, result.n)
-    units = result.coordinate_units or (None,) * result.n
-    renamed = {
-        f"{prefix}_{name}": with_unit(f"{prefix}_{name}", unit)
-        for prefix in ("ae", "rms", "max")
-        for name, unit in zip(names, units, strict=True)
-    }
-    inputs = set(result.input_units or (None,))
-    if len(inputs) == 1:
-        renamed["tv"] = with_unit("tv", inputs.pop())
+    units = metric_units(
+        result.coordinate_names, result.coordinate_units, result.n, result.input_units
+    )
+    renamed = {metric: with_unit(metric, unit) for metric, unit in units.items()}
     renamed["t_stop"] = "t_stop_s"
     return table.rename(columns=renamed)
 
@@ -163,10 +158,6 @@ def _timing_figure(folder: Path) -> Any:
     _histogram(axes[2], np.array([_f(r["lateness_ms"]) for r in steps]), "robot step lateness")
     figure.suptitle("Timing of the session's ticks and steps (counts on a log scale)")
     return figure
-
-
-def _ms(value: Any) -> str:
-    return "n/a" if value is None or not math.isfinite(value) else f"{value:.3f} ms"
 
 
 def write_session_report(

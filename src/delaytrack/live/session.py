@@ -64,6 +64,11 @@ def _f(text: str | None) -> float:
         return math.nan
 
 
+def _ms(value: Any) -> str:
+    """A duration in milliseconds for the summary and the report, or n/a."""
+    return "n/a" if value is None or not math.isfinite(value) else f"{value:.3f} ms"
+
+
 def node_commands(args: Any, folder: Path, ports: list[int], session: str) -> dict[str, list[str]]:
     """The command line of each node."""
     endpoint = {role: f"tcp/127.0.0.1:{port}" for role, port in zip(ROLES, ports, strict=True)}
@@ -277,23 +282,20 @@ def format_summary(summary: dict[str, Any], folder: Path) -> str:
     r = summary["nodes"].get("robot") or {}
     d = summary["nodes"].get("delay") or {}
 
-    def ms(value: Any) -> str:
-        return "n/a" if value is None or not math.isfinite(value) else f"{value:.3f} ms"
-
     return "\n".join(
         [
             f"live session {summary['scenario']} (T_c = {summary['T_c_s'] * 1e3:g} ms, "
             f"dt = {summary['dt_s'] * 1e3:g} ms) -> {folder}",
             f"  controller: {c.get('ticks', 0)} ticks, {c.get('missed', 0)} missed, lateness p50 "
-            f"{ms(c.get('lateness_ms_p50'))} p99 {ms(c.get('lateness_ms_p99'))}, compute p99 "
-            f"{ms(c.get('compute_ms_p99'))}, stale {c.get('stale', 0)}",
+            f"{_ms(c.get('lateness_ms_p50'))} p99 {_ms(c.get('lateness_ms_p99'))}, compute p99 "
+            f"{_ms(c.get('compute_ms_p99'))}, stale {c.get('stale', 0)}",
             f"  delay node: {d.get('received', 0)} received, {d.get('lost', 0)} lost (injected), "
             f"{d.get('released', 0)} releases",
             f"  robot: {r.get('steps', 0)} steps, {r.get('missed_steps', 0)} missed, lateness p99 "
-            f"{ms(r.get('lateness_ms_p99'))}, zero input {r.get('no_command_steps', 0)} steps "
+            f"{_ms(r.get('lateness_ms_p99'))}, zero input {r.get('no_command_steps', 0)} steps "
             f"before the first command + {r.get('timeout_zero_steps', 0)} on timeout",
-            f"  realised delay - h(t_applied): p50 {ms(summary['realised_minus_h_ms_p50'])}, "
-            f"|.| p99 {ms(summary['realised_minus_h_abs_ms_p99'])}; "
+            f"  realised delay - h(t_applied): p50 {_ms(summary['realised_minus_h_ms_p50'])}, "
+            f"|.| p99 {_ms(summary['realised_minus_h_abs_ms_p99'])}; "
             f"{summary['never_applied']} commands never applied",
         ]
     )

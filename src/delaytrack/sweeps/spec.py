@@ -42,7 +42,6 @@ import hashlib
 import itertools
 import json
 import math
-import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -54,7 +53,6 @@ import numpy as np
 from tqdm.auto import tqdm
 
 import delaytrack
-from delaytrack._io import regular_file
 from delaytrack._numba_cache import source_hash
 from delaytrack._trust import Trust
 from delaytrack._validation import is_integer_at_least
@@ -64,6 +62,7 @@ from delaytrack.experiments.scenario import (
     ScenarioError,
     builtin_scenario_names,
     builtin_scenario_path,
+    read_toml_file,
     remembered_tables,
     resolve_file_keys,
 )
@@ -542,15 +541,7 @@ class SweepSpec:
         """
         trusted = Trust.of(trust)
         source = Path(path)
-        try:
-            regular_file(source, "sweep file", SweepError)
-            data = tomllib.loads(source.read_text(encoding="utf-8-sig"))
-        except FileNotFoundError:
-            raise SweepError(f"sweep file {str(source)!r} does not exist") from None
-        except (OSError, UnicodeDecodeError) as error:
-            raise SweepError(f"cannot read sweep file {str(source)!r}: {error}") from None
-        except tomllib.TOMLDecodeError as error:
-            raise SweepError(f"{source}: not valid TOML: {error}") from None
+        data = read_toml_file(source, "sweep file", SweepError)
         try:
             for section in ("grid", "random"):
                 swept = data.get(section)

@@ -174,6 +174,7 @@ def test_commands_keep_their_order_and_none_is_lost_without_packet_loss(sessions
     # taken in only if it arrives within the node's last second (a loaded machine may miss it).
     delay_end = json.loads((folder / "delay.json").read_text())["session_s"]
     assert {k for k, send in sent.items() if send <= delay_end} <= seqs
+    assert json.loads((folder / "summary.json").read_text())["not_received"] == 0
     assert all(r["lost"] == "0" for r in received)
     arrival = [float(r["received_s"]) for r in sorted(received, key=lambda r: int(r["seq"]))]
     assert arrival == sorted(arrival)

@@ -36,6 +36,7 @@ from delaytrack.live._node import NodeBase, percentile
 from delaytrack.live.clock import Ticker
 from delaytrack.live.log import McapLog, write_csv
 from delaytrack.live.messages import HELD_STALE, CommandMessage, StateMessage
+from delaytrack.live.transport import declare_stream
 
 __all__ = ["ControllerNode"]
 
@@ -115,7 +116,7 @@ class ControllerNode(NodeBase):
             self._states.append((message, received))
 
     def declare(self, session: Any, prefix: str) -> None:
-        self._publisher = session.declare_publisher(f"{prefix}/command", express=True)
+        self._publisher = declare_stream(session, f"{prefix}/command")
         self._subscriber = session.declare_subscriber(f"{prefix}/state", self._on_state)
         self.entities += [self._subscriber, self._publisher]
 

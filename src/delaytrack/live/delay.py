@@ -50,6 +50,7 @@ from delaytrack.live._node import NodeBase, Received, percentile
 from delaytrack.live.clock import steps_until
 from delaytrack.live.log import McapLog, write_csv
 from delaytrack.live.messages import CommandMessage, ReleaseMessage
+from delaytrack.live.transport import declare_stream
 from delaytrack.sim.packet_loss import PacketLoss, packet_lost
 
 __all__ = ["DelayNode", "default_lead"]
@@ -117,7 +118,7 @@ class DelayNode(NodeBase):
         self._received = Received(
             CommandMessage.decode, wake=lambda message: message.t_k <= self._reach
         )
-        self._publisher = session.declare_publisher(f"{prefix}/release", express=True)
+        self._publisher = declare_stream(session, f"{prefix}/release")
         self._subscriber = session.declare_subscriber(f"{prefix}/command", self._received)
         self.entities += [self._subscriber, self._publisher]
 

@@ -250,7 +250,8 @@ def write_session_report(
             "robot step lateness p50 / p99": f"{_ms(r.get('lateness_ms_p50'))} / "
             f"{_ms(r.get('lateness_ms_p99'))}",
             "delay node": f"{d.get('received', 0)} commands received, {d.get('lost', 0)} lost "
-            f"(injected), {d.get('released', 0)} releases, "
+            f"(injected), {summary.get('not_received', 0)} sent but never received, "
+            f"{d.get('released', 0)} releases, "
             f"{d.get('wakes_per_s', math.nan):.0f} wake-ups/s, lead {d.get('lead_ms', 0):g} ms",
             "realised delay − h(t) p50 / |.| p99": f"{_ms(summary.get('realised_minus_h_ms_p50'))}"
             f" / {_ms(summary.get('realised_minus_h_abs_ms_p99'))}",

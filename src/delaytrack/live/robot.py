@@ -35,6 +35,7 @@ from delaytrack.live._node import NodeBase, Received, percentile
 from delaytrack.live.clock import Ticker, steps_until
 from delaytrack.live.log import McapLog, write_csv
 from delaytrack.live.messages import ReleaseMessage, StateMessage
+from delaytrack.live.transport import declare_stream
 
 __all__ = ["PlantStepper", "RobotNode"]
 
@@ -168,7 +169,7 @@ class RobotNode(NodeBase):
 
     def declare(self, session: Any, prefix: str) -> None:
         self._received = Received(ReleaseMessage.decode)
-        self._publisher = session.declare_publisher(f"{prefix}/state", express=True)
+        self._publisher = declare_stream(session, f"{prefix}/state")
         self._subscriber = session.declare_subscriber(f"{prefix}/release", self._received)
         self.entities += [self._subscriber, self._publisher]
 

@@ -256,12 +256,16 @@ def collect(folder: Path, scenario: Any) -> dict[str, Any]:
         nodes[role] = json.loads(path.read_text()) if path.is_file() else None
     error = np.array([r[10] for r in rows], dtype=float)
     end = len(_read_csv(folder / "steps.csv")) * scenario.dt
+    listened = (nodes.get("delay") or {}).get("session_s", -math.inf)
     return {
         "scenario": scenario.name,
         "T_c_s": scenario.T_c,
         "dt_s": scenario.dt,
         "commands": len(rows),
         "lost": sum(1 for r in rows if r[4] == 1),
+        # Commands sent while the delay node listened that never reached it (the transport's
+        # losses, as opposed to the injected ones counted in "lost").
+        "not_received": sum(1 for r in rows if r[4] == -1 and r[2] <= listened),
         # Commands the rule would have applied before the session ended that never were (the
         # last ones, still held when it ended, are not counted).
         "never_applied": sum(
@@ -290,6 +294,7 @@ def format_summary(summary: dict[str, Any], folder: Path) -> str:
             f"{_ms(c.get('lateness_ms_p50'))} p99 {_ms(c.get('lateness_ms_p99'))}, compute p99 "
             f"{_ms(c.get('compute_ms_p99'))}, stale {c.get('stale', 0)}",
             f"  delay node: {d.get('received', 0)} received, {d.get('lost', 0)} lost (injected), "
+            f"{summary.get('not_received', 0)} sent but never received, "
             f"{d.get('released', 0)} releases",
             f"  robot: {r.get('steps', 0)} steps, {r.get('missed_steps', 0)} missed, lateness p99 "
             f"{_ms(r.get('lateness_ms_p99'))}, zero input {r.get('no_command_steps', 0)} steps "

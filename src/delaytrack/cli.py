@@ -33,7 +33,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import sys
 import time
 from collections.abc import Sequence
@@ -42,6 +41,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from delaytrack._cli_options import (
+    EXIT_USAGE,
+    OptionParser,
+    integer,
+    quiet_argument,
+    trust_argument,
+)
 from delaytrack._output import (
     OutputFolderError,
     check_output_folder,
@@ -58,7 +64,6 @@ if TYPE_CHECKING:
 
 __all__ = ["main"]
 
-EXIT_USAGE = 2
 #: A reader closed standard output (``| head``): 128 + SIGPIPE, as a shell reports a program
 #: that the pipe's signal ended.
 EXIT_BROKEN_PIPE = 141
@@ -87,13 +92,6 @@ def _float(flag: str, part: str, text: str, what: str) -> float:
         else:
             message = f"{flag} entry {part.strip()} {error}"
         raise UsageError(f"{message}; got {text!r}") from None
-
-
-def _integer(text: str) -> int:
-    """argparse type: an integer in decimal digits (``1_000`` and ``٣`` are refused)."""
-    if not re.fullmatch(r"[+-]?[0-9]+", text.strip()):
-        raise argparse.ArgumentTypeError(f"must be an integer in decimal digits; got {text!r}")
-    return int(text)
 
 
 def _numbers(flag: str, text: str) -> np.ndarray:
@@ -718,13 +716,6 @@ def _tune_baselines(args: argparse.Namespace) -> int:
 # --------------------------------------------------------------------------------------------
 
 
-class _Parser(argparse.ArgumentParser):
-    """argparse with one-line errors (``error: ...``) and exit code 2, without the usage dump."""
-
-    def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(EXIT_USAGE, f"error: {message} (see {self.prog} --help)\n")
-
-
 def _theorem_1_arguments(command: argparse.ArgumentParser, q_default: str | None) -> None:
     """Add --k1, --k2, --q, --beta, --r, --n and --json; --q is required when it has no default."""
     command.add_argument(
@@ -744,7 +735,7 @@ def _theorem_1_arguments(command: argparse.ArgumentParser, q_default: str | None
     command.add_argument("--beta", default="1", metavar="BETA", help="beta > 0 (default 1)")
     command.add_argument(
         "--n",
-        type=_integer,
+        type=integer,
         default=None,
         help="number of joints (default: length of a comma list, else 1)",
     )
@@ -761,31 +752,9 @@ def _r_and_json_arguments(command: argparse.ArgumentParser) -> None:
     )
 
 
-def _trust_argument(command: argparse.ArgumentParser) -> None:
-    """``--trust NAME``, repeatable: factories a scenario or sweep file may name beyond the
-    ``.py`` files beside it."""
-    command.add_argument(
-        "--trust",
-        action="append",
-        default=[],
-        metavar="NAME",
-        help='allow the factories (type = "python:...", Python code that runs with your '
-        "rights) of a module and its submodules (mylab.robots), or of a .py file or of every "
-        "file below a folder (a path: ./robots, ~/lab/arm.py); repeatable. Without it only "
-        ".py files in the scenario or sweep file's folder or below it run",
-    )
-
-
-def _quiet_argument(command: argparse.ArgumentParser) -> None:
-    """``--quiet`` (no progress bars), and ``--progress`` kept as an accepted no-op: progress
-    is shown by default."""
-    command.add_argument("--quiet", action="store_true", help="no progress bars")
-    command.add_argument("--progress", action="store_true", help=argparse.SUPPRESS)
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``delaytrack`` command."""
-    parser = _Parser(
+    parser = OptionParser(
         prog="delaytrack",
         description="AROLC for Euler-Lagrange systems with unknown input delay: certified delay "
         "bound, simulation, and the main job.",
@@ -793,7 +762,7 @@ def build_parser() -> argparse.ArgumentParser:
     from delaytrack import __version__
 
     parser.add_argument("--version", action="version", version=f"delaytrack {__version__}")
-    commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OptionParser)
     commands.required = True
 
     bound = commands.add_parser(
@@ -824,7 +793,7 @@ def build_parser() -> argparse.ArgumentParser:
         "largest delay Theorem 1 certifies, with every diagonal entry of K1 and K2 at most "
         "--gain-bound. Example: delaytrack design --gain-bound 1 --seed 0",
     )
-    design.add_argument("--n", type=_integer, default=1, help="number of joints (default 1)")
+    design.add_argument("--n", type=integer, default=1, help="number of joints (default 1)")
     design.add_argument(
         "--gain-bound",
         default="1",
@@ -837,7 +806,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="W",
         help="least natural frequency sqrt(k1) of the delay-free loop, rad/s (default: none)",
     )
-    design.add_argument("--seed", type=_integer, default=0, help="search seed (default 0)")
+    design.add_argument("--seed", type=integer, default=0, help="search seed (default 0)")
     _r_and_json_arguments(design)
     design.set_defaults(handler=_design)
 
@@ -862,8 +831,8 @@ def build_parser() -> argparse.ArgumentParser:
         default="parquet",
         help="trajectory file format (default parquet)",
     )
-    _trust_argument(simulate)
-    _quiet_argument(simulate)
+    trust_argument(simulate)
+    quiet_argument(simulate)
     simulate.set_defaults(handler=_simulate)
 
     empirical = commands.add_parser(
@@ -915,8 +884,8 @@ def build_parser() -> argparse.ArgumentParser:
     empirical.add_argument(
         "--json", action="store_true", help="print one JSON object instead of text"
     )
-    _trust_argument(empirical)
-    _quiet_argument(empirical)
+    trust_argument(empirical)
+    quiet_argument(empirical)
     empirical.set_defaults(handler=_empirical)
 
     reproduce = commands.add_parser(
@@ -977,7 +946,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="PATH",
         help="gains file to use instead of the shipped one (written by tune-baselines)",
     )
-    _quiet_argument(reproduce)
+    quiet_argument(reproduce)
     reproduce.set_defaults(handler=_reproduce)
 
     sweep = commands.add_parser(
@@ -1008,8 +977,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="threads of the local executor, or worker processes of --scheduler local-cluster "
         "(default: all cores)",
     )
-    _trust_argument(sweep)
-    _quiet_argument(sweep)
+    trust_argument(sweep)
+    quiet_argument(sweep)
     sweep.set_defaults(handler=_sweep)
 
     tune = commands.add_parser(
@@ -1027,12 +996,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="gains file to write (default results/baseline_gains.toml; use it with "
         "delaytrack reproduce --gains PATH)",
     )
-    _quiet_argument(tune)
+    quiet_argument(tune)
     tune.set_defaults(handler=_tune_baselines)
 
     from delaytrack.live.cli import add_live_commands  # the real-time loop (delaytrack[live])
 
-    add_live_commands(commands, _Parser)
+    add_live_commands(commands)
     return parser
 
 

@@ -1,27 +1,67 @@
-"""What the three nodes share: loading the scenario, the Zenoh session, the handshake, signals,
-the status line and the run's life cycle (:func:`run_node`)."""
+"""What the three nodes share: loading the scenario, the session's length, the output folder,
+the Zenoh session, the handshake, signals, the status line and the run's life cycle
+(:func:`run_node`).
+
+A node writes into its ``--out`` folder as every command of the toolkit writes its results
+folder (:mod:`delaytrack._output`): the folder, with ``..`` and links resolved, must be new,
+empty or one this toolkit wrote, and holds no link; the node marks it before writing and
+records its files at the end (:func:`claim_node_folder`, :func:`record_node_files`). The three
+nodes of a session may share one folder (each writes its own role's files) or use one each. The
+nodes that share a folder claim and record it in turn, under a lock on the folder's path, so
+that one node's check never sees another's marker half-written.
+"""
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import json
 import math
+import os
 import signal
 import sys
+import tempfile
 import threading
 import time
 from collections import deque
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from delaytrack._io import write_text
+from delaytrack._output import check_output_folder, claim_output_folder, record_outputs
 from delaytrack.live.transport import Handshake, HandshakeError, open_session, scenario_hashes
+from delaytrack.sim.simulate import MAX_STEPS, physical_memory
 
-__all__ = ["NodeBase", "Received", "StopFlag", "load_scenario", "percentile", "run_node"]
+try:
+    import fcntl
+except ImportError:  # Windows: the nodes sharing a folder claim it unlocked
+    fcntl = None
 
-#: Exit codes: 0 done (also when stopped by SIGTERM), 2 refused (a usage error, a scenario
-#: that differs from a peer's, no peer in time), 130 stopped by SIGINT.
-EXIT_OK, EXIT_REFUSED, EXIT_INTERRUPTED = 0, 2, 130
+__all__ = [
+    "NodeBase",
+    "Received",
+    "StopFlag",
+    "claim_node_folder",
+    "load_scenario",
+    "percentile",
+    "record_node_files",
+    "run_node",
+    "session_duration",
+    "session_files",
+]
+
+#: Memory a live session holds per plant step until it ends, all nodes on one machine: the
+#: robot's row of the step (about 320 bytes in Python lists, measured), its states and the
+#: other nodes' rows of ticks and releases, rounded up.
+BYTES_PER_STEP = 1024
+
+#: Exit codes: 0 done (also when stopped by SIGTERM), 1 stopped by a failure of its own (the
+#: robot's state), 2 refused (a usage error, a scenario that differs from a peer's, no peer in
+#: time), 130 stopped by SIGINT.
+EXIT_OK, EXIT_FAILED, EXIT_REFUSED, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 
 class StopFlag:
@@ -93,6 +133,86 @@ def percentile(values: Any, q: float) -> float:
     return float(np.percentile(array, q)) if array.size else math.nan
 
 
+def session_duration(scenario: Any, duration: float | None) -> float:
+    """The length of a live session in seconds: ``duration`` (``--duration``), or the
+    scenario's when it is None.
+
+    Raises
+    ------
+    ValueError
+        When it is not > 0, or has more plant steps of ``dt`` than a session holds: the nodes
+        keep a row of every step in memory until the session ends (:data:`BYTES_PER_STEP`,
+        within this machine's memory), and a scenario's run has at most
+        :data:`~delaytrack.sim.simulate.MAX_STEPS` steps.
+    """
+    length = float(scenario.duration if duration is None else duration)
+    name = "the scenario's duration" if duration is None else "--duration"
+    if not length > 0:
+        raise ValueError(f"{name} must be > 0 seconds; got {length!r}")
+    steps = length / scenario.dt
+    limit = min(MAX_STEPS, physical_memory() / BYTES_PER_STEP)
+    if steps > limit:
+        raise ValueError(
+            f"{name} {length:g} s is {steps:.3g} plant steps of dt = {scenario.dt:g} s; a live "
+            f"session has at most {limit:.3g} steps ({limit * scenario.dt:.6g} s) on this "
+            f"machine: its nodes keep about {BYTES_PER_STEP} bytes of every step in memory "
+            f"until it ends, and a run has at most {MAX_STEPS:.0e} steps; shorten --duration"
+        )
+    return length
+
+
+@contextlib.contextmanager
+def _folder_turn(out: str) -> Iterator[None]:
+    """Hold an exclusive lock (POSIX ``flock``) named after the folder ``out`` resolved, in the
+    temporary-files folder: nothing is written into ``out`` itself, which may not exist yet.
+    Without ``fcntl`` (Windows), no lock."""
+    if fcntl is None:
+        yield
+        return
+    resolved = os.path.realpath(os.path.expanduser(out))
+    key = hashlib.sha256(os.fsencode(resolved)).hexdigest()[:16]
+    with open(Path(tempfile.gettempdir()) / f"delaytrack-folder-{key}.lock", "a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def claim_node_folder(out: str) -> Path:
+    """Check the folder ``out`` (``--out``) of a node and mark it as this toolkit's before the
+    node writes its first file (module docstring); return it, resolved.
+
+    Raises
+    ------
+    OutputFolderError
+        When it cannot be written, is a file, holds files this toolkit did not write or holds
+        a symbolic link; the message names ``--out``.
+    """
+    with _folder_turn(out):
+        return claim_output_folder(check_output_folder(out, "--out"))
+
+
+def session_files(folder: Path) -> list[Path]:
+    """Every file in a session folder, figures included, but the hidden ones (the folder's
+    marker, files being written): the files for the folder's record."""
+    return [
+        path
+        for path in sorted(folder.rglob("*"))
+        if path.is_file()
+        and not any(part.startswith(".") for part in path.relative_to(folder).parts)
+    ]
+
+
+def record_node_files(folder: Path) -> None:
+    """Record the files of ``folder`` in its marker once a node has written its own
+    (:func:`delaytrack._output.record_outputs`), in turn with the nodes that share it. Every
+    file is recorded and none removed: the folder may hold the files of the other nodes of the
+    session."""
+    with _folder_turn(str(folder)):
+        record_outputs(folder, session_files(folder))
+
+
 def load_scenario(source: str, trust: list[str]) -> Any:
     """A scenario file, or the name of a shipped scenario (``two_link_S1``)."""
     from delaytrack.experiments import builtin_scenario_names, builtin_scenario_path
@@ -115,15 +235,15 @@ class NodeBase:
 
     def __init__(self, scenario: Any, built: Any, args: Any) -> None:
         self.scenario, self.built, self.args = scenario, built, args
-        self.duration = float(args.duration if args.duration is not None else scenario.duration)
-        if not self.duration > 0:
-            raise ValueError(f"--duration must be > 0 seconds; got {self.duration!r}")
+        self.duration = session_duration(scenario, args.duration)
+        self.hashes = scenario_hashes(scenario, built.plant)
         self.out = Path(args.out)
         self.dt, self.T_c = scenario.dt, scenario.T_c
         self.steps_per_tick = round(self.T_c / self.dt)
         self.quiet = bool(getattr(args, "quiet", False))
         self.entities: list[Any] = []
         self.log: Any = None
+        self.failure: str | None = None  # what stopped the node early, said on stderr
         self.t0 = math.nan
         self._last_status = 0.0
 
@@ -136,6 +256,10 @@ class NodeBase:
     def outputs(self) -> dict[str, Any]:
         """Write the node's tables; return its summary (numbers)."""
         raise NotImplementedError
+
+    def close(self) -> None:
+        """Release what the node holds besides its Zenoh session (the robot's bridge); called
+        once the node is done, however it ended."""
 
     def status(self, now: float, text: str) -> None:
         """A status line on stderr every second (not with ``--quiet``)."""
@@ -151,7 +275,7 @@ class NodeBase:
             "dt": repr(self.dt),
             "T_c": repr(self.T_c),
             "duration": repr(self.duration),
-            "hashes": json.dumps(scenario_hashes(self.scenario, self.built.plant)),
+            "hashes": json.dumps(self.hashes),
         }
 
 
@@ -185,11 +309,17 @@ def run_node(node_class: type[NodeBase], args: Any) -> int:
     except (ScenarioError, ValueError) as error:
         print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
         return EXIT_REFUSED
-    node.out.mkdir(parents=True, exist_ok=True)
+    try:
+        node.out = claim_node_folder(args.out)
+    except ValueError as error:  # OutputFolderError
+        node.close()
+        print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
+        return EXIT_REFUSED
     prefix = f"delaytrack/{args.session}"
     try:
         session = open_session(args.listen, args.connect)
     except OSError as error:
+        node.close()
         print(f"error: {error}", file=sys.stderr)
         return EXIT_REFUSED
     handshake = None
@@ -199,7 +329,7 @@ def run_node(node_class: type[NodeBase], args: Any) -> int:
             session,
             prefix,
             node.role,
-            scenario_hashes(scenario, built.plant),
+            node.hashes,
             start_delay=args.start_delay,
         )
         node.declare(session, prefix)
@@ -217,11 +347,20 @@ def run_node(node_class: type[NodeBase], args: Any) -> int:
             if node.log is not None:
                 node.log.close()
         summary = node.outputs()
-        summary["stopped_by"] = signal.Signals(stop.signal).name if stop.signal else "duration"
-        (node.out / f"{node.role}.json").write_text(json.dumps(summary, indent=1) + "\n")
+        summary.update(handshake.clock_offset.summary())
+        summary["stopped_by"] = (
+            signal.Signals(stop.signal).name
+            if stop.signal
+            else ("failure" if node.failure else "duration")
+        )
+        write_text(node.out / f"{node.role}.json", json.dumps(summary, indent=1) + "\n")
+        record_node_files(node.out)
         if stop.signal == signal.SIGINT:
             code = EXIT_INTERRUPTED
+        elif node.failure is not None:
+            code = EXIT_FAILED
     finally:
+        node.close()
         for entity in node.entities:
             try:
                 entity.undeclare()

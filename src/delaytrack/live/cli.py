@@ -12,7 +12,16 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from delaytrack._validation import NumberTextError, decimal_number
+from delaytrack._cli_options import (
+    EXIT_USAGE,
+    OptionParser,
+    decimal,
+    integer,
+    quiet_argument,
+    trust_argument,
+    within,
+)
+from delaytrack.sim.packet_loss import MAX_SEED
 
 __all__ = ["add_live_commands", "main"]
 
@@ -22,34 +31,67 @@ _PAPER = (
 )
 
 
-def _seconds(text: str) -> float:
-    """argparse type: seconds >= 0 in the command line's number rule (``1_000`` is refused)."""
-    try:
-        value = decimal_number(text)
-    except NumberTextError as error:
-        raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}: {error}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected seconds >= 0, got {text!r}")
-    return value
+# The types of the numbers the live commands read (delaytrack._cli_options): a time that may be
+# 0 (--lead, --phase), a length or a time limit (--duration, the timeouts), and the others.
+_SECONDS = within(decimal, "seconds >= 0", lambda value: value >= 0)
+_POSITIVE_SECONDS = within(decimal, "seconds > 0", lambda value: value > 0)
+_PROBABILITY = within(
+    decimal, "a probability in [0, 1) (1 would lose every command)", lambda p: 0 <= p < 1
+)
+_SEED = within(integer, f"an integer from 0 to {MAX_SEED}", lambda seed: 0 <= seed <= MAX_SEED)
+_PORT = within(
+    integer,
+    "a TCP port from 1 to 65533 (the session listens on it and the next two ports; leave "
+    "--port out for free ports)",
+    lambda port: 1 <= port <= 65535 - 2,
+)
+_STEPS = within(integer, "a whole number of steps >= 1", lambda steps: steps >= 1)
 
 
 def _loss_and_lead_arguments(command: argparse.ArgumentParser, releases: str) -> None:
     """The delay node's --loss, --loss-seed and --lead (on ``live delay`` and ``live run``)."""
     command.add_argument(
         "--loss",
-        type=float,
+        type=_PROBABILITY,
         default=None,
         metavar="P",
         help="packet loss probability (default: the scenario's packet_loss)",
     )
-    command.add_argument("--loss-seed", type=int, default=0, metavar="SEED")
+    command.add_argument(
+        "--loss-seed",
+        type=_SEED,
+        default=None,
+        metavar="SEED",
+        help="seed of the losses of --loss (default 0)",
+    )
     command.add_argument(
         "--lead",
-        type=_seconds,
+        type=_SECONDS,
         default=None,
         metavar="S",
         help=f"{releases} this long before the robot step it is for (default: a quarter of "
         "the session's smallest delay, within 2 ms, at least min(dt/2, 0.5 ms))",
+    )
+
+
+def _measurement_argument(command: argparse.ArgumentParser) -> None:
+    """The controller's --no-measurement-noise (on ``live controller`` and ``live run``)."""
+    command.add_argument(
+        "--no-measurement-noise",
+        action="store_true",
+        help="the controller reads the true state: turn the scenario's measurement_noise off "
+        "for this session (said in the summary and the report)",
+    )
+
+
+def _bridge_argument(command: argparse.ArgumentParser) -> None:
+    """The robot node's --bridge (on ``live robot`` and ``live run``)."""
+    command.add_argument(
+        "--bridge",
+        default=None,
+        metavar="FILE.py:FUNCTION",
+        help="your robot instead of the simulated plant: FUNCTION(scenario, dt) in FILE.py "
+        "returns a delaytrack.live.bridge.RobotBridge (docs/live.md, examples/live)",
     )
 
 
@@ -63,7 +105,7 @@ def _node_arguments(command: argparse.ArgumentParser, role: str) -> None:
     )
     command.add_argument(
         "--duration",
-        type=_seconds,
+        type=_POSITIVE_SECONDS,
         default=None,
         metavar="S",
         help="session length in seconds (default: the scenario's duration)",
@@ -90,27 +132,20 @@ def _node_arguments(command: argparse.ArgumentParser, role: str) -> None:
     )
     command.add_argument(
         "--handshake-timeout",
-        type=_seconds,
+        type=_POSITIVE_SECONDS,
         default=60.0,
         metavar="S",
         help="give up when the other nodes have not appeared (default 60 s)",
     )
     command.add_argument(
-        "--start-delay", type=_seconds, default=0.5, metavar="S", help=argparse.SUPPRESS
+        "--start-delay", type=_SECONDS, default=0.5, metavar="S", help=argparse.SUPPRESS
     )
-    command.add_argument(
-        "--trust",
-        action="append",
-        default=[],
-        metavar="NAME",
-        help="trust a factory module or .py file/folder the scenario names",
-    )
-    command.add_argument("--quiet", action="store_true", help="no status line")
-    command.add_argument("--progress", action="store_true", help=argparse.SUPPRESS)
+    trust_argument(command)
+    quiet_argument(command, "status line")
     if role == "controller":
         command.add_argument(
             "--phase",
-            type=_seconds,
+            type=_SECONDS,
             default=None,
             metavar="S",
             help="wake this long after each tick time to read the state "
@@ -118,7 +153,7 @@ def _node_arguments(command: argparse.ArgumentParser, role: str) -> None:
         )
         command.add_argument(
             "--state-timeout",
-            type=_seconds,
+            type=_POSITIVE_SECONDS,
             default=None,
             metavar="S",
             help="a state older than this is stale (default max(5 T_c, 50 ms))",
@@ -129,27 +164,47 @@ def _node_arguments(command: argparse.ArgumentParser, role: str) -> None:
             default="hold",
             help="on a stale state, hold the last command or send zeros",
         )
+        _measurement_argument(command)
     elif role == "delay":
         _loss_and_lead_arguments(command, "release")
     else:
         command.add_argument(
             "--state-every",
-            type=int,
+            type=_STEPS,
             default=None,
             metavar="STEPS",
             help="publish the state every STEPS plant steps (default T_c/dt)",
         )
         command.add_argument(
             "--command-timeout",
-            type=_seconds,
+            type=_POSITIVE_SECONDS,
             default=None,
             metavar="S",
             help="no command for this long: zero input (default max(0.1 s, 10 T_c))",
         )
+        _bridge_argument(command)
+
+
+def _loss_seed_given_alone(args: argparse.Namespace) -> bool:
+    """Whether ``--loss-seed`` is given without ``--loss`` (said on stderr): it would be
+    ignored, as the scenario's ``packet_loss`` has a seed of its own. Otherwise it takes its
+    default, 0, where it is not given."""
+    if args.loss is None and args.loss_seed is not None:
+        print(
+            f"error: --loss-seed {args.loss_seed} seeds the losses of --loss, which is not "
+            "given: give --loss P too (the scenario's packet_loss has a seed of its own)",
+            file=sys.stderr,
+        )
+        return True
+    if args.loss_seed is None:
+        args.loss_seed = 0
+    return False
 
 
 def _node_handler(role: str) -> Any:
     def handler(args: argparse.Namespace) -> int:
+        if role == "delay" and _loss_seed_given_alone(args):
+            return EXIT_USAGE
         if role == "controller":
             from delaytrack.live.controller import main as node_main
         elif role == "delay":
@@ -164,6 +219,8 @@ def _node_handler(role: str) -> Any:
 def _run(args: argparse.Namespace) -> int:
     from delaytrack.live.session import run_session
 
+    if _loss_seed_given_alone(args):
+        return EXIT_USAGE
     return run_session(args)
 
 
@@ -173,7 +230,7 @@ def _replay(args: argparse.Namespace) -> int:
     return replay_main(args)
 
 
-def add_live_commands(commands: Any, parser_class: type[argparse.ArgumentParser]) -> None:
+def add_live_commands(commands: Any) -> None:
     """Add ``live`` and its subcommands to the subparsers ``commands`` of a parser."""
     live = commands.add_parser(
         "live",
@@ -184,7 +241,7 @@ def add_live_commands(commands: Any, parser_class: type[argparse.ArgumentParser]
         "session with its realised delays.",
     )
     sub = live.add_subparsers(
-        dest="live_command", metavar="LIVE_COMMAND", parser_class=parser_class
+        dest="live_command", metavar="LIVE_COMMAND", parser_class=OptionParser
     )
     sub.required = True
     run = sub.add_parser(
@@ -197,7 +254,7 @@ def add_live_commands(commands: Any, parser_class: type[argparse.ArgumentParser]
     run.add_argument("scenario", help="scenario file, or the name of a shipped scenario")
     run.add_argument(
         "--duration",
-        type=_seconds,
+        type=_POSITIVE_SECONDS,
         default=None,
         metavar="S",
         help="session length in seconds (default: the scenario's duration)",
@@ -205,22 +262,17 @@ def add_live_commands(commands: Any, parser_class: type[argparse.ArgumentParser]
     run.add_argument("--out", required=True, metavar="DIR", help="session folder to write")
     run.add_argument(
         "--port",
-        type=int,
+        type=_PORT,
         default=None,
         metavar="PORT",
         help="first of three TCP ports on 127.0.0.1 (default: free ports)",
     )
     _loss_and_lead_arguments(run, "the delay node releases a command")
-    run.add_argument("--handshake-timeout", type=_seconds, default=60.0, metavar="S")
-    run.add_argument(
-        "--trust",
-        action="append",
-        default=[],
-        metavar="NAME",
-        help="trust a factory module or .py file/folder the scenario names",
-    )
-    run.add_argument("--quiet", action="store_true", help="no status line")
-    run.add_argument("--progress", action="store_true", help=argparse.SUPPRESS)
+    _measurement_argument(run)
+    _bridge_argument(run)
+    run.add_argument("--handshake-timeout", type=_POSITIVE_SECONDS, default=60.0, metavar="S")
+    trust_argument(run)
+    quiet_argument(run, "status line")
     run.set_defaults(handler=_run)
     replay = sub.add_parser(
         "replay",
@@ -230,8 +282,8 @@ def add_live_commands(commands: Any, parser_class: type[argparse.ArgumentParser]
         "packet losses; print and write the agreement of tracking errors and commands.",
     )
     replay.add_argument("folder", help="session folder written by 'delaytrack live run'")
-    replay.add_argument("--trust", action="append", default=[], metavar="NAME")
-    replay.add_argument("--quiet", action="store_true", help="no progress")
+    trust_argument(replay)
+    quiet_argument(replay, "progress")
     replay.set_defaults(handler=_replay)
     for role in ("controller", "delay", "robot"):
         node = sub.add_parser(
@@ -247,9 +299,9 @@ def add_live_commands(commands: Any, parser_class: type[argparse.ArgumentParser]
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m delaytrack.live``: the ``live`` commands alone."""
-    parser = argparse.ArgumentParser(prog="delaytrack")
-    commands = parser.add_subparsers(dest="command", metavar="COMMAND")
+    parser = OptionParser(prog="delaytrack")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OptionParser)
     commands.required = True
-    add_live_commands(commands, argparse.ArgumentParser)
+    add_live_commands(commands)
     args = parser.parse_args(["live", *(sys.argv[1:] if argv is None else argv)])
     return args.handler(args)

@@ -10,6 +10,16 @@ evaluates the reference at ``t_k``, runs one step of the control law (the same k
 simulator runs), and publishes the command stamped with its sequence number ``k`` and sample
 time ``t_k``.
 
+The law reads the state as the simulator's controller does: through the scenario's
+``measurement_noise`` (encoder quantisation, white noise on ``q`` and ``q̇``), with the
+simulator's :func:`~delaytrack.sim.measurement.measure` at the tick index ``k`` of ``t_k``, so
+the noise of tick ``k`` is that of the simulation's tick ``k`` whatever the age of the state
+received. ``--no-measurement-noise`` reads the true state instead (said in ``controller.json``
+and so in the session's summary). The log keeps, at each tick where the law runs, the state
+received from the robot on ``/received`` (stamped with its sample time) and the state the law
+read on ``/measured`` (stamped ``t_k``), both ``sensor_msgs/msg/JointState`` with the tick
+``k`` as the MCAP message's sequence number.
+
 The delay rule counts from ``t_k``, so the sampling phase, the computing time and the transport
 are part of the delay the robot sees, as in the paper's experiment, where the delay was
 injected "by halting the programme for h(t) amount of time ... between the control input
@@ -37,6 +47,7 @@ from delaytrack.live.clock import Ticker
 from delaytrack.live.log import McapLog, write_csv
 from delaytrack.live.messages import HELD_STALE, CommandMessage, StateMessage
 from delaytrack.live.transport import declare_stream
+from delaytrack.sim.measurement import MeasurementNoise, measure
 
 __all__ = ["ControllerNode"]
 
@@ -91,16 +102,27 @@ class ControllerNode(NodeBase):
             )
         self._reference_params = reference.params
         self._qd, self._qd_dot, self._qd_ddot = np.zeros(self.n), np.zeros(self.n), np.zeros(self.n)
+        # What the law reads: the scenario's measurement noise, unless turned off for a session.
+        self.measurement_off = bool(getattr(args, "no_measurement_noise", False))
+        self.measurement_noise = (
+            None if self.measurement_off else scenario.simulated_measurement_noise
+        )
+        self._measurement = (self.measurement_noise or MeasurementNoise()).params(self.n)
+        self.names = list(built.plant.coordinate_names or [f"q{i + 1}" for i in range(self.n)])
         self._needs_delay = controller.needs_delay
         self._delay = delay
         # Warm up (compile) on x0 with a throw-away copy of the state.
-        # The state's q and q̇ are copied into arrays of the node's own, so that every
-        # argument of the step is one of the node's (types fixed from here on).
+        # The received q and q̇ are copied into arrays of the node's own and measured into
+        # others, so that every argument of the step and of the measurement is one of the
+        # node's (types fixed from here on).
+        self._q_received, self._qdot_received = np.zeros(self.n), np.zeros(self.n)
         self._q, self._qdot = np.zeros(self.n), np.zeros(self.n)
+        self._measure = measure
         saved = self._state.copy()
-        self._tick(0.0, built.x0)
+        self._tick(0, built.x0)
+        self._measure = _entry_point(measure, self._measure_arguments(0))
         self._step = _entry_point(self._step, self._arguments(0.0))
-        self._tick(0.0, built.x0)
+        self._tick(0, built.x0)
         self._state[:] = saved
         self._states: deque[tuple[StateMessage, float]] = deque(maxlen=64)
         self._lock = threading.Lock()
@@ -139,9 +161,23 @@ class ControllerNode(NodeBase):
             self._work,
         )
 
-    def _tick(self, t_k: float, x: np.ndarray) -> np.ndarray:
-        self._q[:] = x[: self.n]
-        self._qdot[:] = x[self.n :]
+    def _measure_arguments(self, k: int) -> tuple:
+        """The arguments of :func:`~delaytrack.sim.measurement.measure` at tick ``k``."""
+        return (
+            self._q_received,
+            self._qdot_received,
+            k,
+            self._measurement,
+            self._q,
+            self._qdot,
+        )
+
+    def _tick(self, k: int, x: np.ndarray) -> np.ndarray:
+        """The command of tick ``k`` computed from the received state ``x``."""
+        t_k = k * self.T_c
+        self._q_received[:] = x[: self.n]
+        self._qdot_received[:] = x[self.n :]
+        self._measure(*self._measure_arguments(k))
         self._reference_kernel(t_k, self._reference_params, self._qd, self._qd_dot, self._qd_ddot)
         h = float(self._delay.h(t_k)) if self._needs_delay else 0.0
         self._step(*self._arguments(t_k, h))
@@ -193,7 +229,7 @@ class ControllerNode(NodeBase):
                 else:
                     u = last_command
             else:
-                u = self._tick(t_k, state.x)
+                u = self._tick(wake.k, state.x)
             compute = time.perf_counter() - start
             send = ticker.now()
             self._publisher.put(
@@ -210,6 +246,18 @@ class ControllerNode(NodeBase):
                 state_time=state.sample_time,
                 flags=flags,
             )
+            if not flags:
+                self.log.state(
+                    wake.k, state.sample_time, send, self.names, state.x, topic="/received"
+                )
+                self.log.state(
+                    wake.k,
+                    t_k,
+                    send,
+                    self.names,
+                    np.concatenate((self._q, self._qdot)),
+                    topic="/measured",
+                )
             self.rows.append(
                 [
                     wake.k,
@@ -262,6 +310,12 @@ class ControllerNode(NodeBase):
             "compute_ms_p99": percentile(compute, 99),
             "state_age_ms_p99": percentile([r[4] for r in rows], 99),
             "phase_ms": self.phase * 1e3,
+            # What the law read: the measurement model applied (None: the true state), and
+            # whether --no-measurement-noise turned the scenario's off.
+            "measurement_noise": None
+            if self.measurement_noise is None
+            else self.measurement_noise.to_spec(),
+            "measurement_noise_off": self.measurement_off,
         }
 
 

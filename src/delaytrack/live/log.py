@@ -3,7 +3,9 @@
 Each node writes ``<role>.mcap`` with ``mcap-ros2-support``: the robot's state as
 ``sensor_msgs/msg/JointState`` on ``/state``, commands as ``delaytrack_msgs/msg/LiveCommand``
 (:data:`~delaytrack.live.messages.COMMAND_MSG`) on ``/command`` (controller), ``/release``
-(delay node) and ``/applied`` (robot). Session metadata (``t0`` on the monotonic clock and in
+(delay node) and ``/applied`` (robot); the controller logs the state it received and the state
+its law read (through the measurement model) as ``JointState`` on ``/received`` and
+``/measured``. Session metadata (``t0`` on the monotonic clock and in
 UNIX time, the scenario's hashes, ``dt``, ``T_c``) is a metadata record named ``session``.
 
 Writing a message (encoding it to CDR) costs about 0.1 ms of Python, too much for a 1 ms loop,
@@ -28,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from delaytrack._io import atomic_path
 from delaytrack.live.messages import COMMAND_MSG, COMMAND_TYPE, JOINT_STATE_MSG, JOINT_STATE_TYPE
 
 __all__ = ["CHUNK_BYTES", "McapLog", "write_csv"]
@@ -99,11 +102,13 @@ class McapLog:
         names: Sequence[str],
         x: np.ndarray,
         effort: np.ndarray | None = None,
+        topic: str = "/state",
     ) -> None:
-        """A ``JointState`` at model time ``sample_time``, logged at session time ``log_time``."""
+        """A ``JointState`` at model time ``sample_time`` on ``topic``, logged at session time
+        ``log_time``."""
         n = len(names)
         self._writer.write_message(
-            "/state",
+            topic,
             self._state,
             {
                 "header": self._stamp(sample_time),
@@ -182,10 +187,11 @@ def _copied(values: Any) -> Any:
 
 
 def write_csv(path: str | Path, header: Sequence[str], rows: Sequence[Sequence[Any]]) -> Path:
-    """Write a CSV table (numbers as ``repr``, so they read back exactly)."""
+    """Write a CSV table atomically (numbers as ``repr``, so they read back exactly): a reader,
+    or a node killed while writing, leaves the old file or the complete new one."""
     path = Path(path)
-    with open(path, "w", newline="", encoding="utf-8") as handle:
-        writer = csv.writer(handle)
+    with atomic_path(path) as temporary, open(temporary, "w", newline="", encoding="utf-8") as out:
+        writer = csv.writer(out)
         writer.writerow(header)
         for row in rows:
             writer.writerow([repr(v) if isinstance(v, float) else v for v in row])

@@ -1,7 +1,8 @@
 """Wire format of the live loop's messages, and their ROS 2 message definitions for the logs.
 
-On the wire (Zenoh payloads) every message is a fixed little-endian header followed by float64
-arrays, so that a node decodes it in a few microseconds. Times are seconds on the *session
+On the wire (Zenoh payloads) every message is a fixed little-endian header, whose last field
+counts the float64 values that follow (:class:`_Frame`), so that a node decodes it in a few
+microseconds. Times are seconds on the *session
 clock*: ``time.monotonic() - t0`` of the process that stamped them, where ``t0`` is the session
 start agreed at the handshake (:mod:`delaytrack.live.transport`). Model times (a state's sample
 time, a command's tick time ``t_k``) are the times of the simulated world, on the grid
@@ -25,6 +26,7 @@ from __future__ import annotations
 
 import struct
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -38,9 +40,40 @@ __all__ = [
     "StateMessage",
 ]
 
-_STATE = struct.Struct("<qddI")  # seq, sample time, send time, n
-_COMMAND = struct.Struct("<qdddqI")  # seq, t_k, send time, state sample time, flags, m
-_RELEASE = struct.Struct("<qddddI")  # seq, t_k, controller send, release send, apply_at, m
+
+class _Frame:
+    """The bytes of one kind of message: a little-endian header of ``fields`` (:mod:`struct`
+    codes) and a count ``c`` (``uint32``), then ``per_count · c`` little-endian float64 values.
+
+    Parameters
+    ----------
+    fields : str
+        The header's fields before the count, as :mod:`struct` format codes.
+    per_count : int
+        Values per unit of the count (2 for a state ``[q, q̇]`` counted by ``n``).
+    """
+
+    def __init__(self, fields: str, per_count: int = 1) -> None:
+        self._header = struct.Struct(f"<{fields}I")
+        self._per_count = per_count
+
+    def pack(self, fields: tuple[int | float, ...], values: np.ndarray) -> bytes:
+        """The bytes of a message with the header ``fields`` and the array ``values``."""
+        array = np.ascontiguousarray(values, dtype="<f8")
+        return self._header.pack(*fields, array.size // self._per_count) + array.tobytes()
+
+    def unpack(self, data: bytes) -> tuple[Any, ...]:
+        """The header's fields of ``data``, then its array (a copy)."""
+        *fields, count = self._header.unpack_from(data)
+        values = np.frombuffer(
+            data, dtype="<f8", count=self._per_count * count, offset=self._header.size
+        )
+        return (*fields, values.copy())
+
+
+_STATE = _Frame("qdd", per_count=2)  # seq, sample time, send time; n, then x (2n)
+_COMMAND = _Frame("qdddq")  # seq, t_k, send time, state sample time, flags; m, then u
+_RELEASE = _Frame("qdddd")  # seq, t_k, controller send, release send, apply_at; m, then u
 
 #: Flags of a command: the controller held its previous command because its latest state was
 #: older than the limit (``--state-timeout``).
@@ -57,15 +90,11 @@ class StateMessage:
     x: np.ndarray
 
     def encode(self) -> bytes:
-        return _STATE.pack(self.seq, self.sample_time, self.send_time, self.x.size // 2) + (
-            np.ascontiguousarray(self.x, dtype="<f8").tobytes()
-        )
+        return _STATE.pack((self.seq, self.sample_time, self.send_time), self.x)
 
     @classmethod
     def decode(cls, data: bytes) -> StateMessage:
-        seq, sample, send, n = _STATE.unpack_from(data)
-        x = np.frombuffer(data, dtype="<f8", count=2 * n, offset=_STATE.size).copy()
-        return cls(seq, sample, send, x)
+        return cls(*_STATE.unpack(data))
 
 
 @dataclass(frozen=True)
@@ -81,18 +110,13 @@ class CommandMessage:
     u: np.ndarray
 
     def encode(self) -> bytes:
-        return (
-            _COMMAND.pack(
-                self.seq, self.t_k, self.send_time, self.state_time, self.flags, self.u.size
-            )
-            + np.ascontiguousarray(self.u, dtype="<f8").tobytes()
+        return _COMMAND.pack(
+            (self.seq, self.t_k, self.send_time, self.state_time, self.flags), self.u
         )
 
     @classmethod
     def decode(cls, data: bytes) -> CommandMessage:
-        seq, t_k, send, state_time, flags, m = _COMMAND.unpack_from(data)
-        u = np.frombuffer(data, dtype="<f8", count=m, offset=_COMMAND.size).copy()
-        return cls(seq, t_k, send, state_time, flags, u)
+        return cls(*_COMMAND.unpack(data))
 
 
 @dataclass(frozen=True)
@@ -108,23 +132,13 @@ class ReleaseMessage:
     u: np.ndarray
 
     def encode(self) -> bytes:
-        return (
-            _RELEASE.pack(
-                self.seq,
-                self.t_k,
-                self.command_send_time,
-                self.release_time,
-                self.apply_at,
-                self.u.size,
-            )
-            + np.ascontiguousarray(self.u, dtype="<f8").tobytes()
+        return _RELEASE.pack(
+            (self.seq, self.t_k, self.command_send_time, self.release_time, self.apply_at), self.u
         )
 
     @classmethod
     def decode(cls, data: bytes) -> ReleaseMessage:
-        seq, t_k, sent, released, apply_at, m = _RELEASE.unpack_from(data)
-        u = np.frombuffer(data, dtype="<f8", count=m, offset=_RELEASE.size).copy()
-        return cls(seq, t_k, sent, released, apply_at, u)
+        return cls(*_RELEASE.unpack(data))
 
 
 # ---- ROS 2 message definitions for the MCAP logs ---------------------------------------------

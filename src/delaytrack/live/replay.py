@@ -8,6 +8,10 @@ with knots ``(a_i, a_i - t_{k_i} - ε)``: between two knots ``t - h(t)`` runs li
 ``t_k <= t - h(t)``) switches to command ``k_{i+1}`` at ``a_{i+1} - ε``, where the robot
 switched (``ε = 10⁻⁶ dt`` keeps the switch clear of rounding). Lost packets are lost again with
 the same seed (:class:`~delaytrack.sim.packet_loss.PacketLoss`), so the held commands agree.
+The controller reads the state through the measurement noise the live controller applied
+(``measurement_noise`` in ``controller.json``: the scenario's, or none when the session turned it
+off); the noise is indexed by the controller tick, so the replay's tick ``k`` adds the noise the
+live tick ``k`` added, also where the live controller computed on a state older than ``t_k``.
 
 It then simulates the scenario (same plant, controller, reference, ``x0``, input limits) for the
 session's duration, rounded down to a whole number of ``T_c``, and compares, at every controller
@@ -45,6 +49,7 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     from delaytrack.delays import TraceDelay
     from delaytrack.experiments.scenario import Scenario
     from delaytrack.sim import simulate
+    from delaytrack.sim.measurement import MeasurementNoise
     from delaytrack.sim.packet_loss import PacketLoss
 
     folder = Path(folder)
@@ -53,6 +58,7 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     summary = json.loads((folder / "summary.json").read_text())
     nodes = summary["nodes"]
     robot, delay_node = nodes.get("robot") or {}, nodes.get("delay") or {}
+    controller_node = nodes.get("controller") or {}
     dt, T_c = scenario.dt, scenario.T_c
     steps = _read_csv(folder / "steps.csv")
     end = (len(steps)) * dt
@@ -69,6 +75,8 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     trace = TraceDelay(times, values, beyond="hold", source=str(folder / "applied.csv"))
     loss_spec = delay_node.get("packet_loss") or {"probability": 0.0, "seed": 0}
     loss = PacketLoss(loss_spec["probability"], int(loss_spec["seed"]))
+    # A session folder from before the controller measured recorded no noise: it read the truth.
+    noise_spec = controller_node.get("measurement_noise")
     result = simulate(
         built.plant,
         built.controller,
@@ -80,6 +88,7 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
         T_c=T_c,
         input_limits=scenario.simulated_input_limits,
         packet_loss=loss if loss.probability > 0 else None,
+        measurement_noise=None if noise_spec is None else MeasurementNoise(**noise_spec),
     )
     n = built.plant.n
     sim_t = result.t
@@ -124,11 +133,12 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
         "diverges_from_s": float(times_compared[beyond[0]]) if beyond.size else None,
         "command_difference_max": float(np.nanmax(np.abs(du))),
         "command_difference_rms": float(np.sqrt(np.nanmean(du**2))),
+        "measurement_noise": noise_spec,
         "not_reproduced": {
             "robot_zero_input_on_timeout_steps": robot.get("timeout_zero_steps"),
-            "controller_missed_ticks": (nodes.get("controller") or {}).get("missed"),
-            "controller_stale_ticks": (nodes.get("controller") or {}).get("stale"),
-            "controller_state_age_ms_p99": (nodes.get("controller") or {}).get("state_age_ms_p99"),
+            "controller_missed_ticks": controller_node.get("missed"),
+            "controller_stale_ticks": controller_node.get("stale"),
+            "controller_state_age_ms_p99": controller_node.get("state_age_ms_p99"),
         },
     }
     header = [

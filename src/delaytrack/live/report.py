@@ -245,6 +245,14 @@ def write_session_report(
             f"{_ms(c.get('lateness_ms_p99'))}",
             "controller compute time p50 / p99": f"{_ms(c.get('compute_ms_p50'))} / "
             f"{_ms(c.get('compute_ms_p99'))}",
+            "state the controller's law read": (
+                f"measured with measurement_noise {json.dumps(c['measurement_noise'])}"
+                if c.get("measurement_noise")
+                else "the true state, --no-measurement-noise (the scenario's measurement_noise "
+                "turned off)"
+                if c.get("measurement_noise_off") and scenario.measurement_noise is not None
+                else "the true state"
+            ),
             "robot steps": f"{r.get('steps', 0)} ({r.get('missed_steps', 0)} missed, "
             f"{r.get('late_applications', 0)} applications later than their release step)",
             "robot step lateness p50 / p99": f"{_ms(r.get('lateness_ms_p50'))} / "

@@ -1,26 +1,37 @@
-"""The robot node: the scenario's plant stepped in real time, standing in for the hardware.
+"""The robot node: in real time, at every step ``dt``, read the robot's state and write its input.
 
-It integrates ``M(q) q̈ + N(q, q̇) = G(q) u`` — any plant of the toolkit whose terms the
-simulator integrates (analytic, a user's compiled or Python plant, a MuJoCo model's terms, the
-P3-DX with its payload schedule) — by one RK4 step of ``dt`` per wake-up, at the absolute
-deadlines ``t0 + j·dt``, so that model time stays locked to the session clock. The step is the
-simulator's own RK4 sub-step compiled for the plant (:mod:`delaytrack.live._plant_step`: a few
-microseconds, against 0.15 ms in Python; compiled once, announced on stderr, then loaded from
-numba's disk cache); a plant whose kernel is plain Python is stepped in Python. At the start of
-step ``j`` (model time ``s = j·dt``) it publishes ``x(s)`` (every ``--state-every`` steps,
-default every controller period, at the tick times), picks the command in force — the released
-command with the latest ``apply_at <= s`` (:mod:`delaytrack.live.delay`) — saturates it to the
-scenario's ``input_limits`` (D12b) and holds it over the step, as a zero-order hold sampled at
-``dt``. Steps whose wake-up came too late are integrated on the next wake-up with the command
-then in force, and counted.
+The node wakes at the absolute deadlines ``t0 + j·dt`` and talks to a robot through a
+:class:`~delaytrack.live.bridge.RobotBridge`: at the start of step ``j`` (model time
+``s = j·dt``) it reads the state ``x(s)`` (:meth:`~delaytrack.live.bridge.RobotBridge.read_state`),
+publishes it on the ``state`` key (every ``--state-every`` steps, default every controller
+period, at the tick times), picks the command in force — the released command with the latest
+``apply_at <= s`` (:mod:`delaytrack.live.delay`) — saturates it to the scenario's
+``input_limits`` (D12b) and writes it
+(:meth:`~delaytrack.live.bridge.RobotBridge.write_command`), which the robot holds over the
+step, as a zero-order hold sampled at ``dt``.
+
+The robot is, by default, the scenario's plant (:class:`SimulatedRobot`): ``M(q) q̈ + N(q, q̇)
+= G(q) u`` — any plant of the toolkit whose terms the simulator integrates (analytic, a user's
+compiled or Python plant, a MuJoCo model's terms, the P3-DX with its payload schedule) —
+advanced by one RK4 step of ``dt`` per write, so that model time stays locked to the session
+clock. The step is the simulator's own RK4 sub-step compiled for the plant
+(:mod:`delaytrack.live._plant_step`: a few microseconds, against 0.15 ms in Python; compiled
+once, announced on stderr, then loaded from numba's disk cache); a plant whose kernel is plain
+Python is stepped in Python. With ``--bridge FILE.py:FUNCTION`` the robot is yours
+(:mod:`delaytrack.live.bridge`): a real robot's driver, or a simulator with a clock of its own.
+
+A wake-up later than the next deadline has missed the steps in between (counted, ``missed`` in
+``steps.csv``, with the input the robot held over them). The simulated plant, whose time
+advances one step per write, is read and written at each of them on that wake-up, its states
+at the tick times published late; a robot that lives in real time is read and written once, for
+the latest step.
 
 Safety: before the first command, and when no released command has arrived for
-``--command-timeout`` seconds (default ``max(0.1 s, 10·T_c)``), the input is zero; those steps
-are counted and logged.
-
-A real robot would replace this node by a bridge that publishes its measured state on the
-``state`` key and applies what arrives on the ``release`` key (not written yet; the live
-documentation page describes the interface).
+``--command-timeout`` seconds (default ``max(0.1 s, 10·T_c)``), the node writes zero input;
+those steps are counted and logged. A bridge call that raises, or a state read that is not
+finite or has the wrong shape (the simulated plant's state that is not finite, or a mass
+matrix that is not positive definite), stops the node: one line on stderr, the bridge closed,
+the log and tables written up to that step, exit code 1.
 """
 
 from __future__ import annotations
@@ -32,12 +43,13 @@ from typing import Any
 import numpy as np
 
 from delaytrack.live._node import NodeBase, Received, percentile
+from delaytrack.live.bridge import RobotBridge, check_state, load_bridge
 from delaytrack.live.clock import Ticker, steps_until
 from delaytrack.live.log import McapLog, write_csv
 from delaytrack.live.messages import ReleaseMessage, StateMessage
 from delaytrack.live.transport import declare_stream
 
-__all__ = ["PlantStepper", "RobotNode"]
+__all__ = ["PlantStepper", "RobotNode", "SimulatedRobot"]
 
 
 class PlantStepper:
@@ -132,6 +144,46 @@ def _compiled_step(plant: Any, announce: Any) -> tuple[Any, Any]:
     return entry_point(signature), rk4_workspace(np.empty(2 * plant.n), plant.m)
 
 
+class SimulatedRobot(RobotBridge):
+    """The scenario's plant as the robot: the robot node's bridge when no ``--bridge`` is given.
+
+    Its time is the node's step count (:attr:`steps_on_write`): :meth:`write_command` holds
+    ``u`` over one step ``dt`` from ``t`` and advances the state by one step of
+    :class:`PlantStepper`; :meth:`read_state` returns the state reached.
+
+    Parameters
+    ----------
+    plant : ELPlant
+    dt : float
+        The step.
+    x0 : array
+        The initial state ``[q, q̇]``.
+    announce : callable, optional
+        Called with a line of text before a first compile.
+    """
+
+    steps_on_write = True
+
+    def __init__(self, plant: Any, dt: float, x0: Any, announce: Any = None) -> None:
+        self.stepper = PlantStepper(plant, dt, x0, announce=announce)
+        # Warm up on a throw-away copy of the state (the step advances x in place).
+        saved = self.stepper.x.copy()
+        self.stepper.step(0.0)
+        self.stepper.x[:] = saved
+
+    def read_state(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        x, n = self.stepper.x, self.stepper.n
+        return x[:n], x[n:]
+
+    def write_command(self, t: float, u: np.ndarray) -> None:
+        self.stepper.u[:] = u
+        if not self.stepper.step(t):
+            raise FloatingPointError(
+                f"the state is not finite (or its mass matrix not positive definite) in the "
+                f"step from t = {t:g} s"
+            )
+
+
 class RobotNode(NodeBase):
     """The robot node (module docstring)."""
 
@@ -141,8 +193,12 @@ class RobotNode(NodeBase):
         super().__init__(scenario, built, args)
         plant = built.plant
         self.n, self.m = plant.n, plant.m
-        plant.check_step(self.dt)
-        for what, horizon in (("plant", plant.horizon), ("reference", built.reference.horizon)):
+        self.bridge_name = getattr(args, "bridge", None)
+        horizons = [("reference", built.reference.horizon)]
+        if self.bridge_name is None:
+            plant.check_step(self.dt)
+            horizons.insert(0, ("plant", plant.horizon))
+        for what, horizon in horizons:
             if self.duration > horizon:
                 raise ValueError(
                     f"the {what} is defined up to t = {horizon:g} s; the session lasts "
@@ -151,21 +207,24 @@ class RobotNode(NodeBase):
         self.names = list(plant.coordinate_names or [f"q{i + 1}" for i in range(self.n)])
         limits = scenario.simulated_input_limits
         self.limits = np.broadcast_to(np.asarray(limits, dtype=float), (self.m,)).copy()
-        self.stepper = PlantStepper(plant, self.dt, built.x0, announce=self._announce)
-        self.x = self.stepper.x  # advanced in place by each step
         self.state_every = (
             self.steps_per_tick if getattr(args, "state_every", None) is None else args.state_every
         )
         self.command_timeout = (
             max(0.1, 10 * self.T_c) if args.command_timeout is None else args.command_timeout
         )
-        # Warm up on a throw-away copy of the state (the step advances x in place).
-        saved = self.x.copy()
-        self.stepper.step(0.0)
-        self.x[:] = saved
+        self.x = np.zeros(2 * self.n)  # the state read last
+        self.u = np.zeros(self.m)  # the input written last
         self.steps: list[list[Any]] = []
         self.states: list[list[Any]] = []
         self.applied: list[list[Any]] = []
+        self._stop: Any = None
+        self._closed = False
+        self.bridge: RobotBridge = (
+            SimulatedRobot(plant, self.dt, built.x0, announce=self._announce)
+            if self.bridge_name is None
+            else load_bridge(self.bridge_name, scenario, self.dt, self.n)
+        )
 
     def declare(self, session: Any, prefix: str) -> None:
         self._received = Received(ReleaseMessage.decode)
@@ -174,32 +233,34 @@ class RobotNode(NodeBase):
         self.entities += [self._subscriber, self._publisher]
 
     def loop(self, t0: float, stop: Any, handshake: Any) -> None:
+        try:
+            self._loop(t0, stop, handshake)
+        finally:
+            self.close()
+
+    def _loop(self, t0: float, stop: Any, handshake: Any) -> None:
         self.log = McapLog(self.out / "robot.mcap", t0, self.metadata())
         ticker = Ticker(t0, self.dt, until=self.duration, stop=stop, idle=self.log.work)
-        self.ticker = ticker
+        self.ticker, self._stop = ticker, stop
         pending: list[tuple[ReleaseMessage, float]] = []
         current: ReleaseMessage | None = None
         last_arrival = -math.inf
-        stepper, dt = self.stepper, self.dt
-        u = stepper.u  # the input held over the step (the stepper's own array)
+        dt = self.dt
+        u = self.u
         saturated = np.zeros(self.m)  # the command in force, saturated (computed once)
         status = "no-command"
-        j_model = 0  # the next step to integrate
+        j_model = 0  # the next step to read and write
         last_hello = 0.0
         tolerance = 1e-9 * dt
         for wake in ticker:
             j = wake.k
-            j_model = self._catch_up(j_model, j, current, u)
-            if j_model < j:
-                self._not_finite(j_model, stop)
+            j_model = self._missed(j_model, j, current)
+            if self.failure is not None:
                 break
             s = j * dt
             now = wake.now
-            if j % self.state_every == 0:
-                self._publisher.put(StateMessage(j, s, ticker.now(), self.x).encode())
-            if j % self.steps_per_tick == 0:
-                self.states.append([j, s, *self.x.tolist()])
-                self.log.state(j, s, now, self.names, self.x, u)
+            if not self._read(j, now):
+                break
             for message, received in self._received.drain():
                 pending.append((message, received - t0))
                 last_arrival = max(last_arrival, received - t0)
@@ -252,11 +313,9 @@ class RobotNode(NodeBase):
                     *u.tolist(),
                 ]
             )
-            if not stepper.step(s):
-                self._not_finite(j, stop)
-                j_model = j + 1
-                break
             j_model = j + 1
+            if not self._write(j):
+                break
             if now - last_hello > 0.2:
                 handshake.publish()
                 last_hello = now
@@ -265,52 +324,91 @@ class RobotNode(NodeBase):
                 )
         # Steps after the last wake-up (it was late and the session ended meanwhile).
         total = steps_until(self.duration, dt)
-        if not stop() and j_model < total:
-            end = self._catch_up(j_model, total, current, u)
-            if end < total:
-                self._not_finite(end, stop)
-            j_model = end
-        self.end_time = j_model * self.dt
-        self.states.append([j_model, self.end_time, *self.x.tolist()])
-        self.log.state(j_model, self.end_time, ticker.now(), self.names, self.x)
+        if self.failure is None and not stop() and j_model < total:
+            j_model = self._missed(j_model, total, current)
+        self.end_time = j_model * dt
+        if self.failure is None and self._state(j_model):
+            self.states.append([j_model, self.end_time, *self.x.tolist()])
+            self.log.state(j_model, self.end_time, ticker.now(), self.names, self.x)
 
-    def _catch_up(self, j_model: int, j: int, current: Any, u: np.ndarray) -> int:
-        """Integrate the steps ``j_model .. j - 1`` whose wake-up was missed, with the input
-        ``u`` then in force; the states at their tick times are published (late) and logged as
-        at any step. Returns the next step to integrate (short of ``j`` when the state became
-        non-finite)."""
-        dt = self.dt
+    def _missed(self, j_model: int, j: int, current: Any) -> int:
+        """The steps ``j_model .. j - 1`` whose wake-up was missed, each recorded with the input
+        held over it. A bridge whose time advances per write (the simulated plant) is read and
+        written at each, late (its states at the tick times published and logged as at any
+        step); a robot that lives in real time held the input over them and is not called.
+        Returns the next step (short of ``j`` when the bridge failed)."""
+        dt, u = self.dt, self.u
+        replay = self.bridge.steps_on_write
         while j_model < j:
-            s = j_model * dt
-            if j_model % self.state_every == 0:
-                now = self.ticker.now()
-                self._publisher.put(StateMessage(j_model, s, now, self.x).encode())
-            if j_model % self.steps_per_tick == 0:
-                self.states.append([j_model, s, *self.x.tolist()])
-                self.log.state(j_model, s, self.ticker.now(), self.names, self.x, u)
+            if replay and not self._read(j_model, self.ticker.now()):
+                return j_model
             self.steps.append(
                 [
                     j_model,
-                    s,
+                    j_model * dt,
                     math.nan,
                     "missed",
                     -1 if current is None else current.seq,
                     *u.tolist(),
                 ]
             )
-            if not self.stepper.step(s):
-                return j_model
             j_model += 1
+            if replay and not self._write(j_model - 1):
+                return j_model
         return j_model
 
-    def _not_finite(self, j: int, stop: Any) -> None:
+    def _state(self, j: int) -> bool:
+        """Read the robot's state at step ``j`` into :attr:`x`; False (the node stopped) when
+        the bridge raised or the state has the wrong shape or is not finite."""
+        try:
+            state = self.bridge.read_state(j * self.dt)
+        except Exception as error:  # noqa: BLE001 - the robot's driver: reported, node stops
+            self._fail(j, f"read_state raised {type(error).__name__}: {error}")
+            return False
+        problem = check_state(state, self.x)
+        if problem is not None:
+            self._fail(j, problem)
+            return False
+        return True
+
+    def _read(self, j: int, now: float) -> bool:
+        """Read the state at step ``j`` (:meth:`_state`), publish it and log it at the tick
+        times (``now``: the session time of the log); False when the node stopped."""
+        if not self._state(j):
+            return False
+        s = j * self.dt
+        if j % self.state_every == 0:
+            self._publisher.put(StateMessage(j, s, self.ticker.now(), self.x).encode())
+        if j % self.steps_per_tick == 0:
+            self.states.append([j, s, *self.x.tolist()])
+            self.log.state(j, s, now, self.names, self.x, self.u)
+        return True
+
+    def _write(self, j: int) -> bool:
+        """Write :attr:`u` for step ``j``; False (the node stopped) when the bridge raised."""
+        try:
+            self.bridge.write_command(j * self.dt, self.u)
+        except Exception as error:  # noqa: BLE001 - the robot's driver: reported, node stops
+            self._fail(j, f"write_command raised {type(error).__name__}: {error}")
+            return False
+        return True
+
+    def _fail(self, j: int, what: str) -> None:
+        """Stop the node on a failure of the robot at step ``j`` (said on stderr, one line)."""
+        self.failure = f"{type(self.bridge).__name__}.{what}".replace("\n", " ")
         print(
-            f"error: the robot's state is not finite (or its mass matrix not positive definite) "
-            f"in the step from t = {j * self.dt:g} s; stopping",
+            f"error: the robot failed at t = {j * self.dt:g} s (step {j}): {self.failure}; "
+            "the robot node stops (exit code 1), its log and tables up to there are written",
             file=sys.stderr,
             flush=True,
         )
-        stop.set()
+        self._stop.set()
+
+    def close(self) -> None:
+        """Close the bridge (once)."""
+        if not self._closed and hasattr(self, "bridge"):
+            self._closed = True
+            self.bridge.close()
 
     def _announce(self, text: str) -> None:
         """A first compile is said on stderr even with --quiet (it may take a minute)."""
@@ -345,6 +443,8 @@ class RobotNode(NodeBase):
             "late_applications": sum(1 for r in self.applied if r[2] > r[3] + 1e-9 * self.dt),
             "dropped_by_queue": self._received.dropped if hasattr(self, "_received") else 0,
             "coordinates": self.names,
+            "bridge": self.bridge_name or "simulated",
+            "failure": self.failure,
         }
 
 

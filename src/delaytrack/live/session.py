@@ -29,7 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from delaytrack.live._node import load_scenario, percentile
+from delaytrack._io import write_text
+from delaytrack.live._node import load_scenario, percentile, session_duration, session_files
 from delaytrack.live.log import write_csv
 
 __all__ = ["collect", "run_session"]
@@ -101,6 +102,10 @@ def node_commands(args: Any, folder: Path, ports: list[int], session: str) -> di
             command += ["--loss", repr(args.loss), "--loss-seed", str(args.loss_seed)]
         if role == "delay" and getattr(args, "lead", None) is not None:
             command += ["--lead", repr(args.lead)]
+        if role == "robot" and getattr(args, "bridge", None) is not None:
+            command += ["--bridge", args.bridge]
+        if role == "controller" and getattr(args, "no_measurement_noise", False):
+            command.append("--no-measurement-noise")
         commands[role] = command
     return commands
 
@@ -110,13 +115,19 @@ def run_session(args: Any) -> int:
     from delaytrack._output import check_output_folder, claim_output_folder, record_outputs
     from delaytrack.experiments import ScenarioError
     from delaytrack.live._node import missing_extra
+    from delaytrack.live.bridge import bridge_factory
 
     if (problem := missing_extra()) is not None:
         print(f"error: {problem}", file=sys.stderr)
         return 2
     try:
         scenario = load_scenario(str(args.scenario), list(args.trust))
-        scenario.build()
+        built = scenario.build()
+        if scenario.measurement_noise is not None:  # the controller's check, before any node
+            scenario.simulated_measurement_noise.params(built.plant.n)
+        duration = session_duration(scenario, args.duration)
+        if getattr(args, "bridge", None) is not None:
+            bridge_factory(args.bridge)  # the robot node builds and checks the bridge itself
         folder = check_output_folder(args.out, "--out")
     except (ScenarioError, ValueError, OSError) as error:
         print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
@@ -137,12 +148,12 @@ def run_session(args: Any) -> int:
                 process.send_signal(signal.SIGTERM)
 
     previous = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM)}
-    duration = scenario.duration if args.duration is None else args.duration
     started = time.monotonic()
     try:
         for role in ROLES:
             processes[role] = subprocess.Popen(commands[role])
         limit = started + args.handshake_timeout + duration + 30.0
+        ended = False
         while any(p.poll() is None for p in processes.values()):
             if time.monotonic() > limit:
                 forward(signal.SIGTERM, None)
@@ -151,17 +162,26 @@ def run_session(args: Any) -> int:
                     if process.poll() is None:
                         process.kill()
                 break
+            if not ended and any(p.poll() not in (None, 0) for p in processes.values()):
+                # A node that failed or refused ends the session: the others stop (once: a
+                # second SIGTERM could reach a node exiting, without its handler).
+                ended = True
+                for process in processes.values():
+                    if process.poll() is None:
+                        process.send_signal(signal.SIGTERM)
             time.sleep(0.05)
         codes = {role: process.wait() for role, process in processes.items()}
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
     failed = {role: code for role, code in codes.items() if code not in (0,)}
-    summary = collect(folder, scenario)
+    if failed and not interrupted and not any((folder / f"{r}.mcap").exists() for r in ROLES):
+        return max(failed.values())  # refused before the start, said by the node: no session
+    summary = collect(folder, scenario, built)
     summary["exit_codes"] = codes
     summary["wall_s"] = time.monotonic() - started
     summary["load_average"] = list(os.getloadavg())
-    (folder / "summary.json").write_text(json.dumps(summary, indent=1, default=str) + "\n")
+    write_text(folder / "summary.json", json.dumps(summary, indent=1, default=str) + "\n")
     report_failed = write_report(folder, scenario)
     record_outputs(folder, session_files(folder))
     if not args.quiet or failed:
@@ -178,11 +198,6 @@ def run_session(args: Any) -> int:
         )
         return max(failed.values()) if all(c > 0 for c in failed.values()) else 1
     return 0
-
-
-def session_files(folder: Path) -> list[Path]:
-    """Every file in the session folder, figures included (for the folder's record)."""
-    return [p for p in sorted(folder.rglob("*")) if p.is_file()]
 
 
 def write_report(folder: Path, scenario: Any, **replay: Any) -> bool:
@@ -202,9 +217,9 @@ def write_report(folder: Path, scenario: Any, **replay: Any) -> bool:
     return False
 
 
-def collect(folder: Path, scenario: Any) -> dict[str, Any]:
-    """Merge the nodes' tables into ``delays.csv``; return the session's summary."""
-    built = scenario.build()
+def collect(folder: Path, scenario: Any, built: Any) -> dict[str, Any]:
+    """Merge the nodes' tables into ``delays.csv``; return the session's summary. ``built`` is
+    ``scenario.build()``."""
     delay = built.delay
     sent = {int(r["k"]): r for r in _read_csv(folder / "ticks.csv") if r["status"] != "no-state"}
     received = {int(r["seq"]): r for r in _read_csv(folder / "releases.csv")}

@@ -10,14 +10,18 @@ Keys live under a session prefix (``delaytrack/<session>/``):
 - ``state``    robot → controller, :class:`~delaytrack.live.messages.StateMessage`;
 - ``command``  controller → delay node, :class:`~delaytrack.live.messages.CommandMessage`;
 - ``release``  delay node → robot, :class:`~delaytrack.live.messages.ReleaseMessage`;
-- ``hello``    every node, JSON: role, process id, the hashes of what it runs, the roles it has
-  seen agree with it, and (robot) the session start ``t0`` once everyone has shaken hands.
+- ``hello``    every node, JSON: role, process id, the hashes of what it runs, its machine's boot
+  identifier, the roles it has seen agree with it, and (robot) the session start ``t0`` once
+  everyone has shaken hands;
+- ``clock``    a query the robot node answers with a reading of its monotonic clock.
 
 The handshake (:class:`Handshake`): each node publishes its hello every 0.1 s. A node that sees
 a peer whose hashes differ from its own refuses to run, naming the parts that differ (plant,
 coordinates, ``T_c``, ``dt``, scenario). When every node has seen the other two agree with it,
 the robot node — the owner of the plant's clock — announces ``t0`` a little in the future on
-the shared monotonic clock, and every node starts its loop at ``t0``. Nodes may start in any
+its monotonic clock, and every node starts its loop at ``t0``: on the same machine as it is, on
+another machine mapped to its own clock through an offset measured by round trips
+(:mod:`delaytrack.live.clock_sync`). Nodes may start in any
 order; a node that sees no peer within ``--handshake-timeout`` gives up with a message naming
 the missing roles.
 """
@@ -31,6 +35,14 @@ import threading
 import time
 from collections.abc import Mapping, Sequence
 from typing import Any
+
+from delaytrack.live.clock_sync import (
+    SAME_CLOCK,
+    ClockOffset,
+    boot_id,
+    estimate_clock_offset,
+    serve_clock,
+)
 
 __all__ = [
     "ROLES",
@@ -104,10 +116,37 @@ def _digest(value: Any) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+def _file_digest(path: str) -> str | None:
+    """``sha256:<hash>`` of the file at the absolute ``path``, or None if it is not one."""
+    if not os.path.isabs(path) or not os.path.isfile(path):
+        return None
+    with open(path, "rb") as handle:
+        return "sha256:" + hashlib.file_digest(handle, "sha256").hexdigest()
+
+
+def _portable(value: Any) -> Any:
+    """``value`` (a scenario's plain data) with every file it names by absolute path — a data
+    file, or the file of a ``"python:<file.py>:<function>"`` factory — replaced by the hash of
+    its contents: the same scenario in another folder or on another machine gives the same
+    data, and an edited file other data."""
+    if isinstance(value, Mapping):
+        return {key: _portable(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [_portable(item) for item in value]
+    if isinstance(value, str):
+        if value.startswith("python:"):
+            file, colon, function = value[len("python:") :].rpartition(":")
+            digest = _file_digest(file) if colon else None
+            return f"python:{digest}:{function}" if digest else value
+        return _file_digest(value) or value
+    return value
+
+
 def scenario_hashes(scenario: Any, plant: Any) -> dict[str, str]:
     """Hashes of what two nodes must agree on: the plant (its table and size), its coordinates
-    (names and units), ``T_c``, ``dt`` and the whole scenario."""
-    data = scenario.to_dict()
+    (names and units), ``T_c``, ``dt`` and the whole scenario, with the files it names taken by
+    their contents, not their paths (nodes on different machines keep them in other folders)."""
+    data = _portable(scenario.to_dict())
     data.pop("duration", None)  # each node may be told another duration on its command line
     return {
         "plant": _digest([data["plant"], plant.n, plant.m]),
@@ -141,13 +180,21 @@ class Handshake:
         hashes: Mapping[str, str],
         *,
         start_delay: float = 0.5,
+        clock: Any = time.monotonic,
+        boot: str | None = None,
     ) -> None:
         self.role, self.hashes, self.start_delay = role, dict(hashes), start_delay
+        self._clock, self._boot = clock, boot_id() if boot is None else boot
         self._lock = threading.Lock()
         self._peers: dict[str, dict[str, Any]] = {}
         self.t0: float | None = None
+        self.clock_offset: ClockOffset | None = SAME_CLOCK if role == "robot" else None
+        self._session, self._clock_key = session, f"{prefix}/clock"
         self._publisher = session.declare_publisher(f"{prefix}/hello")
         self._subscriber = session.declare_subscriber(f"{prefix}/hello", self._on_hello)
+        self._entities = [self._subscriber, self._publisher]
+        if role == "robot":  # the session clock is the robot node's
+            self._entities.append(serve_clock(session, self._clock_key, clock))
 
     def _on_hello(self, sample: Any) -> None:
         try:
@@ -169,6 +216,7 @@ class Handshake:
                 "role": self.role,
                 "pid": os.getpid(),
                 "hashes": self.hashes,
+                "boot_id": self._boot,
                 "agree": self._agreeing(),
                 "t0": self.t0,
             }
@@ -201,7 +249,7 @@ class Handshake:
         HandshakeError
             On a peer with other hashes, or when not every peer appeared within ``timeout``.
         """
-        deadline = time.monotonic() + timeout
+        deadline = self._clock() + timeout
         others = [r for r in ROLES if r != self.role]
         while not stop():
             problem = self._mismatch()
@@ -218,15 +266,16 @@ class Handshake:
                     for r in others
                 ) and set(self._agreeing()) == set(others)
                 if everyone and self.t0 is None:
-                    self.t0 = time.monotonic() + self.start_delay
+                    self.t0 = self._clock() + self.start_delay
             else:
                 robot = peers.get("robot")
                 if robot is not None and robot.get("t0") is not None:
-                    self.t0 = float(robot["t0"])
+                    offset = self._offset_to(robot)
+                    self.t0 = float(robot["t0"]) - offset.offset_s
             self.publish()
-            if self.t0 is not None and (self.role != "robot" or time.monotonic() > self.t0 - 0.3):
+            if self.t0 is not None and (self.role != "robot" or self._clock() > self.t0 - 0.3):
                 return self.t0
-            if time.monotonic() > deadline:
+            if self._clock() > deadline:
                 missing = [r for r in others if r not in peers]
                 raise HandshakeError(
                     f"no {' and no '.join(missing) or 'start'} node answered within {timeout:g} s "
@@ -236,8 +285,23 @@ class Handshake:
             time.sleep(0.1)
         raise HandshakeError("stopped during the handshake")
 
+    def _offset_to(self, robot: Mapping[str, Any]) -> ClockOffset:
+        """The robot node's clock minus this node's (:mod:`delaytrack.live.clock_sync`): 0 on
+        the same machine, estimated by round trips otherwise (once)."""
+        if self.clock_offset is None:
+            if self._boot is not None and robot.get("boot_id") == self._boot:
+                self.clock_offset = SAME_CLOCK
+            else:
+                try:
+                    self.clock_offset = estimate_clock_offset(
+                        self._session, self._clock_key, self._clock
+                    )
+                except TimeoutError as error:
+                    raise HandshakeError(str(error)) from None
+        return self.clock_offset
+
     def close(self) -> None:
-        for entity in (self._subscriber, self._publisher):
+        for entity in self._entities:
             try:
                 entity.undeclare()
             except Exception:  # noqa: BLE001 - closing a session undeclares anyway

@@ -1,0 +1,94 @@
+"""What every command of the ``delaytrack`` command line shares, the live loop's included: the
+parser with one-line errors, the types that read numbers given to options, and the ``--trust``
+and ``--quiet`` options.
+
+Numbers on the command line follow the one rule of every number the toolkit reads
+(:func:`~delaytrack._validation.decimal_number`): ``1``, ``-2.5``, ``3e-2``, finite; ``1_000``,
+``0x10``, ``nan`` and ``inf`` are refused. A type refuses with a message that says what is valid
+and quotes the text; argparse puts the option's name in front
+(``error: argument --loss: must be a probability in [0, 1) ...; got '1.5'``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+from collections.abc import Callable
+from typing import TypeVar
+
+from delaytrack._validation import NumberTextError, decimal_number
+
+__all__ = [
+    "EXIT_USAGE",
+    "OptionParser",
+    "decimal",
+    "integer",
+    "quiet_argument",
+    "trust_argument",
+    "within",
+]
+
+#: Exit code of a command refused for its input (argparse's own code for a usage error).
+EXIT_USAGE = 2
+
+_Number = TypeVar("_Number", int, float)
+
+
+class OptionParser(argparse.ArgumentParser):
+    """argparse with one-line errors (``error: ...``) and exit code 2, without the usage dump."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(EXIT_USAGE, f"error: {message} (see {self.prog} --help)\n")
+
+
+def integer(text: str) -> int:
+    """argparse type: an integer in decimal digits (``1_000`` and ``٣`` are refused)."""
+    if not re.fullmatch(r"[+-]?[0-9]+", text.strip()):
+        raise argparse.ArgumentTypeError(f"must be an integer in decimal digits; got {text!r}")
+    return int(text)
+
+
+def decimal(text: str) -> float:
+    """argparse type: a number in :data:`~delaytrack._validation.DECIMAL_NOTATION`, finite."""
+    try:
+        return decimal_number(text)
+    except NumberTextError as error:
+        raise argparse.ArgumentTypeError(f"{error}; got {text!r}") from None
+
+
+def within(
+    parse: Callable[[str], _Number], what: str, valid: Callable[[_Number], bool]
+) -> Callable[[str], _Number]:
+    """argparse type: the number ``parse`` reads (:func:`decimal` or :func:`integer`), refused
+    unless ``valid`` holds for it; ``what`` says which numbers are valid, for the message
+    (``"seconds > 0"``)."""
+
+    def checked(text: str) -> _Number:
+        value = parse(text)
+        if not valid(value):
+            raise argparse.ArgumentTypeError(f"must be {what}; got {text!r}")
+        return value
+
+    return checked
+
+
+def trust_argument(command: argparse.ArgumentParser) -> None:
+    """``--trust NAME``, repeatable: factories a scenario or sweep file may name beyond the
+    ``.py`` files beside it."""
+    command.add_argument(
+        "--trust",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help='allow the factories (type = "python:...", Python code that runs with your '
+        "rights) of a module and its submodules (mylab.robots), or of a .py file or of every "
+        "file below a folder (a path: ./robots, ~/lab/arm.py); repeatable. Without it only "
+        ".py files in the scenario or sweep file's folder or below it run",
+    )
+
+
+def quiet_argument(command: argparse.ArgumentParser, shown: str = "progress bars") -> None:
+    """``--quiet`` (nothing of ``shown`` on stderr), and ``--progress`` kept as an accepted
+    no-op: progress is shown by default."""
+    command.add_argument("--quiet", action="store_true", help=f"no {shown}")
+    command.add_argument("--progress", action="store_true", help=argparse.SUPPRESS)

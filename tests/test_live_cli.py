@@ -1,0 +1,265 @@
+"""The live loop's command line and output folders, without a live session.
+
+Every refusal here comes before the handshake (bad numbers when the options are read, a session
+too long or a folder that is not the toolkit's once the scenario is read), so nothing opens a
+Zenoh session. The wire format of the messages is compared with byte strings built by hand.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import struct
+import subprocess
+import sys
+import threading
+
+import numpy as np
+import pytest
+
+from delaytrack._output import MANIFEST, OutputFolderError
+from delaytrack.cli import main
+from delaytrack.live._node import _folder_turn, claim_node_folder, record_node_files
+from delaytrack.live.log import write_csv
+from delaytrack.live.messages import CommandMessage, ReleaseMessage, StateMessage
+
+SCENARIO = "two_link_S1"
+
+
+@pytest.fixture
+def signals_kept():
+    """A node installs SIGINT/SIGTERM handlers; give the test process its own back."""
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    yield
+    for signum, handler in saved.items():
+        signal.signal(signum, handler)
+
+
+def refusal(capsys, *argv: str) -> str:
+    """Run ``delaytrack live ...`` in-process; assert exit 2 and one line on stderr; return it."""
+    try:
+        code = main(["live", *argv])
+    except SystemExit as stopped:  # refused while the options are read
+        code = stopped.code
+    err = capsys.readouterr().err
+    assert code == 2, err
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error: ")
+    return lines[0]
+
+
+# ---- numbers ----------------------------------------------------------------------------------
+
+RUN = ("run", SCENARIO, "--out", "unused")
+
+BAD_NUMBERS = [
+    (RUN, "--loss", "1.5"),
+    (RUN, "--loss", "1"),
+    (RUN, "--loss", "-0.1"),
+    (RUN, "--loss", "nan"),
+    (RUN, "--loss-seed", "-1"),
+    (RUN, "--loss-seed", "4294967296"),
+    (RUN, "--loss-seed", "1.5"),
+    (RUN, "--port", "70000"),
+    (RUN, "--port", "65534"),
+    (RUN, "--port", "0"),
+    (RUN, "--port", "1_000"),
+    (RUN, "--duration", "-1"),
+    (RUN, "--duration", "0"),
+    (RUN, "--duration", "inf"),
+    (RUN, "--duration", "1_000"),
+    (RUN, "--handshake-timeout", "0"),
+    (RUN, "--lead", "-0.001"),
+    (RUN, "--lead", "0x10"),
+    (("delay", SCENARIO, "--out", "unused"), "--loss", "1.5"),
+    (("delay", SCENARIO, "--out", "unused"), "--start-delay", "-1"),
+    (("controller", SCENARIO, "--out", "unused"), "--state-timeout", "0"),
+    (("controller", SCENARIO, "--out", "unused"), "--phase", "nan"),
+    (("robot", SCENARIO, "--out", "unused"), "--state-every", "0"),
+    (("robot", SCENARIO, "--out", "unused"), "--state-every", "2.5"),
+    (("robot", SCENARIO, "--out", "unused"), "--command-timeout", "0"),
+    (("robot", SCENARIO, "--out", "unused"), "--duration", "1e400"),
+]
+
+
+@pytest.mark.parametrize(("command", "flag", "value"), BAD_NUMBERS)
+def test_a_bad_number_is_refused_in_one_line_naming_the_flag(
+    capsys, tmp_path, monkeypatch, command, flag, value
+):
+    monkeypatch.chdir(tmp_path)
+    line = refusal(capsys, *command, flag, value)
+    assert flag in line and repr(value) in line, line
+    assert "must be" in line  # what is valid
+    assert os.listdir(tmp_path) == []  # refused before anything is made
+
+
+def test_the_module_entry_point_refuses_in_one_line_too():
+    done = subprocess.run(
+        [sys.executable, "-m", "delaytrack.live", "run", SCENARIO, "--out", "x", "--loss", "2"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and "--loss" in done.stderr, done.stderr
+
+
+@pytest.mark.parametrize("role", ["run", "delay"])
+def test_a_loss_seed_without_a_loss_is_refused(capsys, tmp_path, role):
+    line = refusal(capsys, role, SCENARIO, "--out", str(tmp_path / "out"), "--loss-seed", "7")
+    assert "--loss-seed" in line and "--loss P" in line
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("role", ["run", "delay"])
+def test_a_session_longer_than_the_nodes_hold_is_refused_before_its_folder_is_made(
+    capsys, tmp_path, signals_kept, role
+):
+    out = tmp_path / "out"
+    line = refusal(capsys, role, SCENARIO, "--out", str(out), "--duration", "1e9", "--quiet")
+    assert "--duration 1e+09 s" in line and "plant steps" in line and "shorten" in line
+    assert not out.exists()
+
+
+def test_trust_and_quiet_are_the_options_of_every_command(capsys):
+    texts = {}
+    for argv in (["simulate", "--help"], ["live", "run", "--help"], ["live", "robot", "--help"]):
+        with pytest.raises(SystemExit):
+            main(argv)
+        texts[argv[-2]] = " ".join(capsys.readouterr().out.split())
+    for text in texts.values():
+        assert "or of every file below a folder" in text  # --trust's help, one definition
+    assert "no status line" in texts["run"] and "no status line" in texts["robot"]
+
+
+# ---- output folders ---------------------------------------------------------------------------
+
+
+def test_a_standalone_node_refuses_a_folder_that_holds_files_of_yours(
+    capsys, tmp_path, signals_kept
+):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    line = refusal(capsys, "controller", SCENARIO, "--out", str(out), "--quiet")
+    assert "--out" in line and "notes.txt" in line
+    assert sorted(os.listdir(out)) == ["notes.txt"]  # nothing written, not even the marker
+    assert (out / "notes.txt").read_text() == "mine"
+
+
+def test_a_node_folder_with_a_link_is_refused(tmp_path):
+    out = tmp_path / "out"
+    claim_node_folder(str(out))
+    (out / "figures").symlink_to(tmp_path)
+    with pytest.raises(OutputFolderError, match="symbolic link"):
+        claim_node_folder(str(out))
+
+
+def test_a_node_folder_is_resolved_before_it_is_made(tmp_path):
+    folder = claim_node_folder(str(tmp_path / "new" / ".." / "mine"))
+    assert folder == (tmp_path / "mine").resolve()
+    assert (folder / MANIFEST).is_file()
+    assert not (tmp_path / "new").exists()
+
+
+def test_the_nodes_of_one_session_share_a_folder_and_keep_each_others_files(tmp_path):
+    out = tmp_path / "session"
+    robot = claim_node_folder(str(out))
+    controller = claim_node_folder(str(out))  # the folder now holds the robot's marker
+    assert robot == controller
+    (robot / "robot.json").write_text("{}")
+    record_node_files(robot)
+    (controller / "controller.json").write_text("{}")
+    record_node_files(controller)
+    listed = json.loads((out / MANIFEST).read_text())["files"]
+    assert listed == ["controller.json", "robot.json"]
+    assert (out / "robot.json").is_file()
+    assert claim_node_folder(str(out)) == robot  # the next session's node accepts it
+
+
+def test_a_node_waits_while_another_node_claims_the_shared_folder(tmp_path):
+    """Another node of the session is writing the folder's marker (a hidden temporary file
+    beside it); without taking turns, this node would see a folder holding a file the toolkit
+    did not mark and refuse it."""
+    out = tmp_path / "session"
+    out.mkdir()
+    outcome: dict[str, object] = {}
+
+    def claim() -> None:
+        try:
+            outcome["folder"] = claim_node_folder(str(out))
+        except OutputFolderError as error:
+            outcome["error"] = error
+
+    with _folder_turn(str(out)):
+        half_written = out / f"{MANIFEST}.tmp123.json"
+        half_written.write_text(json.dumps({"files": []}))
+        thread = threading.Thread(target=claim)
+        thread.start()
+        thread.join(0.5)  # long enough for a claim that does not wait to finish
+        half_written.replace(out / MANIFEST)
+    thread.join()
+    assert outcome == {"folder": out.resolve()}
+
+
+def test_a_table_is_written_whole_or_not_at_all(tmp_path):
+    path = tmp_path / "ticks.csv"
+    write_csv(path, ["k", "t_s"], [[0, 0.5]])
+    before = path.read_bytes()
+
+    class Unwritable:
+        def __str__(self) -> str:
+            raise ValueError("cannot be written")
+
+    with pytest.raises(ValueError, match="cannot be written"):
+        write_csv(path, ["k", "t_s"], [[0, 1.5], [1, Unwritable()]])
+    assert path.read_bytes() == before
+    assert sorted(os.listdir(tmp_path)) == ["ticks.csv"]
+
+
+# ---- messages ---------------------------------------------------------------------------------
+
+X = np.array([1.0, -2.0, 3.5, 0.0])
+U = np.array([0.5, -0.25])
+
+#: (message, its bytes built by hand, its bytes as the encoder wrote them before it was shared)
+WIRE = [
+    (
+        StateMessage(7, 0.25, 1.5, X),
+        struct.pack("<qddI4d", 7, 0.25, 1.5, 2, *X),
+        "0700000000000000000000000000d03f000000000000f83f02000000000000000000f03f000000000000"
+        "00c00000000000000c400000000000000000",
+    ),
+    (
+        CommandMessage(-3, 0.01, 2.0, 0.005, 1, U),
+        struct.pack("<qdddqI2d", -3, 0.01, 2.0, 0.005, 1, 2, *U),
+        "fdffffffffffffff7b14ae47e17a843f00000000000000407b14ae47e17a743f01000000000000000200"
+        "0000000000000000e03f000000000000d0bf",
+    ),
+    (
+        ReleaseMessage(2**40, 1e-3, 3.0, 3.25, 0.012, np.array([9.0])),
+        struct.pack("<qddddId", 2**40, 1e-3, 3.0, 3.25, 0.012, 1, 9.0),
+        "0000000000010000fca9f1d24d62503f00000000000008400000000000000a40fa7e6abc7493883f0100"
+        "00000000000000002240",
+    ),
+    (
+        CommandMessage(0, 0.0, 0.0, 0.0, 0, np.zeros(0)),
+        struct.pack("<qdddqI", 0, 0.0, 0.0, 0.0, 0, 0),
+        "00" * 44,
+    ),
+]
+
+
+@pytest.mark.parametrize(("message", "by_hand", "before"), WIRE)
+def test_messages_keep_their_bytes_and_read_back(message, by_hand, before):
+    data = message.encode()
+    assert data == by_hand == bytes.fromhex(before)
+    decoded = type(message).decode(data)
+    for name, value in vars(message).items():
+        got = getattr(decoded, name)
+        if isinstance(value, np.ndarray):
+            assert got.dtype == np.float64 and np.array_equal(got, value)
+        else:
+            assert got == value and type(got) is type(value)

@@ -1,0 +1,165 @@
+"""Measurement noise in the live controller node, and the replay that reproduces it.
+
+Two short sessions of the two-link arm with a ``measurement_noise`` table run at once through
+``delaytrack live run``: one as the scenario says, one with ``--no-measurement-noise``. The
+controller's MCAP log is read with the public ``mcap`` readers and checked against the
+simulator's :func:`~delaytrack.sim.measurement.measure` recomputed here; nothing here asserts a
+timing.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+pytest.importorskip("zenoh")
+pytest.importorskip("mcap_ros2")
+
+from mcap.reader import make_reader  # noqa: E402
+from mcap_ros2.decoder import DecoderFactory  # noqa: E402
+
+from delaytrack.experiments import load_builtin  # noqa: E402
+from delaytrack.sim.measurement import MeasurementNoise, measure  # noqa: E402
+
+PYTHON = [sys.executable, "-m", "delaytrack.live"]
+#: Quantisation and velocity noise only, so that the measured positions lie on the encoder grid.
+NOISE = {"quantization": 0.0015, "position": 0.0, "velocity": 0.01, "seed": 3}
+
+
+def _by_topic(path):
+    """The controller log's messages with the public readers: topic -> {sequence: message}."""
+    out: dict[str, dict[int, object]] = {}
+    with open(path, "rb") as handle:
+        reader = make_reader(handle, decoder_factories=[DecoderFactory()])
+        for _schema, channel, message, decoded in reader.iter_decoded_messages():
+            out.setdefault(channel.topic, {})[message.sequence] = decoded
+    return out
+
+
+def _ns(stamp):
+    return stamp.sec * 10**9 + stamp.nanosec
+
+
+def _state(message):
+    return np.concatenate((message.position, message.velocity))
+
+
+@pytest.fixture(scope="module")
+def sessions(tmp_path_factory):
+    root = tmp_path_factory.mktemp("live_noise")
+    scenario = load_builtin("two_link_S1").replace(name="two_link_noise", measurement_noise=NOISE)
+    path = root / "two_link_noise.toml"
+    scenario.to_toml(path)
+    runs = {
+        name: subprocess.Popen(
+            [*PYTHON, "run", str(path), "--duration", "1.5", "--out", str(root / name), "--quiet"]
+            + extra,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
+        for name, extra in (("noise", []), ("off", ["--no-measurement-noise"]))
+    }
+    for name, process in runs.items():
+        _stdout, stderr = process.communicate(timeout=180)
+        assert process.returncode == 0, f"{name}: {stderr.decode()}"
+    return root, scenario
+
+
+def test_the_controller_reads_the_state_through_the_scenarios_measurement(sessions):
+    root, scenario = sessions
+    topics = _by_topic(root / "noise" / "controller.mcap")
+    received, measured, commands = topics["/received"], topics["/measured"], topics["/command"]
+    # Every command the law computed has its received and measured state, under its tick k.
+    computed = {k for k, command in commands.items() if command.flags == 0}
+    assert computed and set(measured) == computed and set(received) == computed
+    n = len(received[min(computed)].position)
+    params = MeasurementNoise(**NOISE).params(n)
+    q_measured, qdot_measured = np.empty(n), np.empty(n)
+    for k in sorted(computed):
+        command = commands[k]
+        assert command.sample_time == k * scenario.T_c  # k is the simulation's tick index
+        true = _state(received[k])
+        # /measured is stamped t_k, /received with the state's sample time, at or before t_k.
+        assert _ns(measured[k].header.stamp) == _ns(command.header.stamp)
+        assert _ns(received[k].header.stamp) <= _ns(command.header.stamp)
+        measure(true[:n], true[n:], k, params, q_measured, qdot_measured)
+        np.testing.assert_array_equal(
+            _state(measured[k]), np.concatenate((q_measured, qdot_measured))
+        )
+        # Positions on the encoder grid; velocities noisy.
+        steps = np.asarray(measured[k].position) / NOISE["quantization"]
+        np.testing.assert_allclose(steps, np.round(steps), rtol=0, atol=1e-9)
+        assert np.all(np.asarray(measured[k].velocity) != np.asarray(received[k].velocity))
+    summary = json.loads((root / "noise" / "summary.json").read_text())
+    assert summary["nodes"]["controller"]["measurement_noise"] == NOISE
+    assert "measured with measurement_noise" in (root / "noise" / "report.html").read_text()
+
+
+def test_without_measurement_noise_the_law_reads_the_received_state(sessions):
+    root, _scenario = sessions
+    topics = _by_topic(root / "off" / "controller.mcap")
+    received, measured = topics["/received"], topics["/measured"]
+    assert measured and set(measured) == set(received)
+    for k, message in measured.items():
+        np.testing.assert_array_equal(_state(message), _state(received[k]))
+    controller = json.loads((root / "off" / "summary.json").read_text())["nodes"]["controller"]
+    assert controller["measurement_noise"] is None and controller["measurement_noise_off"]
+    assert "--no-measurement-noise" in (root / "off" / "report.html").read_text()
+
+
+def test_the_replay_simulates_the_noise_the_session_measured_with(sessions, tmp_path):
+    """The replay simulates with the live session's noise, and its commands agree with the live
+    ones better than those of a replay that reads the true state (the session folder edited to
+    say so): both see the same timing, only one the noise the live controller read."""
+    from delaytrack.live.replay import _replay
+
+    root, _scenario = sessions
+    with_noise, _, replayed = _replay(root / "noise")
+    assert replayed.settings["measurement_noise"] == [NOISE]
+    assert with_noise["measurement_noise"] == NOISE
+    truth = tmp_path / "truth"
+    shutil.copytree(root / "noise", truth)
+    summary = json.loads((truth / "summary.json").read_text())
+    summary["nodes"]["controller"]["measurement_noise"] = None
+    (truth / "summary.json").write_text(json.dumps(summary))
+    without, _, replayed = _replay(truth)
+    assert replayed.settings["measurement_noise"] is None
+    assert with_noise["command_difference_rms"] < without["command_difference_rms"]
+
+
+def test_the_controller_node_computes_the_simulations_commands_bit_for_bit(tmp_path):
+    """Fed the simulated state at every tick, the node's tick (measurement, reference, law)
+    gives the simulator's commands exactly: the same noise at the same tick index."""
+    from types import SimpleNamespace
+
+    from delaytrack.live.controller import ControllerNode
+
+    scenario = load_builtin("two_link_S1").replace(
+        duration=1.0, measurement_noise={**NOISE, "position": 0.0005}
+    )
+    simulated = scenario.run()
+    args = SimpleNamespace(
+        duration=1.0, out=tmp_path, quiet=True, phase=None, state_timeout=None, stale="hold"
+    )
+    node = ControllerNode(scenario, scenario.build(), args)
+    for t, x, u in zip(simulated.t, simulated.x[0], simulated.commands[0], strict=True):
+        np.testing.assert_array_equal(node._tick(round(t / scenario.T_c), x), u)
+
+
+def test_a_noise_table_that_does_not_fit_the_plant_is_refused_before_any_node_starts(
+    tmp_path, capsys
+):
+    from delaytrack.cli import main
+
+    path = tmp_path / "bad.toml"
+    bad = {**NOISE, "quantization": [0.001, 0.001, 0.001]}  # the arm has 2 coordinates
+    load_builtin("two_link_S1").replace(measurement_noise=bad).to_toml(path)
+    assert main(["live", "run", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.startswith("error: measurement_noise.quantization must have 1 or n = 2")
+    assert not (tmp_path / "out").exists()

@@ -59,8 +59,11 @@ class PlantStepper:
     (:mod:`delaytrack.live._plant_step`, about a microsecond a step), called on arrays this
     object owns: :attr:`x` (the state, advanced in place) and :attr:`u` (the input held over
     the step). A plant whose kernel is plain Python is stepped by the same scheme in Python
-    (:meth:`python_step`). The simulator also splits a step where the delayed input switches;
-    here the input switches only at step boundaries, so no split is needed.
+    (:meth:`python_step`). A plant stepped by an integrator of its own (a MuJoCo model with
+    ``stepping = "mujoco"``, the robot on contact wheels) takes each step with it, as the
+    simulator does: ``dt`` must be the model's timestep, and the first step resets MuJoCo's
+    data. The simulator also splits a step where the delayed input switches; here the input
+    switches only at step boundaries, so no split is needed.
 
     Parameters
     ----------
@@ -74,12 +77,6 @@ class PlantStepper:
     """
 
     def __init__(self, plant: Any, dt: float, x0: Any, announce: Any = None) -> None:
-        if plant.stepper_kernel is not None:
-            raise ValueError(
-                f"the live robot node integrates a plant's terms M, N, G; {type(plant).__name__} "
-                "is stepped by an integrator of its own (MuJoCo stepping), which the live robot "
-                "node does not drive yet: use the model with its default stepping"
-            )
         self.n, self.m, self.dt = plant.n, plant.m, float(dt)
         self.x = np.array(x0, dtype=np.float64).reshape(2 * self.n).copy()
         self.u = np.zeros(self.m)
@@ -91,12 +88,21 @@ class PlantStepper:
         self._G = np.zeros((self.n, self.m))
         self._entry = None
         self._kernel = plant.engine_kernel
-        if self.compiled:
+        self._stepper = plant.stepper_kernel
+        self._first = True
+        if self._stepper is not None:
+            plant.check_step(self.dt)
+            _compile_stepper(plant, announce)
+        elif self.compiled:
             self._entry, self._work = _compiled_step(plant, announce)
 
     def step(self, t: float) -> bool:
         """Advance :attr:`x` by one step from ``t`` with :attr:`u` held; False when the new
         state is not finite or a mass matrix met was not positive definite."""
+        if self._stepper is not None:  # the plant's own integrator (MuJoCo's mj_step)
+            self._stepper(t, self.x, self.u, self.dt, self._params, self._first)
+            self._first = False
+            return bool(np.all(np.isfinite(self.x)))
         if self._entry is None:
             self.x[:] = self.python_step(t, self.x, self.u, self.dt)
             return bool(np.all(np.isfinite(self.x)))
@@ -120,6 +126,25 @@ class PlantStepper:
         k3 = self.derivative(t + dt / 2, np.ascontiguousarray(x + dt / 2 * k2), u)
         k4 = self.derivative(t + dt, np.ascontiguousarray(x + dt * k3), u)
         return x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
+def _compile_stepper(plant: Any, announce: Any) -> None:
+    """Compile (or load from numba's disk cache) the integrator of a plant stepped by one of its
+    own, ``stepper(t, x, u, dt, params, first)``, for the robot node's arguments, announcing a
+    first compile through ``announce``."""
+    from numba import typeof, types
+
+    from delaytrack.sim.first_compile import code_ready
+
+    vector = typeof(np.empty(1))
+    signature = (types.float64, vector, vector, types.float64, vector, types.boolean)
+    stepper = plant.stepper_kernel
+    if not code_ready(stepper, signature, signature) and announce is not None:
+        announce(
+            f"compiling {type(plant).__name__}'s own step for the live robot node (once; "
+            "from seconds to a minute, then kept on disk)"
+        )
+    stepper.compile(signature)
 
 
 def _compiled_step(plant: Any, announce: Any) -> tuple[Any, Any]:

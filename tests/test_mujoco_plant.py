@@ -268,13 +268,15 @@ T_C, DT = 0.002, 0.001
 X0 = np.array([0.0, 0.3, 0.0, 0.5, 0.39, 0.14])
 
 
-def _native_delay_run(h: float, ticks: int, controller, exact_clock: bool) -> np.ndarray:
+def _native_delay_run(
+    h: float, ticks: int, controller, exact_clock: bool, arm: Path = ARM
+) -> np.ndarray:
     """The closed loop run by MuJoCo alone, the delay by its actuators' own ``delay``
     (independent of this toolkit's delay); the states at the ticks."""
     import re
 
     nsample = round(h / DT) + 3
-    text = re.sub(r"(<motor [^/]*)/>", rf'\1 delay="{h!r}" nsample="{nsample}"/>', ARM.read_text())
+    text = re.sub(r"(<motor [^/]*)/>", rf'\1 delay="{h!r}" nsample="{nsample}"/>', arm.read_text())
     model = mujoco.MjModel.from_xml_string(text)
     assert model.actuator_delay[0] == h
     data = mujoco.MjData(model)
@@ -316,6 +318,44 @@ def test_the_delay_agrees_with_mujocos_own_actuator_delay(h):
     # never meets a tie, so even that clock agrees bit for bit.
     if round(h / DT) * DT != h:
         np.testing.assert_array_equal(ours, _native_delay_run(h, ticks, controller, False))
+
+
+def test_mujocos_own_delay_differs_under_its_rk4_integrator(tmp_path):
+    """MuJoCo's actuator delay is this toolkit's rule only with one force evaluation per step
+    (Euler, implicit, implicitfast: the test above). Under ``integrator="RK4"``,
+    ``mj_fwdActuation`` reads the delayed control at each stage's time while ``mj_advance``
+    records the step's control only at its end, so the last stage (at ``t + dt``) already
+    uses the command one step newer: the two loops part by millimetres of joint angle."""
+    rk4 = _arm_with(
+        tmp_path, '<option timestep="0.001"', '<option timestep="0.001" integrator="RK4"'
+    )
+    model = MujocoPlant(ARM, mass_scale=0.8)
+    controller = dt.AROLC(model, K1=16.0, K2=8.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
+    ticks, h = 500, 0.03
+    ours = dt.simulate(
+        MujocoPlant(rk4, stepping="mujoco"),
+        controller,
+        dt.ConstantDelay(h),
+        X0,
+        reference=REFERENCE,
+        t1=ticks * T_C,
+        dt=DT,
+        T_c=T_C,
+    ).x[0, :ticks]
+    native = _native_delay_run(h, ticks, controller, True, rk4)
+    assert np.max(np.abs(ours - native)) > 1e-4
+    # Without a delay there is no buffer to read at stage times: bit for bit again.
+    undelayed = dt.simulate(
+        MujocoPlant(rk4, stepping="mujoco"),
+        controller,
+        dt.ConstantDelay(0.0),
+        X0,
+        reference=REFERENCE,
+        t1=ticks * T_C,
+        dt=DT,
+        T_c=T_C,
+    ).x[0, :ticks]
+    np.testing.assert_array_equal(undelayed, _native_delay_run(0.0, ticks, controller, True, rk4))
 
 
 def test_stepped_by_mujoco_each_run_starts_afresh_and_dt_is_the_models(tmp_path):
@@ -388,3 +428,26 @@ def test_a_stepped_model_is_not_a_nominal_model_and_a_diverging_run_is_reported(
         divergence_bound=1e300,
     )
     assert result.status_names == ["diverged"] and result.t_stop[0] < 4.0
+
+
+def test_mujocos_warnings_are_python_warnings_and_no_log_file_is_written(tmp_path, monkeypatch):
+    """A diverging batch stepped by MuJoCo on two threads: MuJoCo's "unstable" warnings reach
+    Python's warnings, and no ``MUJOCO_LOG.TXT`` appears in the current folder."""
+    from delaytrack.sim.integrator import DIVERGED
+
+    monkeypatch.chdir(tmp_path)
+    controller = dt.OuterLoop(MujocoPlant(ARM, mass_scale=0.8), K1=1e9, K2=1e5)
+    with pytest.warns(RuntimeWarning, match="MuJoCo: .*unstable"):
+        result = dt.simulate(
+            MujocoPlant(ARM, stepping="mujoco"),
+            controller,
+            [dt.ConstantDelay(0.05), dt.ConstantDelay(0.06)],
+            X0,
+            reference=REFERENCE,
+            t1=0.5,
+            dt=DT,
+            T_c=T_C,
+            workers=2,
+        )
+    assert list(result.status) == [DIVERGED, DIVERGED]
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()

@@ -26,6 +26,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import importlib
+import sys
 import unicodedata
 import warnings
 from dataclasses import dataclass, field, fields
@@ -67,11 +68,28 @@ _INSTALL = "MuJoCo is not installed: pip install -e '.[mujoco]' (from a clone of
 
 
 def import_mujoco() -> Any:
-    """The ``mujoco`` package, or an ImportError that says how to install it."""
+    """The ``mujoco`` package, or an ImportError that says how to install it.
+
+    MuJoCo's warnings (an unstable simulation, a full contact buffer) become Python
+    ``RuntimeWarning`` s, unless a handler of yours is installed already: MuJoCo's own would
+    print them and append them to a file ``MUJOCO_LOG.TXT`` in the current folder, which is the
+    user's (the run's status says when it diverged)."""
     try:
-        return importlib.import_module("mujoco")
+        mujoco = importlib.import_module("mujoco")
     except ImportError:
         raise ImportError(_INSTALL) from None
+    if mujoco.get_mju_user_warning() is None:
+        mujoco.set_mju_user_warning(_warn)
+    return mujoco
+
+
+def _warn(text: str) -> None:
+    """MuJoCo's warning handler: a Python warning. Nothing may raise through MuJoCo's C code
+    (the process would abort), so a warning that a filter turns into an error is printed."""
+    try:
+        warnings.warn(f"MuJoCo: {text}", RuntimeWarning, stacklevel=2)
+    except Exception:  # noqa: BLE001 - "error" filters: say it, do not raise into C
+        print(f"MuJoCo warning: {text}", file=sys.stderr)
 
 
 @kernel

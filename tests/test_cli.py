@@ -288,7 +288,7 @@ def test_tune_baselines_never_writes_into_the_package_by_default():
 
 
 def test_reproduce_gains_must_be_a_complete_gains_file(tmp_path, capsys):
-    from delaytrack.cli import _checked_gains
+    from delaytrack.cli.reproduce import _checked_gains
     from delaytrack.experiments.tuning import default_gains_path
 
     assert _checked_gains(str(default_gains_path())) == default_gains_path().resolve()

@@ -26,7 +26,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from delaytrack._io import MAX_READ_BYTES, named_time_units, regular_file
-from delaytrack.cli import UsageError, _scalar, main
+from delaytrack.cli import main
+from delaytrack.cli._numbers import scalar as _scalar
+from delaytrack.cli._usage import UsageError
 from delaytrack.delays import TraceDelay
 from delaytrack.experiments import Scenario, ScenarioError
 from delaytrack.references import SplineReference

@@ -352,8 +352,8 @@ def test_sweep_output_and_workers_are_checked_before_anything_runs(tmp_path, cap
 
 
 def test_working_memory_beyond_the_machine_is_refused_before_allocating(monkeypatch):
-    simulate_module = importlib.import_module("delaytrack.sim.simulate")
-    monkeypatch.setattr(simulate_module, "physical_memory", lambda: 2.0**20)
+    plan_module = importlib.import_module("delaytrack.sim._plan")
+    monkeypatch.setattr(plan_module, "physical_memory", lambda: 2.0**20)
     data = {"type": "pcon", "kappa": 1.0, "vartheta": 1.0, "k_b": 1.0, "T_c": 0.002}
     scenario = short(controller={**data, "history": 1000.0}, record_every=100)
     with pytest.raises(ScenarioError, match=r"working memory needs .* GiB.*predictor's history"):

@@ -25,7 +25,8 @@ from hypothesis import strategies as st
 
 from arm_closed_form import arm_mass, arm_nonlinear
 from delaytrack._user_calls import UserFunctionError
-from delaytrack.cli import EXIT_BROKEN_PIPE, main
+from delaytrack.cli import main
+from delaytrack.cli._main import EXIT_BROKEN_PIPE
 from delaytrack.controllers import AROLC
 from delaytrack.delays import CompiledDelay, ConstantDelay
 from delaytrack.experiments.scenario import dumps_toml

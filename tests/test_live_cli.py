@@ -263,3 +263,26 @@ def test_messages_keep_their_bytes_and_read_back(message, by_hand, before):
             assert got.dtype == np.float64 and np.array_equal(got, value)
         else:
             assert got == value and type(got) is type(value)
+
+
+def test_a_lead_longer_than_half_the_smallest_delay_is_refused(capsys, tmp_path, signals_kept):
+    # S1's smallest delay is 20 ms: a release sent 15 ms ahead would go out before most
+    # commands have reached the delay node, and every delay would grow by about that much.
+    line = refusal(
+        capsys, "delay", SCENARIO, "--out", str(tmp_path / "out"), "--lead", "0.015", "--quiet"
+    )
+    assert "--lead 0.015 s" in line and "h = 20 ms" in line and "at most 0.01 s" in line
+
+
+def test_a_node_that_exits_before_the_sessions_end_ends_it(tmp_path):
+    from delaytrack.live.session import _ended_early, _exit_text
+
+    (tmp_path / "delay.json").write_text(json.dumps({"stopped_by": "duration"}))
+    (tmp_path / "controller.json").write_text(json.dumps({"stopped_by": "SIGTERM"}))
+    assert not _ended_early(tmp_path, "delay", None)  # still running
+    assert not _ended_early(tmp_path, "delay", 0)  # its session ran to the end
+    assert _ended_early(tmp_path, "controller", 0)  # stopped by a signal of its own
+    assert _ended_early(tmp_path, "robot", 0)  # no record of how it ended
+    assert _ended_early(tmp_path, "delay", 1)
+    assert _exit_text("robot", -signal.SIGKILL) == "robot (killed by SIGKILL)"
+    assert _exit_text("robot", 1) == "robot (exit 1)"

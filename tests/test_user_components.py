@@ -329,7 +329,7 @@ def test_a_kernel_numba_cannot_compile_is_a_one_line_error(example, capsys):
 def test_a_kernel_the_compile_helper_cannot_compile_is_reported_here(example, capsys, monkeypatch):
     from delaytrack.sim import compile_helper
 
-    simulate = sys.modules["delaytrack.sim.simulate"]
+    compiling = sys.modules["delaytrack.sim._compile"]
     # A new arm (another fingerprint at every run, never in the cache): its integrator and the
     # failing step both to compile, the step handed to a helper, which fails on it; this process
     # names it and stops the helper.
@@ -345,7 +345,7 @@ def test_a_kernel_the_compile_helper_cannot_compile_is_reported_here(example, ca
         started.append((helper, given))
         return helper, given
 
-    monkeypatch.setattr(simulate, "start_helper", spy)
+    monkeypatch.setattr(compiling, "start_helper", spy)
     path = _scenario_with_a_law_numba_cannot_compile(example)
     assert main(["simulate", str(path), "--out", str(example / "out")]) == 2
     err = capsys.readouterr().err
@@ -849,12 +849,12 @@ def test_a_kernel_with_the_wrong_arguments_is_refused_by_name_before_compiling()
 
 
 def test_numbas_colour_codes_are_left_out_of_the_cause():
-    from delaytrack.sim.simulate import _numba_cause
+    from delaytrack.sim._kernel_errors import numba_cause
 
     error = TypeError(
         "Failed in nopython mode\n\x1b[1m\x1b[1mNameError: name 'x' is not defined\x1b[0m"
     )
-    assert _numba_cause(error) == (
+    assert numba_cause(error) == (
         "NameError: name 'x' is not defined (call a kernel of yours alone, compiled, to see "
         "numba's whole message)"
     )
@@ -864,7 +864,7 @@ def test_numbas_colour_codes_are_left_out_of_the_cause():
     "words", ["Only accept returning of array passed into the function as argument", "NRT required"]
 )
 def test_an_array_made_in_the_loop_is_named_whatever_numba_calls_it(words):
-    from delaytrack.sim.simulate import _numba_cause
+    from delaytrack.sim._kernel_errors import numba_cause
 
     error = TypeError(f"Failed in nopython mode\n\x1b[1m{words} but not enabled\x1b[0m")
-    assert _numba_cause(error).startswith("code of yours inlined into the simulator's loop")
+    assert numba_cause(error).startswith("code of yours inlined into the simulator's loop")

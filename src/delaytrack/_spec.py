@@ -53,7 +53,23 @@ Check = Callable[[object], "str | None"]
 
 
 class SpecError(ValueError):
-    """A scenario file or table is not valid; the message names the key and what is valid."""
+    """A scenario file or table is not valid; the message names the key and what is valid.
+
+    An error about the value of one key (:meth:`of_key`) carries the key (``key``, dotted:
+    ``controller.alpha``) and what is wrong with its value (``problem``), so that a caller that
+    sets the key another way (the command line's ``--duration``) can name it so; other errors
+    have ``key = None``.
+    """
+
+    key: str | None = None
+    problem: str | None = None
+
+    @classmethod
+    def of_key(cls, key: str, problem: str) -> SpecError:
+        """The error ``"scenario key '<key>' <problem>"``, carrying ``key`` and ``problem``."""
+        error = cls(f"scenario key {key!r} {problem}")
+        error.key, error.problem = key, problem
+        return error
 
 
 def _is_number(value: object) -> bool:
@@ -319,7 +335,7 @@ def _any_value(value: object) -> str | None:
 
 def fail(key: str, phrase: str, value: object) -> SpecError:
     """The error for ``key`` whose ``value`` does not fit ``phrase`` ("must be ...")."""
-    return SpecError(f"scenario key {key!r} {phrase}; got {value!r}")
+    return SpecError.of_key(key, f"{phrase}; got {value!r}")
 
 
 def check_table(table: str, value: object, types: Mapping[str, TypeSpec]) -> TypeSpec:

@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
 __all__ = [
+    "ArgumentError",
     "BEYOND_CHOICES",
     "DECIMAL_NOTATION",
     "NumberTextError",
@@ -35,6 +36,47 @@ _SYMMETRY_RTOL = 1e-10
 #: after the time its data covers: ``"refuse"`` a run that lasts longer, or ``"hold"`` its last
 #: state, as the user chose.
 BEYOND_CHOICES = ("refuse", "hold")
+
+
+class ArgumentError(ValueError):
+    """A value refused for one argument: ``argument`` names it, ``problem`` says what is wrong
+    with the value and what would be valid; the message is ``f"{argument} {problem}"``.
+
+    Where ``problem`` names other arguments of the same call (``mentions``), it writes each as
+    ``$name``, so that a caller that knows the arguments by other names (the command line's
+    flags: ``--gain-bound`` for ``gain_bound``) can say the same thing in its own names
+    (:meth:`spelled`) while the wording stays here. Symbols of the paper (``K1``, ``Q``,
+    ``beta``) are plain words, and so is any other text.
+
+    Examples
+    --------
+    >>> error = ArgumentError(
+    ...     "min_bandwidth", "= 2 rad/s needs K1 >= 4, above $gain_bound = 1", ("gain_bound",)
+    ... )
+    >>> str(error)
+    'min_bandwidth = 2 rad/s needs K1 >= 4, above gain_bound = 1'
+    >>> error.spelled({"min_bandwidth": "--min-bandwidth", "gain_bound": "--gain-bound"})
+    '--min-bandwidth = 2 rad/s needs K1 >= 4, above --gain-bound = 1'
+    """
+
+    def __init__(self, argument: str, problem: str, mentions: Sequence[str] = ()) -> None:
+        self.argument = argument
+        self.problem = problem
+        self.mentions = tuple(mentions)
+        super().__init__(self.spelled({}))
+
+    def __reduce__(self) -> tuple[type, tuple[str, str, tuple[str, ...]]]:
+        # Rebuilt from its parts (an error raised in a worker process crosses back pickled).
+        return type(self), (self.argument, self.problem, self.mentions)
+
+    def spelled(self, names: Mapping[str, str]) -> str:
+        """The message with each argument called by its name in ``names`` (by its own name when
+        ``names`` lacks it)."""
+        problem = self.problem
+        if self.mentions:
+            fields = re.compile(r"\$(" + "|".join(map(re.escape, self.mentions)) + r")\b")
+            problem = fields.sub(lambda field: names.get(field[1], field[1]), problem)
+        return f"{names.get(self.argument, self.argument)} {problem}"
 
 
 def beyond_choice(value: object) -> str:
@@ -117,11 +159,11 @@ def positive_scalar(name: str, value: object, *, strictly: bool = True) -> float
     except (TypeError, ValueError):
         raise TypeError(f"{name} must be a real number; got {value!r}") from None
     if not math.isfinite(number):
-        raise ValueError(f"{name} must be finite; got {number}")
+        raise ArgumentError(name, f"must be finite; got {number}")
     if strictly and number <= 0.0:
-        raise ValueError(f"{name} must be > 0; got {number:g}")
+        raise ArgumentError(name, f"must be > 0; got {number:g}")
     if not strictly and number < 0.0:
-        raise ValueError(f"{name} must be >= 0; got {number:g}")
+        raise ArgumentError(name, f"must be >= 0; got {number:g}")
     return number
 
 
@@ -140,7 +182,7 @@ def real_array(name: str, value: object, *, ndim: int | None = None) -> np.ndarr
     except (TypeError, ValueError, OverflowError, RecursionError):
         raise TypeError(f"{name} must be an array of real numbers; got {value!r}") from None
     if ndim is not None and array.ndim != ndim:
-        raise ValueError(f"{name} must be {ndim}-dimensional; got shape {array.shape}")
+        raise ArgumentError(name, f"must be {ndim}-dimensional; got shape {array.shape}")
     return array
 
 
@@ -150,7 +192,7 @@ def finite_array(name: str, value: object, *, ndim: int | None = None) -> np.nda
     if not np.all(np.isfinite(array)):
         bad = tuple(int(i) for i in np.argwhere(~np.isfinite(array))[0])
         where = f"{name}[{', '.join(map(str, bad))}]" if bad else name
-        raise ValueError(f"{name} must be finite; {where} is {array[bad]}")
+        raise ArgumentError(name, f"must be finite; {where} is {array[bad]}")
     return array
 
 
@@ -252,25 +294,27 @@ def as_square_matrix(name: str, value: object, n: int | None = None) -> np.ndarr
     """
     array = finite_array(name, value)
     if array.ndim == 1 and n is not None and array.size != n:
-        raise ValueError(f"{name} given as a diagonal must have {n} entries; got {array.size}")
+        raise ArgumentError(name, f"given as a diagonal must have {n} entries; got {array.size}")
     if array.ndim == 0:
         if n is None:
-            raise ValueError(f"{name} is a scalar; its dimension n must be given to build {name}*I")
+            raise ArgumentError(
+                name, f"is a scalar; its dimension n must be given to build {name}*I"
+            )
         matrix = float(array) * np.eye(n)
     elif array.ndim == 1:
         matrix = np.diag(array)
     elif array.ndim == 2:
         matrix = array
     else:
-        raise ValueError(
-            f"{name} must be a scalar, a diagonal or a square matrix; got shape {array.shape}"
+        raise ArgumentError(
+            name, f"must be a scalar, a diagonal or a square matrix; got shape {array.shape}"
         )
     if matrix.shape[0] != matrix.shape[1]:
-        raise ValueError(f"{name} must be square; got shape {matrix.shape}")
+        raise ArgumentError(name, f"must be square; got shape {matrix.shape}")
     if n is not None and matrix.shape[0] != n:
-        raise ValueError(f"{name} must be {n}x{n}; got shape {matrix.shape}")
+        raise ArgumentError(name, f"must be {n}x{n}; got shape {matrix.shape}")
     if matrix.shape[0] == 0:
-        raise ValueError(f"{name} must have at least one row; got shape {matrix.shape}")
+        raise ArgumentError(name, f"must have at least one row; got shape {matrix.shape}")
     return matrix
 
 
@@ -284,15 +328,17 @@ def as_spd_matrix(name: str, value: object, n: int | None = None) -> np.ndarray:
     scale = max(1.0, float(np.max(np.abs(matrix))))
     asymmetry = float(np.max(np.abs(matrix - matrix.T)))
     if asymmetry > _SYMMETRY_RTOL * scale:
-        raise ValueError(
-            f"{name} must be symmetric positive definite; it is not symmetric "
-            f"(max |{name} - {name}^T| = {asymmetry:.3g})"
+        raise ArgumentError(
+            name,
+            f"must be symmetric positive definite; it is not symmetric "
+            f"(max |{name} - {name}^T| = {asymmetry:.3g})",
         )
     matrix = 0.5 * (matrix + matrix.T)
     eigenvalues = np.linalg.eigvalsh(matrix)
     if eigenvalues[0] <= 0.0:
-        raise ValueError(
-            f"{name} must be symmetric positive definite; "
-            f"its eigenvalues are {format_values(eigenvalues)}"
+        raise ArgumentError(
+            name,
+            "must be symmetric positive definite; "
+            f"its eigenvalues are {format_values(eigenvalues)}",
         )
     return matrix

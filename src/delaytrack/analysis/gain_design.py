@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import scipy.optimize
 
-from delaytrack._validation import is_integer_at_least, positive_scalar
+from delaytrack._validation import ArgumentError, is_integer_at_least, positive_scalar
 from delaytrack.analysis.exact_margin import ExactDelayMargin, exact_delay_margin
 from delaytrack.analysis.razumikhin import RazumikhinBound, _dimension, razumikhin_bound
 
@@ -188,9 +188,10 @@ def _closed_form_h_m(log_parameters: np.ndarray, r: float) -> float:
 
 def _seed(seed: object) -> int:
     if not (is_integer_at_least(seed, 0) and seed <= _LARGEST_SEED):
-        raise ValueError(
-            f"seed must be a non-negative integer; got {seed!r} (seeds run from 0 to "
-            f"2**32 - 1 = {_LARGEST_SEED})"
+        raise ArgumentError(
+            "seed",
+            f"must be a non-negative integer; got {seed!r} (seeds run from 0 to "
+            f"2**32 - 1 = {_LARGEST_SEED})",
         )
     return int(seed)
 
@@ -202,10 +203,11 @@ def _paper_bound(r: object) -> RazumikhinBound:
     except ValueError as error:
         if str(error).startswith("r must"):  # not a number > 1
             raise
-        raise ValueError(
-            f"r is too large for the design: the paper's K1 = K2 = Q = I, beta = 1, which the "
+        raise ArgumentError(
+            "r",
+            f"is too large for the design: the paper's K1 = K2 = Q = I, beta = 1, which the "
             f"design is compared with, cannot be evaluated at r = {float(r):g} (E overflows or "
-            f"h_m underflows in double precision); r up to about {_LARGEST_R:g} works"
+            f"h_m underflows in double precision); r up to about {_LARGEST_R:g} works",
         ) from None
 
 
@@ -241,7 +243,7 @@ def _check_optimum(
     k1, k2, q_v, gamma = np.exp(x)
     found = f"k1 = {k1:.3g}, k2 = {k2:.3g}, q_v = {q_v:.3g}, beta = {math.sqrt(r) * gamma:.3g}"
     where = (
-        "lies on an edge of the searched range (gains from gain_bound / 1e4, q_v and "
+        "lies on an edge of the searched range (gains from $gain_bound / 1e4, q_v and "
         "beta / sqrt(r) from 1e-4 to 1e4)"
         if computable
         else "lies next to gains for which Theorem 1's bound cannot be computed in double precision"
@@ -249,19 +251,23 @@ def _check_optimum(
     small = x[1] < 0.0  # gains below 1: the search ran into the small side
     beyond = min_bandwidth is not None and min_bandwidth > _LARGEST_BANDWIDTH
     if beyond or (bandwidth_binds and not small and not (computable and any(edges[:2]))):
-        raise ValueError(
-            f"min_bandwidth is too large for the design: the best design found ({found}) "
-            f"{where}, so it is not the optimum (got min_bandwidth = {min_bandwidth:g} rad/s); "
-            f"min_bandwidth up to about {_LARGEST_BANDWIDTH:g} rad/s works, with gain_bound "
-            f"from min_bandwidth^2 to about {_GAIN_BOUND_RANGE[1]:g} min_bandwidth"
+        raise ArgumentError(
+            "min_bandwidth",
+            f"is too large for the design: the best design found ({found}) {where}, so it is "
+            f"not the optimum (got $min_bandwidth = {min_bandwidth:g} rad/s); $min_bandwidth "
+            f"up to about {_LARGEST_BANDWIDTH:g} rad/s works, with $gain_bound from "
+            f"$min_bandwidth^2 to about {_GAIN_BOUND_RANGE[1]:g} $min_bandwidth",
+            mentions=("min_bandwidth", "gain_bound"),
         )
     most = _GAIN_BOUND_RANGE[1] * max(1.0, min_bandwidth or 1.0)
-    raise ValueError(
-        f"gain_bound is too {'small' if small else 'large'} for the design: the best design "
-        f"found ({found}) {where}, so it is not the optimum (got gain_bound = {gain_bound:g}); "
-        f"gain_bound from about {_GAIN_BOUND_RANGE[0]:g} to {most:g} works here, and without "
-        f"min_bandwidth any value above 1.03 gives the unconstrained optimum k1 ≈ 1.03, "
-        f"k2 ≈ 0.91"
+    raise ArgumentError(
+        "gain_bound",
+        f"is too {'small' if small else 'large'} for the design: the best design found "
+        f"({found}) {where}, so it is not the optimum (got $gain_bound = {gain_bound:g}); "
+        f"$gain_bound from about {_GAIN_BOUND_RANGE[0]:g} to {most:g} works here, and without "
+        f"$min_bandwidth any value above 1.03 gives the unconstrained optimum k1 ≈ 1.03, "
+        f"k2 ≈ 0.91",
+        mentions=("gain_bound", "min_bandwidth"),
     )
 
 
@@ -371,9 +377,11 @@ def design_gains(
         least_k1 = bandwidth * bandwidth
         if least_k1 > bound_value:
             square = f"{least_k1:g}" if math.isfinite(least_k1) else f"{bandwidth:g}^2"
-            raise ValueError(
-                f"min_bandwidth = {bandwidth:g} rad/s needs K1 entries >= {square}, above "
-                f"gain_bound = {bound_value:g}; raise gain_bound or lower min_bandwidth"
+            raise ArgumentError(
+                "min_bandwidth",
+                f"= {bandwidth:g} rad/s needs K1 entries >= {square}, above $gain_bound = "
+                f"{bound_value:g}; raise $gain_bound or lower $min_bandwidth",
+                mentions=("gain_bound", "min_bandwidth"),
             )
         least_log_k1 = min(max(least_log_k1, 2.0 * math.log(bandwidth)), top)
     lows, highs = [least_log_k1, top - span, -span, -span], [top, top, span, span]

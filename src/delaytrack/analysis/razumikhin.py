@@ -28,6 +28,7 @@ import numpy as np
 import scipy.linalg
 
 from delaytrack._validation import (
+    ArgumentError,
     as_spd_matrix,
     as_square_matrix,
     format_values,
@@ -103,14 +104,15 @@ def _dimension(K1: object, n: int | None) -> int:
         shape = np.shape(K1)
         size, name = (1 if len(shape) == 0 else int(shape[0])), "K1"
     elif not is_integer_at_least(n, 1):
-        raise ValueError(f"n must be a positive integer (the number of joints); got {n!r}")
+        raise ArgumentError("n", f"must be a positive integer (the number of joints); got {n!r}")
     else:
         size, name = int(n), "n"
     if size > MAX_JOINTS:
-        raise ValueError(
-            f"{name} gives n = {size} joints; the analyses work on dense 2n x 2n matrices "
+        raise ArgumentError(
+            name,
+            f"gives n = {size} joints; the analyses work on dense 2n x 2n matrices "
             f"({2 * size}x{2 * size}, {8 * (2 * size) ** 2 / 2**20:.0f} MB each), for at most "
-            f"n = {MAX_JOINTS} joints"
+            f"n = {MAX_JOINTS} joints",
         )
     return size
 
@@ -124,11 +126,12 @@ def _check_coupled(n: int, what: str) -> None:
     size = 2 * n
     seconds = _LYAPUNOV_SECONDS_PER_CUBE * size**3
     memory = _LYAPUNOV_MATRICES * 8 * size**2 / 2**30
-    raise ValueError(
-        f"K1 is {n}x{n}: {what}, the Lyapunov equation A^T P + P A = -Q is one dense "
+    raise ArgumentError(
+        "K1",
+        f"is {n}x{n}: {what}, the Lyapunov equation A^T P + P A = -Q is one dense "
         f"{size}x{size} problem (about {memory:.2g} GB and {seconds:.0f} s of compiled code "
         f"on one core that Ctrl-C cannot stop); it is solved for at most n = "
-        f"{MAX_COUPLED_JOINTS} coupled joints"
+        f"{MAX_COUPLED_JOINTS} coupled joints",
     )
 
 
@@ -136,12 +139,13 @@ def _matrix_of_size(name: str, value: object, size: int, expected: str, spd: boo
     """Return ``value`` as a ``(size, size)`` matrix; ``expected`` says why that size in words."""
     matrix = as_square_matrix(name, value, size if np.ndim(value) == 0 else None)
     if matrix.shape != (size, size):
-        raise ValueError(f"{name} must be {expected}; got shape {matrix.shape}")
+        raise ArgumentError(name, f"must be {expected}; got shape {matrix.shape}")
     largest = float(np.max(np.abs(matrix)))
     if largest > _LARGEST_ENTRY:
-        raise ValueError(
-            f"{name} has an entry of magnitude {largest:.3g}, beyond {_LARGEST_ENTRY:.3g}, the "
-            f"largest that double-precision arithmetic on {name} can hold; {_RANGE_HINTS[name]}"
+        raise ArgumentError(
+            name,
+            f"has an entry of magnitude {largest:.3g}, beyond {_LARGEST_ENTRY:.3g}, the "
+            f"largest that double-precision arithmetic on {name} can hold; {_RANGE_HINTS[name]}",
         )
     return as_spd_matrix(name, matrix) if spd else matrix
 
@@ -384,7 +388,7 @@ def _solve_lyapunov(
         if residual <= _LYAPUNOV_RTOL and smallest > 0.0:
             error = _error_bound(A[block], P[block], weight, R)
         if not error <= _LYAPUNOV_ERROR:
-            raise ValueError(_unsolvable(K1, K2, Q, residual, smallest, error))
+            raise _unsolvable(K1, K2, Q, residual, smallest, error)
     return P
 
 
@@ -442,13 +446,13 @@ def _shown(matrix: np.ndarray) -> str:
 
 def _unsolvable(
     K1: np.ndarray, K2: np.ndarray, Q: np.ndarray, residual: float, smallest: float, error: float
-) -> str:
+) -> ValueError:
     """The error for a Lyapunov equation that cannot be solved accurately.
 
     It names K1 when an eigenvalue of K1 lies outside ``_K1_RANGE``, else K2 when a damping
     ratio k2 / (2 sqrt(k1)) (bounded by eigenvalue magnitudes for non-diagonal gains) lies
-    outside ``_DAMPING_RANGE``, else Q when its eigenvalues spread beyond ``_Q_SPREAD``, else
-    both gains.
+    outside ``_DAMPING_RANGE``, else Q when its eigenvalues spread beyond ``_Q_SPREAD`` (an
+    :class:`~delaytrack._validation.ArgumentError` for that argument), else both gains.
     """
     weights = np.linalg.eigvalsh(Q)
     spread = float(weights[-1]) / float(weights[0])
@@ -459,30 +463,34 @@ def _unsolvable(
     with np.errstate(all="ignore"):
         damping = (k2.min() / (2.0 * np.sqrt(k1.max())), k2.max() / (2.0 * np.sqrt(k1.min())))
     gains = f"K1 = {_shown(K1)}, K2 = {_shown(K2)}"
+    argument: str | None = None  # None: both gains
     if k1.min() < low or k1.max() > high:
         size = "large" if k1.max() > high else "small"
-        start = f"K1 is too {size} {_UNCOMPUTABLE} ({gains})"
+        argument, start = "K1", f"is too {size} {_UNCOMPUTABLE} ({gains})"
     elif damping[0] < least or damping[1] > most:
         size = "large" if damping[1] > most else "small"
         ratios = f"{damping[0]:.3g}" + ("" if damping[0] == damping[1] else f" to {damping[1]:.3g}")
-        start = (
-            f"K2 is too {size} relative to K1 {_UNCOMPUTABLE} ({gains}: damping ratio "
-            f"k2 / (2 sqrt(k1)) {ratios})"
+        argument, start = (
+            "K2",
+            f"is too {size} relative to K1 {_UNCOMPUTABLE} ({gains}: damping ratio "
+            f"k2 / (2 sqrt(k1)) {ratios})",
         )
     elif spread > _Q_SPREAD:
-        start = (
-            f"Q is too ill-conditioned for these gains {_UNCOMPUTABLE} ({gains}; "
-            f"lambda_max(Q) / lambda_min(Q) = {spread:.3g})"
+        argument, start = (
+            "Q",
+            f"is too ill-conditioned for these gains {_UNCOMPUTABLE} ({gains}; "
+            f"lambda_max(Q) / lambda_min(Q) = {spread:.3g})",
         )
     else:
         start = f"K1 and K2 are out of range {_UNCOMPUTABLE} ({gains})"
     found = f"relative residual {residual:.3g}, smallest eigenvalue of P {smallest:.3g}"
     if math.isfinite(error):
         found += f", relative error of P up to {error:.3g}"
-    return (
+    problem = (
         f"{start}: the Lyapunov equation A^T P + P A = -Q cannot be solved accurately ({found}); "
         f"{_RANGE_HINTS['K1']}"
     )
+    return ValueError(problem) if argument is None else ArgumentError(argument, problem)
 
 
 def _read_only(array: np.ndarray) -> np.ndarray:
@@ -629,8 +637,8 @@ def razumikhin_bound(
     except (TypeError, ValueError):
         raise TypeError(f"r must be a real number; got {r!r}") from None
     if not (math.isfinite(r_value) and r_value > 1.0):
-        raise ValueError(
-            f"r must be > 1 (Razumikhin condition V(e(xi)) < r V(e(t))); got {r_value:g}"
+        raise ArgumentError(
+            "r", f"must be > 1 (Razumikhin condition V(e(xi)) < r V(e(t))); got {r_value:g}"
         )
     K1_matrix, K2_matrix = _gains(K1, K2, n, spd=True)
     if not _diagonal(K1_matrix, K2_matrix):  # refused before Q, a 2n x 2n matrix, is checked
@@ -689,7 +697,7 @@ def _delay_matrix(
         return E
     X = P @ B1 @ inner @ B1.T @ P
     x = float(np.linalg.eigvalsh(0.5 * (X + X.T))[-1])
-    raise ValueError(_unrepresentable(x, float(np.linalg.eigvalsh(P)[-1]), beta, r, lambda_Q))
+    raise _unrepresentable(x, float(np.linalg.eigvalsh(P)[-1]), beta, r, lambda_Q)
 
 
 def _budget(lambda_min_Q: float) -> float:
@@ -703,7 +711,7 @@ def _budget(lambda_min_Q: float) -> float:
 
 def _unrepresentable(
     x: float, p: float, beta: float, r: float, lambda_Q: tuple[float, float]
-) -> str:
+) -> ArgumentError:
     """The error for beta, r or Q that make E = beta X + (2 r / beta) P overflow or h_m underflow.
 
     ``x`` = ‖X‖₂ with X = P B1 (A1 P⁻¹ A1ᵀ + B1 P⁻¹ B1ᵀ + P⁻¹) B1ᵀ P, ``p`` = ‖P‖₂ and
@@ -727,22 +735,25 @@ def _unrepresentable(
     high = budget / x
     if low > high:
         least_ratio = 2.0 * _TINY * math.sqrt(2.0 * p * x) * math.sqrt(r) / lambda_Q[1]
-        return (
-            f"Q is too ill-conditioned {_UNCOMPUTABLE} (lambda_min(Q) / lambda_max(Q) = "
+        return ArgumentError(
+            "Q",
+            f"is too ill-conditioned {_UNCOMPUTABLE} (lambda_min(Q) / lambda_max(Q) = "
             f"{lambda_Q[0] / lambda_Q[1]:.3g}: {consequence}); for these K1, K2 and r, no beta "
-            f"works unless lambda_min(Q) / lambda_max(Q) is at least about {least_ratio:.3g}"
+            f"works unless lambda_min(Q) / lambda_max(Q) is at least about {least_ratio:.3g}",
         )
     largest_r = budget * beta / (2.0 * p)
     if beta * x < 2.0 * (r / beta) * p and r * beta >= 1.0 and largest_r > 1.0:
-        return (
-            f"r is too large {_UNCOMPUTABLE} (r = {r:g}, beta = {beta:g}: {consequence}); for "
+        return ArgumentError(
+            "r",
+            f"is too large {_UNCOMPUTABLE} (r = {r:g}, beta = {beta:g}: {consequence}); for "
             f"these K1, K2, Q and beta, r must be at most about {largest_r:.3g} (a larger beta "
-            f"allows more)"
+            f"allows more)",
         )
     size = "large" if beta * x >= 2.0 * (r / beta) * p else "small"
-    return (
-        f"beta is too {size} {_UNCOMPUTABLE} (beta = {beta:g}, r = {r:g}: {consequence}); "
-        f"for these K1, K2, Q and r, beta must lie within about [{low:.3g}, {high:.3g}]"
+    return ArgumentError(
+        "beta",
+        f"is too {size} {_UNCOMPUTABLE} (beta = {beta:g}, r = {r:g}: {consequence}); "
+        f"for these K1, K2, Q and r, beta must lie within about [{low:.3g}, {high:.3g}]",
     )
 
 
@@ -764,9 +775,10 @@ def _rescaled(
         return tuple(scale * matrix for matrix in (P, *others))
     unit = largest_Q / scale
     size = "small" if scale * low < _TINY else "large"
-    raise ValueError(
-        f"Q is too {size} for P and E, which scale with it, to be represented in double "
+    raise ArgumentError(
+        "Q",
+        f"is too {size} for P and E, which scale with it, to be represented in double "
         f"precision (largest eigenvalue of Q {largest_Q:.3g}); keep its largest eigenvalue "
         f"within about [{_TINY / low * unit:.3g}, {_LARGEST_ENTRY / high * unit:.3g}]: "
-        f"{_RANGE_HINTS['Q']}"
+        f"{_RANGE_HINTS['Q']}",
     )

@@ -42,7 +42,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from delaytrack._validation import finite_array, is_integer_at_least, positive_scalar
+from delaytrack._validation import (
+    ArgumentError,
+    finite_array,
+    is_integer_at_least,
+    positive_scalar,
+)
 from delaytrack.controllers import Controller
 from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
 from delaytrack.experiments.scenario import Scenario, ScenarioError
@@ -341,10 +346,11 @@ def empirical_margin(
     make = PROFILES[settings["profile"]]
     switches = make(settings["upper"], frequency).switch_bound(0.0, scenario.duration, scenario.T_c)
     if not switches <= MAX_STEPS:
-        raise ValueError(
-            f"frequency must be low enough for the delay to switch the command at most "
+        raise ArgumentError(
+            "frequency",
+            f"must be low enough for the delay to switch the command at most "
             f"{MAX_STEPS:.0e} times in the run; at {frequency:g} rad/s with upper = "
-            f"{settings['upper']:g} s it may switch {switches:.3g} times"
+            f"{settings['upper']:g} s it may switch {switches:.3g} times",
         )
 
     def evaluate(values: list[float], controller: list[Controller]) -> tuple[np.ndarray, ...]:
@@ -389,10 +395,10 @@ def empirical_margin(
                 found = _missed(
                     settings["metric"], metrics[part][0], status[part][0], limits, built.plant
                 )
-                raise ValueError(
-                    f"threshold = {_shown(settings['threshold'])} is missed already without "
-                    f"delay: {found} at h = 0{where}; give a larger threshold or a later settle "
-                    f"time"
+                raise ArgumentError(
+                    "threshold",
+                    f"= {_shown(settings['threshold'])} is missed already without delay: "
+                    f"{found} at h = 0{where}; give a larger threshold or a later settle time",
                 )
             searches[i].take(values, metrics[part], status[part], passes[part])
         jobs = {}
@@ -426,9 +432,10 @@ def _per_coordinate(threshold: object, plant: ELPlant) -> float | tuple[float, .
         coordinates = ", ".join(
             name + (f" [{unit}]" if unit else "") for name, unit in zip(names, units, strict=True)
         )
-        raise ValueError(
-            f"threshold must be a number > 0, or a list of one number > 0 per coordinate "
-            f"({plant.n}: {coordinates}); got {_shown(tuple(float(b) for b in bounds))}"
+        raise ArgumentError(
+            "threshold",
+            f"must be a number > 0, or a list of one number > 0 per coordinate "
+            f"({plant.n}: {coordinates}); got {_shown(tuple(float(b) for b in bounds))}",
         )
     return tuple(float(bound) for bound in bounds)
 
@@ -460,28 +467,32 @@ def _settings(
     resolution = positive_scalar("resolution", resolution)
     upper = positive_scalar("upper", upper)
     if upper > scenario.duration:
-        raise ValueError(
-            f"upper must be at most the scenario's duration {scenario.duration:g} s (a longer "
-            f"delay means that no command ever reaches the plant); got {upper:g}"
+        raise ArgumentError(
+            "upper",
+            f"must be at most the scenario's duration {scenario.duration:g} s (a longer "
+            f"delay means that no command ever reaches the plant); got {upper:g}",
         )
     finest = max(MIN_RESOLUTION, _RELATIVE_RESOLUTION * upper)
     if resolution < finest:
-        raise ValueError(
-            f"resolution must be at least {finest:g} s (the larger of {MIN_RESOLUTION:g} s and "
+        raise ArgumentError(
+            "resolution",
+            f"must be at least {finest:g} s (the larger of {MIN_RESOLUTION:g} s and "
             f"{_RELATIVE_RESOLUTION:g} x upper: finer brackets are below what the simulation "
-            f"resolves in double precision); got {resolution:g}"
+            f"resolves in double precision); got {resolution:g}",
         )
     if resolution >= upper:
-        raise ValueError(
-            f"resolution must be smaller than upper; got resolution = {resolution:g} s, "
-            f"upper = {upper:g} s"
+        raise ArgumentError(
+            "resolution",
+            f"must be smaller than $upper; got resolution = {resolution:g} s, upper = {upper:g} s",
+            mentions=("upper",),
         )
     settle = scenario.duration / 2 if settle is None else settle
     settle = positive_scalar("settle", settle, strictly=False)
     if settle >= scenario.duration:
-        raise ValueError(
-            f"settle must be below the scenario's duration {scenario.duration:g} s (the metric "
-            f"window is [settle, duration]); got {settle:g}"
+        raise ArgumentError(
+            "settle",
+            f"must be below the scenario's duration {scenario.duration:g} s (the metric "
+            f"window is [settle, duration]); got {settle:g}",
         )
     return {
         "profile": _choice("profile", profile, tuple(PROFILES)),

@@ -38,6 +38,7 @@ from delaytrack._output import (
     claim_output_folder,
     record_outputs,
 )
+from delaytrack._validation import ArgumentError
 from delaytrack.analysis import exact_delay_margin, razumikhin_bound
 from delaytrack.experiments.empirical_margin import EmpiricalMargin, empirical_margin
 from delaytrack.experiments.scenario import Scenario, load_builtin
@@ -84,11 +85,12 @@ def run_study(*, duration: float | None = None, progress: bool = False) -> Margi
     if duration is not None:
         shortest = 2.0 * SEARCH["upper"]
         if not duration >= shortest:
-            raise ValueError(
-                f"duration must be at least {shortest:g} s for the margins job, twice its largest "
+            raise ArgumentError(
+                "duration",
+                f"must be at least {shortest:g} s for the margins job, twice its largest "
                 f"searched delay ({SEARCH['upper']:g} s), so that the metric window "
                 f"[duration/2, duration] begins after the longest delay has passed; got "
-                f"{duration:g}"
+                f"{duration:g}",
             )
         scenario = scenario.replace(duration=duration)
     pairs = [(k1, k2) for k1 in GAINS for k2 in GAINS]

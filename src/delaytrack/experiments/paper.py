@@ -58,6 +58,7 @@ from delaytrack._output import (
     claim_output_folder,
     record_outputs,
 )
+from delaytrack._validation import ArgumentError, integer_multiple
 from delaytrack.analysis import RazumikhinBound, razumikhin_bound
 from delaytrack.controllers import AROLC, OuterLoop
 from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
@@ -1355,6 +1356,16 @@ def run_paper(
     return study
 
 
+def _check_duration(duration: float) -> None:
+    """Refuse a ``duration`` that is not a positive integer multiple of the controller period
+    :data:`T_C` (the engine ends every run on a controller tick)."""
+    if integer_multiple(duration, T_C) is None:
+        raise ArgumentError(
+            "duration",
+            f"must be a positive integer multiple of 'T_c' = {T_C:g} s; got {duration:g}",
+        )
+
+
 def reproduce(
     out: str | Path = "results",
     *,
@@ -1370,9 +1381,11 @@ def reproduce(
     ``robustness``; None skips it) and ``<out>/paper/`` (whose report cites the literal run and
     the study's verdicts, and has the runs with contact physics when ``contact``; by default
     when MuJoCo is installed), with the tuned gains of ``gains`` (a gains file; the shipped one
-    by default). Returns ``{"consistent", "literal", "robustness"}``. ``out`` must be new, empty
-    or hold only results of this toolkit, and each job's folder new, empty or its own earlier
-    results (checked before anything runs)."""
+    by default). Returns ``{"consistent", "literal", "robustness"}``. ``duration`` must be a
+    positive integer multiple of :data:`T_C`; ``out`` must be new, empty or hold only results
+    of this toolkit, and each job's folder new, empty or its own earlier results (all checked
+    before anything runs)."""
+    _check_duration(duration)
     root = check_results_root(out, "out")
     gains = tuning.load_tuning_record(gains)
     folders = {

@@ -792,9 +792,10 @@ def _with_delay_defaults(delay: object, seed: int | None, duration: float) -> ob
 def _check_ratio(name: str, value: float, unit_name: str, unit: float) -> None:
     ratio = value / unit
     if integer_multiple(value, unit) is None:
-        raise ScenarioError(
-            f"scenario key {name!r} must be a positive integer multiple of {unit_name!r}; got "
-            f"{name} = {value:g}, {unit_name} = {unit:g} ({name}/{unit_name} = {ratio:.12g})"
+        raise ScenarioError.of_key(
+            name,
+            f"must be a positive integer multiple of {unit_name!r}; got {name} = {value:g}, "
+            f"{unit_name} = {unit:g} ({name}/{unit_name} = {ratio:.12g})",
         )
 
 

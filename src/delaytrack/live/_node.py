@@ -1,6 +1,6 @@
 """What the three nodes share: loading the scenario, the session's length, the output folder,
-the Zenoh session, the handshake, signals, the status line and the run's life cycle
-(:func:`run_node`).
+the Zenoh session, the handshake, signals, the status (:mod:`delaytrack.live.status`) and the
+run's life cycle (:func:`run_node`).
 
 A node writes into its ``--out`` folder as every command of the toolkit writes its results
 folder (:mod:`delaytrack._output`): the folder, with ``..`` and links resolved, must be new,
@@ -32,6 +32,13 @@ import numpy as np
 
 from delaytrack._io import write_text
 from delaytrack._output import check_output_folder, claim_output_folder, record_outputs
+from delaytrack.live.status import (
+    STATUS_PERIOD,
+    encode_status,
+    format_line,
+    make_status,
+    status_key,
+)
 from delaytrack.live.transport import Handshake, HandshakeError, open_session, scenario_hashes
 from delaytrack.sim.simulate import MAX_STEPS, physical_memory
 
@@ -82,6 +89,15 @@ class StopFlag:
     def install(self) -> None:
         for signum in (signal.SIGINT, signal.SIGTERM):
             signal.signal(signum, lambda s, _frame: self.set(s))
+
+    @staticmethod
+    def ignore_from_now() -> None:
+        """Ignore SIGINT/SIGTERM while the process exits, its work done: Python restores the
+        default handlers when it shuts down, so a stop signal arriving then (the launcher
+        stopping the session because another node failed) would kill it with -15 and hide the
+        code it exited with."""
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, signal.SIG_IGN)
 
 
 class Received:
@@ -245,7 +261,9 @@ class NodeBase:
         self.log: Any = None
         self.failure: str | None = None  # what stopped the node early, said on stderr
         self.t0 = math.nan
-        self._last_status = 0.0
+        self._last_status = 0.0  # session time of the last status
+        self._status_publisher: Any = None
+        self._status_totals: dict[str, Any] = {}  # the totals of the last status
 
     def declare(self, session: Any, prefix: str) -> None:
         raise NotImplementedError
@@ -261,12 +279,35 @@ class NodeBase:
         """Release what the node holds besides its Zenoh session (the robot's bridge); called
         once the node is done, however it ended."""
 
-    def status(self, now: float, text: str) -> None:
-        """A status line on stderr every second (not with ``--quiet``)."""
-        if self.quiet or now - self._last_status < 1.0:
+    def declare_status(self, session: Any, prefix: str) -> None:
+        """Declare the publisher of the node's status, ``<prefix>/status/<role>``
+        (:mod:`delaytrack.live.status`): Zenoh's default, which drops a status the transport
+        cannot take at once rather than wait."""
+        self._status_publisher = session.declare_publisher(status_key(prefix, self.role))
+        self.entities.append(self._status_publisher)
+
+    def status_numbers(self, window: float) -> tuple[dict[str, Any], dict[str, Any]]:
+        """The node's status numbers (:mod:`delaytrack.live.status`): those measured over the
+        last ``window`` seconds (rates, percentiles) and its counts since the start."""
+        raise NotImplementedError
+
+    def status(self, now: float) -> None:
+        """At the session time ``now``, once :data:`~delaytrack.live.status.STATUS_PERIOD` has
+        passed since the last: publish the node's status (:meth:`status_numbers`, with each
+        count's increase over the window) and, unless ``--quiet``, print it on stderr as one
+        line."""
+        window = now - self._last_status
+        if window < STATUS_PERIOD:
             return
         self._last_status = now
-        print(f"[{self.role} t={now:6.2f}s] {text}", file=sys.stderr, flush=True)
+        measured, totals = self.status_numbers(window)
+        last = {name: count - self._status_totals.get(name, 0) for name, count in totals.items()}
+        self._status_totals = totals
+        status = make_status(self.role, now, window, {**last, **measured}, totals)
+        if self._status_publisher is not None:
+            self._status_publisher.put(encode_status(status))
+        if not self.quiet:
+            print(format_line({self.role: status}), file=sys.stderr, flush=True)
 
     def metadata(self) -> dict[str, str]:
         return {
@@ -293,15 +334,22 @@ def missing_extra() -> str | None:
 
 
 def run_node(node_class: type[NodeBase], args: Any) -> int:
-    """Load, warm up, shake hands, run and write one node; return its exit code."""
-    from delaytrack.experiments import ScenarioError
-
+    """Load, warm up, shake hands, run and write one node; return its exit code. Stop signals
+    set the node's :class:`StopFlag` until it returns, and are ignored after."""
     if (problem := missing_extra()) is not None:
         print(f"error: {problem}", file=sys.stderr)
         return EXIT_REFUSED
-
     stop = StopFlag()
     stop.install()
+    try:
+        return _run_node(node_class, args, stop)
+    finally:
+        stop.ignore_from_now()
+
+
+def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
+    from delaytrack.experiments import ScenarioError
+
     try:
         scenario = load_scenario(args.scenario, list(args.trust))
         built = scenario.build()
@@ -333,6 +381,7 @@ def run_node(node_class: type[NodeBase], args: Any) -> int:
             start_delay=args.start_delay,
         )
         node.declare(session, prefix)
+        node.declare_status(session, prefix)
         try:
             t0 = handshake.wait(args.handshake_timeout, stop)
         except HandshakeError as error:

@@ -127,6 +127,8 @@ class ControllerNode(NodeBase):
         self._states: deque[tuple[StateMessage, float]] = deque(maxlen=64)
         self._lock = threading.Lock()
         self.rows: list[list[Any]] = []
+        self._status_row = 0  # the first row after the last status
+        self._stale_ticks = 0  # ticks on a stale state up to that row
 
     def _on_state(self, sample: Any) -> None:
         received = time.monotonic()
@@ -274,12 +276,21 @@ class ControllerNode(NodeBase):
             if send - last_hello > 0.2:
                 handshake.publish()
                 last_hello = send
-                recent = [r[2] for r in self.rows[-200:]]
-                self.status(
-                    send,
-                    f"ticks {len(self.rows)}  misses {ticker.missed}  "
-                    f"lateness p99 {percentile(recent, 99):.3f} ms",
-                )
+            self.status(send)
+
+    def status_numbers(self, window: float) -> tuple[dict[str, Any], dict[str, Any]]:
+        """Ticks run per second, p99 of wake-up lateness and compute time over the ticks since
+        the last status; ticks, missed ticks and ticks on a stale state since the start."""
+        rows = self.rows[self._status_row :]
+        self._status_row = len(self.rows)
+        self._stale_ticks += sum(1 for row in rows if row[6].startswith("stale"))
+        measured = {
+            "tick_rate_hz": len(rows) / window,
+            "lateness_ms_p99": percentile([row[2] for row in rows], 99),
+            "compute_ms_p99": percentile([row[3] for row in rows], 99),
+        }
+        totals = {"ticks": len(self.rows), "missed": self.ticker.missed, "stale": self._stale_ticks}
+        return measured, totals
 
     def outputs(self) -> dict[str, Any]:
         header = [

@@ -96,6 +96,14 @@ class DelayNode(NodeBase):
         self.h_min = float(np.min(self.delay.h(steps))) if steps.size else 0.0
         lead = getattr(args, "lead", None)
         self.lead = default_lead(self.dt, self.h_min) if lead is None else lead
+        longest = max(self.h_min / 2, default_lead(self.dt, self.h_min))
+        if self.lead > longest:
+            raise ValueError(
+                f"--lead {self.lead:g} s is longer than half the session's smallest delay, "
+                f"h = {self.h_min * 1e3:g} ms: a command must reach the delay node more than "
+                "--lead before the robot step it is due at, so a longer lead makes the delays "
+                f"longer than h(t); give at most {longest:g} s"
+            )
         self.h_max = float(self.delay.h_max)
         self.h(0.0)  # warm up (compile)
         packet_lost(0, self._loss)
@@ -109,6 +117,8 @@ class DelayNode(NodeBase):
         self.missed_steps = 0  # steps skipped because a wake-up came after the next deadline
         self.lateness_ms: list[float] = []  # of each step where the pick changed
         self.session_s = 0.0
+        self.lost_count = 0  # commands received and dropped on purpose (packet loss)
+        self._seq_range: tuple[int, int] | None = None  # the least and greatest seq received
 
     def h(self, t: float) -> float:
         return float(self.delay.h(t))
@@ -127,6 +137,9 @@ class DelayNode(NodeBase):
         arrived = self._received.drain()
         for message, received in arrived:
             lost = bool(packet_lost(message.seq, self._loss))
+            self.lost_count += lost
+            low, high = self._seq_range or (message.seq, message.seq)
+            self._seq_range = (min(low, message.seq), max(high, message.seq))
             self.commands[message.seq] = [
                 message.seq,
                 message.t_k,
@@ -194,8 +207,8 @@ class DelayNode(NodeBase):
             now = clock() - t0
             latest = math.floor((now + lead) / dt + 1e-9)  # the latest step whose deadline passed
             feasible = math.ceil((now + margin) / dt - 1e-9)  # the first step still reachable
-            if arrived:
-                plan = None
+            if arrived and plan is not None and latest < plan[0]:
+                plan = None  # plan again with it; a planned step already due is dealt with first
             if plan is None:
                 start = max(j, feasible)
                 if start >= end:
@@ -237,11 +250,7 @@ class DelayNode(NodeBase):
             if now - last_hello > 0.2:
                 handshake.publish()
                 last_hello = now
-                self.status(
-                    now,
-                    f"received {len(self.commands)}  released {len(self.releases)}  "
-                    f"wakes {self.wakes}",
-                )
+            self.status(now)
         self.session_s = clock() - t0
         # Commands in flight when the session ended: recorded as received, never released
         # (taken in until none has come for 0.2 s, at most for a second).
@@ -250,6 +259,19 @@ class DelayNode(NodeBase):
         self._take(t0)
         while clock() < until and self._received.wait(min(0.2, until - clock())):
             self._take(t0)
+
+    def status_numbers(self, window: float) -> tuple[dict[str, Any], dict[str, Any]]:
+        """Commands received, lost on purpose, missing from the sequence received (``gaps``:
+        sent and not received, or ticks the controller missed) and releases, since the
+        start."""
+        low, high = self._seq_range or (0, -1)
+        totals = {
+            "received": len(self.commands),
+            "lost": self.lost_count,
+            "gaps": high - low + 1 - len(self.commands),
+            "releases": len(self.releases),
+        }
+        return {}, totals
 
     def _forget(self, s: float) -> None:
         """Drop what can never be picked again from ``s`` on: ``g(t) >= t - h_max``."""

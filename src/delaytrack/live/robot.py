@@ -243,6 +243,14 @@ class RobotNode(NodeBase):
         self.steps: list[list[Any]] = []
         self.states: list[list[Any]] = []
         self.applied: list[list[Any]] = []
+        # The status (status_numbers): h at the steps where commands came into force (warmed
+        # up here: the profile may be compiled), the rows already counted, the commands seen
+        # in force and the zero-input steps counted.
+        self.delay = built.delay
+        self.delay.h(np.zeros(1))
+        self._status_step, self._status_applied = 0, 0
+        self._in_force: set[int] = set()
+        self._zero_input = 0
         self._stop: Any = None
         self._closed = False
         self.bridge: RobotBridge = (
@@ -344,9 +352,7 @@ class RobotNode(NodeBase):
             if now - last_hello > 0.2:
                 handshake.publish()
                 last_hello = now
-                self.status(
-                    now, f"step {j}  applied #{-1 if current is None else current.seq}  {status}"
-                )
+            self.status(now)
         # Steps after the last wake-up (it was late and the session ended meanwhile).
         total = steps_until(self.duration, dt)
         if self.failure is None and not stop() and j_model < total:
@@ -355,6 +361,34 @@ class RobotNode(NodeBase):
         if self.failure is None and self._state(j_model):
             self.states.append([j_model, self.end_time, *self.x.tolist()])
             self.log.state(j_model, self.end_time, ticker.now(), self.names, self.x)
+
+    def status_numbers(self, window: float) -> tuple[dict[str, Any], dict[str, Any]]:
+        """The p50 and p99 of ``|realised delay - h|`` over the commands that came into force
+        for the first time since the last status (the step ``s`` from which command ``k`` is in
+        force, minus ``t_k``, minus ``h(s)``: the delay rule makes it at most about one step);
+        steps, missed steps, zero-input steps and commands that came into force since the start."""
+        statuses = [row[3] for row in self.steps[self._status_step :]]
+        self._zero_input += statuses.count("no-command") + statuses.count("timeout-zero")
+        self._status_step = len(self.steps)
+        first = []
+        for row in self.applied[self._status_applied :]:
+            if row[0] not in self._in_force:
+                self._in_force.add(row[0])
+                first.append(row)
+        self._status_applied = len(self.applied)
+        applied_at = np.array([row[2] for row in first], dtype=float)
+        sample_time = np.array([row[1] for row in first], dtype=float)
+        error_ms = np.abs(applied_at - sample_time - self.delay.h(applied_at)) * 1e3
+        error_ms = error_ms[np.isfinite(error_ms)]
+        p50, p99 = np.percentile(error_ms, [50, 99]) if error_ms.size else (math.nan, math.nan)
+        measured = {"realised_minus_h_abs_ms_p50": p50, "realised_minus_h_abs_ms_p99": p99}
+        totals = {
+            "steps": len(self.steps),
+            "missed": self.ticker.missed,
+            "zero_input": self._zero_input,
+            "applied": len(self._in_force),
+        }
+        return measured, totals
 
     def _missed(self, j_model: int, j: int, current: Any) -> int:
         """The steps ``j_model .. j - 1`` whose wake-up was missed, each recorded with the input

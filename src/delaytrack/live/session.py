@@ -6,7 +6,9 @@ controller nodes as ``python -m delaytrack.live <role> ...`` in a full mesh (eac
 port and connects to the ports of the nodes started before it). The nodes shake hands and the
 robot announces the start ``t0`` on the shared monotonic clock (:mod:`delaytrack.live.transport`);
 each node stops by itself at ``t0 + duration``. SIGINT/SIGTERM to the launcher is passed on to
-the nodes as SIGTERM, which stop cleanly and finish their logs.
+the nodes as SIGTERM, which stop cleanly and finish their logs. The nodes print nothing of their
+own status; unless ``--quiet``, the launcher prints one line a second on stderr from the
+statuses they publish (:mod:`delaytrack.live.status`).
 
 It then writes ``delays.csv`` (one row per command: its stamps, lost or not, when the robot
 first applied it, the realised delay and ``h`` there), ``summary.json``, the scenario as run
@@ -32,6 +34,7 @@ import numpy as np
 from delaytrack._io import write_text
 from delaytrack.live._node import load_scenario, percentile, session_duration, session_files
 from delaytrack.live.log import write_csv
+from delaytrack.live.status import StatusWatch
 
 __all__ = ["collect", "run_session"]
 
@@ -70,9 +73,31 @@ def _ms(value: Any) -> str:
     return "n/a" if value is None or not math.isfinite(value) else f"{value:.3f} ms"
 
 
-def node_commands(args: Any, folder: Path, ports: list[int], session: str) -> dict[str, list[str]]:
-    """The command line of each node."""
-    endpoint = {role: f"tcp/127.0.0.1:{port}" for role, port in zip(ROLES, ports, strict=True)}
+def _endpoints(ports: list[int]) -> dict[str, str]:
+    """The Zenoh endpoint each node listens on."""
+    return {role: f"tcp/127.0.0.1:{port}" for role, port in zip(ROLES, ports, strict=True)}
+
+
+def _ended_early(folder: Path, role: str, code: int | None) -> bool:
+    """Whether the node ``role`` has exited before the session's end: with an error, or with 0
+    after a stop signal of its own (its ``<role>.json`` says what stopped it)."""
+    if code is None:
+        return False
+    if code != 0:
+        return True
+    try:
+        stopped_by = json.loads((folder / f"{role}.json").read_text()).get("stopped_by")
+    except (OSError, ValueError):
+        return True  # exited 0 without its record: not a normal end
+    return stopped_by != "duration"
+
+
+def node_commands(
+    args: Any, folder: Path, ports: list[int], session: str, watch: str | None = None
+) -> dict[str, list[str]]:
+    """The command line of each node (each ``--quiet``: the launcher prints the status); each
+    also connects to the launcher's status watch at the endpoint ``watch``, if given."""
+    endpoint = _endpoints(ports)
     commands = {}
     for i, role in enumerate(ROLES):
         command = [
@@ -92,12 +117,13 @@ def node_commands(args: Any, folder: Path, ports: list[int], session: str) -> di
         ]
         for earlier in ROLES[:i]:
             command += ["--connect", endpoint[earlier]]
+        if watch is not None:
+            command += ["--connect", watch]
         if args.duration is not None:
             command += ["--duration", repr(args.duration)]
         for name in args.trust:
             command += ["--trust", name]
-        if role != "controller" or args.quiet:
-            command.append("--quiet")
+        command.append("--quiet")
         if role == "delay" and args.loss is not None:
             command += ["--loss", repr(args.loss), "--loss-seed", str(args.loss_seed)]
         if role == "delay" and getattr(args, "lead", None) is not None:
@@ -137,7 +163,15 @@ def run_session(args: Any) -> int:
     scenario.to_toml(folder / "scenario.toml")
     ports = _free_ports(3) if args.port is None else [args.port + i for i in range(3)]
     session = f"run-{os.getpid()}-{int(time.time())}"
-    commands = node_commands(args, folder, ports, session)
+    # The status watch listens before the nodes start, and they connect to it: a watch that
+    # connected to them could miss a short session while its connections were retried.
+    watched = None if args.quiet else f"tcp/127.0.0.1:{_free_ports(1)[0]}"
+    try:
+        watch = None if watched is None else StatusWatch(watched, f"delaytrack/{session}")
+    except OSError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    commands = node_commands(args, folder, ports, session, watched)
     processes: dict[str, subprocess.Popen[bytes]] = {}
     interrupted: list[int] = []
 
@@ -162,18 +196,24 @@ def run_session(args: Any) -> int:
                     if process.poll() is None:
                         process.kill()
                 break
-            if not ended and any(p.poll() not in (None, 0) for p in processes.values()):
-                # A node that failed or refused ends the session: the others stop (once: a
-                # second SIGTERM could reach a node exiting, without its handler).
+            if not ended and any(
+                _ended_early(folder, role, p.poll()) for role, p in processes.items()
+            ):
+                # A node that failed, refused or was stopped ends the session: the others stop
+                # (once: a second SIGTERM could reach a node exiting, without its handler).
                 ended = True
                 for process in processes.values():
                     if process.poll() is None:
                         process.send_signal(signal.SIGTERM)
+            if watch is not None:
+                watch.show()
             time.sleep(0.05)
         codes = {role: process.wait() for role, process in processes.items()}
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
+        if watch is not None:
+            watch.close()
     failed = {role: code for role, code in codes.items() if code not in (0,)}
     if failed and not interrupted and not any((folder / f"{r}.mcap").exists() for r in ROLES):
         return max(failed.values())  # refused before the start, said by the node: no session
@@ -188,16 +228,24 @@ def run_session(args: Any) -> int:
         print(format_summary(summary, folder))
     if interrupted:
         return 130
-    if report_failed:
-        return 1
     if failed:
         print(
-            f"error: node(s) {', '.join(f'{r} (exit {c})' for r, c in failed.items())} "
-            "did not finish cleanly",
+            f"error: node(s) {', '.join(_exit_text(r, c) for r, c in failed.items())} did not "
+            "finish cleanly; their MCAP logs hold the session up to where they stopped",
             file=sys.stderr,
         )
         return max(failed.values()) if all(c > 0 for c in failed.values()) else 1
-    return 0
+    return 1 if report_failed else 0
+
+
+def _exit_text(role: str, code: int) -> str:
+    """``robot (exit 1)`` or ``robot (killed by SIGKILL)``."""
+    if code < 0:
+        try:
+            return f"{role} (killed by {signal.Signals(-code).name})"
+        except ValueError:
+            pass
+    return f"{role} (exit {code})"
 
 
 def write_report(folder: Path, scenario: Any, **replay: Any) -> bool:

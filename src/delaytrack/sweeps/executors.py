@@ -23,7 +23,7 @@ from typing import Any, Protocol
 
 import pandas as pd
 
-from delaytrack._validation import is_integer_at_least
+from delaytrack._validation import ArgumentError, is_integer_at_least
 from delaytrack.sim.simulate import available_cores
 from delaytrack.sweeps.parts import run_unit
 from delaytrack.sweeps.spec import SweepError, Unit
@@ -68,16 +68,21 @@ class Executor(Protocol):
 WORKERS_PER_CORE = 4
 
 
+class _WorkersError(SweepError, ArgumentError):
+    """A :class:`SweepError` about ``workers``, carrying the argument (``argument``)."""
+
+
 def checked_workers(workers: int | None) -> int | None:
     """``workers`` (threads or local worker processes) checked: None, or 1 to
     :data:`WORKERS_PER_CORE` per available core."""
     if workers is not None and not is_integer_at_least(workers, 1):
-        raise SweepError(f"workers must be a positive integer or None; got {workers!r}")
+        raise _WorkersError("workers", f"must be a positive integer or None; got {workers!r}")
     most = WORKERS_PER_CORE * available_cores()
     if workers is not None and workers > most:
-        raise SweepError(
-            f"workers must be at most {most} ({WORKERS_PER_CORE} per core of the "
-            f"{available_cores()} this process may use); got {workers}"
+        raise _WorkersError(
+            "workers",
+            f"must be at most {most} ({WORKERS_PER_CORE} per core of the "
+            f"{available_cores()} this process may use); got {workers}",
         )
     return workers
 

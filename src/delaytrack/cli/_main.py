@@ -1,0 +1,56 @@
+"""``delaytrack``'s entry point: parse, run the command's handler, and end every way a
+command can end with one line and an exit code."""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Sequence
+
+from delaytrack._cli_options import EXIT_USAGE
+from delaytrack._output import OutputFolderError
+from delaytrack.cli._parser import build_parser
+from delaytrack.cli._usage import UsageError
+
+__all__ = ["EXIT_BROKEN_PIPE", "main"]
+
+#: A reader closed standard output (``| head``): 128 + SIGPIPE, as a shell reports a program
+#: that the pipe's signal ended.
+EXIT_BROKEN_PIPE = 141
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``delaytrack`` command; return its exit code."""
+    from delaytrack.experiments import ScenarioError
+    from delaytrack.sim.interruptible import every_run_interruptible, work_left_running
+
+    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if not argv:  # a bare call: the commands and what they do
+        parser.print_help()
+        return EXIT_USAGE
+    args = parser.parse_args(argv)
+    try:
+        with every_run_interruptible():  # Ctrl-C ends even a run whose kernel never returns
+            code = args.handler(args)
+        sys.stdout.flush()  # here, where a reader that closed the pipe is caught
+    except BrokenPipeError:
+        # The reader of the output closed it (| head): end quietly, as a program that the
+        # pipe's signal ends (Python's advice, "Note on SIGPIPE": no flush into the closed pipe).
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        code = EXIT_BROKEN_PIPE
+    except (UsageError, ScenarioError, OutputFolderError) as error:
+        # One line, whatever the input held (a key with a newline in it).
+        print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
+        code = EXIT_USAGE
+    except OSError as error:
+        print(f"error: {error}", file=sys.stderr)
+        code = 1
+    except KeyboardInterrupt as interrupted:  # where, when a factory was interrupted
+        print(str(interrupted).replace("\n", "\\n") or "interrupted", file=sys.stderr)
+        code = 130
+    if work_left_running():  # a compiled run that Ctrl-C left computing: nothing waits for it
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code

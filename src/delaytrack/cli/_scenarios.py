@@ -1,0 +1,37 @@
+"""What the commands that read a scenario or sweep file share: the scenario named on the
+command line, and the ``--trust`` names checked."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from delaytrack.cli._usage import UsageError
+
+__all__ = ["scenario_source", "trusted"]
+
+
+def scenario_source(text: str) -> Path:
+    """A scenario file path, or the name of a shipped scenario (``two_link_S1``)."""
+    from delaytrack.experiments import builtin_scenario_names, builtin_scenario_path
+
+    path = Path(text)
+    if path.exists() or path.suffix == ".toml":
+        return path
+    if text in builtin_scenario_names():
+        return builtin_scenario_path(text)
+    raise UsageError(
+        f"scenario file {text!r} does not exist (nor is it a built-in scenario; those are "
+        f"{builtin_scenario_names()})"
+    )
+
+
+def trusted(args: argparse.Namespace) -> list[str]:
+    """The ``--trust`` names, checked (:class:`delaytrack._trust.Trust`)."""
+    from delaytrack._trust import Trust
+
+    try:
+        Trust.of(args.trust, "--trust")
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    return args.trust

@@ -1,0 +1,247 @@
+"""``delaytrack reproduce``: the paper's robot experiment, and the two-link, margins and
+robustness jobs."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from delaytrack._cli_options import quiet_argument
+from delaytrack._output import OutputFolderError, check_output_folder, check_results_root
+from delaytrack._validation import ArgumentError
+from delaytrack.cli._numbers import scalar
+from delaytrack.cli._usage import UsageError, flagged
+
+__all__ = ["add_command", "run"]
+
+#: The flag of the jobs' ``duration`` argument (and of the scenario key it sets).
+_DURATION = {"duration": "--duration"}
+
+
+def add_command(commands: argparse._SubParsersAction) -> None:
+    """Add ``reproduce`` to ``commands``."""
+    command = commands.add_parser(
+        "reproduce",
+        help="the main job: the paper's robot experiment (S1-S4, AROLC vs PCON/PCONf)",
+        description="Run the paper's robot experiment and write <out>/paper/ and "
+        "<out>/paper-literal/: summary.csv, tables.md, dt_check.csv, figures and a "
+        "self-contained report.html. --job two-link runs the earlier two-link job into "
+        "<out>/two-link/ instead; --job margins compares certified, exact and empirical delay "
+        "margins over a grid of gains into <out>/margins/.",
+    )
+    command.add_argument(
+        "--out", default="results", metavar="DIR", help="output root (default results)"
+    )
+    command.add_argument(
+        "--duration",
+        default=None,
+        metavar="SECONDS",
+        help="override the duration (paper: 60 s, a multiple of T_c = 10 ms; two-link: 30 s, "
+        "a multiple of 2 ms; margins: 30 s, a multiple of 2 ms); for quick checks",
+    )
+    command.add_argument(
+        "--job",
+        choices=("paper", "two-link", "margins", "robustness"),
+        default="paper",
+        help="which job to run (default paper, which includes the robustness study at "
+        "--size; robustness: the study alone into <out>/robustness/)",
+    )
+    command.add_argument(
+        "--size",
+        choices=("default", "full"),
+        default="default",
+        help="size of the robustness study (default: about 3600 runs, under a minute on two "
+        "cores once compiled; full: ten times the draws, meant for a Dask cluster)",
+    )
+    command.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run the robustness study's sweeps on a Dask cluster: a scheduler address "
+        "(tcp://host:8786) or local-cluster",
+    )
+    command.add_argument(
+        "--no-robustness",
+        action="store_true",
+        help="paper job without the robustness study (its report then judges one run per case)",
+    )
+    command.add_argument("--no-dt-check", action="store_true", help="skip the dt/2 rerun")
+    command.add_argument(
+        "--no-contact",
+        action="store_true",
+        help="skip the runs on the robot with real wheels (MuJoCo; run by default when it is "
+        "installed)",
+    )
+    command.add_argument(
+        "--gains",
+        default=None,
+        metavar="PATH",
+        help="gains file to use instead of the shipped one (written by tune-baselines)",
+    )
+    quiet_argument(command)
+    command.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Check ``--gains``, ``--out`` and ``--duration``, then run the job ``--job``."""
+    if args.gains is not None:
+        args.gains = _checked_gains(args.gains)
+    args.out = str(check_results_root(args.out, "--out"))
+    try:
+        return _job(args)
+    except OutputFolderError as error:  # a job's folder under --out, checked before computing
+        raise UsageError(f"--out {args.out!r}: {error}") from None
+
+
+def _checked_gains(text: str) -> Path:
+    """``--gains``: a gains file with every controller and gain set, each checked
+    (:func:`~delaytrack.experiments.tuning.load_tuning_record`), as an absolute path."""
+    from delaytrack.experiments.tuning import GAIN_SETS, KINDS, GainsFileError, load_gains
+
+    path = Path(text).resolve()
+    if not path.is_file():
+        raise UsageError(f"--gains {text!r} is not a file; give a file written by tune-baselines")
+    try:
+        gains = load_gains(path)
+    except GainsFileError as error:
+        raise UsageError(f"--gains {text!r}: {error.problem}") from None
+    missing = [
+        f"{kind} ({gain_set})"
+        for kind in KINDS
+        for gain_set in GAIN_SETS
+        if gain_set not in gains.get(kind, {})
+    ]
+    if missing:
+        raise UsageError(
+            f"--gains {text!r} lacks {', '.join(missing)}; write it with delaytrack tune-baselines"
+        )
+    return path
+
+
+def _job(args: argparse.Namespace) -> int:
+    """Read ``--duration`` (positive; each job checks its own grid) and run the job."""
+    if args.duration is not None:
+        args.duration = scalar("--duration", args.duration)
+        if args.duration <= 0:
+            raise UsageError(
+                f"--duration must be a positive number of seconds; got {args.duration:g}"
+            )
+    if args.job == "two-link":
+        return _two_link(args)
+    if args.job == "margins":
+        return _margins(args)
+    executor = _study_executor(args)
+    if args.job == "robustness":
+        return _robustness(args, executor)
+    return _paper(args, executor)
+
+
+def _study_executor(args: argparse.Namespace):
+    """A factory of the robustness study's executors (``--scheduler``), checked before running."""
+    from delaytrack.sweeps import SweepError, make_executor
+    from delaytrack.sweeps.executors import checked_scheduler
+
+    if args.duration is not None and args.job == "robustness":
+        raise UsageError("--duration does not apply to --job robustness (its runs are 60 s)")
+    try:
+        checked_scheduler(args.scheduler, None)
+    except SweepError as error:
+        raise UsageError(str(error)) from None
+    return lambda: make_executor(args.scheduler)
+
+
+def _paper(args: argparse.Namespace, executor) -> int:
+    """The paper job: ``<out>/paper-literal/``, ``<out>/robustness/`` and ``<out>/paper/``."""
+    from delaytrack.experiments.paper import DURATION, SUMMARY_COLUMNS, reproduce
+
+    start = time.perf_counter()
+    try:
+        studies = reproduce(
+            args.out,
+            duration=DURATION if args.duration is None else args.duration,
+            check_dt=not args.no_dt_check,
+            progress=not args.quiet,
+            contact=False if args.no_contact else None,
+            robustness=None if args.no_robustness else args.size,
+            executor=executor,
+            gains=args.gains,
+        )
+    except ArgumentError as error:  # a --duration off the controller's grid, checked first
+        if error.argument not in _DURATION:
+            raise
+        raise flagged(error, _DURATION) from None
+    seconds = time.perf_counter() - start
+    out = Path(args.out)
+    print(
+        f"paper job done in {seconds:.1f} s wall time; wrote {out / 'paper'}/ and "
+        f"{out / 'paper-literal'}/"
+    )
+    study = studies["consistent"]
+    columns = SUMMARY_COLUMNS[:5] + ["tv"]
+    print(study.summary[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    if study.dt_check is not None:
+        print(f"largest relative change of a metric when dt is halved: {study.dt_max_change:.2e}")
+    if study.contact is not None:
+        from delaytrack.experiments.contact import contact_findings
+
+        print("with contact physics (MuJoCo): " + contact_findings(study.contact)[0])
+    print(f"report: {out / 'paper' / 'report.html'}")
+    return 0
+
+
+def _robustness(args: argparse.Namespace, executor) -> int:
+    """The robustness study alone, into ``<out>/robustness/``."""
+    from delaytrack.experiments.robustness import findings, run_robustness
+
+    folder = check_output_folder(Path(args.out) / "robustness", "--out")
+    start = time.perf_counter()
+    study = run_robustness(
+        folder, size=args.size, executor=executor, progress=not args.quiet, gains=args.gains
+    )
+    seconds = time.perf_counter() - start
+    print(f"robustness job done in {seconds:.1f} s wall time; wrote {folder}/")
+    for line in findings(study):
+        print(f"- {line}")
+    print(f"report: {folder / 'report.html'}")
+    return 0
+
+
+def _two_link(args: argparse.Namespace) -> int:
+    """The two-link job, into ``<out>/two-link/``."""
+    from delaytrack.experiments import ScenarioError
+    from delaytrack.experiments.two_link import FOLDER, reproduce
+
+    start = time.perf_counter()
+    try:
+        study, files = reproduce(
+            args.out, duration=args.duration, check_dt=not args.no_dt_check, progress=not args.quiet
+        )
+    except ScenarioError as error:  # a --duration the job's scenarios refuse
+        raise flagged(error, keys=_DURATION) from None
+    seconds = time.perf_counter() - start
+    folder = Path(args.out) / FOLDER
+    print(f"two-link job done in {seconds:.1f} s wall time; wrote {len(files)} files to {folder}/")
+    columns = ["scenario", "controller", "ae_q1", "ae_q2", "tv", "status"]
+    print(study.summary[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    if study.dt_check is not None:
+        print(f"largest relative change of a metric when dt is halved: {study.dt_max_change:.2e}")
+    print(f"report: {folder / 'report.html'}")
+    return 0
+
+
+def _margins(args: argparse.Namespace) -> int:
+    """The margins job, into ``<out>/margins/``."""
+    from delaytrack.experiments.margins import FOLDER, reproduce
+
+    start = time.perf_counter()
+    try:
+        study, files = reproduce(args.out, duration=args.duration, progress=not args.quiet)
+    except ValueError as error:  # a --duration too short for the job's tracking rule
+        raise UsageError(f"margins job: {flagged(error, _DURATION)}") from None
+    seconds = time.perf_counter() - start
+    folder = Path(args.out) / FOLDER
+    print(f"margins job done in {seconds:.1f} s wall time; wrote {len(files)} files to {folder}/")
+    print(study.table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    print(f"report: {folder / 'report.html'}")
+    return 0

@@ -1,0 +1,67 @@
+"""``delaytrack simulate``: run one scenario file and write a results folder."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from delaytrack._cli_options import quiet_argument, trust_argument
+from delaytrack._output import check_output_folder
+from delaytrack.cli._scenarios import scenario_source, trusted
+
+__all__ = ["add_command", "run"]
+
+
+def add_command(commands: argparse._SubParsersAction) -> None:
+    """Add ``simulate`` to ``commands``."""
+    command = commands.add_parser(
+        "simulate",
+        help="run one scenario file and write a results folder",
+        description="Run a scenario TOML file (or the name of a shipped scenario such as "
+        "two_link_S1) and write scenario.toml (as run), trajectories, metrics.csv and figures.",
+    )
+    command.add_argument(
+        "scenario", metavar="SCENARIO", help="scenario .toml file or built-in name"
+    )
+    command.add_argument(
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="results folder (default results/<scenario name>)",
+    )
+    command.add_argument(
+        "--format",
+        choices=("parquet", "csv", "both"),
+        default="parquet",
+        help="trajectory file format (default parquet)",
+    )
+    trust_argument(command)
+    quiet_argument(command)
+    command.set_defaults(handler=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the scenario, write its folder and print its summary and files."""
+    from delaytrack.experiments import Scenario, run_to_folder
+
+    scenario = Scenario.from_toml(scenario_source(args.scenario), trust=trusted(args))
+    folder = (
+        check_output_folder(args.out, "--out")
+        if args.out is not None
+        else check_output_folder(Path("results") / scenario.name, "the results folder")
+    )
+    formats = ("parquet", "csv") if args.format == "both" else (args.format,)
+    start = time.perf_counter()
+    output = run_to_folder(scenario, folder, formats=formats, progress=not args.quiet)
+    seconds = time.perf_counter() - start
+    status = ", ".join(output.result.status_names)
+    print(
+        f"simulated {scenario.name!r}: {scenario.duration:g} s in {seconds:.1f} s wall time, "
+        f"status {status}"
+    )
+    print(output.result.summary().to_string(float_format=lambda v: f"{v:.4g}"))
+    print(f"wrote {len(output.files)} files to {folder}/:")
+    for path in output.files:
+        print(f"  {path.relative_to(folder)}")
+    return 0

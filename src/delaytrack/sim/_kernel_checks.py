@@ -1,0 +1,136 @@
+"""The user's kernels tried before the run, so that a fault is refused naming the kernel instead
+of running on silently or crashing compiled code."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from delaytrack._validation import as_spd_matrix
+from delaytrack.components import Kernel
+from delaytrack.controllers.base import Controller
+from delaytrack.delays.base import DelayProfile
+from delaytrack.kernel_arguments import KERNEL_ARGUMENTS, check_kernel_arguments
+from delaytrack.plants.base import ELPlant
+from delaytrack.references import Reference
+from delaytrack.sim._kernel_errors import numba_cause, raised_during_the_run, raised_in_code_of
+
+__all__ = [
+    "check_controller_at_x0",
+    "check_kernels_take_their_arguments",
+    "check_plant_at_x0",
+    "checked_before_the_run",
+    "refuse_reads_past",
+]
+
+
+def check_kernels_take_their_arguments(
+    plant: ELPlant, controller: Controller, reference: Reference
+) -> None:
+    """Check that the plant's, the controller's and the reference's kernels take the arguments
+    the engine passes them (:mod:`delaytrack.kernel_arguments`), before anything is compiled."""
+    for owner, component in (("plant", plant), ("controller's model", controller.model)):
+        kernel = component.engine_kernel
+        check_kernel_arguments(owner, "terms", kernel.function)
+        for kind in ("command_map", "stepper"):
+            if getattr(kernel, kind) is not None:
+                check_kernel_arguments(owner, kind, getattr(kernel, kind))
+    check_kernel_arguments("controller", "step", controller.step_kernel)
+    check_kernel_arguments("reference", "reference", reference.reference_kernel)
+
+
+def checked_before_the_run(kernel: Kernel, what: str, check: Any) -> Any:
+    """``check()``, a call of the user's ``kernel`` before the run (``what`` it checks), with
+    what it raises other than a ValueError of ours in one line naming the kernel: an error of
+    the kernel itself, or numba's when it cannot compile the check around it."""
+    try:
+        return check()
+    except Exception as error:
+        if isinstance(error, ValueError) and not raised_in_code_of(kernel, error):
+            raise  # a refusal of ours
+        if type(error).__module__.startswith("numba"):
+            raise ValueError(
+                f"numba could not compile {what} for your kernel {kernel.callable_names[0]}: "
+                f"{numba_cause(error)}"
+            ) from None
+        raise ValueError(
+            raised_during_the_run(error, [kernel], when=f"before the run ({what})")
+        ) from None
+
+
+#: How a message names a kernel of each kind (a key of ``KERNEL_ARGUMENTS``).
+_KIND_NAMES = {"step": "controller step"}
+
+
+def refuse_reads_past(kernel: Kernel, kind: str, arguments: tuple, where: str) -> None:
+    """Run the plain-Python version of the user's ``kernel`` (a ``kind`` of
+    :data:`~delaytrack.kernel_arguments.KERNEL_ARGUMENTS`) once on copies of ``arguments``, the
+    arrays the engine passes it, of their sizes: compiled, a read past an array's end runs on
+    silently with whatever lies there, and a write past it overwrites other memory (or crashes
+    the process); Python raises IndexError, refused here naming the kernel and the arrays'
+    sizes. Other errors are left to the compiled kernel, which is what runs (Python may lack
+    what numba provides). An index only on another branch, or in a compiled helper the kernel
+    calls, is not seen."""
+    python = getattr(kernel.function, "py_func", None)
+    if kernel.built_in or python is None:
+        return
+    copies = [value.copy() if isinstance(value, np.ndarray) else value for value in arguments]
+    try:
+        python(*copies)
+    except IndexError as error:
+        sizes = ", ".join(
+            f"{name} {value.shape[0] if value.ndim == 1 else value.shape}"
+            for name, value in zip(KERNEL_ARGUMENTS[kind], arguments, strict=True)
+            if isinstance(value, np.ndarray)
+        )
+        raise ValueError(
+            f"your {_KIND_NAMES.get(kind, kind)} kernel {kernel.callable_names[0]} reads or "
+            f"writes beyond an array {where} ({error}); the arrays it is given have these "
+            f"sizes: {sizes}. Index only within them (compiled, it would read or write other "
+            "memory silently, or crash the process)"
+        ) from None
+    except Exception:  # noqa: BLE001 - only reads past an array's end are checked here
+        return
+
+
+def check_plant_at_x0(plant: ELPlant, x0: np.ndarray, t0: float) -> None:
+    """A plant of the user's (solved for ``q̈``) at the run's start: its kernel reads no index
+    past an array's end (:func:`refuse_reads_past`) and gives an ``M`` that is symmetric
+    positive definite, or it is refused naming the kernel (the run would stop at once)."""
+    kernel = plant.engine_kernel
+    if kernel.built_in or kernel.stepper is not None or kernel.identity_mass:
+        return
+    n = plant.n
+    terms = (t0, x0[:n], x0[n:], plant.params, np.zeros((n, n)), np.zeros(n))
+    refuse_reads_past(kernel, "terms", (*terms, np.zeros((n, plant.m))), "at x0")
+    mass = checked_before_the_run(
+        kernel, "the check of M at x0", lambda: plant.terms(x0[None, :n], x0[None, n:], t0)[0][0]
+    )
+    as_spd_matrix(f"the plant's M at x0 (from your kernel {kernel.callable_names[0]})", mass, n)
+
+
+def check_controller_at_x0(
+    controller: Controller, x0: np.ndarray, t0: float, T_c: float, delay: DelayProfile
+) -> None:
+    """A controller's kernels of the user's at the run's first tick: its nominal model's and
+    its step's read no index past an array's end (:func:`refuse_reads_past`; the reference
+    taken as zeros, the delay as ``h(t0)``)."""
+    n, m = controller.n, controller.m
+    model = controller.model
+    q, qdot = x0[:n], x0[n:]
+    terms = (t0, q, qdot, model.params, np.zeros((n, n)), np.zeros(n), np.zeros((n, m)))
+    refuse_reads_past(model.engine_kernel, "terms", terms, "at x0")
+    step = controller.engine_kernel
+    if step.built_in:
+        return
+    arguments = controller.step_arguments(
+        t0,
+        q,
+        qdot,
+        tuple(np.zeros((3, n))),
+        controller.initial_state(),
+        T_c=T_c,
+        h=float(delay.h(t0)),
+    )
+    refuse_reads_past(step, "step", arguments, "at its first tick")

@@ -1,0 +1,173 @@
+"""The live session's status: each node's JSON on ``delaytrack/<session>/status/<role>``, the
+launcher's combined line, a node's own line when it runs alone, and none with ``--quiet``.
+
+Three 2 s sessions run at once (one module fixture): ``live run`` with its status line, ``live
+run --quiet``, and the three nodes started as the launcher starts them but with the robot not
+quiet, with this test subscribed to their statuses. No timing is asserted: only that the
+numbers are there, positive or finite.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import subprocess
+import sys
+import threading
+import time
+from argparse import Namespace
+
+import pytest
+
+pytest.importorskip("zenoh")
+pytest.importorskip("mcap_ros2")
+
+from delaytrack.live.session import ROLES, _free_ports, node_commands  # noqa: E402
+from delaytrack.live.transport import open_session  # noqa: E402
+
+SCENARIO = "two_link_S1"
+PYTHON = [sys.executable, "-m", "delaytrack.live"]
+
+#: The fields of each node's status (docs/live.md, delaytrack.live.status).
+FIELDS = {
+    "controller": (
+        {"ticks", "tick_rate_hz", "missed", "stale", "lateness_ms_p99", "compute_ms_p99"},
+        {"ticks", "missed", "stale"},
+    ),
+    "delay": ({"received", "lost", "gaps", "releases"}, {"received", "lost", "gaps", "releases"}),
+    "robot": (
+        {
+            "steps",
+            "missed",
+            "zero_input",
+            "applied",
+            "realised_minus_h_abs_ms_p50",
+            "realised_minus_h_abs_ms_p99",
+        },
+        {"steps", "missed", "zero_input", "applied"},
+    ),
+}
+
+#: One node's part of the status line, with the numbers the test reads (n/a: not defined).
+_MS = r"(n/a|\S+) ?(?:ms)?"
+PARTS = {
+    "controller": re.compile(
+        rf"^controller (\S+) Hz, lateness p99 {_MS}, (\d+) missed, (\d+) stale$"
+    ),
+    "delay": re.compile(r"^delay (\d+) received, (\d+) lost, (\d+) gaps$"),
+    "robot": re.compile(rf"^robot (\d+) missed, (\d+) zero input, realised-h \|\.\| p99 {_MS}$"),
+}
+
+
+def _status_parts(stderr: str) -> dict[str, list[tuple[str, ...]]]:
+    """The numbers of every part of every status line (``t=... s | ... | ...``), by role."""
+    found: dict[str, list[tuple[str, ...]]] = {role: [] for role in PARTS}
+    for line in stderr.splitlines():
+        if not re.match(r"^t=\d+ s( \| |$)", line):
+            continue
+        for part in line.split(" | ")[1:]:
+            role = part.split(" ", 1)[0]
+            match = PARTS[role].match(part)
+            assert match, line
+            found[role].append(match.groups())
+    return found
+
+
+def _positive(text: str) -> bool:
+    return math.isfinite(float(text)) and float(text) > 0
+
+
+@pytest.fixture(scope="module")
+def sessions(tmp_path_factory):
+    root = tmp_path_factory.mktemp("status")
+    run = {
+        name: subprocess.Popen(
+            [*PYTHON, "run", SCENARIO, "--duration", "2", "--out", str(root / name), *extra],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
+        for name, extra in (("run", []), ("quiet", ["--quiet"]))
+    }
+    # The nodes as the launcher starts them (all quiet), but the robot prints its own line.
+    ports, name = _free_ports(3), "status-test"
+    options = Namespace(
+        scenario=SCENARIO, handshake_timeout=60.0, duration=2.0, trust=[], quiet=False, loss=None
+    )
+    watch = f"tcp/127.0.0.1:{_free_ports(1)[0]}"
+    commands = node_commands(options, root / "nodes", ports, name, watch)
+    commands["robot"].remove("--quiet")
+    received: list[tuple[str, bytes]] = []
+    lock = threading.Lock()
+
+    def on_status(sample):
+        with lock:
+            received.append((str(sample.key_expr), sample.payload.to_bytes()))
+
+    session = open_session([watch], [])  # listening before the nodes start, as the launcher
+    subscriber = session.declare_subscriber(f"delaytrack/{name}/status/*", on_status)
+    try:
+        nodes = {
+            role: subprocess.Popen(commands[role], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+            for role in ROLES
+        }
+        outputs = {role: node.communicate(timeout=180) for role, node in nodes.items()}
+        time.sleep(0.2)  # the last statuses on their way
+    finally:
+        subscriber.undeclare()
+        session.close()
+    results = {name: (p.communicate(timeout=180), p.returncode) for name, p in run.items()}
+    results["nodes"] = (outputs, {role: node.returncode for role, node in nodes.items()})
+    with lock:
+        results["statuses"] = (name, list(received))
+    return results
+
+
+def test_live_run_prints_one_line_a_second_with_the_three_nodes(sessions):
+    (stdout, stderr), code = sessions["run"]
+    assert code == 0, stderr.decode()
+    parts = _status_parts(stderr.decode())
+    assert all(parts.values()), stderr.decode()
+    for rate, lateness, missed, stale in parts["controller"]:
+        assert _positive(rate) and math.isfinite(float(lateness)), (rate, lateness)
+        assert int(missed) >= 0 and int(stale) >= 0
+    assert any(int(received) > 0 for received, _lost, _gaps in parts["delay"])
+    assert all(math.isfinite(float(p99)) for *_, p99 in parts["robot"] if p99 != "n/a")
+    assert b"live session" in stdout  # the final summary, as before
+
+
+def test_live_run_quiet_prints_no_status(sessions):
+    (stdout, stderr), code = sessions["quiet"]
+    assert code == 0, stderr.decode()
+    assert not any(line.startswith("t=") for line in stderr.decode().splitlines())
+    assert stdout == b""
+
+
+def test_each_node_publishes_its_status_as_json(sessions):
+    name, received = sessions["statuses"]
+    _outputs, codes = sessions["nodes"]
+    assert codes == {"robot": 0, "delay": 0, "controller": 0}
+    statuses = {}
+    for key, payload in received:
+        status = json.loads(payload)
+        assert key == f"delaytrack/{name}/status/{status['role']}"
+        last, total = FIELDS[status["role"]]
+        assert set(status["last"]) == last and set(status["total"]) == total, status
+        assert status["t"] > 0 and status["window_s"] > 0
+        statuses.setdefault(status["role"], []).append(status)
+    assert set(statuses) == set(ROLES)
+    controller = statuses["controller"][0]
+    assert controller["last"]["tick_rate_hz"] > 0 and controller["total"]["ticks"] > 0
+    assert math.isfinite(controller["last"]["lateness_ms_p99"])
+    assert statuses["delay"][0]["total"]["received"] > 0
+    robot = statuses["robot"][0]
+    assert robot["total"]["steps"] > 0 and robot["total"]["applied"] > 0
+    assert math.isfinite(robot["last"]["realised_minus_h_abs_ms_p99"])
+
+
+def test_a_node_alone_prints_its_own_status_line(sessions):
+    outputs, _codes = sessions["nodes"]
+    robot_parts = _status_parts(outputs["robot"][1].decode())
+    assert robot_parts["robot"] and not robot_parts["controller"], outputs["robot"][1]
+    for role in ("controller", "delay"):  # quiet
+        assert not any(part for part in _status_parts(outputs[role][1].decode()).values())

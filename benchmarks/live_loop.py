@@ -94,7 +94,7 @@ def live_case(T_c: float, duration: float, keep: Path | None = None) -> dict:
         "realised_minus_h_abs_ms_p99": summary["realised_minus_h_abs_ms_p99"],
         "never_applied": summary["never_applied"],
         "replay_error_rms_relative": agreement["error_difference_rms_relative"],
-        "replay_error_max": agreement["error_difference_max"],
+        "replay_worst_coordinate": agreement["worst_coordinate"],
     }
 
 

@@ -9,6 +9,7 @@ timing.
 
 from __future__ import annotations
 
+import csv
 import json
 import shutil
 import subprocess
@@ -129,7 +130,20 @@ def test_the_replay_simulates_the_noise_the_session_measured_with(sessions, tmp_
     (truth / "summary.json").write_text(json.dumps(summary))
     without, _, replayed = _replay(truth)
     assert replayed.settings["measurement_noise"] is None
-    assert with_noise["command_difference_rms"] < without["command_difference_rms"]
+    # The median tick, not the RMS: on a loaded machine a minority of ticks see another timing
+    # (a late state, a missed tick) and differ either way; the noise differs at every tick.
+    medians = [_median_command_difference(folder) for folder in (root / "noise", truth)]
+    assert medians[0] < medians[1], medians
+
+
+def _median_command_difference(folder):
+    with open(folder / "replay.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    inputs = sorted({c[: -len("_live")] for c in rows[0] if c.startswith("u") and "_live" in c})
+    differences = [
+        max(abs(float(r[f"{u}_live"]) - float(r[f"{u}_replay"])) for u in inputs) for r in rows
+    ]
+    return float(np.nanmedian(differences))  # ticks without a live command are NaN
 
 
 def test_the_controller_node_computes_the_simulations_commands_bit_for_bit(tmp_path):
@@ -163,3 +177,31 @@ def test_a_noise_table_that_does_not_fit_the_plant_is_refused_before_any_node_st
     error = capsys.readouterr().err.strip()
     assert error.startswith("error: measurement_noise.quantization must have 1 or n = 2")
     assert not (tmp_path / "out").exists()
+
+
+def test_the_replay_compares_each_coordinate_in_its_own_unit(sessions):
+    """From replay.csv: each coordinate's RMS of live − replayed error over its own live RMS
+    error; the headline is the worst coordinate, never a sum of metres and radians."""
+    from delaytrack.live.replay import _replay
+
+    root, _scenario = sessions
+    report, scenario, _ = _replay(root / "noise")
+    plant = scenario.build().plant
+    with open(root / "noise" / "replay.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    names = list(report["coordinates"])  # the columns of states.csv, q1.. when unnamed
+    assert len(names) == plant.n
+    relative = {}
+    units = plant.coordinate_units or (None,) * plant.n
+    for name, unit in zip(names, units, strict=True):
+        live = np.array([float(r[f"e1_{name}_live"]) for r in rows])
+        replayed = np.array([float(r[f"e1_{name}_replay"]) for r in rows])
+        entry = report["coordinates"][name]
+        assert entry["unit"] == (unit or "")
+        assert entry["tracking_error_rms_live"] == pytest.approx(np.sqrt(np.mean(live**2)))
+        relative[name] = np.sqrt(np.mean((live - replayed) ** 2) / np.mean(live**2))
+        assert entry["error_difference_rms_relative"] == pytest.approx(relative[name])
+    worst = max(relative, key=relative.get)
+    assert report["worst_coordinate"] == worst
+    assert report["error_difference_rms_relative"] == pytest.approx(relative[worst])
+    assert set(report["not_reproduced"]) >= {"controller_ticks_on_a_state_older_than_t_k"}

@@ -320,6 +320,9 @@ class ControllerNode(NodeBase):
             "compute_ms_p50": percentile(compute, 50),
             "compute_ms_p99": percentile(compute, 99),
             "state_age_ms_p99": percentile([r[4] for r in rows], 99),
+            # Ticks computed on a state sampled before t_k (it had not arrived within the
+            # phase): the simulator's controller always reads x(t_k).
+            "older_state": sum(1 for r in rows if r[4] > 1e-6),
             "phase_ms": self.phase * 1e3,
             # What the law read: the measurement model applied (None: the true state), and
             # whether --no-measurement-noise turned the scenario's off.

@@ -240,7 +240,8 @@ def write_session_report(
     report.settings(
         {
             "controller ticks": f"{c.get('ticks', 0)} ({c.get('missed', 0)} missed, "
-            f"{c.get('stale', 0)} on a stale state)",
+            f"{c.get('older_state', 0)} on a state older than t_k, {c.get('stale', 0)} on a "
+            "stale state)",
             "controller wake-up lateness p50 / p99": f"{_ms(c.get('lateness_ms_p50'))} / "
             f"{_ms(c.get('lateness_ms_p99'))}",
             "controller compute time p50 / p99": f"{_ms(c.get('compute_ms_p50'))} / "
@@ -270,25 +271,21 @@ def write_session_report(
     report.table(metrics, "Tracking metrics over every controller tick (metrics.csv)")
     if agreement is not None:
         report.heading("Replay: the simulation with the realised delays")
-        report.settings(
-            {
-                "RMS tracking error, live / replayed": (
-                    f"{agreement['tracking_error_rms_live']:.4g} / "
-                    f"{agreement['tracking_error_rms_replayed']:.4g}"
-                ),
-                "live − replayed tracking error, max / RMS": (
-                    f"{agreement['error_difference_max']:.3g} (at t = "
-                    f"{agreement['error_difference_max_at_s']:g} s) / "
-                    f"{agreement['error_difference_rms']:.3g} "
-                    f"({100 * agreement['error_difference_rms_relative']:.2f} % of the live RMS)"
-                ),
-                "live − replayed commands, max / RMS": (
-                    f"{agreement['command_difference_max']:.3g} / "
-                    f"{agreement['command_difference_rms']:.3g}"
-                ),
-                "not reproduced by the simulation": json.dumps(agreement["not_reproduced"]),
-            }
+        from delaytrack.live.replay import format_agreement
+
+        rows = {
+            "live − replayed tracking error, RMS, worst coordinate": (
+                f"{100 * agreement['error_difference_rms_relative']:.2f} % of its live RMS "
+                f"({agreement['worst_coordinate']})"
+            ),
+        }
+        for line in format_agreement(agreement):
+            name, _, text = line.partition(": ")
+            rows[name] = text
+        rows["not reproduced by the simulation"] = ", ".join(
+            f"{k.replace('_', ' ')} {v}" for k, v in agreement["not_reproduced"].items()
         )
+        report.settings(rows)
     for name, (_figure, caption) in figures.items():
         report.figure(images[name], caption)
     report.heading("Scenario")

@@ -355,7 +355,8 @@ def format_summary(summary: dict[str, Any], folder: Path) -> str:
             f"dt = {summary['dt_s'] * 1e3:g} ms) -> {folder}",
             f"  controller: {c.get('ticks', 0)} ticks, {c.get('missed', 0)} missed, lateness p50 "
             f"{_ms(c.get('lateness_ms_p50'))} p99 {_ms(c.get('lateness_ms_p99'))}, compute p99 "
-            f"{_ms(c.get('compute_ms_p99'))}, stale {c.get('stale', 0)}",
+            f"{_ms(c.get('compute_ms_p99'))}, {c.get('older_state', 0)} on a state older than t_k, "
+            f"stale {c.get('stale', 0)}",
             f"  delay node: {d.get('received', 0)} received, {d.get('lost', 0)} lost (injected), "
             f"{summary.get('not_received', 0)} sent but never received, "
             f"{d.get('released', 0)} releases",

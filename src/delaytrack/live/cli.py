@@ -230,6 +230,12 @@ def _replay(args: argparse.Namespace) -> int:
     return replay_main(args)
 
 
+def _collect(args: argparse.Namespace) -> int:
+    from delaytrack.live.session import collect_main
+
+    return collect_main(args)
+
+
 def add_live_commands(commands: Any) -> None:
     """Add ``live`` and its subcommands to the subparsers ``commands`` of a parser."""
     live = commands.add_parser(
@@ -285,6 +291,19 @@ def add_live_commands(commands: Any) -> None:
     trust_argument(replay)
     quiet_argument(replay, "progress")
     replay.set_defaults(handler=_replay)
+    collect = sub.add_parser(
+        "collect",
+        help="summarise a session whose nodes were started one by one (summary, report)",
+        description="Write summary.json, delays.csv, metrics.csv, figures and report.html of a "
+        "session run with 'live controller', 'live delay' and 'live robot', from the files the "
+        "three nodes wrote (put them into one folder first when the nodes ran on several "
+        "machines); 'live replay' then works on the folder.",
+    )
+    collect.add_argument("folder", metavar="DIR", help="folder holding the three nodes' files")
+    collect.add_argument("scenario", metavar="SCENARIO", help="the scenario the nodes ran")
+    trust_argument(collect)
+    quiet_argument(collect, "summary")
+    collect.set_defaults(handler=_collect)
     for role in ("controller", "delay", "robot"):
         node = sub.add_parser(
             role,

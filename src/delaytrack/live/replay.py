@@ -213,7 +213,8 @@ def replay_main(args: Any) -> int:
     if not (folder / "summary.json").is_file():
         print(
             f"error: {folder} is not a live session folder (no summary.json; write one with "
-            "delaytrack live run)",
+            "delaytrack live run, or with delaytrack live collect DIR SCENARIO for nodes started "
+            "one by one)",
             file=sys.stderr,
         )
         return 2

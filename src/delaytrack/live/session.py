@@ -248,6 +248,49 @@ def _exit_text(role: str, code: int) -> str:
     return f"{role} (exit {code})"
 
 
+#: What each node leaves in its folder, which ``live collect`` needs from all three.
+NODE_FILES = {
+    "controller": ("controller.json", "ticks.csv"),
+    "delay": ("delay.json", "releases.csv"),
+    "robot": ("robot.json", "steps.csv", "states.csv", "applied.csv"),
+}
+
+
+def collect_main(args: Any) -> int:
+    """``delaytrack live collect DIR SCENARIO``: the summary, ``delays.csv`` and the report of a
+    session whose nodes were started one by one (on one machine, or on several, their folders'
+    files copied into one), as ``live run`` writes them; ``live replay DIR`` then works."""
+    from delaytrack._output import check_output_folder, record_outputs
+    from delaytrack.experiments import ScenarioError
+
+    try:
+        folder = check_output_folder(args.folder, "DIR")
+        missing = [
+            name for names in NODE_FILES.values() for name in names if not (folder / name).is_file()
+        ]
+        if missing:
+            raise ValueError(
+                f"{folder} lacks {', '.join(missing)}: put the files the three nodes wrote into "
+                "one folder (each node writes its own role's files)"
+            )
+        scenario = load_scenario(str(args.scenario), list(args.trust))
+        built = scenario.build()
+    except (ScenarioError, ValueError, OSError) as error:
+        print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
+        return 2
+    scenario.to_toml(folder / "scenario.toml")
+    summary = collect(folder, scenario, built)
+    summary["stopped_by"] = {
+        role: json.loads((folder / f"{role}.json").read_text()).get("stopped_by") for role in ROLES
+    }
+    write_text(folder / "summary.json", json.dumps(summary, indent=1, default=str) + "\n")
+    report_failed = write_report(folder, scenario)
+    record_outputs(folder, session_files(folder))
+    if not args.quiet:
+        print(format_summary(summary, folder))
+    return 1 if report_failed else 0
+
+
 def write_report(folder: Path, scenario: Any, **replay: Any) -> bool:
     """Write the session's metrics, figures and report (:mod:`delaytrack.live.report`);
     whether that failed (said on stderr: the logs and tables stay)."""

@@ -1,0 +1,61 @@
+"""A session whose nodes were started one by one: ``live collect`` summarises it as ``live run``
+does, and ``live replay`` works on the folder (no timing asserted)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from argparse import Namespace
+
+import pytest
+
+pytest.importorskip("zenoh")
+pytest.importorskip("mcap_ros2")
+
+from delaytrack.live.session import ROLES, _free_ports, node_commands  # noqa: E402
+
+SCENARIO = "two_link_S1"
+PYTHON = [sys.executable, "-m", "delaytrack.live"]
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    out = tmp_path_factory.mktemp("collect") / "nodes"
+    options = Namespace(
+        scenario=SCENARIO, handshake_timeout=60.0, duration=1.5, trust=[], quiet=True, loss=None
+    )
+    commands = node_commands(options, out, _free_ports(3), "collect-test")
+    nodes = {role: subprocess.Popen(commands[role], stderr=subprocess.PIPE) for role in ROLES}
+    errors = {role: node.communicate(timeout=180)[1] for role, node in nodes.items()}
+    assert all(node.returncode == 0 for node in nodes.values()), errors
+    return out
+
+
+def test_collect_writes_the_summary_and_report_and_replay_then_works(folder):
+    assert not (folder / "summary.json").exists()
+    done = subprocess.run(
+        [*PYTHON, "collect", str(folder), SCENARIO], capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 0, done.stderr
+    assert "live session two_link_S1" in done.stdout
+    summary = json.loads((folder / "summary.json").read_text())
+    assert summary["stopped_by"] == {role: "duration" for role in ROLES}
+    with open(folder / "ticks.csv", newline="") as handle:
+        sent = [r for r in csv.DictReader(handle) if r["status"] != "no-state"]
+    assert summary["commands"] == len(sent) > 0
+    assert (folder / "report.html").is_file() and (folder / "delays.csv").is_file()
+    replayed = subprocess.run(
+        [*PYTHON, "replay", str(folder), "--quiet"], capture_output=True, text=True, timeout=300
+    )
+    assert replayed.returncode == 0, replayed.stderr
+    assert json.loads((folder / "replay.json").read_text())["ticks_compared"] > 0
+
+
+def test_collect_names_the_files_a_folder_lacks(tmp_path):
+    done = subprocess.run(
+        [*PYTHON, "collect", str(tmp_path), SCENARIO], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and "lacks controller.json" in done.stderr, done.stderr

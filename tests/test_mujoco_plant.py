@@ -298,13 +298,16 @@ def _native_delay_run(
     return np.array(states)
 
 
-@pytest.mark.parametrize("h", [0.0, DT, 0.03, 0.0305])
-def test_the_delay_agrees_with_mujocos_own_actuator_delay(h):
+def _arolc_on_the_light_arm():
     model = MujocoPlant(ARM, mass_scale=0.8)
-    controller = dt.AROLC(model, K1=16.0, K2=8.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
-    ticks = 1000
-    ours = dt.simulate(
-        MujocoPlant(ARM, stepping="mujoco"),
+    return dt.AROLC(model, K1=16.0, K2=8.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
+
+
+def _toolkit_delay_run(arm: Path, h: float, ticks: int, controller) -> np.ndarray:
+    """The same loop run by :func:`simulate`, the arm stepped by MuJoCo; the states at the
+    ticks."""
+    return dt.simulate(
+        MujocoPlant(arm, stepping="mujoco"),
         controller,
         dt.ConstantDelay(h),
         X0,
@@ -313,6 +316,13 @@ def test_the_delay_agrees_with_mujocos_own_actuator_delay(h):
         dt=DT,
         T_c=T_C,
     ).x[0, :ticks]
+
+
+@pytest.mark.parametrize("h", [0.0, DT, 0.03, 0.0305])
+def test_the_delay_agrees_with_mujocos_own_actuator_delay(h):
+    controller = _arolc_on_the_light_arm()
+    ticks = 1000
+    ours = _toolkit_delay_run(ARM, h, ticks, controller)
     np.testing.assert_array_equal(ours, _native_delay_run(h, ticks, controller, True))
     # MuJoCo's own clock adds dt at each step; a delay that is not a whole number of steps
     # never meets a tie, so even that clock agrees bit for bit.
@@ -329,33 +339,16 @@ def test_mujocos_own_delay_differs_under_its_rk4_integrator(tmp_path):
     rk4 = _arm_with(
         tmp_path, '<option timestep="0.001"', '<option timestep="0.001" integrator="RK4"'
     )
-    model = MujocoPlant(ARM, mass_scale=0.8)
-    controller = dt.AROLC(model, K1=16.0, K2=8.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
+    controller = _arolc_on_the_light_arm()
     ticks, h = 500, 0.03
-    ours = dt.simulate(
-        MujocoPlant(rk4, stepping="mujoco"),
-        controller,
-        dt.ConstantDelay(h),
-        X0,
-        reference=REFERENCE,
-        t1=ticks * T_C,
-        dt=DT,
-        T_c=T_C,
-    ).x[0, :ticks]
+    ours = _toolkit_delay_run(rk4, h, ticks, controller)
     native = _native_delay_run(h, ticks, controller, True, rk4)
     assert np.max(np.abs(ours - native)) > 1e-4
     # Without a delay there is no buffer to read at stage times: bit for bit again.
-    undelayed = dt.simulate(
-        MujocoPlant(rk4, stepping="mujoco"),
-        controller,
-        dt.ConstantDelay(0.0),
-        X0,
-        reference=REFERENCE,
-        t1=ticks * T_C,
-        dt=DT,
-        T_c=T_C,
-    ).x[0, :ticks]
-    np.testing.assert_array_equal(undelayed, _native_delay_run(0.0, ticks, controller, True, rk4))
+    np.testing.assert_array_equal(
+        _toolkit_delay_run(rk4, 0.0, ticks, controller),
+        _native_delay_run(0.0, ticks, controller, True, rk4),
+    )
 
 
 def test_stepped_by_mujoco_each_run_starts_afresh_and_dt_is_the_models(tmp_path):

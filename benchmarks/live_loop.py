@@ -31,9 +31,27 @@ __all__ = ["format_live", "live_case", "live_cases"]
 SCENARIO = "robot_S1"
 
 
-def live_case(T_c: float, duration: float, keep: Path | None = None) -> dict:
-    """One ``live run`` of the P3-DX at ``T_c`` for ``duration`` seconds, and its replay; the
-    session folder is copied to ``keep`` when given."""
+#: The SCHED_FIFO priority of the real-time variant (``--realtime``).
+REALTIME = 50
+
+
+def realtime_allowed() -> bool:
+    """Whether this process may use SCHED_FIFO (the ``--realtime`` sessions run only then)."""
+    try:
+        policy, param = os.sched_getscheduler(0), os.sched_getparam(0)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
+        os.sched_setscheduler(0, policy, param)
+        return True
+    except (AttributeError, OSError):
+        return False
+
+
+def live_case(
+    T_c: float, duration: float, keep: Path | None = None, realtime: int | None = None
+) -> dict:
+    """One ``live run`` of the P3-DX at ``T_c`` for ``duration`` seconds (with ``--realtime
+    realtime`` when given), and its replay; the session folder is copied to ``keep`` when
+    given."""
     from delaytrack.experiments import load_builtin
     from delaytrack.live.replay import replay
 
@@ -55,6 +73,7 @@ def live_case(T_c: float, duration: float, keep: Path | None = None) -> dict:
                 "--out",
                 str(out),
                 "--quiet",
+                *([] if realtime is None else ["--realtime", str(realtime)]),
             ],
             capture_output=True,
             text=True,
@@ -70,7 +89,9 @@ def live_case(T_c: float, duration: float, keep: Path | None = None) -> dict:
     nodes = summary["nodes"]
     controller, robot, delay = nodes["controller"], nodes["robot"], nodes["delay"]
     return {
-        "case": f"live P3-DX AROLC S1, T_c = {T_c * 1e3:g} ms, {duration:g} s",
+        "case": f"live P3-DX AROLC S1, T_c = {T_c * 1e3:g} ms, {duration:g} s"
+        + ("" if realtime is None else f", SCHED_FIFO {realtime}"),
+        "realtime_priority": realtime,
         "T_c_s": T_c,
         "duration_s": duration,
         "wall_s": wall,
@@ -99,12 +120,22 @@ def live_case(T_c: float, duration: float, keep: Path | None = None) -> dict:
 
 
 def live_cases(quick: bool = False, keep: Path | None = None) -> list[dict]:
-    """The two sessions: ``T_c`` = 10 ms and 1 ms, 60 s each (6 s with ``quick``); their
-    folders copied into ``keep/T_c_10ms`` and ``keep/T_c_1ms`` when given."""
+    """The sessions: ``T_c`` = 10 ms and 1 ms, 60 s each (6 s with ``quick``), under the normal
+    policy and, where this machine allows it, under SCHED_FIFO beside it; their folders copied
+    into ``keep/T_c_10ms`` (``..._fifo``) when given."""
     duration = 6.0 if quick else 60.0
+    policies = [None, REALTIME] if realtime_allowed() else [None]
     return [
-        live_case(T_c, duration, None if keep is None else Path(keep) / f"T_c_{T_c * 1e3:g}ms")
+        live_case(
+            T_c,
+            duration,
+            None
+            if keep is None
+            else Path(keep) / f"T_c_{T_c * 1e3:g}ms{'' if realtime is None else '_fifo'}",
+            realtime,
+        )
         for T_c in (0.01, 0.001)
+        for realtime in policies
     ]
 
 

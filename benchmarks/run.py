@@ -43,8 +43,9 @@ compiles or loads numba's disk cache):
     simulated with one :func:`simulate` call per controller type.
 ``live``
     ``delaytrack live run`` of the P3-DX in real time, ``T_c`` = 10 ms and 1 ms, 60 s each, with
-    the load average (:mod:`live_loop`); ``--skip-live`` or ``DELAYTRACK_BENCH_SKIP_LIVE=1``
-    skips them.
+    the load average, under the normal policy and, where allowed, under SCHED_FIFO
+    (``--realtime``) beside it (:mod:`live_loop`); ``--skip-live`` or
+    ``DELAYTRACK_BENCH_SKIP_LIVE=1`` skips them.
 
 ``python benchmarks/run.py --quick`` runs shorter versions of every case (for a smoke test).
 """
@@ -542,7 +543,7 @@ def main() -> None:
     cases.append(controller_step_case(5))
     agreement = agreement_case(2.0 if quick else 10.0)
     cases += sweep_case(20 if quick else 1000, 6.0 if quick else 60.0)
-    live = [] if args.skip_live else live_cases(quick)  # real time: 2-3 minutes
+    live = [] if args.skip_live else live_cases(quick)  # real time: 2-5 minutes
     cases += live
     cases.append(agreement)
 

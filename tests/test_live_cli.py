@@ -81,6 +81,9 @@ BAD_NUMBERS = [
     (("robot", SCENARIO, "--out", "unused"), "--state-every", "2.5"),
     (("robot", SCENARIO, "--out", "unused"), "--command-timeout", "0"),
     (("robot", SCENARIO, "--out", "unused"), "--duration", "1e400"),
+    (RUN, "--realtime", "0"),
+    (RUN, "--realtime", "100"),
+    (("controller", SCENARIO, "--out", "unused"), "--realtime", "50.5"),
 ]
 
 
@@ -286,3 +289,35 @@ def test_a_node_that_exits_before_the_sessions_end_ends_it(tmp_path):
     assert _ended_early(tmp_path, "delay", 1)
     assert _exit_text("robot", -signal.SIGKILL) == "robot (killed by SIGKILL)"
     assert _exit_text("robot", 1) == "robot (exit 1)"
+
+
+def test_realtime_is_set_or_refused_never_left_out(monkeypatch):
+    from argparse import Namespace
+
+    from delaytrack.live._node import enter_realtime
+    from delaytrack.live.session import node_commands
+
+    def denied(*_args):
+        raise PermissionError(1, "Operation not permitted")
+
+    with monkeypatch.context() as patched:
+        patched.setattr(os, "sched_setscheduler", denied)
+        with pytest.raises(ValueError, match=r"--realtime 50: SCHED_FIFO could not be set"):
+            enter_realtime(50)
+        enter_realtime(None)  # not asked for: nothing to set
+    options = Namespace(
+        scenario=SCENARIO, handshake_timeout=1.0, duration=None, trust=[], loss=None, realtime=7
+    )
+    commands = node_commands(options, "out", [1, 2, 3], "s")
+    assert all(command[-2:] == ["--realtime", "7"] for command in commands.values())
+
+
+def test_realtime_puts_the_loop_under_sched_fifo_where_allowed():
+    code = (
+        "import os; from delaytrack.live._node import enter_realtime; enter_realtime(3); "
+        "print(os.sched_getscheduler(0) == os.SCHED_FIFO, os.sched_getparam(0).sched_priority)"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    if done.returncode != 0 and "SCHED_FIFO could not be set" in done.stderr:
+        pytest.skip("this machine does not allow SCHED_FIFO")
+    assert done.stdout.split() == ["True", "3"], done.stderr

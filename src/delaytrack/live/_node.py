@@ -333,6 +333,31 @@ def missing_extra() -> str | None:
     return None
 
 
+def enter_realtime(priority: int | None) -> None:
+    """Run this thread (the node's loop) under SCHED_FIFO at ``priority``, as a ros2_control
+    loop does: a woken loop then preempts every process of the normal policy. Zenoh's threads
+    keep the normal policy.
+
+    Raises
+    ------
+    ValueError
+        When the policy cannot be set (not Linux, or no CAP_SYS_NICE / rtprio limit): asked
+        for, it is refused rather than silently left out.
+    """
+    if priority is None:
+        return
+    import os
+
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (AttributeError, OSError) as error:
+        reason = getattr(error, "strerror", None) or "not available on this system"
+        raise ValueError(
+            f"--realtime {priority}: SCHED_FIFO could not be set ({reason}); give the user an "
+            "rtprio limit (/etc/security/limits.conf) or CAP_SYS_NICE, or leave --realtime out"
+        ) from None
+
+
 def run_node(node_class: type[NodeBase], args: Any) -> int:
     """Load, warm up, shake hands, run and write one node; return its exit code. Stop signals
     set the node's :class:`StopFlag` until it returns, and are ignored after."""
@@ -354,6 +379,7 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
         scenario = load_scenario(args.scenario, list(args.trust))
         built = scenario.build()
         node = node_class(scenario, built, args)
+        enter_realtime(getattr(args, "realtime", None))
     except (ScenarioError, ValueError) as error:
         print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
         return EXIT_REFUSED
@@ -397,6 +423,7 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
                 node.log.close()
         summary = node.outputs()
         summary.update(handshake.clock_offset.summary())
+        summary["realtime_priority"] = getattr(args, "realtime", None)
         summary["stopped_by"] = (
             signal.Signals(stop.signal).name
             if stop.signal

@@ -46,6 +46,21 @@ _PORT = within(
     lambda port: 1 <= port <= 65535 - 2,
 )
 _STEPS = within(integer, "a whole number of steps >= 1", lambda steps: steps >= 1)
+_PRIORITY = within(
+    integer, "a SCHED_FIFO priority from 1 to 99 (Linux)", lambda priority: 1 <= priority <= 99
+)
+
+
+def _realtime_argument(command: argparse.ArgumentParser) -> None:
+    """--realtime (on every node and ``live run``)."""
+    command.add_argument(
+        "--realtime",
+        type=_PRIORITY,
+        default=None,
+        metavar="PRIORITY",
+        help="run the node's loop under the real-time policy SCHED_FIFO at this priority "
+        "(Linux; needs CAP_SYS_NICE or an rtprio limit; refused, not ignored, without them)",
+    )
 
 
 def _loss_and_lead_arguments(command: argparse.ArgumentParser, releases: str) -> None:
@@ -103,6 +118,7 @@ def _node_arguments(command: argparse.ArgumentParser, role: str) -> None:
         metavar="DIR",
         help=f"folder for this node's log ({role}.mcap) and tables",
     )
+    _realtime_argument(command)
     command.add_argument(
         "--duration",
         type=_POSITIVE_SECONDS,
@@ -276,6 +292,7 @@ def add_live_commands(commands: Any) -> None:
     _loss_and_lead_arguments(run, "the delay node releases a command")
     _measurement_argument(run)
     _bridge_argument(run)
+    _realtime_argument(run)
     run.add_argument("--handshake-timeout", type=_POSITIVE_SECONDS, default=60.0, metavar="S")
     trust_argument(run)
     quiet_argument(run, "status line")

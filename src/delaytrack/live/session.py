@@ -130,6 +130,8 @@ def node_commands(
             command += ["--lead", repr(args.lead)]
         if role == "robot" and getattr(args, "bridge", None) is not None:
             command += ["--bridge", args.bridge]
+        if getattr(args, "realtime", None) is not None:
+            command += ["--realtime", str(args.realtime)]
         if role == "controller" and getattr(args, "no_measurement_noise", False):
             command.append("--no-measurement-noise")
         commands[role] = command

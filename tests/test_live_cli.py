@@ -321,3 +321,15 @@ def test_realtime_puts_the_loop_under_sched_fifo_where_allowed():
     if done.returncode != 0 and "SCHED_FIFO could not be set" in done.stderr:
         pytest.skip("this machine does not allow SCHED_FIFO")
     assert done.stdout.split() == ["True", "3"], done.stderr
+
+
+def test_ticks_missed_count_only_ticks_of_the_session():
+    """A loop that wakes after the session's end counts the ticks before the end as missed,
+    not the ticks after it (a 60 s session at 1 ms once showed 60001 ticks)."""
+    import time
+
+    from delaytrack.live.clock import Ticker
+
+    ticker = Ticker(time.monotonic() - 10.0, 1.0, until=3.0)
+    assert list(ticker) == []
+    assert ticker.missed == 3

@@ -92,12 +92,14 @@ class Ticker:
             skipped = 0
             behind = math.floor((now - self.phase) / self.period + 1e-9) - k
             if behind >= 1:  # the next deadline has passed too: skip to the latest one
+                if (k + behind) * self.period >= self.until - tolerance:
+                    # Only the ticks before the end were missed (the session ends here).
+                    self.missed += steps_until(self.until, self.period) - k
+                    return
                 skipped = behind
                 k += behind
                 self.missed += behind
                 deadline = k * self.period + self.phase
-                if k * self.period >= self.until - tolerance:
-                    return
             yield Wake(k, deadline, now, skipped)
             k += 1
 

@@ -95,3 +95,23 @@ def test_a_part_with_a_foreign_hash_is_unfinished(unit_frame, tmp_path):
     pq.write_table(table.replace_schema_metadata(metadata), path)
     reason = finished_units(tmp_path, small_spec()).rejected[unit.part_name]
     assert reason == f"unit hash 000000000000 != {unit.hash[:12]} of this spec"
+
+
+def test_the_code_version_covers_every_file_of_simulate_without_compiled_code():
+    """An edit of any stage of ``simulate()`` may change a sweep's numbers: each is hashed."""
+    from pathlib import Path
+
+    from delaytrack.sweeps.spec import RESULT_FILES
+
+    package = Path(__file__).resolve().parents[1] / "src" / "delaytrack"
+    stages = {f"sim/{p.name}" for p in (package / "sim").glob("_*.py")}
+    # Compiling, checking kernels, wording errors and counting cores decide no number.
+    stages -= {
+        "sim/__init__.py",
+        "sim/_compile.py",
+        "sim/_kernel_checks.py",
+        "sim/_kernel_errors.py",
+        "sim/_machine.py",
+    }
+    assert stages | {"sim/simulate.py"} <= set(RESULT_FILES)
+    assert all((package / name).is_file() for name in RESULT_FILES)

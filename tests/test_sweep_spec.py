@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 import delaytrack
+import delaytrack.sweeps.spec
 from delaytrack.experiments import load_builtin
 from delaytrack.sweeps import SweepError, SweepSpec, Unit
 from delaytrack.sweeps import spec as spec_module
@@ -285,7 +286,7 @@ def test_unit_hash_changes_with_any_change(change):
 
 def test_unit_hash_changes_with_the_package_version(monkeypatch):
     before = SweepSpec.from_dict(spec_dict()).units()[0].hash
-    monkeypatch.setattr(delaytrack, "__version__", "99.0")
+    monkeypatch.setattr(delaytrack.sweeps.spec, "__version__", "99.0")  # the version it reads
     assert SweepSpec.from_dict(spec_dict()).units()[0].hash != before
 
 

@@ -16,14 +16,7 @@ Examples
 # First: choose numba's cache folder before any kernel is decorated (see _numba_cache).
 from delaytrack import _numba_cache  # noqa: F401  isort: skip
 
-from importlib.metadata import PackageNotFoundError
-from importlib.metadata import version as _version
-
-try:
-    __version__ = _version("delaytrack")
-except PackageNotFoundError:  # pragma: no cover - running from a source tree without install
-    __version__ = "0.0.0+unknown"
-
+from delaytrack._version import __version__
 from delaytrack.analysis import (
     ExactDelayMargin,
     GainDesign,

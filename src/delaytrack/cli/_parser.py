@@ -22,7 +22,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="AROLC for Euler-Lagrange systems with unknown input delay: certified delay "
         "bound, simulation, and the main job.",
     )
-    from delaytrack import __version__
+    from delaytrack._version import __version__
 
     parser.add_argument("--version", action="version", version=f"delaytrack {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OptionParser)

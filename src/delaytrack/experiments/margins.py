@@ -30,7 +30,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from delaytrack import __version__
 from delaytrack._io import write_frame
 from delaytrack._output import (
     check_output_folder,
@@ -39,6 +38,7 @@ from delaytrack._output import (
     record_outputs,
 )
 from delaytrack._validation import ArgumentError
+from delaytrack._version import __version__
 from delaytrack.analysis import exact_delay_margin, razumikhin_bound
 from delaytrack.experiments.empirical_margin import EmpiricalMargin, empirical_margin
 from delaytrack.experiments.scenario import Scenario, load_builtin

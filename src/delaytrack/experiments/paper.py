@@ -50,7 +50,6 @@ import pandas as pd
 from matplotlib.figure import Figure
 from tqdm.auto import tqdm
 
-from delaytrack import __version__
 from delaytrack._io import write_frame, write_text
 from delaytrack._output import (
     check_output_folder,
@@ -59,6 +58,7 @@ from delaytrack._output import (
     record_outputs,
 )
 from delaytrack._validation import ArgumentError, integer_multiple
+from delaytrack._version import __version__
 from delaytrack.analysis import RazumikhinBound, razumikhin_bound
 from delaytrack.controllers import AROLC, OuterLoop
 from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile

@@ -32,7 +32,6 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
-from delaytrack import __version__
 from delaytrack._io import write_frame
 from delaytrack._output import (
     check_output_folder,
@@ -40,6 +39,7 @@ from delaytrack._output import (
     claim_output_folder,
     record_outputs,
 )
+from delaytrack._version import __version__
 from delaytrack.analysis import RazumikhinBound, razumikhin_bound
 from delaytrack.experiments.convergence import dt_check_table, largest_change, write_dt_check
 from delaytrack.experiments.scenario import Scenario, load_builtin, run_batched

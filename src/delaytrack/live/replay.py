@@ -32,8 +32,10 @@ from typing import Any
 
 import numpy as np
 
+from delaytrack.live._node import session_files
+from delaytrack.live._tables import number, read_rows
 from delaytrack.live.log import write_csv
-from delaytrack.live.session import _f, _read_csv, session_files, write_report
+from delaytrack.live.report import format_agreement, write_report
 
 __all__ = ["replay", "replay_main"]
 
@@ -60,18 +62,18 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     robot, delay_node = nodes.get("robot") or {}, nodes.get("delay") or {}
     controller_node = nodes.get("controller") or {}
     dt, T_c = scenario.dt, scenario.T_c
-    steps = _read_csv(folder / "steps.csv")
+    steps = read_rows(folder / "steps.csv")
     end = (len(steps)) * dt
     n_ticks = int(math.floor(end / T_c + 1e-9))
     if n_ticks < 2:
         raise ValueError(f"{folder}: the session is shorter than two controller periods")
     t1 = n_ticks * T_c
-    applied = _read_csv(folder / "applied.csv")
+    applied = read_rows(folder / "applied.csv")
     if not applied:
         raise ValueError(f"{folder}: the robot applied no command; nothing to replay")
     epsilon = 1e-6 * dt
-    times = np.array([_f(r["applied_s"]) for r in applied]) - epsilon
-    values = np.maximum(times - np.array([_f(r["t_k_s"]) for r in applied]), 0.0)
+    times = np.array([number(r["applied_s"]) for r in applied]) - epsilon
+    values = np.maximum(times - np.array([number(r["t_k_s"]) for r in applied]), 0.0)
     trace = TraceDelay(times, values, beyond="hold", source=str(folder / "applied.csv"))
     loss_spec = delay_node.get("packet_loss") or {"probability": 0.0, "seed": 0}
     loss = PacketLoss(loss_spec["probability"], int(loss_spec["seed"]))
@@ -94,9 +96,9 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     sim_t = result.t
     sim_e1 = result.e1[0]
     sim_u = result.commands[0]
-    states = {int(r["j"]): r for r in _read_csv(folder / "states.csv")}
+    states = {int(r["j"]): r for r in read_rows(folder / "states.csv")}
     names = [k for k in next(iter(states.values())) if k not in ("j", "t_s")][:n]
-    ticks = {int(r["k"]): r for r in _read_csv(folder / "ticks.csv")}
+    ticks = {int(r["k"]): r for r in read_rows(folder / "ticks.csv")}
     m = built.plant.m
     rows, e_live, e_sim, u_live, u_sim = [], [], [], [], []
     steps_per_tick = round(T_c / dt)
@@ -106,9 +108,9 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
         if state is None:
             continue
         qd = built.reference.evaluate(float(t))[0]
-        e = qd - np.array([_f(state[c]) for c in names])
+        e = qd - np.array([number(state[c]) for c in names])
         tick = ticks.get(k)
-        u = np.array([_f(tick[f"u{j + 1}"]) for j in range(m)]) if tick else np.full(m, np.nan)
+        u = np.array([number(tick[f"u{j + 1}"]) for j in range(m)]) if tick else np.full(m, np.nan)
         e_live.append(e), e_sim.append(sim_e1[i]), u_live.append(u), u_sim.append(sim_u[i])
         rows.append(
             [k, float(t), *e.tolist(), *sim_e1[i].tolist(), *u.tolist(), *sim_u[i].tolist()]
@@ -126,7 +128,7 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     units = [unit or "" for unit in (built.plant.coordinate_units or (None,) * n)]
     given = getattr(built.plant, "input_units", None) or (None,) * m
     input_units = [unit or "" for unit in given]
-    older = [r for r in ticks.values() if _f(r.get("state_age_ms")) > 1e-6]
+    older = [r for r in ticks.values() if number(r.get("state_age_ms")) > 1e-6]
     report = {
         "ticks_compared": len(rows),
         "t1_s": t1,
@@ -181,27 +183,6 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
 def _rms(values: np.ndarray) -> np.ndarray:
     """The RMS of each column, over the rows where it is a number."""
     return np.sqrt(np.nanmean(values**2, axis=0))
-
-
-def format_agreement(report: dict[str, Any]) -> list[str]:
-    """The agreement, a line per coordinate and input, for the terminal and the report."""
-
-    def unit(entry: dict[str, Any]) -> str:
-        return f" {entry['unit']}" if entry["unit"] else ""
-
-    lines = [
-        f"{name}: tracking error RMS live {c['tracking_error_rms_live']:.4g}{unit(c)}, "
-        f"replayed {c['tracking_error_rms_replayed']:.4g}; live - replayed max "
-        f"{c['error_difference_max']:.3g}, RMS {c['error_difference_rms']:.3g} "
-        f"({100 * c['error_difference_rms_relative']:.2f} % of the live RMS)"
-        for name, c in report["coordinates"].items()
-    ]
-    lines += [
-        f"{name}: live - replayed command max {c['command_difference_max']:.3g}{unit(c)}, "
-        f"RMS {c['command_difference_rms']:.3g}"
-        for name, c in report["inputs"].items()
-    ]
-    return lines
 
 
 def replay_main(args: Any) -> int:

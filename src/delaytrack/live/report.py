@@ -19,14 +19,21 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from delaytrack.live.session import _f, _ms, _read_csv
+from delaytrack.live._tables import ms, number, read_rows
 
-__all__ = ["live_result", "metrics_with_units", "write_session_report"]
+__all__ = [
+    "format_agreement",
+    "live_result",
+    "metrics_with_units",
+    "write_report",
+    "write_session_report",
+]
 
 
 def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
@@ -44,28 +51,30 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
     plant, reference = built.plant, built.reference
     m = plant.m
     steps_per_tick = round(scenario.T_c / scenario.dt)
-    states = {int(r["j"]): r for r in _read_csv(folder / "states.csv")}
+    states = {int(r["j"]): r for r in read_rows(folder / "states.csv")}
     if not states:
         raise ValueError(f"{folder}: the robot logged no state (states.csv)")
     names = [c for c in next(iter(states.values())) if c not in ("j", "t_s")]
-    ticks = {int(r["k"]): r for r in _read_csv(folder / "ticks.csv")}
-    steps = {int(r["j"]): r for r in _read_csv(folder / "steps.csv")}
+    ticks = {int(r["k"]): r for r in read_rows(folder / "ticks.csv")}
+    steps = {int(r["j"]): r for r in read_rows(folder / "steps.csv")}
     ks = sorted(j // steps_per_tick for j in states if j % steps_per_tick == 0)
     t = np.array([k * scenario.T_c for k in ks], dtype=float)
-    x = np.array([[_f(states[k * steps_per_tick][c]) for c in names] for k in ks], dtype=float)
+    x = np.array([[number(states[k * steps_per_tick][c]) for c in names] for k in ks], dtype=float)
     ref = np.stack(reference.evaluate(t), axis=1)  # (R, 3, n): q_d, q̇_d, q̈_d
     commands = np.zeros((t.size, m))
     applied = np.full((t.size, m), np.nan)
     last = np.zeros(m)
     for i, k in enumerate(ks):
         tick = ticks.get(k)
-        sent = np.array([_f(tick[f"u{j + 1}"]) for j in range(m)]) if tick else np.full(m, np.nan)
+        sent = (
+            np.array([number(tick[f"u{j + 1}"]) for j in range(m)]) if tick else np.full(m, np.nan)
+        )
         if np.all(np.isfinite(sent)):
             last = sent
         commands[i] = last
         step = steps.get(k * steps_per_tick)
         if step is not None:
-            applied[i] = [_f(step[f"u{j + 1}"]) for j in range(m)]
+            applied[i] = [number(step[f"u{j + 1}"]) for j in range(m)]
     finite = bool(np.all(np.isfinite(x)))
     return SimResult(
         t=t,
@@ -104,10 +113,10 @@ def metrics_with_units(result: Any, label: str) -> Any:
 def _delay_figure(folder: Path, delay: Any, dt: float) -> Any:
     from matplotlib.figure import Figure
 
-    rows = [r for r in _read_csv(folder / "delays.csv") if math.isfinite(_f(r["applied_s"]))]
-    applied = np.array([_f(r["applied_s"]) for r in rows])
-    realised = np.array([_f(r["realised_delay_s"]) for r in rows])
-    difference = np.array([_f(r["realised_minus_h_ms"]) for r in rows])
+    rows = [r for r in read_rows(folder / "delays.csv") if math.isfinite(number(r["applied_s"]))]
+    applied = np.array([number(r["applied_s"]) for r in rows])
+    realised = np.array([number(r["realised_delay_s"]) for r in rows])
+    difference = np.array([number(r["realised_minus_h_ms"]) for r in rows])
     figure = Figure(figsize=(8.0, 5.4), dpi=110, layout="constrained")
     top, bottom = figure.subplots(2, 1, sharex=True)
     if applied.size:
@@ -145,17 +154,19 @@ def _histogram(ax: Any, values: np.ndarray, what: str) -> None:
 def _timing_figure(folder: Path) -> Any:
     from matplotlib.figure import Figure
 
-    ticks = _read_csv(folder / "ticks.csv")
-    steps = _read_csv(folder / "steps.csv")
+    ticks = read_rows(folder / "ticks.csv")
+    steps = read_rows(folder / "steps.csv")
     figure = Figure(figsize=(8.0, 7.2), dpi=110, layout="constrained")
     axes = figure.subplots(3, 1)
     _histogram(
         axes[0],
-        np.array([_f(r["lateness_ms"]) for r in ticks]),
+        np.array([number(r["lateness_ms"]) for r in ticks]),
         "controller wake-up lateness",
     )
-    _histogram(axes[1], np.array([_f(r["compute_ms"]) for r in ticks]), "controller compute time")
-    _histogram(axes[2], np.array([_f(r["lateness_ms"]) for r in steps]), "robot step lateness")
+    _histogram(
+        axes[1], np.array([number(r["compute_ms"]) for r in ticks]), "controller compute time"
+    )
+    _histogram(axes[2], np.array([number(r["lateness_ms"]) for r in steps]), "robot step lateness")
     figure.suptitle("Timing of the session's ticks and steps (counts on a log scale)")
     return figure
 
@@ -242,10 +253,10 @@ def write_session_report(
             "controller ticks": f"{c.get('ticks', 0)} ({c.get('missed', 0)} missed, "
             f"{c.get('older_state', 0)} on a state older than t_k, {c.get('stale', 0)} on a "
             "stale state)",
-            "controller wake-up lateness p50 / p99": f"{_ms(c.get('lateness_ms_p50'))} / "
-            f"{_ms(c.get('lateness_ms_p99'))}",
-            "controller compute time p50 / p99": f"{_ms(c.get('compute_ms_p50'))} / "
-            f"{_ms(c.get('compute_ms_p99'))}",
+            "controller wake-up lateness p50 / p99": f"{ms(c.get('lateness_ms_p50'))} / "
+            f"{ms(c.get('lateness_ms_p99'))}",
+            "controller compute time p50 / p99": f"{ms(c.get('compute_ms_p50'))} / "
+            f"{ms(c.get('compute_ms_p99'))}",
             "state the controller's law read": (
                 f"measured with measurement_noise {json.dumps(c['measurement_noise'])}"
                 if c.get("measurement_noise")
@@ -256,15 +267,15 @@ def write_session_report(
             ),
             "robot steps": f"{r.get('steps', 0)} ({r.get('missed_steps', 0)} missed, "
             f"{r.get('late_applications', 0)} applications later than their release step)",
-            "robot step lateness p50 / p99": f"{_ms(r.get('lateness_ms_p50'))} / "
-            f"{_ms(r.get('lateness_ms_p99'))}",
+            "robot step lateness p50 / p99": f"{ms(r.get('lateness_ms_p50'))} / "
+            f"{ms(r.get('lateness_ms_p99'))}",
             "delay node": f"{d.get('received', 0)} commands received, {d.get('lost', 0)} lost "
             f"(injected), {summary.get('not_received', 0)} sent but never received, "
             f"{d.get('released', 0)} releases, "
             f"{d.get('wakes_per_s', math.nan):.0f} wake-ups/s, lead {d.get('lead_ms', 0):g} ms",
-            "realised delay − h(t) p50 / |.| p99": f"{_ms(summary.get('realised_minus_h_ms_p50'))}"
-            f" / {_ms(summary.get('realised_minus_h_abs_ms_p99'))} (the exact rule on the robot's "
-            f"step grid alone: {_ms(summary.get('realised_minus_h_abs_ms_p99_of_the_rule'))})",
+            "realised delay − h(t) p50 / |.| p99": f"{ms(summary.get('realised_minus_h_ms_p50'))}"
+            f" / {ms(summary.get('realised_minus_h_abs_ms_p99'))} (the exact rule on the robot's "
+            f"step grid alone: {ms(summary.get('realised_minus_h_abs_ms_p99_of_the_rule'))})",
             "commands never applied": str(summary.get("never_applied", 0)),
         }
     )
@@ -272,8 +283,6 @@ def write_session_report(
     report.table(metrics, "Tracking metrics over every controller tick (metrics.csv)")
     if agreement is not None:
         report.heading("Replay: the simulation with the realised delays")
-        from delaytrack.live.replay import format_agreement
-
         rows = {
             "live − replayed tracking error, RMS, worst coordinate": (
                 f"{100 * agreement['error_difference_rms_relative']:.2f} % of its live RMS "
@@ -295,3 +304,39 @@ def write_session_report(
         report.code(scenario_file.read_text())
     paths.append(report.write(folder / "report.html"))
     return paths
+
+
+def format_agreement(report: dict[str, Any]) -> list[str]:
+    """The agreement, a line per coordinate and input, for the terminal and the report."""
+
+    def unit(entry: dict[str, Any]) -> str:
+        return f" {entry['unit']}" if entry["unit"] else ""
+
+    lines = [
+        f"{name}: tracking error RMS live {c['tracking_error_rms_live']:.4g}{unit(c)}, "
+        f"replayed {c['tracking_error_rms_replayed']:.4g}; live - replayed max "
+        f"{c['error_difference_max']:.3g}, RMS {c['error_difference_rms']:.3g} "
+        f"({100 * c['error_difference_rms_relative']:.2f} % of the live RMS)"
+        for name, c in report["coordinates"].items()
+    ]
+    lines += [
+        f"{name}: live - replayed command max {c['command_difference_max']:.3g}{unit(c)}, "
+        f"RMS {c['command_difference_rms']:.3g}"
+        for name, c in report["inputs"].items()
+    ]
+    return lines
+
+
+def write_report(folder: Path, scenario: Any, **replay: Any) -> bool:
+    """Write the session's metrics, figures and report (:mod:`delaytrack.live.report`);
+    whether that failed (said on stderr: the logs and tables stay)."""
+    try:
+        write_session_report(folder, scenario, **replay)
+    except (ValueError, OSError, KeyError) as error:
+        print(
+            f"error: the session's report (metrics.csv, figures, report.html) could not be "
+            f"written: {error}",
+            file=sys.stderr,
+        )
+        return True
+    return False

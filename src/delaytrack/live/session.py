@@ -17,7 +17,6 @@ first applied it, the realised delay and ``h`` there), ``summary.json``, the sce
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import os
@@ -33,6 +32,7 @@ import numpy as np
 
 from delaytrack._io import write_text
 from delaytrack.live._node import load_scenario, percentile, session_duration, session_files
+from delaytrack.live._tables import ms, number, read_rows
 from delaytrack.live.log import write_csv
 from delaytrack.live.status import StatusWatch
 
@@ -52,25 +52,6 @@ def _free_ports(count: int) -> list[int]:
     finally:
         for s in sockets:
             s.close()
-
-
-def _read_csv(path: Path) -> list[dict[str, str]]:
-    if not path.is_file():
-        return []
-    with open(path, newline="", encoding="utf-8") as handle:
-        return list(csv.DictReader(handle))
-
-
-def _f(text: str | None) -> float:
-    try:
-        return float(text) if text not in (None, "") else math.nan
-    except ValueError:
-        return math.nan
-
-
-def _ms(value: Any) -> str:
-    """A duration in milliseconds for the summary and the report, or n/a."""
-    return "n/a" if value is None or not math.isfinite(value) else f"{value:.3f} ms"
 
 
 def _endpoints(ports: list[int]) -> dict[str, str]:
@@ -144,6 +125,7 @@ def run_session(args: Any) -> int:
     from delaytrack.experiments import ScenarioError
     from delaytrack.live._node import missing_extra
     from delaytrack.live.bridge import bridge_factory
+    from delaytrack.live.report import write_report
 
     if (problem := missing_extra()) is not None:
         print(f"error: {problem}", file=sys.stderr)
@@ -264,6 +246,7 @@ def collect_main(args: Any) -> int:
     files copied into one), as ``live run`` writes them; ``live replay DIR`` then works."""
     from delaytrack._output import check_output_folder, record_outputs
     from delaytrack.experiments import ScenarioError
+    from delaytrack.live.report import write_report
 
     try:
         folder = check_output_folder(args.folder, "DIR")
@@ -293,36 +276,19 @@ def collect_main(args: Any) -> int:
     return 1 if report_failed else 0
 
 
-def write_report(folder: Path, scenario: Any, **replay: Any) -> bool:
-    """Write the session's metrics, figures and report (:mod:`delaytrack.live.report`);
-    whether that failed (said on stderr: the logs and tables stay)."""
-    from delaytrack.live.report import write_session_report
-
-    try:
-        write_session_report(folder, scenario, **replay)
-    except (ValueError, OSError, KeyError) as error:
-        print(
-            f"error: the session's report (metrics.csv, figures, report.html) could not be "
-            f"written: {error}",
-            file=sys.stderr,
-        )
-        return True
-    return False
-
-
 def collect(folder: Path, scenario: Any, built: Any) -> dict[str, Any]:
     """Merge the nodes' tables into ``delays.csv``; return the session's summary. ``built`` is
     ``scenario.build()``."""
     delay = built.delay
-    sent = {int(r["k"]): r for r in _read_csv(folder / "ticks.csv") if r["status"] != "no-state"}
-    received = {int(r["seq"]): r for r in _read_csv(folder / "releases.csv")}
+    sent = {int(r["k"]): r for r in read_rows(folder / "ticks.csv") if r["status"] != "no-state"}
+    received = {int(r["seq"]): r for r in read_rows(folder / "releases.csv")}
     first_applied: dict[int, float] = {}
-    for row in _read_csv(folder / "applied.csv"):
-        first_applied.setdefault(int(row["seq"]), _f(row["applied_s"]))
+    for row in read_rows(folder / "applied.csv"):
+        first_applied.setdefault(int(row["seq"]), number(row["applied_s"]))
     rows = []
     for k in sorted(set(sent) | set(received)):
         tick, rel = sent.get(k, {}), received.get(k, {})
-        t_k = _f(tick.get("t_s")) if tick else _f(rel.get("t_k_s"))
+        t_k = number(tick.get("t_s")) if tick else number(rel.get("t_k_s"))
         applied = first_applied.get(k, math.nan)
         h_applied = float(delay.h(applied)) if math.isfinite(applied) else math.nan
         realised = applied - t_k
@@ -330,10 +296,10 @@ def collect(folder: Path, scenario: Any, built: Any) -> dict[str, Any]:
             [
                 k,
                 t_k,
-                _f(tick.get("send_s")),
-                _f(rel.get("received_s")),
-                int(_f(rel.get("lost")) == 1) if rel else -1,
-                _f(rel.get("released_s")),
+                number(tick.get("send_s")),
+                number(rel.get("received_s")),
+                int(number(rel.get("lost")) == 1) if rel else -1,
+                number(rel.get("released_s")),
                 applied,
                 realised,
                 h_applied,
@@ -363,7 +329,7 @@ def collect(folder: Path, scenario: Any, built: Any) -> dict[str, Any]:
         path = folder / f"{role}.json"
         nodes[role] = json.loads(path.read_text()) if path.is_file() else None
     error = np.array([r[10] for r in rows], dtype=float)
-    end = len(_read_csv(folder / "steps.csv")) * scenario.dt
+    end = len(read_rows(folder / "steps.csv")) * scenario.dt
     listened = (nodes.get("delay") or {}).get("session_s", -math.inf)
     return {
         "scenario": scenario.name,
@@ -419,18 +385,18 @@ def format_summary(summary: dict[str, Any], folder: Path) -> str:
             f"live session {summary['scenario']} (T_c = {summary['T_c_s'] * 1e3:g} ms, "
             f"dt = {summary['dt_s'] * 1e3:g} ms) -> {folder}",
             f"  controller: {c.get('ticks', 0)} ticks, {c.get('missed', 0)} missed, lateness p50 "
-            f"{_ms(c.get('lateness_ms_p50'))} p99 {_ms(c.get('lateness_ms_p99'))}, compute p99 "
-            f"{_ms(c.get('compute_ms_p99'))}, {c.get('older_state', 0)} on a state older than t_k, "
+            f"{ms(c.get('lateness_ms_p50'))} p99 {ms(c.get('lateness_ms_p99'))}, compute p99 "
+            f"{ms(c.get('compute_ms_p99'))}, {c.get('older_state', 0)} on a state older than t_k, "
             f"stale {c.get('stale', 0)}",
             f"  delay node: {d.get('received', 0)} received, {d.get('lost', 0)} lost (injected), "
             f"{summary.get('not_received', 0)} sent but never received, "
             f"{d.get('released', 0)} releases",
             f"  robot: {r.get('steps', 0)} steps, {r.get('missed_steps', 0)} missed, lateness p99 "
-            f"{_ms(r.get('lateness_ms_p99'))}, zero input {r.get('no_command_steps', 0)} steps "
+            f"{ms(r.get('lateness_ms_p99'))}, zero input {r.get('no_command_steps', 0)} steps "
             f"before the first command + {r.get('timeout_zero_steps', 0)} on timeout",
-            f"  realised delay - h(t_applied): p50 {_ms(summary['realised_minus_h_ms_p50'])}, "
-            f"|.| p99 {_ms(summary['realised_minus_h_abs_ms_p99'])} (the exact rule on the step "
-            f"grid alone: {_ms(summary.get('realised_minus_h_abs_ms_p99_of_the_rule'))}); "
+            f"  realised delay - h(t_applied): p50 {ms(summary['realised_minus_h_ms_p50'])}, "
+            f"|.| p99 {ms(summary['realised_minus_h_abs_ms_p99'])} (the exact rule on the step "
+            f"grid alone: {ms(summary.get('realised_minus_h_abs_ms_p99_of_the_rule'))}); "
             f"{summary['never_applied']} commands never applied",
         ]
     )

@@ -21,9 +21,9 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from delaytrack import __version__
 from delaytrack import _result_columns as result_columns
 from delaytrack._io import write_frame
+from delaytrack._version import __version__
 from delaytrack.report import HtmlReport, save_figure
 from delaytrack.sweeps.runner import SweepOutcome, folder_lock
 from delaytrack.sweeps.spec import SweepSpec

@@ -52,10 +52,10 @@ from typing import Any
 import numpy as np
 from tqdm.auto import tqdm
 
-import delaytrack
 from delaytrack._numba_cache import source_hash
 from delaytrack._trust import Trust
 from delaytrack._validation import is_integer_at_least
+from delaytrack._version import __version__
 from delaytrack.experiments.scenario import (
     BuiltScenario,
     Scenario,
@@ -274,17 +274,27 @@ def canonical_json(data: Any) -> str:
 
 #: Files without compiled code that still decide a sweep's numbers: how a run is set up for the
 #: engine, how metrics are taken, how a part's rows are made.
-RESULT_FILES = ("sim/simulate.py", "metrics.py", "sweeps/parts.py")
+RESULT_FILES = (
+    "sim/simulate.py",
+    "sim/_plan.py",
+    "sim/_broadcast.py",
+    "sim/_build.py",
+    "sim/_arrays.py",
+    "sim/_execute.py",
+    "sim/_collect.py",
+    "metrics.py",
+    "sweeps/parts.py",
+)
 
 
 def code_version() -> str:
     """The package version, the hash of its compiled code (:func:`_numba_cache.source_hash`) and
     of :data:`RESULT_FILES`; with :func:`engine_inputs`, what a part's numbers depend on."""
     digest = hashlib.sha256(source_hash().encode())
-    package = Path(delaytrack.__file__).parent
+    package = Path(__file__).resolve().parents[1]
     for name in RESULT_FILES:
         digest.update((package / name).read_bytes())
-    return f"{delaytrack.__version__}+{digest.hexdigest()[:16]}"
+    return f"{__version__}+{digest.hexdigest()[:16]}"
 
 
 def _unit_hash(runs: Sequence[Run], version: str) -> str:

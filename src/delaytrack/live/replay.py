@@ -120,8 +120,9 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     de, du = e_live - e_sim, u_live - u_sim
     # Each coordinate against its own live RMS error, in its own unit (metres and radians are
     # not added); the headline is the worst of them.
-    rms_live_each = _rms(e_live)
-    relative_each = _rms(de) / rms_live_each
+    rms_live_each, rms_replayed_each = _rms(e_live), _rms(e_sim)
+    rms_difference_each, rms_command_difference = _rms(de), _rms(du)
+    relative_each = rms_difference_each / rms_live_each
     times_compared = np.array([r[1] for r in rows])
     beyond = np.nonzero(np.nanmax(np.abs(de) / rms_live_each, axis=1) > 0.1)[0]
     worst = int(np.nanargmax(np.nanmax(np.abs(de), axis=1)))
@@ -141,9 +142,9 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
             name: {
                 "unit": units[i],
                 "tracking_error_rms_live": float(rms_live_each[i]),
-                "tracking_error_rms_replayed": float(_rms(e_sim)[i]),
+                "tracking_error_rms_replayed": float(rms_replayed_each[i]),
                 "error_difference_max": float(np.nanmax(np.abs(de[:, i]))),
-                "error_difference_rms": float(_rms(de)[i]),
+                "error_difference_rms": float(rms_difference_each[i]),
                 "error_difference_rms_relative": float(relative_each[i]),
             }
             for i, name in enumerate(names)
@@ -152,7 +153,7 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
             f"u{j + 1}": {
                 "unit": input_units[j],
                 "command_difference_max": float(np.nanmax(np.abs(du[:, j]))),
-                "command_difference_rms": float(_rms(du)[j]),
+                "command_difference_rms": float(rms_command_difference[j]),
             }
             for j in range(m)
         },

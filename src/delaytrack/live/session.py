@@ -172,6 +172,7 @@ def run_session(args: Any) -> int:
             processes[role] = subprocess.Popen(commands[role])
         limit = started + args.handshake_timeout + duration + 30.0
         ended = False
+        exited: set[str] = set()  # the nodes whose end has been looked at (once each)
         while any(p.poll() is None for p in processes.values()):
             if time.monotonic() > limit:
                 forward(signal.SIGTERM, None)
@@ -180,9 +181,9 @@ def run_session(args: Any) -> int:
                     if process.poll() is None:
                         process.kill()
                 break
-            if not ended and any(
-                _ended_early(folder, role, p.poll()) for role, p in processes.items()
-            ):
+            newly = [r for r, p in processes.items() if r not in exited and p.poll() is not None]
+            exited.update(newly)
+            if not ended and any(_ended_early(folder, r, processes[r].poll()) for r in newly):
                 # A node that failed, refused or was stopped ends the session: the others stop
                 # (once: a second SIGTERM could reach a node exiting, without its handler).
                 ended = True

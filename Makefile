@@ -25,6 +25,7 @@ bench: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples scripts
 	$(BIN)/ruff format --check src tests benchmarks examples scripts
+	$(BIN)/mypy
 
 # The documentation site (MkDocs + mkdocstrings) into site/; any warning fails the build.
 docs: $(STAMP)

@@ -52,8 +52,8 @@ def live_case(
     """One ``live run`` of the P3-DX at ``T_c`` for ``duration`` seconds (with ``--realtime
     realtime`` when given), and its replay; the session folder is copied to ``keep`` when
     given."""
-    from delaytrack.experiments import load_builtin
     from delaytrack.live.replay import replay
+    from delaytrack.scenario import load_builtin
 
     with tempfile.TemporaryDirectory() as folder:
         scenario_file = Path(folder) / f"{SCENARIO}_T_c.toml"

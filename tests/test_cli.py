@@ -18,7 +18,7 @@ import pytest
 from delaytrack._output import MANIFEST
 from delaytrack.analysis import razumikhin_bound
 from delaytrack.cli import main
-from delaytrack.experiments import Scenario, load_builtin
+from delaytrack.scenario import Scenario, load_builtin
 
 PAPER_H_M = 0.12487
 

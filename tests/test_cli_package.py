@@ -17,7 +17,8 @@ from delaytrack._validation import ArgumentError
 from delaytrack.analysis import design_gains, razumikhin_bound
 from delaytrack.cli._parser import COMMANDS, build_parser
 from delaytrack.cli._usage import flagged
-from delaytrack.experiments import ScenarioError, empirical_margin, load_builtin
+from delaytrack.experiments import empirical_margin
+from delaytrack.scenario import ScenarioError, load_builtin
 from delaytrack.sweeps import SweepError
 from delaytrack.sweeps.executors import checked_workers
 

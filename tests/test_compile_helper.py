@@ -1,4 +1,4 @@
-"""First compiles shared with a helper process (delaytrack.sim.compile_helper)."""
+"""First compiles shared with a helper process (delaytrack._compile.helper_process)."""
 
 from __future__ import annotations
 
@@ -9,15 +9,16 @@ import sys
 
 import pytest
 
-from delaytrack._numba_cache import cache_directory
+from delaytrack._compile import helper_process
+from delaytrack._compile.ahead import ahead, parts_ahead
+from delaytrack._compile.disk_cache import cache_directory
+from delaytrack._compile.helper_process import START_UP, CompileJob, Helper, share, start
+from delaytrack._compile.native_parts import controller_step_part, plant_tick_part
 from delaytrack.components import Kernel
 from delaytrack.controllers.arolc import arolc_step
 from delaytrack.delays._kernel import NO_KERNEL
 from delaytrack.plants import TwoLinkArm
-from delaytrack.sim import compile_helper
-from delaytrack.sim.compile_helper import START_UP, CompileJob, Helper, share, start
 from delaytrack.sim.engine import run_batch_compiled
-from delaytrack.sim.native_parts import controller_step_part, plant_tick_part
 
 
 def test_the_work_is_shared_longest_first_so_both_finish_together():
@@ -41,36 +42,36 @@ def test_no_helper_when_it_would_not_finish_sooner():
 
 def test_no_helper_when_turned_off(monkeypatch):
     job = plant_tick_part(TwoLinkArm().engine_kernel, NO_KERNEL, 2, 2).compile_job()
-    monkeypatch.setenv(compile_helper.ENVIRONMENT, "0")
+    monkeypatch.setenv(helper_process.ENVIRONMENT, "0")
     assert start([job, job]) == (None, [])
 
 
 def test_a_helper_runs_only_beside_a_spare_core(monkeypatch):
-    monkeypatch.setattr(compile_helper, "_cores", lambda: 2)
-    monkeypatch.delenv(compile_helper.ENVIRONMENT, raising=False)
-    monkeypatch.setattr(compile_helper, "idle_cpus", lambda: 1.9)
-    assert compile_helper.spare_core()  # this process's core (it waits) and another one idle
-    monkeypatch.setattr(compile_helper, "idle_cpus", lambda: 1.2)
-    assert not compile_helper.spare_core()  # another process busy on the other core
-    monkeypatch.setattr(compile_helper, "idle_cpus", lambda: None)  # not measured here
+    monkeypatch.setattr(helper_process, "_cores", lambda: 2)
+    monkeypatch.delenv(helper_process.ENVIRONMENT, raising=False)
+    monkeypatch.setattr(helper_process, "idle_cpus", lambda: 1.9)
+    assert helper_process.spare_core()  # this process's core (it waits) and another one idle
+    monkeypatch.setattr(helper_process, "idle_cpus", lambda: 1.2)
+    assert not helper_process.spare_core()  # another process busy on the other core
+    monkeypatch.setattr(helper_process, "idle_cpus", lambda: None)  # not measured here
     monkeypatch.setattr(os, "getloadavg", lambda: (1.2, 0.0, 0.0), raising=False)
-    assert compile_helper.spare_core()  # then the load average of the last minute decides
+    assert helper_process.spare_core()  # then the load average of the last minute decides
     monkeypatch.setattr(os, "getloadavg", lambda: (1.9, 0.0, 0.0), raising=False)
-    assert not compile_helper.spare_core()
-    monkeypatch.setenv(compile_helper.ENVIRONMENT, "1")
-    assert compile_helper.spare_core()  # asked for, whatever the load
-    monkeypatch.setattr(compile_helper, "locks_cache", lambda: False)
-    assert not compile_helper.spare_core()  # no lock on the cache's index (Windows)
-    monkeypatch.setattr(compile_helper, "locks_cache", lambda: True)
+    assert not helper_process.spare_core()
+    monkeypatch.setenv(helper_process.ENVIRONMENT, "1")
+    assert helper_process.spare_core()  # asked for, whatever the load
+    monkeypatch.setattr(helper_process, "locks_cache", lambda: False)
+    assert not helper_process.spare_core()  # no lock on the cache's index (Windows)
+    monkeypatch.setattr(helper_process, "locks_cache", lambda: True)
     monkeypatch.setattr(sys, "frozen", True, raising=False)
-    assert not compile_helper.spare_core()  # sys.executable is the application, not Python
+    assert not helper_process.spare_core()  # sys.executable is the application, not Python
     monkeypatch.delattr(sys, "frozen")
-    monkeypatch.setenv(compile_helper.ENVIRONMENT, "0")
-    monkeypatch.setattr(compile_helper, "idle_cpus", lambda: 2.0)
-    assert not compile_helper.spare_core()
-    monkeypatch.delenv(compile_helper.ENVIRONMENT)
-    monkeypatch.setattr(compile_helper, "_cores", lambda: 1)
-    assert not compile_helper.spare_core()
+    monkeypatch.setenv(helper_process.ENVIRONMENT, "0")
+    monkeypatch.setattr(helper_process, "idle_cpus", lambda: 2.0)
+    assert not helper_process.spare_core()
+    monkeypatch.delenv(helper_process.ENVIRONMENT)
+    monkeypatch.setattr(helper_process, "_cores", lambda: 1)
+    assert not helper_process.spare_core()
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
@@ -78,12 +79,12 @@ def test_a_process_busy_on_a_cpu_is_not_idle_time():
     import subprocess
     import time
 
-    cpus = compile_helper._cpu_times().cpus  # those this process may run on
+    cpus = helper_process._cpu_times().cpus  # those this process may run on
     assert cpus >= 1
     other = subprocess.Popen([sys.executable, "-c", "while True: pass"])
     try:
         time.sleep(0.5)  # started and spinning
-        idle = compile_helper.idle_cpus(0.3)
+        idle = helper_process.idle_cpus(0.3)
         assert idle is not None
         assert 0.0 <= idle < cpus - 0.5
     finally:
@@ -92,37 +93,37 @@ def test_a_process_busy_on_a_cpu_is_not_idle_time():
 
 
 def _readings(monkeypatch, *readings):
-    monkeypatch.setattr(compile_helper.time, "sleep", lambda seconds: None)
+    monkeypatch.setattr(helper_process.time, "sleep", lambda seconds: None)
     times = iter([0.0, 0.1])  # the window: 0.1 s
-    monkeypatch.setattr(compile_helper.time, "monotonic", lambda: next(times))
+    monkeypatch.setattr(helper_process.time, "monotonic", lambda: next(times))
     values = iter(readings)
-    monkeypatch.setattr(compile_helper, "_cpu_times", lambda: next(values))
+    monkeypatch.setattr(helper_process, "_cpu_times", lambda: next(values))
 
 
 def test_the_cpus_this_process_uses_count_as_free(monkeypatch):
     # Over the window two CPUs ran 10 of 20 clock ticks. When this process ran them (a linear
     # algebra thread still spinning after a call), both are free for a helper; when another
     # process did, one is.
-    before = compile_helper.CpuTimes(100, 200, 50, 2, None)
-    _readings(monkeypatch, before, compile_helper.CpuTimes(110, 220, 60, 2, None))
-    assert compile_helper.idle_cpus() == 2.0
-    _readings(monkeypatch, before, compile_helper.CpuTimes(110, 220, 50, 2, None))
-    assert compile_helper.idle_cpus() == 1.0
+    before = helper_process.CpuTimes(100, 200, 50, 2, None)
+    _readings(monkeypatch, before, helper_process.CpuTimes(110, 220, 60, 2, None))
+    assert helper_process.idle_cpus() == 2.0
+    _readings(monkeypatch, before, helper_process.CpuTimes(110, 220, 50, 2, None))
+    assert helper_process.idle_cpus() == 1.0
     _readings(monkeypatch, before, before)
-    assert compile_helper.idle_cpus() is None  # no time passed: nothing measured
+    assert helper_process.idle_cpus() is None  # no time passed: nothing measured
 
 
 def test_under_a_cgroup_quota_what_the_cgroup_used_counts(monkeypatch):
     # A container limited to two CPUs on a larger machine whose CPUs are idle: another process
     # of the container used a whole CPU over the window (0.1 s of CPU in 0.1 s), so one is free.
-    monkeypatch.setattr(compile_helper, "_quota", lambda: 2.0)
-    monkeypatch.setattr(compile_helper.os, "sysconf", lambda name: 100, raising=False)
-    before = compile_helper.CpuTimes(1000, 1000, 0, 8, 5.0)
-    _readings(monkeypatch, before, compile_helper.CpuTimes(1080, 1080, 0, 8, 5.1))
-    assert compile_helper.idle_cpus() == pytest.approx(1.0)
+    monkeypatch.setattr(helper_process, "_quota", lambda: 2.0)
+    monkeypatch.setattr(helper_process.os, "sysconf", lambda name: 100, raising=False)
+    before = helper_process.CpuTimes(1000, 1000, 0, 8, 5.0)
+    _readings(monkeypatch, before, helper_process.CpuTimes(1080, 1080, 0, 8, 5.1))
+    assert helper_process.idle_cpus() == pytest.approx(1.0)
     # The cgroup's time spent by this process (1 clock tick of 10 ms) is its own, left free.
-    _readings(monkeypatch, before, compile_helper.CpuTimes(1080, 1080, 1, 8, 5.01))
-    assert compile_helper.idle_cpus() == pytest.approx(2.0)
+    _readings(monkeypatch, before, helper_process.CpuTimes(1080, 1080, 1, 8, 5.01))
+    assert helper_process.idle_cpus() == pytest.approx(2.0)
 
 
 def test_only_the_cpus_this_process_may_run_on_are_counted(monkeypatch):
@@ -147,19 +148,19 @@ def test_only_the_cpus_this_process_may_run_on_are_counted(monkeypatch):
                 raise OSError(self.path)
             return files[self.path]
 
-    monkeypatch.setattr(compile_helper, "Path", FakePath)
-    monkeypatch.setattr(compile_helper, "_allowed", lambda: {0})
+    monkeypatch.setattr(helper_process, "Path", FakePath)
+    monkeypatch.setattr(helper_process, "_allowed", lambda: {0})
     # cpu0 alone: idle 80 of 10 + 10 + 80 ticks; own time utime 7 + stime 3; no cgroup
-    assert compile_helper._cpu_times() == compile_helper.CpuTimes(80, 100, 10, 1, None)
-    monkeypatch.setattr(compile_helper, "_allowed", lambda: None)
-    assert compile_helper._cpu_times() == compile_helper.CpuTimes(980, 1000, 10, 2, None)
+    assert helper_process._cpu_times() == helper_process.CpuTimes(80, 100, 10, 1, None)
+    monkeypatch.setattr(helper_process, "_allowed", lambda: None)
+    assert helper_process._cpu_times() == helper_process.CpuTimes(980, 1000, 10, 2, None)
 
 
 def test_a_real_helper_compiles_its_share_and_says_so(monkeypatch):
     # (That the run then loads the helper's code from the cache is shown by
     # test_components.py::test_a_user_compiled_plant_is_compiled_once_then_loaded_from_disk.)
+    from delaytrack._compile.native_parts import delay_part, reference_part
     from delaytrack.references import SinusoidalReference
-    from delaytrack.sim.native_parts import delay_part, reference_part
 
     reference = reference_part(SinusoidalReference([0.0], [1.0], [1.0]).engine_kernel, 1)
     delay = delay_part(NO_KERNEL)
@@ -167,7 +168,7 @@ def test_a_real_helper_compiles_its_share_and_says_so(monkeypatch):
         CompileJob(part.function, part.signature, part.compile_job().kernels, 10.0)
         for part in (reference, delay)
     ]
-    monkeypatch.setenv(compile_helper.ENVIRONMENT, "1")
+    monkeypatch.setenv(helper_process.ENVIRONMENT, "1")
     helper, given = start(jobs)
     if helper is None:
         pytest.skip("one core, or no lock on numba's cache")
@@ -178,16 +179,16 @@ def test_a_real_helper_compiles_its_share_and_says_so(monkeypatch):
 
 
 def test_functions_are_named_as_another_process_imports_them():
-    engine = compile_helper._name(run_batch_compiled)
+    engine = helper_process._name(run_batch_compiled)
     # a dispatcher made from run_batch: found by its module's name
     assert engine[:2] == ("delaytrack.sim.engine", "run_batch_compiled")
-    assert compile_helper._name(arolc_step)[:2] == ("delaytrack.controllers.arolc", "arolc_step")
-    assert compile_helper._name(lambda: None) is None
+    assert helper_process._name(arolc_step)[:2] == ("delaytrack.controllers.arolc", "arolc_step")
+    assert helper_process._name(lambda: None) is None
 
     def inner():
         pass
 
-    assert compile_helper._name(inner) is None
+    assert helper_process._name(inner) is None
 
 
 def test_a_kernel_from_a_file_named_in_a_scenario_is_loaded_from_that_file(tmp_path):
@@ -196,10 +197,10 @@ def test_a_kernel_from_a_file_named_in_a_scenario_is_loaded_from_that_file(tmp_p
     (tmp_path / "helper_scenario_kernel.py").write_text("def kernel_of_a_file(x):\n    return x\n")
     module = module_from_file(tmp_path / "helper_scenario_kernel.py")
     try:
-        name = compile_helper._name(module.kernel_of_a_file)
+        name = helper_process._name(module.kernel_of_a_file)
         assert name == (module.__name__, "kernel_of_a_file", module.__file__)
         del sys.modules[module.__name__]  # as in the helper: its folder is not on the path
-        assert compile_helper._imported(name)(3) == 3
+        assert helper_process._imported(name)(3) == 3
     finally:
         sys.modules.pop(module.__name__, None)
 
@@ -209,9 +210,9 @@ def test_a_part_whose_kernel_cannot_be_imported_stays_here():
         pass
 
     mine = CompileJob(run_batch_compiled, (), (Kernel(local_terms),), 1.0)
-    assert compile_helper._recipe(mine) is None
+    assert helper_process._recipe(mine) is None
     step = controller_step_part(Kernel.of(arolc_step), TwoLinkArm().engine_kernel, 2, 2)
-    assert compile_helper._recipe(step.compile_job()) is not None
+    assert helper_process._recipe(step.compile_job()) is not None
 
 
 def _payload(cache: str, recipes: list) -> io.BytesIO:
@@ -222,18 +223,18 @@ def _payload(cache: str, recipes: list) -> io.BytesIO:
 
 
 def test_the_helper_refuses_another_cache_folder_and_reports_a_failed_job():
-    assert compile_helper.main(_payload("/elsewhere", [])) == 2
+    assert helper_process.main(_payload("/elsewhere", [])) == 2
     missing = (("delaytrack.sim.engine", "no_such_function", None), (), ())
-    assert compile_helper.main(_payload(str(cache_directory()), [missing])) == 1
-    assert compile_helper.main(_payload(str(cache_directory()), [])) == 0
+    assert helper_process.main(_payload(str(cache_directory()), [missing])) == 1
+    assert helper_process.main(_payload(str(cache_directory()), [])) == 0
 
 
 def test_the_helper_refuses_a_kernel_whose_code_changed():
     kernel = TwoLinkArm().engine_kernel
-    key, names, identity_mass, sizes = compile_helper._kernel_recipe(kernel)
-    compile_helper._make_kernel((key, names, identity_mass, sizes))  # the same code: made
+    key, names, identity_mass, sizes = helper_process._kernel_recipe(kernel)
+    helper_process._make_kernel((key, names, identity_mass, sizes))  # the same code: made
     with pytest.raises(RuntimeError, match="changed on disk"):
-        compile_helper._make_kernel((key + "#0123", names, identity_mass, sizes))
+        helper_process._make_kernel((key + "#0123", names, identity_mass, sizes))
 
 
 def test_a_failed_or_slow_helper_is_reported_and_stopped():
@@ -251,6 +252,6 @@ def test_a_failed_or_slow_helper_is_reported_and_stopped():
 
 def test_parts_named_ahead_are_kept_once_and_only_within_the_context():
     first, second = object(), object()  # stand-ins for two parts
-    with compile_helper.ahead([("PCON's step", first), ("PCONf's step", first), ("x", second)]):
-        assert compile_helper.parts_ahead() == (("PCONf's step", first), ("x", second))
-    assert compile_helper.parts_ahead() == ()
+    with ahead([("PCON's step", first), ("PCONf's step", first), ("x", second)]):
+        assert parts_ahead() == (("PCONf's step", first), ("x", second))
+    assert parts_ahead() == ()

@@ -14,10 +14,11 @@ import numba
 import numpy as np
 import pytest
 
-from delaytrack.components import Kernel, code_fingerprint, evaluate_reference
+from delaytrack._compile.fingerprint import code_fingerprint
+from delaytrack._compile.helper_process import spare_core
+from delaytrack.components import Kernel, evaluate_reference
 from delaytrack.controllers.arolc import arolc_step
 from delaytrack.plants import TwoLinkArm
-from delaytrack.sim.compile_helper import spare_core
 
 USER_MODULE = """
 import math
@@ -139,7 +140,7 @@ def test_a_kernel_of_yours_keeps_its_own_error_model_inside_the_engine(in_a_help
     # First compiled inside a part of the engine (compiled with error_model="numpy"), numba
     # would compile the kernel with the part's options: the division would give 0 instead of
     # raising. A helper it calls follows the kernel's options, as when you call it yourself.
-    from delaytrack.components import _walk
+    from delaytrack._compile.fingerprint import _walk
 
     # A new helper each time: numba keeps the first compile of a function for all its callers.
     helper = numba.njit(_divide)  # no options: it takes them from the kernel that calls it

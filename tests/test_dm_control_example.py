@@ -14,8 +14,8 @@ mujoco = pytest.importorskip("mujoco")
 pd = pytest.importorskip("pandas")
 
 from delaytrack.cli import main  # noqa: E402
-from delaytrack.experiments import Scenario  # noqa: E402
 from delaytrack.plants import MujocoPlant  # noqa: E402
+from delaytrack.scenario import Scenario  # noqa: E402
 from delaytrack.sweeps import SweepSpec  # noqa: E402
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "dm_control_point_mass"

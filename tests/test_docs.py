@@ -30,6 +30,7 @@ SUBPACKAGES = (
     "references",
     "analysis",
     "metrics",
+    "scenario",
     "experiments",
     "sweeps",
     "report",

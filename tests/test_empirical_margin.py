@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from delaytrack.analysis import exact_delay_margin
-from delaytrack.experiments import EmpiricalMargin, Scenario, empirical_margin
+from delaytrack.experiments import EmpiricalMargin, empirical_margin
+from delaytrack.scenario import Scenario
 
 #: A plant the nominal model describes exactly: q'' = u (unit masses), with the outer loop and a
 #: constant reference, so e1'' = -K2 e1'(t-h) - K1 e1(t-h) holds exactly and the empirical

@@ -30,8 +30,8 @@ from delaytrack.cli import main
 from delaytrack.cli._numbers import scalar as _scalar
 from delaytrack.cli._usage import UsageError
 from delaytrack.delays import TraceDelay
-from delaytrack.experiments import Scenario, ScenarioError
 from delaytrack.references import SplineReference
+from delaytrack.scenario import Scenario, ScenarioError
 from delaytrack.sweeps import SweepSpec
 from test_hostile_inputs import one_line_error
 from test_scenario import base_dict

@@ -21,15 +21,10 @@ import pytest
 from delaytrack._validation import real_array
 from delaytrack.cli import main
 from delaytrack.delays import ConstantDelay, RandomDelay, TraceDelay
-from delaytrack.experiments import (
-    Scenario,
-    ScenarioError,
-    empirical_margin,
-    load_builtin,
-    run_to_folder,
-)
+from delaytrack.experiments import empirical_margin, run_to_folder
 from delaytrack.metrics import mean_absolute_error, metrics_table, total_variation
 from delaytrack.plants.robot import PayloadRobot
+from delaytrack.scenario import Scenario, ScenarioError, load_builtin
 from delaytrack.sim import simulate
 from delaytrack.sim.history import history_capacity
 from delaytrack.sweeps import SweepError, SweepSpec

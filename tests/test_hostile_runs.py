@@ -29,9 +29,9 @@ from delaytrack.cli import main
 from delaytrack.cli._main import EXIT_BROKEN_PIPE
 from delaytrack.controllers import AROLC
 from delaytrack.delays import CompiledDelay, ConstantDelay
-from delaytrack.experiments.scenario import dumps_toml
 from delaytrack.plants import CallablePlant, TwoLinkArm
 from delaytrack.references import Reference, SinusoidalReference
+from delaytrack.scenario import dumps_toml
 from delaytrack.sim import SimResult, simulate
 from delaytrack.sim.fallback import PythonFallbackWarning
 from delaytrack.sim.interruptible import (

@@ -26,7 +26,6 @@ from delaytrack.analysis import (
     razumikhin_bound,
 )
 from delaytrack.controllers import AROLC
-from delaytrack.experiments import Scenario, ScenarioError
 from delaytrack.plants import LinearPlant
 from delaytrack.plants.linear import MAX_COORDINATES
 from delaytrack.report.figures import (
@@ -36,6 +35,7 @@ from delaytrack.report.figures import (
     overview_figure,
     tracking_figure,
 )
+from delaytrack.scenario import Scenario, ScenarioError
 from delaytrack.sim.result import SimResult
 from delaytrack.sweeps import SweepSpec
 

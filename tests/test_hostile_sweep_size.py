@@ -16,10 +16,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-import delaytrack.experiments.scenario as scenario_module
+import delaytrack.scenario.scenario as scenario_module
 from delaytrack._spec import module_from_file
 from delaytrack.cli import main
-from delaytrack.experiments import Scenario
+from delaytrack.scenario import Scenario
 from delaytrack.sweeps import SweepError, SweepSpec
 from delaytrack.sweeps.spec import MAX_RUNS, _apply, _check_runnable, _unit_hash, code_version
 from test_scenario import base_dict

@@ -10,6 +10,8 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+import pytest
+
 PACKAGE = Path(__file__).resolve().parents[1] / "src" / "delaytrack"
 
 
@@ -120,3 +122,59 @@ def test_no_module_imports_names_back_from_the_package_root():
         if f"delaytrack.{name}" not in MODULES
     ]
     assert back == []
+
+
+def _within(module: str, package: str) -> bool:
+    return module == package or module.startswith(f"{package}.")
+
+
+def _reachable(edges: dict[str, set[str]], start: str) -> set[str]:
+    """Every module that importing ``start`` imports, directly or through others."""
+    seen: set[str] = set()
+    stack = [start]
+    while stack:
+        for target in edges[stack.pop()]:
+            if target not in seen:
+                seen.add(target)
+                stack.append(target)
+    return seen
+
+
+def _modules_in(package: str) -> list[str]:
+    found = [module for module in MODULES if _within(module, package)]
+    assert found, f"no module in {package}"
+    return found
+
+
+@pytest.mark.parametrize("package", ["delaytrack.sweeps", "delaytrack.scenario"])
+def test_the_studies_stand_above_sweeps_and_scenarios(package: str):
+    """The studies (``experiments``) use sweeps and scenarios, never the other way round: no
+    module of ``package`` reaches ``experiments``, not even through a third module."""
+    edges = _graph()
+    upward = sorted(
+        f"{module} -> {target}"
+        for module in _modules_in(package)
+        for target in _reachable(edges, module)
+        if _within(target, "delaytrack.experiments")
+    )
+    assert upward == []
+
+
+def test_a_scenario_is_read_built_and_run_without_the_packages_above_it():
+    """``scenario`` imports neither reports nor the packages that use scenarios. (Through
+    :mod:`delaytrack.sim` it reaches :mod:`delaytrack.report.figures`: ``SimResult.plot`` draws
+    with it.)"""
+    above = ("experiments", "report", "sweeps", "cli", "live")
+    edges = _graph()
+    upward = sorted(
+        f"{module} -> {target}"
+        for module in _modules_in("delaytrack.scenario")
+        for target in edges[module]
+        if any(_within(target, f"delaytrack.{package}") for package in above)
+    )
+    assert upward == []
+
+
+def test_the_floor_check_follows_imports_through_other_modules():
+    edges = {"low.a": {"mid"}, "mid": {"high.b"}, "high.b": set()}
+    assert _reachable(edges, "low.a") == {"mid", "high.b"}

@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from delaytrack.cli import main
 from delaytrack.delays import TraceDelay, delay_from_spec
-from delaytrack.experiments import Scenario, ScenarioError
+from delaytrack.scenario import Scenario, ScenarioError
 from delaytrack.sweeps import SweepError, SweepSpec
 from test_scenario import base_dict
 

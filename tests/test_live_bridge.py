@@ -29,8 +29,8 @@ pytest.importorskip("mujoco")
 from mcap.reader import make_reader  # noqa: E402
 from mcap_ros2.decoder import DecoderFactory  # noqa: E402
 
-from delaytrack.experiments.scenario import Scenario  # noqa: E402
 from delaytrack.live.bridge import BridgeError, bridge_factory, load_bridge  # noqa: E402
+from delaytrack.scenario import Scenario  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "examples" / "mujoco_arm" / "arm3_S1.toml"
@@ -306,7 +306,7 @@ def test_a_bridge_value_of_another_form_is_refused(value):
 
 
 def test_the_example_bridge_refuses_a_scenario_of_another_robot():
-    from delaytrack.experiments import load_builtin
+    from delaytrack.scenario import load_builtin
 
     with pytest.raises(BridgeError, match="drives the joints shoulder, elbow, wrist; the "):
         load_bridge(f"{EXAMPLE}:make_bridge", load_builtin("two_link_S1"), 0.001, 2)
@@ -314,8 +314,8 @@ def test_the_example_bridge_refuses_a_scenario_of_another_robot():
 
 def test_the_simulated_robot_stops_on_a_state_that_is_not_finite():
     """The default bridge raises (and the node stops with exit code 1) instead of going on."""
-    from delaytrack.experiments import load_builtin
     from delaytrack.live.robot import SimulatedRobot
+    from delaytrack.scenario import load_builtin
 
     scenario = load_builtin("two_link_S1")
     built = scenario.build()

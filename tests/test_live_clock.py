@@ -18,9 +18,9 @@ import pytest
 
 pytest.importorskip("zenoh")
 
-from delaytrack.experiments import Scenario  # noqa: E402
 from delaytrack.live.clock_sync import estimate_clock_offset, serve_clock  # noqa: E402
 from delaytrack.live.transport import Handshake, open_session, scenario_hashes  # noqa: E402
+from delaytrack.scenario import Scenario  # noqa: E402
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "user_arm"
 SHIFT = 1000.0

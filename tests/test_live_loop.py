@@ -27,7 +27,7 @@ from mcap.exceptions import EndOfFile  # noqa: E402
 from mcap.reader import NonSeekingReader, make_reader  # noqa: E402
 from mcap_ros2.decoder import DecoderFactory  # noqa: E402
 
-from delaytrack.experiments import load_builtin  # noqa: E402
+from delaytrack.scenario import load_builtin  # noqa: E402
 from delaytrack.sim.packet_loss import packet_lost  # noqa: E402
 
 SCENARIO = "two_link_S1"

@@ -17,7 +17,7 @@ import pytest
 pytest.importorskip("zenoh")
 pytest.importorskip("mujoco")
 
-from delaytrack.experiments import Scenario  # noqa: E402
+from delaytrack.scenario import Scenario  # noqa: E402
 
 SCENARIO = Path(__file__).resolve().parents[1] / "examples/dm_control_point_mass/point_mass_S1.toml"
 

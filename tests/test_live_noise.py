@@ -24,7 +24,7 @@ pytest.importorskip("mcap_ros2")
 from mcap.reader import make_reader  # noqa: E402
 from mcap_ros2.decoder import DecoderFactory  # noqa: E402
 
-from delaytrack.experiments import load_builtin  # noqa: E402
+from delaytrack.scenario import load_builtin  # noqa: E402
 from delaytrack.sim.measurement import MeasurementNoise, measure  # noqa: E402
 
 PYTHON = [sys.executable, "-m", "delaytrack.live"]

@@ -16,8 +16,8 @@ import pytest
 
 import delaytrack as dt
 from delaytrack.cli import main
-from delaytrack.experiments import Scenario, ScenarioError
 from delaytrack.plants import MujocoPlant
+from delaytrack.scenario import Scenario, ScenarioError
 from delaytrack.sweeps import SweepSpec
 from delaytrack.sweeps.spec import engine_inputs
 

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 import delaytrack as dt
-from delaytrack.experiments import Scenario
 from delaytrack.experiments.paper import AROLC_GAINS
 from delaytrack.metrics import mean_absolute_error
 from delaytrack.plants import MujocoPlant, MujocoWheeledRobot, PayloadRobot, WheeledRobot
 from delaytrack.plants.robot import P3DX, P3DX_MJCF, NominalRobot, initial_state, paper_reference
+from delaytrack.scenario import Scenario
 
 COORDINATES = ["x", "y", "phi", "theta_r", "theta_l"]
 

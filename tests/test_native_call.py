@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from numba.core.errors import TypingError
 
-from delaytrack._native_call import NativeFunction, call_native
+from delaytrack._compile.native_call import NativeFunction, call_native
 from delaytrack.components import Kernel
 from delaytrack.controllers import AROLC, OuterLoop
 from delaytrack.delays import AbsSineDelay, CompiledDelay

@@ -13,56 +13,58 @@ from pathlib import Path
 import numba
 import pytest
 
-from delaytrack import _numba_cache
+from delaytrack._compile import disk_cache
 
 
 @pytest.fixture
 def package_copy(tmp_path, monkeypatch) -> Path:
-    """A copy of the package's source that :mod:`delaytrack._numba_cache` hashes instead."""
+    """A copy of the package's source that :mod:`delaytrack._compile.disk_cache` hashes instead."""
     copy = tmp_path / "delaytrack"
     shutil.copytree(
-        Path(_numba_cache.__file__).parent, copy, ignore=shutil.ignore_patterns("__pycache__")
+        Path(disk_cache.__file__).parents[1], copy, ignore=shutil.ignore_patterns("__pycache__")
     )
-    monkeypatch.setattr(_numba_cache, "_PACKAGE", copy)
+    monkeypatch.setattr(disk_cache, "_PACKAGE", copy)
     return copy
 
 
 def test_cache_folder_is_keyed_by_the_current_source() -> None:
-    assert numba.config.CACHE_DIR == str(_numba_cache.cache_directory())
-    assert Path(numba.config.CACHE_DIR).name == _numba_cache.source_hash()
+    assert numba.config.CACHE_DIR == str(disk_cache.cache_directory())
+    assert Path(numba.config.CACHE_DIR).name == disk_cache.source_hash()
 
 
 def test_editing_any_kernel_file_changes_the_key(package_copy) -> None:
     copy = package_copy
-    before = _numba_cache.source_hash()
-    assert before == _numba_cache.source_hash()
+    before = disk_cache.source_hash()
+    assert before == disk_cache.source_hash()
     # The controller kernel is inlined into the compiled engine but lives in another file.
     arolc = copy / "controllers" / "arolc.py"
     arolc.write_text(arolc.read_text() + "\n# an edit\n")
-    assert _numba_cache.source_hash() != before
+    assert disk_cache.source_hash() != before
 
 
 def test_editing_a_file_without_compiled_code_keeps_the_key(package_copy) -> None:
     copy = package_copy
-    before = _numba_cache.source_hash()
+    before = disk_cache.source_hash()
     for edited in ("cli/_main.py", "report/html.py", "experiments/paper.py", "sweeps/runner.py"):
         path = copy / edited
         path.write_text(path.read_text() + "\n# a sentence of prose\n")
-    assert _numba_cache.source_hash() == before
-    names = {path.relative_to(copy).as_posix() for path in _numba_cache.kernel_files()}
+    assert disk_cache.source_hash() == before
+    names = {path.relative_to(copy).as_posix() for path in disk_cache.kernel_files()}
     assert {"sim/engine.py", "components.py", "controllers/arolc.py"} <= names
+    # not compiled, but deciding how a kernel of the user's compiles and is named
+    assert {"_compile/own_options.py", "_compile/fingerprint.py"} <= names
     assert not names & {"cli/_main.py", "report/html.py", "experiments/paper.py"}
 
 
 def test_user_cache_root_is_respected(monkeypatch, tmp_path) -> None:
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
-    assert _numba_cache.cache_directory().parent == tmp_path / "delaytrack"
+    assert disk_cache.cache_directory().parent == tmp_path / "delaytrack"
 
 
 def test_processes_saving_entries_at_once_keep_every_entry(tmp_path, monkeypatch) -> None:
     """numba saves an entry by reading the kernel's index, adding it and writing it back: two
     processes compiling two overloads at once must not write back each other's loss."""
-    files = _numba_cache._LockedIndexDataCacheFile
+    files = disk_cache._LockedIndexDataCacheFile
     load = files._load_index
 
     def slow_load(self):  # widen the window between reading and writing the index
@@ -96,7 +98,7 @@ def test_every_compiled_kernel_saves_under_the_lock() -> None:
     from delaytrack.sim.engine import run_batch_compiled
 
     for dispatcher in (run_batch_compiled, arolc_step, robot_payload_terms):
-        assert type(dispatcher._cache._cache_file) is _numba_cache._LockedIndexDataCacheFile
+        assert type(dispatcher._cache._cache_file) is disk_cache._LockedIndexDataCacheFile
 
 
 def test_importing_with_numbas_compiler_disabled_is_a_clear_error() -> None:

@@ -13,8 +13,10 @@ import pytest
 
 from delaytrack import razumikhin_bound
 from delaytrack.cli import main
-from delaytrack.experiments import paper, robustness, tuning
+from delaytrack.experiments import paper, paper_findings, robustness, tuning
 from delaytrack.experiments.contact import contact_findings
+from delaytrack.report import paper as paper_report
+from delaytrack.report.contact import contact_paragraphs
 
 ROWS = [
     ("S1", "AROLC"),
@@ -94,7 +96,7 @@ def test_short_run_writes_every_promised_file(tmp_path):
     merged = contact.merge(summary, on=["scenario", "controller"], suffixes=("", "_analytic"))
     np.testing.assert_array_equal(merged.ae_x_mm, merged.ae_x_mm_analytic)
     assert "With contact physics" in report
-    assert contact_findings(study.contact)[0] in report
+    assert contact_paragraphs(study.findings.contact)[0] in report
 
 
 @pytest.mark.slow
@@ -122,20 +124,30 @@ def test_reproduce_refuses_a_duration_off_the_controller_grid(tmp_path, capsys):
     assert "must be a positive integer multiple of 'T_c'" in capsys.readouterr().err
 
 
-def test_diverged_runs_get_nan_metrics_and_a_flag():
+def test_a_run_that_leaves_the_path_stops_there_with_nan_metrics_and_a_flag(monkeypatch):
+    """The engine's rule: with x and y bounded by 20 mm, the runs whose error passes it (the
+    paper-gain AROLC and the outer loop, within the first second) stop at that controller tick,
+    as ``left the path``, with NaN metrics; the others finish."""
+    bound = 0.02
+    monkeypatch.setattr(paper, "ERROR_BOUND", (bound, bound, math.inf, math.inf, math.inf))
     study = paper.run_study(duration=1.0, progress=False, check_dt=False, contact=False)
     assert study.contact is None
-    result = study.results["baseline"]
-    # Push one run off the path: the same summary code must flag it.
-    broken = result.x.copy()
-    broken[1, -1, 0] += 2 * paper.LEFT_PATH_M
-    from dataclasses import replace
-
-    summary, status = paper._summary({**study.results, "baseline": replace(result, x=broken)})
-    row = (summary.scenario == "S2") & (summary.controller == "PCON")
-    assert summary[row].iloc[:, 2:].isna().all(axis=None)
-    assert status[row].status.iloc[0] == "diverged (left the path)"
-    assert paper.claims(summary)["ae"]["S2"]  # a diverged baseline loses
+    stopped = study.status[study.status.status != "ok"]
+    assert set(stopped.controller) == {"AROLC", "OuterLoop"}
+    assert set(stopped.status) == {"left the path"}
+    pd.testing.assert_frame_equal(study.findings.stopped, stopped)
+    both = pd.concat([study.summary, study.tuned_summary], ignore_index=True)
+    for r in study.status.itertuples():
+        metrics = both[(both.scenario == r.scenario) & (both.controller == r.controller)]
+        run = study.run(r.scenario, r.controller)
+        error = np.abs(run.e1[0, :, :2])
+        if r.status == "ok":
+            assert r.t_stop == 1.0 and np.all(error <= bound)
+            assert metrics.iloc[:, 2:].notna().all(axis=None)
+            continue
+        tick = int(np.flatnonzero(run.t == r.t_stop)[0])
+        assert np.any(error[tick] > bound) and np.all(error[:tick] <= bound)
+        assert metrics.iloc[:, 2:].isna().all(axis=None)
 
 
 def test_contact_findings_are_computed_from_the_table():
@@ -163,7 +175,7 @@ def test_contact_findings_are_computed_from_the_table():
     stiff["change_ae_pct"] = 100 * (
         (stiff.ae_x_contact_mm + stiff.ae_y_contact_mm) / (stiff.ae_x_mm + stiff.ae_y_mm) - 1
     )
-    text = " ".join(contact_findings(pd.concat([table, stiff])))
+    text = " ".join(contact_paragraphs(contact_findings(pd.concat([table, stiff]))))
     assert "In the 3 runs" in text and "+20 % to +350 %" in text and "(median +200 %)" in text
     assert "+0 % to +50 %" in text and "0.25–0.75 mm/s" in text and "at most 12.5 mm/s" in text
     assert (
@@ -185,6 +197,13 @@ def test_claims_are_computed_from_the_summary():
     checks = paper.claims(pd.DataFrame(rows))
     assert all(checks["ae"].values()) and all(checks["tv"].values())
     assert checks["growth"]["S3->S4"]
+    # A diverged run (NaN metrics) loses: against a diverged baseline AROLC's claims hold; a
+    # diverged AROLC's fail.
+    rows[4].update(ae_x_mm=np.nan, ae_y_mm=np.nan, tv=np.nan)  # S2 PCON
+    rows[9].update(ae_x_mm=np.nan, ae_y_mm=np.nan, tv=np.nan)  # S4 AROLC
+    checks = paper.claims(pd.DataFrame(rows))
+    assert checks["ae"] == {"S1": True, "S2": True, "S3": True, "S4": False}
+    assert checks["tv"] == checks["ae"] and not checks["growth"]["S3->S4"]
 
 
 def test_shipped_gains_file_is_complete():
@@ -314,17 +333,20 @@ def test_worst_case_objective_excludes_any_divergence(monkeypatch):
 
 
 def test_certification_and_dwell_text_are_computed_from_the_profiles():
-    text = paper._certified_text(0.11, 60.0, "AROLC")
-    assert text == (
+    largest = {case: paper_findings._delay_range(case, 60.0)[1] for case in paper.SCENARIOS}
+
+    def text(h_m: float, who: str) -> str:
+        certified = paper_findings.certified_scenarios(h_m, largest)
+        return paper_report._certified_text(largest, certified, who)
+
+    assert text(0.11, "AROLC") == (
         "Largest delays over the run: S1 100 ms, S2 125 ms, S3 60 ms, S4 120 ms. AROLC is "
         "certified for S1, S3 and NOT certified for S2, S4."
     )
-    assert paper._certified_text(0.05, 60.0, "X").endswith(
-        "X is certified for none of S1, S2, S3, S4."
-    )
-    assert paper._certified_text(0.2, 60.0, "Y").endswith("Y is certified for S1, S2, S3, S4.")
+    assert text(0.05, "X").endswith("X is certified for none of S1, S2, S3, S4.")
+    assert text(0.2, "Y").endswith("Y is certified for S1, S2, S3, S4.")
     # S2 = 5 + 120 |sin 0.1 t| ms is above 112.5 ms where |sin 0.1 t| > 0.8958: around t = 5π k.
-    dwells = paper._dwells("S2", 60.0, 0.1125)
+    dwells = paper_findings._dwells("S2", 60.0, 0.1125)
     assert len(dwells) == 2
     half = (math.pi / 2 - math.asin(0.1075 / 0.12)) / 0.1
     for (start, end), centre in zip(dwells, (5 * math.pi, 15 * math.pi), strict=True):
@@ -336,7 +358,7 @@ def test_the_report_prose_follows_the_gains(monkeypatch):
     monkeypatch.setitem(paper.AROLC_GAINS, "alpha", 3.5)
     monkeypatch.setitem(paper.AROLC_GAINS, "K1", 4.0)
     study = paper.run_study(duration=1.0, progress=False, check_dt=False, contact=False)
-    settings = paper._settings(study)
+    settings = paper_report._settings(study)
     assert settings["AROLC"].startswith("K1 = 4 I, K2 = 1 I, Q = 1 I, α = 3.5, ε = 0.1")
-    text = " ".join(paper._explanation(study))
+    text = " ".join(paper_report._explanation(study))
     assert "K1 = 4 I" in text and "natural frequency 2 rad/s and damping 0.25" in text

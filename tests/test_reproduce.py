@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from delaytrack.cli import main
-from delaytrack.experiments import Scenario
+from delaytrack.scenario import Scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -5,8 +5,9 @@ import pytest
 
 from delaytrack.controllers import AROLC
 from delaytrack.delays import AbsSineDelay
-from delaytrack.experiments import load_builtin, paper
+from delaytrack.experiments import paper
 from delaytrack.plants.robot import NominalRobot, PayloadRobot, initial_state, paper_reference
+from delaytrack.scenario import load_builtin
 from delaytrack.sim import simulate
 
 

@@ -11,23 +11,24 @@ import pytest
 from scipy import stats
 
 from delaytrack.experiments import robustness, tuning
+from delaytrack.experiments.intervals import median_interval, wilson_interval
+from delaytrack.experiments.outcomes import delay_reach
+from delaytrack.experiments.verdicts import claim_verdicts
 
 
 def test_wilson_interval_matches_scipy():
     for k, n in ((0, 8), (3, 8), (8, 8), (17, 40)):
         expected = stats.binomtest(k, n).proportion_ci(method="wilson")
-        assert robustness.wilson_interval(k, n) == pytest.approx(
-            (expected.low, expected.high), abs=1e-12
-        )
-    assert all(math.isnan(v) for v in robustness.wilson_interval(0, 0))
+        assert wilson_interval(k, n) == pytest.approx((expected.low, expected.high), abs=1e-12)
+    assert all(math.isnan(v) for v in wilson_interval(0, 0))
 
 
 def test_median_interval_brackets_the_median():
     values = np.random.default_rng(1).normal(5.0, 1.0, 200)
-    median, low, high = robustness.median_interval(values)
+    median, low, high = median_interval(values)
     assert median == np.median(values) and low < median < high and high - low < 0.6
-    assert robustness.median_interval([2.0, 2.0, 2.0]) == (2.0, 2.0, 2.0)
-    assert math.isnan(robustness.median_interval([])[0])
+    assert median_interval([2.0, 2.0, 2.0]) == (2.0, 2.0, 2.0)
+    assert math.isnan(median_interval([])[0])
 
 
 def fake_claims(ae_arolc, ae_base):
@@ -50,23 +51,51 @@ def fake_claims(ae_arolc, ae_base):
 
 def test_a_claim_holds_fails_or_is_undecided_by_its_interval():
     n = 20
-    holds = robustness.claim_verdicts(fake_claims([1.0] * n, [2.0] * n))
+    holds = claim_verdicts(fake_claims([1.0] * n, [2.0] * n))
     assert set(holds[holds.claim == "AE below PCON"].verdict) == {"holds"}
-    fails = robustness.claim_verdicts(fake_claims([3.0] * n, [2.0] * n))
+    fails = claim_verdicts(fake_claims([3.0] * n, [2.0] * n))
     assert set(fails[fails.claim == "AE below PCON"].verdict) == {"fails"}
-    mixed = robustness.claim_verdicts(fake_claims([1.0, 3.0] * (n // 2), [2.0] * n))
+    mixed = claim_verdicts(fake_claims([1.0, 3.0] * (n // 2), [2.0] * n))
     assert set(mixed[mixed.claim == "AE below PCON"].verdict) == {"undecided"}
     # A diverged baseline loses; a diverged AROLC loses; where both diverged nothing is decided.
-    lost = robustness.claim_verdicts(fake_claims([1.0] * n, [math.inf] * n))
+    lost = claim_verdicts(fake_claims([1.0] * n, [math.inf] * n))
     assert set(lost[lost.claim == "AE below PCON"].verdict) == {"holds"}
-    both = robustness.claim_verdicts(fake_claims([math.inf] * 15 + [3.0] * 5, [math.inf] * n))
+    both = claim_verdicts(fake_claims([math.inf] * 15 + [3.0] * 5, [math.inf] * n))
     row = both[(both.claim == "AE below PCON")].iloc[0]
     assert (row.draws_decided, row.draws_both_diverged) == (5, 15)
     assert row.share_holds == 1.0 and row.verdict == "holds"  # finite beats diverged
-    none = robustness.claim_verdicts(fake_claims([math.inf] * n, [math.inf] * n))
+    none = claim_verdicts(fake_claims([math.inf] * n, [math.inf] * n))
     assert set(none.verdict) >= {"no decision (both diverged in every draw)"}
     # The effect size: the paired median difference, AROLC minus the baseline.
     assert holds.iloc[0].median_difference == -1.0
+
+
+def test_the_reach_is_the_longest_delay_below_the_first_diverged_run():
+    def cell(controller, delay, diverged, runs=4):
+        return dict(
+            controller=controller,
+            scale=math.nan,
+            delay_ms=delay,
+            runs=runs,
+            diverged=diverged,
+            divergence_rate=diverged / runs,
+        )
+
+    table = pd.DataFrame(
+        [
+            cell("A", 60.0, 0),
+            cell("A", 20.0, 0),
+            cell("A", 100.0, 1),
+            cell("A", 150.0, 0),  # clean again, but beyond a diverged run
+            cell("A", 200.0, 2),
+            cell("B", 20.0, 1),
+            cell("B", 60.0, 0),
+        ]
+    )
+    a, b = (row for _, row in delay_reach(table).iterrows())
+    assert (a.controller, a.longest_clean_delay_ms, a.half_diverged_from_ms) == ("A", 60.0, 200.0)
+    assert (a.smallest_delay_ms, a.largest_delay_ms, a.diverged, a.draws) == (20.0, 200.0, 3, 4)
+    assert math.isnan(b.longest_clean_delay_ms) and math.isnan(b.half_diverged_from_ms)
 
 
 def test_the_study_is_symmetric_and_uses_the_tuned_gains():

@@ -10,15 +10,15 @@ import pytest
 
 from delaytrack.controllers import AROLC
 from delaytrack.delays import AbsSineDelay, RandomDelay, TraceDelay
-from delaytrack.experiments import (
+from delaytrack.plants import TwoLinkArm
+from delaytrack.scenario import (
     Scenario,
     ScenarioError,
     builtin_scenario_names,
+    dumps_toml,
     load_builtin,
     run_batched,
 )
-from delaytrack.experiments.scenario import dumps_toml
-from delaytrack.plants import TwoLinkArm
 
 
 def base_dict() -> dict:
@@ -403,3 +403,23 @@ def test_packet_loss_is_a_table_of_the_scenario(tmp_path):
     assert not np.array_equal(result.x, Scenario.from_dict(base_dict()).run().x)
     refused(data | {"packet_loss": {"rate": 0.1}}, "'packet_loss' must be a table with keys among")
     refused(data | {"packet_loss": {"probability": 1.5}}, r"packet_loss.probability must be")
+
+
+def test_the_scenario_names_stay_importable_from_experiments_and_the_package_root():
+    import delaytrack
+    import delaytrack.experiments as experiments
+    import delaytrack.scenario as scenario
+
+    for name in (
+        "BuiltScenario",
+        "Scenario",
+        "ScenarioError",
+        "builtin_scenario_names",
+        "builtin_scenario_path",
+        "load_builtin",
+        "run_batched",
+    ):
+        assert getattr(experiments, name) is getattr(scenario, name)
+    for name in ("Scenario", "ScenarioError", "load_builtin"):
+        assert getattr(delaytrack, name) is getattr(scenario, name)
+    assert delaytrack.run_to_folder is experiments.run_to_folder

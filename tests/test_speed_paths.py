@@ -17,12 +17,12 @@ from numba import njit
 from delaytrack.controllers import AROLC, OuterLoop
 from delaytrack.delays import AbsSineDelay, ConstantDelay, RandomDelay
 from delaytrack.experiments.paper import AROLC_GAINS
-from delaytrack.experiments.scenario import Scenario
 from delaytrack.metrics import mean_absolute_error, metrics_table
 from delaytrack.plants import CallablePlant, CompiledPlant, TwoLinkArm
 from delaytrack.plants.robot import NominalRobot, PayloadRobot, initial_state, paper_reference
 from delaytrack.plants.two_link_arm import two_link_terms
 from delaytrack.references import SinusoidalReference
+from delaytrack.scenario import Scenario
 from delaytrack.sim import simulate
 from delaytrack.sim.fallback import PythonFallbackWarning
 from test_golden import golden

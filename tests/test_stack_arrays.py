@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from numba.core.errors import TypingError
 
-from delaytrack._stack_arrays import MOST_STACK_ENTRIES, stack_matrix, stack_vector
+from delaytrack._compile.stack_arrays import MOST_STACK_ENTRIES, stack_matrix, stack_vector
 from delaytrack.components import Kernel
 from delaytrack.plants.robot.truth import robot_truth_terms
 from delaytrack.sim.integrator import rk4_memory, rk4_workspace

@@ -12,11 +12,12 @@ import pytest
 from numba.core.errors import TypingError
 
 import delaytrack as dt
-from delaytrack.components import Kernel, compiled_functions_reached
+from delaytrack._compile.fingerprint import compiled_functions_reached
+from delaytrack._compile.stale_caches import compile_from_source
+from delaytrack.components import Kernel
 from delaytrack.controllers import OuterLoop
 from delaytrack.delays import ConstantDelay
 from delaytrack.references import SinusoidalReference
-from delaytrack.sim.stale_caches import compile_from_source
 
 _HELPER = """
 import math

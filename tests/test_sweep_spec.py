@@ -9,7 +9,7 @@ import pytest
 
 import delaytrack
 import delaytrack.sweeps.spec
-from delaytrack.experiments import load_builtin
+from delaytrack.scenario import load_builtin
 from delaytrack.sweeps import SweepError, SweepSpec, Unit
 from delaytrack.sweeps import spec as spec_module
 

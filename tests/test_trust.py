@@ -31,8 +31,7 @@ from hypothesis import strategies as st
 import delaytrack
 from delaytrack import _spec, _trust
 from delaytrack.cli import main
-from delaytrack.experiments import Scenario, ScenarioError
-from delaytrack.experiments.scenario import dumps_toml
+from delaytrack.scenario import Scenario, ScenarioError, dumps_toml
 from delaytrack.sweeps import SweepError, SweepSpec
 from test_hostile_inputs import one_line_error
 from test_scenario import base_dict

@@ -26,7 +26,7 @@ from scipy.interpolate import CubicSpline
 
 import delaytrack as dt
 from delaytrack.cli import main
-from delaytrack.experiments import Scenario, ScenarioError
+from delaytrack.scenario import Scenario, ScenarioError
 from delaytrack.sweeps import SweepError, SweepSpec
 from delaytrack.sweeps.spec import engine_inputs
 
@@ -327,9 +327,9 @@ def test_a_kernel_numba_cannot_compile_is_a_one_line_error(example, capsys):
 
 @pytest.mark.slow
 def test_a_kernel_the_compile_helper_cannot_compile_is_reported_here(example, capsys, monkeypatch):
-    from delaytrack.sim import compile_helper
+    from delaytrack._compile import helper_process as compile_helper
+    from delaytrack._compile import stage as compiling
 
-    compiling = sys.modules["delaytrack.sim._compile"]
     # A new arm (another fingerprint at every run, never in the cache): its integrator and the
     # failing step both to compile, the step handed to a helper, which fails on it; this process
     # names it and stops the helper.
@@ -363,9 +363,10 @@ def test_a_kernel_the_compile_helper_cannot_compile_is_reported_here(example, ca
 def test_steps_asked_for_ahead_are_compiled_at_the_first_compile(
     example, capsys, monkeypatch, helper
 ):
+    from delaytrack._compile import helper_process as compile_helper
+    from delaytrack._compile.ahead import parts_ahead
+    from delaytrack._compile.native_parts import controller_step_part
     from delaytrack._spec import module_from_file
-    from delaytrack.sim import compile_helper
-    from delaytrack.sim.native_parts import controller_step_name, controller_step_part
 
     # A new arm and a new law (another fingerprint at every run, never in the cache): AROLC's
     # run compiles the arm's parts and, asked for ahead, the law's step, in one process or with
@@ -385,13 +386,10 @@ def test_steps_asked_for_ahead_are_compiled_at_the_first_compile(
     rival = module_from_file(law).make_pd_gravity(built.model, 16.0, 8.0)
     bad = module_from_file(example / "bad_law.py").make_pd_gravity(built.model, 16.0, 8.0)
     n, m = built.plant.n, built.plant.m
-    step, bad_step = (
-        controller_step_part(c.engine_kernel, c.model.engine_kernel, n, m) for c in (rival, bad)
-    )
+    step = controller_step_part(rival.engine_kernel, rival.model.engine_kernel, n, m)
     assert not step.ready()
     settings = dict(reference=built.reference, t1=0.2, dt=0.001, T_c=0.002)
-    named = [(controller_step_name(rival), step), (controller_step_name(bad), bad_step)]
-    with compile_helper.ahead(named):
+    with dt.sim.compile_ahead([rival, bad], n, m):
         first = dt.simulate(built.plant, built.controller, built.delay, built.x0, **settings)
     notice = capsys.readouterr().err
     assert "PDGravity's step on " in notice and "AROLC's step on " in notice
@@ -402,7 +400,7 @@ def test_steps_asked_for_ahead_are_compiled_at_the_first_compile(
     assert np.all(np.isfinite(second.metrics["ae"]))
     with pytest.raises(ValueError, match="numba could not compile PDGravity's step on "):
         dt.simulate(built.plant, bad, built.delay, built.x0, **settings)
-    assert compile_helper.parts_ahead() == ()  # the context is left
+    assert parts_ahead() == ()  # the context is left
     # Inlined into the step's part, which runs without numba's runtime, an array the law makes
     # cannot be freed: the error says so (a kernel that is not inlined frees its own).
     inlined = text.replace(

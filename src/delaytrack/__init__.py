@@ -3,7 +3,8 @@
 The curated public API. Everything here is also importable from its subpackage
 (:mod:`delaytrack.plants`, :mod:`delaytrack.delays`, :mod:`delaytrack.controllers`,
 :mod:`delaytrack.analysis`, :mod:`delaytrack.sim`, :mod:`delaytrack.metrics`,
-:mod:`delaytrack.experiments`); figures and HTML reports live in :mod:`delaytrack.report`.
+:mod:`delaytrack.scenario`, :mod:`delaytrack.experiments`); figures and HTML reports live in
+:mod:`delaytrack.report`.
 
 Examples
 --------
@@ -13,8 +14,8 @@ Examples
 0.12487
 """
 
-# First: choose numba's cache folder before any kernel is decorated (see _numba_cache).
-from delaytrack import _numba_cache  # noqa: F401  isort: skip
+# First: choose numba's cache folder before any kernel is decorated (see _compile.disk_cache).
+from delaytrack._compile import disk_cache  # noqa: F401  isort: skip
 
 from delaytrack._version import __version__
 from delaytrack.analysis import (
@@ -38,14 +39,7 @@ from delaytrack.delays import (
     TraceDelay,
     delay_from_spec,
 )
-from delaytrack.experiments import (
-    EmpiricalMargin,
-    Scenario,
-    ScenarioError,
-    empirical_margin,
-    load_builtin,
-    run_to_folder,
-)
+from delaytrack.experiments import EmpiricalMargin, empirical_margin, run_to_folder
 from delaytrack.metrics import (
     max_abs_error,
     mean_absolute_error,
@@ -65,6 +59,7 @@ from delaytrack.plants import (
     plant_from_spec,
 )
 from delaytrack.references import Reference, SinusoidalReference, SplineReference
+from delaytrack.scenario import Scenario, ScenarioError, load_builtin
 from delaytrack.sim import MeasurementNoise, PacketLoss, SimResult, simulate
 
 __all__ = [

@@ -9,7 +9,7 @@ alone, in a batch and on any thread, and nothing is carried from one call to the
 
 from __future__ import annotations
 
-from delaytrack._jit import hot_kernel
+from delaytrack._compile.jit import hot_kernel
 
 __all__ = ["NOISE_BOUND", "hash32", "standard_noise", "uniform"]
 

@@ -58,4 +58,5 @@ def guard_caches(module: ModuleType) -> None:
             and getattr(value.py_func, "__globals__", None) is vars(module)
             and type(getattr(value, "_cache", None)) is FunctionCache
         ):
-            value._cache.__class__ = _OwnModuleCache
+            # numba's Dispatcher sets ``_cache`` at run time; its typing does not declare it
+            value._cache.__class__ = _OwnModuleCache  # type: ignore[attr-defined]

@@ -63,13 +63,12 @@ def plain_unit(unit: object, label: str) -> str:
     ValueError
         Naming ``label``, the unit and what is valid.
     """
-    plain = (
+    if not (
         isinstance(unit, str)
         and bool(unit)
         and all(c.isalnum() or c in UNIT_SYMBOLS for c in unit)
         and (unit[0].isalnum() or unit[0] in "%°")
-    )
-    if not plain:
+    ):
         raise ValueError(
             f"{label} holds the unit {unit!r}, which is not plain unit text: a unit is letters "
             f"and digits with {' '.join(UNIT_SYMBOLS)} (such as 'm', 'rad', 'N·m', 'm/s^2'), "

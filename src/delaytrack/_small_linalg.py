@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from delaytrack._jit import inline_kernel
+from delaytrack._compile.jit import inline_kernel
 
 __all__ = ["SYMMETRY_TOLERANCE", "matvec", "solve_in_place", "solve_mass_in_place"]
 

@@ -22,11 +22,11 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
-from typing import Any
+from typing import Any, TypeGuard
 
+from delaytrack._compile.disk_cache import cache_directory
 from delaytrack._file_caches import guard_caches
 from delaytrack._io import regular_file
-from delaytrack._numba_cache import cache_directory
 
 __all__ = [
     "PYTHON_TYPE",
@@ -72,7 +72,7 @@ class SpecError(ValueError):
         return error
 
 
-def _is_number(value: object) -> bool:
+def _is_number(value: object) -> TypeGuard[int | float]:
     return isinstance(value, int | float) and not isinstance(value, bool)
 
 
@@ -434,6 +434,7 @@ def build_from_table(
     ``returns``.
     """
     spec = check_table(table, value, types)
+    assert isinstance(value, Mapping)  # check_table refuses anything else
     kind = value["type"]
     user = kind.startswith(PYTHON_TYPE)
     arguments = {spec.keys[key][0]: item for key, item in value.items() if key != "type"}

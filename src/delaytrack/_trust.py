@@ -118,7 +118,7 @@ def installed_locations() -> tuple[tuple[Path, str], ...]:
     """Where this package, Python's standard library, the installed packages and this Python
     itself are installed (resolved), most specific first, each with what it is."""
     paths = sysconfig.get_paths()
-    places = [
+    places: list[tuple[str | Path, str]] = [
         (Path(__file__).parent, "where delaytrack is installed"),
         (paths["stdlib"], "Python's standard library"),
         (paths["platstdlib"], "Python's standard library"),

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping, Sequence
+from typing import TypeGuard
 
 import numpy as np
 
@@ -110,17 +111,19 @@ def coordinate_labels(label: str, value: object, n: int) -> tuple[str, ...]:
         )
         one = "input" if label.startswith("input") else "coordinate"
         what = f"{n} unit strings, one per {one} (such as 'm', 'rad' or 'N')"
-    if not valid:
+    if names is None or not valid:
         raise ValueError(f"{label} must be a list of {what}; got {value!r}")
     return names
 
 
-def is_integer_at_least(value: object, least: int) -> bool:
+def is_integer_at_least(value: object, least: int) -> TypeGuard[int | np.integer]:
     """Whether ``value`` is an integer (Python or NumPy, not a bool) ``>= least``.
 
     The test of every count, seed and size argument; each caller words its own message.
     """
-    return not isinstance(value, bool) and isinstance(value, int | np.integer) and value >= least
+    return (
+        not isinstance(value, bool) and isinstance(value, int | np.integer) and bool(value >= least)
+    )
 
 
 def format_values(values: np.ndarray | Sequence[float], digits: int = 6) -> str:

@@ -266,7 +266,7 @@ def error_loop_frequency_response(
     if frequencies.ndim != 1 or frequencies.size == 0:
         raise ValueError(
             "omega must be a non-empty 1-D array of frequencies in rad/s; got shape "
-            f"{np.shape(omega)}"
+            f"{frequencies.shape}"
         )
     if not np.all(frequencies > 0.0):
         raise ValueError(

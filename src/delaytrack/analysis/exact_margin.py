@@ -126,8 +126,8 @@ def _crossings_of_column(excess, omegas: np.ndarray, values: np.ndarray) -> list
     xtol = 1e-14 * float(omegas[0])
     found: list[float] = []
     signs = np.sign(values)
-    for i in np.flatnonzero(signs[:-1] * signs[1:] <= 0.0):
-        found.append(scipy.optimize.brentq(excess, omegas[i], omegas[i + 1], xtol=xtol))
+    for k in np.flatnonzero(signs[:-1] * signs[1:] <= 0.0):
+        found.append(scipy.optimize.brentq(excess, omegas[k], omegas[k + 1], xtol=xtol))
     magnitude = np.abs(values)
     for i in range(1, len(values) - 1):
         same_sign = signs[i - 1] == signs[i] == signs[i + 1] != 0.0

@@ -196,7 +196,7 @@ def _seed(seed: object) -> int:
     return int(seed)
 
 
-def _paper_bound(r: object) -> RazumikhinBound:
+def _paper_bound(r: float) -> RazumikhinBound:
     """Theorem 1 for the paper's K1 = K2 = Q = I, β = 1 at this r (checks r)."""
     try:
         return razumikhin_bound(1.0, 1.0, 1.0, 1.0, r)

@@ -101,7 +101,7 @@ def _dimension(K1: object, n: int | None) -> int:
     """Return n: the keyword when given, else the size of K1 (a scalar K1 means n = 1); at most
     :data:`MAX_JOINTS`, checked before any matrix is built."""
     if n is None:
-        shape = np.shape(K1)
+        shape = np.asarray(K1).shape
         size, name = (1 if len(shape) == 0 else int(shape[0])), "K1"
     elif not is_integer_at_least(n, 1):
         raise ArgumentError("n", f"must be a positive integer (the number of joints); got {n!r}")
@@ -137,7 +137,7 @@ def _check_coupled(n: int, what: str) -> None:
 
 def _matrix_of_size(name: str, value: object, size: int, expected: str, spd: bool) -> np.ndarray:
     """Return ``value`` as a ``(size, size)`` matrix; ``expected`` says why that size in words."""
-    matrix = as_square_matrix(name, value, size if np.ndim(value) == 0 else None)
+    matrix = as_square_matrix(name, value, size if np.asarray(value).ndim == 0 else None)
     if matrix.shape != (size, size):
         raise ArgumentError(name, f"must be {expected}; got shape {matrix.shape}")
     largest = float(np.max(np.abs(matrix)))

@@ -21,7 +21,7 @@ EXIT_BROKEN_PIPE = 141
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``delaytrack`` command; return its exit code."""
-    from delaytrack.experiments import ScenarioError
+    from delaytrack.scenario import ScenarioError
     from delaytrack.sim.interruptible import every_run_interruptible, work_left_running
 
     parser = build_parser()

@@ -13,7 +13,7 @@ __all__ = ["scenario_source", "trusted"]
 
 def scenario_source(text: str) -> Path:
     """A scenario file path, or the name of a shipped scenario (``two_link_S1``)."""
-    from delaytrack.experiments import builtin_scenario_names, builtin_scenario_path
+    from delaytrack.scenario import builtin_scenario_names, builtin_scenario_path
 
     path = Path(text)
     if path.exists() or path.suffix == ".toml":

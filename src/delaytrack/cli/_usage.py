@@ -35,6 +35,6 @@ def flagged(
         flag = flags[error.argument]
         shown = f" (got {flag} {given[flag]})" if flag in given else ""
         return UsageError(error.spelled(flags) + shown)
-    if isinstance(error, SpecError) and error.key in keys:
+    if isinstance(error, SpecError) and error.key is not None and error.key in keys:
         return UsageError(f"{keys[error.key]} {error.problem}")
     return UsageError(str(error))

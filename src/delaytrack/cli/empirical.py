@@ -103,26 +103,29 @@ def _analytic(controller: object) -> dict[str, float]:
 def run(args: argparse.Namespace) -> int:
     """Search the margin and print it beside Theorem 1's h_m and the exact margin when the
     controller has K1 and K2 (or one JSON object with ``--json``)."""
-    from delaytrack.experiments import Scenario, empirical_margin
+    from delaytrack.experiments import empirical_margin
+    from delaytrack.scenario import Scenario
 
     scenario = Scenario.from_toml(scenario_source(args.scenario), trust=trusted(args))
     controller = scenario.build().controller
-    options = {
-        "threshold": _threshold(args.threshold),
-        "settle": None if args.settle is None else scalar("--settle", args.settle),
-        "resolution": scalar("--resolution", args.resolution),
-        "upper": scalar("--upper", args.upper),
-        "frequency": scalar("--frequency", args.frequency),
-    }
+    threshold = _threshold(args.threshold)
+    settle = None if args.settle is None else scalar("--settle", args.settle)
+    resolution = scalar("--resolution", args.resolution)
+    upper = scalar("--upper", args.upper)
+    frequency = scalar("--frequency", args.frequency)
     start = time.perf_counter()
     try:
         result = empirical_margin(
             scenario,
             controller,
+            threshold=threshold,
             profile=args.profile,
             metric=args.metric,
+            settle=settle,
+            resolution=resolution,
+            upper=upper,
+            frequency=frequency,
             progress=not args.quiet,
-            **options,
         )
     except ValueError as error:
         raise flagged(error, _FLAGS) from None

@@ -183,16 +183,17 @@ def _paper(args: argparse.Namespace, executor) -> int:
     if study.dt_check is not None:
         print(f"largest relative change of a metric when dt is halved: {study.dt_max_change:.2e}")
     if study.contact is not None:
-        from delaytrack.experiments.contact import contact_findings
+        from delaytrack.report.contact import contact_paragraphs
 
-        print("with contact physics (MuJoCo): " + contact_findings(study.contact)[0])
+        print("with contact physics (MuJoCo): " + contact_paragraphs(study.findings.contact)[0])
     print(f"report: {out / 'paper' / 'report.html'}")
     return 0
 
 
 def _robustness(args: argparse.Namespace, executor) -> int:
     """The robustness study alone, into ``<out>/robustness/``."""
-    from delaytrack.experiments.robustness import findings, run_robustness
+    from delaytrack.experiments.robustness import run_robustness
+    from delaytrack.report.robustness import findings
 
     folder = check_output_folder(Path(args.out) / "robustness", "--out")
     start = time.perf_counter()
@@ -209,8 +210,8 @@ def _robustness(args: argparse.Namespace, executor) -> int:
 
 def _two_link(args: argparse.Namespace) -> int:
     """The two-link job, into ``<out>/two-link/``."""
-    from delaytrack.experiments import ScenarioError
     from delaytrack.experiments.two_link import FOLDER, reproduce
+    from delaytrack.scenario import ScenarioError
 
     start = time.perf_counter()
     try:

@@ -43,7 +43,8 @@ def add_command(commands: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the scenario, write its folder and print its summary and files."""
-    from delaytrack.experiments import Scenario, run_to_folder
+    from delaytrack.experiments import run_to_folder
+    from delaytrack.scenario import Scenario
 
     scenario = Scenario.from_toml(scenario_source(args.scenario), trust=trusted(args))
     folder = (

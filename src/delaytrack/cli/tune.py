@@ -55,20 +55,16 @@ def _gains_path(text: str) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     """Tune every controller, write the gains file and print the chosen gains."""
-    from delaytrack.experiments.tuning import gains_text, tune_controllers, write_gains
+    from delaytrack.experiments.tuning import tune_controllers, write_gains
+    from delaytrack.report.tuning import chosen_gains_lines
 
     path = _gains_path(args.out)
     start = time.perf_counter()
     results = tune_controllers(progress=not args.quiet)
     path = write_gains(results, path)
     seconds = time.perf_counter() - start
-    for kind, result in results.items():
-        for gain_set, best in result.best.items():
-            edge = "" if all(result.interior[gain_set].values()) else ", ON THE GRID'S EDGE"
-            print(
-                f"{kind} ({gain_set}): {gains_text(kind, best)} "
-                f"(worst mean AE {best['objective']:.3g} mm{edge})"
-            )
+    for line in chosen_gains_lines(results):
+        print(line)
     print(f"wrote {path} in {seconds:.1f} s")
     print(f"use these gains with: delaytrack reproduce --gains {path}")
     return 0

@@ -23,11 +23,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import hot_kernel, tick_kernel
+from delaytrack._compile.jit import hot_kernel, tick_kernel
 from delaytrack._small_linalg import matvec
 from delaytrack._validation import as_spd_matrix, positive_scalar
 from delaytrack.analysis.razumikhin import (
@@ -44,6 +44,9 @@ from delaytrack.controllers.base import (
     tracking_errors,
 )
 from delaytrack.plants.base import ELPlant
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 __all__ = ["AROLC", "arolc_step", "adaptive_gain_rate"]
 
@@ -151,6 +154,20 @@ class AROLC(Controller):
     P: np.ndarray = field(init=False, repr=False)
     _params: np.ndarray = field(init=False, repr=False)
     type_name: ClassVar[str] = "arolc"
+
+    if TYPE_CHECKING:
+        # The generated __init__ takes any array_like gain; __post_init__ makes it a matrix.
+        def __init__(
+            self,
+            model: ELPlant,
+            K1: ArrayLike,
+            K2: ArrayLike,
+            Q: ArrayLike,
+            alpha: float,
+            epsilon: float,
+            gamma: float,
+            c_hat0: float | None = None,
+        ) -> None: ...
 
     def __post_init__(self) -> None:
         self._check_model()

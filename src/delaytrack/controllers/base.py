@@ -20,13 +20,14 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import hot_inline_kernel, inline_kernel
+from delaytrack._compile.functions import is_compiled
+from delaytrack._compile.jit import hot_inline_kernel, inline_kernel
 from delaytrack._validation import positive_scalar
-from delaytrack.components import Kernel, call_command_map, call_terms, is_compiled
+from delaytrack.components import Kernel, call_command_map, call_terms
 from delaytrack.plants.base import ELPlant
 
 __all__ = [
@@ -123,9 +124,9 @@ class Controller(ABC):
 
     model: ELPlant
     #: Name used in scenario files and result tables.
-    type_name: str
+    type_name: ClassVar[str]
     #: Whether the law reads the true delay ``h(t)`` (the predictor baselines do; AROLC does not).
-    needs_delay: bool = False
+    needs_delay: ClassVar[bool] = False
 
     @property
     def n(self) -> int:

@@ -17,13 +17,25 @@ alone, in a batch and on any thread.
 from __future__ import annotations
 
 import math
+from typing import TypedDict
 
 import numpy as np
 
+from delaytrack._compile.jit import hot_kernel
 from delaytrack._counter_noise import standard_noise
-from delaytrack._jit import hot_kernel
 
-__all__ = ["told_delay", "told_delays"]
+__all__ = ["DelayKnowledge", "told_delay", "told_delays"]
+
+
+class DelayKnowledge(TypedDict, total=False):
+    """What PCON is told of the delay: the keywords of :class:`~delaytrack.controllers.PCON`
+    that set ``s`` (``delay_scale``), ``b`` (``delay_offset``), ``σ`` (``delay_noise``) and the
+    seed of ``ξ_k`` (``noise_seed``); an absent key keeps PCON's default (exact knowledge)."""
+
+    delay_scale: float
+    delay_offset: float
+    delay_noise: float
+    noise_seed: int
 
 
 @hot_kernel

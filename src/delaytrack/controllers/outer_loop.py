@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import tick_kernel
+from delaytrack._compile.jit import tick_kernel
 from delaytrack._validation import as_spd_matrix
 from delaytrack.controllers.base import (
     Controller,
@@ -17,6 +17,9 @@ from delaytrack.controllers.base import (
     tracking_errors,
 )
 from delaytrack.plants.base import ELPlant
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 __all__ = ["OuterLoop", "outer_loop_step"]
 
@@ -56,6 +59,10 @@ class OuterLoop(Controller):
     K2: np.ndarray
     _params: np.ndarray = field(init=False, repr=False)
     type_name: ClassVar[str] = "outer-loop"
+
+    if TYPE_CHECKING:
+        # The generated __init__ takes any array_like gain; __post_init__ makes it a matrix.
+        def __init__(self, model: ELPlant, K1: ArrayLike, K2: ArrayLike) -> None: ...
 
     def __post_init__(self) -> None:
         self._check_model()

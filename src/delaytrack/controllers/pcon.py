@@ -44,12 +44,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from delaytrack._compile.jit import tick_kernel
 from delaytrack._counter_noise import NOISE_BOUND
-from delaytrack._jit import tick_kernel
 from delaytrack._small_linalg import matvec
 from delaytrack._validation import (
     as_spd_matrix,
@@ -61,6 +61,9 @@ from delaytrack.components import call_command_map, call_terms
 from delaytrack.controllers.base import Controller, terms_views
 from delaytrack.controllers.delay_knowledge import told_delay
 from delaytrack.plants.base import ELPlant
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
 
 __all__ = ["PCON", "PCONf", "SPACES", "PredictorBaseline", "pcon_step", "ring_slots"]
 
@@ -391,6 +394,24 @@ class PCON(PredictorBaseline):
     type_name: ClassVar[str] = "pcon"
     needs_delay: ClassVar[bool] = True
 
+    if TYPE_CHECKING:
+        # The generated __init__ takes any array_like gain; __post_init__ makes it a matrix.
+        def __init__(
+            self,
+            model: ELPlant,
+            kappa: float,
+            vartheta: ArrayLike,
+            k_b: ArrayLike,
+            history: float,
+            T_c: float,
+            delay_scale: float = 1.0,
+            delay_offset: float = 0.0,
+            delay_noise: float = 0.0,
+            noise_seed: int = 0,
+            *,
+            space: str = "generalised",
+        ) -> None: ...
+
     def __post_init__(self) -> None:
         object.__setattr__(
             self, "delay_scale", positive_scalar("delay_scale", self.delay_scale, strictly=False)
@@ -433,6 +454,21 @@ class PCONf(PredictorBaseline):
     h_bar: float
     type_name: ClassVar[str] = "pconf"
     needs_delay: ClassVar[bool] = False
+
+    if TYPE_CHECKING:
+        # The generated __init__ takes any array_like gain; __post_init__ makes it a matrix.
+        def __init__(
+            self,
+            model: ELPlant,
+            kappa: float,
+            vartheta: ArrayLike,
+            k_b: ArrayLike,
+            history: float,
+            T_c: float,
+            h_bar: float,
+            *,
+            space: str = "generalised",
+        ) -> None: ...
 
     def __post_init__(self) -> None:
         h_bar = positive_scalar("h_bar", self.h_bar, strictly=False)

@@ -36,8 +36,8 @@ import math
 import numpy as np
 from numba.extending import overload
 
-from delaytrack._jit import inline_kernel, kernel, tick_kernel
-from delaytrack._native_call import NativeFunctionType, call_native
+from delaytrack._compile.jit import inline_kernel, kernel, tick_kernel
+from delaytrack._compile.native_call import NativeFunctionType, call_native
 from delaytrack.components import Kernel, call_delay
 
 CONSTANT = 0
@@ -233,7 +233,7 @@ def profile_value(delay, kind, params, t):
 @tick_kernel
 def evaluate_profile(delay, kind, params, t):
     """:func:`profile_value`, compiled on its own for each delay kernel: the compiled engine calls
-    it through its address (:mod:`delaytrack.sim.native_parts`)."""
+    it through its address (:mod:`delaytrack._compile.native_parts`)."""
     return profile_value(delay, kind, params, t)
 
 

@@ -9,8 +9,9 @@ from typing import Any, ClassVar
 import numpy as np
 
 import delaytrack.delays._kernel as _kernel
+from delaytrack._compile.functions import is_compiled
 from delaytrack._validation import finite_array, positive_scalar
-from delaytrack.components import Kernel, is_compiled
+from delaytrack.components import Kernel
 from delaytrack.delays.base import DelayProfile
 from delaytrack.kernel_arguments import check_kernel_arguments
 

@@ -199,16 +199,17 @@ def _columns(
             f"{path}: time_column = {time_column!r} names a header column, but the file has no "
             "header row (its first row is numbers)"
         )
-    for argument, name in (("time_column", time_column), ("delay_column", delay_column)):
-        if not isinstance(name, str):
-            raise TypeError(f"{argument} must be a column's name (text); got {name!r}")
-    if column_name(time_column) == column_name(delay_column):
+    names = (
+        ("time_column", _column_text("time_column", time_column)),
+        ("delay_column", _column_text("delay_column", delay_column)),
+    )
+    if column_name(names[0][1]) == column_name(names[1][1]):
         raise ValueError(
             f"{path}: time_column and delay_column must name two different columns; both are "
             f"{time_column!r}"
         )
     indices = []
-    for argument, name in (("time_column", time_column), ("delay_column", delay_column)):
+    for argument, name in names:
         if column_name(name) not in header:
             raise ValueError(
                 f"{path}: {argument} = {name!r} is not in the header row (of "
@@ -216,3 +217,10 @@ def _columns(
             )
         indices.append(header.index(column_name(name)))
     return indices[0], indices[1]
+
+
+def _column_text(argument: str, name: object) -> str:
+    """``name``, refused unless it is text (a column's name)."""
+    if not isinstance(name, str):
+        raise TypeError(f"{argument} must be a column's name (text); got {name!r}")
+    return name

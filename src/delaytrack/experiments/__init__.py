@@ -1,8 +1,8 @@
-"""Experiments: scenarios as frozen, serialisable specs (TOML files), a registry of the shipped
-ones, and the jobs built from them.
+"""Experiments: what is made of scenarios (:mod:`delaytrack.scenario`), from one run's results
+folder to the jobs of ``delaytrack reproduce``.
 
-- :mod:`delaytrack.experiments.scenario`: :class:`Scenario` (load, validate, dump, build, run),
-  :func:`run_batched`, :func:`run_to_folder` and the shipped scenario files.
+- :mod:`delaytrack.experiments.scenario_run`: :func:`run_to_folder`, one scenario run to its
+  results folder (``delaytrack simulate``).
 - :mod:`delaytrack.experiments.empirical_margin`: :func:`empirical_margin`, the largest delay at
   which a scenario's closed loop still tracks (bisection over batched simulations).
 - :mod:`delaytrack.experiments.margins`: certified vs exact vs empirical margins over a grid of
@@ -12,27 +12,32 @@ ones, and the jobs built from them.
 - :mod:`delaytrack.experiments.tuning`: the tuning protocol that chooses every compared
   controller's gains (``delaytrack tune-baselines``).
 - :mod:`delaytrack.experiments.robustness`: the robustness study, the paper's claims over drawn
-  robots and wrong delay estimates (``delaytrack reproduce --job robustness``).
+  robots and wrong delay estimates (``delaytrack reproduce --job robustness``); its statistics
+  are :mod:`~delaytrack.experiments.intervals` (Wilson and bootstrap intervals),
+  :mod:`~delaytrack.experiments.outcomes` (divergence and medians per group, the longest clean
+  delay) and :mod:`~delaytrack.experiments.verdicts` (claims decided draw by draw, attribution).
 - :mod:`delaytrack.experiments.two_link`: the earlier interim job, AROLC vs the plain outer loop
   on the two-link arm under S1 and S3 (``delaytrack reproduce --job two-link``).
 
-Import the jobs explicitly; they pull in the report package.
+Every job returns a frozen study holding every number its report quotes; the report (prose,
+tables, figures, page) is :mod:`delaytrack.report`'s module of the same name. Import the jobs
+explicitly; they pull in the report package. The scenario names exported here
+(:class:`Scenario`, :func:`load_builtin`, ...) are those of :mod:`delaytrack.scenario`.
 """
 
 from delaytrack.experiments.empirical_margin import (
     EmpiricalMargin,
     empirical_margin,
 )
-from delaytrack.experiments.scenario import (
+from delaytrack.experiments.scenario_run import RunOutput, run_to_folder
+from delaytrack.scenario import (
     BuiltScenario,
-    RunOutput,
     Scenario,
     ScenarioError,
     builtin_scenario_names,
     builtin_scenario_path,
     load_builtin,
     run_batched,
-    run_to_folder,
 )
 
 __all__ = [

@@ -10,9 +10,14 @@ sideways velocity, rows 2 and 3 each wheel's rim speed minus its ground speed (m
 robot starts at full speed at the height where its wheels just touch the floor, and settles onto
 its contacts in the first tens of milliseconds, slipping; slip is measured after
 :data:`SETTLING_S`.
+
+The numbers the report quotes are :class:`ContactFindings` (:func:`contact_findings`); the
+sentences are :func:`delaytrack.report.contact.contact_paragraphs`.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -21,7 +26,17 @@ from delaytrack.plants.robot import P3DX
 from delaytrack.plants.robot.kinematics import constraint_residual
 from delaytrack.sim import SimResult
 
-__all__ = ["SETTLING_S", "SLIP_COLUMNS", "comparison", "contact_findings", "wheel_slip"]
+__all__ = [
+    "SETTLING_S",
+    "SLIP_COLUMNS",
+    "ContactChange",
+    "ContactFindings",
+    "ContactRun",
+    "Ranking",
+    "comparison",
+    "contact_findings",
+    "wheel_slip",
+]
 
 #: Seconds at the start of a run left out of the slip (the robot settling onto its contacts).
 SETTLING_S = 0.5
@@ -50,7 +65,11 @@ def wheel_slip(result: SimResult) -> np.ndarray:
 def comparison(analytic: pd.DataFrame, contact: pd.DataFrame) -> pd.DataFrame:
     """Per (scenario, controller): AE of x and y (mm) and TV (N·m) on each robot, their change
     with contacts (%), and the wheel slip; ``contact`` has the summary columns plus
-    :data:`SLIP_COLUMNS`."""
+    :data:`SLIP_COLUMNS`.
+
+    The changes are ``100 ((AE-x' + AE-y') / (AE-x + AE-y) − 1)`` and ``100 (TV' / TV − 1)``,
+    primed on the robot with real wheels.
+    """
     both = analytic.merge(contact, on=["scenario", "controller"], suffixes=("", "_contact"))
     table = pd.DataFrame(
         {
@@ -76,89 +95,148 @@ def comparison(analytic: pd.DataFrame, contact: pd.DataFrame) -> pd.DataFrame:
     return table
 
 
-def _percent(value: float) -> str:
-    return f"{round(float(value)):+d} %"  # rounded first: no "-0 %"
+@dataclass(frozen=True)
+class ContactChange:
+    """What contact physics changed in the runs that stayed on the path on both robots, at one
+    contact time constant.
+
+    Attributes
+    ----------
+    time_constant : float
+        MuJoCo's contact time constant of the runs (s).
+    runs : int
+        Runs on the path on both robots.
+    ae, tv : tuple of float
+        Smallest, largest and median change (%) of the mean absolute error (x and y together)
+        and of the control effort TV (:func:`comparison`).
+    """
+
+    time_constant: float
+    runs: int
+    ae: tuple[float, float, float]
+    tv: tuple[float, float, float]
 
 
-def _changes(runs: pd.DataFrame) -> str:
+@dataclass(frozen=True)
+class ContactRun:
+    """One run on both robots: AE of x and y (mm) and TV (N·m), analytic then with contacts."""
+
+    scenario: str
+    controller: str
+    ae_x_mm: float
+    ae_x_contact_mm: float
+    ae_y_mm: float
+    ae_y_contact_mm: float
+    tv: float
+    tv_contact: float
+
+
+@dataclass(frozen=True)
+class Ranking:
+    """A scenario's controllers ordered by error (AE-x + AE-y, smallest first) on each robot."""
+
+    scenario: str
+    analytic: tuple[str, ...]
+    contact: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class ContactFindings:
+    """Every number the report's contact findings quote (:func:`contact_findings`).
+
+    Attributes
+    ----------
+    time_constant : float
+        The main runs' contact time constant (s): the first of the table's.
+    main : ContactChange or None
+        The main runs that stayed on the path on both robots; None when none did (then the
+        slip ranges, ``largest_slip`` and ``largest_change`` are None and ``rankings`` empty).
+    sideways_slip, rolling_slip : tuple of float or None
+        Smallest and largest, over those runs, of the RMS sideways slip of the axle and of the
+        RMS rolling slip of the wheels (mm/s).
+    largest_slip : float or None
+        The largest slip of any of those runs (mm/s).
+    largest_change : ContactRun or None
+        The run whose error changed most (in absolute value).
+    rankings : tuple of Ranking
+        Per scenario, in name order.
+    same_rankings : int
+        Scenarios whose ranking is the same on both robots.
+    others : tuple of ContactChange
+        The other time constants, in the table's order (those with a run on the path on both
+        robots).
+    lost : tuple of (str, str)
+        ``(scenario, controller)`` of the main runs that left the path (or diverged) on one of
+        the robots.
+    """
+
+    time_constant: float
+    main: ContactChange | None
+    sideways_slip: tuple[float, float] | None
+    rolling_slip: tuple[float, float] | None
+    largest_slip: float | None
+    largest_change: ContactRun | None
+    rankings: tuple[Ranking, ...]
+    same_rankings: int
+    others: tuple[ContactChange, ...]
+    lost: tuple[tuple[str, str], ...]
+
+
+def _change(runs: pd.DataFrame, time_constant: float) -> ContactChange:
     ae, tv = runs["change_ae_pct"], runs["change_tv_pct"]
-    return (
-        f"the mean absolute error (x and y together) by {_percent(ae.min())} to "
-        f"{_percent(ae.max())} (median {_percent(ae.median())}) and the control effort TV by "
-        f"{_percent(tv.min())} to {_percent(tv.max())} (median {_percent(tv.median())})"
+    return ContactChange(
+        time_constant=float(time_constant),
+        runs=len(runs),
+        ae=(float(ae.min()), float(ae.max()), float(ae.median())),
+        tv=(float(tv.min()), float(tv.max()), float(tv.median())),
     )
 
 
-def _order(runs: pd.DataFrame, ae_x: str, ae_y: str) -> list[str]:
+def _order(runs: pd.DataFrame, ae_x: str, ae_y: str) -> tuple[str, ...]:
     error = dict(zip(runs["controller"], runs[ae_x] + runs[ae_y], strict=True))
-    return sorted(error, key=error.get)
+    return tuple(sorted(error, key=error.__getitem__))
 
 
-def _rankings(runs: pd.DataFrame) -> str:
-    parts, same = [], 0
-    for scenario, cases in runs.groupby("scenario", sort=True):
-        analytic = _order(cases, "ae_x_mm", "ae_y_mm")
-        contact = _order(cases, "ae_x_contact_mm", "ae_y_contact_mm")
-        if analytic == contact:
-            same += 1
-            parts.append(f"{scenario}: {' < '.join(analytic)} on both")
-        else:
-            parts.append(
-                f"{scenario}: {' < '.join(analytic)} on the analytic robot, "
-                f"{' < '.join(contact)} with contacts"
-            )
-    return (
-        f"Ordered by error, the controllers rank the same on both robots in {same} of "
-        f"{len(parts)} scenarios ({'; '.join(parts)})."
-    )
+def _range(column: pd.Series) -> tuple[float, float]:
+    return float(column.min()), float(column.max())
 
 
-def contact_findings(table: pd.DataFrame) -> list[str]:
-    """What contacts changed, in sentences whose numbers all come from ``table``
-    (:func:`comparison`, with a column ``contact_time_constant_s``: the first time constant's
-    runs are the main ones, the others how much the contacts' softness matters)."""
+def contact_findings(table: pd.DataFrame) -> ContactFindings:
+    """What contacts changed, from ``table`` (:func:`comparison`, with a column
+    ``contact_time_constant_s``: the first time constant's runs are the main ones, the others
+    how much the contacts' softness matters)."""
     constants = list(dict.fromkeys(table["contact_time_constant_s"]))
     main = table[table["contact_time_constant_s"] == constants[0]]
     both = main.dropna(subset=["change_ae_pct", "change_tv_pct"])
-    lost = main[main["change_ae_pct"].isna()]
-    text = []
-    if len(both):
-        text.append(
-            f"In the {len(both)} runs that stayed on the path on both robots, contact physics "
-            f"(contact time constant {1e3 * constants[0]:g} ms) changed {_changes(both)}."
+    rankings = tuple(
+        Ranking(
+            scenario=scenario,
+            analytic=_order(cases, "ae_x_mm", "ae_y_mm"),
+            contact=_order(cases, "ae_x_contact_mm", "ae_y_contact_mm"),
         )
-        text.append(
-            "The wheels slip: the axle's sideways velocity has an RMS of "
-            f"{both['slip_sideways_rms_mm_s'].min():.2g}–{both['slip_sideways_rms_mm_s'].max():.2g}"
-            " mm/s, the wheels' rim speed differs from their ground speed by an RMS of "
-            f"{both['slip_rolling_rms_mm_s'].min():.2g}–{both['slip_rolling_rms_mm_s'].max():.2g}"
-            f" mm/s, at most {both['slip_max_mm_s'].max():.3g} mm/s in any run (the robot "
-            f"drives at about 400 mm/s; after the first {SETTLING_S:g} s, in which the robot, "
-            "started at speed, settles onto its contacts)."
-        )
-        largest = both.loc[both["change_ae_pct"].abs().idxmax()]
-        text.append(
-            f"The largest change is {largest['controller']}'s in {largest['scenario']}: AE-x "
-            f"{largest['ae_x_mm']:.3g} → {largest['ae_x_contact_mm']:.3g} mm, AE-y "
-            f"{largest['ae_y_mm']:.3g} → {largest['ae_y_contact_mm']:.3g} mm, TV "
-            f"{largest['tv']:.3g} → {largest['tv_contact']:.3g} N·m."
-        )
-        text.append(_rankings(both))
+        for scenario, cases in both.groupby("scenario", sort=True)
+    )
+    others = []
     for constant in constants[1:]:
         other = table[table["contact_time_constant_s"] == constant].dropna(
             subset=["change_ae_pct", "change_tv_pct"]
         )
         if len(other):
-            text.append(
-                f"With a contact time constant of {1e3 * constant:g} ms instead of "
-                f"{1e3 * constants[0]:g} ms (shorter is stiffer), contact physics "
-                f"changed {_changes(other)} ({len(other)} runs on the path on both robots; "
-                "summary_contact.csv has them)."
-            )
-    if len(lost):
-        text.append(
-            "Left the path on one of the robots: "
-            + ", ".join(f"{r.scenario} {r.controller}" for r in lost.itertuples())
-            + "."
-        )
-    return text
+            others.append(_change(other, constant))
+    largest = both.loc[both["change_ae_pct"].abs().idxmax()] if len(both) else None
+    return ContactFindings(
+        time_constant=float(constants[0]),
+        main=_change(both, constants[0]) if len(both) else None,
+        sideways_slip=_range(both["slip_sideways_rms_mm_s"]) if len(both) else None,
+        rolling_slip=_range(both["slip_rolling_rms_mm_s"]) if len(both) else None,
+        largest_slip=float(both["slip_max_mm_s"].max()) if len(both) else None,
+        largest_change=None
+        if largest is None
+        else ContactRun(**{name: largest[name] for name in ContactRun.__dataclass_fields__}),
+        rankings=rankings,
+        same_rankings=sum(ranking.analytic == ranking.contact for ranking in rankings),
+        others=tuple(others),
+        lost=tuple(
+            (r.scenario, r.controller) for r in main[main["change_ae_pct"].isna()].itertuples()
+        ),
+    )

@@ -1,6 +1,6 @@
 """Empirical delay margin: the largest delay at which the full closed loop still tracks.
 
-:func:`empirical_margin` takes a :class:`~delaytrack.experiments.Scenario` (its true plant,
+:func:`empirical_margin` takes a :class:`~delaytrack.scenario.Scenario` (its true plant,
 nominal model, reference, ``x0``, duration, ``dt`` and ``T_c``), replaces its delay by one member
 of a one-parameter family and searches the parameter ``v`` (seconds):
 
@@ -37,7 +37,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 import pandas as pd
@@ -50,8 +50,8 @@ from delaytrack._validation import (
 )
 from delaytrack.controllers import Controller
 from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
-from delaytrack.experiments.scenario import Scenario, ScenarioError
 from delaytrack.plants.base import ELPlant
+from delaytrack.scenario import Scenario, ScenarioError
 from delaytrack.sim import STATUS_NAMES, simulate
 from delaytrack.sim.simulate import MAX_STEPS
 from delaytrack.units import default_names
@@ -247,11 +247,49 @@ class _Search:
         return inside if len(inside) == len(values) else []
 
 
+@overload
+def empirical_margin(
+    scenario: Scenario,
+    controller: Controller | None = None,
+    *,
+    threshold: float | Sequence[float] | np.ndarray,
+    profile: str = "constant",
+    metric: str = "ae",
+    settle: float | None = None,
+    resolution: float = 0.005,
+    upper: float = 1.0,
+    frequency: float = 1.0,
+    grid: int = 16,
+    points: int = 4,
+    workers: int | None = None,
+    progress: bool = False,
+) -> EmpiricalMargin: ...
+
+
+@overload
+def empirical_margin(
+    scenario: Scenario,
+    controller: Sequence[Controller],
+    *,
+    threshold: float | Sequence[float] | np.ndarray,
+    profile: str = "constant",
+    metric: str = "ae",
+    settle: float | None = None,
+    resolution: float = 0.005,
+    upper: float = 1.0,
+    frequency: float = 1.0,
+    grid: int = 16,
+    points: int = 4,
+    workers: int | None = None,
+    progress: bool = False,
+) -> list[EmpiricalMargin]: ...
+
+
 def empirical_margin(
     scenario: Scenario,
     controller: Controller | Sequence[Controller] | None = None,
     *,
-    threshold: float,
+    threshold: float | Sequence[float] | np.ndarray,
     profile: str = "constant",
     metric: str = "ae",
     settle: float | None = None,
@@ -320,7 +358,7 @@ def empirical_margin(
     single = controller is None or isinstance(controller, Controller)
     if controller is None:
         controllers = [scenario.build().controller]
-    elif single:
+    elif isinstance(controller, Controller):
         controllers = [controller]
     elif isinstance(controller, list | tuple) and controller:
         controllers = list(controller)
@@ -421,7 +459,9 @@ def _shown(threshold: float | tuple[float, ...]) -> str:
     return f"{threshold:g}"
 
 
-def _per_coordinate(threshold: object, plant: ELPlant) -> float | tuple[float, ...]:
+def _per_coordinate(
+    threshold: float | Sequence[float] | np.ndarray, plant: ELPlant
+) -> float | tuple[float, ...]:
     """The threshold as given: one number, or a tuple of one per coordinate of ``plant``."""
     if np.ndim(threshold) == 0:
         return positive_scalar("threshold", threshold)
@@ -456,7 +496,7 @@ def _missed(
 
 def _settings(
     scenario: Scenario,
-    threshold: float,
+    threshold: float | Sequence[float] | np.ndarray,
     profile: str,
     metric: str,
     settle: float | None,

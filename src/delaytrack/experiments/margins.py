@@ -19,30 +19,28 @@ on the shipped scenario ``two_link_margins`` (true arm without friction, nominal
 light), with the tracking rule ``max_j mean |e1_j| <= 0.1 rad`` over the last 15 of 30 s. All
 gain pairs of one controller and profile are searched in lockstep (one batched simulation per
 round).
+
+:func:`run_study` returns a :class:`MarginStudy` holding every number of the report, which
+:func:`~delaytrack.report.margins.write_study` writes; :func:`reproduce` does both.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar, TypedDict
 
 import numpy as np
 import pandas as pd
 
-from delaytrack._io import write_frame
-from delaytrack._output import (
-    check_output_folder,
-    check_results_root,
-    claim_output_folder,
-    record_outputs,
-)
+from delaytrack._output import check_output_folder, check_results_root
 from delaytrack._validation import ArgumentError
-from delaytrack._version import __version__
 from delaytrack.analysis import exact_delay_margin, razumikhin_bound
 from delaytrack.experiments.empirical_margin import EmpiricalMargin, empirical_margin
-from delaytrack.experiments.scenario import Scenario, load_builtin
-from delaytrack.report import HtmlReport, margins_figure, save_figure
+from delaytrack.report.margins import write_study
+from delaytrack.scenario import Scenario, load_builtin
 
 __all__ = ["GAINS", "MarginStudy", "reproduce", "run_study", "write_study"]
 
@@ -50,22 +48,112 @@ FOLDER = "margins"
 SCENARIO = "two_link_margins"
 #: Values of k1 and of k2 (K1 = k1 I, K2 = k2 I); every pair is run.
 GAINS = (0.5, 1.0, 2.0)
+
+
+class SearchSettings(TypedDict):
+    """Settings of an empirical margin search: the keywords of
+    :func:`~delaytrack.experiments.empirical_margin.empirical_margin` that the job fixes."""
+
+    threshold: float
+    metric: str
+    resolution: float
+    upper: float
+    frequency: float
+
+
 #: Search settings of every empirical margin.
-SEARCH = {"threshold": 0.2, "metric": "ae", "resolution": 0.005, "upper": 2.0, "frequency": 1.0}
+SEARCH = SearchSettings(threshold=0.2, metric="ae", resolution=0.005, upper=2.0, frequency=1.0)
 #: Razumikhin parameters of the certified bound (the paper's).
 BETA, R = 1.0, 1.1
 #: Controllers (scenario type -> column prefix) and delay families searched.
 CONTROLLERS = {"arolc": "arolc", "outer-loop": "outer_loop"}
 PROFILES = ("constant", "abs-sine")
+#: The outer loop's empirical constant-delay margin counts as close to ``h_exact`` within this
+#: many percent of it.
+CLOSE_PERCENT = 15.0
+
+
+@dataclass(frozen=True)
+class MarginGap:
+    """How the margins compare over the gain pairs (ranges are ``(smallest, largest)``).
+
+    Attributes
+    ----------
+    pairs : int
+        Gain pairs.
+    certified_over_exact, certified_over_arolc : tuple of float
+        Ranges of ``h_m / h_exact`` and of ``h_m`` over AROLC's empirical constant-delay margin.
+    conservatism : tuple of float
+        The range of the inverse of the latter: the factor by which the certificate is
+        conservative.
+    above_certified : int
+        Pairs in which both empirical AROLC margins lie above ``h_m``.
+    close_to_exact : int
+        Pairs whose outer-loop empirical constant-delay margin ``h_o`` is within
+        :data:`CLOSE_PERCENT` of ``h_exact``: ``|h_o / h_exact - 1| <= CLOSE_PERCENT / 100``.
+    below_exact : int
+        Pairs whose ``h_o`` lies further below ``h_exact``.
+    ended_on_path : int
+        Of those, the pairs whose first failing run ended without divergence (a finite metric).
+    largest_ended_error : float
+        The largest metric (mean ``|e1|``, rad) of those runs (NaN when there is none).
+    arolc_constant, h_exact : tuple of float
+        Ranges of AROLC's empirical constant-delay margin and of ``h_exact`` (s).
+    """
+
+    pairs: int
+    certified_over_exact: tuple[float, float]
+    certified_over_arolc: tuple[float, float]
+    conservatism: tuple[float, float]
+    above_certified: int
+    close_to_exact: int
+    below_exact: int
+    ended_on_path: int
+    largest_ended_error: float
+    arolc_constant: tuple[float, float]
+    h_exact: tuple[float, float]
 
 
 @dataclass(frozen=True)
 class MarginStudy:
-    """What the job computed: the table, every search, the scenario and the wall time."""
+    """What the job computed: every number of its report.
+
+    Attributes
+    ----------
+    table : DataFrame
+        One row per gain pair: ``k1``, ``k2``, ``h_m``, ``h_exact``, the empirical margins (s;
+        NaN: no failure up to the upper limit) and the ratios.
+    searches : dict
+        ``(controller, profile) -> EmpiricalMargin`` per gain pair, in the table's order.
+    evaluated : DataFrame
+        Every simulated point of every search: the gains, controller, profile, the delay
+        (``value``), each joint's metric and the status.
+    gap : MarginGap
+        How the margins compare.
+    scenario : Scenario
+        The scenario as searched.
+    window : tuple of float
+        The scored window ``[duration / 2, duration]`` of the tracking rule (s).
+    seconds : float
+        Wall time.
+
+    The design travels with every study as class attributes: ``search`` (:data:`SEARCH`),
+    ``beta``, ``r`` (:data:`BETA`, :data:`R`), ``gain_values`` (:data:`GAINS`) and
+    ``close_percent`` (:data:`CLOSE_PERCENT`).
+    """
+
+    search: ClassVar[SearchSettings] = SEARCH
+    beta: ClassVar[float] = BETA
+    r: ClassVar[float] = R
+    gain_values: ClassVar[tuple[float, ...]] = GAINS
+    close_percent: ClassVar[float] = CLOSE_PERCENT
 
     table: pd.DataFrame
     searches: dict[tuple[str, str], list[EmpiricalMargin]]
+    evaluated: pd.DataFrame
+    gap: MarginGap
     scenario: Scenario
+    window: tuple[float, float]
     seconds: float
 
 
@@ -99,7 +187,7 @@ def run_study(*, duration: float | None = None, progress: bool = False) -> Margi
         K1, K2 = k1 * np.eye(2), k2 * np.eye(2)
         h_m = razumikhin_bound(K1, K2, np.eye(4), BETA, R, n=2).h_m
         rows.append({"k1": k1, "k2": k2, "h_m": h_m, "h_exact": exact_delay_margin(K1, K2).h})
-    searches = {}
+    searches: dict[tuple[str, str], list[EmpiricalMargin]] = {}
     for controller in CONTROLLERS:
         base = scenario.controller if controller == "arolc" else {"type": controller}
         built = [
@@ -116,13 +204,24 @@ def run_study(*, duration: float | None = None, progress: bool = False) -> Margi
     table = pd.DataFrame(rows)
     table["h_m_over_h_exact"] = table["h_m"] / table["h_exact"]
     table["h_m_over_arolc_constant"] = table["h_m"] / table["arolc_constant"]
-    return MarginStudy(table, searches, scenario, time.perf_counter() - start)
+    return MarginStudy(
+        table=table,
+        searches=searches,
+        evaluated=_evaluated(table, searches),
+        gap=_gap(table, searches),
+        scenario=scenario,
+        window=(scenario.duration / 2, scenario.duration),
+        seconds=time.perf_counter() - start,
+    )
 
 
-def _evaluated(study: MarginStudy) -> pd.DataFrame:
+def _evaluated(
+    table: pd.DataFrame, searches: dict[tuple[str, str], list[EmpiricalMargin]]
+) -> pd.DataFrame:
+    """Every simulated point of every search, with its gains, controller and profile."""
     frames = []
-    for (controller, profile), results in study.searches.items():
-        for (k1, k2), result in zip(study.table[["k1", "k2"]].to_numpy(), results, strict=True):
+    for (controller, profile), results in searches.items():
+        for (k1, k2), result in zip(table[["k1", "k2"]].to_numpy(), results, strict=True):
             frame = result.to_frame()
             for position, (name, value) in enumerate(
                 {"k1": k1, "k2": k2, "controller": controller, "profile": profile}.items()
@@ -132,110 +231,35 @@ def _evaluated(study: MarginStudy) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True)
 
 
-_LABELS = {
-    "h_m": "certified h_m (Theorem 1)",
-    "h_exact": "exact h_exact (constant delay, nominal)",
-    "arolc_constant": "AROLC, empirical, constant h",
-    "arolc_abs_sine": "AROLC, empirical, a |sin t|",
-    "outer_loop_constant": "outer loop, empirical, constant h",
-    "outer_loop_abs_sine": "outer loop, empirical, a |sin t|",
-}
-
-
-#: The gains' columns in the files, with their units (``e'' + K2 e' + K1 e = 0``).
-_GAIN_COLUMNS = {"k1": "k1_per_s2", "k2": "k2_per_s"}
-
-
-def write_study(study: MarginStudy, folder: str | Path) -> list[Path]:
-    """Write the job's files into ``folder``; return their paths."""
-    folder = claim_output_folder(folder)
-    table = study.table
-    delays = {column: f"{column}_s" for column in _LABELS}
-    files = [write_frame(table.rename(columns={**_GAIN_COLUMNS, **delays}), folder / "margins.csv")]
-    evaluated = _evaluated(study)
-    metrics = {column: f"{column}_rad" for column in evaluated if column.startswith("metric")}
-    evaluated = evaluated.rename(columns={**_GAIN_COLUMNS, "value": "delay_s", **metrics})
-    files.append(write_frame(evaluated, folder / "evaluated.csv"))
-    study.scenario.to_toml(folder / "scenario.toml")
-    files.append(folder / "scenario.toml")
-    labels = [f"k1={k1:g}, k2={k2:g}" for k1, k2 in table[["k1", "k2"]].to_numpy()]
-    figure = margins_figure(
-        {label: table[column].to_numpy() for column, label in _LABELS.items()},
-        labels,
-        title="Delay margins of K1 = k1 I, K2 = k2 I on the two-link arm",
-    )
-    files += save_figure(figure, folder / "figures" / "margins")
-    files.append(_report(study, figure).write(folder / "report.html"))
-    record_outputs(folder, files)
-    return files
-
-
-def _report(study: MarginStudy, figure) -> HtmlReport:
-    table = study.table
-    report = HtmlReport("Certified, exact and empirical delay margins")
-    report.paragraph(
-        "How conservative is Theorem 1? For each gain pair K1 = k1 I, K2 = k2 I this page "
-        "compares three delay margins: the certified h_m (every time-varying delay below it, "
-        "with uncertainty), the exact margin h_exact of the nominal error dynamics under a "
-        "constant delay, and the empirical margin: the largest delay at which the simulated "
-        "closed loop (true arm, 20 % light nominal model) still tracks."
-    )
-    search = SEARCH
-    report.settings(
-        {
-            "scenario": f"{study.scenario.name} ({study.scenario.duration:g} s, dt = "
-            f"{study.scenario.dt:g} s, T_c = {study.scenario.T_c:g} s)",
-            "tracking rule": f"status ok and max over joints of mean |e1| <= "
-            f"{search['threshold']:g} rad over [{study.scenario.duration / 2:g}, "
-            f"{study.scenario.duration:g}] s",
-            "delay families": "constant h; h(t) = a |sin(t)| (the margin is the amplitude a)",
-            "search": f"coarse grid of 17 values over [0, {search['upper']:g}] s, then "
-            f"multi-section (4 values a round) to a bracket of {search['resolution']:g} s",
-            "certificate": f"Theorem 1 with Q = I, beta = {BETA:g}, r = {R:g}",
-            "gains": f"k1, k2 in {list(GAINS)}; AROLC alpha = 2, epsilon = 0.1, gamma = 0.001",
-            "version": f"delaytrack {__version__}; wall time {study.seconds:.1f} s",
-        }
-    )
-    report.table(table, caption="Margins in seconds (NaN: no failure up to the upper limit).")
-    report.figure(figure, "Margins per gain pair, log scale.")
+def _gap(table: pd.DataFrame, searches: dict[tuple[str, str], list[EmpiricalMargin]]) -> MarginGap:
+    """:class:`MarginGap` of the margins table and the searches."""
     ratio, exact_ratio = table["h_m_over_arolc_constant"], table["h_m_over_h_exact"]
-    below = (table["h_m"] < table[["arolc_constant", "arolc_abs_sine"]].min(axis=1)).sum()
     outer = table["outer_loop_constant"] / table["h_exact"] - 1.0
-    close = (outer.abs() <= 0.15).sum()
+    tolerance = CLOSE_PERCENT / 100
     lower = [
         result
         for result, below_exact in zip(
-            study.searches["outer-loop", "constant"], outer < -0.15, strict=True
+            searches["outer-loop", "constant"], outer < -tolerance, strict=True
         )
         if below_exact
     ]
     ended_ok = [r.metric_values[r.values == r.first_failure][0] for r in lower]
     ended_ok = [value for value in ended_ok if np.isfinite(value)]
-    report.heading("What the gap means")
-    report.bullets(
-        [
-            f"h_m is {exact_ratio.min():.3g} to {exact_ratio.max():.3g} of h_exact and "
-            f"{ratio.min():.3g} to {ratio.max():.3g} of AROLC's empirical constant-delay "
-            f"margin: on this arm the certificate is conservative by a factor "
-            f"{1 / ratio.max():.3g} to {1 / ratio.min():.3g}.",
-            f"h_m is sufficient only, so every delay below it must pass: in {below} of "
-            f"{len(table)} gain pairs both empirical AROLC margins lie above h_m. Nothing "
-            "follows from a delay above h_m.",
-            f"The outer loop's empirical constant-delay margin is within 15 % of h_exact in "
-            f"{close} of {len(table)} gain pairs (nominal dynamics up to the model error and the "
-            f"arm's nonlinearity). It is lower in {len(lower)}; there the first failing run "
-            f"ended without divergence in {len(ended_ok)}"
-            + (f", with mean |e1| = {max(ended_ok):.3g} rad at most" if ended_ok else "")
-            + ": there the tracking rule, not a divergence, sets the margin.",
-            f"AROLC's empirical constant-delay margin stays within "
-            f"{table['arolc_constant'].min():.3g}-{table['arolc_constant'].max():.3g} s while "
-            f"h_exact spans {table['h_exact'].min():.3g}-{table['h_exact'].max():.3g} s: its "
-            "switching term changes the loop that h_exact describes, in either direction.",
-            "Empirical margins hold for this scenario, horizon and rule only: an instability "
-            "that grows too slowly to show in the scored window passes.",
-        ]
+    return MarginGap(
+        pairs=len(table),
+        certified_over_exact=(exact_ratio.min(), exact_ratio.max()),
+        certified_over_arolc=(ratio.min(), ratio.max()),
+        conservatism=(1 / ratio.max(), 1 / ratio.min()),
+        above_certified=int(
+            (table["h_m"] < table[["arolc_constant", "arolc_abs_sine"]].min(axis=1)).sum()
+        ),
+        close_to_exact=int((outer.abs() <= tolerance).sum()),
+        below_exact=len(lower),
+        ended_on_path=len(ended_ok),
+        largest_ended_error=max(ended_ok) if ended_ok else math.nan,
+        arolc_constant=(table["arolc_constant"].min(), table["arolc_constant"].max()),
+        h_exact=(table["h_exact"].min(), table["h_exact"].max()),
     )
-    return report
 
 
 def reproduce(

@@ -29,32 +29,41 @@ same robot everywhere). Three sweeps:
 Statistics: a run *diverged* when it stopped (diverged or left the path: an x or y error beyond
 10 m) or its mean AE exceeds the tuning's 1 m. Divergence rates carry Wilson 95 % intervals;
 medians of AE (the mean of AE-x and AE-y, mm, over runs that stayed on the path) carry
-percentile-bootstrap 95 % intervals. A claim "A below B" is decided per draw (a diverged run
-loses) and its verdict comes from the share of draws in which it holds: *holds* when the
-Wilson interval of that share lies above one half, *fails* when below, *undecided* otherwise.
+percentile-bootstrap 95 % intervals (:mod:`~delaytrack.experiments.outcomes`). A claim "A below
+B" is decided per draw (a diverged run loses) and its verdict comes from the share of draws in
+which it holds: *holds* when the Wilson interval of that share lies above one half, *fails*
+when below, *undecided* otherwise (:mod:`~delaytrack.experiments.verdicts`).
+
+:func:`run_robustness` returns a :class:`RobustnessStudy` holding every number of the study's
+report, which :mod:`delaytrack.report.robustness` writes.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
-from matplotlib.figure import Figure
-from scipy import stats
 
-from delaytrack._io import write_frame
-from delaytrack._output import claim_output_folder, record_outputs
-from delaytrack.delays import delay_from_spec
+from delaytrack._output import claim_output_folder
+from delaytrack.delays import AbsSineDelay, delay_from_spec
 from delaytrack.experiments import tuning
+from delaytrack.experiments.intervals import median_interval as median_interval
+from delaytrack.experiments.intervals import wilson_interval
+from delaytrack.experiments.outcomes import delay_reach, outcome_table
 from delaytrack.experiments.pairing import AROLC_GAINS, BASELINE, DELAY_CLASS
-from delaytrack.experiments.scenario import load_builtin
-from delaytrack.report import HtmlReport, save_figure
+from delaytrack.experiments.verdicts import attribution, attribution_ranges, claim_verdicts
+from delaytrack.report.robustness import display_attribution as display_attribution
+from delaytrack.report.robustness import display_knowledge as display_knowledge
+from delaytrack.report.robustness import display_verdicts as display_verdicts
+from delaytrack.report.robustness import findings as findings
+from delaytrack.report.robustness import write_robustness
+from delaytrack.scenario import Scenario, load_builtin
 from delaytrack.sweeps import SweepSpec, run_sweep
 from delaytrack.sweeps.executors import LocalExecutor
 
@@ -66,10 +75,13 @@ __all__ = [
     "RobustnessStudy",
     "StudySize",
     "claim_verdicts",
+    "knowledge_table",
     "run_robustness",
     "study_specs",
     "wilson_interval",
 ]
+# median_interval (experiments.intervals), findings and the display tables (report.robustness)
+# are imported above as X as X so that they stay importable from here, where they used to live.
 
 #: Scales ``s`` of what the predictors are told (``s h``).
 SCALES: tuple[float, ...] = (0.5, 0.75, 1.0, 1.25, 1.5, 2.0)
@@ -214,7 +226,9 @@ def _knowledge_sweep(gains: Gains, case: str, draws: int) -> _Sweep:
         ("AROLC (paper gains)", math.nan, _arolc_table(AROLC_GAINS)),
         ("AROLC (tuned)", math.nan, _arolc_table(_tuned_arolc(gains, "varying"))),
     ]
-    mean = tuning.long_run_mean(delay_from_spec(_SCENARIOS[case]))
+    delay = delay_from_spec(_SCENARIOS[case])
+    assert isinstance(delay, AbsSineDelay)  # the knowledge cases S1 and S2 are |sin| delays
+    mean = tuning.long_run_mean(delay)
     for s in SCALES:
         rows.append(("PCON", s, _predictor_table(gains, "PCON", "varying", scale=s)))
         rows.append(("PCON-wheel", s, _predictor_table(gains, "PCON-wheel", "varying", scale=s)))
@@ -267,37 +281,7 @@ def study_specs(
 
 
 # --------------------------------------------------------------------------------------------
-# Statistics
-
-
-def wilson_interval(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
-    """Wilson score interval (95 % by default) of a proportion ``k / n``; ``(nan, nan)`` for
-    ``n = 0``."""
-    if n == 0:
-        return math.nan, math.nan
-    p = k / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(0.0, centre - half), min(1.0, centre + half)
-
-
-def median_interval(values: Sequence[float], seed: int = 0) -> tuple[float, float, float]:
-    """Median and its percentile-bootstrap 95 % interval (:func:`scipy.stats.bootstrap`, 2000
-    resamples); NaN where fewer than two values are given."""
-    data = np.asarray(values, dtype=float)
-    if len(data) == 0:
-        return math.nan, math.nan, math.nan
-    median = float(np.median(data))
-    if len(data) < 2 or np.all(data == data[0]):
-        return median, median if len(data) > 1 else math.nan, median if len(data) > 1 else math.nan
-    result = stats.bootstrap(
-        (data,),
-        np.median,
-        n_resamples=2000,
-        method="percentile",
-        random_state=np.random.default_rng(seed),
-    )
-    return median, float(result.confidence_interval.low), float(result.confidence_interval.high)
+# The study's tables
 
 
 def _runs_frame(sweep: _Sweep, runs: pd.DataFrame) -> pd.DataFrame:
@@ -319,301 +303,6 @@ def _runs_frame(sweep: _Sweep, runs: pd.DataFrame) -> pd.DataFrame:
     return frame
 
 
-def outcome_table(frame: pd.DataFrame, by: list[str]) -> pd.DataFrame:
-    """Per group: runs, divergence rate with its Wilson interval, median AE (mm) and TV (N·m)
-    of the runs that stayed on the path with bootstrap intervals."""
-    rows = []
-    for key, group in frame.groupby(by, sort=False, dropna=False):
-        kept = group[~group.diverged]
-        k, n = int(group.diverged.sum()), len(group)
-        low, high = wilson_interval(k, n)
-        ae = median_interval(kept.ae_mm)
-        tv = median_interval(kept.tv_Nm)
-        rows.append(
-            {
-                **dict(zip(by, key if isinstance(key, tuple) else (key,), strict=True)),
-                "runs": n,
-                "diverged": k,
-                "divergence_rate": k / n,
-                "divergence_ci_low": low,
-                "divergence_ci_high": high,
-                "median_ae_mm": ae[0],
-                "median_ae_ci_low_mm": ae[1],
-                "median_ae_ci_high_mm": ae[2],
-                "median_tv_Nm": tv[0],
-                "median_tv_ci_low_Nm": tv[1],
-                "median_tv_ci_high_Nm": tv[2],
-                "median_t_stop_of_diverged_s": (
-                    float(group[group.diverged].t_stop_s.median()) if k else math.nan
-                ),
-            }
-        )
-    return pd.DataFrame(rows)
-
-
-def _per_draw(frame: pd.DataFrame, who: str, column: str) -> pd.Series:
-    """``column`` of controller ``who`` indexed by draw (diverged runs: +inf); each draw once."""
-    rows = frame[frame.controller == who]
-    if rows.draw.duplicated().any():
-        raise ValueError(f"{who!r} has more than one run per draw")
-    return pd.Series(np.where(rows.diverged, np.inf, rows[column]), index=rows.draw.to_numpy())
-
-
-def _paired(frame: pd.DataFrame, a: str, b: str, column: str) -> tuple[np.ndarray, np.ndarray]:
-    """``column`` of controllers ``a`` and ``b`` on the same draws (diverged runs: +inf)."""
-    first, second = _per_draw(frame, a, column), _per_draw(frame, b, column)
-    if set(first.index) != set(second.index):
-        raise ValueError(f"{a!r} and {b!r} were not run on the same draws")
-    draws = np.sort(first.index.to_numpy())
-    return first[draws].to_numpy(float), second[draws].to_numpy(float)
-
-
-def _verdict(a: np.ndarray, b: np.ndarray) -> dict[str, Any]:
-    """Whether ``a < b`` draw by draw. Draws where both diverged decide nothing and are left
-    out (counted); the share and its Wilson interval are over the decided draws. The paired
-    median difference ``a − b`` over draws where both stayed on the path gives the size."""
-    both = np.isinf(a) & np.isinf(b)
-    holds = (a < b)[~both]
-    k, n = int(holds.sum()), len(holds)
-    low, high = wilson_interval(k, n)
-    if n == 0:
-        verdict = "no decision (both diverged in every draw)"
-    else:
-        verdict = "holds" if low > 0.5 else "fails" if high < 0.5 else "undecided"
-    finite = np.isfinite(a) & np.isfinite(b)
-    median, d_low, d_high = median_interval(a[finite] - b[finite], seed=2)
-    return {
-        "share_holds": k / n if n else math.nan,
-        "ci_low": low,
-        "ci_high": high,
-        "verdict": verdict,
-        "draws_decided": n,
-        "draws_both_diverged": int(both.sum()),
-        "median_difference": median,
-        "difference_ci_low": d_low,
-        "difference_ci_high": d_high,
-    }
-
-
-def claim_verdicts(claims: pd.DataFrame) -> pd.DataFrame:
-    """The paper's claims per scenario and noise level, for AROLC with the paper's and the
-    tuned gains: AE below the baseline, TV below the baseline, and AROLC's AE larger in S4 than
-    in S3 — each decided draw by draw on the same robots (:func:`_verdict`: a diverged run
-    loses, a draw where both diverged is left out). ``median_difference`` is in mm for AE and
-    N·m for TV (AROLC minus the baseline; S4 minus S3)."""
-    rows = []
-    for (case, noise), frame in claims.groupby(["scenario", "noise"], sort=False):
-        baseline = BASELINE[case]
-        for who in ("AROLC (paper gains)", "AROLC (tuned)"):
-            for metric, column in (("AE", "ae_mm"), ("TV", "tv_Nm")):
-                a, b = _paired(frame, who, baseline, column)
-                rows.append(
-                    {
-                        "scenario": case,
-                        "noise": noise,
-                        "claim": f"{metric} below {baseline}",
-                        "controller": who,
-                        **_verdict(a, b),
-                    }
-                )
-    for noise in claims.noise.unique():
-        s3 = claims[(claims.scenario == "S3") & (claims.noise == noise)]
-        s4 = claims[(claims.scenario == "S4") & (claims.noise == noise)]
-        if s3.empty or s4.empty:
-            continue
-        for who in ("AROLC (paper gains)", "AROLC (tuned)"):
-            first, second = _per_draw(s3, who, "ae_mm"), _per_draw(s4, who, "ae_mm")
-            draws = np.sort(first.index.to_numpy())
-            # "AE grows": S3's AE below S4's, draw by draw.
-            verdict = _verdict(first[draws].to_numpy(float), second[draws].to_numpy(float))
-            for key in ("median_difference", "difference_ci_low", "difference_ci_high"):
-                verdict[key] = -verdict[key]  # S4 minus S3
-            low, high = verdict["difference_ci_low"], verdict["difference_ci_high"]
-            verdict["difference_ci_low"], verdict["difference_ci_high"] = high, low
-            rows.append(
-                {
-                    "scenario": "S3 -> S4",
-                    "noise": noise,
-                    "claim": "AE grows from S3 to S4",
-                    "controller": who,
-                    **verdict,
-                }
-            )
-    return pd.DataFrame(rows)
-
-
-#: Attribution pairs: (what, the controller with it, the controller without it).
-ATTRIBUTION = (
-    ("Δu at the paper's gains", "AROLC (paper gains)", "outer loop (paper gains)"),
-    ("Δu at the tuned gains", "AROLC (tuned)", "outer loop (tuned gains)"),
-    ("tuning (AROLC)", "AROLC (tuned)", "AROLC (paper gains)"),
-)
-
-
-def attribution(claims: pd.DataFrame) -> pd.DataFrame:
-    """What each part contributes: the paired change of AE and TV from the second controller of
-    each :data:`ATTRIBUTION` pair to the first (medians over draws with bootstrap intervals;
-    draws where either diverged are left out and counted)."""
-    rows = []
-    for (case, noise), frame in claims.groupby(["scenario", "noise"], sort=False):
-        for what, with_it, without in ATTRIBUTION:
-            out = {"scenario": case, "noise": noise, "part": what}
-            for metric, column in (("ae", "ae_mm"), ("tv", "tv_Nm")):
-                a, b = _paired(frame, with_it, without, column)
-                both = np.isfinite(a) & np.isfinite(b)
-                median, low, high = median_interval(a[both] - b[both], seed=1)
-                unit = "mm" if metric == "ae" else "Nm"
-                out[f"median_change_{metric}_{unit}"] = median
-                out[f"change_ci_low_{metric}_{unit}"] = low
-                out[f"change_ci_high_{metric}_{unit}"] = high
-            out["draws_compared"] = int(both.sum())
-            rows.append(out)
-    return pd.DataFrame(rows)
-
-
-# --------------------------------------------------------------------------------------------
-# Figures, report, job
-
-#: The map's controllers, in panel order.
-MAP_CONTROLLERS = (
-    "PCON",
-    "PCON-wheel",
-    "PCONf",
-    "AROLC (paper gains)",
-    "AROLC (tuned)",
-    "outer loop (paper gains)",
-)
-
-
-def robustness_map(table: pd.DataFrame) -> Figure:
-    """Per controller: divergence rate (colour) and median AE in mm of the runs that stayed on
-    the path (text) against the true constant delay and the scale of what it is told."""
-    figure = Figure(figsize=(12.0, 7.5), layout="constrained")
-    axes = figure.subplots(2, 3, sharey=True)
-    delays = sorted(table.delay_ms.unique())
-    image = None
-    for ax, name in zip(axes.ravel(), MAP_CONTROLLERS, strict=True):
-        rows = table[table.controller == name]
-        told = name in tuning.PREDICTORS
-        columns = list(SCALES) if told else [math.nan]
-        rate = np.full((len(delays), len(columns)), np.nan)
-        for i, h in enumerate(delays):
-            for j, scale in enumerate(columns):
-                row = rows[
-                    (rows.delay_ms == h) & (rows.scale.isna() if not told else rows.scale == scale)
-                ]
-                if row.empty:
-                    continue
-                rate[i, j] = row.divergence_rate.iloc[0]
-                ae = row.median_ae_mm.iloc[0]
-                ax.text(
-                    j,
-                    i,
-                    "—" if not math.isfinite(ae) else f"{ae:.3g}",
-                    ha="center",
-                    va="center",
-                    fontsize=8,
-                    color="white" if rate[i, j] > 0.5 else "black",
-                )
-        image = ax.imshow(rate, cmap="Reds", vmin=0.0, vmax=1.0, aspect="auto", origin="lower")
-        ax.set_title(name, fontsize=10)
-        ax.set_xticks(range(len(columns)))
-        ax.set_xticklabels([f"{c:g}" for c in columns] if told else ["not told"])
-        ax.set_xlabel("told delay / true delay (ratio)" if told else "delay unknown to the law")
-        ax.set_yticks(range(len(delays)))
-        ax.set_yticklabels([f"{h:g}" for h in delays])
-    for ax in axes[:, 0]:
-        ax.set_ylabel("true constant delay h (ms)")
-    figure.colorbar(image, ax=axes, label="divergence rate (share of draws)", shrink=0.8)
-    figure.suptitle("Robustness map: colour = divergence rate, text = median AE (mm)")
-    return figure
-
-
-@dataclass(frozen=True)
-class RobustnessStudy:
-    """Everything :func:`run_robustness` computed.
-
-    Attributes
-    ----------
-    size : StudySize
-    runs : dict
-        Sweep name -> one row per run (:func:`_runs_frame` columns).
-    map, knowledge : DataFrame
-        :func:`outcome_table` per (true delay, controller, scale) and per (scenario, controller,
-        scale).
-    claims : DataFrame
-        :func:`outcome_table` per (scenario, noise, controller).
-    verdicts, attribution : DataFrame
-        :func:`claim_verdicts` and :func:`attribution`.
-    tuning_record : mapping
-        The gains file the tuned controllers came from (:func:`tuning.load_tuning_record`).
-    seconds : float
-        Wall time of the sweeps.
-    """
-
-    size: StudySize
-    runs: dict[str, pd.DataFrame]
-    map: pd.DataFrame
-    knowledge: pd.DataFrame
-    claims: pd.DataFrame
-    verdicts: pd.DataFrame
-    attribution: pd.DataFrame
-    tuning_record: Mapping[str, Any]
-    seconds: float
-    computed: int = 0
-    resumed: int = 0
-
-
-def run_robustness(
-    out: str | Path,
-    *,
-    size: str | StudySize = "default",
-    executor: Any = None,
-    progress: bool = True,
-    gains: tuning.GainsSource = None,
-) -> RobustnessStudy:
-    """Run (or resume) the study's sweeps into ``out/sweeps/<name>/`` and write its tables,
-    figure and report into ``out``.
-
-    ``executor`` makes an :class:`~delaytrack.sweeps.executors.Executor` per sweep (a callable
-    without arguments; default: all local cores); ``gains`` is where the tuned gains come
-    from (a gains file or its record; the shipped file by default).
-    """
-    record = tuning.load_tuning_record(gains)
-    size = SIZES[size] if isinstance(size, str) else size
-    make = executor if executor is not None else LocalExecutor
-    out = claim_output_folder(out)
-    start = time.perf_counter()
-    frames, computed, resumed = {}, 0, 0
-    for sweep in study_specs(size, record):
-        if progress:
-            print(f"robustness: sweep {sweep.name} ({len(sweep.spec.runs)} runs)", flush=True)
-        outcome = run_sweep(
-            sweep.spec, out / "sweeps" / sweep.name, executor=make(), progress=progress
-        )
-        computed += outcome.computed
-        resumed += outcome.resumed
-        frames[sweep.name] = _runs_frame(sweep, outcome.runs)
-    seconds = time.perf_counter() - start
-    knowledge = pd.concat([f for n, f in frames.items() if n.startswith("knowledge")])
-    claims = pd.concat([f for n, f in frames.items() if n.startswith("claims")])
-    study = RobustnessStudy(
-        size=size,
-        runs=frames,
-        map=outcome_table(frames["map"], ["delay_ms", "controller", "scale"]),
-        knowledge=outcome_table(knowledge, ["scenario", "controller", "scale"]),
-        claims=outcome_table(claims, ["scenario", "noise", "controller"]),
-        verdicts=claim_verdicts(claims),
-        attribution=attribution(claims),
-        tuning_record=record,
-        seconds=seconds,
-        computed=computed,
-        resumed=resumed,
-    )
-    write_robustness(study, out)
-    return study
-
-
 def _cell(table: pd.DataFrame, **where: Any) -> pd.Series:
     rows = table
     for key, value in where.items():
@@ -623,12 +312,13 @@ def _cell(table: pd.DataFrame, **where: Any) -> pd.Series:
     return rows.iloc[0]
 
 
-def knowledge_table(study: RobustnessStudy) -> pd.DataFrame:
-    """What the predictors tolerate of a wrong delay, case by case: the truth, what the
-    predictor is told, its divergence rate, median AE and median time of leaving the path,
-    beside AROLC's (paper gains) under the same truth."""
+def knowledge_table(knowledge: pd.DataFrame, map_table: pd.DataFrame) -> pd.DataFrame:
+    """What the predictors tolerate of a wrong delay, case by case, from the outcome tables of
+    the knowledge sweeps and of the map: the truth, what the predictor is told, its divergence
+    rate, median AE and median time of leaving the path, beside AROLC's (paper gains) under the
+    same truth."""
     cases: list[tuple[str, str, str, pd.Series, pd.Series]] = []
-    k, m = study.knowledge, study.map
+    k, m = knowledge, map_table
     for case, predictor, scale, told in (
         ("S1", "PCON", 1.0, "the true h(t)"),
         ("S1", "PCON", 2.0, "2·h(t)"),
@@ -683,284 +373,139 @@ def knowledge_table(study: RobustnessStudy) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def findings(study: RobustnessStudy) -> list[str]:
-    """The study's findings as sentences, every number computed from its tables."""
-    out = []
-    table = study.map
-    exact = table[(table.scale == 1.0) | table.scale.isna()]
-    for name in MAP_CONTROLLERS:
-        rows = exact[exact.controller == name].sort_values("delay_ms")
-        clean = rows[rows.diverged == 0]
-        lost = rows[rows.divergence_rate >= 0.5]
-        told = " (told the true delay)" if name in tuning.PREDICTORS else ""
-        text = f"{name}{told}: " + (
-            f"no run diverged up to {_longest_clean(rows):g} ms"
-            if not clean.empty and rows.diverged.iloc[0] == 0
-            else f"runs diverged already at {rows.delay_ms.min():g} ms"
-        )
-        if not lost.empty:
-            text += f"; at least half of the runs diverged from {lost.delay_ms.min():g} ms on"
-        text += f" ({rows.runs.iloc[0]} draws per delay; tested up to {rows.delay_ms.max():g} ms)."
-        out.append(text)
-    for name in tuning.PREDICTORS:
-        parts = []
-        for scale in SCALES:
-            rows = table[(table.controller == name) & (table.scale == scale)]
-            rows = rows.sort_values("delay_ms")
-            clean = "none" if rows.diverged.iloc[0] else f"{_longest_clean(rows):g} ms"
-            parts.append(f"told {scale:g}·h: {clean}")
-        out.append(
-            f"{name}, largest true delay up to which no run diverged, by what it is told: "
-            + "; ".join(parts)
-            + "."
-        )
-    paper_safe = [
-        name
-        for name in ("AROLC (paper gains)", "outer loop (paper gains)")
-        if table[table.controller == name].diverged.sum() == 0
-    ]
-    if len(paper_safe) == 2:
-        out.append(
-            "At the paper's gains AROLC and the plain outer loop both stay on the path at every "
-            f"tested delay up to {table.delay_ms.max():g} ms: the robustness to the delay "
-            "observed here does not come from the switching term Δu, since the outer loop "
-            "without it is as robust in this test."
-        )
-    record = study.tuning_record
-    edges = [
-        f"{kind} ({gain_set})"
+def _edges(record: Mapping[str, Any]) -> tuple[tuple[str, str], ...]:
+    """The tuned gain sets ``(kind, gain set)`` still on an edge of their grid after the
+    extensions (the gains file's ``interior`` is false)."""
+    return tuple(
+        (kind, gain_set)
         for kind in tuning.KINDS
         for gain_set in tuning.GAIN_SETS
         if not record[kind][gain_set]["interior"]
-    ]
-    if edges:
-        out.append(
-            "Tuned gain sets still on an edge of their grid after the extensions, so possibly "
-            "not fully tuned: " + ", ".join(edges) + " (gains file, 'interior')."
+    )
+
+
+@dataclass(frozen=True)
+class RobustnessStudy:
+    """Everything :func:`run_robustness` computed: every number of the study's report.
+
+    Attributes
+    ----------
+    size : StudySize
+    scenario : Scenario
+        The shipped scenario every run starts from (:data:`BASE_SCENARIO`).
+    runs : dict
+        Sweep name -> one row per run (:func:`_runs_frame` columns).
+    run_count : int
+        Runs over every sweep.
+    map, knowledge : DataFrame
+        :func:`~delaytrack.experiments.outcomes.outcome_table` per (true delay, controller,
+        scale) and per (scenario, controller, scale).
+    claims : DataFrame
+        :func:`~delaytrack.experiments.outcomes.outcome_table` per (scenario, noise,
+        controller).
+    verdicts, attribution : DataFrame
+        :func:`~delaytrack.experiments.verdicts.claim_verdicts` and
+        :func:`~delaytrack.experiments.verdicts.attribution`.
+    knowledge_table : DataFrame
+        :func:`knowledge_table`: what the predictors tolerate of a wrong delay.
+    reach : DataFrame
+        :func:`~delaytrack.experiments.outcomes.delay_reach` of the map: per controller and
+        scale, the longest delay with no diverged run.
+    attribution_ranges : DataFrame
+        :func:`~delaytrack.experiments.verdicts.attribution_ranges` of ``attribution``.
+    edges : tuple of (str, str)
+        The tuned gain sets ``(kind, gain set)`` still on an edge of their grid.
+    tuning_record : mapping
+        The gains file the tuned controllers came from (:func:`tuning.load_tuning_record`).
+    seconds : float
+        Wall time of the sweeps.
+    computed, resumed : int
+        Work units computed and resumed.
+
+    The design travels with every study as class attributes: ``scales`` (:data:`SCALES`),
+    ``true_delays`` (:data:`TRUE_DELAYS`, s), ``predictors`` (the controllers told the delay),
+    ``friction`` (the drawn friction ranges) and ``diverged_ae_mm``.
+    """
+
+    scales: ClassVar[tuple[float, ...]] = SCALES
+    true_delays: ClassVar[tuple[float, ...]] = TRUE_DELAYS
+    predictors: ClassVar[tuple[str, ...]] = tuning.PREDICTORS
+    friction: ClassVar[Mapping[str, Mapping[str, Any]]] = _FRICTION
+    diverged_ae_mm: ClassVar[float] = DIVERGED_AE_MM
+
+    size: StudySize
+    scenario: Scenario
+    runs: dict[str, pd.DataFrame]
+    run_count: int
+    map: pd.DataFrame
+    knowledge: pd.DataFrame
+    claims: pd.DataFrame
+    verdicts: pd.DataFrame
+    attribution: pd.DataFrame
+    knowledge_table: pd.DataFrame
+    reach: pd.DataFrame
+    attribution_ranges: pd.DataFrame
+    edges: tuple[tuple[str, str], ...]
+    tuning_record: Mapping[str, Any]
+    seconds: float
+    computed: int = 0
+    resumed: int = 0
+
+
+def run_robustness(
+    out: str | Path,
+    *,
+    size: str | StudySize = "default",
+    executor: Any = None,
+    progress: bool = True,
+    gains: tuning.GainsSource = None,
+) -> RobustnessStudy:
+    """Run (or resume) the study's sweeps into ``out/sweeps/<name>/`` and write its tables,
+    figure and report into ``out`` (:func:`~delaytrack.report.robustness.write_robustness`).
+
+    ``executor`` makes an :class:`~delaytrack.sweeps.executors.Executor` per sweep (a callable
+    without arguments; default: all local cores); ``gains`` is where the tuned gains come
+    from (a gains file or its record; the shipped file by default).
+    """
+    record = tuning.load_tuning_record(gains)
+    size = SIZES[size] if isinstance(size, str) else size
+    make = executor if executor is not None else LocalExecutor
+    out = claim_output_folder(out)
+    start = time.perf_counter()
+    frames, computed, resumed = {}, 0, 0
+    for sweep in study_specs(size, record):
+        if progress:
+            print(f"robustness: sweep {sweep.name} ({len(sweep.spec.runs)} runs)", flush=True)
+        outcome = run_sweep(
+            sweep.spec, out / "sweeps" / sweep.name, executor=make(), progress=progress
         )
-    quiet = study.attribution[study.attribution.noise == "off"]
-    for part, rows in quiet.groupby("part", sort=False):
-        ae, tv = rows.median_change_ae_mm, rows.median_change_tv_Nm
-        out.append(
-            f"{part} (noise off, S1–S4, median paired change over draws): AE "
-            f"{ae.min():+.3g} to {ae.max():+.3g} mm, TV {tv.min():+.3g} to {tv.max():+.3g} N·m"
-            + (
-                f"; in {', '.join(rows[rows.draws_compared == 0].scenario)} no draw could be "
-                "compared (one side diverged in every draw)"
-                if (rows.draws_compared == 0).any()
-                else ""
-            )
-            + "."
-        )
-    verdicts = study.verdicts
-    for noise in verdicts.noise.unique():
-        rows = verdicts[verdicts.noise == noise]
-        groups = []
-        for verdict in ("holds", "fails", "undecided"):
-            chosen = rows[rows.verdict == verdict]
-            names = [
-                f"{r.controller}: {r.claim}"
-                + ("" if r.scenario == "S3 -> S4" else f" in {r.scenario}")
-                for r in chosen.itertuples()
-            ]
-            groups.append(f"{verdict.upper()} ({len(names)}): " + ("; ".join(names) or "none"))
-        out.append(f"Claims with measurement noise {noise}. " + ". ".join(groups) + ".")
-    return out
-
-
-def _interval_text(value: float, low: float, high: float, scale: float = 1.0) -> str:
-    """``value (low to high)`` scaled, or a dash when the value is missing."""
-    if not math.isfinite(value):
-        return "—"
-    if not (math.isfinite(low) and math.isfinite(high)):
-        return f"{scale * value:.3g}"
-    return f"{scale * value:.3g} ({scale * low:.3g} to {scale * high:.3g})"
-
-
-def display_verdicts(verdicts: pd.DataFrame) -> pd.DataFrame:
-    """:func:`claim_verdicts` for reading: the share of draws with its interval in one column."""
-    return pd.DataFrame(
-        {
-            "scenario": verdicts.scenario,
-            "noise": verdicts.noise,
-            "controller": verdicts.controller,
-            "claim": verdicts.claim,
-            "holds in % of draws (95 % CI)": [
-                _interval_text(r.share_holds, r.ci_low, r.ci_high, 100.0)
-                for r in verdicts.itertuples()
-            ],
-            "draws (both diverged)": [
-                f"{r.draws_decided} ({r.draws_both_diverged})" for r in verdicts.itertuples()
-            ],
-            "median difference (95 % CI)": [
-                _interval_text(r.median_difference, r.difference_ci_low, r.difference_ci_high)
-                + (" N·m" if r.claim.startswith("TV") else " mm")
-                if math.isfinite(r.median_difference)
-                else "—"
-                for r in verdicts.itertuples()
-            ],
-            "verdict": verdicts.verdict,
-        }
+        computed += outcome.computed
+        resumed += outcome.resumed
+        frames[sweep.name] = _runs_frame(sweep, outcome.runs)
+    seconds = time.perf_counter() - start
+    knowledge = pd.concat([f for n, f in frames.items() if n.startswith("knowledge")])
+    claims = pd.concat([f for n, f in frames.items() if n.startswith("claims")])
+    map_outcomes = outcome_table(frames["map"], ["delay_ms", "controller", "scale"])
+    knowledge_outcomes = outcome_table(knowledge, ["scenario", "controller", "scale"])
+    attributed = attribution(claims)
+    study = RobustnessStudy(
+        size=size,
+        scenario=load_builtin(BASE_SCENARIO),
+        runs=frames,
+        run_count=sum(len(frame) for frame in frames.values()),
+        map=map_outcomes,
+        knowledge=knowledge_outcomes,
+        claims=outcome_table(claims, ["scenario", "noise", "controller"]),
+        verdicts=claim_verdicts(claims),
+        attribution=attributed,
+        knowledge_table=knowledge_table(knowledge_outcomes, map_outcomes),
+        reach=delay_reach(map_outcomes),
+        attribution_ranges=attribution_ranges(attributed),
+        edges=_edges(record),
+        tuning_record=record,
+        seconds=seconds,
+        computed=computed,
+        resumed=resumed,
     )
-
-
-def display_attribution(table: pd.DataFrame) -> pd.DataFrame:
-    """:func:`attribution` for reading: each median change with its interval in one column."""
-    ae = zip(
-        table.median_change_ae_mm,
-        table.change_ci_low_ae_mm,
-        table.change_ci_high_ae_mm,
-        strict=True,
-    )
-    tv = zip(
-        table.median_change_tv_Nm,
-        table.change_ci_low_tv_Nm,
-        table.change_ci_high_tv_Nm,
-        strict=True,
-    )
-    return pd.DataFrame(
-        {
-            "part": table.part,
-            "scenario": table.scenario,
-            "noise": table.noise,
-            "AE change, mm (95 % CI)": [_interval_text(*values) for values in ae],
-            "TV change, N·m (95 % CI)": [_interval_text(*values) for values in tv],
-            "draws compared": table.draws_compared,
-        }
-    )
-
-
-def display_knowledge(table: pd.DataFrame) -> pd.DataFrame:
-    """:func:`knowledge_table` for reading: shares in %, times in s, AE in mm."""
-
-    def number(value: float, digits: str = ".3g") -> str:
-        return "—" if not math.isfinite(value) else format(value, digits)
-
-    return pd.DataFrame(
-        {
-            "truth": table.truth,
-            "predictor": table.predictor,
-            "told": table["predictor told"],
-            "diverged, %": [number(100 * v, ".0f") for v in table.predictor_divergence_rate],
-            "left the path at, s (median)": [
-                number(v) for v in table.predictor_median_t_stop_of_diverged_s
-            ],
-            "AE, mm (median)": [number(v) for v in table.predictor_median_ae_mm],
-            "AROLC diverged, %": [
-                number(100 * v, ".0f") for v in table.arolc_paper_divergence_rate
-            ],
-            "AROLC AE, mm": [number(v) for v in table.arolc_paper_median_ae_mm],
-        }
-    )
-
-
-def display_outcomes(table: pd.DataFrame, by: list[str]) -> pd.DataFrame:
-    """:func:`outcome_table` for reading: divergence and medians with their intervals."""
-    ae = zip(table.median_ae_mm, table.median_ae_ci_low_mm, table.median_ae_ci_high_mm, strict=True)
-    tv = zip(table.median_tv_Nm, table.median_tv_ci_low_Nm, table.median_tv_ci_high_Nm, strict=True)
-    columns: dict[str, Any] = {key: table[key] for key in by}
-    columns["diverged / runs"] = [
-        f"{k} / {n}" for k, n in zip(table.diverged, table.runs, strict=True)
-    ]
-    columns["median AE, mm (95 % CI)"] = [_interval_text(*values) for values in ae]
-    columns["median TV, N·m (95 % CI)"] = [_interval_text(*values) for values in tv]
-    return pd.DataFrame(columns)
-
-
-def _longest_clean(rows: pd.DataFrame) -> float:
-    """The largest delay (ms) up to which no run of ``rows`` (sorted by delay) diverged."""
-    first_bad = rows[rows.diverged > 0].delay_ms.min()
-    clean = rows if not math.isfinite(first_bad) else rows[rows.delay_ms < first_bad]
-    return float(clean.delay_ms.max())
-
-
-def write_robustness(study: RobustnessStudy, out: str | Path) -> list[Path]:
-    """Write ``runs.csv`` (every run), ``map.csv``, ``knowledge.csv``, ``claims.csv``,
-    ``verdicts.csv``, ``attribution.csv``, the map figure and ``report.html``."""
-    out = Path(out)
-    files = []
-    every = pd.concat(
-        [frame.assign(sweep=name) for name, frame in study.runs.items()], ignore_index=True
-    )
-    files.append(write_frame(every, out / "runs.csv"))
-    for name in ("map", "knowledge", "claims", "verdicts", "attribution"):
-        files.append(write_frame(getattr(study, name), out / f"{name}.csv"))
-    files.append(write_frame(knowledge_table(study), out / "knowledge_table.csv"))
-    saved = save_figure(robustness_map(study.map), out / "figures" / "robustness_map")
-    files += saved
-    image = next(path for path in saved if path.suffix == ".png").read_bytes()
-    report = HtmlReport("delaytrack: robustness study (which controller when the delay is unknown)")
-    base = load_builtin(BASE_SCENARIO)
-    viscous = _FRICTION["plant.viscous_friction"]
-    coulomb = _FRICTION["plant.coulomb_friction"]
-    report.paragraph(
-        "The paper's case for AROLC is that it needs no knowledge of the delay, while its "
-        "predictor baselines assume they know it. This study asks which controller to use over "
-        "distributions of robots rather than one run: every run is the paper job's robot run "
-        f"({base.duration:g} s, the consistent circle, dt = {1e3 * base.dt:g} ms, T_c = "
-        f"{1e3 * base.T_c:g} ms) with a drawn payload seed and wheel friction drawn uniformly "
-        f"from its documented ranges (viscous {viscous['low']:g}–{viscous['high']:g} N·m·s/rad, "
-        f"Coulomb {coulomb['low']:g}–{coulomb['high']:g} N·m); draw i is the same robot for "
-        "every controller and condition, and each draw has its own noise seed. Three "
-        "parts: a robustness map (constant true delays "
-        + ", ".join(f"{1e3 * h:g}" for h in TRUE_DELAYS)
-        + " ms against what the predictors are told, "
-        + ", ".join(f"{s:g}" for s in SCALES)
-        + " times the delay; gain sets tuned for all delays), the paper's S1 and S2 with wrong "
-        "delay estimates (gain sets for time-varying delays), and S1–S4 as in the paper job "
-        "(class gain sets), without and with measurement noise (encoder quantisation and white "
-        f"noise). A run diverged when it stopped or its mean AE exceeded {DIVERGED_AE_MM:g} mm. "
-        "A claim is judged per draw (a diverged run loses): it holds when the Wilson 95 % "
-        "interval of the share of draws in which it holds lies above one half, fails when below, "
-        "and is undecided otherwise. Medians carry percentile-bootstrap 95 % intervals."
-    )
-    n_runs = sum(len(f) for f in study.runs.values())
-    report.paragraph(
-        f"Size: {n_runs} runs of 60 s ({study.size.map} draws per map cell, "
-        f"{study.size.knowledge} per delay-knowledge case, {study.size.claims} per claims case); "
-        f"{study.computed} work units computed and {study.resumed} resumed in "
-        f"{study.seconds:.1f} s."
-    )
-    report.heading("Findings")
-    report.bullets(findings(study))
-    report.figure(
-        image,
-        "Robustness map: divergence rate (colour) and median AE in mm of the "
-        "runs that stayed on the path (text), per controller, against the true "
-        "constant delay and what the predictors are told of it.",
-    )
-    report.heading("The paper's claims over draws")
-    report.table(
-        display_verdicts(study.verdicts),
-        "Verdict per claim: share of draws in which it holds, with its "
-        "Wilson 95 % interval (holds: interval above 50 %; fails: below).",
-    )
-    report.heading("Attribution: outer loop, Δu, tuning")
-    report.table(
-        display_attribution(study.attribution),
-        "Paired change of AE (mm) and TV (N·m) per draw, median with bootstrap 95 % interval.",
-    )
-    report.heading("Robustness map (table)")
-    report.table(
-        display_outcomes(study.map, ["delay_ms", "controller", "scale"]),
-        "Per true delay (ms), controller and scale: divergence and medians (map.csv).",
-    )
-    report.heading("What the predictors tolerate of a wrong delay")
-    report.table(
-        display_knowledge(knowledge_table(study)),
-        "Case by case (knowledge_table.csv): divergence rate, median time of leaving the path of "
-        "the runs that did, and median AE (mm) of those that did not, beside AROLC's.",
-    )
-    report.heading("Delay knowledge under S1 and S2")
-    report.table(
-        display_outcomes(study.knowledge, ["scenario", "controller", "scale"]),
-        "Predictors told s·h(t) (PCON, PCON-wheel) or s times the profile's long-run mean (PCONf).",
-    )
-    report.heading("S1–S4 per controller and noise level")
-    report.table(
-        display_outcomes(study.claims, ["scenario", "noise", "controller"]),
-        "Outcomes per scenario, noise level and controller (claims.csv).",
-    )
-    files.append(report.write(out / "report.html"))
-    record_outputs(out, files)
-    return files
+    write_robustness(study, out)
+    return study

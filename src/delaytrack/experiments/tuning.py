@@ -67,6 +67,8 @@ Errors (:class:`GainsFileError`) name the file, the table (``[AROLC.varying]``),
 value and what is valid.
 
 Everything is deterministic (the draws and payload placements are seeded).
+:func:`tune_controllers` returns a :class:`TuningStudy` holding every number of the tuning's
+report (:mod:`delaytrack.report.tuning`: the chosen gains as text).
 """
 
 from __future__ import annotations
@@ -75,12 +77,12 @@ import itertools
 import math
 import time
 import tomllib
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any, NoReturn, Unpack
 
 import numpy as np
 import pandas as pd
@@ -91,10 +93,12 @@ from delaytrack._io import regular_file, write_text
 from delaytrack.analysis import razumikhin_bound
 from delaytrack.controllers import AROLC, PCON, PCONf
 from delaytrack.controllers.base import Controller
+from delaytrack.controllers.delay_knowledge import DelayKnowledge
 from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
 from delaytrack.metrics import mean_absolute_error, total_variation
 from delaytrack.plants.robot import NominalRobot, PayloadRobot, initial_state, paper_reference
 from delaytrack.plants.robot.kinematics import kinematic_map
+from delaytrack.report.tuning import gains_text
 from delaytrack.sim import simulate
 
 __all__ = [
@@ -111,6 +115,7 @@ __all__ = [
     "TUNING_SEED",
     "Condition",
     "TuningResult",
+    "TuningStudy",
     "arolc_gains",
     "certified_bound",
     "default_gains_path",
@@ -263,6 +268,15 @@ def arolc_gains(k: float, zeta: float, alpha: float) -> dict[str, float]:
     return dict(K1=k * k, K2=2.0 * zeta * k, alpha=alpha, **AROLC_FIXED)
 
 
+def _with_outer_loop_gains(kind: str, gains: Mapping[str, float]) -> dict[str, float]:
+    """``gains`` and, for AROLC, the outer loop's ``K1 = k²``, ``K2 = 2 ζ k`` they give
+    (:func:`arolc_gains`)."""
+    if kind != "AROLC":
+        return dict(gains)
+    g = arolc_gains(gains["k"], gains["zeta"], gains["alpha"])
+    return {**gains, "K1": g["K1"], "K2": g["K2"]}
+
+
 def certified_bound(k: float, zeta: float) -> float:
     """Theorem 1's ``h_m`` (s) for AROLC with :func:`arolc_gains` (``β = 1``, ``r = 1.1``)."""
     g = arolc_gains(k, zeta, 1.0)
@@ -276,7 +290,7 @@ def make_controller(
     h_bar: float | None = None,
     history: float = HISTORY,
     reference: str = "consistent",
-    **knowledge: float,
+    **knowledge: Unpack[DelayKnowledge],
 ) -> Controller:
     """One of :data:`KINDS` on the nominal robot with the grid's ``gains`` (names of
     :data:`GAIN_NAMES`).
@@ -288,19 +302,15 @@ def make_controller(
         raise ValueError(f"kind must be one of {KINDS}; got {kind!r}")
     if kind == "AROLC":
         return AROLC(NominalRobot(), **arolc_gains(gains["k"], gains["zeta"], gains["alpha"]))
-    common = dict(
-        kappa=gains["kappa"],
-        vartheta=gains["c"] * vartheta_base(kind, reference),
-        k_b=gains["k_b"],
-        history=history,
-        T_c=T_C,
-        space="actuator" if kind == "PCON-wheel" else "generalised",
-    )
+    kappa = gains["kappa"]
+    vartheta = gains["c"] * vartheta_base(kind, reference)
+    k_b = gains["k_b"]
+    space = "actuator" if kind == "PCON-wheel" else "generalised"
     if kind == "PCONf":
         if h_bar is None:
             raise ValueError("PCONf needs h_bar")
-        return PCONf(NominalRobot(), h_bar=h_bar, **common)
-    return PCON(NominalRobot(), **common, **knowledge)
+        return PCONf(NominalRobot(), kappa, vartheta, k_b, history, T_C, h_bar, space=space)
+    return PCON(NominalRobot(), kappa, vartheta, k_b, history, T_C, space=space, **knowledge)
 
 
 @dataclass(frozen=True)
@@ -317,7 +327,7 @@ class TuningResult:
         (N·m) and ``status`` (``ok`` or what diverged first, naming the condition).
     best : dict
         Per gain set (:data:`GAIN_SETS`): the chosen gains and their ``objective`` (mm; AROLC also
-        ``h_m``).
+        ``h_m`` and the outer loop's ``K1``, ``K2``).
     interior : dict
         Per gain set and gain: whether the chosen value is strictly inside the grid's range.
     conditions : tuple of Condition
@@ -335,6 +345,12 @@ class TuningResult:
     conditions: tuple[Condition, ...]
     duration: float
     seconds: float
+
+    @property
+    def inside(self) -> dict[str, bool]:
+        """Per gain set: whether every chosen value lies strictly inside its grid (else the set
+        is on an edge of it)."""
+        return {gain_set: all(flags.values()) for gain_set, flags in self.interior.items()}
 
 
 def _members(classes: Sequence[str], gain_set: str) -> list[str]:
@@ -403,7 +419,7 @@ def _choose(
         chosen["objective"] = float(objective[index])
         if kind == "AROLC":
             chosen["h_m"] = float(table["h_m"].iloc[index])
-        best[gain_set] = chosen
+        best[gain_set] = _with_outer_loop_gains(kind, chosen)
     return best
 
 
@@ -436,7 +452,7 @@ def tune(
     if kind not in KINDS:
         raise ValueError(f"kind must be one of {KINDS}; got {kind!r}")
     names = GAIN_NAMES[kind]
-    grid = {
+    axes = {
         name: tuple(float(v) for v in (GRIDS[kind] if grid is None else grid)[name])
         for name in names
     }
@@ -444,17 +460,17 @@ def tune(
     start = time.perf_counter()
     with tqdm(desc=f"tuning {kind}", unit="round", disable=not progress) as bar:
         for round_ in range(extensions + 1):
-            points = [dict(zip(names, p, strict=True)) for p in itertools.product(*grid.values())]
+            points = [dict(zip(names, p, strict=True)) for p in itertools.product(*axes.values())]
             new = [p for p in points if tuple(p.values()) not in results]
             for p, outcome in zip(new, _evaluate(kind, new, conditions, duration), strict=True):
                 results[tuple(p.values())] = outcome
             table = _table(kind, points, [results[tuple(p.values())] for p in points])
             best = _choose(kind, table, conditions)
             bar.update()
-            if round_ == extensions or not _extend(grid, best):
+            if round_ == extensions or not _extend(axes, best):
                 break
     interior = {
-        gain_set: {name: min(grid[name]) < chosen[name] < max(grid[name]) for name in names}
+        gain_set: {name: min(axes[name]) < chosen[name] < max(axes[name]) for name in names}
         for gain_set, chosen in best.items()
     }
     seconds = time.perf_counter() - start
@@ -479,6 +495,23 @@ def _table(
     return pd.DataFrame(columns)
 
 
+@dataclass(frozen=True)
+class TuningStudy(Mapping[str, TuningResult]):
+    """Every controller's grid search, as :func:`tune_controllers` returns it: a read-only
+    mapping ``kind -> TuningResult`` in the order tuned (``results``)."""
+
+    results: Mapping[str, TuningResult]
+
+    def __getitem__(self, kind: str) -> TuningResult:
+        return self.results[kind]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.results)
+
+    def __len__(self) -> int:
+        return len(self.results)
+
+
 def tune_controllers(
     *,
     kinds: Sequence[str] = KINDS,
@@ -486,7 +519,7 @@ def tune_controllers(
     conditions: Sequence[Condition] = CONDITIONS,
     duration: float = TUNING_DURATION,
     progress: bool = False,
-) -> dict[str, TuningResult]:
+) -> TuningStudy:
     """:func:`tune` every controller of ``kinds``; returns ``kind -> TuningResult``."""
     grids = grids or {}
     results = {}
@@ -497,7 +530,7 @@ def tune_controllers(
                 kind, grid=grids.get(kind), conditions=conditions, duration=duration
             )
             bar.update()
-    return results
+    return TuningStudy(results)
 
 
 def write_gains(results: Mapping[str, TuningResult], path: str | Path | None = None) -> Path:
@@ -529,12 +562,7 @@ def write_gains(results: Mapping[str, TuningResult], path: str | Path | None = N
             "grid": {name: sorted(set(map(float, result.table[name]))) for name in GAIN_NAMES[kind]}
         }
         for gain_set, chosen in result.best.items():
-            entry: dict[str, Any] = dict(chosen)
-            if kind == "AROLC":
-                gains = arolc_gains(chosen["k"], chosen["zeta"], chosen["alpha"])
-                entry.update(K1=gains["K1"], K2=gains["K2"])
-            entry["interior"] = all(result.interior[gain_set].values())
-            section[gain_set] = entry
+            section[gain_set] = {**chosen, "interior": result.inside[gain_set]}
         section["columns"] = columns
         section["status"] = list(result.table["status"])
         section["rows"] = [[float(v) for v in row] for row in result.table[columns].to_numpy()]
@@ -607,10 +635,8 @@ def _check_chosen(record: Mapping[str, Any], where: str) -> None:
             try:
                 make_controller(kind, gains, h_bar=0.0)
             except (ValueError, TypeError) as error:
-                _refuse(
-                    where,
-                    f"{table} {gains_text(kind, gains)}: {kind} refuses these gains ({error})",
-                )
+                shown = gains_text(kind, _with_outer_loop_gains(kind, gains))
+                _refuse(where, f"{table} {shown}: {kind} refuses these gains ({error})")
 
 
 def _number(where: str, table: str, chosen: Mapping[str, Any], key: str, *, zero: bool) -> float:
@@ -671,15 +697,3 @@ def grid_table(kind: str, gain_set: str = "all", source: GainsSource = None) -> 
     table["status"] = section["status"]
     members = _members(record["condition_classes"], gain_set)
     return table.assign(objective=_objective(table, members))
-
-
-def gains_text(kind: str, gains: Mapping[str, float]) -> str:
-    """The gains of one chosen set as text (``κ = 8, k_b = 3 I, ϑ = 0.35 M̂⁻¹``)."""
-    if kind == "AROLC":
-        g = arolc_gains(gains["k"], gains["zeta"], gains["alpha"])
-        return (
-            f"k = {gains['k']:g}, ζ = {gains['zeta']:g} (K1 = {g['K1']:g} I, "
-            f"K2 = {g['K2']:g} I), α = {gains['alpha']:g}"
-        )
-    inverse = "M̂_r⁻¹" if kind == "PCON-wheel" else "M̂⁻¹"
-    return f"κ = {gains['kappa']:g}, k_b = {gains['k_b']:g} I, ϑ = {gains['c']:g} {inverse}"

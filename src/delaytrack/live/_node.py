@@ -26,6 +26,7 @@ import time
 from collections import deque
 from collections.abc import Iterator
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -42,6 +43,7 @@ from delaytrack.live.status import (
 from delaytrack.live.transport import Handshake, HandshakeError, open_session, scenario_hashes
 from delaytrack.sim.simulate import MAX_STEPS, physical_memory
 
+fcntl: ModuleType | None
 try:
     import fcntl
 except ImportError:  # Windows: the nodes sharing a folder claim it unlocked
@@ -231,8 +233,7 @@ def record_node_files(folder: Path) -> None:
 
 def load_scenario(source: str, trust: list[str]) -> Any:
     """A scenario file, or the name of a shipped scenario (``two_link_S1``)."""
-    from delaytrack.experiments import builtin_scenario_names, builtin_scenario_path
-    from delaytrack.experiments.scenario import Scenario
+    from delaytrack.scenario import Scenario, builtin_scenario_names, builtin_scenario_path
 
     path = Path(source)
     if not path.exists() and path.suffix != ".toml" and source in builtin_scenario_names():
@@ -373,7 +374,7 @@ def run_node(node_class: type[NodeBase], args: Any) -> int:
 
 
 def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
-    from delaytrack.experiments import ScenarioError
+    from delaytrack.scenario import ScenarioError
 
     try:
         scenario = load_scenario(args.scenario, list(args.trust))
@@ -422,7 +423,9 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
             if node.log is not None:
                 node.log.close()
         summary = node.outputs()
-        summary.update(handshake.clock_offset.summary())
+        offset = handshake.clock_offset
+        assert offset is not None  # the handshake agreed t0, so it knows the clock offset
+        summary.update(offset.summary())
         summary["realtime_priority"] = getattr(args, "realtime", None)
         summary["stopped_by"] = (
             signal.Signals(stop.signal).name

@@ -4,8 +4,8 @@
 (:func:`delaytrack.sim.integrator._rk4_substep`, with the plant's right-hand side
 :func:`~delaytrack.plants.base.el_rhs` inlined and the stages on the stack,
 :func:`~delaytrack.sim.integrator.rk4_memory`), compiled on its own for each plant kernel (whose
-numba type names the code, as for the engine's parts, :mod:`delaytrack.sim.native_parts`) and
-kept in numba's disk cache. The robot node calls the compiled code through its entry point
+numba type names the code, as for the engine's parts, :mod:`delaytrack._compile.native_parts`)
+and kept in numba's disk cache. The robot node calls the compiled code through its entry point
 (:func:`entry_point`): the argument types are fixed when it is compiled, so numba's type
 dispatch, which costs about 8 µs for a kernel and a tuple of arrays (more than the step itself),
 is skipped.
@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from numba import typeof, types
 
-from delaytrack._jit import tick_kernel
+from delaytrack._compile.jit import tick_kernel
 from delaytrack.sim.integrator import _rk4_substep, rk4_memory, rk4_workspace
 
 __all__ = ["entry_point", "live_plant_step", "step_signature"]

@@ -10,7 +10,7 @@ built by a factory in a Python file you name on the command line::
     delaytrack live robot SCENARIO --bridge my_robot.py:make_bridge ...
     delaytrack live run SCENARIO --bridge my_robot.py:make_bridge ...
 
-``make_bridge(scenario, dt)`` is called with the :class:`~delaytrack.experiments.Scenario` and
+``make_bridge(scenario, dt)`` is called with the :class:`~delaytrack.scenario.Scenario` and
 the robot's step ``dt`` in seconds, and returns a :class:`RobotBridge`. Naming the file on the
 command line is trusting it: its code runs with your rights, as a factory you pass with
 ``--trust``. :func:`load_bridge` loads and checks it (:class:`BridgeError` names ``--bridge``).

@@ -310,7 +310,7 @@ class ControllerNode(NodeBase):
         compute = [r[3] for r in rows]
         return {
             "ticks": len(rows),
-            "missed": getattr(self, "ticker", None).missed if hasattr(self, "ticker") else 0,
+            "missed": self.ticker.missed if hasattr(self, "ticker") else 0,
             "commands_sent": sum(1 for r in rows if r[6] != "no-state"),
             "no_state": sum(1 for r in rows if r[6] == "no-state"),
             "stale": sum(1 for r in rows if str(r[6]).startswith("stale")),

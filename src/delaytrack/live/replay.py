@@ -49,7 +49,7 @@ def replay(folder: str | Path, trust: list[str] | None = None) -> dict[str, Any]
 def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[str, Any], Any, Any]:
     """:func:`replay`'s agreement, the scenario and the replayed :class:`SimResult`."""
     from delaytrack.delays import TraceDelay
-    from delaytrack.experiments.scenario import Scenario
+    from delaytrack.scenario import Scenario
     from delaytrack.sim import simulate
     from delaytrack.sim.measurement import MeasurementNoise
     from delaytrack.sim.packet_loss import PacketLoss
@@ -100,7 +100,8 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     names = [k for k in next(iter(states.values())) if k not in ("j", "t_s")][:n]
     ticks = {int(r["k"]): r for r in read_rows(folder / "ticks.csv")}
     m = built.plant.m
-    rows, e_live, e_sim, u_live, u_sim = [], [], [], [], []
+    rows = []
+    live_errors, replayed_errors, live_commands, replayed_commands = [], [], [], []
     steps_per_tick = round(T_c / dt)
     for i, t in enumerate(sim_t):
         k = int(round(t / T_c))
@@ -111,12 +112,15 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
         e = qd - np.array([number(state[c]) for c in names])
         tick = ticks.get(k)
         u = np.array([number(tick[f"u{j + 1}"]) for j in range(m)]) if tick else np.full(m, np.nan)
-        e_live.append(e), e_sim.append(sim_e1[i]), u_live.append(u), u_sim.append(sim_u[i])
+        live_errors.append(e)
+        replayed_errors.append(sim_e1[i])
+        live_commands.append(u)
+        replayed_commands.append(sim_u[i])
         rows.append(
             [k, float(t), *e.tolist(), *sim_e1[i].tolist(), *u.tolist(), *sim_u[i].tolist()]
         )
-    e_live, e_sim = np.array(e_live), np.array(e_sim)
-    u_live, u_sim = np.array(u_live), np.array(u_sim)
+    e_live, e_sim = np.array(live_errors), np.array(replayed_errors)
+    u_live, u_sim = np.array(live_commands), np.array(replayed_commands)
     de, du = e_live - e_sim, u_live - u_sim
     # Each coordinate against its own live RMS error, in its own unit (metres and radians are
     # not added); the headline is the worst of them.
@@ -189,7 +193,7 @@ def _rms(values: np.ndarray) -> np.ndarray:
 def replay_main(args: Any) -> int:
     """The ``live replay`` command."""
     from delaytrack._output import record_outputs
-    from delaytrack.experiments import ScenarioError
+    from delaytrack.scenario import ScenarioError
 
     folder = Path(args.folder)
     if not (folder / "summary.json").is_file():

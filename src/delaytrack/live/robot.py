@@ -134,7 +134,7 @@ def _compile_stepper(plant: Any, announce: Any) -> None:
     first compile through ``announce``."""
     from numba import typeof, types
 
-    from delaytrack.sim.first_compile import code_ready
+    from delaytrack._compile.first_compile import code_ready
 
     vector = typeof(np.empty(1))
     signature = (types.float64, vector, vector, types.float64, vector, types.boolean)
@@ -150,11 +150,11 @@ def _compile_stepper(plant: Any, announce: Any) -> None:
 def _compiled_step(plant: Any, announce: Any) -> tuple[Any, Any]:
     """The compiled step's entry point for ``plant`` and its working memory (the first compile
     announced through ``announce``, then kept on disk)."""
-    from delaytrack.components import refuse_changed_globals
+    from delaytrack._compile.first_compile import code_ready
+    from delaytrack._compile.guards import refuse_changed_globals
+    from delaytrack._compile.stale_caches import compile_from_source
     from delaytrack.live._plant_step import entry_point, live_plant_step, step_signature
-    from delaytrack.sim.first_compile import code_ready
     from delaytrack.sim.integrator import rk4_workspace
-    from delaytrack.sim.stale_caches import compile_from_source
 
     kernel = plant.engine_kernel
     refuse_changed_globals(kernel)

@@ -122,10 +122,10 @@ def node_commands(
 def run_session(args: Any) -> int:
     """Run a session (module docstring); return the exit code."""
     from delaytrack._output import check_output_folder, claim_output_folder, record_outputs
-    from delaytrack.experiments import ScenarioError
     from delaytrack.live._node import missing_extra
     from delaytrack.live.bridge import bridge_factory
     from delaytrack.live.report import write_report
+    from delaytrack.scenario import ScenarioError
 
     if (problem := missing_extra()) is not None:
         print(f"error: {problem}", file=sys.stderr)
@@ -246,8 +246,8 @@ def collect_main(args: Any) -> int:
     session whose nodes were started one by one (on one machine, or on several, their folders'
     files copied into one), as ``live run`` writes them; ``live replay DIR`` then works."""
     from delaytrack._output import check_output_folder, record_outputs
-    from delaytrack.experiments import ScenarioError
     from delaytrack.live.report import write_report
+    from delaytrack.scenario import ScenarioError
 
     try:
         folder = check_output_folder(args.folder, "DIR")

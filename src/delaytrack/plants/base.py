@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import hot_inline_kernel, inline_kernel
+from delaytrack._compile.jit import hot_inline_kernel, inline_kernel
 from delaytrack._small_linalg import solve_mass_in_place
 from delaytrack.components import Kernel, call_terms, has_identity_mass, plant_sizes
 
@@ -73,17 +73,21 @@ class ELPlant(ABC):
     methods below evaluate the same kernel with a leading batch axis: ``q (batch, n)``.
     """
 
+    # The sizes, names and units below are set by a plant's class body when they are fixed (a
+    # plain assignment, so that a dataclass does not take them for fields) and by its
+    # constructor when they depend on the instance (a model file's joints).
+
     #: Number of generalised coordinates.
     n: int
     #: Number of actuator inputs.
     m: int
     #: Names of the coordinates in result tables (``ae_<name>``); None means ``q1 .. qn``.
-    coordinate_names: ClassVar[tuple[str, ...] | None] = None
+    coordinate_names: tuple[str, ...] | None = None
     #: Units of the coordinates (``"m"``, ``"rad"``) for figure axes and table columns; None
     #: when the plant does not say.
-    coordinate_units: ClassVar[tuple[str, ...] | None] = None
+    coordinate_units: tuple[str, ...] | None = None
     #: Units of the actuator inputs (``"N·m"``); None when the plant does not say.
-    input_units: ClassVar[tuple[str, ...] | None] = None
+    input_units: tuple[str, ...] | None = None
     #: True for a plant whose terms kernel always fills ``M(q) = I`` (a constrained robot
     #: integrated as ``q̈ = a + b τ``): the simulator then skips the solve for ``q̈``.
     identity_mass: ClassVar[bool] = False

@@ -8,6 +8,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from delaytrack._compile.functions import is_compiled
 from delaytrack._result_columns import trajectory_columns
 from delaytrack._validation import (
     as_spd_matrix,
@@ -16,7 +17,7 @@ from delaytrack._validation import (
     format_values,
     is_integer_at_least,
 )
-from delaytrack.components import Kernel, is_compiled
+from delaytrack.components import Kernel
 from delaytrack.kernel_arguments import check_kernel_arguments
 from delaytrack.plants.base import ELPlant
 
@@ -144,7 +145,7 @@ class CompiledPlant(ELPlant):
         n, m = self.n, self.m
         zero = np.zeros(n)
         try:
-            self.kernel.py_func(
+            self.kernel.py_func(  # type: ignore[attr-defined]  # a numba dispatcher's attribute
                 0.0,
                 zero,
                 zero.copy(),

@@ -7,7 +7,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import kernel
+from delaytrack._compile.jit import kernel
 from delaytrack._validation import as_spd_matrix, as_square_matrix, finite_array
 from delaytrack.plants.base import ELPlant
 
@@ -115,6 +115,9 @@ class LinearPlant(ELPlant):
         return linear_terms
 
     def to_spec(self) -> dict[str, Any]:
+        # Construction replaces a None matrix by its default.
+        assert self.damping is not None and self.stiffness is not None
+        assert self.input_map_matrix is not None
         return {
             "type": self.type_name,
             "mass": self.mass.tolist(),

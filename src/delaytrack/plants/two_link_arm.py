@@ -21,7 +21,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import kernel
+from delaytrack._compile.jit import kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
 
@@ -62,11 +62,11 @@ class TwoLinkArm(ELPlant):
     p3: float = 0.242
     fd1: float = 5.3
     fd2: float = 1.1
-    n: ClassVar[int] = 2
-    m: ClassVar[int] = 2
+    n = 2
+    m = 2
     type_name: ClassVar[str] = "two-link-arm"
-    coordinate_units: ClassVar[tuple[str, ...]] = ("rad", "rad")
-    input_units: ClassVar[tuple[str, ...]] = ("N·m", "N·m")
+    coordinate_units = ("rad", "rad")
+    input_units = ("N·m", "N·m")
 
     def __post_init__(self) -> None:
         for name in ("p1", "p2", "p3"):

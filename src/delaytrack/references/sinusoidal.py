@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from delaytrack._jit import kernel, tick_kernel
+from delaytrack._compile.jit import kernel, tick_kernel
 from delaytrack._validation import finite_array
 from delaytrack.references.base import Reference
 
@@ -106,7 +106,7 @@ class SinusoidalReference(Reference):
         object.__setattr__(self, "slope", slope)
         for name, array in harmonic.items():
             object.__setattr__(self, name, array)
-        packed = [[float(n), float(count)], offset, slope]
+        packed = [np.array([float(n), float(count)]), offset, slope]
         packed += [harmonic[name].ravel() for name in ("amplitude", "frequency", "phase")]
         object.__setattr__(self, "_params", np.concatenate(packed))
 
@@ -144,6 +144,9 @@ class SinusoidalReference(Reference):
 
     def to_spec(self) -> dict[str, Any]:
         """The parameters (the table of the default reference type, ``"sinusoidal"``)."""
+        # Construction replaces a None parameter by its default.
+        assert self.slope is not None and self.amplitude is not None
+        assert self.frequency is not None and self.phase is not None
         return {
             "offset": self.offset.tolist(),
             "slope": self.slope.tolist(),

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from delaytrack._compile.jit import tick_kernel
 from delaytrack._io import (
     check_column_unit,
     column_count,
@@ -29,7 +30,6 @@ from delaytrack._io import (
     csv_number,
     csv_table,
 )
-from delaytrack._jit import tick_kernel
 from delaytrack._validation import beyond_choice, finite_array
 from delaytrack.references.base import Reference
 
@@ -251,7 +251,8 @@ def _header_columns(
             )
     if columns is None:
         positions += [k for k in range(len(header)) if k != positions[0]]
-    names = [time_column, *(columns or [None] * (len(positions) - 1))]
+    unnamed: list[str | None] = [None] * (len(positions) - 1)
+    names = [time_column, *(columns or unnamed)]
     if len(positions) < 2:
         raise ValueError(
             f"{source}: the header row has no coordinate column besides the time; waypoints "

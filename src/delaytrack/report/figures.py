@@ -28,6 +28,8 @@ from delaytrack._io import atomic_path
 from delaytrack.units import default_names, labelled
 
 if TYPE_CHECKING:
+    from matplotlib.typing import HashableList
+
     from delaytrack.sim.result import SimResult
 
 __all__ = [
@@ -303,8 +305,8 @@ def margins_figure(
     width = 0.8 / len(margins)
     positions = np.arange(len(groups))
     for k, (label, values) in enumerate(margins.items()):
-        values = np.asarray(values, dtype=float)
-        ax.bar(positions + (k - (len(margins) - 1) / 2) * width, values, width, label=label)
+        heights = np.asarray(values, dtype=float)
+        ax.bar(positions + (k - (len(margins) - 1) / 2) * width, heights, width, label=label)
     ax.set_yscale("log")
     ax.set_xticks(positions, groups, rotation=30, ha="right", fontsize="small")
     ax.set_ylabel("delay margin (s)")
@@ -402,7 +404,8 @@ def overview_figure(result: SimResult, run: int = 0) -> Figure:
     shown = ["c_hat"] if "c_hat" in states else states[:4]
     coordinates = _largest(result.e1[run])
     drawn_inputs = _largest(result.commands[run])
-    rows = [[f"q{j}", f"e{j}"] for j in coordinates] + [["u", "u"], ["h", "h"]]
+    rows: list[HashableList[str]] = [[f"q{j}", f"e{j}"] for j in coordinates]
+    rows += [["u", "u"], ["h", "h"]]
     if shown:
         rows.append(["state", "state"])
     figure = Figure(figsize=(10.0, 1.9 * len(rows) + 1.0), dpi=_DPI, layout="constrained")

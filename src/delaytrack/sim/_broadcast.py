@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -17,7 +17,7 @@ _T = TypeVar("_T")
 def as_batch(name: str, value: _T | Sequence[_T], kind: type) -> list[_T]:
     """``value`` as a list (a list or tuple of items, or one item), each an instance of
     ``kind``; refusals name the argument ``name``."""
-    items = list(value) if isinstance(value, list | tuple) else [value]
+    items: list[Any] = list(value) if isinstance(value, list | tuple) else [value]  # checked below
     if not items:
         raise ValueError(f"{name} must not be empty")
     for i, item in enumerate(items):

@@ -128,7 +128,7 @@ def check_controller_at_x0(
         t0,
         q,
         qdot,
-        tuple(np.zeros((3, n))),
+        (np.zeros(n), np.zeros(n), np.zeros(n)),
         controller.initial_state(),
         T_c=T_c,
         h=float(delay.h(t0)),

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import re
 
-from delaytrack.components import Kernel, compiled_functions_reached
+from delaytrack._compile.fingerprint import compiled_functions_reached
+from delaytrack.components import Kernel
 
 __all__ = ["could_not_compile", "numba_cause", "raised_during_the_run", "raised_in_code_of"]
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from delaytrack._compile.guards import refuse_random_draws
 from delaytrack._result_columns import trajectory_columns
 from delaytrack._validation import (
     finite_array,
@@ -20,7 +21,7 @@ from delaytrack._validation import (
     positive_scalar,
     real_array,
 )
-from delaytrack.components import Kernel, refuse_random_draws
+from delaytrack.components import Kernel
 from delaytrack.controllers.base import Controller
 from delaytrack.delays._kernel import NO_KERNEL
 from delaytrack.delays.base import DelayProfile
@@ -315,28 +316,29 @@ def _check_one_kind(
     take the arguments the engine passes, and names that make one table."""
     first_plant, first_controller = plants[0], controllers[0]
     n, m = first_plant.n, first_plant.m
-    for i, item in enumerate(plants):
-        if type(item) is not type(first_plant) or (item.n, item.m) != (n, m):
+    for i, plant in enumerate(plants):
+        if type(plant) is not type(first_plant) or (plant.n, plant.m) != (n, m):
             raise ValueError(
                 f"plant[{i}] must be a {type(first_plant).__name__} with n = {n}, m = {m}"
             )
-        _check_same_kernel(f"plant[{i}]", item, first_plant)
-    for i, item in enumerate(controllers):
-        if item.step_kernel is not first_controller.step_kernel or type(item.model) is not type(
-            first_controller.model
-        ):
+        _check_same_kernel(f"plant[{i}]", plant, first_plant)
+    for i, controller in enumerate(controllers):
+        if controller.step_kernel is not first_controller.step_kernel or type(
+            controller.model
+        ) is not type(first_controller.model):
             raise ValueError(
                 f"controller[{i}] must be of the same kind as controller[0] "
                 "(with the same model type)"
             )
-        if (item.n, item.m) != (n, m):
+        if (controller.n, controller.m) != (n, m):
             raise ValueError(
-                f"controller[{i}] has n = {item.n}, m = {item.m}; the plant has n = {n}, m = {m}"
+                f"controller[{i}] has n = {controller.n}, m = {controller.m}; the plant has "
+                f"n = {n}, m = {m}"
             )
-        _check_same_kernel(f"controller[{i}].model", item.model, first_controller.model)
-        if item.state_size != first_controller.state_size:
+        _check_same_kernel(f"controller[{i}].model", controller.model, first_controller.model)
+        if controller.state_size != first_controller.state_size:
             raise ValueError(
-                f"controller[{i}] keeps {item.state_size} state numbers and controller[0] "
+                f"controller[{i}] keeps {controller.state_size} state numbers and controller[0] "
                 f"{first_controller.state_size}: a batch stacks them, so they must be equal "
                 "(a predictor's state is sized by its history: give every one the same history)"
             )
@@ -353,7 +355,7 @@ def _check_one_kind(
     )
 
 
-def _initial_states(x0: object, n: int) -> np.ndarray:
+def _initial_states(x0: np.ndarray, n: int) -> np.ndarray:
     """``x0`` checked, as rows ``(rows, 2n)``."""
     states0 = finite_array("x0", x0)
     if states0.ndim == 1:
@@ -531,7 +533,12 @@ def _check_horizons(
             f"reference ({type(reference).__name__}) starts at t = {reference.start:g} s, after "
             f"the run's start t0 = {t0:g} s; give it a sample at or before t0"
         )
-    for name, items in (("delay", delays), ("plant", plants), ("reference", [reference])):
+    components: tuple[tuple[str, Sequence[DelayProfile | ELPlant | Reference]], ...] = (
+        ("delay", delays),
+        ("plant", plants),
+        ("reference", [reference]),
+    )
+    for name, items in components:
         for i, item in enumerate(items):
             if item.horizon < t1 * (1.0 - 1e-12):
                 raise ValueError(

@@ -11,7 +11,7 @@ The engine takes its arguments by name: :class:`Kernels`, :class:`Run` (with a l
 axis for :func:`run_batch`, which hands :func:`run_closed_loop` one row of it), :class:`Settings`
 and :class:`Records`. numba compiles named tuples as it compiles tuples (each field keeps its own
 type), so ``run.x0`` costs what ``run[6]`` did. They are defined here, in a file of compiled code,
-so that an edit to them changes the disk cache's key (:mod:`delaytrack._numba_cache`).
+so that an edit to them changes the disk cache's key (:mod:`delaytrack._compile.disk_cache`).
 
 All functions are written once and run either compiled (every kernel numba-compiled) or as plain
 Python (a user plant given as Python callables): see :mod:`delaytrack.sim.simulate`.
@@ -23,7 +23,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from delaytrack._jit import borrowing_kernel, compiled, inline_kernel
+from delaytrack._compile.jit import borrowing_kernel, compiled, inline_kernel
 from delaytrack.components import call_reference, call_step
 from delaytrack.controllers.base import step_workspace
 from delaytrack.delays._kernel import delay_at
@@ -73,9 +73,9 @@ class Kernels(NamedTuple):
     """The components' kernels (:class:`~delaytrack.components.Kernel`), as the engine calls them.
 
     In the compiled engine ``plant_step``, ``reference``, ``controller_step`` and ``delay`` are
-    :class:`~delaytrack._native_call.NativeFunction` objects, each compiled for its component
-    and called through its address (:mod:`delaytrack.sim.native_parts`), and ``model_terms`` is
-    not read.
+    :class:`~delaytrack._compile.native_call.NativeFunction` objects, each compiled for its
+    component and called through its address (:mod:`delaytrack._compile.native_parts`), and
+    ``model_terms`` is not read.
     """
 
     #: The plant's kernel (compiled: its integrator, bound to it).
@@ -93,6 +93,9 @@ class Kernels(NamedTuple):
 class Run(NamedTuple):
     """One run's arrays (or, with a leading batch axis on each, a batch's).
 
+    Python builds a batch's only, so each field is typed as an array; in one run's, built by
+    the engine, ``delay_kind``, ``capacity`` and ``records_reference`` are numbers.
+
     The actuators apply each command saturated to ``[-input_limits, input_limits]``: the
     history holds the saturated commands, the record ``commands`` what the controller issued.
     """
@@ -105,14 +108,14 @@ class Run(NamedTuple):
     controller_params: np.ndarray
     #: The controller's state, advanced in place.
     controller_state: np.ndarray
-    #: The delay profile's kind (:mod:`delaytrack.delays._kernel`).
-    delay_kind: np.int64
+    #: The delay profile's kind (:mod:`delaytrack.delays._kernel`), int64.
+    delay_kind: np.ndarray
     #: The delay profile's parameters.
     delay_params: np.ndarray
     #: The initial state ``[q(t0), q̇(t0)]`` (2n,).
     x0: np.ndarray
-    #: Commands the history keeps (:func:`~delaytrack.sim.history.history_capacity`).
-    capacity: np.int64
+    #: Commands the history keeps (:func:`~delaytrack.sim.history.history_capacity`), int64.
+    capacity: np.ndarray
     #: Actuator limits (m,), ``inf`` for none.
     input_limits: np.ndarray
     #: What the controller reads (:func:`~delaytrack.sim.measurement.measure`), (3n + 1,).
@@ -121,8 +124,8 @@ class Run(NamedTuple):
     #: (:func:`~delaytrack.sim.packet_loss.packet_lost`): the actuators keep the latest
     #: command they received.
     loss: np.ndarray
-    #: Whether this run records the reference it computes (one run per batch).
-    records_reference: np.bool_
+    #: Whether this run records the reference it computes (one run per batch), bool.
+    records_reference: np.ndarray
 
 
 class Settings(NamedTuple):
@@ -219,9 +222,9 @@ def run_closed_loop(handles, run, settings, records):
 def _run_ticks(handles, run, settings, records, memory):
     """The tick loop of :func:`run_closed_loop`, in the working ``memory`` it allocated.
 
-    Compiled without reference counts (:data:`delaytrack._jit.borrowing_kernel`): with them, the
-    arrays handed to the controller's step, the reference and the metrics at every tick cost
-    about 44 atomic operations a tick, 8 % of a robot run's time.
+    Compiled without reference counts (:data:`delaytrack._compile.jit.borrowing_kernel`): with
+    them, the arrays handed to the controller's step, the reference and the metrics at every
+    tick cost about 44 atomic operations a tick, 8 % of a robot run's time.
     """
     states, commands, applied, delays, controller_states, sums = records
     x, history, work, desired, commands_now, controller_work, measured = memory
@@ -361,6 +364,7 @@ def run_batch(handles, runs, settings, records, status, t_stop):
 
 #: :func:`run_batch` compiled and cached on disk. The plant's step, the reference, the
 #: controller's step and the delay profile are passed by the address of their own compiled code
-#: (:mod:`delaytrack.sim.native_parts`), so one engine serves every combination of components.
+#: (:mod:`delaytrack._compile.native_parts`), so one engine serves every combination of
+#: components.
 #: It releases the GIL, so threads run sub-batches in parallel.
 run_batch_compiled = compiled(run_batch, nogil=True)

@@ -29,7 +29,7 @@ class PythonFallbackWarning(UserWarning):
     def warn(cls, plant: Any, controller: Any, reference: Any) -> None:
         """Issue :meth:`describe`'s warning at the user's line: the first caller outside this
         package (``simulate`` may be reached through a scenario, a sweep or the command line)."""
-        frame = sys._getframe(1)  # stack level 2 (level 1 is this method)
+        frame: FrameType | None = sys._getframe(1)  # stack level 2 (level 1 is this method)
         level = 2
         while frame is not None and _in_package(frame):
             frame = frame.f_back

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from delaytrack._jit import inline_kernel
+from delaytrack._compile.jit import inline_kernel
 
 __all__ = ["history_capacity", "latest_tick_index", "latest_tick_index_from", "tick_time"]
 

@@ -27,8 +27,8 @@ step then takes effect at the next step.
 This is the innermost loop of every simulation: nothing here allocates (the working memory is
 :func:`rk4_workspace`, made once per run, or, for the stages, arrays on the stack:
 :func:`rk4_memory`), and :func:`integrate_tick` is compiled without
-reference counting (:data:`delaytrack._jit.tick_kernel`). It is compiled on its own for each
-plant and called by the engine through its address (:func:`integrate`), so that the engine's
+reference counting (:data:`delaytrack._compile.jit.tick_kernel`). It is compiled on its own for
+each plant and called by the engine through its address (:func:`integrate`), so that the engine's
 tick loop is compiled once for every plant.
 """
 
@@ -39,10 +39,11 @@ import math
 import numpy as np
 from numba.extending import overload
 
-from delaytrack._jit import hot_inline_kernel, inline_kernel, tick_kernel
-from delaytrack._native_call import NativeFunctionType, call_native
-from delaytrack._stack_arrays import MOST_STACK_ENTRIES, stack_matrix, stack_vector
-from delaytrack.components import KernelType, call_stepper, has_stepper, plant_sizes
+from delaytrack._compile.jit import hot_inline_kernel, inline_kernel, tick_kernel
+from delaytrack._compile.kernel_type import KernelType
+from delaytrack._compile.native_call import NativeFunctionType, call_native
+from delaytrack._compile.stack_arrays import MOST_STACK_ENTRIES, stack_matrix, stack_vector
+from delaytrack.components import call_stepper, has_stepper, plant_sizes
 from delaytrack.delays._kernel import (
     PIECEWISE_CONSTANT,
     next_breakpoint,
@@ -134,8 +135,8 @@ def rk4_memory(plant_terms, work):
 
     Compiled, for a plant whose sizes ``(n, m)`` are known when compiling, the slopes, the stage
     state and the plant's ``M, N, G`` are arrays on the stack of :func:`integrate_tick`
-    (:mod:`delaytrack._stack_arrays`), and only ``profile``, which lasts from one tick to the
-    next, is taken from ``work`` (:func:`rk4_workspace`); otherwise ``work`` itself. The stage
+    (:mod:`delaytrack._compile.stack_arrays`), and only ``profile``, which lasts from one tick to
+    the next, is taken from ``work`` (:func:`rk4_workspace`); otherwise ``work`` itself. The stage
     arrays hold nothing between calls, so the two give the same numbers. ``M, N, G`` on the
     stack are zeroed at each call (once a tick), so that an entry a kernel leaves unwritten is
     the same in every run, not what the stack held (a kernel that writes every entry, as the
@@ -418,9 +419,10 @@ def integrate(plant_step, delay, arguments):
 
     In the compiled engine ``plant_step`` is :func:`integrate_tick` compiled for the plant's
     kernel and the batch's delay kernel, called through its address with both kernels bound
-    (:class:`~delaytrack._native_call.NativeFunction`, :mod:`delaytrack.sim.native_parts`), so
-    that the engine is not compiled again for each plant, and ``delay`` is not read; in the
-    plain-Python engine it is the plant's :class:`~delaytrack.components.Kernel`, run as Python.
+    (:class:`~delaytrack._compile.native_call.NativeFunction`,
+    :mod:`delaytrack._compile.native_parts`), so that the engine is not compiled again for each
+    plant, and ``delay`` is not read; in the plain-Python engine it is the plant's
+    :class:`~delaytrack.components.Kernel`, run as Python.
     """
     return integrate_tick.py_func(plant_step, delay, *arguments)
 

@@ -21,8 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from delaytrack._compile.jit import hot_kernel
 from delaytrack._counter_noise import standard_noise
-from delaytrack._jit import hot_kernel
 from delaytrack._validation import is_integer_at_least
 
 __all__ = ["MAX_SEED", "MeasurementNoise", "measure"]

@@ -18,8 +18,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from delaytrack._compile.jit import hot_kernel
 from delaytrack._counter_noise import uniform
-from delaytrack._jit import hot_kernel
 from delaytrack._validation import is_integer_at_least
 
 __all__ = ["MAX_SEED", "PacketLoss", "packet_lost"]

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from delaytrack._jit import inline_kernel
+from delaytrack._compile.jit import inline_kernel
 
 __all__ = ["accumulate_tick", "accumulator_size", "finish_metrics"]
 

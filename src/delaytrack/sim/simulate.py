@@ -1,8 +1,8 @@
 """``simulate``: the one verb that runs closed loops.
 
 It runs in four stages, each a module of its own: prepare (:mod:`delaytrack.sim._plan`: check,
-spread over the batch, budget the memory), build (:mod:`delaytrack.sim._build`: the engine and
-its parts; :mod:`delaytrack.sim._compile`: compile them), execute
+spread over the batch, budget the memory), build (:mod:`delaytrack.sim._build`: the engine,
+compiled or plain Python; :mod:`delaytrack._compile`: compile it and its parts), execute
 (:mod:`delaytrack.sim._execute`: chunks on threads) and collect (:mod:`delaytrack.sim._collect`:
 the :class:`~delaytrack.sim.result.SimResult`).
 """
@@ -14,6 +14,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from delaytrack._compile import compile_engine
 from delaytrack.controllers.base import Controller
 from delaytrack.delays.base import DelayProfile
 from delaytrack.plants.base import ELPlant
@@ -21,7 +22,6 @@ from delaytrack.references import Reference
 from delaytrack.sim import _arrays
 from delaytrack.sim._build import build
 from delaytrack.sim._collect import collect
-from delaytrack.sim._compile import compile_parts
 from delaytrack.sim._execute import cut, execute
 from delaytrack.sim._machine import available_cores, physical_memory
 from delaytrack.sim._plan import MAX_STEPS, announce, prepare
@@ -173,7 +173,7 @@ def simulate(
         built, _arrays.runs(plan), _arrays.settings(plan, reference_record), records, progress
     )
     natives = (
-        compile_parts(built, lambda probes: chunks.arguments(0, probes)) if built.compiled else ()
+        compile_engine(built, lambda probes: chunks.arguments(0, probes)) if built.compiled else ()
     )
     execute(chunks, natives, progress)
     return collect(chunks)

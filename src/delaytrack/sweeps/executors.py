@@ -71,11 +71,16 @@ WORKERS_PER_CORE = 4
 class _WorkersError(SweepError, ArgumentError):
     """A :class:`SweepError` about ``workers``, carrying the argument (``argument``)."""
 
+    #: Always given (``ArgumentError.__init__``), unlike a ``SweepError``'s.
+    problem: str
+
 
 def checked_workers(workers: int | None) -> int | None:
     """``workers`` (threads or local worker processes) checked: None, or 1 to
     :data:`WORKERS_PER_CORE` per available core."""
-    if workers is not None and not is_integer_at_least(workers, 1):
+    # Tested outside the `if`, whose test would widen workers to NumPy's integers for mypy.
+    positive = workers is None or is_integer_at_least(workers, 1)
+    if not positive:
         raise _WorkersError("workers", f"must be a positive integer or None; got {workers!r}")
     most = WORKERS_PER_CORE * available_cores()
     if workers is not None and workers > most:

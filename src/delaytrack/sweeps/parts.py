@@ -137,9 +137,9 @@ def run_unit(unit: Unit, *, workers: int | None = None) -> pd.DataFrame:
     for run in unit.runs:
         groups.setdefault(_batch_key(run), []).append(run)
     metrics = {}
-    for runs in groups.values():
-        frame = _simulate_batch(runs, workers)
-        for run, (_, row) in zip(runs, frame.iterrows(), strict=True):
+    for batch in groups.values():
+        frame = _simulate_batch(batch, workers)
+        for run, (_, row) in zip(batch, frame.iterrows(), strict=True):
             metrics[run.index] = row
     runs = unit.runs
     columns: dict[str, Any] = {"run": [run.index for run in runs]}
@@ -233,13 +233,14 @@ def finished_units(folder: str | Path, spec: SweepSpec) -> PartsScan:
     """
     folder = Path(folder)
     units = {unit.part_name: unit for unit in spec.units()}
-    finished = set()
-    rejected = {}
+    finished: set[int] = set()
+    rejected: dict[str, str] = {}
     for path in sorted(folder.glob("part-*.parquet")):
         unit = units.get(path.name)
-        reason = "not a part of this spec (another spec or package version)"
-        if unit is not None:
-            reason = _check_part(path, unit)
+        if unit is None:
+            rejected[path.name] = "not a part of this spec (another spec or package version)"
+            continue
+        reason = _check_part(path, unit)
         if reason is None:
             finished.add(unit.index)
         else:

@@ -21,14 +21,14 @@ A key is a top-level scenario key (``duration``, ``seed``, ...), a table name (`
 value replaces the whole table) or a dotted ``table.key`` (``controller.K1``: the value replaces
 one key of the table, after any whole-table replacement; also ``measurement_noise.seed`` and
 ``packet_loss.seed`` when the run has that table). Every run is validated as a
-:class:`~delaytrack.experiments.Scenario` when the spec is loaded; a refusal names the sweep key
+:class:`~delaytrack.scenario.Scenario` when the spec is loaded; a refusal names the sweep key
 (``grid."controller.K9" = 1.0 (run 0): unknown key 'controller.K9' in scenario; ...``).
 
 A table's ``type`` may name a factory of yours (``"python:<file.py>:<function>"``, the file
 relative to the file that names it, or ``"python:<module>:<function>"``). A factory is Python code
 that runs with your rights: one named in the sweep file must be a ``.py`` file in its folder or
 below it, one named in the scenario file a ``.py`` file in that file's folder or below it, unless
-you trust it (``--trust``, ``trust=``; see :mod:`delaytrack.experiments.scenario`).
+you trust it (``--trust``, ``trust=``; see :mod:`delaytrack.scenario`).
 
 Run ``i`` is grid point ``i // draws`` with draw ``i % draws`` (one draw without ``[random]``).
 Draws of a key come from ``numpy.random.default_rng([seed, *key.encode()])``: they depend on the
@@ -52,20 +52,19 @@ from typing import Any
 import numpy as np
 from tqdm.auto import tqdm
 
-from delaytrack._numba_cache import source_hash
+from delaytrack._compile.disk_cache import source_hash
 from delaytrack._trust import Trust
 from delaytrack._validation import is_integer_at_least
 from delaytrack._version import __version__
-from delaytrack.experiments.scenario import (
+from delaytrack.scenario import (
     BuiltScenario,
     Scenario,
     ScenarioError,
     builtin_scenario_names,
     builtin_scenario_path,
-    read_toml_file,
-    remembered_tables,
-    resolve_file_keys,
 )
+from delaytrack.scenario.files import read_toml_file, resolve_file_keys
+from delaytrack.scenario.table_memory import remembered_tables
 from delaytrack.units import default_names
 
 __all__ = ["DISTRIBUTIONS", "MAX_RUNS", "Run", "SweepError", "SweepSpec", "Unit"]
@@ -237,13 +236,13 @@ class Unit:
                 f"unit {index} comes from delaytrack {version} (version+source hash); this "
                 f"process has {code_version()}: install the same code on every Dask worker"
             )
-        runs = []
+        rebuilt: list[Run] = []
         with remembered_tables():
             for run in payload["runs"]:
                 scenario = Scenario.from_dict(run["scenario"])
                 values = MappingProxyType(run["values"])
-                runs.append(Run.of(run["index"], values, scenario, scenario.build()))
-        runs = tuple(runs)
+                rebuilt.append(Run.of(run["index"], values, scenario, scenario.build()))
+        runs = tuple(rebuilt)
         unit = cls(index, runs, _unit_hash(runs, version))
         if unit.hash != payload["hash"]:
             raise SweepError(
@@ -288,8 +287,9 @@ RESULT_FILES = (
 
 
 def code_version() -> str:
-    """The package version, the hash of its compiled code (:func:`_numba_cache.source_hash`) and
-    of :data:`RESULT_FILES`; with :func:`engine_inputs`, what a part's numbers depend on."""
+    """The package version, the hash of its compiled code
+    (:func:`~delaytrack._compile.disk_cache.source_hash`) and of :data:`RESULT_FILES`; with
+    :func:`engine_inputs`, what a part's numbers depend on."""
     digest = hashlib.sha256(source_hash().encode())
     package = Path(__file__).resolve().parents[1]
     for name in RESULT_FILES:
@@ -412,7 +412,7 @@ def _metrics_list(value: object) -> tuple[str, ...] | None:
 def _positive_int(key: str, value: object) -> int:
     if not is_integer_at_least(value, 1):
         raise SweepError(f"sweep key {key!r} must be a positive integer; got {value!r}")
-    return value
+    return int(value)
 
 
 @dataclass(frozen=True)
@@ -522,7 +522,7 @@ class SweepSpec:
             grid=MappingProxyType(checked_grid),
             random=MappingProxyType(copy.deepcopy(dict(random))),
             draws=draws,
-            seed=seed,
+            seed=int(seed),
             unit_size=_positive_int("unit_size", data["unit_size"]),
             metrics=_metrics_list(data.get("metrics")),
             progress=progress,
@@ -582,7 +582,7 @@ class SweepSpec:
             )
         drawn = {key: _draw(key, dist, self.draws, self.seed) for key, dist in self.random.items()}
         base = self.base.to_dict()
-        runs = []
+        runs: list[Run] = []
         bar = tqdm(
             total=count, desc="checking runs", unit="run", disable=not self.progress, delay=1
         )

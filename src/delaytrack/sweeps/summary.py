@@ -28,7 +28,7 @@ or without the metrics' units, :func:`~delaytrack.sweeps.report.with_units`).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import pandas as pd
@@ -51,7 +51,7 @@ DIVERGED_STATUSES = ("diverged", "left the path")
 #: Upper edges (s) of the ``h_max`` bands of a delay class; above the last: ``> 1000 ms``.
 DELAY_BAND_EDGES: tuple[float, ...] = (0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 1.0)
 #: Statistic suffix -> function of the ``ok`` runs' values.
-STATISTICS = dict(
+STATISTICS: dict[str, Callable[[np.ndarray], float]] = dict(
     zip(
         SUMMARY_STATISTICS,
         (np.mean, np.median, lambda values: np.percentile(values, 95.0), np.max),

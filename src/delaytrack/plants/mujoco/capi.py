@@ -43,7 +43,10 @@ def _library(folder: str) -> ctypes.CDLL:
 def function_address(mujoco: Any, name: str) -> int:
     """Address of MuJoCo's C function ``name`` (of the library its package ``mujoco`` loaded)."""
     function = getattr(_library(os.path.dirname(mujoco.__file__)), name)
-    return int(ctypes.cast(function, ctypes.c_void_p).value)
+    address = ctypes.cast(function, ctypes.c_void_p).value
+    if address is None:  # ctypes gives a null pointer's address as None
+        raise ImportError(f"MuJoCo's C function {name} has a null address")
+    return address
 
 
 def call_void2(function, first, second):

@@ -35,8 +35,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from delaytrack._compile.jit import kernel
 from delaytrack._io import regular_file
-from delaytrack._jit import kernel
 from delaytrack._result_columns import trajectory_columns
 from delaytrack._validation import as_spd_matrix, positive_scalar
 from delaytrack.plants.base import ELPlant
@@ -565,16 +565,19 @@ def _model_joint_names(mujoco: Any, model: Any) -> set[str]:
     return {unicodedata.normalize("NFKC", name) for name in named if name}
 
 
-def _names_problem(names: tuple[str | None, ...], units: tuple[str, ...], m: int) -> str | None:
+def _names_problem(
+    names: tuple[str | None, ...], identifiers: tuple[str, ...], units: tuple[str, ...], m: int
+) -> str | None:
     """Why the joints' names cannot name the coordinates in results, or None when they can:
     different identifiers whose columns are all different (joints ``a`` and ``a_d`` are not:
-    ``a``'s reference and ``a_d``'s angle are both ``a_d_rad``)."""
-    unnamed = [repr(name) for name in names if not (name and name.isidentifier())]
-    if unnamed:
+    ``a``'s reference and ``a_d``'s angle are both ``a_d_rad``). ``identifiers`` are the
+    ``names`` that are identifiers, in order."""
+    if len(identifiers) < len(names):
+        unnamed = [repr(name) for name in names if name not in identifiers]
         verb = "is not a name" if len(unnamed) == 1 else "are not names"
         return f"{', '.join(unnamed)} {verb} of letters, digits and '_'"
     try:
-        trajectory_columns(names, units, len(names), None, m)
+        trajectory_columns(identifiers, units, len(identifiers), None, m)
     except ValueError:
         return "two of their result columns would share a name"
     return None
@@ -590,9 +593,10 @@ def _coordinate_names(
     """The joints' ``names`` when they can name the coordinates, else ``q1 .. qn`` with the
     prefix repeated until none is one of the model's joint names ``taken``, announced with a
     :class:`JointNamesWarning` (:class:`MujocoPlant`)."""
-    problem = _names_problem(names, units, m)
+    identifiers = tuple(name for name in names if name and name.isidentifier())
+    problem = _names_problem(names, identifiers, units, m)
     if problem is None:
-        return tuple(names)
+        return identifiers
     prefix = "q"
     while any(f"{prefix}{i}" in taken for i in range(1, len(names) + 1)):
         prefix += "q"

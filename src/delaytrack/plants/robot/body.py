@@ -78,11 +78,13 @@ class RobotBody:
     wheel_spin_inertia: float = P3DX.wheel_spin_inertia
     com_forward: float | None = None
     com_lateral: float = 0.0
+    # The sizes, names and units of the robot plants built on this body, typed as ELPlant
+    # declares them (a plant's names may be None).
     n: ClassVar[int] = 5
     m: ClassVar[int] = 2
-    coordinate_names: ClassVar[tuple[str, ...]] = COORDINATES
-    coordinate_units: ClassVar[tuple[str, ...]] = COORDINATE_UNITS
-    input_units: ClassVar[tuple[str, ...]] = INPUT_UNITS
+    coordinate_names: ClassVar[tuple[str, ...] | None] = COORDINATES
+    coordinate_units: ClassVar[tuple[str, ...] | None] = COORDINATE_UNITS
+    input_units: ClassVar[tuple[str, ...] | None] = INPUT_UNITS
 
     def _check_body(self) -> None:
         for name in ("wheel_radius", "half_track", "mass", "yaw_inertia", "wheel_spin_inertia"):
@@ -91,8 +93,10 @@ class RobotBody:
             self, "wheel_mass", positive_scalar("wheel_mass", self.wheel_mass, strictly=False)
         )
         object.__setattr__(self, "d", finite_scalar("d", self.d))
-        forward = self.d if self.com_forward is None else self.com_forward
-        object.__setattr__(self, "com_forward", finite_scalar("com_forward", forward))
+        forward = finite_scalar(
+            "com_forward", self.d if self.com_forward is None else self.com_forward
+        )
+        object.__setattr__(self, "com_forward", forward)
         object.__setattr__(self, "com_lateral", finite_scalar("com_lateral", self.com_lateral))
         if not 2.0 * self.wheel_mass < self.mass:
             raise ValueError(
@@ -102,7 +106,7 @@ class RobotBody:
         platform = self.mass - 2.0 * self.wheel_mass
         own = (
             self.yaw_inertia
-            - platform * (self.com_forward**2 + self.com_lateral**2)
+            - platform * (forward**2 + self.com_lateral**2)
             - 2.0 * self.wheel_mass * self.half_track**2
         )
         if own < 0.0:
@@ -119,6 +123,7 @@ class RobotBody:
 
     def body_params(self) -> np.ndarray:
         """``[R, L, d, M_b, s_x, s_y, I_A, I_w]`` (module docstring)."""
+        assert self.com_forward is not None  # construction sets it (d when not given)
         return np.array(
             [
                 self.wheel_radius,

@@ -27,7 +27,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import kernel
+from delaytrack._compile.jit import kernel
 from delaytrack.plants.mujoco.capi import write_at
 from delaytrack.plants.mujoco.plant import MujocoPlant, extras_start, import_mujoco, mujoco_step
 from delaytrack.plants.robot.body import COORDINATES, INPUT_UNITS
@@ -98,7 +98,7 @@ class MujocoWheeledRobot(PayloadSchedule, MujocoPlant):
     coordinates: tuple[str, ...] | None = COORDINATES
     _schedule: np.ndarray | None = field(init=False, repr=False)
     type_name: ClassVar[str] = "wheeled-robot-mujoco"
-    input_units: ClassVar[tuple[str, ...]] = INPUT_UNITS
+    input_units = INPUT_UNITS
 
     def __post_init__(self) -> None:
         if self.stepping != "mujoco":

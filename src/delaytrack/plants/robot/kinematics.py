@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from delaytrack._jit import hot_kernel, kernel
+from delaytrack._compile.jit import hot_kernel, kernel
 
 __all__ = [
     "constraint_matrix",

@@ -31,7 +31,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import hot_kernel
+from delaytrack._compile.jit import hot_kernel
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.robot.body import RobotBody
 from delaytrack.plants.robot.kinematics import robot_command_map

@@ -33,7 +33,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import hot_kernel
+from delaytrack._compile.jit import hot_kernel
 from delaytrack._validation import (
     beyond_choice,
     finite_array,
@@ -274,11 +274,11 @@ class PayloadRobot(PayloadSchedule, ConstrainedRobotPhysics, ELPlant):
 
     robot: WheeledRobot = field(default_factory=WheeledRobot)
     _params: np.ndarray = field(init=False, repr=False)
-    n: ClassVar[int] = 5
-    m: ClassVar[int] = 2
-    coordinate_names: ClassVar[tuple[str, ...]] = COORDINATES
-    coordinate_units: ClassVar[tuple[str, ...]] = COORDINATE_UNITS
-    input_units: ClassVar[tuple[str, ...]] = INPUT_UNITS
+    n = 5
+    m = 2
+    coordinate_names = COORDINATES
+    coordinate_units = COORDINATE_UNITS
+    input_units = INPUT_UNITS
     type_name: ClassVar[str] = "wheeled-robot-payload"
     identity_mass: ClassVar[bool] = True
 
@@ -294,19 +294,25 @@ class PayloadRobot(PayloadSchedule, ConstrainedRobotPhysics, ELPlant):
         return self._params
 
     @property
+    def _points(self) -> np.ndarray:
+        """``placements`` (k, 2), which construction sets whether given or drawn."""
+        assert self.placements is not None
+        return self.placements
+
+    @property
     def terms_kernel(self):
         return robot_payload_terms
 
     @property
     def horizon(self) -> float:
         """End of the schedule, ``first_on + k (time_on + time_off)`` (``inf`` with ``hold``)."""
-        return self._schedule_horizon(len(self.placements))
+        return self._schedule_horizon(len(self._points))
 
     def to_spec(self) -> dict[str, Any]:
         return {
             "type": self.type_name,
             **self.robot.truth_spec(),
-            **self._schedule_spec(self.placements),
+            **self._schedule_spec(self._points),
         }
 
     # ---- physics helpers ---------------------------------------------------------------------
@@ -314,7 +320,7 @@ class PayloadRobot(PayloadSchedule, ConstrainedRobotPhysics, ELPlant):
     def placement_at(self, t: float) -> np.ndarray | None:
         """Body-frame point (2,) of the payload in force at ``t``, or None."""
         k = active_placement(float(t), self._params, TRUTH_PARAMS)
-        return None if k < 0 else self.placements[k].copy()
+        return None if k < 0 else self._points[k].copy()
 
     def aggregates(self, t: float = 0.0) -> np.ndarray:
         """``[M_b, s_x, s_y, I_A]`` at time ``t``, payload included when it is on."""

@@ -47,7 +47,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import kernel
+from delaytrack._compile.jit import kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.robot.body import COORDINATE_UNITS, COORDINATES, INPUT_UNITS
@@ -140,11 +140,11 @@ class PrintedRobotModel(ELPlant):
     inertia: float = P3DX.yaw_inertia
     wheel_spin_inertia: float = P3DX.wheel_spin_inertia
     corrected_row2: bool = False
-    n: ClassVar[int] = 5
-    m: ClassVar[int] = 2
-    coordinate_names: ClassVar[tuple[str, ...]] = COORDINATES
-    coordinate_units: ClassVar[tuple[str, ...]] = COORDINATE_UNITS
-    input_units: ClassVar[tuple[str, ...]] = INPUT_UNITS
+    n = 5
+    m = 2
+    coordinate_names = COORDINATES
+    coordinate_units = COORDINATE_UNITS
+    input_units = INPUT_UNITS
     type_name: ClassVar[str] = "wheeled-robot-printed"
 
     def __post_init__(self) -> None:

@@ -102,16 +102,16 @@ def paper_reference(
     _check(kind, d)
     x0, y0 = CIRCLE_CENTER
     if kind == "literal":
-        offset = [x0, y0, 0.0, 0.0, 0.0]
-        slope = [0.0, 0.0, 0.25, 3.0, 2.0]
+        offset = np.array([x0, y0, 0.0, 0.0, 0.0])
+        slope = np.array([0.0, 0.0, 0.25, 3.0, 2.0])
     else:
         rates = wheel_rates(kind, wheel_radius=wheel_radius, half_track=half_track, d=d)
-        offset = [x0, y0, math.asin(d / CIRCLE_RADIUS), 0.0, 0.0]
-        slope = [0.0, 0.0, -CIRCLE_RATE, rates[0], rates[1]]
+        offset = np.array([x0, y0, math.asin(d / CIRCLE_RADIUS), 0.0, 0.0])
+        slope = np.array([0.0, 0.0, -CIRCLE_RATE, rates[0], rates[1]])
     # y_d = ρ cos(Ω t) + y0 = ρ sin(Ω t + π/2) + y0
-    amplitude = [CIRCLE_RADIUS, CIRCLE_RADIUS, 0.0, 0.0, 0.0]
-    frequency = [CIRCLE_RATE, CIRCLE_RATE, 0.0, 0.0, 0.0]
-    phase = [0.0, math.pi / 2, 0.0, 0.0, 0.0]
+    amplitude = np.array([CIRCLE_RADIUS, CIRCLE_RADIUS, 0.0, 0.0, 0.0])
+    frequency = np.array([CIRCLE_RATE, CIRCLE_RATE, 0.0, 0.0, 0.0])
+    phase = np.array([0.0, math.pi / 2, 0.0, 0.0, 0.0])
     return SinusoidalReference(
         offset=offset, slope=slope, amplitude=amplitude, frequency=frequency, phase=phase
     )

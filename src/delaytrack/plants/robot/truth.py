@@ -30,12 +30,13 @@ term while ``k_b dt < 2.78``.
 from __future__ import annotations
 
 import math
+from abc import abstractmethod
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._jit import hot_kernel, kernel
+from delaytrack._compile.jit import hot_kernel, kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.robot.body import RobotBody
@@ -163,7 +164,11 @@ def robot_truth_terms(t, q, qdot, params, mass, nonlinear, input_map):
 class ConstrainedRobotPhysics:
     """Python helpers shared by the robot truth plants (``params`` in the truth layout)."""
 
-    params: np.ndarray
+    @property
+    @abstractmethod
+    def params(self) -> np.ndarray:
+        """The plant's parameters, in the truth layout (:meth:`WheeledRobot.truth_params`
+        first)."""
 
     def aggregates(self, t: float = 0.0) -> np.ndarray:
         """``[M_b, s_x, s_y, I_A]`` of the rigid part at time ``t``."""

@@ -1,7 +1,7 @@
 """The decorators of every compiled kernel, so that all of them share one set of numba options.
 
-* ``cache=True``: compiled code is kept on disk (see :mod:`delaytrack._numba_cache`), each entry
-  saved under a file lock so that processes compiling at once keep each other's entries
+* ``cache=True``: compiled code is kept on disk (see :mod:`delaytrack._compile.disk_cache`), each
+  entry saved under a file lock so that processes compiling at once keep each other's entries
   (:func:`compiled` makes every compiled kernel of the package, the engine included).
 * ``error_model="numpy"``: a floating-point division by zero gives ``inf``/``NaN`` as in NumPy
   instead of raising. The simulator turns non-finite values into a ``diverged`` status for that
@@ -50,7 +50,7 @@ from numba import njit
 from numba.core.registry import CPUDispatcher
 from numba.extending import register_jitable
 
-from delaytrack._numba_cache import locked_cache
+from delaytrack._compile.disk_cache import locked_cache
 
 __all__ = [
     "KERNEL_OPTIONS",
@@ -63,7 +63,9 @@ __all__ = [
     "tick_kernel",
 ]
 
-if numba.config.DISABLE_JIT:  # njit would give plain functions, which the engine cannot call
+# njit would give plain functions, which the engine cannot call (numba.config sets its settings
+# from the environment at run time: its typing lists none of them)
+if numba.config.DISABLE_JIT:  # type: ignore[attr-defined]
     raise ImportError(
         "delaytrack cannot be imported with NUMBA_DISABLE_JIT=1: its engine and kernels are "
         "compiled by numba. Unset it; to step through a kernel of yours in Python, run "
@@ -76,7 +78,8 @@ KERNEL_OPTIONS = {"cache": True, "error_model": "numpy"}
 
 def compiled(function=None, **options):
     """``njit`` with :data:`KERNEL_OPTIONS` and ``options``, its disk cache written under a lock
-    (:func:`delaytrack._numba_cache.locked_cache`); a decorator when ``function`` is None."""
+    (:func:`~delaytrack._compile.disk_cache.locked_cache`); a decorator when ``function`` is
+    None."""
     if function is None:
         return functools.partial(compiled, **options)
     return locked_cache(njit(**KERNEL_OPTIONS, **options)(function))

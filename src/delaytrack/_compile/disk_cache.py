@@ -6,10 +6,11 @@ them numba would load a stale engine. Imported first by :mod:`delaytrack`, this 
 ``numba.config.CACHE_DIR`` (read when each kernel is decorated) at
 ``<cache root>/<hash of the package's compiled code>``, so an edit to a kernel recompiles the
 engine once. The hash covers only the files that hold compiled code (:func:`kernel_files`: the
-ones importing numba or :mod:`delaytrack._jit`); an edit to a report, the command line or a study
-recompiles nothing. A user's kernels are covered by their numba type instead
-(:mod:`delaytrack.components`). The cache root is ``$NUMBA_CACHE_DIR`` when the user sets it,
-else ``$XDG_CACHE_HOME/delaytrack/numba`` (``~/.cache/delaytrack/numba``).
+ones importing numba or :mod:`delaytrack._compile.jit`, and those that decide how a user's kernel
+compiles and under which name its code is kept); an edit to a report, the command line or a
+study recompiles nothing. A user's kernels are covered by their numba type instead
+(:mod:`delaytrack._compile.kernel_type`). The cache root is ``$NUMBA_CACHE_DIR`` when the user
+sets it, else ``$XDG_CACHE_HOME/delaytrack/numba`` (``~/.cache/delaytrack/numba``).
 
 Processes share that folder (pytest or dask workers, a notebook beside a sweep), so every
 compiled kernel of the package writes its entries under a file lock (:func:`locked_cache`).
@@ -22,10 +23,12 @@ import hashlib
 import os
 from collections.abc import Iterator
 from pathlib import Path
+from types import ModuleType
 
 import numba
 from numba.core.caching import IndexDataCacheFile
 
+fcntl: ModuleType | None
 try:
     import fcntl
 except ImportError:  # Windows: numba's own writes, unlocked
@@ -33,9 +36,13 @@ except ImportError:  # Windows: numba's own writes, unlocked
 
 __all__ = ["cache_directory", "kernel_files", "locked_cache", "locks_cache", "source_hash"]
 
-_PACKAGE = Path(__file__).resolve().parent
+#: The folder of the package delaytrack.
+_PACKAGE = Path(__file__).resolve().parents[1]
 #: Text that marks a file holding compiled code.
-_MARKERS = (b"from delaytrack._jit import", b"import numba", b"from numba")
+_MARKERS = (b"from delaytrack._compile.jit import", b"import numba", b"from numba")
+#: Files without compiled code that decide how a kernel of the user's compiles (the numba options
+#: it keeps) and the name its compiled code is kept under (its fingerprint).
+_DECIDING = ("_compile/own_options.py", "_compile/fingerprint.py")
 
 
 #: Changed when the entries that an earlier version wrote must not be read: numba's cached kernel
@@ -45,11 +52,13 @@ _LAYOUT = b"user files under their own name"
 
 
 def kernel_files() -> list[Path]:
-    """The package's Python files that hold compiled code, sorted."""
+    """The package's Python files that hold compiled code (or decide how a kernel of the user's
+    compiles and is named, :data:`_DECIDING`), sorted."""
     return [
         path
         for path in sorted(_PACKAGE.rglob("*.py"))
         if any(marker in path.read_bytes() for marker in _MARKERS)
+        or path.relative_to(_PACKAGE).as_posix() in _DECIDING
     ]
 
 
@@ -112,4 +121,5 @@ def locked_cache(dispatcher):
     return dispatcher
 
 
-numba.config.CACHE_DIR = str(cache_directory())
+# numba.config sets its settings from the environment at run time: its typing lists none of them
+numba.config.CACHE_DIR = str(cache_directory())  # type: ignore[attr-defined]

@@ -2,9 +2,9 @@
 
 numba compiles one function at a time, in one thread, and a first run of a new combination needs
 several: the engine and the functions it calls through their address
-(:mod:`delaytrack.sim.native_parts`), each compiled on its own and kept in numba's disk cache.
-When there are two or more to compile and two cores or more, :func:`start` hands some of them to
-a helper process, chosen so that the two processes finish at about the same time
+(:mod:`delaytrack._compile.native_parts`), each compiled on its own and kept in numba's disk
+cache. When there are two or more to compile and two cores or more, :func:`start` hands some
+of them to a helper process, chosen so that the two processes finish at about the same time
 (:func:`share`). Both write the disk cache; this process compiles its own share, waits for the
 helper (:meth:`Helper.wait`), and then loads the helper's share from the cache.
 
@@ -29,19 +29,18 @@ environment variable ``DELAYTRACK_COMPILE_HELPER`` to ``0`` to compile in one pr
 from __future__ import annotations
 
 import contextlib
-import contextvars
 import importlib
 import os
 import pickle
 import subprocess
 import sys
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, NamedTuple
 
-from delaytrack._numba_cache import cache_directory, locks_cache
+from delaytrack._compile.disk_cache import cache_directory, locks_cache
 from delaytrack._spec import module_from_file, own_bytecode
 from delaytrack.components import Kernel
 
@@ -52,10 +51,8 @@ __all__ = [
     "CompileJob",
     "CpuTimes",
     "Helper",
-    "ahead",
     "idle_cpus",
     "main",
-    "parts_ahead",
     "share",
     "spare_core",
     "start",
@@ -75,7 +72,7 @@ _BOOTSTRAP = (
     "import io, pickle, sys\n"
     "payload = io.BytesIO(sys.stdin.buffer.read())\n"
     "sys.path[:] = pickle.load(payload)\n"
-    "from delaytrack.sim.compile_helper import main\n"
+    "from delaytrack._compile.helper_process import main\n"
     "sys.exit(main(payload))\n"
 )
 
@@ -97,7 +94,7 @@ class CompileJob:
         Its argument types.
     kernels : tuple of Kernel
         The components' kernels named in ``signature``
-        (:class:`~delaytrack.components.KernelType`), which the helper makes again.
+        (:class:`~delaytrack._compile.kernel_type.KernelType`), which the helper makes again.
     cost : float
         Rough seconds its compile takes, relative to the others (to share the work).
     """
@@ -226,31 +223,6 @@ def spare_core() -> bool:
     return False
 
 
-#: Parts a caller will need after the next first compile, as ``(name, part)`` pairs
-#: (:func:`ahead`).
-_AHEAD: contextvars.ContextVar[tuple] = contextvars.ContextVar("compile_ahead", default=())
-
-
-@contextlib.contextmanager
-def ahead(parts: Sequence[tuple[str, Any]]) -> Iterator[None]:
-    """Within this context, a first compile also compiles ``parts`` (``(name, part)`` pairs of
-    :class:`~delaytrack.sim.native_parts.NativePart` objects that are not compiled yet; a part
-    given twice is kept once), shared with the same helper process: for a job that runs several
-    controllers in turn, so that their steps are compiled beside the first run's parts, not one
-    by one after it."""
-    distinct = {part: name for name, part in parts}
-    token = _AHEAD.set(tuple((name, part) for part, name in distinct.items()))
-    try:
-        yield
-    finally:
-        _AHEAD.reset(token)
-
-
-def parts_ahead() -> tuple:
-    """The ``(name, part)`` pairs of :func:`ahead`, or none outside it."""
-    return _AHEAD.get()
-
-
 def _name(function: Any) -> tuple[str, str, str | None] | None:
     """``(module, name, file)`` under which another process imports ``function`` (a numba
     dispatcher or a plain function): its qualified name, or a name its module gives it (a
@@ -259,7 +231,9 @@ def _name(function: Any) -> tuple[str, str, str | None] | None:
     scenario); None when there is none."""
     python = getattr(function, "py_func", function)
     module_name = getattr(python, "__module__", None)
-    module = sys.modules.get(module_name) if module_name != "__main__" else None
+    if module_name is None or module_name == "__main__":
+        return None
+    module = sys.modules.get(module_name)
     if module is None:
         return None
     file = getattr(module, "__file__", None)
@@ -372,6 +346,7 @@ def start(jobs: Sequence[CompileJob]) -> tuple[Helper | None, list[int]]:
             stderr=subprocess.DEVNULL,
             env={**os.environ, ENVIRONMENT: "0"},  # its imports start no helper of their own
         )
+        assert process.stdin is not None  # opened with stdin=PIPE
         process.stdin.write(payload)
         process.stdin.close()
     except Exception:  # noqa: BLE001 - no helper: everything is compiled here
@@ -402,6 +377,7 @@ def _make_kernel(recipe: tuple) -> None:
     refuse one whose code differs from the one the other process asked for."""
     key, names, identity_mass, sizes = recipe
     function, command_map, stepper = (None if name is None else _imported(name) for name in names)
+    assert function is not None  # a kernel always has its function (:func:`_kernel_recipe`)
     kernel = Kernel.of(function, command_map, identity_mass, sizes, stepper)
     if kernel.key != key:
         raise RuntimeError(f"the kernel {key} changed on disk")

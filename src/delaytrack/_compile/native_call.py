@@ -6,7 +6,7 @@ reference, the controller's step and the delay profile once a tick, so compiled 
 would be compiled again, tick loop and all, for every combination of them. Called through the
 address of their compiled code (:class:`NativeFunction`), the engine is compiled once, and each
 of them once for its own component (its own entry in numba's disk cache, keyed by the
-component's kernel: :mod:`delaytrack.sim.native_parts`).
+component's kernel: :mod:`delaytrack._compile.native_parts`).
 
 The call uses numba's own calling convention (the callee's compiled code, not a C wrapper), so
 arrays, tuples and kernels pass as they would in a linked call; the callee's argument types are
@@ -78,8 +78,9 @@ class NativeFunction:
         Its compiled code is looked up at every call of this method: numba keeps every compiled
         version of a function for the life of the process, so the address stays valid, and a
         recompiled function gives its new code's. (The simulator keeps the first one it finds
-        for each function and signature, :meth:`delaytrack.sim.native_parts.NativePart.native`:
-        this package's functions are not recompiled.)
+        for each function and signature,
+        :meth:`delaytrack._compile.native_parts.NativePart.native`: this package's functions are
+        not recompiled.)
         """
         signature = tuple(signature)
         bound = _check_bound(signature, bound)
@@ -103,7 +104,7 @@ class NativeFunction:
 
     @property
     def runs_as_python(self) -> bool:
-        """Never: the function is compiled (see :mod:`delaytrack._jit`)."""
+        """Never: the function is compiled (see :mod:`delaytrack._compile.jit`)."""
         return False
 
     @cached_property
@@ -191,7 +192,8 @@ def call_native(function, arguments):
 
 @intrinsic
 def _call_at(typingctx: Any, function: NativeFunctionType, arguments: types.BaseTuple) -> Any:
-    argument_types = tuple(arguments.types)
+    # every tuple type of numba has ``types``; its typing declares it on the subclasses only
+    argument_types = tuple(arguments.types)  # type: ignore[attr-defined]
     if argument_types != function.signature:
         raise TypingError(
             f"a native function compiled for ({', '.join(map(str, function.signature))}) is "

@@ -5,8 +5,8 @@ function's own file only: after an edit to a function it calls in *another* file
 loads the old code (a limit numba documents), and links it into whatever calls the function,
 also into code compiled from the source in this process. The engine's parts are compiled for a
 kernel named by a hash of all the code it reaches
-(:func:`~delaytrack.components.code_fingerprint`), so a part compiled for an edited kernel must
-not take that old code, nor keep it on disk under the new name.
+(:func:`~delaytrack._compile.fingerprint.code_fingerprint`), so a part compiled for an edited
+kernel must not take that old code, nor keep it on disk under the new name.
 
 Before the first compile of a process that involves a compiled function of yours that a kernel
 reaches, :func:`compile_from_source` empties that function's disk cache (if it has one), drops
@@ -23,7 +23,8 @@ from typing import Any
 
 from numba.core.compiler_lock import global_compiler_lock
 
-from delaytrack.components import Kernel, compiled_functions_reached
+from delaytrack._compile.fingerprint import compiled_functions_reached
+from delaytrack.components import Kernel
 
 __all__ = ["compile_from_source"]
 

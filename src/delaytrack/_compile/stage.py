@@ -7,18 +7,22 @@ import functools
 from collections.abc import Callable
 from typing import Any
 
+from delaytrack._compile.ahead import parts_ahead
+from delaytrack._compile.first_compile import announce_compile, code_ready
+from delaytrack._compile.guards import refuse_changed_globals
+from delaytrack._compile.helper_process import CompileJob
+from delaytrack._compile.helper_process import start as start_helper
+from delaytrack._compile.native_parts import NativePart, engine_parts
+from delaytrack._compile.stale_caches import compile_from_source
 from delaytrack.delays._kernel import NO_KERNEL
 from delaytrack.sim._build import Build
 from delaytrack.sim._kernel_errors import could_not_compile
-from delaytrack.sim.compile_helper import CompileJob, parts_ahead
-from delaytrack.sim.compile_helper import start as start_helper
-from delaytrack.sim.first_compile import announce_compile, code_ready
-from delaytrack.sim.stale_caches import compile_from_source
+from delaytrack.sim.engine import Kernels
 
-__all__ = ["compile_parts"]
+__all__ = ["compile_engine"]
 
 #: Rough seconds of the engine's first compile, in the units of the parts' costs
-#: (:mod:`delaytrack.sim.native_parts`), to share first compiles between two processes.
+#: (:mod:`delaytrack._compile.native_parts`), to share first compiles between two processes.
 _ENGINE_COST = 9.0
 
 
@@ -35,17 +39,27 @@ def _compiled_if_it_can(part: Any) -> Any:
     return compile_it
 
 
-def _waiting(build: Build, first_chunk: Callable[[tuple], tuple]) -> list[tuple[str, Any, Any]]:
+def _engine_kernels(plant_step: Any, reference: Any, controller_step: Any, delay: Any) -> Kernels:
+    """The engine's kernels: its parts (compiled, or their stand-ins), in the order of
+    :func:`~delaytrack._compile.native_parts.engine_parts`; the model's is not read."""
+    return Kernels(plant_step, NO_KERNEL, reference, controller_step, delay)
+
+
+def _waiting(
+    names: tuple[str, ...],
+    parts: tuple[NativePart, ...],
+    runner: Any,
+    first_chunk: Callable[[Kernels], tuple],
+) -> list[tuple[str, Any, Any]]:
     """``(name, job, how this process compiles it or loads it from the cache)`` of what is not
-    ready yet: the engine (typed on ``first_chunk``'s arguments) and the parts, and with a first
-    compile the parts a caller asked for ahead."""
-    runner, parts = build.runner, build.parts
+    ready yet: the engine ``runner`` (typed on ``first_chunk``'s arguments) and the ``parts``,
+    and with a first compile the parts a caller asked for ahead."""
 
     @functools.cache
     def engine_signature() -> tuple:
         """The engine's argument types: those of the compiled parts' stand-ins, which have
         an address of 0 and give the types without compiling."""
-        probes = tuple(part.probe() for part in parts)
+        probes = _engine_kernels(*(part.probe() for part in parts))
         return tuple(runner.typeof_pyval(item) for item in first_chunk(probes))
 
     engine_ready = code_ready(
@@ -55,7 +69,7 @@ def _waiting(build: Build, first_chunk: Callable[[tuple], tuple]) -> list[tuple[
     )
     waiting = [
         (name, part.compile_job(), part.native)
-        for name, part in zip(build.names, parts, strict=True)
+        for name, part in zip(names, parts, strict=True)
         if not part.ready()
     ]
     if not engine_ready:
@@ -68,12 +82,20 @@ def _waiting(build: Build, first_chunk: Callable[[tuple], tuple]) -> list[tuple[
     return waiting
 
 
-def compile_parts(build: Build, first_chunk: Callable[[tuple], tuple]) -> tuple:
-    """The compiled ``build``'s parts, compiled or loaded from the disk cache, as the engine
-    calls them (:class:`~delaytrack._native_call.NativeFunction`); the engine itself too, here,
-    so that a chunk's error is a run's. ``first_chunk(natives)``: the engine's arguments for
-    the first chunk. numba failing on a kernel of the user's is a ValueError of one line."""
-    waiting = _waiting(build, first_chunk)
+def compile_engine(build: Build, first_chunk: Callable[[Kernels], tuple]) -> Kernels:
+    """The compiled ``build``'s kernels as the engine calls them: its parts, compiled or loaded
+    from the disk cache (:class:`~delaytrack._compile.native_call.NativeFunction`); the engine
+    itself too, here, so that a chunk's error is a run's. ``first_chunk(kernels)``: the
+    engine's arguments for the first chunk. A module global that a kernel of the user's reads
+    and numba compiled in is refused if it changed; numba failing on a kernel of the user's is
+    a ValueError of one line."""
+    plan = build.plan
+    plant, controller = plan.plants[0], plan.controllers[0]
+    for component in (plant, controller.model, controller, plan.reference):
+        refuse_changed_globals(component.engine_kernel)
+    refuse_changed_globals(plan.delay_kernel)
+    names, parts = engine_parts(plan)
+    waiting = _waiting(names, parts, build.runner, first_chunk)
     natives: tuple = ()
     helper = None
     compiling = "the engine"  # what the message of a compile error names
@@ -95,7 +117,7 @@ def compile_parts(build: Build, first_chunk: Callable[[tuple], tuple]) -> tuple:
         for name, _, make in waiting:
             compiling = name
             make()
-        for name, part in zip(build.names, build.parts, strict=True):
+        for name, part in zip(names, parts, strict=True):
             compiling = name
             natives += (part.native(),)
     except Exception as error:
@@ -106,4 +128,4 @@ def compile_parts(build: Build, first_chunk: Callable[[tuple], tuple]) -> tuple:
     finally:
         if helper is not None:
             helper.stop()
-    return natives
+    return _engine_kernels(*natives)

@@ -4,8 +4,8 @@ numba compiles a call of one ``njit`` function from another by linking the calle
 caller, so an engine that called the plant's, the reference's, the controller's and the delay's
 code directly would be compiled again, tick loop and all, for every combination of them. The
 engine instead calls four functions through the address of their compiled code
-(:mod:`delaytrack._native_call`), each compiled once for the component it serves and kept on
-disk:
+(:mod:`delaytrack._compile.native_call`), each compiled once for the component it serves and
+kept on disk (:func:`engine_parts`):
 
 * the plant's tick, :func:`~delaytrack.sim.integrator.integrate_tick` compiled for the plant's
   kernel and the batch's delay kernel;
@@ -20,35 +20,38 @@ The components' kernels are *bound* (they carry no data: their numba types name 
 the engine's own numba type names none of them, and one compiled engine serves every
 combination (two variants: one for this package's controller steps, one for the user's). A
 part is keyed on disk by its kernels' numba types, which for a kernel of the user's include a
-fingerprint of all the code it reaches (:mod:`delaytrack.components`), so an edit to that code
-compiles its part again.
+fingerprint of all the code it reaches (:mod:`delaytrack._compile.fingerprint`), so an edit to
+that code compiles its part again.
 """
 
 from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numba import typeof, types
 
-from delaytrack._native_call import NativeFunction
+from delaytrack._compile.first_compile import code_ready
+from delaytrack._compile.helper_process import CompileJob
+from delaytrack._compile.native_call import NativeFunction
 from delaytrack.components import Kernel, evaluate_reference, evaluate_step
 from delaytrack.controllers.base import step_workspace
 from delaytrack.delays._kernel import evaluate_profile
-from delaytrack.sim.compile_helper import CompileJob
-from delaytrack.sim.first_compile import code_ready
 from delaytrack.sim.integrator import integrate_tick, rk4_workspace
+
+if TYPE_CHECKING:
+    from delaytrack.sim._plan import Plan
 
 __all__ = [
     "NativePart",
     "controller_step_name",
     "controller_step_part",
     "delay_part",
+    "engine_parts",
     "plant_tick_part",
     "reference_part",
-    "step_parts",
 ]
 
 #: Position of the nominal model's kernel among a step kernel's arguments.
@@ -77,7 +80,7 @@ class NativePart:
         What it returns.
     cost : float
         Rough seconds its first compile takes, relative to the others' (to share first
-        compiles between two processes, :mod:`delaytrack.sim.compile_helper`).
+        compiles between two processes, :mod:`delaytrack._compile.helper_process`).
     """
 
     function: Any
@@ -98,7 +101,7 @@ class NativePart:
         return NativeFunction(self.function, self.signature, 0, self.bound, self.returns)
 
     def compile_job(self) -> CompileJob:
-        """Its compile, for :func:`delaytrack.sim.compile_helper.start`."""
+        """Its compile, for :func:`delaytrack._compile.helper_process.start`."""
         kernels = tuple(self.signature[position].kernel() for position in self.bound)
         return CompileJob(self.function, self.signature, kernels, self.cost)
 
@@ -182,19 +185,6 @@ def controller_step_name(controller: Any) -> str:
     return f"{type(controller).__name__}'s step on {type(controller.model).__name__}"
 
 
-def step_parts(controllers: Any, n: int, m: int) -> list[tuple[str, NativePart]]:
-    """``(name, part)`` of the step part of each of ``controllers`` (an iterable) for a plant of
-    ``n`` coordinates and ``m`` inputs: what a job that runs them in turn names for
-    :func:`delaytrack.sim.compile_helper.ahead`."""
-    return [
-        (
-            controller_step_name(c),
-            controller_step_part(c.engine_kernel, c.model.engine_kernel, n, m),
-        )
-        for c in controllers
-    ]
-
-
 def _step_arguments(model: types.Type, n: int, m: int) -> tuple:
     """The types of a step kernel's arguments (:mod:`delaytrack.controllers.base`)."""
     vector = _vector(n)
@@ -233,3 +223,27 @@ def delay_part(delay: Kernel) -> NativePart:
 def _delay_part(delay: types.Type) -> NativePart:
     signature = (delay, types.int64, _vector(1), types.float64)
     return NativePart(evaluate_profile, signature, (0,), types.float64, _DELAY_COST)
+
+
+def engine_parts(plan: Plan) -> tuple[tuple[str, ...], tuple[NativePart, ...]]:
+    """The parts the compiled engine calls for ``plan``, in the order of its
+    :class:`~delaytrack.sim.engine.Kernels`: its plant's tick, its reference, its controller's
+    step and its delay; and how the first-compile notice and compile errors name each."""
+    plant, controller, reference = plan.plants[0], plan.controllers[0], plan.reference
+    names = (
+        f"{type(plant).__name__}'s integrator",
+        type(reference).__name__,
+        controller_step_name(controller),
+        f"the delay kernel {plan.delay_kernel.callable_names[0]}"
+        if plan.own_delays
+        else "the delay profiles",
+    )
+    parts = (
+        plant_tick_part(plant.engine_kernel, plan.delay_kernel, plan.n, plan.m),
+        reference_part(reference.engine_kernel, plan.n),
+        controller_step_part(
+            controller.engine_kernel, controller.model.engine_kernel, plan.n, plan.m
+        ),
+        delay_part(plan.delay_kernel),
+    )
+    return names, parts

@@ -2,7 +2,7 @@
 
 numba compiles :func:`~delaytrack.sim.engine.run_batch_compiled` once, and each plant's
 integrator, reference, controller step and delay kernel once for itself (the engine calls them
-through their address, :mod:`delaytrack.sim.native_parts`), and keeps them on disk; later
+through their address, :mod:`delaytrack._compile.native_parts`), and keeps them on disk; later
 calls load them in well under a second. :func:`code_ready` tells which case a call is, so that
 the first one can be announced instead of looking like a hang.
 """
@@ -46,7 +46,7 @@ def code_ready(dispatcher: Any, key: object, signature: tuple | Callable[[], tup
 def announce_compile(parts: list[str], helped: bool = False) -> None:
     """One line on standard error before a first compile of ``parts`` (what is compiled, such as
     ``"the engine"`` or ``"AROLC's step on NominalRobot"``); ``helped``: a helper process
-    compiles some of them (:mod:`delaytrack.sim.compile_helper`)."""
+    compiles some of them (:mod:`delaytrack._compile.helper_process`)."""
     listed = parts[0] if len(parts) == 1 else f"{', '.join(parts[:-1])} and {parts[-1]}"
     where = " in two processes" if helped else ""
     print(

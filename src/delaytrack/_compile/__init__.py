@@ -1,0 +1,49 @@
+"""The compile machinery: how the engine and the components' kernels are compiled by numba.
+
+Its one entry is :func:`compile_engine`, the compile stage of
+:func:`~delaytrack.sim.simulate`. Its modules, each one concept:
+
+* :mod:`~delaytrack._compile.disk_cache`: numba's cache folder, keyed by the package's
+  compiled source (imported first by :mod:`delaytrack`);
+* :mod:`~delaytrack._compile.jit`: the decorators of every compiled kernel;
+* :mod:`~delaytrack._compile.functions`: compiled or not, this package's or the user's;
+* :mod:`~delaytrack._compile.fingerprint`: the hash of all the code a kernel of the user's
+  reaches, which names its compiled code;
+* :mod:`~delaytrack._compile.own_options` and :mod:`~delaytrack._compile.random_reads`: a
+  user's kernel's numba options, and the random modules its code reads;
+* :mod:`~delaytrack._compile.guards`: what a kernel of the user's must not do, refused;
+* :mod:`~delaytrack._compile.kernel_type`: a component's kernel as a numba type;
+* :mod:`~delaytrack._compile.native_call` and :mod:`~delaytrack._compile.stack_arrays`: calls
+  through an address, and working arrays on the stack, in compiled code;
+* :mod:`~delaytrack._compile.native_parts`: the functions the compiled engine calls through
+  their address, each compiled for one component;
+* :mod:`~delaytrack._compile.first_compile`, :mod:`~delaytrack._compile.stale_caches`,
+  :mod:`~delaytrack._compile.helper_process` and :mod:`~delaytrack._compile.ahead`: a first
+  compile announced, from the source as it is now, on two cores, with the parts a job will
+  need next;
+* :mod:`~delaytrack._compile.stage`: the compile stage itself.
+
+The component protocol (:mod:`delaytrack.components`) and the engine use the lower modules;
+the stage uses the engine.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from delaytrack.sim._build import Build
+    from delaytrack.sim.engine import Kernels
+
+__all__ = ["compile_engine"]
+
+
+def compile_engine(build: Build, first_chunk: Callable[[Kernels], tuple]) -> Kernels:
+    """The compiled engine of ``build`` and the kernels it calls, compiled or loaded from the
+    disk cache: :func:`delaytrack._compile.stage.compile_engine`."""
+    # Imported at the first call: the stage imports the engine, whose modules import this
+    # package's lower modules, and importing any of them imports this file first.
+    from delaytrack._compile.stage import compile_engine as compile_stage
+
+    return compile_stage(build, first_chunk)

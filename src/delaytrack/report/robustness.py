@@ -1,0 +1,367 @@
+"""The robustness study's report: findings in words, display tables, the robustness map and the
+HTML page, made from a :class:`~delaytrack.experiments.robustness.RobustnessStudy` that already
+holds every number quoted here (this module computes none)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+from delaytrack._io import write_frame
+from delaytrack._output import record_outputs
+from delaytrack.report.figures import save_figure
+from delaytrack.report.html import HtmlReport
+
+if TYPE_CHECKING:
+    from delaytrack.experiments.robustness import RobustnessStudy
+
+__all__ = [
+    "MAP_CONTROLLERS",
+    "display_attribution",
+    "display_knowledge",
+    "display_outcomes",
+    "display_verdicts",
+    "findings",
+    "robustness_map",
+    "write_robustness",
+]
+
+#: The map's controllers, in panel order.
+MAP_CONTROLLERS = (
+    "PCON",
+    "PCON-wheel",
+    "PCONf",
+    "AROLC (paper gains)",
+    "AROLC (tuned)",
+    "outer loop (paper gains)",
+)
+#: The controllers at the paper's gains, with and without the switching term Δu.
+_PAPER_GAINS = ("AROLC (paper gains)", "outer loop (paper gains)")
+
+
+def _reach(study: RobustnessStudy, controller: str, scale: float | None) -> pd.Series:
+    """The row of ``study.reach`` of ``controller`` told ``scale`` (None: not told)."""
+    reach = study.reach
+    told = reach.scale.isna() if scale is None else reach.scale == scale
+    return reach[(reach.controller == controller) & told].iloc[0]
+
+
+def findings(study: RobustnessStudy) -> list[str]:
+    """The study's findings as sentences, every number taken from its tables."""
+    out = []
+    for name in MAP_CONTROLLERS:
+        told = name in study.predictors
+        row = _reach(study, name, 1.0 if told else None)
+        text = f"{name}{' (told the true delay)' if told else ''}: " + (
+            f"no run diverged up to {row.longest_clean_delay_ms:g} ms"
+            if math.isfinite(row.longest_clean_delay_ms)
+            else f"runs diverged already at {row.smallest_delay_ms:g} ms"
+        )
+        if math.isfinite(row.half_diverged_from_ms):
+            text += f"; at least half of the runs diverged from {row.half_diverged_from_ms:g} ms on"
+        text += f" ({row.draws} draws per delay; tested up to {row.largest_delay_ms:g} ms)."
+        out.append(text)
+    for name in study.predictors:
+        parts = []
+        for scale in study.scales:
+            clean = _reach(study, name, scale).longest_clean_delay_ms
+            parts.append(f"told {scale:g}·h: {f'{clean:g} ms' if math.isfinite(clean) else 'none'}")
+        out.append(
+            f"{name}, largest true delay up to which no run diverged, by what it is told: "
+            + "; ".join(parts)
+            + "."
+        )
+    paper_gains = [_reach(study, name, None) for name in _PAPER_GAINS]
+    if all(row.diverged == 0 for row in paper_gains):
+        out.append(
+            "At the paper's gains AROLC and the plain outer loop both stay on the path at every "
+            f"tested delay up to {paper_gains[0].largest_delay_ms:g} ms: the robustness to the "
+            "delay observed here does not come from the switching term Δu, since the outer loop "
+            "without it is as robust in this test."
+        )
+    if study.edges:
+        out.append(
+            "Tuned gain sets still on an edge of their grid after the extensions, so possibly "
+            "not fully tuned: "
+            + ", ".join(f"{kind} ({gain_set})" for kind, gain_set in study.edges)
+            + " (gains file, 'interior')."
+        )
+    ranges = study.attribution_ranges
+    for row in ranges[ranges.noise == "off"].itertuples():
+        out.append(
+            f"{row.part} (noise off, S1–S4, median paired change over draws): AE "
+            f"{row.ae_change_min_mm:+.3g} to {row.ae_change_max_mm:+.3g} mm, TV "
+            f"{row.tv_change_min_Nm:+.3g} to {row.tv_change_max_Nm:+.3g} N·m"
+            + (
+                f"; in {', '.join(row.not_compared)} no draw could be compared (one side "
+                "diverged in every draw)"
+                if row.not_compared
+                else ""
+            )
+            + "."
+        )
+    verdicts = study.verdicts
+    for noise in verdicts.noise.unique():
+        rows = verdicts[verdicts.noise == noise]
+        groups = []
+        for verdict in ("holds", "fails", "undecided"):
+            chosen = rows[rows.verdict == verdict]
+            names = [
+                f"{r.controller}: {r.claim}"
+                + ("" if r.scenario == "S3 -> S4" else f" in {r.scenario}")
+                for r in chosen.itertuples()
+            ]
+            groups.append(f"{verdict.upper()} ({len(names)}): " + ("; ".join(names) or "none"))
+        out.append(f"Claims with measurement noise {noise}. " + ". ".join(groups) + ".")
+    return out
+
+
+def _interval_text(value: float, low: float, high: float, scale: float = 1.0) -> str:
+    """``value (low to high)`` in the unit ``scale`` times the given one (100: percent), or a
+    dash when the value is missing."""
+    if not math.isfinite(value):
+        return "—"
+    if not (math.isfinite(low) and math.isfinite(high)):
+        return f"{scale * value:.3g}"
+    return f"{scale * value:.3g} ({scale * low:.3g} to {scale * high:.3g})"
+
+
+def display_verdicts(verdicts: pd.DataFrame) -> pd.DataFrame:
+    """:func:`~delaytrack.experiments.verdicts.claim_verdicts` for reading: the share of draws
+    with its interval in one column."""
+    return pd.DataFrame(
+        {
+            "scenario": verdicts.scenario,
+            "noise": verdicts.noise,
+            "controller": verdicts.controller,
+            "claim": verdicts.claim,
+            "holds in % of draws (95 % CI)": [
+                _interval_text(r.share_holds, r.ci_low, r.ci_high, 100.0)
+                for r in verdicts.itertuples()
+            ],
+            "draws (both diverged)": [
+                f"{r.draws_decided} ({r.draws_both_diverged})" for r in verdicts.itertuples()
+            ],
+            "median difference (95 % CI)": [
+                _interval_text(r.median_difference, r.difference_ci_low, r.difference_ci_high)
+                + (" N·m" if r.claim.startswith("TV") else " mm")
+                if math.isfinite(r.median_difference)
+                else "—"
+                for r in verdicts.itertuples()
+            ],
+            "verdict": verdicts.verdict,
+        }
+    )
+
+
+def display_attribution(table: pd.DataFrame) -> pd.DataFrame:
+    """:func:`~delaytrack.experiments.verdicts.attribution` for reading: each median change with
+    its interval in one column."""
+    ae = zip(
+        table.median_change_ae_mm,
+        table.change_ci_low_ae_mm,
+        table.change_ci_high_ae_mm,
+        strict=True,
+    )
+    tv = zip(
+        table.median_change_tv_Nm,
+        table.change_ci_low_tv_Nm,
+        table.change_ci_high_tv_Nm,
+        strict=True,
+    )
+    return pd.DataFrame(
+        {
+            "part": table.part,
+            "scenario": table.scenario,
+            "noise": table.noise,
+            "AE change, mm (95 % CI)": [_interval_text(*values) for values in ae],
+            "TV change, N·m (95 % CI)": [_interval_text(*values) for values in tv],
+            "draws compared": table.draws_compared,
+        }
+    )
+
+
+def display_knowledge(table: pd.DataFrame) -> pd.DataFrame:
+    """:func:`~delaytrack.experiments.robustness.knowledge_table` for reading: shares in %,
+    times in s, AE in mm."""
+
+    def number(value: float, digits: str = ".3g") -> str:
+        return "—" if not math.isfinite(value) else format(value, digits)
+
+    return pd.DataFrame(
+        {
+            "truth": table.truth,
+            "predictor": table.predictor,
+            "told": table["predictor told"],
+            "diverged, %": [number(100 * v, ".0f") for v in table.predictor_divergence_rate],
+            "left the path at, s (median)": [
+                number(v) for v in table.predictor_median_t_stop_of_diverged_s
+            ],
+            "AE, mm (median)": [number(v) for v in table.predictor_median_ae_mm],
+            "AROLC diverged, %": [
+                number(100 * v, ".0f") for v in table.arolc_paper_divergence_rate
+            ],
+            "AROLC AE, mm": [number(v) for v in table.arolc_paper_median_ae_mm],
+        }
+    )
+
+
+def display_outcomes(table: pd.DataFrame, by: list[str]) -> pd.DataFrame:
+    """:func:`~delaytrack.experiments.outcomes.outcome_table` for reading: divergence and
+    medians with their intervals."""
+    ae = zip(table.median_ae_mm, table.median_ae_ci_low_mm, table.median_ae_ci_high_mm, strict=True)
+    tv = zip(table.median_tv_Nm, table.median_tv_ci_low_Nm, table.median_tv_ci_high_Nm, strict=True)
+    columns: dict[str, Any] = {key: table[key] for key in by}
+    columns["diverged / runs"] = [
+        f"{k} / {n}" for k, n in zip(table.diverged, table.runs, strict=True)
+    ]
+    columns["median AE, mm (95 % CI)"] = [_interval_text(*values) for values in ae]
+    columns["median TV, N·m (95 % CI)"] = [_interval_text(*values) for values in tv]
+    return pd.DataFrame(columns)
+
+
+def robustness_map(study: RobustnessStudy) -> Figure:
+    """Per controller: divergence rate (colour) and median AE in mm of the runs that stayed on
+    the path (text) against the true constant delay and the scale of what it is told."""
+    table = study.map
+    figure = Figure(figsize=(12.0, 7.5), layout="constrained")
+    axes = figure.subplots(2, 3, sharey=True)
+    delays = sorted(table.delay_ms.unique())
+    image = None
+    for ax, name in zip(axes.ravel(), MAP_CONTROLLERS, strict=True):
+        rows = table[table.controller == name]
+        told = name in study.predictors
+        columns = list(study.scales) if told else [math.nan]
+        rate = np.full((len(delays), len(columns)), np.nan)
+        for i, h in enumerate(delays):
+            for j, scale in enumerate(columns):
+                row = rows[
+                    (rows.delay_ms == h) & (rows.scale.isna() if not told else rows.scale == scale)
+                ]
+                if row.empty:
+                    continue
+                rate[i, j] = row.divergence_rate.iloc[0]
+                ae = row.median_ae_mm.iloc[0]
+                ax.text(
+                    j,
+                    i,
+                    "—" if not math.isfinite(ae) else f"{ae:.3g}",
+                    ha="center",
+                    va="center",
+                    fontsize=8,
+                    color="white" if rate[i, j] > 0.5 else "black",
+                )
+        image = ax.imshow(rate, cmap="Reds", vmin=0.0, vmax=1.0, aspect="auto", origin="lower")
+        ax.set_title(name, fontsize=10)
+        ax.set_xticks(range(len(columns)))
+        ax.set_xticklabels([f"{c:g}" for c in columns] if told else ["not told"])
+        ax.set_xlabel("told delay / true delay (ratio)" if told else "delay unknown to the law")
+        ax.set_yticks(range(len(delays)))
+        ax.set_yticklabels([f"{h:g}" for h in delays])
+    for ax in axes[:, 0]:
+        ax.set_ylabel("true constant delay h (ms)")
+    assert image is not None  # MAP_CONTROLLERS is not empty: every panel drew an image
+    figure.colorbar(image, ax=axes, label="divergence rate (share of draws)", shrink=0.8)
+    figure.suptitle("Robustness map: colour = divergence rate, text = median AE (mm)")
+    return figure
+
+
+def write_robustness(study: RobustnessStudy, out: str | Path) -> list[Path]:
+    """Write ``runs.csv`` (every run), ``map.csv``, ``knowledge.csv``, ``claims.csv``,
+    ``verdicts.csv``, ``attribution.csv``, ``knowledge_table.csv``, the map figure and
+    ``report.html`` into ``out``; return their paths."""
+    out = Path(out)
+    files = []
+    every = pd.concat(
+        [frame.assign(sweep=name) for name, frame in study.runs.items()], ignore_index=True
+    )
+    files.append(write_frame(every, out / "runs.csv"))
+    for name in ("map", "knowledge", "claims", "verdicts", "attribution", "knowledge_table"):
+        files.append(write_frame(getattr(study, name), out / f"{name}.csv"))
+    saved = save_figure(robustness_map(study), out / "figures" / "robustness_map")
+    files += saved
+    image = next(path for path in saved if path.suffix == ".png").read_bytes()
+    files.append(_report(study, image).write(out / "report.html"))
+    record_outputs(out, files)
+    return files
+
+
+def _report(study: RobustnessStudy, image: bytes) -> HtmlReport:
+    report = HtmlReport("delaytrack: robustness study (which controller when the delay is unknown)")
+    base = study.scenario
+    viscous = study.friction["plant.viscous_friction"]
+    coulomb = study.friction["plant.coulomb_friction"]
+    report.paragraph(
+        "The paper's case for AROLC is that it needs no knowledge of the delay, while its "
+        "predictor baselines assume they know it. This study asks which controller to use over "
+        "distributions of robots rather than one run: every run is the paper job's robot run "
+        f"({base.duration:g} s, the consistent circle, dt = {1e3 * base.dt:g} ms, T_c = "
+        f"{1e3 * base.T_c:g} ms) with a drawn payload seed and wheel friction drawn uniformly "
+        f"from its documented ranges (viscous {viscous['low']:g}–{viscous['high']:g} N·m·s/rad, "
+        f"Coulomb {coulomb['low']:g}–{coulomb['high']:g} N·m); draw i is the same robot for "
+        "every controller and condition, and each draw has its own noise seed. Three "
+        "parts: a robustness map (constant true delays "
+        + ", ".join(f"{1e3 * h:g}" for h in study.true_delays)
+        + " ms against what the predictors are told, "
+        + ", ".join(f"{s:g}" for s in study.scales)
+        + " times the delay; gain sets tuned for all delays), the paper's S1 and S2 with wrong "
+        "delay estimates (gain sets for time-varying delays), and S1–S4 as in the paper job "
+        "(class gain sets), without and with measurement noise (encoder quantisation and white "
+        "noise). A run diverged when it stopped or its mean AE exceeded "
+        f"{study.diverged_ae_mm:g} mm. A claim is judged per draw (a diverged run loses): it "
+        "holds when the Wilson 95 % interval of the share of draws in which it holds lies above "
+        "one half, fails when below, and is undecided otherwise. Medians carry "
+        "percentile-bootstrap 95 % intervals."
+    )
+    report.paragraph(
+        f"Size: {study.run_count} runs of 60 s ({study.size.map} draws per map cell, "
+        f"{study.size.knowledge} per delay-knowledge case, {study.size.claims} per claims case); "
+        f"{study.computed} work units computed and {study.resumed} resumed in "
+        f"{study.seconds:.1f} s."
+    )
+    report.heading("Findings")
+    report.bullets(findings(study))
+    report.figure(
+        image,
+        "Robustness map: divergence rate (colour) and median AE in mm of the "
+        "runs that stayed on the path (text), per controller, against the true "
+        "constant delay and what the predictors are told of it.",
+    )
+    report.heading("The paper's claims over draws")
+    report.table(
+        display_verdicts(study.verdicts),
+        "Verdict per claim: share of draws in which it holds, with its "
+        "Wilson 95 % interval (holds: interval above 50 %; fails: below).",
+    )
+    report.heading("Attribution: outer loop, Δu, tuning")
+    report.table(
+        display_attribution(study.attribution),
+        "Paired change of AE (mm) and TV (N·m) per draw, median with bootstrap 95 % interval.",
+    )
+    report.heading("Robustness map (table)")
+    report.table(
+        display_outcomes(study.map, ["delay_ms", "controller", "scale"]),
+        "Per true delay (ms), controller and scale: divergence and medians (map.csv).",
+    )
+    report.heading("What the predictors tolerate of a wrong delay")
+    report.table(
+        display_knowledge(study.knowledge_table),
+        "Case by case (knowledge_table.csv): divergence rate, median time of leaving the path of "
+        "the runs that did, and median AE (mm) of those that did not, beside AROLC's.",
+    )
+    report.heading("Delay knowledge under S1 and S2")
+    report.table(
+        display_outcomes(study.knowledge, ["scenario", "controller", "scale"]),
+        "Predictors told s·h(t) (PCON, PCON-wheel) or s times the profile's long-run mean (PCONf).",
+    )
+    report.heading("S1–S4 per controller and noise level")
+    report.table(
+        display_outcomes(study.claims, ["scenario", "noise", "controller"]),
+        "Outcomes per scenario, noise level and controller (claims.csv).",
+    )
+    return report

@@ -1,0 +1,28 @@
+"""The scenarios shipped with the package (``src/delaytrack/scenarios/*.toml``)."""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+from delaytrack._spec import SpecError as ScenarioError
+from delaytrack.scenario.scenario import Scenario
+
+
+def builtin_scenario_names() -> list[str]:
+    """Names (file stems) of the scenario files shipped with the package."""
+    folder = resources.files("delaytrack").joinpath("scenarios")
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def builtin_scenario_path(name: str) -> Path:
+    """Path of a shipped scenario file, e.g. ``builtin_scenario_path("two_link_S1")``."""
+    names = builtin_scenario_names()
+    if name not in names:
+        raise ScenarioError(f"no built-in scenario {name!r}; the built-in scenarios are {names}")
+    return Path(str(resources.files("delaytrack").joinpath("scenarios", f"{name}.toml")))
+
+
+def load_builtin(name: str) -> Scenario:
+    """Load a shipped scenario by name (see :func:`builtin_scenario_names`)."""
+    return Scenario.from_toml(builtin_scenario_path(name))

@@ -1,0 +1,517 @@
+"""A scenario, one closed-loop experiment as a frozen, serialisable spec, and the objects it
+describes (:class:`BuiltScenario`); the file format is described in :mod:`delaytrack.scenario`."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import functools
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any, TypeVar
+
+import numpy as np
+
+from delaytrack._io import write_text
+from delaytrack._spec import PYTHON_TYPE, check_table, fail, integer, number, string, vector
+from delaytrack._spec import SpecError as ScenarioError
+from delaytrack._trust import Trust
+from delaytrack._validation import integer_multiple
+from delaytrack.controllers import Controller, controller_from_spec
+from delaytrack.delays import DelayProfile, delay_from_spec
+from delaytrack.plants import ELPlant, plant_from_spec
+from delaytrack.references import Reference, reference_from_spec
+from delaytrack.scenario.files import read_toml_file, resolve_file_keys
+from delaytrack.scenario.keys import (
+    NAME_PATTERN,
+    REQUIRED,
+    TABLE_PURPOSE,
+    TABLE_TYPES,
+    TABLES,
+    TOP_LEVEL_KEYS,
+    error_bound_phrase,
+    input_limits_phrase,
+    measurement_noise_phrase,
+    packet_loss_phrase,
+)
+from delaytrack.scenario.table_memory import remembered, table_identity
+from delaytrack.scenario.toml_text import dumps_toml
+from delaytrack.sim import MeasurementNoise, PacketLoss, SimResult, simulate
+from delaytrack.sim.simulate import MAX_STEPS
+
+_T = TypeVar("_T")
+
+#: Exact types whose values :func:`_plain` returns as they are (a NumPy scalar, a subclass of
+#: float or int, is converted).
+_IMMUTABLE = frozenset({str, int, float, bool, type(None)})
+
+
+def _check_value(key: str, value: object, check: Callable[[object], str | None]) -> None:
+    phrase = check(value)
+    if phrase is not None:
+        raise fail(key, phrase, value)
+
+
+def _all_finite(values: Any) -> str | None:
+    """``None`` when every entry of ``values`` (a checked vector) is finite."""
+    return None if all(math.isfinite(value) for value in values) else "must be finite"
+
+
+def _plain(value: Any) -> Any:
+    """Deep copy of TOML-like data as plain dicts and lists (tuples become lists)."""
+    if type(value) in _IMMUTABLE:  # the common case first: a copy would be the value itself
+        return value
+    if isinstance(value, Mapping):
+        return {str(key): _plain(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(item) for item in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return copy.deepcopy(value)
+
+
+@dataclass(frozen=True)
+class BuiltScenario:
+    """The objects a scenario describes, ready for :func:`delaytrack.sim.simulate`."""
+
+    plant: ELPlant
+    model: ELPlant
+    controller: Controller
+    delay: DelayProfile
+    reference: Reference
+    x0: np.ndarray
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One closed-loop experiment: plant, nominal model, controller, delay, reference, settings.
+
+    Construct with :meth:`from_toml` or :meth:`from_dict` (or directly with the same fields);
+    every field is validated on construction (see :mod:`delaytrack.scenario` for the file format).
+
+    Attributes
+    ----------
+    name : str
+        Identifier, also the default results folder name.
+    plant, model, controller, delay, reference : Mapping
+        The ``[plant]`` (truth), ``[model]`` (nominal plant), ``[controller]``, ``[delay]`` and
+        ``[reference]`` tables, read-only.
+    duration, dt, T_c : float
+        Simulated time from ``t = 0``, plant step and controller period, in seconds. ``T_c`` must
+        be an integer multiple of ``dt`` and ``duration`` of ``T_c``.
+    seed : int or None
+        Default seed of random elements (a random delay without its own seed).
+    x0 : tuple of float or None
+        Initial state ``[q, q̇]`` (2n); zeros when None.
+    record_every : int
+        Record every ``record_every``-th controller tick.
+    error_bound : float or tuple of float or None
+        The "left the path" rule: a run stops with status ``left the path`` at the first
+        controller tick where a tracking error ``|e1_j|`` exceeds it (one number for every
+        coordinate, or one per coordinate, ``inf`` for none); no bound when None. Its metrics
+        are then NaN and a sweep counts it in the divergence rate.
+    input_limits : float or tuple of float or None
+        Actuator saturation: each command is applied as ``clip(u_j, -limit_j, limit_j)`` (one
+        number for every input, or one per input, ``inf`` for none); no limit when None.
+    measurement_noise : mapping or None
+        What the controller reads: ``{quantization, position, velocity, seed}``
+        (:class:`~delaytrack.sim.measurement.MeasurementNoise`); the true state when None.
+    packet_loss : mapping or None
+        Lost command packets: ``{probability, seed}``
+        (:class:`~delaytrack.sim.packet_loss.PacketLoss`); none lost when None.
+    """
+
+    name: str
+    plant: Mapping[str, Any]
+    model: Mapping[str, Any]
+    controller: Mapping[str, Any]
+    delay: Mapping[str, Any]
+    reference: Mapping[str, Any]
+    duration: float
+    dt: float
+    T_c: float
+    seed: int | None = None
+    x0: tuple[float, ...] | None = None
+    record_every: int = 1
+    error_bound: float | tuple[float, ...] | None = None
+    input_limits: float | tuple[float, ...] | None = None
+    measurement_noise: Mapping[str, Any] | None = None
+    packet_loss: Mapping[str, Any] | None = None
+
+    def __post_init__(self) -> None:
+        _check_value("name", self.name, string)
+        if not NAME_PATTERN.fullmatch(self.name):
+            raise fail(
+                "name",
+                "must start with a letter or digit and contain only letters, digits, '.', '_' "
+                "and '-' (it names the results folder)",
+                self.name,
+            )
+        for key in ("duration", "dt", "T_c"):
+            value = getattr(self, key)
+            _check_value(key, value, number)
+            if value <= 0:
+                raise fail(key, "must be > 0 (seconds)", value)
+            object.__setattr__(self, key, float(value))
+        if self.duration / self.dt > MAX_STEPS:
+            raise fail(
+                "duration",
+                f"must be at most {MAX_STEPS:.0e} plant steps of 'dt' = {self.dt:g} s "
+                f"({MAX_STEPS * self.dt:g} s; about a minute of computing for one run)",
+                self.duration,
+            )
+        _check_ratio("T_c", self.T_c, "dt", self.dt)
+        _check_ratio("duration", self.duration, "T_c", self.T_c)
+        if self.seed is not None:
+            _check_value("seed", self.seed, integer)
+            if self.seed < 0:
+                raise fail("seed", "must be >= 0", self.seed)
+        if self.x0 is not None:
+            x0 = _plain(self.x0)
+            _check_value("x0", x0, vector)
+            _check_value("x0", x0, _all_finite)
+            object.__setattr__(self, "x0", tuple(float(v) for v in x0))
+        _check_value("record_every", self.record_every, integer)
+        if self.record_every < 1:
+            raise fail("record_every", "must be >= 1", self.record_every)
+        for key, phrase in (
+            ("error_bound", error_bound_phrase),
+            ("input_limits", input_limits_phrase),
+        ):
+            if getattr(self, key) is not None:
+                value = _plain(getattr(self, key))
+                _check_value(key, value, phrase)
+                object.__setattr__(
+                    self,
+                    key,
+                    tuple(map(float, value)) if isinstance(value, list) else float(value),
+                )
+        for key, phrase in (
+            ("measurement_noise", measurement_noise_phrase),
+            ("packet_loss", packet_loss_phrase),
+        ):
+            if getattr(self, key) is not None:
+                table = _plain(getattr(self, key))
+                _check_value(key, table, phrase)
+                object.__setattr__(self, key, MappingProxyType(table))
+        for table in TABLES:
+            content = _plain(getattr(self, table))
+            if isinstance(content, dict):  # anything else is refused by its check below
+                content = MappingProxyType(content)
+            object.__setattr__(self, table, content)
+        for table, types in TABLE_TYPES.items():
+            check = functools.partial(check_table, table, self._checked_form(table), types)
+            remembered(check, "checked", lambda: self._identities, table)
+
+    # ---- reading and writing -----------------------------------------------------------------
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Scenario:
+        """Build from a dict with the layout of a scenario file (see :mod:`delaytrack.scenario`).
+
+        The dict is your own code: its factories (``"python:..."`` types) are imported without
+        the check of :meth:`from_toml`, and a ``"python:<file.py>:..."`` file is taken relative
+        to the working folder.
+
+        Raises
+        ------
+        ScenarioError
+            For an unknown, missing or ill-typed key; the message names it.
+        """
+        if not isinstance(data, Mapping):
+            raise ScenarioError(f"a scenario must be a table of keys; got {type(data).__name__}")
+        for key in data:
+            if key not in TOP_LEVEL_KEYS:
+                raise ScenarioError(
+                    f"unknown key {key!r} in scenario; valid keys are {sorted(TOP_LEVEL_KEYS)}"
+                )
+        for key in REQUIRED:
+            if key not in data:
+                what = f"table [{key}] ({TABLE_PURPOSE[key]})" if key in TABLES else f"key {key!r}"
+                raise ScenarioError(f"scenario is missing the required {what}")
+        # Tables are copied once, by the constructor.
+        fields: dict[str, Any] = {
+            k: v if isinstance(v, Mapping) else _plain(v) for k, v in data.items()
+        }
+        return cls(**fields)
+
+    @classmethod
+    def from_toml(cls, path: str | Path, *, trust: Sequence[str] = ()) -> Scenario:
+        """Read a scenario file. Relative paths (traces, factory files) are taken relative to
+        its folder.
+
+        A factory (``type = "python:..."``) is Python code: it is allowed only from a ``.py``
+        file in the scenario file's folder or below it (after resolving ``..`` and links), or
+        when ``trust`` names it (see :mod:`delaytrack.scenario`). Nothing is imported before.
+
+        Parameters
+        ----------
+        path : path
+        trust : sequence of str
+            What you trust beyond the file's folder: module names (``"mylab.robots"``: it and
+            its submodules) and paths with a ``/`` or ending in ``.py`` (``"./robots"``,
+            ``"~/lab/arm.py"``: that file, or every file below that folder). The command
+            line's ``--trust``.
+
+        Raises
+        ------
+        ScenarioError
+            If the file is missing, is not TOML, names a factory it may not, or is not a valid
+            scenario; the message starts with the file name.
+        ValueError
+            If ``trust`` holds a name that is neither a module name nor an existing ``.py`` file
+            or folder.
+        """
+        trusted = Trust.of(trust)
+        source = Path(path)
+        data = read_toml_file(source, "scenario file", ScenarioError)
+        try:
+            for table in TABLES:
+                resolve_file_keys(source, table, data.get(table), trusted)
+            return cls.from_dict(data)
+        except ScenarioError as error:
+            raise ScenarioError(f"{source}: {error}") from None
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain data in the file layout (a deep copy); ``None`` fields are left out."""
+        data: dict[str, Any] = {
+            "name": self.name,
+            "duration": self.duration,
+            "dt": self.dt,
+            "T_c": self.T_c,
+        }
+        if self.seed is not None:
+            data["seed"] = self.seed
+        if self.x0 is not None:
+            data["x0"] = list(self.x0)
+        data["record_every"] = self.record_every
+        for key in ("error_bound", "input_limits"):
+            value = getattr(self, key)
+            if value is not None:
+                data[key] = list(value) if isinstance(value, tuple) else value
+        for key in ("measurement_noise", "packet_loss"):
+            if getattr(self, key) is not None:
+                data[key] = _plain(getattr(self, key))
+        for table in TABLES:
+            data[table] = _plain(getattr(self, table))
+        return data
+
+    def to_toml(self, path: str | Path | None = None) -> str:
+        """The scenario as TOML text; also written (atomically) to ``path`` when given."""
+        text = dumps_toml(self.to_dict())
+        if path is not None:
+            write_text(path, text)
+        return text
+
+    def replace(self, **changes: Any) -> Scenario:
+        """A copy with some fields changed (validated again), e.g. ``replace(dt=5e-4)``."""
+        return dataclasses.replace(self, **changes)
+
+    # ---- building and running ----------------------------------------------------------------
+
+    def _checked_form(self, table: str) -> Any:
+        """``[table]`` as it is checked and built: a delay with the defaults it takes from the
+        scenario, a reference with its type."""
+        if table == "delay":
+            return _with_delay_defaults(self.delay, self.seed, self.duration)
+        if table == "reference":
+            return _with_reference_type(self.reference)
+        return getattr(self, table)
+
+    @functools.cached_property
+    def _identities(self) -> Mapping[str, str | None]:
+        """How :func:`~delaytrack.scenario.table_memory.remembered_tables` tells each table
+        apart: the :func:`~delaytrack.scenario.table_memory.table_identity` of its checked form
+        (:meth:`_checked_form`)."""
+        return {table: table_identity(self._checked_form(table)) for table in TABLES}
+
+    def build(self) -> BuiltScenario:
+        """Construct plant, model, controller, delay, reference and ``x0``.
+
+        Raises
+        ------
+        ScenarioError
+            If a table's values are refused by its constructor (for example a gain that is not
+            positive definite) or the dimensions disagree; the message names the table.
+        """
+        plant = self._built(lambda: plant_from_spec(_plain(self.plant)), "plant")
+        model = self._built(lambda: plant_from_spec(_plain(self.model), table="model"), "model")
+        if (model.n, model.m) != (plant.n, plant.m):
+            raise ScenarioError(
+                f"scenario table [model] has n = {model.n}, m = {model.m}; [plant] has "
+                f"n = {plant.n}, m = {plant.m} (they must describe the same kind of system)"
+            )
+        controller = self._built(
+            lambda: controller_from_spec(_plain(self.controller), model), "controller", "model"
+        )
+        delay = self._built(lambda: delay_from_spec(delay_as_run(self)), "delay")
+        reference = self._built(lambda: reference_from_spec(_plain(self.reference)), "reference")
+        if reference.n != plant.n:
+            raise ScenarioError(
+                f"scenario table [reference] gives n = {reference.n} coordinates; the plant has "
+                f"n = {plant.n}"
+            )
+        if isinstance(self.error_bound, tuple) and len(self.error_bound) != plant.n:
+            raise fail(
+                "error_bound",
+                f"must be one number or n = {plant.n} of them (one per coordinate)",
+                list(self.error_bound),
+            )
+        if isinstance(self.input_limits, tuple) and len(self.input_limits) != plant.m:
+            raise fail(
+                "input_limits",
+                f"must be one number or m = {plant.m} of them (one per input)",
+                list(self.input_limits),
+            )
+        if self.x0 is None:
+            x0 = np.zeros(2 * plant.n)
+        else:
+            x0 = np.array(self.x0)
+            if x0.shape != (2 * plant.n,):
+                raise fail("x0", f"must have 2n = {2 * plant.n} entries [q, qdot]", list(self.x0))
+        return BuiltScenario(plant, model, controller, delay, reference, x0)
+
+    def _built(self, make: Callable[[], _T], *tables: str) -> _T:
+        """The component ``make`` builds from ``tables``, remembered
+        (:func:`~delaytrack.scenario.table_memory.remembered_tables`) unless one of them names a
+        factory of yours: a factory is called every time."""
+        for table in tables:
+            kind = getattr(self, table).get("type")
+            if isinstance(kind, str) and kind.startswith(PYTHON_TYPE):
+                return make()
+        return remembered(make, "built", lambda: self._identities, *tables)
+
+    def resolved(self) -> Scenario:
+        """The scenario with its defaults written in: ``x0``, and a random delay's seed/duration.
+
+        Running the resolved scenario gives the same result; it is what gets saved as the
+        scenario "as run".
+        """
+        return self.resolved_and_built()[0]
+
+    def resolved_and_built(self) -> tuple[Scenario, BuiltScenario]:
+        """:meth:`resolved` and :meth:`build` from one construction (sweeps check every run)."""
+        built = self.build()
+        x0, delay = tuple(built.x0.tolist()), delay_as_run(self)
+        if x0 == self.x0 and delay == self.delay:  # resolved already: nothing to check again
+            return self, built
+        return self.replace(x0=x0, delay=delay), built
+
+    @property
+    def simulated_error_bound(self) -> float | tuple[float, ...]:
+        """``error_bound`` as :func:`~delaytrack.sim.simulate` takes it (``inf``: none set)."""
+        return math.inf if self.error_bound is None else self.error_bound
+
+    @property
+    def simulated_measurement_noise(self) -> MeasurementNoise | None:
+        """``measurement_noise`` as :func:`~delaytrack.sim.simulate` takes it."""
+        if self.measurement_noise is None:
+            return None
+        return MeasurementNoise(**_plain(self.measurement_noise))
+
+    @property
+    def simulated_packet_loss(self) -> PacketLoss | None:
+        """``packet_loss`` as :func:`~delaytrack.sim.simulate` takes it."""
+        return None if self.packet_loss is None else PacketLoss(**_plain(self.packet_loss))
+
+    @property
+    def simulated_input_limits(self) -> float | tuple[float, ...]:
+        """``input_limits`` as :func:`~delaytrack.sim.simulate` takes it (``inf``: none set)."""
+        return math.inf if self.input_limits is None else self.input_limits
+
+    def run(self, *, progress: bool = False) -> SimResult:
+        """Simulate the scenario (batch of one); see :func:`delaytrack.sim.simulate`."""
+        built = self.build()
+        return simulate_built(self, built, built.delay, progress=progress)
+
+
+def _with_reference_type(reference: object) -> object:
+    """``[reference]`` with its default type, ``"sinusoidal"``, written in (a copy)."""
+    if not isinstance(reference, Mapping) or "type" in reference:
+        return reference
+    return {"type": "sinusoidal", **reference}
+
+
+def _with_delay_defaults(delay: Any, seed: int | None, duration: float) -> Any:
+    """A random delay without its own seed or duration takes the scenario's (a copy)."""
+    if not isinstance(delay, Mapping) or delay.get("type") != "random":
+        return delay
+    spec = dict(delay)
+    if "seed" not in spec:
+        if seed is None:
+            raise ScenarioError(
+                "scenario key 'delay.seed' is missing and the scenario has no 'seed'; a "
+                "random delay needs one of them (results must be reproducible)"
+            )
+        spec["seed"] = seed
+    spec.setdefault("duration", duration)
+    return spec
+
+
+def _check_ratio(name: str, value: float, unit_name: str, unit: float) -> None:
+    ratio = value / unit
+    if integer_multiple(value, unit) is None:
+        raise ScenarioError.of_key(
+            name,
+            f"must be a positive integer multiple of {unit_name!r}; got {name} = {value:g}, "
+            f"{unit_name} = {unit:g} ({name}/{unit_name} = {ratio:.12g})",
+        )
+
+
+def delay_as_run(scenario: Scenario) -> dict[str, Any]:
+    """The scenario's ``[delay]`` as it runs: a random delay without its own seed or duration
+    with the scenario's written in (a plain copy)."""
+    return _with_delay_defaults(_plain(scenario.delay), scenario.seed, scenario.duration)
+
+
+def simulate_built(
+    scenario: Scenario,
+    built: BuiltScenario,
+    delay: DelayProfile | list[DelayProfile],
+    *,
+    progress: bool = False,
+) -> SimResult:
+    """Simulate ``scenario`` with the objects :meth:`Scenario.build` made of it.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Its times, ``record_every``, error bound, input limits, measurement noise and packet
+        loss.
+    built : BuiltScenario
+        ``scenario.build()``: the plant, controller, reference and ``x0`` simulated.
+    delay : DelayProfile or list of DelayProfile
+        ``built.delay``, or one delay per batch element (:func:`delaytrack.sim.simulate`).
+    progress : bool
+        Show the simulator's progress bar.
+
+    Raises
+    ------
+    ScenarioError
+        If :func:`delaytrack.sim.simulate` refuses its input; the message names the scenario.
+    """
+    try:
+        return simulate(
+            built.plant,
+            built.controller,
+            delay,
+            built.x0,
+            reference=built.reference,
+            t1=scenario.duration,
+            dt=scenario.dt,
+            T_c=scenario.T_c,
+            record_every=scenario.record_every,
+            error_bound=scenario.simulated_error_bound,
+            input_limits=scenario.simulated_input_limits,
+            measurement_noise=scenario.simulated_measurement_noise,
+            packet_loss=scenario.simulated_packet_loss,
+            progress=progress,
+        )
+    except ValueError as error:
+        # simulate()'s refusals of its input; anything else is a bug and keeps its traceback.
+        raise ScenarioError(f"scenario {scenario.name!r}: {error}") from None

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from delaytrack._cli_options import quiet_argument
 from delaytrack._output import OutputFolderError, check_output_folder, check_results_root
@@ -208,26 +210,42 @@ def _robustness(args: argparse.Namespace, executor) -> int:
     return 0
 
 
+def _timed(job: str, folder: str, args: argparse.Namespace, run: Callable[[], tuple]) -> Any:
+    """Run a job's ``reproduce``, print how long it took and where it wrote; its study."""
+    start = time.perf_counter()
+    study, files = run()
+    seconds = time.perf_counter() - start
+    print(
+        f"{job} job done in {seconds:.1f} s wall time; wrote {len(files)} files to "
+        f"{Path(args.out) / folder}/"
+    )
+    return study
+
+
 def _two_link(args: argparse.Namespace) -> int:
     """The two-link job, into ``<out>/two-link/``."""
     from delaytrack.experiments.two_link import FOLDER, reproduce
     from delaytrack.scenario import ScenarioError
 
-    start = time.perf_counter()
     try:
-        study, files = reproduce(
-            args.out, duration=args.duration, check_dt=not args.no_dt_check, progress=not args.quiet
+        study = _timed(
+            "two-link",
+            FOLDER,
+            args,
+            lambda: reproduce(
+                args.out,
+                duration=args.duration,
+                check_dt=not args.no_dt_check,
+                progress=not args.quiet,
+            ),
         )
     except ScenarioError as error:  # a --duration the job's scenarios refuse
         raise flagged(error, keys=_DURATION) from None
-    seconds = time.perf_counter() - start
-    folder = Path(args.out) / FOLDER
-    print(f"two-link job done in {seconds:.1f} s wall time; wrote {len(files)} files to {folder}/")
     columns = ["scenario", "controller", "ae_q1", "ae_q2", "tv", "status"]
     print(study.summary[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     if study.dt_check is not None:
         print(f"largest relative change of a metric when dt is halved: {study.dt_max_change:.2e}")
-    print(f"report: {folder / 'report.html'}")
+    print(f"report: {Path(args.out) / FOLDER / 'report.html'}")
     return 0
 
 
@@ -235,14 +253,15 @@ def _margins(args: argparse.Namespace) -> int:
     """The margins job, into ``<out>/margins/``."""
     from delaytrack.experiments.margins import FOLDER, reproduce
 
-    start = time.perf_counter()
     try:
-        study, files = reproduce(args.out, duration=args.duration, progress=not args.quiet)
+        study = _timed(
+            "margins",
+            FOLDER,
+            args,
+            lambda: reproduce(args.out, duration=args.duration, progress=not args.quiet),
+        )
     except ValueError as error:  # a --duration too short for the job's tracking rule
         raise UsageError(f"margins job: {flagged(error, _DURATION)}") from None
-    seconds = time.perf_counter() - start
-    folder = Path(args.out) / FOLDER
-    print(f"margins job done in {seconds:.1f} s wall time; wrote {len(files)} files to {folder}/")
     print(study.table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
-    print(f"report: {folder / 'report.html'}")
+    print(f"report: {Path(args.out) / FOLDER / 'report.html'}")
     return 0

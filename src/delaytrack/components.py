@@ -44,6 +44,7 @@ from delaytrack._compile.guards import refuse_managed_result
 from delaytrack._compile.jit import inline_kernel, tick_kernel
 from delaytrack._compile.kernel_type import KernelType, known_to_numba, numba_type_of
 from delaytrack._compile.native_call import NativeFunctionType, call_native
+from delaytrack._deprecated import moved_names
 from delaytrack._small_linalg import solve_in_place
 
 __all__ = [
@@ -61,6 +62,17 @@ __all__ = [
     "plant_sizes",
     "solve_input_map",
 ]
+
+#: Fingerprints and guards belong to the compile machinery now.
+__getattr__ = moved_names(
+    __name__,
+    {
+        "code_fingerprint": "delaytrack._compile.fingerprint:code_fingerprint",
+        "compiled_functions_reached": "delaytrack._compile.fingerprint:compiled_functions_reached",
+        "refuse_changed_globals": "delaytrack._compile.guards:refuse_changed_globals",
+        "refuse_random_draws": "delaytrack._compile.guards:refuse_random_draws",
+    },
+)
 
 
 @known_to_numba

@@ -16,7 +16,7 @@ folder to the jobs of ``delaytrack reproduce``.
   are :mod:`~delaytrack.experiments.intervals` (Wilson and bootstrap intervals),
   :mod:`~delaytrack.experiments.outcomes` (divergence and medians per group, the longest clean
   delay) and :mod:`~delaytrack.experiments.verdicts` (claims decided draw by draw, attribution).
-- :mod:`delaytrack.experiments.two_link`: the earlier interim job, AROLC vs the plain outer loop
+- :mod:`delaytrack.experiments.two_link`: the two-link job, AROLC vs the plain outer loop
   on the two-link arm under S1 and S3 (``delaytrack reproduce --job two-link``).
 
 Every job returns a frozen study holding every number its report quotes; the report (prose,

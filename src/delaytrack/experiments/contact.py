@@ -24,6 +24,7 @@ import pandas as pd
 
 from delaytrack.plants.robot import P3DX
 from delaytrack.plants.robot.kinematics import constraint_residual
+from delaytrack.plants.robot.reference import CIRCLE_RADIUS, CIRCLE_RATE
 from delaytrack.sim import SimResult
 
 __all__ = [
@@ -168,6 +169,8 @@ class ContactFindings:
     lost : tuple of (str, str)
         ``(scenario, controller)`` of the main runs that left the path (or diverged) on one of
         the robots.
+    circle_speed : float
+        The speed along the consistent circle (mm/s), beside which the slip is read.
     """
 
     time_constant: float
@@ -180,6 +183,7 @@ class ContactFindings:
     same_rankings: int
     others: tuple[ContactChange, ...]
     lost: tuple[tuple[str, str], ...]
+    circle_speed: float = 1e3 * CIRCLE_RADIUS * CIRCLE_RATE
 
 
 def _change(runs: pd.DataFrame, time_constant: float) -> ContactChange:

@@ -27,12 +27,14 @@ from delaytrack.plants.mujoco import import_mujoco
 from delaytrack.plants.robot import (
     P3DX,
     P3DX_MJCF,
+    P3DX_PAYLOAD,
     NominalRobot,
     WheeledRobot,
     initial_state,
     paper_reference,
     wheel_rates,
 )
+from delaytrack.plants.robot.payload import placement_count
 from delaytrack.plants.robot.reference import CIRCLE_RADIUS, CIRCLE_RATE
 from delaytrack.sim import SimResult
 
@@ -78,7 +80,8 @@ class BaselineFailure:
     tuning_largest_delay : float
         The largest delay of the class's tuning conditions (s).
     stability_number : float
-        ``T_c k_b c λ_max(ϑ₀)`` of its gains: the sampled law is stable only for about ``< 2``.
+        ``T_c k_b λ_max(ϑ)`` (``ϑ = c ϑ₀``) of its gains: the sampled law is stable only
+        for about ``< 2``.
     """
 
     scenario: str
@@ -170,6 +173,8 @@ class PaperFindings:
         The consistent path's right and left wheel rates (rad/s).
     circle_speed : float
         The circle's speed (m/s).
+    payload_placements : int
+        How many times the payload is put on the robot in a run of the job's duration.
     literal_speed, literal_turn : float
         The forward speed (m/s) and turn rate (rad/s) the literal path's wheel references imply.
     controller_rate : float
@@ -217,6 +222,7 @@ class PaperFindings:
     heading_rate: float
     consistent_wheel_rates: tuple[float, float]
     circle_speed: float
+    payload_placements: int
     literal_speed: float
     literal_turn: float
     controller_rate: float
@@ -289,8 +295,8 @@ def _dwells(scenario: str, duration: float, level: float) -> list[tuple[float, f
 
 
 def _stability_number(kind: str, gains: Mapping[str, float]) -> float:
-    """``T_c k_b c λ_max(ϑ₀)`` of a predictor's gains: the sampled law is stable only for
-    about ``< 2`` (docs/decisions.md D23)."""
+    """``T_c k_b λ_max(ϑ) = T_c k_b c λ_max(ϑ₀)`` of a predictor's gains: the sampled law is
+    stable only for about ``< 2`` (docs/decisions.md D23)."""
     lam = float(np.linalg.eigvalsh(tuning.vartheta_base(kind)).max())
     return T_C * gains["k_b"] * gains["c"] * lam
 
@@ -466,6 +472,9 @@ def paper_findings(
         heading_rate=float(qd_dot[0, 2]),
         consistent_wheel_rates=(float(right), float(left)),
         circle_speed=CIRCLE_RADIUS * CIRCLE_RATE,
+        payload_placements=placement_count(
+            duration, P3DX_PAYLOAD.first_on, P3DX_PAYLOAD.time_on, P3DX_PAYLOAD.time_off
+        ),
         literal_speed=P3DX.wheel_radius * (literal_right + literal_left) / 2.0,
         literal_turn=P3DX.wheel_radius * (literal_right - literal_left) / (2.0 * P3DX.half_track),
         controller_rate=1 / T_C,

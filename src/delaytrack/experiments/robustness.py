@@ -50,18 +50,14 @@ from typing import Any, ClassVar
 import numpy as np
 import pandas as pd
 
+from delaytrack._deprecated import moved_names
 from delaytrack._output import claim_output_folder
 from delaytrack.delays import AbsSineDelay, delay_from_spec
 from delaytrack.experiments import tuning
-from delaytrack.experiments.intervals import median_interval as median_interval
 from delaytrack.experiments.intervals import wilson_interval
 from delaytrack.experiments.outcomes import delay_reach, outcome_table
 from delaytrack.experiments.pairing import AROLC_GAINS, BASELINE, DELAY_CLASS
 from delaytrack.experiments.verdicts import attribution, attribution_ranges, claim_verdicts
-from delaytrack.report.robustness import display_attribution as display_attribution
-from delaytrack.report.robustness import display_knowledge as display_knowledge
-from delaytrack.report.robustness import display_verdicts as display_verdicts
-from delaytrack.report.robustness import findings as findings
 from delaytrack.report.robustness import write_robustness
 from delaytrack.scenario import Scenario, load_builtin
 from delaytrack.sweeps import SweepSpec, run_sweep
@@ -80,8 +76,19 @@ __all__ = [
     "study_specs",
     "wilson_interval",
 ]
-# median_interval (experiments.intervals), findings and the display tables (report.robustness)
-# are imported above as X as X so that they stay importable from here, where they used to live.
+#: The statistics and the report's text moved; reading them here still works, with a warning.
+__getattr__ = moved_names(
+    __name__,
+    {
+        "median_interval": "delaytrack.experiments.intervals:median_interval",
+        "findings": "delaytrack.report.robustness:findings",
+        "display_verdicts": "delaytrack.report.robustness:display_verdicts",
+        "display_attribution": "delaytrack.report.robustness:display_attribution",
+        "display_knowledge": "delaytrack.report.robustness:display_knowledge",
+        "display_outcomes": "delaytrack.report.robustness:display_outcomes",
+        "robustness_map": "delaytrack.report.robustness:robustness_map",
+    },
+)
 
 #: Scales ``s`` of what the predictors are told (``s h``).
 SCALES: tuple[float, ...] = (0.5, 0.75, 1.0, 1.25, 1.5, 2.0)

@@ -48,8 +48,8 @@ points, every one run on every condition.
 **Objective** (the same for all): for each condition the mean of AE-x and AE-y (mm) over the
 whole run; a gain set's objective is the WORST (largest) of these over its conditions. A grid
 point that diverges under any of its conditions (the run stops, or its mean AE exceeds
-:data:`DIVERGED_AE_MM`: it left the path with a finite state) is excluded. Smallest objective
-wins; ties go to the first in grid order.
+:data:`DIVERGED_AE_MM`: it diverged from the path with a finite state) is excluded. Smallest
+objective wins; ties go to the first in grid order.
 
 **Gain sets** (:data:`GAIN_SETS`), for every controller: ``all`` (one gain set for every delay,
 all six conditions), ``varying`` and ``constant`` (one gain set per delay class, its three
@@ -98,7 +98,7 @@ from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
 from delaytrack.metrics import mean_absolute_error, total_variation
 from delaytrack.plants.robot import NominalRobot, PayloadRobot, initial_state, paper_reference
 from delaytrack.plants.robot.kinematics import kinematic_map
-from delaytrack.report.tuning import gains_text
+from delaytrack.report import tuning as tuning_report
 from delaytrack.sim import simulate
 
 __all__ = [
@@ -275,6 +275,13 @@ def _with_outer_loop_gains(kind: str, gains: Mapping[str, float]) -> dict[str, f
         return dict(gains)
     g = arolc_gains(gains["k"], gains["zeta"], gains["alpha"])
     return {**gains, "K1": g["K1"], "K2": g["K2"]}
+
+
+def gains_text(kind: str, gains: Mapping[str, float]) -> str:
+    """The gains of one chosen set as text (``κ = 8, k_b = 3 I, ϑ = 0.35 M̂⁻¹``); AROLC's
+    with the outer loop's ``K1 = k²``, ``K2 = 2 ζ k`` they give (``k = 6, ζ = 0.7 (K1 = 36 I,
+    K2 = 8.4 I), α = 54``)."""
+    return tuning_report.gains_text(kind, _with_outer_loop_gains(kind, gains))
 
 
 def certified_bound(k: float, zeta: float) -> float:
@@ -635,7 +642,7 @@ def _check_chosen(record: Mapping[str, Any], where: str) -> None:
             try:
                 make_controller(kind, gains, h_bar=0.0)
             except (ValueError, TypeError) as error:
-                shown = gains_text(kind, _with_outer_loop_gains(kind, gains))
+                shown = gains_text(kind, gains)
                 _refuse(where, f"{table} {shown}: {kind} refuses these gains ({error})")
 
 

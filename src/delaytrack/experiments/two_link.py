@@ -1,4 +1,4 @@
-"""The interim main job: AROLC vs the plain outer loop on the two-link arm under S1 and S3.
+"""The two-link job: AROLC vs the plain outer loop on the two-link arm under S1 and S3.
 
 ``delaytrack reproduce`` (and ``make reproduce``) runs :func:`reproduce`, which writes
 ``<out>/two-link/``:

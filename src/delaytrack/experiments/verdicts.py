@@ -149,7 +149,7 @@ def attribution(claims: pd.DataFrame) -> pd.DataFrame:
 def attribution_ranges(table: pd.DataFrame) -> pd.DataFrame:
     """Per noise level and part of an :func:`attribution` table: the range over scenarios of
     its median change of AE (mm) and TV (N·m), and the scenarios in which no draw could be
-    compared (``not_compared``, a tuple: one side diverged in every draw)."""
+    compared (``not_compared``, a tuple: in no draw did both stay on the path)."""
     rows = []
     for (noise, part), group in table.groupby(["noise", "part"], sort=False):
         ae, tv = group.median_change_ae_mm, group.median_change_tv_Nm

@@ -78,7 +78,8 @@ def contact_paragraphs(findings: ContactFindings) -> list[str]:
             "The wheels slip: the axle's sideways velocity has an RMS of "
             f"{sideways[0]:.2g}–{sideways[1]:.2g} mm/s, the wheels' rim speed differs from their "
             f"ground speed by an RMS of {rolling[0]:.2g}–{rolling[1]:.2g} mm/s, at most "
-            f"{findings.largest_slip:.3g} mm/s in any run (the robot drives at about 400 mm/s; "
+            f"{findings.largest_slip:.3g} mm/s in any run (the robot drives at "
+            f"{findings.circle_speed:.3g} mm/s; "
             f"after the first {SETTLING_S:g} s, in which the robot, started at speed, settles "
             "onto its contacts)."
         )

@@ -343,7 +343,7 @@ def _explanation(study: PaperStudy) -> list[str]:
             f"{base[0]:.1f}–{base[1]:.1f} mm in x. This table therefore "
             "compares tuned baselines with AROLC at the paper's gains; AROLC tuned by the same "
             "procedure is reported in its own section below. How much tuning matters: over the "
-            "tuning grid's points that neither diverged nor left the path (mean AE at most "
+            "tuning grid's points that did not diverge (stop, or mean AE above "
             f"{tuning.DIVERGED_AE_MM:g} mm) under any condition, the baselines' worst-case "
             f"objective ranges from {spread['PCON'][0]:.3g} to {spread['PCON'][2]:.3g} mm "
             f"(median {spread['PCON'][1]:.3g} mm; PCON) and from {spread['PCONf'][0]:.3g} to "
@@ -363,7 +363,8 @@ def _explanation(study: PaperStudy) -> list[str]:
             )
             + f", while the {f.delay_class} tuning conditions reached at most "
             f"{_ms(f.tuning_largest_delay, '.0f')} ms; its sampled-law stability number "
-            f"T_c k_b c λ_max(ϑ₀) is {f.stability_number:.2g} (about 2 is the edge)"
+            f"T_c k_b λ_max(ϑ) is {f.stability_number:.2g} (about 2 is the edge; ϑ = c ϑ₀, "
+            "ϑ₀ the model's inverse mass matrix)"
             for f in found.baseline_failures
         ]
         out.append(
@@ -623,7 +624,8 @@ def _settings(study: PaperStudy) -> dict[str, str]:
         "gain set's conditions, any divergence excluded; none of S1–S4",
         "delays": "; ".join(f"{k}: {v}" for k, v in _SCENARIO_TEXT.items())
         + " (unknown to AROLC and the outer loop)",
-        "duration": f"{study.duration:g} s (not in the paper; six payload cycles)",
+        "duration": f"{study.duration:g} s (not in the paper; "
+        f"{study.findings.payload_placements} payload placements)",
         "plant step dt": f"{DT:g} s, RK4 split at the delayed input's switches; "
         + (
             "not checked at dt/2"
@@ -666,8 +668,8 @@ def _tuning_section(report: HtmlReport, study: PaperStudy) -> None:
             f"{kind}, gain set '{gain_set}': chosen {gains_text(kind, chosen)} "
             f"(objective {chosen['objective']:.3f} mm; "
             + ("inside its grid in every gain" if chosen["interior"] else "ON ITS GRID'S EDGE")
-            + f"); {grid.excluded} of {grid.points} grid points diverged "
-            "or left the path under one of the set's conditions."
+            + f"); {grid.excluded} of {grid.points} grid points diverged (stopped, or mean AE "
+            f"above {tuning.DIVERGED_AE_MM:g} mm) under one of the set's conditions."
         )
         report.table(grid.best, f"{kind} ({gain_set}): the five best grid points.")
 

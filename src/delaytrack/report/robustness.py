@@ -98,8 +98,8 @@ def findings(study: RobustnessStudy) -> list[str]:
             f"{row.ae_change_min_mm:+.3g} to {row.ae_change_max_mm:+.3g} mm, TV "
             f"{row.tv_change_min_Nm:+.3g} to {row.tv_change_max_Nm:+.3g} N·m"
             + (
-                f"; in {', '.join(row.not_compared)} no draw could be compared (one side "
-                "diverged in every draw)"
+                f"; in {', '.join(row.not_compared)} no draw could be compared (in no draw did "
+                "both stay on the path)"
                 if row.not_compared
                 else ""
             )
@@ -319,7 +319,8 @@ def _report(study: RobustnessStudy, image: bytes) -> HtmlReport:
         "percentile-bootstrap 95 % intervals."
     )
     report.paragraph(
-        f"Size: {study.run_count} runs of 60 s ({study.size.map} draws per map cell, "
+        f"Size: {study.run_count} runs of {study.scenario.duration:g} s "
+        f"({study.size.map} draws per map cell, "
         f"{study.size.knowledge} per delay-knowledge case, {study.size.claims} per claims case); "
         f"{study.computed} work units computed and {study.resumed} resumed in "
         f"{study.seconds:.1f} s."

@@ -1,0 +1,47 @@
+"""Names that moved: a module's ``__getattr__`` that still finds them, with a warning.
+
+A module whose public names moved elsewhere sets ``__getattr__ = moved_names(__name__, {...})``;
+reading an old name warns (:class:`DeprecationWarning`, naming the new place) and returns the
+object from where it lives now. The new place is imported only when an old name is read.
+"""
+
+from __future__ import annotations
+
+import importlib
+import warnings
+from collections.abc import Callable, Mapping
+from typing import Any
+
+__all__ = ["moved_names"]
+
+
+def moved_names(module: str, moved: Mapping[str, str]) -> Callable[[str], Any]:
+    """A module ``__getattr__`` for ``moved``: old name -> ``"new.module:attribute"``.
+
+    Parameters
+    ----------
+    module : str
+        The old module's name (``__name__``), for the messages.
+    moved : mapping of str to str
+        Each old name and where it lives now.
+
+    Returns
+    -------
+    callable
+        ``__getattr__(name)``: the moved object after a :class:`DeprecationWarning`, or
+        :class:`AttributeError` for a name that never lived here.
+    """
+
+    def __getattr__(name: str) -> Any:
+        if name not in moved:
+            raise AttributeError(f"module {module!r} has no attribute {name!r}")
+        where, _, attribute = moved[name].partition(":")
+        warnings.warn(
+            f"{module}.{name} moved to {where}.{attribute}; import it from there "
+            f"(the old name will be removed in a later release)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return getattr(importlib.import_module(where), attribute)
+
+    return __getattr__

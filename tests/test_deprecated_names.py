@@ -1,0 +1,36 @@
+"""Names that moved work from their old place, with a DeprecationWarning naming the new one."""
+
+from __future__ import annotations
+
+import importlib
+
+import pytest
+
+MOVED = [
+    ("delaytrack.components", "code_fingerprint", "delaytrack._compile.fingerprint"),
+    ("delaytrack.components", "refuse_random_draws", "delaytrack._compile.guards"),
+    ("delaytrack.experiments.scenario", "Scenario", "delaytrack.scenario"),
+    ("delaytrack.experiments.scenario", "run_to_folder", "delaytrack.experiments.scenario_run"),
+    ("delaytrack.experiments.robustness", "findings", "delaytrack.report.robustness"),
+    ("delaytrack.experiments.robustness", "median_interval", "delaytrack.experiments.intervals"),
+]
+
+
+@pytest.mark.parametrize(("old", "name", "new"), MOVED)
+def test_a_moved_name_warns_and_is_the_same_object(old: str, name: str, new: str) -> None:
+    with pytest.warns(DeprecationWarning, match=rf"{old}\.{name} moved to {new}\.{name}"):
+        found = getattr(importlib.import_module(old), name)
+    assert found is getattr(importlib.import_module(new), name)
+
+
+def test_a_name_that_never_lived_there_is_an_attribute_error() -> None:
+    module = importlib.import_module("delaytrack.components")
+    with pytest.raises(AttributeError, match="has no attribute 'no_such_name'"):
+        module.no_such_name  # noqa: B018
+
+
+def test_arolc_gains_text_gives_the_outer_loop_from_k_and_zeta() -> None:
+    from delaytrack.experiments.tuning import gains_text
+
+    text = gains_text("AROLC", {"k": 6.0, "zeta": 0.7, "alpha": 54.0})
+    assert text == "k = 6, ζ = 0.7 (K1 = 36 I, K2 = 8.4 I), α = 54"

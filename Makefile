@@ -15,9 +15,10 @@ $(STAMP): pyproject.toml
 reproduce: $(STAMP)
 	$(BIN)/delaytrack reproduce --out results
 
-# One pytest process per core (pytest-xdist): the suite is mostly numba compiling.
+# One pytest process per core (pytest-xdist): the suite is mostly numba compiling. Each takes a
+# whole test module at a time, in the order of tests/conftest.py.
 test: $(STAMP)
-	$(BIN)/python -m pytest -n auto
+	$(BIN)/python -m pytest -n auto --dist loadscope
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py

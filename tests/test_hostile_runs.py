@@ -43,6 +43,15 @@ from test_hostile_inputs import one_line_error
 from test_scenario import base_dict
 
 DELAYTRACK = str(Path(sys.executable).with_name("delaytrack"))
+#: Runs the command after it with SIGINT handled by default, as from a terminal: a process
+#: started from a background job (``make test &``, some CI runners) inherits SIGINT ignored, and
+#: Python then keeps it so, which would leave the Ctrl-C tests below waiting out their timeouts.
+WITH_CTRL_C = [
+    sys.executable,
+    "-c",
+    "import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+    "os.execv(sys.argv[1], sys.argv[1:])",
+]
 X0 = np.array([0.1, -0.1, 0.0, 0.0])
 #: Calls of M before a hostile function turns: about 0.06 s into the run.
 TURN = 100
@@ -280,7 +289,9 @@ def test_ctrl_c_interrupts_the_wait_for_work_that_never_returns():
         "    print('interrupted', work_left_running(), flush=True)\n"
         "os._exit(0)\n"
     )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    done = subprocess.run(
+        [*WITH_CTRL_C, sys.executable, "-c", code], capture_output=True, text=True, timeout=60
+    )
     assert done.stdout == "interrupted True\n", done.stderr
 
 
@@ -299,7 +310,7 @@ def test_ctrl_c_ends_a_long_compiled_run_on_the_command_line(tmp_path):
     long = {"duration": 1e5, "record_every": 10**5, "delay": {"type": "constant", "h": 0.01}}
     scenario.write_text(dumps_toml({**base_dict(), **long}))
     with subprocess.Popen(
-        [DELAYTRACK, "simulate", str(scenario), "--out", str(tmp_path / "out")],
+        [*WITH_CTRL_C, DELAYTRACK, "simulate", str(scenario), "--out", str(tmp_path / "out")],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,

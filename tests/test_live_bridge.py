@@ -18,6 +18,7 @@ import subprocess
 import sys
 import textwrap
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -154,6 +155,15 @@ def bridges_file(tmp_path_factory):
 @pytest.fixture(scope="module")
 def sessions(bridges_file):
     root = bridges_file.parent
+    # The controller's step for this arm, compiled here: on a cold cache the three sessions'
+    # controller nodes would each compile it at once; they load it instead.
+    from delaytrack.live.controller import ControllerNode
+
+    scenario = Scenario.from_toml(SCENARIO)
+    options = SimpleNamespace(
+        duration=1.0, out=root, quiet=True, phase=None, state_timeout=None, stale="hold"
+    )
+    ControllerNode(scenario, scenario.build(), options)
     bridge = f"{root / 'bridges.py'}:"
     running = {
         "good": _live("run", SCENARIO, "--duration", "1.5", "--bridge", f"{bridge}recorded",

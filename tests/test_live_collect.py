@@ -1,5 +1,6 @@
-"""A session whose nodes were started one by one: ``live collect`` summarises it as ``live run``
-does, and ``live replay`` works on the folder (no timing asserted)."""
+"""A session whose nodes were started one by one (``live_nodes`` of tests/conftest.py): ``live
+collect`` summarises it as ``live run`` does, and ``live replay`` works on the folder (no timing
+asserted)."""
 
 from __future__ import annotations
 
@@ -7,29 +8,22 @@ import csv
 import json
 import subprocess
 import sys
-from argparse import Namespace
 
 import pytest
 
 pytest.importorskip("zenoh")
 pytest.importorskip("mcap_ros2")
 
-from delaytrack.live.session import ROLES, _free_ports, node_commands  # noqa: E402
+from delaytrack.live.session import ROLES  # noqa: E402
 
 SCENARIO = "two_link_S1"
 PYTHON = [sys.executable, "-m", "delaytrack.live"]
 
 
 @pytest.fixture(scope="module")
-def folder(tmp_path_factory):
-    out = tmp_path_factory.mktemp("collect") / "nodes"
-    options = Namespace(
-        scenario=SCENARIO, handshake_timeout=60.0, duration=1.5, trust=[], quiet=True, loss=None
-    )
-    commands = node_commands(options, out, _free_ports(3), "collect-test")
-    nodes = {role: subprocess.Popen(commands[role], stderr=subprocess.PIPE) for role in ROLES}
-    errors = {role: node.communicate(timeout=180)[1] for role, node in nodes.items()}
-    assert all(node.returncode == 0 for node in nodes.values()), errors
+def folder(live_nodes):
+    out, _name, outputs, codes, _statuses = live_nodes
+    assert all(code == 0 for code in codes.values()), outputs
     return out
 
 

@@ -1,9 +1,10 @@
 """The live loop end to end: three node processes over Zenoh on loopback (delaytrack.live).
 
 Three sessions run at once (one module fixture, to keep the wall time down): a normal
-``delaytrack live run``; a controller and a robot started with scenarios that differ in ``T_c``;
-and a session with packet loss whose robot node is killed with SIGKILL in the middle. Nothing
-here asserts a timing: only order, completeness, the delay rule, exit codes and readable logs.
+``delaytrack live run`` (``live_run`` of tests/conftest.py); a controller and a robot started
+with scenarios that differ in ``T_c``; and a session with packet loss whose robot node is killed
+with SIGKILL in the middle. Nothing here asserts a timing: only order, completeness, the delay
+rule, exit codes and readable logs.
 """
 
 from __future__ import annotations
@@ -90,16 +91,12 @@ def _messages(path, *, finished=True):
 
 
 @pytest.fixture(scope="module")
-def sessions(tmp_path_factory):
+def sessions(live_run, tmp_path_factory):
     root = tmp_path_factory.mktemp("live")
     env_ports = _ports(5)
-    # 1. A normal session through the launcher.
-    run_out = root / "run"
-    run = subprocess.Popen(
-        [*PYTHON, "run", SCENARIO, "--duration", "2", "--out", str(run_out), "--quiet"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-    )
+    # 1. A normal session through the launcher (tests/conftest.py, shared with
+    # test_live_status.py, which reads its status line).
+    run_out, run = live_run
     # 2. Two nodes whose scenarios differ in T_c.
     other = root / "other_T_c.toml"
     load_builtin(SCENARIO).replace(T_c=0.004).to_toml(other)
@@ -137,9 +134,10 @@ def sessions(tmp_path_factory):
             break
         time.sleep(0.05)
     os.kill(kill["robot"].pid, signal.SIGKILL)
+    stdout, stderr, run_code = run.outcome
     results = {
-        "run": (run_out, run.communicate(timeout=120)),
-        "run_code": run.returncode,
+        "run": (run_out, (stdout, stderr)),
+        "run_code": run_code,
         "mismatch": [(m.communicate(timeout=120), m.returncode) for m in mismatch],
         "kill": (
             kill_out,

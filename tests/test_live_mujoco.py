@@ -1,7 +1,8 @@
 """A plant stepped by MuJoCo itself (``stepping = "mujoco"``) as the live robot.
 
 dm_control's point mass, stepped by ``mj_step`` at its file's timestep: the robot node's states
-must be MuJoCo's, step by step, for the inputs the node logged (no timing asserted).
+must be MuJoCo's, step by step, for the inputs the node logged (no timing asserted). The session
+runs with ``--quiet``, which is checked here too.
 """
 
 from __future__ import annotations
@@ -57,3 +58,11 @@ def test_a_mujoco_stepped_plant_runs_live_and_its_states_are_mujocos(session):
         plant.stepper_kernel(float(step["t_s"]), x, u, scenario.dt, params, j == 0)
         logged = np.array([float(states[j + 1][c]) for c in columns])
         np.testing.assert_array_equal(x, logged, err_msg=f"step {j}")
+
+
+def test_live_run_quiet_prints_no_status(session):
+    """``--quiet``: neither the launcher's status line nor its final summary."""
+    _out, done = session
+    assert done.returncode == 0, done.stderr.decode()
+    assert not any(line.startswith("t=") for line in done.stderr.decode().splitlines())
+    assert done.stdout == b""

@@ -1,10 +1,11 @@
 """The live session's status: each node's JSON on ``delaytrack/<session>/status/<role>``, the
 launcher's combined line, a node's own line when it runs alone, and none with ``--quiet``.
 
-Three 2 s sessions run at once (one module fixture): ``live run`` with its status line, ``live
-run --quiet``, and the three nodes started as the launcher starts them but with the robot not
-quiet, with this test subscribed to their statuses. No timing is asserted: only that the
-numbers are there, positive or finite.
+Two 2 s sessions of tests/conftest.py run at once: ``live run`` with its status line
+(``live_run``), and the three nodes started as the launcher starts them but with the robot not
+quiet, with the fixture subscribed to their statuses (``live_nodes``); ``live run --quiet`` is
+checked on the session of test_live_mujoco.py. No timing is asserted: only that the numbers are
+there, positive or finite.
 """
 
 from __future__ import annotations
@@ -12,22 +13,13 @@ from __future__ import annotations
 import json
 import math
 import re
-import subprocess
-import sys
-import threading
-import time
-from argparse import Namespace
 
 import pytest
 
 pytest.importorskip("zenoh")
 pytest.importorskip("mcap_ros2")
 
-from delaytrack.live.session import ROLES, _free_ports, node_commands  # noqa: E402
-from delaytrack.live.transport import open_session  # noqa: E402
-
-SCENARIO = "two_link_S1"
-PYTHON = [sys.executable, "-m", "delaytrack.live"]
+from delaytrack.live.session import ROLES  # noqa: E402
 
 #: The fields of each node's status (docs/live.md, delaytrack.live.status).
 FIELDS = {
@@ -79,48 +71,16 @@ def _positive(text: str) -> bool:
 
 
 @pytest.fixture(scope="module")
-def sessions(tmp_path_factory):
-    root = tmp_path_factory.mktemp("status")
-    run = {
-        name: subprocess.Popen(
-            [*PYTHON, "run", SCENARIO, "--duration", "2", "--out", str(root / name), *extra],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-        )
-        for name, extra in (("run", []), ("quiet", ["--quiet"]))
+def sessions(live_run, live_nodes):
+    """The launcher's outcome and the nodes' (the launcher runs while the nodes do)."""
+    _folder, launched = live_run
+    _folder, name, outputs, codes, received = live_nodes
+    stdout, stderr, code = launched.outcome
+    return {
+        "run": ((stdout, stderr), code),
+        "nodes": (outputs, codes),
+        "statuses": (name, received),
     }
-    # The nodes as the launcher starts them (all quiet), but the robot prints its own line.
-    ports, name = _free_ports(3), "status-test"
-    options = Namespace(
-        scenario=SCENARIO, handshake_timeout=60.0, duration=2.0, trust=[], quiet=False, loss=None
-    )
-    watch = f"tcp/127.0.0.1:{_free_ports(1)[0]}"
-    commands = node_commands(options, root / "nodes", ports, name, watch)
-    commands["robot"].remove("--quiet")
-    received: list[tuple[str, bytes]] = []
-    lock = threading.Lock()
-
-    def on_status(sample):
-        with lock:
-            received.append((str(sample.key_expr), sample.payload.to_bytes()))
-
-    session = open_session([watch], [])  # listening before the nodes start, as the launcher
-    subscriber = session.declare_subscriber(f"delaytrack/{name}/status/*", on_status)
-    try:
-        nodes = {
-            role: subprocess.Popen(commands[role], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-            for role in ROLES
-        }
-        outputs = {role: node.communicate(timeout=180) for role, node in nodes.items()}
-        time.sleep(0.2)  # the last statuses on their way
-    finally:
-        subscriber.undeclare()
-        session.close()
-    results = {name: (p.communicate(timeout=180), p.returncode) for name, p in run.items()}
-    results["nodes"] = (outputs, {role: node.returncode for role, node in nodes.items()})
-    with lock:
-        results["statuses"] = (name, list(received))
-    return results
 
 
 def test_live_run_prints_one_line_a_second_with_the_three_nodes(sessions):
@@ -134,13 +94,6 @@ def test_live_run_prints_one_line_a_second_with_the_three_nodes(sessions):
     assert any(int(received) > 0 for received, _lost, _gaps in parts["delay"])
     assert all(math.isfinite(float(p99)) for *_, p99 in parts["robot"] if p99 != "n/a")
     assert b"live session" in stdout  # the final summary, as before
-
-
-def test_live_run_quiet_prints_no_status(sessions):
-    (stdout, stderr), code = sessions["quiet"]
-    assert code == 0, stderr.decode()
-    assert not any(line.startswith("t=") for line in stderr.decode().splitlines())
-    assert stdout == b""
 
 
 def test_each_node_publishes_its_status_as_json(sessions):

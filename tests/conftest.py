@@ -1,0 +1,157 @@
+"""How ``make test`` shares the suite between pytest-xdist's workers (``--dist loadscope``), and
+the live sessions that several live modules read.
+
+A worker takes a whole test module at a time, so a module's fixture (the live sessions, the
+Dask cluster, the golden runs) is made once and the kernels its tests share are compiled by
+one worker; the live modules go together, so that one worker runs their real-time sessions
+while the other keeps compiling. First go the modules of :data:`FIRST`, which compile in a
+worker the kernels that the live sessions' and the documentation examples' processes then load
+from numba's disk cache (compiled in each of those processes instead, they cost more); then the
+live modules and the modules holding a test marked ``slow``: the short modules left at the end
+keep both workers busy until the suite ends.
+"""
+
+from __future__ import annotations
+
+import functools
+import subprocess
+import sys
+import threading
+import time
+from argparse import Namespace
+from pathlib import PurePosixPath
+
+import pytest
+
+#: The unit of work of the live modules (``tests/test_live_*.py``).
+LIVE = "live sessions"
+#: Modules that compile the engine and the parts of the two-link arm, the robot and the linear
+#: plant with the paper's controllers: the kernels most tests and their processes share.
+FIRST = ("test_golden.py", "test_engine.py", "test_cli_empirical.py")
+
+
+def _unit(nodeid: str) -> str:
+    """The unit of work of a test: its module, or :data:`LIVE`."""
+    module = nodeid.split("::", 1)[0]
+    return LIVE if PurePosixPath(module).name.startswith("test_live_") else module
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """On a worker: the modules of :data:`FIRST`, then the live modules and the modules with a
+    ``slow`` test, then the rest, each module's tests in their own order (every worker sorts
+    alike)."""
+    if not hasattr(config, "workerinput"):
+        return
+    slow = {_unit(item.nodeid) for item in items if item.get_closest_marker("slow")} | {LIVE}
+
+    def rank(item: pytest.Item) -> int:
+        unit = _unit(item.nodeid)
+        return 0 if PurePosixPath(unit).name in FIRST else 1 if unit in slow else 2
+
+    items.sort(key=rank)
+
+
+@pytest.hookimpl(optionalhook=True, tryfirst=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log):
+    """``--dist loadscope`` with the units of :func:`_unit`, in the order of
+    :func:`pytest_collection_modifyitems` (not reordered by their number of tests)."""
+    if config.getvalue("dist") != "loadscope":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class ByUnit(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return _unit(nodeid)
+
+    config.option.loadscopereorder = False
+    return ByUnit(config, log)
+
+
+# ---- live sessions read by several live modules ------------------------------------------------
+
+#: The scenario of the shared sessions.
+LIVE_SCENARIO = "two_link_S1"
+
+
+class Launched:
+    """A process started at once, whose outcome is read when first asked for."""
+
+    def __init__(self, command: list[str]) -> None:
+        self.process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+
+    @functools.cached_property
+    def outcome(self) -> tuple[bytes, bytes, int]:
+        """Its standard output, its standard error and its exit code."""
+        stdout, stderr = self.process.communicate(timeout=180)
+        return stdout, stderr, self.process.returncode
+
+    def stop(self) -> None:
+        """End it if no test read its outcome."""
+        if self.process.poll() is None:
+            self.process.kill()
+            self.process.communicate()
+
+
+@pytest.fixture(scope="session")
+def live_run(tmp_path_factory):
+    """``delaytrack live run`` of :data:`LIVE_SCENARIO` for 2 s with its status line, started
+    when first asked for (test_live_loop.py, test_live_status.py): its folder and the launcher
+    (:class:`Launched`)."""
+    pytest.importorskip("zenoh")
+    pytest.importorskip("mcap_ros2")
+    folder = tmp_path_factory.mktemp("live_run") / "run"
+    command = ["run", LIVE_SCENARIO, "--duration", "2", "--out", str(folder)]
+    launched = Launched([sys.executable, "-m", "delaytrack.live", *command])
+    yield folder, launched
+    launched.stop()
+
+
+@pytest.fixture(scope="session")
+def live_nodes(tmp_path_factory):
+    """The three nodes of a 2 s session of :data:`LIVE_SCENARIO` started one by one, as the
+    launcher starts them (all quiet) but with the robot not quiet, while a subscriber takes
+    their statuses (test_live_status.py, test_live_collect.py).
+
+    Returns the session's folder, name, each node's ``(stdout, stderr)`` and exit code, and the
+    statuses received, ``(key, payload)``.
+    """
+    pytest.importorskip("zenoh")
+    pytest.importorskip("mcap_ros2")
+    from delaytrack.live.session import ROLES, _free_ports, node_commands
+    from delaytrack.live.transport import open_session
+
+    folder = tmp_path_factory.mktemp("live_nodes") / "nodes"
+    ports, name = _free_ports(3), "nodes-test"
+    options = Namespace(
+        scenario=LIVE_SCENARIO,
+        handshake_timeout=60.0,
+        duration=2.0,
+        trust=[],
+        quiet=False,
+        loss=None,
+    )
+    watch = f"tcp/127.0.0.1:{_free_ports(1)[0]}"
+    commands = node_commands(options, folder, ports, name, watch)
+    commands["robot"].remove("--quiet")
+    received: list[tuple[str, bytes]] = []
+    lock = threading.Lock()
+
+    def on_status(sample):
+        with lock:
+            received.append((str(sample.key_expr), sample.payload.to_bytes()))
+
+    session = open_session([watch], [])  # listening before the nodes start, as the launcher
+    subscriber = session.declare_subscriber(f"delaytrack/{name}/status/*", on_status)
+    try:
+        nodes = {
+            role: subprocess.Popen(commands[role], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+            for role in ROLES
+        }
+        outputs = {role: node.communicate(timeout=180) for role, node in nodes.items()}
+        time.sleep(0.2)  # the last statuses on their way
+    finally:
+        subscriber.undeclare()
+        session.close()
+    codes = {role: node.returncode for role, node in nodes.items()}
+    with lock:
+        return folder, name, outputs, codes, list(received)

@@ -8,6 +8,8 @@ arrow); imports under ``if TYPE_CHECKING:`` are annotations only and do not coun
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -178,3 +180,37 @@ def test_a_scenario_is_read_built_and_run_without_the_packages_above_it():
 def test_the_floor_check_follows_imports_through_other_modules():
     edges = {"low.a": {"mid"}, "mid": {"high.b"}, "high.b": set()}
     assert _reachable(edges, "low.a") == {"mid", "high.b"}
+
+
+@pytest.mark.parametrize("package", ["delaytrack.experiments", "delaytrack.report"])
+def test_studies_and_reports_never_reach_into_the_compile_machinery(package: str):
+    """The compile machinery (``delaytrack._compile``) is the engine's business: the studies and
+    their reports call :func:`delaytrack.sim.simulate` (and its public helpers such as
+    ``compile_ahead``), never a module of ``_compile`` directly."""
+    edges = _graph()
+    direct = sorted(
+        f"{module} -> {target}"
+        for module in _modules_in(package)
+        for target in edges[module]
+        if _within(target, "delaytrack._compile")
+    )
+    assert direct == []
+
+
+@pytest.mark.parametrize("module", ["delaytrack", "delaytrack.cli", "delaytrack.live.cli"])
+def test_the_root_and_a_live_node_load_no_table_library(module: str):
+    """The package root imports its names when first used (``__init__.pyi``): importing it, the
+    command line's entry or a live node's loads neither pandas nor PyArrow, which only tables
+    need."""
+    code = f"import sys, {module}; print(sorted(set(sys.modules) & {{'pandas', 'pyarrow'}}))"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "[]"
+
+
+def test_every_name_of_the_root_resolves():
+    """Each name of ``delaytrack.__all__`` (from ``__init__.pyi``) is found where it lives."""
+    import delaytrack
+
+    assert len(delaytrack.__all__) > 40
+    for name in delaytrack.__all__:
+        assert getattr(delaytrack, name) is not None, name

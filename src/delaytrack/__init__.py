@@ -16,99 +16,14 @@ Examples
 
 # First: choose numba's cache folder before any kernel is decorated (see _compile.disk_cache).
 from delaytrack._compile import disk_cache  # noqa: F401  isort: skip
+# Refuses NUMBA_DISABLE_JIT=1 at import, with a message saying what to do instead.
+from delaytrack._compile import jit  # noqa: F401  isort: skip
 
-from delaytrack._version import __version__
-from delaytrack.analysis import (
-    ExactDelayMargin,
-    GainDesign,
-    RazumikhinBound,
-    UltimateBounds,
-    design_gains,
-    exact_delay_margin,
-    razumikhin_bound,
-    ultimate_bounds,
-)
-from delaytrack.controllers import AROLC, Controller, OuterLoop, controller_from_spec
-from delaytrack.delays import (
-    AbsSineDelay,
-    CompiledDelay,
-    ConstantDelay,
-    DelayProfile,
-    PiecewiseConstantDelay,
-    RandomDelay,
-    TraceDelay,
-    delay_from_spec,
-)
-from delaytrack.experiments import EmpiricalMargin, empirical_margin, run_to_folder
-from delaytrack.metrics import (
-    max_abs_error,
-    mean_absolute_error,
-    metrics_table,
-    percent_of,
-    rms_error,
-    total_variation,
-)
-from delaytrack.plants import (
-    CallablePlant,
-    CompiledPlant,
-    ELPlant,
-    LinearPlant,
-    MujocoPlant,
-    MujocoWheeledRobot,
-    TwoLinkArm,
-    plant_from_spec,
-)
-from delaytrack.references import Reference, SinusoidalReference, SplineReference
-from delaytrack.scenario import Scenario, ScenarioError, load_builtin
-from delaytrack.sim import MeasurementNoise, PacketLoss, SimResult, simulate
+import lazy_loader
 
-__all__ = [
-    "AROLC",
-    "AbsSineDelay",
-    "CompiledDelay",
-    "CallablePlant",
-    "CompiledPlant",
-    "ConstantDelay",
-    "Controller",
-    "DelayProfile",
-    "ELPlant",
-    "EmpiricalMargin",
-    "ExactDelayMargin",
-    "GainDesign",
-    "LinearPlant",
-    "MujocoPlant",
-    "MujocoWheeledRobot",
-    "OuterLoop",
-    "PiecewiseConstantDelay",
-    "RandomDelay",
-    "RazumikhinBound",
-    "Reference",
-    "Scenario",
-    "ScenarioError",
-    "MeasurementNoise",
-    "PacketLoss",
-    "SimResult",
-    "SinusoidalReference",
-    "SplineReference",
-    "TraceDelay",
-    "TwoLinkArm",
-    "UltimateBounds",
-    "__version__",
-    "controller_from_spec",
-    "delay_from_spec",
-    "design_gains",
-    "empirical_margin",
-    "exact_delay_margin",
-    "load_builtin",
-    "max_abs_error",
-    "mean_absolute_error",
-    "metrics_table",
-    "percent_of",
-    "plant_from_spec",
-    "razumikhin_bound",
-    "rms_error",
-    "run_to_folder",
-    "simulate",
-    "total_variation",
-    "ultimate_bounds",
-]
+from delaytrack._version import __version__  # noqa: F401  (in __all__, from __init__.pyi)
+
+# The names of __init__.pyi, each imported from its subpackage when first used, so that a
+# command or a live node imports only what it runs (pandas, PyArrow and the studies are not
+# loaded by `import delaytrack`).
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

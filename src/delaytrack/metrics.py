@@ -37,11 +37,12 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from delaytrack.units import default_names
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from delaytrack.sim.result import SimResult
 
 __all__ = [
@@ -235,6 +236,7 @@ def metrics_table(
         controller tick of the window (module docstring): the running metrics without
         ``t_from``, the recorded trajectories (every tick) with it.
     """
+    import pandas as pd  # imported when a table is made: `import delaytrack` stays light
     n = result.n
     if coordinate_names is None:
         coordinate_names = result.coordinate_names

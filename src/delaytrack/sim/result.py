@@ -6,13 +6,13 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from delaytrack._result_columns import trajectory_columns
 from delaytrack.sim.engine import STATUS_NAMES
 from delaytrack.units import default_names, labelled
 
 if TYPE_CHECKING:
+    import pandas as pd
     from matplotlib.figure import Figure
 
 __all__ = ["SimResult"]
@@ -157,6 +157,7 @@ class SimResult:
 
     def summary(self) -> pd.DataFrame:
         """Status, stop time, AE per coordinate (in its unit) and TV per run."""
+        import pandas as pd  # imported when a table is made: `import delaytrack` stays light
         names = default_names(self.coordinate_names, self.n)
         units = self.coordinate_units or (None,) * self.n
         columns: dict[str, Any] = {"status": self.status_names, "t_stop (s)": self.t_stop}
@@ -201,6 +202,7 @@ class SimResult:
         name: coordinate names that would give them one are refused (a ValueError naming them
         and the column), as plants and :func:`~delaytrack.sim.simulate` refuse them before.
         """
+        import pandas as pd  # imported when a table is made: `import delaytrack` stays light
         batch, records = self.batch_size, self.t.size
         inputs = self.commands.shape[2]
         reported = self.reported_state_names

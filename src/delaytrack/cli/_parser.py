@@ -6,13 +6,23 @@ from __future__ import annotations
 import argparse
 
 from delaytrack._cli_options import OptionParser
-from delaytrack.cli import bound, design, empirical, margin, reproduce, simulate, sweep, tune
+from delaytrack.cli import (
+    bound,
+    design,
+    empirical,
+    margin,
+    reproduce,
+    simulate,
+    sweep,
+    tradeoff,
+    tune,
+)
 
 __all__ = ["COMMANDS", "build_parser"]
 
 #: The command modules in the order of ``delaytrack --help``; each adds one command with
 #: ``add_command(commands)``.
-COMMANDS = (bound, margin, design, simulate, empirical, reproduce, sweep, tune)
+COMMANDS = (bound, margin, design, simulate, empirical, tradeoff, reproduce, sweep, tune)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -16,6 +16,8 @@ folder to the jobs of ``delaytrack reproduce``.
   are :mod:`~delaytrack.experiments.intervals` (Wilson and bootstrap intervals),
   :mod:`~delaytrack.experiments.outcomes` (divergence and medians per group, the longest clean
   delay) and :mod:`~delaytrack.experiments.verdicts` (claims decided draw by draw, attribution).
+- :mod:`delaytrack.experiments.tradeoff`: accuracy against delay margin along a one-parameter
+  family of outer-loop gains, for any scenario (``delaytrack tradeoff``).
 - :mod:`delaytrack.experiments.two_link`: the two-link job, AROLC vs the plain outer loop
   on the two-link arm under S1 and S3 (``delaytrack reproduce --job two-link``).
 

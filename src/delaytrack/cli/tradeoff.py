@@ -1,0 +1,175 @@
+"""``delaytrack tradeoff``: the accuracy–delay-margin trade-off of a scenario's gains."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from delaytrack._cli_options import decimal, integer, quiet_argument, trust_argument, within
+from delaytrack._output import check_output_folder, plain_folder_name
+from delaytrack.cli._numbers import numbers
+from delaytrack.cli._scenarios import scenario_source, trusted
+from delaytrack.cli._usage import UsageError, flagged
+
+__all__ = ["add_command", "run"]
+
+#: The flags of :func:`~delaytrack.experiments.tradeoff.run_tradeoff`'s arguments.
+_FLAGS = {
+    "zeta": "--zeta",
+    "omegas": "--omega",
+    "draws": "--draws",
+    "threshold": "--threshold",
+    "upper": "--upper",
+}
+
+
+def add_command(commands: argparse._SubParsersAction) -> None:
+    """Add ``tradeoff`` to ``commands``."""
+    command = commands.add_parser(
+        "tradeoff",
+        help="accuracy against delay margin over the outer-loop gains (K1 = w^2 I, "
+        "K2 = 2 zeta w I), per controller, with the Pareto front",
+        description="Sweep the outer-loop gains of a scenario along K1 = w_n^2 I, "
+        "K2 = 2 zeta w_n I and report, per gain point and controller (AROLC, the outer loop, "
+        "PCON and PCONf when the model supports them): Theorem 1's h_m, the exact margin of "
+        "the linear outer loop, the empirical constant-delay margin, and at the scenario's "
+        "delay the share of drawn robots on the path (Wilson 95 %), median AE and TV; the "
+        "Pareto front of AE against the empirical margin. The draws run on the sweep "
+        "machinery: resumable, --scheduler for Dask. See docs/tradeoff.md.",
+    )
+    command.add_argument(
+        "scenario", metavar="SCENARIO", help="scenario .toml file or built-in name"
+    )
+    command.add_argument(
+        "--zeta",
+        type=within(decimal, "a damping ratio > 0", lambda v: v > 0),
+        default=1.0,
+        metavar="Z",
+        help="damping ratio of the family (default 1)",
+    )
+    command.add_argument(
+        "--omega",
+        nargs=3,
+        default=None,
+        metavar=("LO", "HI", "N"),
+        help="N log-spaced natural frequencies from LO to HI rad/s (default: the scenario's "
+        "own divided and multiplied by 4, 7 points)",
+    )
+    command.add_argument(
+        "--draws",
+        type=within(integer, "an integer >= 1", lambda v: v >= 1),
+        default=None,
+        metavar="N",
+        help="robots drawn per point and controller (default 40; one run when the scenario "
+        "has nothing to draw)",
+    )
+    command.add_argument(
+        "--threshold",
+        default="1",
+        metavar="VALUE",
+        help="largest mean |e1| over the run that counts as on the path, in each scored "
+        "coordinate's unit: one number, or a comma list of one per coordinate (default 1)",
+    )
+    command.add_argument(
+        "--upper",
+        type=within(decimal, "seconds > 0", lambda v: v > 0),
+        default=None,
+        metavar="S",
+        help="limit of the empirical margin search (default: 1 s or half the duration)",
+    )
+    command.add_argument(
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="results folder (default results/tradeoff/<name>)",
+    )
+    command.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run the draws on a Dask cluster: a scheduler address (tcp://host:8786) or "
+        "'local-cluster' (needs delaytrack[dask]); default: this process, all cores",
+    )
+    trust_argument(command)
+    quiet_argument(command, "progress")
+    command.set_defaults(handler=run)
+
+
+def _omegas(given: list[str] | None) -> list[float] | None:
+    """``--omega LO HI N``: N log-spaced values from LO to HI, 0 < LO <= HI, N >= 1."""
+    if given is None:
+        return None
+    import numpy as np
+
+    text = " ".join(given)
+    valid = "LO HI N with 0 < LO <= HI (rad/s) and N an integer >= 1 (N = 1 needs LO = HI)"
+    try:
+        low, high = decimal(given[0]), decimal(given[1])
+        count = integer(given[2])
+    except argparse.ArgumentTypeError:
+        raise UsageError(f"--omega must be {valid}; got {text!r}") from None
+    if not (0 < low <= high and count >= 1 and (count > 1 or low == high)):
+        raise UsageError(f"--omega must be {valid}; got {text!r}")
+    return [float(v) for v in np.geomspace(low, high, count)]
+
+
+def _folder(args: argparse.Namespace, name: str) -> Path:
+    if args.out is not None:
+        return check_output_folder(args.out, "--out")
+    folder = plain_folder_name(name, f"scenario name {name!r}")
+    return check_output_folder(Path("results/tradeoff") / folder, "the results folder")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run (or resume) the trade-off and write its table, figure and report."""
+    from delaytrack.experiments.tradeoff import run_tradeoff
+    from delaytrack.report.tradeoff import write_tradeoff
+    from delaytrack.scenario import Scenario
+    from delaytrack.sweeps import SweepError, SweepUnitsFailed, make_executor
+    from delaytrack.sweeps.executors import checked_scheduler
+
+    omegas = _omegas(args.omega)
+    bounds = numbers("--threshold", args.threshold)
+    threshold = float(bounds[0]) if bounds.size == 1 else [float(b) for b in bounds]
+    try:
+        checked_scheduler(args.scheduler)
+    except SweepError as error:
+        raise flagged(error) from None
+    scenario = Scenario.from_toml(scenario_source(args.scenario), trust=trusted(args))
+    folder = _folder(args, scenario.name)
+    try:
+        study = run_tradeoff(
+            scenario,
+            folder,
+            zeta=args.zeta,
+            omegas=omegas,
+            draws=args.draws,
+            threshold=threshold,
+            upper=args.upper,
+            executor=make_executor(args.scheduler),
+            progress=not args.quiet,
+        )
+    except KeyboardInterrupt as interrupted:
+        print(str(interrupted) or "interrupted", file=sys.stderr)
+        return 130
+    except SweepUnitsFailed as failed:
+        print(f"error: {failed}", file=sys.stderr)
+        return 1
+    except ValueError as error:
+        raise flagged(error, _FLAGS) from None
+    files = write_tradeoff(study, folder)
+    front = study.front
+    print(
+        f"tradeoff {scenario.name}: {len(study.omegas)} gain points x {len(study.families)} "
+        f"controllers, {study.draws} draw{'s' if study.draws > 1 else ''} each, "
+        f"{study.seconds:.1f} s ({study.computed} units computed, {study.resumed} resumed)"
+    )
+    print("Pareto front (empirical margin s, median AE):")
+    for row in front.itertuples():
+        print(
+            f"  {row.controller:<10} omega_n = {row.omega_n:<8.4g} margin = "
+            f"{row.empirical_margin:.4g}{'' if row.margin_found else '+'}  AE = {row.ae_median:.4g}"
+        )
+    print(f"wrote {len(files)} files to {folder}/; report: {folder / 'report.html'}")
+    return 0

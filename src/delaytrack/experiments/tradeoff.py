@@ -1,0 +1,558 @@
+"""The accuracy–delay-margin trade-off of a scenario: how much delay margin each controller
+gives up for accuracy as the outer-loop gains rise.
+
+**The gain family.** The outer-loop gains are swept along one documented parameter, the natural
+frequency ``ω_n`` (rad/s) of the delay-free error dynamics of the paper,
+
+    ë1 = −K2 ė1 − K1 e1,      K1 = ω_n² I,   K2 = 2 ζ ω_n I,
+
+at a fixed damping ratio ``ζ`` (1 by default: critically damped). By default ``ω_n`` takes
+:data:`DEFAULT_POINTS` log-spaced values from a quarter of the scenario's own natural frequency
+to four times it (``sqrt(λ_min(K1))`` and ``sqrt(λ_max(K1))`` of its controller, or
+``2 ζ κ`` for a predictor), so the scenario's own gains lie inside the range.
+
+**The controller families** at every point:
+
+- ``arolc``: AROLC with these ``K1``, ``K2`` and the scenario controller's other parameters
+  (``Q``, ``α``, ``ε``, ``γ``; the paper's ``Q = I``, ``α = 2``, ``ε = 0.1``, ``γ = 0.001`` when
+  the scenario's controller is not AROLC);
+- ``outer-loop``: the plain outer loop, AROLC without its switching term ``Δu``;
+- ``pcon``, ``pconf``: the predictors, when the scenario's nominal model supports them, with
+  ``κ = ω_n / (2ζ)`` and ``k_b = 2ζω_n M̂(q0)`` (``M̂(q0)`` the nominal mass matrix at the
+  initial pose), so that the delay-free nominal loop ``M̂ ë1 = −k_b (ė1 + κ e1)`` is the same
+  ``ë1 = −2ζω_n ė1 − ω_n² e1``; ``ϑ`` is the scenario predictor's, else ``M̂(q0)⁻¹``. PCON is
+  told the true delay (its assumption), PCONf the constant ``h̄`` = the scenario delay's bound.
+
+**What is computed per point and family** (:class:`TradeoffStudy`):
+
+- ``h_m`` (AROLC rows): Theorem 1's certified bound, ``razumikhin_bound(K1, K2, Q, β, r)``;
+- ``h_exact`` (AROLC and outer-loop rows): the exact constant-delay margin of the linear outer
+  loop, ``exact_delay_margin(K1, K2)``;
+- the empirical margin of the nonlinear closed loop under a constant delay
+  (:func:`~delaytrack.experiments.empirical_margin.empirical_margin`, bounded search up to
+  ``upper``; not for PCONf, whose window is fixed at ``h̄``: told a constant delay exactly,
+  PCONf is PCON's law);
+- over drawn robots at the scenario's own delay (the sweep machinery: Parquet parts, resumable,
+  any executor): the share that stays on the path with its Wilson 95 % interval, and the
+  median AE and TV over those that stay on it.
+
+**Staying on the path** (one rule for the margin and the draws): the run ends ok (no
+divergence, no ``error_bound`` exceeded) and each scored coordinate's mean ``|e1|`` over the
+whole run is at most ``threshold`` (in that coordinate's unit; 1 by default). The scored
+coordinates are those the scenario's ``error_bound`` bounds (``x``, ``y`` for the robot), every
+coordinate when it has none. **AE** is the mean over the scored coordinates of their mean
+``|e1|`` (the paper's AE for the robot: the mean of AE-x and AE-y).
+
+**Draws.** ``random`` is a sweep file's ``[random]`` table (docs/sweeps.md). By default the
+scenario's uncertain parameters are drawn where the toolkit knows them
+(:func:`uncertain_parameters`: the payload robot's payload placement and wheel friction, as in
+the robustness study); a scenario with nothing to draw has one run per point, and the study says
+so.
+
+**Pareto front** (accuracy against delay margin): among the rows with an empirical margin and
+at least one run on the path, those no other row beats in both median AE (lower) and empirical
+margin (higher).
+
+:func:`run_tradeoff` returns a :class:`TradeoffStudy` holding every number of its report, which
+:func:`~delaytrack.report.tradeoff.write_tradeoff` writes.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from delaytrack._output import claim_output_folder
+from delaytrack._validation import ArgumentError, is_integer_at_least, positive_scalar
+from delaytrack.analysis import exact_delay_margin, razumikhin_bound
+from delaytrack.experiments.empirical_margin import EmpiricalMargin, empirical_margin
+from delaytrack.experiments.intervals import wilson_interval
+from delaytrack.experiments.pairing import AROLC_GAINS
+from delaytrack.scenario import Scenario, ScenarioError
+from delaytrack.sweeps import SweepSpec, run_sweep
+from delaytrack.sweeps.executors import Executor
+from delaytrack.units import default_names
+
+__all__ = [
+    "DEFAULT_POINTS",
+    "FAMILIES",
+    "TradeoffStudy",
+    "default_omegas",
+    "family_gains",
+    "pareto_front",
+    "run_tradeoff",
+    "uncertain_parameters",
+]
+
+#: Controller families, in the order of the table.
+FAMILIES: tuple[str, ...] = ("arolc", "outer-loop", "pcon", "pconf")
+#: Points of the default ``ω_n`` range.
+DEFAULT_POINTS = 7
+#: The default range spans this factor below and above the scenario's natural frequency.
+DEFAULT_SPAN = 4.0
+#: Seed of the draws (the robustness study's: the same robots where the keys are the same).
+SEED = 2027
+#: Runs per work unit of the draws' sweep.
+UNIT_SIZE = 64
+#: Theorem 1's free weights by default (the paper job's).
+BETA, R = 1.0, 1.1
+#: The uncertain parameters of the payload robot: where its payload sits and its wheel friction
+#: (the documented ranges of ``delaytrack.plants.robot.P3DX_SOURCES``).
+_ROBOT_DRAWS: dict[str, dict[str, Any]] = {
+    "plant.seed": {"dist": "integers", "low": 0, "high": 2**31 - 1},
+    "plant.viscous_friction": {"dist": "uniform", "low": 0.001, "high": 0.02},
+    "plant.coulomb_friction": {"dist": "uniform", "low": 0.07, "high": 0.35},
+}
+_DRAWN_BY_PLANT = {"wheeled-robot-payload": _ROBOT_DRAWS}
+#: The largest double: the bound of a coordinate the rule does not score.
+_UNSCORED = float(np.finfo(float).max)
+
+
+def uncertain_parameters(scenario: Scenario) -> dict[str, dict[str, Any]]:
+    """The ``[random]`` table of the scenario's uncertain parameters that the toolkit knows:
+    for the payload robot (``wheeled-robot-payload``) the payload placement (``plant.seed``)
+    and the wheel friction (viscous 0.001–0.02 N·m·s/rad, Coulomb 0.07–0.35 N·m); empty for
+    any other plant (nothing to draw)."""
+    return {
+        key: dict(table) for key, table in _DRAWN_BY_PLANT.get(scenario.plant["type"], {}).items()
+    }
+
+
+def family_gains(omega: float, zeta: float) -> tuple[float, float]:
+    """``(k1, k2) = (ω_n², 2 ζ ω_n)``: the outer-loop gains ``K1 = k1 I``, ``K2 = k2 I`` of
+    ``ë1 = −K2 ė1 − K1 e1`` with natural frequency ``ω_n`` and damping ratio ``ζ``."""
+    return omega * omega, 2.0 * zeta * omega
+
+
+def default_omegas(scenario: Scenario, zeta: float, points: int = DEFAULT_POINTS) -> np.ndarray:
+    """``points`` log-spaced natural frequencies from the scenario's own ``ω_n`` divided by
+    :data:`DEFAULT_SPAN` to it times :data:`DEFAULT_SPAN`.
+
+    The scenario's ``ω_n`` is ``sqrt(λ(K1))`` of its controller (the smallest and largest
+    eigenvalue set the ends), ``2 ζ κ`` for a predictor (the family's ``κ = ω_n / (2ζ)``
+    solved for ``ω_n``), and 1 rad/s for any other controller.
+    """
+    controller = scenario.build().controller
+    if hasattr(controller, "K1"):
+        eigenvalues = np.linalg.eigvalsh(controller.K1)
+        low, high = math.sqrt(eigenvalues[0]), math.sqrt(eigenvalues[-1])
+    elif hasattr(controller, "kappa"):
+        low = high = 2.0 * zeta * float(controller.kappa)
+    else:
+        low = high = 1.0
+    return np.geomspace(low / DEFAULT_SPAN, high * DEFAULT_SPAN, points)
+
+
+@dataclass(frozen=True)
+class TradeoffStudy:
+    """What :func:`run_tradeoff` computed: every number of its report.
+
+    Attributes
+    ----------
+    table : DataFrame
+        One row per point and family: ``omega_n`` (rad/s), ``k1``, ``k2``, ``controller``,
+        ``h_m``, ``h_exact``, ``empirical_margin`` (s; NaN where not defined),
+        ``margin_found`` (False: no failure up to ``upper``, the margin is a lower bound),
+        ``runs``, ``on_path``, ``share_on_path`` with ``share_low``, ``share_high`` (Wilson
+        95 %), ``ae_median``, ``tv_median`` (over the runs on the path; NaN when none) and
+        ``pareto`` (on the Pareto front).
+    runs : DataFrame
+        Every drawn run: ``omega_n``, ``controller``, ``draw``, the drawn values, ``status``,
+        ``ae`` (the AE of the module docstring), ``tv`` and ``on_path``.
+    evaluated : DataFrame
+        Every simulated point of every margin search (``omega_n``, ``controller``, the delay
+        ``value``, the metric per coordinate, ``status``, ``passes``).
+    scenario : Scenario
+    zeta : float
+    omegas : tuple of float
+    families : tuple of str
+        The families run; ``left_out`` says why any other was not.
+    left_out : Mapping[str, str]
+        Family -> why it was not run.
+    threshold : Mapping[str, float]
+        The scored coordinates (those that make AE and the rule) and the bound of each one's
+        mean ``|e1|`` (its unit).
+    ae_unit, tv_unit : str or None
+        The unit of AE (the scored coordinates' common unit) and of TV (the inputs').
+    random : Mapping[str, Mapping]
+        What was drawn (empty: nothing; one run per point).
+    draws, seed : int
+    upper, resolution : float
+        The margin search's limit and final bracket (s).
+    beta, r : float
+        Theorem 1's weights.
+    seconds : float
+    computed, resumed : int
+        Work units of the draws computed and found finished.
+    """
+
+    table: pd.DataFrame
+    runs: pd.DataFrame
+    evaluated: pd.DataFrame
+    scenario: Scenario
+    zeta: float
+    omegas: tuple[float, ...]
+    families: tuple[str, ...]
+    left_out: Mapping[str, str]
+    threshold: Mapping[str, float]
+    ae_unit: str | None
+    tv_unit: str | None
+    random: Mapping[str, Mapping[str, Any]]
+    draws: int
+    seed: int
+    upper: float
+    resolution: float
+    beta: float
+    r: float
+    seconds: float
+    computed: int = 0
+    resumed: int = 0
+
+    @property
+    def front(self) -> pd.DataFrame:
+        """The Pareto front's rows, by increasing empirical margin."""
+        return self.table[self.table.pareto].sort_values("empirical_margin")
+
+
+def pareto_front(ae: Sequence[float], margin: Sequence[float]) -> np.ndarray:
+    """Which points are non-dominated when AE is minimised and the margin maximised.
+
+    Point ``i`` is dominated when some ``j`` has ``ae_j <= ae_i`` and ``margin_j >= margin_i``
+    with one of them strict. Points with a NaN are never on the front.
+    """
+    ae, margin = np.asarray(ae, dtype=float), np.asarray(margin, dtype=float)
+    valid = np.isfinite(ae) & np.isfinite(margin)
+    front = np.zeros(len(ae), dtype=bool)
+    for i in np.flatnonzero(valid):
+        no_worse = valid & (ae <= ae[i]) & (margin >= margin[i])
+        better = (ae < ae[i]) | (margin > margin[i])
+        front[i] = not np.any(no_worse & better)
+    return front
+
+
+def _scored(scenario: Scenario, names: tuple[str, ...]) -> tuple[bool, ...]:
+    """The coordinates the scenario's ``error_bound`` bounds; all of them when it has none."""
+    bound = np.broadcast_to(np.asarray(scenario.simulated_error_bound, dtype=float), (len(names),))
+    finite = np.isfinite(bound)
+    return tuple(bool(b) for b in (finite if finite.any() else np.ones(len(names), dtype=bool)))
+
+
+def _family_tables(
+    scenario: Scenario, zeta: float, omegas: Sequence[float], history: float
+) -> tuple[dict[str, list[dict[str, Any]]], dict[str, str]]:
+    """The controller table of each family at each ``ω_n``, and why a family was left out."""
+    built = scenario.build()
+    own = dict(scenario.controller)
+    arolc_base = own if own["type"] == "arolc" else {"type": "arolc", **AROLC_GAINS}
+    tables: dict[str, list[dict[str, Any]]] = {"arolc": [], "outer-loop": []}
+    for omega in omegas:
+        k1, k2 = family_gains(omega, zeta)
+        tables["arolc"].append({**arolc_base, "K1": k1, "K2": k2})
+        tables["outer-loop"].append({"type": "outer-loop", "K1": k1, "K2": k2})
+    left_out: dict[str, str] = {}
+    model, n = built.model, built.model.n
+    mass = model.mass_matrix(built.x0[:n])[0]
+    is_predictor = own["type"] in ("pcon", "pconf")
+    vartheta = own["vartheta"] if is_predictor else np.linalg.inv(0.5 * (mass + mass.T)).tolist()
+    space = own.get("space", "generalised") if is_predictor else "generalised"
+    h_bar = float(built.delay.h_max)
+    for family in ("pcon", "pconf"):
+        rows = []
+        for omega in omegas:
+            extra = {"h_bar": h_bar} if family == "pconf" else {}
+            rows.append(
+                {
+                    "type": family,
+                    "kappa": omega / (2.0 * zeta),
+                    "k_b": (2.0 * zeta * omega * mass).tolist(),
+                    "vartheta": vartheta,
+                    "history": history,
+                    "T_c": scenario.T_c,
+                    "space": space,
+                    **extra,
+                }
+            )
+        try:
+            scenario.replace(controller=rows[0]).build()
+        except (ScenarioError, ValueError, TypeError) as error:
+            left_out[family] = f"the scenario's nominal model does not support it: {error}"
+            continue
+        tables[family] = rows
+    return tables, left_out
+
+
+def _analytic(
+    scenario: Scenario, tables: Mapping[str, list[dict[str, Any]]], beta: float, r: float
+) -> tuple[list[float], list[float]]:
+    """``h_m`` of AROLC and ``h_exact`` of the outer loop at each point (NaN where Theorem 1's
+    bound cannot be computed in double precision)."""
+    certified, exact = [], []
+    for table in tables["arolc"]:
+        arolc = scenario.replace(controller=table).build().controller
+        try:
+            h_m = razumikhin_bound(arolc.K1, arolc.K2, arolc.Q, beta, r, n=arolc.n).h_m
+        except ValueError:
+            h_m = math.nan
+        certified.append(float(h_m))
+        exact.append(float(exact_delay_margin(arolc.K1, arolc.K2).h))
+    return certified, exact
+
+
+def _margins(
+    scenario: Scenario, tables: list[dict[str, Any]], search: Mapping[str, Any]
+) -> list[EmpiricalMargin | None]:
+    """One family's empirical margins, searched in lockstep; when a point misses the rule
+    already without delay, each point alone (None for those that miss it)."""
+    controllers = [scenario.replace(controller=table).build().controller for table in tables]
+    try:
+        return list(empirical_margin(scenario, controllers, **search))
+    except ArgumentError as error:
+        if error.argument != "threshold":
+            raise
+    found: list[EmpiricalMargin | None] = []
+    for controller in controllers:
+        try:
+            found.append(empirical_margin(scenario, controller, **search))
+        except ArgumentError as error:
+            if error.argument != "threshold":
+                raise
+            found.append(None)
+    return found
+
+
+def _checked(
+    zeta: float, omegas: Sequence[float] | None, draws: int | None, scenario: Scenario
+) -> tuple[float, tuple[float, ...]]:
+    zeta = positive_scalar("zeta", zeta)
+    chosen = default_omegas(scenario, zeta) if omegas is None else omegas
+    values = tuple(float(v) for v in np.asarray(chosen, dtype=float).ravel())
+    if not values or not all(math.isfinite(v) and v > 0 for v in values):
+        raise ArgumentError("omegas", f"must be natural frequencies > 0 (rad/s); got {values}")
+    if draws is not None and not is_integer_at_least(draws, 1):
+        raise ArgumentError("draws", f"must be an integer >= 1; got {draws!r}")
+    return zeta, values
+
+
+def run_tradeoff(
+    scenario: Scenario,
+    out: str | Path,
+    *,
+    zeta: float = 1.0,
+    omegas: Sequence[float] | None = None,
+    draws: int | None = None,
+    random: Mapping[str, Mapping[str, Any]] | None = None,
+    threshold: float | Sequence[float] = 1.0,
+    upper: float | None = None,
+    resolution: float = 0.005,
+    beta: float = BETA,
+    r: float = R,
+    seed: int = SEED,
+    executor: Executor | None = None,
+    progress: bool = False,
+) -> TradeoffStudy:
+    """Sweep the outer-loop gains of ``scenario`` along ``K1 = ω_n² I``, ``K2 = 2ζω_n I`` and
+    compute, per point and controller family, the margins, the share of drawn robots on the
+    path, AE, TV and the Pareto front (module docstring).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Plant, nominal model, reference, delay (the draws run at it), times.
+    out : path
+        Folder of the draws' sweep (``out/sweep``: parts, resumable).
+    zeta : float
+        Damping ratio ``ζ > 0`` of the family.
+    omegas : sequence of float, optional
+        Natural frequencies ``ω_n`` (rad/s); :func:`default_omegas` by default.
+    draws : int, optional
+        Robots drawn per point and family (40 by default when something is drawn; ignored
+        when nothing is).
+    random : mapping, optional
+        A sweep file's ``[random]`` table; :func:`uncertain_parameters` by default, ``{}`` for
+        none.
+    threshold : float or sequence of float
+        Largest mean ``|e1|`` of a scored coordinate that still counts as on the path (its
+        unit): one number, or one per coordinate.
+    upper, resolution : float
+        The margin search's limit (default the smaller of 1 s and half the duration) and final
+        bracket (s).
+    beta, r : float
+        Theorem 1's weights for ``h_m``.
+    seed : int
+        Seed of the draws.
+    executor : Executor, optional
+        Where the draws' units run (all local cores by default).
+    progress : bool
+        Progress on standard error.
+    """
+    start = time.perf_counter()
+    zeta, omegas = _checked(zeta, omegas, draws, scenario)
+    built = scenario.build()
+    plant = built.plant
+    names = default_names(plant.coordinate_names, plant.n)
+    scored = _scored(scenario, names)
+    bounds = np.broadcast_to(np.asarray(threshold, dtype=float), (plant.n,))
+    if not np.all(np.isfinite(bounds) & (bounds > 0)) or np.ndim(threshold) > 1:
+        raise ArgumentError(
+            "threshold",
+            f"must be a number > 0 or one per coordinate ({plant.n}: {', '.join(names)}); got "
+            f"{threshold!r}",
+        )
+    rule = tuple(float(b) if s else _UNSCORED for b, s in zip(bounds, scored, strict=True))
+    upper = min(1.0, scenario.duration / 2) if upper is None else positive_scalar("upper", upper)
+    history = max(upper, float(built.delay.h_max))
+    tables, left_out = _family_tables(scenario, zeta, omegas, history)
+    families = tuple(f for f in FAMILIES if f in tables)
+    certified, exact = _analytic(scenario, tables, beta, r)
+    search = {
+        "threshold": rule,
+        "settle": 0.0,
+        "upper": upper,
+        "resolution": resolution,
+        "progress": progress,
+    }
+    margins = {}
+    for family in (f for f in families if f != "pconf"):  # no margin from zero (docstring)
+        _say(progress, f"{family}: empirical margins of {len(omegas)} gain points")
+        margins[family] = _margins(scenario, tables[family], search)
+
+    drawn = (
+        uncertain_parameters(scenario)
+        if random is None
+        else {k: dict(v) for k, v in random.items()}
+    )
+    count = (40 if draws is None else int(draws)) if drawn else 1
+    points = [(omega, family) for omega in omegas for family in families]
+    spec = SweepSpec(
+        base=scenario,
+        grid=MappingProxyType({"controller": tuple(tables[f][omegas.index(o)] for o, f in points)}),
+        random=MappingProxyType(drawn),
+        draws=count,
+        seed=int(seed),
+        unit_size=UNIT_SIZE,
+        progress=progress,
+    )
+    folder = claim_output_folder(out)
+    _say(progress, f"draws: {len(spec.runs)} runs ({len(points)} points x {count} draws)")
+    outcome = run_sweep(spec, folder / "sweep", executor=executor, progress=progress)
+    runs = _runs(outcome.runs, points, count, names, scored, rule, list(drawn))
+
+    rows = []
+    for i, omega in enumerate(omegas):
+        k1, k2 = family_gains(omega, zeta)
+        for family in families:
+            mine = runs[(runs.omega_n == omega) & (runs.controller == family)]
+            kept = mine[mine.on_path]
+            low, high = wilson_interval(len(kept), len(mine))
+            found = margins[family][i] if family in margins else None
+            rows.append(
+                {
+                    "omega_n": omega,
+                    "k1": k1,
+                    "k2": k2,
+                    "controller": family,
+                    "h_m": certified[i] if family == "arolc" else math.nan,
+                    "h_exact": exact[i] if family in ("arolc", "outer-loop") else math.nan,
+                    "empirical_margin": math.nan if found is None else found.margin,
+                    "margin_found": found is not None and found.failure_found,
+                    "runs": len(mine),
+                    "on_path": len(kept),
+                    "share_on_path": len(kept) / len(mine),
+                    "share_low": low,
+                    "share_high": high,
+                    "ae_median": float(kept.ae.median()) if len(kept) else math.nan,
+                    "tv_median": float(kept.tv.median()) if len(kept) else math.nan,
+                }
+            )
+    table = pd.DataFrame(rows)
+    table["pareto"] = pareto_front(table.ae_median, table.empirical_margin)
+    units = [
+        u for u, s in zip(plant.coordinate_units or [None] * plant.n, scored, strict=True) if s
+    ]
+    inputs = set(plant.input_units or [None])
+    return TradeoffStudy(
+        table=table,
+        runs=runs,
+        evaluated=_evaluated(margins, omegas),
+        scenario=scenario,
+        zeta=zeta,
+        omegas=omegas,
+        families=families,
+        left_out=MappingProxyType(left_out),
+        threshold=MappingProxyType(
+            {name: bound for name, bound, s in zip(names, rule, scored, strict=True) if s}
+        ),
+        ae_unit=units[0] if len(set(units)) == 1 else None,
+        tv_unit=inputs.pop() if len(inputs) == 1 else None,
+        random=MappingProxyType(drawn),
+        draws=count,
+        seed=int(seed),
+        upper=upper,
+        resolution=resolution,
+        beta=beta,
+        r=r,
+        seconds=time.perf_counter() - start,
+        computed=outcome.computed,
+        resumed=outcome.resumed,
+    )
+
+
+def _say(progress: bool, text: str) -> None:
+    """A stage of the study on standard error, when progress is shown."""
+    if progress:
+        print(f"tradeoff: {text}", file=sys.stderr, flush=True)
+
+
+def _runs(
+    runs: pd.DataFrame,
+    points: list[tuple[float, str]],
+    draws: int,
+    names: tuple[str, ...],
+    scored: tuple[bool, ...],
+    rule: tuple[float, ...],
+    drawn: list[str],
+) -> pd.DataFrame:
+    """One row per drawn run: its point, family, draw, drawn values, status, AE, TV, on path."""
+    runs = runs.sort_values("run").reset_index(drop=True)
+    index = runs.run.to_numpy() // draws
+    frame = pd.DataFrame(
+        {
+            "omega_n": [points[i][0] for i in index],
+            "controller": [points[i][1] for i in index],
+            "draw": runs.run.to_numpy() % draws,
+        }
+    )
+    for key in drawn:
+        frame[key] = runs[key].to_numpy()
+    errors = np.column_stack([runs[f"ae_{c}"].to_numpy(dtype=float) for c in names])
+    frame["status"] = runs.status.to_numpy()
+    frame["ae"] = errors[:, list(scored)].mean(axis=1)
+    frame["tv"] = runs.tv.to_numpy(dtype=float)
+    within = np.all(errors <= np.asarray(rule), axis=1)  # NaN (not ok) compares False
+    frame["on_path"] = (frame.status == "ok").to_numpy() & within
+    return frame
+
+
+def _evaluated(
+    margins: Mapping[str, list[EmpiricalMargin | None]], omegas: tuple[float, ...]
+) -> pd.DataFrame:
+    """Every simulated point of every margin search, with its ``ω_n`` and family."""
+    frames = []
+    for family, found in margins.items():
+        for omega, result in zip(omegas, found, strict=True):
+            if result is None:
+                continue
+            frame = result.to_frame()
+            frame.insert(0, "controller", family)
+            frame.insert(0, "omega_n", omega)
+            frames.append(frame)
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()

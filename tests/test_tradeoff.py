@@ -1,0 +1,132 @@
+"""The accuracy–delay-margin trade-off: its margins against independent exact margins, the
+Pareto front by brute force, resuming after a lost part, and the command's refusals."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from delaytrack.analysis import exact_delay_margin
+from delaytrack.cli import main
+from delaytrack.experiments.tradeoff import family_gains, pareto_front, run_tradeoff
+from delaytrack.scenario import Scenario
+
+#: A small linear plant of our own: a unit mass whose nominal model is 20 % light, tracking a
+#: slow sine under a constant 50 ms delay.
+PLANT = {
+    "name": "light_mass",
+    "duration": 8.0,
+    "dt": 0.002,
+    "T_c": 0.002,
+    "x0": [0.0, 0.0],
+    "plant": {"type": "linear", "mass": [1.0]},
+    "model": {"type": "linear", "mass": [0.8]},
+    "controller": {
+        "type": "arolc",
+        **{"K1": 1.0, "K2": 1.0, "Q": 1.0, "alpha": 2.0, "epsilon": 0.1, "gamma": 0.001},
+    },
+    "delay": {"type": "constant", "h": 0.05},
+    "reference": {"type": "sinusoidal", "offset": [0.0], "amplitude": [0.5], "frequency": [0.5]},
+}
+OMEGAS = (0.7, 1.4)
+ZETA = 0.8
+DRAWS = {"plant.mass": {"dist": "uniform", "low": 0.8, "high": 1.2}}
+
+
+def _study(out):
+    return run_tradeoff(
+        Scenario.from_dict(PLANT),
+        out,
+        zeta=ZETA,
+        omegas=OMEGAS,
+        draws=3,
+        random=DRAWS,
+        upper=2.0,
+        resolution=0.05,
+    )
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    return _study(tmp_path_factory.mktemp("tradeoff"))
+
+
+def test_exact_margins_are_those_of_exact_delay_margin(study):
+    rows = study.table[study.table.controller.isin(["arolc", "outer-loop"])]
+    assert len(rows) == 2 * len(OMEGAS)
+    for row in rows.itertuples():
+        k1, k2 = row.omega_n**2, 2 * ZETA * row.omega_n  # K1 = w_n^2, K2 = 2 zeta w_n
+        assert (row.k1, row.k2) == pytest.approx(family_gains(row.omega_n, ZETA))
+        assert row.h_exact == exact_delay_margin(np.array([[k1]]), np.array([[k2]])).h
+    assert study.table.loc[study.table.controller != "arolc", "h_m"].isna().all()
+    assert set(study.families) == {"arolc", "outer-loop", "pcon", "pconf"}
+
+
+def test_pareto_front_is_non_dominated_by_brute_force(study):
+    table = study.table
+    valid = table.ae_median.notna() & table.empirical_margin.notna()
+    for i, row in table.iterrows():
+        dominated = any(
+            other.ae_median <= row.ae_median
+            and other.empirical_margin >= row.empirical_margin
+            and (other.ae_median < row.ae_median or other.empirical_margin > row.empirical_margin)
+            for j, other in table[valid].iterrows()
+            if j != i
+        )
+        assert row.pareto == (bool(valid[i]) and not dominated)
+    assert table.pareto.any()
+
+
+def test_pareto_front_small_cases():
+    assert pareto_front([1, 2, 3], [1, 2, 3]).tolist() == [True, True, True]
+    assert pareto_front([1, 2, np.nan], [3, 2, 5]).tolist() == [True, False, False]
+    assert pareto_front([1, 1], [2, 2]).tolist() == [True, True]
+
+
+def test_resuming_after_deleting_a_part_gives_the_same_table(tmp_path):
+    first = _study(tmp_path)
+    parts = sorted((tmp_path / "sweep" / "parts").glob("part-*.parquet"))
+    assert parts
+    parts[0].unlink()
+    again = _study(tmp_path)
+    assert again.computed == 1 and again.resumed == len(parts) - 1
+    pd.testing.assert_frame_equal(first.table, again.table)
+    pd.testing.assert_frame_equal(first.runs, again.runs)
+
+
+def test_command_writes_the_table_figure_and_page(tmp_path, capsys):
+    scenario = tmp_path / "light_mass.toml"
+    Scenario.from_dict(PLANT).to_toml(scenario)
+    out = tmp_path / "out"
+    args = ["tradeoff", str(scenario), "--omega", "0.7", "1.4", "2", "--upper", "2"]
+    assert main([*args, "--zeta", str(ZETA), "--out", str(out), "--quiet"]) == 0
+    table = pd.read_csv(out / "tradeoff.csv")
+    assert {"omega_n_rad_per_s", "k1_per_s2", "h_m_s", "h_exact_s", "empirical_margin_s"} <= set(
+        table.columns
+    )
+    assert (out / "figures" / "pareto.png").is_file() and (out / "report.html").is_file()
+    assert "Pareto front" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--zeta", "-1"], "--zeta: must be a damping ratio > 0; got '-1'"),
+        (["--draws", "0"], "--draws: must be an integer >= 1; got '0'"),
+        (["--omega", "2", "1", "3"], "--omega must be LO HI N with 0 < LO <= HI"),
+        (["--omega", "1", "2", "x"], "--omega must be LO HI N"),
+        (["--threshold", "0"], "--threshold"),
+        (["--scheduler", "nowhere"], "--scheduler must be"),
+    ],
+)
+def test_bad_flags_exit_2_with_one_line(tmp_path, capsys, extra, message):
+    scenario = tmp_path / "light_mass.toml"
+    Scenario.from_dict(PLANT).to_toml(scenario)
+    try:  # argparse's own refusals exit; the command's return
+        code = main(["tradeoff", str(scenario), "--out", str(tmp_path / "o"), *extra])
+    except SystemExit as exit_:
+        code = exit_.code
+    assert code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: ") and message in err, err

@@ -49,23 +49,26 @@ def fake_claims(ae_arolc, ae_base):
     return pd.DataFrame(rows)
 
 
-def test_a_claim_holds_fails_or_is_undecided_by_its_interval():
+def test_a_claim_holds_fails_or_is_undecided_by_its_corrected_test():
     n = 20
     holds = claim_verdicts(fake_claims([1.0] * n, [2.0] * n))
-    assert set(holds[holds.claim == "AE below PCON"].verdict) == {"holds"}
+    assert set(holds[holds.claim == "AE below PCON"].accuracy_verdict) == {"holds"}
     fails = claim_verdicts(fake_claims([3.0] * n, [2.0] * n))
-    assert set(fails[fails.claim == "AE below PCON"].verdict) == {"fails"}
+    assert set(fails[fails.claim == "AE below PCON"].accuracy_verdict) == {"fails"}
     mixed = claim_verdicts(fake_claims([1.0, 3.0] * (n // 2), [2.0] * n))
-    assert set(mixed[mixed.claim == "AE below PCON"].verdict) == {"undecided"}
-    # A diverged baseline loses; a diverged AROLC loses; where both diverged nothing is decided.
+    assert set(mixed[mixed.claim == "AE below PCON"].accuracy_verdict) == {"undecided"}
+    # A diverged baseline: AROLC stays on the path more often, and no accuracy is compared.
     lost = claim_verdicts(fake_claims([1.0] * n, [math.inf] * n))
-    assert set(lost[lost.claim == "AE below PCON"].verdict) == {"holds"}
+    row = lost[lost.claim == "AE below PCON"].iloc[0]
+    assert row.survival_verdict == "holds"
+    assert row.accuracy_verdict == "no decision (in no draw did both stay on the path)"
+    # Draws where both diverged are counted, never dropped.
     both = claim_verdicts(fake_claims([math.inf] * 15 + [3.0] * 5, [math.inf] * n))
     row = both[(both.claim == "AE below PCON")].iloc[0]
-    assert (row.draws_decided, row.draws_both_diverged) == (5, 15)
-    assert row.share_holds == 1.0 and row.verdict == "holds"  # finite beats diverged
+    assert (row.both_diverged, row.only_b_diverged, row.only_a_diverged) == (15, 5, 0)
+    assert row.survival_verdict.startswith("no decision (one side diverged in only 5 draws")
     none = claim_verdicts(fake_claims([math.inf] * n, [math.inf] * n))
-    assert set(none.verdict) >= {"no decision (both diverged in every draw)"}
+    assert set(none.survival_verdict) == {"no decision (both diverged in every draw)"}
     # The effect size: the paired median difference, AROLC minus the baseline.
     assert holds.iloc[0].median_difference == -1.0
 
@@ -158,24 +161,60 @@ def test_a_small_study_runs_resumes_and_writes_its_files(tmp_path):
     again = robustness.run_robustness(tmp_path, size=size, progress=False)
     assert again.computed == 0 and again.resumed == first.computed
     pd.testing.assert_frame_equal(again.map, first.map)
-    # Every verdict's numbers come from the runs: recompute one share.
+    # Every verdict's numbers come from the runs: recompute one comparison's counts.
     claims = pd.read_csv(tmp_path / "runs.csv")
     s1 = claims[(claims.sweep == "claims-S1") & (claims.noise == "off")]
     a = s1[s1.controller == "AROLC (paper gains)"].sort_values("draw")
     b = s1[s1.controller == "PCON"].sort_values("draw")
-    mine = np.where(a.diverged, np.inf, a.ae_mm).astype(float)
-    theirs = np.where(b.diverged, np.inf, b.ae_mm).astype(float)
-    decided = ~(np.isinf(mine) & np.isinf(theirs))
-    share = np.mean((mine < theirs)[decided]) if decided.any() else np.nan
+    a_diverged, b_diverged = a.diverged.to_numpy(), b.diverged.to_numpy()
+    kept = ~a_diverged & ~b_diverged
     row = first.verdicts[
         (first.verdicts.scenario == "S1")
         & (first.verdicts.noise == "off")
         & (first.verdicts.claim == "AE below PCON")
         & (first.verdicts.controller == "AROLC (paper gains)")
-    ]
-    assert row.share_holds.iloc[0] == share or (
-        np.isnan(share) and np.isnan(row.share_holds.iloc[0])
+    ].iloc[0]
+    assert (row.both_stayed, row.only_a_diverged, row.only_b_diverged, row.both_diverged) == (
+        kept.sum(),
+        (a_diverged & ~b_diverged).sum(),
+        (~a_diverged & b_diverged).sum(),
+        (a_diverged & b_diverged).sum(),
     )
+    assert row.a_lower == (a.ae_mm.to_numpy()[kept] < b.ae_mm.to_numpy()[kept]).sum()
+    # The counts the reports quote are the study's, and account for every verdict.
+    counts = first.verdict_counts
+    every = counts[counts.noise == "all"].set_index("kind")
+    assert every.loc["accuracy", "verdicts"] == len(first.verdicts)
+    assert every.loc["survival", "verdicts"] == len(first.survival_verdicts)
+    parts = counts[["holds", "fails", "undecided", "no_decision"]].sum(axis=1)
+    assert (parts == counts.verdicts).all()
+    # The tuning envelope stands beside every verdict whose scenario leaves it.
+    envelope = first.tuning_envelope
+    s4 = first.verdicts[first.verdicts.scenario == "S4"].iloc[0]
+    assert s4.outside_tuning and s4.tuning_delay_max_ms == envelope["constant"][1] < 120.0
+    assert f"tuned on {envelope['constant'][0]:.3g}–{envelope['constant'][1]:.3g} ms" in report
+
+
+def test_the_tuning_envelope_comes_from_the_tuning_record():
+    record = tuning.load_tuning_record()
+    envelope = robustness.tuning_envelope(record)
+    constant = [
+        h
+        for h, kind in zip(record["condition_h_bar"], record["condition_classes"], strict=True)
+        if kind == "constant"
+    ]
+    assert envelope["constant"] == pytest.approx((1e3 * min(constant), 1e3 * max(constant)))
+    low, high = envelope["varying"]
+    varying = [c for c in tuning.CONDITIONS if c.delay_class == "varying"]
+    assert high == pytest.approx(1e3 * max(c.delay.h_max for c in varying), abs=1e-3)
+    assert low >= 5.0 and high <= 140.0  # the varying class's drawn range
+    ranges = robustness.scenario_delay_ranges(robustness.load_builtin(robustness.BASE_SCENARIO))
+    assert ranges["S2"] == pytest.approx((5.0, 125.0), abs=1e-6)
+    assert ranges["S3"] == pytest.approx((60.0, 60.0))
+    tampered = copy.deepcopy(dict(record))
+    tampered["conditions"] = ["h = 1 ms constant"] * len(record["conditions"])
+    with pytest.raises(ValueError, match="condition_seed"):
+        robustness.tuning_envelope(tampered)
 
 
 def test_the_study_uses_the_gains_it_is_given():

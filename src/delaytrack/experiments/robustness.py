@@ -29,10 +29,13 @@ same robot everywhere). Three sweeps:
 Statistics: a run *diverged* when it stopped (diverged or left the path: an x or y error beyond
 10 m) or its mean AE exceeds the tuning's 1 m. Divergence rates carry Wilson 95 % intervals;
 medians of AE (the mean of AE-x and AE-y, mm, over runs that stayed on the path) carry
-percentile-bootstrap 95 % intervals (:mod:`~delaytrack.experiments.outcomes`). A claim "A below
-B" is decided per draw (a diverged run loses) and its verdict comes from the share of draws in
-which it holds: *holds* when the Wilson interval of that share lies above one half, *fails*
-when below, *undecided* otherwise (:mod:`~delaytrack.experiments.verdicts`).
+percentile-bootstrap 95 % intervals (:mod:`~delaytrack.experiments.outcomes`). Each claim "A
+below B" gets two verdicts, draw by draw on the same robots: staying on the path (McNemar's exact
+test on the draws where only one side diverged) and accuracy given both stayed on the path (the
+sign test and the paired median difference), every draw counted in one of four categories and
+every test of the study corrected together with Holm's method
+(:mod:`~delaytrack.experiments.verdicts`). Each verdict carries the delays its scenario reaches
+beside those the tuning conditions of its delay class covered (:func:`tuning_envelope`).
 
 :func:`run_robustness` returns a :class:`RobustnessStudy` holding every number of the study's
 report, which :mod:`delaytrack.report.robustness` writes.
@@ -57,7 +60,15 @@ from delaytrack.experiments import tuning
 from delaytrack.experiments.intervals import wilson_interval
 from delaytrack.experiments.outcomes import delay_reach, outcome_table
 from delaytrack.experiments.pairing import AROLC_GAINS, BASELINE, DELAY_CLASS
-from delaytrack.experiments.verdicts import attribution, attribution_ranges, claim_verdicts
+from delaytrack.experiments.verdicts import (
+    ALPHA,
+    MIN_DECIDED,
+    attribution,
+    attribution_ranges,
+    claim_verdicts,
+    survival_verdicts,
+    verdict_counts,
+)
 from delaytrack.report.robustness import write_robustness
 from delaytrack.scenario import Scenario, load_builtin
 from delaytrack.sweeps import SweepSpec, run_sweep
@@ -73,7 +84,9 @@ __all__ = [
     "claim_verdicts",
     "knowledge_table",
     "run_robustness",
+    "scenario_delay_ranges",
     "study_specs",
+    "tuning_envelope",
     "wilson_interval",
 ]
 #: The statistics and the report's text moved; reading them here still works, with a warning.
@@ -380,6 +393,79 @@ def knowledge_table(knowledge: pd.DataFrame, map_table: pd.DataFrame) -> pd.Data
     return pd.DataFrame(rows)
 
 
+def _delay_range_ms(delays: list[Any], duration: float, dt: float) -> tuple[float, float]:
+    """Smallest and largest delay (ms) of the profiles ``delays`` over ``[0, duration]``,
+    sampled every ``dt``."""
+    t = np.linspace(0.0, duration, int(round(duration / dt)) + 1)
+    h = np.concatenate([delay.h(t) for delay in delays])
+    return 1e3 * float(h.min()), 1e3 * float(h.max())
+
+
+def tuning_envelope(record: Mapping[str, Any]) -> dict[str, tuple[float, float]]:
+    """Per delay class, the smallest and largest delay (ms) that the tuning conditions of
+    ``record`` (a gains record) reached over their runs: the delays its gain sets were chosen
+    on. The conditions are drawn again from the record's seed and checked against its
+    descriptions."""
+    conditions = tuning.draw_conditions(
+        record["condition_seed"], len(record["conditions"]) // len(tuning.DELAY_CLASSES)
+    )
+    if [c.text for c in conditions] != list(record["conditions"]):
+        raise ValueError("the gains record's conditions are not those its condition_seed draws")
+    return {
+        delay_class: _delay_range_ms(
+            [c.delay for c in conditions if c.delay_class == delay_class],
+            record["duration"],
+            record["dt"],
+        )
+        for delay_class in tuning.DELAY_CLASSES
+    }
+
+
+def scenario_delay_ranges(scenario: Scenario) -> dict[str, tuple[float, float]]:
+    """Smallest and largest delay (ms) of S1–S4 over a run of ``scenario`` (its duration and
+    ``dt``)."""
+    return {
+        case: _delay_range_ms([delay_from_spec(spec)], scenario.duration, scenario.dt)
+        for case, spec in _SCENARIOS.items()
+    }
+
+
+def _with_tuning_envelope(
+    verdicts: pd.DataFrame,
+    envelope: Mapping[str, tuple[float, float]],
+    ranges: Mapping[str, tuple[float, float]],
+) -> pd.DataFrame:
+    """``verdicts`` with the delays each row's scenarios reach (``scenario_delay_min_ms``,
+    ``scenario_delay_max_ms``), those the tuning conditions of their delay class covered
+    (``tuning_delay_min_ms``, ``tuning_delay_max_ms``) and whether the scenario's delays leave
+    them (``outside_tuning``)."""
+    columns: dict[str, list[Any]] = {
+        key: []
+        for key in (
+            "scenario_delay_min_ms",
+            "scenario_delay_max_ms",
+            "tuning_delay_min_ms",
+            "tuning_delay_max_ms",
+            "outside_tuning",
+        )
+    }
+    for label in verdicts.scenario:
+        cases = label.split(" -> ")  # "S3 -> S4": both scenarios
+        low = min(ranges[case][0] for case in cases)
+        high = max(ranges[case][1] for case in cases)
+        tuned_low, tuned_high = envelope[DELAY_CLASS[cases[0]]]
+        columns["scenario_delay_min_ms"].append(low)
+        columns["scenario_delay_max_ms"].append(high)
+        columns["tuning_delay_min_ms"].append(tuned_low)
+        columns["tuning_delay_max_ms"].append(tuned_high)
+        columns["outside_tuning"].append(bool(low < tuned_low or high > tuned_high))
+    at = verdicts.columns.get_loc("draws")
+    out = verdicts.copy()
+    for offset, (key, values) in enumerate(columns.items()):
+        out.insert(at + offset, key, values)
+    return out
+
+
 def _edges(record: Mapping[str, Any]) -> tuple[tuple[str, str], ...]:
     """The tuned gain sets ``(kind, gain set)`` still on an edge of their grid after the
     extensions (the gains file's ``interior`` is false)."""
@@ -410,8 +496,19 @@ class RobustnessStudy:
     claims : DataFrame
         :func:`~delaytrack.experiments.outcomes.outcome_table` per (scenario, noise,
         controller).
-    verdicts, attribution : DataFrame
-        :func:`~delaytrack.experiments.verdicts.claim_verdicts` and
+    verdicts : DataFrame
+        :func:`~delaytrack.experiments.verdicts.claim_verdicts`, one row per claim, with the
+        delays of its scenario and of the tuning beside it (:func:`_with_tuning_envelope`).
+    survival_verdicts : DataFrame
+        :func:`~delaytrack.experiments.verdicts.survival_verdicts` of ``verdicts``: one row per
+        survival comparison.
+    verdict_counts : DataFrame
+        :func:`~delaytrack.experiments.verdicts.verdict_counts` of ``verdicts``: how many
+        verdicts hold, fail, are undecided or reach no decision, per kind and noise level.
+    tuning_envelope : mapping
+        :func:`tuning_envelope` of the tuning record: per delay class, the delays (ms) its
+        tuning conditions covered.
+    attribution : DataFrame
         :func:`~delaytrack.experiments.verdicts.attribution`.
     knowledge_table : DataFrame
         :func:`knowledge_table`: what the predictors tolerate of a wrong delay.
@@ -431,7 +528,8 @@ class RobustnessStudy:
 
     The design travels with every study as class attributes: ``scales`` (:data:`SCALES`),
     ``true_delays`` (:data:`TRUE_DELAYS`, s), ``predictors`` (the controllers told the delay),
-    ``friction`` (the drawn friction ranges) and ``diverged_ae_mm``.
+    ``friction`` (the drawn friction ranges), ``diverged_ae_mm``, ``alpha`` (the verdicts'
+    family-wise error rate) and ``min_decided`` (the fewest decided draws of a verdict).
     """
 
     scales: ClassVar[tuple[float, ...]] = SCALES
@@ -439,6 +537,8 @@ class RobustnessStudy:
     predictors: ClassVar[tuple[str, ...]] = tuning.PREDICTORS
     friction: ClassVar[Mapping[str, Mapping[str, Any]]] = _FRICTION
     diverged_ae_mm: ClassVar[float] = DIVERGED_AE_MM
+    alpha: ClassVar[float] = ALPHA
+    min_decided: ClassVar[int] = MIN_DECIDED
 
     size: StudySize
     scenario: Scenario
@@ -448,6 +548,9 @@ class RobustnessStudy:
     knowledge: pd.DataFrame
     claims: pd.DataFrame
     verdicts: pd.DataFrame
+    survival_verdicts: pd.DataFrame
+    verdict_counts: pd.DataFrame
+    tuning_envelope: Mapping[str, tuple[float, float]]
     attribution: pd.DataFrame
     knowledge_table: pd.DataFrame
     reach: pd.DataFrame
@@ -495,15 +598,23 @@ def run_robustness(
     map_outcomes = outcome_table(frames["map"], ["delay_ms", "controller", "scale"])
     knowledge_outcomes = outcome_table(knowledge, ["scenario", "controller", "scale"])
     attributed = attribution(claims)
+    scenario = load_builtin(BASE_SCENARIO)
+    envelope = tuning_envelope(record)
+    verdicts = _with_tuning_envelope(
+        claim_verdicts(claims), envelope, scenario_delay_ranges(scenario)
+    )
     study = RobustnessStudy(
         size=size,
-        scenario=load_builtin(BASE_SCENARIO),
+        scenario=scenario,
         runs=frames,
         run_count=sum(len(frame) for frame in frames.values()),
         map=map_outcomes,
         knowledge=knowledge_outcomes,
         claims=outcome_table(claims, ["scenario", "noise", "controller"]),
-        verdicts=claim_verdicts(claims),
+        verdicts=verdicts,
+        survival_verdicts=survival_verdicts(verdicts),
+        verdict_counts=verdict_counts(verdicts),
+        tuning_envelope=envelope,
         attribution=attributed,
         knowledge_table=knowledge_table(knowledge_outcomes, map_outcomes),
         reach=delay_reach(map_outcomes),

@@ -45,7 +45,7 @@ from delaytrack.report.html import HtmlReport
 from delaytrack.report.robustness import (
     display_attribution,
     display_knowledge,
-    display_verdicts,
+    write_verdict_tables,
 )
 from delaytrack.report.robustness import findings as robustness_findings
 from delaytrack.report.tuning import gains_text
@@ -229,31 +229,65 @@ def _figures(study: PaperStudy) -> dict[str, tuple[Figure, str]]:
 # Claims
 
 
-def _claims_text(study: PaperStudy) -> list[str]:
+def _verdict_word(verdict: str) -> str:
+    """A distribution verdict without the reason of a "no decision"."""
+    return "no decision" if verdict.startswith("no decision") else verdict
+
+
+def _over_draws(
+    robustness: RobustnessStudy | None,
+    scenario: str,
+    claim: str,
+    controller: str,
+    lead: str = "Over",
+) -> str:
+    """The robustness study's verdicts (without noise) of the claim a one-run statement makes,
+    as a sentence starting with ``lead`` to set beside it; nothing without the study."""
+    if robustness is None:
+        return ""
+    v = robustness.verdicts
+    row = v[
+        (v.scenario == scenario)
+        & (v.noise == "off")
+        & (v.claim == claim)
+        & (v.controller == controller)
+    ].iloc[0]
+    return (
+        f" {lead} {row.draws} drawn robots without noise: staying on the path "
+        f"{row.survival_verdict}; accuracy where both stayed on the path ({row.both_stayed} "
+        f"draws) {row.accuracy_verdict}."
+    )
+
+
+def _claims_text(study: PaperStudy, robustness: RobustnessStudy | None) -> list[str]:
     summary = study.summary
     checks = study.findings.claims
+    who = "AROLC (paper gains)"
     lines = []
     for case in SCENARIOS:
         a, b = summary_row(summary, case, "AROLC"), summary_row(summary, case, BASELINE[case])
         verdict = "HOLDS" if checks["ae"][case] else "FAILS"
         lines.append(
             f"AE, {case}: AROLC {_fmt(a.ae_x_mm)} / {_fmt(a.ae_y_mm)} mm (x / y) vs "
-            f"{BASELINE[case]} {_fmt(b.ae_x_mm)} / {_fmt(b.ae_y_mm)} mm: the claim 'AROLC below "
-            f"the predictor baseline' {verdict}."
+            f"{BASELINE[case]} {_fmt(b.ae_x_mm)} / {_fmt(b.ae_y_mm)} mm: in this one run the "
+            f"claim 'AROLC below the predictor baseline' {verdict}."
+            + _over_draws(robustness, case, f"AE below {BASELINE[case]}", who)
         )
     for case in SCENARIOS:
         a, b = summary_row(summary, case, "AROLC"), summary_row(summary, case, BASELINE[case])
         verdict = "HOLDS" if checks["tv"][case] else "FAILS"
         lines.append(
-            f"TV, {case}: AROLC {_fmt(a.tv)} N·m vs {BASELINE[case]} {_fmt(b.tv)} N·m: the claim "
-            f"'AROLC's TV is lower' {verdict}."
+            f"TV, {case}: AROLC {_fmt(a.tv)} N·m vs {BASELINE[case]} {_fmt(b.tv)} N·m: in this "
+            f"one run the claim 'AROLC's TV is lower' {verdict}."
+            + _over_draws(robustness, case, f"TV below {BASELINE[case]}", who)
         )
     s3, s4 = summary_row(summary, "S3", "AROLC"), summary_row(summary, "S4", "AROLC")
     verdict = "HOLDS" if checks["growth"]["S3->S4"] else "FAILS"
     lines.append(
         f"Growth with the delay: AROLC's AE goes from {_fmt(s3.ae_x_mm)} / {_fmt(s3.ae_y_mm)} mm "
-        f"(S3, 60 ms) to {_fmt(s4.ae_x_mm)} / {_fmt(s4.ae_y_mm)} mm (S4, 120 ms): the claim "
-        f"'AROLC's error grows from S3 to S4' {verdict}."
+        f"(S3, 60 ms) to {_fmt(s4.ae_x_mm)} / {_fmt(s4.ae_y_mm)} mm (S4, 120 ms): in this one "
+        f"run the claim 'AROLC's error grows from S3 to S4' {verdict}."
+        + _over_draws(robustness, "S3 -> S4", "AE grows from S3 to S4", who)
     )
     return lines
 
@@ -270,18 +304,43 @@ def _verdicts(checks: Claims) -> str:
     )
 
 
-def _claims_summary(study: PaperStudy) -> str:
+def _distribution_verdicts(robustness: RobustnessStudy | None, controller: str) -> str:
+    """The robustness study's verdicts (without noise) of ``controller``'s claims, per claim
+    and scenario: staying on the path, then accuracy; nothing without the study."""
+    if robustness is None:
+        return ""
+    v = robustness.verdicts
+    rows = v[(v.noise == "off") & (v.controller == controller)]
+    parts = [
+        f"{r.claim}{'' if r.scenario == 'S3 -> S4' else f' in {r.scenario}'}: path "
+        f"{_verdict_word(r.survival_verdict)}, accuracy {_verdict_word(r.accuracy_verdict)}"
+        for r in rows.itertuples()
+    ]
+    draws = int(rows.draws.iloc[0])
+    return f" (over {draws} drawn robots without noise: {'; '.join(parts)})"
+
+
+def _claims_summary(study: PaperStudy, robustness: RobustnessStudy | None) -> str:
     sets = "; ".join(
         f"{gain_set} delays: {gains_text('AROLC', g)}, certified up to h_m = {g['h_m']:.4f} s"
         for gain_set, g in study.gains["AROLC"].items()
         if gain_set in tuning.DELAY_CLASSES
     )
     return (
-        f"Which conclusion holds for which AROLC. With the paper's gains (certified by Theorem 1 "
-        f"up to h_m = {study.bound.h_m:.4f} s): {_verdicts(study.findings.claims)}. Tuned by the "
-        f"same protocol as the baselines, per delay class as they are ({sets}): "
-        f"{_verdicts(study.findings.tuned_claims)}. The bullets above check the paper-gain "
-        "AROLC; the section 'AROLC tuned by the same procedure' gives the tuned numbers."
+        "Which conclusion holds for which AROLC, in this one run per case"
+        + (
+            ", with the robustness study's verdicts over draws beside it"
+            if robustness is not None
+            else ""
+        )
+        + f". With the paper's gains (certified by Theorem 1 up to h_m = {study.bound.h_m:.4f} "
+        f"s): one run: {_verdicts(study.findings.claims)}"
+        + _distribution_verdicts(robustness, "AROLC (paper gains)")
+        + f". Tuned by the same protocol as the baselines, per delay class as they are ({sets}): "
+        f"one run: {_verdicts(study.findings.tuned_claims)}"
+        + _distribution_verdicts(robustness, "AROLC (tuned)")
+        + ". The bullets above check the paper-gain AROLC; the section 'AROLC tuned by the same "
+        "procedure' gives the tuned numbers."
     )
 
 
@@ -405,7 +464,11 @@ def _explanation(study: PaperStudy) -> list[str]:
         )
         + " N·m: small where the tuned law runs smoothly, large where it runs near its "
         "stability limit (the longest delays). "
-        + (f"The claim holds in {', '.join(tv_hold)}" if tv_hold else "The claim holds nowhere")
+        + (
+            f"In this one run the claim holds in {', '.join(tv_hold)}"
+            if tv_hold
+            else "In this one run the claim holds nowhere"
+        )
         + (f" and fails in {', '.join(tv_fail)}." if tv_fail else ".")
         + f" The paper's TV values ({found.paper_arolc_tv[0]:g}–{found.paper_arolc_tv[1]:g} "
         "for AROLC) are smaller than ours because a real "
@@ -418,25 +481,32 @@ def _explanation(study: PaperStudy) -> list[str]:
 # Sections
 
 
+#: The kinds of verdict as the paper report names them.
+_KIND_NAMES = {"survival": "staying on the path", "accuracy": "accuracy where both stayed on it"}
+
+
 def _distribution_section(report: HtmlReport, robustness: RobustnessStudy) -> None:
     """The claims over distributions of robots (the robustness study's verdicts)."""
     report.heading("The claims over distributions (robustness study)")
-    verdicts = robustness.verdicts
-    holds, fails, undecided = (
-        len(verdicts[verdicts.verdict == verdict]) for verdict in ("holds", "fails", "undecided")
+    counts = robustness.verdict_counts
+    tallies = "; ".join(
+        f"{_KIND_NAMES[r.kind]}: of {r.verdicts} verdicts {r.holds} hold, {r.fails} fail, "
+        f"{r.undecided} are undecided and {r.no_decision} reach no decision"
+        for r in counts[counts.noise == "all"].itertuples()
     )
     report.paragraph(
         "One run per case (the next section) can be a lucky or an unlucky draw. The robustness "
         "study (../robustness/"
         f"report.html) repeats every case over {robustness.size.claims} drawn robots (payload "
         "seed and wheel friction from their documented ranges), without and with measurement "
-        "noise, and judges each claim by the share of draws in which it holds, with its 95 % "
-        f"interval: {holds} verdicts hold, {fails} fail and {undecided} are undecided at this "
-        "size."
+        "noise, and judges each claim twice on the same draws: staying on the path (per side "
+        "the share of draws that stayed, McNemar's exact test on the draws where only one "
+        "diverged) and accuracy over the draws where both stayed on the path (the share in "
+        "which AROLC is below, the sign test, the paired median difference). Every verdict of "
+        "the study is corrected together with Holm's method at "
+        f"{100 * robustness.alpha:g} %: {tallies} at this size."
     )
-    report.table(
-        display_verdicts(verdicts), "Verdict per claim over draws (robustness/verdicts.csv)."
-    )
+    write_verdict_tables(report, robustness)
     report.bullets(robustness_findings(robustness))
     report.table(
         display_knowledge(robustness.knowledge_table),
@@ -447,14 +517,19 @@ def _distribution_section(report: HtmlReport, robustness: RobustnessStudy) -> No
     report.table(
         display_attribution(robustness.attribution),
         "Attribution (robustness/attribution.csv): paired change of AE (mm) and TV (N·m) from "
-        "the controller without the part to the one with it; medians over draws with bootstrap "
-        "95 % intervals.",
+        "the controller without the part to the one with it; medians over the draws where both "
+        "stayed on the path, with bootstrap 95 % intervals, beside the draws in which each "
+        "diverged.",
     )
 
 
-def _tuned_section(report: HtmlReport, study: PaperStudy) -> None:
-    """The section 'AROLC tuned by the same procedure'."""
+def _tuned_section(
+    report: HtmlReport, study: PaperStudy, robustness: RobustnessStudy | None
+) -> None:
+    """The section 'AROLC tuned by the same procedure', with the robustness study's verdicts
+    beside its one-run claims when the study is given."""
     found = study.findings
+    who = "AROLC (tuned)"
     report.heading("AROLC tuned by the same procedure")
     report.paragraph(
         "Every controller is tuned by one protocol (delaytrack.experiments.tuning): the same six "
@@ -504,14 +579,17 @@ def _tuned_section(report: HtmlReport, study: PaperStudy) -> None:
         b = summary_row(study.summary, case, BASELINE[case])
         lines.append(
             f"{case}: AROLC-tuned AE {_fmt(a.ae_x_mm)} / {_fmt(a.ae_y_mm)} mm, TV {_fmt(a.tv)} "
-            f"vs {BASELINE[case]} {_fmt(b.ae_x_mm)} / {_fmt(b.ae_y_mm)} mm, TV {_fmt(b.tv)}: AE "
-            f"claim {'HOLDS' if checks['ae'][case] else 'FAILS'}, TV claim "
-            f"{'HOLDS' if checks['tv'][case] else 'FAILS'}."
+            f"vs {BASELINE[case]} {_fmt(b.ae_x_mm)} / {_fmt(b.ae_y_mm)} mm, TV {_fmt(b.tv)}: in "
+            f"this one run the AE claim {'HOLDS' if checks['ae'][case] else 'FAILS'}, the TV "
+            f"claim {'HOLDS' if checks['tv'][case] else 'FAILS'}."
+            + _over_draws(robustness, case, f"AE below {BASELINE[case]}", who, "AE claim over")
+            + _over_draws(robustness, case, f"TV below {BASELINE[case]}", who, "TV claim over")
         )
     lines.append(
-        "Growth S3 -> S4 for AROLC-tuned: "
+        "Growth S3 -> S4 for AROLC-tuned, in this one run: "
         + ("HOLDS" if checks["growth"]["S3->S4"] else "FAILS")
         + "."
+        + _over_draws(robustness, "S3 -> S4", "AE grows from S3 to S4", who)
     )
     report.bullets(lines)
 
@@ -713,13 +791,13 @@ def _report(
             "consistent path (../paper/report.html).",
             note=True,
         )
-    report.bullets(_claims_text(study))
-    report.paragraph(_claims_summary(study))
+    report.bullets(_claims_text(study, robustness))
+    report.paragraph(_claims_summary(study, robustness))
     for text in _explanation(study):
         report.paragraph(text)
     report.heading("Summary")
     report.table(study.summary, "summary.csv: AE, RMS, max in mm; %AE of 2500 mm; TV in N·m.")
-    _tuned_section(report, study)
+    _tuned_section(report, study, robustness)
     write_contact_section(report, study)
     report.heading("Tables I–III beside the paper's")
     report.paragraph(TABLES_NOTE)

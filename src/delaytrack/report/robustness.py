@@ -25,10 +25,12 @@ __all__ = [
     "display_attribution",
     "display_knowledge",
     "display_outcomes",
+    "display_survival",
     "display_verdicts",
     "findings",
     "robustness_map",
     "write_robustness",
+    "write_verdict_tables",
 ]
 
 #: The map's controllers, in panel order.
@@ -92,11 +94,13 @@ def findings(study: RobustnessStudy) -> list[str]:
             + " (gains file, 'interior')."
         )
     ranges = study.attribution_ranges
-    for row in ranges[ranges.noise == "off"].itertuples():
+    for row in ranges.itertuples():
         out.append(
-            f"{row.part} (noise off, S1–S4, median paired change over draws): AE "
-            f"{row.ae_change_min_mm:+.3g} to {row.ae_change_max_mm:+.3g} mm, TV "
-            f"{row.tv_change_min_Nm:+.3g} to {row.tv_change_max_Nm:+.3g} N·m"
+            f"{row.part} (noise {row.noise}, S1–S4, median paired change over the draws where "
+            f"both stayed on the path): AE {row.ae_change_min_mm:+.3g} to "
+            f"{row.ae_change_max_mm:+.3g} mm, TV {row.tv_change_min_Nm:+.3g} to "
+            f"{row.tv_change_max_Nm:+.3g} N·m; diverged in {row.diverged_with} of {row.draws} "
+            f"draws with it and in {row.diverged_without} without it"
             + (
                 f"; in {', '.join(row.not_compared)} no draw could be compared (in no draw did "
                 "both stay on the path)"
@@ -105,20 +109,94 @@ def findings(study: RobustnessStudy) -> list[str]:
             )
             + "."
         )
-    verdicts = study.verdicts
-    for noise in verdicts.noise.unique():
-        rows = verdicts[verdicts.noise == noise]
-        groups = []
-        for verdict in ("holds", "fails", "undecided"):
-            chosen = rows[rows.verdict == verdict]
-            names = [
-                f"{r.controller}: {r.claim}"
-                + ("" if r.scenario == "S3 -> S4" else f" in {r.scenario}")
-                for r in chosen.itertuples()
+    out.append(
+        "The tuning conditions covered delays of "
+        + "; ".join(
+            f"{_range_text(low, high)} ms ({delay_class} class)"
+            for delay_class, (low, high) in study.tuning_envelope.items()
+        )
+        + ". A verdict whose scenario reaches delays outside its class's range is marked with "
+        "both ranges."
+    )
+    counts = study.verdict_counts
+    for noise in counts.noise.unique():
+        if noise == "all":
+            continue
+        for kind, table, describe in (
+            ("survival", study.survival_verdicts, _survival_name),
+            ("accuracy", study.verdicts, _accuracy_name),
+        ):
+            count = counts[(counts.kind == kind) & (counts.noise == noise)].iloc[0]
+            rows = table[table.noise == noise]
+            verdict = rows[f"{kind}_verdict"]
+            groups = [
+                f"{label.upper()} ({number}): "
+                + ("; ".join(describe(r) for r in rows[chosen].itertuples()) or "none")
+                for label, number, chosen in (
+                    ("holds", count.holds, verdict == "holds"),
+                    ("fails", count.fails, verdict == "fails"),
+                    ("undecided", count.undecided, verdict == "undecided"),
+                    ("no decision", count.no_decision, verdict.str.startswith("no decision")),
+                )
             ]
-            groups.append(f"{verdict.upper()} ({len(names)}): " + ("; ".join(names) or "none"))
-        out.append(f"Claims with measurement noise {noise}. " + ". ".join(groups) + ".")
+            out.append(
+                f"{_KIND_TEXT[kind]}, measurement noise {noise}, {count.verdicts} verdicts. "
+                + ". ".join(groups)
+                + "."
+            )
     return out
+
+
+#: What each kind of verdict judges, as the findings introduce it.
+_KIND_TEXT = {
+    "survival": (
+        "Staying on the path (holds: A stays on the path in more draws than B; one verdict per "
+        "pair compared, which a pair's AE and TV claims share)"
+    ),
+    "accuracy": (
+        "Accuracy where both stayed on the path (holds: A's value is below B's in more of "
+        "those draws)"
+    ),
+}
+
+
+def _range_text(low: float, high: float) -> str:
+    """``low–high`` (one number when they agree to three digits)."""
+    low_text, high_text = f"{low:.3g}", f"{high:.3g}"
+    return low_text if low_text == high_text else f"{low_text}–{high_text}"
+
+
+def _outside_text(row: Any) -> str:
+    """The delays of a verdict's scenario beside the tuning's, when they leave them."""
+    if not row.outside_tuning:
+        return ""
+    return (
+        f" [delays {_range_text(row.scenario_delay_min_ms, row.scenario_delay_max_ms)} ms; "
+        f"tuned on {_range_text(row.tuning_delay_min_ms, row.tuning_delay_max_ms)} ms]"
+    )
+
+
+def _no_decision_text(verdict: str) -> str:
+    """The reason of a "no decision" verdict, in parentheses, or nothing."""
+    return f" ({verdict[len('no decision (') : -1]})" if verdict.startswith("no decision") else ""
+
+
+def _survival_name(row: Any) -> str:
+    where = "" if row.scenario == "S3 -> S4" else f" in {row.scenario}"
+    return (
+        f"{row.side_a} vs {row.side_b}{where}"
+        + _no_decision_text(row.survival_verdict)
+        + _outside_text(row)
+    )
+
+
+def _accuracy_name(row: Any) -> str:
+    where = "" if row.scenario == "S3 -> S4" else f" in {row.scenario}"
+    return (
+        f"{row.controller}: {row.claim}{where}"
+        + _no_decision_text(row.accuracy_verdict)
+        + _outside_text(row)
+    )
 
 
 def _interval_text(value: float, low: float, high: float, scale: float = 1.0) -> str:
@@ -131,37 +209,86 @@ def _interval_text(value: float, low: float, high: float, scale: float = 1.0) ->
     return f"{scale * value:.3g} ({scale * low:.3g} to {scale * high:.3g})"
 
 
+def _p_text(p: float, p_holm: float) -> str:
+    """``p (Holm-adjusted p)``, or a dash when no test was made."""
+    return "—" if not math.isfinite(p) else f"{p:.2g} ({p_holm:.2g})"
+
+
+def _tuning_text(row: Any) -> str:
+    """The delays of a verdict's scenario and of the tuning, when they differ in range."""
+    if not row.outside_tuning:
+        return "inside"
+    return (
+        f"{_range_text(row.scenario_delay_min_ms, row.scenario_delay_max_ms)} (tuned on "
+        f"{_range_text(row.tuning_delay_min_ms, row.tuning_delay_max_ms)})"
+    )
+
+
+def display_survival(table: pd.DataFrame) -> pd.DataFrame:
+    """:func:`~delaytrack.experiments.verdicts.survival_verdicts` for reading: per side the
+    share of draws that stayed on the path, the four categories of draws, the p-values and the
+    Holm-corrected verdict."""
+    rows = list(table.itertuples())
+    return pd.DataFrame(
+        {
+            "scenario": table.scenario,
+            "noise": table.noise,
+            "A": table.side_a,
+            "B": table.side_b,
+            "A stayed, % (95 % CI)": [
+                _interval_text(r.a_stayed_share, r.a_stayed_ci_low, r.a_stayed_ci_high, 100.0)
+                for r in rows
+            ],
+            "B stayed, % (95 % CI)": [
+                _interval_text(r.b_stayed_share, r.b_stayed_ci_low, r.b_stayed_ci_high, 100.0)
+                for r in rows
+            ],
+            "draws: both stayed / only A / only B / both diverged": [
+                f"{r.both_stayed} / {r.only_a_diverged} / {r.only_b_diverged} / {r.both_diverged}"
+                for r in rows
+            ],
+            "p (Holm)": [_p_text(r.survival_p, r.survival_p_holm) for r in rows],
+            "verdict (A stays on the path more often)": table.survival_verdict,
+            "delays, ms, outside the tuning": [_tuning_text(r) for r in rows],
+        }
+    )
+
+
 def display_verdicts(verdicts: pd.DataFrame) -> pd.DataFrame:
-    """:func:`~delaytrack.experiments.verdicts.claim_verdicts` for reading: the share of draws
-    with its interval in one column."""
+    """:func:`~delaytrack.experiments.verdicts.claim_verdicts` for reading: per claim its
+    survival verdict, and its accuracy over the draws where both stayed on the path (the share
+    with A below B, the paired median difference, the p-values and the Holm-corrected
+    verdict)."""
+    rows = list(verdicts.itertuples())
     return pd.DataFrame(
         {
             "scenario": verdicts.scenario,
             "noise": verdicts.noise,
             "controller": verdicts.controller,
             "claim": verdicts.claim,
-            "holds in % of draws (95 % CI)": [
-                _interval_text(r.share_holds, r.ci_low, r.ci_high, 100.0)
-                for r in verdicts.itertuples()
+            "survival verdict": verdicts.survival_verdict,
+            "both stayed / draws": [f"{r.both_stayed} / {r.draws}" for r in rows],
+            "A below B, % of those (95 % CI)": [
+                _interval_text(r.a_lower_share, r.a_lower_ci_low, r.a_lower_ci_high, 100.0)
+                for r in rows
             ],
-            "draws (both diverged)": [
-                f"{r.draws_decided} ({r.draws_both_diverged})" for r in verdicts.itertuples()
-            ],
-            "median difference (95 % CI)": [
+            "median A − B (95 % CI)": [
                 _interval_text(r.median_difference, r.difference_ci_low, r.difference_ci_high)
                 + (" N·m" if r.claim.startswith("TV") else " mm")
                 if math.isfinite(r.median_difference)
                 else "—"
-                for r in verdicts.itertuples()
+                for r in rows
             ],
-            "verdict": verdicts.verdict,
+            "p (Holm)": [_p_text(r.accuracy_p, r.accuracy_p_holm) for r in rows],
+            "accuracy verdict": verdicts.accuracy_verdict,
+            "delays, ms, outside the tuning": [_tuning_text(r) for r in rows],
         }
     )
 
 
 def display_attribution(table: pd.DataFrame) -> pd.DataFrame:
     """:func:`~delaytrack.experiments.verdicts.attribution` for reading: each median change with
-    its interval in one column."""
+    its interval in one column, beside the draws in which each controller diverged."""
     ae = zip(
         table.median_change_ae_mm,
         table.change_ci_low_ae_mm,
@@ -181,7 +308,13 @@ def display_attribution(table: pd.DataFrame) -> pd.DataFrame:
             "noise": table.noise,
             "AE change, mm (95 % CI)": [_interval_text(*values) for values in ae],
             "TV change, N·m (95 % CI)": [_interval_text(*values) for values in tv],
-            "draws compared": table.draws_compared,
+            "diverged with / without it, of draws": [
+                f"{w} / {wo} of {n}"
+                for w, wo, n in zip(
+                    table.diverged_with, table.diverged_without, table.draws, strict=True
+                )
+            ],
+            "draws compared (both stayed)": table.draws_compared,
         }
     )
 
@@ -271,6 +404,26 @@ def robustness_map(study: RobustnessStudy) -> Figure:
     return figure
 
 
+def write_verdict_tables(report: HtmlReport, study: RobustnessStudy) -> None:
+    """The verdict tables (staying on the path per pair compared, accuracy per claim) with
+    their captions, as the study's report and the paper job's report show them."""
+    report.table(
+        display_survival(study.survival_verdicts),
+        "Staying on the path, per pair compared on the same draws (verdicts.csv; the AE and TV "
+        "claims of a pair share it): share of draws each side stayed on the path with its "
+        "Wilson 95 % interval, the four categories of draws, McNemar's exact p with its "
+        "Holm-adjusted value, and the verdict after the correction; the delays the scenario "
+        "reaches beside those the tuning covered, when they leave them.",
+    )
+    report.table(
+        display_verdicts(study.verdicts),
+        "Accuracy per claim over the draws where both stayed on the path (verdicts.csv): the "
+        "share in which A is below B with its Wilson 95 % interval, the paired median "
+        "difference with its bootstrap 95 % interval, the sign test's p with its Holm-adjusted "
+        "value, and the verdict after the correction.",
+    )
+
+
 def write_robustness(study: RobustnessStudy, out: str | Path) -> list[Path]:
     """Write ``runs.csv`` (every run), ``map.csv``, ``knowledge.csv``, ``claims.csv``,
     ``verdicts.csv``, ``attribution.csv``, ``knowledge_table.csv``, the map figure and
@@ -313,10 +466,20 @@ def _report(study: RobustnessStudy, image: bytes) -> HtmlReport:
         "delay estimates (gain sets for time-varying delays), and S1–S4 as in the paper job "
         "(class gain sets), without and with measurement noise (encoder quantisation and white "
         "noise). A run diverged when it stopped or its mean AE exceeded "
-        f"{study.diverged_ae_mm:g} mm. A claim is judged per draw (a diverged run loses): it "
-        "holds when the Wilson 95 % interval of the share of draws in which it holds lies above "
-        "one half, fails when below, and is undecided otherwise. Medians carry "
-        "percentile-bootstrap 95 % intervals."
+        f"{study.diverged_ae_mm:g} mm. Each claim 'A below B' is judged twice on the same "
+        "draws, and every draw is counted in exactly one of four categories (both stayed on the "
+        "path, only A diverged, only B diverged, both diverged). Staying on the path: per side "
+        "the share of draws that stayed, with its Wilson 95 % interval, and McNemar's exact "
+        "test on the draws where only one side diverged. Accuracy where both stayed on the "
+        "path: the share of those draws in which A is below B, with its Wilson 95 % interval, "
+        "the sign test, and the paired median difference A − B with its percentile-bootstrap "
+        "95 % interval. Every p-value is an exact binomial test against one half; since many "
+        f"verdicts are tested together, all of them (both kinds, both noise levels) are "
+        f"corrected as one family with Holm's method: a verdict holds (or fails) when its "
+        f"Holm-adjusted p is at most {100 * study.alpha:g} % and A (or B) wins more of the "
+        "decided draws, and is undecided otherwise; with fewer than "
+        f"{study.min_decided} decided draws no exact test can reach {100 * study.alpha:g} % "
+        "and the verdict is 'no decision', with the reason."
     )
     report.paragraph(
         f"Size: {study.run_count} runs of {study.scenario.duration:g} s "
@@ -334,11 +497,7 @@ def _report(study: RobustnessStudy, image: bytes) -> HtmlReport:
         "constant delay and what the predictors are told of it.",
     )
     report.heading("The paper's claims over draws")
-    report.table(
-        display_verdicts(study.verdicts),
-        "Verdict per claim: share of draws in which it holds, with its "
-        "Wilson 95 % interval (holds: interval above 50 %; fails: below).",
-    )
+    write_verdict_tables(report, study)
     report.heading("Attribution: outer loop, Δu, tuning")
     report.table(
         display_attribution(study.attribution),

@@ -16,6 +16,7 @@ Examples
 
 # First: choose numba's cache folder before any kernel is decorated (see _compile.disk_cache).
 from delaytrack._compile import disk_cache  # noqa: F401  isort: skip
+
 # Refuses NUMBA_DISABLE_JIT=1 at import, with a message saying what to do instead.
 from delaytrack._compile import jit  # noqa: F401  isort: skip
 

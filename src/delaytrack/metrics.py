@@ -237,6 +237,7 @@ def metrics_table(
         ``t_from``, the recorded trajectories (every tick) with it.
     """
     import pandas as pd  # imported when a table is made: `import delaytrack` stays light
+
     n = result.n
     if coordinate_names is None:
         coordinate_names = result.coordinate_names

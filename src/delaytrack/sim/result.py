@@ -158,6 +158,7 @@ class SimResult:
     def summary(self) -> pd.DataFrame:
         """Status, stop time, AE per coordinate (in its unit) and TV per run."""
         import pandas as pd  # imported when a table is made: `import delaytrack` stays light
+
         names = default_names(self.coordinate_names, self.n)
         units = self.coordinate_units or (None,) * self.n
         columns: dict[str, Any] = {"status": self.status_names, "t_stop (s)": self.t_stop}
@@ -203,6 +204,7 @@ class SimResult:
         and the column), as plants and :func:`~delaytrack.sim.simulate` refuse them before.
         """
         import pandas as pd  # imported when a table is made: `import delaytrack` stays light
+
         batch, records = self.batch_size, self.t.size
         inputs = self.commands.shape[2]
         reported = self.reported_state_names

@@ -39,11 +39,17 @@ from delaytrack._validation import (
 __all__ = [
     "MAX_COUPLED_JOINTS",
     "MAX_JOINTS",
+    "PAPER_BETA",
+    "PAPER_R",
     "RazumikhinBound",
     "error_dynamics_matrices",
     "lyapunov_matrix",
     "razumikhin_bound",
 ]
+
+#: Theorem 1's free weights ``β`` and ``r`` as the paper chooses them (β = 1, r = 1.1, which give
+#: its h_m = 0.12487 s for K1 = K2 = Q = I): the defaults of :func:`razumikhin_bound`.
+PAPER_BETA, PAPER_R = 1.0, 1.1
 
 
 #: Largest accepted relative residual ‖AᵀP + PA + Q‖ / ‖Q‖ of the Lyapunov solution.
@@ -568,8 +574,8 @@ def razumikhin_bound(
     K1: object,
     K2: object,
     Q: object = 1.0,
-    beta: float = 1.0,
-    r: float = 1.1,
+    beta: float = PAPER_BETA,
+    r: float = PAPER_R,
     *,
     n: int | None = None,
 ) -> RazumikhinBound:

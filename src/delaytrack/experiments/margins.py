@@ -38,6 +38,8 @@ import pandas as pd
 from delaytrack._output import check_output_folder, check_results_root
 from delaytrack._validation import ArgumentError
 from delaytrack.analysis import exact_delay_margin, razumikhin_bound
+from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
+from delaytrack.analysis.razumikhin import PAPER_R as R
 from delaytrack.experiments.empirical_margin import EmpiricalMargin, empirical_margin
 from delaytrack.report.margins import write_study
 from delaytrack.scenario import Scenario, load_builtin
@@ -63,8 +65,6 @@ class SearchSettings(TypedDict):
 
 #: Search settings of every empirical margin.
 SEARCH = SearchSettings(threshold=0.2, metric="ae", resolution=0.005, upper=2.0, frequency=1.0)
-#: Razumikhin parameters of the certified bound (the paper's).
-BETA, R = 1.0, 1.1
 #: Controllers (scenario type -> column prefix) and delay families searched.
 CONTROLLERS = {"arolc": "arolc", "outer-loop": "outer_loop"}
 PROFILES = ("constant", "abs-sine")

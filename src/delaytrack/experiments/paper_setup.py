@@ -10,6 +10,9 @@ from __future__ import annotations
 
 import math
 
+# Theorem 1's free weights β and r of the certified delay bound: the paper's.
+from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
+from delaytrack.analysis.razumikhin import PAPER_R as R
 from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
 from delaytrack.experiments.pairing import BASELINE
 
@@ -45,8 +48,6 @@ CONTACT_TIME_CONSTANTS = (0.02, 0.005)
 PAYLOAD_SEED = 2024
 #: Seconds per run, plant step ``dt`` and controller period ``T_c`` (s; none is in the paper).
 DURATION, DT, T_C = 60.0, 1e-3, 0.01
-#: Theorem 1's free weights ``β`` and ``r`` of the certified delay bound.
-BETA, R = 1.0, 1.1
 #: %AE scale: the circle's diameter in mm (the paper's).
 DIAMETER_MM = 2500.0
 #: The "left the path" rule, the engine's (``simulate(error_bound=...)``): a run stops with

@@ -91,6 +91,8 @@ from tqdm.auto import tqdm
 
 from delaytrack._io import regular_file, write_text
 from delaytrack.analysis import razumikhin_bound
+from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
+from delaytrack.analysis.razumikhin import PAPER_R as R
 from delaytrack.controllers import AROLC, PCON, PCONf
 from delaytrack.controllers.base import Controller
 from delaytrack.controllers.delay_knowledge import DelayKnowledge
@@ -175,8 +177,6 @@ GRIDS: dict[str, dict[str, tuple[float, ...]]] = {
 GAIN_NAMES: dict[str, tuple[str, ...]] = {kind: tuple(grid) for kind, grid in GRIDS.items()}
 #: AROLC's gains that are not tuned (the paper's).
 AROLC_FIXED = dict(Q=1.0, epsilon=0.1, gamma=0.001)
-#: Theorem 1's free weights used for the certified bound (those of the paper job).
-BETA, R = 1.0, 1.1
 
 
 @dataclass(frozen=True)

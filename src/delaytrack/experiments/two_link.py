@@ -36,6 +36,8 @@ from tqdm.auto import tqdm
 
 from delaytrack._output import check_output_folder, check_results_root
 from delaytrack.analysis import RazumikhinBound, razumikhin_bound
+from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
+from delaytrack.analysis.razumikhin import PAPER_R as R
 from delaytrack.experiments.convergence import dt_check_table, largest_change
 from delaytrack.metrics import metrics_table
 from delaytrack.report.tables import relative_change
@@ -49,8 +51,6 @@ __all__ = ["CASES", "CONTROLLERS", "TwoLinkStudy", "reproduce", "run_study", "wr
 CASES = ("S1", "S3")
 #: Controllers compared: scenario-file type name -> label.
 CONTROLLERS = {"arolc": "AROLC", "outer-loop": "outer loop"}
-#: Razumikhin parameters for the certified bound (the paper's).
-BETA, R = 1.0, 1.1
 FOLDER = "two-link"
 _COORDINATES = ("q1", "q2")
 

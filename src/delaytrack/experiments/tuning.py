@@ -97,6 +97,9 @@ from delaytrack.controllers import AROLC, PCON, PCONf
 from delaytrack.controllers.base import Controller
 from delaytrack.controllers.delay_knowledge import DelayKnowledge
 from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
+
+# The plant step and controller period of the reported runs, and their payload seed.
+from delaytrack.experiments.paper_setup import DT, PAYLOAD_SEED, T_C
 from delaytrack.metrics import mean_absolute_error, total_variation
 from delaytrack.plants.robot import NominalRobot, PayloadRobot, initial_state, paper_reference
 from delaytrack.plants.robot.kinematics import kinematic_map
@@ -144,14 +147,10 @@ TUNING_DURATION = 30.0
 MAX_EXTENSIONS = 3
 #: Factor of one grid extension.
 EXTENSION_FACTOR = 1.5
-#: Plant step and controller period (those of the reported runs).
-DT, T_C = 1e-3, 0.01
 #: Seconds of command history the predictors keep (every tuning delay is below 140 ms).
 HISTORY = 0.15
 #: A run whose mean AE exceeds this (mm) left the path and counts as diverged.
 DIVERGED_AE_MM = 1000.0
-#: The paper job's payload seed, never drawn for a tuning condition.
-_REPORTED_SEED = 2024
 #: The tuned controllers. ``PCON-wheel`` is PCON in wheel space (``space="actuator"``).
 KINDS: tuple[str, ...] = ("AROLC", "PCON", "PCON-wheel", "PCONf")
 #: The controllers that are told the delay.
@@ -223,7 +222,8 @@ def long_run_mean(delay: AbsSineDelay) -> float:
 
 
 def _payload_seed(rng: np.random.Generator) -> int:
-    while (seed := int(rng.integers(0, 2**31))) == _REPORTED_SEED:
+    """A drawn payload seed, never the paper job's (:data:`PAYLOAD_SEED`)."""
+    while (seed := int(rng.integers(0, 2**31))) == PAYLOAD_SEED:
         pass
     return seed
 

@@ -12,7 +12,7 @@ from scipy import stats
 
 from delaytrack.experiments import robustness, tuning
 from delaytrack.experiments.intervals import median_interval, wilson_interval
-from delaytrack.experiments.outcomes import delay_reach
+from delaytrack.experiments.outcomes import delay_reach, outcome_table
 from delaytrack.experiments.verdicts import claim_verdicts
 
 
@@ -131,10 +131,49 @@ def test_the_study_is_symmetric_and_uses_the_tuned_gains():
     assert len(seeds) == 1  # one draw: every controller and noise level sees the same robot
 
 
+CELL = ["delay_ms", "controller", "scale"]
+
+
+def test_the_edge_is_where_some_runs_diverge_or_the_next_delay_differs():
+    """Per controller over the true delays: a mixed cell, and the cells on either side of a
+    change between none and some diverged; never a cell inside a clean or a diverged stretch."""
+    delays = 1e3 * np.array(robustness.TRUE_DELAYS)
+    # two controllers: A clean up to 120 ms then all diverged; B: 0 0 0 0 0 0 0 0 (never)
+    a = [0, 0, 0, 0, 4, 4, 4, 4]
+    b = [0] * 8
+    c = [0, 0, 1, 4, 4, 4, 4, 4]  # a mixed cell at 100 ms
+    rows = []
+    for i, h in enumerate(delays):
+        for name, diverged in (("A", a), ("B", b), ("C", c)):
+            rows.append({"delay_ms": h, "controller": name, "runs": 4, "diverged": diverged[i]})
+    cells = robustness.edge_cells(pd.DataFrame(rows))
+    assert cells == [(delays[3], 0), (delays[4], 0), (delays[1], 2), (delays[2], 2)]
+
+
 @pytest.mark.slow
 def test_a_small_study_runs_resumes_and_writes_its_files(tmp_path):
-    size = robustness.StudySize(map=1, knowledge=1, claims=2)
+    size = robustness.StudySize(map=1, knowledge=1, claims=2, map_edge=3)
     first = robustness.run_robustness(tmp_path, size=size, progress=False)
+    # The map's cells at a divergence edge were run again with 3 draws, the others kept 1; the
+    # first draw of a refined cell is the map's run of that cell, bit for bit.
+    edges = robustness.edge_cells(outcome_table(first.runs["map"], CELL))
+    assert first.refined_cells == len(edges) > 0
+    assert set(first.map.runs) == {1, 3}
+    assert (first.map.runs == 3).sum() == len(edges)
+    for sweep, frame in first.runs.items():
+        if sweep.startswith("map-edge-"):
+            for (delay_ms, controller, scale), group in frame.groupby(CELL, dropna=False):
+                original = first.runs["map"]
+                same = original[
+                    (original.delay_ms == delay_ms)
+                    & (original.controller == controller)
+                    & ((original.scale == scale) | (original.scale.isna() & pd.isna(scale)))
+                ]
+                assert len(group) == 3 and len(same) == 1
+                first_draw = group[group.draw == 0]
+                assert first_draw.ae_mm.iloc[0] == same.ae_mm.iloc[0] or (
+                    np.isnan(first_draw.ae_mm.iloc[0]) and np.isnan(same.ae_mm.iloc[0])
+                )
     for name in (
         "runs",
         "map",

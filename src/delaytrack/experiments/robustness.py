@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
@@ -146,15 +146,20 @@ class StudySize:
     map: int
     knowledge: int
     claims: int
+    #: Draws of a map cell at a controller's divergence edge (:func:`edge_cells`), refined after
+    #: the map's first pass; 0: no refinement.
+    map_edge: int = 0
 
 
 #: ``default``: what ``delaytrack reproduce`` runs (about 3 600 runs). 40 draws per claim put
 #: the Wilson 95 % half-width of a share near one half at about 0.15, so a claim that holds (or
 #: fails) in 70 % of draws is decided; 8 draws per map cell find where a controller diverges in
-#: most draws. ``full``: ten times the draws.
+#: most draws, and the cells at that edge are run again with 40 draws: none diverged in 40 bounds
+#: the divergence rate below 9 % (Wilson), where none in 8 still allowed 32 %. ``full``: ten
+#: times the draws.
 SIZES: dict[str, StudySize] = {
-    "default": StudySize(map=8, knowledge=8, claims=40),
-    "full": StudySize(map=80, knowledge=80, claims=400),
+    "default": StudySize(map=8, knowledge=8, claims=40, map_edge=40),
+    "full": StudySize(map=80, knowledge=80, claims=400, map_edge=400),
 }
 
 
@@ -222,7 +227,8 @@ def _spec(
     )
 
 
-def _map_sweep(gains: Gains, draws: int) -> _Sweep:
+def _map_rows(gains: Gains) -> list[tuple[str, float, dict[str, Any]]]:
+    """The map's controllers: ``(name, scale, controller table)``."""
     rows: list[tuple[str, float, dict[str, Any]]] = [
         ("AROLC (paper gains)", math.nan, _arolc_table(AROLC_GAINS)),
         ("AROLC (tuned)", math.nan, _arolc_table(_tuned_arolc(gains, "all"))),
@@ -231,14 +237,78 @@ def _map_sweep(gains: Gains, draws: int) -> _Sweep:
     for kind in tuning.PREDICTORS:
         law = "PCON" if kind == "PCONf" else None
         rows += [(kind, s, _predictor_table(gains, kind, "all", scale=s, law=law)) for s in SCALES]
-    delays = [{"type": "constant", "h": h} for h in TRUE_DELAYS]
+    return rows
+
+
+def _map_sweep(
+    gains: Gains,
+    draws: int,
+    delays: tuple[float, ...] = TRUE_DELAYS,
+    chosen: Callable[[float, int], bool] = lambda h, row: True,
+    name: str = "map",
+) -> _Sweep:
+    """The map's runs at the constant true ``delays`` (s) for the controllers ``chosen(h, i)``
+    (``i``: index into :func:`_map_rows`), each over ``draws`` drawn robots."""
+    rows = _map_rows(gains)
     labels = [
-        {"delay_ms": 1e3 * h, "controller": name, "scale": scale}
-        for h in TRUE_DELAYS
-        for name, scale, _ in rows
+        {"delay_ms": 1e3 * h, "controller": label, "scale": scale}
+        for h in delays
+        for i, (label, scale, _) in enumerate(rows)
+        if chosen(h, i)
     ]
-    grid = {"delay": delays, "controller": [table for _, _, table in rows]}
-    return _Sweep("map", _spec(grid, draws), labels)
+    tables = [table for i, (_, _, table) in enumerate(rows) if chosen(delays[0], i)]
+    grid = {"delay": [{"type": "constant", "h": h} for h in delays], "controller": tables}
+    return _Sweep(name, _spec(grid, draws), labels)
+
+
+def edge_cells(outcomes: pd.DataFrame) -> list[tuple[float, int]]:
+    """The cells ``(delay_ms, row)`` of a map's :func:`outcome_table` at a controller's
+    divergence edge: a cell where some but not all runs diverged, and a cell next (in the true
+    delay) to one that differs from it in whether any run diverged. ``row`` indexes
+    :func:`_map_rows` (the table's rows come per delay in that order)."""
+    count = len(outcomes) // len(TRUE_DELAYS)
+    diverged = outcomes.diverged.to_numpy().reshape(len(TRUE_DELAYS), count)
+    runs = outcomes.runs.to_numpy().reshape(len(TRUE_DELAYS), count)
+    cells = []
+    for row in range(count):
+        some = diverged[:, row] > 0
+        for i, h in enumerate(TRUE_DELAYS):
+            mixed = 0 < diverged[i, row] < runs[i, row]
+            neighbours = [j for j in (i - 1, i + 1) if 0 <= j < len(TRUE_DELAYS)]
+            if mixed or any(some[j] != some[i] for j in neighbours):
+                cells.append((1e3 * h, row))
+    return cells
+
+
+def edge_sweeps(gains: Gains, outcomes: pd.DataFrame, draws: int) -> list[_Sweep]:
+    """The map's cells at the divergence edge (:func:`edge_cells`) again with ``draws`` drawn
+    robots, one sweep per true delay (``map-edge-<ms>ms``). Draw ``i`` is the same robot as in
+    the map (a key's draws do not depend on their number), so the first runs repeat the map's."""
+    cells = edge_cells(outcomes)
+    sweeps = []
+    for h in TRUE_DELAYS:
+        rows = {row for delay_ms, row in cells if delay_ms == 1e3 * h}
+        if rows:
+            name = f"map-edge-{1e3 * h:g}ms"
+            sweeps.append(_map_sweep(gains, draws, (h,), lambda _h, i, rows=rows: i in rows, name))
+    return sweeps
+
+
+def _cells(runs: pd.DataFrame) -> dict[tuple[float, str, float], pd.DataFrame]:
+    """The runs per map cell ``(delay_ms, controller, scale)`` in their order (no scale: -1)."""
+    return {
+        (delay_ms, controller, -1.0 if math.isnan(scale) else scale): group
+        for (delay_ms, controller, scale), group in runs.groupby(
+            ["delay_ms", "controller", "scale"], sort=False, dropna=False
+        )
+    }
+
+
+def refined_map(map_runs: pd.DataFrame, edge_runs: list[pd.DataFrame]) -> pd.DataFrame:
+    """The map's runs, each refined cell's replaced by its edge sweep's (in the map's order)."""
+    refined = _cells(pd.concat(edge_runs)) if edge_runs else {}
+    parts = [refined.get(cell, group) for cell, group in _cells(map_runs).items()]
+    return pd.concat(parts, ignore_index=True)
 
 
 def _knowledge_sweep(gains: Gains, case: str, draws: int) -> _Sweep:
@@ -490,6 +560,9 @@ class RobustnessStudy:
         Sweep name -> one row per run (:func:`_runs_frame` columns).
     run_count : int
         Runs over every sweep.
+    refined_cells : int
+        Map cells at a divergence edge run again with ``size.map_edge`` draws
+        (:func:`edge_sweeps`); ``map`` holds their refined outcomes.
     map, knowledge : DataFrame
         :func:`~delaytrack.experiments.outcomes.outcome_table` per (true delay, controller,
         scale) and per (scenario, controller, scale).
@@ -544,6 +617,7 @@ class RobustnessStudy:
     scenario: Scenario
     runs: dict[str, pd.DataFrame]
     run_count: int
+    refined_cells: int
     map: pd.DataFrame
     knowledge: pd.DataFrame
     claims: pd.DataFrame
@@ -582,20 +656,35 @@ def run_robustness(
     make = executor if executor is not None else LocalExecutor
     out = claim_output_folder(out)
     start = time.perf_counter()
-    frames, computed, resumed = {}, 0, 0
-    for sweep in study_specs(size, record):
+    frames: dict[str, pd.DataFrame] = {}
+    counts = {"computed": 0, "resumed": 0}
+
+    def run(sweep: _Sweep) -> None:
         if progress:
             print(f"robustness: sweep {sweep.name} ({len(sweep.spec.runs)} runs)", flush=True)
         outcome = run_sweep(
             sweep.spec, out / "sweeps" / sweep.name, executor=make(), progress=progress
         )
-        computed += outcome.computed
-        resumed += outcome.resumed
+        counts["computed"] += outcome.computed
+        counts["resumed"] += outcome.resumed
         frames[sweep.name] = _runs_frame(sweep, outcome.runs)
+
+    for sweep in study_specs(size, record):
+        run(sweep)
+    cell = ["delay_ms", "controller", "scale"]
+    edges = (
+        edge_sweeps(tuning.load_gains(record), outcome_table(frames["map"], cell), size.map_edge)
+        if size.map_edge > size.map
+        else []
+    )
+    for sweep in edges:
+        run(sweep)
+    computed, resumed = counts["computed"], counts["resumed"]
     seconds = time.perf_counter() - start
     knowledge = pd.concat([f for n, f in frames.items() if n.startswith("knowledge")])
     claims = pd.concat([f for n, f in frames.items() if n.startswith("claims")])
-    map_outcomes = outcome_table(frames["map"], ["delay_ms", "controller", "scale"])
+    map_runs = refined_map(frames["map"], [frames[sweep.name] for sweep in edges])
+    map_outcomes = outcome_table(map_runs, cell)
     knowledge_outcomes = outcome_table(knowledge, ["scenario", "controller", "scale"])
     attributed = attribution(claims)
     scenario = load_builtin(BASE_SCENARIO)
@@ -608,6 +697,7 @@ def run_robustness(
         scenario=scenario,
         runs=frames,
         run_count=sum(len(frame) for frame in frames.values()),
+        refined_cells=sum(len(sweep.labels) for sweep in edges),
         map=map_outcomes,
         knowledge=knowledge_outcomes,
         claims=outcome_table(claims, ["scenario", "noise", "controller"]),

@@ -483,8 +483,15 @@ def _report(study: RobustnessStudy, image: bytes) -> HtmlReport:
     )
     report.paragraph(
         f"Size: {study.run_count} runs of {study.scenario.duration:g} s "
-        f"({study.size.map} draws per map cell, "
-        f"{study.size.knowledge} per delay-knowledge case, {study.size.claims} per claims case); "
+        f"({study.size.map} draws per map cell"
+        + (
+            f"; the {study.refined_cells} cells at a controller's divergence edge again with "
+            f"{study.size.map_edge}"
+            if study.refined_cells
+            else ""
+        )
+        + f"; {study.size.knowledge} per delay-knowledge case, {study.size.claims} per claims "
+        "case); "
         f"{study.computed} work units computed and {study.resumed} resumed in "
         f"{study.seconds:.1f} s."
     )

@@ -11,8 +11,12 @@ metres for a position, N·m for a torque. The definitions, over the controller t
     RMS_j  = sqrt((1/K) Σ_k e1_j(t_k)²)                  root-mean-square error
     MAX_j  = max_k |e1_j(t_k)|                           largest absolute error
     TV     = Σ_k Σ_j |command_j(t_{k+1}) - command_j(t_k)|   total variation of the commands
+    TV_applied = Σ_k Σ_j |ū_j(t_{k+1}) - ū_j(t_k)|          of the input the plant received
 
-with ``e1 = q_d - q``. The paper's %AE is :func:`percent_of` ``(AE, scale)``.
+with ``e1 = q_d - q`` and ``ū(t_k)`` the input the plant receives just after tick ``k`` (the
+delayed command saturated to the input limits, the record ``applied``): with input limits the
+controller's commands and what the actuators deliver differ, and both TVs are reported.
+The paper's %AE is :func:`percent_of` ``(AE, scale)``.
 
 **Always every tick.** Without ``t_from`` the metrics are the simulator's running metrics
 (:attr:`SimResult.metrics`; a result without them is measured on all its records),
@@ -91,23 +95,43 @@ def _samples(result: SimResult, t_from: float) -> slice:
 
 
 def _metrics(result: SimResult, t_from: float | None) -> dict[str, np.ndarray]:
-    """``{"ae", "rms", "max" (B, n), "tv" (B,)}`` over the window (module docstring)."""
+    """``{"ae", "rms", "max" (B, n), "tv", "tv_applied" (B,)}`` over the window (module
+    docstring); a result made by hand may give its own metrics without ``"tv_applied"``, which
+    is then taken from its records (:func:`_with_applied_variation`)."""
     if t_from is None and result.metrics:
         return {name: values.copy() for name, values in result.metrics.items()}
     # A result without running metrics (one built by hand) is measured on its records.
     window = _samples(result, result.t[0] if t_from is None else t_from)
     errors = np.abs(result.e1[:, window, :])
     count = errors.shape[1]
-    variation = np.abs(np.diff(result.commands[:, window, :], axis=1))
     metrics = {
         "ae": _sequential_sum(errors, axis=1) / count,
         "rms": np.sqrt(_sequential_sum(errors * errors, axis=1) / count),
         "max": np.max(errors, axis=1),
-        "tv": _sequential_sum(_sequential_sum(variation, axis=2), axis=1),
+        "tv": _total_variation(result.commands[:, window, :]),
+        "tv_applied": _total_variation(result.applied[:, window, :]),
     }
     for values in metrics.values():
         values[~result.ok] = np.nan
     return metrics
+
+
+def _with_applied_variation(
+    result: SimResult, t_from: float | None, metrics: dict[str, np.ndarray]
+) -> dict[str, np.ndarray]:
+    """``metrics`` with ``"tv_applied"``, from the records when the result did not give it."""
+    if "tv_applied" not in metrics:
+        metrics["tv_applied"] = _metrics(result, result.t[0] if t_from is None else t_from)[
+            "tv_applied"
+        ]
+    return metrics
+
+
+def _total_variation(inputs: np.ndarray) -> np.ndarray:
+    """``Σ_k Σ_j |u_j(t_{k+1}) - u_j(t_k)|`` of ``inputs (B, K, m)``, tick by tick in time order
+    (the order of the running metrics)."""
+    variation = np.abs(np.diff(inputs, axis=1))
+    return _sequential_sum(_sequential_sum(variation, axis=2), axis=1)
 
 
 def mean_absolute_error(result: SimResult, *, t_from: float | None = None) -> np.ndarray:
@@ -165,24 +189,38 @@ def max_abs_error(result: SimResult, *, t_from: float | None = None) -> np.ndarr
     return _metrics(result, t_from)["max"]
 
 
-def total_variation(result: SimResult, *, t_from: float | None = None) -> np.ndarray:
-    """Total variation of the commands, ``TV = Σ_k Σ_j |command_j(t_{k+1}) - command_j(t_k)|``.
+def total_variation(
+    result: SimResult, *, t_from: float | None = None, of: str = "commands"
+) -> np.ndarray:
+    """Total variation of the commands, ``TV = Σ_k Σ_j |command_j(t_{k+1}) - command_j(t_k)|``,
+    or of the input the plant received.
 
-    The paper's TV, over every controller tick of the window.
+    The paper's TV, over every controller tick of the window. With ``of="applied"``, the same
+    sum over ``ū(t_k)``, the input the plant receives just after tick ``k`` (the delayed
+    command saturated to the input limits, ``result.applied``): the effort the actuators
+    delivered, beside the effort the controller asked for. Sampled at the ticks as the commands
+    are, it counts each command the plant receives across a tick; under a time-varying delay a
+    command in force only between two ticks is skipped, so it is then a lower bound of the
+    variation of the continuous-time input.
 
     Parameters
     ----------
     result : SimResult
     t_from : float, optional
-        Use only the commands of ticks at ``t >= t_from`` (seconds); see
-        :func:`mean_absolute_error`.
+        Use only the ticks at ``t >= t_from`` (seconds); see :func:`mean_absolute_error`.
+    of : {"commands", "applied"}
+        The commands the controller issued (the paper's TV, the default) or the input the
+        plant received.
 
     Returns
     -------
     ndarray, shape (B,)
         In the unit of the commands (N·m for torques); NaN for runs whose status is not ``ok``.
     """
-    return _metrics(result, t_from)["tv"]
+    metric = {"commands": "tv", "applied": "tv_applied"}.get(of)
+    if metric is None:
+        raise ValueError(f'of must be "commands" or "applied"; got {of!r}')
+    return _with_applied_variation(result, t_from, _metrics(result, t_from))[metric]
 
 
 def percent_of(value: np.ndarray | float, scale: float) -> np.ndarray | float:
@@ -214,6 +252,7 @@ def metrics_table(
     label: str | None = None,
     *,
     t_from: float | None = None,
+    tv_applied: bool = False,
 ) -> pd.DataFrame:
     """One row per batch element with status, stop time and every metric of this module.
 
@@ -227,14 +266,19 @@ def metrics_table(
         If given, a first column ``label`` holding it (handy when concatenating tables).
     t_from : float, optional
         Ignore ticks before this time (seconds); see :func:`mean_absolute_error`.
+    tv_applied : bool
+        Add the column ``tv_applied``, the TV of the input the plant received
+        (:func:`total_variation` ``of="applied"``), e.g. for runs with input limits; asked for,
+        not inferred from the runs, so that tables of runs with and without limits share their
+        columns.
 
     Returns
     -------
     DataFrame
-        Columns ``[label,] run, status, t_stop, ae_<c>.., rms_<c>.., max_<c>.., tv``; metric
-        values are NaN for runs whose status is not ``ok``. Every metric counts every
-        controller tick of the window (module docstring): the running metrics without
-        ``t_from``, the recorded trajectories (every tick) with it.
+        Columns ``[label,] run, status, t_stop, ae_<c>.., rms_<c>.., max_<c>.., tv[,
+        tv_applied]``; metric values are NaN for runs whose status is not ``ok``. Every
+        metric counts every controller tick of the window (module docstring): the running
+        metrics without ``t_from``, the recorded trajectories (every tick) with it.
     """
     import pandas as pd  # imported when a table is made: `import delaytrack` stays light
 
@@ -257,4 +301,6 @@ def metrics_table(
         for j, name in enumerate(names):
             columns[f"{prefix}_{name}"] = values[prefix][:, j]
     columns["tv"] = values["tv"]
+    if tv_applied:
+        columns["tv_applied"] = _with_applied_variation(result, t_from, values)["tv_applied"]
     return pd.DataFrame(columns)

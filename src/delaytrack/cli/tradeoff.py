@@ -5,12 +5,16 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from delaytrack._cli_options import decimal, integer, quiet_argument, trust_argument, within
 from delaytrack._output import check_output_folder, plain_folder_name
 from delaytrack.cli._numbers import numbers
 from delaytrack.cli._scenarios import scenario_source, trusted
 from delaytrack.cli._usage import UsageError, flagged
+
+if TYPE_CHECKING:
+    from delaytrack.experiments.decision import Envelope
 
 __all__ = ["add_command", "run"]
 
@@ -22,6 +26,8 @@ _FLAGS = {
     "threshold": "--threshold",
     "upper": "--upper",
 }
+#: The flags of :class:`~delaytrack.experiments.decision.Envelope`'s fields.
+_ENVELOPE_FLAGS = {"h_max": "--envelope", "knowledge": "--knowledge"}
 
 
 def add_command(commands: argparse._SubParsersAction) -> None:
@@ -36,7 +42,10 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         "the linear outer loop, the empirical constant-delay margin, and at the scenario's "
         "delay the share of drawn robots on the path (Wilson 95 %), median AE and TV; the "
         "Pareto front of AE against the empirical margin. The draws run on the sweep "
-        "machinery: resumable, --scheduler for Dask. See docs/tradeoff.md.",
+        "machinery: resumable, --scheduler for Dask. With --envelope, also decide which "
+        "controller and gains to use for that delay envelope: the smallest worst-case AE among "
+        "those on the path in >= 95 % of the drawn robots by the Wilson lower bound. See "
+        "docs/tradeoff.md.",
     )
     command.add_argument(
         "scenario", metavar="SCENARIO", help="scenario .toml file or built-in name"
@@ -61,8 +70,8 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         type=within(integer, "an integer >= 1", lambda v: v >= 1),
         default=None,
         metavar="N",
-        help="robots drawn per point and controller (default 40; one run when the scenario "
-        "has nothing to draw)",
+        help="robots drawn per point and controller (default 40, and 80 per condition for "
+        "--envelope's decision; one run when the scenario has nothing to draw)",
     )
     command.add_argument(
         "--threshold",
@@ -77,6 +86,23 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         default=None,
         metavar="S",
         help="limit of the empirical margin search (default: 1 s or half the duration)",
+    )
+    command.add_argument(
+        "--envelope",
+        type=within(decimal, "a largest delay > 0 (s)", lambda v: v > 0),
+        default=None,
+        metavar="H_MAX",
+        help="decide the controller and gains for delays up to H_MAX s (decision.csv and a "
+        "section of report.html)",
+    )
+    command.add_argument(
+        "--knowledge",
+        default=None,
+        metavar="KNOWLEDGE",
+        help="with --envelope: how well the delay is known, exact, ±X%% or unknown; the "
+        "predictors are told the true "
+        "delay (exact), a delay off by X %% either way (±X%%, also X%%), or the fixed guess "
+        "H_MAX/2 (unknown, the default)",
     )
     command.add_argument(
         "--out",
@@ -114,6 +140,20 @@ def _omegas(given: list[str] | None) -> list[float] | None:
     return [float(v) for v in np.geomspace(low, high, count)]
 
 
+def _envelope(args: argparse.Namespace) -> Envelope | None:
+    """``--envelope H_MAX`` with ``--knowledge`` (unknown by default), or None without it."""
+    from delaytrack.experiments.decision import Envelope
+
+    if args.envelope is None:
+        if args.knowledge is not None:
+            raise UsageError(f"--knowledge {args.knowledge} needs --envelope H_MAX")
+        return None
+    try:
+        return Envelope.from_text(args.envelope, args.knowledge or "unknown")
+    except ValueError as error:
+        raise flagged(error, _ENVELOPE_FLAGS) from None
+
+
 def _folder(args: argparse.Namespace, name: str) -> Path:
     if args.out is not None:
         return check_output_folder(args.out, "--out")
@@ -123,13 +163,15 @@ def _folder(args: argparse.Namespace, name: str) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     """Run (or resume) the trade-off and write its table, figure and report."""
+    from delaytrack.experiments.decision import run_decision
     from delaytrack.experiments.tradeoff import run_tradeoff
-    from delaytrack.report.tradeoff import write_tradeoff
+    from delaytrack.report.tradeoff import decision_lines, write_tradeoff
     from delaytrack.scenario import Scenario
     from delaytrack.sweeps import SweepError, SweepUnitsFailed, make_executor
     from delaytrack.sweeps.executors import checked_scheduler
 
     omegas = _omegas(args.omega)
+    envelope = _envelope(args)
     bounds = numbers("--threshold", args.threshold)
     threshold = float(bounds[0]) if bounds.size == 1 else [float(b) for b in bounds]
     try:
@@ -150,6 +192,18 @@ def run(args: argparse.Namespace) -> int:
             executor=make_executor(args.scheduler),
             progress=not args.quiet,
         )
+        decision = (
+            None
+            if envelope is None
+            else run_decision(
+                study,
+                envelope,
+                folder,
+                draws=args.draws,
+                executor=make_executor(args.scheduler),
+                progress=not args.quiet,
+            )
+        )
     except KeyboardInterrupt as interrupted:
         print(str(interrupted) or "interrupted", file=sys.stderr)
         return 130
@@ -158,7 +212,7 @@ def run(args: argparse.Namespace) -> int:
         return 1
     except ValueError as error:
         raise flagged(error, _FLAGS) from None
-    files = write_tradeoff(study, folder)
+    files = write_tradeoff(study, folder, decision)
     front = study.front
     print(
         f"tradeoff {scenario.name}: {len(study.omegas)} gain points x {len(study.families)} "
@@ -171,5 +225,7 @@ def run(args: argparse.Namespace) -> int:
             f"  {row.controller:<10} omega_n = {row.omega_n:<8.4g} margin = "
             f"{row.empirical_margin:.4g}{'' if row.margin_found else '+'}  AE = {row.ae_median:.4g}"
         )
+    if decision is not None:
+        print("\n".join(decision_lines(decision)))
     print(f"wrote {len(files)} files to {folder}/; report: {folder / 'report.html'}")
     return 0

@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
@@ -57,6 +57,7 @@ from delaytrack._deprecated import moved_names
 from delaytrack._output import claim_output_folder
 from delaytrack.delays import AbsSineDelay, delay_from_spec
 from delaytrack.experiments import tuning
+from delaytrack.experiments.drawn_robots import FRICTION, PAYLOAD_ROBOT, SEED
 from delaytrack.experiments.intervals import wilson_interval
 from delaytrack.experiments.outcomes import delay_reach, outcome_table
 from delaytrack.experiments.pairing import AROLC_GAINS, BASELINE, DELAY_CLASS
@@ -122,15 +123,8 @@ NOISE: dict[str, Any] = {
 _NO_NOISE: dict[str, Any] = {"quantization": 0.0, "position": 0.0, "velocity": 0.0, "seed": 0}
 #: A run whose mean AE exceeds this (mm) counts as diverged (the tuning's rule).
 DIVERGED_AE_MM = tuning.DIVERGED_AE_MM
-#: Seed of the study's draws.
-SEED = 2027
 #: The shipped scenario every run starts from (the paper job's AROLC / S1 run).
 BASE_SCENARIO = "robot_S1"
-_FRICTION = {
-    "plant.viscous_friction": {"dist": "uniform", "low": 0.001, "high": 0.02},
-    "plant.coulomb_friction": {"dist": "uniform", "low": 0.07, "high": 0.35},
-}
-_PAYLOAD = {"plant.seed": {"dist": "integers", "low": 0, "high": 2**31 - 1}}
 _SCENARIOS = {
     "S1": {"type": "S1"},
     "S2": {"type": "S2"},
@@ -222,7 +216,7 @@ def _spec(
             "seed": SEED,
             "metrics": ["ae_x", "ae_y", "tv"],
             "grid": dict(grid),
-            "random": {**_PAYLOAD, **_FRICTION, **(extra or {})},
+            "random": {**PAYLOAD_ROBOT, **(extra or {})},
         }
     )
 
@@ -244,19 +238,18 @@ def _map_sweep(
     gains: Gains,
     draws: int,
     delays: tuple[float, ...] = TRUE_DELAYS,
-    chosen: Callable[[float, int], bool] = lambda h, row: True,
+    chosen: Collection[int] | None = None,
     name: str = "map",
 ) -> _Sweep:
-    """The map's runs at the constant true ``delays`` (s) for the controllers ``chosen(h, i)``
-    (``i``: index into :func:`_map_rows`), each over ``draws`` drawn robots."""
-    rows = _map_rows(gains)
+    """The map's runs at the constant true ``delays`` (s) for the controllers ``chosen``
+    (indices into :func:`_map_rows`; all by default), each over ``draws`` drawn robots."""
+    rows = [row for i, row in enumerate(_map_rows(gains)) if chosen is None or i in chosen]
     labels = [
         {"delay_ms": 1e3 * h, "controller": label, "scale": scale}
         for h in delays
-        for i, (label, scale, _) in enumerate(rows)
-        if chosen(h, i)
+        for label, scale, _ in rows
     ]
-    tables = [table for i, (_, _, table) in enumerate(rows) if chosen(delays[0], i)]
+    tables = [table for _, _, table in rows]
     grid = {"delay": [{"type": "constant", "h": h} for h in delays], "controller": tables}
     return _Sweep(name, _spec(grid, draws), labels)
 
@@ -290,7 +283,7 @@ def edge_sweeps(gains: Gains, outcomes: pd.DataFrame, draws: int) -> list[_Sweep
         rows = {row for delay_ms, row in cells if delay_ms == 1e3 * h}
         if rows:
             name = f"map-edge-{1e3 * h:g}ms"
-            sweeps.append(_map_sweep(gains, draws, (h,), lambda _h, i, rows=rows: i in rows, name))
+            sweeps.append(_map_sweep(gains, draws, (h,), rows, name))
     return sweeps
 
 
@@ -608,7 +601,7 @@ class RobustnessStudy:
     scales: ClassVar[tuple[float, ...]] = SCALES
     true_delays: ClassVar[tuple[float, ...]] = TRUE_DELAYS
     predictors: ClassVar[tuple[str, ...]] = tuning.PREDICTORS
-    friction: ClassVar[Mapping[str, Mapping[str, Any]]] = _FRICTION
+    friction: ClassVar[Mapping[str, Mapping[str, Any]]] = FRICTION
     diverged_ae_mm: ClassVar[float] = DIVERGED_AE_MM
     alpha: ClassVar[float] = ALPHA
     min_decided: ClassVar[int] = MIN_DECIDED

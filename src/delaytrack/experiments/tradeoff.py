@@ -74,11 +74,17 @@ import pandas as pd
 from delaytrack._output import claim_output_folder
 from delaytrack._validation import ArgumentError, is_integer_at_least, positive_scalar
 from delaytrack.analysis import exact_delay_margin, razumikhin_bound
+from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
+from delaytrack.analysis.razumikhin import PAPER_R as R
+from delaytrack.controllers import AROLC
+
+# The robustness study's seed and robots: the same robots where the keys are the same.
+from delaytrack.experiments.drawn_robots import PAYLOAD_ROBOT, SEED
 from delaytrack.experiments.empirical_margin import EmpiricalMargin, empirical_margin
 from delaytrack.experiments.intervals import wilson_interval
 from delaytrack.experiments.pairing import AROLC_GAINS
 from delaytrack.scenario import Scenario, ScenarioError
-from delaytrack.sweeps import SweepSpec, run_sweep
+from delaytrack.sweeps import SweepOutcome, SweepSpec, run_sweep
 from delaytrack.sweeps.executors import Executor
 from delaytrack.units import default_names
 
@@ -87,7 +93,9 @@ __all__ = [
     "FAMILIES",
     "TradeoffStudy",
     "default_omegas",
+    "drawn_runs",
     "family_gains",
+    "family_tables",
     "pareto_front",
     "run_tradeoff",
     "uncertain_parameters",
@@ -99,20 +107,9 @@ FAMILIES: tuple[str, ...] = ("arolc", "outer-loop", "pcon", "pconf")
 DEFAULT_POINTS = 7
 #: The default range spans this factor below and above the scenario's natural frequency.
 DEFAULT_SPAN = 4.0
-#: Seed of the draws (the robustness study's: the same robots where the keys are the same).
-SEED = 2027
 #: Runs per work unit of the draws' sweep.
 UNIT_SIZE = 64
-#: Theorem 1's free weights by default (the paper job's).
-BETA, R = 1.0, 1.1
-#: The uncertain parameters of the payload robot: where its payload sits and its wheel friction
-#: (the documented ranges of ``delaytrack.plants.robot.P3DX_SOURCES``).
-_ROBOT_DRAWS: dict[str, dict[str, Any]] = {
-    "plant.seed": {"dist": "integers", "low": 0, "high": 2**31 - 1},
-    "plant.viscous_friction": {"dist": "uniform", "low": 0.001, "high": 0.02},
-    "plant.coulomb_friction": {"dist": "uniform", "low": 0.07, "high": 0.35},
-}
-_DRAWN_BY_PLANT = {"wheeled-robot-payload": _ROBOT_DRAWS}
+_DRAWN_BY_PLANT = {"wheeled-robot-payload": PAYLOAD_ROBOT}
 #: The largest double: the bound of a coordinate the rule does not score.
 _UNSCORED = float(np.finfo(float).max)
 
@@ -229,12 +226,12 @@ def pareto_front(ae: Sequence[float], margin: Sequence[float]) -> np.ndarray:
     Point ``i`` is dominated when some ``j`` has ``ae_j <= ae_i`` and ``margin_j >= margin_i``
     with one of them strict. Points with a NaN are never on the front.
     """
-    ae, margin = np.asarray(ae, dtype=float), np.asarray(margin, dtype=float)
-    valid = np.isfinite(ae) & np.isfinite(margin)
-    front = np.zeros(len(ae), dtype=bool)
+    errors, margins = np.asarray(ae, dtype=float), np.asarray(margin, dtype=float)
+    valid = np.isfinite(errors) & np.isfinite(margins)
+    front = np.zeros(len(errors), dtype=bool)
     for i in np.flatnonzero(valid):
-        no_worse = valid & (ae <= ae[i]) & (margin >= margin[i])
-        better = (ae < ae[i]) | (margin > margin[i])
+        no_worse = valid & (errors <= errors[i]) & (margins >= margins[i])
+        better = (errors < errors[i]) | (margins > margins[i])
         front[i] = not np.any(no_worse & better)
     return front
 
@@ -246,10 +243,12 @@ def _scored(scenario: Scenario, names: tuple[str, ...]) -> tuple[bool, ...]:
     return tuple(bool(b) for b in (finite if finite.any() else np.ones(len(names), dtype=bool)))
 
 
-def _family_tables(
+def family_tables(
     scenario: Scenario, zeta: float, omegas: Sequence[float], history: float
 ) -> tuple[dict[str, list[dict[str, Any]]], dict[str, str]]:
-    """The controller table of each family at each ``ω_n``, and why a family was left out."""
+    """The controller table of each family at each ``ω_n`` (module docstring; the predictors
+    with ``history`` s of commands, PCONf told ``h̄`` = the scenario delay's bound), and why a
+    family was left out."""
     built = scenario.build()
     own = dict(scenario.controller)
     arolc_base = own if own["type"] == "arolc" else {"type": "arolc", **AROLC_GAINS}
@@ -298,6 +297,7 @@ def _analytic(
     certified, exact = [], []
     for table in tables["arolc"]:
         arolc = scenario.replace(controller=table).build().controller
+        assert isinstance(arolc, AROLC)  # the family's AROLC tables
         try:
             h_m = razumikhin_bound(arolc.K1, arolc.K2, arolc.Q, beta, r, n=arolc.n).h_m
         except ValueError:
@@ -410,7 +410,7 @@ def run_tradeoff(
     rule = tuple(float(b) if s else _UNSCORED for b, s in zip(bounds, scored, strict=True))
     upper = min(1.0, scenario.duration / 2) if upper is None else positive_scalar("upper", upper)
     history = max(upper, float(built.delay.h_max))
-    tables, left_out = _family_tables(scenario, zeta, omegas, history)
+    tables, left_out = family_tables(scenario, zeta, omegas, history)
     families = tuple(f for f in FAMILIES if f in tables)
     certified, exact = _analytic(scenario, tables, beta, r)
     search = {
@@ -432,19 +432,20 @@ def run_tradeoff(
     )
     count = (40 if draws is None else int(draws)) if drawn else 1
     points = [(omega, family) for omega in omegas for family in families]
-    spec = SweepSpec(
-        base=scenario,
-        grid=MappingProxyType({"controller": tuple(tables[f][omegas.index(o)] for o, f in points)}),
-        random=MappingProxyType(drawn),
-        draws=count,
-        seed=int(seed),
-        unit_size=UNIT_SIZE,
+    scored_bounds = {name: bound for name, bound, s in zip(names, rule, scored, strict=True) if s}
+    runs, outcome = drawn_runs(
+        scenario,
+        {"controller": tuple(tables[f][omegas.index(o)] for o, f in points)},
+        [{"omega_n": omega, "controller": family} for omega, family in points],
+        drawn,
+        count,
+        int(seed),
+        scored_bounds,
+        out,
+        "sweep",
+        executor=executor,
         progress=progress,
     )
-    folder = claim_output_folder(out)
-    _say(progress, f"draws: {len(spec.runs)} runs ({len(points)} points x {count} draws)")
-    outcome = run_sweep(spec, folder / "sweep", executor=executor, progress=progress)
-    runs = _runs(outcome.runs, points, count, names, scored, rule, list(drawn))
 
     rows = []
     for i, omega in enumerate(omegas):
@@ -488,9 +489,7 @@ def run_tradeoff(
         omegas=omegas,
         families=families,
         left_out=MappingProxyType(left_out),
-        threshold=MappingProxyType(
-            {name: bound for name, bound, s in zip(names, rule, scored, strict=True) if s}
-        ),
+        threshold=MappingProxyType(scored_bounds),
         ae_unit=units[0] if len(set(units)) == 1 else None,
         tv_unit=inputs.pop() if len(inputs) == 1 else None,
         random=MappingProxyType(drawn),
@@ -512,34 +511,84 @@ def _say(progress: bool, text: str) -> None:
         print(f"tradeoff: {text}", file=sys.stderr, flush=True)
 
 
-def _runs(
-    runs: pd.DataFrame,
-    points: list[tuple[float, str]],
+def drawn_runs(
+    scenario: Scenario,
+    grid: Mapping[str, Sequence[Any]],
+    labels: Sequence[Mapping[str, Any]],
+    random: Mapping[str, Mapping[str, Any]],
     draws: int,
-    names: tuple[str, ...],
-    scored: tuple[bool, ...],
-    rule: tuple[float, ...],
-    drawn: list[str],
-) -> pd.DataFrame:
-    """One row per drawn run: its point, family, draw, drawn values, status, AE, TV, on path."""
-    runs = runs.sort_values("run").reset_index(drop=True)
-    index = runs.run.to_numpy() // draws
-    frame = pd.DataFrame(
-        {
-            "omega_n": [points[i][0] for i in index],
-            "controller": [points[i][1] for i in index],
-            "draw": runs.run.to_numpy() % draws,
-        }
+    seed: int,
+    threshold: Mapping[str, float],
+    out: str | Path,
+    name: str,
+    *,
+    executor: Executor | None = None,
+    progress: bool = False,
+) -> tuple[pd.DataFrame, SweepOutcome]:
+    """Run the draws of ``grid`` on the sweep machinery and score each run with the rule.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The base of every run.
+    grid : mapping
+        The sweep's ``[grid]`` (a Cartesian product, first key outermost).
+    labels : sequence of mapping
+        The columns that describe each grid point, in the product's order.
+    random : mapping
+        The sweep's ``[random]`` table (empty: one run per point).
+    draws, seed : int
+        Draws per point and their seed.
+    threshold : mapping
+        The scored coordinates and the bound of each one's mean ``|e1|``
+        (:attr:`TradeoffStudy.threshold`).
+    out : path
+        The study's folder (claimed once the sweep is valid).
+    name : str
+        The sweep's folder in ``out`` (Parquet parts, resumed when the same sweep runs again).
+    executor : Executor, optional
+        Where the units run (all local cores by default).
+    progress : bool
+        Progress on standard error.
+
+    Returns
+    -------
+    runs : DataFrame
+        One row per run: its labels, ``draw``, the drawn values, ``status``, ``ae`` (the mean
+        over the scored coordinates of their mean ``|e1|``), ``tv`` and ``on_path`` (ok and
+        every scored coordinate's mean ``|e1|`` at most its bound).
+    outcome : SweepOutcome
+        The sweep's (units computed and resumed).
+    """
+    spec = SweepSpec(
+        base=scenario,
+        grid=MappingProxyType({key: tuple(values) for key, values in grid.items()}),
+        random=MappingProxyType(dict(random)),
+        draws=draws,
+        seed=seed,
+        unit_size=UNIT_SIZE,
+        progress=progress,
     )
-    for key in drawn:
+    _say(progress, f"draws: {len(spec.runs)} runs ({len(labels)} points x {draws} draws)")
+    folder = claim_output_folder(out)
+    outcome = run_sweep(spec, folder / name, executor=executor, progress=progress)
+    runs = outcome.runs.sort_values("run").reset_index(drop=True)
+    index = runs.run.to_numpy() // draws
+    frame = pd.DataFrame({key: [labels[i][key] for i in index] for key in labels[0]})
+    frame["draw"] = runs.run.to_numpy() % draws
+    for key in random:
         frame[key] = runs[key].to_numpy()
+    plant = scenario.build().plant
+    names = default_names(plant.coordinate_names, plant.n)
     errors = np.column_stack([runs[f"ae_{c}"].to_numpy(dtype=float) for c in names])
+    scored = [coordinate in threshold for coordinate in names]
+    rule = np.array([threshold.get(coordinate, _UNSCORED) for coordinate in names])
     frame["status"] = runs.status.to_numpy()
-    frame["ae"] = errors[:, list(scored)].mean(axis=1)
+    frame["ae"] = errors[:, scored].mean(axis=1)
     frame["tv"] = runs.tv.to_numpy(dtype=float)
-    within = np.all(errors <= np.asarray(rule), axis=1)  # NaN (not ok) compares False
+    within = np.all(errors <= rule, axis=1)  # NaN (not ok) compares False
     frame["on_path"] = (frame.status == "ok").to_numpy() & within
-    return frame
+    return frame, outcome
 
 
 def _evaluated(

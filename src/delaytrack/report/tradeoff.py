@@ -1,7 +1,8 @@
 """The trade-off's report: ``tradeoff.csv`` (units in the column names), ``runs.csv``,
 ``evaluated.csv``, the Pareto front as a figure and ``report.html``, made from a
 :class:`~delaytrack.experiments.tradeoff.TradeoffStudy` that already holds every number shown
-(this module computes none)."""
+(this module computes none); with a :class:`~delaytrack.experiments.decision.Decision`, also
+``decision.csv``, ``decision-runs.csv`` and the decision's section of the page."""
 
 from __future__ import annotations
 
@@ -18,9 +19,10 @@ from delaytrack.report.html import HtmlReport
 from delaytrack.units import labelled, with_unit
 
 if TYPE_CHECKING:
+    from delaytrack.experiments.decision import Choice, Decision
     from delaytrack.experiments.tradeoff import TradeoffStudy
 
-__all__ = ["pareto_figure", "write_tradeoff"]
+__all__ = ["decision_lines", "pareto_figure", "write_tradeoff"]
 
 #: The families as the report names them.
 _NAMES = {
@@ -65,8 +67,54 @@ def pareto_figure(study: TradeoffStudy) -> Figure:
     return figure
 
 
-def write_tradeoff(study: TradeoffStudy, folder: str | Path) -> list[Path]:
-    """Write the study's files into ``folder``; return their paths."""
+def _choice_text(choice: Choice, unit: str) -> str:
+    return (
+        f"{_NAMES[choice.controller]} at omega_n = {choice.omega_n:.4g} rad/s (K1 = "
+        f"{choice.k1:.4g} I, K2 = {choice.k2:.4g} I): worst-case AE {choice.worst_ae:.4g}{unit}, "
+        f"worst Wilson lower bound {choice.worst_share_low:.3f}"
+    )
+
+
+def decision_lines(decision: Decision) -> list[str]:
+    """The decision in a few lines of text: the envelope and rule, then the winner, the
+    runner-up and the margin, or why no candidate was chosen."""
+    unit = f" {decision.ae_unit}" if decision.ae_unit else ""
+    lines = [
+        f"decision for {decision.envelope.text}: smallest worst-case AE among the candidates on "
+        f"the path in >= {100 * decision.required_share:g} % of {decision.draws} drawn robots "
+        "by the Wilson lower bound, in every condition"
+    ]
+    if decision.winner is None:
+        return [*lines, f"  {decision.refusal}"]
+    lines.append(f"  winner: {_choice_text(decision.winner, unit)}")
+    if decision.runner_up is None:
+        lines.append("  runner-up: none (no other controller qualifies)")
+    else:
+        lines.append(f"  runner-up: {_choice_text(decision.runner_up, unit)}")
+        lines.append(
+            f"  wins by {decision.ae_difference:.4g}{unit} of worst-case AE (the runner-up's is "
+            f"{decision.ae_ratio:.3g} times the winner's)"
+        )
+    return lines
+
+
+def _decision_columns(decision: Decision) -> dict[str, str]:
+    return {
+        "omega_n": "omega_n_rad_per_s",
+        "k1": "k1_per_s2",
+        "k2": "k2_per_s",
+        "delay": "delay_s",
+        "told": "told_s",
+        "ae_median": with_unit("ae_median", decision.ae_unit),
+        "worst_ae": with_unit("worst_ae", decision.ae_unit),
+    }
+
+
+def write_tradeoff(
+    study: TradeoffStudy, folder: str | Path, decision: Decision | None = None
+) -> list[Path]:
+    """Write the study's files (and the decision's, when given) into ``folder``; return their
+    paths."""
     folder = claim_output_folder(folder)
     columns = _columns(study)
     files = [write_frame(study.table.rename(columns=columns), folder / "tradeoff.csv")]
@@ -80,16 +128,64 @@ def write_tradeoff(study: TradeoffStudy, folder: str | Path) -> list[Path]:
     files.append(write_frame(runs, folder / "runs.csv"))
     evaluated = study.evaluated.rename(columns={"omega_n": columns["omega_n"], "value": "delay_s"})
     files.append(write_frame(evaluated, folder / "evaluated.csv"))
+    if decision is not None:
+        named = _decision_columns(decision)
+        files.append(write_frame(decision.table.rename(columns=named), folder / "decision.csv"))
+        drawn = decision.runs.rename(
+            columns={
+                **named,
+                "ae": with_unit("ae", study.ae_unit),
+                "tv": with_unit("tv", study.tv_unit),
+            }
+        )
+        files.append(write_frame(drawn, folder / "decision-runs.csv"))
     study.scenario.to_toml(folder / "scenario.toml")
     files.append(folder / "scenario.toml")
     figure = pareto_figure(study)
     files += save_figure(figure, folder / "figures" / "pareto")
-    files.append(_report(study, figure).write(folder / "report.html"))
+    files.append(_report(study, figure, decision).write(folder / "report.html"))
     record_outputs(folder, files)
     return files
 
 
-def _report(study: TradeoffStudy, figure: Figure) -> HtmlReport:
+def _decision_section(report: HtmlReport, decision: Decision) -> None:
+    report.heading("Decision for a delay envelope")
+    envelope = decision.envelope
+    conditions = "; ".join(
+        f"true delay {h:g} s, predictor told {told:g} s"
+        for h in envelope.delays
+        for told in envelope.told
+    )
+    report.settings(
+        {
+            "envelope": envelope.text,
+            "conditions": f"{conditions} (constant true delays; AROLC and the outer loop are "
+            "told nothing; under a constant delay PCON told s h is PCONf's law told h̄ = s h, "
+            "run as PCONf)",
+            "rule": "smallest worst-case AE (the largest over the conditions of the median AE "
+            "of the runs on the path) among the candidates whose share of drawn robots on the "
+            f"path has a Wilson 95 % lower bound >= {decision.required_share:g} in every "
+            "condition; the runner-up is the best qualifying candidate of another controller",
+            "draws": f"{decision.draws} per candidate and condition; the lower bound can reach "
+            f"{decision.required_share:g} only from {decision.draws_needed} draws on",
+            "not candidates": "; ".join(f"{f}: {why}" for f, why in decision.excluded.items())
+            or "none",
+        }
+    )
+    report.bullets(line.strip() for line in decision_lines(decision)[1:])
+    report.table(
+        decision.candidates.rename(columns=_decision_columns(decision)),
+        caption="One row per candidate, best first: its worst (smallest) Wilson lower bound "
+        "over the conditions, worst-case AE, and why it was not chosen.",
+    )
+    report.table(
+        decision.table.rename(columns=_decision_columns(decision)),
+        caption="One row per candidate and condition (decision.csv): robots on the path of "
+        "those drawn, share with its Wilson 95 % interval, median AE of the runs on the path.",
+    )
+
+
+def _report(study: TradeoffStudy, figure: Figure, decision: Decision | None) -> HtmlReport:
     report = HtmlReport(f"Accuracy against delay margin: {study.scenario.name}")
     report.paragraph(
         "Raising the outer-loop gains buys accuracy and costs delay margin. This page sweeps "
@@ -149,4 +245,6 @@ def _report(study: TradeoffStudy, figure: Figure) -> HtmlReport:
         "under a constant delay.",
         note=True,
     )
+    if decision is not None:
+        _decision_section(report, decision)
     return report

@@ -33,8 +33,8 @@ class SimResult:
     commands : ndarray, shape (batch, R, m)
         Command issued by the controller at each record time.
     applied : ndarray, shape (batch, R, m)
-        Delayed command applied to the plant just after the record time (over the first
-        sub-step of the plant step that starts there).
+        Input the plant received just after the record time (over the first sub-step of the
+        plant step that starts there): the delayed command, saturated to the input limits.
     h : ndarray, shape (batch, R)
         True delay ``h(t)`` (known to the simulator only).
     controller_state : ndarray, shape (batch, R, n_state)
@@ -49,8 +49,9 @@ class SimResult:
         Time at which each run ended; rows recorded after it are NaN.
     metrics : dict of str to ndarray
         Running metrics over every controller tick from ``settings["metrics_from"]``
-        (:mod:`delaytrack.sim.running_metrics`): ``"ae"``, ``"rms"``, ``"max"`` (batch, n) and
-        ``"tv"`` (batch,); NaN for runs that are not ok. They are there even when no trajectory
+        (:mod:`delaytrack.sim.running_metrics`): ``"ae"``, ``"rms"``, ``"max"`` (batch, n),
+        ``"tv"`` (batch,; of the commands) and ``"tv_applied"`` (batch,; of the input the plant
+        received); NaN for runs that are not ok. They are there even when no trajectory
         was recorded (``simulate(..., trajectories=False)``).
     settings : dict
         Everything needed to rerun: plant, controller, delays, reference, ``dt``, ``T_c``, ...
@@ -94,6 +95,13 @@ class SimResult:
     @property
     def n(self) -> int:
         return self.x.shape[2] // 2
+
+    @property
+    def input_limited(self) -> bool:
+        """Whether the run had input limits (``simulate(input_limits=...)`` with a finite
+        entry)."""
+        limits = self.settings.get("input_limits")
+        return limits is not None and bool(np.isfinite(np.asarray(limits, dtype=float)).any())
 
     @property
     def q(self) -> np.ndarray:
@@ -156,7 +164,9 @@ class SimResult:
         return overview_figure(self, run)
 
     def summary(self) -> pd.DataFrame:
-        """Status, stop time, AE per coordinate (in its unit) and TV per run."""
+        """Status, stop time, AE per coordinate (in its unit) and TV per run; with input limits
+        (:attr:`input_limited`), also "TV received", the TV of the input the plant received
+        (:func:`~delaytrack.metrics.total_variation` of ``applied``)."""
         import pandas as pd  # imported when a table is made: `import delaytrack` stays light
 
         names = default_names(self.coordinate_names, self.n)
@@ -167,6 +177,8 @@ class SimResult:
                 columns[labelled(f"AE {name}", unit)] = self.metrics["ae"][:, j]
         if "tv" in self.metrics:
             columns["TV"] = self.metrics["tv"]
+        if self.input_limited and "tv_applied" in self.metrics:
+            columns["TV received"] = self.metrics["tv_applied"]
         frame = pd.DataFrame(columns)
         frame.index.name = "run"
         return frame

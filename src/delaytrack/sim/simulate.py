@@ -107,8 +107,8 @@ def simulate(
         Actuator saturation: each command is applied as ``clip(u_j, -limit_j, limit_j)`` (one
         limit for every input, one per input, or one row per batch element; ``inf``, the
         default, for none; each ``> 0``). The record ``commands`` (and TV) is what the
-        controller issued, ``applied`` what the actuators applied. ``u_init`` must lie within
-        the limits.
+        controller issued, ``applied`` (and the running metric ``tv_applied``) what the
+        actuators applied. ``u_init`` must lie within the limits.
     measurement_noise : MeasurementNoise or sequence of MeasurementNoise, optional
         What the controller reads instead of the true ``q, q̇``: encoder quantisation and
         seeded white noise (:class:`~delaytrack.sim.measurement.MeasurementNoise`; one for the

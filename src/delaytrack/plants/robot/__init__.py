@@ -9,7 +9,8 @@
   command map ``τ_w = S(q)ᵀ τ``;
 * :class:`PrintedRobotModel` — the paper's printed ``M̄, V̄`` as an alternative nominal model;
 * :func:`paper_reference` — the paper's path, ``consistent`` (default) or ``literal``;
-* :data:`P3DX`, :data:`P3DX_SOURCES` — the parameters and where they come from.
+* :data:`P3DX`, :data:`P3DX_SOURCES` — the parameters and where they come from;
+* :data:`P3DX_WHEEL_TORQUE_LIMIT` — the wheel motors' torque limit, for ``input_limits`` (opt-in).
 
 See ``docs/robot.md`` for the derivation, the decisions and the findings on the printed model.
 """
@@ -28,6 +29,7 @@ from delaytrack.plants.robot.parameters import (
     P3DX,
     P3DX_PAYLOAD,
     P3DX_SOURCES,
+    P3DX_WHEEL_TORQUE_LIMIT,
     PayloadDefaults,
     RobotParameters,
 )
@@ -41,6 +43,7 @@ __all__ = [
     "P3DX_MJCF",
     "P3DX_PAYLOAD",
     "P3DX_SOURCES",
+    "P3DX_WHEEL_TORQUE_LIMIT",
     "MujocoWheeledRobot",
     "NominalRobot",
     "PayloadDefaults",

@@ -14,7 +14,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["P3DX", "P3DX_PAYLOAD", "P3DX_SOURCES", "PayloadDefaults", "RobotParameters"]
+__all__ = [
+    "P3DX",
+    "P3DX_PAYLOAD",
+    "P3DX_SOURCES",
+    "P3DX_WHEEL_TORQUE_LIMIT",
+    "PayloadDefaults",
+    "RobotParameters",
+]
 
 
 @dataclass(frozen=True)
@@ -142,12 +149,30 @@ P3DX_SOURCES: dict[str, str] = {
         "[assumed] 0.05 rad/s (≈ 5 mm/s at the rim): tanh smoothing of the Coulomb term, "
         "well below the 3.9–5.1 rad/s of the paper's path"
     ),
+    "wheel_torque_limit": (
+        "[derived] 6.7 N·m per wheel, the peak (stall) torque a drive motor delivers at the "
+        "wheel: η N T_PK = 0.8 × 38 × 0.22 N·m, with T_PK = K_M² ω_NL (0.22 N·m = "
+        "(1.88e-2)² × 628, the Pittman 9233S013 datasheet; the same for every winding of that "
+        "frame, so whatever the voltage) and the gear ratio N = 38 that gives the 1.6 m/s top "
+        "speed of the Webots guide (assumed, as for the friction; gearbox efficiency η = 0.8 "
+        "assumed). The continuous (thermal) rating is 0.8 × 38 × 0.033 = 1.0 N·m. Since the top "
+        "speed fixes ω_NL / N, the peak grows as N²: 1.9 N·m at N = 20, 20 N·m at N = 65 "
+        "(docs/robot.md, 'Wheel torque limit')"
+    ),
     "platform_mass": "[derived] m - 2 m_w = 8 kg",
     "platform_inertia": (
         "[derived] I - m_c d² - 2 m_w L² - 2 I_m = 0.2142 kg·m² (a uniform 8 kg plate "
         "0.44 m × 0.38 m would have 0.225 kg·m²: consistent)"
     ),
 }
+
+
+#: Largest torque each drive wheel of a PIONEER-3 DX can receive, N·m [derived]: the peak (stall)
+#: torque of its motor through its gearbox, ``η N T_PK = 0.8 × 38 × 0.22``
+#: (``P3DX_SOURCES["wheel_torque_limit"]``, docs/robot.md). Not applied by default: pass it as
+#: the actuators' limit to opt in, ``simulate(..., input_limits=P3DX_WHEEL_TORQUE_LIMIT)`` or a
+#: scenario's ``input_limits`` (``Scenario.replace(input_limits=P3DX_WHEEL_TORQUE_LIMIT)``).
+P3DX_WHEEL_TORQUE_LIMIT = 6.7
 
 
 @dataclass(frozen=True)

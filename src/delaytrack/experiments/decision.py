@@ -1,0 +1,464 @@
+"""The decision rule: which controller and which outer-loop gains to use for a delay envelope.
+
+**The envelope** (:class:`Envelope`): the largest delay ``h_max`` and how well the delay is
+known, which sets what the predictors are told:
+
+- ``exact``: told the true delay;
+- ``within`` ``x`` (``±x``): told a delay off by up to ``x``, i.e. ``(1 − x) h`` and
+  ``(1 + x) h``;
+- ``unknown``: told a fixed guess, ``ĥ = h_max / 2``, the middle of ``[0, h_max]``: of all
+  fixed guesses it is the one whose largest error over the envelope, ``h_max / 2``, is smallest.
+
+**The conditions** that cover the envelope are constant true delays (a constant delay at the
+bound is where the margins of the trade-off are measured): ``h = h_max``, told ``h_max``
+(exact); ``h = h_max`` told ``(1 − x) h_max`` and told ``(1 + x) h_max`` (within ``±x``);
+``h = h_max`` and ``h = 0``, both told ``ĥ`` (unknown: told too short and told too long by
+``h_max / 2``). Under a constant true delay PCON told ``s h`` is PCONf's law told
+``h̄ = s h``, so the predictor is one candidate per gain point, run as PCONf told the
+condition's delay; AROLC and the outer loop are told nothing.
+
+**The candidates** are the trade-off's controllers at its gain points ``ω_n``
+(:mod:`~delaytrack.experiments.tradeoff`). In each condition the robots are drawn as in the
+trade-off (the same seed and rule of staying on the path).
+
+**The rule** (:func:`decide`). A candidate *qualifies* when, in every condition, the Wilson
+95 % lower bound of the share of drawn robots that stay on the path is at least ``p = 0.95``
+(:data:`REQUIRED_SHARE`). Its *worst-case AE* is the largest, over the conditions, of the median
+AE of its runs on the path. The **winner** is the qualifying candidate with the smallest
+worst-case AE; the **runner-up** the best qualifying candidate of another controller (the
+question is which controller; the next gain point of the same one differs only by the sweep's
+step); the **margin** is the runner-up's worst-case AE minus the winner's, and their ratio.
+
+**Draws it needs.** With every one of ``n`` robots on the path, Wilson's lower bound is
+``n / (n + z²)`` (``z = 1.96``), which reaches ``p`` only for ``n >= p z² / (1 − p)``: 73 draws
+per condition for 0.95 (:func:`draws_needed`). Below that, or when no candidate reaches ``p``,
+the rule names no winner and says which of the two it is.
+
+:func:`run_decision` draws the conditions on the trade-off's sweep machinery (resumable Parquet
+parts, any executor) and returns a :class:`Decision`, which
+:mod:`delaytrack.report.tradeoff` writes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import pandas as pd
+
+from delaytrack._validation import ArgumentError, is_integer_at_least
+from delaytrack.experiments.intervals import wilson_interval
+from delaytrack.experiments.tradeoff import (
+    FAMILIES,
+    TradeoffStudy,
+    drawn_runs,
+    family_gains,
+    family_tables,
+)
+from delaytrack.sweeps.executors import Executor
+
+__all__ = [
+    "DECISION_DRAWS",
+    "KNOWLEDGE",
+    "REQUIRED_SHARE",
+    "Choice",
+    "Decision",
+    "Envelope",
+    "decide",
+    "draws_needed",
+    "run_decision",
+]
+
+#: How well the delay is known.
+KNOWLEDGE: tuple[str, ...] = ("exact", "within", "unknown")
+#: The share of drawn robots that must stay on the path, by the Wilson lower bound.
+REQUIRED_SHARE = 0.95
+#: Robots drawn per candidate and condition by default (at least :func:`draws_needed`).
+DECISION_DRAWS = 80
+#: The normal quantile of the Wilson 95 % interval.
+_Z = 1.959963984540054
+#: The columns :func:`decide` reads.
+_COLUMNS = ("controller", "omega_n", "k1", "k2", "delay", "told", "runs", "on_path", "ae_median")
+#: ``±X%`` as the command line writes it.
+_WITHIN = re.compile(r"(?:±|\+-|\+/-)?\s*([0-9]*\.?[0-9]+)\s*%")
+
+
+def draws_needed(share: float = REQUIRED_SHARE, z: float = _Z) -> int:
+    """The fewest draws ``n`` whose Wilson lower bound reaches ``share`` when all ``n`` robots
+    stay on the path: the smallest ``n`` with ``n / (n + z²) >= share``, i.e.
+    ``n >= share z² / (1 − share)`` (73 for 0.95)."""
+    return math.ceil(share * z * z / (1.0 - share))
+
+
+@dataclass(frozen=True)
+class Envelope:
+    """A delay envelope: the largest delay and how well the delay is known (module docstring).
+
+    Attributes
+    ----------
+    h_max : float
+        The largest delay (s), ``> 0``.
+    knowledge : str
+        ``"exact"``, ``"within"`` or ``"unknown"`` (:data:`KNOWLEDGE`).
+    within : float
+        ``x`` of ``±x`` (a fraction, ``0 < x <= 1``) for ``"within"``; 0 otherwise.
+    """
+
+    h_max: float
+    knowledge: str
+    within: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.h_max, int | float) and 0 < self.h_max < math.inf):
+            raise ArgumentError("h_max", f"must be a delay > 0 (s); got {self.h_max!r}")
+        if self.knowledge not in KNOWLEDGE:
+            raise ArgumentError(
+                "knowledge", f"must be exact, ±X% (0 < X <= 100) or unknown; got {self.knowledge!r}"
+            )
+        bounded = 0 < self.within <= 1 if self.knowledge == "within" else self.within == 0
+        if not bounded:
+            raise ArgumentError(
+                "within", f"must be 0 < x <= 1 for 'within' and 0 otherwise; got {self.within!r}"
+            )
+        object.__setattr__(self, "h_max", float(self.h_max))
+        object.__setattr__(self, "within", float(self.within))
+
+    @classmethod
+    def from_text(cls, h_max: float, knowledge: str) -> Envelope:
+        """The envelope of ``h_max`` and ``knowledge`` written ``exact``, ``±X%`` (also ``X%``,
+        ``+-X%``; ``0 < X <= 100``) or ``unknown``."""
+        text = knowledge.strip()
+        if text in ("exact", "unknown"):
+            return cls(h_max, text)
+        match = _WITHIN.fullmatch(text)
+        if match is None or not 0 < float(match[1]) <= 100:
+            raise ArgumentError(
+                "knowledge", f"must be exact, ±X% (0 < X <= 100) or unknown; got {knowledge!r}"
+            )
+        return cls(h_max, "within", float(match[1]) / 100.0)
+
+    @property
+    def delays(self) -> tuple[float, ...]:
+        """The constant true delays of the conditions (s)."""
+        return (self.h_max, 0.0) if self.knowledge == "unknown" else (self.h_max,)
+
+    @property
+    def told(self) -> tuple[float, ...]:
+        """What the predictors are told in the conditions (s)."""
+        if self.knowledge == "within":
+            return ((1.0 - self.within) * self.h_max, (1.0 + self.within) * self.h_max)
+        return (self.h_max / 2,) if self.knowledge == "unknown" else (self.h_max,)
+
+    @property
+    def text(self) -> str:
+        """The envelope in words."""
+        known = {
+            "exact": "delay known exactly",
+            "within": f"delay known within ±{100 * self.within:g} %",
+            "unknown": f"delay unknown (predictors told the guess {self.h_max / 2:g} s)",
+        }[self.knowledge]
+        return f"h_max = {self.h_max:g} s, {known}"
+
+
+@dataclass(frozen=True)
+class Choice:
+    """A chosen candidate: its controller, gains (``K1 = k1 I``, ``K2 = k2 I`` at ``ω_n``), its
+    worst-case AE and its worst (smallest) Wilson lower bound over the conditions."""
+
+    controller: str
+    omega_n: float
+    k1: float
+    k2: float
+    worst_ae: float
+    worst_share_low: float
+
+
+@dataclass(frozen=True)
+class Decision:
+    """What the rule decided (module docstring), with every number behind it.
+
+    Attributes
+    ----------
+    envelope : Envelope
+    table : DataFrame
+        One row per candidate and condition: ``controller``, ``omega_n``, ``k1``, ``k2``,
+        ``delay`` (the true constant delay, s), ``told`` (what the predictor is told, s; NaN
+        for the controllers told nothing), ``runs``, ``on_path``, ``share_on_path``,
+        ``share_low``, ``share_high`` (Wilson 95 %), ``ae_median`` (over the runs on the path),
+        then the candidate's ``worst_share_low``, ``worst_ae``, ``qualifies``, ``status``
+        (``winner``, ``runner-up``, ``qualifies`` or ``excluded``) and ``why``.
+    candidates : DataFrame
+        One row per candidate (the candidate's columns of ``table``), best first.
+    winner, runner_up : Choice or None
+    ae_difference, ae_ratio : float
+        The runner-up's worst-case AE minus the winner's, and divided by it (NaN without both).
+    refusal : str or None
+        Why no candidate was chosen (None when one was).
+    required_share : float
+    draws : int
+        Robots per candidate and condition (the fewest when they differ).
+    draws_needed : int
+        :func:`draws_needed` of ``required_share``.
+    excluded : Mapping[str, str]
+        Controller -> why it was not a candidate.
+    ae_unit : str or None
+    runs : DataFrame
+        Every drawn run (empty when the table was given by hand).
+    seconds : float
+    computed, resumed : int
+        Work units of the draws computed and found finished.
+    """
+
+    envelope: Envelope
+    table: pd.DataFrame
+    candidates: pd.DataFrame
+    winner: Choice | None
+    runner_up: Choice | None
+    ae_difference: float
+    ae_ratio: float
+    refusal: str | None
+    required_share: float
+    draws: int
+    draws_needed: int
+    excluded: Mapping[str, str]
+    ae_unit: str | None = None
+    runs: pd.DataFrame = dataclasses.field(default_factory=pd.DataFrame)
+    seconds: float = 0.0
+    computed: int = 0
+    resumed: int = 0
+
+
+def _condition(row: Any) -> str:
+    told = "" if math.isnan(row.told) else f", told {row.told:g} s"
+    return f"delay {row.delay:g} s{told}"
+
+
+def _choice(row: Any) -> Choice:
+    return Choice(row.controller, row.omega_n, row.k1, row.k2, row.worst_ae, row.worst_share_low)
+
+
+def decide(
+    table: pd.DataFrame,
+    envelope: Envelope,
+    *,
+    required_share: float = REQUIRED_SHARE,
+    excluded: Mapping[str, str] | None = None,
+    ae_unit: str | None = None,
+) -> Decision:
+    """Apply the rule of the module docstring to a table of candidates and conditions.
+
+    Parameters
+    ----------
+    table : DataFrame
+        One row per candidate and condition with ``controller``, ``omega_n``, ``k1``, ``k2``,
+        ``delay``, ``told`` (NaN: told nothing), ``runs`` (robots drawn), ``on_path`` (of them
+        on the path) and ``ae_median`` (median AE of those on the path; NaN when none).
+    envelope : Envelope
+        The envelope the conditions cover.
+    required_share : float
+        ``p``: the Wilson 95 % lower bound of the share on the path must reach it in every
+        condition.
+    excluded : mapping, optional
+        Controllers that were not candidates, and why.
+    ae_unit : str, optional
+        The unit of AE, for the texts.
+    """
+    missing = [c for c in _COLUMNS if c not in table.columns]
+    if missing:
+        raise ArgumentError("table", f"lacks the columns {missing}; needs {list(_COLUMNS)}")
+    needed = draws_needed(required_share)
+    unit = f" {ae_unit}" if ae_unit else ""
+    frame = table.loc[:, list(_COLUMNS)].reset_index(drop=True)
+    bounds = [
+        wilson_interval(int(k), int(n)) for k, n in zip(frame.on_path, frame.runs, strict=True)
+    ]
+    frame.insert(8, "share_on_path", frame.on_path / frame.runs)
+    frame.insert(9, "share_low", [low for low, _ in bounds])
+    frame.insert(10, "share_high", [high for _, high in bounds])
+    keys = ["controller", "omega_n"]
+    rows = []
+    for (controller, omega), conditions in frame.groupby(keys, sort=False):
+        worst = conditions.loc[conditions.share_low.idxmin()]
+        qualifies = bool(worst.share_low >= required_share)
+        why = ""
+        if not qualifies:
+            why = (
+                f"Wilson lower bound {worst.share_low:.3f} < {required_share:g} at "
+                f"{_condition(worst)} ({int(worst.on_path)} of {int(worst.runs)} on the path)"
+            )
+            if worst.runs < needed:
+                why += f"; {int(worst.runs)} draws cannot reach it (at least {needed})"
+        rows.append(
+            {
+                "controller": controller,
+                "omega_n": omega,
+                "k1": conditions.k1.iloc[0],
+                "k2": conditions.k2.iloc[0],
+                "worst_share_low": float(worst.share_low),
+                "worst_ae": float(conditions.ae_median.max()),
+                "qualifies": qualifies,
+                "status": "qualifies" if qualifies else "excluded",
+                "why": why,
+            }
+        )
+    order = {family: i for i, family in enumerate(FAMILIES)}
+    candidates = pd.DataFrame(rows)
+    candidates = candidates.assign(
+        _rank=candidates.controller.map(lambda c: order.get(c, len(order)))
+    )
+    candidates = (
+        candidates.sort_values(
+            ["qualifies", "worst_ae", "worst_share_low", "_rank", "omega_n"],
+            ascending=[False, True, False, True, True],
+            kind="stable",
+        )
+        .drop(columns="_rank")
+        .reset_index(drop=True)
+    )
+    chosen = candidates[candidates.qualifies]
+    winner = runner_up = None
+    difference = ratio = math.nan
+    refusal = None
+    if chosen.empty:
+        fewest = int(frame.runs.min())
+        if fewest < needed:
+            refusal = (
+                f"no candidate qualifies at this size: with {fewest} draws per condition the "
+                f"Wilson lower bound cannot exceed n/(n + z²) = {fewest / (fewest + _Z * _Z):.3f} "
+                f"< {required_share:g} even with every robot on the path; at least {needed} "
+                "draws are needed"
+            )
+        else:
+            best = candidates.sort_values("worst_share_low", ascending=False).iloc[0]
+            refusal = (
+                f"no candidate qualifies: none stays on the path in at least "
+                f"{100 * required_share:g} % of the drawn robots by the Wilson lower bound in "
+                f"every condition (closest: {best.controller} at omega_n = {best.omega_n:g} "
+                f"rad/s, {best.why})"
+            )
+    else:
+        first = chosen.iloc[0]
+        winner = _choice(first)
+        candidates.loc[chosen.index[0], "status"] = "winner"
+        others = chosen[chosen.controller != first.controller]
+        if not others.empty:
+            second = others.iloc[0]
+            runner_up = _choice(second)
+            candidates.loc[others.index[0], "status"] = "runner-up"
+            difference = runner_up.worst_ae - winner.worst_ae
+            ratio = runner_up.worst_ae / winner.worst_ae
+        for i in chosen.index[1:]:
+            if candidates.loc[i, "status"] == "qualifies":
+                candidates.loc[i, "why"] = (
+                    f"worst-case AE {candidates.loc[i, 'worst_ae']:.4g}{unit} against the "
+                    f"winner's {winner.worst_ae:.4g}{unit}"
+                )
+    merged = frame.merge(candidates, on=["controller", "omega_n", "k1", "k2"], how="left")
+    return Decision(
+        envelope=envelope,
+        table=merged,
+        candidates=candidates,
+        winner=winner,
+        runner_up=runner_up,
+        ae_difference=difference,
+        ae_ratio=ratio,
+        refusal=refusal,
+        required_share=required_share,
+        draws=int(frame.runs.min()),
+        draws_needed=needed,
+        excluded=MappingProxyType(dict(excluded or {})),
+        ae_unit=ae_unit,
+    )
+
+
+def run_decision(
+    study: TradeoffStudy,
+    envelope: Envelope,
+    out: str | Path,
+    *,
+    draws: int | None = None,
+    executor: Executor | None = None,
+    progress: bool = False,
+) -> Decision:
+    """Draw the envelope's conditions for the trade-off's candidates and apply the rule.
+
+    Parameters
+    ----------
+    study : TradeoffStudy
+        The trade-off: its scenario, gain points, controllers, rule of staying on the path,
+        draws' distributions and seed.
+    envelope : Envelope
+        The delay envelope.
+    out : path
+        Folder of the conditions' sweep (``out/decision-sweep``: parts, resumable).
+    draws : int, optional
+        Robots per candidate and condition (:data:`DECISION_DRAWS` by default when something
+        is drawn; one run each when nothing is, which can never qualify).
+    executor : Executor, optional
+        Where the draws' units run (all local cores by default).
+    progress : bool
+        Progress on standard error.
+    """
+    start = time.perf_counter()
+    if draws is not None and not is_integer_at_least(draws, 1):
+        raise ArgumentError("draws", f"must be an integer >= 1; got {draws!r}")
+    scenario = study.scenario.replace(delay={"type": "constant", "h": envelope.h_max})
+    history = max(envelope.h_max, *envelope.told)
+    tables, _ = family_tables(scenario, study.zeta, study.omegas, history)
+    excluded = dict(study.left_out)
+    if "pcon" in study.families:
+        excluded["pcon"] = (
+            "under a constant true delay PCON told s h is PCONf's law told h̄ = s h: the "
+            "predictor is evaluated once, as PCONf"
+        )
+    families = [f for f in study.families if f != "pcon"]
+    controllers: list[dict[str, Any]] = []
+    labels: list[dict[str, Any]] = []
+    for family in families:
+        for omega, table in zip(study.omegas, tables[family], strict=True):
+            k1, k2 = family_gains(omega, study.zeta)
+            for told in envelope.told if family == "pconf" else (math.nan,):
+                controllers.append(table if math.isnan(told) else {**table, "h_bar": told})
+                labels.append(
+                    {"controller": family, "omega_n": omega, "k1": k1, "k2": k2, "told": told}
+                )
+    points = [{"delay": h, **label} for h in envelope.delays for label in labels]
+    drawn = dict(study.random)
+    count = (DECISION_DRAWS if draws is None else int(draws)) if drawn else 1
+    runs, outcome = drawn_runs(
+        scenario,
+        {
+            "delay": tuple({"type": "constant", "h": h} for h in envelope.delays),
+            "controller": tuple(controllers),
+        },
+        points,
+        drawn,
+        count,
+        study.seed,
+        study.threshold,
+        out,
+        "decision-sweep",
+        executor=executor,
+        progress=progress,
+    )
+    rows = []
+    for i, point in enumerate(points):
+        block = runs.iloc[i * count : (i + 1) * count]
+        kept = block[block.on_path]
+        ae = float(kept.ae.median()) if len(kept) else math.nan
+        rows.append({**point, "runs": len(block), "on_path": len(kept), "ae_median": ae})
+    decision = decide(pd.DataFrame(rows), envelope, excluded=excluded, ae_unit=study.ae_unit)
+    return dataclasses.replace(
+        decision,
+        runs=runs,
+        seconds=time.perf_counter() - start,
+        computed=outcome.computed,
+        resumed=outcome.resumed,
+    )

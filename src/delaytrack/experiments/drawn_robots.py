@@ -1,0 +1,28 @@
+"""The robots the studies draw: the payload P3-DX's uncertain parameters as a sweep's
+``[random]`` table, and the seed that makes draw ``i`` the same robot in every study.
+
+Where the payload sits (``plant.seed``, the payload's placement each time it is put on) and the
+wheel friction, uniform in the ranges derived from public parts data (viscous
+0.001–0.02 N·m·s/rad, Coulomb 0.07–0.35 N·m; sources in ``docs/robot.md`` and
+:data:`delaytrack.plants.robot.P3DX_SOURCES`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["FRICTION", "PAYLOAD", "PAYLOAD_ROBOT", "SEED"]
+
+#: Seed of the studies' draws (a key's draws depend on it and the key only).
+SEED = 2027
+#: The payload's placement.
+PAYLOAD: dict[str, dict[str, Any]] = {
+    "plant.seed": {"dist": "integers", "low": 0, "high": 2**31 - 1}
+}
+#: The wheel friction.
+FRICTION: dict[str, dict[str, Any]] = {
+    "plant.viscous_friction": {"dist": "uniform", "low": 0.001, "high": 0.02},
+    "plant.coulomb_friction": {"dist": "uniform", "low": 0.07, "high": 0.35},
+}
+#: Every uncertain parameter of the payload robot.
+PAYLOAD_ROBOT: dict[str, dict[str, Any]] = {**PAYLOAD, **FRICTION}

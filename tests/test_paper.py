@@ -17,6 +17,7 @@ from delaytrack.experiments import paper, paper_findings, robustness, tuning
 from delaytrack.experiments.contact import contact_findings
 from delaytrack.report import paper as paper_report
 from delaytrack.report.contact import contact_paragraphs
+from delaytrack.scenario import load_builtin
 
 ROWS = [
     ("S1", "AROLC"),
@@ -122,6 +123,12 @@ def test_reproduce_writes_both_folders(tmp_path, capsys, monkeypatch):
 def test_reproduce_refuses_a_duration_off_the_controller_grid(tmp_path, capsys):
     assert main(["reproduce", "--out", str(tmp_path), "--duration", "0.015", "--quiet"]) == 2
     assert "must be a positive integer multiple of 'T_c'" in capsys.readouterr().err
+
+
+def test_the_paper_job_and_the_shipped_robot_scenario_share_the_left_the_path_rule():
+    """One rule: the paper job's bound is that of ``robot_S1``, which ``delaytrack simulate``
+    and the studies built on it use."""
+    assert tuple(load_builtin("robot_S1").error_bound) == paper.ERROR_BOUND
 
 
 def test_a_run_that_leaves_the_path_stops_there_with_nan_metrics_and_a_flag(monkeypatch):

@@ -253,10 +253,11 @@ def test_simulate_refusal_at_build_exits_2(tmp_path, capsys):
 # ---- one convention for every command ---------------------------------------------------------
 
 
-def test_a_bare_call_prints_the_commands(capsys):
-    assert main([]) == 2
+def test_a_bare_call_prints_the_commands_and_succeeds(capsys):
+    assert main([]) == 0
     out = capsys.readouterr().out
     assert out.startswith("usage: delaytrack") and "reproduce" in out and "tune-baselines" in out
+    assert run_cli().returncode == 0
 
 
 def test_bound_defaults_q_like_margin_and_the_python_api(capsys):
@@ -269,13 +270,66 @@ def test_bound_defaults_q_like_margin_and_the_python_api(capsys):
     assert default["h_m"] == razumikhin_bound(1.0, 1.0).h_m  # Q = I, beta = 1, r = 1.1
 
 
-@pytest.mark.parametrize("command", ["simulate", "empirical", "reproduce", "sweep"])
-def test_every_long_command_takes_quiet_and_still_accepts_progress(command):
+def _commands() -> list[str]:
+    """Every command of ``delaytrack`` but the live loop's group."""
     from delaytrack.cli import build_parser
 
-    extra = {"simulate": ["x"], "empirical": ["x", "--threshold", "1"], "sweep": ["x"]}
-    args = build_parser().parse_args([command, *extra.get(command, []), "--quiet", "--progress"])
+    choices = build_parser()._subparsers._group_actions[0].choices
+    return [name for name in choices if name != "live"]
+
+
+_REQUIRED = {
+    "bound": ["--k1", "1", "--k2", "1"],
+    "margin": ["--k1", "1", "--k2", "1"],
+    "simulate": ["x"],
+    "empirical": ["x", "--threshold", "1"],
+    "sweep": ["x"],
+    "tradeoff": ["x"],
+}
+
+
+@pytest.mark.parametrize("command", _commands())
+def test_every_command_takes_quiet_and_still_accepts_progress(command):
+    from delaytrack.cli import build_parser
+
+    args = build_parser().parse_args(
+        [command, *_REQUIRED.get(command, []), "--quiet", "--progress"]
+    )
     assert args.quiet
+
+
+def test_quiet_changes_nothing_where_nothing_runs_long(capsys):
+    for command in (["bound", "--k1", "1", "--k2", "1"], ["margin", "--k1", "1", "--k2", "1"]):
+        assert main(command) == 0
+        loud = capsys.readouterr()
+        assert main([*command, "--quiet"]) == 0
+        assert capsys.readouterr() == loud
+
+
+@pytest.mark.parametrize("command", _commands())
+def test_every_scenario_positional_is_named_scenario_and_the_sweeps_sweep(command, capsys):
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    usage = capsys.readouterr().out.split("\n\n")[0]
+    assert "scenario" not in usage.replace("SCENARIO", "") and " spec" not in usage.lower()
+    if command == "sweep":
+        assert "SWEEP" in usage
+
+
+def test_tune_baselines_help_states_one_default_output(capsys):
+    with pytest.raises(SystemExit):
+        main(["tune-baselines", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert text.count("default results/baseline_gains.toml") == 2
+    assert "default: the package" not in text
+
+
+def test_theorem_1_gains_say_their_meaning_and_unit(capsys):
+    with pytest.raises(SystemExit):
+        main(["bound", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "derivative gain K2 of the outer loop, 1/s" in text
+    assert "proportional gain K1 of the outer loop, 1/s^2" in text
 
 
 def test_tune_baselines_never_writes_into_the_package_by_default():
@@ -304,4 +358,45 @@ def test_reproduce_gains_must_be_a_complete_gains_file(tmp_path, capsys):
 def test_simulate_prints_the_metrics(short_scenario, tmp_path, capsys):
     assert main(["simulate", str(short_scenario), "--out", str(tmp_path / "r"), "--quiet"]) == 0
     out = capsys.readouterr().out
-    assert "AE q1 (rad)" in out and "TV" in out
+    assert "AE q1 (rad)" in out and "TV (N·m)" in out  # the arm's inputs are torques
+
+
+def _fast_gains_scenario(tmp_path: Path, delay: float) -> Path:
+    """The shipped two-link scenario with K1 = K2 = 4 (h_m = 13.1 ms) under a constant delay."""
+    builtin = load_builtin("two_link_S1")
+    controller = {**builtin.to_dict()["controller"], "K1": 4.0, "K2": 4.0}
+    scenario = builtin.replace(
+        name="fast",
+        duration=0.5,
+        controller=controller,
+        delay={"type": "constant", "h": delay},
+    )
+    path = tmp_path / f"fast_{delay:g}.toml"
+    scenario.to_toml(path)
+    return path
+
+
+def test_simulate_reports_h_m_and_warns_in_one_line_beyond_it(tmp_path, capsys):
+    h_m = razumikhin_bound(4.0, 4.0).h_m
+    beyond = _fast_gains_scenario(tmp_path, 0.04)
+    assert main(["simulate", str(beyond), "--out", str(tmp_path / "b"), "--quiet"]) == 0
+    captured = capsys.readouterr()
+    assert f"h_m = {h_m:.6g} s" in captured.out
+    warning = [line for line in captured.err.splitlines() if line.startswith("warning:")]
+    assert len(warning) == 1
+    assert "40 ms exceeds AROLC's certified bound h_m = 13.14 ms" in warning[0]
+    assert "not instability" in warning[0]
+    within = _fast_gains_scenario(tmp_path, 0.005)
+    assert main(["simulate", str(within), "--out", str(tmp_path / "w"), "--quiet"]) == 0
+    captured = capsys.readouterr()
+    assert f"h_m = {h_m:.6g} s" in captured.out and "warning" not in captured.err
+
+
+def test_simulate_says_nothing_of_h_m_for_a_controller_without_one(tmp_path, capsys):
+    scenario = load_builtin("two_link_S1").replace(
+        name="outer", duration=0.5, controller={"type": "outer-loop", "K1": 1.0, "K2": 1.0}
+    )
+    scenario.to_toml(tmp_path / "outer.toml")
+    assert main(["simulate", str(tmp_path / "outer.toml"), "--out", str(tmp_path / "o")]) == 0
+    captured = capsys.readouterr()
+    assert "h_m" not in captured.out and "warning" not in captured.err

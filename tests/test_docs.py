@@ -71,6 +71,7 @@ def anchors(html: str) -> set[str]:
     [
         "",
         "getting-started",
+        "tutorial",
         "your-own-robot",
         "paper-symbols",
         "decisions",
@@ -95,6 +96,97 @@ def test_every_markdown_page_is_built(site: Path) -> None:
         if relative.name == "index":
             relative = relative.parent
         page(site, "" if relative == Path() else relative.as_posix())
+
+
+def nav_pages() -> list[tuple[str, str]]:
+    """``(title, file)`` of every page in ``mkdocs.yml``'s navigation, in order."""
+    text = (ROOT / "mkdocs.yml").read_text(encoding="utf-8")
+    nav = text.split("\nnav:\n", 1)[1].split("\n\n", 1)[0]
+    return re.findall(r"^\s+- ([^:\n]+): (\S+\.md)$", nav, re.M)
+
+
+def test_the_tutorial_notebook_is_a_page_in_the_navigation(site: Path) -> None:
+    """docs/tutorial.ipynb is rendered (its text and code, maths typeset) and in the menu, with
+    the notebook itself beside it to download."""
+    assert ("Tutorial", "tutorial.md") in nav_pages()
+    html = page(site, "tutorial")
+    assert "Tutorial: your own robot joint behind a late, jittery link" in html
+    assert "error_loop_frequency_response" in html and 'class="arithmatex"' in html
+    assert 'href="../tutorial.ipynb"' in html and (site / "tutorial.ipynb").is_file()
+    assert re.search(
+        r'<a href="tutorial/" class="md-nav__link">\s*<span[^>]*>\s*Tutorial', page(site, "")
+    )
+
+
+def test_the_index_lists_each_page_once_by_its_title() -> None:
+    """docs/index.md links every page of the menu once, by the menu's title (the API reference
+    by its overview)."""
+    links = re.findall(r"\[([^\]]+)\]\(([^)#]+\.md)\)", (ROOT / "docs" / "index.md").read_text())
+    assert len(links) == len({target for _, target in links}), links
+    guides = [(title, path) for title, path in nav_pages() if not path.startswith("api/")]
+    assert sorted(links) == sorted([*guides[1:], ("API reference", "api/index.md")])
+
+
+def test_pages_load_nothing_from_the_network(site: Path) -> None:
+    """No script, stylesheet or font from a CDN: the maths is typeset by the KaTeX copy the site
+    serves itself, and the theme uses the reader's fonts."""
+    for html_file in site.rglob("*.html"):
+        html = html_file.read_text(encoding="utf-8")
+        remote = re.findall(r'<(?:script|link|img)\b[^>]*(?:src|href)="(?:https?:)?//[^"]*"', html)
+        assert not remote, f"{html_file.relative_to(site)} loads {remote[:2]}"
+        assert "cdn" not in " ".join(re.findall(r"<script\b[^>]*>", html)).lower()
+    margins = page(site, "margins")
+    assert 'class="arithmatex"' in margins and "vendor/katex/katex.min.js" in margins
+    for name in ("katex.min.js", "katex.min.css", "contrib/auto-render.min.js", "LICENSE"):
+        assert (site / "vendor" / "katex" / name).is_file(), name
+    fonts = {path.name for path in (site / "vendor" / "katex" / "fonts").glob("*.woff2")}
+    needed = set(
+        re.findall(
+            r"url\(fonts/([^)]+\.woff2)\)",
+            (site / "vendor" / "katex" / "katex.min.css").read_text(),
+        )
+    )
+    assert needed and needed <= fonts
+
+
+def test_the_sim_page_starts_with_simulate(site: Path) -> None:
+    html = page(site, "api/sim")
+    order = [
+        html.index(f'id="{anchor}"')
+        for anchor in (
+            "delaytrack.sim.simulate.simulate",
+            "delaytrack.sim.SimResult",
+            "delaytrack.sim.MeasurementNoise",
+            "delaytrack.sim.PacketLoss",
+        )
+    ]
+    assert order == sorted(order)
+    assert "module docstring" not in html
+    # The class carries the model its module's docstring states.
+    assert "Encoder quantisation and white noise on what the controller reads." in html
+    assert "At controller tick" in html
+
+
+def test_module_names_in_tables_do_not_break(site: Path) -> None:
+    css = (site / "stylesheets" / "extra.css").read_text()
+    assert re.search(r"td:first-child code \{[^}]*white-space: nowrap", css)
+    assert "stylesheets/extra.css" in page(site, "api")
+
+
+def test_user_pages_work_outside_the_checkout() -> None:
+    """The pages a user follows name commands as installed, never a path into the clone's
+    .venv (they run in the environment where delaytrack is installed)."""
+    for name in ("index.md", "getting-started.md", "your-own-robot.md", "tutorial.ipynb"):
+        text = (ROOT / "docs" / name).read_text()
+        assert not re.search(r"\.venv/bin/(?!activate\b)", text), name
+
+
+def test_error_loop_is_reachable_from_the_package_root() -> None:
+    from delaytrack.analysis import control_export
+
+    for name in ("error_loop", "error_loop_frequency_response", "error_loop_sampled"):
+        assert name in delaytrack.__all__
+        assert getattr(delaytrack, name) is getattr(control_export, name)
 
 
 def test_api_pages_document_the_main_entry_points(site: Path) -> None:

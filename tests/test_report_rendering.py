@@ -1,9 +1,12 @@
-"""Every HTML report as a browser shows it (headless Chromium, when installed): the page is no
-wider than the window, and every image loads."""
+"""Every HTML report as a browser shows it (headless Chromium, when installed) in a window of
+1280 px with every folded part opened: the page is no wider than the window, no table scrolls
+sideways inside its box, every image loads, the table of contents leads to every section,
+numbers are right-aligned and text left-aligned."""
 
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -26,19 +29,31 @@ pytestmark = [
     pytest.mark.skipif(BROWSER is None, reason="no headless Chromium installed"),
 ]
 EXAMPLES = Path(__file__).parents[1] / "examples"
-WIDTH = 1400
+WIDTH = 1280
 
 # Written into the page after it loads; the browser's DOM dump then carries the answer.
 _PROBE = """<script>window.addEventListener('load', () => {
+  document.querySelectorAll('details').forEach(d => { d.open = true; });
   const images = Array.from(document.images);
   const wide = Array.from(document.body.querySelectorAll('*')).filter(e => {
     const r = e.getBoundingClientRect();
     return r.right > window.innerWidth + 1 && !e.closest('.wide');
   }).map(e => e.tagName + ': ' + (e.textContent || '').slice(0, 60));
+  const scrolling = Array.from(document.querySelectorAll('.wide'))
+    .filter(e => e.scrollWidth > e.clientWidth + 1)
+    .map(e => (e.textContent || '').slice(0, 60));
+  const cells = Array.from(document.querySelectorAll('table.data td'));
+  const align = cells.filter(c => getComputedStyle(c).textAlign
+    !== (c.classList.contains('num') ? 'right' : 'left')).length;
+  const sections = Array.from(document.querySelectorAll('h2')).map(h => h.id);
+  const contents = Array.from(document.querySelectorAll('nav.toc a'))
+    .map(a => a.getAttribute('href').slice(1));
   document.body.setAttribute('data-probe', JSON.stringify({
     page: document.documentElement.scrollWidth, window: window.innerWidth,
     images: images.length, broken: images.filter(i => !(i.complete && i.naturalWidth > 0)).length,
-    wide: wide}));
+    wide: wide, scrolling: scrolling, cells: cells.length, misaligned: align,
+    numbers: cells.filter(c => c.classList.contains('num')).length,
+    sections: sections, contents: contents}));
 });</script>"""
 
 
@@ -106,3 +121,35 @@ def test_report_fits_the_window_and_every_image_loads(reports, name, tmp_path):
     assert probe["images"] > 0 and probe["broken"] == 0, probe
     assert probe["page"] <= probe["window"], probe
     assert probe["wide"] == [], probe
+    assert probe["scrolling"] == [], probe  # no table scrolls sideways in its box
+
+
+@pytest.mark.parametrize(
+    "name", ["paper", "paper-literal", "robustness", "two-link", "margins", "sweep"]
+)
+def test_report_is_navigable_and_aligned(reports, name, tmp_path):
+    probe = rendered(reports[name], tmp_path)
+    if len(probe["sections"]) > 1:  # a table of contents leads to every section
+        assert probe["contents"] == probe["sections"], probe
+    # Numbers right-aligned, text left-aligned.
+    assert probe["numbers"] > 0 and probe["misaligned"] == 0, probe
+
+
+def test_paper_report_puts_summary_and_figures_first_and_folds_the_grids(reports):
+    page = reports["paper"].read_text()
+
+    def section(title: str) -> int:
+        return re.search(f'<h2 id="[^"]+">{title}', page).start()
+
+    summary, figures, tuning = section("Summary"), section("Figures"), section("Tuning")
+    assert summary < figures < page.index("<figure>") < section("Claims check") < tuning
+    grids = page[tuning:]
+    assert grids.index("<details>") < grids.index("the five best grid points")
+    assert '<a href="../robustness/report.html">' in page  # the link to the study is clickable
+
+
+def test_robustness_map_table_says_not_told_instead_of_nan(reports):
+    page = reports["robustness"].read_text()
+    start = page.index(">Robustness map (table)</h2>")
+    table = page[start : page.index("</table>", start)]
+    assert "not told" in table and "NaN" not in table

@@ -68,11 +68,42 @@ def test_reproduce_rejects_a_bad_duration(tmp_path, capsys):
     assert "must be a positive integer multiple of 'T_c'" in capsys.readouterr().err
 
 
-def test_readme_starts_with_the_two_commands():
-    lines = [line for line in (ROOT / "README.md").read_text().splitlines() if line.strip()]
-    assert lines[0].startswith("# ")
-    commands = [line.split("#")[0].strip() for line in lines[2:4]]
-    assert commands == ["make reproduce", "make test"]
+def test_readme_first_screen_introduces():
+    """Its first screen says what this is and for whom, the two commands, the install with its
+    extras (each one pyproject.toml declares) and starts the example on a plant of one's own."""
+    text = (ROOT / "README.md").read_text()
+    first_screen = "\n".join(text.splitlines()[:40])
+    assert first_screen.startswith("# delaytrack\n")
+    assert "For control engineers and researchers" in first_screen
+    commands = [line.split("#")[0].strip() for line in first_screen.splitlines()]
+    assert commands.index("make reproduce") + 1 == commands.index("make test")
+    assert "pip install -e ." in commands and "```python" in commands
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"][
+        "optional-dependencies"
+    ]
+    named = set(re.findall(r"\[(\w+)\]", first_screen.split("```python")[0]))
+    assert named == {"tutorial", "mujoco", "dask", "live", "docs", "test"} == set(extras)
+
+
+def test_readme_terms_are_defined_at_first_use():
+    """Each term of the paper is explained where the README first uses it: the term's first
+    occurrence lies in its definition."""
+    text = " ".join((ROOT / "README.md").read_text().split())
+    for term, definition in [
+        ("AROLC", "**AROLC**, the adaptive-robust outer-loop controller of Roy & Kar"),
+        ("`h_m`", "**`h_m`**, the largest delay for which the paper's Theorem 1 certifies it"),
+        ("`Δu`", "adaptive-robust term **`Δu`**, whose gain `ĉ` adapts online"),
+        ("AE", "AE (mean absolute error)"),
+        ("S1", "**S1** (`h(t) = 20 + 80 |sin t|` ms)"),
+        ("S2", "**S2** (5 + 120 |sin 0.1t| ms)"),
+        ("PCON", "**PCON** (used for S1, S2 and told the true delay)"),
+        ("PCONf", "**PCONf** (used for S3, S4, which assumes a constant known delay"),
+        ("`h̄`", "assumes a constant known delay **`h̄`**"),
+        ("consistent path", "the **consistent path** (the paper's circle"),
+        ("literal path", "the **literal path** (as printed)"),
+    ]:
+        assert definition in text, term
+        assert text.index(term) == text.index(definition) + definition.index(term), term
 
 
 @pytest.mark.slow
@@ -106,6 +137,13 @@ def test_readme_python_examples_run(tmp_path, monkeypatch, capsys):
     assert "(2, 2501, 2) ['ok', 'ok']" in out and "0.12487" in out
     assert Scenario.from_toml(tmp_path / "my_scenario.toml").duration == 2.0
     assert (tmp_path / "error_S1.png").stat().st_size > 0
+    # The first example, a plant of one's own: it tracks, within Theorem 1's bound, and draws
+    # the figure that scripts/readme_figure.py copies to where the README shows it from.
+    assert re.search(r"^0\s+ok\s+20\.0\s+0\.01\d+", out, re.M), out
+    assert "0.01314" in out
+    assert (tmp_path / "joint.png").stat().st_size > 0
+    assert "(docs/images/readme_joint.png)" in (ROOT / "README.md").read_text()
+    assert (ROOT / "docs" / "images" / "readme_joint.png").stat().st_size > 0
 
 
 def test_readme_user_component_tables_are_the_shipped_examples():

@@ -111,7 +111,18 @@ def test_the_study_is_symmetric_and_uses_the_tuned_gains():
         "claims-S2",
         "claims-S3",
         "claims-S4",
+        "actuators-S1",
+        "actuators-S2",
+        "actuators-S3",
+        "actuators-S4",
     ]
+    # The actuators' cases are the claims' cases, every run with the P3-DX's torque limit.
+    for case in ("S1", "S2", "S3", "S4"):
+        claims, limited = sweeps[f"claims-{case}"], sweeps[f"actuators-{case}"]
+        assert limited.labels == claims.labels
+        for plain, run in zip(claims.spec.runs, limited.spec.runs, strict=True):
+            assert run.scenario.input_limits == robustness.WHEEL_TORQUE_LIMIT
+            assert run.scenario.replace(input_limits=plain.scenario.input_limits) == plain.scenario
     gains = tuning.load_gains()
     # The map's PCONf is PCON's law with PCONf's "all" gains, told s h.
     runs = sweeps["map"].spec.runs
@@ -185,6 +196,16 @@ def test_a_small_study_runs_resumes_and_writes_its_files(tmp_path):
     ):
         assert (tmp_path / f"{name}.csv").is_file()
     assert (tmp_path / "figures" / "robustness_map.png").is_file()
+    # The claims cases on torque-limited wheels: what was commanded beside what was received,
+    # and a run wound up exactly when its commands ran away from what its wheels received.
+    limited = pd.read_csv(tmp_path / "actuators.csv")
+    assert {"median_tv_received_Nm", "wound_up"} <= set(limited.columns)
+    runs = pd.concat(f for name, f in first.runs.items() if name.startswith("actuators-"))
+    ran_away = ~np.isfinite(runs.tv_Nm) | (runs.tv_Nm > robustness.WOUND_UP * runs.tv_received_Nm)
+    assert (runs.wound_up == ran_away).all()
+    kept = runs[~runs.diverged]
+    assert limited.wound_up.sum() == kept.wound_up.sum()
+    assert "torque-limited" in (tmp_path / "report.html").read_text()
     report = (tmp_path / "report.html").read_text()
     assert "Findings" in report and "data:image/png;base64" in report
     # AROLC never reads the delay: the map's non-predictors have no scale.

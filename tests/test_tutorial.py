@@ -81,6 +81,8 @@ def test_tutorial_runs_and_reports_its_results(tmp_path: Path) -> None:
         if output.output_type == "error"
     ]
     assert not errors, errors
+    # The notebook removes its temporary folder (delay log, sweep results) as it ends.
+    assert not list(tmp_path.glob("delaytrack-tutorial-*"))
     assert all(
         cell.execution_count is not None for cell in notebook.cells if cell.cell_type == "code"
     )

@@ -107,15 +107,16 @@ def metric_units(
     n: int,
     input_units: Sequence[str | None] | None,
 ) -> dict[str, str | None]:
-    """Each metric of a run (``ae_c``, ``rms_c``, ``max_c`` per coordinate, then ``tv``) and its
-    unit: the coordinate's, and for ``tv`` the inputs' when they share one (else None)."""
+    """Each metric of a run (``ae_c``, ``rms_c``, ``max_c`` per coordinate, then ``tv`` and
+    ``tv_applied``) and its unit: the coordinate's, and for the TVs the inputs' when they share
+    one (else None)."""
     names = default_names(coordinate_names, n)
     units = tuple(coordinate_units) if coordinate_units is not None else (None,) * n
     out: dict[str, str | None] = {}
     for prefix in _COORDINATE_METRICS:
         out.update({f"{prefix}_{name}": unit for name, unit in zip(names, units, strict=True)})
     shared = set(input_units) if input_units else set()
-    out["tv"] = shared.pop() if len(shared) == 1 else None
+    out["tv"] = out["tv_applied"] = shared.pop() if len(shared) == 1 else None
     return out
 
 

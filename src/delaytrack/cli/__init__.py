@@ -2,9 +2,10 @@
 
 Commands, one module each (``add_command(commands)`` adds it, its handler runs it)::
 
-    delaytrack bound --k1 1 --k2 1 [--q 1] [--beta 1] [--r 1.1] [--n 5] [--json]
-    delaytrack margin --k1 1 --k2 1 [--q 1] [--beta 1] [--r 1.1] [--n 5] [--json]
+    delaytrack bound --k1 1 --k2 1 [--q 1] [--beta 1] [--r 1.1] [--n 5] [--json] [--quiet]
+    delaytrack margin --k1 1 --k2 1 [--q 1] [--beta 1] [--r 1.1] [--n 5] [--json] [--quiet]
     delaytrack design [--n 2] [--gain-bound 1] [--min-bandwidth W] [--r 1.1] [--seed 0] [--json]
+        [--quiet]
     delaytrack simulate SCENARIO.toml [--out DIR] [--format parquet|csv|both] [--trust NAME]
         [--quiet]
     delaytrack empirical SCENARIO.toml --threshold VALUE[,VALUE...]
@@ -14,7 +15,7 @@ Commands, one module each (``add_command(commands)`` adds it, its handler runs i
     delaytrack reproduce [--out results] [--duration SECONDS] [--no-dt-check] [--no-contact]
         [--no-robustness] [--size default|full] [--scheduler ADDRESS] [--gains PATH] [--quiet]
         [--job paper|two-link|margins|robustness]
-    delaytrack sweep SPEC.toml [--out DIR] [--scheduler ADDRESS] [--workers N] [--trust NAME]
+    delaytrack sweep SWEEP.toml [--out DIR] [--scheduler ADDRESS] [--workers N] [--trust NAME]
         [--quiet]
     delaytrack tune-baselines [--out PATH] [--quiet]
     delaytrack tradeoff SCENARIO [--zeta Z] [--omega LO HI N] [--draws N] [--out DIR]
@@ -22,7 +23,8 @@ Commands, one module each (``add_command(commands)`` adds it, its handler runs i
 
 and ``delaytrack live ...`` (:mod:`delaytrack.live.cli`, added when the parser is built).
 
-Long work shows progress bars on stderr; ``--quiet`` turns them off, in every command.
+Long work shows progress bars on stderr; ``--quiet`` turns them off, and every command accepts
+it (where nothing runs long it changes nothing). ``delaytrack`` alone prints the commands.
 
 A factory that a scenario or sweep file names (``type = "python:..."``) is Python code: only a
 ``.py`` file beside that file (or below) runs unless ``--trust NAME`` (repeatable: a module name,

@@ -26,9 +26,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     parser = build_parser()
     argv = sys.argv[1:] if argv is None else list(argv)
-    if not argv:  # a bare call: the commands and what they do
+    if not argv:  # a bare call: the commands and what they do, as --help
         parser.print_help()
-        return EXIT_USAGE
+        return 0
     args = parser.parse_args(argv)
     try:
         with every_run_interruptible():  # Ctrl-C ends even a run whose kernel never returns

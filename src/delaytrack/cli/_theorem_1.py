@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from delaytrack._cli_options import integer
+from delaytrack._cli_options import integer, quiet_argument
 from delaytrack.cli._numbers import numbers, scalar
 from delaytrack.cli._usage import UsageError, flagged
 
@@ -32,22 +32,37 @@ _FLAGS = {"K1": "--k1", "K2": "--k2", "Q": "--q", "beta": "--beta", "r": "--r"}
 
 
 def theorem_1_arguments(command: argparse.ArgumentParser, q_default: str | None) -> None:
-    """Add --k1, --k2, --q, --beta, --r, --n and --json; --q is required when it has no default."""
+    """Add --k1, --k2, --q, --beta, --r, --n, --json and --quiet; --q is required when it has no
+    default."""
     command.add_argument(
         "--k1",
         required=True,
         metavar="K1",
-        help="proportional gain K1: a number (times I) or a comma list (the diagonal), e.g. 1,2",
+        help="proportional gain K1 of the outer loop, 1/s^2: a number (times I) or a comma list "
+        "of n (the diagonal), e.g. 1,2",
     )
-    command.add_argument("--k2", required=True, metavar="K2", help="derivative gain K2 (n)")
+    command.add_argument(
+        "--k2",
+        required=True,
+        metavar="K2",
+        help="derivative gain K2 of the outer loop, 1/s: a number (times I) or a comma list of n "
+        "(the diagonal)",
+    )
     command.add_argument(
         "--q",
         required=q_default is None,
         default=q_default,
         metavar="Q",
-        help="Lyapunov weight Q (2n)" + ("" if q_default is None else f" (default {q_default})"),
+        help="weight Q of the Lyapunov equation A^T P + P A = -Q, no unit: a number (times I) or "
+        "a comma list of 2n (the diagonal)"
+        + ("" if q_default is None else f" (default {q_default})"),
     )
-    command.add_argument("--beta", default="1", metavar="BETA", help="beta > 0 (default 1)")
+    command.add_argument(
+        "--beta",
+        default="1",
+        metavar="BETA",
+        help="weight beta > 0 of Theorem 1's inequality, no unit (default 1, the paper's)",
+    )
     command.add_argument(
         "--n",
         type=integer,
@@ -58,13 +73,18 @@ def theorem_1_arguments(command: argparse.ArgumentParser, q_default: str | None)
 
 
 def r_and_json_arguments(command: argparse.ArgumentParser) -> None:
-    """Add --r (the Razumikhin factor) and --json."""
+    """Add --r (the Razumikhin factor), --json and --quiet (accepted as by every command;
+    nothing here runs long enough for a progress bar)."""
     command.add_argument(
-        "--r", default="1.1", metavar="R", help="Razumikhin factor r > 1 (default 1.1)"
+        "--r",
+        default="1.1",
+        metavar="R",
+        help="Razumikhin factor r > 1 in V(e(xi)) < r V(e(t)), no unit (default 1.1, the paper's)",
     )
     command.add_argument(
         "--json", action="store_true", help="print one JSON object instead of text"
     )
+    quiet_argument(command, "progress bars (none here: the computation is short)")
 
 
 def joints(n: int) -> int:

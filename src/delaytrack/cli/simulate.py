@@ -3,12 +3,20 @@
 from __future__ import annotations
 
 import argparse
+import math
+import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from delaytrack._cli_options import quiet_argument, trust_argument
 from delaytrack._output import check_output_folder
 from delaytrack.cli._scenarios import scenario_source, trusted
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from delaytrack.experiments.scenario_run import RunOutput
 
 __all__ = ["add_command", "run"]
 
@@ -19,7 +27,9 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         "simulate",
         help="run one scenario file and write a results folder",
         description="Run a scenario TOML file (or the name of a shipped scenario such as "
-        "two_link_S1) and write scenario.toml (as run), trajectories, metrics.csv and figures.",
+        "two_link_S1) and write scenario.toml (as run), trajectories, metrics.csv and figures. "
+        "For AROLC it prints Theorem 1's certified delay bound h_m and says when the run's "
+        "largest delay exceeds it (not instability: the end of the guarantee).",
     )
     command.add_argument(
         "scenario", metavar="SCENARIO", help="scenario .toml file or built-in name"
@@ -61,8 +71,40 @@ def run(args: argparse.Namespace) -> int:
         f"simulated {scenario.name!r}: {scenario.duration:g} s in {seconds:.1f} s wall time, "
         f"status {status}"
     )
-    print(output.result.summary().to_string(float_format=lambda v: f"{v:.4g}"))
+    print(_summary(output).to_string(float_format=lambda v: f"{v:.4g}"))
+    _certified_bound(output)
     print(f"wrote {len(output.files)} files to {folder}/:")
     for path in output.files:
         print(f"  {path.relative_to(folder)}")
     return 0
+
+
+def _summary(output: RunOutput) -> pd.DataFrame:
+    """The run's summary table, its TV columns with the inputs' unit when they share one."""
+    from delaytrack._result_columns import metric_units
+    from delaytrack.units import labelled
+
+    result = output.result
+    unit = metric_units(
+        result.coordinate_names, result.coordinate_units, result.n, result.input_units
+    )["tv"]
+    summary = result.summary()
+    return summary.rename(columns={c: labelled(c, unit) for c in summary if c.startswith("TV")})
+
+
+def _certified_bound(output: RunOutput) -> None:
+    """For AROLC, Theorem 1's h_m, and one line on stderr when the run's largest delay exceeds
+    it (:mod:`delaytrack.sim.certified_bound`)."""
+    from delaytrack.sim.certified_bound import beyond_certified_bound, certified_bounds
+
+    built = output.scenario.build()  # remembered from the run: nothing is constructed again
+    h_m = certified_bounds([built.controller])[0]
+    if not math.isfinite(h_m):  # not AROLC: no certificate
+        return
+    print(
+        f"AROLC's certified delay bound h_m = {h_m:.6g} s ({1e3 * h_m:.4g} ms; Theorem 1 with "
+        "the scenario's K1, K2, Q and the paper's beta = 1, r = 1.1)"
+    )
+    warning = beyond_certified_bound([built.controller], [built.delay], output.result)
+    if warning is not None:
+        print(f"warning: {warning}", file=sys.stderr)

@@ -25,7 +25,12 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         "units. At the end: runs.parquet/.csv, summary.csv (per controller x delay class), "
         "figures/ and report.html.",
     )
-    command.add_argument("spec", help="sweep file (TOML)")
+    command.add_argument(
+        "spec",
+        metavar="SWEEP",
+        help="sweep file (TOML: a base scenario with [grid] and [random] tables over its keys; "
+        "not a scenario file)",
+    )
     command.add_argument(
         "--out", default=None, metavar="DIR", help="results folder (default results/sweeps/<name>)"
     )

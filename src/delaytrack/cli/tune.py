@@ -21,7 +21,8 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         description="Tune AROLC, PCON, PCON in wheel space and PCONf by the same seeded "
         "worst-case grid search (delaytrack.experiments.tuning), one gain set for all delays and "
         "one per delay class each, and write the chosen gains, grids and per-condition results "
-        "as TOML (default: the package's data/baseline_gains.toml, which the paper job reads).",
+        "as TOML to --out (default results/baseline_gains.toml). The paper job reads the gains "
+        "shipped with the package unless given this file with delaytrack reproduce --gains.",
     )
     command.add_argument(
         "--out",

@@ -405,6 +405,7 @@ def empirical_margin(
                 trajectories=False,
                 metrics_from=settings["settle"],
                 error_bound=scenario.simulated_error_bound,
+                u_init=scenario.simulated_u_init,
                 input_limits=scenario.simulated_input_limits,
                 measurement_noise=scenario.simulated_measurement_noise,
                 packet_loss=scenario.simulated_packet_loss,

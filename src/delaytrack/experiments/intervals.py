@@ -35,11 +35,14 @@ def median_interval(values: Sequence[float], seed: int = 0) -> tuple[float, floa
     median = float(np.median(data))
     if len(data) < 2 or np.all(data == data[0]):
         return median, median if len(data) > 1 else math.nan, median if len(data) > 1 else math.nan
-    result = stats.bootstrap(
-        (data,),
-        np.median,
-        n_resamples=2000,
-        method="percentile",
-        random_state=np.random.default_rng(seed),
-    )
+    # The percentile interval needs only the resampled medians; SciPy's standard error of
+    # them may overflow for huge values (a wound-up controller's TV), harmlessly.
+    with np.errstate(over="ignore", invalid="ignore"):
+        result = stats.bootstrap(
+            (data,),
+            np.median,
+            n_resamples=2000,
+            method="percentile",
+            random_state=np.random.default_rng(seed),
+        )
     return median, float(result.confidence_interval.low), float(result.confidence_interval.high)

@@ -42,12 +42,28 @@ def outcome_table(frame: pd.DataFrame, by: list[str]) -> pd.DataFrame:
                 "median_tv_Nm": tv[0],
                 "median_tv_ci_low_Nm": tv[1],
                 "median_tv_ci_high_Nm": tv[2],
+                **_received(kept),
                 "median_t_stop_of_diverged_s": (
                     float(group[group.diverged].t_stop_s.median()) if k else math.nan
                 ),
             }
         )
     return pd.DataFrame(rows)
+
+
+def _received(kept: pd.DataFrame) -> dict[str, float]:
+    """Of the runs that stayed on the path: how many wound up (their commands ran away from
+    what the wheels received) and the median TV (N·m) of what the wheels received, with its
+    bootstrap interval, when the runs have it (``tv_received_Nm``)."""
+    if "tv_received_Nm" not in kept:
+        return {}
+    median, low, high = median_interval(kept.tv_received_Nm)
+    return {
+        "wound_up": int(kept.wound_up.sum()),
+        "median_tv_received_Nm": median,
+        "median_tv_received_ci_low_Nm": low,
+        "median_tv_received_ci_high_Nm": high,
+    }
 
 
 def delay_reach(table: pd.DataFrame) -> pd.DataFrame:

@@ -70,6 +70,7 @@ from delaytrack.experiments.verdicts import (
     survival_verdicts,
     verdict_counts,
 )
+from delaytrack.plants.robot import P3DX_WHEEL_TORQUE_LIMIT as WHEEL_TORQUE_LIMIT
 from delaytrack.report.robustness import write_robustness
 from delaytrack.scenario import Scenario, load_builtin
 from delaytrack.sweeps import SweepSpec, run_sweep
@@ -108,6 +109,10 @@ __getattr__ = moved_names(
 SCALES: tuple[float, ...] = (0.5, 0.75, 1.0, 1.25, 1.5, 2.0)
 #: Constant true delays of the map (s): the tuning covered 20–140 ms.
 TRUE_DELAYS: tuple[float, ...] = (0.02, 0.06, 0.1, 0.12, 0.13, 0.15, 0.2, 0.3)
+#: A run *wound up* when its commanded TV exceeds this many times the TV its wheels received:
+#: the controller's commands ran away while the torque limit held the wheels (without limits
+#: the two differ only by the delay's shift).
+WOUND_UP = 100.0
 #: Seconds of command history of the study's predictors (the longest told window is 0.6 s).
 HISTORY = 0.65
 #: Measurement noise of the noisy runs: the P3-DX's wheel encoders (500 ticks per motor turn
@@ -321,7 +326,9 @@ def _knowledge_sweep(gains: Gains, case: str, draws: int) -> _Sweep:
     return _Sweep(f"knowledge-{case}", _spec(grid, draws), labels)
 
 
-def _claims_sweep(gains: Gains, case: str, draws: int) -> _Sweep:
+def _claims_sweep(gains: Gains, case: str, draws: int, limited: bool = False) -> _Sweep:
+    """The claims case ``case`` (``claims-<case>``), or with every wheel's torque limited to
+    :data:`WHEEL_TORQUE_LIMIT` (``actuators-<case>``)."""
     gain_set = DELAY_CLASS[case]
     tuned = _tuned_arolc(gains, gain_set)
     baseline = BASELINE[case]
@@ -340,13 +347,16 @@ def _claims_sweep(gains: Gains, case: str, draws: int) -> _Sweep:
         for level, _ in noise
         for name, _ in rows
     ]
-    grid = {
+    grid: dict[str, list[Any]] = {
         "delay": [_SCENARIOS[case]],
         "measurement_noise": [table for _, table in noise],
         "controller": [table for _, table in rows],
     }
+    if limited:
+        grid = {"input_limits": [WHEEL_TORQUE_LIMIT], **grid}
     noise_seed = {"measurement_noise.seed": {"dist": "integers", "low": 0, "high": 2**32 - 1}}
-    return _Sweep(f"claims-{case}", _spec(grid, draws, noise_seed), labels)
+    name = f"{'actuators' if limited else 'claims'}-{case}"
+    return _Sweep(name, _spec(grid, draws, noise_seed), labels)
 
 
 def study_specs(
@@ -360,6 +370,7 @@ def study_specs(
         _map_sweep(chosen, size.map),
         *(_knowledge_sweep(chosen, case, size.knowledge) for case in ("S1", "S2")),
         *(_claims_sweep(chosen, case, size.claims) for case in _SCENARIOS),
+        *(_claims_sweep(chosen, case, size.claims, limited=True) for case in _SCENARIOS),
     ]
 
 
@@ -378,6 +389,9 @@ def _runs_frame(sweep: _Sweep, runs: pd.DataFrame) -> pd.DataFrame:
     frame["coulomb_friction_Nm"] = runs["plant.coulomb_friction"].to_numpy()
     frame["ae_mm"] = (500.0 * (runs.ae_x + runs.ae_y)).to_numpy()
     frame["tv_Nm"] = runs.tv.to_numpy()
+    frame["tv_received_Nm"] = runs.tv_applied.to_numpy()
+    # the commands ran away from what the wheels received (a controller wound up at a limit)
+    frame["wound_up"] = ~np.isfinite(frame.tv_Nm) | (frame.tv_Nm > WOUND_UP * frame.tv_received_Nm)
     frame["status"] = runs.status.to_numpy()
     frame["t_stop_s"] = runs.t_stop.to_numpy()
     frame["diverged"] = (
@@ -562,6 +576,9 @@ class RobustnessStudy:
     claims : DataFrame
         :func:`~delaytrack.experiments.outcomes.outcome_table` per (scenario, noise,
         controller).
+    actuators : DataFrame
+        The same for the claims cases run again with every wheel's torque limited to
+        ``wheel_torque_limit``: TV commanded and TV received, and the runs that wound up.
     verdicts : DataFrame
         :func:`~delaytrack.experiments.verdicts.claim_verdicts`, one row per claim, with the
         delays of its scenario and of the tuning beside it (:func:`_with_tuning_envelope`).
@@ -594,7 +611,9 @@ class RobustnessStudy:
 
     The design travels with every study as class attributes: ``scales`` (:data:`SCALES`),
     ``true_delays`` (:data:`TRUE_DELAYS`, s), ``predictors`` (the controllers told the delay),
-    ``friction`` (the drawn friction ranges), ``diverged_ae_mm``, ``alpha`` (the verdicts'
+    ``friction`` (the drawn friction ranges), ``wheel_torque_limit`` (N·m, every run's
+    actuator limit in the ``actuators`` sweeps), ``wound_up`` (:data:`WOUND_UP`),
+    ``diverged_ae_mm``, ``alpha`` (the verdicts'
     family-wise error rate) and ``min_decided`` (the fewest decided draws of a verdict).
     """
 
@@ -602,6 +621,8 @@ class RobustnessStudy:
     true_delays: ClassVar[tuple[float, ...]] = TRUE_DELAYS
     predictors: ClassVar[tuple[str, ...]] = tuning.PREDICTORS
     friction: ClassVar[Mapping[str, Mapping[str, Any]]] = FRICTION
+    wheel_torque_limit: ClassVar[float] = WHEEL_TORQUE_LIMIT
+    wound_up: ClassVar[float] = WOUND_UP
     diverged_ae_mm: ClassVar[float] = DIVERGED_AE_MM
     alpha: ClassVar[float] = ALPHA
     min_decided: ClassVar[int] = MIN_DECIDED
@@ -614,6 +635,7 @@ class RobustnessStudy:
     map: pd.DataFrame
     knowledge: pd.DataFrame
     claims: pd.DataFrame
+    actuators: pd.DataFrame
     verdicts: pd.DataFrame
     survival_verdicts: pd.DataFrame
     verdict_counts: pd.DataFrame
@@ -676,6 +698,7 @@ def run_robustness(
     seconds = time.perf_counter() - start
     knowledge = pd.concat([f for n, f in frames.items() if n.startswith("knowledge")])
     claims = pd.concat([f for n, f in frames.items() if n.startswith("claims")])
+    limited = pd.concat([f for n, f in frames.items() if n.startswith("actuators")])
     map_runs = refined_map(frames["map"], [frames[sweep.name] for sweep in edges])
     map_outcomes = outcome_table(map_runs, cell)
     knowledge_outcomes = outcome_table(knowledge, ["scenario", "controller", "scale"])
@@ -694,6 +717,7 @@ def run_robustness(
         map=map_outcomes,
         knowledge=knowledge_outcomes,
         claims=outcome_table(claims, ["scenario", "noise", "controller"]),
+        actuators=outcome_table(limited, ["scenario", "noise", "controller"]),
         verdicts=verdicts,
         survival_verdicts=survival_verdicts(verdicts),
         verdict_counts=verdict_counts(verdicts),

@@ -111,7 +111,9 @@ def _bridge_argument(command: argparse.ArgumentParser) -> None:
 
 
 def _node_arguments(command: argparse.ArgumentParser, role: str) -> None:
-    command.add_argument("scenario", help="scenario file, or the name of a shipped scenario")
+    command.add_argument(
+        "scenario", metavar="SCENARIO", help="scenario file, or the name of a shipped scenario"
+    )
     command.add_argument(
         "--out",
         required=True,
@@ -273,7 +275,9 @@ def add_live_commands(commands: Any) -> None:
         "machine (Zenoh peers on tcp/127.0.0.1), wait for the session to end, and write the "
         "MCAP logs, ticks.csv, delays.csv and summary.json into --out.",
     )
-    run.add_argument("scenario", help="scenario file, or the name of a shipped scenario")
+    run.add_argument(
+        "scenario", metavar="SCENARIO", help="scenario file, or the name of a shipped scenario"
+    )
     run.add_argument(
         "--duration",
         type=_POSITIVE_SECONDS,

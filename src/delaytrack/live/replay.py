@@ -88,6 +88,7 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
         t1=t1,
         dt=dt,
         T_c=T_c,
+        u_init=scenario.simulated_u_init,
         input_limits=scenario.simulated_input_limits,
         packet_loss=loss if loss.probability > 0 else None,
         measurement_noise=None if noise_spec is None else MeasurementNoise(**noise_spec),

@@ -26,9 +26,10 @@ advances one step per write, is read and written at each of them on that wake-up
 at the tick times published late; a robot that lives in real time is read and written once, for
 the latest step.
 
-Safety: before the first command, and when no released command has arrived for
-``--command-timeout`` seconds (default ``max(0.1 s, 10·T_c)``), the node writes zero input;
-those steps are counted and logged. A bridge call that raises, or a state read that is not
+Safety: before the first command the node writes the scenario's ``u_init`` (zero unless the
+scenario sets it, as the simulator does), and when no released command has arrived for
+``--command-timeout`` seconds (default ``max(0.1 s, 10·T_c)``) zero input; those steps are
+counted and logged. A bridge call that raises, or a state read that is not
 finite or has the wrong shape (the simulated plant's state that is not finite, or a mass
 matrix that is not positive definite), stops the node: one line on stderr, the bridge closed,
 the log and tables written up to that step, exit code 1.
@@ -240,6 +241,10 @@ class RobotNode(NodeBase):
         )
         self.x = np.zeros(2 * self.n)  # the state read last
         self.u = np.zeros(self.m)  # the input written last
+        # the input before the first command: the scenario's u_init, as the simulator's
+        self.u_init = (
+            np.zeros(self.m) if scenario.u_init is None else np.array(scenario.u_init, float)
+        )
         self.steps: list[list[Any]] = []
         self.states: list[list[Any]] = []
         self.applied: list[list[Any]] = []
@@ -331,7 +336,7 @@ class RobotNode(NodeBase):
                             apply_at=s,
                         )
             if current is None:
-                u[:], status = 0.0, "no-command"
+                u[:], status = self.u_init, "no-command"
             elif now - last_arrival > self.command_timeout:
                 u[:], status = 0.0, "timeout-zero"
             else:

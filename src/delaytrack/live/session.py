@@ -393,8 +393,8 @@ def format_summary(summary: dict[str, Any], folder: Path) -> str:
             f"{summary.get('not_received', 0)} sent but never received, "
             f"{d.get('released', 0)} releases",
             f"  robot: {r.get('steps', 0)} steps, {r.get('missed_steps', 0)} missed, lateness p99 "
-            f"{ms(r.get('lateness_ms_p99'))}, zero input {r.get('no_command_steps', 0)} steps "
-            f"before the first command + {r.get('timeout_zero_steps', 0)} on timeout",
+            f"{ms(r.get('lateness_ms_p99'))}, u_init {r.get('no_command_steps', 0)} steps before "
+            f"the first command + zero input {r.get('timeout_zero_steps', 0)} on timeout",
             f"  realised delay - h(t_applied): p50 {ms(summary['realised_minus_h_ms_p50'])}, "
             f"|.| p99 {ms(summary['realised_minus_h_abs_ms_p99'])} (the exact rule on the step "
             f"grid alone: {ms(summary.get('realised_minus_h_abs_ms_p99_of_the_rule'))}); "

@@ -7,17 +7,25 @@ Build it block by block and write it once::
     report.paragraph("AROLC ...")
     report.table(summary)
     report.figure(error_figure(...), "Tracking error under S1")
+    with report.folded("Tuning grids"):
+        report.table(grid)
     report.write("results/two-link/report.html")
 
-Text is HTML-escaped; tables come from DataFrames and figures from matplotlib Figures (or PNG
-bytes).
+Every page is laid out for reading in a browser window of 1280 px: a table of contents of its
+sections (the level-2 headings) under the title; text in a column of readable width, tables
+and figures in the window's width; text columns of tables left-aligned, numbers right-aligned
+(:func:`~delaytrack.report.tables.frame_to_html`); detail folded (:meth:`HtmlReport.folded`).
+Text is HTML-escaped; a path to another report in it (``../robustness/report.html``) is a link.
+Tables come from DataFrames and figures from matplotlib Figures (or PNG bytes).
 """
 
 from __future__ import annotations
 
 import base64
 import html
-from collections.abc import Iterable, Mapping
+import re
+from collections.abc import Iterable, Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 
 import pandas as pd
@@ -30,18 +38,23 @@ from delaytrack.report.tables import frame_to_html
 __all__ = ["HtmlReport"]
 
 _STYLE = """
-body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; max-width: 60rem;
+body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; max-width: 76rem;
        margin: 2rem auto; padding: 0 1rem; line-height: 1.45; color: #222; }
+p, ul, ol, h1, h2, h3, h4, figcaption, nav, summary { max-width: 60rem; }
 h1 { border-bottom: 2px solid #ccc; padding-bottom: .3rem; }
 h2 { margin-top: 2rem; border-bottom: 1px solid #ddd; }
-table.data, table.settings { border-collapse: collapse; margin: .8rem 0; font-size: .9rem; }
+nav.toc { background: #f7f7f7; border: 1px solid #e2e2e2; padding: .4rem 1rem; }
+nav.toc ol { margin: .3rem 0; }
+a { color: #0b57a4; }
+table.data, table.settings { border-collapse: collapse; margin: .8rem 0; font-size: .85rem; }
 table.data th, table.data td, table.settings th, table.settings td {
-       border: 1px solid #ccc; padding: .25rem .6rem; text-align: right; }
-table.settings th { text-align: left; background: #f5f5f5; }
-table.settings td { text-align: left; }
-table.data th { background: #f0f0f0; }
+       border: 1px solid #ccc; padding: .2rem .45rem; text-align: left; vertical-align: top; }
+table.data .num { text-align: right; font-variant-numeric: tabular-nums; }
+table.settings th { background: #f5f5f5; }
+table.data th { background: #f0f0f0; white-space: normal; }
 .wide { overflow-x: auto; max-width: 100%; }
-table.data th { white-space: normal; }
+details { margin: .8rem 0; }
+summary { cursor: pointer; font-weight: 600; }
 figure { margin: 1.2rem 0; }
 figure img { max-width: 100%; border: 1px solid #eee; }
 figcaption { font-size: .9rem; color: #555; }
@@ -49,6 +62,13 @@ code, pre { background: #f6f6f6; font-size: .88rem; }
 pre { padding: .6rem; overflow-x: auto; }
 .note { background: #fff8e1; border-left: 4px solid #f0c040; padding: .5rem .8rem; }
 """
+#: A path to another report in the text: ``../robustness/report.html``, ``report.html``.
+_REPORT_PATH = re.compile(r"(?<![\w/.-])((?:\.\./|\./)?(?:[\w.-]+/)*[\w.-]+\.html)(?![\w/])")
+
+
+def _linked(text: str) -> str:
+    """``text`` escaped, each path to another report in it a link."""
+    return _REPORT_PATH.sub(r'<a href="\1">\1</a>', html.escape(text))
 
 
 class HtmlReport:
@@ -63,22 +83,40 @@ class HtmlReport:
     def __init__(self, title: str) -> None:
         self.title = title
         self._blocks: list[str] = []
+        self._sections: list[tuple[str, str]] = []  # (anchor, text) of each level-2 heading
 
     def heading(self, text: str, level: int = 2) -> None:
-        """A section heading (``level`` 2 to 4)."""
+        """A section heading (``level`` 2 to 4); a level-2 heading is listed in the table of
+        contents."""
         if level not in (2, 3, 4):
             raise ValueError(f"level must be 2, 3 or 4; got {level!r}")
-        self._blocks.append(f"<h{level}>{html.escape(text)}</h{level}>")
+        if level == 2:
+            anchor = f"section-{len(self._sections) + 1}"
+            self._sections.append((anchor, text))
+            self._blocks.append(f'<h2 id="{anchor}">{html.escape(text)}</h2>')
+        else:
+            self._blocks.append(f"<h{level}>{html.escape(text)}</h{level}>")
 
     def paragraph(self, text: str, *, note: bool = False) -> None:
-        """A paragraph of plain text (escaped); ``note`` highlights it."""
+        """A paragraph of plain text (escaped; paths to other reports linked); ``note``
+        highlights it."""
         css = ' class="note"' if note else ""
-        self._blocks.append(f"<p{css}>{html.escape(text)}</p>")
+        self._blocks.append(f"<p{css}>{_linked(text)}</p>")
 
     def bullets(self, items: Iterable[str]) -> None:
-        """An unordered list of plain-text items."""
-        body = "".join(f"<li>{html.escape(item)}</li>" for item in items)
+        """An unordered list of plain-text items (escaped; paths to other reports linked)."""
+        body = "".join(f"<li>{_linked(item)}</li>" for item in items)
         self._blocks.append(f"<ul>{body}</ul>")
+
+    @contextmanager
+    def folded(self, summary: str) -> Iterator[None]:
+        """The blocks added inside the ``with`` block, folded under ``summary`` (a
+        ``<details>`` element the reader opens): detail that most readers skip."""
+        self._blocks.append(f"<details><summary>{html.escape(summary)}</summary>")
+        try:
+            yield
+        finally:
+            self._blocks.append("</details>")
 
     def settings(self, rows: Mapping[str, str]) -> None:
         """A two-column table ``name | value`` of plain text."""
@@ -88,12 +126,21 @@ class HtmlReport:
         )
         self._blocks.append(f'<div class="wide"><table class="settings">{body}</table></div>')
 
-    def table(self, frame: pd.DataFrame, caption: str | None = None, *, digits: int = 4) -> None:
-        """A DataFrame as a table, with an optional caption above it."""
+    def table(
+        self,
+        frame: pd.DataFrame,
+        caption: str | None = None,
+        *,
+        digits: int = 4,
+        missing: str = "NaN",
+    ) -> None:
+        """A DataFrame as a table, with an optional caption above it; a missing value shows as
+        ``missing`` (say ``"—"`` where a value does not apply)."""
         if caption:
-            self._blocks.append(f"<p><em>{html.escape(caption)}</em></p>")
-        # A wide table scrolls inside its own box; the page never gets wider than the window.
-        self._blocks.append(f'<div class="wide">{frame_to_html(frame, digits=digits)}</div>')
+            self._blocks.append(f"<p><em>{_linked(caption)}</em></p>")
+        # A table too wide for the window would scroll inside its own box, never the page.
+        table = frame_to_html(frame, digits=digits, missing=missing)
+        self._blocks.append(f'<div class="wide">{table}</div>')
 
     def code(self, text: str) -> None:
         """Preformatted text (e.g. a scenario file)."""
@@ -110,14 +157,25 @@ class HtmlReport:
         )
 
     def render(self) -> str:
-        """The complete HTML document."""
+        """The complete HTML document: the title, the table of contents (with two sections or
+        more), then the blocks."""
         body = "\n".join(self._blocks)
         title = html.escape(self.title)
         return (
             '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8"/>\n'
             f"<title>{title}</title>\n<style>{_STYLE}</style>\n</head>\n<body>\n"
-            f"<h1>{title}</h1>\n{body}\n</body>\n</html>\n"
+            f"<h1>{title}</h1>\n{self._contents()}{body}\n</body>\n</html>\n"
         )
+
+    def _contents(self) -> str:
+        """The table of contents: a link to each level-2 heading."""
+        if len(self._sections) < 2:
+            return ""
+        items = "".join(
+            f'<li><a href="#{anchor}">{html.escape(text)}</a></li>'
+            for anchor, text in self._sections
+        )
+        return f'<nav class="toc"><strong>Contents</strong><ol>{items}</ol></nav>\n'
 
     def write(self, path: str | Path) -> Path:
         """Write the document atomically to ``path``; return the path."""

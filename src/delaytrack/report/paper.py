@@ -557,6 +557,7 @@ def _tuned_section(
         chosen,
         "Chosen gains per controller and gain set (objective: worst mean AE over the set's "
         "tuning conditions, mm; certified h_m in ms, AROLC only).",
+        missing="—",
     )
     report.paragraph(
         f"Certification caveat: Theorem 1 certifies the tuned AROLC only up to h_m = "
@@ -615,7 +616,7 @@ def _literal_paragraph(study: PaperStudy, literal_summary: pd.DataFrame | None) 
         where = "this run"
     elif literal_summary is not None:
         frame = literal_summary
-        where = "the sibling run ../paper-literal/"
+        where = "the sibling run ../paper-literal/report.html"
     else:
         return text + " The literal run is written by `delaytrack reproduce` to paper-literal/."
     rows = "; ".join(
@@ -740,16 +741,21 @@ def _tuning_section(report: HtmlReport, study: PaperStudy) -> None:
         )
         + "."
     )
-    for (kind, gain_set), grid in study.findings.tuning_grids.items():
-        chosen = record[kind][gain_set]
-        report.paragraph(
-            f"{kind}, gain set '{gain_set}': chosen {gains_text(kind, chosen)} "
-            f"(objective {chosen['objective']:.3f} mm; "
-            + ("inside its grid in every gain" if chosen["interior"] else "ON ITS GRID'S EDGE")
-            + f"); {grid.excluded} of {grid.points} grid points diverged (stopped, or mean AE "
-            f"above {tuning.DIVERGED_AE_MM:g} mm) under one of the set's conditions."
-        )
-        report.table(grid.best, f"{kind} ({gain_set}): the five best grid points.")
+    with report.folded("The five best grid points of each controller and gain set"):
+        for (kind, gain_set), grid in study.findings.tuning_grids.items():
+            chosen = record[kind][gain_set]
+            report.paragraph(
+                f"{kind}, gain set '{gain_set}': chosen {gains_text(kind, chosen)} "
+                f"(objective {chosen['objective']:.3f} mm; "
+                + ("inside its grid in every gain" if chosen["interior"] else "ON ITS GRID'S EDGE")
+                + f"); {grid.excluded} of {grid.points} grid points diverged (stopped, or mean AE "
+                f"above {tuning.DIVERGED_AE_MM:g} mm) under one of the set's conditions."
+            )
+            report.table(
+                grid.best,
+                f"{kind} ({gain_set}): the five best grid points (—: a condition not in this set).",
+                missing="—",
+            )
 
 
 def _report(
@@ -780,6 +786,11 @@ def _report(
             ),
             note=True,
         )
+    report.heading("Summary")
+    report.table(study.summary, "summary.csv: AE, RMS, max in mm; %AE of 2500 mm; TV in N·m.")
+    report.heading("Figures")
+    for figure, caption in figures.values():
+        report.figure(figure, caption)
     if robustness is not None:
         _distribution_section(report, robustness)
     report.heading(f"Claims check, one run per case (payload seed {PAYLOAD_SEED})")
@@ -795,8 +806,6 @@ def _report(
     report.paragraph(_claims_summary(study, robustness))
     for text in _explanation(study):
         report.paragraph(text)
-    report.heading("Summary")
-    report.table(study.summary, "summary.csv: AE, RMS, max in mm; %AE of 2500 mm; TV in N·m.")
     _tuned_section(report, study, robustness)
     write_contact_section(report, study)
     report.heading("Tables I–III beside the paper's")
@@ -805,17 +814,14 @@ def _report(
         report.table(table, title)
     report.heading("Literal path")
     report.paragraph(_literal_paragraph(study, literal_summary))
-    write_dt_check(report, study.dt_check, found.half_dt)
-    _tuning_section(report, study)
     report.heading("Settings and modelling decisions")
     report.settings(_settings(study))
     report.paragraph(
         f"Theorem 1's certified delay bound for AROLC's gains: h_m = {study.bound.h_m:.5f} s. "
         + _certified_text(_largest_delays(study), found.certified, "AROLC with the paper's gains")
     )
-    report.heading("Figures")
-    for figure, caption in figures.values():
-        report.figure(figure, caption)
+    write_dt_check(report, study.dt_check, found.half_dt)
+    _tuning_section(report, study)
     report.paragraph(
         f"Simulation wall time: {study.seconds:.1f} s ({len(study.results)} batched simulate() "
         "calls of four runs each"

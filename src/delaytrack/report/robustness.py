@@ -346,16 +346,44 @@ def display_knowledge(table: pd.DataFrame) -> pd.DataFrame:
 
 def display_outcomes(table: pd.DataFrame, by: list[str]) -> pd.DataFrame:
     """:func:`~delaytrack.experiments.outcomes.outcome_table` for reading: divergence and
-    medians with their intervals."""
+    medians with their intervals; the scale of what a predictor is told as "told / true delay",
+    "not told" for a controller told nothing."""
     ae = zip(table.median_ae_mm, table.median_ae_ci_low_mm, table.median_ae_ci_high_mm, strict=True)
     tv = zip(table.median_tv_Nm, table.median_tv_ci_low_Nm, table.median_tv_ci_high_Nm, strict=True)
-    columns: dict[str, Any] = {key: table[key] for key in by}
+    columns: dict[str, Any] = {
+        _TOLD if key == "scale" else key: _told_text(table[key]) if key == "scale" else table[key]
+        for key in by
+    }
     columns["diverged / runs"] = [
         f"{k} / {n}" for k, n in zip(table.diverged, table.runs, strict=True)
     ]
     columns["median AE, mm (95 % CI)"] = [_interval_text(*values) for values in ae]
     columns["median TV, N·m (95 % CI)"] = [_interval_text(*values) for values in tv]
+    if "median_tv_received_Nm" in table:  # runs on torque-limited wheels
+        received = zip(
+            table.median_tv_received_Nm,
+            table.median_tv_received_ci_low_Nm,
+            table.median_tv_received_ci_high_Nm,
+            strict=True,
+        )
+        columns["median TV received, N·m (95 % CI)"] = [
+            _interval_text(*values) for values in received
+        ]
+        columns["wound up / on the path"] = [
+            f"{w} / {n - k}"
+            for w, n, k in zip(table.wound_up, table.runs, table.diverged, strict=True)
+        ]
     return pd.DataFrame(columns)
+
+
+#: The header of the scale of what a predictor is told.
+_TOLD = "told / true delay"
+
+
+def _told_text(scales: pd.Series) -> list[str]:
+    """Each scale of what a predictor is told, or "not told" (NaN: the controller is told
+    nothing)."""
+    return [f"{scale:.4g}" if math.isfinite(scale) else "not told" for scale in scales]
 
 
 def robustness_map(study: RobustnessStudy) -> Figure:
@@ -426,15 +454,16 @@ def write_verdict_tables(report: HtmlReport, study: RobustnessStudy) -> None:
 
 def write_robustness(study: RobustnessStudy, out: str | Path) -> list[Path]:
     """Write ``runs.csv`` (every run), ``map.csv``, ``knowledge.csv``, ``claims.csv``,
-    ``verdicts.csv``, ``attribution.csv``, ``knowledge_table.csv``, the map figure and
-    ``report.html`` into ``out``; return their paths."""
+    ``actuators.csv``, ``verdicts.csv``, ``attribution.csv``, ``knowledge_table.csv``, the map
+    figure and ``report.html`` into ``out``; return their paths."""
     out = Path(out)
     files = []
     every = pd.concat(
         [frame.assign(sweep=name) for name, frame in study.runs.items()], ignore_index=True
     )
     files.append(write_frame(every, out / "runs.csv"))
-    for name in ("map", "knowledge", "claims", "verdicts", "attribution", "knowledge_table"):
+    tables = ("map", "knowledge", "claims", "actuators", "verdicts", "attribution")
+    for name in (*tables, "knowledge_table"):
         files.append(write_frame(getattr(study, name), out / f"{name}.csv"))
     saved = save_figure(robustness_map(study), out / "figures" / "robustness_map")
     files += saved
@@ -510,25 +539,47 @@ def _report(study: RobustnessStudy, image: bytes) -> HtmlReport:
         display_attribution(study.attribution),
         "Paired change of AE (mm) and TV (N·m) per draw, median with bootstrap 95 % interval.",
     )
-    report.heading("Robustness map (table)")
-    report.table(
-        display_outcomes(study.map, ["delay_ms", "controller", "scale"]),
-        "Per true delay (ms), controller and scale: divergence and medians (map.csv).",
-    )
     report.heading("What the predictors tolerate of a wrong delay")
     report.table(
         display_knowledge(study.knowledge_table),
         "Case by case (knowledge_table.csv): divergence rate, median time of leaving the path of "
         "the runs that did, and median AE (mm) of those that did not, beside AROLC's.",
     )
+    report.heading("Robustness map (table)")
+    with report.folded("Per true delay, controller and what it is told"):
+        report.table(
+            display_outcomes(study.map, ["delay_ms", "controller", "scale"]),
+            "Per true delay (ms), controller and the delay it is told as a multiple of the true "
+            "one: divergence and medians (map.csv).",
+        )
     report.heading("Delay knowledge under S1 and S2")
-    report.table(
-        display_outcomes(study.knowledge, ["scenario", "controller", "scale"]),
-        "Predictors told s·h(t) (PCON, PCON-wheel) or s times the profile's long-run mean (PCONf).",
-    )
+    with report.folded("Per scenario, predictor and what it is told"):
+        report.table(
+            display_outcomes(study.knowledge, ["scenario", "controller", "scale"]),
+            "Predictors told s·h(t) (PCON, PCON-wheel) or s times the profile's long-run mean "
+            "(PCONf).",
+        )
     report.heading("S1–S4 per controller and noise level")
+    with report.folded("Per scenario, noise level and controller"):
+        report.table(
+            display_outcomes(study.claims, ["scenario", "noise", "controller"]),
+            "Outcomes per scenario, noise level and controller (claims.csv).",
+        )
+    report.heading("S1–S4 on the P3-DX's wheels: torque-limited actuators")
+    report.paragraph(
+        "The claims cases again, every wheel's torque clipped to "
+        f"±{study.wheel_torque_limit:g} N·m where the wheels receive it (the P3-DX motor's peak "
+        "torque through its gearbox, derived in the documentation's robot page, where its "
+        "uncertainty is given). The verdicts above are those of unlimited actuators; here, "
+        "beside each controller's TV of what it commanded, is the TV of what the wheels "
+        f"received. A run wound up when its commanded TV exceeds {study.wound_up:g} times "
+        "the TV its wheels received: its commands ran away while the limit held the wheels, a "
+        "controller that a real drive would fault or a watchdog would stop, although the robot "
+        "stayed on the path."
+    )
     report.table(
-        display_outcomes(study.claims, ["scenario", "noise", "controller"]),
-        "Outcomes per scenario, noise level and controller (claims.csv).",
+        display_outcomes(study.actuators, ["scenario", "noise", "controller"]),
+        "Outcomes on torque-limited wheels per scenario, noise level and controller "
+        "(actuators.csv).",
     )
     return report

@@ -6,6 +6,8 @@ DataFrames) and return DataFrames; :func:`frame_to_html` renders one for the HTM
 
 from __future__ import annotations
 
+import html
+import re
 from collections.abc import Sequence
 
 import numpy as np
@@ -88,12 +90,68 @@ def relative_difference(
     return pd.DataFrame(ratio, columns=metrics, index=reference.index)
 
 
-def frame_to_html(frame: pd.DataFrame, *, digits: int = 4) -> str:
-    """Render a DataFrame as an HTML table (no index; floats to ``digits`` significant digits)."""
-    return frame.to_html(
-        index=False,
-        border=0,
-        classes="data",
-        float_format=lambda value: f"{value:.{digits}g}",
-        na_rep="NaN",
+def frame_to_html(frame: pd.DataFrame, *, digits: int = 4, missing: str = "NaN") -> str:
+    """Render a DataFrame as an HTML table (no index; floats to ``digits`` significant digits,
+    a missing value as ``missing``).
+
+    Columns of text are left-aligned, columns of numbers right-aligned (class ``num``): a column
+    whose every present cell is a number, or text that starts with one (``"2 / 40"``,
+    ``"3.2 (1.1 to 5)"``). A header may break after ``_`` (``ae_mm_1``), so that a table of
+    many short numbers stays narrow.
+    """
+    columns = [frame.iloc[:, j] for j in range(frame.shape[1])]
+    cells = [[_cell(value, digits, missing) for value in column] for column in columns]
+    numeric = [
+        all(
+            _reads_as_number(value, text, missing)
+            for value, text in zip(column, shown, strict=True)
+        )
+        and any(text != missing for text in shown)
+        for column, shown in zip(columns, cells, strict=True)
+    ]
+    head = "".join(
+        f"<th{_NUMBER_CLASS if number else ''}>{_breakable(str(name))}</th>"
+        for name, number in zip(frame.columns, numeric, strict=True)
     )
+    rows = "".join(
+        "<tr>"
+        + "".join(
+            f"<td{_NUMBER_CLASS if number else ''}>{html.escape(column[i])}</td>"
+            for column, number in zip(cells, numeric, strict=True)
+        )
+        + "</tr>\n"
+        for i in range(len(frame))
+    )
+    return (
+        f'<table class="data">\n<thead><tr>{head}</tr></thead>\n<tbody>\n{rows}</tbody>\n</table>'
+    )
+
+
+_NUMBER_CLASS = ' class="num"'
+#: Text that starts with a number: ``12``, ``-0.5``, ``3e-2 (1 to 4)``, ``2 / 40``.
+_LEADING_NUMBER = re.compile(r"[−+-]?(\d|\.\d)")
+#: Placeholders of a number that is not there.
+_PLACEHOLDERS = ("—", "–", "-", "")
+
+
+def _cell(value: object, digits: int, missing: str) -> str:
+    """A value as the table shows it."""
+    if isinstance(value, float | np.floating):
+        return missing if np.isnan(value) else f"{value:.{digits}g}"
+    if value is None or value is pd.NA or value is pd.NaT:
+        return missing
+    return str(value)
+
+
+def _reads_as_number(value: object, text: str, missing: str) -> bool:
+    """Whether a cell holds a number (or a placeholder of one)."""
+    if isinstance(value, bool | np.bool_):
+        return False
+    if isinstance(value, int | float | np.integer | np.floating):
+        return True
+    return text in (missing, *_PLACEHOLDERS) or bool(_LEADING_NUMBER.match(text))
+
+
+def _breakable(text: str) -> str:
+    """``text`` escaped, with a break opportunity after each ``_``."""
+    return html.escape(text).replace("_", "_<wbr>")

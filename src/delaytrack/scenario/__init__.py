@@ -14,6 +14,7 @@ controller and its gains, the delay profile, the reference, and the numerical se
     input_limits = [5.0, 2.0]   # optional actuator saturation: |u_j| applied at most this
     measurement_noise = { quantization = 0.0015, velocity = 0.01, seed = 3 }   # optional
     packet_loss = { probability = 0.05, seed = 3 }   # optional: lost command packets
+    u_init = [0.0, 0.0]         # optional input before the first command arrives; zeros by default
 
     [plant]                     # the truth: type and parameters
     type = "two-link-arm"

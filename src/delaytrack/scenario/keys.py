@@ -77,6 +77,7 @@ _TOP_LEVEL_SCALARS: dict[str, Callable[[object], str | None]] = {
     "input_limits": input_limits_phrase,
     "measurement_noise": measurement_noise_phrase,
     "packet_loss": packet_loss_phrase,
+    "u_init": vector,
 }
 #: The tables of a scenario, each of a ``type`` of its own.
 TABLES = ("plant", "model", "controller", "delay", "reference")

@@ -124,6 +124,10 @@ class Scenario:
     packet_loss : mapping or None
         Lost command packets: ``{probability, seed}``
         (:class:`~delaytrack.sim.packet_loss.PacketLoss`); none lost when None.
+    u_init : tuple of float or None
+        The input ``u_init`` (m entries, in the inputs' units) the plant receives before the
+        first command arrives, i.e. over ``[0, h(0))``; zeros when None. It must lie within
+        ``input_limits``.
     """
 
     name: str
@@ -142,6 +146,7 @@ class Scenario:
     input_limits: float | tuple[float, ...] | None = None
     measurement_noise: Mapping[str, Any] | None = None
     packet_loss: Mapping[str, Any] | None = None
+    u_init: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         _check_value("name", self.name, string)
@@ -176,6 +181,11 @@ class Scenario:
             _check_value("x0", x0, vector)
             _check_value("x0", x0, _all_finite)
             object.__setattr__(self, "x0", tuple(float(v) for v in x0))
+        if self.u_init is not None:
+            u_init = _plain(self.u_init)
+            _check_value("u_init", u_init, vector)
+            _check_value("u_init", u_init, _all_finite)
+            object.__setattr__(self, "u_init", tuple(float(v) for v in u_init))
         _check_value("record_every", self.record_every, integer)
         if self.record_every < 1:
             raise fail("record_every", "must be >= 1", self.record_every)
@@ -297,6 +307,8 @@ class Scenario:
         for key in ("measurement_noise", "packet_loss"):
             if getattr(self, key) is not None:
                 data[key] = _plain(getattr(self, key))
+        if self.u_init is not None:
+            data["u_init"] = list(self.u_init)
         for table in TABLES:
             data[table] = _plain(getattr(self, table))
         return data
@@ -368,6 +380,10 @@ class Scenario:
                 f"must be one number or m = {plant.m} of them (one per input)",
                 list(self.input_limits),
             )
+        if self.u_init is not None and len(self.u_init) != plant.m:
+            raise fail(
+                "u_init", f"must have m = {plant.m} entries (one per input)", list(self.u_init)
+            )
         if self.x0 is None:
             x0 = np.zeros(2 * plant.n)
         else:
@@ -423,6 +439,11 @@ class Scenario:
     def simulated_input_limits(self) -> float | tuple[float, ...]:
         """``input_limits`` as :func:`~delaytrack.sim.simulate` takes it (``inf``: none set)."""
         return math.inf if self.input_limits is None else self.input_limits
+
+    @property
+    def simulated_u_init(self) -> np.ndarray | None:
+        """``u_init`` as :func:`~delaytrack.sim.simulate` takes it (None: zeros)."""
+        return None if self.u_init is None else np.array(self.u_init)
 
     def run(self, *, progress: bool = False) -> SimResult:
         """Simulate the scenario (batch of one); see :func:`delaytrack.sim.simulate`."""
@@ -481,8 +502,8 @@ def simulate_built(
     Parameters
     ----------
     scenario : Scenario
-        Its times, ``record_every``, error bound, input limits, measurement noise and packet
-        loss.
+        Its times, ``record_every``, error bound, input limits, measurement noise, packet
+        loss and ``u_init``.
     built : BuiltScenario
         ``scenario.build()``: the plant, controller, reference and ``x0`` simulated.
     delay : DelayProfile or list of DelayProfile
@@ -510,6 +531,7 @@ def simulate_built(
             input_limits=scenario.simulated_input_limits,
             measurement_noise=scenario.simulated_measurement_noise,
             packet_loss=scenario.simulated_packet_loss,
+            u_init=scenario.simulated_u_init,
             progress=progress,
         )
     except ValueError as error:

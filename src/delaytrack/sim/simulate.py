@@ -25,6 +25,7 @@ from delaytrack.sim._collect import collect
 from delaytrack.sim._execute import cut, execute
 from delaytrack.sim._machine import available_cores, physical_memory
 from delaytrack.sim._plan import MAX_STEPS, announce, prepare
+from delaytrack.sim.certified_bound import warn_beyond_certified_bound
 from delaytrack.sim.measurement import MeasurementNoise
 from delaytrack.sim.packet_loss import PacketLoss
 from delaytrack.sim.result import SimResult
@@ -136,6 +137,14 @@ def simulate(
     -------
     SimResult
 
+    Warns
+    -----
+    BeyondCertifiedBoundWarning
+        When a run's controller is AROLC and the largest delay of the run exceeds its certified
+        bound ``h_m`` (Theorem 1 with the run's ``K1``, ``K2``, ``Q`` and the paper's ``β = 1``,
+        ``r = 1.1``; :mod:`delaytrack.sim.certified_bound`). Exceeding it is not instability,
+        only the end of the guarantee.
+
     Notes
     -----
     Ctrl-C interrupts a long compiled run at once (``KeyboardInterrupt``): it computes on a
@@ -176,4 +185,6 @@ def simulate(
         compile_engine(built, lambda probes: chunks.arguments(0, probes)) if built.compiled else ()
     )
     execute(chunks, natives, progress)
-    return collect(chunks)
+    result = collect(chunks)
+    warn_beyond_certified_bound(plan.controllers, plan.delays, result)
+    return result

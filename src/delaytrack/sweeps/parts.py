@@ -56,6 +56,7 @@ def _batch_key(run: Run) -> str:
             "state_size": run.state_size,
             "times": [scenario.duration, scenario.dt, scenario.T_c],
             "error_bound": scenario.error_bound,
+            "u_init": scenario.u_init,  # one input before the first command per simulate call
             "reference": dict(scenario.reference),
         }
     )
@@ -75,6 +76,7 @@ def _simulate_batch(runs: list[Run], workers: int | None) -> pd.DataFrame:
             dt=first.dt,
             T_c=first.T_c,
             error_bound=first.simulated_error_bound,
+            u_init=first.simulated_u_init,
             input_limits=np.array(
                 [
                     np.broadcast_to(run.scenario.simulated_input_limits, (b.plant.m,))
@@ -91,7 +93,10 @@ def _simulate_batch(runs: list[Run], workers: int | None) -> pd.DataFrame:
     except ValueError as error:
         indices = [run.index for run in runs]
         raise SweepError(f"runs {indices} cannot be simulated together: {error}") from None
-    frame = metrics_table(result, built[0].plant.coordinate_names).drop(columns="run")
+    # TV received too, for every run: a sweep's tables have the same columns whether or not
+    # its runs have actuator limits.
+    frame = metrics_table(result, built[0].plant.coordinate_names, tv_applied=True)
+    frame = frame.drop(columns="run")
     frame.insert(0, "h_max", [float(b.delay.h_max) for b in built])
     return frame
 

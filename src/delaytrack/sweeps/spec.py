@@ -93,6 +93,7 @@ _SCALARS = (
     "record_every",
     "error_bound",
     "input_limits",
+    "u_init",
     "measurement_noise",
     "packet_loss",
 )
@@ -674,7 +675,8 @@ def _check_runnable(scenario: Scenario, built: BuiltScenario) -> None:
 def _check_metrics(metrics: tuple[str, ...], base: Scenario) -> None:
     built = base.build()
     names = default_names(built.plant.coordinate_names, built.plant.n)
-    valid = [f"{prefix}_{name}" for prefix in ("ae", "rms", "max") for name in names] + ["tv"]
+    valid = [f"{prefix}_{name}" for prefix in ("ae", "rms", "max") for name in names]
+    valid += ["tv", "tv_applied"]
     unknown = [metric for metric in metrics if metric not in valid]
     if unknown:
         raise SweepError(f"sweep key 'metrics': {unknown} unknown; valid metrics are {valid}")

@@ -176,7 +176,7 @@ def summary_table(
     valid = [
         column
         for column in runs.columns
-        if column.split("_")[0] in ("ae", "rms", "max") or column == "tv"
+        if column.split("_")[0] in ("ae", "rms", "max") or column in ("tv", "tv_applied")
     ]
     unknown = [metric for metric in metrics if metric not in valid]
     if unknown:

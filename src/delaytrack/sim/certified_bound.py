@@ -1,0 +1,115 @@
+"""AROLC's certified delay bound beside the delays a run met: Theorem 1's ``h_m`` per run, and
+the warning when a run's largest delay exceeds it.
+
+Theorem 1 (Roy & Kar) certifies AROLC for every input delay ``0 <= h(t) < h_m`` with
+
+    h_m = λ_min(Q) / ‖E‖₂,
+    E = β P B1 (A1 P⁻¹ A1ᵀ + B1 P⁻¹ B1ᵀ + P⁻¹) B1ᵀ P + 2 (r / β) P,
+
+from the run's gains ``K1, K2`` and weight ``Q`` (``AᵀP + PA = −Q``) and the paper's ``β = 1``,
+``r = 1.1`` (:func:`~delaytrack.analysis.razumikhin_bound`). A delay beyond ``h_m`` is not
+instability: the bound is a sufficient condition, and beyond it the guarantee ends, not the
+loop.
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from delaytrack.analysis.razumikhin import PAPER_BETA, PAPER_R, razumikhin_bound
+from delaytrack.controllers.arolc import AROLC
+
+if TYPE_CHECKING:
+    from delaytrack.controllers.base import Controller
+    from delaytrack.delays.base import DelayProfile
+    from delaytrack.sim.result import SimResult
+
+__all__ = [
+    "BeyondCertifiedBoundWarning",
+    "beyond_certified_bound",
+    "certified_bounds",
+    "largest_delays",
+    "warn_beyond_certified_bound",
+]
+
+#: This package's name: a call of ``simulate`` from one of its modules is one of its own jobs.
+_PACKAGE = __name__.partition(".")[0]
+
+
+class BeyondCertifiedBoundWarning(UserWarning):
+    """A run's largest delay exceeds AROLC's certified bound ``h_m`` (Theorem 1, with the run's
+    ``K1``, ``K2``, ``Q`` and the paper's ``β = 1``, ``r = 1.1``).
+
+    This is not instability: Theorem 1 is a sufficient condition, and beyond ``h_m`` the
+    guarantee ends, not the loop. Whether the loop still tracks is then an empirical finding
+    of the run. ``h_m`` and ``largest_delay`` (seconds) hold the numbers of the first run
+    concerned.
+    """
+
+    def __init__(self, message: str, h_m: float, largest_delay: float) -> None:
+        super().__init__(message)
+        self.h_m = h_m
+        self.largest_delay = largest_delay
+
+
+def certified_bounds(controllers: Sequence[Controller]) -> np.ndarray:
+    """Theorem 1's ``h_m`` (seconds) of each controller: AROLC's with its ``K1``, ``K2``, ``Q``
+    and the paper's ``β``, ``r``; NaN for any other controller (no certificate)."""
+    known: dict[int, float] = {}
+    bounds = np.full(len(controllers), np.nan)
+    for i, controller in enumerate(controllers):
+        if isinstance(controller, AROLC):
+            if id(controller) not in known:  # a batch shares one controller often
+                known[id(controller)] = razumikhin_bound(
+                    controller.K1, controller.K2, controller.Q, PAPER_BETA, PAPER_R
+                ).h_m
+            bounds[i] = known[id(controller)]
+    return bounds
+
+
+def largest_delays(result: SimResult, delays: Sequence[DelayProfile]) -> np.ndarray:
+    """The largest delay (seconds) each run met: the largest recorded ``h(t)`` when
+    trajectories were recorded, else the profile's upper bound ``h_max``."""
+    if result.has_trajectories:
+        return np.nanmax(result.h, axis=1)
+    return np.array([delay.h_max for delay in delays])
+
+
+def beyond_certified_bound(
+    controllers: Sequence[Controller], delays: Sequence[DelayProfile], result: SimResult
+) -> BeyondCertifiedBoundWarning | None:
+    """The warning for the runs whose largest delay exceeds their AROLC's ``h_m``, or None."""
+    bounds = certified_bounds(controllers)
+    largest = largest_delays(result, delays)
+    beyond = np.flatnonzero(largest > bounds)  # NaN (no certificate) compares False
+    if beyond.size == 0:
+        return None
+    first = int(beyond[0])
+    runs = "" if result.batch_size == 1 else f" in {beyond.size} of {result.batch_size} runs"
+    return BeyondCertifiedBoundWarning(
+        f"the largest delay {1e3 * largest[first]:.4g} ms exceeds AROLC's certified bound h_m = "
+        f"{1e3 * bounds[first]:.4g} ms{runs} (Theorem 1 with the run's K1, K2, Q and the "
+        f"paper's beta = {PAPER_BETA:g}, r = {PAPER_R:g}); this is not instability, only the "
+        "end of the guarantee",
+        float(bounds[first]),
+        float(largest[first]),
+    )
+
+
+def warn_beyond_certified_bound(
+    controllers: Sequence[Controller], delays: Sequence[DelayProfile], result: SimResult
+) -> None:
+    """Issue :func:`beyond_certified_bound`'s warning at the line that called ``simulate``,
+    when that line is the user's: the toolkit's own jobs (the paper job, tuning, margins,
+    sweeps) run beyond ``h_m`` on purpose and state it in their reports."""
+    caller = sys._getframe(2)  # level 0: this function, 1: simulate, 2: simulate's caller
+    if caller.f_globals.get("__name__", "").partition(".")[0] == _PACKAGE:
+        return
+    warning = beyond_certified_bound(controllers, delays, result)
+    if warning is not None:
+        warnings.warn(warning, stacklevel=3)

@@ -1,0 +1,82 @@
+"""``simulate`` beside AROLC's certified delay bound h_m (Theorem 1): the warning when a run's
+largest delay exceeds it, at the user's line only, and h_m per run."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from delaytrack.analysis import razumikhin_bound
+from delaytrack.controllers import AROLC, OuterLoop
+from delaytrack.delays import ConstantDelay
+from delaytrack.plants import TwoLinkArm
+from delaytrack.references import SinusoidalReference
+from delaytrack.scenario import load_builtin
+from delaytrack.sim import simulate
+from delaytrack.sim.certified_bound import (
+    BeyondCertifiedBoundWarning,
+    beyond_certified_bound,
+    certified_bounds,
+)
+
+REFERENCE = SinusoidalReference([0.0, 0.0], amplitude=[0.8, 0.5], frequency=[0.5, 0.7])
+FAST = AROLC(TwoLinkArm(), K1=4.0, K2=4.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
+H_M = razumikhin_bound(4.0, 4.0).h_m  # 13.1 ms
+
+
+def run(controller, delays, **options):
+    return simulate(
+        TwoLinkArm(),
+        controller,
+        delays,
+        np.zeros(4),
+        reference=REFERENCE,
+        t1=0.2,
+        dt=1e-3,
+        T_c=2e-3,
+        **options,
+    )
+
+
+def test_h_m_is_theorem_1s_with_the_runs_gains_and_the_papers_weights():
+    paper = AROLC(TwoLinkArm(), K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
+    outer = OuterLoop(TwoLinkArm(), K1=1.0, K2=1.0)
+    bounds = certified_bounds([FAST, paper, outer])
+    assert bounds[0] == H_M and abs(bounds[1] - 0.12487) < 1e-5
+    assert np.isnan(bounds[2])  # no certificate without AROLC
+
+
+def test_a_delay_beyond_h_m_warns_at_the_users_line_and_says_it_is_not_instability():
+    with pytest.warns(BeyondCertifiedBoundWarning) as caught:
+        result = run(FAST, [ConstantDelay(0.005), ConstantDelay(0.04)])
+    assert len(caught) == 1 and caught[0].filename == __file__
+    warning = caught[0].message
+    assert warning.h_m == H_M and warning.largest_delay == pytest.approx(0.04)
+    assert "in 1 of 2 runs" in str(warning) and "not instability" in str(warning)
+    assert list(result.status_names) == ["ok", "ok"]  # a warning, not a refusal
+
+
+@pytest.mark.parametrize("trajectories", [True, False])
+def test_below_h_m_or_without_arolc_nothing_is_said(trajectories):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BeyondCertifiedBoundWarning)
+        run(FAST, ConstantDelay(0.01), trajectories=trajectories)
+        run(OuterLoop(TwoLinkArm(), K1=4.0, K2=4.0), ConstantDelay(0.04))
+
+
+def test_without_trajectories_the_profiles_largest_delay_counts():
+    result = run(FAST, ConstantDelay(0.04), trajectories=False)
+    warning = beyond_certified_bound([FAST], [ConstantDelay(0.04)], result)
+    assert warning is not None and warning.largest_delay == 0.04
+
+
+def test_the_toolkits_own_jobs_do_not_warn():
+    """A scenario run calls simulate from inside the package: its jobs go beyond h_m on
+    purpose and say so in their reports (the command line prints its own line)."""
+    scenario = load_builtin("two_link_S1").replace(duration=0.2)
+    controller = {**scenario.to_dict()["controller"], "K1": 4.0, "K2": 4.0}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BeyondCertifiedBoundWarning)
+        scenario.replace(controller=controller).run()

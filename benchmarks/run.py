@@ -24,7 +24,10 @@ compiles or loads numba's disk cache):
     ``delaytrack simulate benchmarks/short_scenario.toml`` in a new process with numba's cache
     warm: time until ``metrics.csv`` exists (the first result) and until the command exits.
 ``controller_step``
-    One 5-DOF AROLC tick through :meth:`Controller.step` (the real-time Python API).
+    One 5-DOF AROLC tick through :meth:`Controller.step` (the checked Python API) and through a
+    stepper of the same controller (:meth:`Controller.stepper`, for a real-time loop): called
+    with the arrays, and ``tick`` on its own inputs; timed alternately in one process, the
+    ratio is ``Controller.step``'s time over each.
 ``agreement``
     Largest differences between the compiled engine, the same batch on worker threads and the
     reference path (the engine run as plain Python, ``simulate(..., engine="python")``).
@@ -61,7 +64,6 @@ import subprocess
 import sys
 import tempfile
 import time
-import timeit
 import tomllib
 from pathlib import Path
 
@@ -399,23 +401,56 @@ def startup_case(repeats: int) -> dict:
     }
 
 
-def controller_step_case(repeats: int) -> dict:
+def controller_step_case(repeats: int, calls: int = 2000) -> list[dict]:
+    """One 5-DOF AROLC tick three ways, timed alternately (``calls`` ticks a repetition):
+    :meth:`Controller.step` (checked; state copied in and out), a stepper called with the
+    arrays (``stepper(t, q, qdot, reference)``: inputs copied into its own) and its ``tick`` on
+    its own inputs; ``ratio`` is ``Controller.step``'s time over the row's."""
     controller = AROLC(NominalRobot(), **AROLC_GAINS)
     reference = paper_reference("consistent")
     x0 = initial_state(reference)
     qd = tuple(values[0] for values in reference.evaluate(np.array([0.5])))
+    q, qdot = x0[:5], x0[5:]
     state = controller.initial_state()
+    stepper = controller.stepper(T_c=T_C)
+    ticker = controller.stepper(T_c=T_C)
+    for own, value in zip(ticker.inputs, (q, qdot, *qd), strict=True):
+        own[:] = value
+
+    def step():
+        for _ in range(calls):
+            controller.step(0.5, q, qdot, qd, state, T_c=T_C)
+
+    def call():
+        for _ in range(calls):
+            stepper(0.5, q, qdot, qd)
 
     def tick():
-        controller.step(0.5, x0[:5], x0[5:], qd, state, T_c=T_C)
+        for _ in range(calls):
+            ticker.tick(0.5)
 
-    tick()
-    per_call = [timeit.timeit(tick, number=2000) / 2000 for _ in range(repeats)]
-    return {
-        "case": "one 5-DOF AROLC tick through Controller.step",
-        "median_s": statistics.median(per_call),
-        "median_us": 1e6 * statistics.median(per_call),
-    }
+    medians = [seconds / calls for seconds in alternating_medians(repeats, step, call, tick)]
+    rows = []
+    for name, seconds in zip(
+        (
+            "one 5-DOF AROLC tick through Controller.step",
+            "the same through a stepper, stepper(t, q, qdot, reference)",
+            "the same through stepper.tick(t) on its own inputs",
+        ),
+        medians,
+        strict=True,
+    ):
+        rows.append(
+            {
+                "case": name,
+                "median_s": seconds,
+                "median_us": 1e6 * seconds,
+                "baseline": "Controller.step",
+                "baseline_s": medians[0],
+                "ratio_to_baseline": medians[0] / seconds,
+            }
+        )
+    return rows
 
 
 def _largest_difference(a, b) -> float:
@@ -540,7 +575,7 @@ def main() -> None:
     cases.append(batch_case(goal, goal_duration, 1, workers=1))  # the threads' speed-up
     cases.append(batch_case(goal, goal_duration, 1 if quick else 3))
     cases.append(startup_case(3 if quick else 5))
-    cases.append(controller_step_case(5))
+    cases += controller_step_case(9)
     agreement = agreement_case(2.0 if quick else 10.0)
     cases += sweep_case(20 if quick else 1000, 6.0 if quick else 60.0)
     live = [] if args.skip_live else live_cases(quick)  # real time: 2-5 minutes

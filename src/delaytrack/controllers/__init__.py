@@ -11,12 +11,14 @@ from delaytrack.controllers.arolc import AROLC
 from delaytrack.controllers.base import Controller
 from delaytrack.controllers.outer_loop import OuterLoop
 from delaytrack.controllers.pcon import PCON, PCONf, PredictorBaseline
+from delaytrack.controllers.stepper import ControllerStepper
 from delaytrack.plants.base import ELPlant
 
 __all__ = [
     "AROLC",
     "CONTROLLER_SPECS",
     "Controller",
+    "ControllerStepper",
     "OuterLoop",
     "PCON",
     "PCONf",

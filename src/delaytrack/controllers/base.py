@@ -28,6 +28,7 @@ from delaytrack._compile.functions import is_compiled
 from delaytrack._compile.jit import hot_inline_kernel, inline_kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.components import Kernel, call_command_map, call_terms
+from delaytrack.controllers.stepper import INPUT_NAMES, ControllerStepper, checked_vector
 from delaytrack.plants.base import ELPlant
 
 __all__ = [
@@ -111,6 +112,9 @@ def computed_torque_command(model_terms, model_params, t, q, qdot, u, command, w
 
 #: Largest accepted condition number of the nominal input map at q = 0.
 _MAX_INPUT_MAP_CONDITION = 1e12
+
+#: Where :meth:`Controller.step` keeps the stepper of its last call (left out of pickles).
+_STEP_STEPPER = "_step_stepper"
 
 
 class Controller(ABC):
@@ -205,11 +209,66 @@ class Controller(ABC):
 
         ``reference`` is ``(q_d, q̇_d, q̈_d)`` at ``t``; ``state`` is not modified. ``h`` is the
         true delay, required only by controllers with :attr:`needs_delay`.
+
+        Every argument is checked at every call; the arrays and the compiled code of the last
+        call's period are used again (a :class:`~delaytrack.controllers.stepper.ControllerStepper`
+        kept by the controller). A loop of your own that keeps the state can call a
+        :meth:`stepper` instead, which neither copies the state nor makes new arrays.
         """
-        arguments = self.step_arguments(t, q, qdot, reference, state, T_c=T_c, h=h)
-        self.step_callable(*arguments)
-        *_, next_state, _, _, command, _ = arguments  # the state is advanced in place
-        return command, next_state
+        kept = getattr(self, "__dict__", {})
+        stepper = kept.pop(_STEP_STEPPER, None)  # a call on another thread makes its own
+        if stepper is None or not (isinstance(T_c, float) and T_c == stepper.T_c):
+            sample = positive_scalar("T_c", T_c)
+            if stepper is None or sample != stepper.T_c:
+                stepper = self.stepper(T_c=sample)
+        try:
+            stepper.reset(state)
+            command = stepper(t, q, qdot, reference, h).copy()
+            return command, stepper.state.copy()
+        finally:
+            kept[_STEP_STEPPER] = stepper
+
+    def stepper(
+        self, *, T_c: float, h_max: float | None = None, state: np.ndarray | None = None
+    ) -> ControllerStepper:
+        """This law's step at period ``T_c`` for a real-time loop of your own.
+
+        The arguments are checked here once (``T_c`` and ``h_max`` with :meth:`check_run`);
+        the stepper owns the step's arrays, calls its compiled code without numba's type
+        dispatch and keeps the state from tick to tick (see
+        :class:`~delaytrack.controllers.stepper.ControllerStepper`).
+
+        Parameters
+        ----------
+        T_c : float
+            Sampling period (s).
+        h_max : float, optional
+            The largest true delay (s) the loop will pass (0 by default); a tick with a larger
+            one is checked with :meth:`check_run` when it comes.
+        state : array_like, optional
+            The state at the first tick; :meth:`initial_state` by default.
+        """
+        delay = 0.0 if h_max is None else positive_scalar("h_max", h_max, strictly=False)
+        # Arrays of the stepper's own: step_arguments keeps these (already float64 and
+        # contiguous) and copies the state.
+        q, qdot, qd, qd_dot, qd_ddot = (np.zeros(self.n) for _ in INPUT_NAMES)
+        arguments = self.step_arguments(
+            0.0,
+            q,
+            qdot,
+            (qd, qd_dot, qd_ddot),
+            self.initial_state() if state is None else state,
+            T_c=T_c,
+            h=delay,
+        )
+        return ControllerStepper(
+            self.step_callable,
+            arguments,
+            check_run=self.check_run,
+            h_max=delay,
+            needs_delay=self.needs_delay,
+            law=type(self).__name__,
+        )
 
     def step_arguments(
         self,
@@ -222,20 +281,18 @@ class Controller(ABC):
         T_c: float,
         h: float | None = None,
     ) -> tuple:
-        """The arguments of one call of the step kernel for :meth:`step` (checked, and of the
-        sizes the simulator passes: a copy of ``state``, a new ``command`` and ``work``)."""
+        """The arguments of one call of the step kernel (checked, and of the sizes the
+        simulator passes: a copy of ``state``, a new ``command`` and ``work``)."""
         sample = positive_scalar("T_c", T_c)
         if h is None and self.needs_delay:
             raise ValueError(f"{type(self).__name__} needs the true delay: pass h=... (seconds)")
         delay = 0.0 if h is None else positive_scalar("h", h, strictly=False)
         self.check_run(sample, delay)
-        arrays = [np.ascontiguousarray(np.asarray(a, dtype=float)) for a in (q, qdot, *reference)]
-        for name, array in zip(("q", "qdot", "qd", "qd_dot", "qd_ddot"), arrays, strict=True):
-            if array.shape != (self.n,):
-                raise ValueError(f"{name} must have shape ({self.n},); got {array.shape}")
-        next_state = np.array(state, dtype=float)
-        if next_state.shape != (self.state_size,):
-            raise ValueError(f"state must have shape ({self.state_size},); got {next_state.shape}")
+        arrays = [
+            np.ascontiguousarray(checked_vector(name, value, self.n))
+            for name, value in zip(INPUT_NAMES, (q, qdot, *reference), strict=True)
+        ]
+        next_state = np.array(checked_vector("state", state, self.state_size))
         model = self.model.engine_kernel
         return (
             float(t),
@@ -250,11 +307,20 @@ class Controller(ABC):
             step_workspace(self.n, self.m),
         )
 
+    def __getstate__(self) -> object:
+        """The pickled state, without the stepper :meth:`step` keeps (compiled code)."""
+        state = super().__getstate__()
+        if isinstance(state, dict) and _STEP_STEPPER in state:
+            state = {key: value for key, value in state.items() if key != _STEP_STEPPER}
+        return state
+
     def check_run(self, T_c: float, h_max: float) -> None:
         """Raise if the law cannot run at period ``T_c`` under delays up to ``h_max`` seconds.
 
-        :func:`delaytrack.sim.simulate` calls it for every run and :meth:`step` for every tick;
-        most laws accept anything.
+        :func:`delaytrack.sim.simulate` calls it for every run, :meth:`stepper` for every
+        stepper, and a stepper (so :meth:`step` too) at a tick whose delay is larger than any
+        accepted before: accepting ``h_max`` accepts every smaller delay. Most laws accept
+        anything.
         """
         return  # AROLC and the outer loop run at any period under any delay.
 

@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from delaytrack.controllers.base import step_workspace
+from delaytrack.controllers.stepper import entry_point
 from delaytrack.live._node import NodeBase, percentile
 from delaytrack.live.clock import Ticker
 from delaytrack.live.log import McapLog, write_csv
@@ -50,23 +50,6 @@ from delaytrack.live.transport import declare_stream
 from delaytrack.sim.measurement import MeasurementNoise, measure
 
 __all__ = ["ControllerNode"]
-
-
-def _entry_point(step: Any, arguments: tuple) -> Any:
-    """The compiled entry point of the step kernel ``step`` for these arguments, which takes
-    them without numba's type dispatch (about 8 µs a call, against 1 µs for AROLC's step on
-    the P3-DX), or ``step`` itself (a step in plain Python, or numba without entry points).
-    The node passes the same arrays at every tick, so their types are those of the warm-up."""
-    typeof = getattr(step, "typeof_pyval", None)
-    overloads = getattr(step, "overloads", None)
-    if typeof is None or overloads is None:
-        return step
-    try:
-        signature = tuple(typeof(argument) for argument in arguments)
-    except Exception:  # noqa: BLE001 - an argument numba cannot type: keep the dispatcher
-        return step
-    found = overloads.get(signature)
-    return getattr(found, "entry_point", None) or step
 
 
 class ControllerNode(NodeBase):
@@ -78,22 +61,13 @@ class ControllerNode(NodeBase):
         super().__init__(scenario, built, args)
         controller, delay = built.controller, built.delay
         self.n, self.m = controller.n, controller.m
-        controller.check_run(self.T_c, delay.h_max)
+        # The law's step with arrays of its own, checked here (check_run at T_c and h_max).
+        self._stepper = controller.stepper(T_c=self.T_c, h_max=delay.h_max)
         self.phase = min(self.T_c / 2, 1e-3) if getattr(args, "phase", None) is None else args.phase
         self.state_timeout = (
             max(5 * self.T_c, 0.05) if args.state_timeout is None else args.state_timeout
         )
         self.stale_zero = args.stale == "zero"
-        self._step = controller.step_callable
-        self._model = (
-            controller.model.engine_kernel
-            if controller.compiled
-            else controller.model.engine_kernel.as_python()
-        )
-        self._params, self._model_params = controller.params, controller.model.params
-        self._state = np.array(controller.initial_state(), dtype=float)
-        self._work = step_workspace(self.n, self.m)
-        self._command = np.zeros(self.m)
         reference = built.reference
         self._reference_kernel = reference.reference_kernel
         if not reference.compiled:
@@ -101,7 +75,6 @@ class ControllerNode(NodeBase):
                 self._reference_kernel, "py_func", self._reference_kernel
             )
         self._reference_params = reference.params
-        self._qd, self._qd_dot, self._qd_ddot = np.zeros(self.n), np.zeros(self.n), np.zeros(self.n)
         # What the law reads: the scenario's measurement noise, unless turned off for a session.
         self.measurement_off = bool(getattr(args, "no_measurement_noise", False))
         self.measurement_noise = (
@@ -111,19 +84,17 @@ class ControllerNode(NodeBase):
         self.names = list(built.plant.coordinate_names or [f"q{i + 1}" for i in range(self.n)])
         self._needs_delay = controller.needs_delay
         self._delay = delay
-        # Warm up (compile) on x0 with a throw-away copy of the state.
-        # The received q and q̇ are copied into arrays of the node's own and measured into
-        # others, so that every argument of the step and of the measurement is one of the
-        # node's (types fixed from here on).
+        # Warm up (compile) on x0, then start the law again from its initial state.
+        # The received q and q̇ are copied into arrays of the node's own and measured into the
+        # stepper's inputs, where the reference is written too, so that every argument of the
+        # step and of the measurement is one of the node's (types fixed from here on).
         self._q_received, self._qdot_received = np.zeros(self.n), np.zeros(self.n)
-        self._q, self._qdot = np.zeros(self.n), np.zeros(self.n)
+        self._q, self._qdot, self._qd, self._qd_dot, self._qd_ddot = self._stepper.inputs
         self._measure = measure
-        saved = self._state.copy()
         self._tick(0, built.x0)
-        self._measure = _entry_point(measure, self._measure_arguments(0))
-        self._step = _entry_point(self._step, self._arguments(0.0))
+        self._measure = entry_point(measure, self._measure_arguments(0))
         self._tick(0, built.x0)
-        self._state[:] = saved
+        self._stepper.reset()
         self._states: deque[tuple[StateMessage, float]] = deque(maxlen=64)
         self._lock = threading.Lock()
         self.rows: list[list[Any]] = []
@@ -144,25 +115,6 @@ class ControllerNode(NodeBase):
         self._subscriber = session.declare_subscriber(f"{prefix}/state", self._on_state)
         self.entities += [self._subscriber, self._publisher]
 
-    def _arguments(self, t_k: float, h: float = 0.0) -> tuple:
-        """The arguments of the control law's step at ``t_k`` (all the node's own arrays)."""
-        return (
-            float(t_k),
-            self._q,
-            self._qdot,
-            self._qd,
-            self._qd_dot,
-            self._qd_ddot,
-            self.T_c,
-            h,
-            self._params,
-            self._state,
-            self._model,
-            self._model_params,
-            self._command,
-            self._work,
-        )
-
     def _measure_arguments(self, k: int) -> tuple:
         """The arguments of :func:`~delaytrack.sim.measurement.measure` at tick ``k``."""
         return (
@@ -182,8 +134,7 @@ class ControllerNode(NodeBase):
         self._measure(*self._measure_arguments(k))
         self._reference_kernel(t_k, self._reference_params, self._qd, self._qd_dot, self._qd_ddot)
         h = float(self._delay.h(t_k)) if self._needs_delay else 0.0
-        self._step(*self._arguments(t_k, h))
-        return self._command.copy()
+        return self._stepper.tick(t_k, h).copy()
 
     def _latest_state(self, t_k: float) -> tuple[StateMessage, float] | None:
         with self._lock:

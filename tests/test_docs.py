@@ -167,6 +167,15 @@ def test_the_sim_page_starts_with_simulate(site: Path) -> None:
     assert "At controller tick" in html
 
 
+@pytest.mark.parametrize(
+    "name", ["controllers", "metrics", "plants", "experiments", "sweeps", "references", "sim"]
+)
+def test_no_api_page_points_at_a_module_docstring_it_does_not_show(site: Path, name: str) -> None:
+    """A docstring's "(module docstring)" means the top of its source file; on the site it names
+    the module instead (docs/_griffe/module_notes.py)."""
+    assert "module docstring" not in page(site, f"api/{name}")
+
+
 def test_module_names_in_tables_do_not_break(site: Path) -> None:
     css = (site / "stylesheets" / "extra.css").read_text()
     assert re.search(r"td:first-child code \{[^}]*white-space: nowrap", css)

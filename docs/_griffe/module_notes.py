@@ -1,10 +1,12 @@
-"""A griffe extension for the documentation site: "(module docstring)" becomes that text.
+"""A griffe extension for the documentation site: "(module docstring)" becomes that text, or
+names the module.
 
 A few public classes state their model in their module's docstring and point at it from their
 own summary (``Lost command packets (module docstring).``): a reader of the source finds it at
 the top of the file. The site documents such a class on its own, away from its module, so this
 extension removes the pointer and puts the module docstring's body (everything after its
-summary line) right after the class's summary.
+summary line) right after the class's summary. Anywhere else the pointer names its module
+(``(see module `delaytrack.sim.integrator`)``), whose page or source holds the text.
 
 It is loaded by ``mkdocs.yml`` (``extensions`` of the Python handler) and changes nothing in the
 package itself.
@@ -49,6 +51,8 @@ def _walk(obj: griffe.Object, seen: set[int]) -> None:
         summary = docstring.value.partition("\n\n")[0]
         if POINTER in summary:
             docstring.value = with_module_notes(docstring.value, obj.module.docstring.value)
+    if docstring is not None and POINTER in docstring.value:  # anywhere else: say which module
+        docstring.value = docstring.value.replace(POINTER, f" (see module `{obj.module.path}`)")
     for member in obj.members.values():
         if not member.is_alias:
             _walk(member, seen)

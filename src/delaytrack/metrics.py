@@ -150,7 +150,8 @@ def mean_absolute_error(result: SimResult, *, t_from: float | None = None) -> np
     Returns
     -------
     ndarray, shape (B, n)
-        In the unit of ``q``; NaN for runs whose status is not ``ok`` (see the module docstring).
+        In the unit of ``q``; NaN for runs whose status is not ``ok``
+        (see :mod:`delaytrack.metrics`).
     """
     return _metrics(result, t_from)["ae"]
 

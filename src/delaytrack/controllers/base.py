@@ -148,7 +148,7 @@ class Controller(ABC):
     @property
     @abstractmethod
     def step_kernel(self) -> Callable[..., None]:
-        """The compiled step (see the module docstring for its signature)."""
+        """The compiled step (:mod:`delaytrack.controllers.base` states its signature)."""
 
     @property
     @abstractmethod

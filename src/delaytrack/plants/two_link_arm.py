@@ -47,7 +47,8 @@ def two_link_terms(t, q, qdot, params, mass, nonlinear, input_map):
 
 @dataclass(frozen=True)
 class TwoLinkArm(ELPlant):
-    """Two-link planar arm; the defaults are the direct-drive arm of the module docstring.
+    """Two-link planar arm; the defaults are the direct-drive arm that
+    :mod:`delaytrack.plants.two_link_arm` describes.
 
     Parameters
     ----------

@@ -418,7 +418,8 @@ def _positive_int(key: str, value: object) -> int:
 
 @dataclass(frozen=True)
 class SweepSpec:
-    """A sweep: base scenario, grid, seeded random draws and unit size (see the module docstring).
+    """A sweep: base scenario, grid, seeded random draws and unit size
+    (:mod:`delaytrack.sweeps.spec`).
 
     Build with :meth:`from_toml` or :meth:`from_dict`; every run is expanded and validated on
     construction, so a spec that loads runs only valid scenarios.

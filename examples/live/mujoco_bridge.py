@@ -17,10 +17,13 @@ import threading
 import time
 from pathlib import Path
 
-import mujoco
 import numpy as np
 
 from delaytrack.live.bridge import RobotBridge
+from delaytrack.plants.mujoco import import_mujoco
+
+# MuJoCo with its warnings as Python warnings: no MUJOCO_LOG.TXT in the folder it runs from.
+mujoco = import_mujoco()
 
 MODEL = Path(__file__).resolve().parent.parent / "mujoco_arm" / "arm3.xml"
 #: The joints, in the order of the scenario's plant coordinates (and of its inputs).

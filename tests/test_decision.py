@@ -122,24 +122,3 @@ def test_a_small_run_says_no_candidate_qualifies_at_this_size(tmp_path, capsys):
     assert sorted(table.told_s.dropna().unique()) == pytest.approx([0.075, 0.125])
     assert (table.delay_s == 0.1).all() and (table.status == "excluded").all()
     assert "Decision for a delay envelope" in (out / "report.html").read_text()
-
-
-@pytest.mark.parametrize(
-    ("extra", "message"),
-    [
-        (["--envelope", "0.1", "--knowledge", "often"], "--knowledge must be exact, ±X%"),
-        (["--envelope", "0.1", "--knowledge", "150%"], "got '150%'"),
-        (["--envelope", "-1"], "--envelope: must be a largest delay > 0 (s); got '-1'"),
-        (["--knowledge", "exact"], "--knowledge exact needs --envelope H_MAX"),
-    ],
-)
-def test_bad_envelope_flags_exit_2_with_one_line(tmp_path, capsys, extra, message):
-    scenario = tmp_path / "light_mass.toml"
-    Scenario.from_dict(PLANT).to_toml(scenario)
-    try:  # argparse's own refusals exit; the command's return
-        code = main(["tradeoff", str(scenario), "--out", str(tmp_path / "o"), *extra])
-    except SystemExit as exit_:
-        code = exit_.code
-    assert code == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("error: ") and message in err, err

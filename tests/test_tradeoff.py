@@ -118,6 +118,10 @@ def test_command_writes_the_table_figure_and_page(tmp_path, capsys):
         (["--omega", "1", "2", "x"], "--omega must be LO HI N"),
         (["--threshold", "0"], "--threshold"),
         (["--scheduler", "nowhere"], "--scheduler must be"),
+        (["--envelope", "0.1", "--knowledge", "often"], "--knowledge must be exact, ±X%"),
+        (["--envelope", "0.1", "--knowledge", "150%"], "got '150%'"),
+        (["--envelope", "-1"], "--envelope: must be a largest delay > 0 (s); got '-1'"),
+        (["--knowledge", "exact"], "--knowledge exact needs --envelope H_MAX"),
     ],
 )
 def test_bad_flags_exit_2_with_one_line(tmp_path, capsys, extra, message):

@@ -1,5 +1,5 @@
-"""``delaytrack reproduce``: the paper's robot experiment, and the two-link, margins and
-robustness jobs."""
+"""``delaytrack reproduce``: the paper's robot experiment, and the two-link, margins,
+robustness and decision jobs."""
 
 from __future__ import annotations
 
@@ -30,7 +30,8 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         "<out>/paper-literal/: summary.csv, tables.md, dt_check.csv, figures and a "
         "self-contained report.html. --job two-link runs the earlier two-link job into "
         "<out>/two-link/ instead; --job margins compares certified, exact and empirical delay "
-        "margins over a grid of gains into <out>/margins/.",
+        "margins over a grid of gains into <out>/margins/; --job decision says which controller "
+        "and gains to use for the paper's delay envelopes into <out>/decision/.",
     )
     command.add_argument(
         "--out", default="results", metavar="DIR", help="output root (default results)"
@@ -44,23 +45,28 @@ def add_command(commands: argparse._SubParsersAction) -> None:
     )
     command.add_argument(
         "--job",
-        choices=("paper", "two-link", "margins", "robustness"),
+        choices=("paper", "two-link", "margins", "robustness", "decision"),
         default="paper",
         help="which job to run (default paper, which includes the robustness study at "
-        "--size; robustness: the study alone into <out>/robustness/)",
+        "--size; robustness: the study alone into <out>/robustness/; decision: the trade-off "
+        "on robot_S1 and the decision rule for S1-S4 (delay known, known within ±25 %%) and "
+        "the delay unknown up to 300 ms, into <out>/decision/)",
     )
     command.add_argument(
         "--size",
         choices=("default", "full"),
         default="default",
         help="size of the robustness study (default: about 3600 runs, under a minute on two "
-        "cores once compiled; full: ten times the draws, meant for a Dask cluster)",
+        "cores once compiled; full: ten times the draws, meant for a Dask cluster) and of the "
+        "decision study (default: 5 gain points, 80 draws per condition, about 15 000 runs; "
+        "full: 9 gain points and ten times the draws)",
     )
     command.add_argument(
         "--scheduler",
         default=None,
         metavar="ADDRESS",
-        help="run the robustness study's sweeps on a Dask cluster: a scheduler address "
+        help="run the robustness (or decision) study's sweeps on a Dask cluster: a scheduler "
+        "address "
         "(tcp://host:8786) or local-cluster",
     )
     command.add_argument(
@@ -136,6 +142,8 @@ def _job(args: argparse.Namespace) -> int:
     executor = _study_executor(args)
     if args.job == "robustness":
         return _robustness(args, executor)
+    if args.job == "decision":
+        return _decision(args, executor)
     return _paper(args, executor)
 
 
@@ -144,8 +152,8 @@ def _study_executor(args: argparse.Namespace):
     from delaytrack.sweeps import SweepError, make_executor
     from delaytrack.sweeps.executors import checked_scheduler
 
-    if args.duration is not None and args.job == "robustness":
-        raise UsageError("--duration does not apply to --job robustness (its runs are 60 s)")
+    if args.duration is not None and args.job in ("robustness", "decision"):
+        raise UsageError(f"--duration does not apply to --job {args.job} (its runs are 60 s)")
     try:
         checked_scheduler(args.scheduler, None)
     except SweepError as error:
@@ -207,6 +215,23 @@ def _robustness(args: argparse.Namespace, executor) -> int:
     for line in findings(study):
         print(f"- {line}")
     print(f"report: {folder / 'report.html'}")
+    return 0
+
+
+def _decision(args: argparse.Namespace, executor) -> int:
+    """The decision study, into ``<out>/decision/``."""
+    from delaytrack.experiments.decision_study import FOLDER, reproduce
+    from delaytrack.report.decision_study import decision_sentence
+
+    study = _timed(
+        "decision",
+        FOLDER,
+        args,
+        lambda: reproduce(args.out, size=args.size, executor=executor, progress=not args.quiet),
+    )
+    for name, decision in study.decisions.items():
+        print(f"- {decision_sentence(study.cases[name], decision)}")
+    print(f"report: {Path(args.out) / FOLDER / 'report.html'}")
     return 0
 
 

@@ -18,7 +18,9 @@ folder to the jobs of ``delaytrack reproduce``.
   delay) and :mod:`~delaytrack.experiments.verdicts` (claims decided draw by draw, attribution).
 - :mod:`delaytrack.experiments.tradeoff`: accuracy against delay margin along a one-parameter
   family of outer-loop gains, for any scenario (``delaytrack tradeoff``);
-  :mod:`~delaytrack.experiments.decision` chooses among them for a delay envelope.
+  :mod:`~delaytrack.experiments.decision` chooses among them for a delay envelope, and
+  :mod:`~delaytrack.experiments.decision_study` does so for the P3-DX and the paper's envelopes
+  (``delaytrack reproduce --job decision``).
 - :mod:`delaytrack.experiments.two_link`: the two-link job, AROLC vs the plain outer loop
   on the two-link arm under S1 and S3 (``delaytrack reproduce --job two-link``).
 

@@ -48,7 +48,7 @@ import time
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -104,6 +104,9 @@ from delaytrack.plants.robot import (
 )
 from delaytrack.report.paper import write_study
 from delaytrack.sim import SimResult, compile_ahead, simulate
+
+if TYPE_CHECKING:
+    from delaytrack.experiments.decision_study import DecisionStudy
 
 __all__ = [
     "ERROR_BOUND",
@@ -416,10 +419,12 @@ def run_paper(
     contact: bool | None = None,
     robustness: RobustnessStudy | None = None,
     gains: tuning.GainsSource = None,
+    decision: DecisionStudy | None = None,
 ) -> PaperStudy:
     """Run the paper's experiment and write ``out_dir`` (module docstring); return the study.
     ``gains``: the gains file (or its record) of the tuned controllers; the shipped one by
-    default."""
+    default. ``robustness`` and ``decision`` (studies already run) add their sections to the
+    report."""
     if not (math.isfinite(duration) and duration > 0):
         raise ValueError(f"duration must be a positive number of seconds; got {duration!r}")
     study = run_study(
@@ -430,7 +435,13 @@ def run_paper(
         gains_path=gains,
         contact=contact,
     )
-    write_study(study, out_dir, literal_summary=literal_summary, robustness=robustness)
+    write_study(
+        study,
+        out_dir,
+        literal_summary=literal_summary,
+        robustness=robustness,
+        decision=decision,
+    )
     return study
 
 
@@ -454,15 +465,18 @@ def reproduce(
     robustness: str | None = "default",
     executor: Any = None,
     gains: tuning.GainsSource = None,
+    decision: DecisionStudy | None = None,
 ) -> dict[str, Any]:
     """``<out>/paper-literal/``, ``<out>/robustness/`` (the robustness study at size
     ``robustness``; None skips it) and ``<out>/paper/`` (whose report cites the literal run and
     the study's verdicts, and has the runs with contact physics when ``contact``; by default
     when MuJoCo is installed), with the tuned gains of ``gains`` (a gains file; the shipped one
-    by default). Returns ``{"consistent", "literal", "robustness"}``. ``duration`` must be a
-    positive integer multiple of :data:`T_C`; ``out`` must be new, empty or hold only results
-    of this toolkit, and each job's folder new, empty or its own earlier results (all checked
-    before anything runs)."""
+    by default); ``decision``, a decision study already run
+    (:func:`~delaytrack.experiments.decision_study.run_decision_study`), adds its section to
+    ``<out>/paper/``'s report. Returns ``{"consistent", "literal", "robustness"}``.
+    ``duration`` must be a positive integer multiple of :data:`T_C`; ``out`` must be new, empty
+    or hold only results of this toolkit, and each job's folder new, empty or its own earlier
+    results (all checked before anything runs)."""
     _check_duration(duration)
     root = check_results_root(out, "out")
     gains = tuning.load_tuning_record(gains)
@@ -499,5 +513,6 @@ def reproduce(
         contact=contact,
         robustness=study,
         gains=gains,
+        decision=decision,
     )
     return {"consistent": consistent, "literal": literal, "robustness": study}

@@ -40,6 +40,7 @@ from delaytrack.experiments.paper_setup import (
 from delaytrack.plants.robot import P3DX, P3DX_PAYLOAD
 from delaytrack.plants.robot.truth import DEFAULT_BAUMGARTE_GAIN
 from delaytrack.report.contact import write_contact_section
+from delaytrack.report.decision_study import decision_sentence, display_envelopes
 from delaytrack.report.figures import c_hat_figure, delay_figure, save_figure
 from delaytrack.report.html import HtmlReport
 from delaytrack.report.robustness import (
@@ -51,6 +52,7 @@ from delaytrack.report.robustness import findings as robustness_findings
 from delaytrack.report.tuning import gains_text
 
 if TYPE_CHECKING:
+    from delaytrack.experiments.decision_study import DecisionStudy
     from delaytrack.experiments.paper import PaperStudy
     from delaytrack.experiments.paper_findings import Claims
     from delaytrack.experiments.robustness import RobustnessStudy
@@ -523,6 +525,36 @@ def _distribution_section(report: HtmlReport, robustness: RobustnessStudy) -> No
     )
 
 
+def _decision_section(report: HtmlReport, decision: DecisionStudy) -> None:
+    """Which controller and gains the decision rule chooses for each delay envelope."""
+    report.heading("Which controller for which delay envelope")
+    first = next(iter(decision.decisions.values()))
+    tradeoff = decision.tradeoff
+    report.paragraph(
+        "The claims above compare fixed gain sets; a user choosing a controller also chooses "
+        "its gains. The decision study (../decision/report.html) sweeps the outer-loop gains "
+        f"K1 = ω_n² I, K2 = 2ζω_n I (ζ = {tradeoff.zeta:g}, ω_n from "
+        f"{min(tradeoff.omegas):.3g} to {max(tradeoff.omegas):.3g} rad/s, "
+        f"{len(tradeoff.omegas)} points) for AROLC, the outer loop and PCONf on "
+        f"{tradeoff.scenario.name}, runs every candidate on {first.draws} drawn robots in each "
+        "condition of an envelope (constant true delays; PCONf told the delay the envelope "
+        "allows), and picks the smallest worst-case AE (the largest over the conditions of the "
+        "median AE of the runs on the path) among the candidates that stay on the path in at "
+        f"least {100 * first.required_share:g} % of drawn robots by the Wilson 95 % lower bound "
+        "in every condition. The runner-up is the best qualifying candidate of another "
+        "controller."
+    )
+    report.bullets(
+        decision_sentence(decision.cases[name], chosen)
+        for name, chosen in decision.decisions.items()
+    )
+    report.table(
+        display_envelopes(decision),
+        "decision/decision.csv: one row per envelope (—: no winner or no runner-up).",
+        missing="—",
+    )
+
+
 def _tuned_section(
     report: HtmlReport, study: PaperStudy, robustness: RobustnessStudy | None
 ) -> None:
@@ -763,6 +795,7 @@ def _report(
     figures: Mapping[str, tuple[Figure | bytes, str]],
     literal_summary: pd.DataFrame | None,
     robustness: RobustnessStudy | None = None,
+    decision: DecisionStudy | None = None,
 ) -> HtmlReport:
     found = study.findings
     report = HtmlReport(f"delaytrack: the paper's robot experiment (S1–S4, {study.reference} path)")
@@ -793,6 +826,8 @@ def _report(
         report.figure(figure, caption)
     if robustness is not None:
         _distribution_section(report, robustness)
+    if decision is not None:
+        _decision_section(report, decision)
     report.heading(f"Claims check, one run per case (payload seed {PAYLOAD_SEED})")
     if study.reference == "literal":
         report.paragraph(
@@ -837,10 +872,12 @@ def write_study(
     *,
     literal_summary: pd.DataFrame | None = None,
     robustness: RobustnessStudy | None = None,
+    decision: DecisionStudy | None = None,
 ) -> list[Path]:
     """Write ``summary.csv``, ``tables.md``, ``dt_check.csv``, figures and ``report.html`` (with
-    the robustness study's verdicts when it is given, and the literal run's AE when
-    ``literal_summary`` is)."""
+    the robustness study's verdicts when it is given, the decision rule's choice per delay
+    envelope when the decision study is, and the literal run's AE when ``literal_summary``
+    is)."""
     folder = claim_output_folder(folder)
     files = [write_frame(study.summary, folder / "summary.csv")]
     files.append(write_frame(study.tuned_summary, folder / "summary_tuned_arolc.csv"))
@@ -856,7 +893,7 @@ def write_study(
         # The report embeds the PNG just written (rendering the figure again would double the
         # time spent drawing).
         images[name] = (next(p for p in saved if p.suffix == ".png").read_bytes(), caption)
-    report = _report(study, images, literal_summary, robustness)
+    report = _report(study, images, literal_summary, robustness, decision)
     files.append(report.write(folder / "report.html"))
     record_outputs(folder, files)
     return files

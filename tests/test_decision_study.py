@@ -13,7 +13,7 @@ import pytest
 
 from delaytrack._validation import ArgumentError
 from delaytrack.cli import main
-from delaytrack.experiments import paper
+from delaytrack.experiments import decision_study, paper
 from delaytrack.experiments.decision import Envelope, decide
 from delaytrack.experiments.decision_study import (
     DecisionSize,
@@ -209,3 +209,19 @@ def test_the_job_refuses_bad_sizes_in_one_line(tmp_path, capsys, flags, message)
     error = capsys.readouterr().err
     assert error.startswith(message) and error.count("\n") == 1
     assert not (out / "decision").exists()
+
+
+def test_the_paper_job_with_decision_states_it_in_its_report(tmp_path, monkeypatch, capsys):
+    """``reproduce --decision``: the decision study (here tiny) runs into ``<out>/decision/``
+    and the paper report gets its section; ``--decision`` with another job is refused."""
+    monkeypatch.setitem(decision_study.SIZES, "default", TINY)
+    common = ["reproduce", "--out", str(tmp_path), "--quiet"]
+    paper = ["--duration", "1", "--no-robustness", "--no-contact", "--no-dt-check"]
+    assert main([*common, *paper, "--decision"]) == 0
+    assert (tmp_path / "decision" / "decision.csv").is_file()
+    report = (tmp_path / "paper" / "report.html").read_text()
+    assert "Which controller for which delay envelope" in report
+    capsys.readouterr()
+    assert main([*common, "--job", "margins", "--decision"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--decision applies to the paper job" in err

@@ -76,6 +76,13 @@ def add_command(commands: argparse._SubParsersAction) -> None:
     )
     command.add_argument("--no-dt-check", action="store_true", help="skip the dt/2 rerun")
     command.add_argument(
+        "--decision",
+        action="store_true",
+        help="paper job with the decision study (into <out>/decision/, resumed if --job "
+        "decision ran there): its report then says which controller and gains to use for each "
+        "of the paper's delay envelopes",
+    )
+    command.add_argument(
         "--no-contact",
         action="store_true",
         help="skip the runs on the robot with real wheels (MuJoCo; run by default when it is "
@@ -135,6 +142,8 @@ def _job(args: argparse.Namespace) -> int:
             raise UsageError(
                 f"--duration must be a positive number of seconds; got {args.duration:g}"
             )
+    if args.decision and args.job != "paper":
+        raise UsageError(f"--decision applies to the paper job (--job paper); got --job {args.job}")
     if args.job == "two-link":
         return _two_link(args)
     if args.job == "margins":
@@ -166,6 +175,13 @@ def _paper(args: argparse.Namespace, executor) -> int:
     from delaytrack.experiments.paper import DURATION, SUMMARY_COLUMNS, reproduce
 
     start = time.perf_counter()
+    decision = None
+    if args.decision:
+        from delaytrack.experiments.decision_study import reproduce as run_decision
+
+        decision, _ = run_decision(
+            args.out, size=args.size, executor=executor, progress=not args.quiet
+        )
     try:
         studies = reproduce(
             args.out,
@@ -176,6 +192,7 @@ def _paper(args: argparse.Namespace, executor) -> int:
             robustness=None if args.no_robustness else args.size,
             executor=executor,
             gains=args.gains,
+            decision=decision,
         )
     except ArgumentError as error:  # a --duration off the controller's grid, checked first
         if error.argument not in _DURATION:

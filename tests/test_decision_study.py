@@ -211,17 +211,27 @@ def test_the_job_refuses_bad_sizes_in_one_line(tmp_path, capsys, flags, message)
     assert not (out / "decision").exists()
 
 
-def test_the_paper_job_with_decision_states_it_in_its_report(tmp_path, monkeypatch, capsys):
-    """``reproduce --decision``: the decision study (here tiny) runs into ``<out>/decision/``
-    and the paper report gets its section; ``--decision`` with another job is refused."""
-    monkeypatch.setitem(decision_study.SIZES, "default", TINY)
+def test_the_paper_job_with_decision_passes_the_study_to_its_report(tmp_path, monkeypatch, capsys):
+    """``reproduce --decision`` runs the decision study into the same results folder (at the
+    command's ``--size``) and hands it to the paper job, whose report renders it (the report's
+    section is checked above from a hand-built study, a tiny study end to end below);
+    ``--decision`` with another job is refused in one line."""
+    calls = {}
+
+    def run_decision(out, **options):
+        calls["decision"] = (out, options["size"])
+        return "the study", []
+
+    def run_paper(out, **options):
+        calls["paper"] = (out, options["decision"])
+        raise SystemExit(0)  # the paper job's own run is tested in test_paper.py
+
+    monkeypatch.setattr(decision_study, "reproduce", run_decision)
+    monkeypatch.setattr(paper, "reproduce", run_paper)
     common = ["reproduce", "--out", str(tmp_path), "--quiet"]
-    paper = ["--duration", "1", "--no-robustness", "--no-contact", "--no-dt-check"]
-    assert main([*common, *paper, "--decision"]) == 0
-    assert (tmp_path / "decision" / "decision.csv").is_file()
-    report = (tmp_path / "paper" / "report.html").read_text()
-    assert "Which controller for which delay envelope" in report
-    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        main([*common, "--decision", "--size", "full"])
+    assert calls == {"decision": (str(tmp_path), "full"), "paper": (str(tmp_path), "the study")}
     assert main([*common, "--job", "margins", "--decision"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--decision applies to the paper job" in err

@@ -166,14 +166,20 @@ def _range_text(low: float, high: float) -> str:
     return low_text if low_text == high_text else f"{low_text}–{high_text}"
 
 
+def _delay_ranges(row: Any) -> tuple[str, str]:
+    """The delays (ms) of a verdict's scenario and those its tuning conditions covered."""
+    return (
+        _range_text(row.scenario_delay_min_ms, row.scenario_delay_max_ms),
+        _range_text(row.tuning_delay_min_ms, row.tuning_delay_max_ms),
+    )
+
+
 def _outside_text(row: Any) -> str:
     """The delays of a verdict's scenario beside the tuning's, when they leave them."""
     if not row.outside_tuning:
         return ""
-    return (
-        f" [delays {_range_text(row.scenario_delay_min_ms, row.scenario_delay_max_ms)} ms; "
-        f"tuned on {_range_text(row.tuning_delay_min_ms, row.tuning_delay_max_ms)} ms]"
-    )
+    scenario, tuned = _delay_ranges(row)
+    return f" [delays {scenario} ms; tuned on {tuned} ms]"
 
 
 def _no_decision_text(verdict: str) -> str:
@@ -181,22 +187,19 @@ def _no_decision_text(verdict: str) -> str:
     return f" ({verdict[len('no decision (') : -1]})" if verdict.startswith("no decision") else ""
 
 
-def _survival_name(row: Any) -> str:
+def _verdict_name(row: Any, name: str, verdict: str) -> str:
+    """A verdict as the findings list it: its name, its scenario, why it was not decided and
+    the delays it leaves the tuning's for."""
     where = "" if row.scenario == "S3 -> S4" else f" in {row.scenario}"
-    return (
-        f"{row.side_a} vs {row.side_b}{where}"
-        + _no_decision_text(row.survival_verdict)
-        + _outside_text(row)
-    )
+    return f"{name}{where}" + _no_decision_text(verdict) + _outside_text(row)
+
+
+def _survival_name(row: Any) -> str:
+    return _verdict_name(row, f"{row.side_a} vs {row.side_b}", row.survival_verdict)
 
 
 def _accuracy_name(row: Any) -> str:
-    where = "" if row.scenario == "S3 -> S4" else f" in {row.scenario}"
-    return (
-        f"{row.controller}: {row.claim}{where}"
-        + _no_decision_text(row.accuracy_verdict)
-        + _outside_text(row)
-    )
+    return _verdict_name(row, f"{row.controller}: {row.claim}", row.accuracy_verdict)
 
 
 def _interval_text(value: float, low: float, high: float, scale: float = 1.0) -> str:
@@ -218,10 +221,8 @@ def _tuning_text(row: Any) -> str:
     """The delays of a verdict's scenario and of the tuning, when they differ in range."""
     if not row.outside_tuning:
         return "inside"
-    return (
-        f"{_range_text(row.scenario_delay_min_ms, row.scenario_delay_max_ms)} (tuned on "
-        f"{_range_text(row.tuning_delay_min_ms, row.tuning_delay_max_ms)})"
-    )
+    scenario, tuned = _delay_ranges(row)
+    return f"{scenario} (tuned on {tuned})"
 
 
 def display_survival(table: pd.DataFrame) -> pd.DataFrame:

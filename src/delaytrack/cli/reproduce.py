@@ -56,7 +56,7 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         "--size",
         choices=("default", "full"),
         default="default",
-        help="size of the robustness study (default: about 3600 runs, under a minute on two "
+        help="size of the robustness study (default: about 6400 runs, about a minute on two "
         "cores once compiled; full: ten times the draws, meant for a Dask cluster) and of the "
         "decision study (default: 5 gain points, 80 draws per condition, about 15 000 runs; "
         "full: 9 gain points and ten times the draws)",

@@ -150,7 +150,7 @@ class StudySize:
     map_edge: int = 0
 
 
-#: ``default``: what ``delaytrack reproduce`` runs (about 3 600 runs). 40 draws per claim put
+#: ``default``: what ``delaytrack reproduce`` runs (about 6 400 runs). 40 draws per claim put
 #: the Wilson 95 % half-width of a share near one half at about 0.15, so a claim that holds (or
 #: fails) in 70 % of draws is decided; 8 draws per map cell find where a controller diverges in
 #: most draws, and the cells at that edge are run again with 40 draws: none diverged in 40 bounds

@@ -61,10 +61,14 @@ class SearchSettings(TypedDict):
     resolution: float
     upper: float
     frequency: float
+    grid: int
+    points: int
 
 
 #: Search settings of every empirical margin.
-SEARCH = SearchSettings(threshold=0.2, metric="ae", resolution=0.005, upper=2.0, frequency=1.0)
+SEARCH = SearchSettings(
+    threshold=0.2, metric="ae", resolution=0.005, upper=2.0, frequency=1.0, grid=16, points=4
+)
 #: Controllers (scenario type -> column prefix) and delay families searched.
 CONTROLLERS = {"arolc": "arolc", "outer-loop": "outer_loop"}
 PROFILES = ("constant", "abs-sine")

@@ -101,6 +101,11 @@ class TwoLinkStudy:
         Case -> the largest true delay of the run (s).
     half_dt : float
         The plant step of the dt check (s).
+    model_shortfall : float
+        How far below the truth's the nominal model's ``p1, p2, p3`` are (the largest of
+        ``1 - p̂ / p``).
+    controller_rate : float
+        ``1 / T_c`` (Hz).
     seconds : float
         Wall time of the simulations.
 
@@ -128,6 +133,8 @@ class TwoLinkStudy:
     largest_delay_effect: float
     h_max: dict[str, float]
     half_dt: float
+    model_shortfall: float
+    controller_rate: float
     seconds: float
 
     def run(self, case: str, controller: str) -> SimResult:
@@ -276,6 +283,8 @@ def run_study(
         largest_delay_effect=max(0.0, delay_effect.ae_change_pct.abs().max()),
         h_max={case: float(run.h[0].max()) for case, run in arolc.items()},
         half_dt=first.dt / 2,
+        model_shortfall=max(1.0 - first.model[p] / first.plant[p] for p in ("p1", "p2", "p3")),
+        controller_rate=1.0 / first.T_c,
         seconds=seconds,
     )
 

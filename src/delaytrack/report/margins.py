@@ -77,11 +77,13 @@ def _report(study: MarginStudy, figure: Figure) -> HtmlReport:
             "tracking rule": f"status ok and max over joints of mean |e1| <= "
             f"{search['threshold']:g} rad over [{start:g}, {end:g}] s",
             "delay families": "constant h; h(t) = a |sin(t)| (the margin is the amplitude a)",
-            "search": f"coarse grid of 17 values over [0, {search['upper']:g}] s, then "
-            f"multi-section (4 values a round) to a bracket of {search['resolution']:g} s",
+            "search": f"coarse grid of {search['grid'] + 1} values over [0, {search['upper']:g}] "
+            f"s, then multi-section ({search['points']} values a round) to a bracket of "
+            f"{search['resolution']:g} s",
             "certificate": f"Theorem 1 with Q = I, beta = {study.beta:g}, r = {study.r:g}",
-            "gains": f"k1, k2 in {list(study.gain_values)}; AROLC alpha = 2, epsilon = 0.1, "
-            "gamma = 0.001",
+            "gains": f"k1, k2 in {list(study.gain_values)}; AROLC alpha = "
+            f"{scenario.controller['alpha']:g}, epsilon = {scenario.controller['epsilon']:g}, "
+            f"gamma = {scenario.controller['gamma']:g}",
             "version": f"delaytrack {__version__}; wall time {study.seconds:.1f} s",
         }
     )

@@ -69,9 +69,9 @@ _SCENARIO_TEXT = {
 #: The run kinds the figures draw, in their legends' order.
 _KINDS = ("AROLC", "baseline", "OuterLoop")
 TABLES_NOTE = (
-    "AE in mm, %AE = AE / 2500 mm × 100, TV in N·m (commanded wheel torques at the controller "
-    "ticks). Paper values from its Tables I–III; '—': not in the paper. Compare the pattern, "
-    "not the digits."
+    f"AE in mm, %AE = AE / {DIAMETER_MM:g} mm × 100, TV in N·m (commanded wheel torques at the "
+    "controller ticks). Paper values from its Tables I–III; '—': not in the paper. Compare the "
+    "pattern, not the digits."
 )
 
 
@@ -820,7 +820,9 @@ def _report(
             note=True,
         )
     report.heading("Summary")
-    report.table(study.summary, "summary.csv: AE, RMS, max in mm; %AE of 2500 mm; TV in N·m.")
+    report.table(
+        study.summary, f"summary.csv: AE, RMS, max in mm; %AE of {DIAMETER_MM:g} mm; TV in N·m."
+    )
     report.heading("Figures")
     for figure, caption in figures.values():
         report.figure(figure, caption)
@@ -859,7 +861,7 @@ def _report(
     _tuning_section(report, study)
     report.paragraph(
         f"Simulation wall time: {study.seconds:.1f} s ({len(study.results)} batched simulate() "
-        "calls of four runs each"
+        f"calls of {len(SCENARIOS)} runs each"
         + (", and as many at dt/2" if study.dt_check is not None else "")
         + "; numba-compiled)."
     )

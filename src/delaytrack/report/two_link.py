@@ -52,7 +52,8 @@ def _figures(study: TwoLinkStudy) -> dict[str, tuple[Figure, str]]:
     arolc = {case: study.run(case, "arolc") for case in study.cases}
     figures["c_hat"] = (
         c_hat_figure(arolc, title="AROLC adaptive gain ĉ(t)"),
-        "The adaptive gain ĉ(t) of AROLC under S1 and S3 (ĉ(0) = γ = 0.001).",
+        "The adaptive gain ĉ(t) of AROLC under S1 and S3 (ĉ(0) = γ = "
+        f"{study.scenarios[study.cases[0], 'arolc'].controller['gamma']:g}).",
     )
     figures["delay"] = (
         delay_figure(arolc, h_m=study.bound.h_m, title="Input delay h(t)"),
@@ -170,10 +171,12 @@ def _settings_rows(study: TwoLinkStudy) -> dict[str, str]:
     return {
         "truth plant": f"two-link planar direct-drive arm, viscous friction: {params(plant)} "
         "(kg·m², N·m·s; Dixon et al. 2003)",
-        "nominal model (M̂, N̂)": f"{params(model)}: p1, p2, p3 each 20 % below the truth, no "
-        "friction. The friction and the inertia error are the uncertainty AROLC must absorb.",
-        "reference q_d(t)": f"[{terms[0]}, {terms[1]}] rad. Frequencies below the 1 rad/s natural "
-        "frequency of the outer loop with K1 = K2 = I (so the delay-free loop can follow them), "
+        "nominal model (M̂, N̂)": f"{params(model)}: p1, p2, p3 each "
+        f"{100 * study.model_shortfall:.3g} % below the truth, no friction. The friction and "
+        "the inertia error are the uncertainty AROLC must absorb.",
+        "reference q_d(t)": f"[{terms[0]}, {terms[1]}] rad. Frequencies below the "
+        f"{study.natural_frequency:g} rad/s natural frequency of the outer loop (so the "
+        "delay-free loop can follow them), "
         "incommensurate so the joints do not lock in phase, amplitudes well inside the planar "
         "workspace; q_d(0) = q(0) = 0 (no initial position error; q̇_d(0) ≠ 0).",
         "initial state x0": f"{list(s.x0)} ([q, q̇])",
@@ -185,7 +188,8 @@ def _settings_rows(study: TwoLinkStudy) -> dict[str, str]:
         "duration": f"{s.duration:g} s from t = 0",
         "plant step dt": f"{s.dt:g} s, fixed-step RK4 split at the instants the delayed input "
         "switches",
-        "controller period T_c": f"{s.T_c:g} s with zero-order hold (500 Hz, a usual joint-"
+        "controller period T_c": f"{s.T_c:g} s with zero-order hold ({study.controller_rate:g} "
+        "Hz, a usual joint-"
         "controller rate; 10x below the smallest S1 delay; an integer multiple of dt)",
         "recording": f"every controller tick (record_every = {s.record_every}), so TV is the "
         "paper's TV over all ticks",

@@ -563,15 +563,19 @@ def _tuned_section(
     found = study.findings
     who = "AROLC (tuned)"
     report.heading("AROLC tuned by the same procedure")
+    per_class, grid, fixed = tuning.CONDITIONS_PER_CLASS, tuning.GRIDS["AROLC"], tuning.AROLC_FIXED
+    sizes = {len(values) for values in grid.values()}
     report.paragraph(
-        "Every controller is tuned by one protocol (delaytrack.experiments.tuning): the same six "
-        "conditions drawn from stated distributions (three time-varying and three constant "
-        "delays, none of S1–S4), an initial grid of three gains with five values each, the same "
-        "rule for extending a grid whose optimum sits on its edge, and the same objective, the "
-        "worst mean AE over a gain set's conditions with any divergence excluded. Each "
+        "Every controller is tuned by one protocol (delaytrack.experiments.tuning): the same "
+        f"{per_class * len(tuning.DELAY_CLASSES)} conditions drawn from stated distributions "
+        f"({per_class} time-varying and {per_class} constant delays, none of S1–S4), an initial "
+        f"grid of {len(grid)} gains with {'/'.join(map(str, sorted(sizes)))} values each, the "
+        "same rule for extending a grid whose optimum sits on its edge, and the same objective, "
+        "the worst mean AE over a gain set's conditions with any divergence excluded. Each "
         "controller gets one gain set for all delays and one per delay class. AROLC's grid "
         "spans a gain scale k (K1 = k² I, K2 = 2 ζ k I), the damping ζ and the switching gain "
-        "α, with Q = I, ε = 0.1, γ = 0.001 fixed. In the table below, AROLC-tuned and the "
+        f"α, with Q = {fixed['Q']:g} I, ε = {fixed['epsilon']:g}, γ = {fixed['gamma']:g} "
+        "fixed. In the table below, AROLC-tuned and the "
         "baselines use their class's set (S1, S2: varying; S3, S4: constant). The chosen gains "
         "of every controller and set follow, with Theorem 1's certified bound where it applies "
         "(AROLC; the predictors have no certificate)."

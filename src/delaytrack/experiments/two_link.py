@@ -106,6 +106,8 @@ class TwoLinkStudy:
         ``1 - p̂ / p``).
     controller_rate : float
         ``1 / T_c`` (Hz).
+    smallest_delay_periods : float
+        The smallest true delay of any run, in controller periods ``T_c``.
     seconds : float
         Wall time of the simulations.
 
@@ -135,6 +137,7 @@ class TwoLinkStudy:
     half_dt: float
     model_shortfall: float
     controller_rate: float
+    smallest_delay_periods: float
     seconds: float
 
     def run(self, case: str, controller: str) -> SimResult:
@@ -285,6 +288,7 @@ def run_study(
         half_dt=first.dt / 2,
         model_shortfall=max(1.0 - first.model[p] / first.plant[p] for p in ("p1", "p2", "p3")),
         controller_rate=1.0 / first.T_c,
+        smallest_delay_periods=min(float(run.h[0].min()) for run in arolc.values()) / first.T_c,
         seconds=seconds,
     )
 

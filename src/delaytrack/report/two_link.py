@@ -190,7 +190,8 @@ def _settings_rows(study: TwoLinkStudy) -> dict[str, str]:
         "switches",
         "controller period T_c": f"{s.T_c:g} s with zero-order hold ({study.controller_rate:g} "
         "Hz, a usual joint-"
-        "controller rate; 10x below the smallest S1 delay; an integer multiple of dt)",
+        f"controller rate; the smallest delay is {study.smallest_delay_periods:.3g} periods; an "
+        "integer multiple of dt)",
         "recording": f"every controller tick (record_every = {s.record_every}), so TV is the "
         "paper's TV over all ticks",
         "metrics": "AE = mean |e1| over the records, RMS, max |e1| (rad); TV = Σ |Δτ| over "

@@ -13,6 +13,7 @@ MOVED = [
     ("delaytrack.experiments.scenario", "run_to_folder", "delaytrack.experiments.scenario_run"),
     ("delaytrack.experiments.robustness", "findings", "delaytrack.report.robustness"),
     ("delaytrack.experiments.robustness", "median_interval", "delaytrack.experiments.intervals"),
+    ("delaytrack.experiments.convergence", "write_dt_check", "delaytrack.report.dt_check"),
 ]
 
 

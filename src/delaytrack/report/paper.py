@@ -22,7 +22,6 @@ from delaytrack._io import write_frame, write_text
 from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack._version import __version__
 from delaytrack.experiments import tuning
-from delaytrack.experiments.convergence import write_dt_check
 from delaytrack.experiments.pairing import AROLC_GAINS, BASELINE, DELAY_CLASS
 from delaytrack.experiments.paper_findings import summary_row
 from delaytrack.experiments.paper_setup import (
@@ -41,6 +40,7 @@ from delaytrack.plants.robot import P3DX, P3DX_PAYLOAD
 from delaytrack.plants.robot.truth import DEFAULT_BAUMGARTE_GAIN
 from delaytrack.report.contact import write_contact_section
 from delaytrack.report.decision_study import decision_sentence, display_envelopes
+from delaytrack.report.dt_check import write_dt_check
 from delaytrack.report.figures import c_hat_figure, delay_figure, save_figure
 from delaytrack.report.html import HtmlReport
 from delaytrack.report.robustness import (

@@ -13,7 +13,7 @@ import numpy as np
 from delaytrack._io import write_frame
 from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack._version import __version__
-from delaytrack.experiments.convergence import write_dt_check
+from delaytrack.report.dt_check import write_dt_check
 from delaytrack.report.figures import (
     c_hat_figure,
     delay_figure,

@@ -14,6 +14,9 @@ MOVED = [
     ("delaytrack.experiments.robustness", "findings", "delaytrack.report.robustness"),
     ("delaytrack.experiments.robustness", "median_interval", "delaytrack.experiments.intervals"),
     ("delaytrack.experiments.convergence", "write_dt_check", "delaytrack.report.dt_check"),
+    ("delaytrack.report", "relative_change", "delaytrack.experiments.relative_change"),
+    ("delaytrack.report.tables", "relative_difference", "delaytrack.experiments.relative_change"),
+    ("delaytrack.report.tables", "metric_columns", "delaytrack.experiments.relative_change"),
 ]
 
 

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 import pandas as pd
 
 from delaytrack._deprecated import moved_names
-from delaytrack.report.tables import relative_difference
+from delaytrack.experiments.relative_change import relative_difference
 
 __all__ = ["DT_TOLERANCE", "dt_check_table", "largest_change"]
 

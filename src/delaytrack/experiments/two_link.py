@@ -39,8 +39,8 @@ from delaytrack.analysis import RazumikhinBound, razumikhin_bound
 from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
 from delaytrack.analysis.razumikhin import PAPER_R as R
 from delaytrack.experiments.convergence import dt_check_table, largest_change
+from delaytrack.experiments.relative_change import relative_change
 from delaytrack.metrics import metrics_table
-from delaytrack.report.tables import relative_change
 from delaytrack.report.two_link import write_study
 from delaytrack.scenario import Scenario, load_builtin, run_batched
 from delaytrack.sim import SimResult, compile_ahead

@@ -5,6 +5,7 @@ runs simulations. Figures are matplotlib ``Figure`` objects created without pypl
 does not change matplotlib's backend.
 """
 
+from delaytrack._deprecated import moved_names
 from delaytrack.report.figures import (
     c_hat_figure,
     commands_figure,
@@ -17,12 +18,7 @@ from delaytrack.report.figures import (
     write_run_figures,
 )
 from delaytrack.report.html import HtmlReport
-from delaytrack.report.tables import (
-    frame_to_html,
-    metric_columns,
-    relative_change,
-    relative_difference,
-)
+from delaytrack.report.tables import MOVED, frame_to_html
 
 __all__ = [
     "HtmlReport",
@@ -32,11 +28,11 @@ __all__ = [
     "error_figure",
     "margins_figure",
     "frame_to_html",
-    "metric_columns",
     "png_bytes",
-    "relative_change",
-    "relative_difference",
     "save_figure",
     "tracking_figure",
     "write_run_figures",
 ]
+
+#: The helpers that compare metric tables are the studies' arithmetic now.
+__getattr__ = moved_names(__name__, MOVED)

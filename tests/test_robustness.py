@@ -14,6 +14,7 @@ from delaytrack.experiments import robustness, tuning
 from delaytrack.experiments.intervals import median_interval, wilson_interval
 from delaytrack.experiments.outcomes import delay_reach, outcome_table
 from delaytrack.experiments.verdicts import claim_verdicts
+from test_verdicts import draws
 
 
 def test_wilson_interval_matches_scipy():
@@ -31,43 +32,25 @@ def test_median_interval_brackets_the_median():
     assert math.isnan(median_interval([])[0])
 
 
-def fake_claims(ae_arolc, ae_base):
-    rows = []
-    for draw, (a, b) in enumerate(zip(ae_arolc, ae_base, strict=True)):
-        for name, ae in (("AROLC (paper gains)", a), ("PCON", b), ("AROLC (tuned)", a)):
-            rows.append(
-                dict(
-                    scenario="S1",
-                    noise="off",
-                    controller=name,
-                    draw=draw,
-                    ae_mm=ae,
-                    tv_Nm=1.0,
-                    diverged=not math.isfinite(ae),
-                )
-            )
-    return pd.DataFrame(rows)
-
-
 def test_a_claim_holds_fails_or_is_undecided_by_its_corrected_test():
     n = 20
-    holds = claim_verdicts(fake_claims([1.0] * n, [2.0] * n))
+    holds = claim_verdicts(draws([1.0] * n, [2.0] * n))
     assert set(holds[holds.claim == "AE below PCON"].accuracy_verdict) == {"holds"}
-    fails = claim_verdicts(fake_claims([3.0] * n, [2.0] * n))
+    fails = claim_verdicts(draws([3.0] * n, [2.0] * n))
     assert set(fails[fails.claim == "AE below PCON"].accuracy_verdict) == {"fails"}
-    mixed = claim_verdicts(fake_claims([1.0, 3.0] * (n // 2), [2.0] * n))
+    mixed = claim_verdicts(draws([1.0, 3.0] * (n // 2), [2.0] * n))
     assert set(mixed[mixed.claim == "AE below PCON"].accuracy_verdict) == {"undecided"}
     # A diverged baseline: AROLC stays on the path more often, and no accuracy is compared.
-    lost = claim_verdicts(fake_claims([1.0] * n, [math.inf] * n))
+    lost = claim_verdicts(draws([1.0] * n, [math.inf] * n))
     row = lost[lost.claim == "AE below PCON"].iloc[0]
     assert row.survival_verdict == "holds"
     assert row.accuracy_verdict == "no decision (in no draw did both stay on the path)"
     # Draws where both diverged are counted, never dropped.
-    both = claim_verdicts(fake_claims([math.inf] * 15 + [3.0] * 5, [math.inf] * n))
+    both = claim_verdicts(draws([math.inf] * 15 + [3.0] * 5, [math.inf] * n))
     row = both[(both.claim == "AE below PCON")].iloc[0]
     assert (row.both_diverged, row.only_b_diverged, row.only_a_diverged) == (15, 5, 0)
     assert row.survival_verdict.startswith("no decision (one side diverged in only 5 draws")
-    none = claim_verdicts(fake_claims([math.inf] * n, [math.inf] * n))
+    none = claim_verdicts(draws([math.inf] * n, [math.inf] * n))
     assert set(none.survival_verdict) == {"no decision (both diverged in every draw)"}
     # The effect size: the paired median difference, AROLC minus the baseline.
     assert holds.iloc[0].median_difference == -1.0

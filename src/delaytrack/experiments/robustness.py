@@ -260,9 +260,10 @@ def _map_sweep(
 
 
 def edge_cells(outcomes: pd.DataFrame) -> list[tuple[float, int]]:
-    """The cells ``(delay_ms, row)`` of a map's :func:`outcome_table` at a controller's
-    divergence edge: a cell where some but not all runs diverged, and a cell next (in the true
-    delay) to one that differs from it in whether any run diverged. ``row`` indexes
+    """The cells ``(delay_ms, row)`` of a map's outcomes (``runs`` and ``diverged`` per cell, as
+    :func:`outcome_table` gives them) at a controller's divergence edge: a cell where some but
+    not all runs diverged, and a cell next (in the true delay) to one that differs from it in
+    whether any run diverged. ``row`` indexes
     :func:`_map_rows` (the table's rows come per delay in that order)."""
     count = len(outcomes) // len(TRUE_DELAYS)
     diverged = outcomes.diverged.to_numpy().reshape(len(TRUE_DELAYS), count)
@@ -378,6 +379,12 @@ def study_specs(
 # The study's tables
 
 
+def wound_up(tv: np.ndarray, received: np.ndarray) -> np.ndarray:
+    """Whether each run's commands ran away from what its actuators received: commanded TV not
+    finite or above :data:`WOUND_UP` times the TV received (a controller wound up at a limit)."""
+    return ~np.isfinite(tv) | (tv > WOUND_UP * received)
+
+
 def _runs_frame(sweep: _Sweep, runs: pd.DataFrame) -> pd.DataFrame:
     """One row per run: the grid point's labels, the draw, AE (mm), TV (N·m), divergence."""
     draws = sweep.spec.draws
@@ -389,9 +396,9 @@ def _runs_frame(sweep: _Sweep, runs: pd.DataFrame) -> pd.DataFrame:
     frame["coulomb_friction_Nm"] = runs["plant.coulomb_friction"].to_numpy()
     frame["ae_mm"] = (500.0 * (runs.ae_x + runs.ae_y)).to_numpy()
     frame["tv_Nm"] = runs.tv.to_numpy()
-    frame["tv_received_Nm"] = runs.tv_applied.to_numpy()
-    # the commands ran away from what the wheels received (a controller wound up at a limit)
-    frame["wound_up"] = ~np.isfinite(frame.tv_Nm) | (frame.tv_Nm > WOUND_UP * frame.tv_received_Nm)
+    if sweep.name.startswith("actuators"):  # on torque-limited wheels: what they received
+        frame["tv_received_Nm"] = runs.tv_applied.to_numpy()
+        frame["wound_up"] = wound_up(frame.tv_Nm.to_numpy(), frame.tv_received_Nm.to_numpy())
     frame["status"] = runs.status.to_numpy()
     frame["t_stop_s"] = runs.t_stop.to_numpy()
     frame["diverged"] = (
@@ -687,8 +694,11 @@ def run_robustness(
     for sweep in study_specs(size, record):
         run(sweep)
     cell = ["delay_ms", "controller", "scale"]
+    # what edge_cells reads: per map cell in the map's order, its runs and diverged runs
+    diverged = frames["map"].groupby(cell, sort=False, dropna=False).diverged
+    counted = diverged.agg(runs="size", diverged="sum").reset_index()
     edges = (
-        edge_sweeps(tuning.load_gains(record), outcome_table(frames["map"], cell), size.map_edge)
+        edge_sweeps(tuning.load_gains(record), counted, size.map_edge)
         if size.map_edge > size.map
         else []
     )

@@ -81,7 +81,7 @@ class TwoLinkStudy:
         Theorem 1's certified delay bound for the AROLC gains.
     changes : DataFrame
         AROLC against the outer loop per scenario: ``100 (AROLC - outer loop) / outer loop``
-        per metric (percent; :func:`~delaytrack.report.tables.relative_change`).
+        per metric (percent; :func:`~delaytrack.experiments.relative_change.relative_change`).
     ae_range : tuple of float
         The smallest and the largest AE (rad) over every run and joint.
     natural_frequency, damping : float

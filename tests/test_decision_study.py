@@ -211,27 +211,32 @@ def test_the_job_refuses_bad_sizes_in_one_line(tmp_path, capsys, flags, message)
     assert not (out / "decision").exists()
 
 
-def test_the_paper_job_with_decision_passes_the_study_to_its_report(tmp_path, monkeypatch, capsys):
-    """``reproduce --decision`` runs the decision study into the same results folder (at the
-    command's ``--size``) and hands it to the paper job, whose report renders it (the report's
-    section is checked above from a hand-built study, a tiny study end to end below);
-    ``--decision`` with another job is refused in one line."""
+def test_the_paper_job_with_decision_runs_it_after_its_checks(tmp_path, monkeypatch, capsys):
+    """``reproduce --decision`` hands the paper job the decision study's size (``--size``); the
+    paper job checks its arguments and folders first (a ``--duration`` off the controller grid
+    runs nothing, not even the decision study), then runs the study into ``<out>/decision/`` and
+    renders it (the section is checked above from a hand-built study, a tiny study end to end
+    below). ``--decision`` with another job is refused in one line."""
     calls = {}
-
-    def run_decision(out, **options):
-        calls["decision"] = (out, options["size"])
-        return "the study", []
+    real_paper = paper.reproduce
 
     def run_paper(out, **options):
         calls["paper"] = (out, options["decision"])
         raise SystemExit(0)  # the paper job's own run is tested in test_paper.py
 
-    monkeypatch.setattr(decision_study, "reproduce", run_decision)
+    def run_decision(out, **options):
+        calls["decision"] = (out, options["size"])
+        raise AssertionError("the decision study ran before the paper job's checks")
+
     monkeypatch.setattr(paper, "reproduce", run_paper)
     common = ["reproduce", "--out", str(tmp_path), "--quiet"]
     with pytest.raises(SystemExit):
         main([*common, "--decision", "--size", "full"])
-    assert calls == {"decision": (str(tmp_path), "full"), "paper": (str(tmp_path), "the study")}
+    assert calls == {"paper": (str(tmp_path), "full")}
+    monkeypatch.setattr(decision_study, "reproduce", run_decision)
+    with pytest.raises(ArgumentError, match="multiple of 'T_c'"):
+        real_paper(tmp_path / "out", duration=0.015, decision="default")
+    assert "decision" not in calls
     assert main([*common, "--job", "margins", "--decision"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--decision applies to the paper job" in err

@@ -175,13 +175,6 @@ def _paper(args: argparse.Namespace, executor) -> int:
     from delaytrack.experiments.paper import DURATION, SUMMARY_COLUMNS, reproduce
 
     start = time.perf_counter()
-    decision = None
-    if args.decision:
-        from delaytrack.experiments.decision_study import reproduce as run_decision
-
-        decision, _ = run_decision(
-            args.out, size=args.size, executor=executor, progress=not args.quiet
-        )
     try:
         studies = reproduce(
             args.out,
@@ -192,7 +185,7 @@ def _paper(args: argparse.Namespace, executor) -> int:
             robustness=None if args.no_robustness else args.size,
             executor=executor,
             gains=args.gains,
-            decision=decision,
+            decision=args.size if args.decision else None,
         )
     except ArgumentError as error:  # a --duration off the controller's grid, checked first
         if error.argument not in _DURATION:

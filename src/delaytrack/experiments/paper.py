@@ -465,15 +465,16 @@ def reproduce(
     robustness: str | None = "default",
     executor: Any = None,
     gains: tuning.GainsSource = None,
-    decision: DecisionStudy | None = None,
+    decision: str | DecisionStudy | None = None,
 ) -> dict[str, Any]:
     """``<out>/paper-literal/``, ``<out>/robustness/`` (the robustness study at size
     ``robustness``; None skips it) and ``<out>/paper/`` (whose report cites the literal run and
     the study's verdicts, and has the runs with contact physics when ``contact``; by default
     when MuJoCo is installed), with the tuned gains of ``gains`` (a gains file; the shipped one
     by default); ``decision``, a decision study already run
-    (:func:`~delaytrack.experiments.decision_study.run_decision_study`), adds its section to
-    ``<out>/paper/``'s report. Returns ``{"consistent", "literal", "robustness"}``.
+    (:func:`~delaytrack.experiments.decision_study.run_decision_study`) or the size of one to
+    run into ``<out>/decision/`` (resumed), adds its section to ``<out>/paper/``'s report.
+    Returns ``{"consistent", "literal", "robustness"}``.
     ``duration`` must be a positive integer multiple of :data:`T_C`; ``out`` must be new, empty
     or hold only results of this toolkit, and each job's folder new, empty or its own earlier
     results (all checked before anything runs)."""
@@ -482,8 +483,19 @@ def reproduce(
     gains = tuning.load_tuning_record(gains)
     folders = {
         name: check_output_folder(root / name)
-        for name in ("paper-literal", "paper", *(("robustness",) if robustness else ()))
+        for name in (
+            "paper-literal",
+            "paper",
+            *(("robustness",) if robustness else ()),
+            *(("decision",) if isinstance(decision, str) else ()),
+        )
     }
+    if isinstance(decision, str):
+        from delaytrack.experiments import decision_study
+
+        decision, _ = decision_study.reproduce(
+            out, size=decision, executor=executor, progress=progress
+        )
     literal = run_paper(
         folders["paper-literal"],
         reference="literal",

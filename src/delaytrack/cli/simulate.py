@@ -95,15 +95,16 @@ def _summary(output: RunOutput) -> pd.DataFrame:
 def _certified_bound(output: RunOutput) -> None:
     """For AROLC, Theorem 1's h_m, and one line on stderr when the run's largest delay exceeds
     it (:mod:`delaytrack.sim.certified_bound`)."""
+    from delaytrack.analysis.razumikhin import PAPER_BETA, PAPER_R
     from delaytrack.sim.certified_bound import beyond_certified_bound, certified_bounds
 
-    built = output.scenario.build()  # remembered from the run: nothing is constructed again
+    built = output.built  # the objects the run used: no factory runs again
     h_m = certified_bounds([built.controller])[0]
     if not math.isfinite(h_m):  # not AROLC: no certificate
         return
     print(
         f"AROLC's certified delay bound h_m = {h_m:.6g} s ({1e3 * h_m:.4g} ms; Theorem 1 with "
-        "the scenario's K1, K2, Q and the paper's beta = 1, r = 1.1)"
+        f"the scenario's K1, K2, Q and the paper's beta = {PAPER_BETA:g}, r = {PAPER_R:g})"
     )
     warning = beyond_certified_bound([built.controller], [built.delay], output.result)
     if warning is not None:

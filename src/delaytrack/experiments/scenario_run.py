@@ -9,7 +9,7 @@ from pathlib import Path
 
 from delaytrack._io import write_frame, write_text
 from delaytrack._output import check_output_folder, claim_output_folder, record_outputs
-from delaytrack.scenario.scenario import Scenario, ScenarioError, simulate_built
+from delaytrack.scenario.scenario import BuiltScenario, Scenario, ScenarioError, simulate_built
 from delaytrack.sim import SimResult
 from delaytrack.sim.simulate import physical_memory
 
@@ -22,12 +22,14 @@ _WRITE_OVERHEAD = 10
 
 @dataclass(frozen=True)
 class RunOutput:
-    """What :func:`run_to_folder` produced: the result and the files written."""
+    """What :func:`run_to_folder` produced: the scenario as run and its built objects, the
+    result and the files written."""
 
     scenario: Scenario
     result: SimResult
     folder: Path
     files: tuple[Path, ...]
+    built: BuiltScenario
 
 
 def run_to_folder(
@@ -104,4 +106,4 @@ def run_to_folder(
         result, folder / "figures", formats=figure_formats, label=resolved.name
     )
     record_outputs(folder, files)
-    return RunOutput(resolved, result, folder, tuple(files))
+    return RunOutput(resolved, result, folder, tuple(files), built)

@@ -167,6 +167,19 @@ def test_a_result_without_the_running_tv_received_measures_its_records() -> None
     )
 
 
+def test_the_commands_tv_of_a_result_from_before_needs_no_records() -> None:
+    """A result whose running metrics have no ``tv_applied`` (made before it existed) and no
+    trajectories still gives its commands' TV, from its running metrics."""
+    result = point_mass_run(trajectories=False)
+    older = result.__class__(
+        **{
+            **{name: getattr(result, name) for name in result.__dataclass_fields__},
+            "metrics": {k: v for k, v in result.metrics.items() if k != "tv_applied"},
+        }
+    )
+    np.testing.assert_array_equal(total_variation(older), result.metrics["tv"])
+
+
 def test_an_unknown_input_is_refused() -> None:
     with pytest.raises(ValueError, match='of must be "commands" or "applied"'):
         total_variation(point_mass_run(), of="received")

@@ -221,7 +221,10 @@ def total_variation(
     metric = {"commands": "tv", "applied": "tv_applied"}.get(of)
     if metric is None:
         raise ValueError(f'of must be "commands" or "applied"; got {of!r}')
-    return _with_applied_variation(result, t_from, _metrics(result, t_from))[metric]
+    values = _metrics(result, t_from)
+    if metric == "tv_applied":  # the commands' TV never needs the records
+        values = _with_applied_variation(result, t_from, values)
+    return values[metric]
 
 
 def percent_of(value: np.ndarray | float, scale: float) -> np.ndarray | float:

@@ -42,9 +42,11 @@ def test_a_bad_u_init_is_refused_naming_the_key(value, message):
         scenario(u_init=value).build()
 
 
-def test_u_init_beyond_the_input_limits_is_refused():
-    with pytest.raises(ScenarioError, match="u_init"):
-        scenario(u_init=[5.0, 0.0], input_limits=1.0).run()
+def test_u_init_beyond_the_input_limits_is_refused_when_built():
+    """Refused when the scenario is built (before any run, and before a live robot node would
+    write it to its actuators), not only by the simulator."""
+    with pytest.raises(ScenarioError, match="'u_init' must lie within input_limits"):
+        scenario(u_init=[5.0, 0.0], input_limits=1.0).build()
 
 
 def test_a_sweep_runs_the_scenarios_u_init(tmp_path):

@@ -242,9 +242,8 @@ class RobotNode(NodeBase):
         self.x = np.zeros(2 * self.n)  # the state read last
         self.u = np.zeros(self.m)  # the input written last
         # the input before the first command: the scenario's u_init, as the simulator's
-        self.u_init = (
-            np.zeros(self.m) if scenario.u_init is None else np.array(scenario.u_init, float)
-        )
+        u_init = scenario.simulated_u_init
+        self.u_init = np.zeros(self.m) if u_init is None else u_init
         self.steps: list[list[Any]] = []
         self.states: list[list[Any]] = []
         self.applied: list[list[Any]] = []

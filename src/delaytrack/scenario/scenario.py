@@ -384,6 +384,10 @@ class Scenario:
             raise fail(
                 "u_init", f"must have m = {plant.m} entries (one per input)", list(self.u_init)
             )
+        limits = np.broadcast_to(self.simulated_input_limits, (plant.m,))
+        if self.u_init is not None and np.any(np.abs(self.u_init) > limits):
+            # the simulator refuses it too; checked here so that the live robot never applies it
+            raise fail("u_init", "must lie within input_limits", list(self.u_init))
         if self.x0 is None:
             x0 = np.zeros(2 * plant.n)
         else:

@@ -108,27 +108,34 @@ def reports(tmp_path_factory, monkeypatch_module):
 
 
 @pytest.fixture(scope="module")
+def probes(reports, tmp_path_factory):
+    """Each report's probe findings, one headless Chromium run per report for every test."""
+    folder = tmp_path_factory.mktemp("probes")
+    return {name: rendered(path, folder) for name, path in reports.items()}
+
+
+@pytest.fixture(scope="module")
 def monkeypatch_module():
     with pytest.MonkeyPatch.context() as patch:
         yield patch
 
 
-@pytest.mark.parametrize(
-    "name", ["paper", "paper-literal", "robustness", "two-link", "margins", "sweep"]
-)
-def test_report_fits_the_window_and_every_image_loads(reports, name, tmp_path):
-    probe = rendered(reports[name], tmp_path)
+#: Every report the fixture writes.
+REPORTS = ["paper", "paper-literal", "robustness", "two-link", "margins", "sweep"]
+
+
+@pytest.mark.parametrize("name", REPORTS)
+def test_report_fits_the_window_and_every_image_loads(probes, name):
+    probe = probes[name]
     assert probe["images"] > 0 and probe["broken"] == 0, probe
     assert probe["page"] <= probe["window"], probe
     assert probe["wide"] == [], probe
     assert probe["scrolling"] == [], probe  # no table scrolls sideways in its box
 
 
-@pytest.mark.parametrize(
-    "name", ["paper", "paper-literal", "robustness", "two-link", "margins", "sweep"]
-)
-def test_report_is_navigable_and_aligned(reports, name, tmp_path):
-    probe = rendered(reports[name], tmp_path)
+@pytest.mark.parametrize("name", REPORTS)
+def test_report_is_navigable_and_aligned(probes, name):
+    probe = probes[name]
     if len(probe["sections"]) > 1:  # a table of contents leads to every section
         assert probe["contents"] == probe["sections"], probe
     # Numbers right-aligned, text left-aligned.

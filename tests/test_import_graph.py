@@ -208,9 +208,10 @@ def test_the_root_and_a_live_node_load_no_table_library(module: str):
 
 
 def test_every_name_of_the_root_resolves():
-    """Each name of ``delaytrack.__all__`` (from ``__init__.pyi``) is found where it lives."""
+    """Each name of ``delaytrack.__all__`` (from ``__init__.pyi``) is found where it lives (an
+    import that fails raises here), among them the entry points the README's examples use."""
     import delaytrack
 
-    assert len(delaytrack.__all__) > 40
+    assert {"simulate", "AROLC", "CompiledPlant", "razumikhin_bound"} <= set(delaytrack.__all__)
     for name in delaytrack.__all__:
-        assert getattr(delaytrack, name) is not None, name
+        getattr(delaytrack, name)

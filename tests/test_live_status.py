@@ -1,9 +1,10 @@
 """The live session's status: each node's JSON on ``delaytrack/<session>/status/<role>``, the
 launcher's combined line, a node's own line when it runs alone, and none with ``--quiet``.
 
-Two 2 s sessions of tests/conftest.py run at once: ``live run`` with its status line
-(``live_run``), and the three nodes started as the launcher starts them but with the robot not
-quiet, with the fixture subscribed to their statuses (``live_nodes``); ``live run --quiet`` is
+Two 2 s sessions of tests/conftest.py, run once for all the live modules (one after the
+other): ``live run`` with its status line (``live_run``), and the three nodes started as the
+launcher starts them but with the robot not quiet, with the fixture subscribed to their
+statuses (``live_nodes``); ``live run --quiet`` is
 checked on the session of test_live_mujoco.py. No timing is asserted: only that the numbers are
 there, positive or finite.
 """
@@ -72,7 +73,7 @@ def _positive(text: str) -> bool:
 
 @pytest.fixture(scope="module")
 def sessions(live_run, live_nodes):
-    """The launcher's outcome and the nodes' (the launcher runs while the nodes do)."""
+    """The launcher's outcome and the nodes' (the shared sessions of tests/conftest.py)."""
     _folder, launched = live_run
     _folder, name, outputs, codes, received = live_nodes
     stdout, stderr, code = launched.outcome

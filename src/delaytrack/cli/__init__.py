@@ -18,7 +18,8 @@ Commands, one module each (``add_command(commands)`` adds it, its handler runs i
     delaytrack sweep SWEEP.toml [--out DIR] [--scheduler ADDRESS] [--workers N] [--trust NAME]
         [--quiet]
     delaytrack tune-baselines [--out PATH] [--quiet]
-    delaytrack tradeoff SCENARIO [--zeta Z] [--omega LO HI N] [--draws N] [--out DIR]
+    delaytrack tradeoff SCENARIO [--zeta Z] [--omega LO HI N] [--draws N] [--threshold VALUE]
+        [--upper S] [--envelope H_MAX [--knowledge exact|±X%|unknown]] [--out DIR]
         [--scheduler ADDRESS] [--trust NAME] [--quiet]
 
 and ``delaytrack live ...`` (:mod:`delaytrack.live.cli`, added when the parser is built).

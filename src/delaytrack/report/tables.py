@@ -1,8 +1,6 @@
-"""Tables for reports: comparisons between controllers and between numerical settings.
-
-These functions take the metric tables of :func:`delaytrack.metrics.metrics_table` (plain
-DataFrames) and return DataFrames; :func:`frame_to_html` renders one for the HTML report.
-"""
+"""Tables for reports: :func:`frame_to_html` renders a DataFrame for the HTML report. The
+comparisons of metric tables moved to :mod:`delaytrack.experiments.relative_change` (their old
+names here still work, with a warning)."""
 
 from __future__ import annotations
 

@@ -3,13 +3,14 @@ Pareto front by brute force, resuming after a lost part, and the command's refus
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pandas as pd
 import pytest
 
-from delaytrack.analysis import exact_delay_margin
 from delaytrack.cli import main
-from delaytrack.experiments.tradeoff import family_gains, pareto_front, run_tradeoff
+from delaytrack.experiments.tradeoff import pareto_front, run_tradeoff
 from delaytrack.scenario import Scenario
 
 #: A small linear plant of our own: a unit mass whose nominal model is 20 % light, tracking a
@@ -57,8 +58,12 @@ def test_exact_margins_are_those_of_exact_delay_margin(study):
     assert len(rows) == 2 * len(OMEGAS)
     for row in rows.itertuples():
         k1, k2 = row.omega_n**2, 2 * ZETA * row.omega_n  # K1 = w_n^2, K2 = 2 zeta w_n
-        assert (row.k1, row.k2) == pytest.approx(family_gains(row.omega_n, ZETA))
-        assert row.h_exact == exact_delay_margin(np.array([[k1]]), np.array([[k2]])).h
+        assert (row.k1, row.k2) == pytest.approx((k1, k2))
+        # s^2 + (k2 s + k1) e^{-sh} on the imaginary axis: |k1 + j k2 w| = w^2 at the crossing
+        # w_c, and the first delay is the phase of k1 + j k2 w_c over w_c.
+        crossing = math.sqrt((k2**2 + math.sqrt(k2**4 + 4 * k1**2)) / 2)
+        closed_form = math.atan2(k2 * crossing, k1) / crossing
+        assert row.h_exact == pytest.approx(closed_form, rel=1e-9)
     assert study.table.loc[study.table.controller != "arolc", "h_m"].isna().all()
     assert set(study.families) == {"arolc", "outer-loop", "pcon", "pconf"}
 

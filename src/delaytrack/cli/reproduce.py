@@ -58,7 +58,7 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         default="default",
         help="size of the robustness study (default: about 6400 runs, about a minute on two "
         "cores once compiled; full: ten times the draws, meant for a Dask cluster) and of the "
-        "decision study (default: 5 gain points, 80 draws per condition, about 15 000 runs; "
+        "decision study (default: 5 gain points, 80 draws per condition, about 14 400 runs; "
         "full: 9 gain points and ten times the draws)",
     )
     command.add_argument(

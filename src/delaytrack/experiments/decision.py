@@ -54,7 +54,7 @@ from typing import Any
 import pandas as pd
 
 from delaytrack._validation import ArgumentError, is_integer_at_least
-from delaytrack.experiments.intervals import wilson_interval
+from delaytrack.experiments.intervals import Z95, wilson_interval
 from delaytrack.experiments.tradeoff import (
     FAMILIES,
     TradeoffStudy,
@@ -82,15 +82,13 @@ KNOWLEDGE: tuple[str, ...] = ("exact", "within", "unknown")
 REQUIRED_SHARE = 0.95
 #: Robots drawn per candidate and condition by default (at least :func:`draws_needed`).
 DECISION_DRAWS = 80
-#: The normal quantile of the Wilson 95 % interval.
-_Z = 1.959963984540054
 #: The columns :func:`decide` reads.
 _COLUMNS = ("controller", "omega_n", "k1", "k2", "delay", "told", "runs", "on_path", "ae_median")
 #: ``±X%`` as the command line writes it.
 _WITHIN = re.compile(r"(?:±|\+-|\+/-)?\s*([0-9]*\.?[0-9]+)\s*%")
 
 
-def draws_needed(share: float = REQUIRED_SHARE, z: float = _Z) -> int:
+def draws_needed(share: float = REQUIRED_SHARE, z: float = Z95) -> int:
     """The fewest draws ``n`` whose Wilson lower bound reaches ``share`` when all ``n`` robots
     stay on the path: the smallest ``n`` with ``n / (n + z²) >= share``, i.e.
     ``n >= share z² / (1 − share)`` (73 for 0.95)."""
@@ -331,7 +329,8 @@ def decide(
         if fewest < needed:
             refusal = (
                 f"no candidate qualifies at this size: with {fewest} draws per condition the "
-                f"Wilson lower bound cannot exceed n/(n + z²) = {fewest / (fewest + _Z * _Z):.3f} "
+                "Wilson lower bound cannot exceed n/(n + z²) = "
+                f"{fewest / (fewest + Z95 * Z95):.3f} "
                 f"< {required_share:g} even with every robot on the path; at least {needed} "
                 "draws are needed"
             )

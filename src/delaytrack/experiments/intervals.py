@@ -12,7 +12,11 @@ from scipy import stats
 __all__ = ["median_interval", "wilson_interval"]
 
 
-def wilson_interval(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+#: The standard normal quantile of a two-sided 95 % interval.
+Z95 = 1.959963984540054
+
+
+def wilson_interval(k: int, n: int, z: float = Z95) -> tuple[float, float]:
     """Wilson score interval (95 % by default) of a proportion ``p = k / n``.
 
     ``(c - w, c + w)`` clipped to ``[0, 1]``, with ``c = (p + z²/2n) / (1 + z²/n)`` and

@@ -40,14 +40,21 @@ def ticks(count: int, seed: int = 3):
 
 
 @pytest.mark.parametrize("kind", ["AROLC", "PCON"])
-def test_the_stepper_equals_controller_step_bit_for_bit(kind):
+def test_the_stepper_and_controller_step_equal_the_kernel_called_directly(kind):
+    """Both equal, bit for bit, the step kernel called through numba's dispatcher with the
+    arguments the simulator passes (``step_arguments``), an independent path: no stepper."""
     controller = make(kind)
     stepper = controller.stepper(T_c=T_C, h_max=0.1)
-    state = controller.initial_state()
+    state = direct = controller.initial_state()
     for t, q, qdot, reference, h in ticks(300):
+        arguments = controller.step_arguments(t, q, qdot, reference, direct, T_c=T_C, h=h)
+        controller.step_callable(*arguments)
+        *_, direct, _, _, expected, _ = arguments  # the state advanced in place, the command
         command, state = controller.step(t, q, qdot, reference, state, T_c=T_C, h=h)
-        np.testing.assert_array_equal(stepper(t, q, qdot, reference, h=h), command)
-        np.testing.assert_array_equal(stepper.state, state)
+        np.testing.assert_array_equal(command, expected)
+        np.testing.assert_array_equal(state, direct)
+        np.testing.assert_array_equal(stepper(t, q, qdot, reference, h=h), expected)
+        np.testing.assert_array_equal(stepper.state, direct)
     assert np.all(np.isfinite(state))
 
 

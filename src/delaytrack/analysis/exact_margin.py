@@ -21,7 +21,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.optimize
 
 from delaytrack.analysis.razumikhin import _gains
 
@@ -123,6 +122,8 @@ def _crossings_of_column(excess, omegas: np.ndarray, values: np.ndarray) -> list
     two crossings hide between samples and both are refined. Brent's method stops within
     1e-14 of the lowest frequency: relative, so as accurate for slow gains as for fast ones.
     """
+    import scipy.optimize  # here, not at import: a controller's import need not load it
+
     xtol = 1e-14 * float(omegas[0])
     found: list[float] = []
     signs = np.sign(values)

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.optimize
 
 from delaytrack._validation import ArgumentError, is_integer_at_least, positive_scalar
 from delaytrack.analysis.exact_margin import ExactDelayMargin, exact_delay_margin
@@ -385,6 +384,8 @@ def design_gains(
             )
         least_log_k1 = min(max(least_log_k1, 2.0 * math.log(bandwidth)), top)
     lows, highs = [least_log_k1, top - span, -span, -span], [top, top, span, span]
+    import scipy.optimize  # here, not at import: a controller's import need not load it
+
     start = time.perf_counter()
     search = scipy.optimize.differential_evolution(
         lambda x: -_closed_form_h_m(x, r_value),

@@ -25,7 +25,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import scipy.linalg
 
 from delaytrack._validation import (
     ArgumentError,
@@ -402,8 +401,11 @@ def _lyapunov(A: np.ndarray, C: np.ndarray) -> np.ndarray:
     """X with Aᵀ X + X A = −C, exactly symmetrised; NaN where scipy gives up.
 
     scipy solves M X + X Mᴴ = F; with M = Aᵀ and F = −C that is Aᵀ X + X A = −C. Its
-    conditioning warning and any overflow are left to the caller's accuracy check.
+    conditioning warning and any overflow are left to the caller's accuracy check. SciPy's linear
+    algebra is imported here, when a bound is first computed, not when a controller is.
     """
+    import scipy.linalg
+
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
         warnings.simplefilter("ignore", RuntimeWarning)  # a near-singular operator, perturbed
@@ -424,6 +426,8 @@ def _error_bound(A: np.ndarray, P: np.ndarray, Q: np.ndarray, R: np.ndarray) -> 
     Δ_D for D bounds the error: t = λ_max(L⁻¹ Δ_D L⁻ᵀ) with P = L Lᵀ. E and h_m inherit a
     relative error of a few t (E sums positive semidefinite terms in P and P⁻¹).
     """
+    import scipy.linalg
+
     gamma = (A.shape[0] + 2) * np.finfo(float).eps
     with np.errstate(all="ignore"):
         N = np.abs(R) + gamma * (np.abs(A.T) @ np.abs(P) + np.abs(P) @ np.abs(A) + np.abs(Q))

@@ -20,7 +20,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from delaytrack._compile.jit import tick_kernel
 from delaytrack._io import (
@@ -123,6 +122,10 @@ class SplineReference(Reference):
         if self.boundary not in BOUNDARIES:
             raise ValueError(f"boundary must be one of {list(BOUNDARIES)}; got {self.boundary!r}")
         beyond_choice(self.beyond)
+        # Imported here, when a spline is built: SciPy's interpolation takes a quarter of a
+        # second to import, which every command and live node would otherwise pay.
+        from scipy.interpolate import CubicSpline
+
         spline = CubicSpline(times, values, axis=0, bc_type=self.boundary)
         n = values.shape[1]
         hold = 1.0 if self.beyond == "hold" else 0.0

@@ -38,3 +38,19 @@ def test_arolc_gains_text_gives_the_outer_loop_from_k_and_zeta() -> None:
 
     text = gains_text("AROLC", {"k": 6.0, "zeta": 0.7, "alpha": 54.0})
     assert text == "k = 6, ζ = 0.7 (K1 = 36 I, K2 = 8.4 I), α = 54"
+
+
+def test_with_tuned_arolc_warns_and_gives_the_tuned_summary() -> None:
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from delaytrack.experiments import paper
+    from delaytrack.experiments.paper_findings import tuned_as_arolc
+
+    summary = pd.DataFrame({"controller": ["AROLC", "PCON"], "ae_mm": [1.0, 2.0]})
+    tuned = pd.DataFrame({"controller": ["AROLC (tuned)"], "ae_mm": [0.5]})
+    study = SimpleNamespace(summary=summary, tuned_summary=tuned)
+    with pytest.warns(DeprecationWarning, match="paper_findings.tuned_as_arolc"):
+        found = paper.with_tuned_arolc(study)
+    pd.testing.assert_frame_equal(found, tuned_as_arolc(summary, tuned))

@@ -112,14 +112,15 @@ def test_holm_matches_a_hand_computation():
 
 def test_the_correction_spans_every_verdict_of_the_study():
     # Two noise levels, two scenarios: every test in one family, each pair's survival test once.
+    one = draws([1.0] * 14 + [INF] * 6, [2.0] * 8 + [INF] * 12)
     frames = [
-        draws([1.0] * 14 + [INF] * 6, [2.0] * 8 + [INF] * 12, scenario=case, noise=noise)
-        for case in ("S1", "S2")
-        for noise in ("off", "on")
+        one.assign(scenario=case, noise=noise) for case in ("S1", "S2") for noise in ("off", "on")
     ]
     table = claim_verdicts(pd.concat(frames, ignore_index=True))
     survival = survival_verdicts(table)
     assert len(survival) == 2 * 2 * 2  # scenarios x noise levels x AROLCs; AE and TV share one
+    assert survival.columns[-1] == "survival_verdict" and "claim" not in survival
+    assert not any(c.startswith(("accuracy", "a_lower", "b_lower")) for c in survival.columns)
     family = np.concatenate([survival.survival_p, table.accuracy_p])
     m = np.isfinite(family).sum()
     row = ae_row(table[table.noise == "on"], "S2", "AROLC (tuned)")

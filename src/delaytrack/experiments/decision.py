@@ -61,6 +61,7 @@ from delaytrack.experiments.tradeoff import (
     drawn_runs,
     family_gains,
     family_tables,
+    on_path_summary,
 )
 from delaytrack.sweeps.executors import Executor
 
@@ -447,12 +448,10 @@ def run_decision(
         executor=executor,
         progress=progress,
     )
-    rows = []
-    for i, point in enumerate(points):
-        block = runs.iloc[i * count : (i + 1) * count]
-        kept = block[block.on_path]
-        ae = float(kept.ae.median()) if len(kept) else math.nan
-        rows.append({**point, "runs": len(block), "on_path": len(kept), "ae_median": ae})
+    rows = [
+        {**point, **on_path_summary(runs.iloc[i * count : (i + 1) * count])}
+        for i, point in enumerate(points)
+    ]
     decision = decide(pd.DataFrame(rows), envelope, excluded=excluded, ae_unit=study.ae_unit)
     return dataclasses.replace(
         decision,

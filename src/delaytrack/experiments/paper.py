@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -404,7 +405,19 @@ def run_study(
 
 def with_tuned_arolc(study: PaperStudy) -> pd.DataFrame:
     """``summary`` with the paper-gain AROLC rows replaced by the tuned AROLC's (named
-    ``AROLC``), so that :func:`claims` checks the claims for the tuned AROLC."""
+    ``AROLC``), so that :func:`claims` checks the claims for the tuned AROLC.
+
+    Deprecated (warns): use :func:`~delaytrack.experiments.paper_findings.tuned_as_arolc`
+    ``(study.summary, study.tuned_summary)``; the claims it gives are
+    ``study.findings.tuned_claims``.
+    """
+    warnings.warn(
+        "delaytrack.experiments.paper.with_tuned_arolc is deprecated; use "
+        "delaytrack.experiments.paper_findings.tuned_as_arolc(study.summary, "
+        "study.tuned_summary) (the old name will be removed in a later release)",
+        DeprecationWarning,
+        stacklevel=2,
+    )
     return tuned_as_arolc(study.summary, study.tuned_summary)
 
 

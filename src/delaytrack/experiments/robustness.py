@@ -366,12 +366,16 @@ def study_specs(
     """The study's sweeps at a size (:data:`SIZES`): map, knowledge-S1/S2, claims-S1..S4, with
     the tuned gains of ``gains`` (a gains file or its record; the shipped file by default)."""
     size = SIZES[size] if isinstance(size, str) else size
-    chosen = tuning.load_gains(gains)
+    return _study_sweeps(size, tuning.load_gains(gains))
+
+
+def _study_sweeps(size: StudySize, gains: Gains) -> list[_Sweep]:
+    """:func:`study_specs` with the chosen ``gains`` already loaded (:func:`tuning.load_gains`)."""
     return [
-        _map_sweep(chosen, size.map),
-        *(_knowledge_sweep(chosen, case, size.knowledge) for case in ("S1", "S2")),
-        *(_claims_sweep(chosen, case, size.claims) for case in _SCENARIOS),
-        *(_claims_sweep(chosen, case, size.claims, limited=True) for case in _SCENARIOS),
+        _map_sweep(gains, size.map),
+        *(_knowledge_sweep(gains, case, size.knowledge) for case in ("S1", "S2")),
+        *(_claims_sweep(gains, case, size.claims) for case in _SCENARIOS),
+        *(_claims_sweep(gains, case, size.claims, limited=True) for case in _SCENARIOS),
     ]
 
 
@@ -674,6 +678,7 @@ def run_robustness(
     from (a gains file or its record; the shipped file by default).
     """
     record = tuning.load_tuning_record(gains)
+    chosen = tuning.load_gains(record)
     size = SIZES[size] if isinstance(size, str) else size
     make = executor if executor is not None else LocalExecutor
     out = claim_output_folder(out)
@@ -691,17 +696,13 @@ def run_robustness(
         counts["resumed"] += outcome.resumed
         frames[sweep.name] = _runs_frame(sweep, outcome.runs)
 
-    for sweep in study_specs(size, record):
+    for sweep in _study_sweeps(size, chosen):
         run(sweep)
     cell = ["delay_ms", "controller", "scale"]
     # what edge_cells reads: per map cell in the map's order, its runs and diverged runs
     diverged = frames["map"].groupby(cell, sort=False, dropna=False).diverged
     counted = diverged.agg(runs="size", diverged="sum").reset_index()
-    edges = (
-        edge_sweeps(tuning.load_gains(record), counted, size.map_edge)
-        if size.map_edge > size.map
-        else []
-    )
+    edges = edge_sweeps(chosen, counted, size.map_edge) if size.map_edge > size.map else []
     for sweep in edges:
         run(sweep)
     computed, resumed = counts["computed"], counts["resumed"]

@@ -96,6 +96,7 @@ __all__ = [
     "drawn_runs",
     "family_gains",
     "family_tables",
+    "on_path_summary",
     "pareto_front",
     "run_tradeoff",
     "uncertain_parameters",
@@ -452,8 +453,6 @@ def run_tradeoff(
         k1, k2 = family_gains(omega, zeta)
         for family in families:
             mine = runs[(runs.omega_n == omega) & (runs.controller == family)]
-            kept = mine[mine.on_path]
-            low, high = wilson_interval(len(kept), len(mine))
             found = margins[family][i] if family in margins else None
             rows.append(
                 {
@@ -465,13 +464,7 @@ def run_tradeoff(
                     "h_exact": exact[i] if family in ("arolc", "outer-loop") else math.nan,
                     "empirical_margin": math.nan if found is None else found.margin,
                     "margin_found": found is not None and found.failure_found,
-                    "runs": len(mine),
-                    "on_path": len(kept),
-                    "share_on_path": len(kept) / len(mine),
-                    "share_low": low,
-                    "share_high": high,
-                    "ae_median": float(kept.ae.median()) if len(kept) else math.nan,
-                    "tv_median": float(kept.tv.median()) if len(kept) else math.nan,
+                    **on_path_summary(mine),
                 }
             )
     table = pd.DataFrame(rows)
@@ -589,6 +582,24 @@ def drawn_runs(
     within = np.all(errors <= rule, axis=1)  # NaN (not ok) compares False
     frame["on_path"] = (frame.status == "ok").to_numpy() & within
     return frame, outcome
+
+
+def on_path_summary(runs: pd.DataFrame) -> dict[str, Any]:
+    """The drawn runs of one point (:func:`drawn_runs`' rows): ``runs``, ``on_path`` (of them
+    on the path), ``share_on_path`` ``= on_path / runs`` with its Wilson 95 % interval
+    ``share_low``, ``share_high``, and the median ``ae`` and ``tv`` of the runs on the path
+    (``ae_median``, ``tv_median``; NaN when none)."""
+    kept = runs[runs.on_path]
+    low, high = wilson_interval(len(kept), len(runs))
+    return {
+        "runs": len(runs),
+        "on_path": len(kept),
+        "share_on_path": len(kept) / len(runs),
+        "share_low": low,
+        "share_high": high,
+        "ae_median": float(kept.ae.median()) if len(kept) else math.nan,
+        "tv_median": float(kept.tv.median()) if len(kept) else math.nan,
+    }
 
 
 def _evaluated(

@@ -62,21 +62,8 @@ VERDICT_KINDS = ("survival", "accuracy")
 _CLAIMANTS = ("AROLC (paper gains)", "AROLC (tuned)")
 #: The columns that identify one survival comparison (the AE and TV claims of a pair share it).
 _SURVIVAL_KEY = ["scenario", "noise", "side_a", "side_b"]
-#: The columns of :func:`claim_verdicts` that judge accuracy (the claim's own, not its pair's).
-_ACCURACY_COLUMNS = (
-    "a_lower",
-    "b_lower",
-    "ties",
-    "a_lower_share",
-    "a_lower_ci_low",
-    "a_lower_ci_high",
-    "median_difference",
-    "difference_ci_low",
-    "difference_ci_high",
-    "accuracy_p",
-    "accuracy_p_holm",
-    "accuracy_verdict",
-)
+#: The claims' metrics and their columns of the claims runs (AE in mm, TV in N·m).
+_METRICS = {"AE": "ae_mm", "TV": "tv_Nm"}
 
 
 def _per_draw(frame: pd.DataFrame, who: str, column: str) -> pd.DataFrame:
@@ -222,6 +209,8 @@ def _decided(p_holm: float, wins: int, losses: int) -> str:
 def _comparison(
     first: pd.DataFrame, second: pd.DataFrame, a: str, b: str, column: str
 ) -> dict[str, Any]:
+    """The survival columns of one comparison (:func:`_survival`), then its accuracy columns
+    (:func:`_accuracy`)."""
     values_a, values_b, diverged_a, diverged_b = _paired(first, a, second, b, column)
     return {
         **_survival(diverged_a, diverged_b),
@@ -250,7 +239,7 @@ def claim_verdicts(claims: pd.DataFrame) -> pd.DataFrame:
     for (case, noise), frame in claims.groupby(["scenario", "noise"], sort=False):
         baseline = BASELINE[case]
         for who in _CLAIMANTS:
-            for metric, column in (("AE", "ae_mm"), ("TV", "tv_Nm")):
+            for metric, column in _METRICS.items():
                 rows.append(
                     {
                         "scenario": case,
@@ -276,7 +265,7 @@ def claim_verdicts(claims: pd.DataFrame) -> pd.DataFrame:
                     "controller": who,
                     "side_a": f"{who} in S3",
                     "side_b": f"{who} in S4",
-                    **_comparison(s3, s4, who, who, "ae_mm"),
+                    **_comparison(s3, s4, who, who, _METRICS["AE"]),
                 }
             )
     table = pd.DataFrame(rows)
@@ -306,8 +295,10 @@ def claim_verdicts(claims: pd.DataFrame) -> pd.DataFrame:
 
 def survival_verdicts(verdicts: pd.DataFrame) -> pd.DataFrame:
     """The survival columns of a :func:`claim_verdicts` table, one row per comparison (the AE
-    and TV claims of a pair share one)."""
-    columns = [c for c in verdicts.columns if c != "claim" and c not in _ACCURACY_COLUMNS]
+    and TV claims of a pair share one): every column up to ``survival_verdict`` but ``claim``
+    (the accuracy columns follow it, :func:`_comparison`)."""
+    survival = verdicts.columns[: verdicts.columns.get_loc("survival_verdict") + 1]
+    columns = [c for c in survival if c != "claim"]
     return verdicts.drop_duplicates(_SURVIVAL_KEY)[columns].reset_index(drop=True)
 
 
@@ -356,14 +347,13 @@ def attribution(claims: pd.DataFrame) -> pd.DataFrame:
     for (case, noise), frame in claims.groupby(["scenario", "noise"], sort=False):
         for what, with_it, without in ATTRIBUTION:
             out: dict[str, Any] = {"scenario": case, "noise": noise, "part": what}
-            for metric, column in (("ae", "ae_mm"), ("tv", "tv_Nm")):
+            for column in _METRICS.values():
                 a, b, a_diverged, b_diverged = _paired(frame, with_it, frame, without, column)
                 both = ~a_diverged & ~b_diverged
                 median, low, high = median_interval(a[both] - b[both], seed=1)
-                unit = "mm" if metric == "ae" else "Nm"
-                out[f"median_change_{metric}_{unit}"] = median
-                out[f"change_ci_low_{metric}_{unit}"] = low
-                out[f"change_ci_high_{metric}_{unit}"] = high
+                out[f"median_change_{column}"] = median
+                out[f"change_ci_low_{column}"] = low
+                out[f"change_ci_high_{column}"] = high
             both_stayed, only_with, only_without, both_diverged = _categories(
                 a_diverged, b_diverged
             )

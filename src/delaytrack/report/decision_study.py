@@ -14,6 +14,7 @@ import pandas as pd
 from delaytrack._io import write_frame
 from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack._version import __version__
+from delaytrack.report.decision import conditions_text, decision_columns
 from delaytrack.report.html import HtmlReport
 from delaytrack.report.tradeoff import write_tradeoff
 from delaytrack.units import with_unit
@@ -89,27 +90,12 @@ def display_envelopes(study: DecisionStudy) -> pd.DataFrame:
     )
 
 
-def _with_units(frame: pd.DataFrame, unit: str | None) -> pd.DataFrame:
-    """A table of the rule (candidates, conditions) with the units in the column names."""
-    return frame.rename(
-        columns={
-            "omega_n": "omega_n_rad_per_s",
-            "k1": "k1_per_s2",
-            "k2": "k2_per_s",
-            "delay": "delay_s",
-            "told": "told_s",
-            "ae_median": with_unit("ae_median", unit),
-            "worst_ae": with_unit("worst_ae", unit),
-        }
-    )
-
-
 def _candidates(study: DecisionStudy) -> pd.DataFrame:
     """Every envelope's candidates and conditions (the rule's table), with the envelope."""
     frames = [decision.table.assign(envelope=name) for name, decision in study.decisions.items()]
     table = pd.concat(frames, ignore_index=True)
     table = table[["envelope", *(c for c in table.columns if c != "envelope")]]
-    return _with_units(table, study.tradeoff.ae_unit)
+    return table.rename(columns=decision_columns(study.tradeoff.ae_unit))
 
 
 def write_decision_study(study: DecisionStudy, folder: str | Path) -> list[Path]:
@@ -123,16 +109,6 @@ def write_decision_study(study: DecisionStudy, folder: str | Path) -> list[Path]
     ]
     record_outputs(folder, mine)
     return [*mine, *write_tradeoff(study.tradeoff, folder / "tradeoff")]
-
-
-def _conditions(decision: Decision) -> str:
-    """The envelope's conditions in words."""
-    envelope = decision.envelope
-    return "; ".join(
-        f"true delay {h:g} s, PCONf told {told:g} s"
-        for h in envelope.delays
-        for told in envelope.told
-    )
 
 
 def _report(study: DecisionStudy) -> HtmlReport:
@@ -181,9 +157,9 @@ def _report(study: DecisionStudy) -> HtmlReport:
     )
     for name, decision in study.decisions.items():
         with report.folded(f"{_envelope_name(study.cases[name], decision)}: every candidate"):
-            report.paragraph(f"Conditions: {_conditions(decision)}.")
+            report.paragraph(f"Conditions: {conditions_text(decision.envelope, 'PCONf')}.")
             report.table(
-                _with_units(decision.candidates, study.tradeoff.ae_unit),
+                decision.candidates.rename(columns=decision_columns(study.tradeoff.ae_unit)),
                 caption="One row per candidate, best first (candidates.csv has every condition).",
                 missing="—",
             )

@@ -14,6 +14,7 @@ from matplotlib.figure import Figure
 from delaytrack._io import write_frame
 from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack._version import __version__
+from delaytrack.report.decision import conditions_text, decision_columns
 from delaytrack.report.figures import save_figure
 from delaytrack.report.html import HtmlReport
 from delaytrack.units import labelled, with_unit
@@ -98,18 +99,6 @@ def decision_lines(decision: Decision) -> list[str]:
     return lines
 
 
-def _decision_columns(decision: Decision) -> dict[str, str]:
-    return {
-        "omega_n": "omega_n_rad_per_s",
-        "k1": "k1_per_s2",
-        "k2": "k2_per_s",
-        "delay": "delay_s",
-        "told": "told_s",
-        "ae_median": with_unit("ae_median", decision.ae_unit),
-        "worst_ae": with_unit("worst_ae", decision.ae_unit),
-    }
-
-
 def write_tradeoff(
     study: TradeoffStudy, folder: str | Path, decision: Decision | None = None
 ) -> list[Path]:
@@ -129,7 +118,7 @@ def write_tradeoff(
     evaluated = study.evaluated.rename(columns={"omega_n": columns["omega_n"], "value": "delay_s"})
     files.append(write_frame(evaluated, folder / "evaluated.csv"))
     if decision is not None:
-        named = _decision_columns(decision)
+        named = decision_columns(decision.ae_unit)
         files.append(write_frame(decision.table.rename(columns=named), folder / "decision.csv"))
         drawn = decision.runs.rename(
             columns={
@@ -150,15 +139,10 @@ def write_tradeoff(
 
 def _decision_section(report: HtmlReport, decision: Decision) -> None:
     report.heading("Decision for a delay envelope")
-    envelope = decision.envelope
-    conditions = "; ".join(
-        f"true delay {h:g} s, predictor told {told:g} s"
-        for h in envelope.delays
-        for told in envelope.told
-    )
+    conditions = conditions_text(decision.envelope, "predictor")
     report.settings(
         {
-            "envelope": envelope.text,
+            "envelope": decision.envelope.text,
             "conditions": f"{conditions} (constant true delays; AROLC and the outer loop are "
             "told nothing; under a constant delay PCON told s h is PCONf's law told h̄ = s h, "
             "run as PCONf)",
@@ -174,12 +158,12 @@ def _decision_section(report: HtmlReport, decision: Decision) -> None:
     )
     report.bullets(line.strip() for line in decision_lines(decision)[1:])
     report.table(
-        decision.candidates.rename(columns=_decision_columns(decision)),
+        decision.candidates.rename(columns=decision_columns(decision.ae_unit)),
         caption="One row per candidate, best first: its worst (smallest) Wilson lower bound "
         "over the conditions, worst-case AE, and why it was not chosen.",
     )
     report.table(
-        decision.table.rename(columns=_decision_columns(decision)),
+        decision.table.rename(columns=decision_columns(decision.ae_unit)),
         caption="One row per candidate and condition (decision.csv): robots on the path of "
         "those drawn, share with its Wilson 95 % interval, median AE of the runs on the path.",
     )

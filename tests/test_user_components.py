@@ -16,6 +16,7 @@ import shutil
 import subprocess
 import sys
 import uuid
+from dataclasses import replace
 from pathlib import Path
 
 import numba
@@ -26,6 +27,7 @@ from scipy.interpolate import CubicSpline
 
 import delaytrack as dt
 from delaytrack.cli import main
+from delaytrack.components import evaluate_step
 from delaytrack.scenario import Scenario, ScenarioError
 from delaytrack.sweeps import SweepError, SweepSpec
 from delaytrack.sweeps.spec import engine_inputs
@@ -339,8 +341,16 @@ def test_a_kernel_the_compile_helper_cannot_compile_is_reported_here(example, ca
     arm.write_text(arm.read_text().replace("c2 = math.cos(q[1])", unique))
     monkeypatch.setenv(compile_helper.ENVIRONMENT, "1")
     started = []
+    # The step goes to the helper whatever the costs say (they decide the share otherwise).
+    marker = -1.0
+
+    def to_helper(costs, movable):
+        return [i for i, cost in enumerate(costs) if cost == marker]
+
+    monkeypatch.setattr(compile_helper, "share", to_helper)
 
     def spy(jobs):
+        jobs = [replace(job, cost=marker) if job.function is evaluate_step else job for job in jobs]
         helper, given = compile_helper.start(jobs)
         started.append((helper, given))
         return helper, given

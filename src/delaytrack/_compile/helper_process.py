@@ -61,9 +61,9 @@ __all__ = [
 #: The environment variable that turns the helper off (``0``) or on whatever the load (``1``).
 ENVIRONMENT = "DELAYTRACK_COMPILE_HELPER"
 
-#: Rough seconds a helper takes to start (importing numba and delaytrack), in the units of
-#: :attr:`CompileJob.cost`.
-START_UP = 2.5
+#: Rough seconds a helper takes to start (importing numba and delaytrack, 0.3–0.4 s, and
+#: numba's first compile's set-up), in the units of :attr:`CompileJob.cost`.
+START_UP = 1.0
 
 #: What the helper runs (``python -P``: no folder is put before the module search path). It
 #: reads the whole payload, then sets its module search path to this process's before importing

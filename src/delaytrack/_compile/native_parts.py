@@ -56,9 +56,19 @@ __all__ = [
 
 #: Position of the nominal model's kernel among a step kernel's arguments.
 _MODEL = 10
-#: Rough seconds of a first compile of each part (the paper's robot, measured with numba's
-#: compile times: the integrator with the robot's dynamics inlined is the longest).
-_INTEGRATOR_COST, _STEP_COST, _REFERENCE_COST, _DELAY_COST = 12.0, 5.0, 1.5, 1.5
+#: Rough seconds of a first compile of each part, from an empty cache
+#: (``benchmarks/compile_profile.py``, 2026-12-04: a step 1.2 s, a reference 0.4 s, the delay
+#: profiles 0.05 s, a kernel of the user's for the delay more).
+_STEP_COST, _REFERENCE_COST, _DELAY_COST = 1.5, 0.5, 0.3
+
+
+def _integrator_cost(n: int) -> float:
+    """Rough seconds of a first compile of a plant's integrator with ``n`` coordinates: the
+    plant's dynamics are compiled into it, so it grows with the plant (measured: a pendulum
+    3.6–4 s, the two-link arm 3.3 s, the wheeled robot's five coordinates 6.6–7 s)."""
+    return 3.0 + 0.8 * n
+
+
 #: What :func:`~delaytrack.sim.integrator.integrate_tick` returns: ``(outcome, t_stop,
 #: first_slot)``.
 _TICK_OUTCOME = types.Tuple((types.int64, types.float64, types.int64))
@@ -149,7 +159,7 @@ def _plant_tick_part(plant: types.Type, delay: types.Type, n: int, m: int) -> Na
         typeof(rk4_workspace(np.empty(2 * n), m)),
         types.boolean,  # probe_only
     )
-    return NativePart(integrate_tick, signature, (0, 1), _TICK_OUTCOME, _INTEGRATOR_COST)
+    return NativePart(integrate_tick, signature, (0, 1), _TICK_OUTCOME, _integrator_cost(n))
 
 
 def reference_part(reference: Kernel, n: int) -> NativePart:

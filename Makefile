@@ -24,8 +24,11 @@ reproduce: $(STAMP)
 	$(BIN)/delaytrack reproduce --out results
 
 # One pytest process per core (pytest-xdist): the suite is mostly numba compiling. Each takes a
-# whole test module at a time, in the order of tests/conftest.py.
+# whole test module at a time, in the order of tests/conftest.py. The package's bytecode is
+# compiled first: the suite starts about 130 Python processes, which would otherwise each compile
+# the package's sources where PYTHONDONTWRITEBYTECODE is set.
 test: $(STAMP)
+	$(BIN)/python -m compileall -q src
 	$(BIN)/python -m pytest -n auto --dist loadscope
 
 bench: $(STAMP)

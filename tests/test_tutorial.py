@@ -7,6 +7,7 @@ The notebook's cells that the checks read carry a tag (cell metadata ``tags``): 
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import re
 from pathlib import Path
@@ -15,9 +16,12 @@ import pytest
 
 from delaytrack.analysis import exact_delay_margin, razumikhin_bound
 
-nbformat = pytest.importorskip("nbformat", reason="the test extra installs nbformat")
-nbclient = pytest.importorskip("nbclient", reason="the test extra installs nbclient")
-pytest.importorskip("ipykernel", reason="the test extra installs ipykernel")
+# Looked up, not imported: nbformat and nbclient take a second to import, which every pytest
+# worker would pay at collection; the tests import them.
+pytestmark = pytest.mark.skipif(
+    any(importlib.util.find_spec(name) is None for name in ("nbformat", "nbclient", "ipykernel")),
+    reason="the test extra installs nbformat, nbclient and ipykernel",
+)
 
 NOTEBOOK = Path(__file__).resolve().parents[1] / "docs" / "tutorial.ipynb"
 
@@ -26,6 +30,8 @@ CELL_TIMEOUT = 300
 
 
 def test_committed_notebook_is_valid_and_has_no_outputs() -> None:
+    import nbformat
+
     notebook = nbformat.read(NOTEBOOK, as_version=4)
     nbformat.validate(notebook)
     code = [cell for cell in notebook.cells if cell.cell_type == "code"]
@@ -63,6 +69,9 @@ def _milliseconds(text: str, label: str) -> float:
 
 @pytest.mark.slow
 def test_tutorial_runs_and_reports_its_results(tmp_path: Path) -> None:
+    import nbclient
+    import nbformat
+
     notebook = nbformat.read(NOTEBOOK, as_version=4)
     client = nbclient.NotebookClient(
         notebook,

@@ -9,11 +9,13 @@ STAMP := $(VENV)/.installed
 # uv (from PyPI) installs the same packages as pip, several at a time, and compiles their bytecode
 # on every core (a process then imports numba and SciPy in half the time where
 # PYTHONDONTWRITEBYTECODE is set): about 30 s instead of 40 s for every extra. Where uv cannot be
-# installed, pip does the same install.
+# installed or cannot install (a package index that only pip's own settings name), pip does the
+# same install.
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	if $(BIN)/python -m pip install --quiet 'uv>=0.4'; then \
-		$(BIN)/uv pip install --quiet --compile-bytecode --python $(BIN)/python -e '.[test]'; \
+	if $(BIN)/python -m pip install --quiet 'uv>=0.4' && \
+		$(BIN)/uv pip install --quiet --compile-bytecode --python $(BIN)/python -e '.[test]'; then \
+		:; \
 	else \
 		$(BIN)/python -m pip install --quiet --upgrade pip && \
 		$(BIN)/python -m pip install --quiet -e '.[test]'; \

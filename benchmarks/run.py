@@ -590,7 +590,7 @@ def main() -> None:
 
     print(f"{'case':<68} {'median s':>10} {'steps/s':>10} {'ratio':>8} {'peak MiB':>9}")
     for case in cases:
-        if case in live:  # printed below, a few lines each (format_live)
+        if any(case is run for run in live):  # printed below, a few lines each (format_live)
             continue
         rate = f"{case['steps_per_s']:.3g}" if "steps_per_s" in case else ""
         ratio = f"{case['ratio_to_baseline']:.1f}x" if "ratio_to_baseline" in case else ""

@@ -6,15 +6,19 @@ STAMP := $(VENV)/.installed
 
 .PHONY: reproduce test bench lint docs clean
 
-# uv (from PyPI) installs the same packages as pip, several at a time, and compiles their bytecode
-# on every core (a process then imports numba and SciPy in half the time where
-# PYTHONDONTWRITEBYTECODE is set): about 30 s instead of 40 s for every extra. Where uv cannot be
-# installed or cannot install (a package index that only pip's own settings name), pip does the
-# same install.
+# Python keeps the bytecode it compiles (in .venv and beside the sources), even where
+# PYTHONDONTWRITEBYTECODE is set: the suite starts about 130 Python processes, and each would
+# otherwise compile numba's, SciPy's and the package's sources again. Only the modules a process
+# imports are compiled, once, by the first process that imports them.
+export PYTHONDONTWRITEBYTECODE :=
+
+# uv (from PyPI) installs the same packages as pip, several at a time: about 8 s instead of 40 s
+# for every extra. Where uv cannot be installed or cannot install (a package index that only pip's
+# own settings name), pip does the same install.
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	if $(BIN)/python -m pip install --quiet 'uv>=0.4' && \
-		$(BIN)/uv pip install --quiet --compile-bytecode --python $(BIN)/python -e '.[test]'; then \
+		$(BIN)/uv pip install --quiet --python $(BIN)/python -e '.[test]'; then \
 		:; \
 	else \
 		$(BIN)/python -m pip install --quiet --upgrade pip && \
@@ -26,11 +30,8 @@ reproduce: $(STAMP)
 	$(BIN)/delaytrack reproduce --out results
 
 # One pytest process per core (pytest-xdist): the suite is mostly numba compiling. Each takes a
-# whole test module at a time, in the order of tests/conftest.py. The package's bytecode is
-# compiled first: the suite starts about 130 Python processes, which would otherwise each compile
-# the package's sources where PYTHONDONTWRITEBYTECODE is set.
+# whole test module at a time, in the order of tests/conftest.py.
 test: $(STAMP)
-	$(BIN)/python -m compileall -q src
 	$(BIN)/python -m pytest -n auto --dist loadscope
 
 bench: $(STAMP)

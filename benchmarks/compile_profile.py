@@ -87,6 +87,7 @@ USER_MODULE = textwrap.dedent(
 PARTS = {
     "delaytrack.sim.engine.run_batch": "engine (tick loop)",
     "delaytrack.sim.integrator.integrate_tick": "plant integrator",
+    "delaytrack.sim.integrator.integrate_reduced_tick": "plant integrator",
     "delaytrack.components.evaluate_reference": "reference",
     "delaytrack.components.evaluate_step": "controller step (user's)",
     "delaytrack.delays._kernel.evaluate_profile": "delay profile",

@@ -5,9 +5,12 @@ What a user who knows numba well would write for exactly the case of :func:`base
 ``T_c`` = 10 ms, ``dt`` = 1 ms), with nothing general left:
 
 * one function, every buffer allocated once before the loop, the robot's own kernels called
-  directly (:func:`~delaytrack.plants.robot.payload.robot_payload_terms`, ``M = I`` so no solve;
-  :func:`~delaytrack.controllers.arolc.arolc_step` on the nominal model;
-  :func:`~delaytrack.references.sinusoidal.sinusoidal_reference`);
+  directly: the robot in its reduced (wheel-space) form, as the engine integrates it
+  (:func:`~delaytrack.plants.robot.truth.robot_velocity_map` and
+  :func:`~delaytrack.plants.robot.payload.robot_payload_dynamics`; the three dependent
+  velocities get no slope and are set from the wheel rates after each step),
+  :func:`~delaytrack.controllers.arolc.arolc_step` on the nominal model and
+  :func:`~delaytrack.references.sinusoidal.sinusoidal_reference`;
 * the delayed command looked up at each RK4 stage time (``k = ⌊(t - h(t)) / T_c⌋``), **without**
   splitting a step where it switches: first order across a switch, which the engine does not
   accept, and cheaper than the engine's exact splitting;
@@ -27,7 +30,8 @@ import numpy as np
 
 from delaytrack.controllers.arolc import arolc_step
 from delaytrack.controllers.base import step_workspace
-from delaytrack.plants.robot.payload import robot_payload_terms
+from delaytrack.plants.robot.payload import robot_payload_dynamics
+from delaytrack.plants.robot.truth import robot_velocity_map
 from delaytrack.references.sinusoidal import sinusoidal_reference
 
 __all__ = ["hand_batch", "hand_run"]
@@ -63,10 +67,8 @@ def _one_run(plant_params, delay, sums, shared):
     command = np.empty(m)
     previous = np.zeros(m)
     work = step_workspace(n, m)
-    mass = np.empty((n, n))
-    nonlinear = np.empty(n)
-    input_map = np.empty((n, m))
-    slopes = np.empty((4, 2 * n))
+    applied = np.empty(m)
+    slopes = np.zeros((4, 2 * n))
     stage = np.empty(2 * n)
     for j in range(n + 1):
         sums[j] = 0.0
@@ -107,22 +109,25 @@ def _one_run(plant_params, delay, sums, shared):
                 time = t + offset
                 h = delay[0] + delay[1] * abs(math.sin(delay[2] * time + delay[3]))
                 index = math.floor((time - h) / T_c)
-                robot_payload_terms(
-                    time, stage[:n], stage[n:], plant_params, mass, nonlinear, input_map
+                for j in range(m):
+                    applied[j] = history[index, j] if index >= 0 else 0.0
+                # the reduced form: q̇ = S(q) η, η̇ of the wheel-space dynamics
+                robot_velocity_map(stage[:n], stage[2 * n - m :], plant_params, slopes[s, :n])
+                robot_payload_dynamics(
+                    time,
+                    stage[:n],
+                    stage[2 * n - m :],
+                    applied,
+                    plant_params,
+                    slopes[s, 2 * n - m :],
                 )
-                for i in range(n):
-                    slopes[s, i] = stage[n + i]
-                    force = -nonlinear[i]
-                    if index >= 0:
-                        for j in range(m):
-                            force += input_map[i, j] * history[index, j]
-                    slopes[s, n + i] = force  # M = I for the constrained robot
             for i in range(2 * n):
                 x[i] += (
                     dt
                     / 6.0
                     * (slopes[0, i] + 2.0 * slopes[1, i] + 2.0 * slopes[2, i] + slopes[3, i])
                 )
+            robot_velocity_map(x[:n], x[2 * n - m :], plant_params, x[n:])
     for j in range(n):
         sums[j] /= ticks
     return x

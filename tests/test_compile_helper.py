@@ -18,6 +18,7 @@ from delaytrack.components import Kernel
 from delaytrack.controllers.arolc import arolc_step
 from delaytrack.delays._kernel import NO_KERNEL
 from delaytrack.plants import TwoLinkArm
+from delaytrack.plants.robot import PayloadRobot
 from delaytrack.sim.engine import run_batch_compiled
 
 
@@ -230,11 +231,11 @@ def test_the_helper_refuses_another_cache_folder_and_reports_a_failed_job():
 
 
 def test_the_helper_refuses_a_kernel_whose_code_changed():
-    kernel = TwoLinkArm().engine_kernel
-    key, names, identity_mass, sizes = helper_process._kernel_recipe(kernel)
-    helper_process._make_kernel((key, names, identity_mass, sizes))  # the same code: made
-    with pytest.raises(RuntimeError, match="changed on disk"):
-        helper_process._make_kernel((key + "#0123", names, identity_mass, sizes))
+    for kernel in (TwoLinkArm().engine_kernel, PayloadRobot(seed=1, duration=1.0).engine_kernel):
+        key, *rest = helper_process._kernel_recipe(kernel)
+        helper_process._make_kernel((key, *rest))  # the same code: made
+        with pytest.raises(RuntimeError, match="changed on disk"):
+            helper_process._make_kernel((key + "#0123", *rest))
 
 
 def test_a_failed_or_slow_helper_is_reported_and_stopped():

@@ -11,6 +11,9 @@ component's :class:`Kernel` and calls it through one of the functions below:
 :func:`plant_sizes`              plant: its ``n`` and ``m``, constants when compiled
 :func:`has_stepper`              plant: stepped by an integrator of its own
 :func:`call_stepper`             such a plant: one step ``stepper(t, x, u, dt, params, first)``
+:func:`reduced_size`             plant: ``r`` of a reduced form (:class:`ReducedForm`), else 0
+:func:`call_velocity_map`        such a plant: ``velocity_map(q, eta, params, qdot)``
+:func:`call_reduced_dynamics`    such a plant: ``dynamics(t, q, eta, u, params, eta_dot)``
 :func:`call_step`                controller: one tick (see :mod:`delaytrack.controllers.base`)
 :func:`call_reference`           reference: ``q_d, q̇_d, q̈_d`` at ``t``
 :func:`call_delay`               delay profile of your own: ``h(t)``
@@ -49,17 +52,21 @@ from delaytrack._small_linalg import solve_in_place
 
 __all__ = [
     "Kernel",
+    "ReducedForm",
     "call_command_map",
     "call_delay",
+    "call_reduced_dynamics",
     "call_reference",
     "call_step",
     "call_stepper",
     "call_terms",
+    "call_velocity_map",
     "evaluate_reference",
     "evaluate_step",
     "has_identity_mass",
     "has_stepper",
     "plant_sizes",
+    "reduced_size",
     "solve_input_map",
 ]
 
@@ -73,6 +80,52 @@ __getattr__ = moved_names(
         "refuse_random_draws": "delaytrack._compile.guards:refuse_random_draws",
     },
 )
+
+
+@dataclass(frozen=True)
+class ReducedForm:
+    """A plant's reduced form: its velocities fixed by its positions and ``r`` of them.
+
+    A plant whose ``n`` velocities obey ``n - r`` velocity constraints (a wheeled robot that
+    rolls without slipping: ``q̇ = S(q) η`` with ``η`` its ``r`` wheel rates) may declare the
+    dynamics of ``(q, η)`` alone. The engine's RK4 then integrates these ``n + r`` numbers
+    instead of the ``2n`` of ``(q, q̇)`` and sets the state's velocities from
+    ``velocity_map`` after each step: the constraints hold to rounding, and each stage evaluates
+    the cheaper reduced dynamics. ``η`` must be the last ``r`` entries of ``q̇``
+    (``S(q)``'s last ``r`` rows are the identity).
+
+    Parameters
+    ----------
+    velocity_map : callable
+        ``velocity_map(q, eta, params, qdot)``: write ``q̇ = S(q) η`` (n,).
+    dynamics : callable
+        ``dynamics(t, q, eta, u, params, eta_dot)``: write ``η̇`` (r,) of the reduced equations
+        of motion with the input ``u`` applied.
+    size : int
+        ``r`` >= 1, the number of independent velocities.
+    """
+
+    velocity_map: Callable[..., Any]
+    dynamics: Callable[..., Any]
+    size: int
+
+    def __post_init__(self) -> None:
+        for name in ("velocity_map", "dynamics"):
+            value = getattr(self, name)
+            if not callable(value):
+                raise TypeError(f"{name} must be callable; got {type(value).__name__}")
+        size = self.size
+        if not isinstance(size, int | np.integer) or isinstance(size, bool) or size < 1:
+            raise ValueError(f"size must be an integer r >= 1; got {size!r}")
+        object.__setattr__(self, "size", int(size))
+
+    def as_python(self) -> ReducedForm:
+        """The same form with its functions run as plain Python."""
+        return ReducedForm(
+            getattr(self.velocity_map, "py_func", self.velocity_map),
+            getattr(self.dynamics, "py_func", self.dynamics),
+            self.size,
+        )
 
 
 @known_to_numba
@@ -100,6 +153,9 @@ class Kernel:
         one step of ``dt`` from ``t`` with the input ``u`` held (``first``: the first step of a
         run, where it resets any state of its own). The engine then calls it once per step
         instead of its RK4 on the terms.
+    reduced : ReducedForm, optional
+        For a plant with a reduced form (:class:`ReducedForm`; ``sizes`` must then be given):
+        the engine's RK4 integrates it instead of the terms.
     """
 
     function: Callable[..., Any]
@@ -107,6 +163,7 @@ class Kernel:
     identity_mass: bool = False
     sizes: tuple[int, int] | None = None
     stepper: Callable[..., Any] | None = None
+    reduced: ReducedForm | None = None
 
     def __post_init__(self) -> None:
         for name in ("function", "command_map", "stepper"):
@@ -121,6 +178,27 @@ class Kernel:
             ):
                 raise ValueError(f"sizes must be two integers n, m >= 1; got {self.sizes!r}")
             object.__setattr__(self, "sizes", (int(sizes[0]), int(sizes[1])))
+        if self.reduced is not None:
+            if not isinstance(self.reduced, ReducedForm):
+                raise TypeError(f"reduced must be a ReducedForm; got {type(self.reduced).__name__}")
+            if self.sizes is None or not self.reduced.size <= self.sizes[0]:
+                raise ValueError(
+                    f"a reduced form of r = {self.reduced.size} velocities needs sizes (n, m) "
+                    f"with n >= r; got sizes {self.sizes!r}"
+                )
+
+    @property
+    def roots(self) -> tuple[Callable[..., Any] | None, ...]:
+        """The kernel's functions in a fixed order: its function, command map, stepper and its
+        reduced form's velocity map and dynamics (None where it has none)."""
+        reduced = self.reduced
+        return (
+            self.function,
+            self.command_map,
+            self.stepper,
+            None if reduced is None else reduced.velocity_map,
+            None if reduced is None else reduced.dynamics,
+        )
 
     @cached_property
     def key(self) -> str:
@@ -134,14 +212,18 @@ class Kernel:
             parts.append("sizes={}x{}".format(*self.sizes))
         if self.stepper is not None:
             parts.append(f"stepper={name_with_code(self.stepper)}")
+        if self.reduced is not None:
+            parts.append(
+                f"reduced={name_with_code(self.reduced.velocity_map)}"
+                f"/{name_with_code(self.reduced.dynamics)}/{self.reduced.size}"
+            )
         return ",".join(parts)
 
     @property
     def callable_names(self) -> tuple[str, ...]:
-        """``module:name`` of the kernel's function, and of its command map and stepper when it
-        has them (for messages)."""
-        parts = (self.function, self.command_map, self.stepper)
-        return tuple(qualified_name(part) for part in parts if part is not None)
+        """``module:name`` of the kernel's functions (:attr:`roots`) that it has (for
+        messages)."""
+        return tuple(qualified_name(part) for part in self.roots if part is not None)
 
     @property
     def built_in(self) -> bool:
@@ -156,8 +238,8 @@ class Kernel:
 
     @property
     def compiled(self) -> bool:
-        """Whether the kernel (and its command map and stepper) are numba-compiled."""
-        return _all_compiled(self.function, self.command_map, self.stepper)
+        """Whether the kernel's functions (:attr:`roots`) are numba-compiled."""
+        return _all_compiled(*self.roots)
 
     @classmethod
     def of(
@@ -167,12 +249,14 @@ class Kernel:
         identity_mass: bool = False,
         sizes: tuple[int, int] | None = None,
         stepper: Callable[..., Any] | None = None,
+        reduced: ReducedForm | None = None,
     ) -> Kernel:
         """The Kernel of these functions; for compiled ones made once (its key and numba type
         are then computed once, not at every call of a component's ``engine_kernel``). Python
         kernels are made anew, so that a cache never keeps a user's closures alive."""
+        reduced_roots = () if reduced is None else (reduced.velocity_map, reduced.dynamics)
         if _all_compiled(
-            function, command_map, stepper
+            function, command_map, stepper, *reduced_roots
         ):  # a hashable key for the cache; the Kernel checks the sizes themselves
             key = None if sizes is None else tuple(sizes)
             return _kernel_of(
@@ -183,8 +267,9 @@ class Kernel:
                 identity_mass,
                 key,
                 stepper,
+                reduced,
             )
-        return cls(function, command_map, identity_mass, sizes, stepper)
+        return cls(function, command_map, identity_mass, sizes, stepper, reduced)
 
     @cached_property
     def numba_type(self) -> KernelType:
@@ -206,6 +291,7 @@ class Kernel:
             self.identity_mass,
             self.sizes,
             getattr(self.stepper, "py_func", self.stepper),
+            None if self.reduced is None else self.reduced.as_python(),
         )
 
 
@@ -216,9 +302,15 @@ def _all_compiled(function: object, *extras: object) -> bool:
 
 @lru_cache(maxsize=4096)
 def _kernel_of(
-    cls: type, function: Any, command_map: Any, identity_mass: bool, sizes: Any, stepper: Any
+    cls: type,
+    function: Any,
+    command_map: Any,
+    identity_mass: bool,
+    sizes: Any,
+    stepper: Any,
+    reduced: Any,
 ) -> Kernel:
-    return cls(function, command_map, identity_mass, sizes, stepper)
+    return cls(function, command_map, identity_mass, sizes, stepper, reduced)
 
 
 # ---- the calls ---------------------------------------------------------------------------------
@@ -288,6 +380,64 @@ def _call_stepper_compiled(terms, t, x, u, dt, params, first):
 
         def impl(terms, t, x, u, dt, params, first):
             stepper(t, x, u, dt, params, first)
+
+        return impl
+    return None
+
+
+def reduced_size(terms):
+    """``r`` of the plant :class:`Kernel` ``terms``'s reduced form (:class:`ReducedForm`), or 0
+    when it has none (a constant in compiled code)."""
+    return 0 if terms.reduced is None else terms.reduced.size
+
+
+@overload(reduced_size, inline="always")
+def _reduced_size_compiled(terms):
+    if isinstance(terms, KernelType):
+        reduced = terms.kernel().reduced
+        value = 0 if reduced is None else reduced.size
+        return lambda terms: value
+    return None
+
+
+def call_velocity_map(terms, q, eta, params, qdot):
+    """``q̇ = S(q) η`` of the plant :class:`Kernel` ``terms``'s reduced form."""
+    terms.reduced.velocity_map(q, eta, params, qdot)
+
+
+@overload(call_velocity_map, inline="always")
+def _call_velocity_map_compiled(terms, q, eta, params, qdot):
+    if isinstance(terms, KernelType):
+        reduced = terms.kernel().reduced
+        if reduced is None:
+            return lambda terms, q, eta, params, qdot: None
+        function = reduced.velocity_map
+        refuse_managed_result(function, (q, eta, params, qdot), "velocity map", "nothing")
+
+        def impl(terms, q, eta, params, qdot):
+            function(q, eta, params, qdot)
+
+        return impl
+    return None
+
+
+def call_reduced_dynamics(terms, t, q, eta, u, params, eta_dot):
+    """``η̇`` of the plant :class:`Kernel` ``terms``'s reduced form."""
+    terms.reduced.dynamics(t, q, eta, u, params, eta_dot)
+
+
+@overload(call_reduced_dynamics, inline="always")
+def _call_reduced_dynamics_compiled(terms, t, q, eta, u, params, eta_dot):
+    if isinstance(terms, KernelType):
+        reduced = terms.kernel().reduced
+        if reduced is None:
+            return lambda terms, t, q, eta, u, params, eta_dot: None
+        function = reduced.dynamics
+        arguments = (t, q, eta, u, params, eta_dot)
+        refuse_managed_result(function, arguments, "reduced dynamics", "nothing")
+
+        def impl(terms, t, q, eta, u, params, eta_dot):
+            function(t, q, eta, u, params, eta_dot)
 
         return impl
     return None

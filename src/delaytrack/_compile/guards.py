@@ -32,7 +32,7 @@ def refuse_changed_globals(kernel: Kernel) -> None:
     sets a module global, a notebook cell) would reach neither the run nor the kernel's name, so
     runs with different values would give the same numbers under the same name.
     """
-    for root in (kernel.function, kernel.command_map, kernel.stepper):
+    for root in kernel.roots:
         if not users_compiled(root):
             continue
         for frozen in frozen_globals(root):
@@ -59,7 +59,7 @@ def refuse_random_draws(kernel: Kernel) -> None:
     parameter vector, drawn by the factory from a seeded generator, as the built-in
     :class:`~delaytrack.delays.RandomDelay` draws its knots.
     """
-    for root in (kernel.function, kernel.command_map, kernel.stepper):
+    for root in kernel.roots:
         if root is None or in_package(root) or python_function(root) is None:
             continue
         draws = random_draws(root)

@@ -42,7 +42,7 @@ from typing import IO, Any, NamedTuple
 
 from delaytrack._compile.disk_cache import cache_directory, locks_cache
 from delaytrack._spec import module_from_file, own_bytecode
-from delaytrack.components import Kernel
+from delaytrack.components import Kernel, ReducedForm
 
 __all__ = [
     "ENVIRONMENT",
@@ -248,12 +248,13 @@ def _name(function: Any) -> tuple[str, str, str | None] | None:
 
 def _kernel_recipe(kernel: Kernel) -> tuple | None:
     """How the helper makes ``kernel`` again: its key and the names of its functions."""
-    functions = (kernel.function, kernel.command_map, kernel.stepper)
+    functions = kernel.roots
     names = tuple(None if function is None else _name(function) for function in functions)
     pairs = zip(names, functions, strict=True)
     if any(name is None and function is not None for name, function in pairs):
         return None
-    return (kernel.key, names, kernel.identity_mass, kernel.sizes)
+    reduced_size = None if kernel.reduced is None else kernel.reduced.size
+    return (kernel.key, names, kernel.identity_mass, kernel.sizes, reduced_size)
 
 
 def _recipe(job: CompileJob) -> tuple | None:
@@ -375,10 +376,16 @@ def _imported(name: tuple[str, str, str | None]) -> Any:
 def _make_kernel(recipe: tuple) -> None:
     """Make the kernel of ``recipe`` (:func:`_kernel_recipe`) known to numba in this process;
     refuse one whose code differs from the one the other process asked for."""
-    key, names, identity_mass, sizes = recipe
-    function, command_map, stepper = (None if name is None else _imported(name) for name in names)
+    key, names, identity_mass, sizes, reduced_size = recipe
+    function, command_map, stepper, velocity_map, dynamics = (
+        None if name is None else _imported(name) for name in names
+    )
     assert function is not None  # a kernel always has its function (:func:`_kernel_recipe`)
-    kernel = Kernel.of(function, command_map, identity_mass, sizes, stepper)
+    reduced = None
+    if reduced_size is not None:
+        assert velocity_map is not None and dynamics is not None  # named with the size
+        reduced = ReducedForm(velocity_map, dynamics, reduced_size)
+    kernel = Kernel.of(function, command_map, identity_mass, sizes, stepper, reduced)
     if kernel.key != key:
         raise RuntimeError(f"the kernel {key} changed on disk")
     kernel.numba_type  # noqa: B018 - registers the kernel under its key for the compiler

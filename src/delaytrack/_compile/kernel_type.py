@@ -60,7 +60,7 @@ def numba_type_of(kernel: Kernel) -> KernelType:
     """The numba type of ``kernel``, which is registered under its key for the compiler. The
     user's compiled kernel (and command map and stepper) keep their own numba options when the
     engine compiles them (:func:`~delaytrack._compile.own_options.keep_own_options`)."""
-    for root in (kernel.function, kernel.command_map, kernel.stepper):
+    for root in kernel.roots:
         if users_compiled(root):
             keep_own_options(root)
     _KERNELS.setdefault(kernel.key, kernel)

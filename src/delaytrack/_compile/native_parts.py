@@ -39,7 +39,7 @@ from delaytrack._compile.native_call import NativeFunction
 from delaytrack.components import Kernel, evaluate_reference, evaluate_step
 from delaytrack.controllers.base import step_workspace
 from delaytrack.delays._kernel import evaluate_profile
-from delaytrack.sim.integrator import integrate_tick, rk4_workspace
+from delaytrack.sim.integrator import plant_integrator, rk4_workspace
 
 if TYPE_CHECKING:
     from delaytrack.sim._plan import Plan
@@ -146,14 +146,17 @@ def _vector(n: int) -> types.Type:
 
 
 def plant_tick_part(plant: Kernel, delay: Kernel, n: int, m: int) -> NativePart:
-    """:func:`~delaytrack.sim.integrator.integrate_tick` for the kernel ``plant`` with ``n``
+    """:func:`~delaytrack.sim.integrator.integrate_tick` (or its twin for a plant with a reduced
+    form, :func:`~delaytrack.sim.integrator.plant_integrator`) for the kernel ``plant`` with ``n``
     coordinates and ``m`` inputs, and the delay kernel ``delay`` (the batch's, or
     :data:`~delaytrack.delays._kernel.NO_KERNEL`)."""
-    return _plant_tick_part(plant.numba_type, delay.numba_type, n, m)
+    return _plant_tick_part(plant.numba_type, delay.numba_type, n, m, plant_integrator(plant))
 
 
 @functools.cache
-def _plant_tick_part(plant: types.Type, delay: types.Type, n: int, m: int) -> NativePart:
+def _plant_tick_part(
+    plant: types.Type, delay: types.Type, n: int, m: int, integrator: Any
+) -> NativePart:
     vector = _vector(n)
     signature = (
         plant,
@@ -172,7 +175,7 @@ def _plant_tick_part(plant: types.Type, delay: types.Type, n: int, m: int) -> Na
         typeof(rk4_workspace(np.empty(2 * n), m)),
         types.boolean,  # probe_only
     )
-    return NativePart(integrate_tick, signature, (0, 1), _TICK_OUTCOME, _integrator_cost(n))
+    return NativePart(integrator, signature, (0, 1), _TICK_OUTCOME, _integrator_cost(n))
 
 
 def reference_part(reference: Kernel, n: int) -> NativePart:

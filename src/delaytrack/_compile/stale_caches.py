@@ -41,7 +41,7 @@ def compile_from_source(kernels: Iterable[Kernel]) -> None:
     reached = {
         id(function): function
         for kernel in kernels
-        for root in (kernel.function, kernel.command_map, kernel.stepper)
+        for root in kernel.roots
         if root is not None
         for function in compiled_functions_reached(root)
     }

@@ -21,9 +21,15 @@ import numpy as np
 from numba import typeof, types
 
 from delaytrack._compile.jit import tick_kernel
-from delaytrack.sim.integrator import _rk4_substep, rk4_memory, rk4_workspace
+from delaytrack.sim.integrator import _rk4_substep, reduced_twin, rk4_memory, rk4_workspace
 
-__all__ = ["entry_point", "live_plant_step", "step_signature"]
+__all__ = [
+    "entry_point",
+    "live_plant_step",
+    "live_reduced_plant_step",
+    "plant_step_function",
+    "step_signature",
+]
 
 _VECTOR = typeof(np.empty(1))
 
@@ -40,6 +46,19 @@ def live_plant_step(plant_terms, plant_params, t, x, u, dt, work, bound):
     return _rk4_substep(plant_terms, plant_params, t, x, u, dt, memory, bound)
 
 
+#: :func:`live_plant_step` for the plants with a reduced form
+#: (:func:`~delaytrack.sim.integrator.reduced_twin`).
+live_reduced_plant_step = tick_kernel(
+    reduced_twin(live_plant_step.py_func, "live_reduced_plant_step")
+)
+
+
+def plant_step_function(kernel: Any) -> Any:
+    """:func:`live_plant_step`, or :data:`live_reduced_plant_step` for a plant :class:`Kernel`
+    with a reduced form."""
+    return live_reduced_plant_step if kernel.reduced is not None else live_plant_step
+
+
 def step_signature(kernel: Any, n: int, m: int) -> tuple:
     """The argument types of :func:`live_plant_step` for the plant :class:`Kernel`
     ``kernel`` with ``n`` coordinates and ``m`` inputs (every vector float64, contiguous)."""
@@ -48,10 +67,10 @@ def step_signature(kernel: Any, n: int, m: int) -> tuple:
     return (kernel.numba_type, vector, real, vector, vector, real, work, real)
 
 
-def entry_point(signature: tuple) -> Any:
-    """:func:`live_plant_step` compiled for ``signature`` (or loaded from the disk cache): its
-    entry point, which takes arguments of exactly these types without checking them, or the
-    dispatcher when numba does not give one."""
-    live_plant_step.compile(signature)
-    found = live_plant_step.overloads.get(signature)
-    return getattr(found, "entry_point", None) or live_plant_step
+def entry_point(step: Any, signature: tuple) -> Any:
+    """The compiled ``step`` (:func:`plant_step_function`) for ``signature`` (or loaded from the
+    disk cache): its entry point, which takes arguments of exactly these types without checking
+    them, or the dispatcher when numba does not give one."""
+    step.compile(signature)
+    found = step.overloads.get(signature)
+    return getattr(found, "entry_point", None) or step

@@ -49,6 +49,7 @@ from delaytrack.live.clock import Ticker, steps_until
 from delaytrack.live.log import McapLog, write_csv
 from delaytrack.live.messages import ReleaseMessage, StateMessage
 from delaytrack.live.transport import declare_stream
+from delaytrack.sim._kernel_checks import check_reduced_start
 
 __all__ = ["PlantStepper", "RobotNode", "SimulatedRobot"]
 
@@ -80,6 +81,7 @@ class PlantStepper:
     def __init__(self, plant: Any, dt: float, x0: Any, announce: Any = None) -> None:
         self.n, self.m, self.dt = plant.n, plant.m, float(dt)
         self.x = np.array(x0, dtype=np.float64).reshape(2 * self.n).copy()
+        check_reduced_start(plant, self.x[None])  # as the simulator: never changed silently
         self.u = np.zeros(self.m)
         self.compiled = bool(plant.compiled)
         self._terms = plant.terms_kernel
@@ -154,20 +156,21 @@ def _compiled_step(plant: Any, announce: Any) -> tuple[Any, Any]:
     from delaytrack._compile.first_compile import code_ready
     from delaytrack._compile.guards import refuse_changed_globals
     from delaytrack._compile.stale_caches import compile_from_source
-    from delaytrack.live._plant_step import entry_point, live_plant_step, step_signature
+    from delaytrack.live._plant_step import entry_point, plant_step_function, step_signature
     from delaytrack.sim.integrator import rk4_workspace
 
     kernel = plant.engine_kernel
     refuse_changed_globals(kernel)
     signature = step_signature(kernel, plant.n, plant.m)
-    if not code_ready(live_plant_step, signature, signature):
+    step = plant_step_function(kernel)
+    if not code_ready(step, signature, signature):
         compile_from_source([kernel])
         if announce is not None:
             announce(
                 f"compiling {type(plant).__name__}'s step for the live robot node (once; "
                 "from seconds to a minute, then kept on disk)"
             )
-    return entry_point(signature), rk4_workspace(np.empty(2 * plant.n), plant.m)
+    return entry_point(step, signature), rk4_workspace(np.empty(2 * plant.n), plant.m)
 
 
 class SimulatedRobot(RobotBridge):

@@ -21,7 +21,13 @@ import numpy as np
 
 from delaytrack._compile.jit import hot_inline_kernel, inline_kernel
 from delaytrack._small_linalg import solve_mass_in_place
-from delaytrack.components import Kernel, call_terms, has_identity_mass, plant_sizes
+from delaytrack.components import (
+    Kernel,
+    ReducedForm,
+    call_terms,
+    has_identity_mass,
+    plant_sizes,
+)
 
 __all__ = ["ELPlant", "el_rhs", "rhs_scratch"]
 
@@ -152,7 +158,15 @@ class ELPlant(ABC):
             self.identity_mass,
             (self.n, self.m),
             self.stepper_kernel,
+            self.reduced_form,
         )
+
+    @property
+    def reduced_form(self) -> ReducedForm | None:
+        """The plant's reduced form (:class:`~delaytrack.components.ReducedForm`), which the
+        simulator integrates instead of the terms, or None (the default): a plant whose
+        velocities obey constraints may declare one."""
+        return None
 
     @property
     def stepper_kernel(self) -> Callable[..., None] | None:

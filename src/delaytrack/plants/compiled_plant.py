@@ -17,7 +17,7 @@ from delaytrack._validation import (
     format_values,
     is_integer_at_least,
 )
-from delaytrack.components import Kernel
+from delaytrack.components import Kernel, ReducedForm
 from delaytrack.kernel_arguments import check_kernel_arguments
 from delaytrack.plants.base import ELPlant
 
@@ -49,6 +49,12 @@ class CompiledPlant(ELPlant):
     input_units : sequence of str, optional
         Units of the inputs (``"N"``, ``"N·m"``), one per input, for figure axes and table
         columns.
+    reduced : ReducedForm, optional
+        For a plant whose velocities obey constraints: its reduced form
+        (:class:`~delaytrack.components.ReducedForm`, both functions compiled with
+        ``numba.njit``), which the simulator integrates instead of the terms; ``kernel`` still
+        gives ``M, N, G`` to the Python methods. ``simulate`` then refuses a start off the
+        constraints.
 
     Notes
     -----
@@ -75,6 +81,7 @@ class CompiledPlant(ELPlant):
     coordinate_names: tuple[str, ...] | None = None
     coordinate_units: tuple[str, ...] | None = None
     input_units: tuple[str, ...] | None = None
+    reduced: ReducedForm | None = None
     type_name: ClassVar[str] = "compiled"
 
     def __post_init__(self) -> None:
@@ -88,6 +95,16 @@ class CompiledPlant(ELPlant):
                 f"{type(self.kernel).__name__}. For plain Python functions use CallablePlant."
             )
         check_kernel_arguments("CompiledPlant", "terms", self.kernel)
+        if self.reduced is not None:
+            if not isinstance(self.reduced, ReducedForm):
+                raise TypeError(f"reduced must be a ReducedForm; got {type(self.reduced).__name__}")
+            for label in ("velocity_map", "dynamics"):
+                if not is_compiled(getattr(self.reduced, label)):
+                    raise TypeError(f"reduced.{label} must be numba-compiled (@numba.njit)")
+            if self.reduced.size > self.n:
+                raise ValueError(
+                    f"reduced.size must be at most n = {self.n}; got {self.reduced.size}"
+                )
         for label in ("coordinate_names", "coordinate_units"):
             if getattr(self, label) is not None:
                 labels = coordinate_labels(label, getattr(self, label), self.n)
@@ -170,6 +187,10 @@ class CompiledPlant(ELPlant):
     @property
     def terms_kernel(self) -> Callable[..., None]:
         return self.kernel
+
+    @property
+    def reduced_form(self) -> ReducedForm | None:
+        return self.reduced
 
     def to_spec(self) -> dict[str, Any]:
         return {"type": self.type_name, "name": self.name, "n": int(self.n), "m": int(self.m)}

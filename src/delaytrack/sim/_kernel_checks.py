@@ -20,6 +20,7 @@ __all__ = [
     "check_controller_at_x0",
     "check_kernels_take_their_arguments",
     "check_plant_at_x0",
+    "check_reduced_start",
     "checked_before_the_run",
     "refuse_reads_past",
 ]
@@ -108,6 +109,38 @@ def check_plant_at_x0(plant: ELPlant, x0: np.ndarray, t0: float) -> None:
         kernel, "the check of M at x0", lambda: plant.terms(x0[None, :n], x0[None, n:], t0)[0][0]
     )
     as_spd_matrix(f"the plant's M at x0 (from your kernel {kernel.callable_names[0]})", mass, n)
+
+
+#: Largest ``|q̇ - S(q) η|`` of a start accepted by a plant with a reduced form, relative to
+#: ``1 + |q̇|``: rounding, not a velocity.
+REDUCED_START_TOLERANCE = 1e-9
+
+
+def check_reduced_start(plant: ELPlant, states0: np.ndarray) -> None:
+    """Refuse starts off the velocity constraints of a plant with a reduced form
+    (:class:`~delaytrack.components.ReducedForm`): its engine integrates ``(q, η)`` and sets
+    ``q̇ = S(q) η``, so a start whose other velocities disagree would be changed at the first
+    step instead of run as given."""
+    reduced = plant.engine_kernel.reduced
+    if reduced is None:
+        return
+    n, r = plant.n, reduced.size
+    params = plant.params
+    expected = np.empty(n)
+    for row, state in enumerate(states0):
+        q, qdot = np.ascontiguousarray(state[:n]), np.ascontiguousarray(state[n:])
+        reduced.velocity_map(q, np.ascontiguousarray(qdot[n - r :]), params, expected)
+        gap = float(np.max(np.abs(qdot - expected)))
+        if not gap <= REDUCED_START_TOLERANCE * (1.0 + float(np.max(np.abs(qdot)))):
+            where = "" if len(states0) == 1 else f" (row {row})"
+            raise ValueError(
+                f"x0{where} must satisfy the plant's velocity constraints q̇ = S(q) η, η its "
+                f"last {r} velocities: q̇ = {np.array2string(qdot, precision=6)} but "
+                f"S(q) η = {np.array2string(expected, precision=6)} (the plant "
+                f"{type(plant).__name__} is integrated in its reduced form, which keeps the "
+                "constraints exactly); start from consistent velocities, e.g. "
+                "delaytrack.plants.robot.consistent_state"
+            )
 
 
 def check_controller_at_x0(

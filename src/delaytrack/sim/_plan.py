@@ -33,6 +33,7 @@ from delaytrack.sim._kernel_checks import (
     check_controller_at_x0,
     check_kernels_take_their_arguments,
     check_plant_at_x0,
+    check_reduced_start,
     checked_before_the_run,
     refuse_reads_past,
 )
@@ -448,6 +449,7 @@ def _check_start(
             f"max |x0| = {np.max(np.abs(states0)):g}"
         )
     check_plant_at_x0(plant, states0[0], t0)
+    check_reduced_start(plant, states0)
     reference_arrays = (
         real_array("reference.params", reference.params, ndim=1),
         *np.zeros((3, reference.n)),

@@ -9,7 +9,7 @@ from types import FrameType
 from typing import Any
 
 from delaytrack._user_calls import named_errors
-from delaytrack.components import Kernel
+from delaytrack.components import Kernel, ReducedForm
 
 #: This package's name: frames of its modules are not the user's.
 _PACKAGE = __name__.partition(".")[0]
@@ -68,6 +68,7 @@ def python_kernel(kernel: Kernel) -> Kernel:
     raised). This package's kernels are left as they are: a
     :class:`~delaytrack.plants.CallablePlant`'s names the user's functions it calls itself."""
     python = kernel.as_python()
+    reduced = python.reduced
 
     def named(function: Any, timed: bool) -> Any:
         if function is None or Kernel(function).built_in:
@@ -80,6 +81,13 @@ def python_kernel(kernel: Kernel) -> Kernel:
         python.identity_mass,
         python.sizes,
         named(python.stepper, timed=True),
+        None
+        if reduced is None
+        else ReducedForm(
+            named(reduced.velocity_map, timed=False),
+            named(reduced.dynamics, timed=True),
+            reduced.size,
+        ),
     )
 
 

@@ -41,6 +41,7 @@ from delaytrack._validation import (
     is_integer_at_least,
     positive_scalar,
 )
+from delaytrack.components import ReducedForm
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.robot.body import COORDINATE_UNITS, COORDINATES, INPUT_UNITS
 from delaytrack.plants.robot.parameters import P3DX_PAYLOAD
@@ -49,15 +50,20 @@ from delaytrack.plants.robot.truth import (
     ConstrainedRobotPhysics,
     WheeledRobot,
     constrained_terms,
+    robot_velocity_map,
+    wheel_accelerations,
 )
 
 __all__ = [
+    "PAYLOAD_REDUCED_FORM",
     "SCHEDULE_KEYS",
     "SCHEDULE_POINTS",
     "PayloadRobot",
     "PayloadSchedule",
     "active_placement",
+    "loaded_aggregates",
     "random_placements",
+    "robot_payload_dynamics",
     "robot_payload_terms",
 ]
 
@@ -86,8 +92,9 @@ def active_placement(t, params, start):
 
 
 @hot_kernel
-def robot_payload_terms(t, q, qdot, params, mass, nonlinear, input_map):
-    """Terms kernel of :class:`PayloadRobot`: the truth robot with the payload in force at ``t``."""
+def loaded_aggregates(t, params):
+    """``(M_b', s_x', s_y', I_A')`` of the robot with the payload in force at ``t`` (module
+    docstring)."""
     mass_b = params[3]
     s_x = params[4]
     s_y = params[5]
@@ -101,7 +108,25 @@ def robot_payload_terms(t, q, qdot, params, mass, nonlinear, input_map):
         s_x += m_p * p_x
         s_y += m_p * p_y
         inertia_a += m_p * (p_x * p_x + p_y * p_y)
+    return mass_b, s_x, s_y, inertia_a
+
+
+@hot_kernel
+def robot_payload_terms(t, q, qdot, params, mass, nonlinear, input_map):
+    """Terms kernel of :class:`PayloadRobot`: the truth robot with the payload in force at ``t``."""
+    mass_b, s_x, s_y, inertia_a = loaded_aggregates(t, params)
     constrained_terms(q, qdot, params, mass_b, s_x, s_y, inertia_a, mass, nonlinear, input_map)
+
+
+@hot_kernel
+def robot_payload_dynamics(t, q, eta, u, params, eta_dot):
+    """Reduced dynamics of :class:`PayloadRobot`: ``η̇`` with the payload in force at ``t``."""
+    mass_b, s_x, s_y, inertia_a = loaded_aggregates(t, params)
+    wheel_accelerations(eta, u, params, mass_b, s_x, s_y, inertia_a, eta_dot)
+
+
+#: The payload robot's reduced form (two wheel rates).
+PAYLOAD_REDUCED_FORM = ReducedForm(robot_velocity_map, robot_payload_dynamics, 2)
 
 
 #: Most placements of a random payload schedule (two numbers each, in every run's parameters).
@@ -302,6 +327,10 @@ class PayloadRobot(PayloadSchedule, ConstrainedRobotPhysics, ELPlant):
     @property
     def terms_kernel(self):
         return robot_payload_terms
+
+    @property
+    def reduced_form(self) -> ReducedForm:
+        return PAYLOAD_REDUCED_FORM
 
     @property
     def horizon(self) -> float:

@@ -15,7 +15,11 @@ equivalently, in body velocities, ``(M_b + 2I_w/R²) v̇ - s_y ω̇ - s_x ω² =
 (Dhaouadi & Abu Hatab 2013). A centre of mass off the heading axis (``s_y ≠ 0``, a payload placed
 sideways) couples v̇ and ω̇ through the mass matrix.
 
-The plant is integrated in ``q`` as ``M = I``, ``N = -a``, ``G = b`` with ``q̈ = a + b τ``:
+The simulator integrates the robot in this reduced form (:data:`TRUTH_REDUCED_FORM`, a
+:class:`~delaytrack.components.ReducedForm`): RK4 on ``(q, η)`` with the slopes
+``(S(q) η, η̇)`` and ``q̇ = S(q) η`` after each step, so that the velocity constraints hold to
+rounding. Its terms kernel (for the Python methods, and a run without the reduced form) gives
+the constrained form in ``q`` as ``M = I``, ``N = -a``, ``G = b`` with ``q̈ = a + b τ``:
 
     η̇ = M_r⁻¹ (τ - f - n_r),     q̈ = S(q) η̇ + (∂S/∂φ) φ̇ η - k_b [ρ; 0],
     ρ = q̇_{1:3} - S_{1:3}(q) η                     (velocity-constraint residual)
@@ -38,6 +42,7 @@ import numpy as np
 
 from delaytrack._compile.jit import hot_kernel, kernel
 from delaytrack._validation import positive_scalar
+from delaytrack.components import ReducedForm
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.robot.body import RobotBody
 from delaytrack.plants.robot.kinematics import constraint_residual, kinematic_map_entries
@@ -47,11 +52,15 @@ __all__ = [
     "DEFAULT_BAUMGARTE_GAIN",
     "ConstrainedRobotPhysics",
     "TRUTH_PARAMS",
+    "TRUTH_REDUCED_FORM",
     "WheeledRobot",
     "constrained_terms",
     "reduced_terms_kernel",
     "reduced_terms_values",
+    "robot_truth_dynamics",
     "robot_truth_terms",
+    "robot_velocity_map",
+    "wheel_accelerations",
 ]
 
 #: Baumgarte gain k_b of the velocity-constraint residual, 1/s.
@@ -62,15 +71,13 @@ TRUTH_PARAMS = 12
 
 
 @hot_kernel
-def reduced_terms_values(qdot, params, mass_b, s_x, s_y, inertia_a):
-    """``M_r``, ``n_r`` and ``f`` of the module docstring at ``η = q̇[3:5]``, as scalars
+def reduced_terms_values(wr, wl, params, mass_b, s_x, s_y, inertia_a):
+    """``M_r``, ``n_r`` and ``f`` of the module docstring at ``η = (wr, wl)``, as scalars
     ``(M_r00, M_r01, M_r11, n_r0, n_r1, f_0, f_1)`` (``M_r`` is symmetric)."""
     R, L, Iw = params[0], params[1], params[7]
     b_v, f_c, v_s = params[8], params[9], params[10]
     a = 0.5 * R
     b = R / (2.0 * L)
-    wr = qdot[3]
-    wl = qdot[4]
     v = a * (wr + wl)
     w = b * (wr - wl)
     m00 = Iw + a * a * mass_b - 2.0 * a * b * s_y + b * b * inertia_a
@@ -90,7 +97,7 @@ def reduced_terms_values(qdot, params, mass_b, s_x, s_y, inertia_a):
 def reduced_terms_kernel(qdot, params, mass_b, s_x, s_y, inertia_a, reduced_mass, bias, friction):
     """Fill ``M_r`` (2, 2), ``n_r`` (2,), ``f`` (2,) from :func:`reduced_terms_values`."""
     m00, m01, m11, bias[0], bias[1], friction[0], friction[1] = reduced_terms_values(
-        qdot, params, mass_b, s_x, s_y, inertia_a
+        qdot[3], qdot[4], params, mass_b, s_x, s_y, inertia_a
     )
     reduced_mass[0, 0] = m00
     reduced_mass[0, 1] = m01
@@ -106,7 +113,7 @@ def constrained_terms(q, qdot, params, mass_b, s_x, s_y, inertia_a, mass, nonlin
     R, L, d = params[0], params[1], params[2]
     k_b = params[11]
     m00, m01, m11, bias_r, bias_l, friction_r, friction_l = reduced_terms_values(
-        qdot, params, mass_b, s_x, s_y, inertia_a
+        qdot[3], qdot[4], params, mass_b, s_x, s_y, inertia_a
     )
     det = m00 * m11 - m01 * m01
     i00 = m11 / det
@@ -151,6 +158,51 @@ def constrained_terms(q, qdot, params, mass_b, s_x, s_y, inertia_a, mass, nonlin
     input_map[3, 1] = i01
     input_map[4, 0] = i01
     input_map[4, 1] = i11
+
+
+@hot_kernel
+def wheel_accelerations(eta, u, params, mass_b, s_x, s_y, inertia_a, eta_dot):
+    """``η̇ = M_r⁻¹ (τ - f - n_r)`` (module docstring) with the rigid-body aggregates given,
+    summed as the constrained form's rows θ_r, θ_l are (the same numbers to the last bit)."""
+    m00, m01, m11, bias_r, bias_l, friction_r, friction_l = reduced_terms_values(
+        eta[0], eta[1], params, mass_b, s_x, s_y, inertia_a
+    )
+    det = m00 * m11 - m01 * m01
+    i00 = m11 / det
+    i01 = -m01 / det
+    i11 = m00 / det
+    g0 = -(bias_r + friction_r)
+    g1 = -(bias_l + friction_l)
+    eta_dot[0] = i00 * g0 + i01 * g1 + i00 * u[0] + i01 * u[1]
+    eta_dot[1] = i01 * g0 + i11 * g1 + i01 * u[0] + i11 * u[1]
+
+
+@hot_kernel
+def robot_velocity_map(q, eta, params, qdot):
+    """Velocity map of the robot's reduced form: ``q̇ = S(q) η``, ``η = (θ̇_r, θ̇_l)`` (``eta``
+    may be ``qdot[3:5]`` itself)."""
+    R, L, d = params[0], params[1], params[2]
+    wr = eta[0]
+    wl = eta[1]
+    v = 0.5 * R * (wr + wl)
+    w = R * (wr - wl) / (2.0 * L)
+    c = math.cos(q[2])
+    s = math.sin(q[2])
+    qdot[0] = v * c - d * w * s
+    qdot[1] = v * s + d * w * c
+    qdot[2] = w
+    qdot[3] = wr
+    qdot[4] = wl
+
+
+@hot_kernel
+def robot_truth_dynamics(t, q, eta, u, params, eta_dot):
+    """Reduced dynamics of :class:`WheeledRobot`: ``η̇`` (:func:`wheel_accelerations`)."""
+    wheel_accelerations(eta, u, params, params[3], params[4], params[5], params[6], eta_dot)
+
+
+#: The robot's reduced form (two wheel rates): the engine integrates it instead of its terms.
+TRUTH_REDUCED_FORM = ReducedForm(robot_velocity_map, robot_truth_dynamics, 2)
 
 
 @hot_kernel
@@ -221,8 +273,9 @@ class WheeledRobot(RobotBody, ConstrainedRobotPhysics, ELPlant):
 
     Coordinates ``q = (x_c, y_c, φ, θ_r, θ_l)``, inputs the wheel torques ``u = (τ_r, τ_l)``.
     Start it on the constraint manifold
-    (:func:`~delaytrack.plants.robot.kinematics.consistent_state`); an inconsistent initial
-    velocity decays as ``exp(-k_b t)``.
+    (:func:`~delaytrack.plants.robot.kinematics.consistent_state`): ``simulate`` integrates its
+    reduced form and refuses another start; in the constrained form (its terms) an
+    inconsistent initial velocity decays as ``exp(-k_b t)``.
 
     Parameters
     ----------
@@ -277,6 +330,10 @@ class WheeledRobot(RobotBody, ConstrainedRobotPhysics, ELPlant):
     @property
     def terms_kernel(self):
         return robot_truth_terms
+
+    @property
+    def reduced_form(self) -> ReducedForm:
+        return TRUTH_REDUCED_FORM
 
     def to_spec(self) -> dict[str, Any]:
         return {"type": self.type_name, **self.truth_spec()}

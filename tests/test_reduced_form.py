@@ -1,0 +1,165 @@
+"""A plant's reduced form: the engine integrates ``(q, η)`` with ``q̇ = S(q) η`` instead of its
+terms, the robot in its wheel-space form agrees with its constrained form, and a plant of the
+user's can declare one."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numba
+import numpy as np
+import pytest
+
+from delaytrack import AROLC, ConstantDelay, SinusoidalReference, simulate
+from delaytrack.components import ReducedForm
+from delaytrack.delays import AbsSineDelay
+from delaytrack.experiments.paper import AROLC_GAINS, DT, DURATION, PAYLOAD_SEED, T_C
+from delaytrack.plants import CompiledPlant
+from delaytrack.plants.robot import NominalRobot, PayloadRobot, initial_state, paper_reference
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ConstrainedOnly(PayloadRobot):
+    """The payload robot integrated in its constrained form (``M = I``, Baumgarte term), as
+    before it declared its reduced form."""
+
+    @property
+    def reduced_form(self):
+        return None
+
+
+@pytest.mark.slow  # compiles the constrained form's integrator
+def test_the_robot_in_wheel_space_agrees_with_its_constrained_form_over_the_paper_run():
+    reference = paper_reference("consistent")
+    plant = PayloadRobot(seed=PAYLOAD_SEED, duration=DURATION)
+    controller = AROLC(NominalRobot(), **AROLC_GAINS)
+    delay, x0 = AbsSineDelay.S1(), initial_state(reference)
+    constrained = ConstrainedOnly(seed=PAYLOAD_SEED, duration=DURATION)
+    assert np.array_equal(constrained.params, plant.params)
+    runs = [
+        simulate(p, controller, delay, x0, reference=reference, t1=DURATION, dt=DT, T_c=T_C)
+        for p in (plant, constrained)
+    ]
+    assert [run.status_names for run in runs] == [["ok"], ["ok"]]
+    reduced, full = (run.x[0] for run in runs)
+    span = np.abs(full).max(axis=0)
+    # Measured: positions within 6e-13 of their range, velocities within 1.5e-12 (the
+    # constrained form's own velocity-constraint residual is of order 1e-11).
+    assert np.all(np.abs(reduced[:, :5] - full[:, :5]).max(axis=0) <= 1e-12 * span[:5])
+    assert np.all(np.abs(reduced[:, 5:] - full[:, 5:]).max(axis=0) <= 5e-12 * span[5:])
+    # The reduced form keeps the velocity constraints to rounding; the constrained one to the
+    # Baumgarte term's damping of RK4's truncation error.
+    residual = np.abs(plant.constraint_residual(reduced)).max()
+    assert residual < 1e-13 < np.abs(plant.constraint_residual(full)).max()
+    assert reduced.shape == full.shape and np.all(np.isfinite(reduced))
+
+
+# ---- a plant of the user's: a disc of radius R rolling on a line, q = (x, θ), ẋ = R θ̇ --------
+
+RADIUS, INERTIA, FRICTION = 0.2, 0.05, 0.1  # m, kg·m² (about the contact point), N·m·s
+
+
+@numba.njit
+def disc_terms(t, q, qdot, params, M, N, G):
+    """``M = I``, ``N = -a``, ``G = b``: ``θ̈ = (u - c θ̇) / I``, ``ẍ = R θ̈``."""
+    radius, inertia, friction = params[0], params[1], params[2]
+    M[0, 0], M[0, 1], M[1, 0], M[1, 1] = 1.0, 0.0, 0.0, 1.0
+    N[1] = friction * qdot[1] / inertia
+    N[0] = radius * N[1]
+    G[1, 0] = 1.0 / inertia
+    G[0, 0] = radius * G[1, 0]
+
+
+@numba.njit
+def disc_velocities(q, eta, params, qdot):
+    rate = eta[0]
+    qdot[0] = params[0] * rate
+    qdot[1] = rate
+
+
+@numba.njit
+def disc_dynamics(t, q, eta, u, params, eta_dot):
+    eta_dot[0] = (u[0] - params[2] * eta[0]) / params[1]
+
+
+@numba.njit
+def disc_command(q, params, tau, command):
+    """The torque whose accelerations ``G u`` are nearest ``τ`` (least squares, ``M = I``)."""
+    radius, inertia = params[0], params[1]
+    command[0] = inertia * (radius * tau[0] + tau[1]) / (radius * radius + 1.0)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class DiscModel(CompiledPlant):
+    """The disc as a nominal model: one torque for two coordinates, mapped by least squares."""
+
+    @property
+    def command_map_kernel(self):
+        return disc_command
+
+
+def _disc(reduced: bool) -> CompiledPlant:
+    form = ReducedForm(disc_velocities, disc_dynamics, 1) if reduced else None
+    return CompiledPlant(2, 1, disc_terms, [RADIUS, INERTIA, FRICTION], reduced=form)
+
+
+def _disc_run(plant, x0, engine="compiled"):
+    model = DiscModel(2, 1, disc_terms, [RADIUS, INERTIA, 0.0])
+    controller = AROLC(model, K1=4.0, K2=4.0, Q=1.0, alpha=1.0, epsilon=0.1, gamma=1e-3)
+    reference = SinusoidalReference(offset=[0.0, 0.0], amplitude=[0.5, 2.5], frequency=[0.5, 0.5])
+    return simulate(
+        plant, controller, ConstantDelay(0.01), x0, reference=reference, t1=2.0, dt=1e-3,
+        T_c=0.01, engine=engine,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("engine", ["compiled", "python"])
+def test_a_user_plant_declares_its_reduced_form_and_runs_in_it(engine):
+    x0 = np.array([0.0, 0.0, RADIUS * 1.5, 1.5])
+    reduced = _disc_run(_disc(True), x0, engine)
+    full = _disc_run(_disc(False), x0, engine)
+    assert reduced.status_names == full.status_names == ["ok"]
+    # The same motion (the constraint is linear: both forms integrate it exactly up to rounding)
+    np.testing.assert_allclose(reduced.x, full.x, rtol=0, atol=1e-12)
+    x = reduced.x[0]
+    np.testing.assert_array_equal(x[:, 2], RADIUS * x[:, 3])  # q̇ = S(q) η at every sample
+    assert _disc(True).engine_kernel.key != _disc(False).engine_kernel.key
+
+
+def test_a_start_off_the_constraints_is_refused_naming_x0():
+    with pytest.raises(ValueError, match=r"x0 must satisfy the plant's velocity constraints"):
+        _disc_run(_disc(True), np.array([0.0, 0.0, 1.0, 1.5]))
+
+
+def test_a_reduced_form_is_checked_when_made():
+    with pytest.raises(ValueError, match=r"size must be an integer r >= 1; got 0"):
+        ReducedForm(disc_velocities, disc_dynamics, 0)
+    with pytest.raises(TypeError, match=r"dynamics must be callable"):
+        ReducedForm(disc_velocities, 3.0, 1)
+    with pytest.raises(ValueError, match=r"reduced.size must be at most n = 2; got 3"):
+        CompiledPlant(2, 1, disc_terms, [RADIUS, INERTIA, FRICTION],
+                      reduced=ReducedForm(disc_velocities, disc_dynamics, 3))  # fmt: skip
+
+
+def test_the_live_robot_node_steps_the_reduced_form_as_the_engine_does():
+    """The robot node's compiled step of the P3-DX is the engine's reduced sub-step: the same
+    numbers as the plain-Python engine's, and velocities on the constraints."""
+    from delaytrack.live.robot import _compiled_step
+    from delaytrack.plants.robot import consistent_state
+    from delaytrack.sim.integrator import _reduced_rk4_substep, rk4_workspace
+
+    plant = PayloadRobot(seed=PAYLOAD_SEED, duration=DURATION)
+    entry, work = _compiled_step(plant, None)
+    x = consistent_state([0.1, -0.2, 0.3, 1.0, 2.0], [3.0, 2.0], *plant.params[:3])
+    python_x = x.copy()
+    python_work = rk4_workspace(np.empty(10), 2)
+    kernel, params, u = plant.engine_kernel, plant.params, np.array([0.4, -0.3])
+    for k in range(50):  # across a payload placement (the schedule's first is on from 0 s)
+        t = 0.1 * k
+        outside, _ = entry(kernel, params, t, x, u, 1e-3, work, np.inf)
+        assert not outside
+        _reduced_rk4_substep.py_func(
+            kernel.as_python(), params, t, python_x, u, 1e-3, python_work, np.inf
+        )
+    np.testing.assert_allclose(x, python_x, rtol=1e-14, atol=1e-15)
+    assert np.abs(plant.constraint_residual(x)).max() < 1e-15

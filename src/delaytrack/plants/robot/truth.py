@@ -61,6 +61,7 @@ __all__ = [
     "robot_truth_terms",
     "robot_velocity_map",
     "wheel_accelerations",
+    "wheel_space_inverse",
 ]
 
 #: Baumgarte gain k_b of the velocity-constraint residual, 1/s.
@@ -106,22 +107,27 @@ def reduced_terms_kernel(qdot, params, mass_b, s_x, s_y, inertia_a, reduced_mass
 
 
 @hot_kernel
+def wheel_space_inverse(wr, wl, params, mass_b, s_x, s_y, inertia_a):
+    """``M_r⁻¹`` as ``(i00, i01, i11)`` (symmetric) and ``g = -(n_r + f)`` as ``(g0, g1)`` at
+    ``η = (wr, wl)``, so that ``η̇ = M_r⁻¹ (g + τ)`` (module docstring)."""
+    m00, m01, m11, bias_r, bias_l, friction_r, friction_l = reduced_terms_values(
+        wr, wl, params, mass_b, s_x, s_y, inertia_a
+    )
+    det = m00 * m11 - m01 * m01
+    return m11 / det, -m01 / det, m00 / det, -(bias_r + friction_r), -(bias_l + friction_l)
+
+
+@hot_kernel
 def constrained_terms(q, qdot, params, mass_b, s_x, s_y, inertia_a, mass, nonlinear, input_map):
     """``M = I``, ``N = -a``, ``G = b`` of the constrained robot (module docstring) with the
     rigid-body aggregates given (so that a payload can change them). Allocation-free: it runs at
     every RK4 stage."""
     R, L, d = params[0], params[1], params[2]
     k_b = params[11]
-    m00, m01, m11, bias_r, bias_l, friction_r, friction_l = reduced_terms_values(
+    # η̇ = drift + M_r⁻¹ τ
+    i00, i01, i11, g0, g1 = wheel_space_inverse(
         qdot[3], qdot[4], params, mass_b, s_x, s_y, inertia_a
     )
-    det = m00 * m11 - m01 * m01
-    i00 = m11 / det
-    i01 = -m01 / det
-    i11 = m00 / det
-    # η̇ = drift + M_r⁻¹ τ
-    g0 = -(bias_r + friction_r)
-    g1 = -(bias_l + friction_l)
     drift_r = i00 * g0 + i01 * g1
     drift_l = i01 * g0 + i11 * g1
     c = math.cos(q[2])
@@ -164,15 +170,7 @@ def constrained_terms(q, qdot, params, mass_b, s_x, s_y, inertia_a, mass, nonlin
 def wheel_accelerations(eta, u, params, mass_b, s_x, s_y, inertia_a, eta_dot):
     """``η̇ = M_r⁻¹ (τ - f - n_r)`` (module docstring) with the rigid-body aggregates given,
     summed as the constrained form's rows θ_r, θ_l are (the same numbers to the last bit)."""
-    m00, m01, m11, bias_r, bias_l, friction_r, friction_l = reduced_terms_values(
-        eta[0], eta[1], params, mass_b, s_x, s_y, inertia_a
-    )
-    det = m00 * m11 - m01 * m01
-    i00 = m11 / det
-    i01 = -m01 / det
-    i11 = m00 / det
-    g0 = -(bias_r + friction_r)
-    g1 = -(bias_l + friction_l)
+    i00, i01, i11, g0, g1 = wheel_space_inverse(eta[0], eta[1], params, mass_b, s_x, s_y, inertia_a)
     eta_dot[0] = i00 * g0 + i01 * g1 + i00 * u[0] + i01 * u[1]
     eta_dot[1] = i01 * g0 + i11 * g1 + i01 * u[0] + i11 * u[1]
 

@@ -43,15 +43,15 @@ def _plant_tick(x, history, plant_params, delay, t_k, dt, steps_per_tick, T_c, b
     without numba's runtime as the engine's plant step is: no reference counts on the arrays
     its kernels take (with them, the payload's inlined branches cost about 10 ms a run)."""
     slopes, q, eta, qdot, eta_dot, applied = buffers
-    n, m = q.shape[0], eta.shape[0]
-    first = 2 * n - m  # where the wheel rates η start in [q, q̇]
+    n, r, m = q.shape[0], eta.shape[0], applied.shape[0]
+    first = 2 * n - r  # where the wheel rates η start in [q, q̇]
     for step in range(steps_per_tick):
         t = t_k + step * dt
         for s in range(4):
             offset = 0.0 if s == 0 else (0.5 * dt if s < 3 else dt)
             for i in range(n):
                 q[i] = x[i] if s == 0 else x[i] + offset * slopes[s - 1, i]
-            for j in range(m):
+            for j in range(r):
                 e = first + j
                 eta[j] = x[e] if s == 0 else x[e] + offset * slopes[s - 1, e]
             time = t + offset
@@ -64,7 +64,7 @@ def _plant_tick(x, history, plant_params, delay, t_k, dt, steps_per_tick, T_c, b
             robot_payload_dynamics(time, q, eta, applied, plant_params, eta_dot)
             for i in range(n):
                 slopes[s, i] = qdot[i]
-            for j in range(m):
+            for j in range(r):
                 slopes[s, first + j] = eta_dot[j]
         for i in range(2 * n):
             x[i] += (
@@ -72,7 +72,7 @@ def _plant_tick(x, history, plant_params, delay, t_k, dt, steps_per_tick, T_c, b
             )
         for i in range(n):
             q[i] = x[i]
-        for j in range(m):
+        for j in range(r):
             eta[j] = x[first + j]
         robot_velocity_map(q, eta, plant_params, qdot)
         for i in range(n):
@@ -109,13 +109,14 @@ def _one_run(plant_params, delay, sums, shared):
     command = np.empty(m)
     previous = np.zeros(m)
     work = step_workspace(n, m)
-    # the dependent velocities' slopes stay zero
+    r = 2  # the wheel rates η of the reduced form
+    # slopes (the dependent velocities' stay zero), q, η, q̇, η̇ of a stage, the applied input
     buffers = (
         np.zeros((4, 2 * n)),
         np.empty(n),
-        np.empty(m),
+        np.empty(r),
         np.empty(n),
-        np.empty(m),
+        np.empty(r),
         np.empty(m),
     )
     for j in range(n + 1):

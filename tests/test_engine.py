@@ -23,7 +23,7 @@ from delaytrack.plants import CallablePlant, CompiledPlant, LinearPlant, TwoLink
 from delaytrack.references import SinusoidalReference
 from delaytrack.sim import MeasurementNoise, PacketLoss, simulate
 from delaytrack.sim.history import latest_tick_index, latest_tick_index_from
-from delaytrack.sim.integrator import beyond
+from delaytrack.sim.integrator import TickArguments, beyond, integrate_reduced_tick, integrate_tick
 
 # A damped point mass q̈ = -c q̇ + u under a sampled PD law u = -K2 q̇ - K1 q (q_d = 0): linear,
 # so its exact solution between input switches is a matrix exponential.
@@ -373,6 +373,16 @@ def test_a_non_finite_stage_stops_only_that_run() -> None:
         divergence_bound=1e300,
     )
     assert result.status_names == ["ok", "diverged"]
+
+
+def test_the_integrators_named_arguments_are_its_own_in_its_order() -> None:
+    """The engine names the integrator's arguments (``TickArguments``); both integrators take
+    them in that order after their two kernels."""
+    for integrator in (integrate_tick, integrate_reduced_tick):
+        code = integrator.py_func.__code__
+        names = code.co_varnames[: code.co_argcount]
+        assert names[:2] == ("plant_terms", "delay")
+        assert names[2:] == TickArguments._fields
 
 
 def test_beyond_flags_non_finite_entries_and_entries_over_the_bound() -> None:

@@ -163,3 +163,51 @@ def test_the_live_robot_node_steps_the_reduced_form_as_the_engine_does():
         )
     np.testing.assert_allclose(x, python_x, rtol=1e-14, atol=1e-15)
     assert np.abs(plant.constraint_residual(x)).max() < 1e-15
+
+
+def test_the_twin_integrators_differ_only_in_their_sub_step():
+    from delaytrack.live import _plant_step
+    from delaytrack.sim import integrator
+
+    pairs = [
+        (integrator.integrate_tick, integrator.integrate_reduced_tick),
+        (_plant_step.live_plant_step, _plant_step.live_reduced_plant_step),
+    ]
+    for plain, twin in pairs:
+        assert twin.py_func.__code__ is plain.py_func.__code__
+        names = set(plain.py_func.__code__.co_names)  # the globals the code reads
+        for name in names - {"_rk4_substep"}:
+            assert twin.py_func.__globals__.get(name) is plain.py_func.__globals__.get(name), name
+        assert twin.py_func.__globals__["_rk4_substep"] is integrator._reduced_rk4_substep
+
+
+@numba.njit
+def careless_velocities(q, eta, params, qdot):
+    qdot[:] = 0.0  # clears eta when eta is the tail of qdot ...
+    qdot[0] = params[0] * eta[0]  # ... before reading it
+    qdot[1] = eta[0]
+
+
+def test_a_velocity_map_that_reads_eta_after_writing_it_is_refused():
+    plant = CompiledPlant(
+        2, 1, disc_terms, [RADIUS, INERTIA, FRICTION],
+        reduced=ReducedForm(careless_velocities, disc_dynamics, 1),
+    )  # fmt: skip
+    with pytest.raises(ValueError, match=r"read every entry of eta before writing qdot"):
+        _disc_run(plant, np.array([0.0, 0.0, RADIUS * 1.5, 1.5]))
+
+
+def test_each_run_of_a_batch_starts_on_its_own_plants_constraints():
+    """Two discs of other radii from one x0: the start fits the first, not the second."""
+    other = dataclasses.replace(_disc(True), parameters=np.array([2 * RADIUS, INERTIA, FRICTION]))
+    x0 = np.array([0.0, 0.0, RADIUS * 1.5, 1.5])
+    with pytest.raises(ValueError, match=r"x0 \(run 1\) must satisfy"):
+        _disc_run([_disc(True), other], x0)
+
+
+def test_a_stepped_plant_cannot_also_have_a_reduced_form():
+    from delaytrack.components import Kernel
+
+    form = ReducedForm(disc_velocities, disc_dynamics, 1)
+    with pytest.raises(ValueError, match=r"cannot also have a reduced form"):
+        Kernel(disc_terms, sizes=(2, 1), stepper=disc_terms, reduced=form)

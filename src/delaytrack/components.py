@@ -97,7 +97,9 @@ class ReducedForm:
     Parameters
     ----------
     velocity_map : callable
-        ``velocity_map(q, eta, params, qdot)``: write ``q̇ = S(q) η`` (n,).
+        ``velocity_map(q, eta, params, qdot)``: write every entry of ``q̇ = S(q) η`` (n,).
+        The engine passes ``eta`` as the last ``r`` entries of ``qdot`` itself: read ``eta``
+        before writing ``qdot`` (``simulate`` checks this at ``x0``).
     dynamics : callable
         ``dynamics(t, q, eta, u, params, eta_dot)``: write ``η̇`` (r,) of the reduced equations
         of motion with the input ``u`` applied.
@@ -181,6 +183,11 @@ class Kernel:
         if self.reduced is not None:
             if not isinstance(self.reduced, ReducedForm):
                 raise TypeError(f"reduced must be a ReducedForm; got {type(self.reduced).__name__}")
+            if self.stepper is not None:
+                raise ValueError(
+                    "a plant stepped by an integrator of its own (stepper) cannot also have a "
+                    "reduced form: the engine would integrate neither"
+                )
             if self.sizes is None or not self.reduced.size <= self.sizes[0]:
                 raise ValueError(
                     f"a reduced form of r = {self.reduced.size} velocities needs sizes (n, m) "

@@ -15,10 +15,12 @@ from typing import Any
 from delaytrack.components import (
     call_command_map,
     call_delay,
+    call_reduced_dynamics,
     call_reference,
     call_step,
     call_stepper,
     call_terms,
+    call_velocity_map,
 )
 
 __all__ = ["KERNEL_ARGUMENTS", "check_kernel_arguments"]
@@ -37,6 +39,8 @@ KERNEL_ARGUMENTS: dict[str, tuple[str, ...]] = {
     "terms": _passed_on(call_terms),
     "command_map": _passed_on(call_command_map, "input_map"),  # used only by the solve
     "stepper": _passed_on(call_stepper),
+    "velocity_map": _passed_on(call_velocity_map),
+    "reduced_dynamics": _passed_on(call_reduced_dynamics),
     "step": _passed_on(call_step),
     "reference": _passed_on(call_reference),
     "delay": _passed_on(call_delay),

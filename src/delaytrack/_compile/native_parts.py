@@ -39,7 +39,7 @@ from delaytrack._compile.native_call import NativeFunction
 from delaytrack.components import Kernel, evaluate_reference, evaluate_step
 from delaytrack.controllers.base import step_workspace
 from delaytrack.delays._kernel import evaluate_profile
-from delaytrack.sim.integrator import plant_integrator, rk4_workspace
+from delaytrack.sim.integrator import TickArguments, plant_integrator
 
 if TYPE_CHECKING:
     from delaytrack.sim._plan import Plan
@@ -66,8 +66,10 @@ def _integrator_cost(n: int) -> float:
     """Rough seconds of a first compile of a plant's integrator, ``3 + 0.8 n``.
 
     The plant's dynamics are compiled into the integrator, so its cost grows with the plant:
-    measured, a pendulum 3.6–4 s (the formula 3.8), the wheeled robot's five coordinates
-    6.6–7 s (7.0); the two-link arm took 3.3 s, which the formula's 4.6 overestimates.
+    measured, a pendulum 3.6–4.4 s (the formula 3.8), the wheeled robot's five coordinates
+    6.6–7.4 s in their constrained form (7.0) and 5.4 s in their reduced form
+    (:func:`~delaytrack.sim.integrator.integrate_reduced_tick`), and the two-link arm 3.3 s:
+    the formula overestimates the last two.
 
     Parameters
     ----------
@@ -157,24 +159,7 @@ def plant_tick_part(plant: Kernel, delay: Kernel, n: int, m: int) -> NativePart:
 def _plant_tick_part(
     plant: types.Type, delay: types.Type, n: int, m: int, integrator: Any
 ) -> NativePart:
-    vector = _vector(n)
-    signature = (
-        plant,
-        delay,
-        vector,  # plant_params
-        types.int64,  # delay_kind
-        vector,  # delay_params
-        vector,  # x
-        types.int64,  # k
-        typeof(np.empty((1, m))),  # history
-        vector,  # u_init
-        types.float64,  # t0
-        types.float64,  # dt
-        types.int64,  # steps_per_tick
-        types.float64,  # divergence_bound
-        typeof(rk4_workspace(np.empty(2 * n), m)),
-        types.boolean,  # probe_only
-    )
+    signature = (plant, delay, *typeof(TickArguments.sample(n, m)).types)
     return NativePart(integrator, signature, (0, 1), _TICK_OUTCOME, _integrator_cost(n))
 
 

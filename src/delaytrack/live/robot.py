@@ -81,7 +81,7 @@ class PlantStepper:
     def __init__(self, plant: Any, dt: float, x0: Any, announce: Any = None) -> None:
         self.n, self.m, self.dt = plant.n, plant.m, float(dt)
         self.x = np.array(x0, dtype=np.float64).reshape(2 * self.n).copy()
-        check_reduced_start(plant, self.x[None])  # as the simulator: never changed silently
+        check_reduced_start([plant], self.x[None])  # as the simulator: never changed silently
         self.u = np.zeros(self.m)
         self.compiled = bool(plant.compiled)
         self._terms = plant.terms_kernel
@@ -123,7 +123,16 @@ class PlantStepper:
         return out
 
     def python_step(self, t: float, x: np.ndarray, u: np.ndarray, dt: float) -> np.ndarray:
-        """The same RK4 step in plain Python and NumPy (returns the new state)."""
+        """The same RK4 step in plain Python and NumPy (returns the new state); for a plant
+        with a reduced form, the engine's reduced sub-step run as Python."""
+        if self._kernel.reduced is not None:
+            from delaytrack.sim.integrator import _reduced_rk4_substep, rk4_workspace
+
+            new = np.array(x, dtype=np.float64)
+            work = rk4_workspace(new, self.m)
+            kernel = self._kernel.as_python()
+            _reduced_rk4_substep.py_func(kernel, self._params, t, new, u, dt, work, math.inf)
+            return new
         k1 = self.derivative(t, x, u)
         k2 = self.derivative(t + dt / 2, np.ascontiguousarray(x + dt / 2 * k1), u)
         k3 = self.derivative(t + dt / 2, np.ascontiguousarray(x + dt / 2 * k2), u)

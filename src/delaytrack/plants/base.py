@@ -181,7 +181,8 @@ class ELPlant(ABC):
 
     @property
     def compiled(self) -> bool:
-        """Whether the terms kernel is numba-compiled (else the simulator runs as Python)."""
+        """Whether the plant's kernels (terms, and command map, stepper or reduced form when it
+        has them) are numba-compiled (else the simulator runs as Python)."""
         return self.engine_kernel.compiled
 
     def terms(

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from delaytrack._compile.functions import qualified_name
 from delaytrack._validation import as_spd_matrix
 from delaytrack.components import Kernel
 from delaytrack.controllers.base import Controller
@@ -37,6 +38,9 @@ def check_kernels_take_their_arguments(
         for kind in ("command_map", "stepper"):
             if getattr(kernel, kind) is not None:
                 check_kernel_arguments(owner, kind, getattr(kernel, kind))
+        if kernel.reduced is not None:
+            check_kernel_arguments(owner, "velocity_map", kernel.reduced.velocity_map)
+            check_kernel_arguments(owner, "reduced_dynamics", kernel.reduced.dynamics)
     check_kernel_arguments("controller", "step", controller.step_kernel)
     check_kernel_arguments("reference", "reference", reference.reference_kernel)
 
@@ -116,31 +120,63 @@ def check_plant_at_x0(plant: ELPlant, x0: np.ndarray, t0: float) -> None:
 REDUCED_START_TOLERANCE = 1e-9
 
 
-def check_reduced_start(plant: ELPlant, states0: np.ndarray) -> None:
-    """Refuse starts off the velocity constraints of a plant with a reduced form
-    (:class:`~delaytrack.components.ReducedForm`): its engine integrates ``(q, η)`` and sets
+def check_reduced_start(plants: list[ELPlant], states0: np.ndarray) -> None:
+    """Refuse starts off the velocity constraints of plants with a reduced form
+    (:class:`~delaytrack.components.ReducedForm`): the engine integrates ``(q, η)`` and sets
     ``q̇ = S(q) η``, so a start whose other velocities disagree would be changed at the first
-    step instead of run as given."""
-    reduced = plant.engine_kernel.reduced
-    if reduced is None:
+    step instead of run as given. Each row of ``states0`` is checked with its run's plant (a
+    single plant or row serves every run); the velocity map must write every entry of ``q̇``
+    and read ``η`` before writing ``q̇`` (the engine passes ``η`` as the tail of ``q̇``)."""
+    if all(plant.engine_kernel.reduced is None for plant in plants):
         return
+    runs = max(len(plants), len(states0))
+    checked = set()  # a plant repeated over a batch from one x0 is checked once
+    for run in range(runs):
+        plant = plants[run if len(plants) > 1 else 0]
+        row = run if len(states0) > 1 else 0
+        kernel = plant.engine_kernel
+        if kernel.reduced is not None and (id(plant), row) not in checked:
+            checked.add((id(plant), row))
+            where = "" if runs == 1 else f" (run {run})"
+            _check_reduced_row(plant, kernel, states0[row], where)
+
+
+def _check_reduced_row(plant: ELPlant, kernel: Kernel, state: np.ndarray, where: str) -> None:
+    """:func:`check_reduced_start` for one run's ``plant`` and start ``state``."""
+    reduced = kernel.reduced
+    assert reduced is not None
     n, r = plant.n, reduced.size
-    params = plant.params
-    expected = np.empty(n)
-    for row, state in enumerate(states0):
-        q, qdot = np.ascontiguousarray(state[:n]), np.ascontiguousarray(state[n:])
-        reduced.velocity_map(q, np.ascontiguousarray(qdot[n - r :]), params, expected)
-        gap = float(np.max(np.abs(qdot - expected)))
-        if not gap <= REDUCED_START_TOLERANCE * (1.0 + float(np.max(np.abs(qdot)))):
-            where = "" if len(states0) == 1 else f" (row {row})"
-            raise ValueError(
-                f"x0{where} must satisfy the plant's velocity constraints q̇ = S(q) η, η its "
-                f"last {r} velocities: q̇ = {np.array2string(qdot, precision=6)} but "
-                f"S(q) η = {np.array2string(expected, precision=6)} (the plant "
-                f"{type(plant).__name__} is integrated in its reduced form, which keeps the "
-                "constraints exactly); start from consistent velocities, e.g. "
-                "delaytrack.plants.robot.consistent_state"
-            )
+    params = np.ascontiguousarray(plant.params, dtype=np.float64)
+    q, qdot = np.ascontiguousarray(state[:n]), np.ascontiguousarray(state[n:])
+    expected = np.full(n, np.nan)
+    aliased = np.array(state, dtype=np.float64)  # as the engine calls it: η is the tail of q̇
+
+    def both() -> None:
+        reduced.velocity_map(q.copy(), qdot[n - r :].copy(), params, expected)
+        reduced.velocity_map(aliased[:n], aliased[2 * n - r :], params, aliased[n:])
+
+    checked_before_the_run(kernel, "the velocity map at x0", both)
+    name = qualified_name(reduced.velocity_map)
+    if not np.all(np.isfinite(expected)):
+        raise ValueError(
+            f"your velocity map {name} gave a non-finite q̇ at x0{where}: "
+            f"{np.array2string(expected, precision=6)}; it must write every entry of q̇"
+        )
+    if not np.array_equal(expected, aliased[n:]):
+        raise ValueError(
+            f"your velocity map {name} gives another q̇ when eta is the tail of qdot, as the "
+            "engine passes it: read every entry of eta before writing qdot"
+        )
+    gap = float(np.max(np.abs(qdot - expected)))
+    if not gap <= REDUCED_START_TOLERANCE * (1.0 + float(np.max(np.abs(qdot)))):
+        raise ValueError(
+            f"x0{where} must satisfy the plant's velocity constraints q̇ = S(q) η, η its "
+            f"last {r} velocities: q̇ = {np.array2string(qdot, precision=6)} but "
+            f"S(q) η = {np.array2string(expected, precision=6)} (the plant "
+            f"{type(plant).__name__} is integrated in its reduced form, which keeps the "
+            "constraints exactly); start from velocities that satisfy them (for the wheeled "
+            "robot: delaytrack.plants.robot.consistent_state)"
+        )
 
 
 def check_controller_at_x0(

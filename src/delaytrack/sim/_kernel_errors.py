@@ -46,7 +46,7 @@ def raised_in_code_of(kernel: Kernel, error: Exception) -> bool:
     the ``raise`` of compiled code a frame of its own)."""
     functions = [
         reached
-        for root in (kernel.function, kernel.command_map, kernel.stepper)
+        for root in kernel.roots
         if root is not None
         for reached in (root, *compiled_functions_reached(root))
     ]

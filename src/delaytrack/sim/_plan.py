@@ -223,6 +223,7 @@ def prepare(
     _check_start(
         plants[0], controllers[0], delays[0], reference, states0, divergence_bound, t0, T_c
     )
+    check_reduced_start(plants, states0)
     if not isinstance(trajectories, bool | np.bool_):
         raise TypeError(f"trajectories must be True or False; got {trajectories!r}")
     # Every k-th tick with k beyond the run records tick 0 only, as k = n_ticks + 1 does (which
@@ -449,7 +450,6 @@ def _check_start(
             f"max |x0| = {np.max(np.abs(states0)):g}"
         )
     check_plant_at_x0(plant, states0[0], t0)
-    check_reduced_start(plant, states0)
     reference_arrays = (
         real_array("reference.params", reference.params, ndim=1),
         *np.zeros((3, reference.n)),

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 import types
+from typing import NamedTuple
 
 import numpy as np
 from numba.extending import overload
@@ -69,6 +70,7 @@ __all__ = [
     "LEFT_PATH",
     "MASS_NOT_POSITIVE_DEFINITE",
     "OK",
+    "TickArguments",
     "beyond",
     "integrate",
     "integrate_reduced_tick",
@@ -471,9 +473,11 @@ def reduced_twin(function, name):
     reduced form (:class:`~delaytrack.components.ReducedForm`).
 
     numba inlines a sub-step into its caller before typing, and types both sides of a branch
-    even when the kernel decides it: a branch between the two sub-steps took the robot's
-    integrator from about 8 s to 12 s of compiling, and a pendulum's from 4.5 s to 6 s. Each
-    twin is compiled with its own sub-step only; the code is written once.
+    even when the kernel decides it: with a branch between the two sub-steps, the robot's
+    integrator took 11.4–13.2 s to compile instead of 5.4 s, and a pendulum's 5.8–6.0 s instead
+    of 4.4 s (measured from an empty cache). Each twin is compiled with its own sub-step only;
+    the code is written once. The twin reads the module's globals as they are when it is made
+    (the end of the module): nothing it uses may be defined or replaced later.
     """
     namespace = {**function.__globals__, "_rk4_substep": _reduced_rk4_substep}
     twin = types.FunctionType(
@@ -494,9 +498,52 @@ def plant_integrator(plant_terms):
     return integrate_reduced_tick if plant_terms.reduced is not None else integrate_tick
 
 
+class TickArguments(NamedTuple):
+    """The arguments of :func:`integrate_tick` after its two kernels, by name, as the engine
+    hands them to :func:`integrate` (the compiled integrator takes them one by one, in this
+    order, which a test checks against its signature)."""
+
+    #: The plant's parameters.
+    plant_params: np.ndarray
+    #: The delay profile's kind (:mod:`delaytrack.delays._kernel`).
+    delay_kind: int
+    #: The delay profile's parameters.
+    delay_params: np.ndarray
+    #: The state ``[q, q̇]`` (2n,), advanced in place.
+    x: np.ndarray
+    #: The tick after which the plant steps: command ``k`` is the newest in ``history``.
+    k: int
+    #: The ring of the commands issued (capacity, m).
+    history: np.ndarray
+    #: The input before the first command arrives (m,).
+    u_init: np.ndarray
+    #: The run's start, seconds.
+    t0: float
+    #: The plant's step, seconds.
+    dt: float
+    #: Plant steps per controller tick.
+    steps_per_tick: int
+    #: A state beyond it in magnitude ends the run (``DIVERGED``).
+    divergence_bound: float
+    #: :func:`rk4_workspace` of the run.
+    work: tuple
+    #: Only find the first sub-step's input, integrating nothing.
+    probe_only: bool
+
+    @classmethod
+    def sample(cls, n: int, m: int) -> TickArguments:
+        """Arguments of the types the engine passes for ``n`` coordinates and ``m`` inputs (for
+        the integrator's compiled signature)."""
+        vector, state = np.empty(n), np.empty(2 * n)
+        return cls(
+            vector, 0, vector, state, 0, np.empty((1, m)), np.empty(m), 0.0, 0.0, 1, 0.0,
+            rk4_workspace(state, m), False,
+        )  # fmt: skip
+
+
 def integrate(plant_step, delay, arguments):
     """:func:`integrate_tick` for the plant of ``plant_step`` and the delay kernel ``delay``, with
-    its other ``arguments`` (a tuple, from ``plant_params`` on); returns its result.
+    its other ``arguments`` (:class:`TickArguments`); returns its result.
 
     In the compiled engine ``plant_step`` is :func:`integrate_tick` compiled for the plant's
     kernel and the batch's delay kernel, called through its address with both kernels bound

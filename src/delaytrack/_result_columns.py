@@ -24,6 +24,7 @@ from __future__ import annotations
 import unicodedata
 from collections.abc import Iterable, Mapping, Sequence
 
+from delaytrack.metrics import COORDINATE_METRICS
 from delaytrack.units import default_names, with_unit
 
 __all__ = [
@@ -44,8 +45,6 @@ _COORDINATE_MEANING = ("position", "velocity", "reference", "tracking error")
 
 #: The statistics of a sweep's summary, each a column ``<metric>_<statistic>[_<unit>]``.
 SUMMARY_STATISTICS = ("mean", "median", "p95", "max")
-#: The metrics of every coordinate ``c`` (``ae_c``, ``rms_c``, ``max_c``, in ``c``'s unit).
-_COORDINATE_METRICS = ("ae", "rms", "max")
 
 #: What a unit may hold besides letters (``µ``, ``Ω``) and digits (``²``): ``N·m``, ``m/s^2``,
 #: ``kg*m``, ``m^-1``, ``N.m``, ``%``, ``°``. Never ``_`` (it separates the parts of a column
@@ -113,7 +112,7 @@ def metric_units(
     names = default_names(coordinate_names, n)
     units = tuple(coordinate_units) if coordinate_units is not None else (None,) * n
     out: dict[str, str | None] = {}
-    for prefix in _COORDINATE_METRICS:
+    for prefix in COORDINATE_METRICS:
         out.update({f"{prefix}_{name}": unit for name, unit in zip(names, units, strict=True)})
     shared = set(input_units) if input_units else set()
     out["tv"] = out["tv_applied"] = shared.pop() if len(shared) == 1 else None

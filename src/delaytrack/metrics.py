@@ -50,6 +50,7 @@ if TYPE_CHECKING:
     from delaytrack.sim.result import SimResult
 
 __all__ = [
+    "COORDINATE_METRICS",
     "max_abs_error",
     "mean_absolute_error",
     "metrics_table",
@@ -57,6 +58,11 @@ __all__ = [
     "rms_error",
     "total_variation",
 ]
+
+#: The metrics of every coordinate ``c``, columns ``<metric>_c`` of the tables: mean absolute
+#: error, RMS error and largest absolute error (:func:`mean_absolute_error`, :func:`rms_error`,
+#: :func:`max_abs_error`).
+COORDINATE_METRICS = ("ae", "rms", "max")
 
 
 def _sequential_sum(values: np.ndarray, axis: int) -> np.ndarray:
@@ -301,7 +307,7 @@ def metrics_table(
     columns["status"] = result.status_names
     columns["t_stop"] = np.asarray(result.t_stop, dtype=float)
     values = _metrics(result, t_from)
-    for prefix in ("ae", "rms", "max"):
+    for prefix in COORDINATE_METRICS:
         for j, name in enumerate(names):
             columns[f"{prefix}_{name}"] = values[prefix][:, j]
     columns["tv"] = values["tv"]

@@ -13,6 +13,7 @@ from delaytrack._cli_options import quiet_argument, trust_argument
 from delaytrack.cli._numbers import numbers, scalar
 from delaytrack.cli._scenarios import scenario_source, trusted
 from delaytrack.cli._usage import flagged
+from delaytrack.metrics import COORDINATE_METRICS
 
 if TYPE_CHECKING:
     from delaytrack.experiments import EmpiricalMargin
@@ -53,7 +54,7 @@ def add_command(commands: argparse._SubParsersAction) -> None:
     )
     command.add_argument(
         "--metric",
-        choices=("ae", "rms", "max"),
+        choices=COORDINATE_METRICS,
         default="ae",
         help="mean |e1|, RMS or max |e1| over [settle, duration], largest over the coordinates "
         "(default ae)",

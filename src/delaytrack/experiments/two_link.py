@@ -40,7 +40,7 @@ from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
 from delaytrack.analysis.razumikhin import PAPER_R as R
 from delaytrack.experiments.convergence import dt_check_table, largest_change
 from delaytrack.experiments.relative_change import relative_change
-from delaytrack.metrics import metrics_table
+from delaytrack.metrics import COORDINATE_METRICS, metrics_table
 from delaytrack.report.two_link import write_study
 from delaytrack.scenario import Scenario, load_builtin, run_batched
 from delaytrack.sim import SimResult, compile_ahead
@@ -159,7 +159,7 @@ def _summary(results: dict[str, SimResult]) -> pd.DataFrame:
         frames.append(table.drop(columns=["run"]))
     summary = pd.concat(frames, ignore_index=True)
     order = ["scenario", "controller"]
-    metrics = [f"{p}_{c}" for p in ("ae", "rms", "max") for c in _COORDINATES] + ["tv"]
+    metrics = [f"{p}_{c}" for p in COORDINATE_METRICS for c in _COORDINATES] + ["tv"]
     summary = summary[order + metrics + ["status", "t_stop"]]
     return summary.sort_values(order, key=lambda s: s.map(_sort_key)).reset_index(drop=True)
 

@@ -56,6 +56,7 @@ from delaytrack._compile.disk_cache import source_hash
 from delaytrack._trust import Trust
 from delaytrack._validation import is_integer_at_least
 from delaytrack._version import __version__
+from delaytrack.metrics import COORDINATE_METRICS
 from delaytrack.scenario import (
     BuiltScenario,
     Scenario,
@@ -676,7 +677,7 @@ def _check_runnable(scenario: Scenario, built: BuiltScenario) -> None:
 def _check_metrics(metrics: tuple[str, ...], base: Scenario) -> None:
     built = base.build()
     names = default_names(built.plant.coordinate_names, built.plant.n)
-    valid = [f"{prefix}_{name}" for prefix in ("ae", "rms", "max") for name in names]
+    valid = [f"{prefix}_{name}" for prefix in COORDINATE_METRICS for name in names]
     valid += ["tv", "tv_applied"]
     unknown = [metric for metric in metrics if metric not in valid]
     if unknown:

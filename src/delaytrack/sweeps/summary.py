@@ -34,6 +34,7 @@ import numpy as np
 import pandas as pd
 
 from delaytrack._result_columns import SUMMARY_STATISTICS, summary_columns
+from delaytrack.metrics import COORDINATE_METRICS
 
 __all__ = [
     "DELAY_BAND_EDGES",
@@ -176,7 +177,7 @@ def summary_table(
     valid = [
         column
         for column in runs.columns
-        if column.split("_")[0] in ("ae", "rms", "max") or column in ("tv", "tv_applied")
+        if column.split("_")[0] in COORDINATE_METRICS or column in ("tv", "tv_applied")
     ]
     unknown = [metric for metric in metrics if metric not in valid]
     if unknown:

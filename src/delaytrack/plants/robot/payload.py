@@ -352,16 +352,9 @@ class PayloadRobot(PayloadSchedule, ConstrainedRobotPhysics, ELPlant):
         return None if k < 0 else self._points[k].copy()
 
     def aggregates(self, t: float = 0.0) -> np.ndarray:
-        """``[M_b, s_x, s_y, I_A]`` at time ``t``, payload included when it is on."""
-        mass_b, s_x, s_y, inertia_a = self._params[3:7]
-        point = self.placement_at(t)
-        if point is not None:
-            m_p = self.payload_mass
-            mass_b += m_p
-            s_x += m_p * point[0]
-            s_y += m_p * point[1]
-            inertia_a += m_p * float(point @ point)
-        return np.array([mass_b, s_x, s_y, inertia_a])
+        """``[M_b, s_x, s_y, I_A]`` at time ``t``, payload included when it is on (as the
+        simulator computes them, :func:`loaded_aggregates`)."""
+        return np.array(loaded_aggregates(float(t), self._params))
 
     def mass_properties(self, t: float = 0.0) -> dict[str, Any]:
         """Total mass (kg), centre of mass from A (forward, left; m) and yaw inertia about A and

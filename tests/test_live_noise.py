@@ -56,6 +56,16 @@ def sessions(tmp_path_factory):
     scenario = load_builtin("two_link_S1").replace(name="two_link_noise", measurement_noise=NOISE)
     path = root / "two_link_noise.toml"
     scenario.to_toml(path)
+    # The controller's step with the noise, compiled here: on a cold cache both sessions'
+    # controller nodes would each compile it at once; they load it instead.
+    from types import SimpleNamespace
+
+    from delaytrack.live.controller import ControllerNode
+
+    options = SimpleNamespace(
+        duration=1.5, out=root, quiet=True, phase=None, state_timeout=None, stale="hold"
+    )
+    ControllerNode(scenario, scenario.build(), options)
     runs = {
         name: subprocess.Popen(
             [*PYTHON, "run", str(path), "--duration", "1.5", "--out", str(root / name), "--quiet"]

@@ -211,3 +211,34 @@ def test_a_stepped_plant_cannot_also_have_a_reduced_form():
     form = ReducedForm(disc_velocities, disc_dynamics, 1)
     with pytest.raises(ValueError, match=r"cannot also have a reduced form"):
         Kernel(disc_terms, sizes=(2, 1), stepper=disc_terms, reduced=form)
+
+
+def test_a_scenario_starting_on_the_reference_starts_each_run_on_its_plants_constraints(
+    tmp_path,
+):
+    """``x0 = "reference"``: ``robot_S1``'s start for the P3-DX, and for a robot of other wheels
+    (in a sweep over the wheel radius) a start on that robot's constraints, run as given."""
+    from delaytrack.scenario import Scenario, ScenarioError, load_builtin
+    from delaytrack.sweeps import SweepSpec, run_sweep
+
+    shipped = load_builtin("robot_S1")
+    data = {**shipped.to_dict(), "duration": 0.5, "x0": "reference"}
+    on_reference = Scenario.from_dict(data)
+    np.testing.assert_allclose(on_reference.build().x0, shipped.x0, rtol=0, atol=1e-15)
+    path = tmp_path / "robot_on_reference.toml"
+    path.write_text(on_reference.to_toml())
+    assert Scenario.from_toml(path).x0 == "reference"
+    assert isinstance(Scenario.from_toml(path).resolved().x0, tuple)  # as run: the numbers
+    smaller = {**shipped.to_dict(), "plant": {**shipped.plant, "wheel_radius": 0.08}}
+    with pytest.raises(ValueError, match=r"x0 must satisfy the plant's velocity constraints"):
+        Scenario.from_dict({**smaller, "duration": 0.5}).run()
+    spec = {
+        "scenario": str(path), "unit_size": 2,
+        "grid": {"plant.wheel_radius": [0.08, 0.11]},
+    }  # fmt: skip
+    outcome = run_sweep(
+        SweepSpec.from_dict(spec, root=tmp_path), tmp_path / "sweep", progress=False
+    )
+    assert list(outcome.runs["status"]) == ["ok", "ok"]
+    with pytest.raises(ScenarioError, match=r'must be a list of 2n numbers or "reference"'):
+        Scenario.from_dict({**data, "x0": "on the path"})

@@ -18,6 +18,18 @@ from delaytrack.plants import PLANT_SPECS
 from delaytrack.references import REFERENCE_SPECS
 from delaytrack.sim import MeasurementNoise, PacketLoss
 
+#: ``x0 = "reference"``: the run starts on the reference, on the plant's constraints.
+ON_REFERENCE = "reference"
+
+
+def x0_phrase(value: object) -> str | None:
+    """Check an ``x0``: a list of numbers, or ``"reference"``."""
+    if value == ON_REFERENCE:
+        return None
+    if isinstance(value, str):
+        return f'must be a list of 2n numbers or "{ON_REFERENCE}"'
+    return vector(value)
+
 
 def error_bound_phrase(value: object) -> str | None:
     """Check an ``error_bound``: a number or a list of numbers, each > 0 (``inf`` allowed)."""
@@ -71,7 +83,7 @@ _TOP_LEVEL_SCALARS: dict[str, Callable[[object], str | None]] = {
     "dt": number,
     "T_c": number,
     "seed": integer,
-    "x0": vector,
+    "x0": x0_phrase,
     "record_every": integer,
     "error_bound": error_bound_phrase,
     "input_limits": input_limits_phrase,

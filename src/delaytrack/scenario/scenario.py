@@ -27,6 +27,7 @@ from delaytrack.references import Reference, reference_from_spec
 from delaytrack.scenario.files import read_toml_file, resolve_file_keys
 from delaytrack.scenario.keys import (
     NAME_PATTERN,
+    ON_REFERENCE,
     REQUIRED,
     TABLE_PURPOSE,
     TABLE_TYPES,
@@ -36,6 +37,7 @@ from delaytrack.scenario.keys import (
     input_limits_phrase,
     measurement_noise_phrase,
     packet_loss_phrase,
+    x0_phrase,
 )
 from delaytrack.scenario.table_memory import remembered, table_identity
 from delaytrack.scenario.toml_text import dumps_toml
@@ -106,8 +108,12 @@ class Scenario:
         be an integer multiple of ``dt`` and ``duration`` of ``T_c``.
     seed : int or None
         Default seed of random elements (a random delay without its own seed).
-    x0 : tuple of float or None
-        Initial state ``[q, q̇]`` (2n); zeros when None.
+    x0 : tuple of float, "reference" or None
+        Initial state ``[q, q̇]`` (2n); zeros when None. ``"reference"``: on the reference at
+        ``t = 0``, ``q = q_d(0)`` and ``q̇ = q̇_d(0)``, or, for a plant with a reduced form
+        (velocity constraints), ``q̇ = S(q) η`` with ``η`` the last ``r`` entries of
+        ``q̇_d(0)``: on the constraints of the plant the run has, whatever its dimensions (a
+        sweep over a robot's wheel radius starts each run on its own constraints).
     record_every : int
         Record every ``record_every``-th controller tick.
     error_bound : float or tuple of float or None
@@ -140,7 +146,7 @@ class Scenario:
     dt: float
     T_c: float
     seed: int | None = None
-    x0: tuple[float, ...] | None = None
+    x0: tuple[float, ...] | str | None = None
     record_every: int = 1
     error_bound: float | tuple[float, ...] | None = None
     input_limits: float | tuple[float, ...] | None = None
@@ -176,7 +182,9 @@ class Scenario:
             _check_value("seed", self.seed, integer)
             if self.seed < 0:
                 raise fail("seed", "must be >= 0", self.seed)
-        if self.x0 is not None:
+        if isinstance(self.x0, str):
+            _check_value("x0", self.x0, x0_phrase)
+        elif self.x0 is not None:
             x0 = _plain(self.x0)
             _check_value("x0", x0, vector)
             _check_value("x0", x0, _all_finite)
@@ -298,7 +306,7 @@ class Scenario:
         if self.seed is not None:
             data["seed"] = self.seed
         if self.x0 is not None:
-            data["x0"] = list(self.x0)
+            data["x0"] = self.x0 if isinstance(self.x0, str) else list(self.x0)
         data["record_every"] = self.record_every
         for key in ("error_bound", "input_limits"):
             value = getattr(self, key)
@@ -390,6 +398,8 @@ class Scenario:
             raise fail("u_init", "must lie within input_limits", list(self.u_init))
         if self.x0 is None:
             x0 = np.zeros(2 * plant.n)
+        elif isinstance(self.x0, str):
+            x0 = start_on_reference(plant, reference)
         else:
             x0 = np.array(self.x0)
             if x0.shape != (2 * plant.n,):
@@ -541,3 +551,22 @@ def simulate_built(
     except ValueError as error:
         # simulate()'s refusals of its input; anything else is a bug and keeps its traceback.
         raise ScenarioError(f"scenario {scenario.name!r}: {error}") from None
+
+
+def start_on_reference(plant: ELPlant, reference: Reference) -> np.ndarray:
+    """The start ``x0 = "reference"`` of a scenario: ``[q_d(0), q̇_d(0)]``, its velocities for a
+    plant with a reduced form set on the plant's constraints, ``q̇ = S(q) η`` with ``η`` the last
+    ``r`` entries of ``q̇_d(0)`` (:class:`~delaytrack.components.ReducedForm`)."""
+    if reference.n != plant.n:
+        raise ValueError(
+            f'x0 = "{ON_REFERENCE}" needs a reference of the plant\'s n = {plant.n} '
+            f"coordinates; it has {reference.n}"
+        )
+    q_d, q_d_dot, _ = reference.evaluate(0.0)
+    x0 = np.concatenate([q_d, q_d_dot])
+    reduced = plant.engine_kernel.reduced
+    if reduced is not None:
+        n, r = plant.n, reduced.size
+        params = np.ascontiguousarray(plant.params, dtype=np.float64)
+        reduced.velocity_map(x0[:n].copy(), x0[2 * n - r :].copy(), params, x0[n:])
+    return x0

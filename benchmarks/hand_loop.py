@@ -6,7 +6,7 @@ What a user who knows numba well would write for exactly the case of :func:`base
 
 * one function, every buffer allocated once before the loop, the robot's own kernels called
   directly: the robot in its reduced (wheel-space) form, as the engine integrates it
-  (:func:`~delaytrack.plants.robot.truth.robot_velocity_map` and
+  (:func:`~delaytrack.plants.robot.kinematics.robot_velocity_map` and
   :func:`~delaytrack.plants.robot.payload.robot_payload_dynamics`; the three dependent
   velocities get no slope and are set from the wheel rates after each step),
   :func:`~delaytrack.controllers.arolc.arolc_step` on the nominal model and
@@ -30,8 +30,8 @@ import numpy as np
 
 from delaytrack.controllers.arolc import arolc_step
 from delaytrack.controllers.base import step_workspace
+from delaytrack.plants.robot.kinematics import robot_velocity_map
 from delaytrack.plants.robot.payload import robot_payload_dynamics
-from delaytrack.plants.robot.truth import robot_velocity_map
 from delaytrack.references.sinusoidal import sinusoidal_reference
 
 __all__ = ["hand_batch", "hand_run"]

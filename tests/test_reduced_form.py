@@ -136,7 +136,7 @@ def test_a_reduced_form_is_checked_when_made():
         ReducedForm(disc_velocities, disc_dynamics, 0)
     with pytest.raises(TypeError, match=r"dynamics must be callable"):
         ReducedForm(disc_velocities, 3.0, 1)
-    with pytest.raises(ValueError, match=r"reduced.size must be at most n = 2; got 3"):
+    with pytest.raises(ValueError, match=r"reduced form of r = 3 velocities needs .* n >= r"):
         CompiledPlant(2, 1, disc_terms, [RADIUS, INERTIA, FRICTION],
                       reduced=ReducedForm(disc_velocities, disc_dynamics, 3))  # fmt: skip
 
@@ -242,3 +242,29 @@ def test_a_scenario_starting_on_the_reference_starts_each_run_on_its_plants_cons
     assert list(outcome.runs["status"]) == ["ok", "ok"]
     with pytest.raises(ScenarioError, match=r'must be a list of 2n numbers or "reference"'):
         Scenario.from_dict({**data, "x0": "on the path"})
+
+
+def test_the_live_robot_node_steps_a_python_reduced_form_as_the_compiled_one():
+    """A plant whose reduced form is plain Python: the live node's Python step integrates the
+    reduced form, with the numbers of the compiled step (memory made once, not every step)."""
+    from delaytrack.live.robot import PlantStepper
+    from delaytrack.plants.base import ELPlant
+
+    class PythonDisc(ELPlant):
+        n, m = 2, 1
+        params = np.array([RADIUS, INERTIA, FRICTION])
+        terms_kernel = staticmethod(disc_terms.py_func)
+        reduced_form = ReducedForm(disc_velocities.py_func, disc_dynamics.py_func, 1)
+
+        def to_spec(self):
+            return {"type": "python-disc"}
+
+    x0 = np.array([0.0, 0.0, RADIUS * 1.5, 1.5])
+    steppers = [PlantStepper(PythonDisc(), 1e-3, x0), PlantStepper(_disc(True), 1e-3, x0)]
+    assert [stepper.compiled for stepper in steppers] == [False, True]
+    for stepper in steppers:
+        stepper.u[:] = 0.3
+        for k in range(20):
+            assert stepper.step(k * 1e-3)
+    np.testing.assert_allclose(steppers[0].x, steppers[1].x, rtol=1e-14, atol=0)
+    assert steppers[0].x[2] == RADIUS * steppers[0].x[3]  # on the constraint, exactly

@@ -121,6 +121,11 @@ class ReducedForm:
             raise ValueError(f"size must be an integer r >= 1; got {size!r}")
         object.__setattr__(self, "size", int(size))
 
+    @property
+    def functions(self) -> tuple[Callable[..., Any], Callable[..., Any]]:
+        """``(velocity_map, dynamics)``."""
+        return self.velocity_map, self.dynamics
+
     def as_python(self) -> ReducedForm:
         """The same form with its functions run as plain Python."""
         return ReducedForm(
@@ -198,14 +203,8 @@ class Kernel:
     def roots(self) -> tuple[Callable[..., Any] | None, ...]:
         """The kernel's functions in a fixed order: its function, command map, stepper and its
         reduced form's velocity map and dynamics (None where it has none)."""
-        reduced = self.reduced
-        return (
-            self.function,
-            self.command_map,
-            self.stepper,
-            None if reduced is None else reduced.velocity_map,
-            None if reduced is None else reduced.dynamics,
-        )
+        reduced = (None, None) if self.reduced is None else self.reduced.functions
+        return (self.function, self.command_map, self.stepper, *reduced)
 
     @cached_property
     def key(self) -> str:
@@ -261,7 +260,7 @@ class Kernel:
         """The Kernel of these functions; for compiled ones made once (its key and numba type
         are then computed once, not at every call of a component's ``engine_kernel``). Python
         kernels are made anew, so that a cache never keeps a user's closures alive."""
-        reduced_roots = () if reduced is None else (reduced.velocity_map, reduced.dynamics)
+        reduced_roots = () if reduced is None else reduced.functions
         if _all_compiled(
             function, command_map, stepper, *reduced_roots
         ):  # a hashable key for the cache; the Kernel checks the sizes themselves

@@ -98,6 +98,11 @@ class PlantStepper:
             _compile_stepper(plant, announce)
         elif self.compiled:
             self._entry, self._work = _compiled_step(plant, announce)
+        elif self._kernel.reduced is not None:  # the reduced sub-step's kernel and memory, once
+            from delaytrack.sim.integrator import rk4_workspace
+
+            workspace = rk4_workspace(np.empty(2 * self.n), self.m)
+            self._python_reduced = (self._kernel.as_python(), workspace)
 
     def step(self, t: float) -> bool:
         """Advance :attr:`x` by one step from ``t`` with :attr:`u` held; False when the new
@@ -126,11 +131,10 @@ class PlantStepper:
         """The same RK4 step in plain Python and NumPy (returns the new state); for a plant
         with a reduced form, the engine's reduced sub-step run as Python."""
         if self._kernel.reduced is not None:
-            from delaytrack.sim.integrator import _reduced_rk4_substep, rk4_workspace
+            from delaytrack.sim.integrator import _reduced_rk4_substep
 
+            kernel, work = self._python_reduced
             new = np.array(x, dtype=np.float64)
-            work = rk4_workspace(new, self.m)
-            kernel = self._kernel.as_python()
             _reduced_rk4_substep.py_func(kernel, self._params, t, new, u, dt, work, math.inf)
             return new
         k1 = self.derivative(t, x, u)

@@ -101,10 +101,7 @@ class CompiledPlant(ELPlant):
             for label in ("velocity_map", "dynamics"):
                 if not is_compiled(getattr(self.reduced, label)):
                     raise TypeError(f"reduced.{label} must be numba-compiled (@numba.njit)")
-            if self.reduced.size > self.n:
-                raise ValueError(
-                    f"reduced.size must be at most n = {self.n}; got {self.reduced.size}"
-                )
+            self.engine_kernel  # noqa: B018 - the Kernel checks the form against n
         for label in ("coordinate_names", "coordinate_units"):
             if getattr(self, label) is not None:
                 labels = coordinate_labels(label, getattr(self, label), self.n)

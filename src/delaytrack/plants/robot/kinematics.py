@@ -41,6 +41,7 @@ __all__ = [
     "kinematic_map_kernel",
     "kinematic_map_rate",
     "robot_command_map",
+    "robot_velocity_map",
 ]
 
 
@@ -53,6 +54,24 @@ def kinematic_map_entries(c, s, R, L, d):
     a = 0.5 * R
     b = R / (2.0 * L)
     return a * c - d * b * s, a * c + d * b * s, a * s + d * b * c, a * s - d * b * c, b
+
+
+@hot_kernel
+def robot_velocity_map(q, eta, params, qdot):
+    """``q̇ = S(q) η`` (module docstring), ``η = (θ̇_r, θ̇_l)``: the velocity map of the robot's
+    reduced form (``eta`` may be ``qdot[3:5]`` itself; it is read first)."""
+    R, L, d = params[0], params[1], params[2]
+    wr = eta[0]
+    wl = eta[1]
+    v = 0.5 * R * (wr + wl)
+    w = R * (wr - wl) / (2.0 * L)
+    c = math.cos(q[2])
+    s = math.sin(q[2])
+    qdot[0] = v * c - d * w * s
+    qdot[1] = v * s + d * w * c
+    qdot[2] = w
+    qdot[3] = wr
+    qdot[4] = wl
 
 
 @kernel

@@ -44,13 +44,13 @@ from delaytrack._validation import (
 from delaytrack.components import ReducedForm
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.robot.body import COORDINATE_UNITS, COORDINATES, INPUT_UNITS
+from delaytrack.plants.robot.kinematics import robot_velocity_map
 from delaytrack.plants.robot.parameters import P3DX_PAYLOAD
 from delaytrack.plants.robot.truth import (
     TRUTH_PARAMS,
     ConstrainedRobotPhysics,
     WheeledRobot,
     constrained_terms,
-    robot_velocity_map,
     wheel_accelerations,
 )
 

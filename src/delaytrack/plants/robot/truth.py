@@ -45,7 +45,11 @@ from delaytrack._validation import positive_scalar
 from delaytrack.components import ReducedForm
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.robot.body import RobotBody
-from delaytrack.plants.robot.kinematics import constraint_residual, kinematic_map_entries
+from delaytrack.plants.robot.kinematics import (
+    constraint_residual,
+    kinematic_map_entries,
+    robot_velocity_map,
+)
 from delaytrack.plants.robot.parameters import P3DX
 
 __all__ = [
@@ -59,7 +63,6 @@ __all__ = [
     "reduced_terms_values",
     "robot_truth_dynamics",
     "robot_truth_terms",
-    "robot_velocity_map",
     "wheel_accelerations",
     "wheel_space_inverse",
 ]
@@ -173,24 +176,6 @@ def wheel_accelerations(eta, u, params, mass_b, s_x, s_y, inertia_a, eta_dot):
     i00, i01, i11, g0, g1 = wheel_space_inverse(eta[0], eta[1], params, mass_b, s_x, s_y, inertia_a)
     eta_dot[0] = i00 * g0 + i01 * g1 + i00 * u[0] + i01 * u[1]
     eta_dot[1] = i01 * g0 + i11 * g1 + i01 * u[0] + i11 * u[1]
-
-
-@hot_kernel
-def robot_velocity_map(q, eta, params, qdot):
-    """Velocity map of the robot's reduced form: ``q̇ = S(q) η``, ``η = (θ̇_r, θ̇_l)`` (``eta``
-    may be ``qdot[3:5]`` itself)."""
-    R, L, d = params[0], params[1], params[2]
-    wr = eta[0]
-    wl = eta[1]
-    v = 0.5 * R * (wr + wl)
-    w = R * (wr - wl) / (2.0 * L)
-    c = math.cos(q[2])
-    s = math.sin(q[2])
-    qdot[0] = v * c - d * w * s
-    qdot[1] = v * s + d * w * c
-    qdot[2] = w
-    qdot[3] = wr
-    qdot[4] = wl
 
 
 @hot_kernel

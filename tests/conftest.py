@@ -14,6 +14,7 @@ keep both workers busy until the suite ends.
 from __future__ import annotations
 
 import functools
+import os
 import subprocess
 import sys
 import threading
@@ -22,6 +23,11 @@ from argparse import Namespace
 from pathlib import PurePosixPath
 
 import pytest
+
+# The suite tests the compiled engine where it compiles: a short first run of a combination not
+# compiled yet would otherwise run as plain Python (tests/test_interpret_first.py tests that).
+# Set here, it reaches the workers' and the tests' processes.
+os.environ["DELAYTRACK_INTERPRET_FIRST"] = "0"
 
 #: The unit of work of the live modules (``tests/test_live_*.py``).
 LIVE = "live sessions"

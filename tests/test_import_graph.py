@@ -2,7 +2,11 @@
 module imports names back from the package root (which imports nearly everything).
 
 Every ``import`` counts, at module level and inside functions alike (a lazy import is still an
-arrow); imports under ``if TYPE_CHECKING:`` are annotations only and do not count.
+arrow); imports under ``if TYPE_CHECKING:`` are annotations only and do not count. An arrow
+goes where the import really runs code: importing ``a.b.c`` also runs the ``__init__`` of ``a``
+and of ``a.b`` (unless the importer lives in them); a package whose ``__init__`` loads its names
+when first used (``lazy_loader.attach_stub``) runs only its own imports, and a name read from it
+(``from a.b import Name``, or ``a.b.Name``) loads the module its ``__init__.pyi`` names.
 """
 
 from __future__ import annotations
@@ -17,10 +21,10 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "src" / "delaytrack"
 
 
-def _modules() -> dict[str, Path]:
+def _modules(package: Path = PACKAGE) -> dict[str, Path]:
     found = {}
-    for path in PACKAGE.rglob("*.py"):
-        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    for path in package.rglob("*.py"):
+        parts = path.relative_to(package.parent).with_suffix("").parts
         name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
         found[name] = path
     return found
@@ -29,27 +33,36 @@ def _modules() -> dict[str, Path]:
 MODULES = _modules()
 
 
-def _module_of(name: str) -> str | None:
-    """The package's module that ``name`` (a module or a name in one) lives in."""
-    while name and name not in MODULES:
-        name = name.rpartition(".")[0]
-    return name or None
-
-
 def _imports(module: str, path: Path) -> list[tuple[str, list[str]]]:
-    """``(imported module, names)`` for every import of the file, outside TYPE_CHECKING."""
+    """``(imported module, names)`` for every import of the file, outside TYPE_CHECKING; a
+    module imported whole also yields each dotted name read through it (``m.Name``), as
+    ``("m.Name", [])``."""
     skipped: set[int] = set()
     tree = ast.parse(path.read_text(encoding="utf-8"))
     for node in ast.walk(tree):
         if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
             skipped.update(id(child) for child in ast.walk(node))
+    read = {
+        dotted
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Attribute) and id(node) not in skipped
+        if (dotted := ast.unparse(node)).replace(".", "").isidentifier()
+    }
     found = []
-    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    package = module if path.stem == "__init__" else module.rpartition(".")[0]
     for node in ast.walk(tree):
         if id(node) in skipped:
             continue
         if isinstance(node, ast.Import):
-            found += [(alias.name, []) for alias in node.names]
+            for alias in node.names:
+                bound = alias.asname or alias.name.partition(".")[0]
+                named = alias.name if alias.asname else bound
+                found.append((alias.name, []))
+                found += [
+                    (named + dotted[len(bound) :], [])
+                    for dotted in read
+                    if dotted.startswith(f"{bound}.")
+                ]
         elif isinstance(node, ast.ImportFrom):
             base = package.split(".")[: len(package.split(".")) - node.level + 1]
             target = ".".join(base + [node.module]) if node.level else (node.module or "")
@@ -59,14 +72,53 @@ def _imports(module: str, path: Path) -> list[tuple[str, list[str]]]:
     return found
 
 
-def _graph() -> dict[str, set[str]]:
-    edges: dict[str, set[str]] = {name: set() for name in MODULES}
-    for module, path in MODULES.items():
+def _stub_names(modules: dict[str, Path]) -> dict[str, dict[str, str]]:
+    """For each package whose ``__init__`` loads its names when first used
+    (``lazy_loader.attach_stub``): each name of its ``__init__.pyi`` and the module that the stub
+    imports it from."""
+    lazy = {}
+    for module, path in modules.items():
+        stub = path.with_suffix(".pyi")
+        if path.name == "__init__.py" and stub.exists() and "attach_stub" in path.read_text():
+            lazy[module] = {
+                name: target for target, names in _imports(module, stub) for name in names
+            }
+    return lazy
+
+
+def _ancestors(module: str) -> set[str]:
+    """The packages whose ``__init__`` importing ``module`` runs first: ``a`` and ``a.b`` for
+    ``a.b.c``."""
+    parts = module.split(".")
+    return {".".join(parts[:end]) for end in range(1, len(parts))}
+
+
+def _module_of(name: str, modules: dict[str, Path], stubs: dict[str, dict[str, str]]) -> str | None:
+    """The package's module that importing or reading ``name`` (a module, or a name in one)
+    loads: a name of a lazy package's stub is looked for where the stub imports it from."""
+    module = name
+    while module and module not in modules:
+        module = module.rpartition(".")[0]
+    if not module:
+        return None
+    first = name[len(module) + 1 :].partition(".")[0]
+    if first in stubs.get(module, {}):
+        return _module_of(f"{stubs[module][first]}.{first}", modules, stubs)
+    return module
+
+
+def _graph(modules: dict[str, Path] = MODULES) -> dict[str, set[str]]:
+    """Each module's arrows: the modules its imports load, and the packages around them whose
+    ``__init__`` those imports run (not the importer's own, which already run)."""
+    stubs = _stub_names(modules)
+    edges: dict[str, set[str]] = {name: set() for name in modules}
+    for module, path in modules.items():
         for target, names in _imports(module, path):
             for name in names or [""]:
-                found = _module_of(f"{target}.{name}" if name else target)
-                if found is not None and found != module:
-                    edges[module].add(found)
+                found = _module_of(f"{target}.{name}" if name else target, modules, stubs)
+                if found is not None:
+                    runs = {found} | (_ancestors(found) & modules.keys())
+                    edges[module] |= runs - _ancestors(module) - {module}
     return edges
 
 
@@ -111,6 +163,49 @@ def test_the_import_graph_has_no_circle():
 
 def test_the_check_finds_a_circle():
     assert _circles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+#: A package ``__init__`` that imports its names when first used, as the package's are.
+_LAZY_INIT = (
+    "import lazy_loader\n"
+    "__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)\n"
+)
+
+
+@pytest.mark.parametrize(
+    ("sub_init", "low_imports", "circle"),
+    [
+        # Module to module, low -> sub.b is no circle; but it runs sub's __init__, which
+        # imports sub.a, which imports low.
+        (
+            "from pkg.sub.a import A\n",
+            "from pkg.sub.b import B",
+            ["pkg.low", "pkg.sub", "pkg.sub.a"],
+        ),
+        # A lazy __init__ imports nothing ...
+        (_LAZY_INIT, "from pkg.sub.b import B", []),
+        # ... until a name is read from it: A is loaded from sub.a.
+        (_LAZY_INIT, "from pkg.sub import A", ["pkg.low", "pkg.sub.a"]),
+    ],
+)
+def test_the_check_finds_a_circle_through_a_package_init(
+    tmp_path: Path, sub_init: str, low_imports: str, circle: list[str]
+):
+    """The graph counts the ``__init__`` that an import runs, and the module that a name read
+    from a lazy package loads; Python agrees: importing ``pkg.low`` first fails on a circle."""
+    sub = tmp_path / "pkg" / "sub"
+    sub.mkdir(parents=True)
+    (tmp_path / "pkg" / "__init__.py").write_text("")
+    (sub / "__init__.py").write_text(sub_init)
+    (sub / "__init__.pyi").write_text("from .a import A\nfrom .b import B\n")
+    (sub / "a.py").write_text("from pkg.low import helper\n\nA = helper\n")
+    (sub / "b.py").write_text("B = 2\n")
+    (tmp_path / "pkg" / "low.py").write_text(f"{low_imports}\n\nhelper = 1\n")
+    assert _circles(_graph(_modules(tmp_path / "pkg"))) == ([circle] if circle else [])
+    first = subprocess.run(
+        [sys.executable, "-c", "import pkg.low"], cwd=tmp_path, capture_output=True, text=True
+    )
+    assert ("ImportError" in first.stderr) == bool(circle), first.stderr
 
 
 def test_no_module_imports_names_back_from_the_package_root():
@@ -219,3 +314,39 @@ def test_every_name_of_the_root_resolves():
     assert {"simulate", "AROLC", "CompiledPlant", "razumikhin_bound"} <= set(delaytrack.__all__)
     for name in delaytrack.__all__:
         getattr(delaytrack, name)
+
+
+#: Where the circle was (the engine and the compile machinery), and the lowest modules of the
+#: components, which most of the package imports: each is imported first in
+#: :func:`test_the_core_modules_can_be_imported_first`.
+CORE = ("delaytrack._compile", "delaytrack.sim")
+LOWEST = (
+    "delaytrack.components",
+    "delaytrack.plants.base",
+    "delaytrack.controllers.arolc",
+    "delaytrack.delays._kernel",
+    "delaytrack.references.base",
+)
+
+
+def test_the_core_modules_can_be_imported_first():
+    """Each module of the engine and the compile machinery, and the lowest of the components,
+    imports as the first of a fresh interpreter: whatever ``__init__`` it runs first, no module
+    meets another half-initialised (the static check above covers every module; this runs
+    Python's own import on the modules where a circle was). One interpreter for all: the
+    package's modules are forgotten before each, the libraries stay loaded."""
+    names = sorted(
+        name for name in MODULES if any(_within(name, package) for package in CORE)
+    ) + list(LOWEST)
+    code = (
+        "import importlib, sys\n"
+        f"for name in {names!r}:\n"
+        "    for loaded in [m for m in sys.modules if m.partition('.')[0] == 'delaytrack']:\n"
+        "        del sys.modules[loaded]\n"
+        "    try:\n"
+        "        importlib.import_module(name)\n"
+        "    except Exception as error:\n"
+        "        print(f'{name}: {type(error).__name__}: {error}')\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout == ""

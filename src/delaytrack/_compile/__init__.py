@@ -1,7 +1,8 @@
 """The compile machinery: how the engine and the components' kernels are compiled by numba.
 
-Its one entry is :func:`compile_engine`, the compile stage of
-:func:`~delaytrack.sim.simulate`. Its modules, each one concept:
+Its entries are :func:`compile_engine`, the compile stage of :func:`~delaytrack.sim.simulate`,
+and :func:`interpret`, which says whether a short first run should run as plain Python instead
+of waiting for that compile. Its modules, each one concept:
 
 * :mod:`~delaytrack._compile.disk_cache`: numba's cache folder, keyed by the package's
   compiled source (imported first by :mod:`delaytrack`);
@@ -21,29 +22,16 @@ Its one entry is :func:`compile_engine`, the compile stage of
   :mod:`~delaytrack._compile.helper_process` and :mod:`~delaytrack._compile.ahead`: a first
   compile announced, from the source as it is now, on two cores, with the parts a job will
   need next;
-* :mod:`~delaytrack._compile.stage`: the compile stage itself.
+* :mod:`~delaytrack._compile.stage`: the compile stage itself;
+* :mod:`~delaytrack._compile.interpret_first`: a short first run as plain Python while that is
+  quicker than compiling.
 
 The component protocol (:mod:`delaytrack.components`) and the engine use the lower modules;
 the stage uses the engine.
 """
 
-from __future__ import annotations
+import lazy_loader
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from delaytrack.sim._build import Build
-    from delaytrack.sim.engine import Kernels
-
-__all__ = ["compile_engine"]
-
-
-def compile_engine(build: Build, first_chunk: Callable[[Kernels], tuple]) -> Kernels:
-    """The compiled engine of ``build`` and the kernels it calls, compiled or loaded from the
-    disk cache: :func:`delaytrack._compile.stage.compile_engine`."""
-    # Imported at the first call: the stage imports the engine, whose modules import this
-    # package's lower modules, and importing any of them imports this file first.
-    from delaytrack._compile.stage import compile_engine as compile_stage
-
-    return compile_stage(build, first_chunk)
+# The names of __init__.pyi, each imported from its module when first used: importing one
+# module of the package runs this file, which then imports none of the others.
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -4,7 +4,7 @@ parts, shared with a helper process when there are two or more (its first run on
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from typing import Any
 
 from delaytrack._compile.ahead import parts_ahead
@@ -19,7 +19,7 @@ from delaytrack.sim._build import Build
 from delaytrack.sim._kernel_errors import could_not_compile
 from delaytrack.sim.engine import Kernels
 
-__all__ = ["compile_engine"]
+__all__ = ["compile_cost", "compile_engine", "refuse_changed_kernels"]
 
 #: Rough seconds of the engine's first compile, in the units of the parts' costs
 #: (:mod:`delaytrack._compile.native_parts`), to share first compiles between two processes
@@ -51,10 +51,11 @@ def _waiting(
     parts: tuple[NativePart, ...],
     runner: Any,
     first_chunk: Callable[[Kernels], tuple],
+    ahead: bool = True,
 ) -> list[tuple[str, Any, Any]]:
     """``(name, job, how this process compiles it or loads it from the cache)`` of what is not
     ready yet: the engine ``runner`` (typed on ``first_chunk``'s arguments) and the ``parts``,
-    and with a first compile the parts a caller asked for ahead."""
+    and (``ahead``) with a first compile the parts a caller asked for ahead."""
 
     @functools.cache
     def engine_signature() -> tuple:
@@ -76,11 +77,32 @@ def _waiting(
     if not engine_ready:
         engine_job = CompileJob(runner, engine_signature(), (NO_KERNEL,), _ENGINE_COST)
         waiting.insert(0, ("the engine", engine_job, lambda: runner.compile(engine_signature())))
-    if waiting:  # a first compile: with the parts the caller will need next, if any
+    if waiting and ahead:  # a first compile: with the parts the caller will need next, if any
         for name, part in parts_ahead():
             if part not in parts and not part.ready():
                 waiting.append((name, part.compile_job(), _compiled_if_it_can(part)))
     return waiting
+
+
+def refuse_changed_kernels(build: Build) -> None:
+    """Refuse a kernel of the user's that reads a module global changed since it was first
+    named in this process (:func:`~delaytrack._compile.guards.refuse_changed_globals`), as the
+    compiled engine would not see the change; a run interpreted first refuses it alike."""
+    plan = build.plan
+    plant, controller = plan.plants[0], plan.controllers[0]
+    for component in (plant, controller.model, controller, plan.reference):
+        refuse_changed_globals(component.engine_kernel)
+    refuse_changed_globals(plan.delay_kernel)
+
+
+def compile_cost(build: Build, first_chunk: Callable[[Kernels], tuple]) -> tuple[Hashable, float]:
+    """What identifies the compiled code ``build`` runs (its parts), and the rough seconds of
+    compiling what of it is neither in memory nor on disk, on one core (0 when nothing is to
+    compile; the units of :class:`~delaytrack._compile.helper_process.CompileJob`'s cost).
+    ``first_chunk`` as for :func:`compile_engine`."""
+    names, parts = engine_parts(build.plan)
+    waiting = _waiting(names, parts, build.runner, first_chunk, ahead=False)
+    return parts, sum(job.cost for _, job, _ in waiting)
 
 
 def compile_engine(build: Build, first_chunk: Callable[[Kernels], tuple]) -> Kernels:
@@ -91,10 +113,7 @@ def compile_engine(build: Build, first_chunk: Callable[[Kernels], tuple]) -> Ker
     and numba compiled in is refused if it changed; numba failing on a kernel of the user's is
     a ValueError of one line."""
     plan = build.plan
-    plant, controller = plan.plants[0], plan.controllers[0]
-    for component in (plant, controller.model, controller, plan.reference):
-        refuse_changed_globals(component.engine_kernel)
-    refuse_changed_globals(plan.delay_kernel)
+    refuse_changed_kernels(build)
     names, parts = engine_parts(plan)
     waiting = _waiting(names, parts, build.runner, first_chunk)
     natives: tuple = ()

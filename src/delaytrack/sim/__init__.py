@@ -1,17 +1,7 @@
 """The simulation engine: sampled controller, exact delayed lookup, RK4 plant, batching."""
 
-from delaytrack._compile.ahead import compile_ahead
-from delaytrack.sim.engine import STATUS_NAMES
-from delaytrack.sim.measurement import MeasurementNoise
-from delaytrack.sim.packet_loss import PacketLoss
-from delaytrack.sim.result import SimResult
-from delaytrack.sim.simulate import simulate
+import lazy_loader
 
-__all__ = [
-    "STATUS_NAMES",
-    "MeasurementNoise",
-    "PacketLoss",
-    "SimResult",
-    "compile_ahead",
-    "simulate",
-]
+# The names of __init__.pyi, each imported from its module when first used: importing one
+# module of the package runs this file, which then imports none of the others.
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -9,20 +9,22 @@ the :class:`~delaytrack.sim.result.SimResult`).
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import time
 from collections.abc import Sequence
 
 import numpy as np
 
-from delaytrack._compile import compile_engine
+from delaytrack._compile import Interpreting, compile_engine, interpret
 from delaytrack.controllers.base import Controller
 from delaytrack.delays.base import DelayProfile
 from delaytrack.plants.base import ELPlant
 from delaytrack.references import Reference
 from delaytrack.sim import _arrays
-from delaytrack.sim._build import build
+from delaytrack.sim._build import Build, build
 from delaytrack.sim._collect import collect
-from delaytrack.sim._execute import cut, execute
+from delaytrack.sim._execute import Chunks, cut, execute
 from delaytrack.sim._machine import available_cores, physical_memory
 from delaytrack.sim._plan import MAX_STEPS, announce, prepare
 from delaytrack.sim.certified_bound import warn_beyond_certified_bound
@@ -125,11 +127,14 @@ def simulate(
         depend on ``workers``.
     engine : {"auto", "compiled", "python"}
         ``"auto"`` runs compiled when every kernel is (built-in plants, :class:`CompiledPlant`)
-        and as plain Python otherwise, with a :class:`PythonFallbackWarning`. ``"compiled"``
-        refuses to fall back. ``"python"`` is the reference path: the same engine, controllers
-        and kernels (their ``py_func``; helpers a kernel calls stay compiled) run as plain
-        Python, one to two orders of magnitude slower; results agree with the compiled path to
-        rounding.
+        and as plain Python otherwise, with a :class:`PythonFallbackWarning`; a short first run
+        of a combination that is not compiled yet runs as plain Python while that is quicker
+        than compiling it, and says so on standard error (``DELAYTRACK_INTERPRET_FIRST=0``
+        turns that off; the result's ``settings["compiled"]`` says which engine ran).
+        ``"compiled"`` refuses to fall back and compiles at once. ``"python"`` is the reference
+        path: the same engine, controllers and kernels (their ``py_func``; helpers a kernel
+        calls stay compiled) run as plain Python, one to two orders of magnitude slower;
+        results agree with the compiled path to rounding.
     progress : bool
         Show a progress bar over the batch.
 
@@ -176,15 +181,43 @@ def simulate(
     )
     if progress:  # the size of the work before it starts (the library is quiet without)
         announce(plan)
-    records, reference_record = _arrays.records(plan)
     built = build(plan, engine)
-    chunks = cut(
-        built, _arrays.runs(plan), _arrays.settings(plan, reference_record), records, progress
-    )
-    natives = (
-        compile_engine(built, lambda probes: chunks.arguments(0, probes)) if built.compiled else ()
-    )
-    execute(chunks, natives, progress)
-    result = collect(chunks)
+    chunks = _chunks(built, progress)
+    result = None
+    if engine == "auto" and built.compiled:  # a short first run: as Python, if that is quicker
+        interpreting = interpret(built, lambda probes: chunks.arguments(0, probes))
+        result = _interpreted(built, interpreting, progress) if interpreting else None
+    if result is None:
+        natives = (
+            compile_engine(built, lambda probes: chunks.arguments(0, probes))
+            if built.compiled
+            else ()
+        )
+        execute(chunks, natives, progress)
+        result = collect(chunks)
     warn_beyond_certified_bound(plan.controllers, plan.delays, result)
     return result
+
+
+def _chunks(built: Build, progress: bool) -> Chunks:
+    """The batch of ``built`` in chunks, with the arrays the engine fills."""
+    plan = built.plan
+    records, reference_record = _arrays.records(plan)
+    runs, settings = _arrays.runs(plan), _arrays.settings(plan, reference_record)
+    return cut(built, runs, settings, records, progress)
+
+
+def _interpreted(built: Build, interpreting: Interpreting, progress: bool) -> SimResult | None:
+    """The compiled ``built``'s run computed by the plain-Python engine instead
+    (:mod:`delaytrack._compile.interpret_first`); None when it raised, for the compiled engine
+    to run it and report what it finds as it would have without interpreting."""
+    chunks = _chunks(dataclasses.replace(built, compiled=False), progress)
+    started = time.perf_counter()
+    try:
+        with np.errstate(all="ignore"):  # as compiled: non-finite values, no warnings
+            execute(chunks, (), progress)
+    except Exception:  # noqa: BLE001 - the compiled engine runs it again
+        return None
+    finally:
+        interpreting.done(time.perf_counter() - started)
+    return collect(chunks)

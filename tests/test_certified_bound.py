@@ -1,5 +1,6 @@
 """``simulate`` beside AROLC's certified delay bound h_m (Theorem 1): the warning when a run's
-largest delay exceeds it, at the user's line only, and h_m per run."""
+largest delay exceeds it, at the user's line unless the caller states h_m itself, and h_m per
+run."""
 
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ from delaytrack.sim.certified_bound import (
     BeyondCertifiedBoundWarning,
     beyond_certified_bound,
     certified_bounds,
+    stated_by_the_caller,
 )
 
 REFERENCE = SinusoidalReference([0.0, 0.0], amplitude=[0.8, 0.5], frequency=[0.5, 0.7])
@@ -84,3 +86,12 @@ def test_the_toolkits_own_jobs_do_not_warn():
     with warnings.catch_warnings():
         warnings.simplefilter("error", BeyondCertifiedBoundWarning)
         scenario.replace(controller=controller).run()
+
+
+def test_a_caller_that_states_h_m_itself_silences_the_warning_only_within():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", BeyondCertifiedBoundWarning)
+        with stated_by_the_caller():
+            run(FAST, ConstantDelay(0.04))
+    with pytest.warns(BeyondCertifiedBoundWarning):
+        run(FAST, ConstantDelay(0.04))

@@ -53,6 +53,7 @@ from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
 from delaytrack.plants.base import ELPlant
 from delaytrack.scenario import Scenario, ScenarioError
 from delaytrack.sim import STATUS_NAMES, simulate
+from delaytrack.sim.certified_bound import stated_by_the_caller
 from delaytrack.sim.simulate import MAX_STEPS
 from delaytrack.units import default_names
 
@@ -393,25 +394,26 @@ def empirical_margin(
 
     def evaluate(values: list[float], controller: list[Controller]) -> tuple[np.ndarray, ...]:
         try:
-            result = simulate(
-                built.plant,
-                controller,
-                [make(v, frequency) for v in values],
-                built.x0,
-                reference=built.reference,
-                t1=scenario.duration,
-                dt=scenario.dt,
-                T_c=scenario.T_c,
-                trajectories=False,
-                metrics_from=settings["settle"],
-                error_bound=scenario.simulated_error_bound,
-                u_init=scenario.simulated_u_init,
-                input_limits=scenario.simulated_input_limits,
-                measurement_noise=scenario.simulated_measurement_noise,
-                packet_loss=scenario.simulated_packet_loss,
-                workers=workers,
-                progress=progress,
-            )
+            with stated_by_the_caller():  # it measures how far beyond h_m the loop holds
+                result = simulate(
+                    built.plant,
+                    controller,
+                    [make(v, frequency) for v in values],
+                    built.x0,
+                    reference=built.reference,
+                    t1=scenario.duration,
+                    dt=scenario.dt,
+                    T_c=scenario.T_c,
+                    trajectories=False,
+                    metrics_from=settings["settle"],
+                    error_bound=scenario.simulated_error_bound,
+                    u_init=scenario.simulated_u_init,
+                    input_limits=scenario.simulated_input_limits,
+                    measurement_noise=scenario.simulated_measurement_noise,
+                    packet_loss=scenario.simulated_packet_loss,
+                    workers=workers,
+                    progress=progress,
+                )
         except ValueError as error:
             raise ScenarioError(f"scenario {scenario.name!r}: {error}") from None
         ok = result.status == 0

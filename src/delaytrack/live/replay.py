@@ -51,6 +51,7 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     from delaytrack.delays import TraceDelay
     from delaytrack.scenario import Scenario
     from delaytrack.sim import simulate
+    from delaytrack.sim.certified_bound import stated_by_the_caller
     from delaytrack.sim.measurement import MeasurementNoise
     from delaytrack.sim.packet_loss import PacketLoss
 
@@ -79,20 +80,21 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     loss = PacketLoss(loss_spec["probability"], int(loss_spec["seed"]))
     # A session folder from before the controller measured recorded no noise: it read the truth.
     noise_spec = controller_node.get("measurement_noise")
-    result = simulate(
-        built.plant,
-        built.controller,
-        trace,
-        built.x0,
-        reference=built.reference,
-        t1=t1,
-        dt=dt,
-        T_c=T_c,
-        u_init=scenario.simulated_u_init,
-        input_limits=scenario.simulated_input_limits,
-        packet_loss=loss if loss.probability > 0 else None,
-        measurement_noise=None if noise_spec is None else MeasurementNoise(**noise_spec),
-    )
+    with stated_by_the_caller():  # the session as it ran, beyond h_m or not
+        result = simulate(
+            built.plant,
+            built.controller,
+            trace,
+            built.x0,
+            reference=built.reference,
+            t1=t1,
+            dt=dt,
+            T_c=T_c,
+            u_init=scenario.simulated_u_init,
+            input_limits=scenario.simulated_input_limits,
+            packet_loss=loss if loss.probability > 0 else None,
+            measurement_noise=None if noise_spec is None else MeasurementNoise(**noise_spec),
+        )
     n = built.plant.n
     sim_t = result.t
     sim_e1 = result.e1[0]

@@ -42,6 +42,7 @@ from delaytrack.scenario.keys import (
 from delaytrack.scenario.table_memory import remembered, table_identity
 from delaytrack.scenario.toml_text import dumps_toml
 from delaytrack.sim import MeasurementNoise, PacketLoss, SimResult, simulate
+from delaytrack.sim.certified_bound import stated_by_the_caller
 from delaytrack.sim.simulate import MAX_STEPS
 
 _T = TypeVar("_T")
@@ -531,23 +532,24 @@ def simulate_built(
         If :func:`delaytrack.sim.simulate` refuses its input; the message names the scenario.
     """
     try:
-        return simulate(
-            built.plant,
-            built.controller,
-            delay,
-            built.x0,
-            reference=built.reference,
-            t1=scenario.duration,
-            dt=scenario.dt,
-            T_c=scenario.T_c,
-            record_every=scenario.record_every,
-            error_bound=scenario.simulated_error_bound,
-            input_limits=scenario.simulated_input_limits,
-            measurement_noise=scenario.simulated_measurement_noise,
-            packet_loss=scenario.simulated_packet_loss,
-            u_init=scenario.simulated_u_init,
-            progress=progress,
-        )
+        with stated_by_the_caller():  # the command line states h_m beside the delays
+            return simulate(
+                built.plant,
+                built.controller,
+                delay,
+                built.x0,
+                reference=built.reference,
+                t1=scenario.duration,
+                dt=scenario.dt,
+                T_c=scenario.T_c,
+                record_every=scenario.record_every,
+                error_bound=scenario.simulated_error_bound,
+                input_limits=scenario.simulated_input_limits,
+                measurement_noise=scenario.simulated_measurement_noise,
+                packet_loss=scenario.simulated_packet_loss,
+                u_init=scenario.simulated_u_init,
+                progress=progress,
+            )
     except ValueError as error:
         # simulate()'s refusals of its input; anything else is a bug and keeps its traceback.
         raise ScenarioError(f"scenario {scenario.name!r}: {error}") from None

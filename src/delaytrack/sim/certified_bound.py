@@ -14,9 +14,10 @@ loop.
 
 from __future__ import annotations
 
-import sys
+import contextlib
+import contextvars
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -34,11 +35,13 @@ __all__ = [
     "beyond_certified_bound",
     "certified_bounds",
     "largest_delays",
+    "stated_by_the_caller",
     "warn_beyond_certified_bound",
 ]
 
-#: This package's name: a call of ``simulate`` from one of its modules is one of its own jobs.
-_PACKAGE = __name__.partition(".")[0]
+#: Whether the warning is left to the caller, which states ``h_m`` itself
+#: (:func:`stated_by_the_caller`).
+_STATED: contextvars.ContextVar[bool] = contextvars.ContextVar("h_m_stated", default=False)
 
 
 class BeyondCertifiedBoundWarning(UserWarning):
@@ -101,15 +104,27 @@ def beyond_certified_bound(
     )
 
 
+@contextlib.contextmanager
+def stated_by_the_caller() -> Iterator[None]:
+    """Within it, :func:`~delaytrack.sim.simulate` issues no
+    :class:`BeyondCertifiedBoundWarning`: for the toolkit's jobs (the paper job, tuning,
+    margins, sweeps, a scenario's run and the command line), which run beyond ``h_m`` on
+    purpose and state it in their reports and outputs. Local to the thread or task that enters
+    it."""
+    token = _STATED.set(True)
+    try:
+        yield
+    finally:
+        _STATED.reset(token)
+
+
 def warn_beyond_certified_bound(
     controllers: Sequence[Controller], delays: Sequence[DelayProfile], result: SimResult
 ) -> None:
     """Issue :func:`beyond_certified_bound`'s warning at the line that called ``simulate``,
-    when that line is the user's: the toolkit's own jobs (the paper job, tuning, margins,
-    sweeps) run beyond ``h_m`` on purpose and state it in their reports."""
-    caller = sys._getframe(2)  # level 0: this function, 1: simulate, 2: simulate's caller
-    if caller.f_globals.get("__name__", "").partition(".")[0] == _PACKAGE:
+    unless the caller states ``h_m`` itself (:func:`stated_by_the_caller`)."""
+    if _STATED.get():
         return
     warning = beyond_certified_bound(controllers, delays, result)
     if warning is not None:
-        warnings.warn(warning, stacklevel=3)
+        warnings.warn(warning, stacklevel=3)  # 1: this function, 2: simulate, 3: its caller

@@ -25,6 +25,7 @@ import pyarrow.parquet as pq
 from delaytrack._io import atomic_path
 from delaytrack.metrics import metrics_table
 from delaytrack.sim import MeasurementNoise, PacketLoss, simulate
+from delaytrack.sim.certified_bound import stated_by_the_caller
 from delaytrack.sweeps.spec import Run, SweepError, SweepSpec, Unit, canonical_json
 
 __all__ = ["PartsScan", "finished_units", "run_unit", "value_column", "write_part"]
@@ -66,30 +67,31 @@ def _simulate_batch(runs: list[Run], workers: int | None) -> pd.DataFrame:
     built = [run.scenario.build() for run in runs]
     first = runs[0].scenario
     try:
-        result = simulate(
-            [b.plant for b in built],
-            [b.controller for b in built],
-            [b.delay for b in built],
-            np.stack([b.x0 for b in built]),
-            reference=built[0].reference,
-            t1=first.duration,
-            dt=first.dt,
-            T_c=first.T_c,
-            error_bound=first.simulated_error_bound,
-            u_init=first.simulated_u_init,
-            input_limits=np.array(
-                [
-                    np.broadcast_to(run.scenario.simulated_input_limits, (b.plant.m,))
-                    for run, b in zip(runs, built, strict=True)
-                ]
-            ),
-            measurement_noise=[
-                run.scenario.simulated_measurement_noise or MeasurementNoise() for run in runs
-            ],
-            packet_loss=[run.scenario.simulated_packet_loss or PacketLoss() for run in runs],
-            trajectories=False,
-            workers=workers,
-        )
+        with stated_by_the_caller():  # a sweep runs beyond h_m on purpose
+            result = simulate(
+                [b.plant for b in built],
+                [b.controller for b in built],
+                [b.delay for b in built],
+                np.stack([b.x0 for b in built]),
+                reference=built[0].reference,
+                t1=first.duration,
+                dt=first.dt,
+                T_c=first.T_c,
+                error_bound=first.simulated_error_bound,
+                u_init=first.simulated_u_init,
+                input_limits=np.array(
+                    [
+                        np.broadcast_to(run.scenario.simulated_input_limits, (b.plant.m,))
+                        for run, b in zip(runs, built, strict=True)
+                    ]
+                ),
+                measurement_noise=[
+                    run.scenario.simulated_measurement_noise or MeasurementNoise() for run in runs
+                ],
+                packet_loss=[run.scenario.simulated_packet_loss or PacketLoss() for run in runs],
+                trajectories=False,
+                workers=workers,
+            )
     except ValueError as error:
         indices = [run.index for run in runs]
         raise SweepError(f"runs {indices} cannot be simulated together: {error}") from None

@@ -1,14 +1,15 @@
 """How ``make test`` shares the suite between pytest-xdist's workers (``--dist loadscope``), and
-the live sessions that several live modules read.
+the live sessions and the ``delaytrack reproduce`` run that several modules read.
 
 A worker takes a whole test module at a time, so a module's fixture (the live sessions, the
 Dask cluster, the golden runs) is made once and the kernels its tests share are compiled by
 one worker; the live modules go together, so that one worker runs their real-time sessions
-while the other keeps compiling. First go the modules of :data:`FIRST`, which compile in a
-worker the kernels that the live sessions' and the documentation examples' processes then load
-from numba's disk cache (compiled in each of those processes instead, they cost more); then the
-live modules and the modules holding a test marked ``slow``: the short modules left at the end
-keep both workers busy until the suite ends.
+while the other keeps compiling, and so do the modules of :data:`REPRODUCED`, which read one
+``delaytrack reproduce`` run (:func:`reproduced`). First go the modules of :data:`FIRST`, which
+compile in a worker the kernels that the live sessions' and the documentation examples'
+processes then load from numba's disk cache (compiled in each of those processes instead, they
+cost more); then the live modules and the modules holding a test marked ``slow``: the short
+modules left at the end keep both workers busy until the suite ends.
 """
 
 from __future__ import annotations
@@ -34,12 +35,18 @@ LIVE = "live sessions"
 #: Modules that compile the engine and the parts of the two-link arm, the robot and the linear
 #: plant with the paper's controllers: the kernels most tests and their processes share.
 FIRST = ("test_golden.py", "test_engine.py", "test_cli_empirical.py")
+#: The unit of work of the modules that read :func:`reproduced` (one run in one worker).
+REPRODUCED = ("test_paper.py", "test_report_rendering.py")
 
 
 def _unit(nodeid: str) -> str:
-    """The unit of work of a test: its module, or :data:`LIVE`."""
+    """The unit of work of a test: its module, :data:`LIVE`, or the modules of
+    :data:`REPRODUCED` together."""
     module = nodeid.split("::", 1)[0]
-    return LIVE if PurePosixPath(module).name.startswith("test_live_") else module
+    name = PurePosixPath(module).name
+    if name.startswith("test_live_"):
+        return LIVE
+    return " ".join(REPRODUCED) if name in REPRODUCED else module
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -161,3 +168,28 @@ def live_nodes(tmp_path_factory):
     codes = {role: node.returncode for role, node in nodes.items()}
     with lock:
         return folder, name, outputs, codes, list(received)
+
+
+# ---- the reproduce run read by several modules ------------------------------------------------
+
+
+@pytest.fixture(scope="session")
+def reproduced(tmp_path_factory):
+    """``delaytrack reproduce --duration 1 --quiet`` (the paper job, its literal sibling and the
+    robustness study at a tiny size; contact physics and the dt check on), run once for the
+    modules of :data:`REPRODUCED` (test_paper.py, test_report_rendering.py), which only read it.
+
+    Returns its output folder, its exit code and what it printed.
+    """
+    import contextlib
+    import io
+
+    from delaytrack.cli import main
+    from delaytrack.experiments import robustness
+
+    out = tmp_path_factory.mktemp("reproduce")
+    printed = io.StringIO()
+    with pytest.MonkeyPatch.context() as patch, contextlib.redirect_stdout(printed):
+        patch.setitem(robustness.SIZES, "default", robustness.StudySize(1, 1, 2))
+        code = main(["reproduce", "--out", str(out), "--duration", "1", "--quiet"])
+    return out, code, printed.getvalue()

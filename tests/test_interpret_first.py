@@ -13,6 +13,7 @@ import pytest
 import delaytrack as dt
 from delaytrack._compile import interpret_first
 from delaytrack._spec import module_from_file
+from delaytrack.components import Kernel
 
 #: A pendulum of the user's, ``m l² q̈ + m g l sin q + c q̇ + a exp(b q̇²) = u``; ``a = b = 0``
 #: for a good plant, ``a = 1, b = 10⁵`` for one whose ``exp`` overflows once ``|q̇| > 0.084``:
@@ -22,7 +23,7 @@ import math
 import numba
 
 
-@numba.njit
+@numba.njit({options})
 def pendulum_terms(t, q, qdot, params, M, N, G):
     M[0, 0] = params[0] * params[1] ** 2 + 0.0 * {token}
     N[0] = (
@@ -34,19 +35,31 @@ def pendulum_terms(t, q, qdot, params, M, N, G):
 """
 
 
-@pytest.fixture
-def interpreting(monkeypatch):
-    """Interpreting first turned on, with no time spent on any combination yet."""
-    monkeypatch.delenv(interpret_first.ENVIRONMENT, raising=False)
-    monkeypatch.setattr(interpret_first, "_SPENT", {})
-
-
-def _pendulum(tmp_path, overflow: bool = False) -> tuple:
-    """A new pendulum (new code: nothing compiled) under AROLC on a model of itself."""
+def _new_terms(folder, options: str = "") -> object:
+    """A new pendulum terms kernel (new code: nothing compiled for it yet)."""
     token = uuid.uuid4().int % 10**12
-    path = tmp_path / f"pendulum_{token}.py"
-    path.write_text(_PENDULUM.format(token=token))
-    terms = module_from_file(path).pendulum_terms
+    path = folder / f"pendulum_{token}.py"
+    path.write_text(_PENDULUM.format(token=token, options=options))
+    return module_from_file(path).pendulum_terms
+
+
+@pytest.fixture(scope="module")
+def shared_terms(tmp_path_factory):
+    """One new pendulum for the tests that compile it (compiled once for the module)."""
+    return _new_terms(tmp_path_factory.mktemp("pendulum"))
+
+
+@pytest.fixture
+def interpreting(monkeypatch, tmp_path):
+    """Interpreting first turned on, with no time spent on any combination yet (the records of
+    time spent in ``tmp_path``)."""
+    monkeypatch.delenv(interpret_first.INTERPRETING, raising=False)
+    monkeypatch.setattr(interpret_first, "_SPENT", {})
+    monkeypatch.setattr(interpret_first, "_record", lambda combination: tmp_path / combination)
+
+
+def _loop(terms, overflow: bool = False) -> tuple:
+    """The pendulum under AROLC on a model of itself."""
     truth = dt.CompiledPlant(1, 1, terms, [1.2, 0.5, 0.4, *((1.0, 1e5) if overflow else (0, 0))])
     model = dt.CompiledPlant(1, 1, terms, [0.9, 0.5, 0.0, 0.0, 0.0])
     controller = dt.AROLC(model, K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
@@ -68,68 +81,128 @@ def _run(truth, controller, t1: float = 0.2, **options) -> dt.SimResult:
     )
 
 
+def _same_numbers(first: dt.SimResult, second: dt.SimResult) -> None:
+    for name in ("x", "commands", "applied", "h", "controller_state", "t_stop"):
+        np.testing.assert_array_equal(getattr(first, name), getattr(second, name), err_msg=name)
+
+
 def test_a_short_first_run_is_interpreted_says_so_and_gives_the_python_engines_numbers(
     interpreting, tmp_path, capsys
 ):
-    truth, controller = _pendulum(tmp_path)
+    truth, controller = _loop(_new_terms(tmp_path))
     first = _run(truth, controller)
     notice = capsys.readouterr().err
-    assert "not compiled yet: running as plain Python (200 plant steps" in notice
+    assert "not compiled yet: running them as plain Python" in notice
     assert "delaytrack: compiling" not in notice
     assert first.settings["compiled"] is False
-    python = _run(truth, controller, engine="python")
-    for name in ("x", "commands", "applied", "h", "controller_state"):
-        np.testing.assert_array_equal(getattr(first, name), getattr(python, name), err_msg=name)
+    _same_numbers(first, _run(truth, controller, engine="python"))
     again = _run(truth, controller)  # still cheaper than compiling: interpreted, said once
     assert again.settings["compiled"] is False and capsys.readouterr().err == ""
+    (record,) = tmp_path.glob("[0-9a-f]" * 24)  # the time spent, for the next process
+    assert float(record.read_text()) > 0.0
 
 
-def test_the_environment_and_compile_ahead_compile_at_once(interpreting, monkeypatch):
-    """With ``DELAYTRACK_INTERPRET_FIRST=0``, or inside ``compile_ahead`` (compiling asked for),
-    a run that would be interpreted is compiled; the kernels' guards run either way."""
-    guarded = []
-    monkeypatch.setattr(interpret_first, "refuse_changed_kernels", guarded.append)
-    monkeypatch.setattr(interpret_first, "compile_cost", lambda build, chunk: ("c", 10.0))
-    plan = SimpleNamespace(batch=2, n_ticks=50, steps_per_tick=2)
-    build = SimpleNamespace(plan=plan)
-    assert interpret_first.interpret(build, None) == interpret_first.Interpreting("c", 200)
-    monkeypatch.setattr(interpret_first, "parts_ahead", lambda: (("a step", None),))
-    assert interpret_first.interpret(build, None) is None
-    monkeypatch.undo()
-    monkeypatch.setattr(interpret_first, "refuse_changed_kernels", guarded.append)
-    monkeypatch.setattr(interpret_first, "compile_cost", lambda build, chunk: ("c", 10.0))
-    monkeypatch.setattr(interpret_first, "_SPENT", {})
-    monkeypatch.setenv(interpret_first.ENVIRONMENT, "0")
-    assert interpret_first.interpret(build, None) is None
-    assert guarded == [build] * 3
+def _cheap_compile(monkeypatch, seconds: float, pace: float | None = None) -> None:
+    """Make the compile look ``seconds`` long on one core (the run's real parts), and the pace
+    of interpreting ``pace`` seconds a step."""
+    real = interpret_first.compile_cost
+    monkeypatch.setattr(
+        interpret_first, "compile_cost", lambda build, chunk: (real(build, chunk)[0], seconds)
+    )
+    monkeypatch.setattr(interpret_first, "available_cores", lambda: 2)
+    if pace is not None:
+        spent = interpret_first._spent
+
+        def slow_to_guess(combination):
+            found = spent(combination)
+            found.pace = pace
+            return found
+
+        monkeypatch.setattr(interpret_first, "_spent", slow_to_guess)
+
+
+def test_a_run_that_outlasts_the_compile_is_abandoned_and_compiled(
+    interpreting, shared_terms, monkeypatch, capsys
+):
+    """Guessed quick enough but slower than the compile (here made to look 0.1 s long, 0.05 s
+    on two cores): interpreted until the compile's time is spent, then compiled."""
+    _cheap_compile(monkeypatch, 0.1, pace=1e-9)
+    truth, controller = _loop(shared_terms)
+    result = _run(truth, controller, t1=2.0)
+    err = capsys.readouterr().err
+    assert "running them as plain Python" in err and "delaytrack: compiling" in err
+    assert result.settings["compiled"] is True
+    (spent,) = interpret_first._SPENT.values()
+    assert spent.seconds >= 0.05 and spent.pace == 1e-9  # the abandoned run sets no pace
+    _same_numbers(result, _run(truth, controller, t1=2.0, engine="python"))
 
 
 def test_an_interpreted_run_that_raises_is_run_compiled_and_gives_its_outcome(
-    interpreting, tmp_path, capsys
+    interpreting, shared_terms, monkeypatch
 ):
     """Python raises where compiled code gives ``inf`` (an overflow): the run is computed again
     compiled, whose outcome (here the run diverging) is the result."""
-    truth, controller = _pendulum(tmp_path, overflow=True)
+    _cheap_compile(monkeypatch, 20.0)  # interpreted, even if the module compiled it already
+    truth, controller = _loop(shared_terms, overflow=True)
     result = _run(truth, controller)
-    assert "delaytrack: compiling" in capsys.readouterr().err
     assert result.settings["compiled"] is True
     assert result.status_names == ["diverged"]
 
 
-def test_the_rule_interprets_until_the_time_spent_would_pass_the_compile(
-    interpreting, monkeypatch, capsys
-):
+def _fake_build(steps: int, kernels: tuple = ()) -> SimpleNamespace:
+    plan = SimpleNamespace(batch=1, n_ticks=steps, steps_per_tick=1)
+    return SimpleNamespace(plan=plan, kernels=lambda b: kernels)
+
+
+@pytest.fixture
+def fake_compile(interpreting, monkeypatch):
+    """``interpret`` on a fake build whose compile costs 10 s on one core (5 s on two)."""
+    guarded = []
+    monkeypatch.setattr(interpret_first, "refuse_changed_kernels", guarded.append)
+    monkeypatch.setattr(interpret_first, "compile_cost", lambda build, chunk: ((), 10.0))
+    monkeypatch.setattr(interpret_first, "_combination", lambda parts: "c")
     monkeypatch.setattr(interpret_first, "available_cores", lambda: 2)
-    choose, per_step = interpret_first.choose, interpret_first.SECONDS_PER_STEP
-    # Nothing to compile: compiled. A run estimated beyond half the compile (two cores): compiled.
-    assert choose("a", 1000, 0.0) is None
-    assert choose("a", int(6.0 / per_step), 10.0) is None
-    assert capsys.readouterr().err == ""
-    first = choose("a", int(2.0 / per_step), 10.0)
-    assert first is not None and "not compiled yet" in capsys.readouterr().err
-    first.done(3.0)  # it took 3 s: its pace is now 1.5 times the guess
-    second = choose("a", int(1.0 / per_step), 10.0)  # 3 s spent + 1.5 s estimated <= 5 s
-    assert second is not None and capsys.readouterr().err == ""
-    second.done(1.5)
-    assert choose("a", int(0.5 / per_step), 10.0) is None  # 4.5 + 0.75 > 5: compile now
-    assert choose("b", int(0.5 / per_step), 10.0) is not None  # another combination: its own
+    return guarded
+
+
+def test_the_rule_interprets_within_the_compiles_time_over_runs_and_processes(
+    fake_compile, monkeypatch, capsys
+):
+    per_step = interpret_first.SECONDS_PER_STEP
+    interpret = interpret_first.interpret
+    assert interpret(_fake_build(int(6.0 / per_step)), None) is None  # guessed past 5 s
+    assert capsys.readouterr().err == "" and fake_compile == []
+    first = interpret(_fake_build(int(2.0 / per_step)), None)
+    assert first is not None and first.seconds == 5.0 and fake_compile
+    assert "for at most about 5 s" in capsys.readouterr().err
+    first.done(3.0, int(2.0 / per_step))  # 3 s: its pace is now 1.5 times the guess
+    second = interpret(_fake_build(int(1.0 / per_step)), None)  # 3 s spent + 1.5 s <= 5 s
+    assert second is not None and second.seconds == 2.0 and capsys.readouterr().err == ""
+    assert interpret(_fake_build(int(2.0 / per_step)), None) is None  # 3 + 3 > 5: compile
+    # Another process reads the time spent from the record: 3 s, whatever its own guess.
+    monkeypatch.setattr(interpret_first, "_SPENT", {})
+    again = interpret(_fake_build(10), None)
+    assert again is not None and again.seconds == 2.0
+    again.done(2.5, None)  # abandoned at its deadline: 5.5 s spent, the budget is gone
+    monkeypatch.setattr(interpret_first, "_SPENT", {})
+    assert interpret(_fake_build(1), None) is None
+
+
+def test_the_environment_compile_ahead_and_fastmath_compile_at_once(
+    fake_compile, monkeypatch, tmp_path
+):
+    monkeypatch.setattr(interpret_first, "parts_ahead", lambda: (("a step", None),))
+    assert interpret_first.interpret(_fake_build(10), None) is None
+    monkeypatch.setattr(interpret_first, "parts_ahead", lambda: ())
+    monkeypatch.setenv(interpret_first.INTERPRETING, "0")
+    assert interpret_first.interpret(_fake_build(10), None) is None
+    monkeypatch.delenv(interpret_first.INTERPRETING)
+    fast = Kernel(_new_terms(tmp_path, "fastmath=True"))
+    assert interpret_first.interpret(_fake_build(10, (fast,)), None) is None
+    plain = Kernel(_new_terms(tmp_path))
+    assert interpret_first.interpret(_fake_build(10, (plain,)), None) is not None
+
+
+def test_durations_read_as_a_notice_says_them():
+    texts = [interpret_first.seconds_text(s) for s in (0.04, 0.4, 3.2, 12.0, 300.0)]
+    assert texts == ["0.04 s", "0.4 s", "3 s", "12 s", "5 min"]

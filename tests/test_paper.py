@@ -13,7 +13,7 @@ import pytest
 
 from delaytrack import razumikhin_bound
 from delaytrack.cli import main
-from delaytrack.experiments import paper, paper_findings, robustness, tuning
+from delaytrack.experiments import paper, paper_findings, tuning
 from delaytrack.experiments.contact import contact_findings
 from delaytrack.report import paper as paper_report
 from delaytrack.report.contact import contact_paragraphs
@@ -101,12 +101,13 @@ def test_short_run_writes_every_promised_file(tmp_path):
 
 
 @pytest.mark.slow
-def test_reproduce_writes_both_folders(tmp_path, capsys, monkeypatch):
-    # The robustness study at a tiny size (its own tests check it); its verdicts reach the report.
-    monkeypatch.setitem(robustness.SIZES, "default", robustness.StudySize(1, 1, 2))
-    args = ["reproduce", "--out", str(tmp_path), "--duration", "1", "--no-dt-check", "--quiet"]
-    assert main(args) == 0
-    assert "report.html" in capsys.readouterr().out
+def test_reproduce_writes_both_folders(reproduced):
+    # `delaytrack reproduce --duration 1`, run once for this module and test_report_rendering.py
+    # (tests/conftest.py), with the robustness study at a tiny size (its own tests check it);
+    # its verdicts reach the report.
+    tmp_path, code, printed = reproduced
+    assert code == 0
+    assert "report.html" in printed
     verdicts = pd.read_csv(tmp_path / "robustness" / "verdicts.csv")
     assert len(verdicts) == 2 * (4 * 2 * 2 + 2)  # noise x (scenarios x AROLCs x metrics + growth)
     for folder in ("paper", "paper-literal"):

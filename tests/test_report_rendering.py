@@ -14,7 +14,6 @@ from pathlib import Path
 import pytest
 
 from delaytrack.cli import main
-from delaytrack.experiments import robustness
 
 BROWSER = next(
     (
@@ -84,11 +83,13 @@ def rendered(report: Path, tmp_path: Path) -> dict:
 
 
 @pytest.fixture(scope="module")
-def reports(tmp_path_factory, monkeypatch_module):
+def reports(tmp_path_factory, reproduced):
+    # The paper job, its literal sibling and the robustness study: the reproduce run of
+    # tests/conftest.py (with contact physics and the dt check), which test_paper.py reads too.
+    paper, code, _printed = reproduced
+    assert code == 0
     out = tmp_path_factory.mktemp("reports")
-    monkeypatch_module.setitem(robustness.SIZES, "default", robustness.StudySize(1, 1, 2))
     quiet = ["--quiet"]
-    assert main(["reproduce", "--out", str(out), "--duration", "1", "--no-contact", *quiet]) == 0
     assert (
         main(["reproduce", "--job", "two-link", "--out", str(out), "--duration", "1", *quiet]) == 0
     )
@@ -98,9 +99,9 @@ def reports(tmp_path_factory, monkeypatch_module):
     sweep = out / "sweep"
     assert main(["sweep", str(EXAMPLES / "sweep_small.toml"), "--out", str(sweep), *quiet]) == 0
     return {
-        "paper": out / "paper" / "report.html",
-        "paper-literal": out / "paper-literal" / "report.html",
-        "robustness": out / "robustness" / "report.html",
+        "paper": paper / "paper" / "report.html",
+        "paper-literal": paper / "paper-literal" / "report.html",
+        "robustness": paper / "robustness" / "report.html",
         "two-link": out / "two-link" / "report.html",
         "margins": out / "margins" / "report.html",
         "sweep": sweep / "report.html",
@@ -112,12 +113,6 @@ def probes(reports, tmp_path_factory):
     """Each report's probe findings, one headless Chromium run per report for every test."""
     folder = tmp_path_factory.mktemp("probes")
     return {name: rendered(path, folder) for name, path in reports.items()}
-
-
-@pytest.fixture(scope="module")
-def monkeypatch_module():
-    with pytest.MonkeyPatch.context() as patch:
-        yield patch
 
 
 #: Every report the fixture writes.

@@ -80,7 +80,9 @@ def test_dask_cluster_gives_the_local_results(spec, local_runs, cluster, tmp_pat
 
 
 def test_a_killed_worker_loses_nothing(cluster, tmp_path):
-    spec = spec_of(600.0, 2)  # 12 units of about 0.7 s each: the kill hits a running task
+    # 6 units of about 0.7 s each (three per worker): the kill hits a running task, with units
+    # left to run after it
+    spec = spec_of(300.0, 4)
     expected = run_sweep(spec, tmp_path / "local", executor=LocalExecutor(), progress=False)
     client = distributed.Client(cluster.scheduler_address)  # the test's own, outlives the sweep
     client.wait_for_workers(2, timeout=60)

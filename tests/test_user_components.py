@@ -396,7 +396,7 @@ def test_steps_asked_for_ahead_are_compiled_at_the_first_compile(
     assert not step.ready()
     settings = dict(reference=built.reference, t1=0.2, dt=0.001, T_c=0.002)
     with monkeypatch.context() as interpreting_on:  # a short first run, compiled as asked
-        interpreting_on.delenv(interpret_first.ENVIRONMENT)
+        interpreting_on.delenv(interpret_first.INTERPRETING)
         with dt.sim.compile_ahead([rival, bad], n, m):
             first = dt.simulate(built.plant, built.controller, built.delay, built.x0, **settings)
     notice = capsys.readouterr().err

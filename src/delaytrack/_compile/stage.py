@@ -4,7 +4,7 @@ parts, shared with a helper process when there are two or more (its first run on
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Hashable
+from collections.abc import Callable
 from typing import Any
 
 from delaytrack._compile.ahead import parts_ahead
@@ -85,9 +85,17 @@ def _waiting(
 
 
 def refuse_changed_kernels(build: Build) -> None:
-    """Refuse a kernel of the user's that reads a module global changed since it was first
-    named in this process (:func:`~delaytrack._compile.guards.refuse_changed_globals`), as the
-    compiled engine would not see the change; a run interpreted first refuses it alike."""
+    """Refuse a kernel of ``build`` (a compiled engine's) that reads a module global of the
+    user's changed since the kernel was first named in this process
+    (:func:`~delaytrack._compile.guards.refuse_changed_globals`): compiled code would not see
+    the change. A run interpreted first refuses it alike, so that the result does not depend on
+    which engine ran it.
+
+    Raises
+    ------
+    ValueError
+        Naming the kernel and the global.
+    """
     plan = build.plan
     plant, controller = plan.plants[0], plan.controllers[0]
     for component in (plant, controller.model, controller, plan.reference):
@@ -95,11 +103,28 @@ def refuse_changed_kernels(build: Build) -> None:
     refuse_changed_globals(plan.delay_kernel)
 
 
-def compile_cost(build: Build, first_chunk: Callable[[Kernels], tuple]) -> tuple[Hashable, float]:
-    """What identifies the compiled code ``build`` runs (its parts), and the rough seconds of
-    compiling what of it is neither in memory nor on disk, on one core (0 when nothing is to
-    compile; the units of :class:`~delaytrack._compile.helper_process.CompileJob`'s cost).
-    ``first_chunk`` as for :func:`compile_engine`."""
+def compile_cost(
+    build: Build, first_chunk: Callable[[Kernels], tuple]
+) -> tuple[tuple[NativePart, ...], float]:
+    """The parts the compiled ``build`` runs, and the rough seconds of compiling what of them
+    and of the engine is neither in memory nor on disk.
+
+    Parameters
+    ----------
+    build : Build
+        A compiled engine.
+    first_chunk : callable
+        The engine's arguments for the first chunk, as for :func:`compile_engine`.
+
+    Returns
+    -------
+    parts : tuple of NativePart
+        :func:`~delaytrack._compile.native_parts.engine_parts`'s.
+    cost : float
+        Seconds on one core, in the units of
+        :class:`~delaytrack._compile.helper_process.CompileJob`'s cost; 0 when nothing is to
+        compile.
+    """
     names, parts = engine_parts(build.plan)
     waiting = _waiting(names, parts, build.runner, first_chunk, ahead=False)
     return parts, sum(job.cost for _, job, _ in waiting)

@@ -4,12 +4,13 @@ compiled engine's parts are compiled by the compile stage (:mod:`delaytrack._com
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
 from delaytrack.sim._plan import Plan
 from delaytrack.sim.engine import Kernels, run_batch, run_batch_compiled
-from delaytrack.sim.fallback import PythonFallbackWarning, python_kernel
+from delaytrack.sim.fallback import PythonFallbackWarning, python_kernel, stepped_until
 
 __all__ = ["ENGINES", "Build", "build"]
 
@@ -27,10 +28,14 @@ class Build:
         What it runs.
     compiled : bool
         Whether it runs compiled (else as plain Python).
+    deadline : float
+        As plain Python, the :func:`time.perf_counter` time after which no controller tick
+        starts (:class:`~delaytrack.sim.fallback.OutOfTime` is raised instead); none by default.
     """
 
     plan: Plan
     compiled: bool
+    deadline: float = math.inf
 
     @property
     def runner(self) -> Any:
@@ -52,7 +57,11 @@ class Build:
         """Element ``b``'s kernels as the engine takes them: as plain Python, or compiled, the
         batch's ``natives`` (:func:`delaytrack._compile.compile_engine`)."""
         if not self.compiled:
-            return Kernels(*(python_kernel(kernel) for kernel in self.kernels(b)))
+            kernels = Kernels(*(python_kernel(kernel) for kernel in self.kernels(b)))
+            if self.deadline < math.inf:
+                step = stepped_until(kernels.controller_step, self.deadline)
+                kernels = kernels._replace(controller_step=step)
+            return kernels
         return Kernels(*natives)
 
 

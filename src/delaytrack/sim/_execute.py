@@ -55,6 +55,10 @@ class Chunks:
     indices: list[np.ndarray]
     in_parallel: bool
 
+    def first(self, natives: tuple) -> tuple:
+        """The engine's arguments for the first chunk (:meth:`arguments`)."""
+        return self.arguments(0, natives)
+
     def arguments(self, index: int, natives: tuple) -> tuple:
         """The engine's arguments for chunk ``index``, its kernels compiled as ``natives``."""
         chunk = self.indices[index]

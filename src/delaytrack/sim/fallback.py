@@ -3,7 +3,9 @@ user's kernels as it runs them."""
 
 from __future__ import annotations
 
+import dataclasses
 import sys
+import time
 import warnings
 from types import FrameType
 from typing import Any
@@ -14,7 +16,7 @@ from delaytrack.components import Kernel, ReducedForm
 #: This package's name: frames of its modules are not the user's.
 _PACKAGE = __name__.partition(".")[0]
 
-__all__ = ["PythonFallbackWarning", "python_kernel"]
+__all__ = ["OutOfTime", "PythonFallbackWarning", "python_kernel", "stepped_until"]
 
 
 class PythonFallbackWarning(UserWarning):
@@ -89,6 +91,26 @@ def python_kernel(kernel: Kernel) -> Kernel:
             reduced.size,
         ),
     )
+
+
+class OutOfTime(Exception):  # noqa: N818 - a signal between two parts, not an error
+    """A run given a deadline (:func:`stepped_until`) was still going at it."""
+
+
+def stepped_until(step: Kernel, deadline: float) -> Kernel:
+    """The plain-Python controller ``step`` (called once a controller tick) that raises
+    :class:`OutOfTime` instead of running a tick that starts after ``deadline``
+    (:func:`time.perf_counter`'s seconds): a run interpreted first
+    (:mod:`delaytrack._compile.interpret_first`) is abandoned, and compiled, when it takes
+    longer than compiling it would."""
+    function = step.function
+
+    def step_before_the_deadline(*arguments: Any) -> Any:
+        if time.perf_counter() > deadline:
+            raise OutOfTime
+        return function(*arguments)
+
+    return dataclasses.replace(step, function=step_before_the_deadline)
 
 
 def _in_package(frame: FrameType) -> bool:

@@ -183,16 +183,13 @@ def simulate(
         announce(plan)
     built = build(plan, engine)
     chunks = _chunks(built, progress)
-    result = None
-    if engine == "auto" and built.compiled:  # a short first run: as Python, if that is quicker
-        interpreting = interpret(built, lambda probes: chunks.arguments(0, probes))
-        result = _interpreted(built, interpreting, progress) if interpreting else None
+    # A short first run of a combination not compiled yet: as plain Python, while that is quicker
+    interpreting = interpret(built, chunks.first) if engine == "auto" and built.compiled else None
+    result = _interpreted(chunks, interpreting, progress) if interpreting else None
     if result is None:
-        natives = (
-            compile_engine(built, lambda probes: chunks.arguments(0, probes))
-            if built.compiled
-            else ()
-        )
+        if interpreting:  # abandoned, or it raised: compiled, in arrays it has not written
+            chunks = _chunks(built, progress)
+        natives = compile_engine(built, chunks.first) if built.compiled else ()
         execute(chunks, natives, progress)
         result = collect(chunks)
     warn_beyond_certified_bound(plan.controllers, plan.delays, result)
@@ -207,17 +204,25 @@ def _chunks(built: Build, progress: bool) -> Chunks:
     return cut(built, runs, settings, records, progress)
 
 
-def _interpreted(built: Build, interpreting: Interpreting, progress: bool) -> SimResult | None:
-    """The compiled ``built``'s run computed by the plain-Python engine instead
-    (:mod:`delaytrack._compile.interpret_first`); None when it raised, for the compiled engine
-    to run it and report what it finds as it would have without interpreting."""
-    chunks = _chunks(dataclasses.replace(built, compiled=False), progress)
+def _interpreted(chunks: Chunks, interpreting: Interpreting, progress: bool) -> SimResult | None:
+    """The compiled engine's ``chunks`` computed by the plain-Python engine instead, in the same
+    arrays, within the time ``interpreting`` allows (:mod:`delaytrack._compile.interpret_first`).
+    None when it ran out of time or raised: the compiled engine then runs it, and reports what
+    it finds as it would have without interpreting."""
+    plan = chunks.build.plan
     started = time.perf_counter()
+    python = dataclasses.replace(
+        chunks.build, compiled=False, deadline=started + interpreting.seconds
+    )
+    interpreted = cut(python, chunks.runs, chunks.settings, chunks.records, progress)
     try:
         with np.errstate(all="ignore"):  # as compiled: non-finite values, no warnings
-            execute(chunks, (), progress)
-    except Exception:  # noqa: BLE001 - the compiled engine runs it again
-        return None
-    finally:
-        interpreting.done(time.perf_counter() - started)
-    return collect(chunks)
+            execute(interpreted, (), progress)
+    except BaseException as error:
+        interpreting.done(time.perf_counter() - started, None)
+        if isinstance(error, Exception):  # out of time, or plain Python raised: compiled
+            return None
+        raise  # Ctrl-C
+    steps_run = np.rint((interpreted.t_stop - plan.t0) / plan.dt).sum()
+    interpreting.done(time.perf_counter() - started, int(steps_run))
+    return collect(interpreted)

@@ -127,6 +127,11 @@ def test_command_writes_the_table_figure_and_page(tmp_path, capsys):
         (["--envelope", "0.1", "--knowledge", "150%"], "got '150%'"),
         (["--envelope", "-1"], "--envelope: must be a largest delay > 0 (s); got '-1'"),
         (["--knowledge", "exact"], "--knowledge exact needs --envelope H_MAX"),
+        (["--decision-draws", "5"], "--decision-draws 5 needs --envelope H_MAX"),
+        (
+            ["--envelope", "0.1", "--decision-draws", "0"],
+            "--decision-draws: must be an integer >= 1; got '0'",
+        ),
     ],
 )
 def test_bad_flags_exit_2_with_one_line(tmp_path, capsys, extra, message):
@@ -139,3 +144,26 @@ def test_bad_flags_exit_2_with_one_line(tmp_path, capsys, extra, message):
     assert code == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("error: ") and message in err, err
+
+
+@pytest.mark.parametrize(("extra", "decision_draws"), [([], 8), (["--decision-draws", "80"], 80)])
+def test_the_decision_draws_its_own_robots_or_the_trade_offs(
+    tmp_path, monkeypatch, extra, decision_draws
+):
+    """``--decision-draws`` sets the decision's draws per condition; without it the decision
+    draws as many as the trade-off (``--draws``)."""
+    from delaytrack.experiments import decision, tradeoff
+
+    seen = {}
+    monkeypatch.setattr(tradeoff, "run_tradeoff", lambda *a, draws, **k: seen.update(front=draws))
+
+    def run_decision(*arguments, draws, **options):
+        seen["decision"] = draws
+        raise KeyboardInterrupt  # the command stops here, as on Ctrl-C
+
+    monkeypatch.setattr(decision, "run_decision", run_decision)
+    scenario = tmp_path / "light_mass.toml"
+    Scenario.from_dict(PLANT).to_toml(scenario)
+    command = ["tradeoff", str(scenario), "--out", str(tmp_path / "o"), "--draws", "8"]
+    assert main([*command, "--envelope", "0.3", *extra, "--quiet"]) == 130
+    assert seen == {"front": 8, "decision": decision_draws}

@@ -70,8 +70,17 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         type=within(integer, "an integer >= 1", lambda v: v >= 1),
         default=None,
         metavar="N",
-        help="robots drawn per point and controller (default 40, and 80 per condition for "
-        "--envelope's decision; one run when the scenario has nothing to draw)",
+        help="robots drawn per point and controller (default 40; one run when the scenario "
+        "has nothing to draw), and per condition for --envelope's decision unless "
+        "--decision-draws is given",
+    )
+    command.add_argument(
+        "--decision-draws",
+        type=within(integer, "an integer >= 1", lambda v: v >= 1),
+        default=None,
+        metavar="N",
+        help="with --envelope: robots drawn per condition for the decision (default --draws, "
+        "or 80 without it)",
     )
     command.add_argument(
         "--threshold",
@@ -172,6 +181,8 @@ def run(args: argparse.Namespace) -> int:
 
     omegas = _omegas(args.omega)
     envelope = _envelope(args)
+    if args.decision_draws is not None and envelope is None:
+        raise UsageError(f"--decision-draws {args.decision_draws} needs --envelope H_MAX")
     bounds = numbers("--threshold", args.threshold)
     threshold = float(bounds[0]) if bounds.size == 1 else [float(b) for b in bounds]
     try:
@@ -199,7 +210,7 @@ def run(args: argparse.Namespace) -> int:
                 study,
                 envelope,
                 folder,
-                draws=args.draws,
+                draws=args.draws if args.decision_draws is None else args.decision_draws,
                 executor=make_executor(args.scheduler),
                 progress=not args.quiet,
             )

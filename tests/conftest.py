@@ -33,8 +33,13 @@ os.environ["DELAYTRACK_INTERPRET_FIRST"] = "0"
 #: The unit of work of the live modules (``tests/test_live_*.py``).
 LIVE = "live sessions"
 #: Modules that compile the engine and the parts of the two-link arm, the robot and the linear
-#: plant with the paper's controllers: the kernels most tests and their processes share.
-FIRST = ("test_golden.py", "test_engine.py", "test_cli_empirical.py")
+#: plant with the paper's controllers: the kernels most tests and their processes share. The
+#: first compiles the engine while the other worker runs :data:`WITHOUT_THE_ENGINE`, so that
+#: the two do not compile it at once.
+FIRST = ("test_engine.py", "test_golden.py", "test_cli_empirical.py")
+#: Modules that simulate nothing compiled (the documentation site, the analysis of bad input):
+#: the other worker's first work, while the engine compiles.
+WITHOUT_THE_ENGINE = ("test_docs.py", "test_analysis_hostile.py")
 #: The unit of work of the modules that read :func:`reproduced` (one run in one worker).
 REPRODUCED = ("test_paper.py", "test_report_rendering.py")
 
@@ -50,16 +55,21 @@ def _unit(nodeid: str) -> str:
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """On a worker: the modules of :data:`FIRST`, then the live modules and the modules with a
-    ``slow`` test, then the rest, each module's tests in their own order (every worker sorts
-    alike)."""
+    """On a worker: the first module of :data:`FIRST`, the modules of
+    :data:`WITHOUT_THE_ENGINE`, the rest of :data:`FIRST`, then the live modules and the
+    modules with a ``slow`` test, then the rest, each module's tests in their own order (every
+    worker sorts alike)."""
     if not hasattr(config, "workerinput"):
         return
     slow = {_unit(item.nodeid) for item in items if item.get_closest_marker("slow")} | {LIVE}
+    order = (FIRST[0], *WITHOUT_THE_ENGINE, *FIRST[1:])
 
-    def rank(item: pytest.Item) -> int:
+    def rank(item: pytest.Item) -> tuple[int, int]:
         unit = _unit(item.nodeid)
-        return 0 if PurePosixPath(unit).name in FIRST else 1 if unit in slow else 2
+        name = PurePosixPath(unit).name
+        if name in order:
+            return 0, order.index(name)
+        return (1 if unit in slow else 2), 0
 
     items.sort(key=rank)
 

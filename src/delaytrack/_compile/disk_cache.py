@@ -34,7 +34,14 @@ try:
 except ImportError:  # Windows: numba's own writes, unlocked
     fcntl = None
 
-__all__ = ["cache_directory", "kernel_files", "locked_cache", "locks_cache", "source_hash"]
+__all__ = [
+    "cache_directory",
+    "exclusive",
+    "kernel_files",
+    "locked_cache",
+    "locks_cache",
+    "source_hash",
+]
 
 #: The folder of the package delaytrack.
 _PACKAGE = Path(__file__).resolve().parents[1]
@@ -87,7 +94,7 @@ def locks_cache() -> bool:
 
 
 @contextlib.contextmanager
-def _exclusive(path: str) -> Iterator[None]:
+def exclusive(path: str) -> Iterator[None]:
     """Hold an exclusive lock on the file ``path`` (created if missing) while inside."""
     if fcntl is None:
         yield
@@ -111,7 +118,7 @@ class _LockedIndexDataCacheFile(IndexDataCacheFile):
     """
 
     def save(self, key, data):
-        with _exclusive(self._index_path + ".lock"):
+        with exclusive(self._index_path + ".lock"):
             super().save(key, data)
 
 

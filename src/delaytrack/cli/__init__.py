@@ -19,8 +19,8 @@ Commands, one module each (``add_command(commands)`` adds it, its handler runs i
         [--quiet]
     delaytrack tune-baselines [--out PATH] [--quiet]
     delaytrack tradeoff SCENARIO [--zeta Z] [--omega LO HI N] [--draws N] [--threshold VALUE]
-        [--upper S] [--envelope H_MAX [--knowledge exact|±X%|unknown]] [--out DIR]
-        [--scheduler ADDRESS] [--trust NAME] [--quiet]
+        [--upper S] [--envelope H_MAX [--knowledge exact|±X%|unknown] [--decision-draws N]]
+        [--out DIR] [--scheduler ADDRESS] [--trust NAME] [--quiet]
 
 and ``delaytrack live ...`` (:mod:`delaytrack.live.cli`, added when the parser is built).
 

@@ -80,7 +80,7 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         default=None,
         metavar="N",
         help="with --envelope: robots drawn per condition for the decision (default --draws, "
-        "or 80 without it)",
+        "or 80 without it; one run when the scenario has nothing to draw)",
     )
     command.add_argument(
         "--threshold",

@@ -29,8 +29,9 @@ class Build:
     compiled : bool
         Whether it runs compiled (else as plain Python).
     deadline : float
-        As plain Python, the :func:`time.perf_counter` time after which no controller tick
-        starts (:class:`~delaytrack.sim.fallback.OutOfTime` is raised instead); none by default.
+        As plain Python, the :func:`time.perf_counter` time after which no plant step or
+        controller tick starts (:class:`~delaytrack.sim.fallback.OutOfTime` is raised instead);
+        none by default.
     """
 
     plan: Plan
@@ -59,8 +60,10 @@ class Build:
         if not self.compiled:
             kernels = Kernels(*(python_kernel(kernel) for kernel in self.kernels(b)))
             if self.deadline < math.inf:
-                step = stepped_until(kernels.controller_step, self.deadline)
-                kernels = kernels._replace(controller_step=step)
+                kernels = kernels._replace(
+                    plant_step=stepped_until(kernels.plant_step, self.deadline),
+                    controller_step=stepped_until(kernels.controller_step, self.deadline),
+                )
             return kernels
         return Kernels(*natives)
 

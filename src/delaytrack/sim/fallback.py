@@ -97,20 +97,34 @@ class OutOfTime(Exception):  # noqa: N818 - a signal between two parts, not an e
     """A run given a deadline (:func:`stepped_until`) was still going at it."""
 
 
-def stepped_until(step: Kernel, deadline: float) -> Kernel:
-    """The plain-Python controller ``step`` (called once a controller tick) that raises
-    :class:`OutOfTime` instead of running a tick that starts after ``deadline``
+def stepped_until(kernel: Kernel, deadline: float) -> Kernel:
+    """The plain-Python ``kernel`` (a plant's, called at every stage of every plant step, or a
+    controller's step, called once a tick) with each of its functions the engine calls during
+    the run raising :class:`OutOfTime` instead of running after ``deadline``
     (:func:`time.perf_counter`'s seconds): a run interpreted first
     (:mod:`delaytrack._compile.interpret_first`) is abandoned, and compiled, when it takes
     longer than compiling it would."""
-    function = step.function
 
-    def step_before_the_deadline(*arguments: Any) -> Any:
-        if time.perf_counter() > deadline:
-            raise OutOfTime
-        return function(*arguments)
+    def until(function: Any) -> Any:
+        if function is None:
+            return None
 
-    return dataclasses.replace(step, function=step_before_the_deadline)
+        def before_the_deadline(*arguments: Any) -> Any:
+            if time.perf_counter() > deadline:
+                raise OutOfTime
+            return function(*arguments)
+
+        return before_the_deadline
+
+    reduced = kernel.reduced
+    return dataclasses.replace(
+        kernel,
+        function=until(kernel.function),
+        stepper=until(kernel.stepper),
+        reduced=None
+        if reduced is None
+        else dataclasses.replace(reduced, dynamics=until(reduced.dynamics)),
+    )
 
 
 def _in_package(frame: FrameType) -> bool:

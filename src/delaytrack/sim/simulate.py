@@ -15,6 +15,7 @@ import time
 from collections.abc import Sequence
 
 import numpy as np
+from numba.core import event
 
 from delaytrack._compile import Interpreting, compile_engine, interpret
 from delaytrack.controllers.base import Controller
@@ -215,14 +216,15 @@ def _interpreted(chunks: Chunks, interpreting: Interpreting, progress: bool) -> 
         chunks.build, compiled=False, deadline=started + interpreting.seconds
     )
     interpreted = cut(python, chunks.runs, chunks.settings, chunks.records, progress)
+    compiling: list[float] = []  # numba compiling the Python engine's helpers, once
     try:
-        with np.errstate(all="ignore"):  # as compiled: non-finite values, no warnings
-            execute(interpreted, (), progress)
+        with np.errstate(all="ignore"), event.install_timer("numba:compile", compiling.append):
+            execute(interpreted, (), progress)  # as compiled: non-finite values, no warnings
     except BaseException as error:
-        interpreting.done(time.perf_counter() - started, None)
+        interpreting.done(time.perf_counter() - started, sum(compiling), None)
         if isinstance(error, Exception):  # out of time, or plain Python raised: compiled
             return None
         raise  # Ctrl-C
     steps_run = np.rint((interpreted.t_stop - plan.t0) / plan.dt).sum()
-    interpreting.done(time.perf_counter() - started, int(steps_run))
+    interpreting.done(time.perf_counter() - started, sum(compiling), int(steps_run))
     return collect(interpreted)

@@ -25,10 +25,43 @@ from pathlib import PurePosixPath
 
 import pytest
 
-# The suite tests the compiled engine where it compiles: a short first run of a combination not
-# compiled yet would otherwise run as plain Python (tests/test_interpret_first.py tests that).
-# Set here, it reaches the workers' and the tests' processes.
-os.environ["DELAYTRACK_INTERPRET_FIRST"] = "0"
+#: The environment variable that turns interpreting a short first run off
+#: (:mod:`delaytrack._compile.interpret_first`).
+INTERPRETING = "DELAYTRACK_INTERPRET_FIRST"
+# The suite runs as a user's code runs: a short first run of a combination not compiled yet is
+# interpreted (the same numbers), unless a module of :data:`COMPILED` turns that off.
+os.environ.pop(INTERPRETING, None)
+#: Modules whose subject is the compiled engine or compiling it (its numbers against the golden
+#: runs and the oracle, its order, its compile and cache, its refusals of kernels numba cannot
+#: compile): their tests, fixtures and processes compile at once.
+COMPILED = (
+    "test_golden.py",
+    "test_engine.py",
+    "test_speed_paths.py",
+    "test_native_call.py",
+    "test_components.py",
+    "test_user_components.py",
+    "test_compile_helper.py",
+    "test_stale_caches.py",
+    "test_numba_cache.py",
+    "test_hostile_kernels.py",
+    "test_reduced_form.py",
+    "test_mujoco_plant.py",
+    "test_robot_closed_loop.py",
+)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _compiled_at_once(request: pytest.FixtureRequest):
+    """In a module of :data:`COMPILED`, ``DELAYTRACK_INTERPRET_FIRST=0`` (before the module's
+    own fixtures, and for the processes its tests start)."""
+    if PurePosixPath(str(request.path)).name not in COMPILED:
+        yield
+        return
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv(INTERPRETING, "0")
+        yield
+
 
 #: The unit of work of the live modules (``tests/test_live_*.py``).
 LIVE = "live sessions"

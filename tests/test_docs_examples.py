@@ -8,15 +8,12 @@ is a long sweep that another check runs) says so in an HTML comment on the line 
 
 from __future__ import annotations
 
-import os
 import re
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
-
-from delaytrack._compile.interpret_first import INTERPRETING
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 _BLOCK = re.compile(
@@ -44,13 +41,9 @@ def test_every_python_fence_of_the_pages_is_an_example() -> None:
 @pytest.mark.slow  # each block starts Python; some run a kernel of theirs
 @pytest.mark.parametrize("code", examples())
 def test_the_example_runs(code: str, tmp_path: Path) -> None:
-    # As a reader runs it: a short first run of a kernel of the page's may run as plain Python
-    # instead of compiling first (the rest of the suite compiles at once, conftest.py).
-    reader = {name: value for name, value in os.environ.items() if name != INTERPRETING}
     completed = subprocess.run(
         [sys.executable, "-c", code],
         cwd=tmp_path,
-        env=reader,
         capture_output=True,
         text=True,
         timeout=600,

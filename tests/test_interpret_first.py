@@ -1,6 +1,6 @@
 """A short first run of a combination not compiled yet runs as plain Python, while that costs
-less than compiling it (:mod:`delaytrack._compile.interpret_first`); the rest of the suite
-compiles at once (``DELAYTRACK_INTERPRET_FIRST=0``, set in ``conftest.py``)."""
+less than compiling it (:mod:`delaytrack._compile.interpret_first`). The suite runs so too,
+except the modules of ``conftest.COMPILED``, whose subject is compiling."""
 
 from __future__ import annotations
 

@@ -18,6 +18,10 @@ none). Cases:
 ``paper-job`` (only when named)
     ``delaytrack reproduce --no-contact --no-robustness`` in full.
 
+Each process inherits ``DELAYTRACK_INTERPRET_FIRST``: unset, a short first run is interpreted
+instead of compiled (docs/decisions.md D65) and the case measures that first result; set it to
+``0`` to measure the compile itself.
+
 The parent measures each process's wall time and CPU time (its own and that of every process it
 waited for, the helper included: ``RUSAGE_CHILDREN``). Inside, numba's compile events
 (``numba:compile`` for each function compiled, ``numba:run_pass`` for each compiler pass) and

@@ -560,6 +560,9 @@ def main() -> None:
     )
     parser.add_argument("--batch-worker", nargs="+", help=argparse.SUPPRESS)
     args = parser.parse_args()
+    # The compiled engine is what is timed: a first run is never interpreted here (a short first
+    # run would otherwise run as plain Python; docs/decisions.md D65). Its processes inherit it.
+    os.environ["DELAYTRACK_INTERPRET_FIRST"] = "0"
     if args.batch_worker:
         batch, duration, repeats, *workers = args.batch_worker
         workers = int(workers[0]) if workers else None

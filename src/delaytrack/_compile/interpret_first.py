@@ -4,8 +4,8 @@ compiling it.
 A first run of a combination of plant, controller, reference and delay that is neither in
 memory nor in numba's disk cache waits for numba to compile the engine and its parts, from
 seconds to tens of seconds, however short the run. The plain-Python engine computes the same
-numbers (bit for bit where NumPy and numba use the same maths library, as on Linux and macOS
-with x86-64) at roughly 0.05–0.1 ms a plant step for a small plant, so a short first run is done
+numbers (bit for bit where NumPy and numba use the same maths library: checked on Linux with
+x86-64) at roughly 0.05–0.1 ms a plant step for a small plant, so a short first run is done
 before the compile would be.
 
 The rule is the rent-or-buy rule of a tiered just-in-time compiler. The *budget* of a

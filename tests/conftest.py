@@ -25,9 +25,8 @@ from pathlib import PurePosixPath
 
 import pytest
 
-#: The environment variable that turns interpreting a short first run off
-#: (:mod:`delaytrack._compile.interpret_first`).
-INTERPRETING = "DELAYTRACK_INTERPRET_FIRST"
+from delaytrack._compile.interpret_first import INTERPRETING
+
 # The suite runs as a user's code runs: a short first run of a combination not compiled yet is
 # interpreted (the same numbers), unless a module of :data:`COMPILED` turns that off.
 os.environ.pop(INTERPRETING, None)

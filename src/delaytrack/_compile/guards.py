@@ -20,7 +20,12 @@ from delaytrack._compile.functions import (
 if TYPE_CHECKING:
     from delaytrack.components import Kernel
 
-__all__ = ["refuse_changed_globals", "refuse_managed_result", "refuse_random_draws"]
+__all__ = [
+    "holds_managed_memory",
+    "refuse_changed_globals",
+    "refuse_managed_result",
+    "refuse_random_draws",
+]
 
 
 def refuse_changed_globals(kernel: Kernel) -> None:
@@ -74,6 +79,12 @@ def refuse_random_draws(kernel: Kernel) -> None:
             )
 
 
+def holds_managed_memory(value_type: Any) -> bool:
+    """Whether a value of the numba type ``value_type`` holds memory of numba's runtime (an
+    array, or a tuple with one): a result that compiled code without the runtime cannot free."""
+    return bool(default_manager.lookup(value_type).contains_nrt_meminfo())
+
+
 def refuse_managed_result(function: Any, argument_types: tuple, role: str, returns: str) -> None:
     """At the typing of a call of ``function`` (a compiled kernel of the user's, the ``role`` of a
     component) with ``argument_types``: refuse a result that holds an array, which a kernel
@@ -86,7 +97,7 @@ def refuse_managed_result(function: Any, argument_types: tuple, role: str, retur
     if compiled is None:  # numba converts the arguments to a signature given in advance
         return
     result = compiled.signature.return_type
-    if default_manager.lookup(result).contains_nrt_meminfo():
+    if holds_managed_memory(result):
         into = " (write its results into the arrays it is given)" if returns == "nothing" else ""
         raise TypingError(
             f"the {role} kernel {qualified_name(function)} returns {result}; it must return "

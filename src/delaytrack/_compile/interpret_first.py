@@ -46,14 +46,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numba
-from numba.core.datamodel import default_manager
 
 from delaytrack._compile.ahead import parts_ahead
 from delaytrack._compile.disk_cache import exclusive
 from delaytrack._compile.fingerprint import compiled_functions_reached
 from delaytrack._compile.functions import users_compiled
+from delaytrack._compile.guards import holds_managed_memory
 from delaytrack._compile.native_parts import NativePart
 from delaytrack._compile.stage import compile_cost, refuse_changed_kernels
+from delaytrack._io import atomic_path
 from delaytrack.sim._build import Build
 from delaytrack.sim._machine import available_cores
 from delaytrack.sim.engine import Kernels
@@ -134,12 +135,10 @@ def _add(combination: str, seconds: float) -> float:
     path = _record(combination)
     with contextlib.suppress(OSError):
         path.parent.mkdir(parents=True, exist_ok=True)
-        with exclusive(f"{path}.lock"):
+        with exclusive(f"{path}.lock"), atomic_path(path) as temporary:
             total = _read(path) + seconds
-            temporary = path.with_name(f"{path.name}.{os.getpid()}.tmp")
             temporary.write_text(repr(total), encoding="ascii")
-            temporary.replace(path)
-            return total
+        return total
     return _spent(combination).seconds + seconds  # no record: this process's count
 
 
@@ -194,7 +193,7 @@ def _compiled_as_python(build: Build) -> bool:
                 if function.targetoptions.get("fastmath"):
                     return True
             for compiled in root.overloads.values():
-                if default_manager.lookup(compiled.signature.return_type).contains_nrt_meminfo():
+                if holds_managed_memory(compiled.signature.return_type):
                     return True
     return False
 

@@ -51,7 +51,6 @@ def test_the_robot_in_wheel_space_agrees_with_its_constrained_form_over_the_pape
     # Baumgarte term's damping of RK4's truncation error.
     residual = np.abs(plant.constraint_residual(reduced)).max()
     assert residual < 1e-13 < np.abs(plant.constraint_residual(full)).max()
-    assert reduced.shape == full.shape and np.all(np.isfinite(reduced))
 
 
 # ---- a plant of the user's: a disc of radius R rolling on a line, q = (x, θ), ẋ = R θ̇ --------
@@ -154,14 +153,17 @@ def test_the_live_robot_node_steps_the_reduced_form_as_the_engine_does():
     python_x = x.copy()
     python_work = rk4_workspace(np.empty(10), 2)
     kernel, params, u = plant.engine_kernel, plant.params, np.array([0.4, -0.3])
-    for k in range(50):  # across a payload placement (the schedule's first is on from 0 s)
-        t = 0.1 * k
+    first_on = plant.first_on
+    times = 0.1 * np.arange(100)  # across the first payload placement, on from first_on
+    assert times[0] < first_on < times[-1]
+    for t in times:
         outside, _ = entry(kernel, params, t, x, u, 1e-3, work, np.inf)
         assert not outside
         _reduced_rk4_substep.py_func(
             kernel.as_python(), params, t, python_x, u, 1e-3, python_work, np.inf
         )
-    np.testing.assert_allclose(x, python_x, rtol=1e-14, atol=1e-15)
+    np.testing.assert_array_equal(x, python_x)
+    # q̇ = S(q)η is set after each step, so the constraints hold to the rounding of that product.
     assert np.abs(plant.constraint_residual(x)).max() < 1e-15
 
 
@@ -224,6 +226,8 @@ def test_a_scenario_starting_on_the_reference_starts_each_run_on_its_plants_cons
     shipped = load_builtin("robot_S1")
     data = {**shipped.to_dict(), "duration": 0.5, "x0": "reference"}
     on_reference = Scenario.from_dict(data)
+    # The same start up to rounding: the shipped x0 is q̇ = S(q)η through kinematic_map(q) @ η,
+    # this one through the robot's velocity map (6.4e-18 apart in ẏ, measured).
     np.testing.assert_allclose(on_reference.build().x0, shipped.x0, rtol=0, atol=1e-15)
     path = tmp_path / "robot_on_reference.toml"
     path.write_text(on_reference.to_toml())
@@ -246,7 +250,7 @@ def test_a_scenario_starting_on_the_reference_starts_each_run_on_its_plants_cons
 
 def test_the_live_robot_node_steps_a_python_reduced_form_as_the_compiled_one():
     """A plant whose reduced form is plain Python: the live node's Python step integrates the
-    reduced form, with the numbers of the compiled step (memory made once, not every step)."""
+    reduced form, with the numbers of the compiled step."""
     from delaytrack.live.robot import PlantStepper
     from delaytrack.plants.base import ELPlant
 

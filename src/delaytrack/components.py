@@ -49,6 +49,7 @@ from delaytrack._compile.kernel_type import KernelType, known_to_numba, numba_ty
 from delaytrack._compile.native_call import NativeFunctionType, call_native
 from delaytrack._deprecated import moved_names
 from delaytrack._small_linalg import solve_in_place
+from delaytrack._validation import is_integer_at_least
 
 __all__ = [
     "Kernel",
@@ -117,7 +118,7 @@ class ReducedForm:
             if not callable(value):
                 raise TypeError(f"{name} must be callable; got {type(value).__name__}")
         size = self.size
-        if not isinstance(size, int | np.integer) or isinstance(size, bool) or size < 1:
+        if not is_integer_at_least(size, 1):
             raise ValueError(f"size must be an integer r >= 1; got {size!r}")
         object.__setattr__(self, "size", int(size))
 

@@ -96,12 +96,10 @@ class CompiledPlant(ELPlant):
             )
         check_kernel_arguments("CompiledPlant", "terms", self.kernel)
         if self.reduced is not None:
-            if not isinstance(self.reduced, ReducedForm):
-                raise TypeError(f"reduced must be a ReducedForm; got {type(self.reduced).__name__}")
+            self.engine_kernel  # noqa: B018 - the Kernel checks the form: its type, its size
             for label in ("velocity_map", "dynamics"):
                 if not is_compiled(getattr(self.reduced, label)):
                     raise TypeError(f"reduced.{label} must be numba-compiled (@numba.njit)")
-            self.engine_kernel  # noqa: B018 - the Kernel checks the form against n
         for label in ("coordinate_names", "coordinate_units"):
             if getattr(self, label) is not None:
                 labels = coordinate_labels(label, getattr(self, label), self.n)

@@ -27,7 +27,6 @@ from delaytrack.references import Reference, reference_from_spec
 from delaytrack.scenario.files import read_toml_file, resolve_file_keys
 from delaytrack.scenario.keys import (
     NAME_PATTERN,
-    ON_REFERENCE,
     REQUIRED,
     TABLE_PURPOSE,
     TABLE_TYPES,
@@ -558,12 +557,8 @@ def simulate_built(
 def start_on_reference(plant: ELPlant, reference: Reference) -> np.ndarray:
     """The start ``x0 = "reference"`` of a scenario: ``[q_d(0), q̇_d(0)]``, its velocities for a
     plant with a reduced form set on the plant's constraints, ``q̇ = S(q) η`` with ``η`` the last
-    ``r`` entries of ``q̇_d(0)`` (:class:`~delaytrack.components.ReducedForm`)."""
-    if reference.n != plant.n:
-        raise ValueError(
-            f'x0 = "{ON_REFERENCE}" needs a reference of the plant\'s n = {plant.n} '
-            f"coordinates; it has {reference.n}"
-        )
+    ``r`` entries of ``q̇_d(0)`` (:class:`~delaytrack.components.ReducedForm`); ``reference``
+    of the plant's ``n`` coordinates (checked by :meth:`Scenario.build`)."""
     q_d, q_d_dot, _ = reference.evaluate(0.0)
     x0 = np.concatenate([q_d, q_d_dot])
     reduced = plant.engine_kernel.reduced

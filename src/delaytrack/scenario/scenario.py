@@ -41,6 +41,7 @@ from delaytrack.scenario.keys import (
 from delaytrack.scenario.table_memory import remembered, table_identity
 from delaytrack.scenario.toml_text import dumps_toml
 from delaytrack.sim import MeasurementNoise, PacketLoss, SimResult, simulate
+from delaytrack.sim._kernel_checks import velocities_on_constraints
 from delaytrack.sim.certified_bound import stated_by_the_caller
 from delaytrack.sim.simulate import MAX_STEPS
 
@@ -561,9 +562,6 @@ def start_on_reference(plant: ELPlant, reference: Reference) -> np.ndarray:
     of the plant's ``n`` coordinates (checked by :meth:`Scenario.build`)."""
     q_d, q_d_dot, _ = reference.evaluate(0.0)
     x0 = np.concatenate([q_d, q_d_dot])
-    reduced = plant.engine_kernel.reduced
-    if reduced is not None:
-        n, r = plant.n, reduced.size
-        params = np.ascontiguousarray(plant.params, dtype=np.float64)
-        reduced.velocity_map(x0[:n].copy(), x0[2 * n - r :].copy(), params, x0[n:])
+    if plant.engine_kernel.reduced is not None:
+        x0[plant.n :] = velocities_on_constraints(plant, x0)
     return x0

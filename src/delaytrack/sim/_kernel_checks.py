@@ -24,6 +24,7 @@ __all__ = [
     "check_reduced_start",
     "checked_before_the_run",
     "refuse_reads_past",
+    "velocities_on_constraints",
 ]
 
 
@@ -141,28 +142,46 @@ def check_reduced_start(plants: list[ELPlant], states0: np.ndarray) -> None:
             _check_reduced_row(plant, kernel, states0[row], where)
 
 
+def velocities_on_constraints(
+    plant: ELPlant, state: np.ndarray, as_the_engine: bool = False
+) -> np.ndarray:
+    """``q̇ = S(q) η`` of a plant with a reduced form (:class:`~delaytrack.components.ReducedForm`)
+    at ``state = [q, q̇]``, ``η`` the last ``r`` entries of ``q̇``: the velocities on the plant's
+    constraints. ``as_the_engine``: the map called as the engine calls it, ``η`` the tail of the
+    ``q̇`` it writes (else on copies, into an array of NaN)."""
+    reduced = plant.engine_kernel.reduced
+    assert reduced is not None
+    n, r = plant.n, reduced.size
+    params = np.ascontiguousarray(plant.params, dtype=np.float64)
+    x = np.array(state, dtype=np.float64)
+    if as_the_engine:
+        reduced.velocity_map(x[:n], x[2 * n - r :], params, x[n:])
+        return x[n:]
+    qdot = np.full(n, np.nan)
+    reduced.velocity_map(x[:n], x[2 * n - r :].copy(), params, qdot)
+    return qdot
+
+
 def _check_reduced_row(plant: ELPlant, kernel: Kernel, state: np.ndarray, where: str) -> None:
     """:func:`check_reduced_start` for one run's ``plant`` and start ``state``."""
     reduced = kernel.reduced
     assert reduced is not None
     n, r = plant.n, reduced.size
-    params = np.ascontiguousarray(plant.params, dtype=np.float64)
-    q, qdot = np.ascontiguousarray(state[:n]), np.ascontiguousarray(state[n:])
-    expected = np.full(n, np.nan)
-    aliased = np.array(state, dtype=np.float64)  # as the engine calls it: η is the tail of q̇
+    qdot = np.ascontiguousarray(state[n:])
+    found: list[np.ndarray] = []
 
     def both() -> None:
-        reduced.velocity_map(q.copy(), qdot[n - r :].copy(), params, expected)
-        reduced.velocity_map(aliased[:n], aliased[2 * n - r :], params, aliased[n:])
+        found.extend(velocities_on_constraints(plant, state, engine) for engine in (False, True))
 
     checked_before_the_run(kernel, "the velocity map at x0", both)
+    expected, aliased = found
     name = qualified_name(reduced.velocity_map)
     if not np.all(np.isfinite(expected)):
         raise ValueError(
             f"your velocity map {name} gave a non-finite q̇ at x0{where}: "
             f"{np.array2string(expected, precision=6)}; it must write every entry of q̇"
         )
-    if not np.array_equal(expected, aliased[n:]):
+    if not np.array_equal(expected, aliased):
         raise ValueError(
             f"your velocity map {name} gives another q̇ when eta is the tail of qdot, as the "
             "engine passes it: read every entry of eta before writing qdot"

@@ -401,18 +401,11 @@ def empirical_margin(
                     [make(v, frequency) for v in values],
                     built.x0,
                     reference=built.reference,
-                    t1=scenario.duration,
-                    dt=scenario.dt,
-                    T_c=scenario.T_c,
                     trajectories=False,
                     metrics_from=settings["settle"],
-                    error_bound=scenario.simulated_error_bound,
-                    u_init=scenario.simulated_u_init,
-                    input_limits=scenario.simulated_input_limits,
-                    measurement_noise=scenario.simulated_measurement_noise,
-                    packet_loss=scenario.simulated_packet_loss,
                     workers=workers,
                     progress=progress,
+                    **scenario.simulation_settings(),
                 )
         except ValueError as error:
             raise ScenarioError(f"scenario {scenario.name!r}: {error}") from None

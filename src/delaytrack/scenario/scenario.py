@@ -460,6 +460,22 @@ class Scenario:
         """``u_init`` as :func:`~delaytrack.sim.simulate` takes it (None: zeros)."""
         return None if self.u_init is None else np.array(self.u_init)
 
+    def simulation_settings(self) -> dict[str, Any]:
+        """The scenario's keywords of :func:`~delaytrack.sim.simulate`: its times (``t1`` the
+        duration, ``dt``, ``T_c``), error bound, input limits, measurement noise, packet loss
+        and ``u_init``, each as ``simulate`` takes it (``record_every`` apart: a run without
+        trajectories records nothing)."""
+        return {
+            "t1": self.duration,
+            "dt": self.dt,
+            "T_c": self.T_c,
+            "error_bound": self.simulated_error_bound,
+            "input_limits": self.simulated_input_limits,
+            "measurement_noise": self.simulated_measurement_noise,
+            "packet_loss": self.simulated_packet_loss,
+            "u_init": self.simulated_u_init,
+        }
+
     def run(self, *, progress: bool = False) -> SimResult:
         """Simulate the scenario (batch of one); see :func:`delaytrack.sim.simulate`."""
         built = self.build()
@@ -539,16 +555,9 @@ def simulate_built(
                 delay,
                 built.x0,
                 reference=built.reference,
-                t1=scenario.duration,
-                dt=scenario.dt,
-                T_c=scenario.T_c,
                 record_every=scenario.record_every,
-                error_bound=scenario.simulated_error_bound,
-                input_limits=scenario.simulated_input_limits,
-                measurement_noise=scenario.simulated_measurement_noise,
-                packet_loss=scenario.simulated_packet_loss,
-                u_init=scenario.simulated_u_init,
                 progress=progress,
+                **scenario.simulation_settings(),
             )
     except ValueError as error:
         # simulate()'s refusals of its input; anything else is a bug and keeps its traceback.

@@ -65,7 +65,19 @@ def _batch_key(run: Run) -> str:
 
 def _simulate_batch(runs: list[Run], workers: int | None) -> pd.DataFrame:
     built = [run.scenario.build() for run in runs]
-    first = runs[0].scenario
+    # One batch shares the first run's settings but for those that may differ between its runs.
+    settings = runs[0].scenario.simulation_settings() | {
+        "input_limits": np.array(
+            [
+                np.broadcast_to(run.scenario.simulated_input_limits, (b.plant.m,))
+                for run, b in zip(runs, built, strict=True)
+            ]
+        ),
+        "measurement_noise": [
+            run.scenario.simulated_measurement_noise or MeasurementNoise() for run in runs
+        ],
+        "packet_loss": [run.scenario.simulated_packet_loss or PacketLoss() for run in runs],
+    }
     try:
         with stated_by_the_caller():  # a sweep runs beyond h_m on purpose
             result = simulate(
@@ -74,23 +86,9 @@ def _simulate_batch(runs: list[Run], workers: int | None) -> pd.DataFrame:
                 [b.delay for b in built],
                 np.stack([b.x0 for b in built]),
                 reference=built[0].reference,
-                t1=first.duration,
-                dt=first.dt,
-                T_c=first.T_c,
-                error_bound=first.simulated_error_bound,
-                u_init=first.simulated_u_init,
-                input_limits=np.array(
-                    [
-                        np.broadcast_to(run.scenario.simulated_input_limits, (b.plant.m,))
-                        for run, b in zip(runs, built, strict=True)
-                    ]
-                ),
-                measurement_noise=[
-                    run.scenario.simulated_measurement_noise or MeasurementNoise() for run in runs
-                ],
-                packet_loss=[run.scenario.simulated_packet_loss or PacketLoss() for run in runs],
                 trajectories=False,
                 workers=workers,
+                **settings,
             )
     except ValueError as error:
         indices = [run.index for run in runs]

@@ -270,6 +270,49 @@ def _check_optimum(
     )
 
 
+def _bandwidth(min_bandwidth: float | None, gain_bound: float) -> float | None:
+    """``min_bandwidth`` checked: a number > 0 whose square is at most ``gain_bound``."""
+    if min_bandwidth is None:
+        return None
+    bandwidth = positive_scalar("min_bandwidth", min_bandwidth)
+    least_k1 = bandwidth * bandwidth
+    if least_k1 > gain_bound:
+        square = f"{least_k1:g}" if math.isfinite(least_k1) else f"{bandwidth:g}^2"
+        raise ArgumentError(
+            "min_bandwidth",
+            f"= {bandwidth:g} rad/s needs K1 entries >= {square}, above $gain_bound = "
+            f"{gain_bound:g}; raise $gain_bound or lower $min_bandwidth",
+            mentions=("gain_bound", "min_bandwidth"),
+        )
+    return bandwidth
+
+
+def _search_box(gain_bound: float, bandwidth: float | None) -> tuple[list[float], list[float]]:
+    """``(lows, highs)`` of the search over the logarithms of (k1, k2, q_v, γ)
+    (:func:`design_gains`)."""
+    top, span = math.log(gain_bound), math.log(_SPAN)
+    least_log_k1 = top - span
+    if bandwidth is not None:
+        least_log_k1 = min(max(least_log_k1, 2.0 * math.log(bandwidth)), top)
+    return [least_log_k1, top - span, -span, -span], [top, top, span, span]
+
+
+def _differential_evolution(
+    lows: list[float], highs: list[float], r: float, seed: int
+) -> tuple[Any, float]:
+    """The seeded search of the largest closed-form h_m in the box, and its wall time (s)."""
+    import scipy.optimize  # here, not at import: a controller's import need not load it
+
+    start = time.perf_counter()
+    search = scipy.optimize.differential_evolution(
+        lambda x: -_closed_form_h_m(x, r),
+        bounds=list(zip(lows, highs, strict=True)),
+        seed=seed,
+        tol=1e-10,
+    )
+    return search, time.perf_counter() - start
+
+
 def design_gains(
     *,
     n: int = 1,
@@ -368,37 +411,14 @@ def design_gains(
     seed_value = _seed(seed)
     reference = _paper_bound(r)
     r_value = reference.r
-
-    top, span = math.log(bound_value), math.log(_SPAN)
-    least_log_k1 = top - span
-    bandwidth = None if min_bandwidth is None else positive_scalar("min_bandwidth", min_bandwidth)
-    if bandwidth is not None:
-        least_k1 = bandwidth * bandwidth
-        if least_k1 > bound_value:
-            square = f"{least_k1:g}" if math.isfinite(least_k1) else f"{bandwidth:g}^2"
-            raise ArgumentError(
-                "min_bandwidth",
-                f"= {bandwidth:g} rad/s needs K1 entries >= {square}, above $gain_bound = "
-                f"{bound_value:g}; raise $gain_bound or lower $min_bandwidth",
-                mentions=("gain_bound", "min_bandwidth"),
-            )
-        least_log_k1 = min(max(least_log_k1, 2.0 * math.log(bandwidth)), top)
-    lows, highs = [least_log_k1, top - span, -span, -span], [top, top, span, span]
-    import scipy.optimize  # here, not at import: a controller's import need not load it
-
-    start = time.perf_counter()
-    search = scipy.optimize.differential_evolution(
-        lambda x: -_closed_form_h_m(x, r_value),
-        bounds=list(zip(lows, highs, strict=True)),
-        seed=seed_value,
-        tol=1e-10,
-    )
-    seconds = time.perf_counter() - start
+    bandwidth = _bandwidth(min_bandwidth, bound_value)
+    lows, highs = _search_box(bound_value, bandwidth)
+    search, seconds = _differential_evolution(lows, highs, r_value, seed_value)
     _check_optimum(search.x, lows, highs, r_value, bound_value, bandwidth)
     k1, k2, q_v, gamma = (float(v) for v in np.exp(search.x))
     beta = math.sqrt(r_value) * gamma
     # exp(log(b)) may miss b by an ulp: put the gains back inside their bounds.
-    k1, k2 = min(max(k1, math.exp(least_log_k1)), bound_value), min(k2, bound_value)
+    k1, k2 = min(max(k1, math.exp(lows[0])), bound_value), min(k2, bound_value)
     ones = np.ones(joints)
     certified = razumikhin_bound(k1 * ones, k2 * ones, np.hstack([ones, q_v * ones]), beta, r_value)
     return GainDesign(

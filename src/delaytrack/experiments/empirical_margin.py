@@ -51,7 +51,7 @@ from delaytrack._validation import (
 from delaytrack.controllers import Controller
 from delaytrack.delays import AbsSineDelay, ConstantDelay, DelayProfile
 from delaytrack.plants.base import ELPlant
-from delaytrack.scenario import Scenario, ScenarioError
+from delaytrack.scenario import BuiltScenario, Scenario, ScenarioError
 from delaytrack.sim import STATUS_NAMES, simulate
 from delaytrack.sim.certified_bound import stated_by_the_caller
 from delaytrack.sim.simulate import MAX_STEPS
@@ -357,6 +357,35 @@ def empirical_margin(
     if not isinstance(scenario, Scenario):
         raise TypeError(f"scenario must be a Scenario; got {type(scenario).__name__}")
     single = controller is None or isinstance(controller, Controller)
+    controllers = _controllers(scenario, controller)
+    settings = _settings(scenario, threshold, profile, metric, settle, resolution, upper)
+    frequency = positive_scalar("frequency", frequency)
+    grid, points = _batch_sizes(grid, points)
+    built = scenario.build()
+    settings["threshold"] = _per_coordinate(settings["threshold"], built.plant)
+    _check_switches(scenario, settings, frequency)
+    lockstep = _Lockstep(
+        scenario=scenario,
+        built=built,
+        frequency=frequency,
+        settings=settings,
+        workers=workers,
+        progress=progress,
+        single=single,
+    )
+    searches = lockstep.run(controllers, grid, points)
+    names = default_names(built.plant.coordinate_names, built.plant.n)
+    results = [
+        _result(search, scenario, item, frequency, settings, names)
+        for search, item in zip(searches, controllers, strict=True)
+    ]
+    return results[0] if single else results
+
+
+def _controllers(
+    scenario: Scenario, controller: Controller | Sequence[Controller] | None
+) -> list[Controller]:
+    """The controllers to search: the scenario's, the one given or the list given."""
     if controller is None:
         controllers = [scenario.build().controller]
     elif isinstance(controller, Controller):
@@ -370,8 +399,11 @@ def empirical_margin(
     for i, item in enumerate(controllers):
         if not isinstance(item, Controller):
             raise TypeError(f"controller[{i}] must be a Controller; got {type(item).__name__}")
-    settings = _settings(scenario, threshold, profile, metric, settle, resolution, upper)
-    frequency = positive_scalar("frequency", frequency)
+    return controllers
+
+
+def _batch_sizes(grid: int, points: int) -> tuple[int, int]:
+    """``grid`` and ``points`` checked: runs of one batched simulation each."""
     grid, points = _count("grid", grid, 2), _count("points", points, 1)
     for name, value in (("grid", grid), ("points", points)):
         if value > MAX_BATCH_POINTS:
@@ -379,11 +411,13 @@ def empirical_margin(
                 f"{name} must be at most {MAX_BATCH_POINTS} (the runs of one batched "
                 f"simulation); got {value}"
             )
-    built = scenario.build()
-    settings["threshold"] = _per_coordinate(settings["threshold"], built.plant)
-    limits = np.broadcast_to(np.asarray(settings["threshold"], dtype=float), (built.plant.n,))
-    make = PROFILES[settings["profile"]]
-    switches = make(settings["upper"], frequency).switch_bound(0.0, scenario.duration, scenario.T_c)
+    return grid, points
+
+
+def _check_switches(scenario: Scenario, settings: dict[str, Any], frequency: float) -> None:
+    """The largest searched delay switches the command at most :data:`MAX_STEPS` times."""
+    delay = PROFILES[settings["profile"]](settings["upper"], frequency)
+    switches = delay.switch_bound(0.0, scenario.duration, scenario.T_c)
     if not switches <= MAX_STEPS:
         raise ArgumentError(
             "frequency",
@@ -392,60 +426,88 @@ def empirical_margin(
             f"{settings['upper']:g} s it may switch {switches:.3g} times",
         )
 
-    def evaluate(values: list[float], controller: list[Controller]) -> tuple[np.ndarray, ...]:
+
+@dataclass(frozen=True)
+class _Lockstep:
+    """The searches of several controllers in one scenario, one batched simulation per round."""
+
+    scenario: Scenario
+    built: BuiltScenario
+    frequency: float
+    #: The checked settings (:func:`_settings`, with the threshold per coordinate).
+    settings: dict[str, Any]
+    workers: int | None
+    progress: bool
+    #: Whether one controller is searched (its refusals name no index).
+    single: bool
+
+    @property
+    def limits(self) -> np.ndarray:
+        """The threshold of each coordinate, ``(n,)``."""
+        threshold = np.asarray(self.settings["threshold"], dtype=float)
+        return np.broadcast_to(threshold, (self.built.plant.n,))
+
+    def run(self, controllers: list[Controller], grid: int, points: int) -> list[_Search]:
+        """Every controller's search: the coarse grid of ``grid`` intervals, then rounds of
+        ``points`` values, until each bracket is narrow enough."""
+        searches = [_Search() for _ in controllers]
+        coarse = [self.settings["upper"] * k / grid for k in range(grid + 1)]
+        jobs = {i: coarse for i in range(len(controllers))}
+        while jobs:
+            flat = [(i, v) for i, values in jobs.items() for v in values]
+            status, passes, metrics = self.evaluate(
+                [v for _, v in flat], [controllers[i] for i, _ in flat]
+            )
+            start = 0
+            for i, values in jobs.items():
+                part = slice(start, start + len(values))
+                start += len(values)
+                if values is coarse and not passes[part][0]:
+                    raise self.missed_without_delay(i, metrics[part][0], status[part][0])
+                searches[i].take(values, metrics[part], status[part], passes[part])
+            jobs = {}
+            for i, search in enumerate(searches):
+                values = search.next_values(points, self.settings["resolution"])
+                if values:
+                    jobs[i] = values
+        return searches
+
+    def evaluate(
+        self, values: list[float], controllers: list[Controller]
+    ) -> tuple[np.ndarray, ...]:
+        """``(status, passes, metrics)`` of one batched simulation, a run per value with its
+        controller; the metrics per coordinate ``(k, n)``, NaN where the run is not ok."""
+        make, scenario = PROFILES[self.settings["profile"]], self.scenario
         try:
             with stated_by_the_caller():  # it measures how far beyond h_m the loop holds
                 result = simulate(
-                    built.plant,
-                    controller,
-                    [make(v, frequency) for v in values],
-                    built.x0,
-                    reference=built.reference,
+                    self.built.plant,
+                    controllers,
+                    [make(v, self.frequency) for v in values],
+                    self.built.x0,
+                    reference=self.built.reference,
                     trajectories=False,
-                    metrics_from=settings["settle"],
-                    workers=workers,
-                    progress=progress,
+                    metrics_from=self.settings["settle"],
+                    workers=self.workers,
+                    progress=self.progress,
                     **scenario.simulation_settings(),
                 )
         except ValueError as error:
             raise ScenarioError(f"scenario {scenario.name!r}: {error}") from None
         ok = result.status == 0
-        metrics = np.full((len(values), built.plant.n), np.nan)  # per coordinate, ok runs only
-        metrics[ok] = result.metrics[settings["metric"]][ok]
-        return result.status, ok & np.all(metrics <= limits, axis=1), metrics
+        metrics = np.full((len(values), self.built.plant.n), np.nan)  # ok runs only
+        metrics[ok] = result.metrics[self.settings["metric"]][ok]
+        return result.status, ok & np.all(metrics <= self.limits, axis=1), metrics
 
-    searches = [_Search() for _ in controllers]
-    coarse = [settings["upper"] * k / grid for k in range(grid + 1)]
-    jobs = {i: coarse for i in range(len(controllers))}
-    while jobs:
-        flat = [(i, v) for i, values in jobs.items() for v in values]
-        status, passes, metrics = evaluate([v for _, v in flat], [controllers[i] for i, _ in flat])
-        start = 0
-        for i, values in jobs.items():
-            part = slice(start, start + len(values))
-            start += len(values)
-            if values is coarse and not passes[part][0]:
-                where = "" if single else f" (controller[{i}])"
-                found = _missed(
-                    settings["metric"], metrics[part][0], status[part][0], limits, built.plant
-                )
-                raise ArgumentError(
-                    "threshold",
-                    f"= {_shown(settings['threshold'])} is missed already without delay: "
-                    f"{found} at h = 0{where}; give a larger threshold or a later settle time",
-                )
-            searches[i].take(values, metrics[part], status[part], passes[part])
-        jobs = {}
-        for i, search in enumerate(searches):
-            values = search.next_values(points, settings["resolution"])
-            if values:
-                jobs[i] = values
-    names = default_names(built.plant.coordinate_names, built.plant.n)
-    results = [
-        _result(search, scenario, item, frequency, settings, names)
-        for search, item in zip(searches, controllers, strict=True)
-    ]
-    return results[0] if single else results
+    def missed_without_delay(self, i: int, metrics: np.ndarray, status: int) -> ArgumentError:
+        """The refusal of a threshold that controller ``i`` misses at ``h = 0``."""
+        where = "" if self.single else f" (controller[{i}])"
+        found = _missed(self.settings["metric"], metrics, status, self.limits, self.built.plant)
+        return ArgumentError(
+            "threshold",
+            f"= {_shown(self.settings['threshold'])} is missed already without delay: "
+            f"{found} at h = 0{where}; give a larger threshold or a later settle time",
+        )
 
 
 def _shown(threshold: float | tuple[float, ...]) -> str:

@@ -83,6 +83,7 @@ from delaytrack.experiments.drawn_robots import PAYLOAD_ROBOT, SEED
 from delaytrack.experiments.empirical_margin import EmpiricalMargin, empirical_margin
 from delaytrack.experiments.intervals import wilson_interval
 from delaytrack.experiments.pairing import AROLC_GAINS
+from delaytrack.plants.base import ELPlant
 from delaytrack.scenario import Scenario, ScenarioError
 from delaytrack.sweeps import SweepOutcome, SweepSpec, run_sweep
 from delaytrack.sweeps.executors import Executor
@@ -401,43 +402,21 @@ def run_tradeoff(
     plant = built.plant
     names = default_names(plant.coordinate_names, plant.n)
     scored = _scored(scenario, names)
-    bounds = np.broadcast_to(np.asarray(threshold, dtype=float), (plant.n,))
-    if not np.all(np.isfinite(bounds) & (bounds > 0)) or np.ndim(threshold) > 1:
-        raise ArgumentError(
-            "threshold",
-            f"must be a number > 0 or one per coordinate ({plant.n}: {', '.join(names)}); got "
-            f"{threshold!r}",
-        )
-    rule = tuple(float(b) if s else _UNSCORED for b, s in zip(bounds, scored, strict=True))
+    rule = _rule(threshold, plant, names, scored)
     upper = min(1.0, scenario.duration / 2) if upper is None else positive_scalar("upper", upper)
     history = max(upper, float(built.delay.h_max))
     tables, left_out = family_tables(scenario, zeta, omegas, history)
     families = tuple(f for f in FAMILIES if f in tables)
     certified, exact = _analytic(scenario, tables, beta, r)
-    search = {
-        "threshold": rule,
-        "settle": 0.0,
-        "upper": upper,
-        "resolution": resolution,
-        "progress": progress,
-    }
-    margins = {}
-    for family in (f for f in families if f != "pconf"):  # no margin from zero (docstring)
-        _say(progress, f"{family}: empirical margins of {len(omegas)} gain points")
-        margins[family] = _margins(scenario, tables[family], search)
-
-    drawn = (
-        uncertain_parameters(scenario)
-        if random is None
-        else {k: dict(v) for k, v in random.items()}
-    )
+    margins = _family_margins(scenario, tables, families, rule, upper, resolution, progress)
+    drawn = _drawn(scenario, random)
     count = (40 if draws is None else int(draws)) if drawn else 1
-    points = [(omega, family) for omega in omegas for family in families]
     scored_bounds = {name: bound for name, bound, s in zip(names, rule, scored, strict=True) if s}
+    grid, labels = _grid_points(tables, omegas, families)
     runs, outcome = drawn_runs(
         scenario,
-        {"controller": tuple(tables[f][omegas.index(o)] for o, f in points)},
-        [{"omega_n": omega, "controller": family} for omega, family in points],
+        grid,
+        labels,
         drawn,
         count,
         int(seed),
@@ -447,7 +426,108 @@ def run_tradeoff(
         executor=executor,
         progress=progress,
     )
+    units = plant.coordinate_units or [None] * plant.n
+    return TradeoffStudy(
+        table=_table(omegas, zeta, families, runs, margins, certified, exact),
+        runs=runs,
+        evaluated=_evaluated(margins, omegas),
+        scenario=scenario,
+        zeta=zeta,
+        omegas=omegas,
+        families=families,
+        left_out=MappingProxyType(left_out),
+        threshold=MappingProxyType(scored_bounds),
+        ae_unit=_common_unit([u for u, s in zip(units, scored, strict=True) if s]),
+        tv_unit=_common_unit(plant.input_units or [None]),
+        random=MappingProxyType(drawn),
+        draws=count,
+        seed=int(seed),
+        upper=upper,
+        resolution=resolution,
+        beta=beta,
+        r=r,
+        seconds=time.perf_counter() - start,
+        computed=outcome.computed,
+        resumed=outcome.resumed,
+    )
 
+
+def _rule(
+    threshold: float | Sequence[float],
+    plant: ELPlant,
+    names: tuple[str, ...],
+    scored: tuple[bool, ...],
+) -> tuple[float, ...]:
+    """The bound of each coordinate's mean ``|e1|``: ``threshold`` (checked) where the
+    coordinate is scored, :data:`_UNSCORED` elsewhere."""
+    bounds = np.broadcast_to(np.asarray(threshold, dtype=float), (plant.n,))
+    if not np.all(np.isfinite(bounds) & (bounds > 0)) or np.ndim(threshold) > 1:
+        raise ArgumentError(
+            "threshold",
+            f"must be a number > 0 or one per coordinate ({plant.n}: {', '.join(names)}); got "
+            f"{threshold!r}",
+        )
+    return tuple(float(b) if s else _UNSCORED for b, s in zip(bounds, scored, strict=True))
+
+
+def _family_margins(
+    scenario: Scenario,
+    tables: Mapping[str, list[dict[str, Any]]],
+    families: tuple[str, ...],
+    rule: tuple[float, ...],
+    upper: float,
+    resolution: float,
+    progress: bool,
+) -> dict[str, list[EmpiricalMargin | None]]:
+    """The empirical margins of every family but PCONf (module docstring), at every point."""
+    search = {
+        "threshold": rule,
+        "settle": 0.0,
+        "upper": upper,
+        "resolution": resolution,
+        "progress": progress,
+    }
+    margins = {}
+    for family in (f for f in families if f != "pconf"):  # no margin from zero (docstring)
+        _say(progress, f"{family}: empirical margins of {len(tables[family])} gain points")
+        margins[family] = _margins(scenario, tables[family], search)
+    return margins
+
+
+def _drawn(
+    scenario: Scenario, random: Mapping[str, Mapping[str, Any]] | None
+) -> dict[str, dict[str, Any]]:
+    """The ``[random]`` table of the draws: ``random``, else the scenario's uncertain
+    parameters."""
+    return (
+        uncertain_parameters(scenario)
+        if random is None
+        else {k: dict(v) for k, v in random.items()}
+    )
+
+
+def _grid_points(
+    tables: Mapping[str, list[dict[str, Any]]],
+    omegas: tuple[float, ...],
+    families: tuple[str, ...],
+) -> tuple[dict[str, tuple[dict[str, Any], ...]], list[dict[str, Any]]]:
+    """The draws' sweep grid, a controller table per point and family, and the labels of its
+    points (``omega_n``, ``controller``)."""
+    points = [(omega, family) for omega in omegas for family in families]
+    grid = {"controller": tuple(tables[f][omegas.index(o)] for o, f in points)}
+    return grid, [{"omega_n": omega, "controller": family} for omega, family in points]
+
+
+def _table(
+    omegas: tuple[float, ...],
+    zeta: float,
+    families: tuple[str, ...],
+    runs: pd.DataFrame,
+    margins: Mapping[str, list[EmpiricalMargin | None]],
+    certified: list[float],
+    exact: list[float],
+) -> pd.DataFrame:
+    """:attr:`TradeoffStudy.table`: one row per point and family, with the Pareto front."""
     rows = []
     for i, omega in enumerate(omegas):
         k1, k2 = family_gains(omega, zeta)
@@ -469,33 +549,13 @@ def run_tradeoff(
             )
     table = pd.DataFrame(rows)
     table["pareto"] = pareto_front(table.ae_median, table.empirical_margin)
-    units = [
-        u for u, s in zip(plant.coordinate_units or [None] * plant.n, scored, strict=True) if s
-    ]
-    inputs = set(plant.input_units or [None])
-    return TradeoffStudy(
-        table=table,
-        runs=runs,
-        evaluated=_evaluated(margins, omegas),
-        scenario=scenario,
-        zeta=zeta,
-        omegas=omegas,
-        families=families,
-        left_out=MappingProxyType(left_out),
-        threshold=MappingProxyType(scored_bounds),
-        ae_unit=units[0] if len(set(units)) == 1 else None,
-        tv_unit=inputs.pop() if len(inputs) == 1 else None,
-        random=MappingProxyType(drawn),
-        draws=count,
-        seed=int(seed),
-        upper=upper,
-        resolution=resolution,
-        beta=beta,
-        r=r,
-        seconds=time.perf_counter() - start,
-        computed=outcome.computed,
-        resumed=outcome.resumed,
-    )
+    return table
+
+
+def _common_unit(units: Sequence[str | None]) -> str | None:
+    """The one unit all of ``units`` share, else None."""
+    distinct = set(units)
+    return distinct.pop() if len(distinct) == 1 else None
 
 
 def _say(progress: bool, text: str) -> None:

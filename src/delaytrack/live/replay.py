@@ -27,8 +27,9 @@ from __future__ import annotations
 import json
 import math
 import sys
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -36,6 +37,12 @@ from delaytrack.live._node import session_files
 from delaytrack.live._tables import number, read_rows
 from delaytrack.live.log import write_csv
 from delaytrack.live.report import format_agreement, write_report
+
+if TYPE_CHECKING:
+    from delaytrack.delays import TraceDelay
+    from delaytrack.plants.base import ELPlant
+    from delaytrack.scenario import BuiltScenario, Scenario
+    from delaytrack.sim.result import SimResult
 
 __all__ = ["replay", "replay_main"]
 
@@ -48,12 +55,7 @@ def replay(folder: str | Path, trust: list[str] | None = None) -> dict[str, Any]
 
 def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[str, Any], Any, Any]:
     """:func:`replay`'s agreement, the scenario and the replayed :class:`SimResult`."""
-    from delaytrack.delays import TraceDelay
     from delaytrack.scenario import Scenario
-    from delaytrack.sim import simulate
-    from delaytrack.sim.certified_bound import stated_by_the_caller
-    from delaytrack.sim.measurement import MeasurementNoise
-    from delaytrack.sim.packet_loss import PacketLoss
 
     folder = Path(folder)
     scenario = Scenario.from_toml(folder / "scenario.toml", trust=list(trust or []))
@@ -62,52 +64,129 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     nodes = summary["nodes"]
     robot, delay_node = nodes.get("robot") or {}, nodes.get("delay") or {}
     controller_node = nodes.get("controller") or {}
-    dt, T_c = scenario.dt, scenario.T_c
+    t1 = _replayed_duration(folder, scenario.dt, scenario.T_c)
+    trace = _realised_delay(folder, scenario.dt)
+    # A session folder from before the controller measured recorded no noise: it read the truth.
+    noise_spec = controller_node.get("measurement_noise")
+    result = _resimulate(scenario, built, trace, t1, delay_node, noise_spec)
+    states = {int(r["j"]): r for r in read_rows(folder / "states.csv")}
+    names = [k for k in next(iter(states.values())) if k not in ("j", "t_s")][: built.plant.n]
+    ticks = {int(r["k"]): r for r in read_rows(folder / "ticks.csv")}
+    compared = _compare(scenario, built, result, states, names, ticks)
+    report = {
+        "ticks_compared": len(compared.rows),
+        "t1_s": t1,
+        "status": result.status_names[0],
+        **_agreement(compared, names, built.plant),
+        "measurement_noise": noise_spec,
+        "not_reproduced": _not_reproduced(robot, controller_node, ticks),
+    }
+    _write_replay(folder, names, built.plant.m, compared.rows, report)
+    return report, scenario, result
+
+
+def _replayed_duration(folder: Path, dt: float, T_c: float) -> float:
+    """``t1``: the session's duration rounded down to a whole number of ``T_c``, at least two."""
     steps = read_rows(folder / "steps.csv")
     end = (len(steps)) * dt
     n_ticks = int(math.floor(end / T_c + 1e-9))
     if n_ticks < 2:
         raise ValueError(f"{folder}: the session is shorter than two controller periods")
-    t1 = n_ticks * T_c
+    return n_ticks * T_c
+
+
+def _realised_delay(folder: Path, dt: float) -> TraceDelay:
+    """The delay the robot realised (``applied.csv``), as a trace (module docstring)."""
+    from delaytrack.delays import TraceDelay
+
     applied = read_rows(folder / "applied.csv")
     if not applied:
         raise ValueError(f"{folder}: the robot applied no command; nothing to replay")
     epsilon = 1e-6 * dt
     times = np.array([number(r["applied_s"]) for r in applied]) - epsilon
     values = np.maximum(times - np.array([number(r["t_k_s"]) for r in applied]), 0.0)
-    trace = TraceDelay(times, values, beyond="hold", source=str(folder / "applied.csv"))
+    return TraceDelay(times, values, beyond="hold", source=str(folder / "applied.csv"))
+
+
+def _resimulate(
+    scenario: Scenario,
+    built: BuiltScenario,
+    trace: TraceDelay,
+    t1: float,
+    delay_node: dict[str, Any],
+    noise_spec: dict[str, Any] | None,
+) -> SimResult:
+    """The scenario simulated to ``t1`` under the realised delay, with the session's packet
+    loss and measurement noise."""
+    from delaytrack.sim import simulate
+    from delaytrack.sim.certified_bound import stated_by_the_caller
+    from delaytrack.sim.measurement import MeasurementNoise
+    from delaytrack.sim.packet_loss import PacketLoss
+
     loss_spec = delay_node.get("packet_loss") or {"probability": 0.0, "seed": 0}
     loss = PacketLoss(loss_spec["probability"], int(loss_spec["seed"]))
-    # A session folder from before the controller measured recorded no noise: it read the truth.
-    noise_spec = controller_node.get("measurement_noise")
     with stated_by_the_caller():  # the session as it ran, beyond h_m or not
-        result = simulate(
+        return simulate(
             built.plant,
             built.controller,
             trace,
             built.x0,
             reference=built.reference,
             t1=t1,
-            dt=dt,
-            T_c=T_c,
+            dt=scenario.dt,
+            T_c=scenario.T_c,
             u_init=scenario.simulated_u_init,
             input_limits=scenario.simulated_input_limits,
             packet_loss=loss if loss.probability > 0 else None,
             measurement_noise=None if noise_spec is None else MeasurementNoise(**noise_spec),
         )
-    n = built.plant.n
-    sim_t = result.t
-    sim_e1 = result.e1[0]
-    sim_u = result.commands[0]
-    states = {int(r["j"]): r for r in read_rows(folder / "states.csv")}
-    names = [k for k in next(iter(states.values())) if k not in ("j", "t_s")][:n]
-    ticks = {int(r["k"]): r for r in read_rows(folder / "ticks.csv")}
+
+
+@dataclass(frozen=True)
+class _Compared:
+    """The live and replayed tracking errors and commands at the compared ticks."""
+
+    #: The rows of ``replay.csv``: ``k``, ``t``, live and replayed ``e1``, live and replayed
+    #: command.
+    rows: list[list[Any]]
+    live_errors: np.ndarray
+    replayed_errors: np.ndarray
+    live_commands: np.ndarray
+    replayed_commands: np.ndarray
+
+    @property
+    def error_differences(self) -> np.ndarray:
+        """Live minus replayed tracking error, ``(ticks, n)``."""
+        return self.live_errors - self.replayed_errors
+
+    @property
+    def command_differences(self) -> np.ndarray:
+        """Live minus replayed command, ``(ticks, m)``."""
+        return self.live_commands - self.replayed_commands
+
+    @property
+    def relative_rms(self) -> np.ndarray:
+        """Each coordinate's RMS difference against its own live RMS error, in its own unit
+        (metres and radians are not added)."""
+        return _rms(self.error_differences) / _rms(self.live_errors)
+
+
+def _compare(
+    scenario: Scenario,
+    built: BuiltScenario,
+    result: SimResult,
+    states: dict[int, dict[str, str]],
+    names: list[str],
+    ticks: dict[int, dict[str, str]],
+) -> _Compared:
+    """The live session against the replay at every tick with a logged state."""
+    sim_e1, sim_u = result.e1[0], result.commands[0]
     m = built.plant.m
     rows = []
     live_errors, replayed_errors, live_commands, replayed_commands = [], [], [], []
-    steps_per_tick = round(T_c / dt)
-    for i, t in enumerate(sim_t):
-        k = int(round(t / T_c))
+    steps_per_tick = round(scenario.T_c / scenario.dt)
+    for i, t in enumerate(result.t):
+        k = int(round(t / scenario.T_c))
         state = states.get(k * steps_per_tick)
         if state is None:
             continue
@@ -122,59 +201,91 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
         rows.append(
             [k, float(t), *e.tolist(), *sim_e1[i].tolist(), *u.tolist(), *sim_u[i].tolist()]
         )
-    e_live, e_sim = np.array(live_errors), np.array(replayed_errors)
-    u_live, u_sim = np.array(live_commands), np.array(replayed_commands)
-    de, du = e_live - e_sim, u_live - u_sim
-    # Each coordinate against its own live RMS error, in its own unit (metres and radians are
-    # not added); the headline is the worst of them.
-    rms_live_each, rms_replayed_each = _rms(e_live), _rms(e_sim)
-    rms_difference_each, rms_command_difference = _rms(de), _rms(du)
-    relative_each = rms_difference_each / rms_live_each
-    times_compared = np.array([r[1] for r in rows])
-    beyond = np.nonzero(np.nanmax(np.abs(de) / rms_live_each, axis=1) > 0.1)[0]
+    return _Compared(
+        rows=rows,
+        live_errors=np.array(live_errors),
+        replayed_errors=np.array(replayed_errors),
+        live_commands=np.array(live_commands),
+        replayed_commands=np.array(replayed_commands),
+    )
+
+
+def _agreement(compared: _Compared, names: list[str], plant: ELPlant) -> dict[str, Any]:
+    """How far live and replay differ: the worst coordinate's relative RMS (the headline),
+    when and from when the tracking errors differ, and each coordinate's and input's numbers."""
+    de, relative_each = compared.error_differences, compared.relative_rms
+    times_compared = np.array([r[1] for r in compared.rows])
+    beyond = np.nonzero(np.nanmax(np.abs(de) / _rms(compared.live_errors), axis=1) > 0.1)[0]
     worst = int(np.nanargmax(np.nanmax(np.abs(de), axis=1)))
-    units = [unit or "" for unit in (built.plant.coordinate_units or (None,) * n)]
-    given = getattr(built.plant, "input_units", None) or (None,) * m
-    input_units = [unit or "" for unit in given]
-    older = [r for r in ticks.values() if number(r.get("state_age_ms")) > 1e-6]
-    report = {
-        "ticks_compared": len(rows),
-        "t1_s": t1,
-        "status": result.status_names[0],
+    return {
         "error_difference_rms_relative": float(np.nanmax(relative_each)),
         "worst_coordinate": names[int(np.nanargmax(relative_each))],
         "error_difference_max_at_s": float(times_compared[worst]),
         "diverges_from_s": float(times_compared[beyond[0]]) if beyond.size else None,
-        "coordinates": {
-            name: {
-                "unit": units[i],
-                "tracking_error_rms_live": float(rms_live_each[i]),
-                "tracking_error_rms_replayed": float(rms_replayed_each[i]),
-                "error_difference_max": float(np.nanmax(np.abs(de[:, i]))),
-                "error_difference_rms": float(rms_difference_each[i]),
-                "error_difference_rms_relative": float(relative_each[i]),
-            }
-            for i, name in enumerate(names)
-        },
-        "inputs": {
-            f"u{j + 1}": {
-                "unit": input_units[j],
-                "command_difference_max": float(np.nanmax(np.abs(du[:, j]))),
-                "command_difference_rms": float(rms_command_difference[j]),
-            }
-            for j in range(m)
-        },
-        "measurement_noise": noise_spec,
-        "not_reproduced": {
-            "robot_zero_input_on_timeout_steps": robot.get("timeout_zero_steps"),
-            "controller_missed_ticks": controller_node.get("missed"),
-            "controller_ticks_without_a_state": sum(
-                1 for r in ticks.values() if r["status"] == "no-state"
-            ),
-            "controller_stale_ticks": controller_node.get("stale"),
-            "controller_ticks_on_a_state_older_than_t_k": len(older),
-        },
+        "coordinates": _coordinates_agreement(compared, names, plant),
+        "inputs": _inputs_agreement(compared, plant),
     }
+
+
+def _coordinates_agreement(
+    compared: _Compared, names: list[str], plant: ELPlant
+) -> dict[str, dict[str, Any]]:
+    """Per coordinate: its unit, the live and replayed RMS tracking errors, and the max, RMS
+    and relative RMS of their difference."""
+    units = [unit or "" for unit in (plant.coordinate_units or (None,) * plant.n)]
+    de, relative_each = compared.error_differences, compared.relative_rms
+    rms_live_each, rms_replayed_each = _rms(compared.live_errors), _rms(compared.replayed_errors)
+    rms_difference_each = _rms(de)
+    return {
+        name: {
+            "unit": units[i],
+            "tracking_error_rms_live": float(rms_live_each[i]),
+            "tracking_error_rms_replayed": float(rms_replayed_each[i]),
+            "error_difference_max": float(np.nanmax(np.abs(de[:, i]))),
+            "error_difference_rms": float(rms_difference_each[i]),
+            "error_difference_rms_relative": float(relative_each[i]),
+        }
+        for i, name in enumerate(names)
+    }
+
+
+def _inputs_agreement(compared: _Compared, plant: ELPlant) -> dict[str, dict[str, Any]]:
+    """Per input: its unit, and the max and RMS of live minus replayed command."""
+    given = getattr(plant, "input_units", None) or (None,) * plant.m
+    input_units = [unit or "" for unit in given]
+    du = compared.command_differences
+    rms_command_difference = _rms(du)
+    return {
+        f"u{j + 1}": {
+            "unit": input_units[j],
+            "command_difference_max": float(np.nanmax(np.abs(du[:, j]))),
+            "command_difference_rms": float(rms_command_difference[j]),
+        }
+        for j in range(plant.m)
+    }
+
+
+def _not_reproduced(
+    robot: dict[str, Any], controller_node: dict[str, Any], ticks: dict[int, dict[str, str]]
+) -> dict[str, Any]:
+    """What the simulation cannot reproduce: the robot's zero input on timeout, the ticks the
+    controller missed or computed without a state, on a stale one or one older than ``t_k``."""
+    older = [r for r in ticks.values() if number(r.get("state_age_ms")) > 1e-6]
+    return {
+        "robot_zero_input_on_timeout_steps": robot.get("timeout_zero_steps"),
+        "controller_missed_ticks": controller_node.get("missed"),
+        "controller_ticks_without_a_state": sum(
+            1 for r in ticks.values() if r["status"] == "no-state"
+        ),
+        "controller_stale_ticks": controller_node.get("stale"),
+        "controller_ticks_on_a_state_older_than_t_k": len(older),
+    }
+
+
+def _write_replay(
+    folder: Path, names: list[str], m: int, rows: list[list[Any]], report: dict[str, Any]
+) -> None:
+    """``replay.csv`` (live beside replayed, tick by tick) and ``replay.json`` (the report)."""
     header = [
         "k",
         "t_s",
@@ -185,7 +296,6 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     ]
     write_csv(folder / "replay.csv", header, rows)
     (folder / "replay.json").write_text(json.dumps(report, indent=1) + "\n")
-    return report, scenario, result
 
 
 def _rms(values: np.ndarray) -> np.ndarray:

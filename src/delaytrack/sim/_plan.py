@@ -8,6 +8,7 @@ import math
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 
@@ -51,6 +52,8 @@ MAX_STEPS = 10**8
 #: What the controller reads and loses when no noise and no loss are given.
 _TRUE_STATE = MeasurementNoise()
 _NO_LOSS = PacketLoss()
+#: A per-run setting (measurement noise or packet loss).
+_Given = TypeVar("_Given", MeasurementNoise, PacketLoss)
 
 
 @dataclass(frozen=True)
@@ -156,81 +159,23 @@ def prepare(
     """The arguments of :func:`~delaytrack.sim.simulate` checked, in the order it documents
     its refusals, and spread over the batch; the memory the run needs checked against the
     machine's."""
-    plants = as_batch("plant", plant, ELPlant)
-    controllers = as_batch("controller", controller, Controller)
-    delays = as_batch("delay", delay, DelayProfile)
+    plants, controllers, delays = _batches(plant, controller, delay)
     t0, t1, dt, T_c, steps_per_tick, n_ticks = _times(t0, t1, dt, T_c)
-    if (
-        isinstance(record_every, bool)
-        or not isinstance(record_every, int | np.integer)
-        or record_every < 1
-    ):
-        raise ValueError(f"record_every must be a positive integer; got {record_every!r}")
+    _check_record_every(record_every)
     divergence_bound = positive_scalar("divergence_bound", divergence_bound)
-    if not isinstance(reference, Reference):
-        raise TypeError(
-            f"reference must be a Reference (SinusoidalReference, SplineReference or one of "
-            f"yours); got {type(reference).__name__}"
-        )
+    _check_reference(reference)
     _check_one_kind(plants, controllers, reference)
-    n, m = plants[0].n, plants[0].m
-    error_bounds = positive_limits(
-        "error_bound", error_bound, (n,), f"{n} of them (one per coordinate)"
-    )
-    states0 = _initial_states(x0, n)
-    batch = max(len(plants), len(controllers), len(delays), states0.shape[0])
-    plants = broadcast("plant", plants, batch)
-    controllers = broadcast("controller", controllers, batch)
-    delays = broadcast("delay", delays, batch)
-    states0 = _initial_states_of_batch(states0, batch)
-    for plant_b in plants:
-        plant_b.check_step(dt)
-    for controller_b, delay_b in zip(controllers, delays, strict=True):
-        controller_b.check_run(T_c, delay_b.h_max)
-    _check_horizons(plants, delays, reference, t0, t1)
+    error_bounds = _error_bounds(error_bound, plants[0].n)
+    plants, controllers, delays, states0 = _spread(plants, controllers, delays, x0)
+    _check_fit_to_run(plants, controllers, delays, reference, t0, t1, dt, T_c)
     delay_kernel, own_delays = _delay_kernel(delays)
-    for component in (plants[0], controllers[0].model, controllers[0], reference):
-        refuse_random_draws(component.engine_kernel)
-    refuse_random_draws(delay_kernel)
+    _refuse_random_draws(plants[0], controllers[0], reference, delay_kernel)
     _check_delays(delays, own_delays, t0, t1, dt, T_c, n_ticks * steps_per_tick + 1)
-    u_init = np.zeros(m) if u_init is None else np.array(finite_array("u_init", u_init, ndim=1))
-    if u_init.shape != (m,):
-        raise ValueError(f"u_init must have shape ({m},); got {u_init.shape}")
-    limits = positive_limits(
-        "input_limits",
-        input_limits,
-        (batch, m),
-        f"{m} of them (one per input) or a ({batch}, {m}) array (one row per run)",
+    u_init, limits, noises, losses = _per_run_arrays(
+        u_init, input_limits, measurement_noise, packet_loss, len(plants), plants[0].m
     )
-    noises = broadcast(
-        "measurement_noise",
-        as_batch(
-            "measurement_noise",
-            _TRUE_STATE if measurement_noise is None else measurement_noise,
-            MeasurementNoise,
-        ),
-        batch,
-    )
-    losses = broadcast(
-        "packet_loss",
-        as_batch("packet_loss", _NO_LOSS if packet_loss is None else packet_loss, PacketLoss),
-        batch,
-    )
-    if np.any(np.abs(u_init) > limits):
-        raise ValueError(
-            f"u_init = {u_init.tolist()} lies beyond input_limits: the actuators cannot apply it"
-        )
-    _check_start(
-        plants[0], controllers[0], delays[0], reference, states0, divergence_bound, t0, T_c
-    )
-    check_reduced_start(plants, states0)
-    if not isinstance(trajectories, bool | np.bool_):
-        raise TypeError(f"trajectories must be True or False; got {trajectories!r}")
-    # Every k-th tick with k beyond the run records tick 0 only, as k = n_ticks + 1 does (which
-    # fits the kernel's 64-bit integers).
-    every = min(int(record_every), n_ticks + 1)
-    records = n_ticks // every + 1 if trajectories else 0
-    recorded_state = len(controllers[0].state_names)
+    _check_start(plants, controllers[0], delays[0], reference, states0, divergence_bound, t0, T_c)
+    every, records = _recording(record_every, trajectories, n_ticks)
     plan = Plan(
         plants=tuple(plants),
         controllers=tuple(controllers),
@@ -258,12 +203,10 @@ def prepare(
         loss_given=packet_loss is not None,
         delay_kernel=delay_kernel,
         own_delays=tuple(own_delays),
-        capacities=np.array(
-            [history_capacity(d.h_max, T_c, n_ticks) for d in delays], dtype=np.int64
-        ),
+        capacities=_capacities(delays, T_c, n_ticks),
         workers=_workers(workers),
         own_memory=not (plants[0].thread_safe and controllers[0].model.thread_safe),
-        recorded_bytes=records * (batch * (2 * n + 2 * m + 1 + recorded_state) + 3 * n) * 8,
+        recorded_bytes=_recorded_bytes(records, plants, controllers[0]),
     )
     _check_memory(plan)
     return plan
@@ -280,6 +223,19 @@ def announce(plan: Plan) -> None:
         + (recorded if plan.trajectories else "metrics only, no trajectories recorded"),
         file=sys.stderr,
         flush=True,
+    )
+
+
+def _batches(
+    plant: ELPlant | Sequence[ELPlant],
+    controller: Controller | Sequence[Controller],
+    delay: DelayProfile | Sequence[DelayProfile],
+) -> tuple[list[ELPlant], list[Controller], list[DelayProfile]]:
+    """The plants, controllers and delays as lists, each of its kind."""
+    return (
+        as_batch("plant", plant, ELPlant),
+        as_batch("controller", controller, Controller),
+        as_batch("delay", delay, DelayProfile),
     )
 
 
@@ -309,6 +265,25 @@ def _times(
             f"({t1 - t0:g} s at dt = {dt:g} s): shorten the run or raise dt"
         )
     return t0, t1, dt, T_c, steps_per_tick, n_ticks
+
+
+def _check_record_every(record_every: int) -> None:
+    """``record_every`` is a positive integer."""
+    if (
+        isinstance(record_every, bool)
+        or not isinstance(record_every, int | np.integer)
+        or record_every < 1
+    ):
+        raise ValueError(f"record_every must be a positive integer; got {record_every!r}")
+
+
+def _check_reference(reference: Reference) -> None:
+    """``reference`` is a :class:`~delaytrack.references.Reference`."""
+    if not isinstance(reference, Reference):
+        raise TypeError(
+            f"reference must be a Reference (SinusoidalReference, SplineReference or one of "
+            f"yours); got {type(reference).__name__}"
+        )
 
 
 def _check_one_kind(
@@ -357,6 +332,29 @@ def _check_one_kind(
     )
 
 
+def _error_bounds(error_bound: float | Sequence[float], n: int) -> np.ndarray:
+    """``error_bound`` checked, one per coordinate ``(n,)``."""
+    return positive_limits("error_bound", error_bound, (n,), f"{n} of them (one per coordinate)")
+
+
+def _spread(
+    plants: list[ELPlant],
+    controllers: list[Controller],
+    delays: list[DelayProfile],
+    x0: np.ndarray,
+) -> tuple[list[ELPlant], list[Controller], list[DelayProfile], np.ndarray]:
+    """The plants, controllers, delays and rows of ``x0`` (checked) spread to the batch: the
+    longest of them."""
+    states0 = _initial_states(x0, plants[0].n)
+    batch = max(len(plants), len(controllers), len(delays), states0.shape[0])
+    return (
+        broadcast("plant", plants, batch),
+        broadcast("controller", controllers, batch),
+        broadcast("delay", delays, batch),
+        _initial_states_of_batch(states0, batch),
+    )
+
+
 def _initial_states(x0: np.ndarray, n: int) -> np.ndarray:
     """``x0`` checked, as rows ``(rows, 2n)``."""
     states0 = finite_array("x0", x0)
@@ -384,6 +382,25 @@ def _initial_states_of_batch(states0: np.ndarray, batch: int) -> np.ndarray:
     return states0
 
 
+def _check_fit_to_run(
+    plants: list[ELPlant],
+    controllers: list[Controller],
+    delays: list[DelayProfile],
+    reference: Reference,
+    t0: float,
+    t1: float,
+    dt: float,
+    T_c: float,
+) -> None:
+    """Every plant takes steps of ``dt``, every controller ticks of ``T_c`` under its delay's
+    bound, and every component's data cover ``[t0, t1]``."""
+    for plant in plants:
+        plant.check_step(dt)
+    for controller, delay in zip(controllers, delays, strict=True):
+        controller.check_run(T_c, delay.h_max)
+    _check_horizons(plants, delays, reference, t0, t1)
+
+
 def _delay_kernel(delays: list[DelayProfile]) -> tuple[Kernel, list[int]]:
     """The batch's one delay kernel of the user's (``NO_KERNEL`` when none) and the elements
     whose profile is one."""
@@ -398,6 +415,15 @@ def _delay_kernel(delays: list[DelayProfile]) -> tuple[Kernel, list[int]]:
     if own_delays:
         check_kernel_arguments(f"delay[{own_delays[0]}]", "delay", delay_kernel.function)
     return delay_kernel, own_delays
+
+
+def _refuse_random_draws(
+    plant: ELPlant, controller: Controller, reference: Reference, delay_kernel: Kernel
+) -> None:
+    """No kernel of the batch draws random numbers."""
+    for component in (plant, controller.model, controller, reference):
+        refuse_random_draws(component.engine_kernel)
+    refuse_random_draws(delay_kernel)
 
 
 def _check_delays(
@@ -432,8 +458,45 @@ def _check_delays(
             )
 
 
+def _per_run_arrays(
+    u_init: np.ndarray | None,
+    input_limits: float | Sequence[float] | np.ndarray,
+    measurement_noise: MeasurementNoise | Sequence[MeasurementNoise] | None,
+    packet_loss: PacketLoss | Sequence[PacketLoss] | None,
+    batch: int,
+    m: int,
+) -> tuple[np.ndarray, np.ndarray, list[MeasurementNoise], list[PacketLoss]]:
+    """``(u_init, input_limits, measurement_noise, packet_loss)`` checked, the last three
+    spread over the batch, with ``u_init`` within every run's limits."""
+    u_init = np.zeros(m) if u_init is None else np.array(finite_array("u_init", u_init, ndim=1))
+    if u_init.shape != (m,):
+        raise ValueError(f"u_init must have shape ({m},); got {u_init.shape}")
+    limits = positive_limits(
+        "input_limits",
+        input_limits,
+        (batch, m),
+        f"{m} of them (one per input) or a ({batch}, {m}) array (one row per run)",
+    )
+    noises = _per_run("measurement_noise", measurement_noise, _TRUE_STATE, batch)
+    losses = _per_run("packet_loss", packet_loss, _NO_LOSS, batch)
+    if np.any(np.abs(u_init) > limits):
+        raise ValueError(
+            f"u_init = {u_init.tolist()} lies beyond input_limits: the actuators cannot apply it"
+        )
+    return u_init, limits, noises, losses
+
+
+def _per_run(
+    name: str, value: _Given | Sequence[_Given] | None, default: _Given, batch: int
+) -> list[_Given]:
+    """``value`` (``default`` when None), one of the kind of ``default``, spread over the batch."""
+    return broadcast(
+        name, as_batch(name, default if value is None else value, type(default)), batch
+    )
+
+
 def _check_start(
-    plant: ELPlant,
+    plants: list[ELPlant],
     controller: Controller,
     delay: DelayProfile,
     reference: Reference,
@@ -442,20 +505,45 @@ def _check_start(
     t0: float,
     T_c: float,
 ) -> None:
-    """The run's start: ``x0`` within ``divergence_bound``, and the kernels of the user's tried
-    there (:mod:`delaytrack.sim._kernel_checks`)."""
+    """The run's start: ``x0`` within ``divergence_bound``, the kernels of the user's tried
+    there (:mod:`delaytrack.sim._kernel_checks`), and the plants' reduced coordinates at it."""
     if np.max(np.abs(states0)) > divergence_bound:
         raise ValueError(
             f"x0 must lie within divergence_bound = {divergence_bound:g}; "
             f"max |x0| = {np.max(np.abs(states0)):g}"
         )
-    check_plant_at_x0(plant, states0[0], t0)
+    check_plant_at_x0(plants[0], states0[0], t0)
     reference_arrays = (
         real_array("reference.params", reference.params, ndim=1),
         *np.zeros((3, reference.n)),
     )
     refuse_reads_past(reference.engine_kernel, "reference", (t0, *reference_arrays), "at t0")
     check_controller_at_x0(controller, states0[0], t0, T_c, delay)
+    check_reduced_start(plants, states0)
+
+
+def _recording(record_every: int, trajectories: bool, n_ticks: int) -> tuple[int, int]:
+    """``(every, records)``: every how many ticks a row is recorded, and the rows of a run
+    (0 without ``trajectories``, which must be True or False)."""
+    if not isinstance(trajectories, bool | np.bool_):
+        raise TypeError(f"trajectories must be True or False; got {trajectories!r}")
+    # Every k-th tick with k beyond the run records tick 0 only, as k = n_ticks + 1 does (which
+    # fits the kernel's 64-bit integers).
+    every = min(int(record_every), n_ticks + 1)
+    return every, n_ticks // every + 1 if trajectories else 0
+
+
+def _capacities(delays: list[DelayProfile], T_c: float, n_ticks: int) -> np.ndarray:
+    """Commands of history each run keeps."""
+    return np.array([history_capacity(d.h_max, T_c, n_ticks) for d in delays], dtype=np.int64)
+
+
+def _recorded_bytes(records: int, plants: list[ELPlant], controller: Controller) -> int:
+    """Bytes of the batch's recorded trajectories: ``records`` rows of every run's state,
+    command, applied command, delay and controller state, and of the reference."""
+    batch, n, m = len(plants), plants[0].n, plants[0].m
+    recorded_state = len(controller.state_names)
+    return records * (batch * (2 * n + 2 * m + 1 + recorded_state) + 3 * n) * 8
 
 
 def _check_memory(plan: Plan) -> None:

@@ -16,6 +16,7 @@ import pandas as pd
 import pytest
 
 from delaytrack._output import MANIFEST
+from delaytrack._validation import ArgumentError
 from delaytrack.analysis import razumikhin_bound
 from delaytrack.cli import main
 from delaytrack.scenario import Scenario, load_builtin
@@ -132,6 +133,16 @@ def test_bound_bad_input_messages(capsys, args, message):
     err = capsys.readouterr().err
     assert err.startswith("error: ") and message in err
     assert len(err.strip().splitlines()) == 1
+
+
+def test_bound_beta_is_refused_in_the_librarys_words_with_its_flag(capsys):
+    assert main(["bound", "--k1", "1", "--k2", "1", "--q", "1", "--beta", "-0.5"]) == 2
+    with pytest.raises(ArgumentError) as refused:
+        razumikhin_bound(1.0, 1.0, 1.0, beta=-0.5)
+    assert refused.value.argument == "beta"
+    err = capsys.readouterr().err
+    assert err == "error: --beta must be > 0; got -0.5 (got --beta -0.5)\n"
+    assert err == f"error: --beta {refused.value.problem} (got --beta -0.5)\n"  # the library's
 
 
 def test_missing_argument_is_a_usage_error():

@@ -7,6 +7,7 @@ import json
 import pandas as pd
 import pytest
 
+from delaytrack.analysis.razumikhin import PAPER_BETA, PAPER_R, razumikhin_bound
 from delaytrack.cli import main
 from delaytrack.experiments.margins import GAINS
 from test_empirical_margin import TOLERANCE, double_integrator
@@ -31,6 +32,8 @@ def test_empirical_json_agrees_with_the_exact_margin(scenario_file, capsys):
     assert data["h_exact"] == pytest.approx(IDENTITY_MARGIN, rel=1e-12)
     assert abs(data["margin"] - IDENTITY_MARGIN) <= 0.002 + TOLERANCE
     assert data["h_m"] < data["margin"]
+    # Theorem 1 with the paper's beta and r, K1 = K2 = 1 and Q = I (an outer loop has no Q).
+    assert data["h_m"] == razumikhin_bound(1.0, 1.0, 1.0, PAPER_BETA, PAPER_R).h_m
     assert (data["threshold"], data["metric"], data["resolution"]) == (1.0, "max", 0.002)
 
 
@@ -42,6 +45,7 @@ def test_empirical_text_states_threshold_resolution_and_the_analytic_margins(sce
     assert "max <= 1 (in each coordinate's unit) after t = 50 s; resolution 0.005 s" in out
     assert "h_exact     = 0.711119 s" in out
     assert "h_m         = " in out
+    assert f"; beta = {PAPER_BETA:g}, r = {PAPER_R:g})\n" in out
 
 
 def test_empirical_reports_no_failure_below_upper(scenario_file, capsys):

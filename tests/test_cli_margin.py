@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from delaytrack._validation import ArgumentError
 from delaytrack.analysis import design_gains, exact_delay_margin, razumikhin_bound
 from delaytrack.cli import main
 
@@ -123,6 +124,28 @@ def test_design_bad_input_messages(capsys, args, message):
     err = capsys.readouterr().err
     assert err.startswith("error: ") and message in err
     assert len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    ("args", "line"),
+    [
+        (["--gain-bound", "-0.5"], "error: --gain-bound must be > 0; got -0.5\n"),
+        (
+            ["--seed", "4294967296"],
+            "error: --seed must be a non-negative integer; got 4294967296 (seeds run from 0 to "
+            "2**32 - 1 = 4294967295)\n",
+        ),
+    ],
+)
+def test_design_leaves_the_gain_bound_and_seed_to_the_library(capsys, args, line):
+    assert main(["design", *args]) == 2
+    assert capsys.readouterr().err == line
+    argument = args[0].removeprefix("--").replace("-", "_")
+    value = float(args[1]) if argument == "gain_bound" else int(args[1])
+    with pytest.raises(ArgumentError) as refused:
+        design_gains(**{argument: value})
+    assert refused.value.argument == argument
+    assert line == f"error: {args[0]} {refused.value.problem}\n"  # the library's words
 
 
 @pytest.mark.parametrize("command", ["margin", "design"])

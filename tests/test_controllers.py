@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from arm_closed_form import arm_mass, arm_nonlinear
-from delaytrack.controllers import AROLC, OuterLoop, controller_from_spec
+from delaytrack._validation import ArgumentError
+from delaytrack.controllers import AROLC, PCON, OuterLoop, PCONf, controller_from_spec
 from delaytrack.controllers.arolc import adaptive_gain_rate
 from delaytrack.plants import CallablePlant, LinearPlant, TwoLinkArm
 
@@ -364,6 +365,28 @@ def arolc_with(arm, **changes):
 def test_arolc_refused(arm, changes, message):
     with pytest.raises(ValueError, match=message):
         arolc_with(arm, **changes)
+
+
+_PREDICTOR = dict(kappa=1.0, vartheta=1.0, k_b=1.0, history=1.0, T_c=0.002)
+
+
+@pytest.mark.parametrize(
+    ("build", "argument", "message"),
+    [
+        (lambda arm: AROLC(model=arm, **{**PAPER, "alpha": 1e300}), "alpha", "alpha must be <="),
+        (lambda arm: AROLC(model=arm, **{**PAPER, "epsilon": 1e-300}), "epsilon", ">= 1e-"),
+        (lambda arm: PCON(model=arm, **_PREDICTOR, space="joint"), "space", "space must be one"),
+        (lambda arm: PCON(model=arm, **{**_PREDICTOR, "history": 1e6}), "history", "at most"),
+        (lambda arm: PCON(model=arm, **_PREDICTOR, noise_seed=-1), "noise_seed", "from 0 to"),
+        (lambda arm: PCONf(model=arm, **_PREDICTOR, h_bar=2.0), "h_bar", "h_bar = 2 s exceeds"),
+    ],
+)
+def test_constructor_refusals_carry_their_argument(arm, build, argument, message):
+    with pytest.raises(ArgumentError) as refused:  # a ValueError, as before
+        build(arm)
+    assert isinstance(refused.value, ValueError)
+    assert refused.value.argument == argument and message in str(refused.value)
+    assert str(refused.value).startswith(f"{argument} ")
 
 
 def test_outer_loop_refused(arm):

@@ -27,6 +27,7 @@ from typing import Any, TypeGuard
 from delaytrack._compile.disk_cache import cache_directory
 from delaytrack._file_caches import guard_caches
 from delaytrack._io import regular_file
+from delaytrack._validation import ArgumentError
 
 __all__ = [
     "PYTHON_TYPE",
@@ -426,9 +427,10 @@ def build_from_table(
 ) -> Any:
     """Check ``value`` with :func:`check_table` and build it (``extra`` goes to the constructor).
 
-    A refusal by the constructor is re-raised naming the table, and the key when the message
-    starts with the constructor argument of one (``"K1 must be ..."`` becomes
-    ``"scenario key 'controller.K1' must be ..."``). A user's factory (:data:`PYTHON_TYPE`) may
+    A refusal by the constructor is re-raised naming the table, and the key when it is an
+    :class:`~delaytrack._validation.ArgumentError` about the constructor argument of one
+    (``ArgumentError("K1", "must be ...")`` becomes ``"scenario key 'controller.K1' must be
+    ..."``, a :class:`SpecError` carrying the key). A user's factory (:data:`PYTHON_TYPE`) may
     raise anything, reported with its type (``SystemExit`` too, as a :class:`SpecError`; a
     ``KeyboardInterrupt`` is raised again naming the factory); it must return an instance of
     ``returns``.
@@ -452,13 +454,7 @@ def build_from_table(
         if not isinstance(error, ValueError | TypeError | FileNotFoundError | ImportError):
             raise
         # ImportError: an optional extra the type needs is not installed (the message says how).
-        message = str(error)
-        for key, (argument, _) in spec.keys.items():
-            if message.startswith(f"{argument} "):
-                raise SpecError(
-                    f"scenario key '{table}.{key}' {message[len(argument) + 1 :]}"
-                ) from None
-        raise SpecError(f"scenario table [{table}]: {message}") from None
+        raise _refusal(table, spec, error) from None
     except KeyboardInterrupt:
         if not user:
             raise
@@ -478,6 +474,27 @@ def build_from_table(
             f"a [{table}] factory must return {_with_article(returns.__name__)}"
         )
     return built
+
+
+def _refusal(table: str, spec: TypeSpec, error: Exception) -> SpecError:
+    """The :class:`SpecError` for ``error``, raised by the constructor of ``[table]``: about the
+    key whose constructor argument an :class:`~delaytrack._validation.ArgumentError` names (the
+    arguments it mentions called by their keys too), else about the table.
+
+    A plain error from code that carries no argument (a check shared with other callers) is
+    matched by the start of its message, ``"<argument> ..."``.
+    """
+    keys = {argument: key for key, (argument, _) in spec.keys.items()}
+    if isinstance(error, ArgumentError):
+        if error.argument in keys:
+            key = keys[error.argument]
+            return SpecError.of_key(f"{table}.{key}", error.spelled(keys)[len(key) + 1 :])
+    else:
+        message = str(error)
+        for argument, key in keys.items():
+            if message.startswith(f"{argument} "):
+                return SpecError.of_key(f"{table}.{key}", message[len(argument) + 1 :])
+    return SpecError(f"scenario table [{table}]: {error}")
 
 
 def _with_article(name: str) -> str:

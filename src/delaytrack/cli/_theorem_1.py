@@ -151,10 +151,6 @@ def theorem_1(args: argparse.Namespace) -> tuple[RazumikhinBound, str]:
     given = {"--k1": args.k1, "--k2": args.k2, "--q": args.q, "--beta": args.beta, "--r": args.r}
     k1, k2, q = numbers("--k1", args.k1), numbers("--k2", args.k2), numbers("--q", args.q)
     beta, r = scalar("--beta", args.beta), razumikhin_factor(args.r)
-    if beta <= 0.0:
-        raise UsageError(
-            f"--beta must be > 0 (the weight of the paper's inequality); got {args.beta}"
-        )
     n = _dimension(args, k1, k2, q)
     try:
         bound = razumikhin_bound(

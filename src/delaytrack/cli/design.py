@@ -17,7 +17,12 @@ if TYPE_CHECKING:
 __all__ = ["add_command", "run"]
 
 #: The flags of :func:`~delaytrack.analysis.design_gains`' arguments that the command sets.
-_FLAGS = {"r": "--r", "gain_bound": "--gain-bound", "min_bandwidth": "--min-bandwidth"}
+_FLAGS = {
+    "r": "--r",
+    "gain_bound": "--gain-bound",
+    "min_bandwidth": "--min-bandwidth",
+    "seed": "--seed",
+}
 
 
 def add_command(commands: argparse._SubParsersAction) -> None:
@@ -52,16 +57,6 @@ def run(args: argparse.Namespace) -> int:
     from delaytrack.analysis import design_gains
 
     gain_bound, r = scalar("--gain-bound", args.gain_bound), razumikhin_factor(args.r)
-    if gain_bound <= 0.0:
-        raise UsageError(
-            f"--gain-bound must be > 0 (the largest diagonal entry of K1 and K2); "
-            f"got {args.gain_bound}"
-        )
-    if not 0 <= args.seed <= 2**32 - 1:
-        raise UsageError(
-            f"--seed must be a non-negative integer; got {args.seed} (seeds run from 0 to "
-            f"2**32 - 1 = {2**32 - 1})"
-        )
     bandwidth = None
     if args.min_bandwidth is not None:
         bandwidth = scalar("--min-bandwidth", args.min_bandwidth)

@@ -87,16 +87,17 @@ def _threshold(text: str) -> float | np.ndarray:
 
 
 def _analytic(controller: object) -> dict[str, float]:
-    """Theorem 1's h_m (the controller's Q, else I; beta = 1, r = 1.1) and the exact
+    """Theorem 1's h_m (the controller's Q, else I; the paper's beta and r) and the exact
     constant-delay margin of a controller with gains K1 and K2; empty for any other."""
     from delaytrack.analysis import exact_delay_margin, razumikhin_bound
+    from delaytrack.analysis.razumikhin import PAPER_BETA, PAPER_R
 
     if not (hasattr(controller, "K1") and hasattr(controller, "K2")):
         return {}
     n = controller.K1.shape[0]
     Q = getattr(controller, "Q", np.eye(2 * n))
     return {
-        "h_m": razumikhin_bound(controller.K1, controller.K2, Q, 1.0, 1.1, n=n).h_m,
+        "h_m": razumikhin_bound(controller.K1, controller.K2, Q, PAPER_BETA, PAPER_R, n=n).h_m,
         "h_exact": exact_delay_margin(controller.K1, controller.K2).h,
     }
 
@@ -144,6 +145,8 @@ def _print(
     name: str, result: EmpiricalMargin, analytic: dict[str, float], weight: str, seconds: float
 ) -> None:
     """The margin as text, with Theorem 1's h_m (weight ``weight``) and the exact margin."""
+    from delaytrack.analysis.razumikhin import PAPER_BETA, PAPER_R
+
     family = {
         "constant": "constant delay h",
         "abs-sine": f"h(t) = a |sin({result.frequency:g} t)|, margin in a",
@@ -159,6 +162,6 @@ def _print(
     if analytic:
         print(
             f"  h_m         = {analytic['h_m']:.6g} s (Theorem 1: the controller's K1, K2, "
-            f"{weight}; beta = 1, r = 1.1)"
+            f"{weight}; beta = {PAPER_BETA:g}, r = {PAPER_R:g})"
         )
         print(f"  h_exact     = {analytic['h_exact']:.6g} s (constant delay, nominal dynamics)")

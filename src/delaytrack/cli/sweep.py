@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from delaytrack._cli_options import quiet_argument, trust_argument
+from delaytrack._cli_options import integer, quiet_argument, trust_argument
 from delaytrack._output import check_output_folder, plain_folder_name, record_outputs
 from delaytrack.cli._scenarios import trusted
 from delaytrack.cli._usage import UsageError, flagged
@@ -55,7 +55,11 @@ def add_command(commands: argparse._SubParsersAction) -> None:
 
 
 def _count(flag: str, text: str) -> int:
-    value = int(text) if text.strip().isascii() and text.strip().isdigit() else 0
+    """``text`` as an integer >= 1 in decimal digits (:func:`integer`'s rule), else refused."""
+    try:
+        value = integer(text)
+    except argparse.ArgumentTypeError:
+        value = 0
     if value < 1:
         raise UsageError(f"{flag} must be a positive integer; got {text!r}")
     return value
@@ -71,13 +75,13 @@ def _folder(args: argparse.Namespace) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     """Run the sweep's units (skipping finished ones), write its tables, figures and report."""
+    from delaytrack.report.sweep import write_sweep_outputs
     from delaytrack.sweeps import (
         SweepError,
         SweepSpec,
         SweepUnitsFailed,
         make_executor,
         run_sweep,
-        write_sweep_outputs,
     )
     from delaytrack.sweeps.executors import checked_scheduler
 

@@ -29,7 +29,7 @@ import numpy as np
 
 from delaytrack._compile.jit import hot_kernel, tick_kernel
 from delaytrack._small_linalg import matvec
-from delaytrack._validation import as_spd_matrix, positive_scalar
+from delaytrack._validation import ArgumentError, as_spd_matrix, positive_scalar
 from delaytrack.analysis.razumikhin import (
     _WHOLE_P,
     _check_coupled,
@@ -187,9 +187,10 @@ class AROLC(Controller):
             inverse = name == "epsilon"
             if (1.0 / value if inverse else value) > _LAW_RANGE:
                 bound = f">= {1.0 / _LAW_RANGE:g}" if inverse else f"<= {_LAW_RANGE:g}"
-                raise ValueError(
-                    f"{name} must be {bound} (the law multiplies alpha c_hat ||s|| / epsilon; "
-                    f"beyond that the command overflows double precision); got {value:g}"
+                raise ArgumentError(
+                    name,
+                    f"must be {bound} (the law multiplies alpha c_hat ||s|| / epsilon; beyond "
+                    f"that the command overflows double precision); got {value:g}",
                 )
         P = lyapunov_matrix(self.K1, self.K2, self.Q)
         input_matrix = error_dynamics_matrices(self.K1, self.K2)[3]

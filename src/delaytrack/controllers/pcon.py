@@ -52,6 +52,7 @@ from delaytrack._compile.jit import tick_kernel
 from delaytrack._counter_noise import NOISE_BOUND
 from delaytrack._small_linalg import matvec
 from delaytrack._validation import (
+    ArgumentError,
     as_spd_matrix,
     finite_scalar,
     is_integer_at_least,
@@ -245,11 +246,12 @@ class PredictorBaseline(Controller):
             raise TypeError("PredictorBaseline is the shared law; build a PCON or a PCONf")
         self._check_model()
         if not isinstance(self.space, str) or self.space not in SPACES:
-            raise ValueError(f"space must be one of {SPACES}; got {self.space!r}")
+            raise ArgumentError("space", f"must be one of {SPACES}; got {self.space!r}")
         if self.space == "actuator" and self.model.m > self.model.n:
-            raise ValueError(
-                f"space = 'actuator' needs at most as many inputs as coordinates; the model has "
-                f"m = {self.model.m} inputs and n = {self.model.n} coordinates"
+            raise ArgumentError(
+                "space",
+                f"= 'actuator' needs at most as many inputs as coordinates; the model has "
+                f"m = {self.model.m} inputs and n = {self.model.n} coordinates",
             )
         d = self.law_size
         object.__setattr__(self, "kappa", positive_scalar("kappa", self.kappa))
@@ -258,10 +260,11 @@ class PredictorBaseline(Controller):
         object.__setattr__(self, "history", positive_scalar("history", self.history))
         object.__setattr__(self, "T_c", positive_scalar("T_c", self.T_c))
         if self.history / self.T_c > MAX_HISTORY_TICKS:
-            raise ValueError(
-                f"history must be at most {MAX_HISTORY_TICKS:.0e} controller periods "
+            raise ArgumentError(
+                "history",
+                f"must be at most {MAX_HISTORY_TICKS:.0e} controller periods "
                 f"({MAX_HISTORY_TICKS * self.T_c:g} s at T_c = {self.T_c:g} s): every run keeps "
-                f"one command per period of it in its state; got history = {self.history:g} s"
+                f"one command per period of it in its state; got history = {self.history:g} s",
             )
         scalars = [
             self.kappa,
@@ -421,8 +424,9 @@ class PCON(PredictorBaseline):
             self, "delay_noise", positive_scalar("delay_noise", self.delay_noise, strictly=False)
         )
         if not is_integer_at_least(self.noise_seed, 0) or self.noise_seed > MAX_NOISE_SEED:
-            raise ValueError(
-                f"noise_seed must be an integer from 0 to {MAX_NOISE_SEED}; got {self.noise_seed!r}"
+            raise ArgumentError(
+                "noise_seed",
+                f"must be an integer from 0 to {MAX_NOISE_SEED}; got {self.noise_seed!r}",
             )
         super().__post_init__()
 
@@ -474,9 +478,10 @@ class PCONf(PredictorBaseline):
         h_bar = positive_scalar("h_bar", self.h_bar, strictly=False)
         history = positive_scalar("history", self.history)
         if h_bar > history:
-            raise ValueError(
-                f"h_bar = {h_bar:g} s exceeds history = {history:g} s: the history must hold "
-                "the whole window of tau"
+            raise ArgumentError(
+                "h_bar",
+                f"= {h_bar:g} s exceeds history = {history:g} s: the history must hold the whole "
+                "window of tau",
             )
         object.__setattr__(self, "h_bar", h_bar)
         super().__post_init__()

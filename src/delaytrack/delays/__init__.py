@@ -11,6 +11,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from delaytrack._spec import TypeSpec, build_from_table, integer, number, string, vector
+from delaytrack._validation import ArgumentError
 from delaytrack.delays.abs_sine import AbsSineDelay
 from delaytrack.delays.base import DelayProfile
 from delaytrack.delays.compiled_delay import CompiledDelay
@@ -39,8 +40,8 @@ def _trace(
     ``values`` (checked by the spec)."""
     if path is None:
         if csv:
-            raise ValueError(
-                f"{sorted(csv)[0]} reads a CSV file; it needs 'path' (not 'times' and 'values')"
+            raise ArgumentError(
+                sorted(csv)[0], "reads a CSV file; it needs 'path' (not 'times' and 'values')"
             )
         return TraceDelay(times, values, beyond=beyond)
     return TraceDelay.from_csv(path, beyond=beyond, **csv)

@@ -8,7 +8,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 import delaytrack.delays._kernel as _kernel
-from delaytrack._validation import positive_scalar
+from delaytrack._validation import ArgumentError, positive_scalar
 from delaytrack.delays.base import DelayProfile
 
 __all__ = ["AbsSineDelay"]
@@ -42,7 +42,7 @@ class AbsSineDelay(DelayProfile):
         object.__setattr__(self, "frequency", positive_scalar("frequency", self.frequency))
         phase = float(self.phase)
         if not np.isfinite(phase):
-            raise ValueError(f"phase must be finite; got {phase}")
+            raise ArgumentError("phase", f"must be finite; got {phase}")
         object.__setattr__(self, "phase", phase)
 
     @classmethod

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from delaytrack._validation import finite_array
+from delaytrack._validation import ArgumentError, finite_array
 from delaytrack.delays.base import DelayProfile
 
 __all__ = ["KnotDelay", "checked_knots", "pack_knots"]
@@ -22,21 +22,24 @@ def checked_knots(times: object, values: object) -> tuple[np.ndarray, np.ndarray
     t = finite_array("times", times, ndim=1)
     h = finite_array("values", values, ndim=1)
     if t.size == 0:
-        raise ValueError("times must contain at least one knot; got none")
+        raise ArgumentError("times", "must contain at least one knot; got none")
     if t.shape != h.shape:
-        raise ValueError(
-            f"values must have one entry per time; got {h.size} values for {t.size} times"
+        raise ArgumentError(
+            "values", f"must have one entry per time; got {h.size} values for {t.size} times"
         )
     steps = np.diff(t)
     if np.any(steps <= 0.0):
         i = int(np.argmax(steps <= 0.0))
-        raise ValueError(
-            "times must be strictly increasing; "
-            f"times[{i}] = {t[i]:g} is followed by times[{i + 1}] = {t[i + 1]:g}"
+        raise ArgumentError(
+            "times",
+            f"must be strictly increasing; times[{i}] = {t[i]:g} is followed by "
+            f"times[{i + 1}] = {t[i + 1]:g}",
         )
     if np.any(h < 0.0):
         i = int(np.argmax(h < 0.0))
-        raise ValueError(f"values must be >= 0 (delays); values[{i}] = {h[i]:g} at t = {t[i]:g}")
+        raise ArgumentError(
+            "values", f"must be >= 0 (delays); values[{i}] = {h[i]:g} at t = {t[i]:g}"
+        )
     t.flags.writeable = False
     h.flags.writeable = False
     return t, h

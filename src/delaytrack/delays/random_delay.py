@@ -9,7 +9,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 import delaytrack.delays._kernel as _kernel
-from delaytrack._validation import beyond_choice, positive_scalar
+from delaytrack._validation import ArgumentError, beyond_choice, positive_scalar
 from delaytrack.delays.base import DelayProfile
 from delaytrack.delays.knots import pack_knots
 
@@ -51,12 +51,15 @@ class RandomDelay(DelayProfile):
         low = positive_scalar("h_low", self.h_low, strictly=False)
         high = positive_scalar("h_high", self.h_high, strictly=False)
         if high < low:
-            raise ValueError(f"h_high must be >= h_low; got h_low = {low:g}, h_high = {high:g}")
+            raise ArgumentError(
+                "h_high", f"must be >= h_low; got h_low = {low:g}, h_high = {high:g}"
+            )
         rate = positive_scalar("max_rate", self.max_rate, strictly=False)
         if rate > MAX_RATE:
-            raise ValueError(
-                f"max_rate must be at most {MAX_RATE:g} (s of delay per s; a faster walk only "
-                f"bounces between h_low and h_high); got {rate:g}"
+            raise ArgumentError(
+                "max_rate",
+                f"must be at most {MAX_RATE:g} (s of delay per s; a faster walk only bounces "
+                f"between h_low and h_high); got {rate:g}",
             )
         duration = positive_scalar("duration", self.duration)
         spacing = positive_scalar("knot_spacing", self.knot_spacing)
@@ -65,16 +68,17 @@ class RandomDelay(DelayProfile):
             or not isinstance(self.seed, int | np.integer)
             or self.seed < 0
         ):
-            raise ValueError(f"seed must be a non-negative integer; got {self.seed!r}")
+            raise ArgumentError("seed", f"must be a non-negative integer; got {self.seed!r}")
         for name, value in (("h_low", low), ("h_high", high), ("max_rate", rate)):
             object.__setattr__(self, name, value)
         object.__setattr__(self, "duration", duration)
         object.__setattr__(self, "knot_spacing", spacing)
         object.__setattr__(self, "beyond", beyond_choice(self.beyond))
         if self.duration / spacing > MAX_KNOTS:
-            raise ValueError(
-                f"duration must be at most {MAX_KNOTS:g} knot spacings (one knot each, held in "
-                f"memory); got duration = {self.duration:g} s with knot_spacing = {spacing:g} s"
+            raise ArgumentError(
+                "duration",
+                f"must be at most {MAX_KNOTS:g} knot spacings (one knot each, held in memory); "
+                f"got duration = {self.duration:g} s with knot_spacing = {spacing:g} s",
             )
         times, values = self._walk()
         object.__setattr__(self, "_params", pack_knots(times, values))

@@ -19,7 +19,7 @@ from delaytrack._io import (
     csv_number,
     csv_table,
 )
-from delaytrack._validation import beyond_choice
+from delaytrack._validation import ArgumentError, beyond_choice
 from delaytrack.delays.knots import KnotDelay
 
 __all__ = ["TIME_UNITS", "TraceDelay"]
@@ -30,7 +30,7 @@ _ROLES = ("t", "h")
 
 def _unit(argument: str, value: object) -> float:
     if value not in TIME_UNITS:
-        raise ValueError(f"{argument} must be one of {list(TIME_UNITS)}; got {value!r}")
+        raise ArgumentError(argument, f"must be one of {list(TIME_UNITS)}; got {value!r}")
     return TIME_UNITS[str(value)]
 
 
@@ -106,9 +106,10 @@ class TraceDelay(KnotDelay):
         """
         path = Path(path)
         if (time_column is None) != (delay_column is None):
-            raise ValueError(
-                "time_column and delay_column name the two columns of a CSV header; give both "
-                f"or neither; got time_column = {time_column!r}, delay_column = {delay_column!r}"
+            raise ArgumentError(
+                "time_column",
+                "and delay_column name the two columns of a CSV header; give both or neither; "
+                f"got time_column = {time_column!r}, delay_column = {delay_column!r}",
             )
         given = (time_unit, delay_unit)
         scales = [

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from delaytrack._compile.jit import kernel, tick_kernel
-from delaytrack._validation import finite_array
+from delaytrack._validation import ArgumentError, finite_array
 from delaytrack.references.base import Reference
 
 __all__ = [
@@ -75,18 +75,18 @@ class SinusoidalReference(Reference):
         offset = finite_array("offset", self.offset, ndim=1)
         n = offset.size
         if n == 0:
-            raise ValueError("offset must have one value per coordinate; got an empty list")
+            raise ArgumentError("offset", "must have one value per coordinate; got an empty list")
         slope = np.zeros(n) if self.slope is None else finite_array("slope", self.slope, ndim=1)
         if slope.size != n:
-            raise ValueError(f"slope must have length n = {n}; got {slope.size}")
+            raise ArgumentError("slope", f"must have length n = {n}; got {slope.size}")
         harmonic = {}
         for name in ("amplitude", "frequency", "phase"):
             value = getattr(self, name)
             array = np.zeros((n, 0)) if value is None else finite_array(name, value)
             array = array.reshape(n, -1) if array.ndim == 1 and array.size == n else array
             if array.ndim != 2 or array.shape[0] != n:
-                raise ValueError(
-                    f"{name} must have shape (n,) or (n, K) with n = {n}; got {array.shape}"
+                raise ArgumentError(
+                    name, f"must have shape (n,) or (n, K) with n = {n}; got {array.shape}"
                 )
             harmonic[name] = array
         widths = {

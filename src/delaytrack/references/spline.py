@@ -29,7 +29,7 @@ from delaytrack._io import (
     csv_number,
     csv_table,
 )
-from delaytrack._validation import beyond_choice, finite_array
+from delaytrack._validation import ArgumentError, beyond_choice, finite_array
 from delaytrack.references.base import Reference
 
 __all__ = ["BOUNDARIES", "MAX_SAMPLES", "SplineReference", "spline_reference"]
@@ -111,16 +111,19 @@ class SplineReference(Reference):
         if values.ndim == 1:
             values = values[:, None]
         if not 2 <= times.size <= MAX_SAMPLES:
-            raise ValueError(f"times must hold 2 to {MAX_SAMPLES} samples; got {times.size}")
+            raise ArgumentError("times", f"must hold 2 to {MAX_SAMPLES} samples; got {times.size}")
         if not np.all(np.diff(times) > 0):
-            raise ValueError(f"times must be strictly increasing; got {times.tolist()[:10]}")
+            raise ArgumentError("times", f"must be strictly increasing; got {times.tolist()[:10]}")
         if values.ndim != 2 or values.shape[0] != times.size or values.shape[1] == 0:
-            raise ValueError(
-                f"values must have shape (K, n) with K = {times.size} rows, one per time; got "
-                f"{values.shape}"
+            raise ArgumentError(
+                "values",
+                f"must have shape (K, n) with K = {times.size} rows, one per time; got "
+                f"{values.shape}",
             )
         if self.boundary not in BOUNDARIES:
-            raise ValueError(f"boundary must be one of {list(BOUNDARIES)}; got {self.boundary!r}")
+            raise ArgumentError(
+                "boundary", f"must be one of {list(BOUNDARIES)}; got {self.boundary!r}"
+            )
         beyond_choice(self.beyond)
         # Imported here, when a spline is built: SciPy's interpolation takes a quarter of a
         # second to import, which every command and live node would otherwise pay.
@@ -131,7 +134,7 @@ class SplineReference(Reference):
         hold = 1.0 if self.beyond == "hold" else 0.0
         packed = np.concatenate([[n, times.size, hold], times, spline.c.ravel()])
         if not np.all(np.isfinite(packed)):
-            raise ValueError("values give a spline with non-finite coefficients")
+            raise ArgumentError("values", "give a spline with non-finite coefficients")
         object.__setattr__(self, "times", times)
         object.__setattr__(self, "values", values)
         object.__setattr__(self, "_params", packed)

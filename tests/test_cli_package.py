@@ -125,9 +125,10 @@ def test_the_command_line_names_the_flag_and_keeps_the_librarys_words():
 
 def test_the_paper_job_refuses_a_duration_off_its_controller_period_before_writing(tmp_path):
     from delaytrack.experiments import paper
+    from delaytrack.jobs.paper import reproduce
 
     with pytest.raises(ArgumentError) as refused:
-        paper.reproduce(tmp_path / "out", duration=1.5 * paper.T_C, progress=False)
+        reproduce(tmp_path / "out", duration=1.5 * paper.T_C, progress=False)
     assert refused.value.argument == "duration"
     assert f"'T_c' = {paper.T_C:g} s" in str(refused.value)
     assert not (tmp_path / "out").exists()

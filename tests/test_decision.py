@@ -11,8 +11,9 @@ import pytest
 
 from delaytrack._validation import ArgumentError
 from delaytrack.cli import main
-from delaytrack.experiments.decision import Envelope, decide, draws_needed
-from delaytrack.experiments.intervals import wilson_interval
+from delaytrack.experiments.decision import Envelope, Refusal, Shortfall, decide, draws_needed
+from delaytrack.experiments.intervals import Z95, wilson_interval
+from delaytrack.report.decision import candidates_table, decision_table, refusal_text
 from delaytrack.scenario import Scenario
 from test_tradeoff import PLANT, ZETA
 
@@ -51,7 +52,7 @@ def _table(runs: int, pconf_on_path: int, on_path: int | None = None) -> pd.Data
 
 def test_the_rule_picks_the_winner_runner_up_and_margin():
     decision = decide(_table(80, 78), ENVELOPE, ae_unit="m")
-    assert decision.refusal is None
+    assert refusal_text(decision) is None
     assert (decision.winner.controller, decision.winner.omega_n) == ("arolc", 2.0)
     assert decision.winner.worst_ae == 0.012
     assert (decision.runner_up.controller, decision.runner_up.omega_n) == ("outer-loop", 2.0)
@@ -70,11 +71,76 @@ def test_the_rule_picks_the_winner_runner_up_and_margin():
         "arolc1.0": "qualifies",
         "pconf2.0": "excluded",
     }
-    pconf = decision.candidates[decision.candidates.controller == "pconf"].iloc[0]
+    candidates = candidates_table(decision)
+    pconf = candidates[candidates.controller == "pconf"].iloc[0]
     low = wilson_interval(78, 80)[0]
     assert pconf.worst_share_low == low < 0.95
     assert f"Wilson lower bound {low:.3f} < 0.95" in pconf.why and "78 of 80" in pconf.why
     assert len(decision.table) == 8 and decision.table.share_low.notna().all()
+
+
+def test_the_decision_holds_the_facts_and_the_report_words_them():
+    """Why each candidate was not chosen is held as facts (the worst condition, whether the
+    draws were too few; the winner at the sweep's largest ω_n); the report words them into the
+    ``why`` column and the refusal, with the columns the tables always had."""
+    decision = decide(_table(80, 78), ENVELOPE, ae_unit="m")
+    assert decision.winner.at_largest_omega_n and decision.runner_up.at_largest_omega_n
+    assert "why" not in decision.candidates and "why" not in decision.table
+    assert list(decision.shortfalls) == [("pconf", 2.0)]
+    low = wilson_interval(78, 80)[0]
+    assert decision.shortfalls["pconf", 2.0] == Shortfall(
+        "pconf", 2.0, low, 0.1, ENVELOPE.told[0], 78, 80, too_few_draws=False
+    )
+    candidates = candidates_table(decision)
+    assert list(candidates.columns) == [
+        *("controller", "omega_n", "k1", "k2", "worst_share_low", "worst_ae"),
+        *("qualifies", "status", "why"),
+    ]
+    keys = candidates.controller + candidates.omega_n.astype(str)
+    why = dict(zip(keys, candidates.why, strict=True))
+    assert why == {
+        "arolc2.0": "",
+        "outer-loop2.0": "",
+        "arolc1.0": "worst-case AE 0.02 m against the winner's 0.012 m",
+        "pconf2.0": f"Wilson lower bound {low:.3f} < 0.95 at delay 0.1 s, told 0.075 s "
+        "(78 of 80 on the path)",
+    }
+    table = decision_table(decision)
+    assert list(table.columns) == [*decision.table.columns, "why"]
+    assert list(table.why) == list((table.controller + table.omega_n.astype(str)).map(why))
+    assert decision.refused is None and refusal_text(decision) is None
+
+    t = _table(80, 78)
+    t.loc[t.omega_n == 1.0, "ae_median"] = 0.005  # AROLC at 1 rad/s wins, inside the sweep
+    inside = decide(t, ENVELOPE)
+    assert (inside.winner.omega_n, inside.winner.at_largest_omega_n) == (1.0, False)
+    assert inside.runner_up.at_largest_omega_n
+
+
+def test_a_refusal_holds_its_facts_and_the_report_words_them():
+    few = decide(_table(40, 40), ENVELOPE)
+    ceiling = 40 / (40 + Z95**2)
+    assert few.refused == Refusal(too_few_draws=True, draws=40, ceiling=ceiling)
+    assert few.shortfalls["arolc", 1.0].too_few_draws
+    assert refusal_text(few) == (
+        "no candidate qualifies at this size: with 40 draws per condition the Wilson lower "
+        f"bound cannot exceed n/(n + z²) = {ceiling:.3f} < 0.95 even with every robot on the "
+        "path; at least 73 draws are needed"
+    )
+    assert candidates_table(few).why.str.endswith("; 40 draws cannot reach it (at least 73)").all()
+
+    none = decide(_table(80, 70, on_path=76), ENVELOPE)
+    closest = none.refused.closest
+    assert not none.refused.too_few_draws and none.refused.draws == 80
+    # Every candidate but PCONf has 76 of 80 on the path: one of them is the closest.
+    assert (closest.controller, closest.omega_n, closest.on_path) == ("arolc", 2.0, 76)
+    assert closest == none.shortfalls["arolc", 2.0] and not closest.too_few_draws
+    assert refusal_text(none) == (
+        "no candidate qualifies: none stays on the path in at least 95 % of the drawn robots "
+        "by the Wilson lower bound in every condition (closest: arolc at omega_n = 2 rad/s, "
+        f"Wilson lower bound {closest.share_low:.3f} < 0.95 at delay 0.1 s (76 of 80 on "
+        "the path))"
+    )
 
 
 def test_the_rule_refuses_when_the_lower_bound_cannot_reach_095():
@@ -83,15 +149,16 @@ def test_the_rule_refuses_when_the_lower_bound_cannot_reach_095():
     decision = decide(_table(40, 40), ENVELOPE)
     assert decision.winner is None and decision.runner_up is None
     assert math.isnan(decision.ae_difference)
-    assert decision.refusal.startswith("no candidate qualifies at this size: with 40 draws")
-    assert "at least 73 draws are needed" in decision.refusal
+    refusal = refusal_text(decision)
+    assert refusal.startswith("no candidate qualifies at this size: with 40 draws")
+    assert "at least 73 draws are needed" in refusal
     assert not decision.candidates.qualifies.any()
 
 
 def test_the_rule_refuses_when_none_stays_on_the_path_often_enough():
     decision = decide(_table(80, 70, on_path=76), ENVELOPE)
     assert decision.winner is None
-    assert decision.refusal.startswith("no candidate qualifies: none stays on the path")
+    assert refusal_text(decision).startswith("no candidate qualifies: none stays on the path")
 
 
 def test_the_envelope_sets_the_conditions():
@@ -122,3 +189,11 @@ def test_a_small_run_says_no_candidate_qualifies_at_this_size(tmp_path, capsys):
     assert sorted(table.told_s.dropna().unique()) == pytest.approx([0.075, 0.125])
     assert (table.delay_s == 0.1).all() and (table.status == "excluded").all()
     assert "Decision for a delay envelope" in (out / "report.html").read_text()
+
+
+def test_the_old_refusal_attribute_warns_and_reads_the_reports_words():
+    decision = decide(_table(40, 40), ENVELOPE)
+    with pytest.warns(DeprecationWarning, match=r"report\.decision\.refusal_text"):
+        assert decision.refusal == refusal_text(decision)
+    with pytest.warns(DeprecationWarning):
+        assert decide(_table(80, 78), ENVELOPE).refusal is None

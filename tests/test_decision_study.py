@@ -4,6 +4,7 @@ every number from that result; bad sizes are refused in one line before anything
 
 from __future__ import annotations
 
+import dataclasses
 import html
 import math
 import re
@@ -13,18 +14,22 @@ import pytest
 
 from delaytrack._validation import ArgumentError
 from delaytrack.cli import main
-from delaytrack.experiments import decision_study, paper
+from delaytrack.experiments import paper
 from delaytrack.experiments.decision import Envelope, decide
 from delaytrack.experiments.decision_study import (
     DecisionSize,
     DecisionStudy,
     envelope_table,
     paper_envelopes,
-    reproduce,
 )
 from delaytrack.experiments.intervals import wilson_interval
 from delaytrack.experiments.tradeoff import TradeoffStudy
-from delaytrack.report.decision_study import decision_sentence
+from delaytrack.jobs import decision_study as decision_job
+from delaytrack.jobs import paper as paper_job
+from delaytrack.jobs.decision_study import reproduce
+from delaytrack.report import paper as paper_report
+from delaytrack.report.decision import refusal_text
+from delaytrack.report.decision_study import decision_sentence, display_envelopes
 from delaytrack.scenario import load_builtin
 
 #: Two gain points, two robots per trade-off point, three per candidate and condition.
@@ -149,7 +154,7 @@ def paper_study():
 @pytest.mark.parametrize("arolc_ae", [0.0123, 0.0456])
 def test_the_paper_report_renders_the_section_from_the_result(paper_study, tmp_path, arolc_ae):
     decision = _hand_built(arolc_ae)
-    paper.write_study(paper_study, tmp_path, decision=decision)
+    paper_report.write_study(paper_study, tmp_path, decision=decision)
     report = (tmp_path / "report.html").read_text()
     assert report.count("Which controller for which delay envelope") == 2  # contents, heading
     low = wilson_interval(120, 120)[0]
@@ -173,8 +178,32 @@ def test_the_paper_report_renders_the_section_from_the_result(paper_study, tmp_p
     assert f"{arolc_ae:.4g}" in report  # the table's worst-case AE
 
 
+def test_the_study_holds_the_facts_and_the_page_words_them():
+    """The study's table holds no sentence: ``decision.csv``'s ``reason`` (last column) is the
+    report's wording of each decision's refusal; whether the winner sits at the sweep's largest
+    ω_n is the decision's, and the sentence follows it."""
+    study = _hand_built(0.0123)
+    assert "reason" not in study.table
+    shown = display_envelopes(study)
+    assert list(shown.columns)[-1] == "reason"
+    refused = study.decisions["unknown"]
+    assert refused.refused.too_few_draws and refused.refused.draws == 20
+    assert list(shown.reason) == ["", refusal_text(refused)]
+    assert refusal_text(refused).startswith("no candidate qualifies at this size: with 20 draws")
+    winner = study.decisions["S1-exact"]
+    assert winner.winner.at_largest_omega_n
+    assert "(the largest ω_n of the sweep" in decision_sentence("S1", winner)
+    inside = dataclasses.replace(
+        winner, winner=dataclasses.replace(winner.winner, at_largest_omega_n=False)
+    )
+    assert "largest ω_n" not in decision_sentence("S1", inside)
+    assert decision_sentence("S1", inside) == decision_sentence("S1", winner).replace(
+        " (the largest ω_n of the sweep: larger gains were not tried)", ""
+    )
+
+
 def test_the_paper_report_has_no_decision_section_without_the_study(paper_study, tmp_path):
-    paper.write_study(paper_study, tmp_path)
+    paper_report.write_study(paper_study, tmp_path)
     assert "Which controller for which delay envelope" not in (tmp_path / "report.html").read_text()
 
 
@@ -218,7 +247,7 @@ def test_the_paper_job_with_decision_runs_it_after_its_checks(tmp_path, monkeypa
     renders it (the section is checked above from a hand-built study, a tiny study end to end
     below). ``--decision`` with another job is refused in one line."""
     calls = {}
-    real_paper = paper.reproduce
+    real_paper = paper_job.reproduce
 
     def run_paper(out, **options):
         calls["paper"] = (out, options["decision"])
@@ -228,12 +257,12 @@ def test_the_paper_job_with_decision_runs_it_after_its_checks(tmp_path, monkeypa
         calls["decision"] = (out, options["size"])
         raise AssertionError("the decision study ran before the paper job's checks")
 
-    monkeypatch.setattr(paper, "reproduce", run_paper)
+    monkeypatch.setattr(paper_job, "reproduce", run_paper)
     common = ["reproduce", "--out", str(tmp_path), "--quiet"]
     with pytest.raises(SystemExit):
         main([*common, "--decision", "--size", "full"])
     assert calls == {"paper": (str(tmp_path), "full")}
-    monkeypatch.setattr(decision_study, "reproduce", run_decision)
+    monkeypatch.setattr(decision_job, "reproduce", run_decision)
     with pytest.raises(ArgumentError, match="multiple of 'T_c'"):
         real_paper(tmp_path / "out", duration=0.015, decision="default")
     assert "decision" not in calls

@@ -21,7 +21,8 @@ import pytest
 from delaytrack._validation import real_array
 from delaytrack.cli import main
 from delaytrack.delays import ConstantDelay, RandomDelay, TraceDelay
-from delaytrack.experiments import empirical_margin, run_to_folder
+from delaytrack.experiments import empirical_margin
+from delaytrack.jobs.scenario_run import run_to_folder
 from delaytrack.metrics import mean_absolute_error, metrics_table, total_variation
 from delaytrack.plants.robot import PayloadRobot
 from delaytrack.scenario import Scenario, ScenarioError, load_builtin
@@ -567,6 +568,16 @@ def test_cli_integers_are_plain_decimal_digits(capsys):
     assert "--n" in capsys.readouterr().err
     assert main(["sweep", "x.toml", "--workers", "1_0"]) == 2
     one_line_error(capsys, "--workers")
+    assert main(["sweep", "x.toml", "--workers", "+0"]) == 2
+    one_line_error(capsys, "--workers must be a positive integer; got '+0'")
+
+
+def test_cli_workers_follow_the_integer_rule_of_every_count(tmp_path, capsys):
+    # "+2" is an integer for --n and --seed, so for --workers too: the refusal is the file's.
+    missing = tmp_path / "absent.toml"
+    assert main(["sweep", str(missing), "--out", str(tmp_path / "o"), "--workers", "+2"]) == 2
+    err = one_line_error(capsys, str(missing))
+    assert "--workers" not in err
 
 
 def test_an_empty_reference_offset_is_blamed_on_the_offset():

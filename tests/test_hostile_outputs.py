@@ -52,8 +52,8 @@ from delaytrack._result_columns import trajectory_columns
 from delaytrack.cli import main
 from delaytrack.controllers import AROLC
 from delaytrack.delays import AbsSineDelay
-from delaytrack.experiments import run_to_folder
 from delaytrack.experiments.tuning import default_gains_path
+from delaytrack.jobs.scenario_run import run_to_folder
 from delaytrack.plants import CallablePlant, CompiledPlant, TwoLinkArm
 from delaytrack.references import SinusoidalReference
 from delaytrack.sim import SimResult, simulate
@@ -641,7 +641,7 @@ def test_the_campaigns_units_that_gave_two_summary_columns_are_refused():
 
 def test_the_summary_columns_are_built_by_one_function_that_refuses_duplicates():
     from delaytrack._result_columns import summary_columns
-    from delaytrack.sweeps.report import with_units
+    from delaytrack.report.sweep import with_units
 
     units = {"ae_x": "max_m", "ae_x_mean": "m"}  # a plant that was never checked
     with pytest.raises(ValueError, match=r"two columns 'ae_x_mean_max_m' \(the mean of ae_x"):

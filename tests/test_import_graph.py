@@ -257,6 +257,27 @@ def test_the_studies_stand_above_sweeps_and_scenarios(package: str):
     assert upward == []
 
 
+def test_studies_return_results_and_jobs_write_their_reports():
+    """A study (``experiments``) returns its result and imports neither a report nor a job; a
+    report renders results and reaches no job: :mod:`delaytrack.jobs` runs a study and writes
+    its report. (A study reaches :mod:`delaytrack.report.figures` only through
+    :mod:`delaytrack.sim`, whose ``SimResult.plot`` draws with it.)"""
+    edges = _graph()
+    upward = sorted(
+        f"{module} -> {target}"
+        for module in _modules_in("delaytrack.experiments")
+        for target in edges[module]
+        if _within(target, "delaytrack.report") or _within(target, "delaytrack.jobs")
+    )
+    upward += sorted(
+        f"{module} -> {target}"
+        for module in _modules_in("delaytrack.report")
+        for target in _reachable(edges, module)
+        if _within(target, "delaytrack.jobs")
+    )
+    assert upward == []
+
+
 def test_a_scenario_is_read_built_and_run_without_the_packages_above_it():
     """``scenario`` imports neither reports nor the packages that use scenarios. (Through
     :mod:`delaytrack.sim` it reaches :mod:`delaytrack.report.figures`: ``SimResult.plot`` draws

@@ -15,6 +15,7 @@ from delaytrack import razumikhin_bound
 from delaytrack.cli import main
 from delaytrack.experiments import paper, paper_findings, tuning
 from delaytrack.experiments.contact import contact_findings
+from delaytrack.jobs.paper import run_paper
 from delaytrack.report import paper as paper_report
 from delaytrack.report.contact import contact_paragraphs
 from delaytrack.scenario import load_builtin
@@ -41,7 +42,7 @@ COLUMNS = (
 
 @pytest.mark.slow
 def test_short_run_writes_every_promised_file(tmp_path):
-    study = paper.run_paper(tmp_path, duration=2.0, progress=False, check_dt=False)
+    study = run_paper(tmp_path, duration=2.0, progress=False, check_dt=False)
     summary_text = (tmp_path / "summary.csv").read_text().splitlines()
     assert summary_text[0] == COLUMNS
     summary = pd.read_csv(tmp_path / "summary.csv")

@@ -14,6 +14,7 @@ from delaytrack.experiments import robustness, tuning
 from delaytrack.experiments.intervals import median_interval, wilson_interval
 from delaytrack.experiments.outcomes import delay_reach, outcome_table
 from delaytrack.experiments.verdicts import claim_verdicts
+from delaytrack.jobs.robustness import run_robustness
 from test_verdicts import draws
 
 
@@ -154,7 +155,7 @@ def test_the_edge_is_where_some_runs_diverge_or_the_next_delay_differs():
 @pytest.mark.slow
 def test_a_small_study_runs_resumes_and_writes_its_files(tmp_path):
     size = robustness.StudySize(map=1, knowledge=1, claims=2, map_edge=3)
-    first = robustness.run_robustness(tmp_path, size=size, progress=False)
+    first = run_robustness(tmp_path, size=size, progress=False)
     # The map's cells at a divergence edge were run again with 3 draws, the others kept 1; the
     # first draw of a refined cell is the map's run of that cell, bit for bit.
     edges = robustness.edge_cells(outcome_table(first.runs["map"], CELL))
@@ -207,7 +208,7 @@ def test_a_small_study_runs_resumes_and_writes_its_files(tmp_path):
         (first.map.delay_ms == 60.0) & (first.map.controller == "PCONf") & (first.map.scale == 2.0)
     ]
     assert row.predictor_divergence_rate.iloc[0] == cell.divergence_rate.iloc[0]
-    again = robustness.run_robustness(tmp_path, size=size, progress=False)
+    again = run_robustness(tmp_path, size=size, progress=False)
     assert again.computed == 0 and again.resumed == first.computed
     pd.testing.assert_frame_equal(again.map, first.map)
     # Every verdict's numbers come from the runs: recompute one comparison's counts.

@@ -408,6 +408,7 @@ def test_packet_loss_is_a_table_of_the_scenario(tmp_path):
 def test_the_scenario_names_stay_importable_from_experiments_and_the_package_root():
     import delaytrack
     import delaytrack.experiments as experiments
+    import delaytrack.jobs.scenario_run as scenario_run
     import delaytrack.scenario as scenario
 
     for name in (
@@ -422,4 +423,4 @@ def test_the_scenario_names_stay_importable_from_experiments_and_the_package_roo
         assert getattr(experiments, name) is getattr(scenario, name)
     for name in ("Scenario", "ScenarioError", "load_builtin"):
         assert getattr(delaytrack, name) is getattr(scenario, name)
-    assert delaytrack.run_to_folder is experiments.run_to_folder
+    assert delaytrack.run_to_folder is scenario_run.run_to_folder

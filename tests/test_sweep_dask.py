@@ -194,10 +194,11 @@ def test_a_scheduler_that_does_not_answer_is_a_clear_error():
 def test_the_robustness_study_runs_on_the_cluster(cluster, tmp_path):
     # The study's sweeps on the cluster give the local executor's tables, bit for bit.
     from delaytrack.experiments import robustness
+    from delaytrack.jobs.robustness import run_robustness
 
     size = robustness.StudySize(map=1, knowledge=1, claims=1)
-    local = robustness.run_robustness(tmp_path / "local", size=size, progress=False)
-    on_cluster = robustness.run_robustness(
+    local = run_robustness(tmp_path / "local", size=size, progress=False)
+    on_cluster = run_robustness(
         tmp_path / "dask",
         size=size,
         executor=lambda: DaskExecutor(cluster.scheduler_address),

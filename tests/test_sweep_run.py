@@ -15,6 +15,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from delaytrack.cli import main
+from delaytrack.report.sweep import findings, write_sweep_outputs
 from delaytrack.sweeps import (
     LocalExecutor,
     SweepError,
@@ -25,11 +26,9 @@ from delaytrack.sweeps import (
     run_sweep,
     run_unit,
     summary_table,
-    write_sweep_outputs,
 )
 from delaytrack.sweeps import executors as executors_module
 from delaytrack.sweeps import runner as runner_module
-from delaytrack.sweeps.report import findings
 from delaytrack.sweeps.summary import controller_labels, delay_classes
 
 EXAMPLE = Path(__file__).parents[1] / "examples" / "sweep_small.toml"

@@ -25,7 +25,8 @@ from .delays import (
     TraceDelay,
     delay_from_spec,
 )
-from .experiments import EmpiricalMargin, empirical_margin, run_to_folder
+from .experiments import EmpiricalMargin, empirical_margin
+from .jobs.scenario_run import run_to_folder
 from .metrics import (
     max_abs_error,
     mean_absolute_error,

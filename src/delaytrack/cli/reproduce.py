@@ -172,7 +172,8 @@ def _study_executor(args: argparse.Namespace):
 
 def _paper(args: argparse.Namespace, executor) -> int:
     """The paper job: ``<out>/paper-literal/``, ``<out>/robustness/`` and ``<out>/paper/``."""
-    from delaytrack.experiments.paper import DURATION, SUMMARY_COLUMNS, reproduce
+    from delaytrack.experiments.paper import DURATION, SUMMARY_COLUMNS
+    from delaytrack.jobs.paper import reproduce
 
     start = time.perf_counter()
     try:
@@ -212,7 +213,7 @@ def _paper(args: argparse.Namespace, executor) -> int:
 
 def _robustness(args: argparse.Namespace, executor) -> int:
     """The robustness study alone, into ``<out>/robustness/``."""
-    from delaytrack.experiments.robustness import run_robustness
+    from delaytrack.jobs.robustness import run_robustness
     from delaytrack.report.robustness import findings
 
     folder = check_output_folder(Path(args.out) / "robustness", "--out")
@@ -230,7 +231,8 @@ def _robustness(args: argparse.Namespace, executor) -> int:
 
 def _decision(args: argparse.Namespace, executor) -> int:
     """The decision study, into ``<out>/decision/``."""
-    from delaytrack.experiments.decision_study import FOLDER, reproduce
+    from delaytrack.experiments.decision_study import FOLDER
+    from delaytrack.jobs.decision_study import reproduce
     from delaytrack.report.decision_study import decision_sentence
 
     study = _timed(
@@ -259,7 +261,8 @@ def _timed(job: str, folder: str, args: argparse.Namespace, run: Callable[[], tu
 
 def _two_link(args: argparse.Namespace) -> int:
     """The two-link job, into ``<out>/two-link/``."""
-    from delaytrack.experiments.two_link import FOLDER, reproduce
+    from delaytrack.experiments.two_link import FOLDER
+    from delaytrack.jobs.two_link import reproduce
     from delaytrack.scenario import ScenarioError
 
     try:
@@ -286,7 +289,8 @@ def _two_link(args: argparse.Namespace) -> int:
 
 def _margins(args: argparse.Namespace) -> int:
     """The margins job, into ``<out>/margins/``."""
-    from delaytrack.experiments.margins import FOLDER, reproduce
+    from delaytrack.experiments.margins import FOLDER
+    from delaytrack.jobs.margins import reproduce
 
     try:
         study = _timed(

@@ -16,7 +16,7 @@ from delaytrack.cli._scenarios import scenario_source, trusted
 if TYPE_CHECKING:
     import pandas as pd
 
-    from delaytrack.experiments.scenario_run import RunOutput
+    from delaytrack.jobs.scenario_run import RunOutput
 
 __all__ = ["add_command", "run"]
 
@@ -53,7 +53,7 @@ def add_command(commands: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the scenario, write its folder and print its summary and files."""
-    from delaytrack.experiments import run_to_folder
+    from delaytrack.jobs.scenario_run import run_to_folder
     from delaytrack.scenario import Scenario
 
     scenario = Scenario.from_toml(scenario_source(args.scenario), trust=trusted(args))

@@ -1,13 +1,14 @@
-"""Experiments: what is made of scenarios (:mod:`delaytrack.scenario`), from one run's results
-folder to the jobs of ``delaytrack reproduce``.
+"""Experiments: the studies made of scenarios (:mod:`delaytrack.scenario`), from a scenario's
+empirical margin to the studies of ``delaytrack reproduce``. Each study returns a frozen result
+holding every number its report quotes; the report (prose, tables, figures, page) is
+:mod:`delaytrack.report`'s module of the same name, and :mod:`delaytrack.jobs` runs a study and
+writes its report to a folder.
 
-- :mod:`delaytrack.experiments.scenario_run`: :func:`run_to_folder`, one scenario run to its
-  results folder (``delaytrack simulate``).
 - :mod:`delaytrack.experiments.empirical_margin`: :func:`empirical_margin`, the largest delay at
   which a scenario's closed loop still tracks (bisection over batched simulations).
 - :mod:`delaytrack.experiments.margins`: certified vs exact vs empirical margins over a grid of
   gains (``delaytrack reproduce --job margins``).
-- :mod:`delaytrack.experiments.paper`: the main job, the paper's robot experiment (S1–S4, AROLC vs
+- :mod:`delaytrack.experiments.paper`: the paper's robot experiment (S1–S4, AROLC vs
   PCON/PCONf vs the outer loop; ``delaytrack reproduce``).
 - :mod:`delaytrack.experiments.tuning`: the tuning protocol that chooses every compared
   controller's gains (``delaytrack tune-baselines``).
@@ -21,20 +22,18 @@ folder to the jobs of ``delaytrack reproduce``.
   :mod:`~delaytrack.experiments.decision` chooses among them for a delay envelope, and
   :mod:`~delaytrack.experiments.decision_study` does so for the P3-DX and the paper's envelopes
   (``delaytrack reproduce --job decision``).
-- :mod:`delaytrack.experiments.two_link`: the two-link job, AROLC vs the plain outer loop
+- :mod:`delaytrack.experiments.two_link`: the two-link study, AROLC vs the plain outer loop
   on the two-link arm under S1 and S3 (``delaytrack reproduce --job two-link``).
 
-Every job returns a frozen study holding every number its report quotes; the report (prose,
-tables, figures, page) is :mod:`delaytrack.report`'s module of the same name. Import the jobs
-explicitly; they pull in the report package. The scenario names exported here
-(:class:`Scenario`, :func:`load_builtin`, ...) are those of :mod:`delaytrack.scenario`.
+The scenario names exported here (:class:`Scenario`, :func:`load_builtin`, ...) are those of
+:mod:`delaytrack.scenario`.
 """
 
+from delaytrack._deprecated import moved_names
 from delaytrack.experiments.empirical_margin import (
     EmpiricalMargin,
     empirical_margin,
 )
-from delaytrack.experiments.scenario_run import RunOutput, run_to_folder
 from delaytrack.scenario import (
     BuiltScenario,
     Scenario,
@@ -48,7 +47,6 @@ from delaytrack.scenario import (
 __all__ = [
     "BuiltScenario",
     "EmpiricalMargin",
-    "RunOutput",
     "Scenario",
     "ScenarioError",
     "builtin_scenario_names",
@@ -56,5 +54,13 @@ __all__ = [
     "empirical_margin",
     "load_builtin",
     "run_batched",
-    "run_to_folder",
 ]
+
+#: Running a scenario to its folder is a job (it writes a report): :mod:`delaytrack.jobs`.
+__getattr__ = moved_names(
+    __name__,
+    {
+        "RunOutput": "delaytrack.jobs.scenario_run:RunOutput",
+        "run_to_folder": "delaytrack.jobs.scenario_run:run_to_folder",
+    },
+)

@@ -42,9 +42,11 @@ parts, any executor) and returns a :class:`Decision`, which
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import math
 import re
 import time
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -72,6 +74,8 @@ __all__ = [
     "Choice",
     "Decision",
     "Envelope",
+    "Refusal",
+    "Shortfall",
     "decide",
     "draws_needed",
     "run_decision",
@@ -169,7 +173,9 @@ class Envelope:
 @dataclass(frozen=True)
 class Choice:
     """A chosen candidate: its controller, gains (``K1 = k1 I``, ``K2 = k2 I`` at ``ω_n``), its
-    worst-case AE and its worst (smallest) Wilson lower bound over the conditions."""
+    worst-case AE, its worst (smallest) Wilson lower bound over the conditions, and
+    ``at_largest_omega_n``: whether its ``ω_n`` is the largest of the candidates' (the edge of
+    the sweep: larger gains were not tried)."""
 
     controller: str
     omega_n: float
@@ -177,6 +183,61 @@ class Choice:
     k2: float
     worst_ae: float
     worst_share_low: float
+    at_largest_omega_n: bool
+
+
+@dataclass(frozen=True)
+class Shortfall:
+    """Why a candidate does not qualify: the condition where its Wilson lower bound is smallest.
+
+    Attributes
+    ----------
+    controller : str
+    omega_n : float
+        The candidate.
+    share_low : float
+        Its Wilson 95 % lower bound there, below the required share.
+    delay, told : float
+        The condition: the true constant delay and what the predictor is told (s; NaN: told
+        nothing).
+    on_path, runs : int
+        Robots on the path of those drawn there.
+    too_few_draws : bool
+        Whether ``runs`` is below :func:`draws_needed`, so no outcome could have qualified.
+    """
+
+    controller: str
+    omega_n: float
+    share_low: float
+    delay: float
+    told: float
+    on_path: int
+    runs: int
+    too_few_draws: bool
+
+
+@dataclass(frozen=True)
+class Refusal:
+    """Why the rule chose no candidate.
+
+    Attributes
+    ----------
+    too_few_draws : bool
+        True: ``draws`` is below :func:`draws_needed`, so no candidate can qualify whatever the
+        robots do; False: there were enough draws and no candidate qualifies.
+    draws : int
+        The fewest robots drawn per condition.
+    ceiling : float
+        ``n / (n + z²)`` for ``n = draws``: the largest Wilson lower bound those draws allow.
+    closest : Shortfall or None
+        When ``too_few_draws`` is False: the candidate whose worst Wilson lower bound is the
+        largest, and why it does not qualify (None otherwise).
+    """
+
+    too_few_draws: bool
+    draws: int
+    ceiling: float
+    closest: Shortfall | None = None
 
 
 @dataclass(frozen=True)
@@ -191,15 +252,17 @@ class Decision:
         ``delay`` (the true constant delay, s), ``told`` (what the predictor is told, s; NaN
         for the controllers told nothing), ``runs``, ``on_path``, ``share_on_path``,
         ``share_low``, ``share_high`` (Wilson 95 %), ``ae_median`` (over the runs on the path),
-        then the candidate's ``worst_share_low``, ``worst_ae``, ``qualifies``, ``status``
-        (``winner``, ``runner-up``, ``qualifies`` or ``excluded``) and ``why``.
+        then the candidate's ``worst_share_low``, ``worst_ae``, ``qualifies`` and ``status``
+        (``winner``, ``runner-up``, ``qualifies`` or ``excluded``).
+        :func:`delaytrack.report.decision.decision_table` adds why each was not chosen.
     candidates : DataFrame
-        One row per candidate (the candidate's columns of ``table``), best first.
+        One row per candidate (the candidate's columns of ``table``), best first
+        (:func:`delaytrack.report.decision.candidates_table` adds why each was not chosen).
     winner, runner_up : Choice or None
     ae_difference, ae_ratio : float
         The runner-up's worst-case AE minus the winner's, and divided by it (NaN without both).
-    refusal : str or None
-        Why no candidate was chosen (None when one was).
+    refused : Refusal or None
+        Why no candidate was chosen (None when one was); :attr:`refusal` says it in words.
     required_share : float
     draws : int
         Robots per candidate and condition (the fewest when they differ).
@@ -207,6 +270,9 @@ class Decision:
         :func:`draws_needed` of ``required_share``.
     excluded : Mapping[str, str]
         Controller -> why it was not a candidate.
+    shortfalls : Mapping[tuple[str, float], Shortfall]
+        ``(controller, omega_n)`` -> why that candidate does not qualify, for every candidate
+        that does not.
     ae_unit : str or None
     runs : DataFrame
         Every drawn run (empty when the table was given by hand).
@@ -222,25 +288,44 @@ class Decision:
     runner_up: Choice | None
     ae_difference: float
     ae_ratio: float
-    refusal: str | None
+    refused: Refusal | None
     required_share: float
     draws: int
     draws_needed: int
     excluded: Mapping[str, str]
+    shortfalls: Mapping[tuple[str, float], Shortfall]
     ae_unit: str | None = None
     runs: pd.DataFrame = dataclasses.field(default_factory=pd.DataFrame)
     seconds: float = 0.0
     computed: int = 0
     resumed: int = 0
 
+    @property
+    def refusal(self) -> str | None:
+        """Why no candidate was chosen, in words (None when one was). Deprecated: the words are
+        the report's, :func:`delaytrack.report.decision.refusal_text`; the facts are
+        :attr:`refused`. Like a moved name (:mod:`delaytrack._deprecated`), it warns and loads
+        the report only when read."""
+        warnings.warn(
+            "Decision.refusal moved to delaytrack.report.decision.refusal_text(decision); call "
+            "it from there (the old attribute will be removed in a later release)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        text: str | None = importlib.import_module("delaytrack.report.decision").refusal_text(self)
+        return text
 
-def _condition(row: Any) -> str:
-    told = "" if math.isnan(row.told) else f", told {row.told:g} s"
-    return f"delay {row.delay:g} s{told}"
 
-
-def _choice(row: Any) -> Choice:
-    return Choice(row.controller, row.omega_n, row.k1, row.k2, row.worst_ae, row.worst_share_low)
+def _choice(row: Any, largest_omega_n: float) -> Choice:
+    return Choice(
+        row.controller,
+        row.omega_n,
+        row.k1,
+        row.k2,
+        row.worst_ae,
+        row.worst_share_low,
+        at_largest_omega_n=bool(row.omega_n == largest_omega_n),
+    )
 
 
 def decide(
@@ -273,7 +358,6 @@ def decide(
     if missing:
         raise ArgumentError("table", f"lacks the columns {missing}; needs {list(_COLUMNS)}")
     needed = draws_needed(required_share)
-    unit = f" {ae_unit}" if ae_unit else ""
     frame = table.loc[:, list(_COLUMNS)].reset_index(drop=True)
     bounds = [
         wilson_interval(int(k), int(n)) for k, n in zip(frame.on_path, frame.runs, strict=True)
@@ -283,17 +367,21 @@ def decide(
     frame.insert(10, "share_high", [high for _, high in bounds])
     keys = ["controller", "omega_n"]
     rows = []
+    shortfalls: dict[tuple[str, float], Shortfall] = {}
     for (controller, omega), conditions in frame.groupby(keys, sort=False):
         worst = conditions.loc[conditions.share_low.idxmin()]
         qualifies = bool(worst.share_low >= required_share)
-        why = ""
         if not qualifies:
-            why = (
-                f"Wilson lower bound {worst.share_low:.3f} < {required_share:g} at "
-                f"{_condition(worst)} ({int(worst.on_path)} of {int(worst.runs)} on the path)"
+            shortfalls[controller, omega] = Shortfall(
+                controller=controller,
+                omega_n=omega,
+                share_low=float(worst.share_low),
+                delay=float(worst.delay),
+                told=float(worst.told),
+                on_path=int(worst.on_path),
+                runs=int(worst.runs),
+                too_few_draws=bool(worst.runs < needed),
             )
-            if worst.runs < needed:
-                why += f"; {int(worst.runs)} draws cannot reach it (at least {needed})"
         rows.append(
             {
                 "controller": controller,
@@ -304,7 +392,6 @@ def decide(
                 "worst_ae": float(conditions.ae_median.max()),
                 "qualifies": qualifies,
                 "status": "qualifies" if qualifies else "excluded",
-                "why": why,
             }
         )
     order = {family: i for i, family in enumerate(FAMILIES)}
@@ -324,42 +411,31 @@ def decide(
     chosen = candidates[candidates.qualifies]
     winner = runner_up = None
     difference = ratio = math.nan
-    refusal = None
+    refused = None
+    fewest = int(frame.runs.min())
     if chosen.empty:
-        fewest = int(frame.runs.min())
-        if fewest < needed:
-            refusal = (
-                f"no candidate qualifies at this size: with {fewest} draws per condition the "
-                "Wilson lower bound cannot exceed n/(n + z²) = "
-                f"{fewest / (fewest + Z95 * Z95):.3f} "
-                f"< {required_share:g} even with every robot on the path; at least {needed} "
-                "draws are needed"
-            )
-        else:
+        closest = None
+        if fewest >= needed:
             best = candidates.sort_values("worst_share_low", ascending=False).iloc[0]
-            refusal = (
-                f"no candidate qualifies: none stays on the path in at least "
-                f"{100 * required_share:g} % of the drawn robots by the Wilson lower bound in "
-                f"every condition (closest: {best.controller} at omega_n = {best.omega_n:g} "
-                f"rad/s, {best.why})"
-            )
+            closest = shortfalls[best.controller, best.omega_n]
+        refused = Refusal(
+            too_few_draws=fewest < needed,
+            draws=fewest,
+            ceiling=fewest / (fewest + Z95 * Z95),
+            closest=closest,
+        )
     else:
+        largest = candidates.omega_n.max()
         first = chosen.iloc[0]
-        winner = _choice(first)
+        winner = _choice(first, largest)
         candidates.loc[chosen.index[0], "status"] = "winner"
         others = chosen[chosen.controller != first.controller]
         if not others.empty:
             second = others.iloc[0]
-            runner_up = _choice(second)
+            runner_up = _choice(second, largest)
             candidates.loc[others.index[0], "status"] = "runner-up"
             difference = runner_up.worst_ae - winner.worst_ae
             ratio = runner_up.worst_ae / winner.worst_ae
-        for i in chosen.index[1:]:
-            if candidates.loc[i, "status"] == "qualifies":
-                candidates.loc[i, "why"] = (
-                    f"worst-case AE {candidates.loc[i, 'worst_ae']:.4g}{unit} against the "
-                    f"winner's {winner.worst_ae:.4g}{unit}"
-                )
     merged = frame.merge(candidates, on=["controller", "omega_n", "k1", "k2"], how="left")
     return Decision(
         envelope=envelope,
@@ -369,11 +445,12 @@ def decide(
         runner_up=runner_up,
         ae_difference=difference,
         ae_ratio=ratio,
-        refusal=refusal,
+        refused=refused,
         required_share=required_share,
-        draws=int(frame.runs.min()),
+        draws=fewest,
         draws_needed=needed,
         excluded=MappingProxyType(dict(excluded or {})),
+        shortfalls=MappingProxyType(shortfalls),
         ae_unit=ae_unit,
     )
 

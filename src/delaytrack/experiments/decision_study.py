@@ -20,8 +20,9 @@ best qualifying candidate of another controller, the margin the difference of th
 AE. It needs at least 73 draws per condition to name a winner at all.
 
 :func:`run_decision_study` runs both (resumable sweeps, any executor) and returns a
-:class:`DecisionStudy`; :func:`reproduce` is ``delaytrack reproduce --job decision``, which writes
-``<out>/decision/`` (:func:`~delaytrack.report.decision_study.write_decision_study`).
+:class:`DecisionStudy`; :func:`delaytrack.jobs.decision_study.reproduce` is
+``delaytrack reproduce --job decision``, which writes ``<out>/decision/``
+(:func:`~delaytrack.report.decision_study.write_decision_study`).
 """
 
 from __future__ import annotations
@@ -35,12 +36,12 @@ from types import MappingProxyType
 
 import pandas as pd
 
-from delaytrack._output import check_output_folder, check_results_root, claim_output_folder
+from delaytrack._deprecated import moved_names
+from delaytrack._output import claim_output_folder
 from delaytrack._validation import ArgumentError, is_integer_at_least
 from delaytrack.experiments.decision import Decision, Envelope, run_decision
 from delaytrack.experiments.paper_setup import SCENARIOS
 from delaytrack.experiments.tradeoff import TradeoffStudy, default_omegas, run_tradeoff
-from delaytrack.report.decision_study import write_decision_study
 from delaytrack.scenario import load_builtin
 from delaytrack.sweeps.executors import Executor, LocalExecutor
 
@@ -54,9 +55,11 @@ __all__ = [
     "DecisionStudy",
     "envelope_table",
     "paper_envelopes",
-    "reproduce",
     "run_decision_study",
+    "study_size",
 ]
+#: Running the study and writing its report is a job (:mod:`delaytrack.jobs.decision_study`).
+__getattr__ = moved_names(__name__, {"reproduce": "delaytrack.jobs.decision_study:reproduce"})
 
 #: The job's folder under ``reproduce``'s ``out``.
 FOLDER = "decision"
@@ -107,7 +110,7 @@ SIZES: dict[str, DecisionSize] = {
 }
 
 
-def _size(size: str | DecisionSize) -> DecisionSize:
+def study_size(size: str | DecisionSize) -> DecisionSize:
     """``size`` by name (:data:`SIZES`) or as given; anything else refused in one line."""
     if isinstance(size, DecisionSize):
         return size
@@ -143,10 +146,11 @@ def envelope_table(decisions: Mapping[str, Decision], cases: Mapping[str, str]) 
     """One row per envelope: ``envelope``, ``case``, ``h_max``, ``knowledge``, the winner
     (``winner``, ``omega_n``, ``k1``, ``k2``, ``worst_ae``, ``worst_share_low``: the smallest
     Wilson lower bound of its share on the path over the conditions), the runner-up
-    (``runner_up``, ``runner_up_omega_n``, ``runner_up_worst_ae``), the margin
-    (``ae_difference`` = the runner-up's worst-case AE minus the winner's, ``ae_ratio``) and
-    ``reason`` (why no candidate was chosen; empty when one was). Winner and runner-up columns
-    are empty (NaN) where there is none."""
+    (``runner_up``, ``runner_up_omega_n``, ``runner_up_worst_ae``) and the margin
+    (``ae_difference`` = the runner-up's worst-case AE minus the winner's, ``ae_ratio``). Winner
+    and runner-up columns are empty (NaN) where there is none; why no candidate was chosen is
+    each decision's :attr:`~delaytrack.experiments.decision.Decision.refused`, which
+    :func:`~delaytrack.report.decision_study.display_envelopes` adds as ``reason``."""
     rows = []
     for name, decision in decisions.items():
         winner, second = decision.winner, decision.runner_up
@@ -167,7 +171,6 @@ def envelope_table(decisions: Mapping[str, Decision], cases: Mapping[str, str]) 
                 "runner_up_worst_ae": second.worst_ae if second else math.nan,
                 "ae_difference": decision.ae_difference,
                 "ae_ratio": decision.ae_ratio,
-                "reason": decision.refusal or "",
             }
         )
     return pd.DataFrame(rows)
@@ -228,7 +231,7 @@ def run_decision_study(
     progress : bool
         Progress on standard error.
     """
-    size = _size(size)
+    size = study_size(size)
     make = executor if executor is not None else LocalExecutor
     out = claim_output_folder(out)
     start = time.perf_counter()
@@ -265,19 +268,3 @@ def run_decision_study(
         computed=tradeoff.computed + sum(d.computed for d in decisions.values()),
         resumed=tradeoff.resumed + sum(d.resumed for d in decisions.values()),
     )
-
-
-def reproduce(
-    out: str | Path = "results",
-    *,
-    size: str | DecisionSize = "default",
-    executor: Callable[[], Executor] | None = None,
-    progress: bool = True,
-) -> tuple[DecisionStudy, list[Path]]:
-    """``delaytrack reproduce --job decision``: run the study into ``<out>/decision/`` and write
-    its files there; return the study and the files written. ``size`` is checked, and ``out``
-    and the job's folder, before anything runs."""
-    size = _size(size)
-    folder = check_output_folder(check_results_root(out, "out") / FOLDER)
-    study = run_decision_study(folder, size=size, executor=executor, progress=progress)
-    return study, write_decision_study(study, folder)

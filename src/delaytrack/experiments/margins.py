@@ -1,6 +1,7 @@
 """The margins job: certified vs exact vs empirical delay margins over a grid of gains.
 
-``delaytrack reproduce --job margins`` runs :func:`reproduce`, which writes ``<out>/margins/``:
+``delaytrack reproduce --job margins`` runs :func:`delaytrack.jobs.margins.reproduce`, which
+writes ``<out>/margins/``:
 
 - ``margins.csv``: one row per gain pair ``K1 = k1 I``, ``K2 = k2 I`` (:data:`GAINS`; columns
   ``k1_per_s2``, ``k2_per_s``): Theorem 1's certified ``h_m`` (AROLC with ``Q = I``, ``β = 1``,
@@ -21,7 +22,8 @@ gain pairs of one controller and profile are searched in lockstep (one batched s
 round).
 
 :func:`run_study` returns a :class:`MarginStudy` holding every number of the report, which
-:func:`~delaytrack.report.margins.write_study` writes; :func:`reproduce` does both.
+:func:`~delaytrack.report.margins.write_study` writes; :func:`delaytrack.jobs.margins.reproduce`
+does both.
 """
 
 from __future__ import annotations
@@ -29,22 +31,28 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import ClassVar, TypedDict
 
 import numpy as np
 import pandas as pd
 
-from delaytrack._output import check_output_folder, check_results_root
+from delaytrack._deprecated import moved_names
 from delaytrack._validation import ArgumentError
 from delaytrack.analysis import exact_delay_margin, razumikhin_bound
 from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
 from delaytrack.analysis.razumikhin import PAPER_R as R
 from delaytrack.experiments.empirical_margin import EmpiricalMargin, empirical_margin
-from delaytrack.report.margins import write_study
 from delaytrack.scenario import Scenario, load_builtin
 
-__all__ = ["GAINS", "MarginStudy", "reproduce", "run_study", "write_study"]
+__all__ = ["FOLDER", "GAINS", "MarginStudy", "run_study"]
+#: Running the study and writing its report is a job (:mod:`delaytrack.jobs.margins`).
+__getattr__ = moved_names(
+    __name__,
+    {
+        "reproduce": "delaytrack.jobs.margins:reproduce",
+        "write_study": "delaytrack.report.margins:write_study",
+    },
+)
 
 FOLDER = "margins"
 SCENARIO = "two_link_margins"
@@ -264,12 +272,3 @@ def _gap(table: pd.DataFrame, searches: dict[tuple[str, str], list[EmpiricalMarg
         arolc_constant=(table["arolc_constant"].min(), table["arolc_constant"].max()),
         h_exact=(table["h_exact"].min(), table["h_exact"].max()),
     )
-
-
-def reproduce(
-    out: str | Path = "results", *, duration: float | None = None, progress: bool = True
-) -> tuple[MarginStudy, list[Path]]:
-    """Run the job and write ``<out>/margins/``; return the study and the files written."""
-    folder = check_output_folder(check_results_root(out, "out") / FOLDER)
-    study = run_study(duration=duration, progress=progress)
-    return study, write_study(study, folder)

@@ -1,8 +1,9 @@
 """The paper's experiment (the paper's Section III): the PIONEER-3 robot with payload under S1–S4.
 
 :func:`run_study` runs it and returns a :class:`PaperStudy` that holds every number its report
-quotes (:class:`~delaytrack.experiments.paper_findings.PaperFindings`); :func:`run_paper` runs
-it and writes the report (:mod:`delaytrack.report.paper`) to ``<out_dir>/``:
+quotes (:class:`~delaytrack.experiments.paper_findings.PaperFindings`);
+:func:`delaytrack.jobs.paper.run_paper` runs it and writes the report
+(:mod:`delaytrack.report.paper`) to ``<out_dir>/``:
 
 - ``summary.csv``: one row per (scenario, controller) with exactly the columns of
   :data:`SUMMARY_COLUMNS` (AE, %AE, RMS and max error of x and y in mm, TV of the commanded wheel
@@ -43,20 +44,17 @@ kernel, so the baselines are one batch too).
 
 from __future__ import annotations
 
-import math
 import time
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
-from delaytrack._output import check_output_folder, check_results_root
-from delaytrack._validation import ArgumentError, integer_multiple
+from delaytrack._deprecated import moved_names
 from delaytrack.analysis import RazumikhinBound, razumikhin_bound
 from delaytrack.controllers import AROLC, OuterLoop
 from delaytrack.experiments import tuning
@@ -86,7 +84,6 @@ from delaytrack.experiments.paper_setup import (
     R,
     controller_name,
 )
-from delaytrack.experiments.robustness import RobustnessStudy, run_robustness
 from delaytrack.metrics import (
     max_abs_error,
     mean_absolute_error,
@@ -103,12 +100,8 @@ from delaytrack.plants.robot import (
     initial_state,
     paper_reference,
 )
-from delaytrack.report.paper import write_study
 from delaytrack.sim import SimResult, compile_ahead, simulate
 from delaytrack.sim.certified_bound import stated_by_the_caller
-
-if TYPE_CHECKING:
-    from delaytrack.experiments.decision_study import DecisionStudy
 
 __all__ = [
     "ERROR_BOUND",
@@ -120,12 +113,19 @@ __all__ = [
     "PaperFindings",
     "PaperStudy",
     "claims",
-    "reproduce",
-    "run_paper",
     "run_study",
     "with_tuned_arolc",
-    "write_study",
 ]
+
+#: Running the study and writing its report is a job (:mod:`delaytrack.jobs.paper`).
+__getattr__ = moved_names(
+    __name__,
+    {
+        "run_paper": "delaytrack.jobs.paper:run_paper",
+        "reproduce": "delaytrack.jobs.paper:reproduce",
+        "write_study": "delaytrack.report.paper:write_study",
+    },
+)
 
 
 @dataclass(frozen=True)
@@ -421,125 +421,3 @@ def with_tuned_arolc(study: PaperStudy) -> pd.DataFrame:
         stacklevel=2,
     )
     return tuned_as_arolc(study.summary, study.tuned_summary)
-
-
-def run_paper(
-    out_dir: str | Path,
-    *,
-    reference: str = "consistent",
-    duration: float = DURATION,
-    progress: bool = True,
-    check_dt: bool = True,
-    literal_summary: pd.DataFrame | None = None,
-    contact: bool | None = None,
-    robustness: RobustnessStudy | None = None,
-    gains: tuning.GainsSource = None,
-    decision: DecisionStudy | None = None,
-) -> PaperStudy:
-    """Run the paper's experiment and write ``out_dir`` (module docstring); return the study.
-    ``gains``: the gains file (or its record) of the tuned controllers; the shipped one by
-    default. ``robustness`` and ``decision`` (studies already run) add their sections to the
-    report."""
-    if not (math.isfinite(duration) and duration > 0):
-        raise ValueError(f"duration must be a positive number of seconds; got {duration!r}")
-    study = run_study(
-        reference=reference,
-        duration=duration,
-        progress=progress,
-        check_dt=check_dt,
-        gains_path=gains,
-        contact=contact,
-    )
-    write_study(
-        study,
-        out_dir,
-        literal_summary=literal_summary,
-        robustness=robustness,
-        decision=decision,
-    )
-    return study
-
-
-def _check_duration(duration: float) -> None:
-    """Refuse a ``duration`` that is not a positive integer multiple of the controller period
-    :data:`T_C` (the engine ends every run on a controller tick)."""
-    if integer_multiple(duration, T_C) is None:
-        raise ArgumentError(
-            "duration",
-            f"must be a positive integer multiple of 'T_c' = {T_C:g} s; got {duration:g}",
-        )
-
-
-def reproduce(
-    out: str | Path = "results",
-    *,
-    duration: float = DURATION,
-    check_dt: bool = True,
-    progress: bool = True,
-    contact: bool | None = None,
-    robustness: str | None = "default",
-    executor: Any = None,
-    gains: tuning.GainsSource = None,
-    decision: str | DecisionStudy | None = None,
-) -> dict[str, Any]:
-    """``<out>/paper-literal/``, ``<out>/robustness/`` (the robustness study at size
-    ``robustness``; None skips it) and ``<out>/paper/`` (whose report cites the literal run and
-    the study's verdicts, and has the runs with contact physics when ``contact``; by default
-    when MuJoCo is installed), with the tuned gains of ``gains`` (a gains file; the shipped one
-    by default); ``decision``, a decision study already run
-    (:func:`~delaytrack.experiments.decision_study.run_decision_study`) or the size of one to
-    run into ``<out>/decision/`` (resumed), adds its section to ``<out>/paper/``'s report.
-    Returns ``{"consistent", "literal", "robustness"}``.
-    ``duration`` must be a positive integer multiple of :data:`T_C`; ``out`` must be new, empty
-    or hold only results of this toolkit, and each job's folder new, empty or its own earlier
-    results (all checked before anything runs)."""
-    _check_duration(duration)
-    root = check_results_root(out, "out")
-    gains = tuning.load_tuning_record(gains)
-    folders = {
-        name: check_output_folder(root / name)
-        for name in (
-            "paper-literal",
-            "paper",
-            *(("robustness",) if robustness else ()),
-            *(("decision",) if isinstance(decision, str) else ()),
-        )
-    }
-    if isinstance(decision, str):
-        from delaytrack.experiments import decision_study
-
-        decision, _ = decision_study.reproduce(
-            out, size=decision, executor=executor, progress=progress
-        )
-    literal = run_paper(
-        folders["paper-literal"],
-        reference="literal",
-        duration=duration,
-        progress=progress,
-        check_dt=check_dt,
-        gains=gains,
-    )
-    study = (
-        run_robustness(
-            folders["robustness"],
-            size=robustness,
-            executor=executor,
-            progress=progress,
-            gains=gains,
-        )
-        if robustness
-        else None
-    )
-    consistent = run_paper(
-        folders["paper"],
-        reference="consistent",
-        duration=duration,
-        progress=progress,
-        check_dt=check_dt,
-        literal_summary=literal.summary,
-        contact=contact,
-        robustness=study,
-        gains=gains,
-        decision=decision,
-    )
-    return {"consistent": consistent, "literal": literal, "robustness": study}

@@ -37,8 +37,9 @@ every test of the study corrected together with Holm's method
 (:mod:`~delaytrack.experiments.verdicts`). Each verdict carries the delays its scenario reaches
 beside those the tuning conditions of its delay class covered (:func:`tuning_envelope`).
 
-:func:`run_robustness` returns a :class:`RobustnessStudy` holding every number of the study's
-report, which :mod:`delaytrack.report.robustness` writes.
+:func:`run_study` returns a :class:`RobustnessStudy` holding every number of the study's report,
+which :mod:`delaytrack.report.robustness` writes; :func:`delaytrack.jobs.robustness.run_robustness`
+does both.
 """
 
 from __future__ import annotations
@@ -71,7 +72,6 @@ from delaytrack.experiments.verdicts import (
     verdict_counts,
 )
 from delaytrack.plants.robot import P3DX_WHEEL_TORQUE_LIMIT as WHEEL_TORQUE_LIMIT
-from delaytrack.report.robustness import write_robustness
 from delaytrack.scenario import Scenario, load_builtin
 from delaytrack.sweeps import SweepSpec, run_sweep
 from delaytrack.sweeps.executors import LocalExecutor
@@ -85,7 +85,7 @@ __all__ = [
     "StudySize",
     "claim_verdicts",
     "knowledge_table",
-    "run_robustness",
+    "run_study",
     "scenario_delay_ranges",
     "study_specs",
     "tuning_envelope",
@@ -102,6 +102,7 @@ __getattr__ = moved_names(
         "display_knowledge": "delaytrack.report.robustness:display_knowledge",
         "display_outcomes": "delaytrack.report.robustness:display_outcomes",
         "robustness_map": "delaytrack.report.robustness:robustness_map",
+        "run_robustness": "delaytrack.jobs.robustness:run_robustness",
     },
 )
 
@@ -567,7 +568,7 @@ def _edges(record: Mapping[str, Any]) -> tuple[tuple[str, str], ...]:
 
 @dataclass(frozen=True)
 class RobustnessStudy:
-    """Everything :func:`run_robustness` computed: every number of the study's report.
+    """Everything :func:`run_study` computed: every number of the study's report.
 
     Attributes
     ----------
@@ -662,7 +663,7 @@ class RobustnessStudy:
     resumed: int = 0
 
 
-def run_robustness(
+def run_study(
     out: str | Path,
     *,
     size: str | StudySize = "default",
@@ -670,8 +671,8 @@ def run_robustness(
     progress: bool = True,
     gains: tuning.GainsSource = None,
 ) -> RobustnessStudy:
-    """Run (or resume) the study's sweeps into ``out/sweeps/<name>/`` and write its tables,
-    figure and report into ``out`` (:func:`~delaytrack.report.robustness.write_robustness`).
+    """Run (or resume) the study's sweeps into ``out/sweeps/<name>/``; return the study
+    (:func:`delaytrack.jobs.robustness.run_robustness` also writes its report into ``out``).
 
     ``executor`` makes an :class:`~delaytrack.sweeps.executors.Executor` per sweep (a callable
     without arguments; default: all local cores); ``gains`` is where the tuned gains come
@@ -719,7 +720,7 @@ def run_robustness(
     verdicts = _with_tuning_envelope(
         claim_verdicts(claims), envelope, scenario_delay_ranges(scenario)
     )
-    study = RobustnessStudy(
+    return RobustnessStudy(
         size=size,
         scenario=scenario,
         runs=frames,
@@ -743,5 +744,3 @@ def run_robustness(
         computed=computed,
         resumed=resumed,
     )
-    write_robustness(study, out)
-    return study

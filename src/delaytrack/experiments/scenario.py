@@ -1,5 +1,5 @@
 """Deprecated: scenarios live in :mod:`delaytrack.scenario`, and running one to a folder in
-:mod:`delaytrack.experiments.scenario_run`. Reading a name here still works, with a
+:mod:`delaytrack.jobs.scenario_run`. Reading a name here still works, with a
 :class:`DeprecationWarning` naming its new place."""
 
 from delaytrack._deprecated import moved_names
@@ -15,7 +15,7 @@ __getattr__ = moved_names(
         "load_builtin": "delaytrack.scenario:load_builtin",
         "run_batched": "delaytrack.scenario:run_batched",
         "dumps_toml": "delaytrack.scenario:dumps_toml",
-        "RunOutput": "delaytrack.experiments.scenario_run:RunOutput",
-        "run_to_folder": "delaytrack.experiments.scenario_run:run_to_folder",
+        "RunOutput": "delaytrack.jobs.scenario_run:RunOutput",
+        "run_to_folder": "delaytrack.jobs.scenario_run:run_to_folder",
     },
 )

@@ -103,7 +103,6 @@ from delaytrack.experiments.paper_setup import DT, PAYLOAD_SEED, T_C
 from delaytrack.metrics import mean_absolute_error, total_variation
 from delaytrack.plants.robot import NominalRobot, PayloadRobot, initial_state, paper_reference
 from delaytrack.plants.robot.kinematics import kinematic_map
-from delaytrack.report import tuning as tuning_report
 from delaytrack.sim import simulate
 from delaytrack.sim.certified_bound import stated_by_the_caller
 
@@ -127,6 +126,7 @@ __all__ = [
     "default_gains_path",
     "draw_conditions",
     "gains_text",
+    "recorded_gains_text",
     "grid_table",
     "long_run_mean",
     "load_gains",
@@ -150,7 +150,10 @@ MAX_EXTENSIONS = 3
 EXTENSION_FACTOR = 1.5
 #: Seconds of command history the predictors keep (every tuning delay is below 140 ms).
 HISTORY = 0.15
-#: A run whose mean AE exceeds this (mm) left the path and counts as diverged.
+#: A run whose mean AE over the whole run exceeds this (mm) counts as diverged, beside the runs
+#: the engine stopped (diverged, or left the path by the scenario's ``error_bound``): a grid
+#: point so detuned that its error averages a metre while its state stays finite and within the
+#: bound is excluded from the choice as if it had stopped.
 DIVERGED_AE_MM = 1000.0
 #: The tuned controllers. ``PCON-wheel`` is PCON in wheel space (``space="actuator"``).
 KINDS: tuple[str, ...] = ("AROLC", "PCON", "PCON-wheel", "PCONf")
@@ -282,7 +285,23 @@ def gains_text(kind: str, gains: Mapping[str, float]) -> str:
     """The gains of one chosen set as text (``κ = 8, k_b = 3 I, ϑ = 0.35 M̂⁻¹``); AROLC's
     with the outer loop's ``K1 = k²``, ``K2 = 2 ζ k`` they give (``k = 6, ζ = 0.7 (K1 = 36 I,
     K2 = 8.4 I), α = 54``)."""
-    return tuning_report.gains_text(kind, _with_outer_loop_gains(kind, gains))
+    return recorded_gains_text(kind, _with_outer_loop_gains(kind, gains))
+
+
+def recorded_gains_text(kind: str, gains: Mapping[str, float]) -> str:
+    """The gains of one chosen set as text, as a gains file records them.
+
+    AROLC's read ``k``, ``ζ`` (``zeta``), ``α`` (``alpha``) and the outer loop's ``K1 = k²``,
+    ``K2 = 2 ζ k`` they give (``K1``, ``K2``: as in a gains file and in
+    :attr:`TuningResult.best`); :func:`gains_text` computes those two.
+    """
+    if kind == "AROLC":
+        return (
+            f"k = {gains['k']:g}, ζ = {gains['zeta']:g} (K1 = {gains['K1']:g} I, "
+            f"K2 = {gains['K2']:g} I), α = {gains['alpha']:g}"
+        )
+    inverse = "M̂_r⁻¹" if kind == "PCON-wheel" else "M̂⁻¹"
+    return f"κ = {gains['kappa']:g}, k_b = {gains['k_b']:g} I, ϑ = {gains['c']:g} {inverse}"
 
 
 def certified_bound(k: float, zeta: float) -> float:

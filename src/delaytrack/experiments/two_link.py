@@ -1,7 +1,7 @@
 """The two-link job: AROLC vs the plain outer loop on the two-link arm under S1 and S3.
 
-``delaytrack reproduce`` (and ``make reproduce``) runs :func:`reproduce`, which writes
-``<out>/two-link/``:
+``delaytrack reproduce --job two-link`` runs :func:`delaytrack.jobs.two_link.reproduce`, which
+writes ``<out>/two-link/``:
 
 - ``summary.csv``: one row per (scenario, controller): AE, RMS and max error per joint (rad), TV
   of the commanded torques (N·m), status;
@@ -18,8 +18,8 @@ they were chosen are stated in those files and in the report. Each controller's 
 run as one batched simulation.
 
 This module is the study: :func:`run_study` returns a :class:`TwoLinkStudy` holding every number
-of the report, which :func:`~delaytrack.report.two_link.write_study` writes; :func:`reproduce`
-does both. The report package itself never imports from here.
+of the report, which :func:`~delaytrack.report.two_link.write_study` writes;
+:func:`delaytrack.jobs.two_link.reproduce` does both.
 """
 
 from __future__ import annotations
@@ -27,25 +27,38 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
-from delaytrack._output import check_output_folder, check_results_root
+from delaytrack._deprecated import moved_names
 from delaytrack.analysis import RazumikhinBound, razumikhin_bound
 from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
 from delaytrack.analysis.razumikhin import PAPER_R as R
 from delaytrack.experiments.convergence import dt_check_table, largest_change
 from delaytrack.experiments.relative_change import relative_change
 from delaytrack.metrics import COORDINATE_METRICS, metrics_table
-from delaytrack.report.two_link import write_study
 from delaytrack.scenario import Scenario, load_builtin, run_batched
 from delaytrack.sim import SimResult, compile_ahead
 
-__all__ = ["CASES", "CONTROLLERS", "TwoLinkStudy", "reproduce", "run_study", "write_study"]
+__all__ = [
+    "CASES",
+    "CONTROLLERS",
+    "SMALL_DELAY_EFFECT_PCT",
+    "FOLDER",
+    "TwoLinkStudy",
+    "run_study",
+]
+#: Running the study and writing its report is a job (:mod:`delaytrack.jobs.two_link`).
+__getattr__ = moved_names(
+    __name__,
+    {
+        "reproduce": "delaytrack.jobs.two_link:reproduce",
+        "write_study": "delaytrack.report.two_link:write_study",
+    },
+)
 
 #: Delay scenarios of the paper used here.
 CASES = ("S1", "S3")
@@ -53,6 +66,10 @@ CASES = ("S1", "S3")
 CONTROLLERS = {"arolc": "AROLC", "outer-loop": "outer loop"}
 FOLDER = "two-link"
 _COORDINATES = ("q1", "q2")
+#: Percent: when the delays change AE by less than this (the largest ``|ae_change_pct|`` of
+#: :attr:`TwoLinkStudy.delay_effect`, against the same runs with no delay), the tracking error
+#: counts as coming mostly from the model mismatch, not from the delay.
+SMALL_DELAY_EFFECT_PCT = 10.0
 
 
 def scenario_name(case: str, controller: str) -> str:
@@ -82,6 +99,9 @@ class TwoLinkStudy:
     changes : DataFrame
         AROLC against the outer loop per scenario: ``100 (AROLC - outer loop) / outer loop``
         per metric (percent; :func:`~delaytrack.experiments.relative_change.relative_change`).
+    arolc_better : dict
+        Case -> the joints (of ``coordinates``, in their order) on which AROLC's AE is lower
+        than the outer loop's (a finite change in ``changes`` below 0).
     ae_range : tuple of float
         The smallest and the largest AE (rad) over every run and joint.
     natural_frequency, damping : float
@@ -97,8 +117,13 @@ class TwoLinkStudy:
         change of AE against the same run with no delay (``undelayed``).
     largest_delay_effect : float
         The largest ``|ae_change_pct|`` (percent; 0 when none is finite).
+    delay_effect_small : bool
+        Whether ``largest_delay_effect`` is below :data:`SMALL_DELAY_EFFECT_PCT`: the tracking
+        error comes mostly from the model mismatch, not from the delay.
     h_max : dict
         Case -> the largest true delay of the run (s).
+    below_bound : dict
+        Case -> whether ``h_max`` is below the certified bound ``bound.h_m``.
     half_dt : float
         The plant step of the dt check (s).
     model_shortfall : float
@@ -126,6 +151,7 @@ class TwoLinkStudy:
     undelayed: pd.DataFrame
     bound: RazumikhinBound
     changes: pd.DataFrame
+    arolc_better: dict[str, tuple[str, ...]]
     ae_range: tuple[float, float]
     natural_frequency: float
     damping: float
@@ -133,7 +159,9 @@ class TwoLinkStudy:
     switching_bound: float
     delay_effect: pd.DataFrame
     largest_delay_effect: float
+    delay_effect_small: bool
     h_max: dict[str, float]
+    below_bound: dict[str, bool]
     half_dt: float
     model_shortfall: float
     controller_rate: float
@@ -143,6 +171,11 @@ class TwoLinkStudy:
     def run(self, case: str, controller: str) -> SimResult:
         """The single run of ``case`` (``"S1"``...) under ``controller`` (``"arolc"``...)."""
         return self.results[controller][CASES.index(case)]
+
+    @property
+    def all_below_bound(self) -> bool:
+        """Whether every case's largest delay is below the certified bound ``bound.h_m``."""
+        return all(self.below_bound.values())
 
     @property
     def dt_max_change(self) -> float:
@@ -187,6 +220,17 @@ def _delay_effect(summary: pd.DataFrame, undelayed: pd.DataFrame) -> pd.DataFram
                     }
                 )
     return pd.DataFrame(rows)
+
+
+def _arolc_better(changes: pd.DataFrame) -> dict[str, tuple[str, ...]]:
+    """Per scenario of ``changes``: the joints on which AROLC's AE change against the outer
+    loop is finite and below 0."""
+    return {
+        row["scenario"]: tuple(
+            c for c in _COORDINATES if np.isfinite(row[f"ae_{c}"]) and row[f"ae_{c}"] < 0
+        )
+        for _, row in changes.iterrows()
+    }
 
 
 def run_study(
@@ -266,6 +310,12 @@ def run_study(
     k1, k2 = float(controller_spec["K1"]), float(controller_spec["K2"])
     ae = summary[[f"ae_{c}" for c in _COORDINATES]].to_numpy(dtype=float)
     delay_effect = _delay_effect(summary, undelayed_table)
+    changes = relative_change(
+        summary, by="scenario", column="controller", baseline="outer-loop", candidate="arolc"
+    )
+    # max(0, NaN) is 0: a change that is not finite is left out.
+    largest_delay_effect = max(0.0, delay_effect.ae_change_pct.abs().max())
+    h_max = {case: float(run.h[0].max()) for case, run in arolc.items()}
     return TwoLinkStudy(
         scenarios=scenarios,
         results=results,
@@ -273,35 +323,21 @@ def run_study(
         dt_check=dt_check,
         undelayed=undelayed_table,
         bound=bound,
-        changes=relative_change(
-            summary, by="scenario", column="controller", baseline="outer-loop", candidate="arolc"
-        ),
+        changes=changes,
+        arolc_better=_arolc_better(changes),
         ae_range=(float(np.nanmin(ae)), float(np.nanmax(ae))),
         natural_frequency=math.sqrt(k1),
         damping=k2 / (2 * math.sqrt(k1)),
         c_hat_peak=c_hat_peak,
         switching_bound=float(controller_spec["alpha"]) * max(c_hat_peak.values()),
         delay_effect=delay_effect,
-        # max(0, NaN) is 0: a change that is not finite is left out.
-        largest_delay_effect=max(0.0, delay_effect.ae_change_pct.abs().max()),
-        h_max={case: float(run.h[0].max()) for case, run in arolc.items()},
+        largest_delay_effect=largest_delay_effect,
+        delay_effect_small=bool(largest_delay_effect < SMALL_DELAY_EFFECT_PCT),
+        h_max=h_max,
+        below_bound={case: bool(h < bound.h_m) for case, h in h_max.items()},
         half_dt=first.dt / 2,
         model_shortfall=max(1.0 - first.model[p] / first.plant[p] for p in ("p1", "p2", "p3")),
         controller_rate=1.0 / first.T_c,
         smallest_delay_periods=min(float(run.h[0].min()) for run in arolc.values()) / first.T_c,
         seconds=seconds,
     )
-
-
-def reproduce(
-    out: str | Path = "results",
-    *,
-    duration: float | None = None,
-    check_dt: bool = True,
-    progress: bool = True,
-) -> tuple[TwoLinkStudy, list[Path]]:
-    """Run the job and write ``<out>/two-link/``; return the study and the files written."""
-    folder = check_output_folder(check_results_root(out, "out") / FOLDER)
-    study = run_study(duration=duration, check_dt=check_dt, progress=progress)
-    files = write_study(study, folder)
-    return study, files

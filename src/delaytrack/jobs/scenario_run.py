@@ -63,6 +63,7 @@ def run_to_folder(
     progress : bool
         Show the simulator's progress bar.
     """
+    # Imported here: the first result (metrics.csv) is written before matplotlib is needed.
     from delaytrack.metrics import metrics_table
     from delaytrack.report.figures import write_run_figures
 

@@ -1,17 +1,27 @@
-"""The decision rule's tables and conditions as the trade-off's page and the decision study's
-page show them, made from a :class:`~delaytrack.experiments.decision.Decision` (this module
-computes nothing)."""
+"""The decision rule's tables, conditions and reasons as the trade-off's page and the decision
+study's page show them, made from a :class:`~delaytrack.experiments.decision.Decision` (this
+module computes nothing: every reason it words is a fact the decision holds)."""
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 from delaytrack.units import with_unit
 
 if TYPE_CHECKING:
-    from delaytrack.experiments.decision import Envelope
+    import pandas as pd
 
-__all__ = ["conditions_text", "decision_columns"]
+    from delaytrack.experiments.decision import Decision, Envelope, Shortfall
+
+__all__ = [
+    "candidates_table",
+    "conditions_text",
+    "decision_columns",
+    "decision_table",
+    "refusal_text",
+    "shortfall_text",
+]
 
 
 def decision_columns(ae_unit: str | None) -> dict[str, str]:
@@ -37,3 +47,69 @@ def conditions_text(envelope: Envelope, predictor: str) -> str:
         for h in envelope.delays
         for told in envelope.told
     )
+
+
+def shortfall_text(shortfall: Shortfall, decision: Decision) -> str:
+    """Why a candidate does not qualify: its smallest Wilson lower bound against the required
+    share, where, how many robots stayed on the path, and whether its draws were too few."""
+    told = "" if math.isnan(shortfall.told) else f", told {shortfall.told:g} s"
+    text = (
+        f"Wilson lower bound {shortfall.share_low:.3f} < {decision.required_share:g} at "
+        f"delay {shortfall.delay:g} s{told} ({shortfall.on_path} of {shortfall.runs} on the path)"
+    )
+    if shortfall.too_few_draws:
+        text += f"; {shortfall.runs} draws cannot reach it (at least {decision.draws_needed})"
+    return text
+
+
+def refusal_text(decision: Decision) -> str | None:
+    """Why no candidate was chosen (None when one was): too few draws for the Wilson lower bound
+    to reach the required share, or none reaching it, with the closest candidate."""
+    refused = decision.refused
+    if refused is None:
+        return None
+    closest = refused.closest
+    if refused.too_few_draws or closest is None:
+        return (
+            f"no candidate qualifies at this size: with {refused.draws} draws per condition the "
+            f"Wilson lower bound cannot exceed n/(n + z²) = {refused.ceiling:.3f} "
+            f"< {decision.required_share:g} even with every robot on the path; at least "
+            f"{decision.draws_needed} draws are needed"
+        )
+    return (
+        f"no candidate qualifies: none stays on the path in at least "
+        f"{100 * decision.required_share:g} % of the drawn robots by the Wilson lower bound in "
+        f"every condition (closest: {closest.controller} at omega_n = {closest.omega_n:g} "
+        f"rad/s, {shortfall_text(closest, decision)})"
+    )
+
+
+def _why(decision: Decision, table: pd.DataFrame) -> list[str]:
+    """Per row of ``table`` (the decision's candidates, or candidates and conditions): why the
+    candidate was not chosen; empty for the winner and the runner-up."""
+    unit = f" {decision.ae_unit}" if decision.ae_unit else ""
+    reasons = []
+    for row in table.itertuples(index=False):
+        if row.status == "excluded":
+            reasons.append(
+                shortfall_text(decision.shortfalls[row.controller, row.omega_n], decision)
+            )
+        elif row.status == "qualifies" and decision.winner is not None:
+            reasons.append(
+                f"worst-case AE {row.worst_ae:.4g}{unit} against the winner's "
+                f"{decision.winner.worst_ae:.4g}{unit}"
+            )
+        else:
+            reasons.append("")
+    return reasons
+
+
+def candidates_table(decision: Decision) -> pd.DataFrame:
+    """The decision's candidates, best first, with ``why``: why each was not chosen."""
+    return decision.candidates.assign(why=_why(decision, decision.candidates))
+
+
+def decision_table(decision: Decision) -> pd.DataFrame:
+    """The decision's candidates and conditions (``decision.csv`` of the trade-off), with
+    ``why``: why each candidate was not chosen."""
+    return decision.table.assign(why=_why(decision, decision.table))

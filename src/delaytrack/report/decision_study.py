@@ -14,7 +14,13 @@ import pandas as pd
 from delaytrack._io import write_frame
 from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack._version import __version__
-from delaytrack.report.decision import conditions_text, decision_columns
+from delaytrack.report.decision import (
+    candidates_table,
+    conditions_text,
+    decision_columns,
+    decision_table,
+    refusal_text,
+)
 from delaytrack.report.html import HtmlReport
 from delaytrack.report.tradeoff import write_tradeoff
 from delaytrack.units import with_unit
@@ -53,10 +59,10 @@ def decision_sentence(case: str, decision: Decision) -> str:
     name = _envelope_name(case, decision)
     winner, second = decision.winner, decision.runner_up
     if winner is None:
-        return f"{name}: no recommendation, {decision.refusal}."
+        return f"{name}: no recommendation, {refusal_text(decision)}."
     edge = (
         " (the largest ω_n of the sweep: larger gains were not tried)"
-        if winner.omega_n == decision.candidates.omega_n.max()
+        if winner.at_largest_omega_n
         else ""
     )
     sentence = (
@@ -74,9 +80,11 @@ def decision_sentence(case: str, decision: Decision) -> str:
 
 
 def display_envelopes(study: DecisionStudy) -> pd.DataFrame:
-    """``decision.csv``: the study's table with the units in the column names."""
+    """``decision.csv``: the study's table with the units in the column names and ``reason``:
+    why no candidate was chosen (empty when one was)."""
     unit = study.tradeoff.ae_unit
-    return study.table.rename(
+    reasons = [refusal_text(study.decisions[name]) or "" for name in study.table.envelope]
+    return study.table.assign(reason=reasons).rename(
         columns={
             "h_max": "h_max_s",
             "omega_n": "omega_n_rad_per_s",
@@ -92,7 +100,9 @@ def display_envelopes(study: DecisionStudy) -> pd.DataFrame:
 
 def _candidates(study: DecisionStudy) -> pd.DataFrame:
     """Every envelope's candidates and conditions (the rule's table), with the envelope."""
-    frames = [decision.table.assign(envelope=name) for name, decision in study.decisions.items()]
+    frames = [
+        decision_table(decision).assign(envelope=name) for name, decision in study.decisions.items()
+    ]
     table = pd.concat(frames, ignore_index=True)
     table = table[["envelope", *(c for c in table.columns if c != "envelope")]]
     return table.rename(columns=decision_columns(study.tradeoff.ae_unit))
@@ -159,7 +169,7 @@ def _report(study: DecisionStudy) -> HtmlReport:
         with report.folded(f"{_envelope_name(study.cases[name], decision)}: every candidate"):
             report.paragraph(f"Conditions: {conditions_text(decision.envelope, 'PCONf')}.")
             report.table(
-                decision.candidates.rename(columns=decision_columns(study.tradeoff.ae_unit)),
+                candidates_table(decision).rename(columns=decision_columns(study.tradeoff.ae_unit)),
                 caption="One row per candidate, best first (candidates.csv has every condition).",
                 missing="—",
             )

@@ -1,4 +1,6 @@
-"""A finished sweep's outputs: summary table, figures and a section of a self-contained report.
+"""The report of a finished sweep (:mod:`delaytrack.sweeps`): summary table, figures and a
+section of a self-contained report; the facts it states come from
+:mod:`delaytrack.sweeps.summary`.
 
 :func:`write_sweep_outputs` writes, next to the runs table of :func:`~delaytrack.sweeps.run_sweep`:
 
@@ -24,13 +26,17 @@ from matplotlib.figure import Figure
 from delaytrack import _result_columns as result_columns
 from delaytrack._io import write_frame
 from delaytrack._version import __version__
-from delaytrack.report import HtmlReport, save_figure
+from delaytrack.report.figures import save_figure
+from delaytrack.report.html import HtmlReport
 from delaytrack.sweeps.runner import SweepOutcome, folder_lock
-from delaytrack.sweeps.spec import SweepSpec
 from delaytrack.sweeps.summary import (
     STATISTICS,
+    TIE,
     controller_labels,
     default_metrics,
+    divergence_per_controller,
+    metric_units,
+    smallest_medians,
     summary_table,
 )
 from delaytrack.units import labelled
@@ -39,7 +45,6 @@ __all__ = [
     "ae_vs_h_max_figure",
     "distribution_figure",
     "findings",
-    "metric_units",
     "sweep_figures",
     "sweep_section",
     "with_units",
@@ -65,17 +70,6 @@ def _log_scale_if_wide(ax, values: np.ndarray) -> None:
     if positive.size == values[np.isfinite(values)].size and positive.size > 1:
         if positive.max() > 20.0 * positive.min():
             ax.set_yscale("log")
-
-
-def metric_units(spec: SweepSpec) -> dict[str, str]:
-    """Unit of each metric column a sweep's runs can have, from the base scenario's plant:
-    ``ae_<c>``, ``rms_<c>``, ``max_<c>`` in the coordinate's unit, ``tv`` in the inputs' unit
-    (when they share one); metrics whose unit the plant does not give are left out."""
-    plant = spec.base.build().plant
-    units = result_columns.metric_units(
-        plant.coordinate_names, plant.coordinate_units, plant.n, plant.input_units
-    )
-    return {metric: unit for metric, unit in units.items() if unit}
 
 
 def _axis_label(metric: str, units: Mapping[str, str]) -> str:
@@ -149,42 +143,34 @@ def with_units(summary: pd.DataFrame, units: Mapping[str, str]) -> pd.DataFrame:
     return summary.rename(columns=result_columns.summary_columns(units))
 
 
-#: Relative difference of two medians under which :func:`findings` calls them a tie.
-TIE = 0.01
-
-
 def findings(summary: pd.DataFrame, metrics: Sequence[str], units: Mapping[str, str]) -> list[str]:
-    """Sentences computed from the summary: divergence per controller, and per delay class the
-    controller with the smallest median of each metric, or every controller within :data:`TIE`
-    of the smallest (a tie)."""
-    out = []
-    by_controller = summary.groupby("controller", sort=False)[["runs", "diverged", "failed"]].sum()
+    """Sentences stating the summary's facts: divergence per controller
+    (:func:`~delaytrack.sweeps.summary.divergence_per_controller`), and per delay class the
+    controller with the smallest median of each metric, or every controller within
+    :data:`~delaytrack.sweeps.summary.TIE` of the smallest, a tie
+    (:func:`~delaytrack.sweeps.summary.smallest_medians`)."""
     parts = [
         f"{name} {int(row.diverged)} of {int(row.runs)}"
         + (f" ({int(row.failed)} more failed)" if row.failed else "")
-        for name, row in by_controller.iterrows()
+        for name, row in divergence_per_controller(summary).iterrows()
     ]
-    out.append("Runs that diverged or left the path, per controller: " + "; ".join(parts) + ".")
+    out = ["Runs that diverged or left the path, per controller: " + "; ".join(parts) + "."]
     for metric in metrics:
-        column = f"{metric}_median"
         unit = f" {units[metric]}" if metric in units else ""
         best = []
-        for delay_class, rows in summary.groupby("delay_class", sort=False):
-            rows = rows[np.isfinite(rows[column].to_numpy(float))]
-            if len(rows) < 2:
-                continue
-            ordered = rows.sort_values(column, kind="stable")
-            low = ordered[column].iloc[0]
-            values = ordered[column].to_numpy(float)
-            tied = ordered[values - low <= TIE * np.maximum(abs(low), np.abs(values))]
-            if len(tied) > 1:
-                names = " and ".join(tied["controller"])
-                medians = " and ".join(f"{value:.4g}" for value in tied[column])
+        for smallest in smallest_medians(summary, metric):
+            if len(smallest.controllers) > 1:
+                names = " and ".join(smallest.controllers)
+                medians = " and ".join(f"{value:.4g}" for value in smallest.medians)
                 best.append(
-                    f"{delay_class}: {names} within {TIE:.0%} of each other ({medians}{unit})"
+                    f"{smallest.delay_class}: {names} within {TIE:.0%} of each other "
+                    f"({medians}{unit})"
                 )
             else:
-                best.append(f"{delay_class}: {tied['controller'].iloc[0]} ({low:.3g}{unit})")
+                best.append(
+                    f"{smallest.delay_class}: {smallest.controllers[0]} "
+                    f"({smallest.medians[0]:.3g}{unit})"
+                )
         if best:
             out.append(f"Smallest median {metric}, per delay class: " + "; ".join(best) + ".")
     return out

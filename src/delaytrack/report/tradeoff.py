@@ -14,7 +14,13 @@ from matplotlib.figure import Figure
 from delaytrack._io import write_frame
 from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack._version import __version__
-from delaytrack.report.decision import conditions_text, decision_columns
+from delaytrack.report.decision import (
+    candidates_table,
+    conditions_text,
+    decision_columns,
+    decision_table,
+    refusal_text,
+)
 from delaytrack.report.figures import save_figure
 from delaytrack.report.html import HtmlReport
 from delaytrack.units import labelled, with_unit
@@ -86,7 +92,7 @@ def decision_lines(decision: Decision) -> list[str]:
         "by the Wilson lower bound, in every condition"
     ]
     if decision.winner is None:
-        return [*lines, f"  {decision.refusal}"]
+        return [*lines, f"  {refusal_text(decision)}"]
     lines.append(f"  winner: {_choice_text(decision.winner, unit)}")
     if decision.runner_up is None:
         lines.append("  runner-up: none (no other controller qualifies)")
@@ -119,7 +125,9 @@ def write_tradeoff(
     files.append(write_frame(evaluated, folder / "evaluated.csv"))
     if decision is not None:
         named = decision_columns(decision.ae_unit)
-        files.append(write_frame(decision.table.rename(columns=named), folder / "decision.csv"))
+        files.append(
+            write_frame(decision_table(decision).rename(columns=named), folder / "decision.csv")
+        )
         drawn = decision.runs.rename(
             columns={
                 **named,
@@ -158,12 +166,12 @@ def _decision_section(report: HtmlReport, decision: Decision) -> None:
     )
     report.bullets(line.strip() for line in decision_lines(decision)[1:])
     report.table(
-        decision.candidates.rename(columns=decision_columns(decision.ae_unit)),
+        candidates_table(decision).rename(columns=decision_columns(decision.ae_unit)),
         caption="One row per candidate, best first: its worst (smallest) Wilson lower bound "
         "over the conditions, worst-case AE, and why it was not chosen.",
     )
     report.table(
-        decision.table.rename(columns=decision_columns(decision.ae_unit)),
+        decision_table(decision).rename(columns=decision_columns(decision.ae_unit)),
         caption="One row per candidate and condition (decision.csv): robots on the path of "
         "those drawn, share with its Wilson 95 % interval, median AE of the runs on the path.",
     )

@@ -4,29 +4,14 @@ already holds every number quoted here (this module computes none)."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import TYPE_CHECKING
+
+from delaytrack.experiments.tuning import recorded_gains_text as gains_text
 
 if TYPE_CHECKING:
     from delaytrack.experiments.tuning import TuningStudy
 
 __all__ = ["chosen_gains_lines", "gains_text"]
-
-
-def gains_text(kind: str, gains: Mapping[str, float]) -> str:
-    """The gains of one chosen set as text (``κ = 8, k_b = 3 I, ϑ = 0.35 M̂⁻¹``).
-
-    AROLC's read ``k``, ``ζ`` (``zeta``), ``α`` (``alpha``) and the outer loop's ``K1 = k²``,
-    ``K2 = 2 ζ k`` they give (``K1``, ``K2``: as in a gains file and in
-    :attr:`TuningResult.best <delaytrack.experiments.tuning.TuningResult>`).
-    """
-    if kind == "AROLC":
-        return (
-            f"k = {gains['k']:g}, ζ = {gains['zeta']:g} (K1 = {gains['K1']:g} I, "
-            f"K2 = {gains['K2']:g} I), α = {gains['alpha']:g}"
-        )
-    inverse = "M̂_r⁻¹" if kind == "PCON-wheel" else "M̂⁻¹"
-    return f"κ = {gains['kappa']:g}, k_b = {gains['k_b']:g} I, ϑ = {gains['c']:g} {inverse}"
 
 
 def chosen_gains_lines(study: TuningStudy) -> list[str]:

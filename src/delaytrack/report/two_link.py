@@ -93,11 +93,11 @@ def _verdict(study: TwoLinkStudy) -> list[str]:
             parts.append(
                 f"{what} {abs(pct):.1f} % {word} ({cand[metric]:.4g} vs {base[metric]:.4g} {unit})"
             )
-        wins = [m for m in ("ae_q1", "ae_q2") if np.isfinite(row[m]) and row[m] < 0]
-        if len(wins) == 2:
+        wins = study.arolc_better[case]
+        if wins == study.coordinates:
             head = "AROLC tracks better on both joints"
-        elif len(wins) == 1:
-            head = f"AROLC tracks better on {wins[0][3:]} only"
+        elif wins:
+            head = f"AROLC tracks better on {' and '.join(wins)} only"
         else:
             head = "AROLC does not track better than the outer loop"
         lines.append(f"{case}: {head}. AROLC vs outer loop: " + "; ".join(parts) + ".")
@@ -144,7 +144,7 @@ def _delay_role(study: TwoLinkStudy) -> str:
     summary = (
         "so in this set-up the tracking error comes mostly from the model mismatch, not from the "
         "delay"
-        if largest < 10.0
+        if study.delay_effect_small
         else "so the delay is a large part of the tracking error"
     )
     return (
@@ -241,12 +241,12 @@ def _report(study: TwoLinkStudy, figures: dict[str, tuple[Figure, str]]) -> Html
         f"h_m = λ_min(Q)/‖E‖₂ = {bound.lambda_min_Q:g}/{bound.E_norm:.5g} = {bound.h_m:.5f} s. "
         + " ".join(
             f"The largest delay of {case} is {study.h_max[case]:.3g} s, "
-            f"{'below' if study.h_max[case] < bound.h_m else 'NOT below'} h_m."
+            f"{'below' if study.below_bound[case] else 'NOT below'} h_m."
             for case in study.cases
         )
         + (
             " Both cases are therefore inside the delay range the theorem certifies"
-            if all(study.h_max[case] < bound.h_m for case in study.cases)
+            if study.all_below_bound
             else " Not every case is inside the delay range the theorem certifies"
         )
         + " (the certificate concerns uniform ultimate boundedness, not the size of the error)."

@@ -78,7 +78,7 @@ The modules:
 - :mod:`delaytrack.scenario.builtin`: the scenario files shipped with the package.
 
 Running a scenario and writing its results folder (the metrics, trajectories and figures of
-``delaytrack simulate``) is :func:`delaytrack.experiments.run_to_folder`.
+``delaytrack simulate``) is :func:`delaytrack.jobs.scenario_run.run_to_folder`.
 """
 
 from delaytrack.scenario.batch import run_batched

@@ -8,13 +8,14 @@
   :class:`DaskExecutor`, a ``dask.distributed`` cluster).
 - :mod:`delaytrack.sweeps.runner`: :func:`run_sweep` (the units not done yet, a progress bar,
   Ctrl-C safe) and :class:`SweepOutcome`.
-- :mod:`delaytrack.sweeps.summary` and :mod:`delaytrack.sweeps.report`: the summary table per
-  controller × delay class, figures and the HTML report (:func:`write_sweep_outputs`).
+- :mod:`delaytrack.sweeps.summary`: the summary table per controller × delay class and the
+  facts a sweep's report states; :mod:`delaytrack.report.sweep` writes the summary, figures and
+  the HTML report (:func:`~delaytrack.report.sweep.write_sweep_outputs`).
 """
 
+from delaytrack._deprecated import moved_names
 from delaytrack.sweeps.executors import DaskExecutor, LocalExecutor, make_executor
 from delaytrack.sweeps.parts import PartsScan, finished_units, run_unit, write_part
-from delaytrack.sweeps.report import write_sweep_outputs
 from delaytrack.sweeps.runner import SweepInterrupted, SweepOutcome, SweepUnitsFailed, run_sweep
 from delaytrack.sweeps.spec import DISTRIBUTIONS, Run, SweepError, SweepSpec, Unit
 from delaytrack.sweeps.summary import summary_table
@@ -37,5 +38,9 @@ __all__ = [
     "run_unit",
     "summary_table",
     "write_part",
-    "write_sweep_outputs",
 ]
+
+#: A sweep's report is :mod:`delaytrack.report.sweep`'s (a report, above the sweeps).
+__getattr__ = moved_names(
+    __name__, {"write_sweep_outputs": "delaytrack.report.sweep:write_sweep_outputs"}
+)

@@ -22,27 +22,42 @@ then ``<metric>_mean``, ``_median``, ``_p95`` (95th
 percentile, linear interpolation) and ``_max`` over the runs whose status is ``ok`` (NaN when
 there is none). The statistic columns are named by
 :func:`~delaytrack._result_columns.summary_columns`, which refuses two columns of one name (with
-or without the metrics' units, :func:`~delaytrack.sweeps.report.with_units`).
+or without the metrics' units, :func:`~delaytrack.report.sweep.with_units`).
+
+What the sweep's report states is computed here too: the divergence per controller
+(:func:`divergence_per_controller`) and, per delay class, the smallest median of each metric or
+the controllers tied for it (:func:`smallest_medians`).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
+from delaytrack import _result_columns as result_columns
 from delaytrack._result_columns import SUMMARY_STATISTICS, summary_columns
 from delaytrack.metrics import COORDINATE_METRICS
+
+if TYPE_CHECKING:
+    from delaytrack.sweeps.spec import SweepSpec
 
 __all__ = [
     "DELAY_BAND_EDGES",
     "DIVERGED_STATUSES",
     "STATISTICS",
+    "TIE",
+    "SmallestMedian",
     "controller_labels",
     "default_metrics",
     "delay_classes",
+    "divergence_per_controller",
+    "metric_units",
+    "smallest_medians",
     "summary_table",
 ]
 
@@ -206,3 +221,58 @@ def summary_table(
                 row[column] = float(statistic(values)) if values.size else math.nan
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+#: Relative difference of two medians under which :func:`smallest_medians` calls them a tie.
+TIE = 0.01
+
+
+@dataclass(frozen=True)
+class SmallestMedian:
+    """The controller with the smallest median of a metric in one delay class, or every
+    controller within :data:`TIE` of the smallest (a tie), smallest first."""
+
+    delay_class: str
+    controllers: tuple[str, ...]
+    medians: tuple[float, ...]
+
+
+def divergence_per_controller(summary: pd.DataFrame) -> pd.DataFrame:
+    """``runs``, ``diverged`` and ``failed`` of :func:`summary_table`'s rows summed per
+    controller, in the summary's order."""
+    return summary.groupby("controller", sort=False)[["runs", "diverged", "failed"]].sum()
+
+
+def smallest_medians(summary: pd.DataFrame, metric: str) -> list[SmallestMedian]:
+    """Per delay class of :func:`summary_table`'s rows with at least two finite medians of
+    ``metric``, its smallest: the controllers whose median ``m`` is within :data:`TIE` of the
+    smallest ``low`` (``m - low <= TIE max(|low|, |m|)``), in order (ties kept in row order)."""
+    column = f"{metric}_median"
+    found = []
+    for delay_class, rows in summary.groupby("delay_class", sort=False):
+        rows = rows[np.isfinite(rows[column].to_numpy(float))]
+        if len(rows) < 2:
+            continue
+        ordered = rows.sort_values(column, kind="stable")
+        values = ordered[column].to_numpy(float)
+        low = values[0]
+        tied = ordered[values - low <= TIE * np.maximum(abs(low), np.abs(values))]
+        found.append(
+            SmallestMedian(
+                str(delay_class),
+                tuple(str(name) for name in tied["controller"]),
+                tuple(float(value) for value in tied[column]),
+            )
+        )
+    return found
+
+
+def metric_units(spec: SweepSpec) -> dict[str, str]:
+    """Unit of each metric column a sweep's runs can have, from the base scenario's plant:
+    ``ae_<c>``, ``rms_<c>``, ``max_<c>`` in the coordinate's unit, ``tv`` in the inputs' unit
+    (when they share one); metrics whose unit the plant does not give are left out."""
+    plant = spec.base.build().plant
+    units = result_columns.metric_units(
+        plant.coordinate_names, plant.coordinate_units, plant.n, plant.input_units
+    )
+    return {metric: unit for metric, unit in units.items() if unit}

@@ -1,0 +1,83 @@
+"""The two-link job: its study holds the judgements its report states (which joints AROLC tracks
+better, whether the delay effect is small, whether each delay is below the certified bound), and
+the report words them as the study holds them, whatever the numbers beside them."""
+
+from __future__ import annotations
+
+import dataclasses
+import html
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from delaytrack.experiments import two_link
+from delaytrack.experiments.two_link import SMALL_DELAY_EFFECT_PCT, run_study
+from delaytrack.report.two_link import write_study
+
+
+@pytest.fixture(scope="module")
+def study():
+    return run_study(duration=0.1, check_dt=False)
+
+
+def _text(folder) -> str:
+    page = (folder / "report.html").read_text(encoding="utf-8")
+    return html.unescape(re.sub(r"<[^>]+>", "", page))
+
+
+def test_the_study_holds_its_judgements(study):
+    changes = study.changes.set_index("scenario")
+    for case in study.cases:
+        better = tuple(
+            c
+            for c in study.coordinates
+            if np.isfinite(changes.loc[case, f"ae_{c}"]) and changes.loc[case, f"ae_{c}"] < 0
+        )
+        assert study.arolc_better[case] == better
+        assert study.below_bound[case] == (study.h_max[case] < study.bound.h_m)
+    assert study.delay_effect_small == (study.largest_delay_effect < SMALL_DELAY_EFFECT_PCT)
+    assert study.all_below_bound == all(study.below_bound.values())
+
+
+def test_which_joints_are_better_counts_only_finite_decreases():
+    changes = pd.DataFrame(
+        {
+            "scenario": ["S1", "S3", "S4"],
+            "ae_q1": [-1.0, 2.0, np.nan],
+            "ae_q2": [-0.5, -3.0, 0.0],
+        }
+    )
+    assert two_link._arolc_better(changes) == {"S1": ("q1", "q2"), "S3": ("q2",), "S4": ()}
+
+
+def test_the_report_words_the_studys_judgements(study, tmp_path):
+    write_study(study, tmp_path / "as-run")
+    text = _text(tmp_path / "as-run")
+    for case in study.cases:
+        head = {
+            study.coordinates: "AROLC tracks better on both joints",
+            (): "AROLC does not track better than the outer loop",
+        }.get(study.arolc_better[case], f"AROLC tracks better on {study.arolc_better[case][0]}")
+        assert f"{case}: {head}" in text
+    small = "comes mostly from the model mismatch, not from the delay"
+    assert (small in text) == study.delay_effect_small
+    # The report follows the study's judgements, not the numbers beside them.
+    judged = dataclasses.replace(
+        study,
+        arolc_better={"S1": ("q2",), "S3": ()},
+        delay_effect_small=not study.delay_effect_small,
+        below_bound={"S1": False, "S3": True},
+    )
+    write_study(judged, tmp_path / "judged")
+    text = _text(tmp_path / "judged")
+    assert "S1: AROLC tracks better on q2 only. AROLC vs outer loop: " in text
+    assert "S3: AROLC does not track better than the outer loop. AROLC vs outer loop: " in text
+    assert (small in text) != study.delay_effect_small
+    assert ("so the delay is a large part of the tracking error" in text) == (
+        study.delay_effect_small
+    )
+    assert f"The largest delay of S1 is {study.h_max['S1']:.3g} s, NOT below h_m." in text
+    assert f"The largest delay of S3 is {study.h_max['S3']:.3g} s, below h_m." in text
+    assert "Not every case is inside the delay range the theorem certifies" in text

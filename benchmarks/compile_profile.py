@@ -92,8 +92,8 @@ PARTS = {
     "delaytrack.sim.engine.run_batch": "engine (tick loop)",
     "delaytrack.sim.integrator.integrate_tick": "plant integrator",
     "delaytrack.sim.integrator.integrate_reduced_tick": "plant integrator",
-    "delaytrack.components.evaluate_reference": "reference",
-    "delaytrack.components.evaluate_step": "controller step (user's)",
+    "delaytrack._compile.native_entries.evaluate_reference": "reference",
+    "delaytrack._compile.native_entries.evaluate_step": "controller step (user's)",
     "delaytrack.delays._kernel.evaluate_profile": "delay profile",
 }
 

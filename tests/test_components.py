@@ -17,7 +17,8 @@ import pytest
 
 from delaytrack._compile.fingerprint import code_fingerprint
 from delaytrack._compile.helper_process import spare_core
-from delaytrack.components import Kernel, evaluate_reference
+from delaytrack._compile.native_entries import evaluate_reference
+from delaytrack.components import Kernel
 from delaytrack.controllers.arolc import arolc_step
 from delaytrack.plants import TwoLinkArm
 

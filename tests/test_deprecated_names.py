@@ -9,6 +9,7 @@ import pytest
 MOVED = [
     ("delaytrack.components", "code_fingerprint", "delaytrack._compile.fingerprint"),
     ("delaytrack.components", "refuse_random_draws", "delaytrack._compile.guards"),
+    ("delaytrack.components", "evaluate_step", "delaytrack._compile.native_entries"),
     ("delaytrack.experiments.scenario", "Scenario", "delaytrack.scenario"),
     ("delaytrack.experiments.scenario", "run_to_folder", "delaytrack.jobs.scenario_run"),
     ("delaytrack.experiments", "run_to_folder", "delaytrack.jobs.scenario_run"),

@@ -25,8 +25,8 @@ import pytest
 from scipy.interpolate import CubicSpline
 
 import delaytrack as dt
+from delaytrack._compile.native_entries import evaluate_step
 from delaytrack.cli import main
-from delaytrack.components import evaluate_step
 from delaytrack.scenario import Scenario, ScenarioError
 from delaytrack.sweeps import SweepError, SweepSpec
 from delaytrack.sweeps.spec import engine_inputs

@@ -44,7 +44,7 @@ from numba.extending import overload
 from delaytrack._compile.fingerprint import name_with_code
 from delaytrack._compile.functions import in_package, is_compiled, qualified_name
 from delaytrack._compile.guards import refuse_managed_result
-from delaytrack._compile.jit import inline_kernel, tick_kernel
+from delaytrack._compile.jit import inline_kernel
 from delaytrack._compile.kernel_type import KernelType, known_to_numba, numba_type_of
 from delaytrack._compile.native_call import NativeFunctionType, call_native
 from delaytrack._deprecated import moved_names
@@ -62,8 +62,6 @@ __all__ = [
     "call_stepper",
     "call_terms",
     "call_velocity_map",
-    "evaluate_reference",
-    "evaluate_step",
     "has_identity_mass",
     "has_stepper",
     "plant_sizes",
@@ -71,10 +69,12 @@ __all__ = [
     "solve_input_map",
 ]
 
-#: Fingerprints and guards belong to the compile machinery now.
+#: Fingerprints, guards and the engine's compiled entries belong to the compile machinery now.
 __getattr__ = moved_names(
     __name__,
     {
+        "evaluate_reference": "delaytrack._compile.native_entries:evaluate_reference",
+        "evaluate_step": "delaytrack._compile.native_entries:evaluate_step",
         "code_fingerprint": "delaytrack._compile.fingerprint:code_fingerprint",
         "compiled_functions_reached": "delaytrack._compile.fingerprint:compiled_functions_reached",
         "refuse_changed_globals": "delaytrack._compile.guards:refuse_changed_globals",
@@ -578,38 +578,6 @@ def _call_reference_compiled(reference, t, params, qd, qd_dot, qd_ddot):
 
         return impl
     return None
-
-
-@tick_kernel
-def evaluate_step(
-    step, t, q, qdot, qd, qd_dot, qd_ddot, T_c, h, params, state, model, model_params, command, work
-):
-    """:func:`call_step`, compiled on its own for each controller step and nominal model: the
-    compiled engine calls it through its address (:mod:`delaytrack._compile.native_parts`)."""
-    call_step(
-        step,
-        t,
-        q,
-        qdot,
-        qd,
-        qd_dot,
-        qd_ddot,
-        T_c,
-        h,
-        params,
-        state,
-        model,
-        model_params,
-        command,
-        work,
-    )
-
-
-@tick_kernel
-def evaluate_reference(reference, t, params, qd, qd_dot, qd_ddot):
-    """:func:`call_reference`, compiled on its own for each reference kernel: the compiled engine
-    calls it through its address (:mod:`delaytrack._compile.native_parts`)."""
-    call_reference(reference, t, params, qd, qd_dot, qd_ddot)
 
 
 def call_delay(delay, t, params):

@@ -9,9 +9,9 @@ kept on disk (:func:`engine_parts`):
 
 * the plant's tick, :func:`~delaytrack.sim.integrator.integrate_tick` compiled for the plant's
   kernel and the batch's delay kernel;
-* the reference, :func:`~delaytrack.components.evaluate_reference` compiled for its kernel;
+* the reference, :func:`.native_entries.evaluate_reference` compiled for its kernel;
 * the controller's step: one of this package's compiled for the nominal model's kernel, one of
-  the user's in :func:`~delaytrack.components.evaluate_step` compiled for the step's kernel
+  the user's in :func:`.native_entries.evaluate_step` compiled for the step's kernel
   and the model's;
 * the delay at a tick, :func:`~delaytrack.delays._kernel.evaluate_profile` compiled for the
   batch's delay kernel (a profile of the user's, or none).
@@ -36,7 +36,8 @@ from numba import typeof, types
 from delaytrack._compile.first_compile import code_ready
 from delaytrack._compile.helper_process import CompileJob
 from delaytrack._compile.native_call import NativeFunction
-from delaytrack.components import Kernel, evaluate_reference, evaluate_step
+from delaytrack._compile.native_entries import evaluate_reference, evaluate_step
+from delaytrack.components import Kernel
 from delaytrack.controllers.base import step_workspace
 from delaytrack.delays._kernel import evaluate_profile
 from delaytrack.sim.integrator import TickArguments, plant_integrator
@@ -164,7 +165,7 @@ def _plant_tick_part(
 
 
 def reference_part(reference: Kernel, n: int) -> NativePart:
-    """:func:`~delaytrack.components.evaluate_reference` for the reference kernel ``reference``
+    """:func:`.native_entries.evaluate_reference` for the reference kernel ``reference``
     of ``n`` coordinates."""
     return _reference_part(reference.numba_type, n)
 
@@ -179,7 +180,7 @@ def _reference_part(reference: types.Type, n: int) -> NativePart:
 def controller_step_part(step: Kernel, model: Kernel, n: int, m: int) -> NativePart:
     """The controller's step kernel ``step`` on the nominal ``model`` with ``n`` coordinates and
     ``m`` inputs: one of this package's compiled for the model alone, the model bound; one of
-    the user's in :func:`~delaytrack.components.evaluate_step`, compiled for both, both bound.
+    the user's in :func:`.native_entries.evaluate_step`, compiled for both, both bound.
 
     Either way the engine passes the same arguments; only the bound positions differ, so the
     engine has one variant for this package's steps and one for the user's. A step of this

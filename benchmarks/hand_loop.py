@@ -8,7 +8,8 @@ What a user who knows numba well would write for exactly the case of :func:`base
   directly: the robot in its reduced (wheel-space) form, as the engine integrates it
   (:func:`~delaytrack.plants.robot.kinematics.robot_velocity_map` and
   :func:`~delaytrack.plants.robot.payload.robot_payload_dynamics`; the three dependent
-  velocities get no slope and are set from the wheel rates after each step),
+  velocities get no slope and are set from the wheel rates after each step, which the next
+  step's first stage reads as they are),
   :func:`~delaytrack.controllers.arolc.arolc_step` on the nominal model and
   :func:`~delaytrack.references.sinusoidal.sinusoidal_reference`;
 * the delayed command looked up at each RK4 stage time (``k = ⌊(t - h(t)) / T_c⌋``), **without**
@@ -59,8 +60,13 @@ def _plant_tick(x, history, plant_params, delay, t_k, dt, steps_per_tick, T_c, b
             index = math.floor((time - h) / T_c)
             for j in range(m):
                 applied[j] = history[index, j] if index >= 0 else 0.0
-            # the reduced form: q̇ = S(q) η, η̇ of the wheel-space dynamics
-            robot_velocity_map(q, eta, plant_params, qdot)
+            # the reduced form: q̇ = S(q) η (at the first stage, x's: set after the last step),
+            # η̇ of the wheel-space dynamics
+            if s == 0:
+                for i in range(n):
+                    qdot[i] = x[n + i]
+            else:
+                robot_velocity_map(q, eta, plant_params, qdot)
             robot_payload_dynamics(time, q, eta, applied, plant_params, eta_dot)
             for i in range(n):
                 slopes[s, i] = qdot[i]

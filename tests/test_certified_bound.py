@@ -95,3 +95,15 @@ def test_a_caller_that_states_h_m_itself_silences_the_warning_only_within():
             run(FAST, ConstantDelay(0.04))
     with pytest.warns(BeyondCertifiedBoundWarning):
         run(FAST, ConstantDelay(0.04))
+
+
+def test_h_m_is_computed_once_per_gains_and_follows_every_gain():
+    """h_m is remembered per gains (a simulate call pays for it once, not at every call), so
+    two controllers with other gains of the same shape get their own h_m."""
+    slower = AROLC(TwoLinkArm(), K1=2.0, K2=4.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
+    damped = AROLC(TwoLinkArm(), K1=4.0, K2=6.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
+    bounds = certified_bounds([FAST, slower, damped, OuterLoop(TwoLinkArm(), K1=4.0, K2=4.0)])
+    expected = [razumikhin_bound(k1, k2).h_m for k1, k2 in ((4.0, 4.0), (2.0, 4.0), (4.0, 6.0))]
+    assert bounds[:3].tolist() == expected and len(set(expected)) == 3
+    assert np.isnan(bounds[3])
+    assert certified_bounds([slower]).tolist() == [expected[1]]

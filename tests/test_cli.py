@@ -141,8 +141,9 @@ def test_bound_beta_is_refused_in_the_librarys_words_with_its_flag(capsys):
         razumikhin_bound(1.0, 1.0, 1.0, beta=-0.5)
     assert refused.value.argument == "beta"
     err = capsys.readouterr().err
-    assert err == "error: --beta must be > 0; got -0.5 (got --beta -0.5)\n"
-    assert err == f"error: --beta {refused.value.problem} (got --beta -0.5)\n"  # the library's
+    # the library's words, without the text given to the flag again (they end with it)
+    assert err == "error: --beta must be > 0; got -0.5\n"
+    assert err == f"error: --beta {refused.value.problem}\n"
 
 
 def test_missing_argument_is_a_usage_error():

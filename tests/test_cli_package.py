@@ -111,9 +111,13 @@ def test_a_scenario_error_about_a_key_carries_the_key():
 
 
 def test_the_command_line_names_the_flag_and_keeps_the_librarys_words():
-    error = ArgumentError("K1", "must be > 0; got -1")
+    error = ArgumentError("K1", "must be > 0; got [[-1.0]]")
     assert str(flagged(error, {"K1": "--k1"}, given={"--k1": "-1"})) == (
-        "--k1 must be > 0; got -1 (got --k1 -1)"
+        "--k1 must be > 0; got [[-1.0]] (got --k1 -1)"
+    )
+    said = ArgumentError("beta", "must be > 0; got -0.5")  # ends with what was given: once
+    assert str(flagged(said, {"beta": "--beta"}, given={"--beta": "-0.5"})) == (
+        "--beta must be > 0; got -0.5"
     )
     assert str(flagged(error, {"K2": "--k2"})) == str(error)  # another argument: as it is
     key = SpecError.of_key("duration", "must be > 0 (seconds); got -1")

@@ -108,7 +108,11 @@ def test_h_m_does_not_depend_on_the_scale_of_Q(paper_bound_design):
         ({"gain_bound": math.inf}, ValueError, "gain_bound must be finite"),
         ({"gain_bound": "1"}, TypeError, "gain_bound must be a real number; got '1'"),
         ({"r": 1.0}, ValueError, "r must be > 1"),
-        ({"min_bandwidth": -1.0}, ValueError, "min_bandwidth must be > 0; got -1"),
+        (
+            {"min_bandwidth": -1.0},
+            ValueError,
+            "min_bandwidth must be > 0 rad/s (the least natural frequency sqrt(k1)); got -1",
+        ),
         (
             {"min_bandwidth": 2.0},
             ValueError,

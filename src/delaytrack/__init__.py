@@ -3,8 +3,8 @@
 The curated public API. Everything here is also importable from its subpackage
 (:mod:`delaytrack.plants`, :mod:`delaytrack.delays`, :mod:`delaytrack.controllers`,
 :mod:`delaytrack.analysis`, :mod:`delaytrack.sim`, :mod:`delaytrack.metrics`,
-:mod:`delaytrack.scenario`, :mod:`delaytrack.experiments`); figures and HTML reports live in
-:mod:`delaytrack.report`.
+:mod:`delaytrack.scenario`, :mod:`delaytrack.experiments`, :mod:`delaytrack.jobs`); figures
+and HTML reports live in :mod:`delaytrack.report`.
 
 Examples
 --------

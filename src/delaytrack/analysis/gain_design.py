@@ -14,7 +14,12 @@ from typing import Any
 
 import numpy as np
 
-from delaytrack._validation import ArgumentError, is_integer_at_least, positive_scalar
+from delaytrack._validation import (
+    ArgumentError,
+    finite_scalar,
+    is_integer_at_least,
+    positive_scalar,
+)
 from delaytrack.analysis.exact_margin import ExactDelayMargin, exact_delay_margin
 from delaytrack.analysis.razumikhin import RazumikhinBound, _dimension, razumikhin_bound
 
@@ -274,7 +279,12 @@ def _bandwidth(min_bandwidth: float | None, gain_bound: float) -> float | None:
     """``min_bandwidth`` checked: a number > 0 whose square is at most ``gain_bound``."""
     if min_bandwidth is None:
         return None
-    bandwidth = positive_scalar("min_bandwidth", min_bandwidth)
+    bandwidth = finite_scalar("min_bandwidth", min_bandwidth)
+    if bandwidth <= 0.0:
+        raise ArgumentError(
+            "min_bandwidth",
+            f"must be > 0 rad/s (the least natural frequency sqrt(k1)); got {bandwidth:g}",
+        )
     least_k1 = bandwidth * bandwidth
     if least_k1 > gain_bound:
         square = f"{least_k1:g}" if math.isfinite(least_k1) else f"{bandwidth:g}^2"

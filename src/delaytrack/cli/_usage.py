@@ -26,15 +26,19 @@ def flagged(
 
     An :class:`~delaytrack._validation.ArgumentError` about an argument in ``flags`` (argument
     name -> flag) calls every argument it names by its flag (:meth:`ArgumentError.spelled`),
-    followed by the text given to the flag when ``given`` (flag -> text) holds it
-    (``"(got --k1 -1)"``). A :class:`~delaytrack._spec.SpecError` about a scenario key in
+    followed by the text given to the flag when ``given`` (flag -> text) holds it and the
+    message does not end with it already (``"(got --k1 1,2)"``). A
+    :class:`~delaytrack._spec.SpecError` about a scenario key in
     ``keys`` (key -> flag) names the flag instead of the key. Any other error keeps its message.
     """
     flags, given, keys = flags or {}, given or {}, keys or {}
     if isinstance(error, ArgumentError) and error.argument in flags:
         flag = flags[error.argument]
-        shown = f" (got {flag} {given[flag]})" if flag in given else ""
-        return UsageError(error.spelled(flags) + shown)
+        message = error.spelled(flags)
+        text = given.get(flag)
+        # The text given to the flag, unless the message ends with it already.
+        shown = "" if text is None or message.endswith(f"got {text}") else f" (got {flag} {text})"
+        return UsageError(message + shown)
     if isinstance(error, SpecError) and error.key is not None and error.key in keys:
         return UsageError(f"{keys[error.key]} {error.problem}")
     return UsageError(str(error))

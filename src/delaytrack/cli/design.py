@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 from delaytrack._cli_options import integer
 from delaytrack.cli._numbers import scalar
 from delaytrack.cli._theorem_1 import joints, r_and_json_arguments, razumikhin_factor
-from delaytrack.cli._usage import UsageError, flagged
+from delaytrack.cli._usage import flagged
 
 if TYPE_CHECKING:
     from delaytrack.analysis import GainDesign
@@ -57,14 +57,9 @@ def run(args: argparse.Namespace) -> int:
     from delaytrack.analysis import design_gains
 
     gain_bound, r = scalar("--gain-bound", args.gain_bound), razumikhin_factor(args.r)
-    bandwidth = None
-    if args.min_bandwidth is not None:
-        bandwidth = scalar("--min-bandwidth", args.min_bandwidth)
-        if bandwidth <= 0.0:
-            raise UsageError(
-                f"--min-bandwidth must be > 0 rad/s (the least natural frequency sqrt(k1)); "
-                f"got {args.min_bandwidth}"
-            )
+    bandwidth = (
+        None if args.min_bandwidth is None else scalar("--min-bandwidth", args.min_bandwidth)
+    )
     try:
         design = design_gains(
             n=joints(args.n), gain_bound=gain_bound, min_bandwidth=bandwidth, r=r, seed=args.seed

@@ -262,7 +262,8 @@ class Decision:
     ae_difference, ae_ratio : float
         The runner-up's worst-case AE minus the winner's, and divided by it (NaN without both).
     refused : Refusal or None
-        Why no candidate was chosen (None when one was); :attr:`refusal` says it in words.
+        Why no candidate was chosen (None when one was);
+        :func:`delaytrack.report.decision.refusal_text` says it in words.
     required_share : float
     draws : int
         Robots per candidate and condition (the fewest when they differ).

@@ -46,8 +46,8 @@ from delaytrack.sim import SimResult, compile_ahead
 __all__ = [
     "CASES",
     "CONTROLLERS",
-    "SMALL_DELAY_EFFECT_PCT",
     "FOLDER",
+    "SMALL_DELAY_EFFECT_PCT",
     "TwoLinkStudy",
     "run_study",
 ]

@@ -38,7 +38,8 @@ def run_paper(
     gains: tuning.GainsSource = None,
     decision: DecisionStudy | None = None,
 ) -> PaperStudy:
-    """Run the paper's experiment and write ``out_dir`` (module docstring); return the study.
+    """Run the paper's experiment and write ``out_dir`` (the files of
+    :mod:`delaytrack.experiments.paper`'s docstring); return the study.
     ``gains``: the gains file (or its record) of the tuned controllers; the shipped one by
     default. ``robustness`` and ``decision`` (studies already run) add their sections to the
     report."""

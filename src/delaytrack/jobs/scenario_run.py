@@ -13,6 +13,8 @@ from delaytrack.scenario.scenario import BuiltScenario, Scenario, ScenarioError,
 from delaytrack.sim import SimResult
 from delaytrack.sim.simulate import physical_memory
 
+__all__ = ["TRAJECTORY_FORMATS", "RunOutput", "run_to_folder"]
+
 #: The trajectory file formats :func:`run_to_folder` writes.
 TRAJECTORY_FORMATS = ("parquet", "csv")
 #: Peak memory of writing a results folder over the recorded arrays alone (measured: the frame,

@@ -49,7 +49,7 @@ from delaytrack.live.clock import Ticker, steps_until
 from delaytrack.live.log import McapLog, write_csv
 from delaytrack.live.messages import ReleaseMessage, StateMessage
 from delaytrack.live.transport import declare_stream
-from delaytrack.sim._kernel_checks import check_reduced_start
+from delaytrack.sim._kernel_checks import check_reduced_start, velocities_on_constraints
 
 __all__ = ["PlantStepper", "RobotNode", "SimulatedRobot"]
 
@@ -82,6 +82,8 @@ class PlantStepper:
         self.n, self.m, self.dt = plant.n, plant.m, float(dt)
         self.x = np.array(x0, dtype=np.float64).reshape(2 * self.n).copy()
         check_reduced_start([plant], self.x[None])  # as the simulator: never changed silently
+        if plant.engine_kernel.reduced is not None:  # on its constraints, as the simulator starts
+            self.x[self.n :] = velocities_on_constraints(plant, self.x, as_the_engine=True)
         self.u = np.zeros(self.m)
         self.compiled = bool(plant.compiled)
         self._terms = plant.terms_kernel

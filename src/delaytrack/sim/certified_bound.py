@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import functools
 import warnings
 from collections.abc import Iterator, Sequence
 from typing import TYPE_CHECKING
@@ -63,16 +64,21 @@ class BeyondCertifiedBoundWarning(UserWarning):
 def certified_bounds(controllers: Sequence[Controller]) -> np.ndarray:
     """Theorem 1's ``h_m`` (seconds) of each controller: AROLC's with its ``K1``, ``K2``, ``Q``
     and the paper's ``β``, ``r``; NaN for any other controller (no certificate)."""
-    known: dict[int, float] = {}
     bounds = np.full(len(controllers), np.nan)
     for i, controller in enumerate(controllers):
         if isinstance(controller, AROLC):
-            if id(controller) not in known:  # a batch shares one controller often
-                known[id(controller)] = razumikhin_bound(
-                    controller.K1, controller.K2, controller.Q, PAPER_BETA, PAPER_R
-                ).h_m
-            bounds[i] = known[id(controller)]
+            gains = (controller.K1, controller.K2, controller.Q)
+            bounds[i] = _h_m(*((g.shape, np.ascontiguousarray(g).tobytes()) for g in gains))
     return bounds
+
+
+@functools.lru_cache(maxsize=1024)
+def _h_m(*gains: tuple[tuple[int, ...], bytes]) -> float:
+    """Theorem 1's ``h_m`` of AROLC's ``K1``, ``K2``, ``Q``, each given as its shape and bytes
+    (float64, C order): computed once per gains (about a millisecond, as long as a short run
+    takes), then remembered."""
+    K1, K2, Q = (np.frombuffer(data).reshape(shape) for shape, data in gains)
+    return razumikhin_bound(K1, K2, Q, PAPER_BETA, PAPER_R).h_m
 
 
 def largest_delays(result: SimResult, delays: Sequence[DelayProfile]) -> np.ndarray:

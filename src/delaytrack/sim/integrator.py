@@ -232,7 +232,9 @@ def _reduced_rk4_substep(plant_terms, plant_params, t, x, u, length, work, bound
     (:class:`~delaytrack.components.ReducedForm`): classical RK4 on ``(q, η)``, ``η`` the last
     ``r`` entries of ``q̇``, with the slopes ``(S(q) η, η̇)`` of the stage's ``(q, η)``; after the
     step, ``q̇ = S(q) η`` at the new ``(q, η)``. The other ``n - r`` velocities are never
-    integrated, so the velocity constraints hold to rounding. Returns ``(outside, NaN)``."""
+    integrated, so the velocity constraints hold to rounding. ``x`` must hold ``q̇ = S(q) η``
+    already (the first stage's slope of ``q``): the map wrote it at the end of the sub-step
+    before, or at the start of the run (:func:`integrate_tick`). Returns ``(outside, NaN)``."""
     slopes, stage, stage_q, stage_qdot, _, _ = work
     n, _ = plant_sizes(plant_terms, stage_q, u)
     r = reduced_size(plant_terms)
@@ -241,10 +243,10 @@ def _reduced_rk4_substep(plant_terms, plant_params, t, x, u, length, work, bound
     half = 0.5 * length
     for s in range(4):
         if s == 0:
+            # x's q̇ is S(q) η already: set by the map at the end of the last sub-step, or at
+            # the run's start (:func:`integrate_tick`), from this same (q, η).
             offset = 0.0
-            for i in range(n):
-                stage[i] = x[i]
-            for i in range(first, 2 * n):
+            for i in range(2 * n):
                 stage[i] = x[i]
         else:
             offset = half if s < 3 else length
@@ -252,7 +254,7 @@ def _reduced_rk4_substep(plant_terms, plant_params, t, x, u, length, work, bound
                 stage[i] = x[i] + offset * slopes[s - 1, i]
             for i in range(first, 2 * n):
                 stage[i] = x[i] + offset * slopes[s - 1, i]
-        call_velocity_map(plant_terms, stage_q, stage_eta, plant_params, stage_qdot)
+            call_velocity_map(plant_terms, stage_q, stage_eta, plant_params, stage_qdot)
         for i in range(n):
             slopes[s, i] = stage_qdot[i]
         call_reduced_dynamics(
@@ -386,6 +388,11 @@ def integrate_tick(
     capacity = history.shape[0]
     newest_slot = k % capacity
     profile = work[5]
+    r = reduced_size(plant_terms)
+    if k == 0 and r > 0 and not probe_only:
+        # A plant in its reduced form starts from q̇ = S(q) η (its sub-steps then keep it so).
+        n = x.shape[0] // 2
+        call_velocity_map(plant_terms, x[:n], x[2 * n - r :], plant_params, x[n:])
     work = rk4_memory(plant_terms, work)
     first_slot = -3
     outside = False  # whether x left the bound at the end of the last sub-step

@@ -9,13 +9,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import pandas as pd
 
 from delaytrack._deprecated import moved_names
 from delaytrack.experiments.relative_change import relative_difference
 
-__all__ = ["DT_TOLERANCE", "dt_check_table", "largest_change"]
+__all__ = ["DT_TOLERANCE", "DtCheck", "dt_check_table", "dt_check_verdict", "largest_change"]
 
 #: Its report section now lives with the reports.
 __getattr__ = moved_names(__name__, {"write_dt_check": "delaytrack.report.dt_check:write_dt_check"})
@@ -38,3 +39,38 @@ def largest_change(dt_check: pd.DataFrame | None) -> float:
     if dt_check is None:
         return math.nan
     return float(dt_check["max_relative_change"].max())
+
+
+@dataclass(frozen=True)
+class DtCheck:
+    """The dt-halving check and its verdict against :data:`DT_TOLERANCE`.
+
+    Attributes
+    ----------
+    table : DataFrame
+        :func:`dt_check_table`: the metrics at dt / 2 and each run's largest relative change.
+    largest : float
+        The largest relative change of any metric of any run.
+    above : DataFrame
+        The rows of ``table`` whose largest change is at or above the tolerance.
+    tolerance : float
+        :data:`DT_TOLERANCE`.
+    """
+
+    table: pd.DataFrame
+    largest: float
+    above: pd.DataFrame
+    tolerance: float = DT_TOLERANCE
+
+    @property
+    def within_tolerance(self) -> bool:
+        """Whether every metric moved by less than the tolerance."""
+        return self.largest < self.tolerance
+
+
+def dt_check_verdict(dt_check: pd.DataFrame | None) -> DtCheck | None:
+    """The :class:`DtCheck` of a :func:`dt_check_table` (None when the check was not run)."""
+    if dt_check is None:
+        return None
+    above = dt_check[dt_check.max_relative_change >= DT_TOLERANCE]
+    return DtCheck(dt_check, largest_change(dt_check), above)

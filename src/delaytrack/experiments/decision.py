@@ -329,6 +329,121 @@ def _choice(row: Any, largest_omega_n: float) -> Choice:
     )
 
 
+def _check_columns(table: pd.DataFrame) -> None:
+    """Refuse a ``table`` that lacks any of the columns :func:`decide` reads."""
+    missing = [c for c in _COLUMNS if c not in table.columns]
+    if missing:
+        raise ArgumentError("table", f"lacks the columns {missing}; needs {list(_COLUMNS)}")
+
+
+def _with_shares(table: pd.DataFrame) -> pd.DataFrame:
+    """The columns :func:`decide` reads, with the share on the path and its Wilson 95 % bounds
+    (``share_on_path``, ``share_low``, ``share_high``) after ``on_path``."""
+    frame = table.loc[:, list(_COLUMNS)].reset_index(drop=True)
+    bounds = [
+        wilson_interval(int(k), int(n)) for k, n in zip(frame.on_path, frame.runs, strict=True)
+    ]
+    frame.insert(8, "share_on_path", frame.on_path / frame.runs)
+    frame.insert(9, "share_low", [low for low, _ in bounds])
+    frame.insert(10, "share_high", [high for _, high in bounds])
+    return frame
+
+
+def _candidate_rows(
+    frame: pd.DataFrame, required_share: float, needed: int
+) -> tuple[list[dict[str, Any]], dict[tuple[str, float], Shortfall]]:
+    """One row per candidate of ``frame`` (its worst share and AE, whether it qualifies), and
+    the shortfall of each candidate that does not qualify."""
+    rows = []
+    shortfalls: dict[tuple[str, float], Shortfall] = {}
+    for (controller, omega), conditions in frame.groupby(["controller", "omega_n"], sort=False):
+        worst = conditions.loc[conditions.share_low.idxmin()]
+        qualifies = bool(worst.share_low >= required_share)
+        if not qualifies:
+            shortfalls[controller, omega] = _shortfall(controller, omega, worst, needed)
+        rows.append(
+            {
+                "controller": controller,
+                "omega_n": omega,
+                "k1": conditions.k1.iloc[0],
+                "k2": conditions.k2.iloc[0],
+                "worst_share_low": float(worst.share_low),
+                "worst_ae": float(conditions.ae_median.max()),
+                "qualifies": qualifies,
+                "status": "qualifies" if qualifies else "excluded",
+            }
+        )
+    return rows, shortfalls
+
+
+def _shortfall(controller: str, omega: float, worst: Any, needed: int) -> Shortfall:
+    """The :class:`Shortfall` of a candidate whose smallest Wilson lower bound is in the
+    condition ``worst`` (a row of the table)."""
+    return Shortfall(
+        controller=controller,
+        omega_n=omega,
+        share_low=float(worst.share_low),
+        delay=float(worst.delay),
+        told=float(worst.told),
+        on_path=int(worst.on_path),
+        runs=int(worst.runs),
+        too_few_draws=bool(worst.runs < needed),
+    )
+
+
+def _ranked(rows: list[dict[str, Any]]) -> pd.DataFrame:
+    """The candidates' ``rows`` best first: qualifying, smallest worst-case AE, largest worst
+    share, then in the order of :data:`FAMILIES` and of ``ω_n``."""
+    order = {family: i for i, family in enumerate(FAMILIES)}
+    candidates = pd.DataFrame(rows)
+    candidates = candidates.assign(
+        _rank=candidates.controller.map(lambda c: order.get(c, len(order)))
+    )
+    return (
+        candidates.sort_values(
+            ["qualifies", "worst_ae", "worst_share_low", "_rank", "omega_n"],
+            ascending=[False, True, False, True, True],
+            kind="stable",
+        )
+        .drop(columns="_rank")
+        .reset_index(drop=True)
+    )
+
+
+def _refusal(
+    candidates: pd.DataFrame,
+    shortfalls: Mapping[tuple[str, float], Shortfall],
+    fewest: int,
+    needed: int,
+) -> Refusal:
+    """Why no candidate qualifies with ``fewest`` draws per condition: too few draws, or
+    enough and the closest candidate's shortfall."""
+    closest = None
+    if fewest >= needed:
+        best = candidates.sort_values("worst_share_low", ascending=False).iloc[0]
+        closest = shortfalls[best.controller, best.omega_n]
+    return Refusal(
+        too_few_draws=fewest < needed,
+        draws=fewest,
+        ceiling=fewest / (fewest + Z95 * Z95),
+        closest=closest,
+    )
+
+
+def _mark_choices(candidates: pd.DataFrame, chosen: pd.DataFrame) -> tuple[Choice, Choice | None]:
+    """The winner and the runner-up (None without one) of the qualifying ``chosen``, their
+    ``status`` set in ``candidates``."""
+    largest = candidates.omega_n.max()
+    first = chosen.iloc[0]
+    winner = _choice(first, largest)
+    candidates.loc[chosen.index[0], "status"] = "winner"
+    others = chosen[chosen.controller != first.controller]
+    if others.empty:
+        return winner, None
+    candidates.loc[others.index[0], "status"] = "runner-up"
+    return winner, _choice(others.iloc[0], largest)
+
+
 def decide(
     table: pd.DataFrame,
     envelope: Envelope,
@@ -355,86 +470,21 @@ def decide(
     ae_unit : str, optional
         The unit of AE, for the texts.
     """
-    missing = [c for c in _COLUMNS if c not in table.columns]
-    if missing:
-        raise ArgumentError("table", f"lacks the columns {missing}; needs {list(_COLUMNS)}")
+    _check_columns(table)
     needed = draws_needed(required_share)
-    frame = table.loc[:, list(_COLUMNS)].reset_index(drop=True)
-    bounds = [
-        wilson_interval(int(k), int(n)) for k, n in zip(frame.on_path, frame.runs, strict=True)
-    ]
-    frame.insert(8, "share_on_path", frame.on_path / frame.runs)
-    frame.insert(9, "share_low", [low for low, _ in bounds])
-    frame.insert(10, "share_high", [high for _, high in bounds])
-    keys = ["controller", "omega_n"]
-    rows = []
-    shortfalls: dict[tuple[str, float], Shortfall] = {}
-    for (controller, omega), conditions in frame.groupby(keys, sort=False):
-        worst = conditions.loc[conditions.share_low.idxmin()]
-        qualifies = bool(worst.share_low >= required_share)
-        if not qualifies:
-            shortfalls[controller, omega] = Shortfall(
-                controller=controller,
-                omega_n=omega,
-                share_low=float(worst.share_low),
-                delay=float(worst.delay),
-                told=float(worst.told),
-                on_path=int(worst.on_path),
-                runs=int(worst.runs),
-                too_few_draws=bool(worst.runs < needed),
-            )
-        rows.append(
-            {
-                "controller": controller,
-                "omega_n": omega,
-                "k1": conditions.k1.iloc[0],
-                "k2": conditions.k2.iloc[0],
-                "worst_share_low": float(worst.share_low),
-                "worst_ae": float(conditions.ae_median.max()),
-                "qualifies": qualifies,
-                "status": "qualifies" if qualifies else "excluded",
-            }
-        )
-    order = {family: i for i, family in enumerate(FAMILIES)}
-    candidates = pd.DataFrame(rows)
-    candidates = candidates.assign(
-        _rank=candidates.controller.map(lambda c: order.get(c, len(order)))
-    )
-    candidates = (
-        candidates.sort_values(
-            ["qualifies", "worst_ae", "worst_share_low", "_rank", "omega_n"],
-            ascending=[False, True, False, True, True],
-            kind="stable",
-        )
-        .drop(columns="_rank")
-        .reset_index(drop=True)
-    )
+    frame = _with_shares(table)
+    rows, shortfalls = _candidate_rows(frame, required_share, needed)
+    candidates = _ranked(rows)
     chosen = candidates[candidates.qualifies]
     winner = runner_up = None
     difference = ratio = math.nan
     refused = None
     fewest = int(frame.runs.min())
     if chosen.empty:
-        closest = None
-        if fewest >= needed:
-            best = candidates.sort_values("worst_share_low", ascending=False).iloc[0]
-            closest = shortfalls[best.controller, best.omega_n]
-        refused = Refusal(
-            too_few_draws=fewest < needed,
-            draws=fewest,
-            ceiling=fewest / (fewest + Z95 * Z95),
-            closest=closest,
-        )
+        refused = _refusal(candidates, shortfalls, fewest, needed)
     else:
-        largest = candidates.omega_n.max()
-        first = chosen.iloc[0]
-        winner = _choice(first, largest)
-        candidates.loc[chosen.index[0], "status"] = "winner"
-        others = chosen[chosen.controller != first.controller]
-        if not others.empty:
-            second = others.iloc[0]
-            runner_up = _choice(second, largest)
-            candidates.loc[others.index[0], "status"] = "runner-up"
+        winner, runner_up = _mark_choices(candidates, chosen)
+        if runner_up is not None:
             difference = runner_up.worst_ae - winner.worst_ae
             ratio = runner_up.worst_ae / winner.worst_ae
     merged = frame.merge(candidates, on=["controller", "omega_n", "k1", "k2"], how="left")

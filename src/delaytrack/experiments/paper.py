@@ -59,7 +59,12 @@ from delaytrack.analysis import RazumikhinBound, razumikhin_bound
 from delaytrack.controllers import AROLC, OuterLoop
 from delaytrack.experiments import tuning
 from delaytrack.experiments.contact import SLIP_COLUMNS, comparison, wheel_slip
-from delaytrack.experiments.convergence import dt_check_table, largest_change
+from delaytrack.experiments.convergence import (
+    DtCheck,
+    dt_check_table,
+    dt_check_verdict,
+    largest_change,
+)
 from delaytrack.experiments.pairing import AROLC_GAINS, BASELINE, DELAY_CLASS
 from delaytrack.experiments.paper_findings import (
     PaperFindings,
@@ -186,6 +191,11 @@ class PaperStudy:
     def dt_max_change(self) -> float:
         """Largest relative change of any metric when ``dt`` is halved (NaN if not checked)."""
         return largest_change(self.dt_check)
+
+    @property
+    def dt_verdict(self) -> DtCheck | None:
+        """The dt-halving check's verdict (None if not checked)."""
+        return dt_check_verdict(self.dt_check)
 
 
 def _controllers(gains: dict[str, dict[str, dict[str, float]]], reference: str) -> dict[str, list]:

@@ -20,7 +20,7 @@ import pandas as pd
 from delaytrack.analysis import RazumikhinBound
 from delaytrack.experiments import tuning
 from delaytrack.experiments.contact import ContactFindings, contact_findings
-from delaytrack.experiments.convergence import DT_TOLERANCE, largest_change
+from delaytrack.experiments.convergence import dt_check_verdict
 from delaytrack.experiments.pairing import AROLC_GAINS, BASELINE, DELAY_CLASS
 from delaytrack.experiments.paper_setup import DT, PAPER_TABLE, SCENARIOS, T_C
 from delaytrack.plants.mujoco import import_mujoco
@@ -431,7 +431,7 @@ def paper_findings(
     literal_right, literal_left = wheel_rates("literal")
     families = {"AROLC": ["AROLC"], "OuterLoop": ["OuterLoop"], "baseline": ["PCON", "PCONf"]}
     paper_tv = [values[4] for (_, name), values in PAPER_TABLE.items() if name == "AROLC"]
-    dt_max_change = largest_change(dt_check)
+    verdict = dt_check_verdict(dt_check)
     return PaperFindings(
         claims=claims(summary),
         tuned_claims=claims(tuned_as_arolc(summary, tuned_summary)),
@@ -479,7 +479,7 @@ def paper_findings(
         literal_turn=P3DX.wheel_radius * (literal_right - literal_left) / (2.0 * P3DX.half_track),
         controller_rate=1 / T_C,
         half_dt=DT / 2,
-        dt_within_tolerance=None if dt_check is None else bool(dt_max_change < DT_TOLERANCE),
+        dt_within_tolerance=None if verdict is None else verdict.within_tolerance,
         mujoco_installed=mujoco_installed,
         floor_friction=_floor_friction() if contact is not None else None,
         contact=contact_findings(contact) if contact is not None else None,

@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
@@ -37,7 +37,12 @@ from delaytrack._deprecated import moved_names
 from delaytrack.analysis import RazumikhinBound, razumikhin_bound
 from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
 from delaytrack.analysis.razumikhin import PAPER_R as R
-from delaytrack.experiments.convergence import dt_check_table, largest_change
+from delaytrack.experiments.convergence import (
+    DtCheck,
+    dt_check_table,
+    dt_check_verdict,
+    largest_change,
+)
 from delaytrack.experiments.relative_change import relative_change
 from delaytrack.metrics import COORDINATE_METRICS, metrics_table
 from delaytrack.scenario import Scenario, load_builtin, run_batched
@@ -182,6 +187,11 @@ class TwoLinkStudy:
         """Largest relative change of any metric when ``dt`` is halved (NaN if not checked)."""
         return largest_change(self.dt_check)
 
+    @property
+    def dt_verdict(self) -> DtCheck | None:
+        """The dt-halving check's verdict (None if not checked)."""
+        return dt_check_verdict(self.dt_check)
+
 
 def _summary(results: dict[str, SimResult]) -> pd.DataFrame:
     frames = []
@@ -233,6 +243,86 @@ def _arolc_better(changes: pd.DataFrame) -> dict[str, tuple[str, ...]]:
     }
 
 
+def _scenarios(duration: float | None) -> dict[tuple[str, str], Scenario]:
+    """The four shipped scenarios, resolved, by ``(case, controller)`` (``duration`` overrides
+    theirs when given)."""
+    scenarios = {}
+    for case in CASES:
+        for controller in CONTROLLERS:
+            scenario = load_builtin(scenario_name(case, controller))
+            if duration is not None:
+                scenario = scenario.replace(duration=duration)
+            scenarios[case, controller] = scenario.resolved()
+    return scenarios
+
+
+def _simulate(
+    scenarios: dict[tuple[str, str], Scenario], check_dt: bool, progress: bool
+) -> tuple[dict[str, SimResult], dict[str, SimResult], dict[str, SimResult]]:
+    """Per controller: its cases batched, its first case with no delay and, if ``check_dt``,
+    its cases at ``dt/2`` (else none), under one progress bar."""
+    dt = scenarios[CASES[0], "arolc"].dt
+    steps = len(CONTROLLERS) * (3 if check_dt else 2)
+    # Every controller's step is compiled with the first run that compiles anything.
+    built = [scenarios[CASES[0], controller].build() for controller in CONTROLLERS]
+    with (
+        tqdm(total=steps, desc="two-link", unit="batch", disable=not progress) as bar,
+        compile_ahead([b.controller for b in built], built[0].plant.n, built[0].plant.m),
+    ):
+        delayed = {c: [scenarios[case, c] for case in CASES] for c in CONTROLLERS}
+        results = _run_batches(delayed, bar, f"dt = {dt:g} s")
+        no_delay = {c: [_without_delay(scenarios[CASES[0], c])] for c in CONTROLLERS}
+        undelayed = _run_batches(no_delay, bar, "h = 0")
+        halved: dict[str, SimResult] = {}
+        if check_dt:
+            fine = {
+                c: [scenarios[case, c].replace(dt=dt / 2) for case in CASES] for c in CONTROLLERS
+            }
+            halved = _run_batches(fine, bar, f"dt = {dt / 2:g} s")
+    return results, undelayed, halved
+
+
+def _run_batches(
+    batches: dict[str, list[Scenario]], bar: Any, setting: str
+) -> dict[str, SimResult]:
+    """Each controller's scenarios as one batched simulation, shown on ``bar`` with its label
+    and ``setting``."""
+    results = {}
+    for controller, batch in batches.items():
+        bar.set_postfix_str(f"{CONTROLLERS[controller]}, {setting}")
+        results[controller] = run_batched(batch)
+        bar.update()
+    return results
+
+
+def _without_delay(scenario: Scenario) -> Scenario:
+    """``scenario`` with no delay (``h = 0``), named ``<name>_no_delay``."""
+    return scenario.replace(name=f"{scenario.name}_no_delay", delay={"type": "constant", "h": 0.0})
+
+
+def _dt_check(summary: pd.DataFrame, fine: pd.DataFrame) -> pd.DataFrame:
+    """The metrics of ``fine`` (the runs at ``dt/2``) against ``summary``'s
+    (:func:`~delaytrack.experiments.convergence.dt_check_table`)."""
+    metrics = [c for c in summary.columns if c.startswith(("ae_", "rms_", "max_")) or c == "tv"]
+    return dt_check_table(summary, fine[["scenario", "controller", *metrics]], metrics)
+
+
+def _undelayed_table(results: dict[str, SimResult]) -> pd.DataFrame:
+    """One row of metrics per controller's run with no delay."""
+    tables = [
+        metrics_table(result, coordinate_names=_COORDINATES, label=controller)
+        .rename(columns={"label": "controller"})
+        .drop(columns=["run"])
+        for controller, result in results.items()
+    ]
+    return pd.concat(tables, ignore_index=True)
+
+
+def _c_hat_peak(arolc: dict[str, SimResult]) -> dict[str, float]:
+    """Case -> the largest adaptive gain ĉ of AROLC's run."""
+    return {case: float(np.nanmax(run.controller_state[0, :, 0])) for case, run in arolc.items()}
+
+
 def run_study(
     *, duration: float | None = None, check_dt: bool = True, progress: bool = False
 ) -> TwoLinkStudy:
@@ -247,66 +337,20 @@ def run_study(
     progress : bool
         Show a progress bar over the simulations.
     """
-    scenarios = {}
-    for case in CASES:
-        for controller in CONTROLLERS:
-            scenario = load_builtin(scenario_name(case, controller))
-            if duration is not None:
-                scenario = scenario.replace(duration=duration)
-            scenarios[case, controller] = scenario.resolved()
+    scenarios = _scenarios(duration)
     first = scenarios[CASES[0], "arolc"]
     controller_spec = dict(first.controller)
     bound = razumikhin_bound(
         controller_spec["K1"], controller_spec["K2"], controller_spec["Q"], BETA, R, n=2
     )
-    steps = len(CONTROLLERS) * (3 if check_dt else 2)
     start = time.perf_counter()
-    results: dict[str, SimResult] = {}
-    halved: dict[str, SimResult] = {}
-    # Every controller's step is compiled with the first run that compiles anything.
-    built = [scenarios[CASES[0], controller].build() for controller in CONTROLLERS]
-    with (
-        tqdm(total=steps, desc="two-link", unit="batch", disable=not progress) as bar,
-        compile_ahead([b.controller for b in built], built[0].plant.n, built[0].plant.m),
-    ):
-        for controller in CONTROLLERS:
-            batch = [scenarios[case, controller] for case in CASES]
-            bar.set_postfix_str(f"{CONTROLLERS[controller]}, dt = {first.dt:g} s")
-            results[controller] = run_batched(batch)
-            bar.update()
-        undelayed = {}
-        for controller in CONTROLLERS:
-            bar.set_postfix_str(f"{CONTROLLERS[controller]}, h = 0")
-            base = scenarios[CASES[0], controller]
-            no_delay = base.replace(
-                name=f"{base.name}_no_delay", delay={"type": "constant", "h": 0.0}
-            )
-            undelayed[controller] = (
-                metrics_table(
-                    run_batched([no_delay]), coordinate_names=_COORDINATES, label=controller
-                )
-                .rename(columns={"label": "controller"})
-                .drop(columns=["run"])
-            )
-            bar.update()
-        if check_dt:
-            for controller in CONTROLLERS:
-                batch = [scenarios[case, controller].replace(dt=first.dt / 2) for case in CASES]
-                bar.set_postfix_str(f"{CONTROLLERS[controller]}, dt = {first.dt / 2:g} s")
-                halved[controller] = run_batched(batch)
-                bar.update()
+    results, undelayed, halved = _simulate(scenarios, check_dt, progress)
     seconds = time.perf_counter() - start
     summary = _summary(results)
-    dt_check = None
-    if check_dt:
-        fine = _summary(halved)
-        metrics = [c for c in summary.columns if c.startswith(("ae_", "rms_", "max_")) or c == "tv"]
-        dt_check = dt_check_table(summary, fine[["scenario", "controller", *metrics]], metrics)
-    undelayed_table = pd.concat(undelayed.values(), ignore_index=True)
+    dt_check = _dt_check(summary, _summary(halved)) if check_dt else None
+    undelayed_table = _undelayed_table(undelayed)
     arolc = {case: results["arolc"][CASES.index(case)] for case in CASES}
-    c_hat_peak = {
-        case: float(np.nanmax(run.controller_state[0, :, 0])) for case, run in arolc.items()
-    }
+    c_hat_peak = _c_hat_peak(arolc)
     k1, k2 = float(controller_spec["K1"]), float(controller_spec["K2"])
     ae = summary[[f"ae_{c}" for c in _COORDINATES]].to_numpy(dtype=float)
     delay_effect = _delay_effect(summary, undelayed_table)

@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -179,32 +180,42 @@ def write_session_report(
     and ``agreement`` (what :func:`~delaytrack.live.replay.replay` returns) the live and
     replayed runs are drawn and measured side by side."""
     from delaytrack._io import write_bytes, write_frame
-    from delaytrack.report.figures import (
-        commands_figure,
-        error_figure,
-        png_bytes,
-        tracking_figure,
-    )
-    from delaytrack.report.html import HtmlReport
+    from delaytrack.report.figures import png_bytes
 
     folder = Path(folder)
     built = scenario.build()
     summary = json.loads((folder / "summary.json").read_text())
     live = live_result(folder, scenario, built)
-    tables = [metrics_with_units(live, "live")]
-    runs = {"live": live}
-    if replayed is not None:
-        tables.append(metrics_with_units(replayed, "replayed"))
-        runs["replayed"] = replayed
+    runs = {"live": live} if replayed is None else {"live": live, "replayed": replayed}
+    metrics = _metrics(runs)
+    paths = [write_frame(metrics, folder / "metrics.csv")]
+    figures = _figures(folder, scenario, built, runs)
+    # Each figure drawn once: the same PNG in figures/ and in the report.
+    images = {name: (png_bytes(figure), caption) for name, (figure, caption) in figures.items()}
+    for name, (data, _caption) in images.items():
+        paths.append(write_bytes(folder / "figures" / f"{name}.png", data))
+    report = _html_report(folder, scenario, summary, live, metrics, agreement, images.values())
+    paths.append(report.write(folder / "report.html"))
+    return paths
+
+
+def _metrics(runs: dict[str, Any]) -> Any:
+    """:func:`metrics_with_units` of each run, labelled by its name, in one table."""
     import pandas as pd
 
-    metrics = pd.concat(tables, ignore_index=True).drop(columns=["run"])
-    paths = [write_frame(metrics, folder / "metrics.csv")]
-    figures = {
+    tables = [metrics_with_units(result, label) for label, result in runs.items()]
+    return pd.concat(tables, ignore_index=True).drop(columns=["run"])
+
+
+def _figures(folder: Path, scenario: Any, built: Any, runs: dict[str, Any]) -> dict[str, Any]:
+    """The report's figures, each with its caption: name -> (figure, caption)."""
+    from delaytrack.report.figures import commands_figure, error_figure, tracking_figure
+
+    return {
         "tracking": (tracking_figure(runs), "Each coordinate against its reference q_d"),
         "error": (error_figure(runs), "Absolute tracking error |q_d − q| at the ticks"),
         "commands": (
-            commands_figure({"live": live}),
+            commands_figure({"live": runs["live"]}),
             "Commands sent by the controller (solid) and held by the robot over the step after "
             "each tick (dashed)",
         ),
@@ -217,13 +228,22 @@ def write_session_report(
             "Wake-up lateness and compute time of the controller, lateness of the robot's steps",
         ),
     }
-    # Each figure drawn once: the same PNG in figures/ and in the report.
-    images = {name: png_bytes(figure) for name, (figure, _caption) in figures.items()}
-    for name, data in images.items():
-        paths.append(write_bytes(folder / "figures" / f"{name}.png", data))
 
-    nodes = summary.get("nodes") or {}
-    c, r, d = (nodes.get(role) or {} for role in ("controller", "robot", "delay"))
+
+def _html_report(
+    folder: Path,
+    scenario: Any,
+    summary: dict[str, Any],
+    live: Any,
+    metrics: Any,
+    agreement: Any,
+    images: Iterable[tuple[bytes, str]],
+) -> Any:
+    """The session's ``report.html``, not yet written; ``images`` are the figures' PNGs and
+    captions."""
+    from delaytrack.report.html import HtmlReport
+
+    nodes = _node_records(summary)
     report = HtmlReport(f"delaytrack live session: {summary.get('scenario', scenario.name)}")
     report.paragraph(
         "The controller, delay and robot nodes ran as separate processes over Zenoh; the delay "
@@ -231,79 +251,108 @@ def write_session_report(
         "t_k satisfies t_k ≤ t − h(t)) on the robot's step grid. Timings depend on the load of "
         "the machine at the time."
     )
-    report.settings(
-        {
-            "scenario": summary.get("scenario", scenario.name),
-            "T_c": f"{scenario.T_c * 1e3:g} ms",
-            "dt": f"{scenario.dt * 1e3:g} ms",
-            "session": f"{live.t[-1]:g} s of model time ({summary.get('wall_s', math.nan):.1f} s "
-            "wall, start-up included)",
-            "exit codes": ", ".join(
-                f"{role} {code}" for role, code in (summary.get("exit_codes") or {}).items()
-            ),
-            "load average (1, 5, 15 min) at the end": ", ".join(
-                f"{v:.2f}" for v in summary.get("load_average", [])
-            )
-            or "n/a",
-        }
-    )
+    report.settings(_session_settings(summary, scenario, live))
     report.heading("Timing and the delay rule")
-    report.settings(
-        {
-            "controller ticks": f"{c.get('ticks', 0)} ({c.get('missed', 0)} missed, "
-            f"{c.get('older_state', 0)} on a state older than t_k, {c.get('stale', 0)} on a "
-            "stale state)",
-            "controller wake-up lateness p50 / p99": f"{ms(c.get('lateness_ms_p50'))} / "
-            f"{ms(c.get('lateness_ms_p99'))}",
-            "controller compute time p50 / p99": f"{ms(c.get('compute_ms_p50'))} / "
-            f"{ms(c.get('compute_ms_p99'))}",
-            "state the controller's law read": (
-                f"measured with measurement_noise {json.dumps(c['measurement_noise'])}"
-                if c.get("measurement_noise")
-                else "the true state, --no-measurement-noise (the scenario's measurement_noise "
-                "turned off)"
-                if c.get("measurement_noise_off") and scenario.measurement_noise is not None
-                else "the true state"
-            ),
-            "robot steps": f"{r.get('steps', 0)} ({r.get('missed_steps', 0)} missed, "
-            f"{r.get('late_applications', 0)} applications later than their release step)",
-            "robot step lateness p50 / p99": f"{ms(r.get('lateness_ms_p50'))} / "
-            f"{ms(r.get('lateness_ms_p99'))}",
-            "delay node": f"{d.get('received', 0)} commands received, {d.get('lost', 0)} lost "
-            f"(injected), {summary.get('not_received', 0)} sent but never received, "
-            f"{d.get('released', 0)} releases, "
-            f"{d.get('wakes_per_s', math.nan):.0f} wake-ups/s, lead {d.get('lead_ms', 0):g} ms",
-            "realised delay − h(t) p50 / |.| p99": f"{ms(summary.get('realised_minus_h_ms_p50'))}"
-            f" / {ms(summary.get('realised_minus_h_abs_ms_p99'))} (the exact rule on the robot's "
-            f"step grid alone: {ms(summary.get('realised_minus_h_abs_ms_p99_of_the_rule'))})",
-            "commands never applied": str(summary.get("never_applied", 0)),
-        }
-    )
+    report.settings(_timing_settings(summary, scenario, *nodes))
     report.heading("Tracking")
     report.table(metrics, "Tracking metrics over every controller tick (metrics.csv)")
     if agreement is not None:
         report.heading("Replay: the simulation with the realised delays")
-        rows = {
-            "live − replayed tracking error, RMS, worst coordinate": (
-                f"{100 * agreement['error_difference_rms_relative']:.2f} % of its live RMS "
-                f"({agreement['worst_coordinate']})"
-            ),
-        }
-        for line in format_agreement(agreement):
-            name, _, text = line.partition(": ")
-            rows[name] = text
-        rows["not reproduced by the simulation"] = ", ".join(
-            f"{k.replace('_', ' ')} {v}" for k, v in agreement["not_reproduced"].items()
-        )
-        report.settings(rows)
-    for name, (_figure, caption) in figures.items():
-        report.figure(images[name], caption)
+        report.settings(_replay_settings(agreement))
+    for data, caption in images:
+        report.figure(data, caption)
     report.heading("Scenario")
     scenario_file = folder / "scenario.toml"
     if scenario_file.is_file():
         report.code(scenario_file.read_text())
-    paths.append(report.write(folder / "report.html"))
-    return paths
+    return report
+
+
+def _node_records(summary: dict[str, Any]) -> tuple[dict[str, Any], ...]:
+    """The controller's, the robot's and the delay node's records in the summary ({} when
+    absent)."""
+    nodes = summary.get("nodes") or {}
+    return tuple(nodes.get(role) or {} for role in ("controller", "robot", "delay"))
+
+
+def _session_settings(summary: dict[str, Any], scenario: Any, live: Any) -> dict[str, str]:
+    """The report's first table: the scenario, its periods, the session's length and end."""
+    return {
+        "scenario": summary.get("scenario", scenario.name),
+        "T_c": f"{scenario.T_c * 1e3:g} ms",
+        "dt": f"{scenario.dt * 1e3:g} ms",
+        "session": f"{live.t[-1]:g} s of model time ({summary.get('wall_s', math.nan):.1f} s "
+        "wall, start-up included)",
+        "exit codes": ", ".join(
+            f"{role} {code}" for role, code in (summary.get("exit_codes") or {}).items()
+        ),
+        "load average (1, 5, 15 min) at the end": ", ".join(
+            f"{v:.2f}" for v in summary.get("load_average", [])
+        )
+        or "n/a",
+    }
+
+
+def _timing_settings(
+    summary: dict[str, Any],
+    scenario: Any,
+    controller: dict[str, Any],
+    robot: dict[str, Any],
+    delay: dict[str, Any],
+) -> dict[str, str]:
+    """The nodes' timing and the delay rule's outcome, from their records in the summary."""
+    return {
+        "controller ticks": f"{controller.get('ticks', 0)} ({controller.get('missed', 0)} missed, "
+        f"{controller.get('older_state', 0)} on a state older than t_k, "
+        f"{controller.get('stale', 0)} on a stale state)",
+        "controller wake-up lateness p50 / p99": f"{ms(controller.get('lateness_ms_p50'))} / "
+        f"{ms(controller.get('lateness_ms_p99'))}",
+        "controller compute time p50 / p99": f"{ms(controller.get('compute_ms_p50'))} / "
+        f"{ms(controller.get('compute_ms_p99'))}",
+        "state the controller's law read": _state_read(controller, scenario),
+        "robot steps": f"{robot.get('steps', 0)} ({robot.get('missed_steps', 0)} missed, "
+        f"{robot.get('late_applications', 0)} applications later than their release step)",
+        "robot step lateness p50 / p99": f"{ms(robot.get('lateness_ms_p50'))} / "
+        f"{ms(robot.get('lateness_ms_p99'))}",
+        "delay node": f"{delay.get('received', 0)} commands received, {delay.get('lost', 0)} "
+        f"lost (injected), {summary.get('not_received', 0)} sent but never received, "
+        f"{delay.get('released', 0)} releases, "
+        f"{delay.get('wakes_per_s', math.nan):.0f} wake-ups/s, lead {delay.get('lead_ms', 0):g} ms",
+        "realised delay − h(t) p50 / |.| p99": f"{ms(summary.get('realised_minus_h_ms_p50'))}"
+        f" / {ms(summary.get('realised_minus_h_abs_ms_p99'))} (the exact rule on the robot's "
+        f"step grid alone: {ms(summary.get('realised_minus_h_abs_ms_p99_of_the_rule'))})",
+        "commands never applied": str(summary.get("never_applied", 0)),
+    }
+
+
+def _state_read(controller: dict[str, Any], scenario: Any) -> str:
+    """Which state the controller's law read: measured with noise, or the true state."""
+    if controller.get("measurement_noise"):
+        return f"measured with measurement_noise {json.dumps(controller['measurement_noise'])}"
+    if controller.get("measurement_noise_off") and scenario.measurement_noise is not None:
+        return (
+            "the true state, --no-measurement-noise (the scenario's measurement_noise turned off)"
+        )
+    return "the true state"
+
+
+def _replay_settings(agreement: dict[str, Any]) -> dict[str, str]:
+    """The replay's agreement with the live run: the worst coordinate's difference, a line per
+    coordinate and input (:func:`format_agreement`) and what the simulation does not
+    reproduce."""
+    rows = {
+        "live − replayed tracking error, RMS, worst coordinate": (
+            f"{100 * agreement['error_difference_rms_relative']:.2f} % of its live RMS "
+            f"({agreement['worst_coordinate']})"
+        ),
+    }
+    for line in format_agreement(agreement):
+        name, _, text = line.partition(": ")
+        rows[name] = text
+    rows["not reproduced by the simulation"] = ", ".join(
+        f"{k.replace('_', ' ')} {v}" for k, v in agreement["not_reproduced"].items()
+    )
+    return rows
 
 
 def format_agreement(report: dict[str, Any]) -> list[str]:

@@ -25,6 +25,7 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -121,24 +122,15 @@ def node_commands(
 
 def run_session(args: Any) -> int:
     """Run a session (module docstring); return the exit code."""
-    from delaytrack._output import check_output_folder, claim_output_folder, record_outputs
+    from delaytrack._output import claim_output_folder
     from delaytrack.live._node import missing_extra
-    from delaytrack.live.bridge import bridge_factory
-    from delaytrack.live.report import write_report
     from delaytrack.scenario import ScenarioError
 
     if (problem := missing_extra()) is not None:
         print(f"error: {problem}", file=sys.stderr)
         return 2
     try:
-        scenario = load_scenario(str(args.scenario), list(args.trust))
-        built = scenario.build()
-        if scenario.measurement_noise is not None:  # the controller's check, before any node
-            scenario.simulated_measurement_noise.params(built.plant.n)
-        duration = session_duration(scenario, args.duration)
-        if getattr(args, "bridge", None) is not None:
-            bridge_factory(args.bridge)  # the robot node builds and checks the bridge itself
-        folder = check_output_folder(args.out, "--out")
+        scenario, built, duration, folder = _checked_session(args)
     except (ScenarioError, ValueError, OSError) as error:
         print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
         return 2
@@ -156,49 +148,9 @@ def run_session(args: Any) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     commands = node_commands(args, folder, ports, session, watched)
-    processes: dict[str, subprocess.Popen[bytes]] = {}
-    interrupted: list[int] = []
-
-    def forward(signum: int, _frame: Any) -> None:
-        interrupted.append(signum)
-        for process in processes.values():
-            if process.poll() is None:
-                process.send_signal(signal.SIGTERM)
-
-    previous = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM)}
-    started = time.monotonic()
-    try:
-        for role in ROLES:
-            processes[role] = subprocess.Popen(commands[role])
-        limit = started + args.handshake_timeout + duration + 30.0
-        ended = False
-        exited: set[str] = set()  # the nodes whose end has been looked at (once each)
-        while any(p.poll() is None for p in processes.values()):
-            if time.monotonic() > limit:
-                forward(signal.SIGTERM, None)
-                time.sleep(5.0)
-                for process in processes.values():
-                    if process.poll() is None:
-                        process.kill()
-                break
-            newly = [r for r, p in processes.items() if r not in exited and p.poll() is not None]
-            exited.update(newly)
-            if not ended and any(_ended_early(folder, r, processes[r].poll()) for r in newly):
-                # A node that failed, refused or was stopped ends the session: the others stop
-                # (once: a second SIGTERM could reach a node exiting, without its handler).
-                ended = True
-                for process in processes.values():
-                    if process.poll() is None:
-                        process.send_signal(signal.SIGTERM)
-            if watch is not None:
-                watch.show()
-            time.sleep(0.05)
-        codes = {role: process.wait() for role, process in processes.items()}
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
-        if watch is not None:
-            watch.close()
+    codes, interrupted, started = _run_nodes(
+        commands, folder, watch, args.handshake_timeout, duration
+    )
     failed = {role: code for role, code in codes.items() if code not in (0,)}
     if failed and not interrupted and not any((folder / f"{r}.mcap").exists() for r in ROLES):
         return max(failed.values())  # refused before the start, said by the node: no session
@@ -206,11 +158,115 @@ def run_session(args: Any) -> int:
     summary["exit_codes"] = codes
     summary["wall_s"] = time.monotonic() - started
     summary["load_average"] = list(os.getloadavg())
+    report_failed = _write_summary_and_report(folder, scenario, summary)
+    if not args.quiet or failed:
+        print(format_summary(summary, folder))
+    return _session_exit_code(interrupted, failed, report_failed)
+
+
+def _checked_session(args: Any) -> tuple[Any, Any, float, Path]:
+    """The scenario, ``scenario.build()``, the session's duration and the output folder, all
+    checked before any node starts (raises ``ScenarioError``, ``ValueError`` or ``OSError``)."""
+    from delaytrack._output import check_output_folder
+    from delaytrack.live.bridge import bridge_factory
+
+    scenario = load_scenario(str(args.scenario), list(args.trust))
+    built = scenario.build()
+    if scenario.measurement_noise is not None:  # the controller's check, before any node
+        scenario.simulated_measurement_noise.params(built.plant.n)
+    duration = session_duration(scenario, args.duration)
+    if getattr(args, "bridge", None) is not None:
+        bridge_factory(args.bridge)  # the robot node builds and checks the bridge itself
+    folder = check_output_folder(args.out, "--out")
+    return scenario, built, duration, folder
+
+
+def _run_nodes(
+    commands: dict[str, list[str]],
+    folder: Path,
+    watch: StatusWatch | None,
+    handshake_timeout: float,
+    duration: float,
+) -> tuple[dict[str, int], list[int], float]:
+    """Start the nodes, pass SIGINT/SIGTERM on to them as SIGTERM and wait for their end (at
+    the latest ``handshake_timeout + duration + 30`` s after the start); return their exit
+    codes, the signals that interrupted the session and its start on the monotonic clock."""
+    processes: dict[str, subprocess.Popen[bytes]] = {}
+    interrupted: list[int] = []
+
+    def forward(signum: int, _frame: Any) -> None:
+        interrupted.append(signum)
+        _terminate(processes)
+
+    previous = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM)}
+    started = time.monotonic()
+    try:
+        for role in ROLES:
+            processes[role] = subprocess.Popen(commands[role])
+        limit = started + handshake_timeout + duration + 30.0
+        _wait_for_nodes(processes, folder, watch, limit, forward)
+        codes = {role: process.wait() for role, process in processes.items()}
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        if watch is not None:
+            watch.close()
+    return codes, interrupted, started
+
+
+def _wait_for_nodes(
+    processes: dict[str, subprocess.Popen[bytes]],
+    folder: Path,
+    watch: StatusWatch | None,
+    limit: float,
+    forward: Callable[[int, Any], None],
+) -> None:
+    """Wait while any node runs, showing the status: a node that ended early ends the session,
+    and past ``limit`` (monotonic clock) the nodes are stopped (``forward``), 5 s on killed."""
+    ended = False
+    exited: set[str] = set()  # the nodes whose end has been looked at (once each)
+    while any(p.poll() is None for p in processes.values()):
+        if time.monotonic() > limit:
+            forward(signal.SIGTERM, None)
+            time.sleep(5.0)
+            for process in processes.values():
+                if process.poll() is None:
+                    process.kill()
+            return
+        newly = [r for r, p in processes.items() if r not in exited and p.poll() is not None]
+        exited.update(newly)
+        if not ended and any(_ended_early(folder, r, processes[r].poll()) for r in newly):
+            # A node that failed, refused or was stopped ends the session: the others stop
+            # (once: a second SIGTERM could reach a node exiting, without its handler).
+            ended = True
+            _terminate(processes)
+        if watch is not None:
+            watch.show()
+        time.sleep(0.05)
+
+
+def _terminate(processes: dict[str, subprocess.Popen[bytes]]) -> None:
+    """Send SIGTERM to each node still running."""
+    for process in processes.values():
+        if process.poll() is None:
+            process.send_signal(signal.SIGTERM)
+
+
+def _write_summary_and_report(folder: Path, scenario: Any, summary: dict[str, Any]) -> bool:
+    """Write ``summary.json`` and the report, and record the session's files; whether the
+    report failed (:func:`~delaytrack.live.report.write_report`)."""
+    from delaytrack._output import record_outputs
+    from delaytrack.live.report import write_report
+
     write_text(folder / "summary.json", json.dumps(summary, indent=1, default=str) + "\n")
     report_failed = write_report(folder, scenario)
     record_outputs(folder, session_files(folder))
-    if not args.quiet or failed:
-        print(format_summary(summary, folder))
+    return report_failed
+
+
+def _session_exit_code(interrupted: list[int], failed: dict[str, int], report_failed: bool) -> int:
+    """The exit code of a session that ran: 130 when interrupted, else a failed node's (said on
+    stderr), else 1 when the report failed."""
     if interrupted:
         return 130
     if failed:
@@ -245,8 +301,7 @@ def collect_main(args: Any) -> int:
     """``delaytrack live collect DIR SCENARIO``: the summary, ``delays.csv`` and the report of a
     session whose nodes were started one by one (on one machine, or on several, their folders'
     files copied into one), as ``live run`` writes them; ``live replay DIR`` then works."""
-    from delaytrack._output import check_output_folder, record_outputs
-    from delaytrack.live.report import write_report
+    from delaytrack._output import check_output_folder
     from delaytrack.scenario import ScenarioError
 
     try:
@@ -269,9 +324,7 @@ def collect_main(args: Any) -> int:
     summary["stopped_by"] = {
         role: json.loads((folder / f"{role}.json").read_text()).get("stopped_by") for role in ROLES
     }
-    write_text(folder / "summary.json", json.dumps(summary, indent=1, default=str) + "\n")
-    report_failed = write_report(folder, scenario)
-    record_outputs(folder, session_files(folder))
+    report_failed = _write_summary_and_report(folder, scenario, summary)
     if not args.quiet:
         print(format_summary(summary, folder))
     return 1 if report_failed else 0

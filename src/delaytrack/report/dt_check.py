@@ -1,38 +1,57 @@
 """The report section of the dt-halving check (:mod:`delaytrack.experiments.convergence`): its
-verdict against the tolerance and its table."""
+verdict against the tolerance and its table, as the study's
+:class:`~delaytrack.experiments.convergence.DtCheck` holds them."""
 
 from __future__ import annotations
 
+import warnings
+
 import pandas as pd
 
-from delaytrack.experiments.convergence import DT_TOLERANCE, largest_change
+from delaytrack.experiments.convergence import DtCheck, dt_check_verdict
 from delaytrack.report.html import HtmlReport
 
 __all__ = ["write_dt_check"]
 
 
-def write_dt_check(report: HtmlReport, dt_check: pd.DataFrame | None, half_dt: float) -> None:
-    """The report section: the verdict against :data:`DT_TOLERANCE` and the table."""
+def write_dt_check(
+    report: HtmlReport, dt_check: DtCheck | pd.DataFrame | None, half_dt: float
+) -> None:
+    """The report section: the verdict against the tolerance and the table.
+
+    ``dt_check`` is the study's :class:`~delaytrack.experiments.convergence.DtCheck` (its
+    ``dt_verdict``); a table of :func:`~delaytrack.experiments.convergence.dt_check_table`
+    is still taken, with a :class:`DeprecationWarning`.
+    """
+    if isinstance(dt_check, pd.DataFrame):
+        warnings.warn(
+            "write_dt_check takes the study's DtCheck (its dt_verdict) now; a table will be "
+            "refused in a later release",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        dt_check = dt_check_verdict(dt_check)
     report.heading("Numerical check: halving dt")
     if dt_check is None:
         report.paragraph("Not run (check_dt = False).", note=True)
         return
-    worst = largest_change(dt_check)
-    verdict = "below" if worst < DT_TOLERANCE else "NOT below"
-    above = dt_check[dt_check.max_relative_change >= DT_TOLERANCE]
+    verdict = "below" if dt_check.within_tolerance else "NOT below"
     report.paragraph(
         f"Every run repeated with dt = {half_dt:g} s (T_c unchanged). The largest relative change "
-        f"of any summary metric is {worst:.3g}, {verdict} the {DT_TOLERANCE:.0%} criterion."
+        f"of any summary metric is {dt_check.largest:.3g}, {verdict} the "
+        f"{dt_check.tolerance:.0%} criterion."
         + (
             " Runs above it (their metrics depend on the step; typically a law chattering at its "
             "stability edge, whose oscillation the step resolves differently): "
             + "; ".join(
                 f"{row.scenario} {row.controller} ({row.max_relative_change:.3g})"
-                for row in above.itertuples()
+                for row in dt_check.above.itertuples()
             )
             + "."
-            if len(above)
+            if len(dt_check.above)
             else ""
         )
     )
-    report.table(dt_check, "Metrics at dt/2 and the largest relative change per run.", digits=6)
+    report.table(
+        dt_check.table, "Metrics at dt/2 and the largest relative change per run.", digits=6
+    )

@@ -54,7 +54,7 @@ from delaytrack.report.tuning import gains_text
 if TYPE_CHECKING:
     from delaytrack.experiments.decision_study import DecisionStudy
     from delaytrack.experiments.paper import PaperStudy
-    from delaytrack.experiments.paper_findings import Claims
+    from delaytrack.experiments.paper_findings import BaselineFailure, Claims, PaperFindings
     from delaytrack.experiments.robustness import RobustnessStudy
 
 __all__ = ["TABLES_NOTE", "paper_tables", "tables_markdown", "write_study"]
@@ -367,77 +367,132 @@ def _largest_delays(study: PaperStudy) -> dict[str, float]:
 
 
 def _explanation(study: PaperStudy) -> list[str]:
-    summary = study.summary
+    """The paragraphs that explain the one run: why the AE claim fails (when it does), the
+    baselines' failures (when any), what the predictor does on this robot, and TV."""
     found = study.findings
-    checks = found.claims
-    g = {kind: study.gains[kind][DELAY_CLASS[case]] for case, kind in BASELINE.items()}
-    arolc, outer, base = (found.ae_x_range[k] for k in ("AROLC", "OuterLoop", "baseline"))
-    spread = found.tuning_spread
     out = []
-    if not all(checks["ae"].values()):
-        out.append(
-            "Why the AE claim fails here. AROLC runs with the paper's gains "
-            f"K1 = {AROLC_GAINS['K1']:g} I, K2 = {AROLC_GAINS['K2']:g} I: an outer loop with "
-            f"natural frequency {found.natural_frequency:.3g} rad/s and damping "
-            f"{found.damping:.3g}, in which an unmodelled "
-            "acceleration a leaves a steady error of about a / K1. The wheel friction, which "
-            "the nominal model leaves out (the truth's "
-            f"{found.wheel_friction[0]:.2g}–{found.wheel_friction[1]:.2g} N·m per wheel at the "
-            f"path's wheel rates of {found.wheel_rates[0]:.3g} and {found.wheel_rates[1]:.3g} "
-            f"rad/s), and the {P3DX_PAYLOAD.mass:g} kg payload are such a mismatch. The error is "
-            f"set by it, not by the delay: AROLC's AE spans {arolc[0]:.1f}–{arolc[1]:.1f} mm "
-            "in x over the four delays, and the outer loop without Δu is at "
-            f"{outer[0]:.1f}–{outer[1]:.1f} mm. The switching term helps "
-            f"(ĉ reaches {found.c_hat_peak:.3g}, its largest value in any run, in "
-            f"{found.c_hat_peak_scenario} at t = {found.c_hat_peak_time:.3g} s"
-            + (
-                ", the end of the run: it may grow further in a longer one"
-                if found.c_hat_peak_at_end
-                else ""
-            )
-            + f"; so ‖Δu‖ ≤ α ĉ = {found.switching_bound:.3g}) but cannot replace stiffer gains. "
-            "The baselines were tuned (on conditions of their delay class, none of S1–S4) to "
-            f"minimise exactly this AE, and the optimum is a stiff law: PCON "
-            f"κ = {g['PCON']['kappa']:g}, k_b = {g['PCON']['k_b']:g}, ϑ = {g['PCON']['c']:g} "
-            f"M̂⁻¹; PCONf κ = {g['PCONf']['kappa']:g}, k_b = {g['PCONf']['k_b']:g}, "
-            f"ϑ = {g['PCONf']['c']:g} M̂⁻¹, which reach AE of "
-            f"{base[0]:.1f}–{base[1]:.1f} mm in x. This table therefore "
-            "compares tuned baselines with AROLC at the paper's gains; AROLC tuned by the same "
-            "procedure is reported in its own section below. How much tuning matters: over the "
-            "tuning grid's points that did not diverge (stop, or mean AE above "
-            f"{tuning.DIVERGED_AE_MM:g} mm) under any condition, the baselines' worst-case "
-            f"objective ranges from {spread['PCON'][0]:.3g} to {spread['PCON'][2]:.3g} mm "
-            f"(median {spread['PCON'][1]:.3g} mm; PCON) and from {spread['PCONf'][0]:.3g} to "
-            f"{spread['PCONf'][2]:.3g} mm (median {spread['PCONf'][1]:.3g} mm; PCONf). The paper "
-            "does not say how its baselines were tuned; baselines tuned less well can land above "
-            "AROLC."
-        )
+    if not all(found.claims["ae"].values()):
+        out.append(_ae_failure_text(study))
     if found.baseline_failures:
-        parts = [
-            f"{f.controller} in {f.scenario} left the path at t = {f.t_stop:.1f} s; "
-            f"{f.scenario}'s delay reaches {_ms(f.largest_delay, '.0f')} ms"
-            + (
-                f" and stays above {_ms(f.dwell_level, '.0f')} ms for up to "
-                f"{f.longest_dwell:.1f} s at a time"
-                if f.longest_dwell is not None
-                else ""
-            )
-            + f", while the {f.delay_class} tuning conditions reached at most "
-            f"{_ms(f.tuning_largest_delay, '.0f')} ms; its sampled-law stability number "
-            f"T_c k_b λ_max(ϑ) is {f.stability_number:.2g} (about 2 is the edge; ϑ = c ϑ₀, "
-            "ϑ₀ the model's inverse mass matrix)"
-            for f in found.baseline_failures
-        ]
-        out.append(
-            "Baseline failures: "
-            + "; ".join(parts)
-            + ". A delay longer, or longer-lasting, than any of the tuning conditions was never "
-            "seen by the tuning. The gains were not re-tuned after this result. Where the "
-            "baseline diverges the claim "
-            "'holds' only by the baseline's failure; the robustness study's map shows where "
-            "each predictor diverges."
+        out.append(_baseline_failures_text(found.baseline_failures))
+    out.append(_predictor_text(found))
+    out.append(_tv_text(study))
+    return out
+
+
+def _ae_failure_text(study: PaperStudy) -> str:
+    """Why the AE claim fails: AROLC at the paper's gains against tuned baselines."""
+    found = study.findings
+    return _arolc_error_text(found) + _tuned_baselines_text(study) + _tuning_spread_text(found)
+
+
+def _arolc_error_text(found: PaperFindings) -> str:
+    """AROLC's AE at the paper's gains, set by the model mismatch rather than by the delay."""
+    arolc = found.ae_x_range["AROLC"]
+    outer = found.ae_x_range["OuterLoop"]
+    return (
+        "Why the AE claim fails here. AROLC runs with the paper's gains "
+        f"K1 = {AROLC_GAINS['K1']:g} I, K2 = {AROLC_GAINS['K2']:g} I: an outer loop with "
+        f"natural frequency {found.natural_frequency:.3g} rad/s and damping "
+        f"{found.damping:.3g}, in which an unmodelled "
+        "acceleration a leaves a steady error of about a / K1. The wheel friction, which "
+        "the nominal model leaves out (the truth's "
+        f"{found.wheel_friction[0]:.2g}–{found.wheel_friction[1]:.2g} N·m per wheel at the "
+        f"path's wheel rates of {found.wheel_rates[0]:.3g} and {found.wheel_rates[1]:.3g} "
+        f"rad/s), and the {P3DX_PAYLOAD.mass:g} kg payload are such a mismatch. The error is "
+        f"set by it, not by the delay: AROLC's AE spans {arolc[0]:.1f}–{arolc[1]:.1f} mm "
+        "in x over the four delays, and the outer loop without Δu is at "
+        f"{outer[0]:.1f}–{outer[1]:.1f} mm. The switching term helps "
+        f"({_c_hat_peak_text(found)}; so ‖Δu‖ ≤ α ĉ = {found.switching_bound:.3g}) but cannot "
+        "replace stiffer gains. "
+    )
+
+
+def _c_hat_peak_text(found: PaperFindings) -> str:
+    """Where ĉ reaches its largest value, and whether that is at the end of the run."""
+    text = (
+        f"ĉ reaches {found.c_hat_peak:.3g}, its largest value in any run, in "
+        f"{found.c_hat_peak_scenario} at t = {found.c_hat_peak_time:.3g} s"
+    )
+    if found.c_hat_peak_at_end:
+        text += ", the end of the run: it may grow further in a longer one"
+    return text
+
+
+def _tuned_baselines_text(study: PaperStudy) -> str:
+    """The baselines' tuned gains (stiff laws) and the AE they reach."""
+    gains = {kind: study.gains[kind][DELAY_CLASS[case]] for case, kind in BASELINE.items()}
+    base = study.findings.ae_x_range["baseline"]
+    return (
+        "The baselines were tuned (on conditions of their delay class, none of S1–S4) to "
+        "minimise exactly this AE, and the optimum is a stiff law: "
+        + "; ".join(_baseline_gains_text(kind, kind_gains) for kind, kind_gains in gains.items())
+        + f", which reach AE of {base[0]:.1f}–{base[1]:.1f} mm in x. This table therefore "
+        "compares tuned baselines with AROLC at the paper's gains; AROLC tuned by the same "
+        "procedure is reported in its own section below. "
+    )
+
+
+def _baseline_gains_text(kind: str, gains: Mapping[str, float]) -> str:
+    """A baseline's tuned gains κ, k_b and ϑ."""
+    return f"{kind} κ = {gains['kappa']:g}, k_b = {gains['k_b']:g}, ϑ = {gains['c']:g} M̂⁻¹"
+
+
+def _tuning_spread_text(found: PaperFindings) -> str:
+    """How much tuning matters: the baselines' worst-case objective over the tuning grid."""
+    return (
+        "How much tuning matters: over the tuning grid's points that did not diverge (stop, or "
+        f"mean AE above {tuning.DIVERGED_AE_MM:g} mm) under any condition, the baselines' "
+        "worst-case objective ranges "
+        + " and ".join(_spread_text(kind, spread) for kind, spread in found.tuning_spread.items())
+        + ". The paper does not say how its baselines were tuned; baselines tuned less well can "
+        "land above AROLC."
+    )
+
+
+def _spread_text(kind: str, spread: Sequence[float]) -> str:
+    """A baseline's worst-case objective over the grid (mm): its range and median."""
+    low, median, high = spread
+    return f"from {low:.3g} to {high:.3g} mm (median {median:.3g} mm; {kind})"
+
+
+def _baseline_failures_text(failures: Sequence[BaselineFailure]) -> str:
+    """The baselines' runs that left the path, and what that says of the claims."""
+    return (
+        "Baseline failures: "
+        + "; ".join(_baseline_failure_text(failure) for failure in failures)
+        + ". A delay longer, or longer-lasting, than any of the tuning conditions was never "
+        "seen by the tuning. The gains were not re-tuned after this result. Where the "
+        "baseline diverges the claim "
+        "'holds' only by the baseline's failure; the robustness study's map shows where "
+        "each predictor diverges."
+    )
+
+
+def _baseline_failure_text(failure: BaselineFailure) -> str:
+    """One baseline run that left the path: when, the delay it met beside its tuning's, and
+    its stability number."""
+    return (
+        f"{failure.controller} in {failure.scenario} left the path at t = "
+        f"{failure.t_stop:.1f} s; {failure.scenario}'s delay reaches "
+        f"{_ms(failure.largest_delay, '.0f')} ms"
+        + (
+            f" and stays above {_ms(failure.dwell_level, '.0f')} ms for up to "
+            f"{failure.longest_dwell:.1f} s at a time"
+            if failure.longest_dwell is not None
+            else ""
         )
-    out.append(
+        + f", while the {failure.delay_class} tuning conditions reached at most "
+        f"{_ms(failure.tuning_largest_delay, '.0f')} ms; its sampled-law stability number "
+        f"T_c k_b λ_max(ϑ) is {failure.stability_number:.2g} (about 2 is the edge; ϑ = c ϑ₀, "
+        "ϑ₀ the model's inverse mass matrix)"
+    )
+
+
+def _predictor_text(found: PaperFindings) -> str:
+    """What the predictor does on this robot (D23): partly effective, and stable only for a
+    small enough gain product."""
+    return (
         "What the predictor does on this robot (docs/decisions.md D23). The law is applied in the "
         "five coordinates q = (x, y, φ, θ_r, θ_l) and its command is projected to the wheels by "
         "τ_w = S(q)ᵀ τ. The delayed input reaches ϱ̇ through S M_r⁻¹ S(q(t − h))ᵀ τ(t − h), a "
@@ -451,32 +506,45 @@ def _explanation(study: PaperStudy) -> list[str]:
         "to tick, which TV measures (TV is not part of the tuning objective; the worst-case "
         "objective keeps the chosen gains further from the boundary than an average-AE one)."
     )
-    tv_fail = [case for case, ok in checks["tv"].items() if not ok]
-    tv_hold = [case for case, ok in checks["tv"].items() if ok]
-    base_tv = {case: summary_row(summary, case, BASELINE[case]).tv for case in SCENARIOS}
-    out.append(
-        "TV: AROLC's TV is "
-        + ", ".join(f"{summary_row(summary, c, 'AROLC').tv:.3g}" for c in SCENARIOS)
-        + " N·m (S1–S4), against the outer loop's "
-        + ", ".join(f"{summary_row(summary, c, 'OuterLoop').tv:.3g}" for c in SCENARIOS)
-        + f" N·m: its switching term Δu (ĉ grows to {found.c_hat_peak:.3g}) adds most of it. "
-        "The baselines' TV is "
-        + ", ".join(
-            f"{base_tv[c]:.3g}" if math.isfinite(base_tv[c]) else "diverged" for c in SCENARIOS
-        )
-        + " N·m: small where the tuned law runs smoothly, large where it runs near its "
-        "stability limit (the longest delays). "
-        + (
-            f"In this one run the claim holds in {', '.join(tv_hold)}"
-            if tv_hold
-            else "In this one run the claim holds nowhere"
-        )
-        + (f" and fails in {', '.join(tv_fail)}." if tv_fail else ".")
+
+
+def _tv_text(study: PaperStudy) -> str:
+    """The TV of AROLC, the outer loop and the baselines, and where the one run's TV claim
+    holds."""
+    found = study.findings
+    return (
+        f"TV: AROLC's TV is {_tv_values(study.summary, 'AROLC')} N·m (S1–S4), against the "
+        f"outer loop's {_tv_values(study.summary, 'OuterLoop')} N·m: its switching term Δu "
+        f"(ĉ grows to {found.c_hat_peak:.3g}) adds most of it. The baselines' TV is "
+        f"{_baseline_tv_values(study.summary)} N·m: small where the tuned law runs smoothly, "
+        "large where it runs near its stability limit (the longest delays). "
+        + _tv_verdict_text(found.claims["tv"])
         + f" The paper's TV values ({found.paper_arolc_tv[0]:g}–{found.paper_arolc_tv[1]:g} "
         "for AROLC) are smaller than ours because a real "
         "robot's torque commands and units differ; the comparison is within each row."
     )
-    return out
+
+
+def _tv_values(summary: pd.DataFrame, controller: str) -> str:
+    """``controller``'s TV in S1–S4, comma-separated."""
+    return ", ".join(f"{summary_row(summary, case, controller).tv:.3g}" for case in SCENARIOS)
+
+
+def _baseline_tv_values(summary: pd.DataFrame) -> str:
+    """Each scenario's baseline's TV in S1–S4, comma-separated ("diverged" where not finite)."""
+    values = (summary_row(summary, case, BASELINE[case]).tv for case in SCENARIOS)
+    return ", ".join(f"{tv:.3g}" if math.isfinite(tv) else "diverged" for tv in values)
+
+
+def _tv_verdict_text(tv_checks: Mapping[str, bool]) -> str:
+    """Where the one run's TV claim holds and where it fails."""
+    holds = [case for case, ok in tv_checks.items() if ok]
+    fails = [case for case, ok in tv_checks.items() if not ok]
+    return (
+        f"In this one run the claim holds in {', '.join(holds)}"
+        if holds
+        else "In this one run the claim holds nowhere"
+    ) + (f" and fails in {', '.join(fails)}." if fails else ".")
 
 
 # --------------------------------------------------------------------------------------------
@@ -861,7 +929,7 @@ def _report(
         f"Theorem 1's certified delay bound for AROLC's gains: h_m = {study.bound.h_m:.5f} s. "
         + _certified_text(_largest_delays(study), found.certified, "AROLC with the paper's gains")
     )
-    write_dt_check(report, study.dt_check, found.half_dt)
+    write_dt_check(report, study.dt_verdict, found.half_dt)
     _tuning_section(report, study)
     report.paragraph(
         f"Simulation wall time: {study.seconds:.1f} s ({len(study.results)} batched simulate() "

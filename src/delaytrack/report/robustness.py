@@ -475,11 +475,39 @@ def write_robustness(study: RobustnessStudy, out: str | Path) -> list[Path]:
 
 
 def _report(study: RobustnessStudy, image: bytes) -> HtmlReport:
+    """The study's ``report.html``: its method and size, the findings, the map, the verdicts and
+    the tables behind them."""
     report = HtmlReport("delaytrack: robustness study (which controller when the delay is unknown)")
+    report.paragraph(_method_text(study))
+    report.paragraph(_size_text(study))
+    report.heading("Findings")
+    report.bullets(findings(study))
+    report.figure(
+        image,
+        "Robustness map: divergence rate (colour) and median AE in mm of the "
+        "runs that stayed on the path (text), per controller, against the true "
+        "constant delay and what the predictors are told of it.",
+    )
+    report.heading("The paper's claims over draws")
+    write_verdict_tables(report, study)
+    _attribution_section(report, study)
+    _knowledge_section(report, study)
+    _outcome_sections(report, study)
+    _actuator_section(report, study)
+    return report
+
+
+def _method_text(study: RobustnessStudy) -> str:
+    """The study's method: the runs, its three parts and how a claim is judged."""
+    return _runs_text(study) + _parts_text(study) + _judgement_text(study)
+
+
+def _runs_text(study: RobustnessStudy) -> str:
+    """What the study asks, and what every run is: the paper job's robot run on a drawn robot."""
     base = study.scenario
     viscous = study.friction["plant.viscous_friction"]
     coulomb = study.friction["plant.coulomb_friction"]
-    report.paragraph(
+    return (
         "The paper's case for AROLC is that it needs no knowledge of the delay, while its "
         "predictor baselines assume they know it. This study asks which controller to use over "
         "distributions of robots rather than one run: every run is the paper job's robot run "
@@ -487,8 +515,14 @@ def _report(study: RobustnessStudy, image: bytes) -> HtmlReport:
         f"{1e3 * base.T_c:g} ms) with a drawn payload seed and wheel friction drawn uniformly "
         f"from its documented ranges (viscous {viscous['low']:g}–{viscous['high']:g} N·m·s/rad, "
         f"Coulomb {coulomb['low']:g}–{coulomb['high']:g} N·m); draw i is the same robot for "
-        "every controller and condition, and each draw has its own noise seed. Three "
-        "parts: a robustness map (constant true delays "
+        "every controller and condition, and each draw has its own noise seed. "
+    )
+
+
+def _parts_text(study: RobustnessStudy) -> str:
+    """The study's three parts (map, delay knowledge, claims cases) and when a run diverged."""
+    return (
+        "Three parts: a robustness map (constant true delays "
         + ", ".join(f"{1e3 * h:g}" for h in study.true_delays)
         + " ms against what the predictors are told, "
         + ", ".join(f"{s:g}" for s in study.scales)
@@ -496,7 +530,15 @@ def _report(study: RobustnessStudy, image: bytes) -> HtmlReport:
         "delay estimates (gain sets for time-varying delays), and S1–S4 as in the paper job "
         "(class gain sets), without and with measurement noise (encoder quantisation and white "
         "noise). A run diverged when it stopped or its mean AE exceeded "
-        f"{study.diverged_ae_mm:g} mm. Each claim 'A below B' is judged twice on the same "
+        f"{study.diverged_ae_mm:g} mm. "
+    )
+
+
+def _judgement_text(study: RobustnessStudy) -> str:
+    """How a claim is judged over the draws: the two kinds of verdict, the tests and Holm's
+    correction."""
+    return (
+        "Each claim 'A below B' is judged twice on the same "
         "draws, and every draw is counted in exactly one of four categories (both stayed on the "
         "path, only A diverged, only B diverged, both diverged). Staying on the path: per side "
         "the share of draws that stayed, with its Wilson 95 % interval, and McNemar's exact "
@@ -504,14 +546,18 @@ def _report(study: RobustnessStudy, image: bytes) -> HtmlReport:
         "path: the share of those draws in which A is below B, with its Wilson 95 % interval, "
         "the sign test, and the paired median difference A − B with its percentile-bootstrap "
         "95 % interval. Every p-value is an exact binomial test against one half; since many "
-        f"verdicts are tested together, all of them (both kinds, both noise levels) are "
-        f"corrected as one family with Holm's method: a verdict holds (or fails) when its "
+        "verdicts are tested together, all of them (both kinds, both noise levels) are "
+        "corrected as one family with Holm's method: a verdict holds (or fails) when its "
         f"Holm-adjusted p is at most {100 * study.alpha:g} % and A (or B) wins more of the "
         "decided draws, and is undecided otherwise; with fewer than "
         f"{study.min_decided} decided draws no exact test can reach {100 * study.alpha:g} % "
         "and the verdict is 'no decision', with the reason."
     )
-    report.paragraph(
+
+
+def _size_text(study: RobustnessStudy) -> str:
+    """The study's size: its runs, draws per case, work units and time."""
+    return (
         f"Size: {study.run_count} runs of {study.scenario.duration:g} s "
         f"({study.size.map} draws per map cell"
         + (
@@ -525,47 +571,65 @@ def _report(study: RobustnessStudy, image: bytes) -> HtmlReport:
         f"{study.computed} work units computed and {study.resumed} resumed in "
         f"{study.seconds:.1f} s."
     )
-    report.heading("Findings")
-    report.bullets(findings(study))
-    report.figure(
-        image,
-        "Robustness map: divergence rate (colour) and median AE in mm of the "
-        "runs that stayed on the path (text), per controller, against the true "
-        "constant delay and what the predictors are told of it.",
-    )
-    report.heading("The paper's claims over draws")
-    write_verdict_tables(report, study)
+
+
+def _attribution_section(report: HtmlReport, study: RobustnessStudy) -> None:
+    """The section 'Attribution': the paired changes of the outer loop, Δu and tuning."""
     report.heading("Attribution: outer loop, Δu, tuning")
     report.table(
         display_attribution(study.attribution),
         "Paired change of AE (mm) and TV (N·m) per draw, median with bootstrap 95 % interval.",
     )
+
+
+def _knowledge_section(report: HtmlReport, study: RobustnessStudy) -> None:
+    """The section on what the predictors tolerate of a wrong delay, case by case."""
     report.heading("What the predictors tolerate of a wrong delay")
     report.table(
         display_knowledge(study.knowledge_table),
         "Case by case (knowledge_table.csv): divergence rate, median time of leaving the path of "
         "the runs that did, and median AE (mm) of those that did not, beside AROLC's.",
     )
-    report.heading("Robustness map (table)")
-    with report.folded("Per true delay, controller and what it is told"):
-        report.table(
-            display_outcomes(study.map, ["delay_ms", "controller", "scale"]),
-            "Per true delay (ms), controller and the delay it is told as a multiple of the true "
-            "one: divergence and medians (map.csv).",
-        )
-    report.heading("Delay knowledge under S1 and S2")
-    with report.folded("Per scenario, predictor and what it is told"):
-        report.table(
-            display_outcomes(study.knowledge, ["scenario", "controller", "scale"]),
-            "Predictors told s·h(t) (PCON, PCON-wheel) or s times the profile's long-run mean "
-            "(PCONf).",
-        )
-    report.heading("S1–S4 per controller and noise level")
-    with report.folded("Per scenario, noise level and controller"):
-        report.table(
-            display_outcomes(study.claims, ["scenario", "noise", "controller"]),
-            "Outcomes per scenario, noise level and controller (claims.csv).",
-        )
+
+
+def _outcome_sections(report: HtmlReport, study: RobustnessStudy) -> None:
+    """The outcome tables of the map, the delay-knowledge cases and the claims cases, each
+    folded."""
+    _outcome_section(
+        report,
+        "Robustness map (table)",
+        "Per true delay, controller and what it is told",
+        display_outcomes(study.map, ["delay_ms", "controller", "scale"]),
+        "Per true delay (ms), controller and the delay it is told as a multiple of the true "
+        "one: divergence and medians (map.csv).",
+    )
+    _outcome_section(
+        report,
+        "Delay knowledge under S1 and S2",
+        "Per scenario, predictor and what it is told",
+        display_outcomes(study.knowledge, ["scenario", "controller", "scale"]),
+        "Predictors told s·h(t) (PCON, PCON-wheel) or s times the profile's long-run mean (PCONf).",
+    )
+    _outcome_section(
+        report,
+        "S1–S4 per controller and noise level",
+        "Per scenario, noise level and controller",
+        display_outcomes(study.claims, ["scenario", "noise", "controller"]),
+        "Outcomes per scenario, noise level and controller (claims.csv).",
+    )
+
+
+def _outcome_section(
+    report: HtmlReport, heading: str, summary: str, table: pd.DataFrame, caption: str
+) -> None:
+    """A section of one outcome table, folded away under ``summary``."""
+    report.heading(heading)
+    with report.folded(summary):
+        report.table(table, caption)
+
+
+def _actuator_section(report: HtmlReport, study: RobustnessStudy) -> None:
+    """The section on the claims cases again with torque-limited wheels."""
     report.heading("S1–S4 on the P3-DX's wheels: torque-limited actuators")
     report.paragraph(
         "The claims cases again, every wheel's torque clipped to "
@@ -583,4 +647,3 @@ def _report(study: RobustnessStudy, image: bytes) -> HtmlReport:
         "Outcomes on torque-limited wheels per scenario, noise level and controller "
         "(actuators.csv).",
     )
-    return report

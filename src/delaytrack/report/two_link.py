@@ -258,7 +258,7 @@ def _report(study: TwoLinkStudy, figures: dict[str, tuple[Figure, str]]) -> Html
         "the run reached the final time.",
     )
     report.table(study.undelayed, "Context: the same runs with no delay (h = 0).")
-    write_dt_check(report, study.dt_check, study.half_dt)
+    write_dt_check(report, study.dt_verdict, study.half_dt)
     report.heading("Settings")
     report.settings(_settings_rows(study))
     report.heading("Figures")

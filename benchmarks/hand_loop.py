@@ -155,6 +155,11 @@ def _one_run(plant_params, delay, sums, shared):
                 sums[n] += abs(command[j] - previous[j])
         for j in range(m):
             previous[j] = command[j]
+        if k == 0:  # the start onto the constraints, as the engine maps it before its first step
+            qdot = buffers[3]
+            robot_velocity_map(x[:n], x[2 * n - r :], plant_params, qdot)
+            for i in range(n):
+                x[n + i] = qdot[i]
         _plant_tick(x, history, plant_params, delay, t_k, dt, steps_per_tick, T_c, buffers)
     for j in range(n):
         sums[j] /= ticks

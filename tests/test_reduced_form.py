@@ -167,6 +167,26 @@ def test_the_live_robot_node_steps_the_reduced_form_as_the_engine_does():
     assert np.abs(plant.constraint_residual(x)).max() < 1e-15
 
 
+def test_the_live_robot_starts_as_given_and_steps_from_its_start_on_the_constraints():
+    """As the simulator: a start within the tolerance of the constraints is read as given at
+    t = 0 and mapped onto them by the first step (the engine maps it before its first step)."""
+    from delaytrack.live.robot import PlantStepper, SimulatedRobot
+    from delaytrack.plants.robot import consistent_state
+
+    plant = PayloadRobot(seed=PAYLOAD_SEED, duration=DURATION)
+    on = consistent_state([0.1, -0.2, 0.3, 1.0, 2.0], [3.0, 2.0], *plant.params[:3])
+    given = on.copy()
+    given[5] += 1e-12  # x's q̇ off S(q) η by less than the start's tolerance
+    robot = SimulatedRobot(plant, 1e-3, given)  # its warm-up step is undone
+    np.testing.assert_array_equal(np.concatenate(robot.read_state(0.0)), given)
+    mapped = PlantStepper(plant, 1e-3, on)
+    for stepper in (robot.stepper, mapped):
+        stepper.u[:] = [0.4, -0.3]
+        for j in range(5):
+            assert stepper.step(j * 1e-3)
+    np.testing.assert_array_equal(robot.stepper.x, mapped.x)
+
+
 def test_the_twin_integrators_differ_only_in_their_sub_step():
     from delaytrack.live import _plant_step
     from delaytrack.sim import integrator

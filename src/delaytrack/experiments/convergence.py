@@ -41,7 +41,7 @@ def largest_change(dt_check: pd.DataFrame | None) -> float:
     return float(dt_check["max_relative_change"].max())
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class DtCheck:
     """The dt-halving check and its verdict against :data:`DT_TOLERANCE`.
 

@@ -82,8 +82,10 @@ class PlantStepper:
         self.n, self.m, self.dt = plant.n, plant.m, float(dt)
         self.x = np.array(x0, dtype=np.float64).reshape(2 * self.n).copy()
         check_reduced_start([plant], self.x[None])  # as the simulator: never changed silently
-        if plant.engine_kernel.reduced is not None:  # on its constraints, as the simulator starts
-            self.x[self.n :] = velocities_on_constraints(plant, self.x, as_the_engine=True)
+        self._plant = plant
+        # A plant in its reduced form steps from q̇ = S(q) η: the first step maps the start (as
+        # the simulator does), which is read as given until then.
+        self._mapped = plant.engine_kernel.reduced is None
         self.u = np.zeros(self.m)
         self.compiled = bool(plant.compiled)
         self._terms = plant.terms_kernel
@@ -106,9 +108,19 @@ class PlantStepper:
             workspace = rk4_workspace(np.empty(2 * self.n), self.m)
             self._python_reduced = (self._kernel.as_python(), workspace)
 
+    def start_from(self, x: np.ndarray) -> None:
+        """Set :attr:`x` to ``x``, a start the next step maps onto the plant's constraints as the
+        first step of a run does."""
+        self.x[:] = x
+        self._mapped = self._plant.engine_kernel.reduced is None
+
     def step(self, t: float) -> bool:
         """Advance :attr:`x` by one step from ``t`` with :attr:`u` held; False when the new
-        state is not finite or a mass matrix met was not positive definite."""
+        state is not finite or a mass matrix met was not positive definite. A plant in its
+        reduced form first sets the start's ``q̇ = S(q) η`` (at the first step only)."""
+        if not self._mapped:
+            self.x[self.n :] = velocities_on_constraints(self._plant, self.x, as_the_engine=True)
+            self._mapped = True
         if self._stepper is not None:  # the plant's own integrator (MuJoCo's mj_step)
             self._stepper(t, self.x, self.u, self.dt, self._params, self._first)
             self._first = False
@@ -131,7 +143,8 @@ class PlantStepper:
 
     def python_step(self, t: float, x: np.ndarray, u: np.ndarray, dt: float) -> np.ndarray:
         """The same RK4 step in plain Python and NumPy (returns the new state); for a plant
-        with a reduced form, the engine's reduced sub-step run as Python."""
+        with a reduced form, the engine's reduced sub-step run as Python, from an ``x`` on the
+        plant's constraints (its ``q̇`` is read as ``S(q) η``)."""
         if self._kernel.reduced is not None:
             from delaytrack.sim.integrator import _reduced_rk4_substep
 
@@ -213,7 +226,7 @@ class SimulatedRobot(RobotBridge):
         # Warm up on a throw-away copy of the state (the step advances x in place).
         saved = self.stepper.x.copy()
         self.stepper.step(0.0)
-        self.stepper.x[:] = saved
+        self.stepper.start_from(saved)
 
     def read_state(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         x, n = self.stepper.x, self.stepper.n

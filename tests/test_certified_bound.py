@@ -18,6 +18,7 @@ from delaytrack.scenario import load_builtin
 from delaytrack.sim import simulate
 from delaytrack.sim.certified_bound import (
     BeyondCertifiedBoundWarning,
+    _h_m,
     beyond_certified_bound,
     certified_bounds,
     stated_by_the_caller,
@@ -103,7 +104,10 @@ def test_h_m_is_computed_once_per_gains_and_follows_every_gain():
     slower = AROLC(TwoLinkArm(), K1=2.0, K2=4.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
     damped = AROLC(TwoLinkArm(), K1=4.0, K2=6.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
     bounds = certified_bounds([FAST, slower, damped, OuterLoop(TwoLinkArm(), K1=4.0, K2=4.0)])
+    hits = _h_m.cache_info().hits
     expected = [razumikhin_bound(k1, k2).h_m for k1, k2 in ((4.0, 4.0), (2.0, 4.0), (4.0, 6.0))]
     assert bounds[:3].tolist() == expected and len(set(expected)) == 3
     assert np.isnan(bounds[3])
-    assert certified_bounds([slower]).tolist() == [expected[1]]
+    again = AROLC(TwoLinkArm(), K1=2.0, K2=4.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
+    assert certified_bounds([again]).tolist() == [expected[1]]  # other object, same gains
+    assert _h_m.cache_info().hits == hits + 1

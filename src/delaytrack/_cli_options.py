@@ -21,6 +21,7 @@ from delaytrack._validation import NumberTextError, decimal_number
 __all__ = [
     "EXIT_USAGE",
     "OptionParser",
+    "count",
     "decimal",
     "integer",
     "quiet_argument",
@@ -70,6 +71,10 @@ def within(
         return value
 
     return checked
+
+
+#: argparse type: a count, an integer >= 1.
+count = within(integer, "an integer >= 1", lambda value: value >= 1)
 
 
 def trust_argument(command: argparse.ArgumentParser) -> None:

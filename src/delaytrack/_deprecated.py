@@ -12,7 +12,7 @@ import warnings
 from collections.abc import Callable, Mapping
 from typing import Any
 
-__all__ = ["moved_names"]
+__all__ = ["moved_names", "moved_object"]
 
 
 def moved_names(module: str, moved: Mapping[str, str]) -> Callable[[str], Any]:
@@ -35,13 +35,23 @@ def moved_names(module: str, moved: Mapping[str, str]) -> Callable[[str], Any]:
     def __getattr__(name: str) -> Any:
         if name not in moved:
             raise AttributeError(f"module {module!r} has no attribute {name!r}")
-        where, _, attribute = moved[name].partition(":")
-        warnings.warn(
-            f"{module}.{name} moved to {where}.{attribute}; import it from there "
-            f"(the old name will be removed in a later release)",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-        return getattr(importlib.import_module(where), attribute)
+        return moved_object(f"{module}.{name}", moved[name])
 
     return __getattr__
+
+
+def moved_object(old: str, new: str, *, stacklevel: int = 2) -> Any:
+    """The object at ``new`` (``"new.module:attribute"``), imported now, after a
+    :class:`DeprecationWarning` that ``old`` (its dotted old name) moved there.
+
+    ``stacklevel`` points the warning at the old name's reader (2: the caller of the function
+    calling this one).
+    """
+    where, _, attribute = new.partition(":")
+    warnings.warn(
+        f"{old} moved to {where}.{attribute}; import it from there "
+        f"(the old name will be removed in a later release)",
+        DeprecationWarning,
+        stacklevel=stacklevel + 1,
+    )
+    return getattr(importlib.import_module(where), attribute)

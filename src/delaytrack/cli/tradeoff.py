@@ -7,7 +7,14 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from delaytrack._cli_options import decimal, integer, quiet_argument, trust_argument, within
+from delaytrack._cli_options import (
+    count,
+    decimal,
+    integer,
+    quiet_argument,
+    trust_argument,
+    within,
+)
 from delaytrack._output import check_output_folder, plain_folder_name
 from delaytrack.cli._numbers import numbers
 from delaytrack.cli._scenarios import scenario_source, trusted
@@ -67,7 +74,7 @@ def add_command(commands: argparse._SubParsersAction) -> None:
     )
     command.add_argument(
         "--draws",
-        type=within(integer, "an integer >= 1", lambda v: v >= 1),
+        type=count,
         default=None,
         metavar="N",
         help="robots drawn per point and controller (default 40; one run when the scenario "
@@ -76,7 +83,7 @@ def add_command(commands: argparse._SubParsersAction) -> None:
     )
     command.add_argument(
         "--decision-draws",
-        type=within(integer, "an integer >= 1", lambda v: v >= 1),
+        type=count,
         default=None,
         metavar="N",
         help="with --envelope: robots drawn per condition for the decision (default --draws, "

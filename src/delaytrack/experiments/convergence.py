@@ -49,18 +49,22 @@ class DtCheck:
     ----------
     table : DataFrame
         :func:`dt_check_table`: the metrics at dt / 2 and each run's largest relative change.
-    largest : float
-        The largest relative change of any metric of any run.
-    above : DataFrame
-        The rows of ``table`` whose largest change is at or above the tolerance.
     tolerance : float
         :data:`DT_TOLERANCE`.
     """
 
     table: pd.DataFrame
-    largest: float
-    above: pd.DataFrame
     tolerance: float = DT_TOLERANCE
+
+    @property
+    def largest(self) -> float:
+        """The largest relative change of any metric of any run."""
+        return largest_change(self.table)
+
+    @property
+    def above(self) -> pd.DataFrame:
+        """The rows of ``table`` whose largest change is at or above the tolerance."""
+        return self.table[self.table.max_relative_change >= self.tolerance]
 
     @property
     def within_tolerance(self) -> bool:
@@ -70,7 +74,4 @@ class DtCheck:
 
 def dt_check_verdict(dt_check: pd.DataFrame | None) -> DtCheck | None:
     """The :class:`DtCheck` of a :func:`dt_check_table` (None when the check was not run)."""
-    if dt_check is None:
-        return None
-    above = dt_check[dt_check.max_relative_change >= DT_TOLERANCE]
-    return DtCheck(dt_check, largest_change(dt_check), above)
+    return None if dt_check is None else DtCheck(dt_check)

@@ -42,11 +42,9 @@ parts, any executor) and returns a :class:`Decision`, which
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import math
 import re
 import time
-import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -55,6 +53,7 @@ from typing import Any
 
 import pandas as pd
 
+from delaytrack._deprecated import moved_object
 from delaytrack._validation import ArgumentError, is_integer_at_least
 from delaytrack.experiments.intervals import Z95, wilson_interval
 from delaytrack.experiments.tradeoff import (
@@ -305,15 +304,12 @@ class Decision:
     def refusal(self) -> str | None:
         """Why no candidate was chosen, in words (None when one was). Deprecated: the words are
         the report's, :func:`delaytrack.report.decision.refusal_text`; the facts are
-        :attr:`refused`. Like a moved name (:mod:`delaytrack._deprecated`), it warns and loads
-        the report only when read."""
-        warnings.warn(
-            "Decision.refusal moved to delaytrack.report.decision.refusal_text(decision); call "
-            "it from there (the old attribute will be removed in a later release)",
-            DeprecationWarning,
-            stacklevel=2,
+        :attr:`refused`. A moved name (:mod:`delaytrack._deprecated`): it warns and loads the
+        report only when read."""
+        refusal_text = moved_object(
+            f"{__name__}.Decision.refusal", "delaytrack.report.decision:refusal_text"
         )
-        text: str | None = importlib.import_module("delaytrack.report.decision").refusal_text(self)
+        text: str | None = refusal_text(self)
         return text
 
 

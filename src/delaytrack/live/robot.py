@@ -83,9 +83,8 @@ class PlantStepper:
         self.x = np.array(x0, dtype=np.float64).reshape(2 * self.n).copy()
         check_reduced_start([plant], self.x[None])  # as the simulator: never changed silently
         self._plant = plant
-        # A plant in its reduced form steps from q̇ = S(q) η: the first step maps the start (as
-        # the simulator does), which is read as given until then.
-        self._mapped = plant.engine_kernel.reduced is None
+        self._kernel = plant.engine_kernel
+        self.start_from(self.x)
         self.u = np.zeros(self.m)
         self.compiled = bool(plant.compiled)
         self._terms = plant.terms_kernel
@@ -94,7 +93,6 @@ class PlantStepper:
         self._N = np.zeros(self.n)
         self._G = np.zeros((self.n, self.m))
         self._entry = None
-        self._kernel = plant.engine_kernel
         self._stepper = plant.stepper_kernel
         self._first = True
         if self._stepper is not None:
@@ -109,10 +107,11 @@ class PlantStepper:
             self._python_reduced = (self._kernel.as_python(), workspace)
 
     def start_from(self, x: np.ndarray) -> None:
-        """Set :attr:`x` to ``x``, a start the next step maps onto the plant's constraints as the
-        first step of a run does."""
+        """Set :attr:`x` to ``x``, a start: for a plant in its reduced form, the next step first
+        maps it onto the constraints, ``q̇ = S(q) η``, as the simulator's first step does (it is
+        read as given until then)."""
         self.x[:] = x
-        self._mapped = self._plant.engine_kernel.reduced is None
+        self._mapped = self._kernel.reduced is None
 
     def step(self, t: float) -> bool:
         """Advance :attr:`x` by one step from ``t`` with :attr:`u` held; False when the new

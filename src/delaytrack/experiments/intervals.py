@@ -7,7 +7,6 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from scipy import stats
 
 __all__ = ["median_interval", "wilson_interval"]
 
@@ -39,6 +38,8 @@ def median_interval(values: Sequence[float], seed: int = 0) -> tuple[float, floa
     median = float(np.median(data))
     if len(data) < 2 or np.all(data == data[0]):
         return median, median if len(data) > 1 else math.nan, median if len(data) > 1 else math.nan
+    from scipy import stats  # imported here: 0.4 s that a command not drawing intervals skips
+
     # The percentile interval needs only the resampled medians; SciPy's standard error of
     # them may overflow for huge values (a wound-up controller's TV), harmlessly.
     with np.errstate(over="ignore", invalid="ignore"):

@@ -44,6 +44,26 @@ def test_the_plant_form_gives_mujocos_own_accelerations():
     np.testing.assert_allclose(np.diag(input_map), [10.0, 5.0, 2.0])  # the motors' gears
 
 
+def test_terms_skip_contacts_and_constraints_and_are_mujocos_own_with_them():
+    """A plant integrated by RK4 has MuJoCo skip contacts and constraints (only its M, N, G are
+    read); the terms are bit for bit those of the model with both on, here on the P3-DX, whose
+    wheels touch the ground."""
+    path = Path(dt.__file__).parent / "data" / "p3dx.xml"
+    plant = MujocoPlant(path, constraints="ignore")
+    off = int(mujoco.mjtDisableBit.mjDSBL_CONTACT) | int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+    assert plant._model.opt.disableflags & off == off
+    stepped = MujocoPlant(path, constraints="ignore", stepping="mujoco")
+    assert stepped._model.opt.disableflags & off == 0
+    rng = np.random.default_rng(5)
+    found = 0
+    for _ in range(20):
+        q, qdot = rng.normal(size=plant.n), rng.normal(size=plant.n)
+        for ours, theirs in zip(plant.terms(q, qdot), stepped.terms(q, qdot), strict=True):
+            np.testing.assert_array_equal(ours, theirs)
+        found += int(stepped._data.ncon > 0)
+    assert found > 0  # the model with contacts on found some: they changed no term
+
+
 def test_a_lighter_model_scales_masses_and_inertias():
     full, light = MujocoPlant(ARM), MujocoPlant(ARM, mass_scale=0.8)
     q, qdot = np.array([0.3, -0.2, 0.5]), np.zeros(3)

@@ -283,6 +283,10 @@ class MujocoPlant(ELPlant):
         self._check(mujoco, model, path, joints)
         if self.stepping == "mujoco":  # a diverging state must reach the simulator, not reset
             model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+        else:  # never stepped by MuJoCo: M, N, G only, so no contacts or constraints to find
+            model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT) | int(
+                mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+            )
         model.body_mass[1:] *= scale
         model.body_inertia[1:] *= scale
         if self.contact_time_constant is not None:

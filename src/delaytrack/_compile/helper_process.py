@@ -51,6 +51,7 @@ __all__ = [
     "CompileJob",
     "CpuTimes",
     "Helper",
+    "bootstrap",
     "idle_cpus",
     "main",
     "share",
@@ -65,16 +66,22 @@ ENVIRONMENT = "DELAYTRACK_COMPILE_HELPER"
 #: numba's first compile's set-up), in the units of :attr:`CompileJob.cost`.
 START_UP = 1.0
 
-#: What the helper runs (``python -P``: no folder is put before the module search path). It
-#: reads the whole payload, then sets its module search path to this process's before importing
-#: delaytrack, so that it imports the same package and the user's modules.
-_BOOTSTRAP = (
-    "import io, pickle, sys\n"
-    "payload = io.BytesIO(sys.stdin.buffer.read())\n"
-    "sys.path[:] = pickle.load(payload)\n"
-    "from delaytrack._compile.helper_process import main\n"
-    "sys.exit(main(payload))\n"
-)
+
+def bootstrap(module: str) -> list[str]:
+    """The command of a second Python process that runs ``module``'s ``main`` on its input
+    (``python -P``: no folder is put before the module search path). It reads the whole input,
+    sets its module search path to the first pickle in it (this process's, so that it imports
+    the same package and the user's modules), then calls ``main`` with the rest; its exit
+    status is what ``main`` returns."""
+    code = (
+        "import io, pickle, sys\n"
+        "payload = io.BytesIO(sys.stdin.buffer.read())\n"
+        "sys.path[:] = pickle.load(payload)\n"
+        f"from {module} import main\n"
+        "sys.exit(main(payload))\n"
+    )
+    return [sys.executable, "-P", "-c", code]
+
 
 #: How long to wait for a helper: this many seconds, plus :data:`PATIENCE` times its share's
 #: cost, then this process compiles what is left.
@@ -341,7 +348,7 @@ def start(jobs: Sequence[CompileJob]) -> tuple[Helper | None, list[int]]:
             (str(cache_directory()), [recipes[i] for i in given])
         )
         process = subprocess.Popen(
-            [sys.executable, "-P", "-c", _BOOTSTRAP],
+            bootstrap(__name__),
             stdin=subprocess.PIPE,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,

@@ -16,6 +16,7 @@ from delaytrack.experiments import tuning
 from delaytrack.experiments.paper import PaperStudy, run_study
 from delaytrack.experiments.paper_setup import DURATION, T_C
 from delaytrack.experiments.robustness import RobustnessStudy
+from delaytrack.jobs._background import second_process
 from delaytrack.jobs.robustness import run_robustness
 from delaytrack.report.paper import write_study
 
@@ -43,16 +44,7 @@ def run_paper(
     ``gains``: the gains file (or its record) of the tuned controllers; the shipped one by
     default. ``robustness`` and ``decision`` (studies already run) add their sections to the
     report."""
-    if not (math.isfinite(duration) and duration > 0):
-        raise ValueError(f"duration must be a positive number of seconds; got {duration!r}")
-    study = run_study(
-        reference=reference,
-        duration=duration,
-        progress=progress,
-        check_dt=check_dt,
-        gains_path=gains,
-        contact=contact,
-    )
+    study = _paper_study(reference, duration, progress, check_dt, gains, contact)
     write_study(
         study,
         out_dir,
@@ -61,6 +53,28 @@ def run_paper(
         decision=decision,
     )
     return study
+
+
+def _paper_study(
+    reference: str,
+    duration: float,
+    progress: bool,
+    check_dt: bool,
+    gains: tuning.GainsSource,
+    contact: bool | None = None,
+) -> PaperStudy:
+    """The paper's experiment run (:func:`~delaytrack.experiments.paper.run_study`) after
+    ``duration`` is checked."""
+    if not (math.isfinite(duration) and duration > 0):
+        raise ValueError(f"duration must be a positive number of seconds; got {duration!r}")
+    return run_study(
+        reference=reference,
+        duration=duration,
+        progress=progress,
+        check_dt=check_dt,
+        gains_path=gains,
+        contact=contact,
+    )
 
 
 def _check_duration(duration: float) -> None:
@@ -114,35 +128,32 @@ def reproduce(
         decision, _ = decision_study.reproduce(
             out, size=decision, executor=executor, progress=progress
         )
-    literal = run_paper(
-        folders["paper-literal"],
-        reference="literal",
-        duration=duration,
-        progress=progress,
-        check_dt=check_dt,
-        gains=gains,
-    )
-    study = (
-        run_robustness(
-            folders["robustness"],
-            size=robustness,
-            executor=executor,
-            progress=progress,
-            gains=gains,
+    # The literal run's report is drawn in a second process, when a core is idle, while this
+    # one runs the next studies.
+    with second_process() as second:
+        literal = _paper_study("literal", duration, progress, check_dt, gains)
+        second.run(write_study, literal, folders["paper-literal"])
+        study = (
+            run_robustness(
+                folders["robustness"],
+                size=robustness,
+                executor=executor,
+                progress=progress,
+                gains=gains,
+            )
+            if robustness
+            else None
         )
-        if robustness
-        else None
-    )
-    consistent = run_paper(
-        folders["paper"],
-        reference="consistent",
-        duration=duration,
-        progress=progress,
-        check_dt=check_dt,
-        literal_summary=literal.summary,
-        contact=contact,
-        robustness=study,
-        gains=gains,
-        decision=decision,
-    )
+        consistent = run_paper(
+            folders["paper"],
+            reference="consistent",
+            duration=duration,
+            progress=progress,
+            check_dt=check_dt,
+            literal_summary=literal.summary,
+            contact=contact,
+            robustness=study,
+            gains=gains,
+            decision=decision,
+        )
     return {"consistent": consistent, "literal": literal, "robustness": study}

@@ -4,6 +4,9 @@ here, and every call it does not deliver run here."""
 from __future__ import annotations
 
 import os
+import signal
+import threading
+import time
 import warnings
 from pathlib import Path
 
@@ -19,6 +22,13 @@ from delaytrack.report.paper import write_study
 def idle(monkeypatch):
     """A core counts as idle, whatever the machine does."""
     monkeypatch.setattr(_background, "idle_cpus", lambda: 2.0)
+
+
+def _slow_elsewhere(parent: int, path: Path) -> None:
+    """Write this process's id to ``path``; in any process but ``parent``, ten minutes later."""
+    if os.getpid() != parent:
+        time.sleep(600.0)
+    path.write_text(str(os.getpid()))
 
 
 def _files(folder: Path) -> dict[str, bytes]:
@@ -83,11 +93,57 @@ def test_on_another_error_the_call_under_way_is_finished_first(tmp_path, idle):
 
 
 def test_on_ctrl_c_the_second_process_is_stopped(idle):
-    import time
-
     with pytest.raises(KeyboardInterrupt), second_process() as second:
         second.run(time.sleep, 600.0)
         process = second._process
         assert process is not None
         raise KeyboardInterrupt
     assert process.returncode is not None and process.returncode < 0  # killed, not waited out
+
+
+def test_on_ctrl_c_while_the_block_waits_for_it_the_second_process_is_stopped(tmp_path, idle):
+    target = tmp_path / "file.txt"
+    with pytest.raises(KeyboardInterrupt), second_process() as second:
+        second.run(_slow_elsewhere, os.getpid(), target)
+        process = second._process
+        assert process is not None
+        # Ctrl-C for this process alone (a notebook's interrupt), in the block or in its wait.
+        threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT)).start()
+    assert process.returncode is not None and process.returncode < 0
+    assert not target.exists()
+
+
+def test_a_second_process_too_slow_is_stopped_and_its_call_run_here(tmp_path, monkeypatch, idle):
+    monkeypatch.setattr(_background, "PATIENCE", 0.5)
+    target = tmp_path / "file.txt"
+    with second_process() as second:
+        second.run(_slow_elsewhere, os.getpid(), target)
+        process = second._process
+        assert process is not None
+    assert process.returncode is not None and process.returncode < 0
+    assert target.read_text() == str(os.getpid())
+
+
+def test_a_failed_call_is_run_here_on_another_error_and_noted_on_it(tmp_path, idle):
+    target = tmp_path / "no such folder" / "file.txt"
+    with pytest.raises(RuntimeError, match="later") as raised, second_process() as second:
+        second.run(target.write_text, "text")
+        raise RuntimeError("a later study failed")
+    assert any("FileNotFoundError" in note for note in raised.value.__notes__)
+
+
+def test_with_matplotlib_settings_of_this_process_the_call_runs_here(tmp_path, idle):
+    import matplotlib
+
+    target = tmp_path / "file.txt"
+    with matplotlib.rc_context({"lines.linewidth": 3.0}), second_process() as second:
+        second.run(target.write_text, "here")
+        assert second._process is None and target.read_text() == "here"
+
+
+def test_the_compile_helpers_switch_keeps_everything_here(tmp_path, monkeypatch, idle):
+    monkeypatch.setenv("DELAYTRACK_COMPILE_HELPER", "0")
+    target = tmp_path / "file.txt"
+    with second_process() as second:
+        second.run(target.write_text, "here")
+        assert second._process is None and target.read_text() == "here"

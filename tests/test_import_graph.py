@@ -327,6 +327,15 @@ def test_the_root_and_a_live_node_load_no_heavy_library(module: str):
     assert done.stdout.strip() == "[]"
 
 
+def test_the_jobs_load_scipys_statistics_only_when_a_verdict_needs_them():
+    """The jobs import the studies, whose intervals and tests use SciPy's statistics; those
+    (0.4 s) wait for the first interval or test, not the jobs' import."""
+    modules = "delaytrack.jobs.paper, delaytrack.experiments.decision_study"
+    code = f"import sys, {modules}; print('scipy.stats' in sys.modules)"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "False"
+
+
 def test_every_name_of_the_root_resolves():
     """Each name of ``delaytrack.__all__`` (from ``__init__.pyi``) is found where it lives (an
     import that fails raises here), among them the entry points the README's examples use."""

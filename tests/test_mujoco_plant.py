@@ -64,6 +64,28 @@ def test_terms_skip_contacts_and_constraints_and_are_mujocos_own_with_them():
     assert found > 0  # the model with contacts on found some: they changed no term
 
 
+def test_an_actuator_pushing_through_contacts_keeps_them(tmp_path):
+    """An adhesion actuator's force arm comes from its body's contacts (as constraint rows):
+    its model keeps contacts and constraints, and its column of G is MuJoCo's own."""
+    path = tmp_path / "adhesion.xml"
+    path.write_text(
+        """<mujoco><option gravity="0 0 -9.81"/><worldbody><geom type="plane" size="5 5 0.1"/>
+        <body name="b" pos="0 0 0.1"><joint name="x" type="slide" axis="1 0 0"/>
+        <joint name="z" type="slide" axis="0 0 1"/>
+        <geom type="box" size="0.1 0.1 0.1" mass="1" margin="0.05" gap="0"/></body></worldbody>
+        <actuator><motor joint="x"/><motor joint="z"/>
+        <adhesion body="b" ctrlrange="0 10" gain="1"/></actuator></mujoco>"""
+    )
+    plant = MujocoPlant(path, actuator_limits="ignore")
+    off = int(mujoco.mjtDisableBit.mjDSBL_CONTACT) | int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+    assert plant._model.opt.disableflags & off == 0
+    stepped = MujocoPlant(path, actuator_limits="ignore", stepping="mujoco")
+    q, qdot = np.zeros(2), np.zeros(2)
+    ours, theirs = plant.terms(q, qdot)[2], stepped.terms(q, qdot)[2]
+    np.testing.assert_array_equal(ours, theirs)
+    assert np.any(ours[0, :, 2] != 0.0)  # the box touches the floor: the adhesion pulls it
+
+
 def test_a_lighter_model_scales_masses_and_inertias():
     full, light = MujocoPlant(ARM), MujocoPlant(ARM, mass_scale=0.8)
     q, qdot = np.array([0.3, -0.2, 0.5]), np.zeros(3)

@@ -7,25 +7,37 @@ is idle (measured as for the compile helper,
 with the next study. The files are the same: the call is the same function of the same values,
 pickled.
 
-Whatever the second process does not deliver (it could not start, failed or died) this process
-runs itself when the block of :func:`second_process` ends, so that a failure reads as it would
-without it; on Ctrl-C (which both processes receive) the second process is stopped, and on
-another error its call is finished before the error goes on (a study already run is not lost).
+Whatever the second process does not deliver (it could not start, failed, died or took
+:data:`PATIENCE` seconds more than this process) this process runs itself when the block of
+:func:`second_process` ends, so that a failure reads as it would without it; on Ctrl-C the
+second process is stopped, and on another error its call is finished (here if need be) before
+the error goes on, so that a study already run is not lost.
+
+The call must depend on its arguments and on files only: what else this process changed (a
+module patched at run time) does not reach the second process. Matplotlib's settings do
+(through :data:`matplotlib.rcParams`), so a call is run here once they differ from those a new
+process reads. The idle core is measured from ``/proc`` (:func:`idle_cpus`), so the second
+process starts on Linux only; set ``DELAYTRACK_COMPILE_HELPER=0`` to run everything in one
+process, as the compile helper does.
 """
 
 from __future__ import annotations
 
 import contextlib
 import io
+import os
 import pickle
 import subprocess
 import sys
 from collections.abc import Callable, Iterator
 from typing import Any
 
-from delaytrack._compile.helper_process import IDLE_NEEDED, bootstrap, idle_cpus
+from delaytrack._compile.helper_process import ENVIRONMENT, IDLE_NEEDED, bootstrap, idle_cpus
 
-__all__ = ["SecondProcess", "main", "second_process"]
+__all__ = ["PATIENCE", "SecondProcess", "main", "second_process"]
+
+#: Seconds the end of the block waits for the second process, then this process runs its call.
+PATIENCE = 600.0
 
 #: A call: the function, its positional and its keyword arguments.
 Call = tuple[Callable[..., Any], tuple, dict]
@@ -50,12 +62,18 @@ class SecondProcess:
                 return
         function(*args, **kwargs)
 
-    def finish(self, *, again_here: bool = True) -> None:
-        """Wait for the second process; run its call here when it did not complete it (and
-        ``again_here``)."""
+    def finish(self) -> None:
+        """Wait for the second process (at most :data:`PATIENCE` seconds); run its call here
+        when it did not complete it."""
         process, call = self._process, self._call
-        self._process = self._call = None
-        if process is not None and call is not None and process.wait() != 0 and again_here:
+        if process is None or call is None:
+            return
+        try:
+            completed = process.wait(timeout=PATIENCE) == 0
+        except subprocess.TimeoutExpired:
+            completed = False
+        self.stop()
+        if not completed:
             function, args, kwargs = call
             function(*args, **kwargs)
 
@@ -76,8 +94,12 @@ def _end(process: subprocess.Popen) -> None:
 def _start(call: Call) -> subprocess.Popen | None:
     """A second process running ``call``, when a core is idle; None otherwise, or when it cannot
     start or a value of the call does not pickle."""
+    if os.environ.get(ENVIRONMENT, "").strip() == "0" or getattr(sys, "frozen", False):
+        return None
+    if not _fresh_style():
+        return None
     idle = idle_cpus()
-    if idle is None or idle < IDLE_NEEDED or getattr(sys, "frozen", False):
+    if idle is None or idle < IDLE_NEEDED:
         return None
     try:
         payload = pickle.dumps(list(sys.path)) + pickle.dumps(call)
@@ -90,6 +112,7 @@ def _start(call: Call) -> subprocess.Popen | None:
             stdin=subprocess.PIPE,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
+            env={**os.environ, ENVIRONMENT: "0"},  # it starts no helper of its own
         )
         assert process.stdin is not None  # opened with stdin=PIPE
         process.stdin.write(payload)
@@ -101,21 +124,33 @@ def _start(call: Call) -> subprocess.Popen | None:
     return process
 
 
+def _fresh_style() -> bool:
+    """Whether matplotlib's settings are those a new process reads (or it is not loaded)."""
+    matplotlib = sys.modules.get("matplotlib")
+    return matplotlib is None or dict(matplotlib.rcParams) == dict(matplotlib.rcParamsOrig)
+
+
 @contextlib.contextmanager
 def second_process() -> Iterator[SecondProcess]:
     """A :class:`SecondProcess` for the block: its call is finished (or run here) when the block
-    ends; on Ctrl-C it is stopped, on another error its call is finished before the error goes
-    on."""
+    ends; on Ctrl-C, in the block or while it waits, the second process is stopped; on another
+    error its call is finished (here if need be; an error of that is noted on the first) before
+    the first error goes on."""
     second = SecondProcess()
     try:
-        yield second
-    except KeyboardInterrupt:
-        second.stop()
-        raise
-    except BaseException:
-        second.finish(again_here=False)
-        raise
-    second.finish()
+        try:
+            yield second
+        except KeyboardInterrupt:
+            raise
+        except BaseException as error:
+            try:
+                second.finish()
+            except Exception as also:  # noqa: BLE001 - the first error is the one to report
+                error.add_note(f"and then: {type(also).__name__}: {also}")
+            raise
+        second.finish()
+    finally:
+        second.stop()  # after a finish, nothing to stop
 
 
 def main(payload: io.BytesIO) -> int:

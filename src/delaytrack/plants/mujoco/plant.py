@@ -283,7 +283,9 @@ class MujocoPlant(ELPlant):
         self._check(mujoco, model, path, joints)
         if self.stepping == "mujoco":  # a diverging state must reach the simulator, not reset
             model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
-        else:  # never stepped by MuJoCo: M, N, G only, so no contacts or constraints to find
+        elif not np.any(model.actuator_trntype == int(mujoco.mjtTrn.mjTRN_BODY)):
+            # Never stepped by MuJoCo: M, N, G only, which read no contact or constraint (but
+            # an actuator pushing through its body's contacts, adhesion, reads both).
             model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT) | int(
                 mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
             )

@@ -158,7 +158,9 @@ def test_metrics_count_every_tick_whatever_is_recorded(tmp_path):
     columns = [c for c in exact if c.startswith(("ae_", "rms_", "max_")) or c == "tv"]
     assert (exact[columns].to_numpy() > 0).all()
     np.testing.assert_array_equal(table[columns].to_numpy(), exact[columns].to_numpy())
-    assert main(["simulate", str(_file(tmp_path, scenario.replace(record_every=1000)))]) == 0
+    case = _file(tmp_path, scenario.replace(record_every=1000))
+    assert main(["simulate", str(case), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    assert (tmp_path / "out" / "metrics.csv").is_file()
 
 
 def _file(tmp_path, scenario):

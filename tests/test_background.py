@@ -103,12 +103,17 @@ def test_on_ctrl_c_the_second_process_is_stopped(idle):
 
 def test_on_ctrl_c_while_the_block_waits_for_it_the_second_process_is_stopped(tmp_path, idle):
     target = tmp_path / "file.txt"
-    with pytest.raises(KeyboardInterrupt), second_process() as second:
-        second.run(_slow_elsewhere, os.getpid(), target)
-        process = second._process
-        assert process is not None
-        # Ctrl-C for this process alone (a notebook's interrupt), in the block or in its wait.
-        threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT)).start()
+    # Ctrl-C for this process alone (a notebook's interrupt), in the block or in its wait; never
+    # after the test (the timer is cancelled), which would stop the whole test session.
+    interrupt = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))
+    try:
+        with pytest.raises(KeyboardInterrupt), second_process() as second:
+            second.run(_slow_elsewhere, os.getpid(), target)
+            process = second._process
+            assert process is not None
+            interrupt.start()
+    finally:
+        interrupt.cancel()
     assert process.returncode is not None and process.returncode < 0
     assert not target.exists()
 

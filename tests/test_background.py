@@ -48,7 +48,7 @@ def test_a_report_drawn_in_the_second_process_is_the_one_drawn_here(tmp_path, id
         )
     with second_process() as second:
         second.run(write_study, study, tmp_path / "there")
-        assert second._process is not None  # handed over: this process goes on
+        assert second._call is not None  # handed over: this process goes on
         pid = second._process.pid
         write_study(study, tmp_path / "here")
     assert pid != os.getpid()
@@ -61,18 +61,44 @@ def test_a_call_that_fails_there_is_run_again_here_and_its_error_raised(tmp_path
     target = tmp_path / "no such folder" / "file.txt"
     with pytest.raises(FileNotFoundError), second_process() as second:
         second.run(target.write_text, "text")
-        assert second._process is not None
+        assert second._call is not None
     assert not target.exists()
 
 
-def test_without_an_idle_core_or_a_pickled_call_it_runs_here(tmp_path, monkeypatch, idle):
+def test_a_call_that_does_not_pickle_runs_here_and_the_next_goes_there(tmp_path, idle):
     first, second_file = tmp_path / "first.txt", tmp_path / "second.txt"
     with second_process() as second:
         second.run(lambda: first.write_text("here"))  # a lambda does not pickle
-        assert first.read_text() == "here" and second._process is None
-        monkeypatch.setattr(_background, "idle_cpus", lambda: 1.0)
-        second.run(second_file.write_text, "here too")
-        assert second_file.read_text() == "here too" and second._process is None
+        assert first.read_text() == "here" and second._call is None
+        second.run(second_file.write_text, "there")
+        assert second._call is not None
+    assert second_file.read_text() == "there"
+
+
+def test_without_an_idle_core_there_is_no_second_process(tmp_path, monkeypatch):
+    monkeypatch.setattr(_background, "idle_cpus", lambda: 1.0)
+    target = tmp_path / "file.txt"
+    with second_process() as second:
+        assert second._process is None
+        second.run(target.write_text, "here")
+        assert target.read_text() == "here"
+
+
+def test_a_second_process_given_no_call_imports_its_modules_and_ends(idle):
+    with second_process(("delaytrack.report.paper",)) as second:
+        process = second._process
+        assert process is not None
+    assert process.returncode == 0
+
+
+def test_its_cpu_time_counts_as_this_processs_own_for_the_compile_helper(idle):
+    from delaytrack._compile import helper_process
+
+    with second_process(("delaytrack.report.paper",)) as second:
+        assert second._process is not None
+        assert second._process.pid in helper_process._OWN
+        pid = second._process.pid
+    assert pid not in helper_process._OWN
 
 
 def test_only_one_call_goes_there_the_next_runs_here(tmp_path, idle):
@@ -143,12 +169,13 @@ def test_with_matplotlib_settings_of_this_process_the_call_runs_here(tmp_path, i
     target = tmp_path / "file.txt"
     with matplotlib.rc_context({"lines.linewidth": 3.0}), second_process() as second:
         second.run(target.write_text, "here")
-        assert second._process is None and target.read_text() == "here"
+        assert second._call is None and target.read_text() == "here"
 
 
 def test_the_compile_helpers_switch_keeps_everything_here(tmp_path, monkeypatch, idle):
     monkeypatch.setenv("DELAYTRACK_COMPILE_HELPER", "0")
     target = tmp_path / "file.txt"
     with second_process() as second:
+        assert second._process is None
         second.run(target.write_text, "here")
-        assert second._process is None and target.read_text() == "here"
+        assert target.read_text() == "here"

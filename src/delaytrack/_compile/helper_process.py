@@ -52,6 +52,8 @@ __all__ = [
     "CpuTimes",
     "Helper",
     "bootstrap",
+    "count_as_own",
+    "forget_own",
     "idle_cpus",
     "main",
     "share",
@@ -67,20 +69,49 @@ ENVIRONMENT = "DELAYTRACK_COMPILE_HELPER"
 START_UP = 1.0
 
 
-def bootstrap(module: str) -> list[str]:
+def bootstrap(module: str, *, streamed: bool = False) -> list[str]:
     """The command of a second Python process that runs ``module``'s ``main`` on its input
-    (``python -P``: no folder is put before the module search path). It reads the whole input,
-    sets its module search path to the first pickle in it (this process's, so that it imports
-    the same package and the user's modules), then calls ``main`` with the rest; its exit
+    (``python -P``: no folder is put before the module search path). It sets its module search
+    path to the first pickle of its input (this process's, so that it imports the same package
+    and the user's modules), then calls ``main`` with the rest: read whole first, or, when
+    ``streamed``, as the input itself (``main`` then reads what is written later); its exit
     status is what ``main`` returns."""
+    source = "sys.stdin.buffer" if streamed else "io.BytesIO(sys.stdin.buffer.read())"
     code = (
         "import io, pickle, sys\n"
-        "payload = io.BytesIO(sys.stdin.buffer.read())\n"
+        f"payload = {source}\n"
         "sys.path[:] = pickle.load(payload)\n"
         f"from {module} import main\n"
         "sys.exit(main(payload))\n"
     )
     return [sys.executable, "-P", "-c", code]
+
+
+#: Processes of this one (by id) whose CPU time counts as its own in :func:`idle_cpus`.
+_OWN: set[int] = set()
+
+
+def count_as_own(pid: int) -> None:
+    """Count the CPU time of the process ``pid`` (a second process this one started, such as a
+    report's, :mod:`delaytrack.jobs._background`) as this process's own in :func:`idle_cpus`:
+    its work is this job's, and must not keep a compile helper off."""
+    _OWN.add(pid)
+
+
+def forget_own(pid: int) -> None:
+    """Stop counting the process ``pid`` as this process's own (:func:`count_as_own`)."""
+    _OWN.discard(pid)
+
+
+def _own_ticks() -> int:
+    """CPU clock ticks of this process and of those counted as its own (a process that ended
+    counts no more)."""
+    ticks = 0
+    for name in ("self", *map(str, _OWN)):
+        with contextlib.suppress(OSError, ValueError, IndexError):
+            fields = Path(f"/proc/{name}/stat").read_text().rpartition(")")[2].split()
+            ticks += int(fields[11]) + int(fields[12])  # utime, stime
+    return ticks
 
 
 #: How long to wait for a helper: this many seconds, plus :data:`PATIENCE` times its share's
@@ -146,7 +177,8 @@ IDLE_NEEDED = 1.75
 
 class CpuTimes(NamedTuple):
     """CPU time so far: of the CPUs this process may run on, idle (waiting for input or output
-    counted as idle) and in all, and this process's (all its threads), in clock ticks; the
+    counted as idle) and in all, and this process's (all its threads, and the processes
+    :func:`count_as_own` named), in clock ticks; the
     number of those CPUs; and the CPU seconds of this process's cgroup (None without)."""
 
     idle: int
@@ -169,13 +201,12 @@ def _cpu_times() -> CpuTimes:
             continue
         fields = [int(field) for field in values.split()[:8]]  # user .. steal
         idle, total, cpus = idle + fields[3] + fields[4], total + sum(fields), cpus + 1
-    mine = Path("/proc/self/stat").read_text().rpartition(")")[2].split()
     cgroup = None
     with contextlib.suppress(OSError, ValueError):
         for line in Path("/sys/fs/cgroup/cpu.stat").read_text().splitlines():
             if line.startswith("usage_usec "):
                 cgroup = int(line.split()[1]) / 1e6
-    return CpuTimes(idle, total, int(mine[11]) + int(mine[12]), cpus, cgroup)
+    return CpuTimes(idle, total, _own_ticks(), cpus, cgroup)
 
 
 def idle_cpus(window: float = IDLE_WINDOW) -> float | None:
@@ -187,7 +218,8 @@ def idle_cpus(window: float = IDLE_WINDOW) -> float | None:
     load average lags, and kept a helper off for a minute after another job had ended. All of
     this process's threads count as free: one of the linear algebra library still spinning
     after a call would otherwise keep the helper off, and it soon stops (a thread of yours
-    that keeps computing is not seen, and the helper then shares its core).
+    that keeps computing is not seen, and the helper then shares its core). So does a process
+    of this one's named by :func:`count_as_own`.
     """
     try:
         before, start = _cpu_times(), time.monotonic()

@@ -129,8 +129,8 @@ def reproduce(
             out, size=decision, executor=executor, progress=progress
         )
     # The literal run's report is drawn in a second process, when a core is idle, while this
-    # one runs the next studies.
-    with second_process() as second:
+    # one runs the next studies; it imports the report's modules while the literal run runs.
+    with second_process(("delaytrack.report.paper",)) as second:
         literal = _paper_study("literal", duration, progress, check_dt, gains)
         second.run(write_study, literal, folders["paper-literal"])
         study = (

@@ -31,6 +31,15 @@ def _slow_elsewhere(parent: int, path: Path) -> None:
     path.write_text(str(os.getpid()))
 
 
+def _write_pid(path: Path) -> None:
+    """Write the id of the process that runs it to ``path``."""
+    path.write_text(str(os.getpid()))
+
+
+def _written_elsewhere(path: Path) -> bool:
+    return path.read_text() != str(os.getpid())
+
+
 def _files(folder: Path) -> dict[str, bytes]:
     # SVG files carry matplotlib's random ids; the PNG files and the report are compared.
     return {
@@ -49,9 +58,9 @@ def test_a_report_drawn_in_the_second_process_is_the_one_drawn_here(tmp_path, id
     with second_process() as second:
         second.run(write_study, study, tmp_path / "there")
         assert second._call is not None  # handed over: this process goes on
-        pid = second._process.pid
+        process = second._process
         write_study(study, tmp_path / "here")
-    assert pid != os.getpid()
+    assert process.returncode == 0  # drawn there, not again here
     there, here = _files(tmp_path / "there"), _files(tmp_path / "here")
     assert there.keys() == here.keys() and "report.html" in there
     assert there == here
@@ -70,9 +79,9 @@ def test_a_call_that_does_not_pickle_runs_here_and_the_next_goes_there(tmp_path,
     with second_process() as second:
         second.run(lambda: first.write_text("here"))  # a lambda does not pickle
         assert first.read_text() == "here" and second._call is None
-        second.run(second_file.write_text, "there")
+        second.run(_write_pid, second_file)
         assert second._call is not None
-    assert second_file.read_text() == "there"
+    assert _written_elsewhere(second_file)
 
 
 def test_without_an_idle_core_there_is_no_second_process(tmp_path, monkeypatch):
@@ -104,18 +113,18 @@ def test_its_cpu_time_counts_as_this_processs_own_for_the_compile_helper(idle):
 def test_only_one_call_goes_there_the_next_runs_here(tmp_path, idle):
     there, here = tmp_path / "there.txt", tmp_path / "here.txt"
     with second_process() as second:
-        second.run(there.write_text, "there")
-        second.run(here.write_text, "here")
-        assert here.read_text() == "here"  # written before the block ends
-    assert there.read_text() == "there"
+        second.run(_write_pid, there)
+        second.run(_write_pid, here)
+        assert not _written_elsewhere(here)  # written here, before the block ends
+    assert _written_elsewhere(there)
 
 
 def test_on_another_error_the_call_under_way_is_finished_first(tmp_path, idle):
     target = tmp_path / "file.txt"
     with pytest.raises(RuntimeError, match="later"), second_process() as second:
-        second.run(target.write_text, "written")
+        second.run(_write_pid, target)
         raise RuntimeError("a later study failed")
-    assert target.read_text() == "written"
+    assert _written_elsewhere(target)
 
 
 def test_on_ctrl_c_the_second_process_is_stopped(idle):
@@ -179,3 +188,44 @@ def test_the_compile_helpers_switch_keeps_everything_here(tmp_path, monkeypatch,
         assert second._process is None
         second.run(target.write_text, "here")
         assert target.read_text() == "here"
+
+
+def test_the_cpu_time_of_a_process_counted_as_own_is_counted(tmp_path):
+    import subprocess
+    import sys
+
+    from delaytrack._compile import helper_process
+
+    busy = subprocess.Popen([sys.executable, "-c", "sum(range(30_000_000))"])
+    try:
+        # Waited for without reaping it: its /proc entry keeps its CPU time.
+        os.waitid(os.P_PID, busy.pid, os.WEXITED | os.WNOWAIT)
+        fields = Path(f"/proc/{busy.pid}/stat").read_text().rpartition(")")[2].split()
+        its_own = int(fields[11]) + int(fields[12])  # utime, stime
+        alone = helper_process._own_ticks()
+        helper_process.count_as_own(busy.pid)
+        together = helper_process._own_ticks()
+    finally:
+        helper_process.forget_own(busy.pid)
+        busy.wait()
+    assert its_own > 0 and together - alone >= its_own  # this process's own only grew
+
+
+def _write_pid_with(path: Path, filler: bytes) -> None:
+    """:func:`_write_pid`, given ``filler`` (a call larger than a pipe's buffer)."""
+    _write_pid(path)
+
+
+def test_a_second_process_stuck_before_reading_its_call_is_stopped_in_time(
+    tmp_path, monkeypatch, idle
+):
+    (tmp_path / "stuck_on_import.py").write_text("import time\ntime.sleep(600.0)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))  # the second process gets this search path
+    monkeypatch.setattr(_background, "PATIENCE", 0.5)
+    target = tmp_path / "file.txt"
+    with second_process(("stuck_on_import",)) as second:
+        process = second._process
+        assert process is not None
+        second.run(_write_pid_with, target, b"x" * 1_000_000)  # waits in the pipe
+    assert process.returncode is not None and process.returncode < 0
+    assert not _written_elsewhere(target)

@@ -17,7 +17,8 @@ second process is stopped, and on another error its call is finished (here if ne
 the error goes on, so that a study already run is not lost.
 
 The call must depend on its arguments and on files only: what else this process changed (a
-module patched at run time) does not reach the second process. Matplotlib's settings do
+module patched at run time, a warnings filter) does not reach the second process, whose
+warnings and output are not shown. Matplotlib's settings do
 (through :data:`matplotlib.rcParams`), so a call is run here once they differ from those a new
 process reads. The idle core is measured from ``/proc``, so the second process starts on Linux
 only; set ``DELAYTRACK_COMPILE_HELPER=0`` to run everything in one process, as the compile
@@ -28,11 +29,13 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import io
 import os
 import pickle
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import IO, Any
 
@@ -49,6 +52,9 @@ __all__ = ["PATIENCE", "SecondProcess", "main", "second_process"]
 
 #: Seconds the end of the block waits for the second process, then this process runs its call.
 PATIENCE = 600.0
+
+#: Seconds a stopped second process's writing thread is waited for.
+_WRITER_GRACE = 5.0
 
 #: A call: the function, its positional and its keyword arguments.
 Call = tuple[Callable[..., Any], tuple, dict]
@@ -81,11 +87,14 @@ class SecondProcess:
             except Exception:  # noqa: BLE001 - a value that does not pickle: run here
                 pass
             else:
-                self._call = call
-                self._writer = threading.Thread(
-                    target=_write, args=(process, payload), name="delaytrack-second-process"
+                writer = threading.Thread(
+                    target=_write,
+                    args=(process, payload),
+                    name="delaytrack-second-process",
+                    daemon=True,
                 )
-                self._writer.start()
+                writer.start()
+                self._call, self._writer = call, writer
                 return
         function(*args, **kwargs)
 
@@ -95,12 +104,13 @@ class SecondProcess:
         process, call = self._process, self._call
         if process is None:
             return
+        deadline = time.monotonic() + PATIENCE
         if self._writer is not None:
-            self._writer.join()
+            self._writer.join(timeout=PATIENCE)  # it reads the call after its imports
         else:
             _write(process, b"")  # without a call, the end of its input ends it
         try:
-            completed = process.wait(timeout=PATIENCE) == 0
+            completed = process.wait(timeout=max(0.0, deadline - time.monotonic())) == 0
         except subprocess.TimeoutExpired:
             completed = False
         self.stop()
@@ -117,7 +127,9 @@ class SecondProcess:
                 process.wait()
             forget_own(process.pid)
         if self._writer is not None:
-            self._writer.join()  # its pipe broke with the process: it ends at once
+            # Its pipe broke with the process, so it ends at once (unless a process the second
+            # one started still holds the pipe: then it is left, a daemon, to the exit).
+            self._writer.join(timeout=_WRITER_GRACE)
             self._writer = None
 
 
@@ -140,7 +152,7 @@ def _start(modules: Sequence[str]) -> subprocess.Popen | None:
     if idle is None or idle < IDLE_NEEDED:
         return None
     process = None
-    try:
+    try:  # Ctrl-C included: a process started must not outlive this function's failure
         process = subprocess.Popen(
             bootstrap(__name__, streamed=True),
             stdin=subprocess.PIPE,
@@ -152,17 +164,25 @@ def _start(modules: Sequence[str]) -> subprocess.Popen | None:
         assert process.stdin is not None  # opened with stdin=PIPE
         process.stdin.write(pickle.dumps(list(sys.path)) + pickle.dumps(tuple(modules)))
         process.stdin.flush()
-    except Exception:  # noqa: BLE001 - no second process: everything runs here
+    except BaseException as error:
         if process is not None:
             SecondProcess(process).stop()
-        return None
+        if not isinstance(error, Exception):
+            raise
+        return None  # no second process: everything runs here
     return process
 
 
 def _fresh_style() -> bool:
-    """Whether matplotlib's settings are those a new process reads (or it is not loaded)."""
+    """Whether matplotlib's settings are those a new process reads (or it is not loaded); the
+    backend aside, which figures drawn without pyplot do not use."""
     matplotlib = sys.modules.get("matplotlib")
-    return matplotlib is None or dict(matplotlib.rcParams) == dict(matplotlib.rcParamsOrig)
+    if matplotlib is None:
+        return True
+    now, fresh = dict(matplotlib.rcParams), dict(matplotlib.rcParamsOrig)
+    now.pop("backend", None)
+    fresh.pop("backend", None)
+    return now == fresh
 
 
 @contextlib.contextmanager
@@ -193,16 +213,23 @@ def main(stream: IO[bytes]) -> int:
     """The second process: import the modules named in ``stream``, then run the call pickled
     after them (none when the input ends first). Returns 0 when it returned (or there was none),
     1 when it raised (the first process then runs it again and reports the error)."""
+    if not hasattr(stream, "peek"):  # a buffered reader tells the end of its input apart
+        stream = io.BufferedReader(stream)  # type: ignore[type-var]
     try:
         for module in pickle.load(stream):
             importlib.import_module(module)
+        if _ended(stream):
+            return 0  # given no call
         function, args, kwargs = pickle.load(stream)
-    except EOFError:
-        return 0
-    except Exception:  # noqa: BLE001 - a module or the call that does not load: run there
+    except Exception:  # noqa: BLE001 - a module or a call that does not load: run there
         return 1
     try:
         function(*args, **kwargs)
     except Exception:  # noqa: BLE001 - run again by the first process, which reports it
         return 1
     return 0
+
+
+def _ended(stream: IO[bytes]) -> bool:
+    """Whether ``stream`` (a buffered reader) ends here, waiting for what is written to it."""
+    return stream.peek(1) == b""  # type: ignore[attr-defined]  # io.BufferedReader's

@@ -84,8 +84,14 @@ def test_a_call_that_does_not_pickle_runs_here_and_the_next_goes_there(tmp_path,
     assert _written_elsewhere(second_file)
 
 
-def test_without_an_idle_core_there_is_no_second_process(tmp_path, monkeypatch):
-    monkeypatch.setattr(_background, "idle_cpus", lambda: 1.0)
+@pytest.mark.parametrize("why", ["no idle core", "the compile helper's switch"])
+def test_without_an_idle_core_or_with_the_switch_off_everything_runs_here(
+    tmp_path, monkeypatch, idle, why
+):
+    if why == "no idle core":
+        monkeypatch.setattr(_background, "idle_cpus", lambda: 1.0)
+    else:
+        monkeypatch.setenv("DELAYTRACK_COMPILE_HELPER", "0")
     target = tmp_path / "file.txt"
     with second_process() as second:
         assert second._process is None
@@ -179,15 +185,6 @@ def test_with_matplotlib_settings_of_this_process_the_call_runs_here(tmp_path, i
     with matplotlib.rc_context({"lines.linewidth": 3.0}), second_process() as second:
         second.run(target.write_text, "here")
         assert second._call is None and target.read_text() == "here"
-
-
-def test_the_compile_helpers_switch_keeps_everything_here(tmp_path, monkeypatch, idle):
-    monkeypatch.setenv("DELAYTRACK_COMPILE_HELPER", "0")
-    target = tmp_path / "file.txt"
-    with second_process() as second:
-        assert second._process is None
-        second.run(target.write_text, "here")
-        assert target.read_text() == "here"
 
 
 def test_the_cpu_time_of_a_process_counted_as_own_is_counted(tmp_path):

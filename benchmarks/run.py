@@ -44,6 +44,12 @@ compiles or loads numba's disk cache):
     local executor and with a Dask local cluster of one worker process per core (its start-up
     included), against the bare engine in the same run: the same runs built beforehand and
     simulated with one :func:`simulate` call per controller type.
+``paper``
+    ``delaytrack reproduce --no-contact --no-robustness`` (the paper's experiment, literal and
+    consistent, and their reports) in a new process, from an empty numba cache and then again
+    with the cache it wrote, as a user runs it (a compile helper and a second process for the
+    literal report when a core is idle) against the same job kept in one process
+    (``DELAYTRACK_COMPILE_HELPER=0``), each pair alternated, two rounds.
 ``live``
     ``delaytrack live run`` of the P3-DX in real time, ``T_c`` = 10 ms and 1 ms, 60 s each, with
     the load average, under the normal policy and, where allowed, under SCHED_FIFO
@@ -407,6 +413,58 @@ def startup_case(repeats: int) -> dict:
     }
 
 
+def _paper_job_seconds(cache: Path, one_process: bool, duration: float | None) -> float:
+    """Wall time of ``delaytrack reproduce --no-contact --no-robustness`` with numba's cache in
+    ``cache``, in one process or as a user runs it."""
+    environment = {**os.environ, "NUMBA_CACHE_DIR": str(cache)}
+    environment.pop("DELAYTRACK_COMPILE_HELPER", None)
+    if one_process:
+        environment["DELAYTRACK_COMPILE_HELPER"] = "0"
+    with tempfile.TemporaryDirectory() as out:
+        command = [str(Path(sys.executable).with_name("delaytrack")), "reproduce", "--quiet"]
+        command += ["--no-contact", "--no-robustness", "--out", out]
+        if duration is not None:
+            command += ["--duration", f"{duration:g}"]
+        start = time.perf_counter()
+        subprocess.run(
+            command,
+            env=environment,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            check=True,
+        )
+        return time.perf_counter() - start
+
+
+def paper_job_case(rounds: int, duration: float | None) -> list[dict]:
+    """The paper job from an empty cache and warm, as a user runs it and in one process
+    (module docstring); ``ratio`` is the one-process time over the user's."""
+    seconds: dict[tuple[str, bool], list[float]] = {}
+    with tempfile.TemporaryDirectory() as root:
+        for round_ in range(rounds):
+            for state in ("empty", "warm"):  # the warm runs read the cache the empty ones wrote
+                for one_process in (False, True):
+                    cache = Path(root) / f"cache-{round_}-{one_process}"
+                    took = _paper_job_seconds(cache, one_process, duration)
+                    seconds.setdefault((state, one_process), []).append(took)
+    rows = []
+    for state, what in (("empty", "from an empty cache"), ("warm", "with the cache warm")):
+        mine = statistics.median(seconds[(state, False)])
+        alone = statistics.median(seconds[(state, True)])
+        rows.append(
+            {
+                "case": f"paper job {what} (reproduce --no-contact --no-robustness)",
+                "median_s": mine,
+                "seconds": seconds[(state, False)],
+                "baseline": "the same job in one process (DELAYTRACK_COMPILE_HELPER=0)",
+                "baseline_s": alone,
+                "baseline_seconds": seconds[(state, True)],
+                "ratio_to_baseline": alone / mine,
+            }
+        )
+    return rows
+
+
 def controller_step_case(repeats: int, calls: int = 2000) -> list[dict]:
     """One 5-DOF AROLC tick three ways, timed alternately (``calls`` ticks a repetition):
     :meth:`Controller.step` (checked; state copied in and out), a stepper called with the
@@ -584,6 +642,7 @@ def main() -> None:
     cases.append(batch_case(goal, goal_duration, 1, workers=1))  # the threads' speed-up
     cases.append(batch_case(goal, goal_duration, 1 if quick else 3))
     cases.append(startup_case(3 if quick else 5))
+    cases += paper_job_case(1 if quick else 2, 1.0 if quick else None)
     cases += controller_step_case(9)
     agreement = agreement_case(2.0 if quick else 10.0)
     cases += sweep_case(20 if quick else 1000, 6.0 if quick else 60.0)

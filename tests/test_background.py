@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from delaytrack._compile import helper_process
 from delaytrack.experiments.paper import run_study
 from delaytrack.jobs import _background
 from delaytrack.jobs._background import second_process
@@ -21,7 +22,8 @@ from delaytrack.report.paper import write_study
 @pytest.fixture
 def idle(monkeypatch):
     """A core counts as idle, whatever the machine does."""
-    monkeypatch.setattr(_background, "idle_cpus", lambda: 2.0)
+    monkeypatch.delenv("DELAYTRACK_COMPILE_HELPER", raising=False)
+    monkeypatch.setattr(helper_process, "idle_cpus", lambda: 2.0)
 
 
 def _slow_elsewhere(parent: int, path: Path) -> None:
@@ -89,7 +91,7 @@ def test_without_an_idle_core_or_with_the_switch_off_everything_runs_here(
     tmp_path, monkeypatch, idle, why
 ):
     if why == "no idle core":
-        monkeypatch.setattr(_background, "idle_cpus", lambda: 1.0)
+        monkeypatch.setattr(helper_process, "idle_cpus", lambda: 1.0)
     else:
         monkeypatch.setenv("DELAYTRACK_COMPILE_HELPER", "0")
     target = tmp_path / "file.txt"
@@ -107,8 +109,6 @@ def test_a_second_process_given_no_call_imports_its_modules_and_ends(idle):
 
 
 def test_its_cpu_time_counts_as_this_processs_own_for_the_compile_helper(idle):
-    from delaytrack._compile import helper_process
-
     with second_process(("delaytrack.report.paper",)) as second:
         assert second._process is not None
         assert second._process.pid in helper_process._OWN
@@ -190,8 +190,6 @@ def test_with_matplotlib_settings_of_this_process_the_call_runs_here(tmp_path, i
 def test_the_cpu_time_of_a_process_counted_as_own_is_counted(tmp_path):
     import subprocess
     import sys
-
-    from delaytrack._compile import helper_process
 
     busy = subprocess.Popen([sys.executable, "-c", "sum(range(30_000_000))"])
     try:

@@ -1,8 +1,8 @@
 """A report drawn in a second process while this one runs the next study.
 
 Drawing a report's figures (matplotlib, in one thread) takes one core for seconds while the other
-cores wait. :func:`second_process` starts a second Python process when a core is idle
-(measured as for the compile helper, :func:`~delaytrack._compile.helper_process.idle_cpus`);
+cores wait. :func:`second_process` starts a second Python process where the compile helper
+would start (:func:`~delaytrack._compile.helper_process.spare_core`: a core is idle);
 it imports the modules it is told to at once, while this process goes on, and then waits.
 :meth:`SecondProcess.run` hands it a call and returns at once; this process goes on with the
 next study. The files are the same: the call is the same function of the same values, pickled.
@@ -20,9 +20,8 @@ The call must depend on its arguments and on files only: what else this process 
 module patched at run time, a warnings filter) does not reach the second process, whose
 warnings and output are not shown. Matplotlib's settings do
 (through :data:`matplotlib.rcParams`), so a call is run here once they differ from those a new
-process reads. The idle core is measured from ``/proc``, so the second process starts on Linux
-only; set ``DELAYTRACK_COMPILE_HELPER=0`` to run everything in one process, as the compile
-helper does.
+process reads. ``DELAYTRACK_COMPILE_HELPER=0`` runs everything in one process, ``1`` starts the
+second process whatever the load, as for the compile helper.
 """
 
 from __future__ import annotations
@@ -37,15 +36,14 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
-from typing import IO, Any
+from typing import Any
 
 from delaytrack._compile.helper_process import (
     ENVIRONMENT,
-    IDLE_NEEDED,
     bootstrap,
     count_as_own,
     forget_own,
-    idle_cpus,
+    spare_core,
 )
 
 __all__ = ["PATIENCE", "SecondProcess", "main", "second_process"]
@@ -144,12 +142,10 @@ def _write(process: subprocess.Popen, payload: bytes) -> None:
 
 
 def _start(modules: Sequence[str]) -> subprocess.Popen | None:
-    """A second process importing ``modules``, then waiting for its call, when a core is idle;
-    None otherwise, or when it cannot start."""
-    if os.environ.get(ENVIRONMENT, "").strip() == "0" or getattr(sys, "frozen", False):
-        return None
-    idle = idle_cpus()
-    if idle is None or idle < IDLE_NEEDED:
+    """A second process importing ``modules``, then waiting for its call, when a core is spare
+    (:func:`~delaytrack._compile.helper_process.spare_core`); None otherwise, or when it cannot
+    start."""
+    if not spare_core():
         return None
     process = None
     try:  # Ctrl-C included: a process started must not outlive this function's failure
@@ -209,16 +205,16 @@ def second_process(modules: Sequence[str] = ()) -> Iterator[SecondProcess]:
         second.stop()  # after a finish, nothing to stop
 
 
-def main(stream: IO[bytes]) -> int:
-    """The second process: import the modules named in ``stream``, then run the call pickled
-    after them (none when the input ends first). Returns 0 when it returned (or there was none),
-    1 when it raised (the first process then runs it again and reports the error)."""
-    if not hasattr(stream, "peek"):  # a buffered reader tells the end of its input apart
-        stream = io.BufferedReader(stream)  # type: ignore[type-var]
+def main(stream: io.BufferedReader) -> int:
+    """The second process: import the modules named in ``stream`` (its input, as
+    :func:`~delaytrack._compile.helper_process.bootstrap` gives it with ``streamed``), then run
+    the call pickled after them (none when the input ends first). Returns 0 when it returned (or
+    there was none), 1 when it raised (the first process then runs it again and reports the
+    error)."""
     try:
         for module in pickle.load(stream):
             importlib.import_module(module)
-        if _ended(stream):
+        if stream.peek(1) == b"":  # waits for the call, or the end of the input
             return 0  # given no call
         function, args, kwargs = pickle.load(stream)
     except Exception:  # noqa: BLE001 - a module or a call that does not load: run there
@@ -228,8 +224,3 @@ def main(stream: IO[bytes]) -> int:
     except Exception:  # noqa: BLE001 - run again by the first process, which reports it
         return 1
     return 0
-
-
-def _ended(stream: IO[bytes]) -> bool:
-    """Whether ``stream`` (a buffered reader) ends here, waiting for what is written to it."""
-    return stream.peek(1) == b""  # type: ignore[attr-defined]  # io.BufferedReader's

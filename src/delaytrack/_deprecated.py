@@ -40,18 +40,16 @@ def moved_names(module: str, moved: Mapping[str, str]) -> Callable[[str], Any]:
     return __getattr__
 
 
-def moved_object(old: str, new: str, *, stacklevel: int = 2) -> Any:
+def moved_object(old: str, new: str) -> Any:
     """The object at ``new`` (``"new.module:attribute"``), imported now, after a
-    :class:`DeprecationWarning` that ``old`` (its dotted old name) moved there.
-
-    ``stacklevel`` points the warning at the old name's reader (2: the caller of the function
-    calling this one).
-    """
+    :class:`DeprecationWarning` that ``old`` (its dotted old name) moved there, pointed at the
+    old name's reader (the caller of the function calling this one: a module's
+    ``__getattr__``, a deprecated property)."""
     where, _, attribute = new.partition(":")
     warnings.warn(
         f"{old} moved to {where}.{attribute}; import it from there "
         f"(the old name will be removed in a later release)",
         DeprecationWarning,
-        stacklevel=stacklevel + 1,
+        stacklevel=3,
     )
     return getattr(importlib.import_module(where), attribute)

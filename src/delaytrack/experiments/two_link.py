@@ -122,13 +122,8 @@ class TwoLinkStudy:
         change of AE against the same run with no delay (``undelayed``).
     largest_delay_effect : float
         The largest ``|ae_change_pct|`` (percent; 0 when none is finite).
-    delay_effect_small : bool
-        Whether ``largest_delay_effect`` is below :data:`SMALL_DELAY_EFFECT_PCT`: the tracking
-        error comes mostly from the model mismatch, not from the delay.
     h_max : dict
         Case -> the largest true delay of the run (s).
-    below_bound : dict
-        Case -> whether ``h_max`` is below the certified bound ``bound.h_m``.
     half_dt : float
         The plant step of the dt check (s).
     model_shortfall : float
@@ -164,9 +159,7 @@ class TwoLinkStudy:
     switching_bound: float
     delay_effect: pd.DataFrame
     largest_delay_effect: float
-    delay_effect_small: bool
     h_max: dict[str, float]
-    below_bound: dict[str, bool]
     half_dt: float
     model_shortfall: float
     controller_rate: float
@@ -176,6 +169,17 @@ class TwoLinkStudy:
     def run(self, case: str, controller: str) -> SimResult:
         """The single run of ``case`` (``"S1"``...) under ``controller`` (``"arolc"``...)."""
         return self.results[controller][CASES.index(case)]
+
+    @property
+    def delay_effect_small(self) -> bool:
+        """Whether ``largest_delay_effect`` is below :data:`SMALL_DELAY_EFFECT_PCT`: the tracking
+        error comes mostly from the model mismatch, not from the delay."""
+        return bool(self.largest_delay_effect < SMALL_DELAY_EFFECT_PCT)
+
+    @property
+    def below_bound(self) -> dict[str, bool]:
+        """Case -> whether ``h_max`` is below the certified bound ``bound.h_m``."""
+        return {case: bool(h < self.bound.h_m) for case, h in self.h_max.items()}
 
     @property
     def all_below_bound(self) -> bool:
@@ -376,9 +380,7 @@ def run_study(
         switching_bound=float(controller_spec["alpha"]) * max(c_hat_peak.values()),
         delay_effect=delay_effect,
         largest_delay_effect=largest_delay_effect,
-        delay_effect_small=bool(largest_delay_effect < SMALL_DELAY_EFFECT_PCT),
         h_max=h_max,
-        below_bound={case: bool(h < bound.h_m) for case, h in h_max.items()},
         half_dt=first.dt / 2,
         model_shortfall=max(1.0 - first.model[p] / first.plant[p] for p in ("p1", "p2", "p3")),
         controller_rate=1.0 / first.T_c,

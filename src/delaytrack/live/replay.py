@@ -28,6 +28,7 @@ import json
 import math
 import sys
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -144,7 +145,8 @@ def _resimulate(
 
 @dataclass(frozen=True)
 class _Compared:
-    """The live and replayed tracking errors and commands at the compared ticks."""
+    """The live and replayed tracking errors and commands at the compared ticks (their
+    differences computed once, for the summary and the per-coordinate table)."""
 
     #: The rows of ``replay.csv``: ``k``, ``t``, live and replayed ``e1``, live and replayed
     #: command.
@@ -154,17 +156,17 @@ class _Compared:
     live_commands: np.ndarray
     replayed_commands: np.ndarray
 
-    @property
+    @cached_property
     def error_differences(self) -> np.ndarray:
         """Live minus replayed tracking error, ``(ticks, n)``."""
         return self.live_errors - self.replayed_errors
 
-    @property
+    @cached_property
     def command_differences(self) -> np.ndarray:
         """Live minus replayed command, ``(ticks, m)``."""
         return self.live_commands - self.replayed_commands
 
-    @property
+    @cached_property
     def relative_rms(self) -> np.ndarray:
         """Each coordinate's RMS difference against its own live RMS error, in its own unit
         (metres and radians are not added)."""

@@ -33,6 +33,7 @@ __all__ = [
     "UNIT_SYMBOLS",
     "metric_units",
     "plain_unit",
+    "shared_unit",
     "summary_columns",
     "trajectory_columns",
 ]
@@ -114,9 +115,14 @@ def metric_units(
     out: dict[str, str | None] = {}
     for prefix in COORDINATE_METRICS:
         out.update({f"{prefix}_{name}": unit for name, unit in zip(names, units, strict=True)})
-    shared = set(input_units) if input_units else set()
-    out["tv"] = out["tv_applied"] = shared.pop() if len(shared) == 1 else None
+    out["tv"] = out["tv_applied"] = shared_unit(input_units or ())
     return out
+
+
+def shared_unit(units: Sequence[str | None]) -> str | None:
+    """The one unit all of ``units`` share (None when they differ, or there are none)."""
+    distinct = set(units)
+    return distinct.pop() if len(distinct) == 1 else None
 
 
 def summary_columns(units: Mapping[str, str | None]) -> dict[str, str]:

@@ -72,6 +72,7 @@ import numpy as np
 import pandas as pd
 
 from delaytrack._output import claim_output_folder
+from delaytrack._result_columns import shared_unit
 from delaytrack._validation import ArgumentError, is_integer_at_least, positive_scalar
 from delaytrack.analysis import exact_delay_margin, razumikhin_bound
 from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
@@ -437,8 +438,8 @@ def run_tradeoff(
         families=families,
         left_out=MappingProxyType(left_out),
         threshold=MappingProxyType(scored_bounds),
-        ae_unit=_common_unit([u for u, s in zip(units, scored, strict=True) if s]),
-        tv_unit=_common_unit(plant.input_units or [None]),
+        ae_unit=shared_unit([u for u, s in zip(units, scored, strict=True) if s]),
+        tv_unit=shared_unit(plant.input_units or [None]),
         random=MappingProxyType(drawn),
         draws=count,
         seed=int(seed),
@@ -550,12 +551,6 @@ def _table(
     table = pd.DataFrame(rows)
     table["pareto"] = pareto_front(table.ae_median, table.empirical_margin)
     return table
-
-
-def _common_unit(units: Sequence[str | None]) -> str | None:
-    """The one unit all of ``units`` share, else None."""
-    distinct = set(units)
-    return distinct.pop() if len(distinct) == 1 else None
 
 
 def _say(progress: bool, text: str) -> None:

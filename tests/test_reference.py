@@ -141,3 +141,36 @@ def test_from_spec_refuses_unknown_and_missing_keys():
         SinusoidalReference.from_spec({"offset": [0.0], "amplitudes": [1.0]})
     with pytest.raises(ValueError, match=r"reference needs 'offset'"):
         SinusoidalReference.from_spec({"slope": [1.0]})
+
+
+def test_a_few_points_evaluated_as_python_are_the_compiled_numbers(reference, monkeypatch):
+    from delaytrack.references import SplineReference, base, sinusoidal
+
+    knots = np.linspace(0.0, 10.0, 11)
+    spline = SplineReference(knots, np.column_stack([np.sin(knots), np.cos(knots)]))
+    times = np.random.default_rng(3).uniform(-2.0, 40.0, 7)
+
+    def evaluated(as_python: bool) -> list:
+        for module in (base, sinusoidal):
+            monkeypatch.setattr(module, "few_points_as_python", lambda function, points: as_python)
+        return [r.evaluate(times) for r in (reference, spline)]
+
+    for python, compiled in zip(evaluated(True), evaluated(False), strict=True):
+        for got, want in zip(python, compiled, strict=True):
+            np.testing.assert_array_equal(got, want)
+
+
+def test_few_points_run_as_python_only_until_the_code_is_compiled():
+    import numba
+
+    from delaytrack._compile.functions import FEW_POINTS, few_points_as_python
+
+    @numba.njit
+    def double(x):
+        return 2.0 * x
+
+    assert few_points_as_python(double, 1) and few_points_as_python(double, FEW_POINTS)
+    assert not few_points_as_python(double, FEW_POINTS + 1)  # many points: compile
+    assert not few_points_as_python(double.py_func, 1)  # a plain function is Python anyway
+    double(1.0)
+    assert not few_points_as_python(double, 1)  # compiled in this process: use it

@@ -8,7 +8,9 @@ import types as python_types
 from numba.core.dispatcher import Dispatcher
 
 __all__ = [
+    "FEW_POINTS",
     "PACKAGE",
+    "few_points_as_python",
     "in_package",
     "is_compiled",
     "python_function",
@@ -18,6 +20,20 @@ __all__ = [
 
 #: This package's name: a function of one of its modules is this package's, not the user's.
 PACKAGE = __name__.partition(".")[0]
+
+
+#: Points up to which an evaluation from Python (a reference's ``evaluate``) runs as plain
+#: Python while the compiled code is not in this process: microseconds a point, against the
+#: second that compiling (or tenths loading from the disk cache) would take.
+FEW_POINTS = 64
+
+
+def few_points_as_python(function: object, points: int) -> bool:
+    """Whether an evaluation of the compiled ``function`` at ``points`` points from Python
+    should run its plain Python function instead: few points (:data:`FEW_POINTS` or fewer),
+    and no compiled code of it in this process yet. Both give the same numbers (the same
+    operations on the same IEEE doubles, and the same ``math`` functions)."""
+    return is_compiled(function) and points <= FEW_POINTS and not function.signatures  # type: ignore[attr-defined]
 
 
 def is_compiled(function: object) -> bool:

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from delaytrack._compile.functions import few_points_as_python
 from delaytrack.components import Kernel
 
 __all__ = ["Reference"]
@@ -71,6 +72,8 @@ class Reference(ABC):
         times = np.asarray(t, dtype=float)
         out = np.empty((3, times.size, self.n))
         kernel = self.reference_kernel
+        if few_points_as_python(kernel, times.size):  # not worth compiling for a few points
+            kernel = kernel.py_func
         for i, time in enumerate(times.ravel()):
             kernel(float(time), self.params, out[0, i], out[1, i], out[2, i])
         return tuple(out[j].reshape(*times.shape, self.n) for j in range(3))

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from delaytrack._compile.functions import few_points_as_python
 from delaytrack._compile.jit import kernel, tick_kernel
 from delaytrack._validation import ArgumentError, finite_array
 from delaytrack.references.base import Reference
@@ -138,6 +139,8 @@ class SinusoidalReference(Reference):
     def evaluate(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``q_d, q̇_d, q̈_d`` at times ``t``, each of shape ``(*t.shape, n)``."""
         times = np.asarray(t, dtype=float)
+        if few_points_as_python(sinusoidal_reference_values, times.size):
+            return super().evaluate(times)  # point by point, as Python while not compiled
         out = np.empty((3, times.size, self.n))
         sinusoidal_reference_values(np.ascontiguousarray(times.ravel()), self._params, out)
         return tuple(out[j].reshape(*times.shape, self.n) for j in range(3))

@@ -169,8 +169,14 @@ def test_few_points_run_as_python_only_until_the_code_is_compiled():
     def double(x):
         return 2.0 * x
 
+    @numba.njit
+    def yours(x):
+        return 2.0 * x
+
+    double.py_func.__module__ = "delaytrack.a_module_of_the_package"
     assert few_points_as_python(double, 1) and few_points_as_python(double, FEW_POINTS)
     assert not few_points_as_python(double, FEW_POINTS + 1)  # many points: compile
     assert not few_points_as_python(double.py_func, 1)  # a plain function is Python anyway
+    assert not few_points_as_python(yours, 1)  # a function of the user's: always compiled
     double(1.0)
     assert not few_points_as_python(double, 1)  # compiled in this process: use it

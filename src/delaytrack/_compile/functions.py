@@ -29,11 +29,18 @@ FEW_POINTS = 64
 
 
 def few_points_as_python(function: object, points: int) -> bool:
-    """Whether an evaluation of the compiled ``function`` at ``points`` points from Python
-    should run its plain Python function instead: few points (:data:`FEW_POINTS` or fewer),
-    and no compiled code of it in this process yet. Both give the same numbers (the same
-    operations on the same IEEE doubles, and the same ``math`` functions)."""
-    return is_compiled(function) and points <= FEW_POINTS and not function.signatures  # type: ignore[attr-defined]
+    """Whether an evaluation of this package's compiled ``function`` at ``points`` points from
+    Python should run its plain Python function instead: few points (:data:`FEW_POINTS` or
+    fewer), and no compiled code of it in this process yet. Both give the same numbers (the
+    same operations on the same IEEE doubles, and the same ``math`` functions). A function of
+    the user's always runs compiled: as Python it could differ (a division by zero raises
+    there, and numba options such as ``fastmath`` change the compiled numbers)."""
+    return (
+        is_compiled(function)
+        and in_package(function)
+        and points <= FEW_POINTS
+        and not function.signatures  # type: ignore[attr-defined]
+    )
 
 
 def is_compiled(function: object) -> bool:

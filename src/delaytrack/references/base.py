@@ -73,7 +73,7 @@ class Reference(ABC):
         out = np.empty((3, times.size, self.n))
         kernel = self.reference_kernel
         if few_points_as_python(kernel, times.size):  # not worth compiling for a few points
-            kernel = kernel.py_func
+            kernel = getattr(kernel, "py_func", kernel)
         for i, time in enumerate(times.ravel()):
             kernel(float(time), self.params, out[0, i], out[1, i], out[2, i])
         return tuple(out[j].reshape(*times.shape, self.n) for j in range(3))

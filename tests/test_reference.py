@@ -148,12 +148,20 @@ def test_a_few_points_evaluated_as_python_are_the_compiled_numbers(reference, mo
 
     knots = np.linspace(0.0, 10.0, 11)
     spline = SplineReference(knots, np.column_stack([np.sin(knots), np.cos(knots)]))
-    times = np.random.default_rng(3).uniform(-2.0, 40.0, 7)
+    held = SplineReference(knots, np.column_stack([np.sin(knots), np.cos(knots)]), beyond="hold")
+    drawn = np.random.default_rng(3).uniform(-2.0, 40.0, 7)
+    # drawn times, a knot, far beyond the knots; then times Python cannot take as they are (the
+    # sine of an overflowed angle, an infinite time), computed compiled
+    times = np.concatenate([drawn, [4.0, 1e12, 1e308, np.inf, np.nan]])
 
     def evaluated(as_python: bool) -> list:
         for module in (base, sinusoidal):
             monkeypatch.setattr(module, "few_points_as_python", lambda function, points: as_python)
-        return [r.evaluate(times) for r in (reference, spline)]
+        return [
+            r.evaluate(t)
+            for r in (reference, spline, held)
+            for t in (times, 4.0, times[:5], times[7:10])
+        ]
 
     for python, compiled in zip(evaluated(True), evaluated(False), strict=True):
         for got, want in zip(python, compiled, strict=True):
@@ -180,3 +188,19 @@ def test_few_points_run_as_python_only_until_the_code_is_compiled():
     assert not few_points_as_python(yours, 1)  # a function of the user's: always compiled
     double(1.0)
     assert not few_points_as_python(double, 1)  # compiled in this process: use it
+
+
+def test_a_reference_evaluated_at_one_point_compiles_nothing():
+    import subprocess
+    import sys
+
+    code = """
+from delaytrack.references.sinusoidal import sinusoidal_reference, sinusoidal_reference_values
+from delaytrack.plants.robot.reference import paper_reference
+paper_reference("consistent").evaluate(0.0)
+print(len(sinusoidal_reference.signatures), len(sinusoidal_reference_values.signatures))
+"""
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True
+    )
+    assert done.stdout.split() == ["0", "0"]

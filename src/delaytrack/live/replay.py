@@ -187,13 +187,12 @@ def _compare(
     rows = []
     live_errors, replayed_errors, live_commands, replayed_commands = [], [], [], []
     steps_per_tick = round(scenario.T_c / scenario.dt)
-    desired = built.reference.evaluate(result.t)[0]  # q_d at every tick, in one call
     for i, t in enumerate(result.t):
         k = int(round(t / scenario.T_c))
         state = states.get(k * steps_per_tick)
         if state is None:
             continue
-        e = desired[i] - np.array([number(state[c]) for c in names])
+        e = result.reference[i, 0] - np.array([number(state[c]) for c in names])  # q_d of the run
         tick = ticks.get(k)
         u = np.array([number(tick[f"u{j + 1}"]) for j in range(m)]) if tick else np.full(m, np.nan)
         live_errors.append(e)

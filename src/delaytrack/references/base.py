@@ -18,7 +18,7 @@ import numpy as np
 from delaytrack._compile.functions import few_points_as_python
 from delaytrack.components import Kernel
 
-__all__ = ["Reference"]
+__all__ = ["Reference", "point_by_point"]
 
 
 class Reference(ABC):
@@ -69,11 +69,32 @@ class Reference(ABC):
 
     def evaluate(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``q_d, q̇_d, q̈_d`` at times ``t``, each of shape ``(*t.shape, n)``."""
-        times = np.asarray(t, dtype=float)
-        out = np.empty((3, times.size, self.n))
-        kernel = self.reference_kernel
-        if few_points_as_python(kernel, times.size):  # not worth compiling for a few points
-            kernel = getattr(kernel, "py_func", kernel)
-        for i, time in enumerate(times.ravel()):
-            kernel(float(time), self.params, out[0, i], out[1, i], out[2, i])
-        return tuple(out[j].reshape(*times.shape, self.n) for j in range(3))
+        return point_by_point(self.reference_kernel, self.params, self.n, t)
+
+
+def point_by_point(
+    kernel: Callable[..., None], params: np.ndarray, n: int, t: float | np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``q_d, q̇_d, q̈_d`` at times ``t`` (each ``(*t.shape, n)``) from the reference ``kernel``
+    called at each time. One of the package's compiled kernels runs as plain Python at a few
+    finite times while its compiled code is not in the process
+    (:func:`~delaytrack._compile.functions.few_points_as_python`): the same numbers, without a
+    compile; a value Python refuses (the sine of an angle that overflowed) is computed
+    compiled."""
+    times = np.asarray(t, dtype=float)
+    if few_points_as_python(kernel, times.size) and np.isfinite(times).all():
+        try:
+            with np.errstate(all="ignore"):  # compiled code does not warn either
+                return _each_time(getattr(kernel, "py_func", kernel), params, n, times)
+        except (ValueError, OverflowError):
+            pass
+    return _each_time(kernel, params, n, times)
+
+
+def _each_time(
+    kernel: Callable[..., None], params: np.ndarray, n: int, times: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    out = np.empty((3, times.size, n))
+    for i, time in enumerate(times.ravel()):
+        kernel(float(time), params, out[0, i], out[1, i], out[2, i])
+    return tuple(out[j].reshape(*times.shape, n) for j in range(3))

@@ -16,7 +16,7 @@ import numpy as np
 from delaytrack._compile.functions import few_points_as_python
 from delaytrack._compile.jit import kernel, tick_kernel
 from delaytrack._validation import ArgumentError, finite_array
-from delaytrack.references.base import Reference
+from delaytrack.references.base import Reference, point_by_point
 
 __all__ = [
     "SinusoidalReference",
@@ -140,7 +140,8 @@ class SinusoidalReference(Reference):
         """``q_d, q̇_d, q̈_d`` at times ``t``, each of shape ``(*t.shape, n)``."""
         times = np.asarray(t, dtype=float)
         if few_points_as_python(sinusoidal_reference_values, times.size):
-            return super().evaluate(times)  # point by point, as Python while not compiled
+            # point by point, as Python while not compiled
+            return point_by_point(sinusoidal_reference, self._params, self.n, times)
         out = np.empty((3, times.size, self.n))
         sinusoidal_reference_values(np.ascontiguousarray(times.ravel()), self._params, out)
         return tuple(out[j].reshape(*times.shape, self.n) for j in range(3))

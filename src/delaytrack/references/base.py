@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from delaytrack._compile.functions import few_points_as_python
+from delaytrack._compile.functions import few_points_as_python, python_function
 from delaytrack.components import Kernel
 
 __all__ = ["Reference", "point_by_point"]
@@ -85,7 +85,7 @@ def point_by_point(
     if few_points_as_python(kernel, times.size) and np.isfinite(times).all():
         try:
             with np.errstate(all="ignore"):  # compiled code does not warn either
-                return _each_time(getattr(kernel, "py_func", kernel), params, n, times)
+                return _each_time(python_function(kernel) or kernel, params, n, times)
         except (ValueError, OverflowError):
             pass
     return _each_time(kernel, params, n, times)

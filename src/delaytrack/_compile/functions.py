@@ -3,16 +3,22 @@ user's, and the name messages and kernel keys give it (``module:qualified name``
 
 from __future__ import annotations
 
+import functools
 import types as python_types
+from collections.abc import Callable
+from typing import Any, TypeVar
 
+import numpy as np
 from numba.core.dispatcher import Dispatcher
 
 __all__ = [
     "FEW_POINTS",
     "PACKAGE",
+    "at_few_points",
     "few_points_as_python",
     "in_package",
     "is_compiled",
+    "plain_python",
     "python_function",
     "qualified_name",
     "users_compiled",
@@ -22,9 +28,9 @@ __all__ = [
 PACKAGE = __name__.partition(".")[0]
 
 
-#: Points up to which an evaluation from Python (a reference's ``evaluate``) runs as plain
-#: Python while the compiled code is not in this process: microseconds a point, against the
-#: second that compiling (or tenths loading from the disk cache) would take.
+#: Points up to which an evaluation from Python (a reference's ``evaluate``, a plant's ``terms``)
+#: runs as plain Python while the compiled code is not in this process: microseconds a point,
+#: against the second that compiling (or tenths loading from the disk cache) would take.
 FEW_POINTS = 64
 
 
@@ -41,6 +47,80 @@ def few_points_as_python(function: object, points: int) -> bool:
         and points <= FEW_POINTS
         and not function.signatures  # type: ignore[attr-defined]
     )
+
+
+Result = TypeVar("Result")
+
+
+def at_few_points(
+    function: object, points: int, evaluate: Callable[[Callable[..., Any]], Result]
+) -> Result:
+    """``evaluate(f)``: ``f`` is the plain Python function of this package's compiled
+    ``function`` when :func:`few_points_as_python` says so for ``points`` points (run with
+    NumPy's warnings off, as compiled code runs), else ``function`` itself. A value Python
+    refuses where compiled code gives ``inf`` or NaN (a math domain error, an overflow, a
+    division by zero) is computed compiled: ``evaluate`` runs again with ``function``, so it
+    must write all of its outputs afresh."""
+    if few_points_as_python(function, points):
+        plain = plain_python(function)
+        try:
+            with np.errstate(all="ignore"):
+                return evaluate(plain)
+        except (ArithmeticError, ValueError):
+            pass
+    return evaluate(function)  # type: ignore[arg-type]
+
+
+def plain_python(function: object) -> python_types.FunctionType:
+    """This package's ``function`` (compiled or not) as plain Python all the way down: its
+    Python function, with every function of this package that it calls by a global name and
+    that is compiled, or calls one, replaced by this same plain form (so that calling it
+    compiles nothing)."""
+    inner = python_function(function)
+    assert inner is not None, function
+    return _plain(inner)
+
+
+@functools.cache
+def _plain(inner: python_types.FunctionType) -> python_types.FunctionType:
+    _PLAIN_UNDER_WAY.add(inner)
+    try:
+        swapped = {}
+        for name in _global_names(inner.__code__):
+            value = inner.__globals__.get(name)
+            called = python_function(value)
+            if called is None or called in _PLAIN_UNDER_WAY or not in_package(value):
+                continue
+            plain = _plain(called)
+            if plain is not value:
+                swapped[name] = plain
+    finally:
+        _PLAIN_UNDER_WAY.discard(inner)
+    if not swapped:
+        return inner
+    plain = python_types.FunctionType(
+        inner.__code__,
+        {**inner.__globals__, **swapped},
+        inner.__name__,
+        inner.__defaults__,
+        inner.__closure__,
+    )
+    plain.__kwdefaults__ = inner.__kwdefaults__
+    functools.update_wrapper(plain, inner)
+    return plain
+
+
+#: Functions whose plain form is being made (a function that calls itself keeps its name).
+_PLAIN_UNDER_WAY: set[python_types.FunctionType] = set()
+
+
+def _global_names(code: python_types.CodeType) -> set[str]:
+    """The names ``code`` and the functions defined in it may read as globals."""
+    names = set(code.co_names)
+    for constant in code.co_consts:
+        if isinstance(constant, python_types.CodeType):
+            names |= _global_names(constant)
+    return names
 
 
 def is_compiled(function: object) -> bool:

@@ -9,6 +9,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 import delaytrack.delays._kernel as _kernel
+from delaytrack._compile.functions import at_few_points
 from delaytrack.components import Kernel
 
 __all__ = ["DelayProfile"]
@@ -74,7 +75,11 @@ class DelayProfile(ABC):
     def h(self, t: float | np.ndarray) -> np.ndarray:
         """Delay ``h(t)`` in seconds at the time(s) ``t`` (any shape)."""
         times = np.asarray(t, dtype=float)
-        values = _kernel.profile_values(
-            self.engine_kernel, self.kind, self.params, np.ascontiguousarray(times.ravel())
+        flat = np.ascontiguousarray(times.ravel())
+        # a few points as Python while the profile's code is not compiled
+        values = at_few_points(
+            _kernel.profile_values,
+            times.size,
+            lambda values_at: values_at(self.engine_kernel, self.kind, self.params, flat),
         )
         return values.reshape(times.shape)

@@ -19,6 +19,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from delaytrack._compile.functions import at_few_points
 from delaytrack._compile.jit import hot_inline_kernel, inline_kernel
 from delaytrack._small_linalg import solve_mass_in_place
 from delaytrack.components import (
@@ -196,14 +197,18 @@ class ELPlant(ABC):
                 f"q and qdot must have the same batch size; got {q.shape[0]} and {qdot.shape[0]}"
             )
         batch = q.shape[0]
-        mass = np.zeros((batch, self.n, self.n))
-        nonlinear = np.zeros((batch, self.n))
-        input_map = np.zeros((batch, self.n, self.m))
-        for b in range(batch):
-            self.terms_kernel(
-                float(t), q[b], qdot[b], self.params, mass[b], nonlinear[b], input_map[b]
-            )
-        return mass, nonlinear, input_map
+        params = self.params
+
+        def each_point(terms_kernel):
+            mass = np.zeros((batch, self.n, self.n))
+            nonlinear = np.zeros((batch, self.n))
+            input_map = np.zeros((batch, self.n, self.m))
+            for b in range(batch):
+                terms_kernel(float(t), q[b], qdot[b], params, mass[b], nonlinear[b], input_map[b])
+            return mass, nonlinear, input_map
+
+        # a few points of one of the package's kernels as Python while it is not compiled
+        return at_few_points(self.terms_kernel, batch, each_point)
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """``M(q)``, shape (batch, n, n)."""

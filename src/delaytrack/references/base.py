@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from delaytrack._compile.functions import few_points_as_python, python_function
+from delaytrack._compile.functions import FEW_POINTS, at_few_points
 from delaytrack.components import Kernel
 
 __all__ = ["Reference", "point_by_point"]
@@ -78,17 +78,12 @@ def point_by_point(
     """``q_d, q̇_d, q̈_d`` at times ``t`` (each ``(*t.shape, n)``) from the reference ``kernel``
     called at each time. One of the package's compiled kernels runs as plain Python at a few
     finite times while its compiled code is not in the process
-    (:func:`~delaytrack._compile.functions.few_points_as_python`): the same numbers, without a
+    (:func:`~delaytrack._compile.functions.at_few_points`): the same numbers, without a
     compile; a value Python refuses (the sine of an angle that overflowed) is computed
     compiled."""
     times = np.asarray(t, dtype=float)
-    if few_points_as_python(kernel, times.size) and np.isfinite(times).all():
-        try:
-            with np.errstate(all="ignore"):  # compiled code does not warn either
-                return _each_time(python_function(kernel) or kernel, params, n, times)
-        except (ValueError, OverflowError):
-            pass
-    return _each_time(kernel, params, n, times)
+    points = times.size if np.isfinite(times).all() else FEW_POINTS + 1
+    return at_few_points(kernel, points, lambda each: _each_time(each, params, n, times))
 
 
 def _each_time(

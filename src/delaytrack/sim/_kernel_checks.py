@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from delaytrack._compile.functions import qualified_name
+from delaytrack._compile.functions import at_few_points, qualified_name
 from delaytrack._validation import as_spd_matrix
 from delaytrack.components import Kernel
 from delaytrack.controllers.base import Controller
@@ -153,13 +153,18 @@ def velocities_on_constraints(
     assert reduced is not None
     n, r = plant.n, reduced.size
     params = np.ascontiguousarray(plant.params, dtype=np.float64)
-    x = np.array(state, dtype=np.float64)
-    if as_the_engine:
-        reduced.velocity_map(x[:n], x[2 * n - r :], params, x[n:])
-        return x[n:]
-    qdot = np.full(n, np.nan)
-    reduced.velocity_map(x[:n], x[2 * n - r :].copy(), params, qdot)
-    return qdot
+
+    def at_state(velocity_map):
+        x = np.array(state, dtype=np.float64)
+        if as_the_engine:
+            velocity_map(x[:n], x[2 * n - r :], params, x[n:])
+            return x[n:]
+        qdot = np.full(n, np.nan)
+        velocity_map(x[:n], x[2 * n - r :].copy(), params, qdot)
+        return qdot
+
+    # one point of one of the package's maps as Python while it is not compiled
+    return at_few_points(reduced.velocity_map, 1, at_state)
 
 
 def _check_reduced_row(plant: ELPlant, kernel: Kernel, state: np.ndarray, where: str) -> None:

@@ -30,6 +30,7 @@ import math
 
 import numpy as np
 
+from delaytrack._compile.functions import at_few_points
 from delaytrack._compile.jit import hot_kernel, kernel
 
 __all__ = [
@@ -112,10 +113,14 @@ def _angles(q: np.ndarray) -> np.ndarray:
 def kinematic_map(q: np.ndarray, wheel_radius: float, half_track: float, d: float) -> np.ndarray:
     """``S(q)`` with ``q̇ = S(q) η``; shape ``(*batch, 5, 2)`` for ``q (*batch, 5)``."""
     phi = _angles(q)
-    out = np.empty((*phi.shape, 5, 2))
-    for index in np.ndindex(phi.shape):
-        kinematic_map_kernel(float(phi[index]), wheel_radius, half_track, d, out[index])
-    return out
+
+    def each_angle(kernel):
+        out = np.empty((*phi.shape, 5, 2))
+        for index in np.ndindex(phi.shape):
+            kernel(float(phi[index]), wheel_radius, half_track, d, out[index])
+        return out
+
+    return at_few_points(kinematic_map_kernel, phi.size, each_angle)
 
 
 def kinematic_map_rate(

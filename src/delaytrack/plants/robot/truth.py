@@ -40,6 +40,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from delaytrack._compile.functions import at_few_points
 from delaytrack._compile.jit import hot_kernel, kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.components import ReducedForm
@@ -220,22 +221,27 @@ class ConstrainedRobotPhysics:
         params = self.params
         mass_b, s_x, s_y, inertia_a = self.aggregates(t)
         batch = qdot.shape[0]
-        reduced_mass = np.empty((batch, 2, 2))
-        bias = np.empty((batch, 2))
-        friction = np.empty((batch, 2))
-        for k in range(batch):
-            reduced_terms_kernel(
-                np.ascontiguousarray(qdot[k]),
-                params,
-                mass_b,
-                s_x,
-                s_y,
-                inertia_a,
-                reduced_mass[k],
-                bias[k],
-                friction[k],
-            )
-        return reduced_mass, bias, friction
+
+        def each_point(terms_kernel):
+            reduced_mass = np.empty((batch, 2, 2))
+            bias = np.empty((batch, 2))
+            friction = np.empty((batch, 2))
+            for k in range(batch):
+                terms_kernel(
+                    np.ascontiguousarray(qdot[k]),
+                    params,
+                    mass_b,
+                    s_x,
+                    s_y,
+                    inertia_a,
+                    reduced_mass[k],
+                    bias[k],
+                    friction[k],
+                )
+            return reduced_mass, bias, friction
+
+        # a few points as Python while the kernel is not compiled
+        return at_few_points(reduced_terms_kernel, batch, each_point)
 
     def kinetic_energy(self, x: np.ndarray, t: float = 0.0) -> np.ndarray:
         """``T = ½ ηᵀ M_r η`` (J) of the constrained robot at states ``x (batch, 10)``."""

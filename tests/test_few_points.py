@@ -1,0 +1,127 @@
+"""A few points evaluated from Python run as plain Python until the kernel is compiled: the
+robot's terms, kinematic map, velocity map and reduced terms give the compiled numbers bit for
+bit, refuse nothing the compiled code takes, and compile nothing."""
+
+import subprocess
+import sys
+
+import numpy as np
+
+from delaytrack._compile import functions
+from delaytrack.plants.robot import NominalRobot, PayloadRobot, WheeledRobot
+from delaytrack.plants.robot.kinematics import kinematic_map
+from delaytrack.sim._kernel_checks import velocities_on_constraints
+
+
+def _states() -> tuple[np.ndarray, np.ndarray]:
+    """Drawn positions and velocities, then angles Python's ``math`` refuses (``cos(inf)``) or
+    that overflow, which the compiled code takes."""
+    rng = np.random.default_rng(11)
+    q = rng.normal(0.0, 4.0, (6, 5))
+    qdot = rng.normal(0.0, 3.0, (6, 5))
+    q[3, 2], q[4, 2], q[5, 2] = 1e308, np.inf, np.nan
+    qdot[4, 3] = 1e200  # η² overflows in the bias
+    return q, qdot
+
+
+def _delays() -> list:
+    from delaytrack.delays import (
+        AbsSineDelay,
+        ConstantDelay,
+        PiecewiseConstantDelay,
+        RandomDelay,
+        TraceDelay,
+    )
+    from delaytrack.experiments.paper_setup import SCENARIOS
+
+    knots = np.linspace(0.0, 10.0, 6)
+    return [
+        *SCENARIOS.values(),
+        AbsSineDelay(0.02, 0.08, 1.3, 0.2),
+        ConstantDelay(0.05),
+        PiecewiseConstantDelay(knots, np.linspace(0.01, 0.06, 6)),
+        TraceDelay(knots, np.linspace(0.01, 0.06, 6), beyond="hold"),
+        RandomDelay(0.01, 0.12, 0.5, 60.0, seed=4, beyond="hold"),
+    ]
+
+
+def _evaluated(monkeypatch, as_python: bool) -> list[np.ndarray]:
+    monkeypatch.setattr(
+        functions, "few_points_as_python", lambda function, points: as_python, raising=True
+    )
+    q, qdot = _states()
+    robot = NominalRobot()
+    found = []
+    for rows in (slice(0, 3), slice(None)):  # finite rows alone (as Python), then all
+        found += [*robot.terms(q[rows], qdot[rows]), kinematic_map(q[rows], 0.0975, 0.1655, 0.02)]
+    times = np.array([0.0, 0.37, 2.5, 9.99, 41.0, 1e12, np.nan])
+    for delay in _delays():
+        found += [delay.h(times[:5]), delay.h(times), delay.h(0.37)]
+    for plant in (WheeledRobot(), PayloadRobot(seed=3, duration=10.0)):
+        found += [*plant.reduced_terms(qdot[:3], t=2.0), *plant.reduced_terms(qdot, t=7.0)]
+        for row in range(q.shape[0]):
+            state = np.concatenate([q[row], qdot[row]])
+            found += [velocities_on_constraints(plant, state, engine) for engine in (False, True)]
+    return found
+
+
+def test_a_few_points_as_python_are_the_compiled_numbers(monkeypatch):
+    as_python = _evaluated(monkeypatch, True)
+    compiled = _evaluated(monkeypatch, False)
+    assert len(as_python) == len(compiled)
+    for got, want in zip(as_python, compiled, strict=True):
+        np.testing.assert_array_equal(got, want)
+
+
+def test_plain_python_replaces_the_package_kernels_it_calls():
+    from delaytrack.plants.robot import truth
+
+    plain = functions.plain_python(truth.reduced_terms_kernel)
+    assert plain.__globals__["reduced_terms_values"] is functions.plain_python(
+        truth.reduced_terms_values
+    )
+    assert not functions.is_compiled(plain.__globals__["reduced_terms_values"])
+    assert plain.__name__ == "reduced_terms_kernel"
+
+
+def test_a_value_python_refuses_is_computed_compiled():
+    import numba
+
+    @numba.njit(error_model="numpy")  # as the package's kernels
+    def ratio(x, out):
+        out[0] = 1.0 / x
+
+    ratio.py_func.__module__ = "delaytrack.a_module_of_the_package"
+
+    def each(kernel):
+        out = np.empty(1)
+        kernel(0.0, out)
+        return out
+
+    assert functions.at_few_points(ratio, 1, each)[0] == np.inf  # ZeroDivisionError in Python
+    assert ratio.signatures  # computed compiled
+
+
+def test_the_robot_set_up_compiles_nothing():
+    code = """
+import sys
+import numpy as np
+from numba.core.dispatcher import Dispatcher
+from delaytrack.experiments import tuning
+from delaytrack.experiments.paper_setup import SCENARIOS
+from delaytrack.plants.robot import WheeledRobot
+tuning.vartheta_base("PCON-wheel")
+WheeledRobot().reduced_terms(np.ones(5))
+SCENARIOS["S1"].h(0.5)
+kernels = {
+    value for name, module in list(sys.modules.items()) if name.startswith("delaytrack")
+    for value in vars(module).values() if isinstance(value, Dispatcher)
+}
+print(len(kernels), sorted(kernel.__name__ for kernel in kernels if kernel.signatures))
+"""
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True
+    )
+    found, compiled = done.stdout.split(maxsplit=1)
+    assert int(found) > 20  # the robot's, the delays' and the references' kernels, seen
+    assert compiled.strip() == "[]"  # none compiled or loaded from the disk cache

@@ -298,10 +298,13 @@ def profile_crossing_time(delay, kind, params, a, b, g_a, g_b, target):
 
 @kernel
 def profile_values(delay, kind, params, times):
-    """:func:`profile_value` at each of ``times`` (1-D)."""
+    """:func:`profile_value` at each of ``times`` (1-D), through :func:`evaluate_profile`: the
+    compiled code the engine calls (numba would compile the profile's code again for this
+    caller, compiled with its runtime, if it called :func:`profile_value` itself: most of its
+    first call's time)."""
     out = np.empty(times.shape[0])
     for i in range(times.shape[0]):
-        out[i] = profile_value(delay, kind, params, times[i])
+        out[i] = evaluate_profile(delay, kind, params, times[i])
     return out
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from delaytrack._compile.jit import inline_kernel
+from delaytrack._compile.jit import inline_kernel, shared_kernel
 
 __all__ = ["SYMMETRY_TOLERANCE", "matvec", "solve_in_place", "solve_mass_in_place"]
 
@@ -101,7 +101,7 @@ def _eliminate(a, b, exchange_rows):
     return True, positive
 
 
-@inline_kernel
+@shared_kernel
 def solve_in_place(a, b):
     """Solve ``a x = b`` by Gaussian elimination with partial pivoting; ``b`` becomes ``x``.
 
@@ -113,7 +113,7 @@ def solve_in_place(a, b):
     return solved
 
 
-@inline_kernel
+@shared_kernel
 def solve_mass_in_place(a, b):
     """Solve ``M x = b`` for a mass matrix ``M = a``, which must be symmetric positive
     definite; ``b`` becomes ``x``.
@@ -135,7 +135,7 @@ def solve_mass_in_place(a, b):
     return solved, positive and (symmetric or not solved)
 
 
-@inline_kernel
+@shared_kernel
 def matvec(a, x, out):
     """``out = a @ x`` for a small (r, c) matrix and (c,) vector, by loops (no BLAS call)."""
     for i in range(a.shape[0]):

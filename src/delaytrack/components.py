@@ -44,7 +44,7 @@ from numba.extending import overload
 from delaytrack._compile.fingerprint import name_with_code
 from delaytrack._compile.functions import in_package, is_compiled, qualified_name
 from delaytrack._compile.guards import refuse_managed_result
-from delaytrack._compile.jit import inline_kernel
+from delaytrack._compile.jit import shared_kernel
 from delaytrack._compile.kernel_type import KernelType, known_to_numba, numba_type_of
 from delaytrack._compile.native_call import NativeFunctionType, call_native
 from delaytrack._deprecated import moved_names
@@ -473,7 +473,7 @@ def _plant_sizes_compiled(terms, q, u):
     return None
 
 
-@inline_kernel
+@shared_kernel
 def solve_input_map(input_map, tau, command):
     """The default command map: solve ``G(q) command = τ`` (a fully actuated model).
 

@@ -36,7 +36,7 @@ import math
 import numpy as np
 from numba.extending import overload
 
-from delaytrack._compile.jit import inline_kernel, kernel, tick_kernel
+from delaytrack._compile.jit import inline_kernel, kernel, shared_kernel, tick_kernel
 from delaytrack._compile.native_call import NativeFunctionType, call_native
 from delaytrack.components import Kernel, call_delay
 
@@ -76,7 +76,7 @@ def delay_value(kind, params, t):
     return h_a + (h_b - h_a) * (t - t_a) / (t_b - t_a)
 
 
-@inline_kernel
+@shared_kernel
 def piece_end_values(kind, params, a, b):
     """``(h(a+), h(b-))`` on a piece ``[a, b]`` that contains no breakpoint inside."""
     if kind == PIECEWISE_CONSTANT:
@@ -85,7 +85,7 @@ def piece_end_values(kind, params, a, b):
     return delay_value(kind, params, a), delay_value(kind, params, b)
 
 
-@inline_kernel
+@shared_kernel
 def next_breakpoint(kind, params, t):
     """Smallest ``t_b > t`` at which ``h`` has a kink or jump or ``t - h(t)`` has an extremum.
 
@@ -120,7 +120,7 @@ def next_breakpoint(kind, params, t):
     return np.inf
 
 
-@inline_kernel
+@shared_kernel
 def slope_bound(kind, params, t):
     """A bound on ``|dh/dt|`` over the piece that starts at ``t`` (up to :func:`next_breakpoint`).
 
@@ -222,7 +222,7 @@ def no_kernel(t, params):
 NO_KERNEL = Kernel.of(no_kernel)
 
 
-@inline_kernel
+@shared_kernel
 def profile_value(delay, kind, params, t):
     """``h(t)`` of a profile of any kind; ``delay`` is the batch's delay kernel."""
     if kind == KERNEL:
@@ -255,7 +255,7 @@ def _delay_at_compiled(delay, kind, params, t):
     return None
 
 
-@inline_kernel
+@shared_kernel
 def profile_crossing_time(delay, kind, params, a, b, g_a, g_b, target):
     """:func:`crossing_time` of a profile of any kind.
 

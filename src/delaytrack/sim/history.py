@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from delaytrack._compile.jit import inline_kernel
+from delaytrack._compile.jit import shared_kernel
 
 __all__ = ["history_capacity", "latest_tick_index", "latest_tick_index_from", "tick_time"]
 
@@ -31,13 +31,13 @@ def history_capacity(h_max: float, T_c: float, n_ticks: int) -> int:
     return needed + 3
 
 
-@inline_kernel
+@shared_kernel
 def tick_time(k, t0, dt, steps_per_tick):
     """Time of controller tick ``k``: ``t0 + (k * steps_per_tick) * dt``."""
     return t0 + (k * steps_per_tick) * dt
 
 
-@inline_kernel
+@shared_kernel
 def latest_tick_index(g, t0, dt, steps_per_tick):
     """Largest ``k`` with ``tick_time(k) <= g`` (``-1`` when ``g < t0``)."""
     if g < t0:
@@ -46,7 +46,7 @@ def latest_tick_index(g, t0, dt, steps_per_tick):
     return latest_tick_index_from(g, estimate, t0, dt, steps_per_tick)
 
 
-@inline_kernel
+@shared_kernel
 def latest_tick_index_from(g, hint, t0, dt, steps_per_tick):
     """:func:`latest_tick_index` found by walking from the tick index ``hint``.
 

@@ -28,6 +28,7 @@ import numpy as np
 
 from delaytrack._compile.functions import (
     PACKAGE,
+    global_names,
     in_package,
     is_compiled,
     python_function,
@@ -47,15 +48,6 @@ __all__ = [
 
 #: Modules whose functions are numba's or the interpreter's, never walked for a fingerprint.
 _LIBRARIES = frozenset({"numba", "numpy", "math", "cmath", "builtins", "llvmlite", "scipy"})
-
-
-def _code_names(code: python_types.CodeType) -> set[str]:
-    """Global names read by ``code`` and by the functions defined inside it."""
-    names = set(code.co_names)
-    for constant in code.co_consts:
-        if isinstance(constant, python_types.CodeType):
-            names |= _code_names(constant)
-    return names
 
 
 def _code_text(code: python_types.CodeType) -> bytes:
@@ -226,7 +218,7 @@ def _walk(
         digest.update(qualified_name(inner).encode())
         digest.update(_code_text(inner.__code__))
         digest.update(options_text(current, root=current is function).encode())
-        names = _code_names(inner.__code__)
+        names = global_names(inner.__code__)
         names_read |= names
         source = random_module_read(inner.__code__, inner.__globals__)
         if source is not None:

@@ -4,6 +4,7 @@ user's, and the name messages and kernel keys give it (``module:qualified name``
 from __future__ import annotations
 
 import functools
+import threading
 import types as python_types
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -16,6 +17,7 @@ __all__ = [
     "PACKAGE",
     "at_few_points",
     "few_points_as_python",
+    "global_names",
     "in_package",
     "is_compiled",
     "plain_python",
@@ -78,7 +80,8 @@ def plain_python(function: object) -> python_types.FunctionType:
     compiles nothing)."""
     inner = python_function(function)
     assert inner is not None, function
-    return _plain(inner)
+    with _MAKING_PLAIN:  # one thread at a time: the functions under way are this thread's
+        return _plain(inner)
 
 
 @functools.cache
@@ -86,7 +89,7 @@ def _plain(inner: python_types.FunctionType) -> python_types.FunctionType:
     _PLAIN_UNDER_WAY.add(inner)
     try:
         swapped = {}
-        for name in _global_names(inner.__code__):
+        for name in global_names(inner.__code__):
             value = inner.__globals__.get(name)
             called = python_function(value)
             if called is None or called in _PLAIN_UNDER_WAY or not in_package(value):
@@ -112,14 +115,15 @@ def _plain(inner: python_types.FunctionType) -> python_types.FunctionType:
 
 #: Functions whose plain form is being made (a function that calls itself keeps its name).
 _PLAIN_UNDER_WAY: set[python_types.FunctionType] = set()
+_MAKING_PLAIN = threading.Lock()
 
 
-def _global_names(code: python_types.CodeType) -> set[str]:
-    """The names ``code`` and the functions defined in it may read as globals."""
+def global_names(code: python_types.CodeType) -> set[str]:
+    """Global names read by ``code`` and by the functions defined inside it."""
     names = set(code.co_names)
     for constant in code.co_consts:
         if isinstance(constant, python_types.CodeType):
-            names |= _global_names(constant)
+            names |= global_names(constant)
     return names
 
 

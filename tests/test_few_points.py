@@ -4,10 +4,12 @@ bit, refuse nothing the compiled code takes, and compile nothing."""
 
 import subprocess
 import sys
+from collections import Counter
 
 import numpy as np
 
 from delaytrack._compile import functions
+from delaytrack.plants import LinearPlant, TwoLinkArm
 from delaytrack.plants.robot import NominalRobot, PayloadRobot, WheeledRobot
 from delaytrack.plants.robot.kinematics import kinematic_map
 from delaytrack.sim._kernel_checks import velocities_on_constraints
@@ -45,15 +47,32 @@ def _delays() -> list:
     ]
 
 
-def _evaluated(monkeypatch, as_python: bool) -> list[np.ndarray]:
+def _evaluated(monkeypatch, as_python: bool, ran: Counter) -> list[np.ndarray]:
+    """Every evaluation, each kernel's plain-Python calls that returned counted in ``ran``."""
     monkeypatch.setattr(
         functions, "few_points_as_python", lambda function, points: as_python, raising=True
     )
+    plain_python = functions.plain_python
+
+    def counted(function):
+        plain = plain_python(function)
+
+        def call(*args):
+            result = plain(*args)
+            ran[plain.__name__] += 1
+            return result
+
+        return call
+
+    monkeypatch.setattr(functions, "plain_python", counted)
     q, qdot = _states()
-    robot = NominalRobot()
+    plants = (NominalRobot(), TwoLinkArm(), LinearPlant(np.diag([2.0, 3.0, 1.0, 1.0, 4.0])))
     found = []
     for rows in (slice(0, 3), slice(None)):  # finite rows alone (as Python), then all
-        found += [*robot.terms(q[rows], qdot[rows]), kinematic_map(q[rows], 0.0975, 0.1655, 0.02)]
+        found += [kinematic_map(q[rows], 0.0975, 0.1655, 0.02)]
+        for plant in plants:
+            n = plant.n
+            found += plant.terms(q[rows, :n], qdot[rows, :n])
     times = np.array([0.0, 0.37, 2.5, 9.99, 41.0, 1e12, np.nan])
     for delay in _delays():
         found += [delay.h(times[:5]), delay.h(times), delay.h(0.37)]
@@ -66,8 +85,19 @@ def _evaluated(monkeypatch, as_python: bool) -> list[np.ndarray]:
 
 
 def test_a_few_points_as_python_are_the_compiled_numbers(monkeypatch):
-    as_python = _evaluated(monkeypatch, True)
-    compiled = _evaluated(monkeypatch, False)
+    ran: Counter = Counter()
+    as_python = _evaluated(monkeypatch, True, ran)
+    compiled = _evaluated(monkeypatch, False, Counter())
+    # each kernel ran as Python (at the finite points), not only through the compiled fallback
+    assert set(ran) >= {
+        "kinematic_map_kernel",
+        "robot_nominal_terms",
+        "two_link_terms",
+        "linear_terms",
+        "profile_values",
+        "reduced_terms_kernel",
+        "robot_velocity_map",
+    }
     assert len(as_python) == len(compiled)
     for got, want in zip(as_python, compiled, strict=True):
         np.testing.assert_array_equal(got, want)

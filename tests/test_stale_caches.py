@@ -217,3 +217,68 @@ def test_a_cache_that_cannot_be_emptied_is_no_longer_read(pendulum, monkeypatch)
     assert not terms._cache._enabled
     assert hits_and_misses(terms) == (0, 1)  # compiled again from the source
     assert nonlinear_term(terms) == expected(9.81)
+
+
+_DELAY_HELPER = """
+import numba
+
+
+@numba.njit(cache=True)
+def base(t):
+    return {base}
+"""
+
+_DELAY = """
+import numba
+from {helper} import base
+
+
+@numba.njit(cache=True)
+def delay(t, params):
+    return base(t) + params[0]
+"""
+
+
+@pytest.mark.slow  # compiles the engine's parts for a new delay kernel (a few seconds)
+def test_a_delay_kernels_helper_edited_in_another_file_reaches_h_and_the_simulation(
+    tmp_path, monkeypatch
+):
+    from delaytrack.delays import CompiledDelay
+    from delaytrack.plants import TwoLinkArm
+
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(sys, "dont_write_bytecode", True)
+    suffix = uuid.uuid4().hex[:12]
+    helper, module = f"delay_helper_{suffix}", f"delay_{suffix}"
+
+    def load(base: float):
+        (tmp_path / f"{helper}.py").write_text(_DELAY_HELPER.format(base=base))
+        (tmp_path / f"{module}.py").write_text(_DELAY.format(helper=helper))
+        for name in (helper, module):
+            monkeypatch.delitem(sys.modules, name, raising=False)
+        return importlib.import_module(module).delay
+
+    load(0.02)(0.3, np.zeros(1))  # numba's disk cache now holds base = 0.02
+    edited = CompiledDelay(load(0.05), [0.001], h_max=0.2)
+    # many points: the profile's code compiled for the edited kernel, before any simulation
+    np.testing.assert_array_equal(edited.h(np.full(100, 0.3)), 0.05 + 0.001)
+    assert edited.h(0.3) == 0.05 + 0.001
+
+    def run(engine: str) -> np.ndarray:
+        reference = SinusoidalReference(
+            offset=[0.0, 0.0], amplitude=[0.5, 0.3], frequency=[1.0, 0.7]
+        )
+        return dt.simulate(
+            TwoLinkArm(),
+            OuterLoop(TwoLinkArm(), K1=4.0, K2=4.0),
+            edited,
+            np.zeros(4),
+            reference=reference,
+            t1=0.5,
+            dt=1e-3,
+            T_c=5e-3,
+            trajectories=False,
+            engine=engine,
+        ).metrics["ae"]
+
+    np.testing.assert_allclose(run("compiled"), run("python"), rtol=1e-9)

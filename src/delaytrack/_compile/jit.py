@@ -45,7 +45,8 @@ step call whatever the plant: the delay profile's pieces and crossings, the tick
 linear algebra. An :data:`inline_kernel` is compiled again inside every compile that calls it,
 and kept on disk only inside its caller's code; a :data:`shared_kernel` is compiled once for
 each argument type, without numba's runtime, kept on disk on its own and loaded from there by
-the next compile that calls it (LLVM still inlines it into its caller). The integrator of a
+the next compile that calls it, whose code it is linked into (where LLVM may inline it, or
+call it). The integrator of a
 second plant on a machine then compiles in about half the time (the first simulation of a
 pendulum of the user's after another: 2.9 s instead of 5.4 s). Called from Python, it runs as
 plain Python, as an :data:`inline_kernel` does.
@@ -93,10 +94,12 @@ def compiled(function=None, **options):
     None."""
     if function is None:
         return functools.partial(compiled, **options)
-    # numba's runtime on unless turned off: left unset, a function first compiled inside the
-    # compile of one without it (a callee of the engine) would take that setting, and fail to
-    # compile when it needs the runtime (a view, an array it makes)
+    # numba's runtime on unless turned off, and no fastmath: left unset, a function first
+    # compiled inside another compile takes that compile's settings (the engine's callees run
+    # without the runtime, and would fail to compile a view or an array they make; a kernel of
+    # yours compiled with fastmath would change the package's numbers), and keeps them on disk
     options.setdefault("_nrt", True)
+    options.setdefault("fastmath", False)
     return locked_cache(njit(**KERNEL_OPTIONS, **options)(function))
 
 

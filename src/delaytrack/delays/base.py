@@ -10,6 +10,7 @@ import numpy as np
 
 import delaytrack.delays._kernel as _kernel
 from delaytrack._compile.functions import at_few_points
+from delaytrack._compile.stale_caches import compile_from_source
 from delaytrack.components import Kernel
 
 __all__ = ["DelayProfile"]
@@ -72,10 +73,21 @@ class DelayProfile(ABC):
     def to_spec(self) -> dict[str, Any]:
         """Plain-data description, the inverse of :func:`delaytrack.delays.delay_from_spec`."""
 
+    def kernel_from_source(self) -> None:
+        """Before code is compiled for a delay kernel of yours: the compiled functions it reaches
+        compiled again from their source once in this process
+        (:func:`~delaytrack._compile.stale_caches.compile_from_source`), so that neither that
+        code nor the engine's code compiled for the kernel's fingerprint takes an old version
+        from numba's disk cache."""
+        kernel = self.engine_kernel
+        if kernel.compiled and not kernel.built_in:
+            compile_from_source([kernel])
+
     def h(self, t: float | np.ndarray) -> np.ndarray:
         """Delay ``h(t)`` in seconds at the time(s) ``t`` (any shape)."""
         times = np.asarray(t, dtype=float)
         flat = np.ascontiguousarray(times.ravel())
+        self.kernel_from_source()
         # a few points as Python while the profile's code is not compiled
         values = at_few_points(
             _kernel.profile_values,

@@ -102,6 +102,7 @@ class CompiledDelay(DelayProfile):
     def check_run(self, t0: float, dt: float, steps: int) -> None:
         """Refuse a run whose step ends ``t0 + j dt`` (``j = 0 .. steps``) meet an ``h`` that is
         not a number in ``[0, h_max]``."""
+        self.kernel_from_source()
         index, value = _kernel.first_invalid_step_end(
             self.engine_kernel, self.params, float(t0), float(dt), int(steps), self.h_max
         )

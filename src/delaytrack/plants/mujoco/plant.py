@@ -35,7 +35,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._compile.jit import kernel
+from delaytrack._compile.jit import tick_kernel
 from delaytrack._io import regular_file
 from delaytrack._result_columns import trajectory_columns
 from delaytrack._validation import as_spd_matrix, positive_scalar
@@ -92,14 +92,14 @@ def _warn(text: str) -> None:
         print(f"MuJoCo warning: {text}", file=sys.stderr)
 
 
-@kernel
+@tick_kernel
 def extras_start(n):
     """Where a plant built on :class:`MujocoPlant` (``n`` coordinates) may put parameters of
     its own: after MuJoCo's addresses and the coordinates' places."""
     return _INDICES + 2 * n
 
 
-@kernel
+@tick_kernel
 def mujoco_terms(t, q, qdot, params, M, N, G):
     """Terms kernel of :class:`MujocoPlant`: ``M``, ``N = qfrc_bias - qfrc_passive`` and
     ``G[:, j] = qfrc_actuator(u = δ e_j) / δ`` (δ = 2⁻²⁰) of the model at ``(q, q̇)``."""
@@ -131,7 +131,7 @@ def mujoco_terms(t, q, qdot, params, M, N, G):
         write_at(params[_CTRL], j, 0.0)
 
 
-@kernel
+@tick_kernel
 def mujoco_step(t, x, u, dt, params, first):
     """One ``mj_step`` of the model from ``x = [q, q̇]`` with controls ``u`` held; ``x`` gets
     the state after it. The first step of a run resets MuJoCo's data (``mj_resetData``), so that

@@ -27,7 +27,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from delaytrack._compile.jit import kernel
+from delaytrack._compile.jit import tick_kernel
 from delaytrack.plants.mujoco.capi import write_at
 from delaytrack.plants.mujoco.plant import MujocoPlant, extras_start, import_mujoco, mujoco_step
 from delaytrack.plants.robot.body import COORDINATES, INPUT_UNITS
@@ -43,7 +43,7 @@ _BODY_MASS, _BODY_CENTER, _SCHEDULE = range(3)
 _NO_PAYLOAD = np.array([0.0, 0.0, 1.0, 1.0, 0.0])
 
 
-@kernel
+@tick_kernel
 def wheeled_robot_step(t, x, u, dt, params, first):
     """One MuJoCo step (:func:`~delaytrack.plants.mujoco.plant.mujoco_step`) with the payload in
     force at ``t`` written into the model first: mass ``m_p`` at the placement ``(p_x, p_y)``

@@ -1,0 +1,72 @@
+"""The package's compiled kernels keep their own settings whichever compile reaches them first:
+numba would otherwise give a function first compiled inside another compile that compile's
+runtime and fastmath settings, and keep them on disk."""
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+_FASTMATH_FIRST = """
+import numba, numpy as np
+from delaytrack.components import solve_input_map
+
+@numba.njit(fastmath=True)
+def yours(G, tau, command):
+    solve_input_map(G, tau, command)
+
+@numba.njit
+def plain(G, tau, command):
+    solve_input_map(G, tau, command)
+
+G = np.array([[np.inf, 0.0], [0.0, 1.0]])
+command = np.zeros(2)
+if "{first}" == "fastmath":
+    yours(G, np.array([1.0, 2.0]), np.zeros(2))
+plain(G, np.array([1.0, 2.0]), command)
+print(*command)
+"""
+
+_WITHOUT_THE_RUNTIME_FIRST = """
+import numba, numpy as np
+from delaytrack.plants.linear import linear_terms
+
+@numba.njit(_nrt=False)  # as the engine's integrator
+def terms_in_a_loop_without_the_runtime(q, params, M, N, G):
+    for _ in range(3):
+        linear_terms(0.0, q, q, params, M, N, G)
+
+params = np.concatenate([np.eye(2).ravel(), np.zeros(4), 2.0 * np.eye(2).ravel(), np.ones(2)])
+M, N, G = np.zeros((2, 2)), np.zeros(2), np.zeros((2, 1))
+terms_in_a_loop_without_the_runtime(np.ones(2), params, M, N, G)
+print(*M.ravel(), *N)
+"""
+
+
+def _run(code: str, cache) -> list[str]:
+    environment = {**os.environ, "NUMBA_CACHE_DIR": str(cache)}
+    done = subprocess.run(
+        [sys.executable, "-c", code],
+        env=environment,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    return done.stdout.split()
+
+
+@pytest.mark.parametrize("later", ["same process", "new process"])
+def test_a_fastmath_caller_first_leaves_the_package_kernel_as_it_is(tmp_path, later):
+    code = _FASTMATH_FIRST.format(first="fastmath")
+    if later == "new process":
+        _run(code, tmp_path)  # the fastmath caller compiles the package's kernel first, on disk
+        code = _FASTMATH_FIRST.format(first="none")
+    # G's infinity: the solve gives NaN without fastmath (with it, [0, 2])
+    assert _run(code, tmp_path) == ["nan", "nan"]
+
+
+def test_a_kernel_that_needs_the_runtime_compiles_first_inside_one_without_it(tmp_path):
+    # M = I, N = D q̇ + K q = 2 q
+    assert _run(_WITHOUT_THE_RUNTIME_FIRST, tmp_path) == ["1.0", "0.0", "0.0", "1.0", "2.0", "2.0"]

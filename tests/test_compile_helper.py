@@ -256,3 +256,17 @@ def test_parts_named_ahead_are_kept_once_and_only_within_the_context():
     with ahead([("PCON's step", first), ("PCONf's step", first), ("x", second)]):
         assert parts_ahead() == (("PCONf's step", first), ("x", second))
     assert parts_ahead() == ()
+
+
+def test_contexts_ahead_add_up_and_take_plants_integrators():
+    from delaytrack.plants import TwoLinkArm
+    from delaytrack.sim import compile_ahead
+
+    outer = object()  # a stand-in part
+    with ahead([("a step", outer)]), compile_ahead([], 2, 2, plants=[TwoLinkArm()]):
+        names = [name for name, _ in parts_ahead()]
+        assert names == ["a step", "TwoLinkArm's integrator"]
+        integrator = parts_ahead()[1][1]
+        assert integrator.function.__name__ == "integrate_tick"
+        assert "two_link_terms" in str(integrator.signature[0])  # the plant's kernel
+    assert parts_ahead() == ()

@@ -13,7 +13,12 @@ import contextvars
 from collections.abc import Iterable, Iterator, Sequence
 from typing import Any
 
-from delaytrack._compile.native_parts import controller_step_name, controller_step_part
+from delaytrack._compile.native_parts import (
+    controller_step_name,
+    controller_step_part,
+    plant_tick_part,
+)
+from delaytrack.delays._kernel import NO_KERNEL
 
 __all__ = ["ahead", "compile_ahead", "parts_ahead"]
 
@@ -26,8 +31,9 @@ _AHEAD: contextvars.ContextVar[tuple] = contextvars.ContextVar("compile_ahead", 
 def ahead(parts: Sequence[tuple[str, Any]]) -> Iterator[None]:
     """Within this context, a first compile also compiles ``parts`` (``(name, part)`` pairs of
     :class:`~delaytrack._compile.native_parts.NativePart` objects that are not compiled yet; a
-    part given twice is kept once), shared with the same helper process."""
-    distinct = {part: name for name, part in parts}
+    part given twice is kept once), shared with the same helper process; with those of the
+    contexts around it."""
+    distinct = {part: name for name, part in (*_AHEAD.get(), *parts)}
     token = _AHEAD.set(tuple((name, part) for part, name in distinct.items()))
     try:
         yield
@@ -41,15 +47,16 @@ def parts_ahead() -> tuple:
 
 
 def compile_ahead(
-    controllers: Iterable[Any], n: int, m: int
+    controllers: Iterable[Any], n: int, m: int, plants: Iterable[Any] = ()
 ) -> contextlib.AbstractContextManager[None]:
     """A context within which the first :func:`~delaytrack.sim.simulate` call that compiles
-    anything also compiles the steps of ``controllers``.
+    anything also compiles the steps of ``controllers`` and the integrators of ``plants``.
 
-    For a job that runs several controllers in turn: their steps are then compiled beside the
-    first run's parts (and on a second core when one is free), not one by one at the start of
-    each controller's run. Results are the same; only the first compile's time changes. A step
-    that numba cannot compile is left to its own run, which reports it.
+    For a job that runs several controllers (or plants) in turn: their steps are then compiled
+    beside the first run's parts (and on a second core when one is free), not one by one at the
+    start of each run. Results are the same; only the first compile's time changes. A part
+    that numba cannot compile is left to its own run, which reports it. Contexts inside one
+    another add up.
 
     Parameters
     ----------
@@ -57,6 +64,9 @@ def compile_ahead(
         The controllers whose steps the job will run, each with its nominal model.
     n, m : int
         The plant's numbers of coordinates and inputs.
+    plants : iterable of ELPlant, optional
+        Plants (of ``n`` coordinates and ``m`` inputs) whose integrators later runs will need,
+        under the built-in delay profiles.
 
     Returns
     -------
@@ -76,4 +86,11 @@ def compile_ahead(
         )
         for c in controllers
     ]
-    return ahead(steps)
+    integrators = [
+        (
+            f"{type(plant).__name__}'s integrator",
+            plant_tick_part(plant.engine_kernel, NO_KERNEL, n, m),
+        )
+        for plant in plants
+    ]
+    return ahead([*steps, *integrators])

@@ -44,6 +44,7 @@ kernel, so the baselines are one batch too).
 
 from __future__ import annotations
 
+import contextlib
 import time
 import warnings
 from collections.abc import Mapping
@@ -118,6 +119,7 @@ __all__ = [
     "PaperFindings",
     "PaperStudy",
     "claims",
+    "contact_ahead",
     "run_study",
     "with_tuned_arolc",
 ]
@@ -312,6 +314,19 @@ def _contact_table(
         table.insert(2, "contact_time_constant_s", time_constant)
         tables.append(table)
     return pd.concat(tables, ignore_index=True)
+
+
+def contact_ahead(
+    duration: float = DURATION, contact: bool | None = None
+) -> contextlib.AbstractContextManager[None]:
+    """A context within which the next first compile also compiles the integrator of the robot
+    with real wheels (:func:`~delaytrack.sim.compile_ahead`), when the consistent run will run
+    on it (``contact``, or by default when MuJoCo is installed): a job that runs the literal
+    run first then compiles it on both cores with that run's parts, instead of alone later."""
+    if contact is False or (contact is None and not _mujoco_installed()):
+        return contextlib.nullcontext()
+    robot = MujocoWheeledRobot(seed=PAYLOAD_SEED, duration=max(duration, DURATION))
+    return compile_ahead([], robot.n, robot.m, plants=[robot])
 
 
 def _mujoco_installed() -> bool:

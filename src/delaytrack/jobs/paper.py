@@ -13,7 +13,7 @@ import pandas as pd
 from delaytrack._output import check_output_folder, check_results_root
 from delaytrack._validation import ArgumentError, integer_multiple
 from delaytrack.experiments import tuning
-from delaytrack.experiments.paper import PaperStudy, run_study
+from delaytrack.experiments.paper import PaperStudy, contact_ahead, run_study
 from delaytrack.experiments.paper_setup import DURATION, T_C
 from delaytrack.experiments.robustness import RobustnessStudy
 from delaytrack.jobs._background import second_process
@@ -130,7 +130,8 @@ def reproduce(
         )
     # The literal run's report is drawn in a second process, when a core is idle, while this
     # one runs the next studies; it imports the report's modules while the literal run runs.
-    with second_process(("delaytrack.report.paper",)) as second:
+    # The literal run's first compile also compiles the contact runs' integrator, if they run.
+    with second_process(("delaytrack.report.paper",)) as second, contact_ahead(duration, contact):
         literal = _paper_study("literal", duration, progress, check_dt, gains)
         second.run(write_study, literal, folders["paper-literal"])
         study = (

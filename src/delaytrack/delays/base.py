@@ -15,6 +15,10 @@ from delaytrack.components import Kernel
 
 __all__ = ["DelayProfile"]
 
+#: Keys (code fingerprints) of the delay kernels of the user's compiled from their source in this
+#: process (:meth:`DelayProfile.kernel_from_source`): a live controller asks at every tick.
+_FROM_SOURCE: set[str] = set()
+
 
 class DelayProfile(ABC):
     """An input delay ``h(t) >= 0`` in seconds, known to the simulator and never to AROLC.
@@ -80,8 +84,9 @@ class DelayProfile(ABC):
         code nor the engine's code compiled for the kernel's fingerprint takes an old version
         from numba's disk cache."""
         kernel = self.engine_kernel
-        if kernel.compiled and not kernel.built_in:
+        if kernel.key not in _FROM_SOURCE and kernel.compiled and not kernel.built_in:
             compile_from_source([kernel])
+            _FROM_SOURCE.add(kernel.key)  # its functions are now this process's own compiles
 
     def h(self, t: float | np.ndarray) -> np.ndarray:
         """Delay ``h(t)`` in seconds at the time(s) ``t`` (any shape)."""

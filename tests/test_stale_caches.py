@@ -264,21 +264,12 @@ def test_a_delay_kernels_helper_edited_in_another_file_reaches_h_and_the_simulat
     np.testing.assert_array_equal(edited.h(np.full(100, 0.3)), 0.05 + 0.001)
     assert edited.h(0.3) == 0.05 + 0.001
 
+    arm, controller = TwoLinkArm(), OuterLoop(TwoLinkArm(), K1=4.0, K2=4.0)
+    reference = SinusoidalReference(offset=[0.0, 0.0], amplitude=[0.5, 0.3], frequency=[1.0, 0.7])
+    settings = {"reference": reference, "t1": 0.5, "dt": 1e-3, "T_c": 5e-3, "trajectories": False}
+
     def run(engine: str) -> np.ndarray:
-        reference = SinusoidalReference(
-            offset=[0.0, 0.0], amplitude=[0.5, 0.3], frequency=[1.0, 0.7]
-        )
-        return dt.simulate(
-            TwoLinkArm(),
-            OuterLoop(TwoLinkArm(), K1=4.0, K2=4.0),
-            edited,
-            np.zeros(4),
-            reference=reference,
-            t1=0.5,
-            dt=1e-3,
-            T_c=5e-3,
-            trajectories=False,
-            engine=engine,
-        ).metrics["ae"]
+        result = dt.simulate(arm, controller, edited, np.zeros(4), engine=engine, **settings)
+        return result.metrics["ae"]
 
     np.testing.assert_allclose(run("compiled"), run("python"), rtol=1e-9)

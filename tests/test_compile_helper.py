@@ -259,14 +259,33 @@ def test_parts_named_ahead_are_kept_once_and_only_within_the_context():
 
 
 def test_contexts_ahead_add_up_and_take_plants_integrators():
+    from delaytrack._compile.native_parts import plant_tick_part
+    from delaytrack.delays import AbsSineDelay
     from delaytrack.plants import TwoLinkArm
     from delaytrack.sim import compile_ahead
 
     outer = object()  # a stand-in part
-    with ahead([("a step", outer)]), compile_ahead([], 2, 2, plants=[TwoLinkArm()]):
-        names = [name for name, _ in parts_ahead()]
-        assert names == ["a step", "TwoLinkArm's integrator"]
-        integrator = parts_ahead()[1][1]
-        assert integrator.function.__name__ == "integrate_tick"
-        assert "two_link_terms" in str(integrator.signature[0])  # the plant's kernel
+    arm = TwoLinkArm()
+    # the part a run of the arm under a built-in delay compiles (parts are made once each)
+    needed = plant_tick_part(arm.engine_kernel, AbsSineDelay.S1().engine_kernel, arm.n, arm.m)
+    with ahead([("a step", outer)]):
+        with compile_ahead([], arm.n, arm.m, plants=[arm]):
+            assert parts_ahead() == (("a step", outer), ("TwoLinkArm's integrator", needed))
+        assert parts_ahead() == (("a step", outer),)  # the inner context's parts, left
     assert parts_ahead() == ()
+
+
+def test_the_paper_job_compiles_the_contact_runs_integrator_ahead_only_with_them():
+    pytest.importorskip("mujoco")
+    from delaytrack._compile.native_parts import plant_tick_part
+    from delaytrack.experiments.paper import SCENARIOS, contact_ahead
+    from delaytrack.plants.robot import MujocoWheeledRobot
+
+    robot = MujocoWheeledRobot(seed=1, duration=60.0, contact_time_constant=0.01)
+    delay = SCENARIOS["S3"].engine_kernel
+    with contact_ahead(0.5):  # contact runs by default with MuJoCo installed
+        assert parts_ahead() == (
+            ("MujocoWheeledRobot's integrator", plant_tick_part(robot.engine_kernel, delay, 5, 2)),
+        )
+    with contact_ahead(60.0, contact=False):
+        assert parts_ahead() == ()

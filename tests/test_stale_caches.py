@@ -258,11 +258,16 @@ def test_a_delay_kernels_helper_edited_in_another_file_reaches_h_and_the_simulat
             monkeypatch.delitem(sys.modules, name, raising=False)
         return importlib.import_module(module).delay
 
-    load(0.02)(0.3, np.zeros(1))  # numba's disk cache now holds base = 0.02
+    first = CompiledDelay(load(0.02), [0.001], h_max=0.2)
+    assert first.h(0.3) == 0.02 + 0.001  # numba's disk cache now holds base = 0.02
     edited = CompiledDelay(load(0.05), [0.001], h_max=0.2)
     # many points: the profile's code compiled for the edited kernel, before any simulation
     np.testing.assert_array_equal(edited.h(np.full(100, 0.3)), 0.05 + 0.001)
     assert edited.h(0.3) == 0.05 + 0.001
+    # edited back, imported again: the same code as the first, and numba's cache holds 0.05
+    back = CompiledDelay(load(0.02), [0.001], h_max=0.2)
+    assert back.h(0.3) == 0.02 + 0.001
+    np.testing.assert_array_equal(back.h(np.full(100, 0.3)), 0.02 + 0.001)
 
     arm, controller = TwoLinkArm(), OuterLoop(TwoLinkArm(), K1=4.0, K2=4.0)
     reference = SinusoidalReference(offset=[0.0, 0.0], amplitude=[0.5, 0.3], frequency=[1.0, 0.7])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import weakref
 from abc import ABC, abstractmethod
 from typing import Any, ClassVar
 
@@ -15,9 +16,11 @@ from delaytrack.components import Kernel
 
 __all__ = ["DelayProfile"]
 
-#: Keys (code fingerprints) of the delay kernels of the user's compiled from their source in this
-#: process (:meth:`DelayProfile.kernel_from_source`): a live controller asks at every tick.
-_FROM_SOURCE: set[str] = set()
+#: The delay kernels' functions of the user's compiled from their source in this process
+#: (:meth:`DelayProfile.kernel_from_source`), which a live controller asks at every tick. By
+#: function, not by code: a module imported again, even with the code it had before an edit,
+#: gives new functions, which numba's disk cache may serve the edited code.
+_FROM_SOURCE: weakref.WeakSet = weakref.WeakSet()
 
 
 class DelayProfile(ABC):
@@ -84,9 +87,9 @@ class DelayProfile(ABC):
         code nor the engine's code compiled for the kernel's fingerprint takes an old version
         from numba's disk cache."""
         kernel = self.engine_kernel
-        if kernel.key not in _FROM_SOURCE and kernel.compiled and not kernel.built_in:
+        if kernel.function not in _FROM_SOURCE and kernel.compiled and not kernel.built_in:
             compile_from_source([kernel])
-            _FROM_SOURCE.add(kernel.key)  # its functions are now this process's own compiles
+            _FROM_SOURCE.add(kernel.function)  # what it reaches is now this process's compiles
 
     def h(self, t: float | np.ndarray) -> np.ndarray:
         """Delay ``h(t)`` in seconds at the time(s) ``t`` (any shape)."""

@@ -474,7 +474,7 @@ def test_mujocos_warnings_are_python_warnings_and_no_log_file_is_written(tmp_pat
 
     monkeypatch.chdir(tmp_path)
     controller = dt.OuterLoop(MujocoPlant(ARM, mass_scale=0.8), K1=1e9, K2=1e5)
-    with pytest.warns(RuntimeWarning, match="MuJoCo: .*unstable"):
+    with pytest.warns(RuntimeWarning, match="MuJoCo: .*unstable") as caught:
         result = dt.simulate(
             MujocoPlant(ARM, stepping="mujoco"),
             controller,
@@ -488,3 +488,5 @@ def test_mujocos_warnings_are_python_warnings_and_no_log_file_is_written(tmp_pat
         )
     assert list(result.status) == [DIVERGED, DIVERGED]
     assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+    # placed at MuJoCo: shown as one line, not under a line of the engine's code
+    assert {(w.filename, w.lineno) for w in caught if "MuJoCo" in str(w.message)} == {("mujoco", 0)}

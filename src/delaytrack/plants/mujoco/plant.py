@@ -84,10 +84,14 @@ def import_mujoco() -> Any:
 
 
 def _warn(text: str) -> None:
-    """MuJoCo's warning handler: a Python warning. Nothing may raise through MuJoCo's C code
-    (the process would abort), so a warning that a filter turns into an error is printed."""
+    """MuJoCo's warning handler: a Python warning, one line placed at MuJoCo (it comes from
+    MuJoCo's C code, mostly on one of the engine's threads, not from a line of yours). Nothing
+    may raise through MuJoCo's C code (the process would abort), so a warning that a filter
+    turns into an error is printed."""
     try:
-        warnings.warn(f"MuJoCo: {text}", RuntimeWarning, stacklevel=2)
+        warnings.warn_explicit(
+            f"MuJoCo: {text}", RuntimeWarning, "mujoco", 0, module="delaytrack.plants.mujoco"
+        )
     except Exception:  # noqa: BLE001 - "error" filters: say it, do not raise into C
         print(f"MuJoCo warning: {text}", file=sys.stderr)
 

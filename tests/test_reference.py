@@ -145,7 +145,7 @@ def test_from_spec_refuses_unknown_and_missing_keys():
 
 def test_a_few_points_evaluated_as_python_are_the_compiled_numbers(reference, monkeypatch):
     from delaytrack._compile import functions
-    from delaytrack.references import SplineReference, sinusoidal
+    from delaytrack.references import SplineReference
 
     knots = np.linspace(0.0, 10.0, 11)
     spline = SplineReference(knots, np.column_stack([np.sin(knots), np.cos(knots)]))
@@ -156,8 +156,7 @@ def test_a_few_points_evaluated_as_python_are_the_compiled_numbers(reference, mo
     times = np.concatenate([drawn, [4.0, 1e12, 1e308, np.inf, np.nan]])
 
     def evaluated(as_python: bool) -> list:
-        for module in (functions, sinusoidal):
-            monkeypatch.setattr(module, "few_points_as_python", lambda function, points: as_python)
+        monkeypatch.setattr(functions, "few_points_as_python", lambda function, points: as_python)
         return [
             r.evaluate(t)
             for r in (reference, spline, held)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import weakref
 from abc import ABC, abstractmethod
 from typing import Any, ClassVar
 
@@ -11,16 +10,9 @@ import numpy as np
 
 import delaytrack.delays._kernel as _kernel
 from delaytrack._compile.functions import at_few_points
-from delaytrack._compile.stale_caches import compile_from_source
 from delaytrack.components import Kernel
 
 __all__ = ["DelayProfile"]
-
-#: The delay kernels' functions of the user's compiled from their source in this process
-#: (:meth:`DelayProfile.kernel_from_source`), which a live controller asks at every tick. By
-#: function, not by code: a module imported again, even with the code it had before an edit,
-#: gives new functions, which numba's disk cache may serve the edited code.
-_FROM_SOURCE: weakref.WeakSet = weakref.WeakSet()
 
 
 class DelayProfile(ABC):
@@ -80,22 +72,10 @@ class DelayProfile(ABC):
     def to_spec(self) -> dict[str, Any]:
         """Plain-data description, the inverse of :func:`delaytrack.delays.delay_from_spec`."""
 
-    def kernel_from_source(self) -> None:
-        """Before code is compiled for a delay kernel of yours: the compiled functions it reaches
-        compiled again from their source once in this process
-        (:func:`~delaytrack._compile.stale_caches.compile_from_source`), so that neither that
-        code nor the engine's code compiled for the kernel's fingerprint takes an old version
-        from numba's disk cache."""
-        kernel = self.engine_kernel
-        if kernel.function not in _FROM_SOURCE and kernel.compiled and not kernel.built_in:
-            compile_from_source([kernel])
-            _FROM_SOURCE.add(kernel.function)  # what it reaches is now this process's compiles
-
     def h(self, t: float | np.ndarray) -> np.ndarray:
         """Delay ``h(t)`` in seconds at the time(s) ``t`` (any shape)."""
         times = np.asarray(t, dtype=float)
         flat = np.ascontiguousarray(times.ravel())
-        self.kernel_from_source()
         # a few points as Python while the profile's code is not compiled
         values = at_few_points(
             _kernel.profile_values,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
@@ -10,12 +11,19 @@ import numpy as np
 
 import delaytrack.delays._kernel as _kernel
 from delaytrack._compile.functions import is_compiled
+from delaytrack._compile.stale_caches import compile_from_source
 from delaytrack._validation import finite_array, positive_scalar
 from delaytrack.components import Kernel
 from delaytrack.delays.base import DelayProfile
 from delaytrack.kernel_arguments import check_kernel_arguments
 
 __all__ = ["CompiledDelay"]
+
+#: The delay kernels compiled from their source in this process
+#: (:meth:`CompiledDelay._from_source`), which a live controller's ``h`` asks at every tick. By
+#: function, not by code: a module imported again, even with the code it had before an edit,
+#: gives new functions, which numba's disk cache may serve the edited code.
+_FROM_SOURCE: weakref.WeakSet = weakref.WeakSet()
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,10 +107,27 @@ class CompiledDelay(DelayProfile):
         duration = t1 - t0
         return (duration + min(self.h_max, duration)) / T_c + 2.0
 
+    def _from_source(self) -> None:
+        """Before code is compiled for the kernel: the compiled functions it reaches compiled
+        again from their source once in this process
+        (:func:`~delaytrack._compile.stale_caches.compile_from_source`, as a simulation does),
+        so that neither that code nor the engine's code compiled for the kernel's fingerprint
+        (:func:`~delaytrack.delays._kernel.evaluate_profile`) takes an old version from numba's
+        disk cache."""
+        if self.kernel not in _FROM_SOURCE:
+            compile_from_source([self.engine_kernel])
+            _FROM_SOURCE.add(self.kernel)  # what it reaches is now this process's compiles
+
+    def h(self, t: float | np.ndarray) -> np.ndarray:
+        """Delay ``h(t)`` in seconds at the time(s) ``t`` (any shape), from the kernel's
+        source as it is now."""
+        self._from_source()
+        return super().h(t)
+
     def check_run(self, t0: float, dt: float, steps: int) -> None:
         """Refuse a run whose step ends ``t0 + j dt`` (``j = 0 .. steps``) meet an ``h`` that is
         not a number in ``[0, h_max]``."""
-        self.kernel_from_source()
+        self._from_source()
         index, value = _kernel.first_invalid_step_end(
             self.engine_kernel, self.params, float(t0), float(dt), int(steps), self.h_max
         )

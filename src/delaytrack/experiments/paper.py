@@ -325,8 +325,19 @@ def contact_ahead(
     run first then compiles it on both cores with that run's parts, instead of alone later."""
     if contact is False or (contact is None and not _mujoco_installed()):
         return contextlib.nullcontext()
-    robot = MujocoWheeledRobot(seed=PAYLOAD_SEED, duration=max(duration, DURATION))
+    # one integrator serves every contact time constant (they are parameters, not code)
+    robot = _robot_with_wheels(duration, CONTACT_TIME_CONSTANTS[0])
     return compile_ahead([], robot.n, robot.m, plants=[robot])
+
+
+def _robot_with_wheels(duration: float, time_constant: float) -> MujocoWheeledRobot:
+    """The robot of the contact runs: the payload schedule of the analytic robot's runs, wheels
+    on the floor with contacts of ``time_constant`` (s)."""
+    return MujocoWheeledRobot(
+        seed=PAYLOAD_SEED,
+        duration=max(duration, DURATION),
+        contact_time_constant=time_constant,
+    )
 
 
 def _mujoco_installed() -> bool:
@@ -383,11 +394,7 @@ def run_study(
         halved = _simulate_all(controllers, reference, duration, DT / 2, bar) if check_dt else None
         wheels = {}
         for time_constant in CONTACT_TIME_CONSTANTS if contact else ():
-            robot = MujocoWheeledRobot(
-                seed=PAYLOAD_SEED,
-                duration=max(duration, DURATION),
-                contact_time_constant=time_constant,
-            )
+            robot = _robot_with_wheels(duration, time_constant)
             wheels[time_constant] = _simulate_all(
                 controllers, reference, duration, DT, bar, plant=robot
             )

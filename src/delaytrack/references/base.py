@@ -15,10 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from delaytrack._compile.functions import FEW_POINTS, at_few_points
+from delaytrack._compile.functions import at_few_points
 from delaytrack.components import Kernel
 
-__all__ = ["Reference", "point_by_point"]
+__all__ = ["Reference", "by_time"]
 
 
 class Reference(ABC):
@@ -68,28 +68,23 @@ class Reference(ABC):
         return self.engine_kernel.compiled
 
     def evaluate(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``q_d, q̇_d, q̈_d`` at times ``t``, each of shape ``(*t.shape, n)``."""
-        return point_by_point(self.reference_kernel, self.params, self.n, t)
+        """``q_d, q̇_d, q̈_d`` at times ``t``, each of shape ``(*t.shape, n)``. One of the
+        package's kernels runs as plain Python at a few times while its compiled code is not in
+        the process (:func:`~delaytrack._compile.functions.at_few_points`): the same numbers,
+        without a compile."""
+        times = np.asarray(t, dtype=float)
+        params, n = self.params, self.n
+
+        def each_time(kernel: Callable[..., None]) -> np.ndarray:
+            out = np.empty((3, times.size, n))
+            for i, time in enumerate(times.ravel()):
+                kernel(float(time), params, out[0, i], out[1, i], out[2, i])
+            return out
+
+        return by_time(at_few_points(self.reference_kernel, times.size, each_time), times.shape)
 
 
-def point_by_point(
-    kernel: Callable[..., None], params: np.ndarray, n: int, t: float | np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``q_d, q̇_d, q̈_d`` at times ``t`` (each ``(*t.shape, n)``) from the reference ``kernel``
-    called at each time. One of the package's compiled kernels runs as plain Python at a few
-    finite times while its compiled code is not in the process
-    (:func:`~delaytrack._compile.functions.at_few_points`): the same numbers, without a
-    compile; a value Python refuses (the sine of an angle that overflowed) is computed
-    compiled."""
-    times = np.asarray(t, dtype=float)
-    points = times.size if np.isfinite(times).all() else FEW_POINTS + 1
-    return at_few_points(kernel, points, lambda each: _each_time(each, params, n, times))
-
-
-def _each_time(
-    kernel: Callable[..., None], params: np.ndarray, n: int, times: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    out = np.empty((3, times.size, n))
-    for i, time in enumerate(times.ravel()):
-        kernel(float(time), params, out[0, i], out[1, i], out[2, i])
-    return tuple(out[j].reshape(*times.shape, n) for j in range(3))
+def by_time(out: np.ndarray, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``q_d, q̇_d, q̈_d`` from ``out (3, points, n)`` at times of ``shape``: each
+    ``(*shape, n)``."""
+    return tuple(out[j].reshape(*shape, out.shape[2]) for j in range(3))

@@ -8,15 +8,16 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from delaytrack._compile.functions import few_points_as_python
+from delaytrack._compile.functions import at_few_points
 from delaytrack._compile.jit import kernel, tick_kernel
 from delaytrack._validation import ArgumentError, finite_array
-from delaytrack.references.base import Reference, point_by_point
+from delaytrack.references.base import Reference, by_time
 
 __all__ = [
     "SinusoidalReference",
@@ -139,12 +140,15 @@ class SinusoidalReference(Reference):
     def evaluate(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``q_d, q̇_d, q̈_d`` at times ``t``, each of shape ``(*t.shape, n)``."""
         times = np.asarray(t, dtype=float)
-        if few_points_as_python(sinusoidal_reference_values, times.size):
-            # point by point, as Python while not compiled
-            return point_by_point(sinusoidal_reference, self._params, self.n, times)
-        out = np.empty((3, times.size, self.n))
-        sinusoidal_reference_values(np.ascontiguousarray(times.ravel()), self._params, out)
-        return tuple(out[j].reshape(*times.shape, self.n) for j in range(3))
+        flat = np.ascontiguousarray(times.ravel())
+
+        def values(kernel: Callable[..., None]) -> np.ndarray:
+            out = np.empty((3, times.size, self.n))
+            kernel(flat, self._params, out)
+            return out
+
+        # a few times as Python while the kernel is not compiled (Reference.evaluate)
+        return by_time(at_few_points(sinusoidal_reference_values, times.size, values), times.shape)
 
     def to_spec(self) -> dict[str, Any]:
         """The parameters (the table of the default reference type, ``"sinusoidal"``)."""

@@ -874,3 +874,23 @@ def test_an_array_made_in_the_loop_is_named_whatever_numba_calls_it(words):
 
     error = TypeError(f"Failed in nopython mode\n\x1b[1m{words} but not enabled\x1b[0m")
     assert numba_cause(error).startswith("code of yours inlined into the simulator's loop")
+
+
+@numba.njit(inline="always")
+def _allocating_terms(t, q, qdot, params, M, N, G):
+    scratch = np.zeros(2)
+    scratch[0] = 2.0 * math.sin(q[0])
+    M[0, 0] = 0.3
+    N[0] = scratch[0] + 0.2 * qdot[0]
+    G[0, 0] = 1.0
+
+
+def test_a_kernel_that_allocates_gives_the_plants_state_derivative():
+    # Called from Python, a plant's right-hand side is compiled with numba's runtime, so a
+    # kernel of yours that makes an array (here inlined into its caller) works there; only the
+    # simulator's loop, compiled without the runtime, refuses it.
+    plant = dt.CompiledPlant(1, 1, _allocating_terms)
+    x = np.array([0.3, 0.2])
+    derivative = plant.state_derivative(x, np.array([0.7]), t=0.1)
+    acceleration = (0.7 - 2.0 * math.sin(0.3) - 0.2 * 0.2) / 0.3
+    np.testing.assert_allclose(derivative, [[0.2, acceleration]], rtol=1e-12)

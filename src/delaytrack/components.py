@@ -323,15 +323,17 @@ def _kernel_of(
 # ---- the calls ---------------------------------------------------------------------------------
 
 #: numba options of a call compiled as a function of its own and linked into its callers
-#: (without ``inline="always"``): the settings of the integrator that calls it (no numba
-#: runtime, :data:`delaytrack._compile.jit.tick_kernel`; no fastmath; NumPy's error model).
-#: numba compiles an ``inline="always"`` overload's implementation on its own first, then types
-#: and lowers it again inside each caller. A kernel's terms and velocity map are linked instead
-#: (the robot's first simulation compiled in 11.2-11.4 s instead of 12.2-12.4 s), and LLVM
-#: inlines them where it pays (the same run times, the same numbers). The reduced dynamics stay
-#: inlined: the robot's, linked, were called, not inlined, and its 60 s run took 13.3 ms instead
-#: of 11.4-12.0 ms.
-_LINKED = {"_nrt": False, "fastmath": False, "error_model": KERNEL_OPTIONS["error_model"]}
+#: (without ``inline="always"``): the terms of a plant or a nominal model (in the integrator
+#: and in the controllers' steps) and a reduced form's velocity map. No fastmath and NumPy's
+#: error model, as every kernel of the package; numba's runtime as the caller has it (numba
+#: compiles one copy per caller's setting: the integrator's, without the runtime, counts no
+#: references). numba compiles an ``inline="always"`` overload's implementation on its own
+#: first, then types and lowers it again inside each caller; linked, it is compiled once per
+#: argument types and caller's settings (the robot's first simulation compiled in 11.8-12.0 s
+#: instead of 13.0-13.4 s), and LLVM inlines it where it pays (the same run times, the same
+#: numbers). The reduced dynamics stay inlined: the robot's, linked, were called, not inlined,
+#: and its 60 s run took 13.3 ms instead of 11.4-12.0 ms.
+_LINKED = {"fastmath": False, "error_model": KERNEL_OPTIONS["error_model"]}
 
 
 def call_terms(terms, t, q, qdot, params, mass, nonlinear, input_map):

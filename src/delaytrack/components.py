@@ -36,7 +36,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numba.extending import overload
@@ -44,12 +44,15 @@ from numba.extending import overload
 from delaytrack._compile.fingerprint import name_with_code
 from delaytrack._compile.functions import in_package, is_compiled, qualified_name
 from delaytrack._compile.guards import refuse_managed_result
-from delaytrack._compile.jit import KERNEL_OPTIONS, shared_kernel
+from delaytrack._compile.jit import shared_kernel
 from delaytrack._compile.kernel_type import KernelType, known_to_numba, numba_type_of
 from delaytrack._compile.native_call import NativeFunctionType, call_native
 from delaytrack._deprecated import moved_names
 from delaytrack._small_linalg import solve_in_place
 from delaytrack._validation import is_integer_at_least
+
+if TYPE_CHECKING:
+    from numba.core.decorators import _JITOptions
 
 __all__ = [
     "Kernel",
@@ -333,7 +336,7 @@ def _kernel_of(
 #: instead of 13.0-13.4 s), and LLVM inlines it where it pays (the same run times, the same
 #: numbers). The reduced dynamics stay inlined: the robot's, linked, were called, not inlined,
 #: and its 60 s run took 13.3 ms instead of 11.4-12.0 ms.
-_LINKED = {"fastmath": False, "error_model": KERNEL_OPTIONS["error_model"]}
+_LINKED: _JITOptions = {"fastmath": False, "error_model": "numpy"}  # as KERNEL_OPTIONS
 
 
 def call_terms(terms, t, q, qdot, params, mass, nonlinear, input_map):

@@ -25,6 +25,11 @@ every caller, which took the paper job's first compile from 28 s to 50 s at the 
 :data:`hot_inline_kernel` functions take a component's kernel and run as plain Python when it
 is one (the plain-Python engine).
 
+:func:`inline_part` is inlined into its compiled callers before typing, like them, but runs as
+plain Python whenever it is called from Python: for the engine's run of one closed loop, which
+allocates the run's working memory, so that numba does not compile it as a function of its own
+(with the tick loop linked into it) inside the engine's compile.
+
 :data:`tick_kernel` is :data:`kernel` compiled without numba's runtime (``_nrt=False``): the
 functions called once a controller tick (the controllers' steps, the references, the plant's
 integrator :func:`delaytrack.sim.integrator.integrate_tick`). They only
@@ -70,6 +75,7 @@ __all__ = [
     "hot_inline_kernel",
     "hot_kernel",
     "inline_kernel",
+    "inline_part",
     "kernel",
     "shared_kernel",
     "tick_kernel",
@@ -138,6 +144,20 @@ def shared_kernel(function):
     compiled caller (module docstring); called from Python it runs as plain Python
     (:class:`_PythonFromPython`). It may neither allocate nor return an array."""
     dispatcher = compiled(function, _nrt=False)
+    dispatcher.__class__ = _PythonFromPython
+    return dispatcher
+
+
+def inline_part(function):
+    """A part of a compiled function inlined into it before typing (``njit(inline="always")``),
+    that runs as plain Python when called from Python (:class:`_PythonFromPython`), whatever its
+    arguments: for a part that allocates, so that it cannot be a :func:`shared_kernel`, and
+    that only compiled code and the plain-Python engine call. An :data:`inline_kernel` is
+    compiled as a function of its own inside each caller's compile, and LLVM optimises and
+    generates machine code for it and for everything linked into it once there and again in
+    the caller (the engine's :func:`~delaytrack.sim.engine.run_closed_loop`, with its tick loop
+    linked, cost about 0.5 s of every first compile of the engine)."""
+    dispatcher = compiled(function, inline="always")
     dispatcher.__class__ = _PythonFromPython
     return dispatcher
 

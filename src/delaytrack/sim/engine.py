@@ -23,7 +23,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from delaytrack._compile.jit import borrowing_kernel, compiled, inline_kernel
+from delaytrack._compile.jit import borrowing_kernel, compiled, inline_kernel, inline_part
 from delaytrack.components import call_reference, call_step
 from delaytrack.controllers.base import step_workspace
 from delaytrack.delays._kernel import delay_at
@@ -189,7 +189,7 @@ def left_path(qd, q, error_bound):
     return False
 
 
-@inline_kernel
+@inline_part
 def run_closed_loop(handles, run, settings, records):
     """Simulate one closed loop from ``t0`` to tick ``n_ticks``; return ``(status, t_stop)``.
 

@@ -285,7 +285,10 @@ def test_the_paper_job_compiles_the_contact_runs_integrator_ahead_only_with_them
     delay = SCENARIOS["S3"].engine_kernel
     with contact_ahead(0.5):  # contact runs by default with MuJoCo installed
         assert parts_ahead() == (
-            ("MujocoWheeledRobot's integrator", plant_tick_part(robot.engine_kernel, delay, 5, 2)),
+            (
+                "MujocoWheeledRobot's integrator",
+                plant_tick_part(robot.engine_kernel, delay, robot.n, robot.m),
+            ),
         )
     with contact_ahead(60.0, contact=False):
         assert parts_ahead() == ()

@@ -16,6 +16,7 @@ from typing import Any
 from delaytrack._compile.native_parts import (
     controller_step_name,
     controller_step_part,
+    plant_integrator_name,
     plant_tick_part,
 )
 from delaytrack.delays._kernel import NO_KERNEL
@@ -87,10 +88,7 @@ def compile_ahead(
         for c in controllers
     ]
     integrators = [
-        (
-            f"{type(plant).__name__}'s integrator",
-            plant_tick_part(plant.engine_kernel, NO_KERNEL, n, m),
-        )
+        (plant_integrator_name(plant), plant_tick_part(plant.engine_kernel, NO_KERNEL, n, m))
         for plant in plants
     ]
     return ahead([*steps, *integrators])

@@ -51,6 +51,7 @@ __all__ = [
     "controller_step_part",
     "delay_part",
     "engine_parts",
+    "plant_integrator_name",
     "plant_tick_part",
     "reference_part",
 ]
@@ -192,6 +193,11 @@ def controller_step_part(step: Kernel, model: Kernel, n: int, m: int) -> NativeP
     return _users_step_part(step.numba_type, model.numba_type, n, m)
 
 
+def plant_integrator_name(plant: Any) -> str:
+    """How the first-compile notice names the integrator part of ``plant``."""
+    return f"{type(plant).__name__}'s integrator"
+
+
 def controller_step_name(controller: Any) -> str:
     """How the first-compile notice names the step part of ``controller``."""
     return f"{type(controller).__name__}'s step on {type(controller.model).__name__}"
@@ -243,7 +249,7 @@ def engine_parts(plan: Plan) -> tuple[tuple[str, ...], tuple[NativePart, ...]]:
     step and its delay; and how the first-compile notice and compile errors name each."""
     plant, controller, reference = plan.plants[0], plan.controllers[0], plan.reference
     names = (
-        f"{type(plant).__name__}'s integrator",
+        plant_integrator_name(plant),
         type(reference).__name__,
         controller_step_name(controller),
         f"the delay kernel {plan.delay_kernel.callable_names[0]}"

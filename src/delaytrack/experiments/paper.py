@@ -323,7 +323,7 @@ def contact_ahead(
     with real wheels (:func:`~delaytrack.sim.compile_ahead`), when the consistent run will run
     on it (``contact``, or by default when MuJoCo is installed): a job that runs the literal
     run first then compiles it on both cores with that run's parts, instead of alone later."""
-    if contact is False or (contact is None and not _mujoco_installed()):
+    if not _with_contact("consistent", contact, _mujoco_installed()):
         return contextlib.nullcontext()
     # one integrator serves every contact time constant (they are parameters, not code)
     robot = _robot_with_wheels(duration, CONTACT_TIME_CONSTANTS[0])
@@ -338,6 +338,14 @@ def _robot_with_wheels(duration: float, time_constant: float) -> MujocoWheeledRo
         duration=max(duration, DURATION),
         contact_time_constant=time_constant,
     )
+
+
+def _with_contact(reference: str, contact: bool | None, mujoco_installed: bool) -> bool:
+    """Whether the study on ``reference`` runs on the robot with real wheels: ``contact``, by
+    default when MuJoCo is installed and the path is the consistent one."""
+    if contact is None:
+        return reference == "consistent" and mujoco_installed
+    return contact
 
 
 def _mujoco_installed() -> bool:
@@ -379,8 +387,7 @@ def run_study(
     robot with real wheels if ``contact``: by default when MuJoCo is installed and the path is
     the consistent one), and compute every number of the report."""
     mujoco_installed = _mujoco_installed()
-    if contact is None:
-        contact = reference == "consistent" and mujoco_installed
+    contact = _with_contact(reference, contact, mujoco_installed)
     record = tuning.load_tuning_record(gains_path)
     gains = tuning.load_gains(record)
     controllers = _controllers(gains, reference)

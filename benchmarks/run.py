@@ -35,9 +35,11 @@ compiles or loads numba's disk cache):
     A 60 s run of the three-link arm of ``examples/mujoco_arm`` stepped by MuJoCo
     (``MujocoPlant(stepping="mujoco")``, AROLC on the 20 % light model, S1, ``dt`` = 1 ms,
     ``T_c`` = 10 ms), against MuJoCo stepping the same model alone for the same number of
-    steps from a compiled loop (:mod:`mujoco_floor`), and 100 such runs in one batch on all
-    cores (a copy of MuJoCo's data per thread), against the floor's time for as many steps
-    and against the same batch on one thread.
+    steps from a compiled loop (the floor, :mod:`mujoco_floor`) and against the same closed
+    loop written by hand as one numba function (the ceiling, same module: the same run bit for
+    bit, its model evaluations included), the three timed alternately; and 100 such runs in one
+    batch on all cores (a copy of MuJoCo's data per thread), against the floor's time for as
+    many steps and against the same batch on one thread.
 ``sweep``
     ``examples/sweep_robot.toml`` (AROLC, PCON and the outer loop over 1000 random
     delay profiles and payload placements, 3000 runs of 60 s) through :func:`run_sweep` with the
@@ -228,8 +230,9 @@ def ceiling_case(duration: float, batch: int, repeats: int) -> list[dict]:
 
 
 def mujoco_case(duration: float, batch: int, repeats: int) -> list[dict]:
-    """The MuJoCo-stepped arm against MuJoCo stepping it alone (module docstring)."""
-    from mujoco_floor import bare_steps
+    """The MuJoCo-stepped arm against MuJoCo stepping it alone and against the same closed loop
+    written by hand (module docstring)."""
+    from mujoco_floor import bare_steps, hand_run
 
     import delaytrack as dt
     from delaytrack.plants import MujocoPlant
@@ -249,34 +252,62 @@ def mujoco_case(duration: float, batch: int, repeats: int) -> list[dict]:
         [0.0, 0.3, 0.0], amplitude=[[0.5], [0.3], [0.2]], frequency=[[1.0], [1.3], [0.7]]
     )
     x0 = np.array([0.0, 0.3, 0.0, 0.5, 0.39, 0.14])
-    common = dict(reference=reference, t1=duration, dt=DT, T_c=T_C, trajectories=False)
+    delay = dt.AbsSineDelay.S1()
+    common = dict(reference=reference, t1=duration, dt=DT, T_c=T_C)
     count = steps(duration)
-    floor = median_seconds(lambda: bare_steps(path, count, x0[:3], x0[3:]), repeats)
-    single = median_seconds(
-        lambda: dt.simulate(truth, controller, dt.AbsSineDelay.S1(), x0, **common), repeats
+    single, hand, floor = alternating_medians(
+        repeats,
+        lambda: dt.simulate(truth, controller, delay, x0, **common, trajectories=False),
+        lambda: hand_run(truth, controller, delay, reference, x0, duration, DT, T_C),
+        lambda: bare_steps(path, count, x0[:3], x0[3:]),
     )
+    engine_run = dt.simulate(truth, controller, delay, x0, **common)
+    hand_state, hand_sums = hand_run(truth, controller, delay, reference, x0, duration, DT, T_C)
     delays = [dt.AbsSineDelay(0.02, 0.08, 1.0 + 0.01 * b) for b in range(batch)]
     many = median_seconds(
-        lambda: dt.simulate(truth, controller, delays, x0, **common), max(1, repeats // 3)
+        lambda: dt.simulate(truth, controller, delays, x0, **common, trajectories=False),
+        max(1, repeats // 3),
     )
     alone = median_seconds(
-        lambda: dt.simulate(truth, controller, delays, x0, workers=1, **common), 1
+        lambda: dt.simulate(truth, controller, delays, x0, **common, trajectories=False, workers=1),
+        1,
     )
-    baseline = "MuJoCo's mj_step alone, compiled loop (benchmarks/mujoco_floor.py)"
+    floor_name = "MuJoCo's mj_step alone, compiled loop (benchmarks/mujoco_floor.py)"
+    hand_name = "the same closed loop written by hand (benchmarks/mujoco_floor.py)"
     return [
         {
             "case": f"MuJoCo arm stepped by MuJoCo, one {duration:g} s run",
             "median_s": single,
             "steps_per_s": count / single,
-            "baseline": baseline,
+            "baseline": floor_name,
             "baseline_s": floor,
             "ratio_to_baseline": floor / single,
+            "ceiling": hand_name,
+            "ceiling_s": hand,
+            "ratio_to_ceiling": hand / single,
+            "largest_state_difference_to_ceiling": float(
+                np.max(np.abs(engine_run.x[0, -1] - hand_state))
+            ),
+            "largest_metric_difference_to_ceiling": float(
+                max(
+                    np.max(np.abs(engine_run.metrics["ae"][0] - hand_sums[: truth.n])),
+                    abs(engine_run.metrics["tv"][0] - hand_sums[truth.n]),
+                )
+            ),
+        },
+        {
+            "case": "ceiling: the same closed loop written by hand",
+            "median_s": hand,
+            "steps_per_s": count / hand,
+            "baseline": floor_name,
+            "baseline_s": floor,
+            "ratio_to_baseline": floor / hand,
         },
         {
             "case": f"floor: mj_step alone, {count} steps",
             "median_s": floor,
             "steps_per_s": count / floor,
-            "baseline": baseline,
+            "baseline": floor_name,
             "baseline_s": floor,
             "ratio_to_baseline": 1.0,
         },
@@ -284,7 +315,7 @@ def mujoco_case(duration: float, batch: int, repeats: int) -> list[dict]:
             "case": f"MuJoCo arm, B={batch} runs of {duration:g} s, all cores",
             "median_s": many,
             "steps_per_s": count * batch / many,
-            "baseline": baseline,
+            "baseline": floor_name,
             "baseline_s": floor * batch,
             "ratio_to_baseline": floor * batch / many,
             "one_thread_s": alone,
@@ -667,6 +698,13 @@ def main() -> None:
         "engine vs hand-written loop: AE differs by "
         f"{ceiling['ae_relative_difference_to_hand_loop']:.1%} at most (the loop does not split "
         "steps where the delayed input switches)"
+    )
+    mujoco = next(c for c in cases if "ratio_to_ceiling" in c)
+    print(
+        f"MuJoCo arm vs the same closed loop by hand: {mujoco['ratio_to_ceiling']:.3f} of its "
+        f"speed ({mujoco['ratio_to_baseline']:.3f} of mj_step alone, which evaluates no model); "
+        f"states differ by {mujoco['largest_state_difference_to_ceiling']:.1e}, metrics by "
+        f"{mujoco['largest_metric_difference_to_ceiling']:.1e}"
     )
     startup = next(c for c in cases if c["case"].startswith("start-up"))
     print(

@@ -92,6 +92,27 @@ def fast_random_delay() -> RandomDelay:
     )
 
 
+# First in the suite (tests/conftest.py): this compiles the engine with the linear plant's
+# integrator and the outer loop's step, which tests/test_cli_empirical.py, started by the other
+# worker a little later, then loads from numba's cache instead of compiling them at the same time.
+def test_input_before_the_first_command_arrives_is_u_init() -> None:
+    plant, controller, reference = point_mass_loop()
+    result = simulate(
+        plant,
+        controller,
+        ConstantDelay(0.0505),
+        [1.0, 0.0],
+        reference=reference,
+        t1=0.2,
+        dt=1e-3,
+        T_c=T_C,
+        u_init=[0.75],
+    )
+    early = result.t < 0.0505
+    np.testing.assert_array_equal(result.applied[0, early, 0], 0.75)
+    assert result.applied[0, ~early, 0][0] == result.commands[0, 0, 0]
+
+
 # --- the lookup itself -------------------------------------------------------------------------
 
 
@@ -185,24 +206,6 @@ def test_a_crossing_within_the_sliver_tolerance_of_a_step_end_is_not_split_off(
     )
     np.testing.assert_array_equal(moved.applied, on_boundary.applied)
     np.testing.assert_allclose(moved.x, on_boundary.x, rtol=0, atol=1e-12)
-
-
-def test_input_before_the_first_command_arrives_is_u_init() -> None:
-    plant, controller, reference = point_mass_loop()
-    result = simulate(
-        plant,
-        controller,
-        ConstantDelay(0.0505),
-        [1.0, 0.0],
-        reference=reference,
-        t1=0.2,
-        dt=1e-3,
-        T_c=T_C,
-        u_init=[0.75],
-    )
-    early = result.t < 0.0505
-    np.testing.assert_array_equal(result.applied[0, early, 0], 0.75)
-    assert result.applied[0, ~early, 0][0] == result.commands[0, 0, 0]
 
 
 # --- exact solution and order ------------------------------------------------------------------

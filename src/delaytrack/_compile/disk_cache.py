@@ -18,25 +18,17 @@ compiled kernel of the package writes its entries under a file lock (:func:`lock
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import os
-from collections.abc import Iterator
 from pathlib import Path
-from types import ModuleType
 
 import numba
 from numba.core.caching import IndexDataCacheFile
 
-fcntl: ModuleType | None
-try:
-    import fcntl
-except ImportError:  # Windows: numba's own writes, unlocked
-    fcntl = None
+from delaytrack._file_lock import LOCKS, exclusive
 
 __all__ = [
     "cache_directory",
-    "exclusive",
     "kernel_files",
     "locked_cache",
     "locks_cache",
@@ -89,22 +81,9 @@ def cache_directory() -> Path:
 
 
 def locks_cache() -> bool:
-    """Whether entries are saved under a file lock (not on Windows, which has no ``fcntl``)."""
-    return fcntl is not None
-
-
-@contextlib.contextmanager
-def exclusive(path: str) -> Iterator[None]:
-    """Hold an exclusive lock on the file ``path`` (created if missing) while inside."""
-    if fcntl is None:
-        yield
-        return
-    with open(path, "a") as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
+    """Whether entries are saved under a file lock (not on Windows, which has no ``fcntl``:
+    numba's own writes, unlocked)."""
+    return LOCKS
 
 
 class _LockedIndexDataCacheFile(IndexDataCacheFile):

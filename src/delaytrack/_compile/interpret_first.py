@@ -48,12 +48,12 @@ from pathlib import Path
 import numba
 
 from delaytrack._compile.ahead import parts_ahead
-from delaytrack._compile.disk_cache import exclusive
 from delaytrack._compile.fingerprint import compiled_functions_reached
 from delaytrack._compile.functions import users_compiled
 from delaytrack._compile.guards import holds_managed_memory
 from delaytrack._compile.native_parts import NativePart
 from delaytrack._compile.stage import compile_cost, refuse_changed_kernels
+from delaytrack._file_lock import exclusive
 from delaytrack._io import atomic_path
 from delaytrack.sim._build import Build
 from delaytrack.sim._machine import available_cores

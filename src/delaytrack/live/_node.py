@@ -24,13 +24,12 @@ import tempfile
 import threading
 import time
 from collections import deque
-from collections.abc import Iterator
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import numpy as np
 
+from delaytrack._file_lock import exclusive
 from delaytrack._io import write_text
 from delaytrack._output import check_output_folder, claim_output_folder, record_outputs
 from delaytrack.live.status import (
@@ -42,12 +41,6 @@ from delaytrack.live.status import (
 )
 from delaytrack.live.transport import Handshake, HandshakeError, open_session, scenario_hashes
 from delaytrack.sim.simulate import MAX_STEPS, physical_memory
-
-fcntl: ModuleType | None
-try:
-    import fcntl
-except ImportError:  # Windows: the nodes sharing a folder claim it unlocked
-    fcntl = None
 
 __all__ = [
     "NodeBase",
@@ -179,22 +172,14 @@ def session_duration(scenario: Any, duration: float | None) -> float:
     return length
 
 
-@contextlib.contextmanager
-def _folder_turn(out: str) -> Iterator[None]:
-    """Hold an exclusive lock (POSIX ``flock``) named after the folder ``out`` resolved, in the
-    temporary-files folder: nothing is written into ``out`` itself, which may not exist yet.
-    Without ``fcntl`` (Windows), no lock."""
-    if fcntl is None:
-        yield
-        return
+def _folder_turn(out: str) -> contextlib.AbstractContextManager[None]:
+    """An exclusive lock between processes named after the folder ``out`` resolved, held on a
+    file in the temporary-files folder and deleted when given back: nothing is written into
+    ``out`` itself, which may not exist yet. Without ``fcntl`` (Windows), no lock."""
     resolved = os.path.realpath(os.path.expanduser(out))
     key = hashlib.sha256(os.fsencode(resolved)).hexdigest()[:16]
-    with open(Path(tempfile.gettempdir()) / f"delaytrack-folder-{key}.lock", "a") as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
+    lock = Path(tempfile.gettempdir()) / f"delaytrack-folder-{key}.lock"
+    return exclusive(str(lock), remove=True)
 
 
 def claim_node_folder(out: str) -> Path:

@@ -192,15 +192,31 @@ def _reference_returning_an_argument(t, params, qd, qd_dot, qd_ddot):
     return qd
 
 
+def _reference_returning_an_argument_of_any_layout(t, params, qd, qd_dot, qd_ddot):
+    qd[0] = t
+    return qd
+
+
+#: Its signature, given in advance for arrays of any layout: numba converts the engine's
+#: contiguous arrays to it, so no overload is compiled for them.
+_ANY_LAYOUT = "float64[:](float64, float64[:], float64[:], float64[:], float64[:])"
+
+
 @pytest.mark.parametrize(
-    "function", [_reference_returning_an_array, _reference_returning_an_argument]
+    "compiled",
+    [
+        lambda: numba.njit(_reference_returning_an_array),
+        lambda: numba.njit(_reference_returning_an_argument),
+        lambda: numba.njit(_ANY_LAYOUT)(_reference_returning_an_argument_of_any_layout),
+    ],
+    ids=["new array", "argument", "signature given in advance"],
 )
-def test_a_kernel_that_returns_an_array_is_refused_naming_it(function):
+def test_a_kernel_that_returns_an_array_is_refused_naming_it(compiled):
     from numba.core.errors import TypingError
 
     zeros = [np.zeros(1) for _ in range(4)]
     with pytest.raises(TypingError, match=r"the reference kernel \S+ returns array\(float64"):
-        evaluate_reference(Kernel.of(numba.njit(function)), 0.5, *zeros)
+        evaluate_reference(Kernel.of(compiled()), 0.5, *zeros)
 
 
 def test_only_the_kernel_is_given_numbas_defaults():

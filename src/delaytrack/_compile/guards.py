@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+from numba import types
 from numba.core.datamodel import default_manager
 from numba.core.errors import TypingError
 
@@ -92,11 +93,14 @@ def refuse_managed_result(function: Any, argument_types: tuple, role: str, retur
     would never free it (a leak at every call). ``returns`` is what the kernel may return."""
     if not users_compiled(function):
         return
-    _, _, arguments, _ = function.get_call_template(tuple(argument_types), {})
-    compiled = function.overloads.get(tuple(arguments))
-    if compiled is None:  # numba converts the arguments to a signature given in advance
+    # The signature numba calls, compiled for these arguments or, for a kernel compiled for
+    # signatures given in advance, the one it converts them to.
+    called = function.typingctx.resolve_function_type(
+        types.Dispatcher(function), tuple(argument_types), {}
+    )
+    if called is None:  # no signature takes them: numba's own error follows
         return
-    result = compiled.signature.return_type
+    result = called.return_type
     if holds_managed_memory(result):
         into = " (write its results into the arrays it is given)" if returns == "nothing" else ""
         raise TypingError(

@@ -13,9 +13,9 @@ input map through MuJoCo), at every step the S1 delay ``h(t) = 20 + 80 |sin t|``
 at the step's start, the command of the latest tick ``<= t - h(t)`` held over the step and one
 ``mj_step`` (:func:`~delaytrack.plants.mujoco.plant.mujoco_step`), and the running sums of
 ``|e1|`` and TV at every tick, the run's last included, as the engine keeps them. It does the
-work a closed loop under AROLC cannot skip, and gives the engine's run bit for bit (``make
-bench`` prints the differences): the ceiling for the engine on this case, as the floor is for
-MuJoCo alone.
+work a closed loop under AROLC cannot skip, and gives the engine's run bit for bit (its final
+state, AE and TV: ``make bench`` prints their differences): the ceiling for the engine on this
+case, as the floor is for MuJoCo alone.
 """
 
 from __future__ import annotations

@@ -37,9 +37,10 @@ compiles or loads numba's disk cache):
     ``T_c`` = 10 ms), against MuJoCo stepping the same model alone for the same number of
     steps from a compiled loop (the floor, :mod:`mujoco_floor`) and against the same closed
     loop written by hand as one numba function (the ceiling, same module: the same run bit for
-    bit, its model evaluations included), the three timed alternately; and 100 such runs in one
-    batch on all cores (a copy of MuJoCo's data per thread), against the floor's time for as
-    many steps and against the same batch on one thread.
+    bit, its final state, AE and TV compared, its model evaluations included), the three timed
+    alternately; and 100 such runs in one batch on all cores (a copy of MuJoCo's data per
+    thread), against the floor's time for as many steps and against the same batch on one
+    thread.
 ``sweep``
     ``examples/sweep_robot.toml`` (AROLC, PCON and the outer loop over 1000 random
     delay profiles and payload placements, 3000 runs of 60 s) through :func:`run_sweep` with the

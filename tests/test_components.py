@@ -355,8 +355,9 @@ def test_a_user_compiled_plant_is_compiled_once_then_loaded_from_disk(tmp_path, 
     assert second["misses"] == 0 and second["hits"] == 1 and second["engine_misses"] == 0
     assert second["ae"] == first["ae"] and np.isfinite(first["ae"])
     # Compiled in one process, from a cache that holds everything but the integrator (the
-    # engine, which the first process compiled itself, and the other parts): the integrator the
-    # helper compiled, compiled here instead, gives the same result, bit for bit.
+    # engine, which the first process compiled itself, and the other parts, wherever they were
+    # compiled): the integrator the helper compiled, compiled here instead, gives the same
+    # result, bit for bit. (The other parts the helper compiled are not compiled again here.)
     without_integrator = tmp_path / "without_integrator"
     shutil.copytree(tmp_path / "cache", without_integrator)
     integrator = [

@@ -93,8 +93,8 @@ def fast_random_delay() -> RandomDelay:
 
 
 # First in the suite (tests/conftest.py): this compiles the engine with the linear plant's
-# integrator and the outer loop's step, which tests/test_cli_empirical.py, started by the other
-# worker a little later, then loads from numba's cache instead of compiling them at the same time.
+# integrator and the outer loop's step, which tests/test_cli_empirical.py, usually started by the
+# other worker after they are done, then loads from numba's cache instead of compiling them too.
 def test_input_before_the_first_command_arrives_is_u_init() -> None:
     plant, controller, reference = point_mass_loop()
     result = simulate(

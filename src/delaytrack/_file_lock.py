@@ -31,7 +31,8 @@ def exclusive(path: str, *, remove: bool = False) -> Iterator[None]:
     a shared folder (the temporary files') leave nothing behind. A process that was waiting on
     the deleted file then finds that ``path`` is no longer the file it locked, and locks the
     file of that name anew (created by it, or by a process that came later and holds it), so
-    that one process at a time is inside.
+    that one process at a time is inside. Every user of a ``path`` must pass the same
+    ``remove``: one that does not remove does not check, and could wake on a deleted file.
     """
     if fcntl is None:
         yield

@@ -4,6 +4,10 @@ except the modules of ``conftest.COMPILED``, whose subject is compiling."""
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
 import time
 import uuid
 from types import SimpleNamespace
@@ -106,6 +110,61 @@ def test_a_short_first_run_is_interpreted_says_so_and_gives_the_python_engines_n
     assert again.settings["compiled"] is False and capsys.readouterr().err == ""
     (record,) = tmp_path.glob("[0-9a-f]" * 24)  # the time spent, for the next process
     assert float(record.read_text()) > 0.0
+
+
+#: A first run of a new pendulum in a new process; prints the modules of the functions numba
+#: compiled (the plant's start-up check compiles the user's kernel) and which engine ran.
+_FIRST_RUN = """
+import json, sys
+from numba.core import event
+compiled = []
+
+class Compiles(event.Listener):
+    def on_start(self, e):
+        pass
+
+    def on_end(self, e):
+        compiled.append(e.data["dispatcher"].py_func.__module__)
+
+event.register("numba:compile", Compiles())
+import numpy as np
+import delaytrack as dt
+from delaytrack._spec import module_from_file
+from pathlib import Path
+terms = module_from_file(Path(sys.argv[1])).pendulum_terms
+truth = dt.CompiledPlant(1, 1, terms, [1.2, 0.5, 0.4, 0.0, 0.0])
+model = dt.CompiledPlant(1, 1, terms, [0.9, 0.5, 0.0, 0.0, 0.0])
+controller = dt.AROLC(model, K1=1.0, K2=1.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
+result = dt.simulate(
+    truth, controller, dt.AbsSineDelay(0.01, 0.005, 1.0), np.zeros(2),
+    reference=dt.SinusoidalReference(offset=[0.3], amplitude=[0.5], frequency=[1.0]),
+    t1=0.2, dt=1e-3, T_c=2e-3, progress=False, measurement_noise=dt.MeasurementNoise(
+        position=1e-4, seed=1), packet_loss=dt.PacketLoss(0.1, seed=2),
+)
+print(json.dumps({"compiled": compiled, "engine_compiled": result.settings["compiled"]}))
+"""
+
+
+def test_a_first_run_interpreted_from_an_empty_cache_compiles_nothing_of_the_package(tmp_path):
+    """Interpreted, every function of this package runs as plain Python: from an empty cache
+    numba compiled a dozen small ones the engine called (about 2 s of a first result)."""
+    _new_terms(tmp_path)
+    (module,) = tmp_path.glob("pendulum_*.py")
+    environment = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    environment.pop(interpret_first.INTERPRETING, None)
+    environment["DELAYTRACK_COMPILE_HELPER"] = "0"
+    done = subprocess.run(
+        [sys.executable, "-c", _FIRST_RUN, str(module)],
+        env=environment,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=True,
+    )
+    printed = json.loads(done.stdout.strip().splitlines()[-1])
+    assert printed["engine_compiled"] is False
+    assert [name for name in printed["compiled"] if name.startswith("delaytrack")] == []
+    assert printed["compiled"]  # the user's kernel, checked at rest: the spy sees compiles
 
 
 def _cheap_compile(monkeypatch, seconds: float, pace: float | None = None) -> None:

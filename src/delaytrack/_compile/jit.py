@@ -8,7 +8,8 @@
   run alone, whereas an exception would end the whole batch; it also drops a branch per division
   from the inner loop (about a third of the wheeled robot's right-hand side).
 
-:data:`kernel` compiles a function on its own (callable from Python, compiled);
+:data:`kernel` compiles a function on its own (callable from Python, compiled, or as plain
+Python within :func:`as_python`: a run interpreted first compiles nothing);
 :data:`inline_kernel` registers a plain Python function that compiles into the kernels that call
 it and stays plain Python otherwise (the path of user plants given as Python callables).
 
@@ -59,7 +60,10 @@ plain Python, as an :data:`inline_kernel` does.
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import threading
+from collections.abc import Iterator
 
 import numba
 from numba import njit
@@ -70,6 +74,7 @@ from delaytrack._compile.disk_cache import locked_cache
 
 __all__ = [
     "KERNEL_OPTIONS",
+    "as_python",
     "borrowing_kernel",
     "compiled",
     "hot_inline_kernel",
@@ -106,7 +111,39 @@ def compiled(function=None, **options):
     # yours compiled with fastmath would change the package's numbers), and keeps them on disk
     options.setdefault("_nrt", True)
     options.setdefault("fastmath", False)
-    return locked_cache(njit(**KERNEL_OPTIONS, **options)(function))
+    dispatcher = locked_cache(njit(**KERNEL_OPTIONS, **options)(function))
+    dispatcher.__class__ = _PackageKernel
+    return dispatcher
+
+
+#: Whether, on this thread, this package's compiled functions called from Python run as plain
+#: Python (:func:`as_python`).
+_MODE = threading.local()
+
+
+@contextlib.contextmanager
+def as_python() -> Iterator[None]:
+    """Within it, on this thread, every compiled function of this package called from Python
+    runs its plain Python function, and so do the functions it calls: a run interpreted first
+    (:mod:`delaytrack._compile.interpret_first`) then compiles nothing (numba compiled about a
+    dozen small functions the plain-Python engine calls, about 2 s from an empty cache). A
+    function of the user's is left as it is."""
+    before = getattr(_MODE, "python", False)
+    _MODE.python = True
+    try:
+        yield
+    finally:
+        _MODE.python = before
+
+
+class _PackageKernel(CPUDispatcher):
+    """A compiled function of this package: compiled when called from Python, but as plain
+    Python within :func:`as_python`."""
+
+    def __call__(self, *args, **kwargs):
+        if getattr(_MODE, "python", False):
+            return self.py_func(*args, **kwargs)
+        return super().__call__(*args, **kwargs)
 
 
 kernel = compiled()
@@ -116,7 +153,7 @@ borrowing_kernel = register_jitable(error_model=KERNEL_OPTIONS["error_model"], _
 tick_kernel = compiled(_nrt=False)
 
 
-class _PythonOrCompiled(CPUDispatcher):
+class _PythonOrCompiled(_PackageKernel):
     """A compiled function that runs as plain Python when handed a plain-Python kernel.
 
     Called from Python with an argument that says ``runs_as_python`` (a
@@ -131,7 +168,7 @@ class _PythonOrCompiled(CPUDispatcher):
         return super().__call__(*args, **kwargs)
 
 
-class _PythonFromPython(CPUDispatcher):
+class _PythonFromPython(_PackageKernel):
     """A compiled function that runs as plain Python when called from Python (its compiled code
     is for its compiled callers)."""
 

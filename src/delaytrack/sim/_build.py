@@ -8,6 +8,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from delaytrack._compile.jit import as_python
 from delaytrack.sim._plan import Plan
 from delaytrack.sim.engine import Kernels, run_batch, run_batch_compiled
 from delaytrack.sim.fallback import PythonFallbackWarning, python_kernel, stepped_until
@@ -40,8 +41,12 @@ class Build:
 
     @property
     def runner(self) -> Any:
-        """The engine: :func:`~delaytrack.sim.engine.run_batch`, compiled or as Python."""
-        return run_batch_compiled if self.compiled else run_batch
+        """The engine: :func:`~delaytrack.sim.engine.run_batch`, compiled or as Python; run
+        first as Python (a deadline), with every function of this package as plain Python
+        (:func:`~delaytrack._compile.jit.as_python`), so that it compiles nothing."""
+        if self.compiled:
+            return run_batch_compiled
+        return run_batch if self.deadline == math.inf else _run_batch_as_python
 
     def kernels(self, b: int) -> Kernels:
         """Element ``b``'s kernels (:class:`~delaytrack.components.Kernel`)."""
@@ -66,6 +71,13 @@ class Build:
                 )
             return kernels
         return Kernels(*natives)
+
+
+def _run_batch_as_python(*arguments: Any) -> None:
+    """:func:`~delaytrack.sim.engine.run_batch` with this package's functions as plain
+    Python."""
+    with as_python():
+        run_batch(*arguments)
 
 
 def build(plan: Plan, engine: str) -> Build:

@@ -649,6 +649,20 @@ def _measured(x, k, noise, n):
     return q, qdot
 
 
+def test_a_quantization_step_far_below_the_position_rounds_it_compiled_as_in_python() -> None:
+    # q / Δ = 9.5e18 is beyond an int64: the rounding is a float's, compiled and in Python.
+    from delaytrack.sim.measurement import measure
+
+    noise = np.array([1e-16, 0.0, 0.0, 0.0])
+    measured = {}
+    for name, function in (("compiled", measure), ("python", measure.py_func)):
+        q, qdot = np.empty(1), np.empty(1)
+        function(np.array([950.0]), np.array([0.0]), 0, noise, q, qdot)
+        measured[name] = q[0]
+    assert measured["compiled"] == measured["python"] == 1e-16 * np.floor(950.0 / 1e-16 + 0.5)
+    assert measured["compiled"] == pytest.approx(950.0)
+
+
 @pytest.mark.parametrize(
     "noise",
     [

@@ -294,7 +294,8 @@ class Kernel:
 
     def as_python(self) -> Kernel:
         """The same kernel run as plain Python (its ``py_func``; the helpers it calls and the
-        command map stay compiled), for the plain-Python engine."""
+        command map stay compiled, but those of this package within
+        :func:`~delaytrack._compile.jit.as_python`), for the plain-Python engine."""
         return Kernel(
             getattr(self.function, "py_func", self.function),
             self.command_map,

@@ -14,8 +14,9 @@ combination is what compiling it would cost (the parts' rough costs,
 the time spent interpreting it is below the budget, a run is interpreted with a deadline at the
 budget's end, checked before every plant step and controller tick: a run still going then is
 abandoned and compiled. So the time spent interpreting exceeds the budget by at most one plant
-step, and by what numba compiles for the plain-Python engine's first step (its small helpers,
-about 2 s once per machine), and a user who ends up compiling waits at most about twice as long
+step (the package's functions run as plain Python, compiling nothing:
+:func:`~delaytrack._compile.jit.as_python`), and a user who ends up compiling waits at most
+about twice as long
 as compiling at once, while one whose runs stay short never waits for a compile. A run whose
 estimate (its plant steps at the pace of the combination's last completed interpreted run, less
 numba's compiling, :data:`SECONDS_PER_STEP` before one) does not fit in what is left of the
@@ -71,9 +72,9 @@ __all__ = [
 INTERPRETING = "DELAYTRACK_INTERPRET_FIRST"
 
 #: Seconds of one plant step of one run in the plain-Python engine, before a run of the
-#: combination has been timed (measured: 0.04 ms for the paper's robot under AROLC, 0.11 ms for
-#: a pendulum of the user's with the controller every second step; a plant of 30 coordinates
-#: takes 3.5 ms, which the deadline catches).
+#: combination has been timed (measured, every function of the package as plain Python: 0.066 ms
+#: for the paper's robot under AROLC, 0.062 ms for a pendulum of the user's with the controller
+#: every second step; a plant of 30 coordinates takes 3.5 ms, which the deadline catches).
 SECONDS_PER_STEP = 1e-4
 
 _LOCK = threading.Lock()
@@ -171,8 +172,8 @@ class Interpreting:
 
     def done(self, seconds: float, compiling: float, steps_run: int | None) -> None:
         """Record that the run took ``seconds``, of which ``compiling`` numba's compiling (of
-        the plain-Python engine's helpers): it completed ``steps_run`` plant steps (its runs
-        stopped where they stopped), or None when it did not complete."""
+        the helpers of the user's that the user's kernels call): it completed ``steps_run``
+        plant steps (its runs stopped where they stopped), or None when it did not complete."""
         total = _add(self.combination, seconds)
         with _LOCK:
             spent = _spent(self.combination)

@@ -136,14 +136,21 @@ def as_python() -> Iterator[None]:
         _MODE.python = before
 
 
+#: numba's call of a compiled function from Python.
+_CALL_COMPILED = CPUDispatcher.__call__
+
+
 class _PackageKernel(CPUDispatcher):
     """A compiled function of this package: compiled when called from Python, but as plain
-    Python within :func:`as_python`."""
+    Python within :func:`as_python`. The check costs about 0.27 µs a call from Python (a small
+    kernel 0.41 µs against 0.14 µs; written with ``super()`` and an attribute lookup on the
+    flag, 0.65 µs): the plain-Python engine's run of the robot takes 3 % longer; compiled
+    simulations call from Python once a chunk."""
 
     def __call__(self, *args, **kwargs):
-        if getattr(_MODE, "python", False):
+        if _MODE.__dict__.get("python"):
             return self.py_func(*args, **kwargs)
-        return super().__call__(*args, **kwargs)
+        return _CALL_COMPILED(self, *args, **kwargs)
 
 
 kernel = compiled()
@@ -163,9 +170,11 @@ class _PythonOrCompiled(_PackageKernel):
     """
 
     def __call__(self, *args, **kwargs):
-        if any(getattr(argument, "runs_as_python", False) for argument in args):
+        if _MODE.__dict__.get("python") or any(
+            getattr(argument, "runs_as_python", False) for argument in args
+        ):
             return self.py_func(*args, **kwargs)
-        return super().__call__(*args, **kwargs)
+        return _CALL_COMPILED(self, *args, **kwargs)
 
 
 class _PythonFromPython(_PackageKernel):

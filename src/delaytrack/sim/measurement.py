@@ -15,7 +15,6 @@ the metrics and the "left the path" rule are those of the true state.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -56,7 +55,8 @@ def measure(q, qdot, k, noise, q_measured, qdot_measured):
         value = q[j]
         step = noise[j]
         if step > 0.0:
-            value = step * math.floor(value / step + 0.5)
+            # np.floor, a float: math.floor compiled is an integer, which overflows from 2⁶³
+            value = step * np.floor(value / step + 0.5)
         if noise[n + j] > 0.0:
             value += noise[n + j] * standard_noise(seed, 2 * n * k + j)
         q_measured[j] = value

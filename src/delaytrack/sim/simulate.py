@@ -216,7 +216,7 @@ def _interpreted(chunks: Chunks, interpreting: Interpreting, progress: bool) -> 
         chunks.build, compiled=False, deadline=started + interpreting.seconds
     )
     interpreted = cut(python, chunks.runs, chunks.settings, chunks.records, progress)
-    compiling: list[float] = []  # numba compiling the Python engine's helpers, once
+    compiling: list[float] = []  # numba compiling the user's kernels' own helpers, once
     try:
         with np.errstate(all="ignore"), event.install_timer("numba:compile", compiling.append):
             execute(interpreted, (), progress)  # as compiled: non-finite values, no warnings

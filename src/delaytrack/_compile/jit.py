@@ -125,9 +125,9 @@ _MODE = threading.local()
 def as_python() -> Iterator[None]:
     """Within it, on this thread, every compiled function of this package called from Python
     runs its plain Python function, and so do the functions it calls: a run interpreted first
-    (:mod:`delaytrack._compile.interpret_first`) then compiles nothing (numba compiled about a
-    dozen small functions the plain-Python engine calls, about 2 s from an empty cache). A
-    function of the user's is left as it is."""
+    (:mod:`delaytrack._compile.interpret_first`) then compiles nothing (else numba compiles
+    about a dozen small functions the plain-Python engine calls: about 2 s from an empty
+    cache). A function of the user's is left as it is."""
     before = getattr(_MODE, "python", False)
     _MODE.python = True
     try:

@@ -60,9 +60,10 @@ def bare_steps(path: str, steps: int, qpos: np.ndarray, qvel: np.ndarray) -> Non
 def _closed_loop(x0, plant_params, delay, sums, shared):
     """One run; ``delay = (offset, amplitude, ω, φ)`` of ``h = offset + amplitude |sin(ω t + φ)|``;
     ``sums`` (n + 1,) receives ``[Σ|e1_j| / K, TV]``. Returns the final state."""
-    model, model_params, controller_params, state0, reference_params, ticks, dt, per_tick = shared
+    model, model_params, controller_params, state0, reference_params, m, ticks, dt, per_tick = (
+        shared
+    )
     n = x0.shape[0] // 2
-    m = n
     T_c = per_tick * dt
     x = x0.copy()
     history = np.zeros((ticks + 1, m))
@@ -121,6 +122,7 @@ def hand_run(plant, controller, delay, reference, x0, duration, dt, T_c) -> tupl
         controller.params,
         controller.initial_state(),
         reference.params,
+        plant.m,
         round(duration / T_c),
         dt,
         per_tick,

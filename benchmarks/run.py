@@ -704,7 +704,7 @@ def main() -> None:
     print(
         f"MuJoCo arm vs the same closed loop by hand: {mujoco['ratio_to_ceiling']:.3f} of its "
         f"speed ({mujoco['ratio_to_baseline']:.3f} of mj_step alone, which evaluates no model); "
-        f"states differ by {mujoco['largest_state_difference_to_ceiling']:.1e}, metrics by "
+        f"final states differ by {mujoco['largest_state_difference_to_ceiling']:.1e}, AE and TV by "
         f"{mujoco['largest_metric_difference_to_ceiling']:.1e}"
     )
     startup = next(c for c in cases if c["case"].startswith("start-up"))

@@ -21,7 +21,7 @@ from delaytrack.delays import (
 )
 from delaytrack.plants import CallablePlant, CompiledPlant, LinearPlant, TwoLinkArm
 from delaytrack.references import SinusoidalReference
-from delaytrack.sim import MeasurementNoise, PacketLoss, simulate
+from delaytrack.sim import MeasurementNoise, PacketLoss, SimResult, simulate
 from delaytrack.sim.history import latest_tick_index, latest_tick_index_from
 from delaytrack.sim.integrator import TickArguments, beyond, integrate_reduced_tick, integrate_tick
 
@@ -38,6 +38,15 @@ def point_mass_loop() -> tuple[LinearPlant, OuterLoop, SinusoidalReference]:
     plant = LinearPlant(mass=1.0, damping=DAMPING)
     controller = OuterLoop(LinearPlant(mass=1.0), K1=K1, K2=K2)
     return plant, controller, SinusoidalReference([0.0])
+
+
+def point_mass_run(delay: DelayProfile, **settings) -> SimResult:
+    """The point-mass loop from ``q = 1`` at rest, ``dt`` = 1 ms, ``T_c`` = :data:`T_C`, under
+    ``delay``, with ``settings`` (``t1`` and other keywords of ``simulate``)."""
+    plant, controller, reference = point_mass_loop()
+    return simulate(
+        plant, controller, delay, [1.0, 0.0], reference=reference, dt=1e-3, T_c=T_C, **settings
+    )
 
 
 def arm_arolc() -> AROLC:
@@ -96,18 +105,7 @@ def fast_random_delay() -> RandomDelay:
 # integrator and the outer loop's step, which tests/test_cli_empirical.py, usually started by the
 # other worker after they are done, then loads from numba's cache instead of compiling them too.
 def test_input_before_the_first_command_arrives_is_u_init() -> None:
-    plant, controller, reference = point_mass_loop()
-    result = simulate(
-        plant,
-        controller,
-        ConstantDelay(0.0505),
-        [1.0, 0.0],
-        reference=reference,
-        t1=0.2,
-        dt=1e-3,
-        T_c=T_C,
-        u_init=[0.75],
-    )
+    result = point_mass_run(ConstantDelay(0.0505), t1=0.2, u_init=[0.75])
     early = result.t < 0.0505
     np.testing.assert_array_equal(result.applied[0, early, 0], 0.75)
     assert result.applied[0, ~early, 0][0] == result.commands[0, 0, 0]
@@ -450,17 +448,7 @@ class _UnderstatedBound(ConstantDelay):
 
 
 def test_a_delay_beyond_the_history_is_a_status_never_a_clamp() -> None:
-    plant, controller, reference = point_mass_loop()
-    result = simulate(
-        plant,
-        controller,
-        _UnderstatedBound(0.2),
-        [1.0, 0.0],
-        reference=reference,
-        t1=1.0,
-        dt=1e-3,
-        T_c=T_C,
-    )
+    result = point_mass_run(_UnderstatedBound(0.2), t1=1.0)
     assert result.status_names == ["delay beyond history"]
     assert result.t_stop[0] < 1.0
 
@@ -530,19 +518,8 @@ def test_bad_simulation_settings_are_refused_with_the_offending_value(
 def test_a_duration_far_from_t0_is_not_refused_for_rounding() -> None:
     # With t0 = 1e5 + 0.1 the difference t1 - t0 carries rounding of order ulp(1e5), far more
     # than 1e-9 of eight ticks (found in review); the check allows for it.
-    plant, controller, reference = point_mass_loop()
     t0 = 1e5 + 0.1
-    result = simulate(
-        plant,
-        controller,
-        ConstantDelay(0.01),
-        [1.0, 0.0],
-        reference=reference,
-        t0=t0,
-        t1=t0 + 8 * T_C,
-        dt=1e-3,
-        T_c=T_C,
-    )
+    result = point_mass_run(ConstantDelay(0.01), t0=t0, t1=t0 + 8 * T_C)
     assert result.t.size == 9 and result.status_names == ["ok"]
 
 

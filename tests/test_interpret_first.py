@@ -157,8 +157,8 @@ print(json.dumps({"compiled": compiled, "engine_compiled": result.settings["comp
 
 @pytest.mark.parametrize("law", ["AROLC", "PCON"])
 def test_a_first_run_interpreted_from_an_empty_cache_compiles_nothing_of_the_package(tmp_path, law):
-    """Interpreted, every function of this package runs as plain Python: from an empty cache
-    numba compiled a dozen small ones the engine called (about 2 s of a first result)."""
+    """Interpreted, every function of this package runs as plain Python, so numba compiles none
+    of them (called compiled, a dozen small ones took about 2 s of a first result)."""
     _new_terms(tmp_path)
     (module,) = tmp_path.glob("pendulum_*.py")
     environment = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}

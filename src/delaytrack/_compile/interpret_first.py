@@ -16,13 +16,12 @@ budget's end, checked before every plant step and controller tick: a run still g
 abandoned and compiled. So the time spent interpreting exceeds the budget by at most one plant
 step (the package's functions run as plain Python, compiling nothing:
 :func:`~delaytrack._compile.jit.as_python`), and a user who ends up compiling waits at most
-about twice as long
-as compiling at once, while one whose runs stay short never waits for a compile. A run whose
-estimate (its plant steps at the pace of the combination's last completed interpreted run, less
-numba's compiling, :data:`SECONDS_PER_STEP` before one) does not fit in what is left of the
-budget is compiled at once. The time spent is kept in numba's cache folder and adds up over
-processes (each run adds its own under a file lock), so that a script run again and again
-compiles once its runs together have cost as much.
+about twice as long as compiling at once, while one whose runs stay short never waits for a
+compile. A run whose estimate (its plant steps at the pace of the combination's last completed
+interpreted run, less numba's compiling, :data:`SECONDS_PER_STEP` before one) does not fit in
+what is left of the budget is compiled at once. The time spent is kept in numba's cache folder
+and adds up over processes (each run adds its own under a file lock), so that a script run
+again and again compiles once its runs together have cost as much.
 
 An interpreted run that raises (plain Python raises where compiled code gives ``inf`` or
 ``NaN``, such as ``math.exp`` overflowing) is run again compiled, whose outcome is the result.

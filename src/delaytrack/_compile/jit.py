@@ -128,7 +128,7 @@ def as_python() -> Iterator[None]:
     (:mod:`delaytrack._compile.interpret_first`) then compiles nothing (else numba compiles
     about a dozen small functions the plain-Python engine calls: about 2 s from an empty
     cache). A function of the user's is left as it is."""
-    before = getattr(_MODE, "python", False)
+    before = _MODE.__dict__.get("python", False)
     _MODE.python = True
     try:
         yield

@@ -15,6 +15,7 @@ modules left at the end keep both workers busy until the suite ends.
 from __future__ import annotations
 
 import functools
+import gc
 import os
 import subprocess
 import sys
@@ -48,6 +49,13 @@ COMPILED = (
     "test_mujoco_plant.py",
     "test_robot_closed_loop.py",
 )
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    """The end of a pytest process (a worker's or the controller's): its objects frozen, so that
+    Python's collections at exit skip them, as the toolkit's own processes end
+    (:mod:`delaytrack._process_exit`): about 0.8 s less at a worker's end."""
+    gc.freeze()
 
 
 @pytest.fixture(autouse=True, scope="module")

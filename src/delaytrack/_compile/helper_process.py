@@ -75,14 +75,16 @@ def bootstrap(module: str, *, streamed: bool = False) -> list[str]:
     path to the first pickle of its input (this process's, so that it imports the same package
     and the user's modules), then calls ``main`` with the rest: read whole first, or, when
     ``streamed``, as the input itself (``main`` then reads what is written later); its exit
-    status is what ``main`` returns."""
+    status is what ``main`` returns, and it ends as a whole process of the toolkit does
+    (:func:`~delaytrack._process_exit.exit_process`)."""
     source = "sys.stdin.buffer" if streamed else "io.BytesIO(sys.stdin.buffer.read())"
     code = (
         "import io, pickle, sys\n"
         f"payload = {source}\n"
         "sys.path[:] = pickle.load(payload)\n"
         f"from {module} import main\n"
-        "sys.exit(main(payload))\n"
+        "from delaytrack._process_exit import exit_process\n"
+        "exit_process(main(payload))\n"
     )
     return [sys.executable, "-P", "-c", code]
 

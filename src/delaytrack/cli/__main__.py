@@ -1,7 +1,5 @@
 """``python -m delaytrack.cli``: the ``delaytrack`` command."""
 
-import sys
+from delaytrack.cli import command
 
-from delaytrack.cli import main
-
-sys.exit(main())
+command()

@@ -6,13 +6,15 @@ from __future__ import annotations
 import os
 import sys
 from collections.abc import Sequence
+from typing import NoReturn
 
 from delaytrack._cli_options import EXIT_USAGE
 from delaytrack._output import OutputFolderError
+from delaytrack._process_exit import exit_process
 from delaytrack.cli._parser import build_parser
 from delaytrack.cli._usage import UsageError
 
-__all__ = ["EXIT_BROKEN_PIPE", "main"]
+__all__ = ["EXIT_BROKEN_PIPE", "command", "main"]
 
 #: A reader closed standard output (``| head``): 128 + SIGPIPE, as a shell reports a program
 #: that the pipe's signal ended.
@@ -54,3 +56,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stderr.flush()
         os._exit(code)
     return code
+
+
+def command() -> NoReturn:
+    """The ``delaytrack`` program (its console script and ``python -m delaytrack.cli``):
+    :func:`main` on the command line's arguments, then the exit of a whole process
+    (:func:`~delaytrack._process_exit.exit_process`)."""
+    exit_process(main())

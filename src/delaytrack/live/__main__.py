@@ -1,7 +1,6 @@
 """``python -m delaytrack.live run|replay|controller|delay|robot ...``."""
 
-import sys
-
+from delaytrack._process_exit import exit_process
 from delaytrack.live.cli import main
 
-sys.exit(main())
+exit_process(main())

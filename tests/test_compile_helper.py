@@ -165,7 +165,7 @@ def test_a_real_helper_compiles_its_share_and_says_so(monkeypatch):
 
     reference = reference_part(SinusoidalReference([0.0], [1.0], [1.0]).engine_kernel, 1)
     delay = delay_part(NO_KERNEL)
-    jobs = [  # equal costs of 10: the first stays here, the second goes to the helper
+    jobs = [  # equal costs of 10: worth a helper
         CompileJob(part.function, part.signature, part.compile_job().kernels, 10.0)
         for part in (reference, delay)
     ]
@@ -173,10 +173,16 @@ def test_a_real_helper_compiles_its_share_and_says_so(monkeypatch):
     helper, given = start(jobs)
     if helper is None:
         pytest.skip("one core, or no lock on numba's cache")
-    assert given == [1]
-    # its bootstrap ran, it imported the function and kernel by name and compiled (or, with a
-    # warm cache, loaded) the delay part; a failure on any of these exits with 1
-    assert helper.wait() is True
+    try:
+        assert given == [0, 1]  # it may take either
+        # this process takes neither: its bootstrap ran, it claimed both, imported the
+        # functions and kernels by name and compiled (or, with a warm cache, loaded) them; a
+        # failure on any of these exits with 1
+        assert helper.wait() is True
+        assert not helper.claim(0) and not helper.claim(1)  # the helper's claims
+    finally:
+        helper.stop()
+    assert not os.path.exists(helper.claims)  # stop removes the claims' folder
 
 
 def test_functions_are_named_as_another_process_imports_them():
@@ -216,18 +222,34 @@ def test_a_part_whose_kernel_cannot_be_imported_stays_here():
     assert helper_process._recipe(step.compile_job()) is not None
 
 
-def _payload(cache: str, recipes: list) -> io.BytesIO:
+def _payload(cache: str, claims: str, recipes: list) -> io.BytesIO:
     file = io.BytesIO()
-    pickle.dump((cache, recipes), file)
+    pickle.dump((cache, claims, list(enumerate(recipes))), file)
     file.seek(0)
     return file
 
 
-def test_the_helper_refuses_another_cache_folder_and_reports_a_failed_job():
-    assert helper_process.main(_payload("/elsewhere", [])) == 2
-    missing = (("delaytrack.sim.engine", "no_such_function", None), (), ())
-    assert helper_process.main(_payload(str(cache_directory()), [missing])) == 1
-    assert helper_process.main(_payload(str(cache_directory()), [])) == 0
+#: A job whose function does not exist: the helper fails on it.
+_MISSING = (("delaytrack.sim.engine", "no_such_function", None), (), ())
+
+
+def test_the_helper_refuses_another_cache_folder_and_reports_a_failed_job(tmp_path):
+    assert helper_process.main(_payload("/elsewhere", str(tmp_path), [])) == 2
+    assert helper_process.main(_payload(str(cache_directory()), str(tmp_path), [_MISSING])) == 1
+    assert helper_process.main(_payload(str(cache_directory()), str(tmp_path), [])) == 0
+
+
+def test_each_job_is_compiled_by_the_process_that_claims_it_first(tmp_path):
+    mine = Helper(None, 0.0, str(tmp_path))  # type: ignore[arg-type] - this process's claims
+    assert mine.claim(0)  # this process takes the first job before the helper reads it
+    payload = _payload(str(cache_directory()), str(tmp_path), [_MISSING, _MISSING])
+    # the helper skips the first and claims the second, which fails (exit status 1)
+    assert helper_process.main(payload) == 1
+    assert not mine.claim(1)  # the helper's claim
+    assert not mine.claim(0)  # a job is claimed once
+    payload = _payload(str(cache_directory()), str(tmp_path), [_MISSING, _MISSING])
+    assert helper_process.main(payload) == 0  # both claimed already: nothing to do, no failure
+    assert Helper(None, 0.0).claim(5)  # type: ignore[arg-type] - no helper's claims: always here
 
 
 def test_the_helper_refuses_a_kernel_whose_code_changed():

@@ -344,11 +344,12 @@ def test_a_user_compiled_plant_is_compiled_once_then_loaded_from_disk(tmp_path, 
 
     # The plant's integrator (the engine's code that runs the plant's kernel) is compiled by the
     # first process and loaded by the second. The first process shares its compiles with a
-    # helper process: the engine, the longest for this small plant, is compiled here, the
-    # plant's integrator by the helper (loaded here from the cache it wrote).
+    # helper process, longest first, each job to the process that claims it first: the engine,
+    # the longest for this small plant, is compiled here, the plant's integrator by whichever
+    # process is free first (mostly the helper, loaded here from the cache it wrote), once.
     first, second = run(), run()
     if helper:
-        assert first["misses"] == 0 and first["hits"] == 1
+        assert first["misses"] + first["hits"] == 1
     else:  # one core
         assert first["misses"] == 1 and first["hits"] == 0
     assert first["engine_misses"] == 1

@@ -340,9 +340,16 @@ def test_a_kernel_the_compile_helper_cannot_compile_is_reported_here(example, ca
     arm.write_text(arm.read_text().replace("c2 = math.cos(q[1])", unique))
     monkeypatch.setenv(compile_helper.ENVIRONMENT, "1")
     started = []
-    # The step goes to the helper whatever the costs say (they decide the share otherwise).
+    # A helper whatever the costs say, and the step is left to it: this process never claims
+    # it (otherwise whichever process is free first takes it).
     steps: list[int] = []
     monkeypatch.setattr(compile_helper, "share", lambda costs, movable: list(steps))
+    claim = compile_helper.Helper.claim
+    monkeypatch.setattr(
+        compile_helper.Helper,
+        "claim",
+        lambda self, position: position not in steps and claim(self, position),
+    )
 
     def spy(jobs):
         steps[:] = [i for i, job in enumerate(jobs) if job.function is evaluate_step]

@@ -3,10 +3,12 @@
 numba compiles one function at a time, in one thread, and a first run of a new combination needs
 several: the engine and the functions it calls through their address
 (:mod:`delaytrack._compile.native_parts`), each compiled on its own and kept in numba's disk
-cache. When there are two or more to compile and two cores or more, :func:`start` hands some
-of them to a helper process, chosen so that the two processes finish at about the same time
-(:func:`share`). Both write the disk cache; this process compiles its own share, waits for the
-helper (:meth:`Helper.wait`), and then loads the helper's share from the cache.
+cache. When there are two or more to compile and two cores or more, :func:`start` starts a
+helper process if sharing them would finish sooner (:func:`share`). Both take the jobs longest
+first, each the next one that neither has claimed yet (:meth:`Helper.claim`: a file created only
+if it is not there yet), so that the two finish at about the same time however far the jobs'
+estimated costs are from the truth. Both write the disk cache; this process compiles what it
+claimed, waits for the helper (:meth:`Helper.wait`), and then loads the rest from the cache.
 
 The helper imports each function and kernel by its module and name (a module loaded from a file
 named in a scenario, from that file), and checks that a kernel of the user's has the same
@@ -32,8 +34,10 @@ import contextlib
 import importlib
 import os
 import pickle
+import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -55,6 +59,7 @@ __all__ = [
     "count_as_own",
     "forget_own",
     "idle_cpus",
+    "longest_first",
     "main",
     "share",
     "spare_core",
@@ -313,11 +318,12 @@ def _recipe(job: CompileJob) -> tuple | None:
 
 
 def share(costs: Sequence[float], movable: Sequence[bool]) -> list[int]:
-    """Which jobs go to the helper: the positions of ``costs`` that it compiles.
+    """The positions of ``costs`` that a helper would compile, were the costs exact.
 
     Longest first, each job goes to the process that would finish it first (the helper starts
     :data:`START_UP` late); a job that is not ``movable`` stays here. Returns no position when
-    the helper would not finish before this process alone.
+    the helper would not finish before this process alone: then :func:`start` starts none
+    (with one, each job goes to whichever process claims it first).
     """
     order = sorted(range(len(costs)), key=lambda i: -costs[i])
     here, helper, given = 0.0, START_UP, []
@@ -332,8 +338,19 @@ def share(costs: Sequence[float], movable: Sequence[bool]) -> list[int]:
     return sorted(given)
 
 
+def _claim(folder: str, position: int) -> bool:
+    """Claim the job at ``position`` in ``folder`` (:meth:`Helper.claim`): whether this process
+    created its file (the other process then finds it there)."""
+    flags = os.O_CREAT | os.O_EXCL | os.O_WRONLY
+    try:
+        os.close(os.open(os.path.join(folder, str(position)), flags))
+    except FileExistsError:
+        return False
+    return True
+
+
 class Helper:
-    """A helper process compiling its share of the jobs (made by :func:`start`).
+    """A helper process compiling the jobs it claims first (made by :func:`start`).
 
     Parameters
     ----------
@@ -341,11 +358,28 @@ class Helper:
         The helper.
     patience : float
         Seconds :meth:`wait` waits for it.
+    claims : str or None
+        The folder of the jobs' claims (:meth:`claim`), which :meth:`stop` removes; None for
+        a helper that claims nothing.
     """
 
-    def __init__(self, process: subprocess.Popen, patience: float) -> None:
+    def __init__(
+        self, process: subprocess.Popen, patience: float, claims: str | None = None
+    ) -> None:
         self.process = process
         self.patience = patience
+        self.claims = claims
+
+    def claim(self, position: int) -> bool:
+        """Whether this process compiles the job at ``position``: True unless the helper
+        claimed it first. A job the helper was not given is never claimed by it; a claim that
+        cannot be written is this process's (the helper then cannot claim it either)."""
+        if self.claims is None:
+            return True
+        try:
+            return _claim(self.claims, position)
+        except OSError:
+            return True
 
     def wait(self) -> bool:
         """Wait for the helper to finish (at most :attr:`patience` seconds, then stop it);
@@ -357,29 +391,36 @@ class Helper:
             return False
 
     def stop(self) -> None:
-        """End the helper if it still runs (this process failed or was interrupted)."""
+        """End the helper if it still runs (this process failed or was interrupted), and
+        remove the claims' folder."""
         if self.process.poll() is None:
             self.process.kill()
             self.process.wait()
+        if self.claims is not None:
+            shutil.rmtree(self.claims, ignore_errors=True)
 
 
 def start(jobs: Sequence[CompileJob]) -> tuple[Helper | None, list[int]]:
-    """Start a helper for its share of ``jobs`` (:func:`share`).
+    """Start a helper for ``jobs`` when sharing them would finish sooner (:func:`share`).
 
-    Returns the helper and the positions of the jobs it compiles; ``(None, [])`` when there is
-    no helper: fewer than two jobs, no spare core (:func:`spare_core`), no job the helper can
+    The helper takes the jobs it can import longest first, each that neither process has
+    claimed yet (:meth:`Helper.claim`); this process takes its own in the same order. Returns
+    the helper and the positions of the jobs it may compile; ``(None, [])`` when there is no
+    helper: fewer than two jobs, no spare core (:func:`spare_core`), no job the helper can
     import, or a helper that could not be started.
     """
     if len(jobs) < 2:
         return None, []
     recipes = [_recipe(job) for job in jobs]
-    given = share([job.cost for job in jobs], [recipe is not None for recipe in recipes])
-    if not given or not spare_core():
+    movable = [recipe is not None for recipe in recipes]
+    if not share([job.cost for job in jobs], movable) or not spare_core():
         return None, []
-    process = None
+    given = [i for i in longest_first(jobs) if movable[i]]
+    process = claims = None
     try:
+        claims = tempfile.mkdtemp(prefix="delaytrack-compile-claims-")
         payload = pickle.dumps(list(sys.path)) + pickle.dumps(
-            (str(cache_directory()), [recipes[i] for i in given])
+            (str(cache_directory()), claims, [(i, recipes[i]) for i in given])
         )
         process = subprocess.Popen(
             bootstrap(__name__),
@@ -394,9 +435,17 @@ def start(jobs: Sequence[CompileJob]) -> tuple[Helper | None, list[int]]:
     except Exception:  # noqa: BLE001 - no helper: everything is compiled here
         if process is not None:
             Helper(process, 0.0).stop()
+        if claims is not None:
+            shutil.rmtree(claims, ignore_errors=True)
         return None, []
     patience = GRACE + PATIENCE * sum(jobs[i].cost for i in given)
-    return Helper(process, patience), given
+    return Helper(process, patience, claims), sorted(given)
+
+
+def longest_first(jobs: Sequence[CompileJob]) -> list[int]:
+    """The positions of ``jobs`` by decreasing cost: the order in which both processes take
+    them (:func:`start`)."""
+    return sorted(range(len(jobs)), key=lambda i: -jobs[i].cost)
 
 
 def _imported(name: tuple[str, str, str | None]) -> Any:
@@ -433,17 +482,20 @@ def _make_kernel(recipe: tuple) -> None:
 
 
 def main(file: IO[bytes]) -> int:
-    """The helper: compile the jobs pickled in ``file`` after the module search path.
+    """The helper: compile the jobs pickled in ``file`` after the module search path, in
+    their order, each that it claims before the other process (:meth:`Helper.claim`).
 
-    Returns 0 when every job compiled, 1 when one failed (the other process compiles it and
-    reports the error), 2 when this process's cache folder is not the other's.
+    Returns 0 when every job it claimed compiled, 1 when one failed (the other process compiles
+    it and reports the error), 2 when this process's cache folder is not the other's.
     """
-    cache, recipes = pickle.load(file)
+    cache, claims, recipes = pickle.load(file)
     if str(cache_directory()) != cache:
         return 2
     failed = 0
-    for function, signature, kernels in recipes:
+    for position, (function, signature, kernels) in recipes:
         try:
+            if not _claim(claims, position):
+                continue  # the other process compiles it
             for kernel in kernels:
                 _make_kernel(kernel)
             _imported(function).compile(signature)

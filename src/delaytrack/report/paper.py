@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
+from matplotlib.ticker import LogLocator
 
 from delaytrack._io import write_frame, write_text
 from delaytrack._output import claim_output_folder, record_outputs
@@ -188,7 +189,10 @@ def _error_figure(study: PaperStudy, cases: tuple[str, ...]) -> Figure:
                 )
             ax.set_ylabel(f"{case} |e_{coordinate}| (mm)")
             # Log scale: the predictors' few-mm errors and the outer loop's 100 mm both show.
+            # Minor ticks at 2 and 5 times each power of ten (a 1-2-5 grid): with all eight per
+            # decade, matplotlib took about 1.6 times as long to draw the figure.
             ax.set_yscale("log")
+            ax.yaxis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))
             ax.set_ylim(bottom=1e-2)
             ax.grid(True, alpha=0.3, which="both")
     axes[0].legend(

@@ -52,10 +52,12 @@ COMPILED = (
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
-    """The end of a pytest process (a worker's or the controller's): its objects frozen, so that
-    Python's collections at exit skip them, as the toolkit's own processes end
-    (:mod:`delaytrack._process_exit`): about 0.8 s less at a worker's end."""
-    gc.freeze()
+    """The end of a pytest-xdist worker, a process that ends with pytest: its objects frozen,
+    so that Python's collections at exit skip them, as the toolkit's own processes end
+    (:mod:`delaytrack._process_exit`): about 0.8 s less at a worker's end. Not in a process
+    that runs pytest in-process and goes on."""
+    if hasattr(config, "workerinput"):
+        gc.freeze()
 
 
 @pytest.fixture(autouse=True, scope="module")

@@ -12,7 +12,15 @@ import pytest
 from delaytrack._compile import helper_process
 from delaytrack._compile.ahead import ahead, parts_ahead
 from delaytrack._compile.disk_cache import cache_directory
-from delaytrack._compile.helper_process import START_UP, CompileJob, Helper, share, start
+from delaytrack._compile.helper_process import (
+    PATIENCE,
+    START_UP,
+    CompileJob,
+    Helper,
+    order_here,
+    share,
+    start,
+)
 from delaytrack._compile.native_parts import controller_step_part, plant_tick_part
 from delaytrack.components import Kernel
 from delaytrack.controllers.arolc import arolc_step
@@ -33,6 +41,35 @@ def test_the_work_is_shared_longest_first_so_both_finish_together():
     # what the helper cannot import stays here
     assert 1 not in share(costs, [True, False, True, True, True])
     assert share(costs, [False] * 5) == []
+
+
+def test_this_process_takes_first_what_only_it_can_compile_then_the_helpers_jobs():
+    jobs = [CompileJob(None, (), (), cost) for cost in (5.0, 7.0, 0.5, 1.5, 0.3, 1.5)]
+    # the helper may take 0, 1, 3 and 4 (longest first: 1, 0, 3, 4); 2 and 5 are this one's
+    assert order_here(jobs, [0, 1, 3, 4]) == [5, 2, 1, 0, 3, 4]
+    assert order_here(jobs, []) == [1, 0, 3, 5, 2, 4]  # no helper: longest first (ties in order)
+
+
+def test_the_helper_is_waited_for_as_long_as_the_jobs_it_may_have_claimed():
+    seen = []
+
+    class Process:  # a stand-in: nothing is started
+        def wait(self, timeout):
+            seen.append(timeout)
+            return 0
+
+    helper = Helper(Process(), 60.0, None, {0: 5.0, 3: 1.5})  # type: ignore[arg-type]
+    assert helper.claim(0)  # this process took the longest: the helper can only have the other
+    assert helper.wait() is True
+    assert seen == [60.0 + PATIENCE * 1.5]
+
+
+def test_a_helper_whose_parent_ended_claims_nothing_more(tmp_path, monkeypatch):
+    parents = iter([100, 1, 1])  # the parent at the start, then init: it was orphaned
+    monkeypatch.setattr(os, "getppid", lambda: next(parents))
+    payload = _payload(str(cache_directory()), str(tmp_path), [_MISSING])
+    assert helper_process.main(payload) == 1
+    assert list(tmp_path.iterdir()) == []  # no claim written
 
 
 def test_no_helper_when_it_would_not_finish_sooner():

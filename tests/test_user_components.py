@@ -365,7 +365,7 @@ def test_a_kernel_the_compile_helper_cannot_compile_is_reported_here(example, ca
     if not compile_helper.spare_core():
         pytest.skip("one core, or no lock on numba's cache: no helper")
     [(helper, given)] = started
-    assert helper is not None and given  # the step went to the helper
+    assert helper is not None and set(steps) <= set(given)  # the step went to the helper
     assert helper.process.returncode == 1  # it failed on the step and was waited for
     assert "(once in two processes;" in err  # the notice says so
 

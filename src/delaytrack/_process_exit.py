@@ -8,10 +8,13 @@ thousands of objects: ``delaytrack reproduce --no-contact --no-robustness`` spen
 its last exit handler and its end, 0.13 s with the objects frozen first (measured 2026-12-05).
 :func:`exit_process` moves every object alive to the garbage collector's permanent generation
 (:func:`gc.freeze`), which those last collections skip, and exits. Everything else of an exit
-happens as before: exit handlers and weak-reference finalizers run, objects are freed as their
-last reference goes, and the standard streams are flushed. Only objects kept alive by
-reference cycles are not finalized; their memory goes back to the system with the process (the
-toolkit closes every file it writes with the block that opened it).
+happens as before: exit handlers and weak-reference finalizers run (a temporary folder's
+cleanup among them), objects are freed as their last reference goes, and the standard streams
+are flushed. Objects that only a reference cycle keeps alive at the end are not finalized: their
+``__del__`` does not run, and a file among them that is still open is neither flushed nor
+closed. The toolkit closes every file it writes before it ends (in ``with`` blocks or
+``finally`` clauses); a module of yours that a command imports (a scenario's factory) runs in
+such a process too, so close the files it writes.
 
 Never for a function of the library: freezing would change the collector of the user's process.
 """

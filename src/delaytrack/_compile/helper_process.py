@@ -4,11 +4,14 @@ numba compiles one function at a time, in one thread, and a first run of a new c
 several: the engine and the functions it calls through their address
 (:mod:`delaytrack._compile.native_parts`), each compiled on its own and kept in numba's disk
 cache. When there are two or more to compile and two cores or more, :func:`start` starts a
-helper process if sharing them would finish sooner (:func:`share`). Both take the jobs longest
-first, each the next one that neither has claimed yet (:meth:`Helper.claim`: a file created only
-if it is not there yet), so that the two finish at about the same time however far the jobs'
-estimated costs are from the truth. Both write the disk cache; this process compiles what it
-claimed, waits for the helper (:meth:`Helper.wait`), and then loads the rest from the cache.
+helper process if sharing them would finish sooner (:func:`share`). The helper takes the jobs it
+can import longest first, each that neither process has claimed yet (:meth:`Helper.claim`: a
+file created only if it is not there yet); this process takes the others first, then the same
+jobs in the same order (:func:`order_here`). Among the jobs the helper can take, the two thus
+finish at about the same time however far the jobs' estimated costs are from the truth (a job it
+cannot import, such as a kernel defined in ``__main__``, is this process's alone). Both write
+the disk cache; this process compiles what it claimed, waits for the helper
+(:meth:`Helper.wait`), and then loads the rest from the cache.
 
 The helper imports each function and kernel by its module and name (a module loaded from a file
 named in a scenario, from that file), and checks that a kernel of the user's has the same
@@ -59,8 +62,8 @@ __all__ = [
     "count_as_own",
     "forget_own",
     "idle_cpus",
-    "longest_first",
     "main",
+    "order_here",
     "share",
     "spare_core",
     "start",
@@ -357,35 +360,47 @@ class Helper:
     process : subprocess.Popen
         The helper.
     patience : float
-        Seconds :meth:`wait` waits for it.
+        Seconds :meth:`wait` waits for it, plus :data:`PATIENCE` times the cost of each job
+        the helper may have claimed (those of ``costs`` this process did not claim).
     claims : str or None
         The folder of the jobs' claims (:meth:`claim`), which :meth:`stop` removes; None for
         a helper that claims nothing.
+    costs : dict of int to float, optional
+        The rough cost of each job the helper was given, by position.
     """
 
     def __init__(
-        self, process: subprocess.Popen, patience: float, claims: str | None = None
+        self,
+        process: subprocess.Popen,
+        patience: float,
+        claims: str | None = None,
+        costs: dict[int, float] | None = None,
     ) -> None:
         self.process = process
         self.patience = patience
         self.claims = claims
+        self.costs = dict(costs or {})
+        self._mine: set[int] = set()
 
     def claim(self, position: int) -> bool:
         """Whether this process compiles the job at ``position``: True unless the helper
         claimed it first. A job the helper was not given is never claimed by it; a claim that
         cannot be written is this process's (the helper then cannot claim it either)."""
-        if self.claims is None:
-            return True
-        try:
-            return _claim(self.claims, position)
-        except OSError:
-            return True
+        if self.claims is not None:
+            try:
+                if not _claim(self.claims, position):
+                    return False
+            except OSError:
+                pass
+        self._mine.add(position)
+        return True
 
     def wait(self) -> bool:
-        """Wait for the helper to finish (at most :attr:`patience` seconds, then stop it);
-        whether it compiled its whole share."""
+        """Wait for the helper to finish (at most its patience, then stop it); whether it
+        compiled every job it claimed."""
+        left = sum(cost for position, cost in self.costs.items() if position not in self._mine)
         try:
-            return self.process.wait(timeout=self.patience) == 0
+            return self.process.wait(timeout=self.patience + PATIENCE * left) == 0
         except subprocess.TimeoutExpired:
             self.stop()
             return False
@@ -404,10 +419,11 @@ def start(jobs: Sequence[CompileJob]) -> tuple[Helper | None, list[int]]:
     """Start a helper for ``jobs`` when sharing them would finish sooner (:func:`share`).
 
     The helper takes the jobs it can import longest first, each that neither process has
-    claimed yet (:meth:`Helper.claim`); this process takes its own in the same order. Returns
-    the helper and the positions of the jobs it may compile; ``(None, [])`` when there is no
-    helper: fewer than two jobs, no spare core (:func:`spare_core`), no job the helper can
-    import, or a helper that could not be started.
+    claimed yet (:meth:`Helper.claim`); this process takes them in the order of
+    :func:`order_here`. Returns the helper and the positions of the jobs it may compile;
+    ``(None, [])`` when there is no helper: fewer than two jobs, no spare core
+    (:func:`spare_core`), no job the helper can import, or a helper that could not be started
+    (Ctrl-C included: a process started must not outlive this function's failure).
     """
     if len(jobs) < 2:
         return None, []
@@ -415,7 +431,7 @@ def start(jobs: Sequence[CompileJob]) -> tuple[Helper | None, list[int]]:
     movable = [recipe is not None for recipe in recipes]
     if not share([job.cost for job in jobs], movable) or not spare_core():
         return None, []
-    given = [i for i in longest_first(jobs) if movable[i]]
+    given = _longest_first(jobs, [i for i in range(len(jobs)) if movable[i]])
     process = claims = None
     try:
         claims = tempfile.mkdtemp(prefix="delaytrack-compile-claims-")
@@ -432,20 +448,30 @@ def start(jobs: Sequence[CompileJob]) -> tuple[Helper | None, list[int]]:
         assert process.stdin is not None  # opened with stdin=PIPE
         process.stdin.write(payload)
         process.stdin.close()
-    except Exception:  # noqa: BLE001 - no helper: everything is compiled here
+    except BaseException as error:
         if process is not None:
             Helper(process, 0.0).stop()
         if claims is not None:
             shutil.rmtree(claims, ignore_errors=True)
-        return None, []
-    patience = GRACE + PATIENCE * sum(jobs[i].cost for i in given)
-    return Helper(process, patience, claims), sorted(given)
+        if not isinstance(error, Exception):
+            raise
+        return None, []  # no helper: everything is compiled here
+    costs = {i: jobs[i].cost for i in given}
+    return Helper(process, GRACE, claims, costs), sorted(given)
 
 
-def longest_first(jobs: Sequence[CompileJob]) -> list[int]:
-    """The positions of ``jobs`` by decreasing cost: the order in which both processes take
-    them (:func:`start`)."""
-    return sorted(range(len(jobs)), key=lambda i: -jobs[i].cost)
+def _longest_first(jobs: Sequence[CompileJob], positions: Sequence[int]) -> list[int]:
+    """``positions`` of ``jobs`` by decreasing cost (ties in their order)."""
+    return sorted(positions, key=lambda i: -jobs[i].cost)
+
+
+def order_here(jobs: Sequence[CompileJob], given: Sequence[int]) -> list[int]:
+    """The order in which this process takes ``jobs`` beside a helper given the positions
+    ``given`` (:func:`start`): first the others, which only this process compiles, then those,
+    each group longest first (the helper takes those in the same order)."""
+    given = set(given)
+    others = [i for i in range(len(jobs)) if i not in given]
+    return _longest_first(jobs, others) + _longest_first(jobs, sorted(given))
 
 
 def _imported(name: tuple[str, str, str | None]) -> Any:
@@ -491,8 +517,11 @@ def main(file: IO[bytes]) -> int:
     cache, claims, recipes = pickle.load(file)
     if str(cache_directory()) != cache:
         return 2
+    parent = os.getppid()
     failed = 0
     for position, (function, signature, kernels) in recipes:
+        if os.getppid() != parent:
+            return 1  # the other process ended: no one waits for what is left
         try:
             if not _claim(claims, position):
                 continue  # the other process compiles it

@@ -10,7 +10,7 @@ from typing import Any
 from delaytrack._compile.ahead import parts_ahead
 from delaytrack._compile.first_compile import announce_compile, code_ready
 from delaytrack._compile.guards import refuse_changed_globals
-from delaytrack._compile.helper_process import CompileJob, longest_first
+from delaytrack._compile.helper_process import CompileJob, order_here
 from delaytrack._compile.helper_process import start as start_helper
 from delaytrack._compile.native_parts import NativePart, engine_parts
 from delaytrack._compile.stale_caches import compile_from_source
@@ -149,12 +149,13 @@ def compile_engine(build: Build, first_chunk: Callable[[Kernels], tuple]) -> Ker
         compile_from_source(kernel for _, job, _ in waiting for kernel in job.kernels)
         # Two or more to compile: a helper process compiles some of them on another core.
         jobs = [job for _, job, _ in waiting]
-        helper, _ = start_helper(jobs)
+        helper, handed = start_helper(jobs)
         if waiting:
             announce_compile([name for name, _, _ in waiting], helped=helper is not None)
-        # Longest first, each that the helper has not claimed (the engine included), then the
-        # helper's (loaded from the cache it wrote, or compiled here if it did not deliver).
-        for position in longest_first(jobs):
+        # Each job the helper has not claimed (the engine included; those it cannot take
+        # first), then the helper's (loaded from the cache it wrote, or compiled here if it did
+        # not deliver).
+        for position in order_here(jobs, handed):
             if helper is None or helper.claim(position):
                 compiling, make = waiting[position][0], waiting[position][2]
                 make()

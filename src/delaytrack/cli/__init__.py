@@ -40,4 +40,4 @@ what is valid; never a traceback. The library's refusals name its arguments
 from delaytrack.cli._main import command, main
 from delaytrack.cli._parser import build_parser
 
-__all__ = ["build_parser", "command", "main"]
+__all__ = ["build_parser", "main"]

@@ -14,7 +14,7 @@ from delaytrack._process_exit import exit_process
 from delaytrack.cli._parser import build_parser
 from delaytrack.cli._usage import UsageError
 
-__all__ = ["EXIT_BROKEN_PIPE", "command", "main"]
+__all__ = ["EXIT_BROKEN_PIPE", "main"]
 
 #: A reader closed standard output (``| head``): 128 + SIGPIPE, as a shell reports a program
 #: that the pipe's signal ended.
@@ -61,5 +61,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 def command() -> NoReturn:
     """The ``delaytrack`` program (its console script and ``python -m delaytrack.cli``):
     :func:`main` on the command line's arguments, then the exit of a whole process
-    (:func:`~delaytrack._process_exit.exit_process`)."""
+    (:func:`~delaytrack._process_exit.exit_process`). It ends the process that calls it: from
+    Python, call :func:`main`."""
     exit_process(main())

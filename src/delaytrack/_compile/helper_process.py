@@ -469,9 +469,9 @@ def order_here(jobs: Sequence[CompileJob], given: Sequence[int]) -> list[int]:
     """The order in which this process takes ``jobs`` beside a helper given the positions
     ``given`` (:func:`start`): first the others, which only this process compiles, then those,
     each group longest first (the helper takes those in the same order)."""
-    given = set(given)
-    others = [i for i in range(len(jobs)) if i not in given]
-    return _longest_first(jobs, others) + _longest_first(jobs, sorted(given))
+    helpers = set(given)
+    others = [i for i in range(len(jobs)) if i not in helpers]
+    return _longest_first(jobs, others) + _longest_first(jobs, sorted(helpers))
 
 
 def _imported(name: tuple[str, str, str | None]) -> Any:

@@ -37,7 +37,7 @@ what is valid; never a traceback. The library's refusals name its arguments
 (:func:`delaytrack.cli._usage.flagged`).
 """
 
-from delaytrack.cli._main import command, main
+from delaytrack.cli._main import main
 from delaytrack.cli._parser import build_parser
 
 __all__ = ["build_parser", "main"]

@@ -1,5 +1,5 @@
 """``python -m delaytrack.cli``: the ``delaytrack`` command."""
 
-from delaytrack.cli import command
+from delaytrack.cli._main import command
 
 command()

@@ -351,3 +351,41 @@ def test_the_paper_job_compiles_the_contact_runs_integrator_ahead_only_with_them
         )
     with contact_ahead(60.0, contact=False):
         assert parts_ahead() == ()
+
+
+def test_a_helper_given_no_job_ends_at_once():
+    # started ahead and not used: its input ends before any job
+    assert helper_process.main(io.BytesIO(b"")) == 0
+
+
+def test_a_helper_started_ahead_is_handed_the_first_shared_compile_or_stopped(monkeypatch):
+    from delaytrack._compile import helper_ahead
+    from delaytrack._compile.native_parts import delay_part, reference_part
+    from delaytrack.references import SinusoidalReference
+
+    monkeypatch.setenv(helper_process.ENVIRONMENT, "1")
+    monkeypatch.setattr(helper_ahead, "_engine_compiled", lambda: True)
+    with helper_ahead.helper_ahead():
+        assert helper_ahead.take() is None  # the engine is in the cache: no compile is certain
+    monkeypatch.setattr(helper_ahead, "_engine_compiled", lambda: False)
+    reference = reference_part(SinusoidalReference([0.0], [1.0], [1.0]).engine_kernel, 1)
+    jobs = [
+        CompileJob(part.function, part.signature, part.compile_job().kernels, 10.0)
+        for part in (reference, delay_part(NO_KERNEL))
+    ]
+    with helper_ahead.helper_ahead():
+        ready = helper_ahead.take()
+        if ready is None:
+            pytest.skip("one core, or no lock on numba's cache")
+        assert helper_ahead.take() is None  # taken once
+        helper, given = start(jobs, ready)
+        assert helper is not None and helper.process is ready and given == [0, 1]
+        try:
+            assert helper.wait() is True  # it compiled (or loaded) both: this process took none
+        finally:
+            helper.stop()
+    with helper_ahead.helper_ahead():
+        unused = helper_ahead._WAITING[-1]
+        unused.thread.join()
+        process = unused.process
+    assert process is not None and process.poll() is not None  # stopped with the block

@@ -64,6 +64,7 @@ __all__ = [
     "idle_cpus",
     "main",
     "order_here",
+    "spawn",
     "share",
     "spare_core",
     "start",
@@ -411,12 +412,44 @@ class Helper:
         if self.process.poll() is None:
             self.process.kill()
             self.process.wait()
+        if self.process.stdin is not None:  # a helper started ahead and never given its jobs
+            with contextlib.suppress(OSError):
+                self.process.stdin.close()
+        forget_own(self.process.pid)
         if self.claims is not None:
             shutil.rmtree(self.claims, ignore_errors=True)
 
 
-def start(jobs: Sequence[CompileJob]) -> tuple[Helper | None, list[int]]:
-    """Start a helper for ``jobs`` when sharing them would finish sooner (:func:`share`).
+def spawn() -> subprocess.Popen:
+    """A helper process, started: it imports numba and the package and sets up numba's
+    compiler (:func:`main`) while it waits for its jobs (:func:`start`), on its standard input,
+    which stays open. It has this process's module search path as it is now."""
+    process = subprocess.Popen(
+        bootstrap(__name__, streamed=True),
+        stdin=subprocess.PIPE,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env={**os.environ, ENVIRONMENT: "0"},  # its imports start no helper of their own
+    )
+    # its work is this job's: it must not keep a report's second process off, which it would
+    # if its CPU time counted as another process's (a helper started ahead compiles then)
+    count_as_own(process.pid)
+    try:
+        assert process.stdin is not None  # opened with stdin=PIPE
+        process.stdin.write(pickle.dumps(list(sys.path)))
+        process.stdin.flush()
+    except BaseException:
+        Helper(process, 0.0).stop()
+        raise
+    return process
+
+
+def start(
+    jobs: Sequence[CompileJob], ready: subprocess.Popen | None = None
+) -> tuple[Helper | None, list[int]]:
+    """Start a helper for ``jobs`` when sharing them would finish sooner (:func:`share`), or
+    hand them to ``ready``, a helper started ahead (:func:`spawn`; stopped when it is not
+    used).
 
     The helper takes the jobs it can import longest first, each that neither process has
     claimed yet (:meth:`Helper.claim`); this process takes them in the order of
@@ -425,28 +458,25 @@ def start(jobs: Sequence[CompileJob]) -> tuple[Helper | None, list[int]]:
     (:func:`spare_core`), no job the helper can import, or a helper that could not be started
     (Ctrl-C included: a process started must not outlive this function's failure).
     """
-    if len(jobs) < 2:
-        return None, []
+    if ready is not None and ready.poll() is not None:
+        ready = None  # it ended (it failed to start): a new one, if one is to run
     recipes = [_recipe(job) for job in jobs]
     movable = [recipe is not None for recipe in recipes]
-    if not share([job.cost for job in jobs], movable) or not spare_core():
+    useful = len(jobs) >= 2 and bool(share([job.cost for job in jobs], movable))
+    if not useful or (ready is None and not spare_core()):
+        if ready is not None:
+            Helper(ready, 0.0).stop()
         return None, []
     given = _longest_first(jobs, [i for i in range(len(jobs)) if movable[i]])
-    process = claims = None
+    process, claims = ready, None
     try:
         claims = tempfile.mkdtemp(prefix="delaytrack-compile-claims-")
-        payload = pickle.dumps(list(sys.path)) + pickle.dumps(
-            (str(cache_directory()), claims, [(i, recipes[i]) for i in given])
-        )
-        process = subprocess.Popen(
-            bootstrap(__name__),
-            stdin=subprocess.PIPE,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-            env={**os.environ, ENVIRONMENT: "0"},  # its imports start no helper of their own
-        )
+        if process is None:
+            process = spawn()
         assert process.stdin is not None  # opened with stdin=PIPE
-        process.stdin.write(payload)
+        process.stdin.write(
+            pickle.dumps((str(cache_directory()), claims, [(i, recipes[i]) for i in given]))
+        )
         process.stdin.close()
     except BaseException as error:
         if process is not None:
@@ -507,14 +537,31 @@ def _make_kernel(recipe: tuple) -> None:
     kernel.numba_type  # noqa: B018 - registers the kernel under its key for the compiler
 
 
-def main(file: IO[bytes]) -> int:
-    """The helper: compile the jobs pickled in ``file`` after the module search path, in
-    their order, each that it claims before the other process (:meth:`Helper.claim`).
+def _prepare() -> None:
+    """What every helper does before its jobs: import the engine's modules and compile a
+    function of nothing, which sets up numba's compiler (about a second, in a helper started
+    ahead while the other process has not reached its first compile yet)."""
+    import numba
 
-    Returns 0 when every job it claimed compiled, 1 when one failed (the other process compiles
-    it and reports the error), 2 when this process's cache folder is not the other's.
+    import delaytrack.sim.engine  # noqa: F401 - the engine and the integrator, most jobs
+
+    numba.njit(lambda x: x + 1.0)(1.0)
+
+
+def main(file: IO[bytes]) -> int:
+    """The helper: prepare (:func:`_prepare`), then compile the jobs pickled in ``file`` after
+    the module search path, in their order, each that it claims before the other process
+    (:meth:`Helper.claim`).
+
+    Returns 0 when every job it claimed compiled (or ``file`` ended with no job: a helper
+    started ahead and not used), 1 when one failed (the other process compiles it and reports
+    the error), 2 when this process's cache folder is not the other's.
     """
-    cache, claims, recipes = pickle.load(file)
+    _prepare()
+    try:
+        cache, claims, recipes = pickle.load(file)
+    except EOFError:
+        return 0
     if str(cache_directory()) != cache:
         return 2
     parent = os.getppid()

@@ -10,6 +10,7 @@ from typing import Any
 from delaytrack._compile.ahead import parts_ahead
 from delaytrack._compile.first_compile import announce_compile, code_ready
 from delaytrack._compile.guards import refuse_changed_globals
+from delaytrack._compile.helper_ahead import take as take_ahead
 from delaytrack._compile.helper_process import CompileJob, order_here
 from delaytrack._compile.helper_process import start as start_helper
 from delaytrack._compile.native_parts import NativePart, engine_parts
@@ -149,7 +150,7 @@ def compile_engine(build: Build, first_chunk: Callable[[Kernels], tuple]) -> Ker
         compile_from_source(kernel for _, job, _ in waiting for kernel in job.kernels)
         # Two or more to compile: a helper process compiles some of them on another core.
         jobs = [job for _, job, _ in waiting]
-        helper, handed = start_helper(jobs)
+        helper, handed = start_helper(jobs, take_ahead() if len(jobs) >= 2 else None)
         if waiting:
             announce_compile([name for name, _, _ in waiting], helped=helper is not None)
         # Each job the helper has not claimed (the engine included; those it cannot take

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from delaytrack._cli_options import quiet_argument
+from delaytrack._compile.helper_ahead import helper_ahead
 from delaytrack._output import OutputFolderError, check_output_folder, check_results_root
 from delaytrack._validation import ArgumentError
 from delaytrack.cli._numbers import scalar
@@ -104,7 +105,8 @@ def run(args: argparse.Namespace) -> int:
         args.gains = _checked_gains(args.gains)
     args.out = str(check_results_root(args.out, "--out"))
     try:
-        return _job(args)
+        with helper_ahead():  # its first compile's helper, started while the job sets up
+            return _job(args)
     except OutputFolderError as error:  # a job's folder under --out, checked before computing
         raise UsageError(f"--out {args.out!r}: {error}") from None
 

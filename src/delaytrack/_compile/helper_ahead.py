@@ -1,0 +1,100 @@
+"""A compile helper started ahead of the first compile that will need it.
+
+A helper process (:mod:`delaytrack._compile.helper_process`) spends about a second starting:
+Python, numba and the package imported, numba's compiler set up. Started when a first compile
+begins, that second is lost to the compile's sharing. A job that compiles for certain (numba's
+cache holds no engine yet for this version of the package: the first job on this machine, or
+after an update) starts it ahead instead (:func:`helper_ahead`), while this process is still
+importing and building what it will run; the first compile that shares its work then hands it
+its jobs (:func:`take`). In the paper job from an empty cache, that is the time this process
+spends on its imports and the study's set-up.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import subprocess
+import sys
+import threading
+from collections.abc import Iterator
+
+from delaytrack._compile.disk_cache import cache_directory
+from delaytrack._compile.helper_process import Helper, spare_core, spawn
+
+__all__ = ["helper_ahead", "take"]
+
+#: Helpers started ahead and not taken yet, innermost block last.
+_WAITING: list[_Ahead] = []
+
+
+class _Ahead:
+    """One helper started ahead, by a thread (deciding on a spare core takes a tenth of a
+    second, :func:`~delaytrack._compile.helper_process.spare_core`)."""
+
+    def __init__(self) -> None:
+        self.process: subprocess.Popen | None = None
+        self.path = list(sys.path)
+        self.taken = False
+        self.lock = threading.Lock()
+        self.thread = threading.Thread(target=self._start, name="compile helper ahead")
+        self.thread.daemon = True
+
+    def _start(self) -> None:
+        if not spare_core():
+            return
+        with contextlib.suppress(Exception):  # no helper ahead: one is started when needed
+            process = spawn()
+            with self.lock:
+                if self.taken:  # the block ended first
+                    Helper(process, 0.0).stop()
+                else:
+                    self.process = process
+
+    def take(self) -> subprocess.Popen | None:
+        """The helper, once (None when there is none, or the module search path changed)."""
+        self.thread.join()
+        with self.lock:
+            process, self.process, self.taken = self.process, None, True
+        if process is not None and sys.path != self.path:
+            Helper(process, 0.0).stop()  # it would import other modules than this process
+            return None
+        return process
+
+    def stop(self) -> None:
+        """Stop the helper if no compile took it."""
+        with self.lock:
+            process, self.process, self.taken = self.process, None, True
+        if process is not None:
+            Helper(process, 0.0).stop()
+
+
+def _engine_compiled() -> bool:
+    """Whether numba's cache holds the engine compiled for this version of the package."""
+    return any(cache_directory().glob("sim_*/engine.run_batch-*.nbi"))
+
+
+@contextlib.contextmanager
+def helper_ahead() -> Iterator[None]:
+    """Within this block, when numba's cache holds no engine yet for this version of the
+    package (a compile is certain) and a core is spare, a helper is started at once, in the
+    background, and the block's first compile that shares its work hands it its jobs
+    (:func:`take`). A helper that no compile took is stopped when the block ends."""
+    if _engine_compiled():
+        yield
+        return
+    ahead = _Ahead()
+    ahead.thread.start()
+    _WAITING.append(ahead)
+    try:
+        yield
+    finally:
+        _WAITING.remove(ahead)
+        ahead.stop()
+
+
+def take() -> subprocess.Popen | None:
+    """A helper started ahead by the innermost :func:`helper_ahead` block, once; None when
+    there is none (outside such blocks, already taken, or none could start)."""
+    if not _WAITING:
+        return None
+    return _WAITING[-1].take()

@@ -6,6 +6,7 @@ import io
 import os
 import pickle
 import sys
+import time
 
 import pytest
 
@@ -389,3 +390,36 @@ def test_a_helper_started_ahead_is_handed_the_first_shared_compile_or_stopped(mo
         unused.thread.join()
         process = unused.process
     assert process is not None and process.poll() is not None  # stopped with the block
+    assert process.pid not in helper_process._OWN and process.stdin.closed
+
+
+def test_a_block_that_ends_while_its_helper_starts_leaves_no_helper(monkeypatch):
+    from delaytrack._compile import helper_ahead
+
+    monkeypatch.setenv(helper_process.ENVIRONMENT, "1")
+    monkeypatch.setattr(helper_ahead, "_engine_compiled", lambda: False)
+    started = []
+
+    def slow_spare_core():  # the thread is still deciding when the block ends
+        time.sleep(0.3)
+        return True
+
+    def spawn():
+        started.append(True)
+        return helper_process.spawn()
+
+    monkeypatch.setattr(helper_ahead, "spare_core", slow_spare_core)
+    monkeypatch.setattr(helper_ahead, "spawn", spawn)
+    with helper_ahead.helper_ahead():
+        ahead = helper_ahead._WAITING[-1]
+    assert not ahead.thread.is_alive() and ahead.process is None and started == []
+
+
+def test_a_helper_that_ended_before_its_jobs_is_cleaned_up_and_replaced(monkeypatch):
+    monkeypatch.setenv(helper_process.ENVIRONMENT, "0")  # no new helper either
+    dead = helper_process.spawn()
+    dead.kill()
+    dead.wait()
+    job = CompileJob(None, (), (), 10.0)
+    assert start([job, job], dead) == (None, [])
+    assert dead.pid not in helper_process._OWN and dead.stdin.closed

@@ -13,10 +13,13 @@ spends on its imports and the study's set-up.
 from __future__ import annotations
 
 import contextlib
+import os
 import subprocess
 import sys
 import threading
 from collections.abc import Iterator
+
+from numba.core.caching import _CacheLocator
 
 from delaytrack._compile.disk_cache import cache_directory
 from delaytrack._compile.helper_process import Helper, spare_core, spawn
@@ -42,13 +45,11 @@ class _Ahead:
     def _start(self) -> None:
         if not spare_core():
             return
-        with contextlib.suppress(Exception):  # no helper ahead: one is started when needed
-            process = spawn()
-            with self.lock:
-                if self.taken:  # the block ended first
-                    Helper(process, 0.0).stop()
-                else:
-                    self.process = process
+        with self.lock:  # the block may have ended meanwhile: then no helper
+            if self.taken:
+                return
+            with contextlib.suppress(Exception):  # no helper ahead: one is started when needed
+                self.process = spawn()
 
     def take(self) -> subprocess.Popen | None:
         """The helper, once (None when there is none, or the module search path changed)."""
@@ -61,16 +62,23 @@ class _Ahead:
         return process
 
     def stop(self) -> None:
-        """Stop the helper if no compile took it."""
+        """Stop the helper if no compile took it (once the thread that starts it is done: no
+        helper outlives the block)."""
         with self.lock:
             process, self.process, self.taken = self.process, None, True
+        self.thread.join()
         if process is not None:
             Helper(process, 0.0).stop()
 
 
 def _engine_compiled() -> bool:
-    """Whether numba's cache holds the engine compiled for this version of the package."""
-    return any(cache_directory().glob("sim_*/engine.run_batch-*.nbi"))
+    """Whether numba's cache holds the engine compiled for this version of the package, this
+    installation and this Python (numba's index of ``run_batch``, in the folder numba names
+    after the engine's file)."""
+    engine = os.path.join(os.path.dirname(os.path.dirname(__file__)), "sim", "engine.py")
+    folder = cache_directory() / _CacheLocator.get_suitable_cache_subpath(engine)
+    version = f"py{sys.version_info.major}{sys.version_info.minor}"
+    return any(folder.glob(f"engine.run_batch-*.{version}.nbi"))
 
 
 @contextlib.contextmanager

@@ -103,9 +103,11 @@ _OWN: set[int] = set()
 
 
 def count_as_own(pid: int) -> None:
-    """Count the CPU time of the process ``pid`` (a second process this one started, such as a
-    report's, :mod:`delaytrack.jobs._background`) as this process's own in :func:`idle_cpus`:
-    its work is this job's, and must not keep a compile helper off."""
+    """Count the CPU time of the process ``pid`` (a second process this one started: a
+    report's, :mod:`delaytrack.jobs._background`, or a compile helper, :func:`spawn`) as this
+    process's own in :func:`idle_cpus`: its work is this job's, and must not keep another of
+    the job's processes off (a job's own processes thus count as free for one another; on a
+    machine busy with other work they may share its cores)."""
     _OWN.add(pid)
 
 
@@ -321,16 +323,16 @@ def _recipe(job: CompileJob) -> tuple | None:
     return recipe
 
 
-def share(costs: Sequence[float], movable: Sequence[bool]) -> list[int]:
+def share(costs: Sequence[float], movable: Sequence[bool], start_up: float = START_UP) -> list[int]:
     """The positions of ``costs`` that a helper would compile, were the costs exact.
 
     Longest first, each job goes to the process that would finish it first (the helper starts
-    :data:`START_UP` late); a job that is not ``movable`` stays here. Returns no position when
+    ``start_up`` late); a job that is not ``movable`` stays here. Returns no position when
     the helper would not finish before this process alone: then :func:`start` starts none
     (with one, each job goes to whichever process claims it first).
     """
     order = sorted(range(len(costs)), key=lambda i: -costs[i])
-    here, helper, given = 0.0, START_UP, []
+    here, helper, given = 0.0, start_up, []
     for i in order:
         if movable[i] and helper < here:
             helper += costs[i]
@@ -458,18 +460,22 @@ def start(
     (:func:`spare_core`), no job the helper can import, or a helper that could not be started
     (Ctrl-C included: a process started must not outlive this function's failure).
     """
-    if ready is not None and ready.poll() is not None:
-        ready = None  # it ended (it failed to start): a new one, if one is to run
-    recipes = [_recipe(job) for job in jobs]
-    movable = [recipe is not None for recipe in recipes]
-    useful = len(jobs) >= 2 and bool(share([job.cost for job in jobs], movable))
-    if not useful or (ready is None and not spare_core()):
-        if ready is not None:
-            Helper(ready, 0.0).stop()
-        return None, []
-    given = _longest_first(jobs, [i for i in range(len(jobs)) if movable[i]])
     process, claims = ready, None
     try:
+        if process is not None and process.poll() is not None:
+            Helper(process, 0.0).stop()  # it ended (it failed to start)
+            process = None  # a new one, if one is to run
+        recipes = [_recipe(job) for job in jobs]
+        movable = [recipe is not None for recipe in recipes]
+        costs = [job.cost for job in jobs]
+        # a helper started ahead is up already: no start-up to count, no load to measure again
+        start_up = START_UP if process is None else 0.0
+        useful = len(jobs) >= 2 and bool(share(costs, movable, start_up))
+        if not useful or (process is None and not spare_core()):
+            if process is not None:
+                Helper(process, 0.0).stop()
+            return None, []
+        given = _longest_first(jobs, [i for i in range(len(jobs)) if movable[i]])
         claims = tempfile.mkdtemp(prefix="delaytrack-compile-claims-")
         if process is None:
             process = spawn()
@@ -486,8 +492,7 @@ def start(
         if not isinstance(error, Exception):
             raise
         return None, []  # no helper: everything is compiled here
-    costs = {i: jobs[i].cost for i in given}
-    return Helper(process, GRACE, claims, costs), sorted(given)
+    return Helper(process, GRACE, claims, {i: jobs[i].cost for i in given}), sorted(given)
 
 
 def _longest_first(jobs: Sequence[CompileJob], positions: Sequence[int]) -> list[int]:

@@ -343,7 +343,7 @@ def test_a_kernel_the_compile_helper_cannot_compile_is_reported_here(example, ca
     # A helper whatever the costs say, and the step is left to it: this process never claims
     # it (otherwise whichever process is free first takes it).
     steps: list[int] = []
-    monkeypatch.setattr(compile_helper, "share", lambda costs, movable: list(steps))
+    monkeypatch.setattr(compile_helper, "share", lambda costs, movable, start_up: list(steps))
     claim = compile_helper.Helper.claim
     monkeypatch.setattr(
         compile_helper.Helper,

@@ -24,14 +24,3 @@ def test_a_whole_process_ends_with_its_status_its_exit_handlers_and_its_output()
     assert done.returncode == 3, done.stderr
     assert done.stdout == "written, not flushed; frozen at exit: True\n"
 
-
-def test_the_command_ends_with_its_status():
-    # python -m delaytrack.cli runs the console script's function: its status is the command's
-    done = subprocess.run(
-        [sys.executable, "-m", "delaytrack.cli", "bound", "--k1", "-1", "--k2", "1"],
-        capture_output=True,
-        text=True,
-        timeout=300,
-        check=False,
-    )
-    assert done.returncode == 2 and done.stderr.startswith("error:"), done.stderr

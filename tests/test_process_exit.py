@@ -23,4 +23,3 @@ def test_a_whole_process_ends_with_its_status_its_exit_handlers_and_its_output()
     )
     assert done.returncode == 3, done.stderr
     assert done.stdout == "written, not flushed; frozen at exit: True\n"
-

@@ -24,7 +24,8 @@ without it, and a compile error is reported by this process.
 
 The helper is for a core with nothing to do: it is started when, over a tenth of a second,
 other processes left 1.75 of the CPUs this process may use free on average (this process's
-own, as it waits, and one more, less a margin; :func:`spare_core`), so not beside processes
+own, as it waits, and one more, less a margin; the job's own second processes count as free:
+:func:`count_as_own`; :func:`spare_core`), so not beside processes
 already using every core, such as pytest's or dask's workers, where it would only compete
 with them; and only where numba's cache is saved under a file lock (not on Windows). Set the
 environment variable ``DELAYTRACK_COMPILE_HELPER`` to ``0`` to compile in one process, or to
@@ -127,8 +128,8 @@ def _own_ticks() -> int:
     return ticks
 
 
-#: How long to wait for a helper: this many seconds, plus :data:`PATIENCE` times its share's
-#: cost, then this process compiles what is left.
+#: How long to wait for a helper: this many seconds, plus :data:`PATIENCE` times the cost of
+#: the jobs it may have claimed (:meth:`Helper.wait`), then this process compiles what is left.
 GRACE = 60.0
 PATIENCE = 10.0
 

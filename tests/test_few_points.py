@@ -2,6 +2,7 @@
 robot's terms, kinematic map, velocity map and reduced terms give the compiled numbers bit for
 bit, refuse nothing the compiled code takes, and compile nothing."""
 
+import contextlib
 import subprocess
 import sys
 from collections import Counter
@@ -48,23 +49,25 @@ def _delays() -> list:
 
 
 def _evaluated(monkeypatch, as_python: bool, ran: Counter) -> list[np.ndarray]:
-    """Every evaluation, each kernel's plain-Python calls that returned counted in ``ran``."""
-    monkeypatch.setattr(
-        functions, "few_points_as_python", lambda function, points: as_python, raising=True
-    )
-    plain_python = functions.plain_python
+    """Every evaluation, each kernel's evaluations that returned as plain Python counted in
+    ``ran``."""
+    asked: list[str] = []
 
-    def counted(function):
-        plain = plain_python(function)
+    def chosen(function, points):
+        asked.append(function.__name__)
+        return as_python
 
-        def call(*args):
-            result = plain(*args)
-            ran[plain.__name__] += 1
-            return result
+    plain = functions.as_python
 
-        return call
+    @contextlib.contextmanager
+    def counted():  # at_few_points asks few_points_as_python, then enters as_python
+        name = asked[-1]
+        with plain():
+            yield
+        ran[name] += 1  # the evaluation returned as Python (not through the compiled fallback)
 
-    monkeypatch.setattr(functions, "plain_python", counted)
+    monkeypatch.setattr(functions, "few_points_as_python", chosen, raising=True)
+    monkeypatch.setattr(functions, "as_python", counted, raising=True)
     q, qdot = _states()
     plants = (NominalRobot(), TwoLinkArm(), LinearPlant(np.diag([2.0, 3.0, 1.0, 1.0, 4.0])))
     found = []
@@ -103,25 +106,14 @@ def test_a_few_points_as_python_are_the_compiled_numbers(monkeypatch):
         np.testing.assert_array_equal(got, want)
 
 
-def test_plain_python_replaces_the_package_kernels_it_calls():
-    from delaytrack.plants.robot import truth
-
-    plain = functions.plain_python(truth.reduced_terms_kernel)
-    assert plain.__globals__["reduced_terms_values"] is functions.plain_python(
-        truth.reduced_terms_values
-    )
-    assert not functions.is_compiled(plain.__globals__["reduced_terms_values"])
-    assert plain.__name__ == "reduced_terms_kernel"
-
-
 def test_a_value_python_refuses_is_computed_compiled():
-    import numba
+    from delaytrack._compile.jit import kernel
 
-    @numba.njit(error_model="numpy")  # as the package's kernels
     def ratio(x, out):
         out[0] = 1.0 / x
 
-    ratio.py_func.__module__ = "delaytrack.a_module_of_the_package"
+    ratio.__module__ = "delaytrack.a_module_of_the_package"
+    ratio = kernel(ratio)  # as the package's kernels
 
     def each(kernel):
         out = np.empty(1)

@@ -3,14 +3,14 @@ user's, and the name messages and kernel keys give it (``module:qualified name``
 
 from __future__ import annotations
 
-import functools
-import threading
 import types as python_types
 from collections.abc import Callable
 from typing import Any, TypeVar
 
 import numpy as np
 from numba.core.dispatcher import Dispatcher
+
+from delaytrack._compile.jit import as_python
 
 __all__ = [
     "FEW_POINTS",
@@ -20,7 +20,6 @@ __all__ = [
     "global_names",
     "in_package",
     "is_compiled",
-    "plain_python",
     "python_function",
     "qualified_name",
     "users_compiled",
@@ -57,65 +56,20 @@ Result = TypeVar("Result")
 def at_few_points(
     function: object, points: int, evaluate: Callable[[Callable[..., Any]], Result]
 ) -> Result:
-    """``evaluate(f)``: ``f`` is the plain Python function of this package's compiled
-    ``function`` when :func:`few_points_as_python` says so for ``points`` points (run with
-    NumPy's warnings off, as compiled code runs), else ``function`` itself. A value Python
-    refuses where compiled code gives ``inf`` or NaN (a math domain error, an overflow, a
-    division by zero) is computed compiled: ``evaluate`` runs again with ``function``, so it
-    must write all of its outputs afresh."""
+    """``evaluate(function)``, run as plain Python (within
+    :func:`~delaytrack._compile.jit.as_python`: this package's compiled functions, ``function``
+    and those it calls, run their Python functions) when :func:`few_points_as_python` says so
+    for ``points`` points (with NumPy's warnings off, as compiled code runs), else compiled. A
+    value Python refuses where compiled code gives ``inf`` or NaN (a math domain error, an
+    overflow, a division by zero) is computed compiled: ``evaluate`` runs again, so it must
+    write all of its outputs afresh."""
     if few_points_as_python(function, points):
-        plain = plain_python(function)
         try:
-            with np.errstate(all="ignore"):
-                return evaluate(plain)
+            with np.errstate(all="ignore"), as_python():
+                return evaluate(function)  # type: ignore[arg-type]
         except (ArithmeticError, ValueError):
             pass
     return evaluate(function)  # type: ignore[arg-type]
-
-
-def plain_python(function: object) -> python_types.FunctionType:
-    """This package's ``function`` (compiled or not) as plain Python all the way down: its
-    Python function, with every function of this package that it calls by a global name and
-    that is compiled, or calls one, replaced by this same plain form (so that calling it
-    compiles nothing)."""
-    inner = python_function(function)
-    assert inner is not None, function
-    with _MAKING_PLAIN:  # one thread at a time: the functions under way are this thread's
-        return _plain(inner)
-
-
-@functools.cache
-def _plain(inner: python_types.FunctionType) -> python_types.FunctionType:
-    _PLAIN_UNDER_WAY.add(inner)
-    try:
-        swapped = {}
-        for name in global_names(inner.__code__):
-            value = inner.__globals__.get(name)
-            called = python_function(value)
-            if called is None or called in _PLAIN_UNDER_WAY or not in_package(value):
-                continue
-            plain = _plain(called)
-            if plain is not value:
-                swapped[name] = plain
-    finally:
-        _PLAIN_UNDER_WAY.discard(inner)
-    if not swapped:
-        return inner
-    plain = python_types.FunctionType(
-        inner.__code__,
-        {**inner.__globals__, **swapped},
-        inner.__name__,
-        inner.__defaults__,
-        inner.__closure__,
-    )
-    plain.__kwdefaults__ = inner.__kwdefaults__
-    functools.update_wrapper(plain, inner)
-    return plain
-
-
-#: Functions whose plain form is being made (a function that calls itself keeps its name).
-_PLAIN_UNDER_WAY: set[python_types.FunctionType] = set()
-_MAKING_PLAIN = threading.Lock()
 
 
 def global_names(code: python_types.CodeType) -> set[str]:

@@ -79,18 +79,16 @@ ENVIRONMENT = "DELAYTRACK_COMPILE_HELPER"
 START_UP = 1.0
 
 
-def bootstrap(module: str, *, streamed: bool = False) -> list[str]:
+def bootstrap(module: str) -> list[str]:
     """The command of a second Python process that runs ``module``'s ``main`` on its input
     (``python -P``: no folder is put before the module search path). It sets its module search
     path to the first pickle of its input (this process's, so that it imports the same package
-    and the user's modules), then calls ``main`` with the rest: read whole first, or, when
-    ``streamed``, as the input itself (``main`` then reads what is written later); its exit
-    status is what ``main`` returns, and it ends as a whole process of the toolkit does
-    (:func:`~delaytrack._process_exit.exit_process`)."""
-    source = "sys.stdin.buffer" if streamed else "io.BytesIO(sys.stdin.buffer.read())"
+    and the user's modules), then calls ``main`` with the input itself (``main`` reads what is
+    written later); its exit status is what ``main`` returns, and it ends as a whole process of
+    the toolkit does (:func:`~delaytrack._process_exit.exit_process`)."""
     code = (
-        "import io, pickle, sys\n"
-        f"payload = {source}\n"
+        "import pickle, sys\n"
+        "payload = sys.stdin.buffer\n"
         "sys.path[:] = pickle.load(payload)\n"
         f"from {module} import main\n"
         "from delaytrack._process_exit import exit_process\n"
@@ -428,7 +426,7 @@ def spawn() -> subprocess.Popen:
     compiler (:func:`main`) while it waits for its jobs (:func:`start`), on its standard input,
     which stays open. It has this process's module search path as it is now."""
     process = subprocess.Popen(
-        bootstrap(__name__, streamed=True),
+        bootstrap(__name__),
         stdin=subprocess.PIPE,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,

@@ -150,7 +150,7 @@ def _start(modules: Sequence[str]) -> subprocess.Popen | None:
     process = None
     try:  # Ctrl-C included: a process started must not outlive this function's failure
         process = subprocess.Popen(
-            bootstrap(__name__, streamed=True),
+            bootstrap(__name__),
             stdin=subprocess.PIPE,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
@@ -207,7 +207,7 @@ def second_process(modules: Sequence[str] = ()) -> Iterator[SecondProcess]:
 
 def main(stream: io.BufferedReader) -> int:
     """The second process: import the modules named in ``stream`` (its input, as
-    :func:`~delaytrack._compile.helper_process.bootstrap` gives it with ``streamed``), then run
+    :func:`~delaytrack._compile.helper_process.bootstrap` gives it), then run
     the call pickled after them (none when the input ends first). Returns 0 when it returned (or
     there was none), 1 when it raised (the first process then runs it again and reports the
     error)."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 import io
 import os
 import pickle
+import subprocess
 import sys
 import time
 
@@ -115,7 +116,6 @@ def test_a_helper_runs_only_beside_a_spare_core(monkeypatch):
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_a_process_busy_on_a_cpu_is_not_idle_time():
-    import subprocess
     import time
 
     cpus = helper_process._cpu_times().cpus  # those this process may run on
@@ -299,7 +299,6 @@ def test_the_helper_refuses_a_kernel_whose_code_changed():
 
 
 def test_a_failed_or_slow_helper_is_reported_and_stopped():
-    import subprocess
 
     failed = Helper(subprocess.Popen([sys.executable, "-c", "raise SystemExit(1)"]), 30.0)
     assert failed.wait() is False
@@ -423,3 +422,35 @@ def test_a_helper_that_ended_before_its_jobs_is_cleaned_up_and_replaced(monkeypa
     job = CompileJob(None, (), (), 10.0)
     assert start([job, job], dead) == (None, [])
     assert dead.pid not in helper_process._OWN and dead.stdin.closed
+
+
+def test_the_engine_is_seen_in_numbas_cache_only_once_compiled(tmp_path):
+    from delaytrack._compile.helper_ahead import _engine_compiled
+
+    empty = subprocess.run(
+        [sys.executable, "-c", _ENGINE_COMPILED],
+        env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)},
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=True,
+    )
+    assert empty.stdout.strip() == "False"  # a new cache: a helper ahead would pay
+    from delaytrack.controllers import AROLC
+    from delaytrack.delays import AbsSineDelay
+    from delaytrack.experiments.paper import AROLC_GAINS
+    from delaytrack.plants.robot import NominalRobot, initial_state, paper_reference
+    from delaytrack.sim import simulate
+
+    reference = paper_reference("consistent")  # the paper's robot, compiled by other tests too
+    plant, controller = PayloadRobot(seed=1, duration=1.0), AROLC(NominalRobot(), **AROLC_GAINS)
+    x0 = initial_state(reference)
+    simulate(plant, controller, AbsSineDelay.S1(), x0, reference=reference, t1=0.02, dt=1e-3,
+             T_c=1e-2, engine="compiled")  # fmt: skip
+    assert _engine_compiled()  # compiled here, or loaded from this cache
+
+
+#: What a process with an empty cache says of the engine.
+_ENGINE_COMPILED = (
+    "from delaytrack._compile.helper_ahead import _engine_compiled; print(_engine_compiled())"
+)

@@ -13,15 +13,11 @@ spends on its imports and the study's set-up.
 from __future__ import annotations
 
 import contextlib
-import os
 import subprocess
 import sys
 import threading
 from collections.abc import Iterator
 
-from numba.core.caching import _CacheLocator
-
-from delaytrack._compile.disk_cache import cache_directory
 from delaytrack._compile.helper_process import Helper, spare_core, spawn
 
 __all__ = ["helper_ahead", "take"]
@@ -31,8 +27,8 @@ _WAITING: list[_Ahead] = []
 
 
 class _Ahead:
-    """One helper started ahead, by a thread (deciding on a spare core takes a tenth of a
-    second, :func:`~delaytrack._compile.helper_process.spare_core`)."""
+    """One helper started ahead, by a thread (deciding takes a tenth of a second and more:
+    :func:`_engine_compiled`, :func:`~delaytrack._compile.helper_process.spare_core`)."""
 
     def __init__(self) -> None:
         self.process: subprocess.Popen | None = None
@@ -43,7 +39,7 @@ class _Ahead:
         self.thread.daemon = True
 
     def _start(self) -> None:
-        if not spare_core():
+        if _engine_compiled() or not spare_core():
             return
         with self.lock:  # the block may have ended meanwhile: then no helper
             if self.taken:
@@ -72,13 +68,16 @@ class _Ahead:
 
 
 def _engine_compiled() -> bool:
-    """Whether numba's cache holds the engine compiled for this version of the package, this
-    installation and this Python (numba's index of ``run_batch``, in the folder numba names
-    after the engine's file)."""
-    engine = os.path.join(os.path.dirname(os.path.dirname(__file__)), "sim", "engine.py")
-    folder = cache_directory() / _CacheLocator.get_suitable_cache_subpath(engine)
-    version = f"py{sys.version_info.major}{sys.version_info.minor}"
-    return any(folder.glob(f"engine.run_batch-*.{version}.nbi"))
+    """Whether numba's cache holds the engine compiled (for any combination) for this version
+    of the package, installation and Python: numba's own index of it, as
+    :func:`~delaytrack._compile.first_compile.code_ready` reads it (not a public interface;
+    when it cannot be read, the answer is False)."""
+    from delaytrack.sim.engine import run_batch_compiled
+
+    try:
+        return bool(run_batch_compiled._cache._cache_file._load_index())
+    except Exception:  # noqa: BLE001 - numba internals changed: a helper ahead does no harm
+        return False
 
 
 @contextlib.contextmanager
@@ -86,10 +85,9 @@ def helper_ahead() -> Iterator[None]:
     """Within this block, when numba's cache holds no engine yet for this version of the
     package (a compile is certain) and a core is spare, a helper is started at once, in the
     background, and the block's first compile that shares its work hands it its jobs
-    (:func:`take`). A helper that no compile took is stopped when the block ends."""
-    if _engine_compiled():
-        yield
-        return
+    (:func:`take`). A helper that no compile took is stopped when the block ends. (Whether the
+    engine is in the cache is read by the thread that starts the helper, which imports the
+    engine for it.)"""
     ahead = _Ahead()
     ahead.thread.start()
     _WAITING.append(ahead)

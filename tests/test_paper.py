@@ -371,3 +371,11 @@ def test_the_report_prose_follows_the_gains(monkeypatch):
     assert settings["AROLC"].startswith("K1 = 4 I, K2 = 1 I, Q = 1 I, α = 3.5, ε = 0.1")
     text = " ".join(paper_report._explanation(study))
     assert "K1 = 4 I" in text and "natural frequency 2 rad/s and damping 0.25" in text
+
+
+@pytest.mark.parametrize(
+    ("value", "label"),
+    [(0.01, "10⁻²"), (1.0, "10⁰"), (10.0, "10¹"), (1e4, "10⁴"), (0.02, ""), (50.0, ""), (0.0, "")],
+)
+def test_the_error_figures_label_each_decade_as_text(value, label):
+    assert paper_report._decade(value, None) == label

@@ -150,3 +150,22 @@ def test_a_figure_saved_in_two_formats_keeps_its_layout_engine(tmp_path):
     assert [p.name for p in paths] == ["eye.png", "eye.svg"]
     assert all(p.stat().st_size > 0 for p in paths)
     assert figure.get_layout_engine() is engine  # laid out once for both, then given back
+
+
+def test_a_figure_saved_in_two_formats_is_laid_out_once(tmp_path, monkeypatch):
+    import matplotlib
+    from matplotlib.figure import Figure
+
+    from delaytrack.report.figures import save_figure
+
+    # a user's setting that would give a figure without a layout engine one
+    monkeypatch.setitem(matplotlib.rcParams, "figure.constrained_layout.use", True)
+    figure = Figure(layout="constrained")
+    figure.subplots().plot([1.0, 2.0])
+    drawn = []
+    draw = figure.draw
+    monkeypatch.setattr(figure, "draw", lambda renderer: drawn.append(1) or draw(renderer))
+    save_figure(figure, tmp_path / "line")
+    # the first format: a pass that lays the figure out, then the drawing; the second: only its
+    # drawing (a figure with a layout engine is drawn once more before each format)
+    assert len(drawn) == 3

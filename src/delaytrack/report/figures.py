@@ -21,6 +21,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
@@ -331,8 +332,9 @@ def save_figure(
 
     The figure's layout (by its layout engine, such as matplotlib's constrained layout) is
     computed when the first format is drawn and kept for the other formats, which do not lay out
-    every label again (that took about half the time of writing a figure in two formats); the
-    figure's layout engine is given back afterwards.
+    every label again (that took about half the time of writing a figure in two formats), nor
+    draw the figure once more before their own drawing, as matplotlib does for a figure with a
+    layout engine (a sixth of the time); the figure's layout engine is given back afterwards.
     """
     paths = []
     engine = figure.get_layout_engine()
@@ -343,7 +345,11 @@ def save_figure(
                 # SVG embeds a date by default; drop it so identical runs give identical files.
                 metadata = {"Date": None} if fmt == "svg" else None
                 figure.savefig(temporary, format=fmt, dpi=_DPI, metadata=metadata)
-            figure.set_layout_engine("none")
+            # no layout engine (not even one the settings would give a figure without one)
+            with matplotlib.rc_context(
+                {"figure.autolayout": False, "figure.constrained_layout.use": False}
+            ):
+                figure.set_layout_engine(None)
             paths.append(path)
     finally:
         if engine is not None:

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from delaytrack._compile import helper_process
+from delaytrack._compile import first_compile, helper_process
 from delaytrack.experiments.paper import run_study
 from delaytrack.jobs import _background
 from delaytrack.jobs._background import second_process
@@ -106,6 +106,42 @@ def test_a_second_process_given_no_call_imports_its_modules_and_ends(idle):
         process = second._process
         assert process is not None
     assert process.returncode == 0
+
+
+def test_a_second_process_to_start_after_the_first_compile_starts_then(tmp_path, idle):
+    target = tmp_path / "file.txt"
+    with second_process(("delaytrack.report.paper",), after_first_compile=True) as second:
+        assert second._process is None  # not while a first compile may take the cores
+        first_compile.code_is_ready()  # a compiled run has its code
+        second._started()
+        process = second._process
+        assert process is not None
+        second.run(_write_pid, target)
+    assert process.returncode == 0 and _written_elsewhere(target)
+
+
+def test_a_block_that_ends_while_its_second_process_starts_leaves_none(monkeypatch, idle):
+    started = []
+    start = _background._start
+
+    def slow_start(modules):
+        time.sleep(0.3)  # the block ends meanwhile
+        started.append(start(modules))
+        return started[-1]
+
+    monkeypatch.setattr(_background, "_start", slow_start)
+    with second_process(after_first_compile=True) as second:
+        first_compile.code_is_ready()
+    assert second._process is None
+    assert len(started) == 1 and started[0].poll() is not None  # started, then stopped
+
+
+def test_a_call_before_any_compile_starts_the_second_process(tmp_path, idle):
+    target = tmp_path / "file.txt"
+    with second_process(after_first_compile=True) as second:
+        second.run(_write_pid, target)
+        assert second._process is not None and second._call is not None
+    assert _written_elsewhere(target)
 
 
 def test_its_cpu_time_counts_as_this_processs_own_for_the_compile_helper(idle):

@@ -454,3 +454,28 @@ def test_the_engine_is_seen_in_numbas_cache_only_once_compiled(tmp_path):
 _ENGINE_COMPILED = (
     "from delaytrack._compile.helper_ahead import _engine_compiled; print(_engine_compiled())"
 )
+
+
+def test_what_waits_for_the_first_compile_is_called_once_when_a_compiled_run_has_its_code():
+    from delaytrack._compile.first_compile import after_first_compile
+    from delaytrack.controllers import AROLC
+    from delaytrack.delays import AbsSineDelay
+    from delaytrack.experiments.paper import AROLC_GAINS
+    from delaytrack.plants.robot import NominalRobot, initial_state, paper_reference
+    from delaytrack.sim import simulate
+
+    reference = paper_reference("consistent")  # the paper's robot, compiled by other tests too
+    plant, controller = PayloadRobot(seed=1, duration=1.0), AROLC(NominalRobot(), **AROLC_GAINS)
+    calls: list[str] = []
+    with after_first_compile(lambda: calls.append("outer")):
+        with after_first_compile(lambda: calls.append("inner")):
+            assert calls == []
+            for _ in range(2):
+                simulate(plant, controller, AbsSineDelay.S1(), initial_state(reference),
+                         reference=reference, t1=0.02, dt=1e-3, T_c=1e-2,
+                         engine="compiled")  # fmt: skip
+        assert sorted(calls) == ["inner", "outer"]  # each once, at the first run
+    with after_first_compile(lambda: calls.append("python")):
+        simulate(plant, controller, AbsSineDelay.S1(), initial_state(reference),
+                 reference=reference, t1=0.02, dt=1e-3, T_c=1e-2, engine="python")  # fmt: skip
+    assert "python" not in calls  # no compiled run: not called

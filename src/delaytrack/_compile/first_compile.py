@@ -9,11 +9,13 @@ the first one can be announced instead of looking like a hang.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
-__all__ = ["announce_compile", "code_ready"]
+__all__ = ["after_first_compile", "announce_compile", "code_is_ready", "code_ready"]
 
 
 #: Keys of the signatures found ready in this process (typing the engine's arguments again costs
@@ -55,3 +57,31 @@ def announce_compile(parts: list[str], helped: bool = False) -> None:
         file=sys.stderr,
         flush=True,
     )
+
+
+#: What the :func:`after_first_compile` blocks around wait for: one list each, holding its call
+#: until it is made.
+_AFTER: contextvars.ContextVar[tuple[list[Callable[[], None]], ...]] = contextvars.ContextVar(
+    "after_first_compile", default=()
+)
+
+
+@contextlib.contextmanager
+def after_first_compile(callback: Callable[[], None]) -> Iterator[None]:
+    """Within the block, ``callback()`` is called once, when the next compiled run has its code
+    (compiled, here and by a helper, or loaded from numba's cache; :func:`code_is_ready`),
+    before that run starts; never if no compiled run comes. For work that would compete with a
+    first compile for the cores, such as a second process's imports."""
+    pending = [callback]
+    token = _AFTER.set((*_AFTER.get(), pending))
+    try:
+        yield
+    finally:
+        _AFTER.reset(token)
+
+
+def code_is_ready() -> None:
+    """Make the calls of the :func:`after_first_compile` blocks around that wait (each once)."""
+    for pending in _AFTER.get():
+        if pending:
+            pending.pop()()

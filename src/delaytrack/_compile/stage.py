@@ -8,7 +8,7 @@ from collections.abc import Callable
 from typing import Any
 
 from delaytrack._compile.ahead import parts_ahead
-from delaytrack._compile.first_compile import announce_compile, code_ready
+from delaytrack._compile.first_compile import announce_compile, code_is_ready, code_ready
 from delaytrack._compile.guards import refuse_changed_globals
 from delaytrack._compile.helper_ahead import take as take_ahead
 from delaytrack._compile.helper_process import CompileJob, order_here
@@ -137,7 +137,8 @@ def compile_engine(build: Build, first_chunk: Callable[[Kernels], tuple]) -> Ker
     itself too, here, so that a chunk's error is a run's. ``first_chunk(kernels)``: the
     engine's arguments for the first chunk. A module global that a kernel of the user's reads
     and numba compiled in is refused if it changed; numba failing on a kernel of the user's is
-    a ValueError of one line."""
+    a ValueError of one line. Once the parts are there, what waits for a first compile is
+    called (:func:`~delaytrack._compile.first_compile.after_first_compile`)."""
     plan = build.plan
     refuse_changed_kernels(build)
     names, parts = engine_parts(plan)
@@ -176,4 +177,5 @@ def compile_engine(build: Build, first_chunk: Callable[[Kernels], tuple]) -> Ker
     finally:
         if helper is not None:
             helper.stop()
+    code_is_ready()  # what waited for the cores to be free of compiling
     return _engine_kernels(*natives)

@@ -3,7 +3,10 @@
 Drawing a report's figures (matplotlib, in one thread) takes one core for seconds while the other
 cores wait. :func:`second_process` starts a second Python process where the compile helper
 would start (:func:`~delaytrack._compile.helper_process.spare_core`: a core is idle);
-it imports the modules it is told to at once, while this process goes on, and then waits.
+it imports the modules it is told to at once, while this process goes on, and then waits. A
+job that compiles first starts it when that compile is done
+(:func:`~delaytrack._compile.first_compile.after_first_compile`), not beside it: a first
+compile takes both cores, and the second process's imports then only slowed it down.
 :meth:`SecondProcess.run` hands it a call and returns at once; this process goes on with the
 next study. The files are the same: the call is the same function of the same values, pickled.
 The second process's CPU time counts as this process's own for the compile helper
@@ -38,6 +41,7 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
+from delaytrack._compile import first_compile
 from delaytrack._compile.helper_process import (
     ENVIRONMENT,
     bootstrap,
@@ -65,19 +69,58 @@ class SecondProcess:
     Parameters
     ----------
     process : subprocess.Popen or None
-        The second process, waiting for its call; None to run every call here.
+        The second process, waiting for its call; None to run every call here, or until
+        :meth:`start` starts one.
+    modules : sequence of str, optional
+        The modules a second process started by the first call imports when none was started
+        before (:meth:`start`); None: that call runs here.
     """
 
-    def __init__(self, process: subprocess.Popen | None) -> None:
+    def __init__(
+        self, process: subprocess.Popen | None, modules: Sequence[str] | None = None
+    ) -> None:
         self._process = process
+        self._modules = modules
         self._call: Call | None = None
         self._writer: threading.Thread | None = None
+        self._starter: threading.Thread | None = None
+        self._stopped = False
+        self._lock = threading.Lock()
+
+    def start(self, modules: Sequence[str]) -> None:
+        """Start the second process, importing ``modules``, from a thread (deciding takes a
+        tenth of a second: :func:`~delaytrack._compile.helper_process.spare_core`); nothing
+        when one was started or the block ended."""
+        with self._lock:
+            if self._starter is not None or self._stopped:
+                return
+            self._starter = threading.Thread(
+                target=self._start, args=(modules,), name="delaytrack-second-start", daemon=True
+            )
+            self._starter.start()
+
+    def _start(self, modules: Sequence[str]) -> None:
+        process = _start(modules)
+        with self._lock:
+            if not self._stopped:
+                self._process = process
+                return
+        if process is not None:  # the block ended meanwhile
+            SecondProcess(process).stop()
+
+    def _started(self) -> None:
+        """Wait for the thread that starts the second process, if one does."""
+        if self._starter is not None:
+            self._starter.join()
 
     def run(self, function: Callable[..., Any], *args: Any, **kwargs: Any) -> None:
         """Call ``function(*args, **kwargs)``: in the second process when it has no call yet
         (returning at once: a thread writes the call while the second process reads it), here
         otherwise (or when a value does not pickle or matplotlib's settings changed)."""
         call = (function, args, kwargs)
+        if self._modules is not None:
+            self.start(self._modules)  # unless one was started
+        self._started()
         process = self._process
         if process is not None and self._call is None and _fresh_style():
             try:
@@ -99,6 +142,7 @@ class SecondProcess:
     def finish(self) -> None:
         """Wait for the second process (at most :data:`PATIENCE` seconds); run its call here
         when it did not complete it."""
+        self._started()
         process, call = self._process, self._call
         if process is None:
             return
@@ -117,7 +161,11 @@ class SecondProcess:
             function(*args, **kwargs)
 
     def stop(self) -> None:
-        """End the second process, whatever it is doing."""
+        """End the second process, whatever it is doing (once the thread that starts it is
+        done: no second process outlives the block)."""
+        with self._lock:
+            self._stopped = True
+        self._started()
         process, self._process, self._call = self._process, None, None
         if process is not None:
             if process.poll() is None:
@@ -182,16 +230,26 @@ def _fresh_style() -> bool:
 
 
 @contextlib.contextmanager
-def second_process(modules: Sequence[str] = ()) -> Iterator[SecondProcess]:
-    """A :class:`SecondProcess` for the block, with a process that imports ``modules`` at once
-    when a core is idle: its call is finished (or run here) when the block ends; on Ctrl-C, in
-    the block or while it waits, the second process is stopped; on another error its call is
-    finished (here if need be; an error of that is noted on the first) before the first error
-    goes on."""
-    second = SecondProcess(_start(modules))
+def second_process(
+    modules: Sequence[str] = (), *, after_first_compile: bool = False
+) -> Iterator[SecondProcess]:
+    """A :class:`SecondProcess` for the block, with a process that imports ``modules`` when a
+    core is idle: at once, or (``after_first_compile``) when the block's first compiled run
+    has its code, or at the first call if that comes first (a first compile takes both cores,
+    and a process importing beside it slowed it down by half a second in the paper job). Its
+    call is finished (or run here) when the block ends; on Ctrl-C, in the block or while it
+    waits, the second process is stopped; on another error its call is finished (here if need
+    be; an error of that is noted on the first) before the first error goes on."""
+    second = SecondProcess(None, modules)
     try:
         try:
-            yield second
+            if after_first_compile:
+                with first_compile.after_first_compile(lambda: second.start(modules)):
+                    yield second
+            else:
+                second.start(modules)
+                second._started()
+                yield second
         except KeyboardInterrupt:
             raise
         except BaseException as error:

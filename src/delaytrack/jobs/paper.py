@@ -129,9 +129,13 @@ def reproduce(
             out, size=decision, executor=executor, progress=progress
         )
     # The literal run's report is drawn in a second process, when a core is idle, while this
-    # one runs the next studies; it imports the report's modules while the literal run runs.
+    # one runs the next studies; started once the literal run's first compile is done (which
+    # takes both cores), it imports the report's modules while the literal run runs.
     # The literal run's first compile also compiles the contact runs' integrator, if they run.
-    with second_process(("delaytrack.report.paper",)) as second, contact_ahead(duration, contact):
+    with (
+        second_process(("delaytrack.report.paper",), after_first_compile=True) as second,
+        contact_ahead(duration, contact),
+    ):
         literal = _paper_study("literal", duration, progress, check_dt, gains)
         second.run(write_study, literal, folders["paper-literal"])
         study = (

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import importlib.util
 import itertools
 import math
 import re
@@ -379,3 +380,19 @@ def test_the_report_prose_follows_the_gains(monkeypatch):
 )
 def test_the_error_figures_label_each_decade_as_text(value, label):
     assert paper_report._decade(value, None) == label
+
+
+def test_whether_mujoco_is_installed_is_found_without_importing_it():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from delaytrack.experiments import paper\n"
+        "print(paper._mujoco_installed(), 'mujoco' in sys.modules)\n"
+    )
+    found = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
+    )
+    installed = importlib.util.find_spec("mujoco") is not None
+    assert found.stdout.split() == [str(installed), "False"]

@@ -38,6 +38,7 @@ from numba.extending import overload
 
 from delaytrack._compile.jit import inline_kernel, kernel, shared_kernel, tick_kernel
 from delaytrack._compile.native_call import NativeFunctionType, call_native
+from delaytrack._sorted_search import count_at_or_before
 from delaytrack.components import Kernel, call_delay
 
 CONSTANT = 0
@@ -47,13 +48,16 @@ PIECEWISE_LINEAR = 3
 KERNEL = 4
 
 _NEWTON_ITERATIONS = 60
+#: The spacing of doubles at 1 (a constant in compiled code; numba's ``np.finfo`` would be
+#: compiled in each kernel that asks for it).
+_EPSILON = float(np.finfo(np.float64).eps)
 
 
 @inline_kernel
 def _knot_index(params, t):
     """Index ``i`` with ``t_i <= t < t_{i+1}``; -1 before the first knot."""
     m = int(params[0])
-    return np.searchsorted(params[1 : 1 + m], t, side="right") - 1
+    return count_at_or_before(params[1 : 1 + m], t) - 1
 
 
 @inline_kernel
@@ -172,7 +176,7 @@ def crossing_time(kind, params, a, b, g_a, g_b, target):
             lo = root
         else:
             hi = root
-        if hi - lo <= 4.0 * np.finfo(np.float64).eps * max(1.0, abs(root)):
+        if hi - lo <= 4.0 * _EPSILON * max(1.0, abs(root)):
             return 0.5 * (lo + hi)
         slope = 1.0 - amplitude * omega * math.cos(theta) * (1.0 if sine >= 0.0 else -1.0)
         root = root - residual / slope if slope != 0.0 else 0.5 * (lo + hi)
@@ -275,7 +279,7 @@ def profile_crossing_time(delay, kind, params, a, b, g_a, g_b, target):
         return b
     kept = 0
     for _ in range(2 * _NEWTON_ITERATIONS):
-        if hi - lo <= 4.0 * np.finfo(np.float64).eps * max(1.0, abs(lo)):
+        if hi - lo <= 4.0 * _EPSILON * max(1.0, abs(lo)):
             break
         root = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
         if not lo < root < hi:

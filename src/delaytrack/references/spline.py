@@ -29,6 +29,7 @@ from delaytrack._io import (
     csv_number,
     csv_table,
 )
+from delaytrack._sorted_search import count_at_or_before
 from delaytrack._validation import ArgumentError, beyond_choice, finite_array
 from delaytrack.references.base import Reference
 
@@ -63,7 +64,7 @@ def spline_reference(t, params, qd, qd_dot, qd_ddot):
     elif held:
         piece, tau = count - 2, times[count - 1] - times[count - 2]
     else:
-        piece = min(max(np.searchsorted(times, t, side="right") - 1, 0), count - 2)
+        piece = min(max(count_at_or_before(times, t) - 1, 0), count - 2)
         tau = t - times[piece]
     for i in range(n):
         j = coefficients + piece * n + i

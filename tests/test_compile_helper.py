@@ -9,6 +9,7 @@ import subprocess
 import sys
 import time
 
+import numba
 import pytest
 
 from delaytrack._compile import helper_process
@@ -479,3 +480,35 @@ def test_what_waits_for_the_first_compile_is_called_once_when_a_compiled_run_has
         simulate(plant, controller, AbsSineDelay.S1(), initial_state(reference),
                  reference=reference, t1=0.02, dt=1e-3, T_c=1e-2, engine="python")  # fmt: skip
     assert "python" not in calls  # no compiled run: not called
+
+
+@pytest.mark.parametrize("kind", ["sinusoidal", "spline", "delay", "delay of yours"])
+def test_values_compiled_ahead_are_those_evaluate_and_h_call(kind):
+    import numpy as np
+
+    from delaytrack._compile.ahead import values_ahead
+    from delaytrack.delays import AbsSineDelay, CompiledDelay
+    from delaytrack.plants.robot import paper_reference
+    from delaytrack.references import SplineReference
+    from delaytrack.sim import compile_ahead
+
+    times = np.linspace(0.0, 1.0, 200)  # more than a few points: evaluated compiled
+    component, evaluate = {
+        "sinusoidal": (paper_reference("consistent"), "evaluate"),
+        "spline": (SplineReference(times, np.sin(times)[:, None]), "evaluate"),
+        "delay": (AbsSineDelay.S1(), "h"),
+        "delay of yours": (CompiledDelay(_constant_delay, h_max=0.1), "h"),
+    }[kind]
+    name, part = values_ahead(component)
+    with compile_ahead([], 1, 1, values=[component, component]):  # kept once
+        assert parts_ahead() == ((name, part),)
+    part.native()  # as a first compile does
+    compiled = set(part.function.signatures)
+    getattr(component, evaluate)(times)
+    assert set(part.function.signatures) == compiled  # nothing more to compile
+    assert part.ready()
+
+
+@numba.njit
+def _constant_delay(t, params):
+    return 0.05

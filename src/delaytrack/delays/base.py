@@ -75,11 +75,13 @@ class DelayProfile(ABC):
     def h(self, t: float | np.ndarray) -> np.ndarray:
         """Delay ``h(t)`` in seconds at the time(s) ``t`` (any shape)."""
         times = np.asarray(t, dtype=float)
-        flat = np.ascontiguousarray(times.ravel())
+        function, arguments = self.compiled_values(np.ascontiguousarray(times.ravel()))
         # a few points as Python while the profile's code is not compiled
-        values = at_few_points(
-            _kernel.profile_values,
-            times.size,
-            lambda values_at: values_at(self.engine_kernel, self.kind, self.params, flat),
-        )
+        values = at_few_points(function, times.size, lambda values_at: values_at(*arguments))
         return values.reshape(times.shape)
+
+    def compiled_values(self, times: np.ndarray) -> tuple[Any, tuple]:
+        """The compiled function :meth:`h` calls for its values at ``times`` (1-D, contiguous)
+        and its arguments: :func:`~delaytrack.delays._kernel.profile_values`. Named so that
+        a job can have it compiled ahead (:func:`~delaytrack.sim.compile_ahead`)."""
+        return _kernel.profile_values, (self.engine_kernel, self.kind, self.params, times)

@@ -83,6 +83,14 @@ class Reference(ABC):
 
         return by_time(at_few_points(self.reference_kernel, times.size, each_time), times.shape)
 
+    def compiled_values(self, times: np.ndarray) -> tuple[Any, tuple]:
+        """The compiled function :meth:`evaluate` calls for its values at ``times`` (1-D,
+        contiguous) and its arguments (those of its first call): the reference's kernel, once
+        a time. Named so that a job can have it compiled ahead
+        (:func:`~delaytrack.sim.compile_ahead`)."""
+        first = float(times[0]) if times.size else 0.0
+        return self.reference_kernel, (first, self.params, *np.empty((3, self.n)))
+
 
 def by_time(out: np.ndarray, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``q_d, q̇_d, q̈_d`` from ``out (3, points, n)`` at times of ``shape``: each

@@ -140,15 +140,19 @@ class SinusoidalReference(Reference):
     def evaluate(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``q_d, q̇_d, q̈_d`` at times ``t``, each of shape ``(*t.shape, n)``."""
         times = np.asarray(t, dtype=float)
-        flat = np.ascontiguousarray(times.ravel())
+        function, arguments = self.compiled_values(np.ascontiguousarray(times.ravel()))
 
         def values(kernel: Callable[..., None]) -> np.ndarray:
-            out = np.empty((3, times.size, self.n))
-            kernel(flat, self._params, out)
-            return out
+            kernel(*arguments)
+            return arguments[2]
 
         # a few times as Python while the kernel is not compiled (Reference.evaluate)
-        return by_time(at_few_points(sinusoidal_reference_values, times.size, values), times.shape)
+        return by_time(at_few_points(function, times.size, values), times.shape)
+
+    def compiled_values(self, times: np.ndarray) -> tuple[Any, tuple]:
+        """:func:`sinusoidal_reference_values` and its arguments for ``times`` (1-D,
+        contiguous), its output array among them (:meth:`Reference.compiled_values`)."""
+        return sinusoidal_reference_values, (times, self._params, np.empty((3, times.size, self.n)))
 
     def to_spec(self) -> dict[str, Any]:
         """The parameters (the table of the default reference type, ``"sinusoidal"``)."""

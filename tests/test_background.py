@@ -136,6 +136,26 @@ def test_a_block_that_ends_while_its_second_process_starts_leaves_none(monkeypat
     assert len(started) == 1 and started[0].poll() is not None  # started, then stopped
 
 
+def test_a_second_process_started_after_ctrl_c_stopped_the_block_is_stopped(monkeypatch, idle):
+    started = []
+    start = _background._start
+
+    def slow_start(modules):
+        time.sleep(0.3)  # Ctrl-C stops the block meanwhile
+        started.append(start(modules))
+        return started[-1]
+
+    monkeypatch.setattr(_background, "_start", slow_start)
+    # Ctrl-C in a wait for the starting thread: Python 3.11's join then returns at once after
+    monkeypatch.setattr(_background.SecondProcess, "_started", lambda self: None)
+    with pytest.raises(KeyboardInterrupt), second_process(after_first_compile=True) as second:
+        first_compile.code_is_ready()
+        raise KeyboardInterrupt
+    second._starter.join()  # the thread goes on, and finds the block stopped
+    assert second._process is None
+    assert len(started) == 1 and started[0].poll() is not None  # started, then stopped
+
+
 def test_a_call_before_any_compile_starts_the_second_process(tmp_path, idle):
     target = tmp_path / "file.txt"
     with second_process(after_first_compile=True) as second:

@@ -504,7 +504,10 @@ def test_values_compiled_ahead_are_those_evaluate_and_h_call(kind):
         assert parts_ahead() == ((name, part),)
     part.native()  # as a first compile does
     compiled = set(part.function.signatures)
-    getattr(component, evaluate)(times)
+    read_only = times.copy()
+    read_only.setflags(write=False)
+    for at in (times, read_only, times[::2]):  # writable, read-only, strided
+        getattr(component, evaluate)(at)
     assert set(part.function.signatures) == compiled  # nothing more to compile
     assert part.ready()
 

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import base64
+import contextlib
 import importlib.util
 import itertools
 import math
 import re
+import sys
 
 import numpy as np
 import pandas as pd
@@ -382,17 +384,27 @@ def test_the_error_figures_label_each_decade_as_text(value, label):
     assert paper_report._decade(value, None) == label
 
 
-def test_whether_mujoco_is_installed_is_found_without_importing_it():
+def test_without_contact_runs_whether_mujoco_is_installed_is_found_without_importing_it():
     import subprocess
     import sys
 
     code = (
         "import sys\n"
         "from delaytrack.experiments import paper\n"
-        "print(paper._mujoco_installed(), 'mujoco' in sys.modules)\n"
+        "print(paper._mujoco_installed(False), 'mujoco' in sys.modules)\n"
     )
     found = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
     )
     installed = importlib.util.find_spec("mujoco") is not None
     assert found.stdout.split() == [str(installed), "False"]
+
+
+def test_a_mujoco_that_does_not_import_means_no_contact_runs_by_default(tmp_path, monkeypatch):
+    (tmp_path / "mujoco").mkdir()
+    (tmp_path / "mujoco" / "__init__.py").write_text("raise ImportError('a broken install')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "mujoco", raising=False)
+    assert paper._mujoco_installed(None) is False  # found, but it does not import
+    assert paper._mujoco_installed(False) is True  # found: the note says "skipped on request"
+    assert isinstance(paper.contact_ahead(60.0), contextlib.nullcontext)

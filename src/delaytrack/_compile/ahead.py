@@ -104,11 +104,8 @@ def values_ahead(component: Any) -> tuple[str, CallAhead] | None:
         for argument in arguments
     )
     kernels = tuple(argument for argument in arguments if isinstance(argument, Kernel))
-    named = (
-        "the delay profiles' values"
-        if isinstance(component, DelayProfile)
-        else f"{type(component).__name__}'s values"
-    )
+    built_in = isinstance(component, DelayProfile) and component.engine_kernel is NO_KERNEL
+    named = "the delay profiles' values" if built_in else f"{type(component).__name__}'s values"
     return named, CallAhead(function, signature, kernels)
 
 

@@ -75,7 +75,9 @@ class DelayProfile(ABC):
     def h(self, t: float | np.ndarray) -> np.ndarray:
         """Delay ``h(t)`` in seconds at the time(s) ``t`` (any shape)."""
         times = np.asarray(t, dtype=float)
-        function, arguments = self.compiled_values(np.ascontiguousarray(times.ravel()))
+        # contiguous and writable, as compile_ahead compiles it
+        flat = np.require(times.ravel(), requirements=("C", "W"))
+        function, arguments = self.compiled_values(flat)
         # a few points as Python while the profile's code is not compiled
         values = at_few_points(function, times.size, lambda values_at: values_at(*arguments))
         return values.reshape(times.shape)

@@ -99,6 +99,7 @@ from delaytrack.metrics import (
     total_variation,
 )
 from delaytrack.plants import ELPlant
+from delaytrack.plants.mujoco import import_mujoco
 from delaytrack.plants.robot import (
     MujocoWheeledRobot,
     NominalRobot,
@@ -324,7 +325,7 @@ def contact_ahead(
     with real wheels (:func:`~delaytrack.sim.compile_ahead`), when the consistent run will run
     on it (``contact``, or by default when MuJoCo is installed): a job that runs the literal
     run first then compiles it on both cores with that run's parts, instead of alone later."""
-    if not _with_contact("consistent", contact, _mujoco_installed()):
+    if not _with_contact("consistent", contact, _mujoco_installed(contact)):
         return contextlib.nullcontext()
     # one integrator serves every contact time constant (they are parameters, not code)
     robot = _robot_with_wheels(duration, CONTACT_TIME_CONSTANTS[0])
@@ -349,10 +350,17 @@ def _with_contact(reference: str, contact: bool | None, mujoco_installed: bool) 
     return contact
 
 
-def _mujoco_installed() -> bool:
-    """Whether MuJoCo is installed (found, not imported: importing it takes a tenth of a
-    second, and a run on it imports it, saying what is wrong when it cannot)."""
-    return importlib.util.find_spec("mujoco") is not None
+def _mujoco_installed(contact: bool | None) -> bool:
+    """Whether MuJoCo is installed: importable, when whether the runs with real wheels run
+    depends on it (``contact`` None); else found, for the report's note alone (without
+    importing it, a tenth of a second)."""
+    if contact is not None:
+        return importlib.util.find_spec("mujoco") is not None
+    try:
+        import_mujoco()
+    except ImportError:
+        return False
+    return True
 
 
 def _split(
@@ -385,7 +393,7 @@ def run_study(
     """Run S1–S4 for every controller (and again at ``dt/2`` if ``check_dt``; and on the
     robot with real wheels if ``contact``: by default when MuJoCo is installed and the path is
     the consistent one), and compute every number of the report."""
-    mujoco_installed = _mujoco_installed()
+    mujoco_installed = _mujoco_installed(contact)
     contact = _with_contact(reference, contact, mujoco_installed)
     record = tuning.load_tuning_record(gains_path)
     gains = tuning.load_gains(record)

@@ -87,15 +87,18 @@ class SecondProcess:
         self._stopped = False
         self._lock = threading.Lock()
 
-    def start(self, modules: Sequence[str]) -> None:
-        """Start the second process, importing ``modules``, from a thread (deciding takes a
+    def start(self) -> None:
+        """Start the second process, importing its modules, from a thread (deciding takes a
         tenth of a second: :func:`~delaytrack._compile.helper_process.spare_core`); nothing
-        when one was started or the block ended."""
+        when one was started, the block ended, or it was given no modules."""
         with self._lock:
-            if self._starter is not None or self._stopped:
+            if self._starter is not None or self._stopped or self._modules is None:
                 return
             self._starter = threading.Thread(
-                target=self._start, args=(modules,), name="delaytrack-second-start", daemon=True
+                target=self._start,
+                args=(self._modules,),
+                name="delaytrack-second-start",
+                daemon=True,
             )
             self._starter.start()
 
@@ -118,8 +121,7 @@ class SecondProcess:
         (returning at once: a thread writes the call while the second process reads it), here
         otherwise (or when a value does not pickle or matplotlib's settings changed)."""
         call = (function, args, kwargs)
-        if self._modules is not None:
-            self.start(self._modules)  # unless one was started
+        self.start()  # unless one was started
         self._started()
         process = self._process
         if process is not None and self._call is None and _fresh_style():
@@ -171,6 +173,9 @@ class SecondProcess:
             if process.poll() is None:
                 process.kill()
                 process.wait()
+            if process.stdin is not None:  # a process never given its call
+                with contextlib.suppress(OSError):
+                    process.stdin.close()
             forget_own(process.pid)
         if self._writer is not None:
             # Its pipe broke with the process, so it ends at once (unless a process the second
@@ -244,10 +249,10 @@ def second_process(
     try:
         try:
             if after_first_compile:
-                with first_compile.after_first_compile(lambda: second.start(modules)):
+                with first_compile.after_first_compile(second.start):
                     yield second
             else:
-                second.start(modules)
+                second.start()
                 second._started()
                 yield second
         except KeyboardInterrupt:

@@ -74,6 +74,7 @@ class Reference(ABC):
         without a compile."""
         times = np.asarray(t, dtype=float)
         params, n = self.params, self.n
+        function, _ = self.compiled_values(times.ravel())
 
         def each_time(kernel: Callable[..., None]) -> np.ndarray:
             out = np.empty((3, times.size, n))
@@ -81,15 +82,14 @@ class Reference(ABC):
                 kernel(float(time), params, out[0, i], out[1, i], out[2, i])
             return out
 
-        return by_time(at_few_points(self.reference_kernel, times.size, each_time), times.shape)
+        return by_time(at_few_points(function, times.size, each_time), times.shape)
 
     def compiled_values(self, times: np.ndarray) -> tuple[Any, tuple]:
-        """The compiled function :meth:`evaluate` calls for its values at ``times`` (1-D,
-        contiguous) and its arguments (those of its first call): the reference's kernel, once
-        a time. Named so that a job can have it compiled ahead
+        """The compiled function :meth:`evaluate` calls for its values at ``times`` (1-D) and
+        arguments of the types it passes: the reference's kernel, once a time (a time and
+        three rows of its output). Named so that a job can have it compiled ahead
         (:func:`~delaytrack.sim.compile_ahead`)."""
-        first = float(times[0]) if times.size else 0.0
-        return self.reference_kernel, (first, self.params, *np.empty((3, self.n)))
+        return self.reference_kernel, (0.0, self.params, *np.empty((3, self.n)))
 
 
 def by_time(out: np.ndarray, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

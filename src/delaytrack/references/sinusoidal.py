@@ -140,7 +140,9 @@ class SinusoidalReference(Reference):
     def evaluate(self, t: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``q_d, q̇_d, q̈_d`` at times ``t``, each of shape ``(*t.shape, n)``."""
         times = np.asarray(t, dtype=float)
-        function, arguments = self.compiled_values(np.ascontiguousarray(times.ravel()))
+        # contiguous and writable, as compile_ahead compiles it
+        flat = np.require(times.ravel(), requirements=("C", "W"))
+        function, arguments = self.compiled_values(flat)
 
         def values(kernel: Callable[..., None]) -> np.ndarray:
             kernel(*arguments)

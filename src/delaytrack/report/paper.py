@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
-from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+from matplotlib.ticker import FuncFormatter, LogLocator
 
 from delaytrack._io import write_frame, write_text
 from delaytrack._output import claim_output_folder, record_outputs
@@ -206,9 +206,9 @@ def _error_figure(study: PaperStudy, cases: tuple[str, ...]) -> Figure:
             ax.set_yscale("log")
             ax.yaxis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))
             # Decades written as text (10⁻², not matplotlib's mathtext): the same look, without
-            # parsing and laying out each label as a formula for each format.
+            # parsing and laying out each label as a formula for each format. (matplotlib
+            # labels minor ticks itself only on an axis of a decade or so.)
             ax.yaxis.set_major_formatter(FuncFormatter(_decade))
-            ax.yaxis.set_minor_formatter(NullFormatter())
             ax.set_ylim(bottom=1e-2)
             ax.grid(True, alpha=0.3, which="both")
     axes[0].legend(

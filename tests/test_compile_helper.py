@@ -199,17 +199,8 @@ def test_only_the_cpus_this_process_may_run_on_are_counted(monkeypatch):
 def test_a_real_helper_compiles_its_share_and_says_so(monkeypatch):
     # (That the run then loads the helper's code from the cache is shown by
     # test_components.py::test_a_user_compiled_plant_is_compiled_once_then_loaded_from_disk.)
-    from delaytrack._compile.native_parts import delay_part, reference_part
-    from delaytrack.references import SinusoidalReference
-
-    reference = reference_part(SinusoidalReference([0.0], [1.0], [1.0]).engine_kernel, 1)
-    delay = delay_part(NO_KERNEL)
-    jobs = [  # equal costs of 10: worth a helper
-        CompileJob(part.function, part.signature, part.compile_job().kernels, 10.0)
-        for part in (reference, delay)
-    ]
     monkeypatch.setenv(helper_process.ENVIRONMENT, "1")
-    helper, given = start(jobs)
+    helper, given = start(_movable_jobs())
     if helper is None:
         pytest.skip("one core, or no lock on numba's cache")
     try:
@@ -361,25 +352,19 @@ def test_a_helper_given_no_job_ends_at_once():
 
 def test_a_helper_started_ahead_is_handed_the_first_shared_compile_or_stopped(monkeypatch):
     from delaytrack._compile import helper_ahead
-    from delaytrack._compile.native_parts import delay_part, reference_part
-    from delaytrack.references import SinusoidalReference
 
     monkeypatch.setenv(helper_process.ENVIRONMENT, "1")
     monkeypatch.setattr(helper_ahead, "_engine_compiled", lambda: True)
     with helper_ahead.helper_ahead():
         assert helper_ahead.take() is None  # the engine is in the cache: no compile is certain
     monkeypatch.setattr(helper_ahead, "_engine_compiled", lambda: False)
-    reference = reference_part(SinusoidalReference([0.0], [1.0], [1.0]).engine_kernel, 1)
-    jobs = [
-        CompileJob(part.function, part.signature, part.compile_job().kernels, 10.0)
-        for part in (reference, delay_part(NO_KERNEL))
-    ]
+    jobs = _movable_jobs()
     with helper_ahead.helper_ahead():
         ready = helper_ahead.take()
         if ready is None:
             pytest.skip("one core, or no lock on numba's cache")
         assert helper_ahead.take() is None  # taken once
-        helper, given = start(jobs, ready)
+        helper, given = start(jobs, lambda: ready)
         assert helper is not None and helper.process is ready and given == [0, 1]
         try:
             assert helper.wait() is True  # it compiled (or loaded) both: this process took none
@@ -420,9 +405,31 @@ def test_a_helper_that_ended_before_its_jobs_is_cleaned_up_and_replaced(monkeypa
     dead = helper_process.spawn()
     dead.kill()
     dead.wait()
-    job = CompileJob(None, (), (), 10.0)
-    assert start([job, job], dead) == (None, [])
+    jobs = _movable_jobs()
+    assert start(jobs, lambda: dead) == (None, [])
     assert dead.pid not in helper_process._OWN and dead.stdin.closed
+
+
+def test_a_compile_not_worth_a_helper_leaves_the_one_started_ahead_to_the_next():
+    def ahead():
+        raise AssertionError("asked for the helper started ahead")
+
+    one, immovable = _movable_jobs()[:1], [CompileJob(None, (), (), 10.0)] * 2
+    assert start(one, ahead) == (None, [])  # one job
+    assert start(immovable, ahead) == (None, [])  # none the helper can import
+
+
+def _movable_jobs() -> list[CompileJob]:
+    """Two jobs a helper can take, of equal costs: worth a helper (the reference's and the
+    delay profiles' parts of a one-coordinate sinusoid)."""
+    from delaytrack._compile.native_parts import delay_part, reference_part
+    from delaytrack.references import SinusoidalReference
+
+    reference = reference_part(SinusoidalReference([0.0], [1.0], [1.0]).engine_kernel, 1)
+    return [
+        CompileJob(part.function, part.signature, part.compile_job().kernels, 10.0)
+        for part in (reference, delay_part(NO_KERNEL))
+    ]
 
 
 def test_the_engine_is_seen_in_numbas_cache_only_once_compiled(tmp_path):

@@ -308,9 +308,9 @@ from delaytrack.sim.integrator import integrate_tick
 # whichever process is free first takes it), so that the test knows who compiled it.
 from delaytrack._compile import helper_process, stage
 left = []
-def start_helper(jobs, ready=None):
+def start_helper(jobs, ahead=lambda: None):
     left[:] = [i for i, job in enumerate(jobs) if job.function is integrate_tick]
-    return helper_process.start(jobs, ready)
+    return helper_process.start(jobs, ahead)
 stage.start_helper = start_helper
 claim = helper_process.Helper.claim
 helper_process.Helper.claim = lambda self, position: position not in left and claim(self, position)

@@ -351,9 +351,9 @@ def test_a_kernel_the_compile_helper_cannot_compile_is_reported_here(example, ca
         lambda self, position: position not in steps and claim(self, position),
     )
 
-    def spy(jobs, ready=None):
+    def spy(jobs, ahead=lambda: None):
         steps[:] = [i for i, job in enumerate(jobs) if job.function is evaluate_step]
-        helper, given = compile_helper.start(jobs, ready)
+        helper, given = compile_helper.start(jobs, ahead)
         started.append((helper, given))
         return helper, given
 

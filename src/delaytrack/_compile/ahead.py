@@ -99,10 +99,7 @@ def values_ahead(component: Any) -> tuple[str, CallAhead] | None:
     function, arguments = component.compiled_values(np.empty(1))
     if not is_compiled(function):
         return None
-    signature = tuple(
-        argument.numba_type if isinstance(argument, Kernel) else typeof(argument)
-        for argument in arguments
-    )
+    signature = tuple(map(typeof, arguments))  # a kernel's is its numba type
     kernels = tuple(argument for argument in arguments if isinstance(argument, Kernel))
     built_in = isinstance(component, DelayProfile) and component.engine_kernel is NO_KERNEL
     named = "the delay profiles' values" if built_in else f"{type(component).__name__}'s values"

@@ -5,9 +5,10 @@ Python, numba and the package imported, numba's compiler set up. Started when a 
 begins, that second is lost to the compile's sharing. A job that compiles for certain (numba's
 cache holds no engine yet for this version of the package: the first job on this machine, or
 after an update) starts it ahead instead (:func:`helper_ahead`), while this process is still
-importing and building what it will run; the first compile that shares its work then hands it
-its jobs (:func:`take`). In the paper job from an empty cache, that is the time this process
-spends on its imports and the study's set-up.
+importing and building what it will run; the first compile worth a helper then hands it its
+jobs (:func:`take`; a compile that shares nothing leaves it to the next). In the paper job
+from an empty cache, that is the time this process spends on its imports and the study's
+set-up.
 """
 
 from __future__ import annotations
@@ -84,7 +85,7 @@ def _engine_compiled() -> bool:
 def helper_ahead() -> Iterator[None]:
     """Within this block, when numba's cache holds no engine yet for this version of the
     package (a compile is certain) and a core is spare, a helper is started at once, in the
-    background, and the block's first compile that shares its work hands it its jobs
+    background, and the block's first compile worth a helper hands it its jobs
     (:func:`take`). A helper that no compile took is stopped when the block ends. (Whether the
     engine is in the cache is read by the thread that starts the helper, which imports the
     engine for it.)"""

@@ -43,7 +43,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, NamedTuple
@@ -446,11 +446,11 @@ def spawn() -> subprocess.Popen:
 
 
 def start(
-    jobs: Sequence[CompileJob], ready: subprocess.Popen | None = None
+    jobs: Sequence[CompileJob], ahead: Callable[[], subprocess.Popen | None] = lambda: None
 ) -> tuple[Helper | None, list[int]]:
     """Start a helper for ``jobs`` when sharing them would finish sooner (:func:`share`), or
-    hand them to ``ready``, a helper started ahead (:func:`spawn`; stopped when it is not
-    used).
+    hand them to the helper ``ahead()`` gives, one started ahead (:func:`spawn`), asked for
+    only then: a first compile not worth a helper leaves it to the next.
 
     The helper takes the jobs it can import longest first, each that neither process has
     claimed yet (:meth:`Helper.claim`); this process takes them in the order of
@@ -459,20 +459,19 @@ def start(
     (:func:`spare_core`), no job the helper can import, or a helper that could not be started
     (Ctrl-C included: a process started must not outlive this function's failure).
     """
-    process, claims = ready, None
+    process = claims = None
     try:
-        if process is not None and process.poll() is not None:
-            Helper(process, 0.0).stop()  # it ended (it failed to start)
-            process = None  # a new one, if one is to run
         recipes = [_recipe(job) for job in jobs]
         movable = [recipe is not None for recipe in recipes]
         costs = [job.cost for job in jobs]
-        # a helper started ahead is up already: no start-up to count, no load to measure again
-        start_up = START_UP if process is None else 0.0
-        useful = len(jobs) >= 2 and bool(share(costs, movable, start_up))
-        if not useful or (process is None and not spare_core()):
-            if process is not None:
-                Helper(process, 0.0).stop()
+        # not worth even a helper that is up already (no start-up to count)
+        if len(jobs) < 2 or not share(costs, movable, 0.0):
+            return None, []
+        process = ahead()
+        if process is not None and process.poll() is not None:
+            Helper(process, 0.0).stop()  # it ended (it failed to start)
+            process = None  # a new one, if one is to run
+        if process is None and not (share(costs, movable, START_UP) and spare_core()):
             return None, []
         given = _longest_first(jobs, [i for i in range(len(jobs)) if movable[i]])
         claims = tempfile.mkdtemp(prefix="delaytrack-compile-claims-")

@@ -151,7 +151,7 @@ def compile_engine(build: Build, first_chunk: Callable[[Kernels], tuple]) -> Ker
         compile_from_source(kernel for _, job, _ in waiting for kernel in job.kernels)
         # Two or more to compile: a helper process compiles some of them on another core.
         jobs = [job for _, job, _ in waiting]
-        helper, handed = start_helper(jobs, take_ahead() if len(jobs) >= 2 else None)
+        helper, handed = start_helper(jobs, take_ahead)
         if waiting:
             announce_compile([name for name, _, _ in waiting], helped=helper is not None)
         # Each job the helper has not claimed (the engine included; those it cannot take

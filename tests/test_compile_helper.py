@@ -522,3 +522,22 @@ def test_values_compiled_ahead_are_those_evaluate_and_h_call(kind):
 @numba.njit
 def _constant_delay(t, params):
     return 0.05
+
+
+@pytest.mark.parametrize("error", [OSError("no more processes"), TypeError("a bug of ours")])
+def test_a_helper_that_cannot_start_means_none_and_an_error_of_the_code_goes_on(
+    monkeypatch, tmp_path, error
+):
+    monkeypatch.setenv(helper_process.ENVIRONMENT, "1")
+    monkeypatch.setattr(helper_process.tempfile, "tempdir", str(tmp_path))  # the claims' folder
+
+    def spawn():
+        raise error
+
+    monkeypatch.setattr(helper_process, "spawn", spawn)
+    if isinstance(error, OSError):
+        assert start(_movable_jobs()) == (None, [])  # compiled here
+    else:
+        with pytest.raises(TypeError, match="a bug of ours"):
+            start(_movable_jobs())
+    assert list(tmp_path.iterdir()) == []  # the claims' folder removed either way

@@ -45,7 +45,8 @@ class _Ahead:
         with self.lock:  # the block may have ended meanwhile: then no helper
             if self.taken:
                 return
-            with contextlib.suppress(Exception):  # no helper ahead: one is started when needed
+            # a process that could not start: no helper ahead (one is started when needed)
+            with contextlib.suppress(OSError, ValueError):
                 self.process = spawn()
 
     def take(self) -> subprocess.Popen | None:

@@ -457,7 +457,8 @@ def start(
     :func:`order_here`. Returns the helper and the positions of the jobs it may compile;
     ``(None, [])`` when there is no helper: fewer than two jobs, no spare core
     (:func:`spare_core`), no job the helper can import, or a helper that could not be started
-    (Ctrl-C included: a process started must not outlive this function's failure).
+    (an error of the operating system). A process started does not outlive this function's
+    failure (Ctrl-C included).
     """
     process = claims = None
     try:
@@ -487,9 +488,11 @@ def start(
             Helper(process, 0.0).stop()
         if claims is not None:
             shutil.rmtree(claims, ignore_errors=True)
-        if not isinstance(error, Exception):
+        # A process or pipe that failed (OSError; ValueError on a closed pipe): no helper,
+        # everything is compiled here. Anything else, Ctrl-C or an error of this code, goes on.
+        if not isinstance(error, OSError | ValueError):
             raise
-        return None, []  # no helper: everything is compiled here
+        return None, []
     return Helper(process, GRACE, claims, {i: jobs[i].cost for i in given}), sorted(given)
 
 

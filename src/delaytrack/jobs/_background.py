@@ -216,7 +216,7 @@ def _start(modules: Sequence[str]) -> subprocess.Popen | None:
     except BaseException as error:
         if process is not None:
             SecondProcess(process).stop()
-        if not isinstance(error, Exception):
+        if not isinstance(error, OSError | ValueError):  # a process or pipe that failed
             raise
         return None  # no second process: everything runs here
     return process

@@ -19,9 +19,10 @@ of waiting for that compile. Its modules, each one concept:
 * :mod:`~delaytrack._compile.native_parts`: the functions the compiled engine calls through
   their address, each compiled for one component;
 * :mod:`~delaytrack._compile.first_compile`, :mod:`~delaytrack._compile.stale_caches`,
-  :mod:`~delaytrack._compile.helper_process` and :mod:`~delaytrack._compile.ahead`: a first
-  compile announced, from the source as it is now, on two cores, with the parts a job will
-  need next;
+  :mod:`~delaytrack._compile.helper_process`, :mod:`~delaytrack._compile.helper_ahead` and
+  :mod:`~delaytrack._compile.ahead`: a first compile announced (and what waits for it called
+  after it), from the source as it is now, on two cores with a helper started ahead when a
+  compile is certain, with the parts and values a job will need next;
 * :mod:`~delaytrack._compile.stage`: the compile stage itself;
 * :mod:`~delaytrack._compile.interpret_first`: a short first run as plain Python while that is
   quicker than compiling.

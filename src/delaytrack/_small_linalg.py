@@ -136,10 +136,16 @@ def solve_mass_in_place(a, b):
 
 
 @shared_kernel
-def matvec(a, x, out):
-    """``out = a @ x`` for a small (r, c) matrix and (c,) vector, by loops (no BLAS call)."""
-    for i in range(a.shape[0]):
+def matvec(values, start, rows, x, out):
+    """``out = A x`` for a small (rows, c) matrix ``A`` stored row-major in ``values`` from
+    index ``start`` (``c = x.shape[0]``), by loops (no BLAS call), summed in index order.
+
+    The matrix is read in place, not as a reshaped view of ``values``: a reshape compiles
+    numba's shape checks and its runtime into every caller."""
+    columns = x.shape[0]
+    for i in range(rows):
         total = 0.0
-        for j in range(a.shape[1]):
-            total += a[i, j] * x[j]
+        row = start + i * columns
+        for j in range(columns):
+            total += values[row + j] * x[j]
         out[i] = total

@@ -90,7 +90,6 @@ def arolc_step(
     :func:`~delaytrack.controllers.base.step_workspace` scratch.
     """
     n = q.shape[0]
-    BtP = params[2 * n * n : 4 * n * n].reshape((n, 2 * n))
     alpha = params[4 * n * n]
     epsilon = params[4 * n * n + 1]
     gamma = params[4 * n * n + 2]
@@ -99,7 +98,7 @@ def arolc_step(
     s = vectors[2 * n : 3 * n]
     u = vectors[3 * n : 4 * n]
     tracking_errors(q, qdot, qd, qd_dot, error)
-    matvec(BtP, error, s)
+    matvec(params, 2 * n * n, n, error, s)  # s = BᵀP e
     norm_s = math.sqrt(_dot(s, s))
     c_hat = state[_C_HAT]
     # u = û + Δu with Δu = α ĉ s / max(‖s‖, ε)  (paper eqs. (control input), (delta u)).

@@ -133,8 +133,9 @@ def pcon_step(
         return
     kappa = params[_KAPPA]
     slots = int(params[_SLOTS])
-    k_b = params[_MATRICES : _MATRICES + d * d].reshape((d, d))
-    vartheta = params[_MATRICES + d * d : _MATRICES + 2 * d * d].reshape((d, d))
+    # k_b (d, d) and ϑ (d, d) are read in place, row-major from these indices of params.
+    k_b_at = _MATRICES
+    vartheta_at = _MATRICES + d * d
     count = int(state[2 * d])
     ring = 2 * d + 1
     mass, nonlinear, input_map, vectors = terms_views(work, n, m)
@@ -156,7 +157,7 @@ def pcon_step(
         for j in range(d):
             e_z[j] += fraction * state[start + j]
     e_z *= T_c
-    matvec(vartheta, e_z, predicted)
+    matvec(params, vartheta_at, d, e_z, predicted)
     call_terms(model_terms, t, q, qdot, model_params, mass, nonlinear, input_map)
     finite = True
     for i in range(n):
@@ -171,13 +172,13 @@ def pcon_step(
         call_command_map(model_terms, q, model_params, input_map, velocity_error, command)
         for i in range(m):
             rho[i] = command[i] - predicted[i]
-        matvec(k_b, rho, command)
+        matvec(params, k_b_at, d, rho, command)
         for i in range(m):
             tau[i] = command[i]
     else:
         for i in range(n):
             rho[i] = ((qd_dot[i] - qdot[i]) + kappa * (qd[i] - q[i])) - predicted[i]
-        matvec(k_b, rho, tau)
+        matvec(params, k_b_at, d, rho, tau)
     for i in range(d):
         finite = finite and math.isfinite(tau[i])
     if not finite:

@@ -24,16 +24,19 @@ def linear_terms(t, q, qdot, params, mass, nonlinear, input_map):
     """Fill ``M``, ``N = D q̇ + K q`` and ``G``; ``params = [M, D, K, G]`` flattened row-major."""
     n = q.shape[0]
     m = input_map.shape[1]
-    mass[:, :] = params[: n * n].reshape((n, n))
-    damping = params[n * n : 2 * n * n].reshape((n, n))
-    stiffness = params[2 * n * n : 3 * n * n].reshape((n, n))
-    input_map[:, :] = params[3 * n * n : 3 * n * n + n * m].reshape((n, m))
+    # Index arithmetic, not reshaped views: a reshape compiles numba's shape checks and its
+    # runtime into every caller (about 3 s of the first compile of an integrator).
+    for i in range(n):
+        for j in range(n):
+            mass[i, j] = params[i * n + j]
+        for j in range(m):
+            input_map[i, j] = params[3 * n * n + i * m + j]
     for i in range(n):  # D q̇ + K q by loops: no temporaries in the right-hand side
         damping_force = 0.0
         stiffness_force = 0.0
         for j in range(n):
-            damping_force += damping[i, j] * qdot[j]
-            stiffness_force += stiffness[i, j] * q[j]
+            damping_force += params[n * n + i * n + j] * qdot[j]
+            stiffness_force += params[2 * n * n + i * n + j] * q[j]
         nonlinear[i] = damping_force + stiffness_force
 
 

@@ -24,6 +24,7 @@ import pyarrow.parquet as pq
 
 from delaytrack._io import atomic_path
 from delaytrack.metrics import metrics_table
+from delaytrack.scenario.table_memory import remembered_tables
 from delaytrack.sim import MeasurementNoise, PacketLoss, simulate
 from delaytrack.sim.certified_bound import stated_by_the_caller
 from delaytrack.sweeps.spec import Run, SweepError, SweepSpec, Unit, canonical_json
@@ -142,10 +143,13 @@ def run_unit(unit: Unit, *, workers: int | None = None) -> pd.DataFrame:
     for run in unit.runs:
         groups.setdefault(_batch_key(run), []).append(run)
     metrics = {}
-    for batch in groups.values():
-        frame = _simulate_batch(batch, workers)
-        for run, (_, row) in zip(batch, frame.iterrows(), strict=True):
-            metrics[run.index] = row
+    # Equal tables of the unit's runs (a batch's controller, a robot drawn again) are built
+    # once, not once a run: the same objects, so the same numbers.
+    with remembered_tables():
+        for batch in groups.values():
+            frame = _simulate_batch(batch, workers)
+            for run, (_, row) in zip(batch, frame.iterrows(), strict=True):
+                metrics[run.index] = row
     runs = unit.runs
     columns: dict[str, Any] = {"run": [run.index for run in runs]}
     for key in runs[0].values:

@@ -421,19 +421,23 @@ class Helper:
             shutil.rmtree(self.claims, ignore_errors=True)
 
 
-def spawn() -> subprocess.Popen:
-    """A helper process, started: it imports numba and the package and sets up numba's
-    compiler (:func:`main`) while it waits for its jobs (:func:`start`), on its standard input,
-    which stays open. It has this process's module search path as it is now."""
+def spawn(module: str = __name__) -> subprocess.Popen:
+    """A second process of this job, started, running ``module``'s ``main``
+    (:func:`bootstrap`) on its standard input, which stays open, after this process's module
+    search path as it is now; by default a compile helper, which imports numba and the package
+    and sets up numba's compiler (:func:`main`) while it waits for its jobs (:func:`start`).
+    It starts no helper of its own, and its CPU time counts as this process's
+    (:func:`count_as_own`). A process started does not outlive this function's failure."""
     process = subprocess.Popen(
-        bootstrap(__name__),
+        bootstrap(module),
         stdin=subprocess.PIPE,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
         env={**os.environ, ENVIRONMENT: "0"},  # its imports start no helper of their own
     )
-    # its work is this job's: it must not keep a report's second process off, which it would
-    # if its CPU time counted as another process's (a helper started ahead compiles then)
+    # its work is this job's: it must not keep another of the job's processes off, which it
+    # would if its CPU time counted as another process's (a helper started ahead compiles while
+    # a report's second process is to start, and that process draws while a compile starts)
     count_as_own(process.pid)
     try:
         assert process.stdin is not None  # opened with stdin=PIPE

@@ -32,7 +32,6 @@ from __future__ import annotations
 import contextlib
 import importlib
 import io
-import os
 import pickle
 import subprocess
 import sys
@@ -42,13 +41,7 @@ from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 from delaytrack._compile import first_compile
-from delaytrack._compile.helper_process import (
-    ENVIRONMENT,
-    bootstrap,
-    count_as_own,
-    forget_own,
-    spare_core,
-)
+from delaytrack._compile.helper_process import forget_own, spare_core, spawn
 
 __all__ = ["PATIENCE", "SecondProcess", "main", "second_process"]
 
@@ -202,16 +195,9 @@ def _start(modules: Sequence[str]) -> subprocess.Popen | None:
         return None
     process = None
     try:  # Ctrl-C included: a process started must not outlive this function's failure
-        process = subprocess.Popen(
-            bootstrap(__name__),
-            stdin=subprocess.PIPE,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-            env={**os.environ, ENVIRONMENT: "0"},  # it starts no helper of its own
-        )
-        count_as_own(process.pid)
+        process = spawn(__name__)
         assert process.stdin is not None  # opened with stdin=PIPE
-        process.stdin.write(pickle.dumps(list(sys.path)) + pickle.dumps(tuple(modules)))
+        process.stdin.write(pickle.dumps(tuple(modules)))
         process.stdin.flush()
     except BaseException as error:
         if process is not None:

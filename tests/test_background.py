@@ -120,16 +120,23 @@ def test_a_second_process_to_start_after_the_first_compile_starts_then(tmp_path,
     assert process.returncode == 0 and _written_elsewhere(target)
 
 
-def test_a_block_that_ends_while_its_second_process_starts_leaves_none(monkeypatch, idle):
+def _slow_start(monkeypatch) -> list:
+    """The second processes started from now on, each 0.3 s late (the block ends, or Ctrl-C
+    stops it, meanwhile)."""
     started = []
     start = _background._start
 
     def slow_start(modules):
-        time.sleep(0.3)  # the block ends meanwhile
+        time.sleep(0.3)
         started.append(start(modules))
         return started[-1]
 
     monkeypatch.setattr(_background, "_start", slow_start)
+    return started
+
+
+def test_a_block_that_ends_while_its_second_process_starts_leaves_none(monkeypatch, idle):
+    started = _slow_start(monkeypatch)
     with second_process(after_first_compile=True) as second:
         first_compile.code_is_ready()
     assert second._process is None
@@ -137,15 +144,7 @@ def test_a_block_that_ends_while_its_second_process_starts_leaves_none(monkeypat
 
 
 def test_a_second_process_started_after_ctrl_c_stopped_the_block_is_stopped(monkeypatch, idle):
-    started = []
-    start = _background._start
-
-    def slow_start(modules):
-        time.sleep(0.3)  # Ctrl-C stops the block meanwhile
-        started.append(start(modules))
-        return started[-1]
-
-    monkeypatch.setattr(_background, "_start", slow_start)
+    started = _slow_start(monkeypatch)
     # Ctrl-C in a wait for the starting thread: Python 3.11's join then returns at once after
     monkeypatch.setattr(_background.SecondProcess, "_started", lambda self: None)
     with pytest.raises(KeyboardInterrupt), second_process(after_first_compile=True) as second:

@@ -444,18 +444,22 @@ def test_the_engine_is_seen_in_numbas_cache_only_once_compiled(tmp_path):
         check=True,
     )
     assert empty.stdout.strip() == "False"  # a new cache: a helper ahead would pay
+    _short_robot_run("compiled")
+    assert _engine_compiled()  # compiled here, or loaded from this cache
+
+
+def _short_robot_run(engine: str) -> None:
+    """20 ms of the paper's robot under AROLC and S1 (compiled by other tests too)."""
     from delaytrack.controllers import AROLC
     from delaytrack.delays import AbsSineDelay
     from delaytrack.experiments.paper import AROLC_GAINS
     from delaytrack.plants.robot import NominalRobot, initial_state, paper_reference
     from delaytrack.sim import simulate
 
-    reference = paper_reference("consistent")  # the paper's robot, compiled by other tests too
+    reference = paper_reference("consistent")
     plant, controller = PayloadRobot(seed=1, duration=1.0), AROLC(NominalRobot(), **AROLC_GAINS)
-    x0 = initial_state(reference)
-    simulate(plant, controller, AbsSineDelay.S1(), x0, reference=reference, t1=0.02, dt=1e-3,
-             T_c=1e-2, engine="compiled")  # fmt: skip
-    assert _engine_compiled()  # compiled here, or loaded from this cache
+    simulate(plant, controller, AbsSineDelay.S1(), initial_state(reference),
+             reference=reference, t1=0.02, dt=1e-3, T_c=1e-2, engine=engine)  # fmt: skip
 
 
 #: What a process with an empty cache says of the engine.
@@ -466,26 +470,16 @@ _ENGINE_COMPILED = (
 
 def test_what_waits_for_the_first_compile_is_called_once_when_a_compiled_run_has_its_code():
     from delaytrack._compile.first_compile import after_first_compile
-    from delaytrack.controllers import AROLC
-    from delaytrack.delays import AbsSineDelay
-    from delaytrack.experiments.paper import AROLC_GAINS
-    from delaytrack.plants.robot import NominalRobot, initial_state, paper_reference
-    from delaytrack.sim import simulate
 
-    reference = paper_reference("consistent")  # the paper's robot, compiled by other tests too
-    plant, controller = PayloadRobot(seed=1, duration=1.0), AROLC(NominalRobot(), **AROLC_GAINS)
     calls: list[str] = []
     with after_first_compile(lambda: calls.append("outer")):
         with after_first_compile(lambda: calls.append("inner")):
             assert calls == []
             for _ in range(2):
-                simulate(plant, controller, AbsSineDelay.S1(), initial_state(reference),
-                         reference=reference, t1=0.02, dt=1e-3, T_c=1e-2,
-                         engine="compiled")  # fmt: skip
+                _short_robot_run("compiled")
         assert sorted(calls) == ["inner", "outer"]  # each once, at the first run
     with after_first_compile(lambda: calls.append("python")):
-        simulate(plant, controller, AbsSineDelay.S1(), initial_state(reference),
-                 reference=reference, t1=0.02, dt=1e-3, T_c=1e-2, engine="python")  # fmt: skip
+        _short_robot_run("python")
     assert "python" not in calls  # no compiled run: not called
 
 

@@ -61,14 +61,13 @@ print(*M.ravel(), *N)
 """
 
 
-def _run(code: str, cache, path: str = "") -> list[str]:
+def _run(code: str, cache, folder=None) -> list[str]:
+    """``code`` run by a new Python in ``folder`` (whose modules it can import: ``-c`` puts the
+    working folder first on the module search path), with numba's cache in ``cache``."""
     environment = {**os.environ, "NUMBA_CACHE_DIR": str(cache)}
-    if path:
-        environment["PYTHONPATH"] = os.pathsep.join(
-            [path, *filter(None, [os.environ.get("PYTHONPATH")])]
-        )
     done = subprocess.run(
         [sys.executable, "-c", code],
+        cwd=folder,
         env=environment,
         capture_output=True,
         text=True,
@@ -91,5 +90,5 @@ def test_a_fastmath_caller_first_leaves_the_package_kernel_as_it_is(tmp_path, la
 def test_a_kernel_that_needs_the_runtime_compiles_first_inside_one_without_it(tmp_path):
     (tmp_path / "reshaping.py").write_text(_NEEDS_THE_RUNTIME)
     # M = I, N = K q = 2 q
-    printed = _run(_WITHOUT_THE_RUNTIME_FIRST, tmp_path / "cache", str(tmp_path))
+    printed = _run(_WITHOUT_THE_RUNTIME_FIRST, tmp_path / "cache", tmp_path)
     assert printed == ["1.0", "0.0", "0.0", "1.0", "2.0", "2.0"]

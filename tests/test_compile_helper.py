@@ -7,6 +7,7 @@ import os
 import pickle
 import subprocess
 import sys
+import threading
 import time
 
 import numba
@@ -535,3 +536,22 @@ def test_a_helper_that_cannot_start_means_none_and_an_error_of_the_code_goes_on(
         with pytest.raises(TypeError, match="a bug of ours"):
             start(_movable_jobs())
     assert list(tmp_path.iterdir()) == []  # the claims' folder removed either way
+
+
+def test_a_helper_started_ahead_has_the_module_search_path_of_the_blocks_start(monkeypatch):
+    # The path take() compares with the present one is the path the helper was given, even when
+    # this process changed its own while the helper was being started.
+    from delaytrack._compile import helper_ahead
+
+    monkeypatch.setenv(helper_process.ENVIRONMENT, "1")
+    monkeypatch.setattr(helper_ahead, "_engine_compiled", lambda: False)
+    decided = threading.Event()
+    monkeypatch.setattr(helper_ahead, "spare_core", lambda: decided.wait(60))
+    given = []
+    monkeypatch.setattr(helper_ahead, "spawn", lambda path: given.append(list(path)))
+    at_start = list(sys.path)
+    with helper_ahead.helper_ahead():
+        monkeypatch.syspath_prepend("/a folder added while the helper starts")
+        decided.set()
+        assert helper_ahead.take() is None  # the stand-in starts no process
+    assert given == [at_start]

@@ -47,7 +47,7 @@ class _Ahead:
                 return
             # a process that could not start: no helper ahead (one is started when needed)
             with contextlib.suppress(OSError, ValueError):
-                self.process = spawn()
+                self.process = spawn(path=self.path)  # the path take() compares
 
     def take(self) -> subprocess.Popen | None:
         """The helper, once (None when there is none, or the module search path changed)."""

@@ -421,13 +421,14 @@ class Helper:
             shutil.rmtree(self.claims, ignore_errors=True)
 
 
-def spawn(module: str = __name__) -> subprocess.Popen:
+def spawn(module: str = __name__, path: Sequence[str] | None = None) -> subprocess.Popen:
     """A second process of this job, started, running ``module``'s ``main``
-    (:func:`bootstrap`) on its standard input, which stays open, after this process's module
-    search path as it is now; by default a compile helper, which imports numba and the package
-    and sets up numba's compiler (:func:`main`) while it waits for its jobs (:func:`start`).
-    It starts no helper of its own, and its CPU time counts as this process's
-    (:func:`count_as_own`). A process started does not outlive this function's failure."""
+    (:func:`bootstrap`) on its standard input, which stays open, after the module search path
+    ``path`` (this process's as it is now by default); by default a compile helper, which
+    imports numba and the package and sets up numba's compiler (:func:`main`) while it waits
+    for its jobs (:func:`start`). It starts no helper of its own, and its CPU time counts as
+    this process's (:func:`count_as_own`). A process started does not outlive this function's
+    failure."""
     process = subprocess.Popen(
         bootstrap(module),
         stdin=subprocess.PIPE,
@@ -441,7 +442,7 @@ def spawn(module: str = __name__) -> subprocess.Popen:
     count_as_own(process.pid)
     try:
         assert process.stdin is not None  # opened with stdin=PIPE
-        process.stdin.write(pickle.dumps(list(sys.path)))
+        process.stdin.write(pickle.dumps(list(sys.path if path is None else path)))
         process.stdin.flush()
     except BaseException:
         Helper(process, 0.0).stop()

@@ -384,16 +384,24 @@ def test_a_block_that_ends_while_its_helper_starts_leaves_no_helper(monkeypatch)
 
     monkeypatch.setenv(helper_process.ENVIRONMENT, "1")
     monkeypatch.setattr(helper_ahead, "_engine_compiled", lambda: False)
-    started = []
+    made, started = [], []
 
-    def slow_spare_core():  # the thread is still deciding when the block ends
-        time.sleep(0.3)
+    class Recorded(helper_ahead._Ahead):
+        def __init__(self) -> None:
+            super().__init__()
+            made.append(self)
+
+    def slow_spare_core():  # the thread decides only once the block has ended
+        deadline = time.monotonic() + 60.0
+        while not made[0].taken and time.monotonic() < deadline:
+            time.sleep(0.01)
         return True
 
-    def spawn():
-        started.append(True)
-        return helper_process.spawn()
+    def spawn(path):
+        started.append(path)
+        return helper_process.spawn(path=path)
 
+    monkeypatch.setattr(helper_ahead, "_Ahead", Recorded)
     monkeypatch.setattr(helper_ahead, "spare_core", slow_spare_core)
     monkeypatch.setattr(helper_ahead, "spawn", spawn)
     with helper_ahead.helper_ahead():

@@ -132,6 +132,19 @@ def test_the_command_is_a_view_overwritten_by_the_next_tick():
     np.testing.assert_array_equal(kept, expected)
 
 
+def test_controller_step_returns_arrays_of_its_own_that_a_next_call_leaves_alone():
+    controller = make("AROLC")
+    (t0, *first), (t1, *second) = [(t, q, qdot, reference) for t, q, qdot, reference, _ in ticks(2)]
+    command, state = controller.step(t0, *first, controller.initial_state(), T_c=T_C)
+    kept = command.copy(), state.copy()
+    command[0] = state[0] = 7.0  # writable: the caller's own
+    controller.step(t1, *second, kept[1], T_c=T_C)
+    assert command[0] == state[0] == 7.0
+    again = controller.step(t0, *first, controller.initial_state(), T_c=T_C)
+    np.testing.assert_array_equal(again[0], kept[0])
+    np.testing.assert_array_equal(again[1], kept[1])
+
+
 @pytest.mark.parametrize(
     ("kind", "arguments", "error", "message"),
     [

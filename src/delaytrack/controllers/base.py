@@ -222,9 +222,7 @@ class Controller(ABC):
             if stepper is None or sample != stepper.T_c:
                 stepper = self.stepper(T_c=sample)
         try:
-            stepper.reset(state)
-            command = stepper(t, q, qdot, reference, h).copy()
-            return command, stepper.state.copy()
+            return stepper._step_from(state, t, q, qdot, reference, h)
         finally:
             kept[_STEP_STEPPER] = stepper
 

@@ -210,6 +210,22 @@ class ControllerStepper:
                 _copy_checked(name, value, own)
         return self.tick(t, delay)
 
+    def _step_from(
+        self,
+        state: Vector,
+        t: float,
+        q: Vector,
+        qdot: Vector,
+        reference: tuple[Vector, Vector, Vector],
+        h: float | None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`reset` to ``state``, then one tick (:meth:`__call__`): new arrays ``(command
+        (m,), next state)``, what :meth:`Controller.step
+        <delaytrack.controllers.base.Controller.step>` returns."""
+        _copy_checked("state", state, self._state)
+        command = self(t, q, qdot, reference, h)
+        return command.copy(), self._state.copy()
+
     def tick(self, t: float, h: float | None = None) -> np.ndarray:
         """One tick at ``t`` from the values in :attr:`inputs`: the command (m,).
 

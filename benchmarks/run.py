@@ -24,10 +24,10 @@ compiles or loads numba's disk cache):
     ``delaytrack simulate benchmarks/short_scenario.toml`` in a new process with numba's cache
     warm: time until ``metrics.csv`` exists (the first result) and until the command exits.
 ``controller_step``
-    One 5-DOF AROLC tick through :meth:`Controller.step` (the checked Python API) and through a
-    stepper of the same controller (:meth:`Controller.stepper`, for a real-time loop): called
-    with the arrays, and ``tick`` on its own inputs; timed alternately in one process, the
-    ratio is ``Controller.step``'s time over each.
+    One AROLC tick of the 5-coordinate robot model through :meth:`Controller.step` (the checked
+    Python API) and through a stepper of the same controller (:meth:`Controller.stepper`, for a
+    real-time loop): called with the arrays, and ``tick`` on its own inputs; timed alternately
+    in one process, the ratio is ``Controller.step``'s time over each.
 ``agreement``
     Largest differences between the compiled engine, the same batch on worker threads and the
     reference path (the engine run as plain Python, ``simulate(..., engine="python")``).
@@ -498,10 +498,10 @@ def paper_job_case(rounds: int, duration: float | None) -> list[dict]:
 
 
 def controller_step_case(repeats: int, calls: int = 2000) -> list[dict]:
-    """One 5-DOF AROLC tick three ways, timed alternately (``calls`` ticks a repetition):
-    :meth:`Controller.step` (checked; state copied in and out), a stepper called with the
-    arrays (``stepper(t, q, qdot, reference)``: inputs copied into its own) and its ``tick`` on
-    its own inputs; ``ratio`` is ``Controller.step``'s time over the row's."""
+    """One AROLC tick of the 5-coordinate robot model three ways, timed alternately (``calls``
+    ticks a repetition): :meth:`Controller.step` (checked; state copied in and out), a stepper
+    called with the arrays (``stepper(t, q, qdot, reference)``: inputs copied into its own) and
+    its ``tick`` on its own inputs; ``ratio`` is ``Controller.step``'s time over the row's."""
     controller = AROLC(NominalRobot(), **AROLC_GAINS)
     reference = paper_reference("consistent")
     x0 = initial_state(reference)
@@ -529,7 +529,7 @@ def controller_step_case(repeats: int, calls: int = 2000) -> list[dict]:
     rows = []
     for name, seconds in zip(
         (
-            "one 5-DOF AROLC tick through Controller.step",
+            "one AROLC tick of the 5-coordinate robot through Controller.step",
             "the same through a stepper, stepper(t, q, qdot, reference)",
             "the same through stepper.tick(t) on its own inputs",
         ),

@@ -8,6 +8,7 @@ import importlib.util
 import itertools
 import math
 import re
+import subprocess
 import sys
 
 import numpy as np
@@ -385,9 +386,6 @@ def test_the_error_figures_label_each_decade_as_text(value, label):
 
 
 def test_without_contact_runs_whether_mujoco_is_installed_is_found_without_importing_it():
-    import subprocess
-    import sys
-
     code = (
         "import sys\n"
         "from delaytrack.experiments import paper\n"

@@ -9,11 +9,13 @@ compiles or loads numba's disk cache):
     run: a plain NumPy per-step loop and ``scipy.integrate.solve_ivp`` with the delayed command
     looked up in the callback (:mod:`baselines`).
 ``ceiling``
-    The engine against the ceiling, a hand-written allocation-free numba loop of the same robot
-    run (:mod:`hand_loop`: no step splitting, nothing general), in the same process: one 60 s
-    run on one thread, the same with the controller at every step (``T_c = dt``), and ``B`` =
-    1000 runs of 60 s (|sin| delays and payload placements drawn per run) on all cores, each
-    pair timed alternately; ``ratio`` is the hand loop's time over the engine's (1 = as fast).
+    The engine against two ceilings, allocation-free numba loops of the same robot run without
+    step splitting and with nothing general: one from the package's own kernels
+    (:mod:`hand_loop`), one written from the equations alone (:mod:`independent_loop`), in the
+    same process: one 60 s run on one thread, the same with the controller at every step
+    (``T_c = dt``), and ``B`` = 1000 runs of 60 s (|sin| delays and payload placements drawn per
+    run) on all cores, each triple timed alternately; ``ratio`` is the hand loop's time over the
+    engine's (1 = as fast), ``ratio_to_independent_loop`` the independent loop's.
 ``batch``
     ``B`` runs, each with its own delay profile (|sin|, random-walk and constant families with
     drawn parameters) and payload placements, metrics only (``trajectories=False``), on all
@@ -83,6 +85,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from baselines import numpy_loop, robot_case, solve_ivp_loop  # noqa: E402
 from hand_loop import hand_batch, hand_run  # noqa: E402
+from independent_loop import independent_batch, independent_run  # noqa: E402
 from live_loop import format_live, live_cases  # noqa: E402
 
 from delaytrack.controllers import AROLC  # noqa: E402
@@ -168,51 +171,99 @@ def single_case(duration: float, repeats: int, baseline_repeats: int) -> list[di
 
 
 def ceiling_case(duration: float, batch: int, repeats: int) -> list[dict]:
-    """The engine and :mod:`hand_loop` on the same runs, in this process, metrics only.
+    """The engine, :mod:`hand_loop` and :mod:`independent_loop` on the same runs, in this process,
+    metrics only.
 
-    Each pair is timed alternately (engine, loop, engine, ...), so that the machine's drift
-    between minutes falls on both alike. Two single runs: at the paper's ``T_c`` = 10 ms, and
-    with the controller at every step (``T_c = dt``), where the delayed command switches inside
-    every step and the engine splits each step in two.
+    Each triple is timed alternately (engine, loop, independent loop, engine, ...), so that the
+    machine's drift between minutes falls on all alike. Two single runs: at the paper's ``T_c``
+    = 10 ms, and with the controller at every step (``T_c = dt``), where the delayed command
+    switches inside every step and the engine splits each step in two.
     """
     plant, controller, delay, reference, x0 = robot_case(duration)
     common = dict(reference=reference, t1=duration, dt=DT, trajectories=False)
 
-    def pair(period: float) -> tuple[float, float]:
+    def triple(period: float) -> tuple[float, float, float]:
+        loop_args = (reference, x0, duration, DT, period)
         return alternating_medians(
             repeats,
             lambda: simulate(plant, controller, delay, x0, **common, T_c=period, workers=1),
-            lambda: hand_run(plant, controller, delay, reference, x0, duration, DT, period),
+            lambda: hand_run(plant, controller, delay, *loop_args),
+            lambda: independent_run(plant, controller, delay, *loop_args),
         )
 
-    engine, hand = pair(T_C)
-    engine_every_step, hand_every_step = pair(DT)
+    engine, hand, independent = triple(T_C)
+    engine_every_step, hand_every_step, independent_every_step = triple(DT)
     ae_engine = simulate(plant, controller, delay, x0, **common, T_c=T_C).metrics["ae"][0]
-    ae_hand = hand_run(plant, controller, delay, reference, x0, duration, DT, T_C)[1][: plant.n]
+    hand_sums = hand_run(plant, controller, delay, reference, x0, duration, DT, T_C)[1]
+    independent_sums = independent_run(plant, controller, delay, reference, x0, duration, DT, T_C)[
+        1
+    ]
     rng = np.random.default_rng(7)
     plants = [PayloadRobot(seed=b, duration=duration) for b in range(batch)]
     delays = [
         AbsSineDelay(rng.uniform(0.0, 0.05), rng.uniform(0.02, 0.1), rng.uniform(0.5, 2.0))
         for _ in range(batch)
     ]
-    engine_many, hand_many = alternating_medians(
+    batch_args = (plants, controller, delays, reference, x0, duration, DT, T_C)
+    engine_many, hand_many, independent_many = alternating_medians(
         max(1, repeats // 3),
         lambda: simulate(plants, controller, delays, x0, **common, T_c=T_C),
-        lambda: hand_batch(plants, controller, delays, reference, x0, duration, DT, T_C),
+        lambda: hand_batch(*batch_args),
+        lambda: independent_batch(*batch_args),
     )
     rows = []
-    for name, count, seconds, baseline in (
-        (f"engine, one {duration:g} s run, 1 thread", 1, engine, hand),
-        ("ceiling: hand-written numba loop, same run", 1, hand, hand),
+    for name, count, seconds, baseline, independent_baseline in (
+        (f"engine, one {duration:g} s run, 1 thread", 1, engine, hand, independent),
+        ("ceiling: hand-written numba loop, same run", 1, hand, hand, independent),
+        (
+            "ceiling: independent loop from the equations, same run",
+            1,
+            independent,
+            hand,
+            independent,
+        ),
         (
             f"engine, controller every step (T_c = dt), {duration:g} s run, 1 thread",
             1,
             engine_every_step,
             hand_every_step,
+            independent_every_step,
         ),
-        ("ceiling: hand-written loop, T_c = dt", 1, hand_every_step, hand_every_step),
-        (f"engine, B={batch} runs of {duration:g} s, all cores", batch, engine_many, hand_many),
-        (f"ceiling: hand-written loop, B={batch}, prange", batch, hand_many, hand_many),
+        (
+            "ceiling: hand-written loop, T_c = dt",
+            1,
+            hand_every_step,
+            hand_every_step,
+            independent_every_step,
+        ),
+        (
+            "ceiling: independent loop, T_c = dt",
+            1,
+            independent_every_step,
+            hand_every_step,
+            independent_every_step,
+        ),
+        (
+            f"engine, B={batch} runs of {duration:g} s, all cores",
+            batch,
+            engine_many,
+            hand_many,
+            independent_many,
+        ),
+        (
+            f"ceiling: hand-written loop, B={batch}, prange",
+            batch,
+            hand_many,
+            hand_many,
+            independent_many,
+        ),
+        (
+            f"ceiling: independent loop, B={batch}, prange",
+            batch,
+            independent_many,
+            hand_many,
+            independent_many,
+        ),
     ):
         rows.append(
             {
@@ -222,10 +273,15 @@ def ceiling_case(duration: float, batch: int, repeats: int) -> list[dict]:
                 "baseline": "hand-written numba loop (benchmarks/hand_loop.py)",
                 "baseline_s": baseline,
                 "ratio_to_baseline": baseline / seconds,
+                "independent_loop_s": independent_baseline,
+                "ratio_to_independent_loop": independent_baseline / seconds,
             }
         )
     rows[0]["ae_relative_difference_to_hand_loop"] = float(
-        np.max(np.abs(ae_engine - ae_hand) / np.abs(ae_engine))
+        np.max(np.abs(ae_engine - hand_sums[: plant.n]) / np.abs(ae_engine))
+    )
+    rows[0]["metrics_relative_difference_hand_to_independent_loop"] = float(
+        np.max(np.abs(hand_sums - independent_sums) / np.abs(hand_sums))
     )
     return rows
 
@@ -699,6 +755,15 @@ def main() -> None:
         "engine vs hand-written loop: AE differs by "
         f"{ceiling['ae_relative_difference_to_hand_loop']:.1%} at most (the loop does not split "
         "steps where the delayed input switches)"
+    )
+    print(
+        "engine vs the independent loop from the equations: "
+        f"{ceiling['ratio_to_independent_loop']:.2f} of its speed at T_c = {T_C * 1e3:g} ms, "
+        f"{cases[cases.index(ceiling) + 3]['ratio_to_independent_loop']:.2f} with the controller "
+        f"at every step, {cases[cases.index(ceiling) + 6]['ratio_to_independent_loop']:.2f} of its "
+        "throughput on the batch; the two loops' metrics agree to "
+        f"{ceiling['metrics_relative_difference_hand_to_independent_loop']:.0e} (the same scheme, "
+        "written twice)"
     )
     mujoco = next(c for c in cases if "ratio_to_ceiling" in c)
     print(

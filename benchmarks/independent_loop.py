@@ -1,0 +1,387 @@
+"""A second ceiling for ``make bench``: the paper's robot run written from its equations alone.
+
+:mod:`hand_loop` calls the package's own kernels; this loop calls none of them. It is written
+from the equations of the paper and of the robot model (docs/robot.md), with every quantity a
+local scalar, as one would write the experiment by hand for speed and nothing else. Only the
+*numbers* come from the package's objects (the robot's and the payload schedule's parameters,
+the gains and ``P`` of AROLC, the reference's harmonics), so that both run the same experiment:
+
+* the robot in its reduced wheel-space form, ``q = (x_c, y_c, φ, θ_r, θ_l)``, wheel rates
+  ``η = (θ̇_r, θ̇_l)``, ``v = R (θ̇_r + θ̇_l)/2``, ``ω = R (θ̇_r - θ̇_l)/(2L)``::
+
+      q̇ = S(q) η:  ẋ_c = v cos φ - d ω sin φ,  ẏ_c = v sin φ + d ω cos φ,  φ̇ = ω
+      M_r η̇ = τ - f(η) - n_r(η)                 (solved as a 2×2 system by Cramer's rule)
+      M_r = I_w I + Jᵀ [[M_b, -s_y], [-s_y, I_A]] J,  J = [[R/2, R/2], [R/(2L), -R/(2L)]]
+      n_r = Jᵀ [-s_x ω², s_x v ω],  f_i = b_v θ̇_i + f_c tanh(θ̇_i / v_s)
+
+  with the rigid-body aggregates ``M_b, s, I_A`` changed by the payload in force (a point mass
+  ``m_p`` at ``p``: ``M_b + m_p``, ``s + m_p p``, ``I_A + m_p |p|²``);
+* AROLC (paper eqs. (aux), (control input), (delta u), (input) and the adaptive law) on the
+  nominal model ``M̂(q) q̈ + N̂(q, q̇) = G τ``, its wheel torques ``S(q)ᵀ τ``::
+
+      e1 = q_d - q,  s = BᵀP [e1; ė1],  u = q̈_d + K2 ė1 + K1 e1 + α ĉ s / max(‖s‖, ε)
+      ĉ' = γ if ĉ <= γ;  ‖s‖ if sᵀ(s - s_prev) > 0;  -‖s‖ otherwise;  ĉ ← ĉ + T_c ĉ'
+           (not below γ when decreasing)
+
+* classical RK4 with step ``dt`` on ``(q, η)``, the delayed command looked up at each stage
+  time (the command of tick ``k = ⌊(t - h(t)) / T_c⌋``, zero before the first arrives; ``h`` at
+  the step's three distinct stage times, its end kept for the next step's start) without
+  splitting a step where it switches (first order across a switch, as :mod:`hand_loop`), and
+  ``q̇ = S(q) η`` set after each step, which the next step's first stage reads;
+* the running metrics at each tick: ``Σ|e1_j|`` and the total variation of the command.
+
+The same scheme as :mod:`hand_loop`, written a second time: on the paper's run their metrics
+agree to rounding (``make bench`` prints the difference), and both differ from the engine's by up
+to about 1 % (the unsplit switches move AROLC's adaptive law).
+
+A batch runs one run per thread at a time (``numba.prange``), each with its own payload
+placements and |sin| delay profile.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+__all__ = ["independent_batch", "independent_run"]
+
+#: Coordinates of the robot, q = (x_c, y_c, φ, θ_r, θ_l).
+N = 5
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _aggregates(t, body, schedule, points):
+    """``(M_b, s_x, s_y, I_A)`` with the payload in force at ``t``."""
+    mass, s_x, s_y, inertia = body[3], body[4], body[5], body[6]
+    first_on, time_on, period, count = (
+        schedule[1],
+        schedule[2],
+        schedule[2] + schedule[3],
+        schedule[4],
+    )
+    if t >= first_on:
+        k = math.floor((t - first_on) / period)
+        if k < count and t - first_on - k * period < time_on:
+            m_p = schedule[0]
+            p_x = points[int(k), 0]
+            p_y = points[int(k), 1]
+            mass += m_p
+            s_x += m_p * p_x
+            s_y += m_p * p_y
+            inertia += m_p * (p_x * p_x + p_y * p_y)
+    return mass, s_x, s_y, inertia
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _wheel_accelerations(t, wr, wl, tau_r, tau_l, body, schedule, points):
+    """``η̇`` of the reduced form at ``(t, η)`` under wheel torques ``τ``."""
+    mass, s_x, s_y, inertia = _aggregates(t, body, schedule, points)
+    a = 0.5 * body[0]
+    b = body[0] / (2.0 * body[1])
+    wheel_inertia, b_v, f_c, v_s = body[7], body[8], body[9], body[10]
+    v = a * (wr + wl)
+    w = b * (wr - wl)
+    m00 = wheel_inertia + a * a * mass - 2.0 * a * b * s_y + b * b * inertia
+    m01 = a * a * mass - b * b * inertia
+    m11 = wheel_inertia + a * a * mass + 2.0 * a * b * s_y + b * b * inertia
+    r0 = tau_r - b_v * wr - f_c * math.tanh(wr / v_s) - s_x * w * (b * v - a * w)
+    r1 = tau_l - b_v * wl - f_c * math.tanh(wl / v_s) + s_x * w * (b * v + a * w)
+    det = m00 * m11 - m01 * m01
+    return (m11 * r0 - m01 * r1) / det, (m00 * r1 - m01 * r0) / det
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _velocity_map(q, qdot, a, b, d):
+    """``q̇_{x, y, φ} = S(q) η`` from the wheel rates ``η = q̇_{θ_r, θ_l}``."""
+    v = a * (qdot[3] + qdot[4])
+    w = b * (qdot[3] - qdot[4])
+    c = math.cos(q[2])
+    s = math.sin(q[2])
+    qdot[0] = v * c - d * w * s
+    qdot[1] = v * s + d * w * c
+    qdot[2] = w
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _command_index(time, delay, T_c):
+    """The tick whose command is applied at ``time``: ``⌊(t - h(t)) / T_c⌋`` (< 0: none yet)."""
+    h = delay[0] + delay[1] * abs(math.sin(delay[2] * time + delay[3]))
+    return math.floor((time - h) / T_c)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _one_run(body, schedule, points, delay, control, reference, x0, duration, dt, steps_per_tick):
+    """One run; returns ``(final [q, q̇], [Σ|e1_j| / ticks ..., TV])``.
+
+    ``body = [R, L, d, M_b, s_x, s_y, I_A, I_w, b_v, f_c, v_s]``, ``schedule = [m_p, first_on,
+    time_on, time_off, count]``, ``points (count, 2)``; ``delay = (offset, amplitude, ω, φ)`` of
+    ``h = offset + amplitude |sin(ω t + φ)|``; ``control = (nominal body [R, L, d, M_b, s_x, s_y,
+    I_A, I_w], K1 (5, 5), K2 (5, 5), BᵀP (5, 10), [α, ε, γ, ĉ_0])``; ``reference = (offset,
+    slope, amplitude (5, K), frequency (5, K), phase (5, K))``.
+    """
+    nominal, K1, K2, BtP, law = control
+    ref_offset, ref_slope, ref_amplitude, ref_frequency, ref_phase = reference
+    alpha, epsilon, gamma, c_hat = law[0], law[1], law[2], law[3]
+    R, L, d = body[0], body[1], body[2]
+    a = 0.5 * R
+    b = R / (2.0 * L)
+    T_c = steps_per_tick * dt
+    ticks = int(round(duration / T_c))
+    harmonics = ref_amplitude.shape[1]
+    # every buffer allocated once, before the loop
+    history = np.zeros((ticks + 1, 2))
+    q = x0[:N].copy()
+    qdot = x0[N:].copy()
+    qd = np.empty(N)
+    qd_dot = np.empty(N)
+    qd_ddot = np.empty(N)
+    error = np.empty(2 * N)
+    s = np.empty(N)
+    s_previous = np.zeros(N)
+    u = np.empty(N)
+    sums = np.zeros(N + 1)
+    y = np.empty(N + 2)  # (q, η) of a stage
+    slope = np.empty((4, N + 2))
+    has_previous = False
+    index_end = 0  # the command's tick at the end of the step before
+    previous_r = 0.0
+    previous_l = 0.0
+    for k in range(ticks):
+        t_k = k * T_c
+        # the reference at t_k
+        for i in range(N):
+            qd[i] = ref_offset[i] + ref_slope[i] * t_k
+            qd_dot[i] = ref_slope[i]
+            qd_ddot[i] = 0.0
+            for j in range(harmonics):
+                angle = ref_frequency[i, j] * t_k + ref_phase[i, j]
+                sine = math.sin(angle)
+                qd[i] += ref_amplitude[i, j] * sine
+                qd_dot[i] += ref_amplitude[i, j] * ref_frequency[i, j] * math.cos(angle)
+                qd_ddot[i] -= ref_amplitude[i, j] * ref_frequency[i, j] ** 2 * sine
+        # AROLC
+        for i in range(N):
+            error[i] = qd[i] - q[i]
+            error[N + i] = qd_dot[i] - qdot[i]
+        norm2 = 0.0
+        for i in range(N):
+            total = 0.0
+            for j in range(2 * N):
+                total += BtP[i, j] * error[j]
+            s[i] = total
+            norm2 += total * total
+        norm_s = math.sqrt(norm2)
+        switching = alpha * c_hat / max(norm_s, epsilon)
+        for i in range(N):
+            total = qd_ddot[i] + switching * s[i]
+            for j in range(N):
+                total += K2[i, j] * error[N + j] + K1[i, j] * error[j]
+            u[i] = total
+        c = math.cos(q[2])
+        sn = math.sin(q[2])
+        mass_n, s_x, s_y, inertia_a, wheel_inertia = (
+            nominal[3],
+            nominal[4],
+            nominal[5],
+            nominal[6],
+            nominal[7],
+        )
+        first_moment = mass_n * nominal[2] - s_x
+        inertia_p = inertia_a - 2.0 * nominal[2] * s_x + mass_n * nominal[2] ** 2
+        m02 = first_moment * sn - s_y * c
+        m12 = -first_moment * c - s_y * sn
+        phidot2 = qdot[2] * qdot[2]
+        tau0 = mass_n * u[0] + m02 * u[2] + (first_moment * c + s_y * sn) * phidot2
+        tau1 = mass_n * u[1] + m12 * u[2] + (first_moment * sn - s_y * c) * phidot2
+        tau2 = m02 * u[0] + m12 * u[1] + inertia_p * u[2]
+        # wheel torques S(q)ᵀ τ
+        command_r = (a * c - d * b * sn) * tau0 + (a * sn + d * b * c) * tau1 + b * tau2
+        command_r += wheel_inertia * u[3]
+        command_l = (a * c + d * b * sn) * tau0 + (a * sn - d * b * c) * tau1 - b * tau2
+        command_l += wheel_inertia * u[4]
+        history[k, 0] = command_r
+        history[k, 1] = command_l
+        # the adaptive law
+        if c_hat <= gamma:
+            rate = gamma
+        else:
+            increasing = 0.0
+            for i in range(N):
+                increasing += s[i] * (s[i] - s_previous[i])
+            rate = norm_s if has_previous and increasing > 0.0 else -norm_s
+        c_next = c_hat + T_c * rate
+        c_hat = gamma if rate < 0.0 and c_next < gamma else c_next
+        has_previous = True
+        for i in range(N):
+            s_previous[i] = s[i]
+        # metrics at the tick
+        for i in range(N):
+            sums[i] += abs(error[i])
+        if k > 0:
+            sums[N] += abs(command_r - previous_r) + abs(command_l - previous_l)
+        previous_r = command_r
+        previous_l = command_l
+        if k == 0:  # the start onto the constraints
+            _velocity_map(q, qdot, a, b, d)
+            index_end = _command_index(0.0, delay, T_c)
+        # the plant's steps to the next tick: RK4 on (q, η)
+        for step in range(steps_per_tick):
+            t = t_k + step * dt
+            for stage in range(4):
+                offset = 0.0 if stage == 0 else (0.5 * dt if stage < 3 else dt)
+                for i in range(N):
+                    y[i] = q[i] if stage == 0 else q[i] + offset * slope[stage - 1, i]
+                for i in range(2):
+                    eta = qdot[3 + i]
+                    y[N + i] = eta if stage == 0 else eta + offset * slope[stage - 1, N + i]
+                time = t + offset
+                # h at the three times of a step (its end is the next step's start)
+                if stage == 0:
+                    index = index_end
+                elif stage == 1:
+                    index = _command_index(time, delay, T_c)
+                elif stage == 3:
+                    index_end = _command_index(time, delay, T_c)
+                    index = index_end
+                tau_r = history[index, 0] if index >= 0 else 0.0
+                tau_l = history[index, 1] if index >= 0 else 0.0
+                wr = y[N]
+                wl = y[N + 1]
+                if stage == 0:  # q̇ = S(q) η was set at the end of the step before
+                    for i in range(3):
+                        slope[0, i] = qdot[i]
+                else:
+                    v = a * (wr + wl)
+                    w = b * (wr - wl)
+                    c = math.cos(y[2])
+                    sn = math.sin(y[2])
+                    slope[stage, 0] = v * c - d * w * sn
+                    slope[stage, 1] = v * sn + d * w * c
+                    slope[stage, 2] = w
+                slope[stage, 3] = wr
+                slope[stage, 4] = wl
+                slope[stage, N], slope[stage, N + 1] = _wheel_accelerations(
+                    time, wr, wl, tau_r, tau_l, body, schedule, points
+                )
+            for i in range(N + 2):
+                increment = slope[0, i] + 2.0 * slope[1, i] + 2.0 * slope[2, i] + slope[3, i]
+                if i < N:
+                    q[i] += dt / 6.0 * increment
+                else:
+                    qdot[3 + i - N] += dt / 6.0 * increment
+            _velocity_map(q, qdot, a, b, d)
+    for i in range(N):
+        sums[i] /= ticks
+    final = np.empty(2 * N)
+    final[:N] = q
+    final[N:] = qdot
+    return final, sums
+
+
+@numba.njit(cache=True, error_model="numpy", parallel=True)
+def _batch(bodies, schedules, points, delays, control, reference, x0, duration, dt, steps_per_tick):
+    runs = bodies.shape[0]
+    sums = np.empty((runs, N + 1))
+    for r in numba.prange(runs):
+        sums[r] = _one_run(
+            bodies[r],
+            schedules[r],
+            points[r],
+            delays[r],
+            control,
+            reference,
+            x0,
+            duration,
+            dt,
+            steps_per_tick,
+        )[1]
+    return sums
+
+
+# --- the numbers, read from the package's objects (no kernel of the package is called) --------
+
+
+def _plant_numbers(plant) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``body``, ``schedule`` and ``points`` of a :class:`~delaytrack.plants.robot.PayloadRobot`
+    (its parameter vector: the 12 truth parameters ``[R, L, d, M_b, s_x, s_y, I_A, I_w, b_v,
+    f_c, v_s, k_b]``, then ``[m_p, first_on, time_on, time_off, count, p_0x, p_0y, ...]``)."""
+    params = np.asarray(plant.params, dtype=float)
+    count = int(params[16])
+    return params[:11].copy(), params[12:17].copy(), params[17 : 17 + 2 * count].reshape(count, 2)
+
+
+def _control_numbers(controller) -> tuple:
+    """The nominal body, ``K1``, ``K2``, ``BᵀP`` and ``[α, ε, γ, ĉ_0]`` of an AROLC."""
+    n = controller.n
+    c_hat0 = controller.gamma if controller.c_hat0 is None else controller.c_hat0
+    return (
+        np.asarray(controller.model.params, dtype=float)[:8].copy(),
+        np.ascontiguousarray(controller.K1, dtype=float),
+        np.ascontiguousarray(controller.K2, dtype=float),
+        np.ascontiguousarray(controller.P[n:, :], dtype=float),
+        np.array([controller.alpha, controller.epsilon, controller.gamma, c_hat0], dtype=float),
+    )
+
+
+def _reference_numbers(reference) -> tuple:
+    """``(offset, slope, amplitude, frequency, phase)`` of a sinusoidal reference, as (5,) and
+    (5, K) arrays."""
+    offset = np.asarray(reference.offset, dtype=float)
+    n = offset.size
+
+    def column(values) -> np.ndarray:
+        return np.ascontiguousarray(np.asarray(values, dtype=float).reshape(n, -1))
+
+    slope = np.zeros(n) if reference.slope is None else np.asarray(reference.slope, dtype=float)
+    return (
+        offset,
+        slope,
+        column(reference.amplitude),
+        column(reference.frequency),
+        column(reference.phase),
+    )
+
+
+def _profile(delay) -> np.ndarray:
+    return np.array([delay.offset, delay.amplitude, delay.frequency, delay.phase])
+
+
+def independent_run(plant, controller, delay, reference, x0, duration, dt, T_c) -> tuple:
+    """One run: ``(final [q, q̇], [AE_j..., TV])``."""
+    body, schedule, points = _plant_numbers(plant)
+    return _one_run(
+        body,
+        schedule,
+        points,
+        _profile(delay),
+        _control_numbers(controller),
+        _reference_numbers(reference),
+        np.asarray(x0, dtype=float),
+        float(duration),
+        float(dt),
+        round(T_c / dt),
+    )
+
+
+def independent_batch(plants, controller, delays, reference, x0, duration, dt, T_c) -> np.ndarray:
+    """A batch on all cores (``prange``); ``[AE_j..., TV]`` per run. ``delays`` are
+    :class:`~delaytrack.delays.AbsSineDelay` profiles."""
+    numbers = [_plant_numbers(plant) for plant in plants]
+    most = max(points.shape[0] for _, _, points in numbers)
+    points = np.zeros((len(plants), most, 2))
+    for r, (_, _, own) in enumerate(numbers):
+        points[r, : own.shape[0]] = own
+    return _batch(
+        np.array([body for body, _, _ in numbers]),
+        np.array([schedule for _, schedule, _ in numbers]),
+        points,
+        np.array([_profile(delay) for delay in delays]),
+        _control_numbers(controller),
+        _reference_numbers(reference),
+        np.asarray(x0, dtype=float),
+        float(duration),
+        float(dt),
+        round(T_c / dt),
+    )

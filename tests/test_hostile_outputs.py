@@ -665,6 +665,21 @@ def test_names_equal_after_unicode_normalisation_are_refused(names):
     assert "\n" not in str(refused.value)
 
 
+def test_remembered_columns_are_the_callers_own_and_refused_names_are_refused_every_time():
+    """The columns are remembered between calls (every simulate call asks for them): a caller
+    that changes the list it got must not change the next caller's, and names refused once are
+    refused again, not remembered as accepted."""
+    first = trajectory_columns(["x", "y"], ["m", "m"], 2, ["N"], 1)
+    first.append("changed")
+    assert trajectory_columns(("x", "y"), ("m", "m"), 2, ("N",), 1) == first[:-1]
+    for _ in range(2):
+        with pytest.raises(ValueError, match="two columns"):
+            trajectory_columns(["x", "x_d"], ["m", "m"], 2, None, 1)
+    # names given as a list of lists cannot be remembered: still checked, not a TypeError
+    with pytest.raises(ValueError, match="coordinate_units must have 2 entries"):
+        trajectory_columns(["x", "y"], [["m"]], 2, None, 1)
+
+
 def test_a_mujoco_fallback_never_names_a_coordinate_after_another_joint(tmp_path):
     """Joints ``q2``, ``q1``, ``w x`` fell back to ``q1 .. q3``: column q1 held the joint named
     q2. The fallback avoids every joint name of the model and is announced."""

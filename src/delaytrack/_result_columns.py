@@ -21,6 +21,7 @@ character or as ``e`` and a combining accent is one name.
 
 from __future__ import annotations
 
+import functools
 import unicodedata
 from collections.abc import Iterable, Mapping, Sequence
 
@@ -181,6 +182,10 @@ def trajectory_columns(
 ) -> list[str]:
     """Every column of the trajectory table, in its order.
 
+    The columns of names and units met before are remembered (every
+    :func:`~delaytrack.sim.simulate` call asks for them); names refused are checked again at
+    each call.
+
     Parameters
     ----------
     coordinate_names, coordinate_units : sequence of str, optional
@@ -199,6 +204,35 @@ def trajectory_columns(
         the column and what is valid), for a unit that is not plain unit text
         (:func:`plain_unit`), or for names or units that are not one per coordinate or input.
     """
+    arguments = (
+        _frozen(coordinate_names),
+        _frozen(coordinate_units),
+        n,
+        _frozen(input_units),
+        m,
+        tuple(state_names),
+    )
+    try:
+        hash(arguments)
+    except TypeError:  # names or units of a kind that cannot be remembered: checked each time
+        return list(_columns.__wrapped__(*arguments))
+    return list(_columns(*arguments))
+
+
+def _frozen(values: Sequence | None) -> tuple | None:
+    return None if values is None else tuple(values)
+
+
+@functools.lru_cache(maxsize=256)
+def _columns(
+    coordinate_names: tuple[str, ...] | None,
+    coordinate_units: tuple[str | None, ...] | None,
+    n: int,
+    input_units: tuple[str | None, ...] | None,
+    m: int,
+    state_names: tuple[str, ...],
+) -> tuple[str, ...]:
+    """:func:`trajectory_columns` of arguments made tuples (so that they can be remembered)."""
     names = default_names(coordinate_names, n)
     units = tuple(coordinate_units) if coordinate_units is not None else (None,) * n
     inputs = tuple(input_units) if input_units is not None else (None,) * m
@@ -233,7 +267,7 @@ def trajectory_columns(
         raise ValueError(
             f"{_given(names, coordinate_units)}: {error}; rename the coordinate or change its unit"
         ) from None
-    return [column for column, _ in described]
+    return tuple(column for column, _ in described)
 
 
 def _given(names: tuple[str, ...], units: Sequence[str | None] | None) -> str:

@@ -427,6 +427,20 @@ def test_crossing_time_linear_pieces(profile):
     assert directions == expected
 
 
+def test_crossing_time_of_a_zero_amplitude_is_the_constant_delays_own():
+    """|sin| with amplitude 0 is a constant delay: its crossings are the constant delay's, bit for
+    bit, also where a crossing lies at an end of the step (where a constant delay that is a
+    multiple of the step puts every crossing, and bracketed Newton steps had halved the bracket
+    to the last bit, the run then three times as slow)."""
+    flat, constant = AbsSineDelay(0.05, 0.0, 1.0), ConstantDelay(0.05)
+    a, b = 0.073, 0.074  # one step of 1 ms
+    g_a, g_b = a - 0.05, b - 0.05
+    for target in (g_a, np.nextafter(g_a, 1.0), g_a + 0.3e-3, np.nextafter(g_b, 0.0), g_b):
+        root = crossing_time(flat.kind, flat.params, a, b, g_a, g_b, target)
+        assert root == crossing_time(constant.kind, constant.params, a, b, g_a, g_b, target)
+        assert abs(root - 0.05 - target) <= 1e-17
+
+
 def test_crossing_time_flat_piece_returns_start():
     # h(t) = t on [0, 1] makes g = t - h identically 0: any point solves it; the start is returned.
     profile = TraceDelay([0.0, 1.0], [0.0, 1.0])

@@ -150,20 +150,22 @@ def crossing_time(kind, params, a, b, g_a, g_b, target):
     """Solve ``t - h(t) = target`` for ``t`` in a piece ``[a, b]`` where ``g = t - h`` is monotone.
 
     ``g_a`` and ``g_b`` are ``g(a+)`` and ``g(b-)``; ``target`` must lie between them. ``g`` is
-    linear on a piece for every kind but ``ABS_SINE``, which is solved by bracketed Newton steps.
+    linear on a piece for every kind but ``ABS_SINE``, which is solved by bracketed Newton steps
+    (unless its amplitude is zero: ``g`` is then linear too, and Newton steps from a root at an
+    end of the piece, where a constant delay puts every crossing, would halve the bracket to the
+    last bit, 60 evaluations of ``sin`` a step).
     """
     if g_b == g_a:
         return a
-    if kind != ABS_SINE:
-        root = a + (target - g_a) * (b - a) / (g_b - g_a)
+    amplitude = params[1] if kind == ABS_SINE else 0.0
+    omega = params[2] if kind == ABS_SINE else 0.0
+    root = a + (target - g_a) * (b - a) / (g_b - g_a)
+    if amplitude * omega == 0.0:  # g is linear
         return min(max(root, a), b)
+    phase = params[3]
     increasing = g_b > g_a
     lo = a
     hi = b
-    root = a + (target - g_a) * (b - a) / (g_b - g_a)
-    amplitude = params[1]
-    omega = params[2]
-    phase = params[3]
     for _ in range(_NEWTON_ITERATIONS):
         if not lo < root < hi:
             root = 0.5 * (lo + hi)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from delaytrack._compile.jit import inline_kernel, shared_kernel
+from delaytrack._compile.jit import hot_inline_kernel, inline_kernel, shared_kernel
 
 __all__ = ["SYMMETRY_TOLERANCE", "matvec", "solve_in_place", "solve_mass_in_place"]
 
@@ -135,14 +135,15 @@ def solve_mass_in_place(a, b):
     return solved, positive and (symmetric or not solved)
 
 
-@shared_kernel
-def matvec(values, start, rows, x, out):
-    """``out = A x`` for a small (rows, c) matrix ``A`` stored row-major in ``values`` from
-    index ``start`` (``c = x.shape[0]``), by loops (no BLAS call), summed in index order.
+@hot_inline_kernel
+def matvec(values, start, rows, columns, x, out):
+    """``out = A x`` for a small (rows, columns) matrix ``A`` stored row-major in ``values`` from
+    index ``start`` (``x`` holds at least ``columns`` entries), by loops (no BLAS call), summed
+    in index order.
 
     The matrix is read in place, not as a reshaped view of ``values``: a reshape compiles
-    numba's shape checks and its runtime into every caller."""
-    columns = x.shape[0]
+    numba's shape checks and its runtime into every caller. The sizes are arguments, so that a
+    caller that knows them when it is compiled gets the loops unrolled."""
     for i in range(rows):
         total = 0.0
         row = start + i * columns

@@ -36,6 +36,7 @@ from delaytrack.analysis.razumikhin import (
     error_dynamics_matrices,
     lyapunov_matrix,
 )
+from delaytrack.components import plant_sizes
 from delaytrack.controllers.base import (
     Controller,
     auxiliary_input,
@@ -61,7 +62,7 @@ def adaptive_gain_rate(c_hat, s, s_previous, has_previous, gamma):
     """``ĉ'`` of the adaptive law (ATRC) with ``sᵀṡ`` replaced by ``sᵀ(s - s_previous)``."""
     if c_hat <= gamma:
         return gamma
-    norm_s = math.sqrt(_dot(s, s))
+    norm_s = math.sqrt(_dot(s.shape[0], s, s))
     increasing = 0.0
     for i in range(s.shape[0]):
         increasing += s[i] * (s[i] - s_previous[i])
@@ -71,10 +72,10 @@ def adaptive_gain_rate(c_hat, s, s_previous, has_previous, gamma):
 
 
 @hot_kernel
-def _dot(a, b):
+def _dot(n, a, b):
     """``aᵀb``, summed in index order."""
     total = 0.0
-    for i in range(a.shape[0]):
+    for i in range(n):
         total += a[i] * b[i]
     return total
 
@@ -89,20 +90,20 @@ def arolc_step(
     ``state = [ĉ, has_previous_s, s_previous]`` is advanced in place; ``work`` is
     :func:`~delaytrack.controllers.base.step_workspace` scratch.
     """
-    n = q.shape[0]
+    n, m = plant_sizes(model_terms, q, command)
     alpha = params[4 * n * n]
     epsilon = params[4 * n * n + 1]
     gamma = params[4 * n * n + 2]
-    vectors = terms_views(work, n, command.shape[0])[3]
+    vectors = terms_views(work, n, m)[3]
     error = vectors[: 2 * n]
     s = vectors[2 * n : 3 * n]
     u = vectors[3 * n : 4 * n]
-    tracking_errors(q, qdot, qd, qd_dot, error)
-    matvec(params, 2 * n * n, n, error, s)  # s = BᵀP e
-    norm_s = math.sqrt(_dot(s, s))
+    tracking_errors(q, qdot, qd, qd_dot, error, n)
+    matvec(params, 2 * n * n, n, 2 * n, error, s)  # s = BᵀP e
+    norm_s = math.sqrt(_dot(n, s, s))
     c_hat = state[_C_HAT]
     # u = û + Δu with Δu = α ĉ s / max(‖s‖, ε)  (paper eqs. (control input), (delta u)).
-    auxiliary_input(params, error, qd_ddot, u)
+    auxiliary_input(params, error, qd_ddot, u, n)
     gain = alpha * c_hat / max(norm_s, epsilon)
     for i in range(n):
         u[i] += gain * s[i]

@@ -27,7 +27,7 @@ import numpy as np
 from delaytrack._compile.functions import is_compiled
 from delaytrack._compile.jit import hot_inline_kernel, inline_kernel
 from delaytrack._validation import positive_scalar
-from delaytrack.components import Kernel, call_command_map, call_terms
+from delaytrack.components import Kernel, call_command_map, call_terms, plant_sizes
 from delaytrack.controllers.stepper import INPUT_NAMES, ControllerStepper, checked_vector
 from delaytrack.plants.base import ELPlant
 
@@ -60,19 +60,20 @@ def terms_views(work, n, m):
 
 
 @hot_inline_kernel
-def tracking_errors(q, qdot, qd, qd_dot, error):
-    """``e = [e1; ė1]`` with ``e1 = q_d - q`` (the paper's tracking error) into ``error`` (2n,)."""
-    n = q.shape[0]
+def tracking_errors(q, qdot, qd, qd_dot, error, n=None):
+    """``e = [e1; ė1]`` with ``e1 = q_d - q`` (the paper's tracking error) into ``error`` (2n,).
+    ``n`` (by default ``q``'s length) known when compiled unrolls the loop."""
+    n = q.shape[0] if n is None else n
     for i in range(n):
         error[i] = qd[i] - q[i]
         error[n + i] = qd_dot[i] - qdot[i]
 
 
 @hot_inline_kernel
-def auxiliary_input(params, error, qd_ddot, u):
+def auxiliary_input(params, error, qd_ddot, u, n=None):
     """``û = q̈_d + K2 ė1 + K1 e1`` (paper eq. (aux)) into ``u`` (n,); ``params`` starts with K1,
-    K2 (row-major)."""
-    n = qd_ddot.shape[0]
+    K2 (row-major). ``n`` (by default ``q̈_d``'s length) known when compiled unrolls the loops."""
+    n = qd_ddot.shape[0] if n is None else n
     for i in range(n):
         damping = 0.0
         stiffness = 0.0
@@ -92,8 +93,8 @@ def computed_torque_command(model_terms, model_params, t, q, qdot, u, command, w
     (:func:`terms_views`); ``u`` must not lie there. Afterwards ``N̂`` holds ``τ`` and ``Ĝ`` may
     hold its LU factors (the default command map factorises it in place): read neither again.
     """
-    n = q.shape[0]
-    mass, nonlinear, input_map, _ = terms_views(work, n, command.shape[0])
+    n, m = plant_sizes(model_terms, q, command)
+    mass, nonlinear, input_map, _ = terms_views(work, n, m)
     call_terms(model_terms, t, q, qdot, model_params, mass, nonlinear, input_map)
     finite = True
     for i in range(n):
@@ -102,7 +103,7 @@ def computed_torque_command(model_terms, model_params, t, q, qdot, u, command, w
             total += mass[i, j] * u[j]
         nonlinear[i] += total  # τ, in place of N̂
         finite = finite and math.isfinite(nonlinear[i])
-        for j in range(command.shape[0]):
+        for j in range(m):
             finite = finite and math.isfinite(input_map[i, j])
     if not finite:
         command[:] = np.nan  # the simulator stops the run as diverged

@@ -9,6 +9,7 @@ import numpy as np
 
 from delaytrack._compile.jit import tick_kernel
 from delaytrack._validation import as_spd_matrix
+from delaytrack.components import plant_sizes
 from delaytrack.controllers.base import (
     Controller,
     auxiliary_input,
@@ -33,12 +34,12 @@ def outer_loop_step(
     ``params = [K1, K2]`` flattened row-major; there is no state; ``work`` is
     :func:`~delaytrack.controllers.base.step_workspace` scratch.
     """
-    n = q.shape[0]
-    vectors = terms_views(work, n, command.shape[0])[3]
+    n, m = plant_sizes(model_terms, q, command)
+    vectors = terms_views(work, n, m)[3]
     error = vectors[: 2 * n]
     u = vectors[2 * n : 3 * n]
-    tracking_errors(q, qdot, qd, qd_dot, error)
-    auxiliary_input(params, error, qd_ddot, u)
+    tracking_errors(q, qdot, qd, qd_dot, error, n)
+    auxiliary_input(params, error, qd_ddot, u, n)
     computed_torque_command(model_terms, model_params, t, q, qdot, u, command, work)
 
 

@@ -157,7 +157,7 @@ def pcon_step(
         for j in range(d):
             e_z[j] += fraction * state[start + j]
     e_z *= T_c
-    matvec(params, vartheta_at, d, e_z, predicted)
+    matvec(params, vartheta_at, d, d, e_z, predicted)
     call_terms(model_terms, t, q, qdot, model_params, mass, nonlinear, input_map)
     finite = True
     for i in range(n):
@@ -172,13 +172,13 @@ def pcon_step(
         call_command_map(model_terms, q, model_params, input_map, velocity_error, command)
         for i in range(m):
             rho[i] = command[i] - predicted[i]
-        matvec(params, k_b_at, d, rho, command)
+        matvec(params, k_b_at, d, d, rho, command)
         for i in range(m):
             tau[i] = command[i]
     else:
         for i in range(n):
             rho[i] = ((qd_dot[i] - qdot[i]) + kappa * (qd[i] - q[i])) - predicted[i]
-        matvec(params, k_b_at, d, rho, tau)
+        matvec(params, k_b_at, d, d, rho, tau)
     for i in range(d):
         finite = finite and math.isfinite(tau[i])
     if not finite:

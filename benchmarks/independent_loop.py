@@ -1,8 +1,9 @@
 """A second ceiling for ``make bench``: the paper's robot run written from its equations alone.
 
 :mod:`hand_loop` calls the package's own kernels; this loop calls none of them. It is written
-from the equations of the paper and of the robot model (docs/robot.md), with every quantity a
-local scalar, as one would write the experiment by hand for speed and nothing else. Only the
+from the equations of the paper and of the robot model (docs/robot.md), for five coordinates
+and two wheels and nothing general, every buffer allocated before the loop, as one would write
+the experiment by hand for speed and nothing else. Only the
 *numbers* come from the package's objects (the robot's and the payload schedule's parameters,
 the gains and ``P`` of AROLC, the reference's harmonics), so that both run the same experiment:
 
@@ -111,7 +112,26 @@ def _command_index(time, delay, T_c):
     return math.floor((time - h) / T_c)
 
 
-@numba.njit(cache=True, error_model="numpy")
+#: numba's parallel pipeline with none of its conversions (nothing runs in parallel): for this
+#: function numba compiles code about 1.5 times as fast as with its default pipeline, with the
+#: same numbers (as it does when the function is called inside a ``prange``); the cause was not
+#: found. The engine's kernels compiled so run no faster (decisions D74).
+NO_CONVERSIONS = dict.fromkeys(
+    (
+        "comprehension",
+        "reduction",
+        "inplace_binop",
+        "setitem",
+        "numpy",
+        "stencil",
+        "fusion",
+        "prange",
+    ),
+    False,
+)
+
+
+@numba.njit(cache=True, error_model="numpy", parallel=NO_CONVERSIONS)
 def _one_run(body, schedule, points, delay, control, reference, x0, duration, dt, steps_per_tick):
     """One run; returns ``(final [q, q̇], [Σ|e1_j| / ticks ..., TV])``.
 
@@ -229,6 +249,7 @@ def _one_run(body, schedule, points, delay, control, reference, x0, duration, dt
         # the plant's steps to the next tick: RK4 on (q, η)
         for step in range(steps_per_tick):
             t = t_k + step * dt
+            index = index_end
             for stage in range(4):
                 offset = 0.0 if stage == 0 else (0.5 * dt if stage < 3 else dt)
                 for i in range(N):
@@ -238,9 +259,7 @@ def _one_run(body, schedule, points, delay, control, reference, x0, duration, dt
                     y[N + i] = eta if stage == 0 else eta + offset * slope[stage - 1, N + i]
                 time = t + offset
                 # h at the three times of a step (its end is the next step's start)
-                if stage == 0:
-                    index = index_end
-                elif stage == 1:
+                if stage == 1:
                     index = _command_index(time, delay, T_c)
                 elif stage == 3:
                     index_end = _command_index(time, delay, T_c)

@@ -157,8 +157,14 @@ def _circles(edges: dict[str, set[str]]) -> list[list[str]]:
     return circles
 
 
-def test_the_import_graph_has_no_circle():
-    assert _circles(_graph()) == []
+@pytest.fixture(scope="module")
+def package_graph() -> dict[str, set[str]]:
+    """The package's import graph (:func:`_graph`), read once for the tests that only read it."""
+    return _graph()
+
+
+def test_the_import_graph_has_no_circle(package_graph):
+    assert _circles(package_graph) == []
 
 
 def test_the_check_finds_a_circle():
@@ -244,10 +250,10 @@ def _modules_in(package: str) -> list[str]:
 
 
 @pytest.mark.parametrize("package", ["delaytrack.sweeps", "delaytrack.scenario"])
-def test_the_studies_stand_above_sweeps_and_scenarios(package: str):
+def test_the_studies_stand_above_sweeps_and_scenarios(package: str, package_graph):
     """The studies (``experiments``) use sweeps and scenarios, never the other way round: no
     module of ``package`` reaches ``experiments``, not even through a third module."""
-    edges = _graph()
+    edges = package_graph
     upward = sorted(
         f"{module} -> {target}"
         for module in _modules_in(package)
@@ -257,12 +263,12 @@ def test_the_studies_stand_above_sweeps_and_scenarios(package: str):
     assert upward == []
 
 
-def test_studies_return_results_and_jobs_write_their_reports():
+def test_studies_return_results_and_jobs_write_their_reports(package_graph):
     """A study (``experiments``) returns its result and imports neither a report nor a job; a
     report renders results and reaches no job: :mod:`delaytrack.jobs` runs a study and writes
     its report. (A study reaches :mod:`delaytrack.report.figures` only through
     :mod:`delaytrack.sim`, whose ``SimResult.plot`` draws with it.)"""
-    edges = _graph()
+    edges = package_graph
     upward = sorted(
         f"{module} -> {target}"
         for module in _modules_in("delaytrack.experiments")
@@ -278,12 +284,12 @@ def test_studies_return_results_and_jobs_write_their_reports():
     assert upward == []
 
 
-def test_a_scenario_is_read_built_and_run_without_the_packages_above_it():
+def test_a_scenario_is_read_built_and_run_without_the_packages_above_it(package_graph):
     """``scenario`` imports neither reports nor the packages that use scenarios. (Through
     :mod:`delaytrack.sim` it reaches :mod:`delaytrack.report.figures`: ``SimResult.plot`` draws
     with it.)"""
     above = ("experiments", "report", "sweeps", "cli", "live")
-    edges = _graph()
+    edges = package_graph
     upward = sorted(
         f"{module} -> {target}"
         for module in _modules_in("delaytrack.scenario")
@@ -299,11 +305,11 @@ def test_the_floor_check_follows_imports_through_other_modules():
 
 
 @pytest.mark.parametrize("package", ["delaytrack.experiments", "delaytrack.report"])
-def test_studies_and_reports_never_reach_into_the_compile_machinery(package: str):
+def test_studies_and_reports_never_reach_into_the_compile_machinery(package: str, package_graph):
     """The compile machinery (``delaytrack._compile``) is the engine's business: the studies and
     their reports call :func:`delaytrack.sim.simulate` (and its public helpers such as
     ``compile_ahead``), never a module of ``_compile`` directly."""
-    edges = _graph()
+    edges = package_graph
     direct = sorted(
         f"{module} -> {target}"
         for module in _modules_in(package)

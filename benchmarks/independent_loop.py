@@ -367,14 +367,10 @@ def _profile(delay) -> np.ndarray:
     return np.array([delay.offset, delay.amplitude, delay.frequency, delay.phase])
 
 
-def independent_run(plant, controller, delay, reference, x0, duration, dt, T_c) -> tuple:
-    """One run: ``(final [q, q̇], [AE_j..., TV])``."""
-    body, schedule, points = _plant_numbers(plant)
-    return _one_run(
-        body,
-        schedule,
-        points,
-        _profile(delay),
+def _shared(controller, reference, x0, duration, dt, T_c) -> tuple:
+    """The arguments of :func:`_one_run` after the run's own (plant and delay), which every run
+    of a batch shares."""
+    return (
         _control_numbers(controller),
         _reference_numbers(reference),
         np.asarray(x0, dtype=float),
@@ -382,6 +378,13 @@ def independent_run(plant, controller, delay, reference, x0, duration, dt, T_c) 
         float(dt),
         round(T_c / dt),
     )
+
+
+def independent_run(plant, controller, delay, reference, x0, duration, dt, T_c) -> tuple:
+    """One run: ``(final [q, q̇], [AE_j..., TV])``."""
+    body, schedule, points = _plant_numbers(plant)
+    shared = _shared(controller, reference, x0, duration, dt, T_c)
+    return _one_run(body, schedule, points, _profile(delay), *shared)
 
 
 def independent_batch(plants, controller, delays, reference, x0, duration, dt, T_c) -> np.ndarray:
@@ -397,10 +400,5 @@ def independent_batch(plants, controller, delays, reference, x0, duration, dt, T
         np.array([schedule for _, schedule, _ in numbers]),
         points,
         np.array([_profile(delay) for delay in delays]),
-        _control_numbers(controller),
-        _reference_numbers(reference),
-        np.asarray(x0, dtype=float),
-        float(duration),
-        float(dt),
-        round(T_c / dt),
+        *_shared(controller, reference, x0, duration, dt, T_c),
     )

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from delaytrack._compile.jit import hot_inline_kernel, inline_kernel, shared_kernel
+from delaytrack._compile.jit import inline_kernel, inline_part, shared_kernel
 
 __all__ = ["SYMMETRY_TOLERANCE", "matvec", "solve_in_place", "solve_mass_in_place"]
 
@@ -135,7 +135,7 @@ def solve_mass_in_place(a, b):
     return solved, positive and (symmetric or not solved)
 
 
-@hot_inline_kernel
+@inline_part
 def matvec(values, start, rows, columns, x, out):
     """``out = A x`` for a small (rows, columns) matrix ``A`` stored row-major in ``values`` from
     index ``start`` (``x`` holds at least ``columns`` entries), by loops (no BLAS call), summed

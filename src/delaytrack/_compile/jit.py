@@ -197,14 +197,16 @@ def shared_kernel(function):
 def inline_part(function):
     """A part of a compiled function inlined into it before typing (``njit(inline="always")``),
     that runs as plain Python when called from Python (:class:`_PythonFromPython`), whatever its
-    arguments: for a part that allocates, so that it cannot be a :func:`shared_kernel`, and
-    that only compiled code and Python (the plain-Python engine, a short first run interpreted)
-    call. Inlined, it takes its caller's numba settings (runtime, error model) and is kept on
-    disk only inside its caller's code: settings given to it have no effect. An
-    :data:`inline_kernel` is compiled as a function of its own inside each caller's compile, and
-    LLVM optimises and generates machine code for it and for everything linked into it once
-    there and again in the caller (the engine's :func:`~delaytrack.sim.engine.run_closed_loop`,
-    with its tick loop linked, cost about 0.5–1 s of every first compile of the engine)."""
+    arguments: for a part that allocates, so that it cannot be a :func:`shared_kernel`, or
+    whose loops should be compiled for sizes its caller knows when it is compiled (a linked
+    :func:`shared_kernel` is compiled without them), and that only compiled code and Python (the
+    plain-Python engine, a short first run interpreted) call. Inlined, it takes its caller's
+    numba settings (runtime, error model) and is kept on disk only inside its caller's code:
+    settings given to it have no effect. An :data:`inline_kernel` is compiled as a function of
+    its own inside each caller's compile, and LLVM optimises and generates machine code for it
+    and for everything linked into it once there and again in the caller (the engine's
+    :func:`~delaytrack.sim.engine.run_closed_loop`, with its tick loop linked, cost about
+    0.5–1 s of every first compile of the engine)."""
     dispatcher = compiled(function, inline="always")
     dispatcher.__class__ = _PythonFromPython
     return dispatcher

@@ -151,9 +151,9 @@ def crossing_time(kind, params, a, b, g_a, g_b, target):
 
     ``g_a`` and ``g_b`` are ``g(a+)`` and ``g(b-)``; ``target`` must lie between them. ``g`` is
     linear on a piece for every kind but ``ABS_SINE``, which is solved by bracketed Newton steps
-    (unless its amplitude is zero: ``g`` is then linear too, and Newton steps from a root at an
-    end of the piece, where a constant delay puts every crossing, would halve the bracket to the
-    last bit, 60 evaluations of ``sin`` a step).
+    (unless its slope ``A ω`` is zero, as for a zero amplitude: ``g`` is then linear too, and
+    Newton steps from a root at an end of the piece, where a constant delay puts every crossing,
+    would halve the bracket to the last bit, 60 evaluations of ``sin`` a step).
     """
     if g_b == g_a:
         return a

@@ -216,6 +216,12 @@ def test_adaptive_gain_rate_cases(c_hat, s_previous, has_previous, rate):
     # With s = 2S, ‖s‖ = 2 in cases (a) and (b).
     expected = rate * 2.0 if abs(rate) == 1.0 else rate
     assert got == pytest.approx(expected, rel=1e-15)
+    # ‖s‖ handed in by a caller that has it (AROLC's step) is the one used: the same rate for
+    # the true norm, and the norm given (here 3, not 2) where the rate is ±‖s‖
+    given = adaptive_gain_rate(c_hat, 2.0 * S, 2.0 * s_previous, has_previous, GAMMA, 2.0)
+    assert given == got
+    scaled = adaptive_gain_rate(c_hat, 2.0 * S, 2.0 * s_previous, has_previous, GAMMA, 3.0)
+    assert scaled == (rate * 3.0 if abs(rate) == 1.0 else rate)
 
 
 def arm_state_for_s(P, target_s, rng):

@@ -58,13 +58,15 @@ _S_PREVIOUS = 2
 
 
 @hot_kernel
-def adaptive_gain_rate(c_hat, s, s_previous, has_previous, gamma):
-    """``ĉ'`` of the adaptive law (ATRC) with ``sᵀṡ`` replaced by ``sᵀ(s - s_previous)``."""
+def adaptive_gain_rate(c_hat, s, s_previous, has_previous, gamma, norm_s=None):
+    """``ĉ'`` of the adaptive law (ATRC) with ``sᵀṡ`` replaced by ``sᵀ(s - s_previous)``;
+    ``norm_s`` is ``‖s‖`` when the caller has it already (computed here otherwise)."""
     if c_hat <= gamma:
         return gamma
-    norm_s = math.sqrt(_dot(s.shape[0], s, s))
+    n = s.shape[0]
+    norm_s = math.sqrt(_dot(n, s, s)) if norm_s is None else norm_s
     increasing = 0.0
-    for i in range(s.shape[0]):
+    for i in range(n):
         increasing += s[i] * (s[i] - s_previous[i])
     if has_previous and increasing > 0.0:
         return norm_s
@@ -108,7 +110,9 @@ def arolc_step(
     for i in range(n):
         u[i] += gain * s[i]
     computed_torque_command(model_terms, model_params, t, q, qdot, u, command, work)
-    rate = adaptive_gain_rate(c_hat, s, state[_S_PREVIOUS:], state[_HAS_PREVIOUS] != 0.0, gamma)
+    rate = adaptive_gain_rate(
+        c_hat, s, state[_S_PREVIOUS:], state[_HAS_PREVIOUS] != 0.0, gamma, norm_s
+    )
     c_next = c_hat + T_c * rate
     state[_C_HAT] = gamma if rate < 0.0 and c_next < gamma else c_next
     state[_HAS_PREVIOUS] = 1.0

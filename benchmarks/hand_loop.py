@@ -190,9 +190,8 @@ def _shared(controller, reference, x0, duration, dt, T_c) -> tuple:
 def hand_run(plant, controller, delay, reference, x0, duration, dt, T_c) -> tuple:
     """One run of the hand loop: ``(final state, [AE_j..., TV])``."""
     sums = np.zeros(plant.n + 1)
-    profile = np.array([delay.offset, delay.amplitude, delay.frequency, delay.phase])
     shared = _shared(controller, reference, x0, duration, dt, T_c)
-    return _one_run(plant.params, profile, sums, shared), sums
+    return _one_run(plant.params, delay.params, sums, shared), sums
 
 
 def hand_batch(plants, controller, delays, reference, x0, duration, dt, T_c) -> np.ndarray:
@@ -204,7 +203,7 @@ def hand_batch(plants, controller, delays, reference, x0, duration, dt, T_c) -> 
     plant_params = np.zeros((len(plants), width))  # padded: the kernel reads its own length
     for b, plant in enumerate(plants):
         plant_params[b, : plant.params.size] = plant.params
-    profiles = np.array([[d.offset, d.amplitude, d.frequency, d.phase] for d in delays])
+    profiles = np.array([delay.params for delay in delays])
     sums = np.zeros((len(plants), plants[0].n + 1))
     _batch(plant_params, profiles, sums, _shared(controller, reference, x0, duration, dt, T_c))
     return sums

@@ -5,7 +5,8 @@ from the equations of the paper and of the robot model (docs/robot.md), for five
 and two wheels and nothing general, every buffer allocated before the loop, as one would write
 the experiment by hand for speed and nothing else. Only the
 *numbers* come from the package's objects (the robot's and the payload schedule's parameters,
-the gains and ``P`` of AROLC, the reference's harmonics), so that both run the same experiment:
+the gains and ``P`` of AROLC, the reference's harmonics, the delay's ``params``), so that both
+run the same experiment:
 
 * the robot in its reduced wheel-space form, ``q = (x_c, y_c, φ, θ_r, θ_l)``, wheel rates
   ``η = (θ̇_r, θ̇_l)``, ``v = R (θ̇_r + θ̇_l)/2``, ``ω = R (θ̇_r - θ̇_l)/(2L)``::
@@ -363,10 +364,6 @@ def _reference_numbers(reference) -> tuple:
     )
 
 
-def _profile(delay) -> np.ndarray:
-    return np.array([delay.offset, delay.amplitude, delay.frequency, delay.phase])
-
-
 def _shared(controller, reference, x0, duration, dt, T_c) -> tuple:
     """The arguments of :func:`_one_run` after the run's own (plant and delay), which every run
     of a batch shares."""
@@ -384,7 +381,7 @@ def independent_run(plant, controller, delay, reference, x0, duration, dt, T_c) 
     """One run: ``(final [q, q̇], [AE_j..., TV])``."""
     body, schedule, points = _plant_numbers(plant)
     shared = _shared(controller, reference, x0, duration, dt, T_c)
-    return _one_run(body, schedule, points, _profile(delay), *shared)
+    return _one_run(body, schedule, points, delay.params, *shared)
 
 
 def independent_batch(plants, controller, delays, reference, x0, duration, dt, T_c) -> np.ndarray:
@@ -399,6 +396,6 @@ def independent_batch(plants, controller, delays, reference, x0, duration, dt, T
         np.array([body for body, _, _ in numbers]),
         np.array([schedule for _, schedule, _ in numbers]),
         points,
-        np.array([_profile(delay) for delay in delays]),
+        np.array([delay.params for delay in delays]),
         *_shared(controller, reference, x0, duration, dt, T_c),
     )

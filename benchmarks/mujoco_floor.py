@@ -127,6 +127,5 @@ def hand_run(plant, controller, delay, reference, x0, duration, dt, T_c) -> tupl
         dt,
         per_tick,
     )
-    profile = np.array([delay.offset, delay.amplitude, delay.frequency, delay.phase])
     sums = np.zeros(plant.n + 1)
-    return _closed_loop(np.asarray(x0, float), plant.params, profile, sums, shared), sums
+    return _closed_loop(np.asarray(x0, float), plant.params, delay.params, sums, shared), sums

@@ -438,6 +438,8 @@ def test_crossing_time_of_a_zero_amplitude_is_the_constant_delays_own():
     for target in (g_a, np.nextafter(g_a, 1.0), g_a + 0.3e-3, np.nextafter(g_b, 0.0), g_b):
         root = crossing_time(flat.kind, flat.params, a, b, g_a, g_b, target)
         assert root == crossing_time(constant.kind, constant.params, a, b, g_a, g_b, target)
+        # g(root) = target to the rounding of t near 0.073 (its last bit is 1.4e-17: half of
+        # it, and the subtraction's rounding)
         assert abs(root - 0.05 - target) <= 1e-17
 
 

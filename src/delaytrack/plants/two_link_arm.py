@@ -40,8 +40,9 @@ def two_link_terms(t, q, qdot, params, mass, nonlinear, input_map):
     mass[1, 1] = p2
     nonlinear[0] = -p3 * s2 * (2.0 * qdot[0] * qdot[1] + qdot[1] * qdot[1]) + fd1 * qdot[0]
     nonlinear[1] = p3 * s2 * qdot[0] * qdot[0] + fd2 * qdot[1]
-    input_map[:, :] = 0.0
-    input_map[0, 0] = 1.0
+    input_map[0, 0] = 1.0  # written entry by entry: a slice assignment is a memset call
+    input_map[0, 1] = 0.0
+    input_map[1, 0] = 0.0
     input_map[1, 1] = 1.0
 
 

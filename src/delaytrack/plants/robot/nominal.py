@@ -52,7 +52,9 @@ def robot_nominal_terms(t, q, qdot, params, mass, nonlinear, input_map):
     inertia_p = inertia_a - 2.0 * d * s_x + mass_b * d * d
     c = math.cos(q[2])
     s = math.sin(q[2])
-    mass[:, :] = 0.0
+    for i in range(5):  # loops over the model's sizes: a slice assignment is a memset call
+        for j in range(5):
+            mass[i, j] = 0.0
     mass[0, 0] = mass_b
     mass[1, 1] = mass_b
     mass[0, 2] = K * s - s_y * c
@@ -68,7 +70,9 @@ def robot_nominal_terms(t, q, qdot, params, mass, nonlinear, input_map):
     nonlinear[2] = 0.0
     nonlinear[3] = 0.0
     nonlinear[4] = 0.0
-    input_map[:, :] = 0.0
+    for i in range(5):
+        for j in range(2):
+            input_map[i, j] = 0.0
     input_map[3, 0] = 1.0
     input_map[4, 1] = 1.0
 

@@ -75,7 +75,9 @@ def robot_printed_terms(t, q, qdot, params, mass, nonlinear, input_map):
     k3 = c * (K * r - m * d * r) / b - m * r * s / 2.0
     k4 = c * (m * d * r - K * r) / b - m * r * s / 2.0
     k5 = r * (inertia - K * d) / b
-    mass[:, :] = 0.0
+    for i in range(5):  # loops over the model's sizes: a slice assignment is a memset call
+        for j in range(5):
+            mass[i, j] = 0.0
     mass[0, 0] = m
     mass[1, 1] = m
     mass[0, 2] = K * s
@@ -102,7 +104,9 @@ def robot_printed_terms(t, q, qdot, params, mass, nonlinear, input_map):
     nonlinear[2] = K * wheels
     nonlinear[3] = -K * r * phidot2 / 2.0
     nonlinear[4] = -K * r * phidot2 / 2.0
-    input_map[:, :] = 0.0
+    for i in range(5):
+        for j in range(2):
+            input_map[i, j] = 0.0
     input_map[3, 0] = 1.0
     input_map[4, 1] = 1.0
 

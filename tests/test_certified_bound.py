@@ -66,6 +66,17 @@ def test_a_delay_beyond_h_m_warns_at_the_users_line_and_says_it_is_not_instabili
 
 
 @pytest.mark.parametrize("trajectories", [True, False])
+def test_a_batch_quotes_its_largest_delay_beyond_h_m_and_names_the_run(trajectories):
+    """Not the first run beyond h_m (40 ms here), whose delay is not the batch's largest."""
+    delays = [ConstantDelay(0.005), ConstantDelay(0.04), ConstantDelay(0.09), ConstantDelay(0.05)]
+    with pytest.warns(BeyondCertifiedBoundWarning) as caught:
+        run(FAST, delays, trajectories=trajectories)
+    warning = caught[0].message
+    assert warning.largest_delay == pytest.approx(0.09) and warning.h_m == H_M
+    assert "in 3 of 4 runs" in str(warning) and "run 2: 90 ms" in str(warning)
+
+
+@pytest.mark.parametrize("trajectories", [True, False])
 def test_below_h_m_or_without_arolc_nothing_is_said(trajectories):
     with warnings.catch_warnings():
         warnings.simplefilter("error", BeyondCertifiedBoundWarning)

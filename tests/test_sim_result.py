@@ -95,9 +95,11 @@ def test_the_run_figures_label_each_axis_with_the_plants_own_units_or_none():
         input_units=["N"],
     )
     assert labels(outer_loop_run(plant)) == (["cart (m)"], ["|e1| of cart (m)"], ["u1 (N)"])
+    assert list(outer_loop_run(plant).summary())[2:] == ["AE cart (m)", "TV (N)"]
     # A plant that declares no units gets none, not radians and newton-metres.
     bare = labels(outer_loop_run(LinearPlant(np.eye(1))))
     assert bare == (["q1"], ["|e1| of q1"], ["u1"])
+    assert list(outer_loop_run(LinearPlant(np.eye(1))).summary())[2:] == ["AE q1", "TV"]
     # A unit given by the caller labels every panel.
     result = outer_loop_run(LinearPlant(np.eye(1)))
     assert tracking_figure(result, unit="deg").axes[0].get_ylabel() == "q1 (deg)"
@@ -124,7 +126,7 @@ def test_repr_is_one_line_and_html_summarises_each_run(arm_result):
     assert text.startswith("SimResult(runs=2, ok=2, t = 0 .. 2 s (201 records), n=2 (q1, q2)")
     assert "c_hat, has_previous_s, s_previous_0, s_previous_1" in text
     html = arm_result._repr_html_()
-    assert html.count("<tr>") >= 3 and "AE q1 (rad)" in html and "TV" in html
+    assert html.count("<tr>") >= 3 and "AE q1 (rad)" in html and "TV (N·m)" in html
     ae = f"{arm_result.metrics['ae'][1, 0]:.4g}"
     assert ae in html
 

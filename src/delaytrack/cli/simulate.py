@@ -14,8 +14,6 @@ from delaytrack._output import check_output_folder
 from delaytrack.cli._scenarios import scenario_source, trusted
 
 if TYPE_CHECKING:
-    import pandas as pd
-
     from delaytrack.jobs.scenario_run import RunOutput
 
 __all__ = ["add_command", "run"]
@@ -71,25 +69,12 @@ def run(args: argparse.Namespace) -> int:
         f"simulated {scenario.name!r}: {scenario.duration:g} s in {seconds:.1f} s wall time, "
         f"status {status}"
     )
-    print(_summary(output).to_string(float_format=lambda v: f"{v:.4g}"))
+    print(output.result.summary().to_string(float_format=lambda v: f"{v:.4g}"))
     _certified_bound(output)
     print(f"wrote {len(output.files)} files to {folder}/:")
     for path in output.files:
         print(f"  {path.relative_to(folder)}")
     return 0
-
-
-def _summary(output: RunOutput) -> pd.DataFrame:
-    """The run's summary table, its TV columns with the inputs' unit when they share one."""
-    from delaytrack._result_columns import metric_units
-    from delaytrack.units import labelled
-
-    result = output.result
-    unit = metric_units(
-        result.coordinate_names, result.coordinate_units, result.n, result.input_units
-    )["tv"]
-    summary = result.summary()
-    return summary.rename(columns={c: labelled(c, unit) for c in summary if c.startswith("TV")})
 
 
 def _certified_bound(output: RunOutput) -> None:

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from delaytrack._result_columns import trajectory_columns
+from delaytrack._result_columns import shared_unit, trajectory_columns
 from delaytrack.sim.engine import STATUS_NAMES
 from delaytrack.units import default_names, labelled
 
@@ -164,8 +164,9 @@ class SimResult:
         return overview_figure(self, run)
 
     def summary(self) -> pd.DataFrame:
-        """Status, stop time, AE per coordinate (in its unit) and TV per run; with input limits
-        (:attr:`input_limited`), also "TV received", the TV of the input the plant received
+        """Status, stop time, AE per coordinate (in its unit) and TV per run (in the inputs'
+        unit when they share one); with input limits (:attr:`input_limited`), also "TV
+        received", the TV of the input the plant received
         (:func:`~delaytrack.metrics.total_variation` of ``applied``)."""
         import pandas as pd  # imported when a table is made: `import delaytrack` stays light
 
@@ -175,10 +176,11 @@ class SimResult:
         if "ae" in self.metrics:  # built whole: a frame grown column by column fragments
             for j, (name, unit) in enumerate(zip(names, units, strict=True)):
                 columns[labelled(f"AE {name}", unit)] = self.metrics["ae"][:, j]
+        input_unit = shared_unit(self.input_units or ())
         if "tv" in self.metrics:
-            columns["TV"] = self.metrics["tv"]
+            columns[labelled("TV", input_unit)] = self.metrics["tv"]
         if self.input_limited and "tv_applied" in self.metrics:
-            columns["TV received"] = self.metrics["tv_applied"]
+            columns[labelled("TV received", input_unit)] = self.metrics["tv_applied"]
         frame = pd.DataFrame(columns)
         frame.index.name = "run"
         return frame

@@ -40,7 +40,7 @@ ROWS = [
 ]
 FIGURES = ("path_S1", "error_S1_S2", "error_S3_S4", "c_hat", "delay")
 COLUMNS = (
-    "scenario,controller,ae_x_mm,ae_y_mm,pct_ae_x,pct_ae_y,tv,rms_x_mm,rms_y_mm,max_x_mm,max_y_mm"
+    "scenario,controller,ae_x_mm,ae_y_mm,pct_ae_x,pct_ae_y,tv_Nm,rms_x_mm,rms_y_mm,max_x_mm,max_y_mm"
 )
 
 
@@ -173,8 +173,8 @@ def test_contact_findings_are_computed_from_the_table():
             "ae_x_contact_mm": [11.0, 40.0, 30.0, np.nan],
             "ae_y_mm": [10.0, 5.0, 10.0, 5.0],
             "ae_y_contact_mm": [13.0, 5.0, 30.0, np.nan],
-            "tv": [1.0, 2.0, 1.0, 2.0],
-            "tv_contact": [1.5, 2.0, 1.0, np.nan],
+            "tv_Nm": [1.0, 2.0, 1.0, 2.0],
+            "tv_contact_Nm": [1.5, 2.0, 1.0, np.nan],
             "slip_sideways_rms_mm_s": [0.5, 0.25, 0.75, np.nan],
             "slip_rolling_rms_mm_s": [2.0, 3.0, 4.0, np.nan],
             "slip_max_mm_s": [9.0, 8.0, 12.5, np.nan],
@@ -183,7 +183,7 @@ def test_contact_findings_are_computed_from_the_table():
     table["change_ae_pct"] = 100 * (
         (table.ae_x_contact_mm + table.ae_y_contact_mm) / (table.ae_x_mm + table.ae_y_mm) - 1
     )
-    table["change_tv_pct"] = 100 * (table.tv_contact / table.tv - 1)
+    table["change_tv_pct"] = 100 * (table.tv_contact_Nm / table.tv_Nm - 1)
     stiff = table.assign(contact_time_constant_s=0.005, ae_x_contact_mm=table.ae_x_mm)
     stiff["change_ae_pct"] = 100 * (
         (stiff.ae_x_contact_mm + stiff.ae_y_contact_mm) / (stiff.ae_x_mm + stiff.ae_y_mm) - 1
@@ -206,14 +206,14 @@ def test_claims_are_computed_from_the_summary():
         ae = {"AROLC": 10.0, "OuterLoop": 30.0}.get(controller, 20.0)
         if scenario == "S4" and controller == "AROLC":
             ae = 12.0
-        rows.append(dict(scenario=scenario, controller=controller, ae_x_mm=ae, ae_y_mm=ae, tv=ae))
+        rows.append(dict(scenario=scenario, controller=controller, ae_x_mm=ae, ae_y_mm=ae, tv_Nm=ae))
     checks = paper.claims(pd.DataFrame(rows))
     assert all(checks["ae"].values()) and all(checks["tv"].values())
     assert checks["growth"]["S3->S4"]
     # A diverged run (NaN metrics) loses: against a diverged baseline AROLC's claims hold; a
     # diverged AROLC's fail.
-    rows[4].update(ae_x_mm=np.nan, ae_y_mm=np.nan, tv=np.nan)  # S2 PCON
-    rows[9].update(ae_x_mm=np.nan, ae_y_mm=np.nan, tv=np.nan)  # S4 AROLC
+    rows[4].update(ae_x_mm=np.nan, ae_y_mm=np.nan, tv_Nm=np.nan)  # S2 PCON
+    rows[9].update(ae_x_mm=np.nan, ae_y_mm=np.nan, tv_Nm=np.nan)  # S4 AROLC
     checks = paper.claims(pd.DataFrame(rows))
     assert checks["ae"] == {"S1": True, "S2": True, "S3": True, "S4": False}
     assert checks["tv"] == checks["ae"] and not checks["growth"]["S3->S4"]

@@ -201,7 +201,7 @@ def _paper(args: argparse.Namespace, executor) -> int:
         f"{out / 'paper-literal'}/"
     )
     study = studies["consistent"]
-    columns = SUMMARY_COLUMNS[:5] + ["tv"]
+    columns = SUMMARY_COLUMNS[:5] + ["tv_Nm"]
     print(study.summary[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     if study.dt_check is not None:
         print(f"largest relative change of a metric when dt is halved: {study.dt_max_change:.2e}")

@@ -86,9 +86,9 @@ def comparison(analytic: pd.DataFrame, contact: pd.DataFrame) -> pd.DataFrame:
                 / (both["ae_x_mm"] + both["ae_y_mm"])
                 - 1.0
             ),
-            "tv": both["tv"],
-            "tv_contact": both["tv_contact"],
-            "change_tv_pct": 100.0 * (both["tv_contact"] / both["tv"] - 1.0),
+            "tv_Nm": both["tv_Nm"],
+            "tv_contact_Nm": both["tv_Nm_contact"],
+            "change_tv_pct": 100.0 * (both["tv_Nm_contact"] / both["tv_Nm"] - 1.0),
         }
     )
     for column in SLIP_COLUMNS:
@@ -128,8 +128,8 @@ class ContactRun:
     ae_x_contact_mm: float
     ae_y_mm: float
     ae_y_contact_mm: float
-    tv: float
-    tv_contact: float
+    tv_Nm: float
+    tv_contact_Nm: float
 
 
 @dataclass(frozen=True)

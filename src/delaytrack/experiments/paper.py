@@ -237,7 +237,7 @@ def _summary(results: dict[str, SimResult]) -> tuple[pd.DataFrame, pd.DataFrame]
                     "ae_y_mm": ae[i, 1],
                     "pct_ae_x": percent_of(ae[i, 0], DIAMETER_MM),
                     "pct_ae_y": percent_of(ae[i, 1], DIAMETER_MM),
-                    "tv": tv[i],
+                    "tv_Nm": tv[i],
                     "rms_x_mm": rms[i, 0],
                     "rms_y_mm": rms[i, 1],
                     "max_x_mm": peak[i, 0],

@@ -254,7 +254,7 @@ def claims(summary: pd.DataFrame) -> Claims:
     for case in SCENARIOS:
         a, b = summary_row(summary, case, "AROLC"), summary_row(summary, case, BASELINE[case])
         ae[case] = _below(a.ae_x_mm, b.ae_x_mm) and _below(a.ae_y_mm, b.ae_y_mm)
-        tv[case] = _below(a.tv, b.tv)
+        tv[case] = _below(a.tv_Nm, b.tv_Nm)
     s3, s4 = summary_row(summary, "S3", "AROLC"), summary_row(summary, "S4", "AROLC")
     growth = {"S3->S4": bool(s4.ae_x_mm > s3.ae_x_mm and s4.ae_y_mm > s3.ae_y_mm)}
     return {"ae": ae, "tv": tv, "growth": growth}

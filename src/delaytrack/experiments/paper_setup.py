@@ -62,7 +62,7 @@ SUMMARY_COLUMNS = [
     "ae_y_mm",
     "pct_ae_x",
     "pct_ae_y",
-    "tv",
+    "tv_Nm",
     "rms_x_mm",
     "rms_y_mm",
     "max_x_mm",

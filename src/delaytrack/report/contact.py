@@ -28,8 +28,8 @@ _COLUMNS = {
     "ae_y_mm": "AE-y mm",
     "ae_y_contact_mm": "AE-y contact mm",
     "change_ae_pct": "AE change %",
-    "tv": "TV N·m",
-    "tv_contact": "TV contact N·m",
+    "tv_Nm": "TV N·m",
+    "tv_contact_Nm": "TV contact N·m",
     "change_tv_pct": "TV change %",
     "slip_sideways_rms_mm_s": "sideways slip RMS mm/s",
     "slip_rolling_rms_mm_s": "rolling slip RMS mm/s",
@@ -89,7 +89,7 @@ def contact_paragraphs(findings: ContactFindings) -> list[str]:
             f"The largest change is {largest.controller}'s in {largest.scenario}: AE-x "
             f"{largest.ae_x_mm:.3g} → {largest.ae_x_contact_mm:.3g} mm, AE-y "
             f"{largest.ae_y_mm:.3g} → {largest.ae_y_contact_mm:.3g} mm, TV "
-            f"{largest.tv:.3g} → {largest.tv_contact:.3g} N·m."
+            f"{largest.tv_Nm:.3g} → {largest.tv_contact_Nm:.3g} N·m."
         )
         text.append(_rankings(findings))
     for other in findings.others:

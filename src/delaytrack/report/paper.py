@@ -124,11 +124,11 @@ def paper_tables(summary: pd.DataFrame) -> dict[str, pd.DataFrame]:
             {
                 "case": case,
                 "baseline": baseline,
-                "TV baseline ours (N·m)": _fmt(summary_row(summary, case, baseline).tv),
+                "TV baseline ours (N·m)": _fmt(summary_row(summary, case, baseline).tv_Nm),
                 "TV baseline paper": _fmt(PAPER_TABLE[case, baseline][4]),
-                "TV AROLC ours (N·m)": _fmt(summary_row(summary, case, "AROLC").tv),
+                "TV AROLC ours (N·m)": _fmt(summary_row(summary, case, "AROLC").tv_Nm),
                 "TV AROLC paper": _fmt(PAPER_TABLE[case, "AROLC"][4]),
-                "TV OuterLoop ours (N·m)": _fmt(summary_row(summary, case, "OuterLoop").tv),
+                "TV OuterLoop ours (N·m)": _fmt(summary_row(summary, case, "OuterLoop").tv_Nm),
             }
         )
     tables["Table III: total variation of the control input"] = pd.DataFrame(rows)
@@ -299,7 +299,7 @@ def _claims_text(study: PaperStudy, robustness: RobustnessStudy | None) -> list[
         a, b = summary_row(summary, case, "AROLC"), summary_row(summary, case, BASELINE[case])
         verdict = "HOLDS" if checks["tv"][case] else "FAILS"
         lines.append(
-            f"TV, {case}: AROLC {_fmt(a.tv)} N·m vs {BASELINE[case]} {_fmt(b.tv)} N·m: in this "
+            f"TV, {case}: AROLC {_fmt(a.tv_Nm)} N·m vs {BASELINE[case]} {_fmt(b.tv_Nm)} N·m: in this "
             f"one run the claim 'AROLC's TV is lower' {verdict}."
             + _over_draws(robustness, case, f"TV below {BASELINE[case]}", who)
         )
@@ -547,12 +547,12 @@ def _tv_text(study: PaperStudy) -> str:
 
 def _tv_values(summary: pd.DataFrame, controller: str) -> str:
     """``controller``'s TV in S1–S4, comma-separated."""
-    return ", ".join(f"{summary_row(summary, case, controller).tv:.3g}" for case in SCENARIOS)
+    return ", ".join(f"{summary_row(summary, case, controller).tv_Nm:.3g}" for case in SCENARIOS)
 
 
 def _baseline_tv_values(summary: pd.DataFrame) -> str:
     """Each scenario's baseline's TV in S1–S4, comma-separated ("diverged" where not finite)."""
-    values = (summary_row(summary, case, BASELINE[case]).tv for case in SCENARIOS)
+    values = (summary_row(summary, case, BASELINE[case]).tv_Nm for case in SCENARIOS)
     return ", ".join(f"{tv:.3g}" if math.isfinite(tv) else "diverged" for tv in values)
 
 
@@ -703,8 +703,8 @@ def _tuned_section(
         a = summary_row(study.tuned_summary, case, TUNED)
         b = summary_row(study.summary, case, BASELINE[case])
         lines.append(
-            f"{case}: AROLC-tuned AE {_fmt(a.ae_x_mm)} / {_fmt(a.ae_y_mm)} mm, TV {_fmt(a.tv)} "
-            f"vs {BASELINE[case]} {_fmt(b.ae_x_mm)} / {_fmt(b.ae_y_mm)} mm, TV {_fmt(b.tv)}: in "
+            f"{case}: AROLC-tuned AE {_fmt(a.ae_x_mm)} / {_fmt(a.ae_y_mm)} mm, TV {_fmt(a.tv_Nm)} "
+            f"vs {BASELINE[case]} {_fmt(b.ae_x_mm)} / {_fmt(b.ae_y_mm)} mm, TV {_fmt(b.tv_Nm)}: in "
             f"this one run the AE claim {'HOLDS' if checks['ae'][case] else 'FAILS'}, the TV "
             f"claim {'HOLDS' if checks['tv'][case] else 'FAILS'}."
             + _over_draws(robustness, case, f"AE below {BASELINE[case]}", who, "AE claim over")

@@ -65,6 +65,7 @@ def test_search_is_reproducible_and_records_every_run():
     assert np.all(np.diff(first.values) > 0)
     # The margin passes, the first failure fails, nothing between them was evaluated.
     frame = first.to_frame()
+    assert set(frame.status) <= {"ok", "diverged"} and "ok" in set(frame.status)
     assert frame.loc[frame.value == first.margin, "passes"].item()
     assert not frame.loc[frame.value == first.first_failure, "passes"].item()
     assert frame.loc[frame.value < first.margin, "passes"].all()

@@ -164,11 +164,12 @@ class EmpiricalMargin:
 
     def to_frame(self) -> pd.DataFrame:
         """Every evaluated value: ``value, metric, status, passes`` and the metric of each
-        coordinate, ``metric_<name>``."""
+        coordinate, ``metric_<name>``; ``status`` by name (``ok``, ``diverged``, ...)."""
         columns = {"value": self.values, "metric": self.metric_values}
         for j, name in enumerate(self.coordinate_names):
             columns[f"metric_{name}"] = self.coordinate_metrics[:, j]
-        return pd.DataFrame({**columns, "status": self.statuses, "passes": self.passes})
+        status = [STATUS_NAMES[int(code)] for code in self.statuses]
+        return pd.DataFrame({**columns, "status": status, "passes": self.passes})
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (JSON-ready)."""

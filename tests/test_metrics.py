@@ -120,6 +120,12 @@ def test_single_run_equals_row_of_batch():
     np.testing.assert_array_equal(total_variation(single), total_variation(result)[:1])
 
 
+@pytest.mark.parametrize("function", [mean_absolute_error, total_variation, metrics_table])
+def test_something_other_than_a_result_is_refused_by_name(function):
+    with pytest.raises(TypeError, match=r"result must be a SimResult .*; got str 'x'"):
+        function("x")
+
+
 def test_percent_of():
     assert percent_of(12.5, 2500.0) == pytest.approx(0.5)
     np.testing.assert_allclose(percent_of(np.array([25.0, np.nan]), 2500.0), [1.0, np.nan])

@@ -113,6 +113,12 @@ def test_unknown_top_level_key():
     )
 
 
+def test_replace_refuses_an_unknown_key_naming_the_valid_ones():
+    scenario = load_builtin("two_link_S1")
+    with pytest.raises(ScenarioError, match=r"unknown key 'durration' in scenario; valid keys are"):
+        scenario.replace(durration=2.0)
+
+
 def test_unknown_key_in_controller_table():
     data = base_dict()
     data["controller"]["alfa"] = 2.0

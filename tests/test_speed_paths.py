@@ -212,6 +212,13 @@ def test_a_python_plant_warns_that_it_runs_as_plain_python() -> None:
     assert [w.filename for w in seen] == [__file__]  # the line of the caller
 
 
+def test_the_plain_python_warning_names_each_python_part_in_a_sentence() -> None:
+    one = PythonFallbackWarning.describe(python_arm(), OuterLoop(TwoLinkArm(), 4.0, 4.0), None)
+    both = PythonFallbackWarning.describe(python_arm(), OuterLoop(python_arm(), 4.0, 4.0), None)
+    assert "because the plant CallablePlant is given as Python callables" in str(one)
+    assert "the plant CallablePlant and the nominal model CallablePlant are given" in str(both)
+
+
 def test_the_plain_python_warning_points_at_the_users_line_through_a_scenario() -> None:
     scenario = Scenario.from_dict(
         {**base_dict(), "plant": {"type": "python:test_speed_paths:python_arm"}}

@@ -627,7 +627,12 @@ def _point_mass_run(delay, **changes):
 @pytest.mark.parametrize(
     ("params", "h_max", "message"),
     [
-        ([0.05, -0.1], 0.1, r"gives h = -0.0001 s at t = 0.5\d* s; it must be a number from 0"),
+        (
+            [0.05, -0.1],
+            0.1,
+            r"CompiledDelay 'ramp': its kernel \S*:_linear_delay gives h = -0.0001 s at "
+            r"t = 0.5\d* s; it must be a number from 0",
+        ),
         ([0.05, 0.1], 0.1, r"gives h = 0.1001 s at t = 0.501 s"),
         ([0.5, -1.0], 1.0, r"gives h = nan s at t = 0.501 s"),
     ],

@@ -100,10 +100,21 @@ def _samples(result: SimResult, t_from: float) -> slice:
     return slice(first, None)
 
 
+def _check_result(result: object) -> None:
+    """Raise a TypeError unless ``result`` looks like a :class:`~delaytrack.sim.SimResult`
+    (what ``simulate`` returns, or one made by hand)."""
+    if not all(hasattr(result, name) for name in ("metrics", "ok", "t", "n", "batch_size")):
+        raise TypeError(
+            f"result must be a SimResult (what delaytrack.simulate returns); got "
+            f"{type(result).__name__} {result!r:.60}"
+        )
+
+
 def _metrics(result: SimResult, t_from: float | None) -> dict[str, np.ndarray]:
     """``{"ae", "rms", "max" (B, n), "tv", "tv_applied" (B,)}`` over the window (module
     docstring); a result made by hand may give its own metrics without ``"tv_applied"``, which
     is then taken from its records (:func:`_with_applied_variation`)."""
+    _check_result(result)
     if t_from is None and result.metrics:
         return {name: values.copy() for name, values in result.metrics.items()}
     # A result without running metrics (one built by hand) is measured on its records.
@@ -292,6 +303,7 @@ def metrics_table(
     """
     import pandas as pd  # imported when a table is made: `import delaytrack` stays light
 
+    _check_result(result)
     n = result.n
     if coordinate_names is None:
         coordinate_names = result.coordinate_names

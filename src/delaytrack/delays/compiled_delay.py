@@ -10,7 +10,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 import delaytrack.delays._kernel as _kernel
-from delaytrack._compile.functions import is_compiled
+from delaytrack._compile.functions import is_compiled, qualified_name
 from delaytrack._compile.stale_caches import compile_from_source
 from delaytrack._validation import finite_array, positive_scalar
 from delaytrack.components import Kernel
@@ -133,7 +133,8 @@ class CompiledDelay(DelayProfile):
         )
         if index >= 0:
             raise ValueError(
-                f"delay kernel {self.name!r} gives h = {value:g} s at "
+                f"CompiledDelay {self.name!r}: its kernel {qualified_name(self.kernel)} gives "
+                f"h = {value:g} s at "
                 f"t = {t0 + index * dt:.9g} s; it must be a number from 0 to h_max = "
                 f"{self.h_max:g} s at every step of the run (raise h_max if the bound is wrong)"
             )

@@ -7,7 +7,7 @@ import copy
 import dataclasses
 import functools
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
@@ -88,6 +88,15 @@ class BuiltScenario:
     delay: DelayProfile
     reference: Reference
     x0: np.ndarray
+
+
+def _refuse_unknown_keys(keys: Iterable[str]) -> None:
+    """Raise :class:`ScenarioError` naming the first of ``keys`` that is not a scenario's."""
+    for key in keys:
+        if key not in TOP_LEVEL_KEYS:
+            raise ScenarioError(
+                f"unknown key {key!r} in scenario; valid keys are {sorted(TOP_LEVEL_KEYS)}"
+            )
 
 
 @dataclass(frozen=True)
@@ -244,11 +253,7 @@ class Scenario:
         """
         if not isinstance(data, Mapping):
             raise ScenarioError(f"a scenario must be a table of keys; got {type(data).__name__}")
-        for key in data:
-            if key not in TOP_LEVEL_KEYS:
-                raise ScenarioError(
-                    f"unknown key {key!r} in scenario; valid keys are {sorted(TOP_LEVEL_KEYS)}"
-                )
+        _refuse_unknown_keys(data)
         for key in REQUIRED:
             if key not in data:
                 what = f"table [{key}] ({TABLE_PURPOSE[key]})" if key in TABLES else f"key {key!r}"
@@ -330,7 +335,9 @@ class Scenario:
         return text
 
     def replace(self, **changes: Any) -> Scenario:
-        """A copy with some fields changed (validated again), e.g. ``replace(dt=5e-4)``."""
+        """A copy with some fields changed (validated again), e.g. ``replace(dt=5e-4)``; the
+        fields are the scenario file's top-level keys and tables."""
+        _refuse_unknown_keys(changes)
         return dataclasses.replace(self, **changes)
 
     # ---- building and running ----------------------------------------------------------------

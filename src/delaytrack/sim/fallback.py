@@ -46,11 +46,12 @@ class PythonFallbackWarning(UserWarning):
             if not item.compiled
         ]
         if slow:
+            verb = "are" if len(slow) > 1 else "is"
             return cls(
-                f"simulate() runs as plain Python because the {' and the '.join(slow)} "
-                "is given as Python callables (about 100x slower than compiled). For compiled "
+                f"simulate() runs as plain Python because the {' and the '.join(slow)} {verb} "
+                "given as Python callables (about 100x slower than compiled). For compiled "
                 "speed, write terms(t, q, qdot, params, M, N, G) with @numba.njit and wrap it in "
-                "delaytrack.plants.CompiledPlant (see docs/performance.md)."
+                "delaytrack.plants.CompiledPlant (the documentation's page 'Your own robot')."
             )
         what = (
             f"the reference kernel of {type(reference).__name__}"

@@ -152,6 +152,22 @@ def test_missing_argument_is_a_usage_error():
 
 
 @pytest.mark.parametrize(
+    ("command", "help"),
+    [
+        (["simulate", "two_link_S1"], "delaytrack simulate --help"),
+        (["bound", "--k1", "1", "--k2", "1"], "delaytrack bound --help"),
+        (["live", "replay", "folder"], "delaytrack live replay --help"),
+    ],
+)
+def test_an_unknown_option_points_to_the_help_of_its_command(command, help, capsys):
+    with pytest.raises(SystemExit) as stop:
+        main([*command, "--frobnicate"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert err == f"error: unrecognized arguments: --frobnicate (see {help})\n"
+
+
+@pytest.mark.parametrize(
     "command", [[], ["bound"], ["simulate"], ["reproduce"], ["tune-baselines"]]
 )
 def test_help_on_every_command(command, capsys):

@@ -39,9 +39,7 @@ ROWS = [
     ("S4", "OuterLoop"),
 ]
 FIGURES = ("path_S1", "error_S1_S2", "error_S3_S4", "c_hat", "delay")
-COLUMNS = (
-    "scenario,controller,ae_x_mm,ae_y_mm,pct_ae_x,pct_ae_y,tv_Nm,rms_x_mm,rms_y_mm,max_x_mm,max_y_mm"
-)
+COLUMNS = "scenario,controller,ae_x_mm,ae_y_mm,pct_ae_x,pct_ae_y,tv_Nm,rms_x_mm,rms_y_mm,max_x_mm,max_y_mm"
 
 
 @pytest.mark.slow
@@ -206,7 +204,9 @@ def test_claims_are_computed_from_the_summary():
         ae = {"AROLC": 10.0, "OuterLoop": 30.0}.get(controller, 20.0)
         if scenario == "S4" and controller == "AROLC":
             ae = 12.0
-        rows.append(dict(scenario=scenario, controller=controller, ae_x_mm=ae, ae_y_mm=ae, tv_Nm=ae))
+        rows.append(
+            dict(scenario=scenario, controller=controller, ae_x_mm=ae, ae_y_mm=ae, tv_Nm=ae)
+        )
     checks = paper.claims(pd.DataFrame(rows))
     assert all(checks["ae"].values()) and all(checks["tv"].values())
     assert checks["growth"]["S3->S4"]

@@ -4,6 +4,7 @@ Pareto front by brute force, resuming after a lost part, and the command's refus
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pandas as pd
@@ -111,7 +112,9 @@ def test_command_writes_the_table_figure_and_page(tmp_path, capsys):
         table.columns
     )
     assert (out / "figures" / "pareto.png").is_file() and (out / "report.html").is_file()
-    assert "Pareto front" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "Pareto front" in printed
+    assert re.search(r"omega_n = \S+ +rad/s  margin = \S+ s  AE = \S+", printed), printed
 
 
 @pytest.mark.parametrize(

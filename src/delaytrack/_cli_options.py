@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import argparse
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import TypeVar
 
 from delaytrack._validation import NumberTextError, decimal_number
@@ -35,11 +35,38 @@ EXIT_USAGE = 2
 _Number = TypeVar("_Number", int, float)
 
 
+#: The namespace attribute in which the innermost command that parsed its arguments leaves its
+#: name (``delaytrack simulate``), for the error about arguments none of them took.
+_COMMAND_PROG = "_command_prog"
+
+
 class OptionParser(argparse.ArgumentParser):
-    """argparse with one-line errors (``error: ...``) and exit code 2, without the usage dump."""
+    """argparse with one-line errors (``error: ...``) and exit code 2, without the usage dump;
+    an argument no command took points to the help of the command it was given to."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
         self.exit(EXIT_USAGE, f"error: {message} (see {self.prog} --help)\n")
+
+    def parse_known_args(  # type: ignore[override]
+        self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
+    ) -> tuple[argparse.Namespace, list[str]]:
+        namespace, extras = super().parse_known_args(args, namespace)
+        if not hasattr(namespace, _COMMAND_PROG):  # a command's own parser sets it first
+            setattr(namespace, _COMMAND_PROG, self.prog)
+        return namespace, extras
+
+    def parse_args(  # type: ignore[override]
+        self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
+    ) -> argparse.Namespace:
+        namespace, extras = self.parse_known_args(args, namespace)
+        prog = getattr(namespace, _COMMAND_PROG)
+        delattr(namespace, _COMMAND_PROG)
+        if extras:
+            self.exit(
+                EXIT_USAGE,
+                f"error: unrecognized arguments: {' '.join(extras)} (see {prog} --help)\n",
+            )
+        return namespace
 
 
 def integer(text: str) -> int:

@@ -237,11 +237,13 @@ def run(args: argparse.Namespace) -> int:
         f"controllers, {study.draws} draw{'s' if study.draws > 1 else ''} each, "
         f"{study.seconds:.1f} s ({study.computed} units computed, {study.resumed} resumed)"
     )
-    print("Pareto front (empirical margin s, median AE):")
+    ae_unit = f" {study.ae_unit}" if study.ae_unit else ""
+    print("Pareto front (empirical margin, median AE):")
     for row in front.itertuples():
         print(
-            f"  {row.controller:<10} omega_n = {row.omega_n:<8.4g} margin = "
-            f"{row.empirical_margin:.4g}{'' if row.margin_found else '+'}  AE = {row.ae_median:.4g}"
+            f"  {row.controller:<10} omega_n = {row.omega_n:<8.4g} rad/s  margin = "
+            f"{row.empirical_margin:.4g}{'' if row.margin_found else '+'} s  AE = "
+            f"{row.ae_median:.4g}{ae_unit}"
         )
     if decision is not None:
         print("\n".join(decision_lines(decision)))

@@ -332,6 +332,11 @@ def contact_ahead(
     return compile_ahead([], robot.n, robot.m, plants=[robot])
 
 
+#: The start of MuJoCo's warning of an unstable simulation, as a Python warning
+#: (:func:`~delaytrack.plants.mujoco.plant.import_mujoco`).
+_UNSTABLE = "MuJoCo: Nan, Inf or huge value"
+
+
 def _robot_with_wheels(duration: float, time_constant: float) -> MujocoWheeledRobot:
     """The robot of the contact runs: the payload schedule of the analytic robot's runs, wheels
     on the floor with contacts of ``time_constant`` (s)."""
@@ -407,11 +412,15 @@ def run_study(
         results = _simulate_all(controllers, reference, duration, DT, bar)
         halved = _simulate_all(controllers, reference, duration, DT / 2, bar) if check_dt else None
         wheels = {}
-        for time_constant in CONTACT_TIME_CONSTANTS if contact else ():
-            robot = _robot_with_wheels(duration, time_constant)
-            wheels[time_constant] = _simulate_all(
-                controllers, reference, duration, DT, bar, plant=robot
-            )
+        with warnings.catch_warnings():
+            # MuJoCo's word that a run became unstable: the run's status says so (it diverged
+            # or left the path) and the report counts it; other MuJoCo warnings are shown.
+            warnings.filterwarnings("ignore", _UNSTABLE, RuntimeWarning)
+            for time_constant in CONTACT_TIME_CONSTANTS if contact else ():
+                robot = _robot_with_wheels(duration, time_constant)
+                wheels[time_constant] = _simulate_all(
+                    controllers, reference, duration, DT, bar, plant=robot
+                )
     seconds = time.perf_counter() - start
     analytic, status = _summary(results)
     summary, status, tuned_summary = _split(analytic, status)

@@ -363,14 +363,14 @@ def format_agreement(report: dict[str, Any]) -> list[str]:
 
     lines = [
         f"{name}: tracking error RMS live {c['tracking_error_rms_live']:.4g}{unit(c)}, "
-        f"replayed {c['tracking_error_rms_replayed']:.4g}; live - replayed max "
-        f"{c['error_difference_max']:.3g}, RMS {c['error_difference_rms']:.3g} "
-        f"({100 * c['error_difference_rms_relative']:.2f} % of the live RMS)"
+        f"replayed {c['tracking_error_rms_replayed']:.4g}{unit(c)}; live - replayed max "
+        f"{c['error_difference_max']:.3g}{unit(c)}, RMS {c['error_difference_rms']:.3g}"
+        f"{unit(c)} ({100 * c['error_difference_rms_relative']:.2f} % of the live RMS)"
         for name, c in report["coordinates"].items()
     ]
     lines += [
         f"{name}: live - replayed command max {c['command_difference_max']:.3g}{unit(c)}, "
-        f"RMS {c['command_difference_rms']:.3g}"
+        f"RMS {c['command_difference_rms']:.3g}{unit(c)}"
         for name, c in report["inputs"].items()
     ]
     return lines

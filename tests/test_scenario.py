@@ -251,6 +251,20 @@ def test_file_errors_name_the_file(tmp_path):
     typo.write_text(dumps_toml(base_dict() | {"dt_typo": 1}))
     with pytest.raises(ScenarioError, match=r"typo\.toml: unknown key 'dt_typo'"):
         Scenario.from_toml(typo)
+    # A value refused when the scenario is built names the file too, and keeps its key.
+    gains = tmp_path / "gains.toml"
+    data = base_dict()
+    data["controller"]["K1"] = [1.0, 2.0, 3.0]
+    gains.write_text(dumps_toml(data))
+    scenario = Scenario.from_toml(gains)
+    assert scenario.source == gains and scenario == Scenario.from_dict(data)
+    with pytest.raises(
+        ScenarioError, match=r"gains\.toml: scenario key 'controller\.K1'"
+    ) as refused:
+        scenario.build()
+    assert refused.value.key == "controller.K1"
+    with pytest.raises(ScenarioError, match=r"^scenario key 'controller\.K1'"):
+        Scenario.from_dict(data).build()  # no file
 
 
 # ---- building -----------------------------------------------------------------------------------

@@ -72,6 +72,12 @@ class SpecError(ValueError):
         error.key, error.problem = key, problem
         return error
 
+    def in_file(self, source: object) -> SpecError:
+        """The same error, its message starting with the file ``source`` it is about."""
+        error = type(self)(f"{source}: {self}")
+        error.key, error.problem = self.key, self.problem
+        return error
+
 
 def _is_number(value: object) -> TypeGuard[int | float]:
     return isinstance(value, int | float) and not isinstance(value, bool)

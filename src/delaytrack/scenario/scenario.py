@@ -8,7 +8,7 @@ import dataclasses
 import functools
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any, TypeVar
@@ -144,6 +144,9 @@ class Scenario:
         The input ``u_init`` (m entries, in the inputs' units) the plant receives before the
         first command arrives, i.e. over ``[0, h(0))``; zeros when None. It must lie within
         ``input_limits``.
+    source : Path or None
+        The file it was read from (:meth:`from_toml`), which its refusals name; not a key of
+        the file, and not compared.
     """
 
     name: str
@@ -163,6 +166,7 @@ class Scenario:
     measurement_noise: Mapping[str, Any] | None = None
     packet_loss: Mapping[str, Any] | None = None
     u_init: tuple[float, ...] | None = None
+    source: Path | None = field(default=None, compare=False, repr=False, kw_only=True)
 
     def __post_init__(self) -> None:
         _check_value("name", self.name, string)
@@ -297,9 +301,11 @@ class Scenario:
         try:
             for table in TABLES:
                 resolve_file_keys(source, table, data.get(table), trusted)
-            return cls.from_dict(data)
+            scenario = cls.from_dict(data)
         except ScenarioError as error:
-            raise ScenarioError(f"{source}: {error}") from None
+            raise error.in_file(source) from None
+        object.__setattr__(scenario, "source", source)  # not a key: set after the checks
+        return scenario
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data in the file layout (a deep copy); ``None`` fields are left out."""
@@ -365,8 +371,16 @@ class Scenario:
         ------
         ScenarioError
             If a table's values are refused by its constructor (for example a gain that is not
-            positive definite) or the dimensions disagree; the message names the table.
+            positive definite) or the dimensions disagree; the message names the table, and
+            the file (:attr:`source`) of a scenario read from one.
         """
+        try:
+            return self._build()
+        except ScenarioError as error:
+            raise error if self.source is None else error.in_file(self.source) from None
+
+    def _build(self) -> BuiltScenario:
+        """:meth:`build`, its refusals not yet naming the file."""
         plant = self._built(lambda: plant_from_spec(_plain(self.plant)), "plant")
         model = self._built(lambda: plant_from_spec(_plain(self.model), table="model"), "model")
         if (model.n, model.m) != (plant.n, plant.m):

@@ -153,7 +153,8 @@ def test_a_factory_that_cannot_be_used_is_refused_naming_the_table(example, kind
         (
             "checks.py:make",
             "kp = -1.0",
-            r"^scenario table \[plant\]: python:.*checks.py:make raised ValueError: kp and kd "
+            r"^\S*short\.toml: scenario table \[plant\]: python:.*checks.py:make raised "
+            r"ValueError: kp and kd "
             r"must be positive; got -1.0, 1.0$",
         ),
     ],

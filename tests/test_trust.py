@@ -118,6 +118,36 @@ def test_a_sweep_file_naming_a_shell_command_runs_nothing(tmp_path, capsys):
     assert not touched.exists()
 
 
+def test_a_function_a_trusted_file_imports_is_not_a_factory(tmp_path, capsys):
+    """A file beside the scenario is trusted for the factories written in it; a scenario sent
+    into that folder cannot reach what the file imported (``system`` here) to run a command."""
+    touched = tmp_path / "touched"
+    folder = tmp_path / "project"
+    folder.mkdir()
+    (folder / "helpers.py").write_text("from os import system\n\n" + ARM_FACTORY)
+    path = scenario_file(
+        folder, {"type": "python:helpers.py:system", "command": f"touch {touched}"}
+    )
+    assert main(["simulate", str(path), "--out", str(tmp_path / "out")]) == 2
+    one_line_error(capsys, "'system' is not defined in", "(it comes from 'posix')")
+    assert not touched.exists()
+    made = scenario_file(folder, {"type": "python:helpers.py:make"}, name="made.toml")
+    assert Scenario.from_toml(made).build().plant.n == 2  # its own factory still runs
+
+
+def test_a_package_may_name_a_factory_of_its_submodule_but_not_an_import(tmp_path, lab):
+    (tmp_path / "site" / lab / "__init__.py").write_text(
+        "from subprocess import getoutput\n\nfrom .robots import make\n"
+    )
+    reexported = scenario_file(tmp_path / "case", {"type": f"python:{lab}:make"})
+    assert Scenario.from_toml(reexported, trust=[lab]).build().plant.n == 2
+    imported = scenario_file(
+        tmp_path / "case", {"type": f"python:{lab}:getoutput", "cmd": "true"}, name="x.toml"
+    )
+    with pytest.raises(ScenarioError, match=r"'getoutput' is not defined in .*'subprocess'"):
+        Scenario.from_toml(imported, trust=[lab])
+
+
 # ---- files: beside the scenario, or trusted ------------------------------------------------
 
 

@@ -333,6 +333,18 @@ def user_factory(table: str, kind: str) -> Callable[..., Any]:
         raise SpecError(
             f"scenario key '{table}.type' = {kind!r}: {location!r} has no function {name!r}"
         )
+    # Trusting a file or a module trusts the factories written there, not whatever it imported
+    # (a file with `from os import system` would otherwise let a scenario call system(...)).
+    home = getattr(factory, "__module__", None)
+    package = module.__name__
+    if not (
+        home == package or (not location.endswith(".py") and f"{home}".startswith(f"{package}."))
+    ):
+        raise SpecError(
+            f"scenario key '{table}.type' = {kind!r}: {name!r} is not defined in {location!r} "
+            f"(it comes from {home!r}); a factory must be a function written in the file or "
+            "package that the type names, not one it imports"
+        )
     return factory
 
 

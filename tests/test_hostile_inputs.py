@@ -48,6 +48,19 @@ def one_line_error(capsys, *words: str) -> str:
 # ---- 1. resources ----------------------------------------------------------------------------
 
 
+@pytest.mark.parametrize("command", ["simulate", "sweep", "gains"])
+def test_values_nested_hundreds_deep_are_refused_not_a_recursion_error(tmp_path, capsys, command):
+    deep = tmp_path / "deep.toml"
+    deep.write_text('scenario = "two_link_S1"\nx = ' + "[" * 600 + "1" + "]" * 600 + "\n")
+    argv = {
+        "simulate": ["simulate", str(deep)],
+        "sweep": ["sweep", str(deep), "--quiet"],
+        "gains": ["reproduce", "--gains", str(deep), "--duration", "0.1"],
+    }[command]
+    assert main([*argv, "--out", str(tmp_path / "out")]) == 2
+    one_line_error(capsys, "deep.toml", "nested more than 32 levels deep")
+
+
 @pytest.mark.parametrize("h_max", [1e6, 1e300, math.inf])
 def test_history_is_bounded_by_the_run_not_by_the_delay(h_max):
     # min(ceil(h_max / T_c), ticks) + 3: a run of 100 ticks never needs more than its 101

@@ -8,7 +8,8 @@ model file, a factory's ``.py`` file) is first checked to be a regular file of b
 (:func:`csv_table`); their numbers are read by the command line's rule (:func:`csv_number`); a
 column whose name names another time unit than the one it is read in is refused
 (:func:`check_column_unit`). Errors about them name the file, line and column without quoting
-the file's text, a header's names included.
+the file's text, a header's names included. TOML files (scenarios, sweeps, gains) are parsed by
+:func:`toml_data`, which bounds how deeply their values nest.
 
 Writing is atomic: a reader sees the old file or the complete new one, never a half-written one.
 Each writer writes to a temporary file in the destination's folder (same file system) and then
@@ -26,6 +27,7 @@ import os
 import re
 import stat
 import tempfile
+import tomllib
 import unicodedata
 from collections.abc import Iterator
 from pathlib import Path
@@ -50,6 +52,7 @@ __all__ = [
     "csv_table",
     "named_time_units",
     "regular_file",
+    "toml_data",
     "write_bytes",
     "write_frame",
     "write_text",
@@ -57,6 +60,33 @@ __all__ = [
 
 #: Largest file the toolkit reads (256 MiB): a trace sampled at 1 kHz for an hour is about 70 MB.
 MAX_READ_BYTES = 256 * 2**20
+
+#: Deepest nesting of arrays and tables in a TOML file the toolkit reads (a scenario's deepest
+#: value, a matrix in a table of a table, is four levels down).
+MAX_TOML_DEPTH = 32
+
+
+def toml_data(text: str) -> dict:
+    """``tomllib.loads(text)``, refusing values nested more than :data:`MAX_TOML_DEPTH` levels
+    deep with a :class:`tomllib.TOMLDecodeError` (Python's parser, which recurses, would end
+    in a ``RecursionError`` for a file of a few hundred ``[``)."""
+    too_deep = f"values nested more than {MAX_TOML_DEPTH} levels deep (arrays or tables)"
+    try:
+        data = tomllib.loads(text)
+    except RecursionError:
+        raise tomllib.TOMLDecodeError(too_deep) from None
+    level = [data]
+    for _ in range(MAX_TOML_DEPTH):
+        level = [
+            item
+            for value in level
+            for item in (value.values() if isinstance(value, dict) else value)
+            if isinstance(item, dict | list)
+        ]
+        if not level:
+            return data
+    raise tomllib.TOMLDecodeError(too_deep)
+
 
 #: What a path that is not a regular file is, by its ``st_mode``.
 _NOT_REGULAR = (

@@ -7,7 +7,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from delaytrack._io import regular_file
+from delaytrack._io import regular_file, toml_data
 from delaytrack._spec import PYTHON_TYPE, factory_parts
 from delaytrack._spec import SpecError as ScenarioError
 from delaytrack._trust import Trust, check_factory
@@ -24,7 +24,7 @@ def read_toml_file(source: Path, what: str, error: type[ScenarioError]) -> dict[
     except (OSError, UnicodeDecodeError) as problem:
         raise error(f"cannot read {what} {str(source)!r}: {problem}") from None
     try:
-        return tomllib.loads(text)
+        return toml_data(text)
     except tomllib.TOMLDecodeError as problem:
         raise error(f"{source}: not valid TOML: {problem}") from None
 

@@ -129,6 +129,15 @@ def test_reproduce_refuses_a_duration_off_the_controller_grid(tmp_path, capsys):
     assert "must be a positive integer multiple of 'T_c'" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("duration", ["600.01", "1e6"])
+def test_reproduce_refuses_a_duration_beyond_ten_papers_before_running(tmp_path, capsys, duration):
+    """Not a traceback from the engine (1e6 s), nor a run that outgrows the memory (1e5 s)."""
+    assert main(["reproduce", "--out", str(tmp_path), "--duration", duration, "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --duration must be at most 600 s") and "Traceback" not in err
+    assert not any(tmp_path.iterdir())
+
+
 def test_the_paper_job_and_the_shipped_robot_scenario_share_the_left_the_path_rule():
     """One rule: the paper job's bound is that of ``robot_S1``, which ``delaytrack simulate``
     and the studies built on it use."""

@@ -41,8 +41,8 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         "--duration",
         default=None,
         metavar="SECONDS",
-        help="override the duration (paper: 60 s, a multiple of T_c = 10 ms; two-link: 30 s, "
-        "a multiple of 2 ms; margins: 30 s, a multiple of 2 ms); for quick checks",
+        help="override the duration (paper: 60 s, a multiple of T_c = 10 ms, at most 600 s; "
+        "two-link: 30 s, a multiple of 2 ms; margins: 30 s, a multiple of 2 ms); for quick checks",
     )
     command.add_argument(
         "--job",

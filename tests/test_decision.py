@@ -4,6 +4,7 @@ plant with few draws it says no candidate qualifies at this size; bad flags exit
 
 from __future__ import annotations
 
+import html
 import math
 
 import pandas as pd
@@ -189,6 +190,22 @@ def test_a_small_run_says_no_candidate_qualifies_at_this_size(tmp_path, capsys):
     assert sorted(table.told_s.dropna().unique()) == pytest.approx([0.075, 0.125])
     assert (table.delay_s == 0.1).all() and (table.status == "excluded").all()
     assert "Decision for a delay envelope" in (out / "report.html").read_text()
+
+
+def test_an_envelope_beyond_a_predictors_history_leaves_it_out_and_says_why(tmp_path, capsys):
+    """PCONf cannot keep 1e5 s of commands (more than its 1e7 ticks of 2 ms): the decision goes
+    on without it (it ended in a KeyError)."""
+    scenario = tmp_path / "light_mass.toml"
+    Scenario.from_dict(PLANT).to_toml(scenario)
+    out = tmp_path / "out"
+    args = ["tradeoff", str(scenario), "--omega", "0.7", "1.4", "2", "--upper", "2"]
+    args += ["--zeta", str(ZETA), "--envelope", "1e5", "--knowledge", "exact"]
+    assert main([*args, "--out", str(out), "--quiet"]) == 0
+    assert set(pd.read_csv(out / "decision.csv").controller) == {"arolc", "outer-loop"}
+    report = html.unescape((out / "report.html").read_text())
+    assert "pconf: under the envelope's largest delay, the scenario's nominal model" in report
+    assert "'controller.history' must be at most 1e+07 controller periods" in report
+    capsys.readouterr()
 
 
 def test_the_old_refusal_attribute_warns_and_reads_the_reports_words():

@@ -123,6 +123,7 @@ def test_command_writes_the_table_figure_and_page(tmp_path, capsys):
         (["--zeta", "-1"], "--zeta: must be a damping ratio > 0; got '-1'"),
         (["--draws", "0"], "--draws: must be an integer >= 1; got '0'"),
         (["--omega", "2", "1", "3"], "--omega must be LO HI N with 0 < LO <= HI"),
+        (["--omega", "1", "2", "100000000"], "N an integer from 1 to 1000"),
         (["--omega", "1", "2", "x"], "--omega must be LO HI N"),
         (["--threshold", "0"], "--threshold"),
         (["--scheduler", "nowhere"], "--scheduler must be"),
@@ -170,3 +171,9 @@ def test_the_decision_draws_its_own_robots_or_the_trade_offs(
     command = ["tradeoff", str(scenario), "--out", str(tmp_path / "o"), "--draws", "8"]
     assert main([*command, "--envelope", "0.3", *extra, "--quiet"]) == 130
     assert seen == {"front": 8, "decision": decision_draws}
+
+
+def test_more_gain_points_than_a_study_can_search_are_refused_before_any_work(tmp_path):
+    with pytest.raises(ValueError, match=r"omegas must be at most 1000 natural frequencies"):
+        run_tradeoff(Scenario.from_dict(PLANT), tmp_path / "o", zeta=ZETA, omegas=[1.0] * 1001)
+    assert not (tmp_path / "o").exists()

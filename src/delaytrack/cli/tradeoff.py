@@ -144,14 +144,19 @@ def _omegas(given: list[str] | None) -> list[float] | None:
         return None
     import numpy as np
 
+    from delaytrack.experiments.tradeoff import MAX_OMEGAS
+
     text = " ".join(given)
-    valid = "LO HI N with 0 < LO <= HI (rad/s) and N an integer >= 1 (N = 1 needs LO = HI)"
+    valid = (
+        f"LO HI N with 0 < LO <= HI (rad/s) and N an integer from 1 to {MAX_OMEGAS} (N = 1 "
+        "needs LO = HI)"
+    )
     try:
         low, high = decimal(given[0]), decimal(given[1])
         count = integer(given[2])
     except argparse.ArgumentTypeError:
         raise UsageError(f"--omega must be {valid}; got {text!r}") from None
-    if not (0 < low <= high and count >= 1 and (count > 1 or low == high)):
+    if not (0 < low <= high and 1 <= count <= MAX_OMEGAS and (count > 1 or low == high)):
         raise UsageError(f"--omega must be {valid}; got {text!r}")
     return [float(v) for v in np.geomspace(low, high, count)]
 

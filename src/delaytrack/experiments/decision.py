@@ -535,14 +535,16 @@ def run_decision(
         raise ArgumentError("draws", f"must be an integer >= 1; got {draws!r}")
     scenario = study.scenario.replace(delay={"type": "constant", "h": envelope.h_max})
     history = max(envelope.h_max, *envelope.told)
-    tables, _ = family_tables(scenario, study.zeta, study.omegas, history)
+    tables, left_out = family_tables(scenario, study.zeta, study.omegas, history)
     excluded = dict(study.left_out)
+    for family, why in left_out.items():  # a predictor cannot hold the envelope's history
+        excluded.setdefault(family, f"under the envelope's largest delay, {why}")
     if "pcon" in study.families:
         excluded["pcon"] = (
             "under a constant true delay PCON told s h is PCONf's law told h̄ = s h: the "
             "predictor is evaluated once, as PCONf"
         )
-    families = [f for f in study.families if f != "pcon"]
+    families = [f for f in study.families if f != "pcon" and f in tables]
     controllers: list[dict[str, Any]] = []
     labels: list[dict[str, Any]] = []
     for family in families:

@@ -108,6 +108,8 @@ __all__ = [
 FAMILIES: tuple[str, ...] = ("arolc", "outer-loop", "pcon", "pconf")
 #: Points of the default ``ω_n`` range.
 DEFAULT_POINTS = 7
+#: Most ``ω_n`` points of one trade-off: each costs a margin search per controller family.
+MAX_OMEGAS = 1000
 #: The default range spans this factor below and above the scenario's natural frequency.
 DEFAULT_SPAN = 4.0
 #: Runs per work unit of the draws' sweep.
@@ -337,7 +339,14 @@ def _checked(
 ) -> tuple[float, tuple[float, ...]]:
     zeta = positive_scalar("zeta", zeta)
     chosen = default_omegas(scenario, zeta) if omegas is None else omegas
-    values = tuple(float(v) for v in np.asarray(chosen, dtype=float).ravel())
+    array = np.asarray(chosen, dtype=float).ravel()
+    if array.size > MAX_OMEGAS:
+        raise ArgumentError(
+            "omegas",
+            f"must be at most {MAX_OMEGAS} natural frequencies (each costs a delay-margin search "
+            f"per controller); got {array.size}",
+        )
+    values = tuple(float(v) for v in array)
     if not values or not all(math.isfinite(v) and v > 0 for v in values):
         raise ArgumentError("omegas", f"must be natural frequencies > 0 (rad/s); got {values}")
     if draws is not None and not is_integer_at_least(draws, 1):

@@ -277,6 +277,21 @@ def test_a_lead_longer_than_half_the_smallest_delay_is_refused(capsys, tmp_path,
     assert "--lead 0.015 s" in line and "h = 20 ms" in line and "at most 0.01 s" in line
 
 
+def test_a_phase_past_the_next_tick_is_refused(capsys, tmp_path, signals_kept):
+    """The controller would wake after the next tick's time, every time: it never ticked."""
+    line = refusal(
+        capsys, "controller", SCENARIO, "--out", str(tmp_path / "out"), "--phase", "1e308"
+    )
+    assert "--phase must be less than the controller period T_c = 0.002 s" in line
+
+
+@pytest.mark.parametrize("name", ["", "a?b", "x/", "a//b", "*", "**", "a$b"])
+def test_a_session_name_that_is_not_one_key_chunk_is_refused(capsys, tmp_path, name):
+    line = refusal(capsys, "controller", SCENARIO, "--out", str(tmp_path / "o"), "--session", name)
+    assert "--session" in line and f"got {name!r}" in line and "letters, digits" in line
+    assert os.listdir(tmp_path) == []
+
+
 def test_a_node_that_exits_before_the_sessions_end_ends_it(tmp_path):
     from delaytrack.live.session import _ended_early, _exit_text
 

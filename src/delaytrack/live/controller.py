@@ -64,6 +64,11 @@ class ControllerNode(NodeBase):
         # The law's step with arrays of its own, checked here (check_run at T_c and h_max).
         self._stepper = controller.stepper(T_c=self.T_c, h_max=delay.h_max)
         self.phase = min(self.T_c / 2, 1e-3) if getattr(args, "phase", None) is None else args.phase
+        if not self.phase < self.T_c:  # it would wake after the next tick's time: never ticks
+            raise ValueError(
+                f"--phase must be less than the controller period T_c = {self.T_c:g} s (it is "
+                f"how long after each tick time the state is read); got {self.phase:g}"
+            )
         self.state_timeout = (
             max(5 * self.T_c, 0.05) if args.state_timeout is None else args.state_timeout
         )

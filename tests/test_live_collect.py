@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 import subprocess
 import sys
 
@@ -53,3 +54,46 @@ def test_collect_names_the_files_a_folder_lacks(tmp_path):
     )
     assert done.returncode == 2
     assert done.stderr.count("\n") == 1 and "lacks controller.json" in done.stderr, done.stderr
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda f: (f / "states.csv").unlink(), "states.csv is missing or has no rows"),
+        (
+            lambda f: (f / "states.csv").write_text("j,t_s\n"),
+            "states.csv is missing or has no rows",
+        ),
+        (lambda f: (f / "summary.json").write_text("[1, 2]"), "is not a session summary"),
+        (lambda f: (f / "summary.json").write_text('{"nodes": 5}'), "needs a table 'nodes'"),
+        (lambda f: (f / "summary.json").write_text("nope"), "summary.json is not a session"),
+        (lambda f: _edit_cell(f / "ticks.csv", "k", "x"), "ticks.csv: column 'k' holds 'x'"),
+        (
+            lambda f: _edit_cell(f / "applied.csv", "applied_s", "nan"),
+            "applied.csv, line 2: ('applied_s', 't_k_s') must be finite",
+        ),
+    ],
+)
+def test_replay_of_an_edited_folder_is_refused_in_one_line_naming_the_file(
+    folder, tmp_path, edit, message
+):
+    """A copy of the folder, collected (the test above collects the folder itself), edited."""
+    copy = tmp_path / "session"
+    shutil.copytree(folder, copy)
+    if not (copy / "summary.json").exists():
+        subprocess.run([*PYTHON, "collect", str(copy), SCENARIO], check=True, timeout=300)
+    edit(copy)
+    done = subprocess.run(
+        [*PYTHON, "replay", str(copy), "--quiet"], capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    assert done.stderr.count("\n") == 1 and message in done.stderr, done.stderr
+
+
+def _edit_cell(path, column, value):
+    """Put ``value`` in ``column`` of the first row of the CSV table ``path``."""
+    with open(path, newline="") as handle:
+        rows = list(csv.reader(handle))
+    rows[1][rows[0].index(column)] = value
+    with open(path, "w", newline="") as handle:
+        csv.writer(handle).writerows(rows)

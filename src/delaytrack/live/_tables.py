@@ -7,15 +7,37 @@ import math
 from pathlib import Path
 from typing import Any
 
-__all__ = ["ms", "number", "read_rows"]
+from delaytrack._io import regular_file
+
+__all__ = ["ms", "number", "read_rows", "required_rows"]
 
 
 def read_rows(path: Path) -> list[dict[str, str]]:
-    """The rows of a CSV table of the session folder (none when the file is missing)."""
-    if not path.is_file():
+    """The rows of a CSV table of the session folder (none when the file is missing); a file
+    that is not a regular file of bounded size (:func:`~delaytrack._io.regular_file`) or not
+    UTF-8 text is a ValueError naming it."""
+    if not path.exists():
         return []
-    with open(path, newline="", encoding="utf-8") as handle:
-        return list(csv.DictReader(handle))
+    regular_file(path, "session table")
+    try:
+        with open(path, newline="", encoding="utf-8") as handle:
+            return list(csv.DictReader(handle))
+    except (UnicodeDecodeError, csv.Error) as error:
+        raise ValueError(f"session table {str(path)!r} is not a CSV table ({error})") from None
+
+
+def required_rows(path: Path, columns: tuple[str, ...]) -> list[dict[str, str]]:
+    """:func:`read_rows` of a table the replay needs: at least one row, and ``columns``."""
+    rows = read_rows(path)
+    if not rows:
+        raise ValueError(
+            f"{path.parent}: {path.name} is missing or has no rows; a session folder written by "
+            "delaytrack live run (or live collect) holds it"
+        )
+    missing = [column for column in columns if column not in rows[0]]
+    if missing:
+        raise ValueError(f"{path}: no column {missing[0]!r} (it has {list(rows[0])})")
+    return rows
 
 
 def number(text: str | None) -> float:

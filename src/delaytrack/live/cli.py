@@ -47,6 +47,7 @@ def _session_name(text: str) -> str:
         )
     return text
 
+
 _POSITIVE_SECONDS = within(decimal, "seconds > 0", lambda value: value > 0)
 _PROBABILITY = within(
     decimal, "a probability in [0, 1) (1 would lose every command)", lambda p: 0 <= p < 1

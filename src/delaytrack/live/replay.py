@@ -34,8 +34,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from delaytrack._io import regular_file
 from delaytrack.live._node import session_files
-from delaytrack.live._tables import number, read_rows
+from delaytrack.live._tables import number, read_rows, required_rows
 from delaytrack.live.log import write_csv
 from delaytrack.live.report import format_agreement, write_report
 
@@ -61,18 +62,22 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     folder = Path(folder)
     scenario = Scenario.from_toml(folder / "scenario.toml", trust=list(trust or []))
     built = scenario.build()
-    summary = json.loads((folder / "summary.json").read_text())
-    nodes = summary["nodes"]
+    nodes = _session_nodes(folder / "summary.json")
     robot, delay_node = nodes.get("robot") or {}, nodes.get("delay") or {}
     controller_node = nodes.get("controller") or {}
     t1 = _replayed_duration(folder, scenario.dt, scenario.T_c)
     trace = _realised_delay(folder, scenario.dt)
+    states = {
+        _index(r, "j", folder / "states.csv"): r
+        for r in required_rows(folder / "states.csv", ("j",))
+    }
+    names = [k for k in next(iter(states.values())) if k not in ("j", "t_s")][: built.plant.n]
+    ticks = {
+        _index(r, "k", folder / "ticks.csv"): r for r in required_rows(folder / "ticks.csv", ("k",))
+    }
     # A session folder from before the controller measured recorded no noise: it read the truth.
     noise_spec = controller_node.get("measurement_noise")
     result = _resimulate(scenario, built, trace, t1, delay_node, noise_spec)
-    states = {int(r["j"]): r for r in read_rows(folder / "states.csv")}
-    names = [k for k in next(iter(states.values())) if k not in ("j", "t_s")][: built.plant.n]
-    ticks = {int(r["k"]): r for r in read_rows(folder / "ticks.csv")}
     compared = _compare(scenario, built, result, states, names, ticks)
     report = {
         "ticks_compared": len(compared.rows),
@@ -86,9 +91,34 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     return report, scenario, result
 
 
+def _session_nodes(path: Path) -> dict[str, Any]:
+    """The ``nodes`` of the session's ``summary.json`` (a table of tables), or a ValueError
+    naming the file."""
+    regular_file(path, "session summary")
+    try:
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"{path} is not a session summary (not JSON: {error})") from None
+    nodes = summary.get("nodes") if isinstance(summary, dict) else None
+    if not isinstance(nodes, dict) or not all(isinstance(v, dict | None) for v in nodes.values()):
+        raise ValueError(
+            f"{path} is not a session summary: it needs a table 'nodes' of the nodes' tables "
+            "(as delaytrack live run and live collect write it)"
+        )
+    return nodes
+
+
+def _index(row: dict[str, str], column: str, path: Path) -> int:
+    """The integer index in ``column`` of a session table's ``row``."""
+    text = row.get(column) or ""
+    if not text.strip().isdigit():
+        raise ValueError(f"{path}: column {column!r} holds {text[:20]!r}, not a tick index")
+    return int(text)
+
+
 def _replayed_duration(folder: Path, dt: float, T_c: float) -> float:
     """``t1``: the session's duration rounded down to a whole number of ``T_c``, at least two."""
-    steps = read_rows(folder / "steps.csv")
+    steps = required_rows(folder / "steps.csv", ())
     end = (len(steps)) * dt
     n_ticks = int(math.floor(end / T_c + 1e-9))
     if n_ticks < 2:
@@ -100,12 +130,18 @@ def _realised_delay(folder: Path, dt: float) -> TraceDelay:
     """The delay the robot realised (``applied.csv``), as a trace (module docstring)."""
     from delaytrack.delays import TraceDelay
 
-    applied = read_rows(folder / "applied.csv")
+    path = folder / "applied.csv"
+    applied = read_rows(path)
     if not applied:
         raise ValueError(f"{folder}: the robot applied no command; nothing to replay")
     epsilon = 1e-6 * dt
-    times = np.array([number(r["applied_s"]) for r in applied]) - epsilon
-    values = np.maximum(times - np.array([number(r["t_k_s"]) for r in applied]), 0.0)
+    columns = ("applied_s", "t_k_s")
+    numbers = np.array([[number(r.get(c)) for c in columns] for r in applied])
+    bad = np.flatnonzero(~np.isfinite(numbers).all(axis=1))
+    if bad.size:  # line 1 is the header
+        raise ValueError(f"{path}, line {bad[0] + 2}: {columns} must be finite times in seconds")
+    times = numbers[:, 0] - epsilon
+    values = np.maximum(times - numbers[:, 1], 0.0)
     return TraceDelay(times, values, beyond="hold", source=str(folder / "applied.csv"))
 
 

@@ -56,6 +56,7 @@ from delaytrack.experiments.tuning import default_gains_path
 from delaytrack.jobs.scenario_run import run_to_folder
 from delaytrack.plants import CallablePlant, CompiledPlant, TwoLinkArm
 from delaytrack.references import SinusoidalReference
+from delaytrack.scenario import load_builtin
 from delaytrack.sim import SimResult, simulate
 from delaytrack.sweeps import SweepInterrupted, SweepSpec, run_sweep
 from delaytrack.sweeps.summary import STATISTICS
@@ -796,3 +797,36 @@ def test_a_gains_record_is_accepted_exactly_when_every_gain_is_a_finite_positive
         return
     assert valid
     assert gains[kind][gain_set][key] == float(value)
+
+
+@pytest.mark.parametrize(
+    ("changes", "figure"),
+    [
+        ({"delay": {"type": "constant", "h": 1e306}}, "delay"),  # 1e309 ms
+        (
+            {
+                "reference": {
+                    "type": "sinusoidal",
+                    "offset": [0.0, 0.0],
+                    "amplitude": [1e308, 0.5],
+                    "frequency": [0.5, 0.7],
+                }
+            },
+            "commands",
+        ),  # an axis spanning 2e308
+    ],
+)
+def test_a_figure_matplotlib_cannot_draw_is_left_out_with_a_warning(
+    tmp_path, capsys, changes, figure
+):
+    """The run's tables and its other figures are written; the command ends well."""
+    path = tmp_path / "huge.toml"
+    load_builtin("two_link_S1").replace(duration=0.1, **changes).to_toml(path)
+    out = tmp_path / "out"
+    assert main(["simulate", str(path), "--out", str(out), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: figure {figure!r} not drawn: its values are beyond what matplotlib" in err
+    assert "Traceback" not in err and "RuntimeWarning" not in err, err
+    assert (out / "metrics.csv").is_file() and (out / "trajectories.parquet").is_file()
+    drawn = {p.stem for p in (out / "figures").glob("*.png")}
+    assert figure not in drawn and {"tracking", "error"} <= drawn

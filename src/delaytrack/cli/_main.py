@@ -3,9 +3,11 @@ command can end with one line and an exit code."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
-from collections.abc import Sequence
+import warnings
+from collections.abc import Iterator, Sequence
 from typing import NoReturn
 
 from delaytrack._cli_options import EXIT_USAGE
@@ -33,8 +35,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     args = parser.parse_args(argv)
     try:
-        with every_run_interruptible():  # Ctrl-C ends even a run whose kernel never returns
-            code = args.handler(args)
+        with every_run_interruptible(), _warnings_in_one_line():
+            code = args.handler(args)  # Ctrl-C ends even a run whose kernel never returns
         sys.stdout.flush()  # here, where a reader that closed the pipe is caught
     except BrokenPipeError:
         # The reader of the output closed it (| head): end quietly, as a program that the
@@ -56,6 +58,25 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stderr.flush()
         os._exit(code)
     return code
+
+
+@contextlib.contextmanager
+def _warnings_in_one_line() -> Iterator[None]:
+    """Within it, the toolkit's own warnings (a figure left out, a plant run as plain Python)
+    print as one line ``warning: ...``, as the command's errors do; others as Python prints
+    them."""
+    shown = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):  # noqa: ANN001
+        if category.__module__.split(".")[0] == "delaytrack":
+            print(f"warning: {message}".replace("\n", "\\n"), file=sys.stderr)
+        else:
+            shown(message, category, filename, lineno, file, line)
+
+    with warnings.catch_warnings():
+        warnings.showwarning = show
+        warnings.filterwarnings("default", module=r"delaytrack(\.|$)")  # shown, not raised
+        yield
 
 
 def command() -> NoReturn:

@@ -17,6 +17,7 @@ whatever the plant's size.
 from __future__ import annotations
 
 import io
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -35,6 +36,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "MAX_PANELS",
+    "FigureNotDrawnWarning",
     "c_hat_figure",
     "commands_figure",
     "delay_figure",
@@ -357,6 +359,10 @@ def save_figure(
     return paths
 
 
+class FigureNotDrawnWarning(UserWarning):
+    """A run's figure left out because its values are beyond what matplotlib can draw."""
+
+
 def write_run_figures(
     result: SimResult,
     folder: str | Path,
@@ -375,16 +381,29 @@ def write_run_figures(
     folder = Path(folder)
     runs = {label: result} if label is not None and result.batch_size == 1 else result
     figures = {
-        "tracking": tracking_figure(runs, coordinate_names=coordinate_names),
-        "error": error_figure(runs, coordinate_names=coordinate_names),
-        "commands": commands_figure(runs),
-        "delay": delay_figure(runs),
+        "tracking": lambda: tracking_figure(runs, coordinate_names=coordinate_names),
+        "error": lambda: error_figure(runs, coordinate_names=coordinate_names),
+        "commands": lambda: commands_figure(runs),
+        "delay": lambda: delay_figure(runs),
     }
     if "c_hat" in result.controller_state_names:
-        figures["c_hat"] = c_hat_figure(runs)
+        figures["c_hat"] = lambda: c_hat_figure(runs)
     paths: list[Path] = []
-    for name, figure in figures.items():
-        paths += save_figure(figure, folder / name, formats)
+    for name, draw in figures.items():
+        try:
+            # Overflow on the way (seconds to ms of a delay of 1e306 s) is the error below.
+            with np.errstate(over="ignore", invalid="ignore"), warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                paths += save_figure(draw(), folder / name, formats)
+        except (ValueError, OverflowError) as error:
+            # Values beyond what matplotlib can lay out (a delay of 1e306 s in ms, an axis
+            # spanning 1e308): the run's tables are written; this figure is left out.
+            warnings.warn(
+                f"figure {name!r} not drawn: its values are beyond what matplotlib can draw "
+                f"({type(error).__name__}: {error})",
+                FigureNotDrawnWarning,
+                stacklevel=2,
+            )
     return paths
 
 

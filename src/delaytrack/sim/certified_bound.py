@@ -98,6 +98,11 @@ def largest_delays(result: SimResult, delays: Sequence[DelayProfile]) -> np.ndar
     return np.array([delay.h_max for delay in delays])
 
 
+def _duration(seconds: float) -> str:
+    """``seconds`` in ms up to a thousand seconds, in s beyond (1e306 s has no value in ms)."""
+    return f"{1e3 * seconds:.4g} ms" if seconds < 1e3 else f"{seconds:.4g} s"
+
+
 def beyond_certified_bound(
     controllers: Sequence[Controller], delays: Sequence[DelayProfile], result: SimResult
 ) -> BeyondCertifiedBoundWarning | None:
@@ -109,16 +114,13 @@ def beyond_certified_bound(
         return None
     # The run quoted: the largest delay among the runs beyond their bound.
     quoted = int(beyond[np.argmax(largest[beyond])])
-    delay, bound = 1e3 * largest[quoted], 1e3 * bounds[quoted]
+    delay, bound = _duration(largest[quoted]), _duration(bounds[quoted])
     if result.batch_size == 1:
-        what = (
-            f"the largest delay {delay:.4g} ms exceeds AROLC's certified bound h_m = {bound:.4g} ms"
-        )
+        what = f"the largest delay {delay} exceeds AROLC's certified bound h_m = {bound}"
     else:
         what = (
             f"the largest delay exceeds AROLC's certified bound h_m in {beyond.size} of "
-            f"{result.batch_size} runs (the most in run {quoted}: {delay:.4g} ms against "
-            f"h_m = {bound:.4g} ms)"
+            f"{result.batch_size} runs (the most in run {quoted}: {delay} against h_m = {bound})"
         )
     return BeyondCertifiedBoundWarning(
         f"{what} (Theorem 1 with the run's K1, K2, Q and the paper's beta = {PAPER_BETA:g}, "

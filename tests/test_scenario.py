@@ -113,6 +113,16 @@ def test_unknown_top_level_key():
     )
 
 
+def test_a_huge_value_is_quoted_in_a_short_message():
+    """Two million numbers given for x0: the message shows the first 16 (it quoted all of them,
+    a 310 MB line after minutes)."""
+    with pytest.raises(ScenarioError) as refused:
+        Scenario.from_dict(base_dict() | {"x0": [0.5] * 2_000_000}).build()
+    message = str(refused.value)
+    assert len(message) < 300 and message.endswith(", 0.5, ...]"), message
+    assert "scenario key 'x0' must have 2n = 4 entries" in message
+
+
 def test_replace_refuses_an_unknown_key_naming_the_valid_ones():
     scenario = load_builtin("two_link_S1")
     with pytest.raises(ScenarioError, match=r"unknown key 'durration' in scenario; valid keys are"):

@@ -27,7 +27,7 @@ from typing import Any, TypeGuard
 from delaytrack._compile.disk_cache import cache_directory
 from delaytrack._file_caches import guard_caches
 from delaytrack._io import regular_file
-from delaytrack._validation import ArgumentError
+from delaytrack._validation import ArgumentError, quoted
 
 __all__ = [
     "PYTHON_TYPE",
@@ -354,7 +354,7 @@ def _any_value(value: object) -> str | None:
 
 def fail(key: str, phrase: str, value: object) -> SpecError:
     """The error for ``key`` whose ``value`` does not fit ``phrase`` ("must be ...")."""
-    return SpecError.of_key(key, f"{phrase}; got {value!r}")
+    return SpecError.of_key(key, f"{phrase}; got {quoted(value)}")
 
 
 def check_table(table: str, value: object, types: Mapping[str, TypeSpec]) -> TypeSpec:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import re
+import reprlib
 from collections.abc import Mapping, Sequence
 from typing import TypeGuard
 
@@ -28,6 +29,7 @@ __all__ = [
     "positive_scalar",
     "finite_array",
     "finite_scalar",
+    "quoted",
     "real_array",
 ]
 
@@ -37,6 +39,20 @@ _SYMMETRY_RTOL = 1e-10
 #: after the time its data covers: ``"refuse"`` a run that lasts longer, or ``"hold"`` its last
 #: state, as the user chose.
 BEYOND_CHOICES = ("refuse", "hold")
+
+
+_QUOTED = reprlib.Repr()
+_QUOTED.maxlevel = 4
+_QUOTED.maxlist = _QUOTED.maxtuple = _QUOTED.maxdict = _QUOTED.maxset = 16
+_QUOTED.maxstring = _QUOTED.maxother = _QUOTED.maxlong = 240
+
+
+def quoted(value: object) -> str:
+    """``repr(value)`` for a message, shortened (``...``) beyond 16 items of a list, tuple,
+    table or set, four levels of nesting, or 240 characters of a string or other value: a value
+    given by mistake (a list of millions of numbers) must not make a message of hundreds of
+    megabytes."""
+    return _QUOTED.repr(value)
 
 
 class ArgumentError(ValueError):
@@ -85,7 +101,7 @@ def beyond_choice(value: object) -> str:
     if value not in BEYOND_CHOICES:
         raise ValueError(
             f"beyond must be one of {list(BEYOND_CHOICES)} (what happens after the time the "
-            f"data covers); got {value!r}"
+            f"data covers); got {quoted(value)}"
         )
     return str(value)
 
@@ -112,7 +128,7 @@ def coordinate_labels(label: str, value: object, n: int) -> tuple[str, ...]:
         one = "input" if label.startswith("input") else "coordinate"
         what = f"{n} unit strings, one per {one} (such as 'm', 'rad' or 'N')"
     if names is None or not valid:
-        raise ValueError(f"{label} must be a list of {what}; got {value!r}")
+        raise ValueError(f"{label} must be a list of {what}; got {quoted(value)}")
     return names
 
 
@@ -156,11 +172,11 @@ def positive_scalar(name: str, value: object, *, strictly: bool = True) -> float
     number).
     """
     if isinstance(value, str | bytes | bool | np.bool_):
-        raise TypeError(f"{name} must be a real number; got {value!r}")
+        raise TypeError(f"{name} must be a real number; got {quoted(value)}")
     try:
         number = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a real number; got {value!r}") from None
+        raise TypeError(f"{name} must be a real number; got {quoted(value)}") from None
     if not math.isfinite(number):
         raise ArgumentError(name, f"must be finite; got {number}")
     if strictly and number <= 0.0:
@@ -183,7 +199,7 @@ def real_array(name: str, value: object, *, ndim: int | None = None) -> np.ndarr
             raise TypeError
         array = np.array(given, dtype=float)
     except (TypeError, ValueError, OverflowError, RecursionError):
-        raise TypeError(f"{name} must be an array of real numbers; got {value!r}") from None
+        raise TypeError(f"{name} must be an array of real numbers; got {quoted(value)}") from None
     if ndim is not None and array.ndim != ndim:
         raise ArgumentError(name, f"must be {ndim}-dimensional; got shape {array.shape}")
     return array
@@ -285,7 +301,7 @@ def finite_scalar(name: str, value: object) -> float:
     if type(value) is int and abs(value) <= 2**53:
         return float(value)
     if isinstance(value, str | bytes | bool | np.bool_):
-        raise TypeError(f"{name} must be a real number; got {value!r}")
+        raise TypeError(f"{name} must be a real number; got {quoted(value)}")
     return float(finite_array(name, value, ndim=0))
 
 

@@ -39,7 +39,10 @@ ROWS = [
     ("S4", "OuterLoop"),
 ]
 FIGURES = ("path_S1", "error_S1_S2", "error_S3_S4", "c_hat", "delay")
-COLUMNS = "scenario,controller,ae_x_mm,ae_y_mm,pct_ae_x,pct_ae_y,tv_Nm,rms_x_mm,rms_y_mm,max_x_mm,max_y_mm"
+COLUMNS = (
+    "scenario,controller,ae_x_mm,ae_y_mm,pct_ae_x,pct_ae_y,tv_Nm,rms_x_mm,rms_y_mm,max_x_mm,"
+    "max_y_mm"
+)
 
 
 @pytest.mark.slow

@@ -110,6 +110,9 @@ FAMILIES: tuple[str, ...] = ("arolc", "outer-loop", "pcon", "pconf")
 DEFAULT_POINTS = 7
 #: Most ``ω_n`` points of one trade-off: each costs a margin search per controller family.
 MAX_OMEGAS = 1000
+#: Largest outer-loop gain of a point, and its inverse the smallest (AROLC refuses products of
+#: its gains beyond 1e100).
+_LARGEST_GAIN = 1e100
 #: The default range spans this factor below and above the scenario's natural frequency.
 DEFAULT_SPAN = 4.0
 #: Runs per work unit of the draws' sweep.
@@ -349,6 +352,16 @@ def _checked(
     values = tuple(float(v) for v in array)
     if not values or not all(math.isfinite(v) and v > 0 for v in values):
         raise ArgumentError("omegas", f"must be natural frequencies > 0 (rad/s); got {values}")
+    for omega in values:  # K1 = ω² and K2 = 2ζω must be numbers a gain can be
+        k1, k2 = family_gains(omega, zeta)
+        if not all(1.0 / _LARGEST_GAIN < gain < _LARGEST_GAIN for gain in (k1, k2)):
+            raise ArgumentError(
+                "omegas",
+                f"must give the gains K1 = omega_n² and K2 = 2 zeta omega_n between "
+                f"{1.0 / _LARGEST_GAIN:g} and {_LARGEST_GAIN:g}; omega_n = {omega:g} rad/s "
+                f"with $zeta = {zeta:g} gives K1 = {k1:g}, K2 = {k2:g}",
+                mentions=("zeta",),
+            )
     if draws is not None and not is_integer_at_least(draws, 1):
         raise ArgumentError("draws", f"must be an integer >= 1; got {draws!r}")
     return zeta, values
@@ -414,6 +427,11 @@ def run_tradeoff(
     scored = _scored(scenario, names)
     rule = _rule(threshold, plant, names, scored)
     upper = min(1.0, scenario.duration / 2) if upper is None else positive_scalar("upper", upper)
+    if not upper > resolution:
+        raise ArgumentError(
+            "upper",
+            f"must be larger than the margin searches' resolution, {resolution:g} s; got {upper:g}",
+        )
     history = max(upper, float(built.delay.h_max))
     tables, left_out = family_tables(scenario, zeta, omegas, history)
     families = tuple(f for f in FAMILIES if f in tables)

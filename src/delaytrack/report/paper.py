@@ -299,8 +299,8 @@ def _claims_text(study: PaperStudy, robustness: RobustnessStudy | None) -> list[
         a, b = summary_row(summary, case, "AROLC"), summary_row(summary, case, BASELINE[case])
         verdict = "HOLDS" if checks["tv"][case] else "FAILS"
         lines.append(
-            f"TV, {case}: AROLC {_fmt(a.tv_Nm)} N·m vs {BASELINE[case]} {_fmt(b.tv_Nm)} N·m: in this "
-            f"one run the claim 'AROLC's TV is lower' {verdict}."
+            f"TV, {case}: AROLC {_fmt(a.tv_Nm)} N·m vs {BASELINE[case]} {_fmt(b.tv_Nm)} N·m: "
+            f"in this one run the claim 'AROLC's TV is lower' {verdict}."
             + _over_draws(robustness, case, f"TV below {BASELINE[case]}", who)
         )
     s3, s4 = summary_row(summary, "S3", "AROLC"), summary_row(summary, "S4", "AROLC")

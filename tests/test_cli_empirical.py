@@ -72,6 +72,17 @@ def test_empirical_refuses_bad_options(scenario_file, capsys, extra, message):
     assert message in capsys.readouterr().err
 
 
+def test_a_default_upper_longer_than_the_run_says_it_is_the_default(tmp_path, capsys):
+    path = tmp_path / "short.toml"
+    double_integrator(1.0, 1.0, duration=0.5).to_toml(path)
+    assert main(["empirical", str(path), "--threshold", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "--upper must be at most the scenario's duration 0.5 s" in err
+    assert err.endswith("got 1 (the default of --upper; give a smaller --upper S)\n")
+    assert main(["empirical", str(path), "--threshold", "1", "--upper", "1"]) == 2
+    assert capsys.readouterr().err.endswith("got 1\n")
+
+
 def test_empirical_needs_a_threshold_and_a_scenario(capsys):
     with pytest.raises(SystemExit) as stop:
         main(["empirical", "two_link_margins"])

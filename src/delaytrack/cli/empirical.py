@@ -12,7 +12,7 @@ import numpy as np
 from delaytrack._cli_options import quiet_argument, trust_argument
 from delaytrack.cli._numbers import numbers, scalar
 from delaytrack.cli._scenarios import scenario_source, trusted
-from delaytrack.cli._usage import flagged
+from delaytrack.cli._usage import UsageError, flagged
 from delaytrack.metrics import COORDINATE_METRICS
 
 if TYPE_CHECKING:
@@ -68,7 +68,7 @@ def add_command(commands: argparse._SubParsersAction) -> None:
     command.add_argument(
         "--resolution", default="0.005", metavar="S", help="final bracket width (default 0.005 s)"
     )
-    command.add_argument("--upper", default="1", metavar="S", help="search limit (default 1 s)")
+    command.add_argument("--upper", default=None, metavar="S", help="search limit (default 1 s)")
     command.add_argument(
         "--frequency", default="1", metavar="W", help="w of the abs-sine families (default 1 rad/s)"
     )
@@ -113,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
     threshold = _threshold(args.threshold)
     settle = None if args.settle is None else scalar("--settle", args.settle)
     resolution = scalar("--resolution", args.resolution)
-    upper = scalar("--upper", args.upper)
+    upper = 1.0 if args.upper is None else scalar("--upper", args.upper)
     frequency = scalar("--frequency", args.frequency)
     start = time.perf_counter()
     try:
@@ -130,7 +130,10 @@ def run(args: argparse.Namespace) -> int:
             progress=not args.quiet,
         )
     except ValueError as error:
-        raise flagged(error, _FLAGS) from None
+        usage = flagged(error, _FLAGS)
+        if args.upper is None and getattr(error, "argument", None) == "upper":
+            usage = UsageError(f"{usage} (the default of --upper; give a smaller --upper S)")
+        raise usage from None
     seconds = time.perf_counter() - start
     analytic = _analytic(controller)
     if args.json:

@@ -174,13 +174,20 @@ def test_the_envelope_sets_the_conditions():
             Envelope.from_text(0.3, bad)
 
 
-def test_a_small_run_says_no_candidate_qualifies_at_this_size(tmp_path, capsys):
-    scenario = tmp_path / "light_mass.toml"
+def _tradeoff_with_a_decision(folder, envelope: str, knowledge: str):
+    """``delaytrack tradeoff`` of the light mass at two gain points with a decision for
+    ``--envelope envelope --knowledge knowledge``; returns its output folder."""
+    scenario = folder / "light_mass.toml"
     Scenario.from_dict(PLANT).to_toml(scenario)
-    out = tmp_path / "out"
+    out = folder / "out"
     args = ["tradeoff", str(scenario), "--omega", "0.7", "1.4", "2", "--upper", "2"]
-    args += ["--zeta", str(ZETA), "--envelope", "0.1", "--knowledge", "±25%"]
+    args += ["--zeta", str(ZETA), "--envelope", envelope, "--knowledge", knowledge]
     assert main([*args, "--out", str(out), "--quiet"]) == 0
+    return out
+
+
+def test_a_small_run_says_no_candidate_qualifies_at_this_size(tmp_path, capsys):
+    out = _tradeoff_with_a_decision(tmp_path, "0.1", "±25%")
     printed = capsys.readouterr().out
     assert "no candidate qualifies at this size: with 1 draws per condition" in printed
     table = pd.read_csv(out / "decision.csv")
@@ -195,12 +202,7 @@ def test_a_small_run_says_no_candidate_qualifies_at_this_size(tmp_path, capsys):
 def test_an_envelope_beyond_a_predictors_history_leaves_it_out_and_says_why(tmp_path, capsys):
     """PCONf cannot keep 1e5 s of commands (more than its 1e7 ticks of 2 ms): the decision goes
     on without it (it ended in a KeyError)."""
-    scenario = tmp_path / "light_mass.toml"
-    Scenario.from_dict(PLANT).to_toml(scenario)
-    out = tmp_path / "out"
-    args = ["tradeoff", str(scenario), "--omega", "0.7", "1.4", "2", "--upper", "2"]
-    args += ["--zeta", str(ZETA), "--envelope", "1e5", "--knowledge", "exact"]
-    assert main([*args, "--out", str(out), "--quiet"]) == 0
+    out = _tradeoff_with_a_decision(tmp_path, "1e5", "exact")
     assert set(pd.read_csv(out / "decision.csv").controller) == {"arolc", "outer-loop"}
     report = html.unescape((out / "report.html").read_text())
     assert "pconf: under the envelope's largest delay, the scenario's nominal model" in report

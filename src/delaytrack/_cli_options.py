@@ -50,10 +50,11 @@ class OptionParser(argparse.ArgumentParser):
     def parse_known_args(  # type: ignore[override]
         self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
     ) -> tuple[argparse.Namespace, list[str]]:
-        namespace, extras = super().parse_known_args(args, namespace)
-        if not hasattr(namespace, _COMMAND_PROG):  # a command's own parser sets it first
-            setattr(namespace, _COMMAND_PROG, self.prog)
-        return namespace, extras
+        parsed, extras = super().parse_known_args(args, namespace)
+        assert parsed is not None  # argparse returns the namespace it filled
+        if not hasattr(parsed, _COMMAND_PROG):  # a command's own parser sets it first
+            setattr(parsed, _COMMAND_PROG, self.prog)
+        return parsed, extras
 
     def parse_args(  # type: ignore[override]
         self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None

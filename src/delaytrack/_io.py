@@ -75,7 +75,7 @@ def toml_data(text: str) -> dict:
         data = tomllib.loads(text)
     except RecursionError:
         raise tomllib.TOMLDecodeError(too_deep) from None
-    level = [data]
+    level: list[dict | list] = [data]
     for _ in range(MAX_TOML_DEPTH):
         level = [
             item

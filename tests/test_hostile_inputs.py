@@ -511,8 +511,9 @@ def test_input_limits_that_are_not_positive_real_numbers_are_one_clear_error(val
         )
 
 
-def test_arrays_of_strings_bytes_or_booleans_are_not_read_as_numbers():
-    for value in (["1", "2"], [b"1"], [True, False], np.array(["0.2"]), [np.datetime64(1, "s")]):
+def test_arrays_of_strings_bytes_booleans_or_none_are_not_read_as_numbers():
+    strings = (["1", "2"], [b"1"], [True, False], np.array(["0.2"]), [np.datetime64(1, "s")])
+    for value in (*strings, [0.0, None], [[1.0], [None]]):  # a None is not read as NaN
         with pytest.raises(TypeError, match="x0 must be an array of real numbers"):
             real_array("x0", value)
     assert real_array("x0", [1, 2.5, np.float32(3)]).tolist() == [1.0, 2.5, 3.0]

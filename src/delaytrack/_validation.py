@@ -194,8 +194,11 @@ def real_array(name: str, value: object, *, ndim: int | None = None) -> np.ndarr
     """Return ``value`` as a float64 array (a new one), of ``ndim`` dimensions when given."""
     try:
         given = np.asarray(value)
-        # Strings, bytes, booleans, complex numbers and dates would convert to floats.
-        if given.dtype.kind in _NOT_REAL:
+        # Strings, bytes, booleans, complex numbers and dates would convert to floats, and a
+        # None among numbers to NaN.
+        if given.dtype.kind in _NOT_REAL or (
+            given.dtype.kind == "O" and any(item is None for item in given.flat)
+        ):
             raise TypeError
         array = np.array(given, dtype=float)
     except (TypeError, ValueError, OverflowError, RecursionError):

@@ -157,11 +157,12 @@ def test_missing_argument_is_a_usage_error():
         (["simulate", "two_link_S1"], "delaytrack simulate --help"),
         (["bound", "--k1", "1", "--k2", "1"], "delaytrack bound --help"),
         (["live", "replay", "folder"], "delaytrack live replay --help"),
+        (["--frobnicate", "simulate", "two_link_S1"], "delaytrack --help"),  # given to the top
     ],
 )
 def test_an_unknown_option_points_to_the_help_of_its_command(command, help, capsys):
     with pytest.raises(SystemExit) as stop:
-        main([*command, "--frobnicate"])
+        main(command if "--frobnicate" in command else [*command, "--frobnicate"])
     assert stop.value.code == 2
     err = capsys.readouterr().err
     assert err == f"error: unrecognized arguments: --frobnicate (see {help})\n"

@@ -275,6 +275,12 @@ def test_file_errors_name_the_file(tmp_path):
     assert refused.value.key == "controller.K1"
     with pytest.raises(ScenarioError, match=r"^scenario key 'controller\.K1'"):
         Scenario.from_dict(data).build()  # no file
+    valid = tmp_path / "valid.toml"
+    valid.write_text(dumps_toml(base_dict()))
+    changed = Scenario.from_toml(valid).replace(controller=data["controller"])
+    assert changed.source is None  # a value the file does not hold: not the file's refusal
+    with pytest.raises(ScenarioError, match=r"^scenario key 'controller\.K1'"):
+        changed.build()
 
 
 # ---- building -----------------------------------------------------------------------------------

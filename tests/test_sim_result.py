@@ -11,6 +11,7 @@ from delaytrack.delays import AbsSineDelay
 from delaytrack.plants import CallablePlant, LinearPlant, TwoLinkArm
 from delaytrack.references import SinusoidalReference
 from delaytrack.report import commands_figure, error_figure, tracking_figure
+from delaytrack.report.figures import write_run_figures
 from delaytrack.sim import simulate
 
 REFERENCE = SinusoidalReference([0.0, 0.0], amplitude=[0.8, 0.5], frequency=[0.5, 0.7])
@@ -171,3 +172,10 @@ def test_a_figure_saved_in_two_formats_is_laid_out_once(tmp_path, monkeypatch):
     # the first format: a pass that lays the figure out, then the drawing; the second: only its
     # drawing (a figure with a layout engine is drawn once more before each format)
     assert len(drawn) == 3
+
+
+def test_a_mistake_in_the_figures_arguments_is_raised_not_taken_for_a_figure_left_out(
+    arm_result, tmp_path
+):
+    with pytest.raises(ValueError, match="expected 2 names; got 3"):
+        write_run_figures(arm_result, tmp_path, coordinate_names=["a", "b", "c"])

@@ -135,6 +135,27 @@ def test_a_function_a_trusted_file_imports_is_not_a_factory(tmp_path, capsys):
     assert Scenario.from_toml(made).build().plant.n == 2  # its own factory still runs
 
 
+def test_a_partial_written_in_the_file_is_a_factory_and_a_dict_of_ones_own_may_name_imports(
+    tmp_path, monkeypatch
+):
+    """The rule is for files someone may have sent: a partial of the file's own function is
+    its factory, and a scenario made in Python (the user's own code) names what it likes."""
+    folder = tmp_path / "project"
+    folder.mkdir()
+    (folder / "arms.py").write_text(
+        ARM_FACTORY + "\n\nimport functools\n\nmake_again = functools.partial(make)\n"
+    )
+    again = scenario_file(folder, {"type": "python:arms.py:make_again"})
+    assert Scenario.from_toml(again).build().plant.n == 2
+    (folder / "uses.py").write_text("from arms import make\n")
+    monkeypatch.syspath_prepend(str(folder))
+    data = {**base_dict(), "duration": 0.1, "plant": {"type": f"python:{folder / 'uses.py'}:make"}}
+    assert Scenario.from_dict(data).build().plant.n == 2
+    imported = scenario_file(folder, {"type": "python:uses.py:make"}, name="uses.toml")
+    with pytest.raises(ScenarioError, match=r"'make' is not defined in .*uses\.py.* 'arms'"):
+        Scenario.from_toml(imported)
+
+
 def test_a_package_may_name_a_factory_of_its_submodule_but_not_an_import(tmp_path, lab):
     (tmp_path / "site" / lab / "__init__.py").write_text(
         "from subprocess import getoutput\n\nfrom .robots import make\n"

@@ -35,9 +35,9 @@ EXIT_USAGE = 2
 _Number = TypeVar("_Number", int, float)
 
 
-#: The namespace attribute in which the innermost command that parsed its arguments leaves its
-#: name (``delaytrack simulate``), for the error about arguments none of them took.
-_COMMAND_PROG = "_command_prog"
+#: The namespace attribute in which the innermost command that met arguments it does not take
+#: leaves its name (``delaytrack simulate``), for the error about them.
+_REFUSED_BY = "_refused_by"
 
 
 class OptionParser(argparse.ArgumentParser):
@@ -52,16 +52,17 @@ class OptionParser(argparse.ArgumentParser):
     ) -> tuple[argparse.Namespace, list[str]]:
         parsed, extras = super().parse_known_args(args, namespace)
         assert parsed is not None  # argparse returns the namespace it filled
-        if not hasattr(parsed, _COMMAND_PROG):  # a command's own parser sets it first
-            setattr(parsed, _COMMAND_PROG, self.prog)
+        # A command's parser returns first: the innermost one that met arguments it does not
+        # take names itself (a subcommand's extras reach its parent's as the parent's own).
+        if extras and not hasattr(parsed, _REFUSED_BY):
+            setattr(parsed, _REFUSED_BY, self.prog)
         return parsed, extras
 
     def parse_args(  # type: ignore[override]
         self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
     ) -> argparse.Namespace:
         namespace, extras = self.parse_known_args(args, namespace)
-        prog = getattr(namespace, _COMMAND_PROG)
-        delattr(namespace, _COMMAND_PROG)
+        prog = vars(namespace).pop(_REFUSED_BY, self.prog)
         if extras:
             self.exit(
                 EXIT_USAGE,

@@ -99,9 +99,13 @@ _NOT_REGULAR = (
 
 
 def regular_file(
-    path: str | os.PathLike[str], name: str, error: type[Exception] = ValueError
+    path: str | os.PathLike[str],
+    name: str,
+    error: type[Exception] = ValueError,
+    *,
+    largest: int | None = MAX_READ_BYTES,
 ) -> Path:
-    """``path``, checked to be a regular file of at most :data:`MAX_READ_BYTES` after following
+    """``path``, checked to be a regular file of at most ``largest`` bytes after following
     symlinks, before anything opens it.
 
     Parameters
@@ -112,6 +116,10 @@ def regular_file(
         What the caller calls it, to start the message: ``"path ="``, ``"scenario file"``.
     error : type
         The error raised when the path is not a readable regular file of bounded size.
+    largest : int or None
+        Its largest size in bytes, :data:`MAX_READ_BYTES` by default; None for the toolkit's
+        own files whose size another limit bounds (a live session's tables, by the session's
+        length).
 
     Raises
     ------
@@ -135,10 +143,10 @@ def regular_file(
             raise error(
                 f"{name} {str(given)!r} is not a file but {kind}{link}; it must be a regular file"
             )
-    if status.st_size > MAX_READ_BYTES:
+    if largest is not None and status.st_size > largest:
         raise error(
             f"{name} {str(given)!r} holds {status.st_size / 2**20:.0f} MiB; the toolkit reads "
-            f"files of at most {MAX_READ_BYTES // 2**20} MiB"
+            f"files of at most {largest // 2**20} MiB"
         )
     return given
 

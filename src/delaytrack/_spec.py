@@ -9,6 +9,7 @@ that declaration and builds the object; every refusal is a :class:`SpecError` na
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import functools
 import hashlib
 import importlib
@@ -45,6 +46,7 @@ __all__ = [
     "number",
     "own_bytecode",
     "string",
+    "named_in_a_file",
     "user_factory",
     "vector",
 ]
@@ -333,19 +335,48 @@ def user_factory(table: str, kind: str) -> Callable[..., Any]:
         raise SpecError(
             f"scenario key '{table}.type' = {kind!r}: {location!r} has no function {name!r}"
         )
-    # Trusting a file or a module trusts the factories written there, not whatever it imported
-    # (a file with `from os import system` would otherwise let a scenario call system(...)).
-    home = getattr(factory, "__module__", None)
-    package = module.__name__
-    if not (
-        home == package or (not location.endswith(".py") and f"{home}".startswith(f"{package}."))
-    ):
-        raise SpecError(
-            f"scenario key '{table}.type' = {kind!r}: {name!r} is not defined in {location!r} "
-            f"(it comes from {home!r}); a factory must be a function written in the file or "
-            "package that the type names, not one it imports"
-        )
+    if _NAMED_IN_A_FILE.get():
+        _check_defined_there(f"scenario key '{table}.type' = {kind!r}", location, module, factory)
     return factory
+
+
+#: Whether the factory types being checked come from a scenario or sweep file (which someone
+#: may have sent) rather than from a dict of the user's own code (:func:`named_in_a_file`).
+_NAMED_IN_A_FILE: contextvars.ContextVar[bool] = contextvars.ContextVar(
+    "factories_named_in_a_file", default=False
+)
+
+
+@contextlib.contextmanager
+def named_in_a_file() -> Iterator[None]:
+    """Within it, a factory type ``python:<location>:<function>`` read from a file must name a
+    function written in that file (or package, or one of its submodules), not one it imports:
+    trusting a file trusts its factories, not whatever it imported (a file with ``from os
+    import system`` would let a scenario sent into its folder call ``system(...)``)."""
+    token = _NAMED_IN_A_FILE.set(True)
+    try:
+        yield
+    finally:
+        _NAMED_IN_A_FILE.reset(token)
+
+
+def _check_defined_there(
+    named: str, location: str, module: ModuleType, factory: Callable[..., Any]
+) -> None:
+    """Refuse a ``factory`` (a partial of one: its function) not written in ``module``, the
+    module of ``location``; ``named`` starts the message."""
+    function = factory
+    while isinstance(function, functools.partial):
+        function = function.func
+    home = getattr(function, "__module__", None)
+    package = module.__name__
+    if home == package or (not location.endswith(".py") and f"{home}".startswith(f"{package}.")):
+        return
+    name = getattr(function, "__qualname__", type(function).__name__)
+    raise SpecError(
+        f"{named}: {name!r} is not defined in {location!r} (it comes from {home!r}); a factory "
+        "that a file names must be written in the file or package it names, not imported there"
+    )
 
 
 def _any_value(value: object) -> str | None:

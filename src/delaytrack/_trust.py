@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from delaytrack._spec import SpecError, is_module_name
+from delaytrack._validation import quoted
 
 __all__ = ["Trust", "check_factory", "installed_locations"]
 
@@ -77,7 +78,7 @@ class Trust:
         if isinstance(names, str | bytes) or not isinstance(names, Iterable):
             raise ValueError(
                 f"{option} must be a list of module names or paths, such as ['mylab.robots', "
-                f"'./robots']; got {names!r}"
+                f"'./robots']; got {quoted(names)}"
             )
         modules, paths = [], []
         for name in names:

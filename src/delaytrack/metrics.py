@@ -42,6 +42,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from delaytrack._validation import quoted
 from delaytrack.units import default_names
 
 if TYPE_CHECKING:
@@ -106,7 +107,7 @@ def _check_result(result: object) -> None:
     if not all(hasattr(result, name) for name in ("metrics", "ok", "t", "n", "batch_size")):
         raise TypeError(
             f"result must be a SimResult (what delaytrack.simulate returns); got "
-            f"{type(result).__name__} {result!r:.60}"
+            f"{type(result).__name__} {quoted(result)}"
         )
 
 

@@ -3,16 +3,15 @@ command can end with one line and an exit code."""
 
 from __future__ import annotations
 
-import contextlib
 import os
 import sys
-import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from typing import NoReturn
 
 from delaytrack._cli_options import EXIT_USAGE
 from delaytrack._output import OutputFolderError
 from delaytrack._process_exit import exit_process
+from delaytrack._warning import warnings_in_one_line
 from delaytrack.cli._parser import build_parser
 from delaytrack.cli._usage import UsageError
 
@@ -35,7 +34,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     args = parser.parse_args(argv)
     try:
-        with every_run_interruptible(), _warnings_in_one_line():
+        with every_run_interruptible(), warnings_in_one_line():
             code = args.handler(args)  # Ctrl-C ends even a run whose kernel never returns
         sys.stdout.flush()  # here, where a reader that closed the pipe is caught
     except BrokenPipeError:
@@ -58,25 +57,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stderr.flush()
         os._exit(code)
     return code
-
-
-@contextlib.contextmanager
-def _warnings_in_one_line() -> Iterator[None]:
-    """Within it, the toolkit's own warnings (a figure left out, a plant run as plain Python)
-    print as one line ``warning: ...``, as the command's errors do; others as Python prints
-    them."""
-    shown = warnings.showwarning
-
-    def show(message, category, filename, lineno, file=None, line=None):  # noqa: ANN001
-        if category.__module__.split(".")[0] == "delaytrack":
-            print(f"warning: {message}".replace("\n", "\\n"), file=sys.stderr)
-        else:
-            shown(message, category, filename, lineno, file, line)
-
-    with warnings.catch_warnings():
-        warnings.showwarning = show
-        warnings.filterwarnings("default", module=r"delaytrack(\.|$)")  # shown, not raised
-        yield
 
 
 def command() -> NoReturn:

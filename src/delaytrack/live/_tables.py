@@ -14,11 +14,11 @@ __all__ = ["ms", "number", "read_rows", "required_rows"]
 
 def read_rows(path: Path) -> list[dict[str, str]]:
     """The rows of a CSV table of the session folder (none when the file is missing); a file
-    that is not a regular file of bounded size (:func:`~delaytrack._io.regular_file`) or not
-    UTF-8 text is a ValueError naming it."""
+    that is not a regular file (:func:`~delaytrack._io.regular_file`; its size is the session's,
+    which the session's length bounds) or not UTF-8 text is a ValueError naming it."""
     if not path.exists():
         return []
-    regular_file(path, "session table")
+    regular_file(path, "session table", largest=None)
     try:
         with open(path, newline="", encoding="utf-8") as handle:
             return list(csv.DictReader(handle))

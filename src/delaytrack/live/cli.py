@@ -22,6 +22,7 @@ from delaytrack._cli_options import (
     trust_argument,
     within,
 )
+from delaytrack._warning import warnings_in_one_line
 from delaytrack.sim.packet_loss import MAX_SEED
 
 __all__ = ["add_live_commands", "main"]
@@ -359,4 +360,5 @@ def main(argv: Sequence[str] | None = None) -> int:
     commands.required = True
     add_live_commands(commands)
     args = parser.parse_args(["live", *(sys.argv[1:] if argv is None else argv)])
-    return args.handler(args)
+    with warnings_in_one_line():
+        return args.handler(args)

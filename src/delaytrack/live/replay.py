@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import sys
 from dataclasses import dataclass
 from functools import cached_property
@@ -111,7 +112,7 @@ def _session_nodes(path: Path) -> dict[str, Any]:
 def _index(row: dict[str, str], column: str, path: Path) -> int:
     """The integer index in ``column`` of a session table's ``row``."""
     text = row.get(column) or ""
-    if not text.strip().isdigit():
+    if not re.fullmatch(r"[0-9]+", text.strip()):  # ASCII digits, as every number read
         raise ValueError(f"{path}: column {column!r} holds {text[:20]!r}, not a tick index")
     return int(text)
 

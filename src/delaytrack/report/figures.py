@@ -17,6 +17,7 @@ whatever the plant's size.
 from __future__ import annotations
 
 import io
+import traceback
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -27,6 +28,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from delaytrack._io import atomic_path
+from delaytrack._warning import DelaytrackWarning
 from delaytrack.units import default_names, labelled
 
 if TYPE_CHECKING:
@@ -359,7 +361,13 @@ def save_figure(
     return paths
 
 
-class FigureNotDrawnWarning(UserWarning):
+def _raised_in_matplotlib(error: BaseException) -> bool:
+    """Whether ``error`` was raised within matplotlib's code (laying out or drawing a figure)."""
+    frames = traceback.walk_tb(error.__traceback__)
+    return any(frame.f_globals.get("__name__", "").startswith("matplotlib.") for frame, _ in frames)
+
+
+class FigureNotDrawnWarning(DelaytrackWarning):
     """A run's figure left out because its values are beyond what matplotlib can draw."""
 
 
@@ -396,8 +404,12 @@ def write_run_figures(
                 warnings.simplefilter("ignore", RuntimeWarning)
                 paths += save_figure(draw(), folder / name, formats)
         except (ValueError, OverflowError) as error:
+            if not _raised_in_matplotlib(error):  # a mistake of the caller's, or ours
+                raise
             # Values beyond what matplotlib can lay out (a delay of 1e306 s in ms, an axis
-            # spanning 1e308): the run's tables are written; this figure is left out.
+            # spanning 1e308): the run's tables are written; this figure is left out, whole.
+            for fmt in formats:
+                (folder / f"{name}.{fmt}").unlink(missing_ok=True)
             warnings.warn(
                 f"figure {name!r} not drawn: its values are beyond what matplotlib can draw "
                 f"({type(error).__name__}: {error})",

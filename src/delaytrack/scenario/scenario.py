@@ -16,7 +16,16 @@ from typing import Any, TypeVar
 import numpy as np
 
 from delaytrack._io import write_text
-from delaytrack._spec import PYTHON_TYPE, check_table, fail, integer, number, string, vector
+from delaytrack._spec import (
+    PYTHON_TYPE,
+    check_table,
+    fail,
+    integer,
+    named_in_a_file,
+    number,
+    string,
+    vector,
+)
 from delaytrack._spec import SpecError as ScenarioError
 from delaytrack._trust import Trust
 from delaytrack._validation import integer_multiple
@@ -301,7 +310,8 @@ class Scenario:
         try:
             for table in TABLES:
                 resolve_file_keys(source, table, data.get(table), trusted)
-            scenario = cls.from_dict(data)
+            with named_in_a_file():
+                scenario = cls.from_dict(data)
         except ScenarioError as error:
             raise error.in_file(source) from None
         object.__setattr__(scenario, "source", source)  # not a key: set after the checks
@@ -342,9 +352,10 @@ class Scenario:
 
     def replace(self, **changes: Any) -> Scenario:
         """A copy with some fields changed (validated again), e.g. ``replace(dt=5e-4)``; the
-        fields are the scenario file's top-level keys and tables."""
+        fields are the scenario file's top-level keys and tables. The copy is not the file's
+        (its :attr:`source` is None): its refusals do not blame the file for a value changed."""
         _refuse_unknown_keys(changes)
-        return dataclasses.replace(self, **changes)
+        return dataclasses.replace(self, **changes, source=None)
 
     # ---- building and running ----------------------------------------------------------------
 

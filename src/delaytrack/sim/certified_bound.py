@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from delaytrack._warning import DelaytrackWarning
 from delaytrack.analysis.razumikhin import PAPER_BETA, PAPER_R, razumikhin_bound
 from delaytrack.controllers.arolc import AROLC
 
@@ -45,7 +46,7 @@ __all__ = [
 _STATED: contextvars.ContextVar[bool] = contextvars.ContextVar("h_m_stated", default=False)
 
 
-class BeyondCertifiedBoundWarning(UserWarning):
+class BeyondCertifiedBoundWarning(DelaytrackWarning):
     """A run's largest delay exceeds AROLC's certified bound ``h_m`` (Theorem 1, with the run's
     ``K1``, ``K2``, ``Q`` and the paper's ``β = 1``, ``r = 1.1``).
 

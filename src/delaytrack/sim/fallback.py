@@ -11,6 +11,7 @@ from types import FrameType
 from typing import Any
 
 from delaytrack._user_calls import named_errors
+from delaytrack._warning import DelaytrackWarning
 from delaytrack.components import Kernel, ReducedForm
 
 #: This package's name: frames of its modules are not the user's.
@@ -19,7 +20,7 @@ _PACKAGE = __name__.partition(".")[0]
 __all__ = ["OutOfTime", "PythonFallbackWarning", "python_kernel", "stepped_until"]
 
 
-class PythonFallbackWarning(UserWarning):
+class PythonFallbackWarning(DelaytrackWarning):
     """The closed loop runs as plain Python (a plant or model given as Python callables).
 
     Results are the same as compiled (to rounding), but each run is one to two orders of

@@ -53,6 +53,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from delaytrack._compile.disk_cache import source_hash
+from delaytrack._spec import named_in_a_file
 from delaytrack._trust import Trust
 from delaytrack._validation import is_integer_at_least
 from delaytrack._version import __version__
@@ -560,7 +561,8 @@ class SweepSpec:
                 swept = data.get(section)
                 for key, values in swept.items() if isinstance(swept, Mapping) else ():
                     _resolve_swept_files(source, section, key, values, trusted)
-            return cls.from_dict(data, root=source.parent, trust=trust, progress=progress)
+            with named_in_a_file():
+                return cls.from_dict(data, root=source.parent, trust=trust, progress=progress)
         except ScenarioError as error:
             raise SweepError(f"{source}: {error}") from None
 

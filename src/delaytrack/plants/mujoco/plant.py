@@ -39,6 +39,7 @@ from delaytrack._compile.jit import tick_kernel
 from delaytrack._io import regular_file
 from delaytrack._result_columns import trajectory_columns
 from delaytrack._validation import as_spd_matrix, positive_scalar
+from delaytrack._warning import DelaytrackWarning
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.mujoco.capi import (
     call_void2,
@@ -563,7 +564,7 @@ class MujocoPlant(ELPlant):
         return spec
 
 
-class JointNamesWarning(UserWarning):
+class JointNamesWarning(DelaytrackWarning):
     """A MuJoCo model's joint names cannot name the coordinates in results, which are named
     ``q1 .. qn`` instead (:class:`MujocoPlant`); the message names the joints and why."""
 

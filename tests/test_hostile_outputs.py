@@ -56,6 +56,7 @@ from delaytrack.experiments.tuning import default_gains_path
 from delaytrack.jobs.scenario_run import run_to_folder
 from delaytrack.plants import CallablePlant, CompiledPlant, TwoLinkArm
 from delaytrack.references import SinusoidalReference
+from delaytrack.report.figures import FigureNotDrawnWarning
 from delaytrack.scenario import load_builtin
 from delaytrack.sim import SimResult, simulate
 from delaytrack.sweeps import SweepInterrupted, SweepSpec, run_sweep
@@ -823,7 +824,9 @@ def test_a_figure_matplotlib_cannot_draw_is_left_out_with_a_warning(
     path = tmp_path / "huge.toml"
     load_builtin("two_link_S1").replace(duration=0.1, **changes).to_toml(path)
     out = tmp_path / "out"
-    assert main(["simulate", str(path), "--out", str(out), "--quiet"]) == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", FigureNotDrawnWarning)  # the suite makes warnings errors
+        assert main(["simulate", str(path), "--out", str(out), "--quiet"]) == 0
     err = capsys.readouterr().err
     assert f"warning: figure {figure!r} not drawn: its values are beyond what matplotlib" in err
     assert "Traceback" not in err and "RuntimeWarning" not in err, err

@@ -17,9 +17,9 @@ class DelaytrackWarning(UserWarning):
 
 @contextlib.contextmanager
 def warnings_in_one_line() -> Iterator[None]:
-    """Within it, the toolkit's own warnings (:class:`DelaytrackWarning`: a
-    figure left out, a plant run as plain Python) are shown, as one line ``warning: ...`` like
-    the command's errors; other warnings as Python's settings say."""
+    """Within it, the toolkit's own warnings (:class:`DelaytrackWarning`: a figure left out, a
+    plant run as plain Python) print as one line ``warning: ...``, like the command's errors;
+    other warnings as Python prints them. Which are shown, Python's filters say (``-W``)."""
     shown = warnings.showwarning
 
     def show(message, category, filename, lineno, file=None, line=None):  # noqa: ANN001
@@ -30,5 +30,4 @@ def warnings_in_one_line() -> Iterator[None]:
 
     with warnings.catch_warnings():
         warnings.showwarning = show
-        warnings.filterwarnings("default", category=DelaytrackWarning)
         yield

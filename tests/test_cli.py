@@ -189,6 +189,19 @@ def short_scenario(tmp_path):
     return path
 
 
+@pytest.mark.parametrize(("h", "warned"), [(50.0, True), (0.5, True), (0.45, False)])
+def test_simulate_says_when_the_delay_outlasts_the_run(tmp_path, capsys, h, warned):
+    """A delay of 50 meant as milliseconds: no command ever reaches the plant, and says so."""
+    path = tmp_path / "slip.toml"
+    load_builtin("two_link_S1").replace(duration=0.5, delay={"type": "constant", "h": h}).to_toml(
+        path
+    )
+    assert main(["simulate", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    err = capsys.readouterr().err
+    line = f"warning: the delay is never shorter than {h:g} s, and the run lasts 0.5 s: no command"
+    assert (line in err) == warned, err
+
+
 def test_simulate_writes_every_promised_file(short_scenario, tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["simulate", str(short_scenario), "--out", str(out), "--format", "both"]) == 0

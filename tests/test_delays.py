@@ -174,6 +174,23 @@ def test_h_max_bounds_sampled_h(profile):
     assert np.all(profile.h(TIMES) >= 0.0)
 
 
+@pytest.mark.parametrize(
+    ("profile", "h_min"),
+    [
+        (AbsSineDelay.S1(), 0.02),  # attained where sin = 0
+        (ConstantDelay(0.06), 0.06),
+        (PiecewiseConstantDelay([0.0, 1.0, 2.0], [0.02, 0.13, 0.05]), 0.02),
+        (TraceDelay([0.0, 1.0, 2.0, 4.0], [0.01, 0.2, 0.05, 0.1]), 0.01),
+        (RandomDelay(0.03, 0.15, 2.0, 10.0, seed=5), 0.03),
+    ],
+    ids=["S1", "constant", "piecewise", "trace", "random"],
+)
+def test_h_min_bounds_h_from_below(profile, h_min):
+    """What a run no longer than ``h_min`` is told: no command reaches its plant."""
+    assert profile.h_min == h_min
+    assert np.all(profile.h(TIMES) >= h_min)
+
+
 # --------------------------------------------------------------------------------------------
 # RandomDelay
 # --------------------------------------------------------------------------------------------

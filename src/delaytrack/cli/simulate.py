@@ -70,11 +70,25 @@ def run(args: argparse.Namespace) -> int:
         f"status {status}"
     )
     print(output.result.summary().to_string(float_format=lambda v: f"{v:.4g}"))
+    _no_command_arrives(output)
     _certified_bound(output)
     print(f"wrote {len(output.files)} files to {folder}/:")
     for path in output.files:
         print(f"  {path.relative_to(folder)}")
     return 0
+
+
+def _no_command_arrives(output: RunOutput) -> None:
+    """One line on stderr when the delay is never shorter than the run: no command reached the
+    plant (a delay in milliseconds given as seconds, say)."""
+    h_min, duration = output.built.delay.h_min, output.scenario.duration
+    if h_min >= duration:
+        print(
+            f"warning: the delay is never shorter than {h_min:g} s, and the run lasts "
+            f"{duration:g} s: no command reached the plant, which received u_init throughout "
+            "(the scenario's delays are in seconds)",
+            file=sys.stderr,
+        )
 
 
 def _certified_bound(output: RunOutput) -> None:

@@ -67,6 +67,10 @@ class AbsSineDelay(DelayProfile):
     def h_max(self) -> float:
         return self.offset + self.amplitude
 
+    @property
+    def h_min(self) -> float:
+        return self.offset
+
     def to_spec(self) -> dict[str, Any]:
         return {
             "type": self.type_name,

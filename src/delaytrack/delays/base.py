@@ -48,6 +48,12 @@ class DelayProfile(ABC):
         """Upper bound of ``h(t)`` over all ``t`` (seconds)."""
 
     @property
+    def h_min(self) -> float:
+        """A lower bound of ``h(t)`` over all ``t`` (seconds): 0 unless the profile knows a
+        larger one. A run no longer than it delivers no command to the plant."""
+        return 0.0
+
+    @property
     def horizon(self) -> float:
         """Last time (s) up to which the profile's data define ``h`` (``inf``: always).
 

@@ -46,5 +46,9 @@ class ConstantDelay(DelayProfile):
     def h_max(self) -> float:
         return self.value
 
+    @property
+    def h_min(self) -> float:
+        return self.value
+
     def to_spec(self) -> dict[str, Any]:
         return {"type": self.type_name, "h": self.value}

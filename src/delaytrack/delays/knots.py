@@ -80,6 +80,10 @@ class KnotDelay(DelayProfile):
     def h_max(self) -> float:
         return float(np.max(self.values))
 
+    @property
+    def h_min(self) -> float:
+        return float(np.min(self.values))
+
     def to_spec(self) -> dict[str, Any]:
         return {
             "type": self.type_name,

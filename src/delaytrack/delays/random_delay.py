@@ -135,6 +135,10 @@ class RandomDelay(DelayProfile):
         return self.h_high
 
     @property
+    def h_min(self) -> float:
+        return self.h_low
+
+    @property
     def horizon(self) -> float:
         return math.inf if self.beyond == "hold" else self.duration
 

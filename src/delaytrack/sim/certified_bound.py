@@ -100,8 +100,8 @@ def largest_delays(result: SimResult, delays: Sequence[DelayProfile]) -> np.ndar
 
 
 def _duration(seconds: float) -> str:
-    """``seconds`` in ms up to a thousand seconds, in s beyond (1e306 s has no value in ms)."""
-    return f"{1e3 * seconds:.4g} ms" if seconds < 1e3 else f"{seconds:.4g} s"
+    """``seconds`` in ms below a second, in s from there (1e306 s has no value in ms)."""
+    return f"{1e3 * seconds:.4g} ms" if seconds < 1.0 else f"{seconds:.4g} s"
 
 
 def beyond_certified_bound(

@@ -43,10 +43,10 @@ __all__ = [
     "integer",
     "is_module_name",
     "module_from_file",
+    "named_in_a_file",
     "number",
     "own_bytecode",
     "string",
-    "named_in_a_file",
     "user_factory",
     "vector",
 ]

@@ -23,6 +23,7 @@ from delaytrack.sim.certified_bound import (
     certified_bounds,
     stated_by_the_caller,
 )
+from delaytrack.sim.no_command import NoCommandArrivesWarning
 
 REFERENCE = SinusoidalReference([0.0, 0.0], amplitude=[0.8, 0.5], frequency=[0.5, 0.7])
 FAST = AROLC(TwoLinkArm(), K1=4.0, K2=4.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
@@ -88,6 +89,23 @@ def test_without_trajectories_the_profiles_largest_delay_counts():
     result = run(FAST, ConstantDelay(0.04), trajectories=False)
     warning = beyond_certified_bound([FAST], [ConstantDelay(0.04)], result)
     assert warning is not None and warning.largest_delay == 0.04
+
+
+def test_a_delay_that_outlasts_a_run_warns_that_no_command_arrives_and_names_how_many():
+    with pytest.warns(NoCommandArrivesWarning) as caught:
+        result = run(
+            OuterLoop(TwoLinkArm(), K1=4.0, K2=4.0), [ConstantDelay(0.2), ConstantDelay(0.01)]
+        )
+    assert len(caught) == 1 and caught[0].filename == __file__
+    assert "never shorter than 0.2 s, and the run lasts 0.2 s in 1 of 2 runs" in str(
+        caught[0].message
+    )
+    np.testing.assert_array_equal(result.applied[0, :-1], 0.0)  # u_init, as the warning says
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", NoCommandArrivesWarning)
+        run(OuterLoop(TwoLinkArm(), K1=4.0, K2=4.0), ConstantDelay(0.19))  # one arrives
+        with stated_by_the_caller():  # the toolkit's jobs state their delays themselves
+            run(OuterLoop(TwoLinkArm(), K1=4.0, K2=4.0), ConstantDelay(0.2))
 
 
 def test_the_toolkits_own_jobs_do_not_warn():

@@ -80,15 +80,12 @@ def run(args: argparse.Namespace) -> int:
 
 def _no_command_arrives(output: RunOutput) -> None:
     """One line on stderr when the delay is never shorter than the run: no command reached the
-    plant (a delay in milliseconds given as seconds, say)."""
-    h_min, duration = output.built.delay.h_min, output.scenario.duration
-    if h_min >= duration:
-        print(
-            f"warning: the delay is never shorter than {h_min:g} s, and the run lasts "
-            f"{duration:g} s: no command reached the plant, which received u_init throughout "
-            "(the scenario's delays are in seconds)",
-            file=sys.stderr,
-        )
+    plant (:mod:`delaytrack.sim.no_command`)."""
+    from delaytrack.sim.no_command import no_command_arrives
+
+    warning = no_command_arrives([output.built.delay], 0.0, output.scenario.duration)
+    if warning is not None:
+        print(f"warning: {warning}", file=sys.stderr)
 
 
 def _certified_bound(output: RunOutput) -> None:

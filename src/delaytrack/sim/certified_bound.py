@@ -35,6 +35,7 @@ if TYPE_CHECKING:
 __all__ = [
     "BeyondCertifiedBoundWarning",
     "beyond_certified_bound",
+    "caller_states_the_delays",
     "certified_bounds",
     "largest_delays",
     "stated_by_the_caller",
@@ -134,15 +135,22 @@ def beyond_certified_bound(
 @contextlib.contextmanager
 def stated_by_the_caller() -> Iterator[None]:
     """Within it, :func:`~delaytrack.sim.simulate` issues no
-    :class:`BeyondCertifiedBoundWarning`: for the toolkit's jobs (the paper job, tuning,
-    margins, sweeps, a scenario's run and the command line), which run beyond ``h_m`` on
-    purpose and state it in their reports and outputs. Local to the thread or task that enters
-    it."""
+    :class:`BeyondCertifiedBoundWarning` (nor a
+    :class:`~delaytrack.sim.no_command.NoCommandArrivesWarning`): for the toolkit's jobs (the
+    paper job, tuning, margins, sweeps, a scenario's run and the command line), which run
+    beyond ``h_m`` (and delays as long as a run) on purpose and state it in their reports and
+    outputs. Local to the thread or task that enters it."""
     token = _STATED.set(True)
     try:
         yield
     finally:
         _STATED.reset(token)
+
+
+def caller_states_the_delays() -> bool:
+    """Whether :func:`simulate`'s warnings about the runs' delays are left to its caller
+    (:func:`stated_by_the_caller`)."""
+    return _STATED.get()
 
 
 def warn_beyond_certified_bound(

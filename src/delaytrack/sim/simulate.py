@@ -30,6 +30,7 @@ from delaytrack.sim._machine import available_cores, physical_memory
 from delaytrack.sim._plan import MAX_STEPS, announce, prepare
 from delaytrack.sim.certified_bound import warn_beyond_certified_bound
 from delaytrack.sim.measurement import MeasurementNoise
+from delaytrack.sim.no_command import warn_no_command_arrives
 from delaytrack.sim.packet_loss import PacketLoss
 from delaytrack.sim.result import SimResult
 
@@ -194,6 +195,7 @@ def simulate(
         execute(chunks, natives, progress)
         result = collect(chunks)
     warn_beyond_certified_bound(plan.controllers, plan.delays, result)
+    warn_no_command_arrives(plan.delays, plan.t0, plan.t1)
     return result
 
 

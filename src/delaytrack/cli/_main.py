@@ -11,9 +11,9 @@ from typing import NoReturn
 from delaytrack._cli_options import EXIT_USAGE
 from delaytrack._output import OutputFolderError
 from delaytrack._process_exit import exit_process
-from delaytrack._warning import warnings_in_one_line
 from delaytrack.cli._parser import build_parser
 from delaytrack.cli._usage import UsageError
+from delaytrack.warning import warnings_in_one_line
 
 __all__ = ["EXIT_BROKEN_PIPE", "main"]
 

@@ -22,8 +22,8 @@ from delaytrack._cli_options import (
     trust_argument,
     within,
 )
-from delaytrack._warning import warnings_in_one_line
 from delaytrack.sim.packet_loss import MAX_SEED
+from delaytrack.warning import warnings_in_one_line
 
 __all__ = ["add_live_commands", "main"]
 

@@ -28,8 +28,8 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from delaytrack._io import atomic_path
-from delaytrack._warning import DelaytrackWarning
 from delaytrack.units import default_names, labelled
+from delaytrack.warning import DelaytrackWarning
 
 if TYPE_CHECKING:
     from matplotlib.typing import HashableList

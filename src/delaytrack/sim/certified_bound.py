@@ -23,9 +23,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from delaytrack._warning import DelaytrackWarning
 from delaytrack.analysis.razumikhin import PAPER_BETA, PAPER_R, razumikhin_bound
 from delaytrack.controllers.arolc import AROLC
+from delaytrack.warning import DelaytrackWarning
 
 if TYPE_CHECKING:
     from delaytrack.controllers.base import Controller

@@ -11,8 +11,8 @@ from types import FrameType
 from typing import Any
 
 from delaytrack._user_calls import named_errors
-from delaytrack._warning import DelaytrackWarning
 from delaytrack.components import Kernel, ReducedForm
+from delaytrack.warning import DelaytrackWarning
 
 #: This package's name: frames of its modules are not the user's.
 _PACKAGE = __name__.partition(".")[0]

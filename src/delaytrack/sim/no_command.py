@@ -7,8 +7,8 @@ import warnings
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from delaytrack._warning import DelaytrackWarning
 from delaytrack.sim.certified_bound import caller_states_the_delays
+from delaytrack.warning import DelaytrackWarning
 
 if TYPE_CHECKING:
     from delaytrack.delays import DelayProfile

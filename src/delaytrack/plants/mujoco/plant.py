@@ -39,7 +39,6 @@ from delaytrack._compile.jit import tick_kernel
 from delaytrack._io import regular_file
 from delaytrack._result_columns import trajectory_columns
 from delaytrack._validation import as_spd_matrix, positive_scalar
-from delaytrack._warning import DelaytrackWarning
 from delaytrack.plants.base import ELPlant
 from delaytrack.plants.mujoco.capi import (
     call_void2,
@@ -49,6 +48,7 @@ from delaytrack.plants.mujoco.capi import (
     write_at,
 )
 from delaytrack.plants.mujoco.model_files import check_model_files
+from delaytrack.warning import DelaytrackWarning
 
 __all__ = ["JointNamesWarning", "MujocoPlant", "extras_start", "mujoco_step", "mujoco_terms"]
 

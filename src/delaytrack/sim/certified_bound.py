@@ -17,7 +17,6 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import functools
-import warnings
 from collections.abc import Iterator, Sequence
 from typing import TYPE_CHECKING
 
@@ -39,7 +38,6 @@ __all__ = [
     "certified_bounds",
     "largest_delays",
     "stated_by_the_caller",
-    "warn_beyond_certified_bound",
 ]
 
 #: Whether the warning is left to the caller, which states ``h_m`` itself
@@ -114,21 +112,21 @@ def beyond_certified_bound(
     beyond = np.flatnonzero(largest > bounds)  # NaN (no certificate) compares False
     if beyond.size == 0:
         return None
-    # The run quoted: the largest delay among the runs beyond their bound.
-    quoted = int(beyond[np.argmax(largest[beyond])])
-    delay, bound = _duration(largest[quoted]), _duration(bounds[quoted])
+    # The run named: the largest delay among the runs beyond their bound.
+    run = int(beyond[np.argmax(largest[beyond])])
+    delay, bound = _duration(largest[run]), _duration(bounds[run])
     if result.batch_size == 1:
         what = f"the largest delay {delay} exceeds AROLC's certified bound h_m = {bound}"
     else:
         what = (
             f"the largest delay exceeds AROLC's certified bound h_m in {beyond.size} of "
-            f"{result.batch_size} runs (the most in run {quoted}: {delay} against h_m = {bound})"
+            f"{result.batch_size} runs (the most in run {run}: {delay} against h_m = {bound})"
         )
     return BeyondCertifiedBoundWarning(
         f"{what} (Theorem 1 with the run's K1, K2, Q and the paper's beta = {PAPER_BETA:g}, "
         f"r = {PAPER_R:g}); this is not instability, only the end of the guarantee",
-        float(bounds[quoted]),
-        float(largest[quoted]),
+        float(bounds[run]),
+        float(largest[run]),
     )
 
 
@@ -151,15 +149,3 @@ def caller_states_the_delays() -> bool:
     """Whether :func:`simulate`'s warnings about the runs' delays are left to its caller
     (:func:`stated_by_the_caller`)."""
     return _STATED.get()
-
-
-def warn_beyond_certified_bound(
-    controllers: Sequence[Controller], delays: Sequence[DelayProfile], result: SimResult
-) -> None:
-    """Issue :func:`beyond_certified_bound`'s warning at the line that called ``simulate``,
-    unless the caller states ``h_m`` itself (:func:`stated_by_the_caller`)."""
-    if _STATED.get():
-        return
-    warning = beyond_certified_bound(controllers, delays, result)
-    if warning is not None:
-        warnings.warn(warning, stacklevel=3)  # 1: this function, 2: simulate, 3: its caller

@@ -3,17 +3,15 @@ throughout (a delay in milliseconds given as seconds, say)."""
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from delaytrack.sim.certified_bound import caller_states_the_delays
 from delaytrack.warning import DelaytrackWarning
 
 if TYPE_CHECKING:
     from delaytrack.delays import DelayProfile
 
-__all__ = ["NoCommandArrivesWarning", "no_command_arrives", "warn_no_command_arrives"]
+__all__ = ["NoCommandArrivesWarning", "no_command_arrives"]
 
 
 class NoCommandArrivesWarning(DelaytrackWarning):
@@ -36,14 +34,3 @@ def no_command_arrives(
         f"{runs}: no command reached the plant, which received u_init throughout (delays are "
         "in seconds)"
     )
-
-
-def warn_no_command_arrives(delays: Sequence[DelayProfile], t0: float, t1: float) -> None:
-    """Issue :func:`no_command_arrives`'s warning at the line that called ``simulate``, unless
-    the caller states the runs' delays itself
-    (:func:`~delaytrack.sim.certified_bound.stated_by_the_caller`)."""
-    if caller_states_the_delays():
-        return
-    warning = no_command_arrives(delays, t0, t1)
-    if warning is not None:
-        warnings.warn(warning, stacklevel=3)  # 1: this function, 2: simulate, 3: its caller

@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+import warnings
 from collections.abc import Sequence
 
 import numpy as np
@@ -27,10 +28,10 @@ from delaytrack.sim._build import Build, build
 from delaytrack.sim._collect import collect
 from delaytrack.sim._execute import Chunks, cut, execute
 from delaytrack.sim._machine import available_cores, physical_memory
-from delaytrack.sim._plan import MAX_STEPS, announce, prepare
-from delaytrack.sim.certified_bound import warn_beyond_certified_bound
+from delaytrack.sim._plan import MAX_STEPS, Plan, announce, prepare
+from delaytrack.sim.certified_bound import beyond_certified_bound, caller_states_the_delays
 from delaytrack.sim.measurement import MeasurementNoise
-from delaytrack.sim.no_command import warn_no_command_arrives
+from delaytrack.sim.no_command import no_command_arrives
 from delaytrack.sim.packet_loss import PacketLoss
 from delaytrack.sim.result import SimResult
 
@@ -151,6 +152,10 @@ def simulate(
         bound ``h_m`` (Theorem 1 with the run's ``K1``, ``K2``, ``Q`` and the paper's ``β = 1``,
         ``r = 1.1``; :mod:`delaytrack.sim.certified_bound`). Exceeding it is not instability,
         only the end of the guarantee.
+    NoCommandArrivesWarning
+        When a run's delay is never shorter than the run (:attr:`DelayProfile.h_min` at least
+        ``t1 - t0``): no command reaches the plant, which receives ``u_init`` throughout
+        (:mod:`delaytrack.sim.no_command`).
 
     Notes
     -----
@@ -194,9 +199,22 @@ def simulate(
         natives = compile_engine(built, chunks.first) if built.compiled else ()
         execute(chunks, natives, progress)
         result = collect(chunks)
-    warn_beyond_certified_bound(plan.controllers, plan.delays, result)
-    warn_no_command_arrives(plan.delays, plan.t0, plan.t1)
+    _warn_about_the_delays(plan, result)
     return result
+
+
+def _warn_about_the_delays(plan: Plan, result: SimResult) -> None:
+    """Warn at the line that called :func:`simulate` of runs beyond their certified bound and
+    of runs no command reaches, unless the caller states the runs' delays itself
+    (:func:`~delaytrack.sim.certified_bound.stated_by_the_caller`)."""
+    if caller_states_the_delays():
+        return
+    for warning in (
+        beyond_certified_bound(plan.controllers, plan.delays, result),
+        no_command_arrives(plan.delays, plan.t0, plan.t1),
+    ):
+        if warning is not None:
+            warnings.warn(warning, stacklevel=3)  # 1: here, 2: simulate, 3: its caller
 
 
 def _chunks(built: Build, progress: bool) -> Chunks:

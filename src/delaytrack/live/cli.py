@@ -36,19 +36,6 @@ _PAPER = (
 # The types of the numbers the live commands read (delaytrack._cli_options): a time that may be
 # 0 (--lead, --phase), a length or a time limit (--duration, the timeouts), and the others.
 _SECONDS = within(decimal, "seconds >= 0", lambda value: value >= 0)
-
-
-def _session_name(text: str) -> str:
-    """argparse type: a session name, one chunk of the transport's keys (``delaytrack/NAME``):
-    letters, digits, ``_``, ``-`` and ``.``; no ``/`` or wildcard."""
-    if not re.fullmatch(r"[A-Za-z0-9_.-]{1,128}", text):
-        raise argparse.ArgumentTypeError(
-            "must be 1 to 128 letters, digits, '_', '-' or '.' (the sessions' keys are "
-            f"delaytrack/NAME/...); got {text!r}"
-        )
-    return text
-
-
 _POSITIVE_SECONDS = within(decimal, "seconds > 0", lambda value: value > 0)
 _PROBABILITY = within(
     decimal, "a probability in [0, 1) (1 would lose every command)", lambda p: 0 <= p < 1
@@ -64,6 +51,17 @@ _STEPS = within(integer, "a whole number of steps >= 1", lambda steps: steps >= 
 _PRIORITY = within(
     integer, "a SCHED_FIFO priority from 1 to 99 (Linux)", lambda priority: 1 <= priority <= 99
 )
+
+
+def _session_name(text: str) -> str:
+    """argparse type: a session name, one chunk of the transport's keys (``delaytrack/NAME``):
+    letters, digits, ``_``, ``-`` and ``.``; no ``/`` or wildcard."""
+    if not re.fullmatch(r"[A-Za-z0-9_.-]{1,128}", text):
+        raise argparse.ArgumentTypeError(
+            "must be 1 to 128 letters, digits, '_', '-' or '.' (the sessions' keys are "
+            f"delaytrack/NAME/...); got {text!r}"
+        )
+    return text
 
 
 def _realtime_argument(command: argparse.ArgumentParser) -> None:

@@ -282,6 +282,7 @@ def test_a_phase_past_the_next_tick_is_refused(capsys, tmp_path, signals_kept):
     line = refusal(
         capsys, "controller", SCENARIO, "--out", str(tmp_path / "out"), "--phase", "1e308"
     )
+    # T_c = 2 ms: the period of the scenario, two_link_S1
     assert "--phase must be less than the controller period T_c = 0.002 s" in line
 
 

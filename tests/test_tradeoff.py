@@ -180,3 +180,49 @@ def test_more_gain_points_than_a_study_can_search_are_refused_before_any_work(tm
     with pytest.raises(ValueError, match=r"omegas must be at most 1000 natural frequencies"):
         run_tradeoff(Scenario.from_dict(PLANT), tmp_path / "o", zeta=ZETA, omegas=[1.0] * 1001)
     assert not (tmp_path / "o").exists()
+
+
+def test_every_metric_column_of_the_evaluated_points_has_its_unit():
+    """A robot's positions (m) are scored, its heading (rad) is not: each coordinate's metric
+    carries its unit, and the combined metric is the largest of the scored ones, in metres —
+    not the heading's larger number in radians."""
+    from delaytrack.experiments.empirical_margin import EmpiricalMargin
+    from delaytrack.experiments.tradeoff import _evaluated
+
+    names, units, scored = ("x", "y", "phi"), ("m", "m", "rad"), (True, True, False)
+    search = EmpiricalMargin(
+        margin=0.1,
+        failure_found=True,
+        first_failure=0.2,
+        profile="constant",
+        frequency=1.0,
+        metric="mean_abs_e1",
+        threshold=(0.05, 0.05, float(np.finfo(float).max)),
+        settle=0.0,
+        resolution=0.1,
+        upper=1.0,
+        values=np.array([0.1, 0.2, 0.3]),
+        statuses=np.array([0, 0, 1]),
+        coordinate_metrics=np.array([[0.01, 0.02, 3.0], [0.07, 0.01, 2.0], [np.nan] * 3]),
+        coordinate_names=names,
+        scenario="robot",
+        controller="arolc",
+        simulations=3,
+        rounds=1,
+    )
+    frame = _evaluated({"arolc": [search]}, (1.0,), names, units, scored, "m")
+    assert [c for c in frame if c.startswith("metric")] == [
+        "metric_m",
+        "metric_x_m",
+        "metric_y_m",
+        "metric_phi_rad",
+    ]
+    np.testing.assert_array_equal(frame["metric_m"], [0.02, 0.07, np.nan])
+    assert list(frame["passes"]) == [True, False, False]
+    # Scored coordinates of different units have no combined metric.
+    mixed = _evaluated({"arolc": [search]}, (1.0,), names, units, (True, False, True), None)
+    assert [c for c in mixed if c.startswith("metric")] == [
+        "metric_x_m",
+        "metric_y_m",
+        "metric_phi_rad",
+    ]

@@ -88,7 +88,7 @@ from delaytrack.plants.base import ELPlant
 from delaytrack.scenario import Scenario, ScenarioError
 from delaytrack.sweeps import SweepOutcome, SweepSpec, run_sweep
 from delaytrack.sweeps.executors import Executor
-from delaytrack.units import default_names
+from delaytrack.units import default_names, with_unit
 
 __all__ = [
     "DEFAULT_POINTS",
@@ -175,7 +175,9 @@ class TradeoffStudy:
         ``ae`` (the AE of the module docstring), ``tv`` and ``on_path``.
     evaluated : DataFrame
         Every simulated point of every margin search (``omega_n``, ``controller``, the delay
-        ``value``, the metric per coordinate, ``status``, ``passes``).
+        ``value``, the metric per coordinate with its unit, ``metric_<name>_<unit>``, the
+        largest over the scored coordinates when they share a unit, ``metric_<unit>``,
+        ``status``, ``passes``).
     scenario : Scenario
     zeta : float
     omegas : tuple of float
@@ -454,18 +456,19 @@ def run_tradeoff(
         executor=executor,
         progress=progress,
     )
-    units = plant.coordinate_units or [None] * plant.n
+    units = tuple(plant.coordinate_units or [None] * plant.n)
+    ae_unit = shared_unit([u for u, s in zip(units, scored, strict=True) if s])
     return TradeoffStudy(
         table=_table(omegas, zeta, families, runs, margins, certified, exact),
         runs=runs,
-        evaluated=_evaluated(margins, omegas),
+        evaluated=_evaluated(margins, omegas, names, units, scored, ae_unit),
         scenario=scenario,
         zeta=zeta,
         omegas=omegas,
         families=families,
         left_out=MappingProxyType(left_out),
         threshold=MappingProxyType(scored_bounds),
-        ae_unit=shared_unit([u for u, s in zip(units, scored, strict=True) if s]),
+        ae_unit=ae_unit,
         tv_unit=shared_unit(plant.input_units or [None]),
         random=MappingProxyType(drawn),
         draws=count,
@@ -685,15 +688,32 @@ def on_path_summary(runs: pd.DataFrame) -> dict[str, Any]:
 
 
 def _evaluated(
-    margins: Mapping[str, list[EmpiricalMargin | None]], omegas: tuple[float, ...]
+    margins: Mapping[str, list[EmpiricalMargin | None]],
+    omegas: tuple[float, ...],
+    names: tuple[str, ...],
+    units: tuple[str | None, ...],
+    scored: tuple[bool, ...],
+    ae_unit: str | None,
 ) -> pd.DataFrame:
-    """Every simulated point of every margin search, with its ``ω_n`` and family."""
+    """Every simulated point of every margin search, with its ``ω_n`` and family; each
+    coordinate's metric with its unit (``metric_<name>_<unit>``) and, when the scored
+    coordinates share a unit, the largest of theirs (``metric_<unit>``, the unscored
+    coordinates left out)."""
+    per_coordinate = {
+        f"metric_{name}": with_unit(f"metric_{name}", u)
+        for name, u in zip(names, units, strict=True)
+    }
+    scored_columns = [f"metric_{name}" for name, s in zip(names, scored, strict=True) if s]
     frames = []
     for family, found in margins.items():
         for omega, result in zip(omegas, found, strict=True):
             if result is None:
                 continue
             frame = result.to_frame()
+            frame["metric"] = frame[scored_columns].max(axis=1, skipna=False)
+            if ae_unit is None and len(scored_columns) > 1:
+                frame = frame.drop(columns="metric")
+            frame = frame.rename(columns={**per_coordinate, "metric": with_unit("metric", ae_unit)})
             frame.insert(0, "controller", family)
             frame.insert(0, "omega_n", omega)
             frames.append(frame)

@@ -208,3 +208,16 @@ def test_the_robustness_study_runs_on_the_cluster(cluster, tmp_path):
     for name, frame in local.runs.items():
         pd.testing.assert_frame_equal(on_cluster.runs[name], frame, check_exact=True)
     pd.testing.assert_frame_equal(on_cluster.verdicts, local.verdicts, check_exact=True)
+
+
+def test_the_scheduler_waited_for_is_named_before_the_wait(capsys):
+    """A scheduler that refuses the connection is retried until the timeout: with progress,
+    the user is told which scheduler is waited for and for how long, before the wait."""
+    with pytest.raises(SweepError):
+        DaskExecutor("tcp://127.0.0.1:9", timeout=1.0, progress=True)
+    assert capsys.readouterr().err == (
+        "delaytrack: connecting to the Dask scheduler at tcp://127.0.0.1:9 (waiting up to 1 s)\n"
+    )
+    with pytest.raises(SweepError):
+        DaskExecutor("tcp://127.0.0.1:9", timeout=0.5)
+    assert capsys.readouterr().err == ""

@@ -169,7 +169,7 @@ def _study_executor(args: argparse.Namespace):
         checked_scheduler(args.scheduler, None)
     except SweepError as error:
         raise UsageError(str(error)) from None
-    return lambda: make_executor(args.scheduler)
+    return lambda: make_executor(args.scheduler, progress=not args.quiet)
 
 
 def _paper(args: argparse.Namespace, executor) -> int:

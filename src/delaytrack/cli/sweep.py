@@ -96,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"sweep {args.spec}: {len(spec.runs)} runs in {len(spec.units())} units -> {folder}/")
     if not args.quiet:  # the size of the work before it starts, as simulate says its own
         print(f"delaytrack: sweeping {spec.size_summary()}", file=sys.stderr, flush=True)
-    executor = make_executor(args.scheduler, workers=workers)
+    executor = make_executor(args.scheduler, workers=workers, progress=not args.quiet)
     try:
         outcome = run_sweep(spec, folder, executor=executor, progress=not args.quiet)
     except KeyboardInterrupt as interrupted:

@@ -212,7 +212,7 @@ def run(args: argparse.Namespace) -> int:
             draws=args.draws,
             threshold=threshold,
             upper=args.upper,
-            executor=make_executor(args.scheduler),
+            executor=make_executor(args.scheduler, progress=not args.quiet),
             progress=not args.quiet,
         )
         decision = (
@@ -223,7 +223,7 @@ def run(args: argparse.Namespace) -> int:
                 envelope,
                 folder,
                 draws=args.draws if args.decision_draws is None else args.decision_draws,
-                executor=make_executor(args.scheduler),
+                executor=make_executor(args.scheduler, progress=not args.quiet),
                 progress=not args.quiet,
             )
         )

@@ -18,6 +18,7 @@ only the units in flight.
 from __future__ import annotations
 
 import re
+import sys
 from collections.abc import Iterator, Mapping, Sequence
 from typing import Any, Protocol
 
@@ -175,6 +176,10 @@ class DaskExecutor:
         Extra attempts of a task that raises (a task whose worker dies is rescheduled anyway).
     timeout : float
         Seconds to wait for the scheduler to answer.
+    progress : bool
+        Say on standard error which scheduler is waited for, and for how long at most, before
+        connecting to a running one (a scheduler that refuses the connection is retried until
+        ``timeout``).
     """
 
     def __init__(
@@ -184,6 +189,7 @@ class DaskExecutor:
         workers: int | None = None,
         retries: int = 2,
         timeout: float = 30.0,
+        progress: bool = False,
     ) -> None:
         checked_scheduler(scheduler, workers)
         if not is_integer_at_least(retries, 0):
@@ -206,6 +212,13 @@ class DaskExecutor:
         else:
             address = scheduler
             self.description = f"dask: {scheduler}"
+            if progress:
+                print(
+                    f"delaytrack: connecting to the Dask scheduler at {scheduler} "
+                    f"(waiting up to {timeout:g} s)",
+                    file=sys.stderr,
+                    flush=True,
+                )
         try:
             self.client = distributed.Client(address, timeout=timeout)
         except (OSError, TimeoutError) as error:
@@ -251,8 +264,11 @@ class DaskExecutor:
             self._cluster = None
 
 
-def make_executor(scheduler: str | None = None, *, workers: int | None = None) -> Executor:
-    """:class:`LocalExecutor` for ``scheduler=None``, else :class:`DaskExecutor`."""
+def make_executor(
+    scheduler: str | None = None, *, workers: int | None = None, progress: bool = False
+) -> Executor:
+    """:class:`LocalExecutor` for ``scheduler=None``, else :class:`DaskExecutor` (``progress``:
+    say which scheduler is waited for)."""
     if scheduler is None:
         return LocalExecutor(workers)
-    return DaskExecutor(scheduler, workers=workers)
+    return DaskExecutor(scheduler, workers=workers, progress=progress)

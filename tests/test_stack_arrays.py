@@ -1,4 +1,5 @@
-"""Working arrays on the stack of a compiled function, and the RK4 memory made of them."""
+"""Working arrays on the stack of a compiled function, and the RK4 and controller-step memory
+made of them."""
 
 from __future__ import annotations
 
@@ -9,6 +10,9 @@ from numba.core.errors import TypingError
 
 from delaytrack._compile.stack_arrays import MOST_STACK_ENTRIES, stack_matrix, stack_vector
 from delaytrack.components import Kernel
+from delaytrack.controllers.base import step_memory, step_workspace
+from delaytrack.plants.robot.kinematics import robot_command_map
+from delaytrack.plants.robot.nominal import robot_nominal_terms
 from delaytrack.plants.robot.truth import robot_truth_terms
 from delaytrack.sim.integrator import rk4_memory, rk4_workspace
 
@@ -113,3 +117,31 @@ def test_rk4_memory_is_the_workspace_without_sizes_or_beyond_the_bound(sizes):
         Kernel(robot_truth_terms, identity_mass=True, sizes=sizes), work
     )
     assert (same_slopes, same_stage, same_mass, same_profile) == (True, True, True, True)
+
+
+@numba.njit
+def _step_memory_of(terms, work):
+    mass, nonlinear, input_map, rest = step_memory(terms, work)
+    return (
+        mass.ctypes.data == work[0].ctypes.data,
+        rest.ctypes.data == work[3].ctypes.data,
+        (mass.shape, nonlinear.shape, input_map.shape, rest.shape),
+        # zeroed, whatever work holds
+        mass.sum() + nonlinear.sum() + input_map.sum() + rest.sum(),
+    )
+
+
+def test_a_steps_memory_is_on_the_stack_and_zeroed_for_a_model_of_known_sizes():
+    n, m = 5, 2
+    work = tuple(np.full_like(array, np.nan) for array in step_workspace(n, m))
+    kernel = Kernel(robot_nominal_terms, command_map=robot_command_map, sizes=(n, m))
+    same_mass, same_rest, shapes, total = _step_memory_of(kernel, work)
+    assert (same_mass, same_rest) == (False, False)
+    assert shapes == ((n, n), (n,), (n, m), (4 * n,))
+    assert total == 0.0
+    # Without sizes (and from Python) it is work's own arrays.
+    same_mass, same_rest, shapes, _ = _step_memory_of(
+        Kernel(robot_nominal_terms, command_map=robot_command_map), work
+    )
+    assert (same_mass, same_rest, shapes) == (True, True, ((n, n), (n,), (n, m), (4 * n,)))
+    assert step_memory(kernel, work) is work

@@ -41,7 +41,7 @@ from delaytrack.controllers.base import (
     Controller,
     auxiliary_input,
     computed_torque_command,
-    terms_views,
+    step_memory,
     tracking_errors,
 )
 from delaytrack.plants.base import ELPlant
@@ -96,7 +96,7 @@ def arolc_step(
     alpha = params[4 * n * n]
     epsilon = params[4 * n * n + 1]
     gamma = params[4 * n * n + 2]
-    vectors = terms_views(work, n, m)[3]
+    vectors = step_memory(model_terms, work)[3]
     error = vectors[: 2 * n]
     s = vectors[2 * n : 3 * n]
     u = vectors[3 * n : 4 * n]

@@ -23,9 +23,12 @@ from collections.abc import Callable
 from typing import Any, ClassVar
 
 import numpy as np
+from numba.extending import overload
 
 from delaytrack._compile.functions import is_compiled
 from delaytrack._compile.jit import hot_inline_kernel, inline_kernel
+from delaytrack._compile.kernel_type import KernelType
+from delaytrack._compile.stack_arrays import MOST_STACK_ENTRIES, stack_matrix, stack_vector
 from delaytrack._validation import positive_scalar
 from delaytrack.components import Kernel, call_command_map, call_terms, plant_sizes
 from delaytrack.controllers.stepper import INPUT_NAMES, ControllerStepper, checked_vector
@@ -35,6 +38,7 @@ __all__ = [
     "Controller",
     "auxiliary_input",
     "computed_torque_command",
+    "step_memory",
     "step_workspace",
     "terms_views",
     "tracking_errors",
@@ -83,18 +87,58 @@ def auxiliary_input(params, error, qd_ddot, u, n=None):
         u[i] = qd_ddot[i] + damping + stiffness
 
 
+def step_memory(model_terms, work):
+    """The working memory of a step on the nominal model ``model_terms``: ``(M̂ (n, n), N̂ (n,),
+    Ĝ (n, m), rest (4 n,))``, those of ``work`` (:func:`terms_views`).
+
+    Compiled, for a model whose sizes ``(n, m)`` are known when compiling, arrays on the stack
+    of the compiled step instead (:mod:`delaytrack._compile.stack_arrays`), new at each call
+    and zeroed: memory the compiler sees whole, whose entries it keeps in registers and which
+    no other array can alias. An entry a kernel leaves unwritten is zero, as in the zeroed
+    ``work``; a model kernel that writes every entry, as
+    :class:`~delaytrack.plants.CompiledPlant`'s start-up check asks, sees no difference.
+    Nothing written there outlasts the step.
+    """
+    return work
+
+
+@overload(step_memory, inline="always")
+def _step_memory_compiled(model_terms, work):
+    sizes = model_terms.kernel().sizes if isinstance(model_terms, KernelType) else None
+    n, m = sizes or (0, 0)
+    width = 4 * n
+    if sizes is None or n * n + n + n * m + width > MOST_STACK_ENTRIES:
+        return lambda model_terms, work: work
+
+    def on_stack(model_terms, work):
+        mass, nonlinear, input_map = stack_matrix(n, n), stack_vector(n), stack_matrix(n, m)
+        rest = stack_vector(width)
+        for i in range(n):
+            nonlinear[i] = 0.0
+            for j in range(n):
+                mass[i, j] = 0.0
+            for j in range(m):
+                input_map[i, j] = 0.0
+        for i in range(width):
+            rest[i] = 0.0
+        return mass, nonlinear, input_map, rest
+
+    return on_stack
+
+
 @hot_inline_kernel
 def computed_torque_command(model_terms, model_params, t, q, qdot, u, command, work):
     """Actuator command realising ``τ = M̂(q) u + N̂(q, q̇)`` (paper eq. (input)).
 
     ``τ`` is mapped to the actuators by the model's command map
     (:func:`delaytrack.components.call_command_map`): ``Ĝ(q)⁻¹ τ`` for a fully actuated
-    model, ``S(q)ᵀ τ`` for the wheeled robot. The model's terms go to the front of ``work``
-    (:func:`terms_views`); ``u`` must not lie there. Afterwards ``N̂`` holds ``τ`` and ``Ĝ`` may
-    hold its LU factors (the default command map factorises it in place): read neither again.
+    model, ``S(q)ᵀ τ`` for the wheeled robot. The model's terms go to the front of
+    :func:`step_memory` (of ``work``, or the compiled step's stack); ``u`` must not lie in
+    ``work``'s front. Afterwards what is there is undefined (``N̂`` may hold ``τ``, ``Ĝ`` its LU
+    factors: the default command map factorises it in place): read none of it.
     """
     n, m = plant_sizes(model_terms, q, command)
-    mass, nonlinear, input_map, _ = terms_views(work, n, m)
+    mass, nonlinear, input_map, _ = step_memory(model_terms, work)
     call_terms(model_terms, t, q, qdot, model_params, mass, nonlinear, input_map)
     finite = True
     for i in range(n):

@@ -14,7 +14,7 @@ from delaytrack.controllers.base import (
     Controller,
     auxiliary_input,
     computed_torque_command,
-    terms_views,
+    step_memory,
     tracking_errors,
 )
 from delaytrack.plants.base import ELPlant
@@ -35,7 +35,7 @@ def outer_loop_step(
     :func:`~delaytrack.controllers.base.step_workspace` scratch.
     """
     n, m = plant_sizes(model_terms, q, command)
-    vectors = terms_views(work, n, m)[3]
+    vectors = step_memory(model_terms, work)[3]
     error = vectors[: 2 * n]
     u = vectors[2 * n : 3 * n]
     tracking_errors(q, qdot, qd, qd_dot, error, n)

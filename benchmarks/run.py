@@ -39,10 +39,11 @@ compiles or loads numba's disk cache):
     ``T_c`` = 10 ms), against MuJoCo stepping the same model alone for the same number of
     steps from a compiled loop (the floor, :mod:`mujoco_floor`) and against the same closed
     loop written by hand as one numba function (the ceiling, same module: the same run bit for
-    bit, its final state, AE and TV compared, its model evaluations included), the three timed
-    alternately; and 100 such runs in one batch on all cores (a copy of MuJoCo's data per
-    thread), against the floor's time for as many steps and against the same batch on one
-    thread.
+    bit, its final state, AE and TV compared, its model evaluations included), and the plant
+    alone: the same run under a law that evaluates no MuJoCo model (the outer loop on the arm's
+    mass matrix at the start, held), the four timed alternately; and 100 such runs in one batch
+    on all cores (a copy of MuJoCo's data per thread), against the floor's time for as many
+    steps and against the same batch on one thread.
 ``sweep``
     ``examples/sweep_robot.toml`` (AROLC, PCON and the outer loop over 1000 random
     delay profiles and payload placements, 3000 runs of 60 s) through :func:`run_sweep` with the
@@ -309,15 +310,20 @@ def mujoco_case(duration: float, batch: int, repeats: int) -> list[dict]:
         [0.0, 0.3, 0.0], amplitude=[[0.5], [0.3], [0.2]], frequency=[[1.0], [1.3], [0.7]]
     )
     x0 = np.array([0.0, 0.3, 0.0, 0.5, 0.39, 0.14])
+    # The plant's own cost: a law that evaluates no MuJoCo model (the outer loop on the arm's
+    # mass matrix at the start, held constant; gains low enough to stay on the path under S1).
+    held = dt.OuterLoop(dt.LinearPlant(mass=truth.mass_matrix(x0[:3])[0]), K1=1.0, K2=2.0)
     delay = dt.AbsSineDelay.S1()
     common = dict(reference=reference, t1=duration, dt=DT, T_c=T_C)
     count = steps(duration)
-    single, hand, floor = alternating_medians(
+    single, hand, floor, plant_only = alternating_medians(
         repeats,
         lambda: dt.simulate(truth, controller, delay, x0, **common, trajectories=False),
         lambda: hand_run(truth, controller, delay, reference, x0, duration, DT, T_C),
         lambda: bare_steps(path, count, x0[:3], x0[3:]),
+        lambda: dt.simulate(truth, held, delay, x0, **common, trajectories=False),
     )
+    held_status = dt.simulate(truth, held, delay, x0, **common, trajectories=False).status_names
     engine_run = dt.simulate(truth, controller, delay, x0, **common)
     hand_state, hand_sums = hand_run(truth, controller, delay, reference, x0, duration, DT, T_C)
     delays = [dt.AbsSineDelay(0.02, 0.08, 1.0 + 0.01 * b) for b in range(batch)]
@@ -351,6 +357,15 @@ def mujoco_case(duration: float, batch: int, repeats: int) -> list[dict]:
                     abs(engine_run.metrics["tv"][0] - hand_sums[truth.n]),
                 )
             ),
+        },
+        {
+            "case": f"MuJoCo arm stepped by MuJoCo, a law with no model, one {duration:g} s run",
+            "median_s": plant_only,
+            "steps_per_s": count / plant_only,
+            "baseline": floor_name,
+            "baseline_s": floor,
+            "ratio_to_baseline": floor / plant_only,
+            "status": held_status[0],
         },
         {
             "case": "ceiling: the same closed loop written by hand",
@@ -775,6 +790,11 @@ def main() -> None:
         f"speed ({mujoco['ratio_to_baseline']:.3f} of mj_step alone, which evaluates no model); "
         f"final states differ by {mujoco['largest_state_difference_to_ceiling']:.1e}, AE and TV by "
         f"{mujoco['largest_metric_difference_to_ceiling']:.1e}"
+    )
+    plant_only = next(c for c in cases if "a law with no model" in c["case"])
+    print(
+        f"MuJoCo arm under a law with no model: {plant_only['ratio_to_baseline']:.3f} of mj_step "
+        f"alone's speed (run {plant_only['status']})"
     )
     startup = next(c for c in cases if c["case"].startswith("start-up"))
     print(

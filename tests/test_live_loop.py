@@ -154,6 +154,12 @@ def test_a_session_runs_and_every_node_exits_cleanly(sessions):
     assert summary["exit_codes"] == {"robot": 0, "delay": 0, "controller": 0}
     for name in ("controller.mcap", "delay.mcap", "robot.mcap", "ticks.csv", "delays.csv"):
         assert (folder / name).is_file(), name
+    for name in ("summary.json", "controller.json", "delay.json", "robot.json"):
+        json.loads((folder / name).read_text(), parse_constant=_not_json)  # strict JSON
+
+
+def _not_json(constant: str) -> None:
+    raise AssertionError(f"{constant} is not JSON")
 
 
 def test_commands_keep_their_order_and_none_is_lost_without_packet_loss(sessions):

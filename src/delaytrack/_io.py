@@ -23,6 +23,8 @@ from __future__ import annotations
 import contextlib
 import csv
 import itertools
+import json
+import math
 import os
 import re
 import stat
@@ -31,7 +33,7 @@ import tomllib
 import unicodedata
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from delaytrack._validation import NumberTextError, decimal_number
 
@@ -404,6 +406,27 @@ def write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
 def write_text(path: str | os.PathLike[str], text: str) -> Path:
     """Write ``text`` (UTF-8) to ``path`` atomically; return the path."""
     return write_bytes(path, text.encode("utf-8"))
+
+
+def json_text(data: object, **options: Any) -> str:
+    """``data`` as strict JSON (RFC 8259), which every reader takes: a number that is not
+    finite (NaN, ±inf: a percentile of no samples, a rate over no time) is written as ``null``,
+    where :func:`json.dumps` would write ``NaN``, which browsers' and most other languages'
+    readers refuse. ``options`` go to :func:`json.dumps` (``default`` is applied first)."""
+    default = options.pop("default", None)
+
+    def finite(value: object) -> object:
+        if isinstance(value, float):
+            return value if math.isfinite(value) else None
+        if isinstance(value, dict):
+            return {key: finite(item) for key, item in value.items()}
+        if isinstance(value, list | tuple):
+            return [finite(item) for item in value]
+        if value is None or isinstance(value, str | int):
+            return value
+        return finite(default(value)) if default is not None else value
+
+    return json.dumps(finite(data), allow_nan=False, **options)
 
 
 def write_frame(frame: pd.DataFrame, path: str | os.PathLike[str]) -> Path:

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from delaytrack._file_lock import exclusive
-from delaytrack._io import write_text
+from delaytrack._io import json_text, write_text
 from delaytrack._output import check_output_folder, claim_output_folder, record_outputs
 from delaytrack.live.status import (
     STATUS_PERIOD,
@@ -417,7 +417,7 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
             if stop.signal
             else ("failure" if node.failure else "duration")
         )
-        write_text(node.out / f"{node.role}.json", json.dumps(summary, indent=1) + "\n")
+        write_text(node.out / f"{node.role}.json", json_text(summary, indent=1) + "\n")
         record_node_files(node.out)
         if stop.signal == signal.SIGINT:
             code = EXIT_INTERRUPTED

@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from delaytrack._io import regular_file
+from delaytrack._io import json_text, regular_file, write_text
 from delaytrack.live._node import session_files
 from delaytrack.live._tables import number, read_rows, required_rows
 from delaytrack.live.log import write_csv
@@ -333,7 +333,7 @@ def _write_replay(
         *[f"u{j + 1}_replay" for j in range(m)],
     ]
     write_csv(folder / "replay.csv", header, rows)
-    (folder / "replay.json").write_text(json.dumps(report, indent=1) + "\n")
+    write_text(folder / "replay.json", json_text(report, indent=1) + "\n")
 
 
 def _rms(values: np.ndarray) -> np.ndarray:

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from delaytrack._io import write_text
+from delaytrack._io import json_text, write_text
 from delaytrack.live._node import load_scenario, percentile, session_duration, session_files
 from delaytrack.live._tables import ms, number, read_rows
 from delaytrack.live.log import write_csv
@@ -258,7 +258,7 @@ def _write_summary_and_report(folder: Path, scenario: Any, summary: dict[str, An
     from delaytrack._output import record_outputs
     from delaytrack.live.report import write_report
 
-    write_text(folder / "summary.json", json.dumps(summary, indent=1, default=str) + "\n")
+    write_text(folder / "summary.json", json_text(summary, indent=1, default=str) + "\n")
     report_failed = write_report(folder, scenario)
     record_outputs(folder, session_files(folder))
     return report_failed

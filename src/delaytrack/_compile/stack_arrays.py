@@ -20,13 +20,13 @@ from __future__ import annotations
 import math
 
 from llvmlite import ir
-from numba import types
+from numba import njit, types
 from numba.core import cgutils
 from numba.core.errors import TypingError
 from numba.extending import intrinsic
 from numba.np.arrayobj import make_array, populate_array
 
-__all__ = ["MOST_STACK_ENTRIES", "stack_matrix", "stack_vector"]
+__all__ = ["MOST_STACK_ENTRIES", "stack_matrix", "stack_terms", "stack_vector"]
 
 #: Most float64 entries that a compiled function keeps on its stack through these arrays
 #: (256 KiB, a small part of a thread's usual 8 MiB stack); callers fall back to heap arrays
@@ -81,3 +81,18 @@ def stack_matrix(typingctx, rows, columns):
         return _stack_array(context, builder, shape)
 
     return types.Array(types.float64, 2, "C")(rows, columns), codegen
+
+
+@njit(inline="always")
+def stack_terms(n, m):
+    """A model's ``M (n, n), N (n,), G (n, m)`` (``n``, ``m`` compile-time constants) on the
+    caller's stack, zeroed: an entry a terms kernel leaves unwritten is zero at every call, as
+    in a workspace zeroed once a run. Only for compiled callers."""
+    mass, nonlinear, input_map = stack_matrix(n, n), stack_vector(n), stack_matrix(n, m)
+    for i in range(n):
+        nonlinear[i] = 0.0
+        for j in range(n):
+            mass[i, j] = 0.0
+        for j in range(m):
+            input_map[i, j] = 0.0
+    return mass, nonlinear, input_map

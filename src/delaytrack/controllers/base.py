@@ -28,7 +28,7 @@ from numba.extending import overload
 from delaytrack._compile.functions import is_compiled
 from delaytrack._compile.jit import hot_inline_kernel, inline_kernel
 from delaytrack._compile.kernel_type import KernelType
-from delaytrack._compile.stack_arrays import MOST_STACK_ENTRIES, stack_matrix, stack_vector
+from delaytrack._compile.stack_arrays import MOST_STACK_ENTRIES, stack_terms, stack_vector
 from delaytrack._validation import positive_scalar
 from delaytrack.components import Kernel, call_command_map, call_terms, plant_sizes
 from delaytrack.controllers.stepper import INPUT_NAMES, ControllerStepper, checked_vector
@@ -111,14 +111,8 @@ def _step_memory_compiled(model_terms, work):
         return lambda model_terms, work: work
 
     def on_stack(model_terms, work):
-        mass, nonlinear, input_map = stack_matrix(n, n), stack_vector(n), stack_matrix(n, m)
+        mass, nonlinear, input_map = stack_terms(n, m)
         rest = stack_vector(width)
-        for i in range(n):
-            nonlinear[i] = 0.0
-            for j in range(n):
-                mass[i, j] = 0.0
-            for j in range(m):
-                input_map[i, j] = 0.0
         for i in range(width):
             rest[i] = 0.0
         return mass, nonlinear, input_map, rest

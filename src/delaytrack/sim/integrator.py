@@ -48,7 +48,12 @@ from numba.extending import overload
 from delaytrack._compile.jit import hot_inline_kernel, inline_kernel, shared_kernel, tick_kernel
 from delaytrack._compile.kernel_type import KernelType
 from delaytrack._compile.native_call import NativeFunctionType, call_native
-from delaytrack._compile.stack_arrays import MOST_STACK_ENTRIES, stack_matrix, stack_vector
+from delaytrack._compile.stack_arrays import (
+    MOST_STACK_ENTRIES,
+    stack_matrix,
+    stack_terms,
+    stack_vector,
+)
 from delaytrack.components import (
     call_reduced_dynamics,
     call_stepper,
@@ -173,14 +178,7 @@ def _rk4_memory_compiled(plant_terms, work):
 
     def on_stack(plant_terms, work):
         stage = stack_vector(width)
-        mass, nonlinear, input_map = stack_matrix(n, n), stack_vector(n), stack_matrix(n, m)
-        for i in range(n):
-            nonlinear[i] = 0.0
-            for j in range(n):
-                mass[i, j] = 0.0
-            for j in range(m):
-                input_map[i, j] = 0.0
-        scratch = (mass, nonlinear, input_map)
+        scratch = stack_terms(n, m)
         return stack_matrix(4, width), stage, stage[:n], stage[n:], scratch, work[5]
 
     return on_stack

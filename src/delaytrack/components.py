@@ -65,6 +65,7 @@ __all__ = [
     "call_stepper",
     "call_terms",
     "call_velocity_map",
+    "compiled_sizes",
     "has_identity_mass",
     "has_stepper",
     "plant_sizes",
@@ -475,10 +476,16 @@ def plant_sizes(terms, q, u):
     return q.shape[0], u.shape[0]
 
 
+def compiled_sizes(terms_type: Any) -> tuple[int, int] | None:
+    """When compiling: the sizes ``(n, m)`` of the plant :class:`Kernel` whose numba type is
+    ``terms_type``, or None (not a kernel, or one without sizes)."""
+    return terms_type.kernel().sizes if isinstance(terms_type, KernelType) else None
+
+
 @overload(plant_sizes, inline="always")
 def _plant_sizes_compiled(terms, q, u):
     if isinstance(terms, KernelType):
-        sizes = terms.kernel().sizes
+        sizes = compiled_sizes(terms)
         if sizes is None:
             return lambda terms, q, u: (q.shape[0], u.shape[0])
         n, m = sizes

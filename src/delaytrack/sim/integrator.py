@@ -46,7 +46,6 @@ import numpy as np
 from numba.extending import overload
 
 from delaytrack._compile.jit import hot_inline_kernel, inline_kernel, shared_kernel, tick_kernel
-from delaytrack._compile.kernel_type import KernelType
 from delaytrack._compile.native_call import NativeFunctionType, call_native
 from delaytrack._compile.stack_arrays import (
     MOST_STACK_ENTRIES,
@@ -58,6 +57,7 @@ from delaytrack.components import (
     call_reduced_dynamics,
     call_stepper,
     call_velocity_map,
+    compiled_sizes,
     has_stepper,
     plant_sizes,
     reduced_size,
@@ -169,7 +169,7 @@ def rk4_memory(plant_terms, work):
 
 @overload(rk4_memory, inline="always")
 def _rk4_memory_compiled(plant_terms, work):
-    sizes = plant_terms.kernel().sizes if isinstance(plant_terms, KernelType) else None
+    sizes = compiled_sizes(plant_terms)
     n, m = sizes or (0, 0)
     width = 2 * n
     entries = 4 * width + width + n * n + n + n * m  # slopes, stage, M, N, G

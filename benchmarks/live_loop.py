@@ -26,6 +26,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from delaytrack.live._tables import ms
+
 __all__ = ["format_live", "live_case", "live_cases"]
 
 SCENARIO = "robot_S1"
@@ -143,22 +145,24 @@ def live_cases(quick: bool = False, keep: Path | None = None) -> list[dict]:
 
 
 def format_live(cases: list[dict]) -> str:
-    """A few lines per case for the terminal."""
+    """A few lines per case for the terminal (n/a where a session measured nothing: ``null``
+    in its JSON)."""
     lines = []
     for c in cases:
         before = ", ".join(f"{v:.2f}" for v in c["load_average_before"])
         after = ", ".join(f"{v:.2f}" for v in c["load_average_after"])
+        wakes = c["delay_node_wakes_per_s"]
         lines += [
             f"{c['case']} (load average {before} before, {after} after, {c['cores']} cores):",
             f"  controller: {c['controller_deadline_misses']} of "
             f"{c['controller_ticks'] + c['controller_deadline_misses']} ticks missed, compute "
-            f"p99 {c['controller_compute_ms_p99']:.3f} ms, lateness p99 "
-            f"{c['controller_lateness_ms_p99']:.3f} ms",
+            f"p99 {ms(c['controller_compute_ms_p99'])}, lateness p99 "
+            f"{ms(c['controller_lateness_ms_p99'])}",
             f"  robot: {c['robot_missed_steps']} of {c['robot_steps']} steps missed, lateness "
-            f"p99 {c['robot_lateness_ms_p99']:.3f} ms; delay node "
-            f"{c['delay_node_wakes_per_s']:.0f} wake-ups/s",
-            f"  |realised delay - h(t)| p99 {c['realised_minus_h_abs_ms_p99']:.3f} ms (the exact "
-            f"rule on the step grid alone {c['realised_minus_h_abs_ms_p99_of_the_rule']:.3f} ms); "
+            f"p99 {ms(c['robot_lateness_ms_p99'])}; delay node "
+            f"{'n/a' if wakes is None else f'{wakes:.0f}'} wake-ups/s",
+            f"  |realised delay - h(t)| p99 {ms(c['realised_minus_h_abs_ms_p99'])} (the exact "
+            f"rule on the step grid alone {ms(c['realised_minus_h_abs_ms_p99_of_the_rule'])}); "
             "replay "
             f"RMS difference {100 * c['replay_error_rms_relative']:.2f} % of the RMS tracking "
             "error",

@@ -359,7 +359,7 @@ def mujoco_case(duration: float, batch: int, repeats: int) -> list[dict]:
             ),
         },
         {
-            "case": f"MuJoCo arm stepped by MuJoCo, a law with no model, one {duration:g} s run",
+            "case": f"MuJoCo arm stepped by MuJoCo, no MuJoCo model in the law, {duration:g} s run",
             "median_s": plant_only,
             "steps_per_s": count / plant_only,
             "baseline": floor_name,
@@ -791,10 +791,10 @@ def main() -> None:
         f"final states differ by {mujoco['largest_state_difference_to_ceiling']:.1e}, AE and TV by "
         f"{mujoco['largest_metric_difference_to_ceiling']:.1e}"
     )
-    plant_only = next(c for c in cases if "a law with no model" in c["case"])
+    plant_only = next(c for c in cases if "no MuJoCo model in the law" in c["case"])
     print(
-        f"MuJoCo arm under a law with no model: {plant_only['ratio_to_baseline']:.3f} of mj_step "
-        f"alone's speed (run {plant_only['status']})"
+        f"MuJoCo arm, no MuJoCo model in the law: {plant_only['ratio_to_baseline']:.3f} of "
+        f"mj_step alone's speed (run {plant_only['status']})"
     )
     startup = next(c for c in cases if c["case"].startswith("start-up"))
     print(

@@ -349,3 +349,37 @@ def test_ticks_missed_count_only_ticks_of_the_session():
     ticker = Ticker(time.monotonic() - 10.0, 1.0, until=3.0)
     assert list(ticker) == []
     assert ticker.missed == 3
+
+
+def test_a_summary_of_a_session_that_measured_nothing_is_strict_json_and_reports_na():
+    """A session of no ticks: its percentiles and rates are NaN in the nodes, null in the JSON
+    files (strict JSON), and 'n/a' in the report's timing table, not a TypeError."""
+    from types import SimpleNamespace
+
+    from delaytrack._io import json_text
+    from delaytrack.live.report import _timing_settings
+
+    nan = float("nan")
+    written = json_text(
+        {
+            "realised_minus_h_ms_p50": nan,
+            "nodes": {
+                "controller": {"ticks": 0, "lateness_ms_p50": nan, "compute_ms_p99": nan},
+                "robot": {"steps": 0, "lateness_ms_p99": nan},
+                "delay": {"received": 0, "wakes_per_s": nan, "lead_ms": 0.5},
+            },
+        }
+    )
+    assert "NaN" not in written
+    summary = json.loads(written)
+    nodes = summary["nodes"]
+    settings = _timing_settings(
+        summary,
+        SimpleNamespace(measurement_noise=None),
+        nodes["controller"],
+        nodes["robot"],
+        nodes["delay"],
+    )
+    assert settings["delay node"].endswith("releases, n/a wake-ups/s, lead 0.5 ms")
+    assert settings["controller wake-up lateness p50 / p99"] == "n/a / n/a"
+    assert settings["realised delay − h(t) p50 / |.| p99"].startswith("n/a / n/a")

@@ -145,3 +145,12 @@ def test_a_steps_memory_is_on_the_stack_and_zeroed_for_a_model_of_known_sizes():
     )
     assert (same_mass, same_rest, shapes) == (True, True, ((n, n), (n,), (n, m), (4 * n,)))
     assert step_memory(kernel, work) is work
+
+
+def test_a_steps_memory_beyond_the_bound_is_the_workspace():
+    n, m = 200, 2  # M (200, 200) alone passes the bound
+    assert n * n > MOST_STACK_ENTRIES
+    work = step_workspace(n, m)
+    kernel = Kernel(robot_nominal_terms, command_map=robot_command_map, sizes=(n, m))
+    same_mass, same_rest, _, _ = _step_memory_of(kernel, work)
+    assert (same_mass, same_rest) == (True, True)

@@ -226,3 +226,18 @@ def test_every_metric_column_of_the_evaluated_points_has_its_unit():
         "metric_y_m",
         "metric_phi_rad",
     ]
+    # A plant without units: each coordinate's metric and the largest of the scored ones,
+    # without a unit; one scored coordinate: its own.
+    unitless = _evaluated({"arolc": [search]}, (1.0,), names, (None,) * 3, scored, None)
+    assert [c for c in unitless if c.startswith("metric")] == [
+        "metric",
+        "metric_x",
+        "metric_y",
+        "metric_phi",
+    ]
+    np.testing.assert_array_equal(unitless["metric"], [0.02, 0.07, np.nan])
+    alone = _evaluated(
+        {"arolc": [search, None]}, (1.0, 2.0), names, units, (False,) * 2 + (True,), "rad"
+    )
+    np.testing.assert_array_equal(alone["metric_rad"], [3.0, 2.0, np.nan])
+    assert list(alone["omega_n"]) == [1.0] * 3  # a point without a search has no rows

@@ -96,7 +96,8 @@ def arolc_step(
     alpha = params[4 * n * n]
     epsilon = params[4 * n * n + 1]
     gamma = params[4 * n * n + 2]
-    vectors = step_memory(model_terms, work)[3]
+    memory = step_memory(model_terms, work)  # one set of arrays for the whole step
+    vectors = memory[3]
     error = vectors[: 2 * n]
     s = vectors[2 * n : 3 * n]
     u = vectors[3 * n : 4 * n]
@@ -109,7 +110,7 @@ def arolc_step(
     gain = alpha * c_hat / max(norm_s, epsilon)
     for i in range(n):
         u[i] += gain * s[i]
-    computed_torque_command(model_terms, model_params, t, q, qdot, u, command, work)
+    computed_torque_command(model_terms, model_params, t, q, qdot, u, command, memory)
     rate = adaptive_gain_rate(
         c_hat, s, state[_S_PREVIOUS:], state[_HAS_PREVIOUS] != 0.0, gamma, norm_s
     )

@@ -94,15 +94,17 @@ def auxiliary_input(params, error, qd_ddot, u, n=None):
 
 def step_memory(model_terms, work):
     """The working memory of a step on the nominal model ``model_terms``: ``(M̂ (n, n), N̂ (n,),
-    Ĝ (n, m), rest (4 n,))``, those of ``work`` (:func:`terms_views`).
+    Ĝ (n, m), rest (4 n,))``, those of ``work`` (:func:`terms_views`), to be passed on to
+    :func:`computed_torque_command` in place of ``work``.
 
     Compiled, for a model whose sizes ``(n, m)`` are known when compiling, arrays on the stack
-    of the compiled step instead (:mod:`delaytrack._compile.stack_arrays`), new at each call
-    and zeroed: memory the compiler sees whole, whose entries it keeps in registers and which
-    no other array can alias. An entry a kernel leaves unwritten is zero, as in the zeroed
-    ``work``; a model kernel that writes every entry, as
+    of the compiled step instead (:mod:`delaytrack._compile.stack_arrays`), zeroed at each call
+    (a call inside a loop reuses the same memory): memory the compiler sees whole, whose entries
+    it keeps in registers and which no other array can alias. An entry a kernel leaves
+    unwritten is zero, as in the zeroed ``work``; a model kernel that writes every entry, as
     :class:`~delaytrack.plants.CompiledPlant`'s start-up check asks, sees no difference.
-    Nothing written there outlasts the step.
+    Nothing written there outlasts the step: call it once a step, and keep in ``state`` what
+    the next tick reads.
     """
     return work
 
@@ -131,13 +133,13 @@ def computed_torque_command(model_terms, model_params, t, q, qdot, u, command, w
 
     ``τ`` is mapped to the actuators by the model's command map
     (:func:`delaytrack.components.call_command_map`): ``Ĝ(q)⁻¹ τ`` for a fully actuated
-    model, ``S(q)ᵀ τ`` for the wheeled robot. The model's terms go to the front of
-    :func:`step_memory` (of ``work``, or the compiled step's stack); ``u`` must not lie in
-    ``work``'s front. Afterwards what is there is undefined (``N̂`` may hold ``τ``, ``Ĝ`` its LU
-    factors: the default command map factorises it in place): read none of it.
+    model, ``S(q)ᵀ τ`` for the wheeled robot. The model's terms go to the front of ``work``
+    (:func:`terms_views`; a step may pass its :func:`step_memory` instead); ``u`` must not lie
+    there. Afterwards ``N̂`` holds ``τ`` and ``Ĝ`` may hold its LU factors (the default command
+    map factorises it in place): read neither again.
     """
     n, m = plant_sizes(model_terms, q, command)
-    mass, nonlinear, input_map, _ = step_memory(model_terms, work)
+    mass, nonlinear, input_map, _ = terms_views(work, n, m)
     call_terms(model_terms, t, q, qdot, model_params, mass, nonlinear, input_map)
     finite = True
     for i in range(n):

@@ -35,12 +35,13 @@ def outer_loop_step(
     :func:`~delaytrack.controllers.base.step_workspace` scratch.
     """
     n, m = plant_sizes(model_terms, q, command)
-    vectors = step_memory(model_terms, work)[3]
+    memory = step_memory(model_terms, work)  # one set of arrays for the whole step
+    vectors = memory[3]
     error = vectors[: 2 * n]
     u = vectors[2 * n : 3 * n]
     tracking_errors(q, qdot, qd, qd_dot, error, n)
     auxiliary_input(params, error, qd_ddot, u, n)
-    computed_torque_command(model_terms, model_params, t, q, qdot, u, command, work)
+    computed_torque_command(model_terms, model_params, t, q, qdot, u, command, memory)
 
 
 @dataclass(frozen=True, eq=False)

@@ -176,8 +176,8 @@ class TradeoffStudy:
     evaluated : DataFrame
         Every simulated point of every margin search (``omega_n``, ``controller``, the delay
         ``value``, the metric per coordinate with its unit, ``metric_<name>_<unit>``, the
-        largest over the scored coordinates when they share a unit, ``metric_<unit>``,
-        ``status``, ``passes``).
+        largest over the scored coordinates when they share a unit (or none has one),
+        ``metric_<unit>``, ``status``, ``passes``).
     scenario : Scenario
     zeta : float
     omegas : tuple of float
@@ -697,13 +697,15 @@ def _evaluated(
 ) -> pd.DataFrame:
     """Every simulated point of every margin search, with its ``ω_n`` and family; each
     coordinate's metric with its unit (``metric_<name>_<unit>``) and, when the scored
-    coordinates share a unit, the largest of theirs (``metric_<unit>``, the unscored
-    coordinates left out)."""
+    coordinates share a unit (or none has one), the largest of theirs (``metric_<unit>``, the
+    unscored coordinates left out)."""
     per_coordinate = {
         f"metric_{name}": with_unit(f"metric_{name}", u)
         for name, u in zip(names, units, strict=True)
     }
     scored_columns = [f"metric_{name}" for name, s in zip(names, scored, strict=True) if s]
+    # One unit for every scored coordinate (or none known for any): their largest is a number.
+    comparable = len({u for u, s in zip(units, scored, strict=True) if s}) == 1
     frames = []
     for family, found in margins.items():
         for omega, result in zip(omegas, found, strict=True):
@@ -711,7 +713,7 @@ def _evaluated(
                 continue
             frame = result.to_frame()
             frame["metric"] = frame[scored_columns].max(axis=1, skipna=False)
-            if ae_unit is None and len(scored_columns) > 1:
+            if not comparable:
                 frame = frame.drop(columns="metric")
             frame = frame.rename(columns={**per_coordinate, "metric": with_unit("metric", ae_unit)})
             frame.insert(0, "controller", family)

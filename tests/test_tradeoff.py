@@ -210,32 +210,23 @@ def test_every_metric_column_of_the_evaluated_points_has_its_unit():
         simulations=3,
         rounds=1,
     )
-    frame = _evaluated({"arolc": [search]}, (1.0,), names, units, scored, "m")
-    assert [c for c in frame if c.startswith("metric")] == [
-        "metric_m",
-        "metric_x_m",
-        "metric_y_m",
-        "metric_phi_rad",
-    ]
+
+    def metric_columns(*arguments):
+        frame = _evaluated({"arolc": [search]}, (1.0,), names, *arguments)
+        return frame, [column for column in frame if column.startswith("metric")]
+
+    frame, columns = metric_columns(units, scored, "m")
+    assert columns == ["metric_m", "metric_x_m", "metric_y_m", "metric_phi_rad"]
     np.testing.assert_array_equal(frame["metric_m"], [0.02, 0.07, np.nan])
     assert list(frame["passes"]) == [True, False, False]
     # Scored coordinates of different units have no combined metric.
-    mixed = _evaluated({"arolc": [search]}, (1.0,), names, units, (True, False, True), None)
-    assert [c for c in mixed if c.startswith("metric")] == [
-        "metric_x_m",
-        "metric_y_m",
-        "metric_phi_rad",
-    ]
+    _, columns = metric_columns(units, (True, False, True), None)
+    assert columns == ["metric_x_m", "metric_y_m", "metric_phi_rad"]
     # A plant without units: each coordinate's metric and the largest of the scored ones,
     # without a unit; one scored coordinate: its own.
-    unitless = _evaluated({"arolc": [search]}, (1.0,), names, (None,) * 3, scored, None)
-    assert [c for c in unitless if c.startswith("metric")] == [
-        "metric",
-        "metric_x",
-        "metric_y",
-        "metric_phi",
-    ]
-    np.testing.assert_array_equal(unitless["metric"], [0.02, 0.07, np.nan])
+    frame, columns = metric_columns((None,) * 3, scored, None)
+    assert columns == ["metric", "metric_x", "metric_y", "metric_phi"]
+    np.testing.assert_array_equal(frame["metric"], [0.02, 0.07, np.nan])
     alone = _evaluated(
         {"arolc": [search, None]}, (1.0, 2.0), names, units, (False,) * 2 + (True,), "rad"
     )

@@ -47,6 +47,7 @@ from delaytrack._compile.guards import refuse_managed_result
 from delaytrack._compile.jit import shared_kernel
 from delaytrack._compile.kernel_type import KernelType, known_to_numba, numba_type_of
 from delaytrack._compile.native_call import NativeFunctionType, call_native
+from delaytrack._compile.stack_arrays import MOST_STACK_ENTRIES
 from delaytrack._deprecated import moved_names
 from delaytrack._small_linalg import solve_in_place
 from delaytrack._validation import is_integer_at_least
@@ -69,6 +70,7 @@ __all__ = [
     "has_identity_mass",
     "has_stepper",
     "plant_sizes",
+    "sizes_on_stack",
     "reduced_size",
     "solve_input_map",
 ]
@@ -480,6 +482,14 @@ def compiled_sizes(terms_type: Any) -> tuple[int, int] | None:
     """When compiling: the sizes ``(n, m)`` of the plant :class:`Kernel` whose numba type is
     ``terms_type``, or None (not a kernel, or one without sizes)."""
     return terms_type.kernel().sizes if isinstance(terms_type, KernelType) else None
+
+
+def sizes_on_stack(terms_type: Any, entries: Callable[[int, int], int]) -> tuple[int, int] | None:
+    """When compiling: :func:`compiled_sizes`, if known and if ``entries(n, m)`` float64 fit
+    on a compiled function's stack (:data:`~delaytrack._compile.stack_arrays.MOST_STACK_ENTRIES`);
+    else None (the caller then works in a workspace on the heap)."""
+    sizes = compiled_sizes(terms_type)
+    return sizes if sizes is not None and entries(*sizes) <= MOST_STACK_ENTRIES else None
 
 
 @overload(plant_sizes, inline="always")

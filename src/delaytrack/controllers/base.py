@@ -27,14 +27,14 @@ from numba.extending import overload
 
 from delaytrack._compile.functions import is_compiled
 from delaytrack._compile.jit import hot_inline_kernel, inline_kernel
-from delaytrack._compile.stack_arrays import MOST_STACK_ENTRIES, stack_terms, stack_vector
+from delaytrack._compile.stack_arrays import stack_terms, stack_vector
 from delaytrack._validation import positive_scalar
 from delaytrack.components import (
     Kernel,
     call_command_map,
     call_terms,
-    compiled_sizes,
     plant_sizes,
+    sizes_on_stack,
 )
 from delaytrack.controllers.stepper import INPUT_NAMES, ControllerStepper, checked_vector
 from delaytrack.plants.base import ELPlant
@@ -111,11 +111,11 @@ def step_memory(model_terms, work):
 
 @overload(step_memory, inline="always")
 def _step_memory_compiled(model_terms, work):
-    sizes = compiled_sizes(model_terms)
-    n, m = sizes or (0, 0)
-    width = 4 * n
-    if sizes is None or n * n + n + n * m + width > MOST_STACK_ENTRIES:
+    sizes = sizes_on_stack(model_terms, lambda n, m: n * n + n + n * m + 4 * n)
+    if sizes is None:
         return lambda model_terms, work: work
+    n, m = sizes
+    width = 4 * n
 
     def on_stack(model_terms, work):
         mass, nonlinear, input_map = stack_terms(n, m)

@@ -48,7 +48,6 @@ from numba.extending import overload
 from delaytrack._compile.jit import hot_inline_kernel, inline_kernel, shared_kernel, tick_kernel
 from delaytrack._compile.native_call import NativeFunctionType, call_native
 from delaytrack._compile.stack_arrays import (
-    MOST_STACK_ENTRIES,
     stack_matrix,
     stack_terms,
     stack_vector,
@@ -57,10 +56,10 @@ from delaytrack.components import (
     call_reduced_dynamics,
     call_stepper,
     call_velocity_map,
-    compiled_sizes,
     has_stepper,
     plant_sizes,
     reduced_size,
+    sizes_on_stack,
 )
 from delaytrack.delays._kernel import (
     PIECEWISE_CONSTANT,
@@ -169,12 +168,12 @@ def rk4_memory(plant_terms, work):
 
 @overload(rk4_memory, inline="always")
 def _rk4_memory_compiled(plant_terms, work):
-    sizes = compiled_sizes(plant_terms)
-    n, m = sizes or (0, 0)
-    width = 2 * n
-    entries = 4 * width + width + n * n + n + n * m  # slopes, stage, M, N, G
-    if sizes is None or entries > MOST_STACK_ENTRIES:
+    # slopes, stage, M, N, G
+    sizes = sizes_on_stack(plant_terms, lambda n, m: 5 * (2 * n) + n * n + n + n * m)
+    if sizes is None:
         return lambda plant_terms, work: work
+    n, m = sizes
+    width = 2 * n
 
     def on_stack(plant_terms, work):
         stage = stack_vector(width)

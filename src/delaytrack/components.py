@@ -70,8 +70,8 @@ __all__ = [
     "has_identity_mass",
     "has_stepper",
     "plant_sizes",
-    "sizes_on_stack",
     "reduced_size",
+    "sizes_on_stack",
     "solve_input_map",
 ]
 

@@ -1,7 +1,8 @@
 """The floor and the ceiling for the MuJoCo case of ``make bench``.
 
-:func:`bare_steps` calls ``mj_step`` ``steps`` times on the model's data from a compiled loop
-(no controller, no delay, no Python between steps), through the same C entry point the
+:func:`bare_steps` gives a function that calls ``mj_step`` ``steps`` times on the model's data
+from a compiled loop (no controller, no delay, no Python between steps; the model read once,
+before the timing), through the same C entry point the
 MuJoCo-stepped plant uses (:mod:`delaytrack.plants.mujoco.capi`): what a closed loop around
 MuJoCo cannot be faster than, whatever its controller.
 
@@ -21,6 +22,7 @@ case, as the floor is for MuJoCo alone.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numba
 import numpy as np
@@ -40,20 +42,22 @@ def _loop(step, model, data, steps):
         call_void2(step, model, data)
 
 
-def bare_steps(path: str, steps: int, qpos: np.ndarray, qvel: np.ndarray) -> None:
-    """``steps`` calls of ``mj_step`` on a fresh copy of the model in ``path`` from
-    ``(qpos, qvel)``."""
+def bare_steps(path: str) -> Callable[[int, np.ndarray, np.ndarray], None]:
+    """A function that calls ``mj_step`` ``steps`` times on the data of the model in ``path``
+    from ``(qpos, qvel)`` (the data reset first, as a run of the engine resets it). The model
+    is read once, here, outside what is timed: the engine's runs do not read it either."""
     import mujoco
 
     model = mujoco.MjModel.from_xml_path(path)
     data = mujoco.MjData(model)
-    data.qpos[:], data.qvel[:] = qpos, qvel
-    _loop(
-        float(function_address(mujoco, "mj_step")),
-        float(model._address),
-        float(data._address),
-        steps,
-    )
+    step = float(function_address(mujoco, "mj_step"))
+
+    def run(steps: int, qpos: np.ndarray, qvel: np.ndarray) -> None:
+        mujoco.mj_resetData(model, data)
+        data.qpos[:], data.qvel[:] = qpos, qvel
+        _loop(step, float(model._address), float(data._address), steps)
+
+    return run
 
 
 @numba.njit(cache=True, error_model="numpy")

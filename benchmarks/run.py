@@ -316,11 +316,12 @@ def mujoco_case(duration: float, batch: int, repeats: int) -> list[dict]:
     delay = dt.AbsSineDelay.S1()
     common = dict(reference=reference, t1=duration, dt=DT, T_c=T_C)
     count = steps(duration)
+    floor_steps = bare_steps(path)
     single, hand, floor, plant_only = alternating_medians(
         repeats,
         lambda: dt.simulate(truth, controller, delay, x0, **common, trajectories=False),
         lambda: hand_run(truth, controller, delay, reference, x0, duration, DT, T_C),
-        lambda: bare_steps(path, count, x0[:3], x0[3:]),
+        lambda: floor_steps(count, x0[:3], x0[3:]),
         lambda: dt.simulate(truth, held, delay, x0, **common, trajectories=False),
     )
     held_status = dt.simulate(truth, held, delay, x0, **common, trajectories=False).status_names

@@ -204,3 +204,21 @@ print(len(sinusoidal_reference.signatures), len(sinusoidal_reference_values.sign
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True
     )
     assert done.stdout.split() == ["0", "0"]
+
+
+@pytest.mark.parametrize(
+    "values",
+    [[0.0, 1e308, -1e308, 1.0], [0.0, 1.7e308, 1.7e308, 0.0]],
+    ids=["slopes", "coefficients"],
+)
+def test_samples_whose_spline_overflows_are_refused_by_name_without_a_warning(values):
+    """SciPy refused the first with its own words (`dydx` must contain only finite values)
+    after numpy's overflow warning; the second gave infinite coefficients."""
+    import warnings
+
+    from delaytrack.references import SplineReference
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match=r"^values must change slowly enough .* overflows"):
+            SplineReference([0.0, 1.0, 2.0, 3.0], values)

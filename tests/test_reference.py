@@ -222,3 +222,23 @@ def test_samples_whose_spline_overflows_are_refused_by_name_without_a_warning(va
         warnings.simplefilter("error")
         with pytest.raises(ValueError, match=r"^values must change slowly enough .* overflows"):
             SplineReference([0.0, 1.0, 2.0, 3.0], values)
+
+
+@pytest.mark.parametrize(
+    ("amplitude", "frequency", "message"),
+    [
+        ([1.0], [1e200], r"^frequency gives coordinate 1 a bound on its acceleration"),
+        ([1e308, 1e308], [1.0, 1.0], r"^amplitude gives coordinate 1 a bound on its position"),
+    ],
+)
+def test_harmonics_beyond_the_doubles_are_refused_by_name(amplitude, frequency, message):
+    """A frequency of 1e200 rad/s made q̈_d infinite: every run on the reference diverged, and
+    nothing said why."""
+    with pytest.raises(ValueError, match=message):
+        SinusoidalReference([0.0], amplitude=[amplitude], frequency=[frequency])
+
+
+def test_a_harmonic_of_zero_amplitude_may_have_any_frequency():
+    reference = SinusoidalReference([0.0], amplitude=[[0.0, 0.5]], frequency=[[1e300, 1e150]])
+    values = reference.evaluate(np.array([0.0, 0.5]))
+    assert all(np.all(np.isfinite(v)) for v in values)

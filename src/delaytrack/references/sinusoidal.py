@@ -104,6 +104,7 @@ class SinusoidalReference(Reference):
                 raise ValueError(
                     f"amplitude, frequency and phase must have the same shape; got {widths}"
                 )
+        _check_derivatives_finite(harmonic["amplitude"], harmonic["frequency"])
         object.__setattr__(self, "offset", offset)
         object.__setattr__(self, "slope", slope)
         for name, array in harmonic.items():
@@ -168,3 +169,26 @@ class SinusoidalReference(Reference):
             "frequency": self.frequency.tolist(),
             "phase": self.phase.tolist(),
         }
+
+
+def _check_derivatives_finite(amplitude: np.ndarray, frequency: np.ndarray) -> None:
+    """Refuse harmonics whose bound on ``q_d``, ``q̇_d`` or ``q̈_d`` (``Σ |A|``, ``Σ |A ω|``,
+    ``Σ |A| ω²`` over a coordinate's harmonics) is beyond the largest double: the reference
+    would be infinite or NaN at some time, and every run on it diverged without saying why."""
+    size, rate = np.abs(amplitude), np.abs(frequency)
+    with np.errstate(over="ignore", invalid="ignore"):
+        # In the kernel's order, (A ω) ω: a harmonic of zero amplitude stays zero.
+        bounds = {
+            "position (Σ |A|)": np.sum(size, axis=1),
+            "velocity (Σ |A ω|)": np.sum(size * rate, axis=1),
+            "acceleration (Σ |A| ω²)": np.sum(size * rate * rate, axis=1),
+        }
+    for what, bound in bounds.items():
+        if not np.all(np.isfinite(bound)):
+            worst = int(np.flatnonzero(~np.isfinite(bound))[0])
+            raise ArgumentError(
+                "amplitude" if what.startswith("position") else "frequency",
+                f"gives coordinate {worst + 1} a bound on its {what} beyond the largest double: "
+                f"amplitude {amplitude[worst].tolist()}, frequency {frequency[worst].tolist()} "
+                "(rad/s)",
+            )

@@ -215,20 +215,18 @@ def test_every_metric_column_of_the_evaluated_points_has_its_unit():
         frame = _evaluated({"arolc": [search]}, (1.0,), names, *arguments)
         return frame, [column for column in frame if column.startswith("metric")]
 
-    frame, columns = metric_columns(units, scored, "m")
+    frame, columns = metric_columns(units, scored)
     assert columns == ["metric_m", "metric_x_m", "metric_y_m", "metric_phi_rad"]
     np.testing.assert_array_equal(frame["metric_m"], [0.02, 0.07, np.nan])
     assert list(frame["passes"]) == [True, False, False]
     # Scored coordinates of different units have no combined metric.
-    _, columns = metric_columns(units, (True, False, True), None)
+    _, columns = metric_columns(units, (True, False, True))
     assert columns == ["metric_x_m", "metric_y_m", "metric_phi_rad"]
     # A plant without units: each coordinate's metric and the largest of the scored ones,
     # without a unit; one scored coordinate: its own.
-    frame, columns = metric_columns((None,) * 3, scored, None)
+    frame, columns = metric_columns((None,) * 3, scored)
     assert columns == ["metric", "metric_x", "metric_y", "metric_phi"]
     np.testing.assert_array_equal(frame["metric"], [0.02, 0.07, np.nan])
-    alone = _evaluated(
-        {"arolc": [search, None]}, (1.0, 2.0), names, units, (False,) * 2 + (True,), "rad"
-    )
+    alone = _evaluated({"arolc": [search, None]}, (1.0, 2.0), names, units, (False,) * 2 + (True,))
     np.testing.assert_array_equal(alone["metric_rad"], [3.0, 2.0, np.nan])
     assert list(alone["omega_n"]) == [1.0] * 3  # a point without a search has no rows

@@ -457,18 +457,17 @@ def run_tradeoff(
         progress=progress,
     )
     units = tuple(plant.coordinate_units or [None] * plant.n)
-    ae_unit = shared_unit([u for u, s in zip(units, scored, strict=True) if s])
     return TradeoffStudy(
         table=_table(omegas, zeta, families, runs, margins, certified, exact),
         runs=runs,
-        evaluated=_evaluated(margins, omegas, names, units, scored, ae_unit),
+        evaluated=_evaluated(margins, omegas, names, units, scored),
         scenario=scenario,
         zeta=zeta,
         omegas=omegas,
         families=families,
         left_out=MappingProxyType(left_out),
         threshold=MappingProxyType(scored_bounds),
-        ae_unit=ae_unit,
+        ae_unit=shared_unit([u for u, s in zip(units, scored, strict=True) if s]),
         tv_unit=shared_unit(plant.input_units or [None]),
         random=MappingProxyType(drawn),
         draws=count,
@@ -693,7 +692,6 @@ def _evaluated(
     names: tuple[str, ...],
     units: tuple[str | None, ...],
     scored: tuple[bool, ...],
-    ae_unit: str | None,
 ) -> pd.DataFrame:
     """Every simulated point of every margin search, with its ``ω_n`` and family; each
     coordinate's metric with its unit (``metric_<name>_<unit>``) and, when the scored
@@ -704,8 +702,10 @@ def _evaluated(
         for name, u in zip(names, units, strict=True)
     }
     scored_columns = [f"metric_{name}" for name, s in zip(names, scored, strict=True) if s]
+    scored_units = {u for u, s in zip(units, scored, strict=True) if s}
     # One unit for every scored coordinate (or none known for any): their largest is a number.
-    comparable = len({u for u, s in zip(units, scored, strict=True) if s}) == 1
+    comparable = len(scored_units) == 1
+    combined = with_unit("metric", shared_unit(scored_units))
     frames = []
     for family, found in margins.items():
         for omega, result in zip(omegas, found, strict=True):
@@ -715,7 +715,7 @@ def _evaluated(
             frame["metric"] = frame[scored_columns].max(axis=1, skipna=False)
             if not comparable:
                 frame = frame.drop(columns="metric")
-            frame = frame.rename(columns={**per_coordinate, "metric": with_unit("metric", ae_unit)})
+            frame = frame.rename(columns={**per_coordinate, "metric": combined})
             frame.insert(0, "controller", family)
             frame.insert(0, "omega_n", omega)
             frames.append(frame)

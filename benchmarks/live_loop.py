@@ -26,7 +26,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from delaytrack.live._tables import ms
+from delaytrack.live._tables import ms, per_second
 
 __all__ = ["format_live", "live_case", "live_cases"]
 
@@ -151,7 +151,6 @@ def format_live(cases: list[dict]) -> str:
     for c in cases:
         before = ", ".join(f"{v:.2f}" for v in c["load_average_before"])
         after = ", ".join(f"{v:.2f}" for v in c["load_average_after"])
-        wakes = c["delay_node_wakes_per_s"]
         lines += [
             f"{c['case']} (load average {before} before, {after} after, {c['cores']} cores):",
             f"  controller: {c['controller_deadline_misses']} of "
@@ -160,7 +159,7 @@ def format_live(cases: list[dict]) -> str:
             f"{ms(c['controller_lateness_ms_p99'])}",
             f"  robot: {c['robot_missed_steps']} of {c['robot_steps']} steps missed, lateness "
             f"p99 {ms(c['robot_lateness_ms_p99'])}; delay node "
-            f"{'n/a' if wakes is None else f'{wakes:.0f}'} wake-ups/s",
+            f"{per_second(c['delay_node_wakes_per_s'])} wake-ups/s",
             f"  |realised delay - h(t)| p99 {ms(c['realised_minus_h_abs_ms_p99'])} (the exact "
             f"rule on the step grid alone {ms(c['realised_minus_h_abs_ms_p99_of_the_rule'])}); "
             "replay "

@@ -51,3 +51,9 @@ def number(text: str | None) -> float:
 def ms(value: Any) -> str:
     """A duration in ms for the summary and the report, or n/a."""
     return "n/a" if value is None or not math.isfinite(value) else f"{value:.3f} ms"
+
+
+def per_second(value: Any) -> str:
+    """A rate (per second, unit not written) for the summary and the report, or n/a where it
+    was not measured (``null`` in a session's JSON)."""
+    return "n/a" if value is None or not math.isfinite(value) else f"{value:.0f}"

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from delaytrack.live._tables import ms, number, read_rows
+from delaytrack.live._tables import ms, number, per_second, read_rows
 
 __all__ = [
     "format_agreement",
@@ -317,7 +317,7 @@ def _timing_settings(
         "delay node": f"{delay.get('received', 0)} commands received, {delay.get('lost', 0)} "
         f"lost (injected), {summary.get('not_received', 0)} sent but never received, "
         f"{delay.get('released', 0)} releases, "
-        f"{_per_second(delay.get('wakes_per_s'))} wake-ups/s, lead {delay.get('lead_ms', 0):g} ms",
+        f"{per_second(delay.get('wakes_per_s'))} wake-ups/s, lead {delay.get('lead_ms', 0):g} ms",
         "realised delay − h(t) p50 / |.| p99": f"{ms(summary.get('realised_minus_h_ms_p50'))}"
         f" / {ms(summary.get('realised_minus_h_abs_ms_p99'))} (the exact rule on the robot's "
         f"step grid alone: {ms(summary.get('realised_minus_h_abs_ms_p99_of_the_rule'))})",
@@ -389,8 +389,3 @@ def write_report(folder: Path, scenario: Any, **replay: Any) -> bool:
         )
         return True
     return False
-
-
-def _per_second(value: float | None) -> str:
-    """A rate of the summary, or n/a where it was not measured (``null`` in the JSON)."""
-    return "n/a" if value is None else f"{value:.0f}"

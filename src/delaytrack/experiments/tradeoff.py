@@ -702,9 +702,9 @@ def _evaluated(
         for name, u in zip(names, units, strict=True)
     }
     scored_columns = [f"metric_{name}" for name, s in zip(names, scored, strict=True) if s]
-    scored_units = {u for u, s in zip(units, scored, strict=True) if s}
+    scored_units = [u for u, s in zip(units, scored, strict=True) if s]
     # One unit for every scored coordinate (or none known for any): their largest is a number.
-    comparable = len(scored_units) == 1
+    comparable = len(set(scored_units)) == 1
     combined = with_unit("metric", shared_unit(scored_units))
     frames = []
     for family, found in margins.items():

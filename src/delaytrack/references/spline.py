@@ -130,22 +130,21 @@ class SplineReference(Reference):
         # second to import, which every command and live node would otherwise pay.
         from scipy.interpolate import CubicSpline
 
-        overflow = ArgumentError(
-            "values",
-            f"must change slowly enough for their time steps that the cubic spline through "
-            f"them stays finite; it overflows (largest |value| {np.max(np.abs(values)):.3g}, "
-            f"smallest time step {np.min(np.diff(times)):.3g} s)",
-        )
         with np.errstate(all="ignore"):  # checked below: an overflow is refused by name
             try:
                 spline = CubicSpline(times, values, axis=0, bc_type=self.boundary)
             except ValueError:  # SciPy's own check of the slopes it computed
-                raise overflow from None
+                spline = None
         n = values.shape[1]
         hold = 1.0 if self.beyond == "hold" else 0.0
+        if spline is None or not np.all(np.isfinite(spline.c)):
+            raise ArgumentError(
+                "values",
+                f"must change slowly enough for their time steps that the cubic spline through "
+                f"them stays finite; it overflows (largest |value| {np.max(np.abs(values)):.3g}, "
+                f"smallest time step {np.min(np.diff(times)):.3g} s)",
+            )
         packed = np.concatenate([[n, times.size, hold], times, spline.c.ravel()])
-        if not np.all(np.isfinite(packed)):
-            raise overflow
         object.__setattr__(self, "times", times)
         object.__setattr__(self, "values", values)
         object.__setattr__(self, "_params", packed)

@@ -47,11 +47,7 @@ from numba.extending import overload
 
 from delaytrack._compile.jit import hot_inline_kernel, inline_kernel, shared_kernel, tick_kernel
 from delaytrack._compile.native_call import NativeFunctionType, call_native
-from delaytrack._compile.stack_arrays import (
-    stack_matrix,
-    stack_terms,
-    stack_vector,
-)
+from delaytrack._compile.stack_arrays import stack_matrix, stack_terms, stack_vector
 from delaytrack.components import (
     call_reduced_dynamics,
     call_stepper,

@@ -112,7 +112,10 @@ def test_a_value_python_refuses_is_computed_compiled():
     def ratio(x, out):
         out[0] = 1.0 / x
 
-    ratio.__module__ = "delaytrack.a_module_of_the_package"
+    # A module of the package, as the package's kernels have: numba keeps the compiled code
+    # on disk and a later process (the suite run again on the same cache) loads it, importing
+    # that module (a made-up name could not be imported: the load failed).
+    ratio.__module__ = functions.__name__
     ratio = kernel(ratio)  # as the package's kernels
 
     def each(kernel):

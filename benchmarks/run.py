@@ -9,13 +9,15 @@ compiles or loads numba's disk cache):
     run: a plain NumPy per-step loop and ``scipy.integrate.solve_ivp`` with the delayed command
     looked up in the callback (:mod:`baselines`).
 ``ceiling``
-    The engine against two ceilings, allocation-free numba loops of the same robot run without
-    step splitting and with nothing general: one from the package's own kernels
-    (:mod:`hand_loop`), one written from the equations alone (:mod:`independent_loop`), in the
-    same process: one 60 s run on one thread, the same with the controller at every step
-    (``T_c = dt``), and ``B`` = 1000 runs of 60 s (|sin| delays and payload placements drawn per
-    run) on all cores, each triple timed alternately; ``ratio`` is the hand loop's time over the
-    engine's (1 = as fast), ``ratio_to_independent_loop`` the independent loop's.
+    The engine against ceilings, allocation-free numba loops of the same robot run with nothing
+    general: two without step splitting, one from the package's own kernels (:mod:`hand_loop`),
+    one written from the equations alone (:mod:`independent_loop`), and the latter exact, its
+    steps split where the delayed command switches as the engine's are (its final state
+    compared with the engine's); in the same process: one 60 s run on one thread, the same with
+    the controller at every step (``T_c = dt``), and ``B`` = 1000 runs of 60 s (|sin| delays and
+    payload placements drawn per run) on all cores, each set timed alternately; ``ratio`` is the
+    hand loop's time over the engine's (1 = as fast), ``ratio_to_independent_loop`` and
+    ``ratio_to_exact_loop`` the independent loops'.
 ``batch``
     ``B`` runs, each with its own delay profile (|sin|, random-walk and constant families with
     drawn parameters) and payload placements, metrics only (``trajectories=False``), on all
@@ -172,28 +174,41 @@ def single_case(duration: float, repeats: int, baseline_repeats: int) -> list[di
 
 
 def ceiling_case(duration: float, batch: int, repeats: int) -> list[dict]:
-    """The engine, :mod:`hand_loop` and :mod:`independent_loop` on the same runs, in this process,
-    metrics only.
+    """The engine, :mod:`hand_loop` and :mod:`independent_loop` (unsplit, and exact: its steps
+    split where the delayed command switches) on the same runs, in this process, metrics only.
 
-    Each triple is timed alternately (engine, loop, independent loop, engine, ...), so that the
-    machine's drift between minutes falls on all alike. Two single runs: at the paper's ``T_c``
-    = 10 ms, and with the controller at every step (``T_c = dt``), where the delayed command
-    switches inside every step and the engine splits each step in two.
+    Each set is timed alternately (engine, loop, independent loop, exact loop, engine, ...), so
+    that the machine's drift between minutes falls on all alike. Two single runs: at the paper's
+    ``T_c`` = 10 ms, and with the controller at every step (``T_c = dt``), where the delayed
+    command switches inside every step and the engine and the exact loop split each step in two.
     """
     plant, controller, delay, reference, x0 = robot_case(duration)
     common = dict(reference=reference, t1=duration, dt=DT, trajectories=False)
 
-    def triple(period: float) -> tuple[float, float, float]:
+    def timed(period: float) -> tuple[float, float, float, float]:
         loop_args = (reference, x0, duration, DT, period)
         return alternating_medians(
             repeats,
             lambda: simulate(plant, controller, delay, x0, **common, T_c=period, workers=1),
             lambda: hand_run(plant, controller, delay, *loop_args),
             lambda: independent_run(plant, controller, delay, *loop_args),
+            lambda: independent_run(plant, controller, delay, *loop_args, split=True),
         )
 
-    engine, hand, independent = triple(T_C)
-    engine_every_step, hand_every_step, independent_every_step = triple(DT)
+    def final_state_difference(period: float) -> float:
+        """Largest difference of the final ``[q, q̇]`` of the engine and of the exact loop,
+        relative to the state's largest entry."""
+        result = simulate(
+            plant, controller, delay, x0, reference=reference, t1=duration, dt=DT, T_c=period
+        )
+        engine = result.x.reshape(-1, result.x.shape[-1])[-1]  # one run: its last tick
+        exact = independent_run(
+            plant, controller, delay, reference, x0, duration, DT, period, split=True
+        )[0]
+        return float(np.max(np.abs(engine - exact)) / np.max(np.abs(engine)))
+
+    engine, hand, independent, exact = timed(T_C)
+    every_step = timed(DT)
     ae_engine = simulate(plant, controller, delay, x0, **common, T_c=T_C).metrics["ae"][0]
     hand_sums = hand_run(plant, controller, delay, reference, x0, duration, DT, T_C)[1]
     independent_sums = independent_run(plant, controller, delay, reference, x0, duration, DT, T_C)[
@@ -206,84 +221,54 @@ def ceiling_case(duration: float, batch: int, repeats: int) -> list[dict]:
         for _ in range(batch)
     ]
     batch_args = (plants, controller, delays, reference, x0, duration, DT, T_C)
-    engine_many, hand_many, independent_many = alternating_medians(
+    many = alternating_medians(
         max(1, repeats // 3),
         lambda: simulate(plants, controller, delays, x0, **common, T_c=T_C),
         lambda: hand_batch(*batch_args),
         lambda: independent_batch(*batch_args),
+        lambda: independent_batch(*batch_args, split=True),
+    )
+    single = (engine, hand, independent, exact)
+    cases = (
+        (f"{duration:g} s run, 1 thread", "same run", 1, single),
+        (
+            f"controller every step (T_c = dt), {duration:g} s run, 1 thread",
+            "T_c = dt",
+            1,
+            every_step,
+        ),
+        (f"B={batch} runs of {duration:g} s, all cores", f"B={batch}, prange", batch, many),
     )
     rows = []
-    for name, count, seconds, baseline, independent_baseline in (
-        (f"engine, one {duration:g} s run, 1 thread", 1, engine, hand, independent),
-        ("ceiling: hand-written numba loop, same run", 1, hand, hand, independent),
-        (
-            "ceiling: independent loop from the equations, same run",
-            1,
-            independent,
-            hand,
-            independent,
-        ),
-        (
-            f"engine, controller every step (T_c = dt), {duration:g} s run, 1 thread",
-            1,
-            engine_every_step,
-            hand_every_step,
-            independent_every_step,
-        ),
-        (
-            "ceiling: hand-written loop, T_c = dt",
-            1,
-            hand_every_step,
-            hand_every_step,
-            independent_every_step,
-        ),
-        (
-            "ceiling: independent loop, T_c = dt",
-            1,
-            independent_every_step,
-            hand_every_step,
-            independent_every_step,
-        ),
-        (
-            f"engine, B={batch} runs of {duration:g} s, all cores",
-            batch,
-            engine_many,
-            hand_many,
-            independent_many,
-        ),
-        (
-            f"ceiling: hand-written loop, B={batch}, prange",
-            batch,
-            hand_many,
-            hand_many,
-            independent_many,
-        ),
-        (
-            f"ceiling: independent loop, B={batch}, prange",
-            batch,
-            independent_many,
-            hand_many,
-            independent_many,
-        ),
-    ):
-        rows.append(
-            {
-                "case": name,
-                "median_s": seconds,
-                "steps_per_s": steps(duration, count) / seconds,
-                "baseline": "hand-written numba loop (benchmarks/hand_loop.py)",
-                "baseline_s": baseline,
-                "ratio_to_baseline": baseline / seconds,
-                "independent_loop_s": independent_baseline,
-                "ratio_to_independent_loop": independent_baseline / seconds,
-            }
-        )
+    for label, short, count, (engine_s, hand_s, independent_s, exact_s) in cases:
+        for name, seconds in (
+            (f"engine, {label}", engine_s),
+            (f"ceiling: hand-written numba loop, {short}", hand_s),
+            (f"ceiling: independent loop from the equations, {short}", independent_s),
+            (f"ceiling: independent exact loop (steps split at switches), {short}", exact_s),
+        ):
+            rows.append(
+                {
+                    "case": name,
+                    "median_s": seconds,
+                    "steps_per_s": steps(duration, count) / seconds,
+                    "baseline": "hand-written numba loop (benchmarks/hand_loop.py)",
+                    "baseline_s": hand_s,
+                    "ratio_to_baseline": hand_s / seconds,
+                    "independent_loop_s": independent_s,
+                    "ratio_to_independent_loop": independent_s / seconds,
+                    "exact_loop_s": exact_s,
+                    "ratio_to_exact_loop": exact_s / seconds,
+                }
+            )
     rows[0]["ae_relative_difference_to_hand_loop"] = float(
         np.max(np.abs(ae_engine - hand_sums[: plant.n]) / np.abs(ae_engine))
     )
     rows[0]["metrics_relative_difference_hand_to_independent_loop"] = float(
         np.max(np.abs(hand_sums - independent_sums) / np.abs(hand_sums))
     )
+    rows[0]["final_state_relative_difference_to_exact_loop"] = final_state_difference(T_C)
+    rows[4]["final_state_relative_difference_to_exact_loop"] = final_state_difference(DT)
     return rows
 
 
@@ -784,6 +769,14 @@ def main() -> None:
         "throughput on the batch; the two loops' metrics agree to "
         f"{ceiling['metrics_relative_difference_hand_to_independent_loop']:.0e} (the same scheme, "
         "written twice)"
+    )
+    print(
+        "engine vs the independent exact loop (steps split where the command switches, as the "
+        f"engine's): {ceiling['ratio_to_exact_loop']:.2f} of its speed at T_c = "
+        f"{T_C * 1e3:g} ms, {every_step['ratio_to_exact_loop']:.2f} with the controller at every "
+        f"step, {many['ratio_to_exact_loop']:.2f} of its throughput on the batch; final states "
+        f"agree to {ceiling['final_state_relative_difference_to_exact_loop']:.0e} and "
+        f"{every_step['final_state_relative_difference_to_exact_loop']:.0e}"
     )
     mujoco = next(c for c in cases if "ratio_to_ceiling" in c)
     print(

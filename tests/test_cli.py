@@ -169,6 +169,22 @@ def test_an_unknown_option_points_to_the_help_of_its_command(command, help, caps
 
 
 @pytest.mark.parametrize(
+    ("command", "shortened"),
+    [
+        (["reproduce", "--duration", "0.01"], "--no-robustnes"),  # a letter missing
+        (["bound", "--k1", "1", "--k2", "1"], "--js"),  # the start of --json
+        (["live", "replay", "folder"], "--quie"),
+    ],
+)
+def test_a_flag_is_taken_only_as_spelled_in_full(command, shortened, tmp_path, capsys):
+    out = ["--out", str(tmp_path / "out")] if command[0] == "reproduce" else []
+    with pytest.raises(SystemExit) as stop:
+        main([*command, *out, shortened])
+    assert stop.value.code == 2
+    assert f"unrecognized arguments: {shortened}" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
     "command", [[], ["bound"], ["simulate"], ["reproduce"], ["tune-baselines"]]
 )
 def test_help_on_every_command(command, capsys):

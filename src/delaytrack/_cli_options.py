@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 import re
 from collections.abc import Callable, Sequence
-from typing import TypeVar
+from typing import Any, TypeVar
 
 from delaytrack._validation import NumberTextError, decimal_number
 
@@ -42,7 +42,13 @@ _REFUSED_BY = "_refused_by"
 
 class OptionParser(argparse.ArgumentParser):
     """argparse with one-line errors (``error: ...``) and exit code 2, without the usage dump;
-    an argument no command took points to the help of the command it was given to."""
+    an argument no command took points to the help of the command it was given to. A flag is
+    taken only as spelled in full: argparse's default would take a shortened or mistyped one
+    (``--no-robustnes``) for the flag it begins."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str) -> None:  # type: ignore[override]
         self.exit(EXIT_USAGE, f"error: {message} (see {self.prog} --help)\n")

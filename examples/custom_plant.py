@@ -33,7 +33,13 @@ def pendulum(mass: float, length: float, friction: float) -> dt.CallablePlant:
         return np.array([mass * GRAVITY * length * math.sin(q[0]) + friction * qdot[0]])
 
     return dt.CallablePlant(
-        n=1, mass_matrix_fn=mass_matrix, nonlinear_terms_fn=nonlinear_terms, name="pendulum"
+        n=1,
+        mass_matrix_fn=mass_matrix,
+        nonlinear_terms_fn=nonlinear_terms,
+        name="pendulum",
+        coordinate_names=("angle",),
+        coordinate_units=("rad",),
+        input_units=("N·m",),
     )
 
 

@@ -95,7 +95,10 @@ def test_empirical_needs_a_threshold_and_a_scenario(capsys):
 def test_margins_job_writes_its_files(tmp_path, capsys):
     args = ["reproduce", "--job", "margins", "--out", str(tmp_path), "--duration", "6", "--quiet"]
     assert main(args) == 0
-    assert "margins job done" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "margins job done" in printed
+    header = next(line for line in printed.splitlines() if "k1" in line).split()
+    assert header[:4] == ["k1_per_s2", "k2_per_s", "h_m_s", "h_exact_s"]  # as margins.csv
     folder = tmp_path / "margins"
     for name in ("margins.csv", "evaluated.csv", "scenario.toml", "report.html"):
         assert (folder / name).is_file(), name

@@ -69,4 +69,6 @@ def make_arm(
         np.array(parameters, dtype=float),
         name="vertical arm",
         coordinate_names=("shoulder", "elbow"),
+        coordinate_units=("rad", "rad"),
+        input_units=("N·m", "N·m"),
     )

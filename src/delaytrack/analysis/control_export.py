@@ -63,8 +63,8 @@ def _control():
     except ImportError:  # pragma: no cover - control is installed with the test extra
         raise ImportError(
             "python-control is needed for delaytrack.analysis.control_export; "
-            "install it with `pip install control` (or delaytrack's `tutorial` extra: "
-            "`pip install 'delaytrack[tutorial]'`)"
+            "install it with `pip install control` (or delaytrack's `tutorial` extra, from a "
+            "clone of delaytrack: `pip install -e '.[tutorial]'`)"
         ) from None
     return control
 

@@ -57,7 +57,7 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         "--size",
         choices=("default", "full"),
         default="default",
-        help="size of the robustness study (default: about 6400 runs, about a minute on two "
+        help="size of the robustness study (default: about 6400 runs, under a minute on two "
         "cores once compiled; full: ten times the draws, meant for a Dask cluster) and of the "
         "decision study (default: 5 gain points, 80 draws per condition, about 14 400 runs; "
         "full: 9 gain points and ten times the draws)",
@@ -293,6 +293,7 @@ def _margins(args: argparse.Namespace) -> int:
     """The margins job, into ``<out>/margins/``."""
     from delaytrack.experiments.margins import FOLDER
     from delaytrack.jobs.margins import reproduce
+    from delaytrack.report.margins import margins_with_units
 
     try:
         study = _timed(
@@ -303,6 +304,7 @@ def _margins(args: argparse.Namespace) -> int:
         )
     except ValueError as error:  # a --duration too short for the job's tracking rule
         raise UsageError(f"margins job: {flagged(error, _DURATION)}") from None
-    print(study.table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    table = margins_with_units(study.table)
+    print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     print(f"report: {Path(args.out) / FOLDER / 'report.html'}")
     return 0

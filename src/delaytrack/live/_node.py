@@ -314,7 +314,7 @@ def missing_extra() -> str | None:
     if missing:
         return (
             f"the live loop needs {', '.join(missing)}: install the optional extra with "
-            "pip install 'delaytrack[live]'"
+            "pip install -e '.[live]' (from a clone of delaytrack)"
         )
     return None
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import pandas as pd
 from matplotlib.figure import Figure
 
 from delaytrack._io import write_frame
@@ -19,7 +20,7 @@ from delaytrack.report.html import HtmlReport
 if TYPE_CHECKING:
     from delaytrack.experiments.margins import MarginStudy
 
-__all__ = ["write_study"]
+__all__ = ["margins_with_units", "write_study"]
 
 #: The margins' columns and their labels.
 _LABELS = {
@@ -34,13 +35,19 @@ _LABELS = {
 _GAIN_COLUMNS = {"k1": "k1_per_s2", "k2": "k2_per_s"}
 
 
+def margins_with_units(table: pd.DataFrame) -> pd.DataFrame:
+    """The study's ``table`` with its units in the column names, as ``margins.csv`` holds it:
+    ``k1_per_s2``, ``k2_per_s`` and each margin in seconds (``h_m_s``, ...)."""
+    delays = {column: f"{column}_s" for column in _LABELS}
+    return table.rename(columns={**_GAIN_COLUMNS, **delays})
+
+
 def write_study(study: MarginStudy, folder: str | Path) -> list[Path]:
     """Write the job's files into ``folder`` (see :mod:`delaytrack.experiments.margins`);
     return their paths."""
     folder = claim_output_folder(folder)
     table = study.table
-    delays = {column: f"{column}_s" for column in _LABELS}
-    files = [write_frame(table.rename(columns={**_GAIN_COLUMNS, **delays}), folder / "margins.csv")]
+    files = [write_frame(margins_with_units(table), folder / "margins.csv")]
     evaluated = study.evaluated
     metrics = {column: f"{column}_rad" for column in evaluated if column.startswith("metric")}
     evaluated = evaluated.rename(columns={**_GAIN_COLUMNS, "value": "delay_s", **metrics})

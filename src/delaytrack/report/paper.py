@@ -513,11 +513,11 @@ def _predictor_text(found: PaperFindings) -> str:
     """What the predictor does on this robot (D23): partly effective, and stable only for a
     small enough gain product."""
     return (
-        "What the predictor does on this robot (docs/decisions.md D23). The law is applied in the "
-        "five coordinates q = (x, y, φ, θ_r, θ_l) and its command is projected to the wheels by "
-        "τ_w = S(q)ᵀ τ. The delayed input reaches ϱ̇ through S M_r⁻¹ S(q(t − h))ᵀ τ(t − h), a "
-        "rank-2 map that turns with the heading, while ϑ e_z predicts ϑ τ(t − h). No constant "
-        "symmetric positive definite ϑ cancels it, and e_z also integrates the components of τ "
+        "What the predictor does on this robot. The law is applied in the five coordinates "
+        "q = (x, y, φ, θ_r, θ_l) and its command is projected to the wheels by τ_w = S(q)ᵀ τ. "
+        "The delayed input reaches ϱ̇ through S M_r⁻¹ S(q(t − h))ᵀ τ(t − h), a rank-2 map "
+        "that turns with the heading, while ϑ e_z predicts ϑ τ(t − h). No constant symmetric "
+        "positive definite ϑ cancels it, and e_z also integrates the components of τ "
         "that the constraints absorb. The predictor is thus only partly effective, and the "
         "sampled law is stable only for about T_c k_b λ_max(ϑ) < 2 (λ_max(M̂⁻¹) = "
         f"{found.inverse_mass_eigenvalue:.3g} at the start of the path, so k_b c < "

@@ -712,8 +712,9 @@ def _evaluated(
             if result is None:
                 continue
             frame = result.to_frame()
-            frame["metric"] = frame[scored_columns].max(axis=1, skipna=False)
-            if not comparable:
+            if comparable:  # in the place of the search's own, the largest over every coordinate
+                frame["metric"] = frame[scored_columns].max(axis=1, skipna=False)
+            else:
                 frame = frame.drop(columns="metric")
             frame = frame.rename(columns={**per_coordinate, "metric": combined})
             frame.insert(0, "controller", family)

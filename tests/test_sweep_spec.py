@@ -373,3 +373,13 @@ def test_unit_hash_changes_with_the_source_code(monkeypatch):
     assert after.hash != before.hash
     with pytest.raises(SweepError, match="install the same code on every Dask worker"):
         Unit.from_payload(payload)
+
+
+def test_canonical_json_writes_non_finite_numbers_and_read_only_tables_as_toml_would():
+    from types import MappingProxyType
+
+    data = {"error_bound": float("inf"), "b": (float("nan"), -float("inf")), "a": 1}
+    text = spec_module.canonical_json({"table": MappingProxyType(data)})
+    assert text == '{"table":{"a":1,"b":["nan","-inf"],"error_bound":"inf"}}'
+    # plain data takes json's own path, with the same layout
+    assert spec_module.canonical_json({"b": [1.5, 2], "a": None}) == '{"a":null,"b":[1.5,2]}'

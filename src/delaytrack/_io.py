@@ -31,7 +31,7 @@ import stat
 import tempfile
 import tomllib
 import unicodedata
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -52,6 +52,8 @@ __all__ = [
     "csv_number",
     "csv_rows",
     "csv_table",
+    "finite_numbers",
+    "json_text",
     "named_time_units",
     "regular_file",
     "toml_data",
@@ -408,25 +410,30 @@ def write_text(path: str | os.PathLike[str], text: str) -> Path:
     return write_bytes(path, text.encode("utf-8"))
 
 
+def finite_numbers(
+    data: Any, replace: Callable[[float], Any], default: Callable[[Any], Any] | None = None
+) -> Any:
+    """``data`` (mappings, lists and tuples of numbers, strings and None) as plain dicts and
+    lists, each float that is not finite replaced by ``replace(value)``; with ``default``, any
+    other value replaced by ``default(value)`` (walked in turn), as :func:`json.dumps` would."""
+    if isinstance(data, float):
+        return data if math.isfinite(data) else replace(data)
+    if isinstance(data, Mapping):
+        return {key: finite_numbers(value, replace, default) for key, value in data.items()}
+    if isinstance(data, list | tuple):
+        return [finite_numbers(value, replace, default) for value in data]
+    if default is None or data is None or isinstance(data, str | int):
+        return data
+    return finite_numbers(default(data), replace, default)
+
+
 def json_text(data: object, **options: Any) -> str:
     """``data`` as strict JSON (RFC 8259), which every reader takes: a number that is not
     finite (NaN, ±inf: a percentile of no samples, a rate over no time) is written as ``null``,
     where :func:`json.dumps` would write ``NaN``, which browsers' and most other languages'
     readers refuse. ``options`` go to :func:`json.dumps` (``default`` is applied first)."""
     default = options.pop("default", None)
-
-    def finite(value: object) -> object:
-        if isinstance(value, float):
-            return value if math.isfinite(value) else None
-        if isinstance(value, dict):
-            return {key: finite(item) for key, item in value.items()}
-        if isinstance(value, list | tuple):
-            return [finite(item) for item in value]
-        if value is None or isinstance(value, str | int):
-            return value
-        return finite(default(value)) if default is not None else value
-
-    return json.dumps(finite(data), allow_nan=False, **options)
+    return json.dumps(finite_numbers(data, lambda _: None, default), allow_nan=False, **options)
 
 
 def write_frame(frame: pd.DataFrame, path: str | os.PathLike[str]) -> Path:

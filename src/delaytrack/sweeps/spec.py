@@ -53,6 +53,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from delaytrack._compile.disk_cache import source_hash
+from delaytrack._io import finite_numbers
 from delaytrack._spec import named_in_a_file
 from delaytrack._trust import Trust
 from delaytrack._validation import is_integer_at_least
@@ -255,15 +256,9 @@ class Unit:
         return unit
 
 
-def _json_safe(data: Any) -> Any:
-    """``data`` with non-finite floats (an ``error_bound`` of ``inf``) as the text TOML uses."""
-    if isinstance(data, float) and not math.isfinite(data):
-        return "nan" if math.isnan(data) else ("inf" if data > 0 else "-inf")
-    if isinstance(data, Mapping):
-        return {key: _json_safe(value) for key, value in data.items()}
-    if isinstance(data, list | tuple):
-        return [_json_safe(value) for value in data]
-    return data
+def _toml_text(value: float) -> str:
+    """A non-finite float (an ``error_bound`` of ``inf``) as the text TOML uses."""
+    return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
 
 
 def canonical_json(data: Any) -> str:
@@ -271,7 +266,8 @@ def canonical_json(data: Any) -> str:
     try:  # most data is JSON as it is: the same text without a walk through it in Python
         return json.dumps(data, sort_keys=True, separators=(",", ":"), allow_nan=False)
     except (TypeError, ValueError):  # a non-finite float, a read-only mapping
-        return json.dumps(_json_safe(data), sort_keys=True, separators=(",", ":"), allow_nan=False)
+        safe = finite_numbers(data, _toml_text)
+        return json.dumps(safe, sort_keys=True, separators=(",", ":"), allow_nan=False)
 
 
 #: Files without compiled code that still decide a sweep's numbers: how a run is set up for the

@@ -417,17 +417,17 @@ def _one_run(
     slope = np.empty((4, N + 2))
     torques = np.empty((4, 2))
     last = np.array([np.nan, np.nan])  # [t, g(t)] where g was last evaluated (split steps)
-    index_end = 0  # the command's tick at the end of the step before
+    index_end = 0  # the command's tick at the end of the step before (unsplit steps)
     for k in range(ticks):
         # the tick's time as the engine writes it when split (the unsplit loops keep k T_c)
         t_k = (k * steps_per_tick) * dt if split else k * T_c
         c_hat = _tick(k, t_k, q, qdot, body, control, reference, c_hat, buffers, history, sums, T_c)
         if k == 0:  # the start onto the constraints
             _velocity_map(q, qdot, 0.5 * R, R / (2.0 * L), d)
-            index_end = _command_index(0.0, delay, T_c)
+            if not split:
+                index_end = _command_index(0.0, delay, T_c)
         # the plant's steps to the next tick: RK4 on (q, η)
         for step in range(steps_per_tick):
-            t = t_k + step * dt
             if split:
                 _split_step(
                     q,
@@ -447,6 +447,7 @@ def _one_run(
                 )
                 continue
             # h at the three times of a step (its end is the next step's start)
+            t = t_k + step * dt
             middle = _command_index(t + 0.5 * dt, delay, T_c)
             _torques_at(torques, 0, history, index_end)
             _torques_at(torques, 1, history, middle)

@@ -43,7 +43,9 @@ compiles or loads numba's disk cache):
     loop written by hand as one numba function (the ceiling, same module: the same run bit for
     bit, its final state, AE and TV compared, its model evaluations included), and the plant
     alone: the same run under a law that evaluates no MuJoCo model (the outer loop on the arm's
-    mass matrix at the start, held), the four timed alternately; and 100 such runs in one batch
+    mass matrix at the start, held), and the floor with the profiling clock of MuJoCo's Python
+    bindings (which :func:`simulate` stops while it runs; the floor and the ceiling are timed
+    with it stopped too), the five timed alternately; and 100 such runs in one batch
     on all cores (a copy of MuJoCo's data per thread), against the floor's time for as many
     steps and against the same batch on one thread.
 ``sweep``
@@ -275,10 +277,12 @@ def ceiling_case(duration: float, batch: int, repeats: int) -> list[dict]:
 def mujoco_case(duration: float, batch: int, repeats: int) -> list[dict]:
     """The MuJoCo-stepped arm against MuJoCo stepping it alone and against the same closed loop
     written by hand (module docstring)."""
+    import mujoco
     from mujoco_floor import bare_steps, hand_run
 
     import delaytrack as dt
     from delaytrack.plants import MujocoPlant
+    from delaytrack.plants.mujoco.timer import profiler_clock_stopped
 
     path = str(HERE.parent / "examples" / "mujoco_arm" / "arm3.xml")
     truth = MujocoPlant(path, stepping="mujoco")
@@ -302,16 +306,27 @@ def mujoco_case(duration: float, batch: int, repeats: int) -> list[dict]:
     common = dict(reference=reference, t1=duration, dt=DT, T_c=T_C)
     count = steps(duration)
     floor_steps = bare_steps(path)
-    single, hand, floor, plant_only = alternating_medians(
+
+    def clock_stopped(run):  # as simulate stops MuJoCo's profiling clock while it runs
+        def stopped():
+            with profiler_clock_stopped(mujoco):
+                return run()
+
+        return stopped
+
+    single, hand, floor, plant_only, clocked_floor = alternating_medians(
         repeats,
         lambda: dt.simulate(truth, controller, delay, x0, **common, trajectories=False),
-        lambda: hand_run(truth, controller, delay, reference, x0, duration, DT, T_C),
-        lambda: floor_steps(count, x0[:3], x0[3:]),
+        clock_stopped(lambda: hand_run(truth, controller, delay, reference, x0, duration, DT, T_C)),
+        clock_stopped(lambda: floor_steps(count, x0[:3], x0[3:])),
         lambda: dt.simulate(truth, held, delay, x0, **common, trajectories=False),
+        lambda: floor_steps(count, x0[:3], x0[3:]),
     )
     held_status = dt.simulate(truth, held, delay, x0, **common, trajectories=False).status_names
     engine_run = dt.simulate(truth, controller, delay, x0, **common)
-    hand_state, hand_sums = hand_run(truth, controller, delay, reference, x0, duration, DT, T_C)
+    hand_state, hand_sums = clock_stopped(
+        lambda: hand_run(truth, controller, delay, reference, x0, duration, DT, T_C)
+    )()
     delays = [dt.AbsSineDelay(0.02, 0.08, 1.0 + 0.01 * b) for b in range(batch)]
     many = median_seconds(
         lambda: dt.simulate(truth, controller, delays, x0, **common, trajectories=False),
@@ -368,6 +383,15 @@ def mujoco_case(duration: float, batch: int, repeats: int) -> list[dict]:
             "baseline": floor_name,
             "baseline_s": floor,
             "ratio_to_baseline": 1.0,
+        },
+        {
+            "case": f"mj_step alone, {count} steps, with the profiling clock of MuJoCo's Python "
+            "bindings (what a run paid before it stopped that clock)",
+            "median_s": clocked_floor,
+            "steps_per_s": count / clocked_floor,
+            "baseline": floor_name,
+            "baseline_s": floor,
+            "ratio_to_baseline": floor / clocked_floor,
         },
         {
             "case": f"MuJoCo arm, B={batch} runs of {duration:g} s, all cores",
@@ -789,6 +813,11 @@ def main() -> None:
     print(
         f"MuJoCo arm, no MuJoCo model in the law: {plant_only['ratio_to_baseline']:.3f} of "
         f"mj_step alone's speed (run {plant_only['status']})"
+    )
+    clocked = next(c for c in cases if "profiling clock" in c["case"])
+    print(
+        f"mj_step alone with the Python bindings' profiling clock: {clocked['median_s']:.3f} s, "
+        f"{1 / clocked['ratio_to_baseline']:.2f} times its time with the clock stopped"
     )
     startup = next(c for c in cases if c["case"].startswith("start-up"))
     print(

@@ -467,6 +467,56 @@ def test_a_stepped_model_is_not_a_nominal_model_and_a_diverging_run_is_reported(
     assert result.status_names == ["diverged"] and result.t_stop[0] < 4.0
 
 
+def _profiling_clock():
+    """MuJoCo's ``mjcb_time`` slot, as an address."""
+    import ctypes
+    import os
+
+    from delaytrack.plants.mujoco.capi import mujoco_library
+
+    library = mujoco_library(os.path.dirname(mujoco.__file__))
+    return ctypes.c_void_p.in_dll(library, "mjcb_time")
+
+
+def _step_timer(plant: MujocoPlant) -> tuple[float, int]:
+    """``(duration, number)`` of MuJoCo's profiler timer of ``mj_step`` in the plant's data."""
+    timer = plant._data.timer[int(mujoco.mjtTimer.mjTIMER_STEP)]
+    return float(timer.duration), int(timer.number)
+
+
+def test_mujocos_profiling_clock_is_stopped_while_a_run_steps_it_and_given_back_after():
+    """MuJoCo's Python bindings install a clock that MuJoCo reads twice a pipeline stage for its
+    profiler; a run stops it (every step timed zero) and gives it back, on every thread of a
+    batch and when a clock of the user's was installed."""
+    clock = _profiling_clock()
+    mujoco.MjData(mujoco.MjModel.from_xml_path(str(ARM)))  # the bindings install their clock
+    bindings = clock.value
+    assert bindings  # else there is nothing to stop
+    truth = MujocoPlant(ARM, stepping="mujoco")
+    controller = dt.OuterLoop(MujocoPlant(ARM, mass_scale=0.8), K1=16.0, K2=8.0)
+    settings = dict(reference=REFERENCE, t1=0.2, dt=DT, T_c=T_C)
+    delays = [dt.ConstantDelay(0.01), dt.ConstantDelay(0.02)]
+    result = dt.simulate(truth, controller, delays, X0, workers=2, **settings)
+    assert result.status_names == ["ok", "ok"]
+    assert clock.value == bindings
+    stepped = [truth, *truth._copies.values()]  # the copy a second thread made, if any
+    for plant in stepped:
+        duration, number = _step_timer(plant)
+        assert number > 0 and duration == 0.0
+    # The same steps outside a run are timed by the bindings' clock: what the run stopped.
+    mujoco.mj_step(truth._model, truth._data)
+    assert _step_timer(truth)[0] > 0.0
+    # A clock of the user's, installed before a run, is theirs again after it.
+    mujoco.set_mjcb_time(lambda: 1.0)
+    try:
+        yours = clock.value
+        alone = dt.simulate(truth, controller, delays[0], X0, **settings)
+        assert clock.value == yours
+        np.testing.assert_array_equal(alone.x[0], result.x[0])
+    finally:
+        clock.value = bindings
+
+
 def test_mujocos_warnings_are_python_warnings_and_no_log_file_is_written(tmp_path, monkeypatch):
     """A diverging batch stepped by MuJoCo on two threads: MuJoCo's "unstable" warnings reach
     Python's warnings, and no ``MUJOCO_LOG.TXT`` appears in the current folder."""

@@ -11,6 +11,7 @@ plants and plain Python for :class:`~delaytrack.plants.CallablePlant`.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
@@ -120,6 +121,12 @@ class ELPlant(ABC):
         """The plant whose kernel the batch's chunk ``index`` (> 0) runs: the plant itself
         unless it writes memory of its own (:attr:`thread_safe`), then a copy of its own."""
         return self
+
+    def while_running(self) -> contextlib.AbstractContextManager[None]:
+        """What the simulator holds while its runs evaluate this plant or model: nothing,
+        unless a plant needs a setting of the library it runs in (a MuJoCo model stops MuJoCo's
+        profiling clock, :mod:`delaytrack.plants.mujoco.timer`)."""
+        return contextlib.nullcontext()
 
     @property
     def run_identity(self) -> np.ndarray:

@@ -106,6 +106,17 @@ def cut(build: Build, runs: Run, settings: Settings, records: Records, progress:
     )
 
 
+def _components(build: Build) -> list:
+    """The plant and the controller's model of each kind in the batch (one of each kind holds
+    what its kind asks for while it runs: :meth:`ELPlant.while_running
+    <delaytrack.plants.base.ELPlant.while_running>`)."""
+    plan = build.plan
+    kinds: dict[type, object] = {}
+    for component in (*plan.plants, *(controller.model for controller in plan.controllers)):
+        kinds.setdefault(type(component), component)
+    return list(kinds.values())
+
+
 def execute(chunks: Chunks, natives: tuple, progress: bool) -> None:
     """Run every chunk, its kernels compiled as ``natives``; a kernel of the user's that raised,
     or numba failing on the engine, ends the batch with a ValueError of one line."""
@@ -132,7 +143,11 @@ def execute(chunks: Chunks, natives: tuple, progress: bool) -> None:
             if progress
             else contextlib.nullcontext(_NO_PROGRESS_BAR)  # a disabled tqdm costs ~0.1 ms
         )
-        with bar_context as bar:  # closed here, on a new line, when Ctrl-C leaves the run
+        with contextlib.ExitStack() as held, bar_context as bar:
+            # What the plant and the model ask for while they run; the bar is closed here, on
+            # a new line, when Ctrl-C leaves the run.
+            for component in _components(build):
+                held.enter_context(component.while_running())
 
             def run_chunks() -> None:
                 if chunks.in_parallel:

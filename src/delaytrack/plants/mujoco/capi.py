@@ -24,14 +24,22 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic, overload
 
-__all__ = ["call_void2", "call_void4", "function_address", "read_at", "write_at"]
+__all__ = [
+    "call_void2",
+    "call_void4",
+    "function_address",
+    "mujoco_library",
+    "read_at",
+    "write_at",
+]
 
 _VOID2 = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p)
 _VOID4 = ctypes.CFUNCTYPE(None, *[ctypes.c_void_p] * 4)
 
 
 @cache
-def _library(folder: str) -> ctypes.CDLL:
+def mujoco_library(folder: str) -> ctypes.CDLL:
+    """MuJoCo's shared library in ``folder`` (the ``mujoco`` package's), loaded once."""
     candidates = sorted(glob.glob(os.path.join(folder, "libmujoco.so*"))) or sorted(
         glob.glob(os.path.join(folder, "libmujoco*.dylib"))
     )
@@ -42,7 +50,7 @@ def _library(folder: str) -> ctypes.CDLL:
 
 def function_address(mujoco: Any, name: str) -> int:
     """Address of MuJoCo's C function ``name`` (of the library its package ``mujoco`` loaded)."""
-    function = getattr(_library(os.path.dirname(mujoco.__file__)), name)
+    function = getattr(mujoco_library(os.path.dirname(mujoco.__file__)), name)
     address = ctypes.cast(function, ctypes.c_void_p).value
     if address is None:  # ctypes gives a null pointer's address as None
         raise ImportError(f"MuJoCo's C function {name} has a null address")

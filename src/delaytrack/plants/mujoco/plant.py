@@ -23,6 +23,7 @@ of them.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import hashlib
 import importlib
@@ -48,6 +49,7 @@ from delaytrack.plants.mujoco.capi import (
     write_at,
 )
 from delaytrack.plants.mujoco.model_files import check_model_files
+from delaytrack.plants.mujoco.timer import profiler_clock_stopped
 from delaytrack.warning import DelaytrackWarning
 
 __all__ = ["JointNamesWarning", "MujocoPlant", "extras_start", "mujoco_step", "mujoco_terms"]
@@ -490,6 +492,11 @@ class MujocoPlant(ELPlant):
         # vector holds addresses of this process's MuJoCo data.
         arguments = {item.name: getattr(self, item.name) for item in fields(self) if item.init}
         return (_made_again, (type(self), arguments))
+
+    def while_running(self) -> contextlib.AbstractContextManager[None]:
+        """MuJoCo's profiling clock stopped (:mod:`delaytrack.plants.mujoco.timer`): its clock
+        reads cost a small model about as much as its physics."""
+        return profiler_clock_stopped(import_mujoco())
 
     def for_worker(self, index: int) -> MujocoPlant:
         if index not in self._copies:

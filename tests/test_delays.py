@@ -490,6 +490,10 @@ def test_delay_value_scalar_kernel_matches_profiles():
         (lambda: AbsSineDelay(0.02, 0.08, -1.0), r"frequency must be > 0; got -1"),
         (lambda: AbsSineDelay(0.02, 0.08, 1.0, float("nan")), r"phase must be finite"),
         (
+            lambda: AbsSineDelay(1e308, 1e308, 1.0),
+            r"amplitude \+ offset must be a finite delay; got 1e\+308 \+ 1e\+308 s",
+        ),
+        (
             lambda: TraceDelay([0.0, 1.0, 0.5, 2.0], [0.1] * 4),
             r"strictly increasing; times\[1\] = 1 is followed by times\[2\] = 0\.5",
         ),
@@ -535,6 +539,8 @@ def test_refused_profiles(build, message):
 
 
 def test_non_numeric_delay_is_a_type_error():
+    with pytest.raises(TypeError, match=r"phase must be a real number; got '0.1'"):
+        AbsSineDelay(0.02, 0.08, 1.0, "0.1")  # was read as 0.1, unlike every other argument
     with pytest.raises(TypeError, match=r"value must be a real number; got 'abc'"):
         ConstantDelay("abc")
 

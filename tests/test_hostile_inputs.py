@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import delaytrack as dt
 from delaytrack._validation import real_array
 from delaytrack.cli import main
 from delaytrack.delays import ConstantDelay, RandomDelay, TraceDelay
@@ -59,6 +60,46 @@ def test_values_nested_hundreds_deep_are_refused_not_a_recursion_error(tmp_path,
     }[command]
     assert main([*argv, "--out", str(tmp_path / "out")]) == 2
     one_line_error(capsys, "deep.toml", "nested more than 32 levels deep")
+
+
+@pytest.mark.parametrize("command", ["simulate", "sweep", "gains"])
+def test_an_integer_beyond_the_largest_float_is_refused_naming_where(tmp_path, capsys, command):
+    """TOML's integers have no bound; no number of a scenario, sweep or gains file may exceed
+    the largest float (the conversions raised Python's OverflowError)."""
+    huge = "1" + "0" * 400
+    text = {
+        "simulate": f'scenario = "two_link_S1"\n[run]\nx0 = [{huge}, 0, 0, 0]\n',
+        "sweep": (
+            'scenario = "two_link_S1"\n[random]\n'
+            f'"controller.K1" = {{dist = "uniform", low = 1, high = {huge}}}\n'
+        ),
+        "gains": f"[chosen.pcon]\nK1 = {huge}\n",
+    }[command]
+    path = tmp_path / "huge.toml"
+    path.write_text(text)
+    argv = {
+        "simulate": ["simulate", str(path)],
+        "sweep": ["sweep", str(path), "--quiet"],
+        "gains": ["reproduce", "--gains", str(path), "--duration", "0.1"],
+    }[command]
+    assert main([*argv, "--out", str(tmp_path / "out")]) == 2
+    where = {"simulate": "run.x0[0]", "sweep": "random.controller.K1.high", "gains": "K1"}
+    one_line_error(capsys, "huge.toml", where[command], "an integer of 401 digits")
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda huge: ConstantDelay(huge),
+        lambda huge: dt.AbsSineDelay(huge, 0.01, 1.0),
+        lambda huge: dt.TwoLinkArm(p1=huge),
+        lambda huge: dt.MeasurementNoise(position=huge),
+    ],
+    ids=["ConstantDelay", "AbsSineDelay", "TwoLinkArm", "MeasurementNoise"],
+)
+def test_an_integer_beyond_the_largest_float_is_refused_by_the_library(make):
+    with pytest.raises(ValueError, match=r"must be (finite|a number >= 0)"):
+        make(10**400)
 
 
 @pytest.mark.parametrize("h_max", [1e6, 1e300, math.inf])
@@ -227,6 +268,25 @@ def test_a_trace_shorter_than_the_run_is_refused_unless_held(tmp_path):
     np.testing.assert_array_equal(held.h[0, held.t > 0.1], 0.02)
 
 
+def test_a_trace_that_starts_after_the_run_is_refused(tmp_path, capsys):
+    """A delay log stamped with Unix times starts long after the run's t0 = 0: its first value
+    would have been held over the whole run."""
+    path = tmp_path / "epoch.csv"
+    path.write_text("t,h\n1700000000.0,0.02\n1700000000.5,0.08\n1700000002.0,0.05\n")
+    scenario = tmp_path / "epoch.toml"
+    scenario.write_text(short(delay={"type": "trace", "path": str(path)}).to_toml())
+    assert main(["simulate", str(scenario), "--out", str(tmp_path / "out")]) == 2
+    one_line_error(capsys, "delay[0] (TraceDelay) starts at t = 1.7e+09 s", "t0 = 0 s")
+    late = TraceDelay([0.5, 2.0], [0.02, 0.03])
+    with pytest.raises(ScenarioError, match=r"starts at t = 0.5 s, after the run's start"):
+        short(delay=late.to_spec()).run()
+    # From its first sample on, the same trace runs.
+    settings = dict(reference=dt.SinusoidalReference([0.0, 0.0]), t1=1.0, dt=1e-3, T_c=0.01)
+    arm = dt.TwoLinkArm()
+    run = simulate(arm, dt.OuterLoop(arm, K1=1.0, K2=1.0), late, [0, 0, 0, 0], t0=0.5, **settings)
+    assert run.status_names == ["ok"]
+
+
 def test_a_random_delay_shorter_than_the_run_is_refused_unless_held():
     delay = {"type": "random", "h_low": 0.0, "h_high": 0.05, "max_rate": 0.5, "seed": 3}
     assert short(delay=delay).run().status_names == ["ok"]  # takes the scenario's duration
@@ -382,6 +442,28 @@ def test_working_memory_beyond_the_machine_is_refused_before_allocating(monkeypa
 def test_a_delay_that_would_split_steps_without_end_is_refused(delay):
     with pytest.raises(ScenarioError, match=r"may switch the applied command up to .* times"):
         short(delay=delay).run()
+
+
+def test_a_run_of_too_many_ticks_is_told_to_shorten_not_to_slow_its_delay():
+    """Every tick's command comes into force once, whatever the delay: beyond the limit by its
+    ticks alone, the advice is about the run, and the counts differ where they are printed."""
+    arm = dt.TwoLinkArm()
+    with pytest.raises(
+        ValueError,
+        match=r"100,000,001 times .* more than 100,000,000: .* "
+        r"100,000,000 controller ticks alone .* shorten the run or lengthen T_c",
+    ):
+        simulate(
+            arm,
+            dt.OuterLoop(arm, K1=1.0, K2=1.0),
+            ConstantDelay(0.01),
+            [0, 0, 0, 0],
+            reference=dt.SinusoidalReference([0.0, 0.0]),
+            t1=1e5,
+            dt=1e-3,
+            T_c=1e-3,
+            record_every=10**8,
+        )
 
 
 def test_record_every_beyond_the_run_records_the_start_and_keeps_exact_metrics():

@@ -220,6 +220,9 @@ def _arm_with(tmp_path: Path, old: str, new: str) -> Path:
             {},
             "equality constraints",
         ),
+        # MuJoCo reads a NaN and goes on: a mass from the density, a NaN timestep.
+        ('mass="1.5"', 'mass="nan"', {}, "a number of the file is NaN"),
+        ('timestep="0.001"', 'timestep="nan"', {"stepping": "mujoco"}, "is NaN"),
     ],
 )
 def test_model_files_it_cannot_represent_are_refused_naming_what(

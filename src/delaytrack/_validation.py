@@ -177,6 +177,8 @@ def positive_scalar(name: str, value: object, *, strictly: bool = True) -> float
         number = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
         raise TypeError(f"{name} must be a real number; got {quoted(value)}") from None
+    except OverflowError:  # an integer beyond the largest float
+        raise ArgumentError(name, f"must be finite; got {quoted(value)}") from None
     if not math.isfinite(number):
         raise ArgumentError(name, f"must be finite; got {number}")
     if strictly and number <= 0.0:

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 
 import delaytrack.delays._kernel as _kernel
-from delaytrack._validation import ArgumentError, positive_scalar
+from delaytrack._validation import ArgumentError, finite_scalar, positive_scalar
 from delaytrack.delays.base import DelayProfile
 
 __all__ = ["AbsSineDelay"]
@@ -40,10 +41,12 @@ class AbsSineDelay(DelayProfile):
             self, "amplitude", positive_scalar("amplitude", self.amplitude, strictly=False)
         )
         object.__setattr__(self, "frequency", positive_scalar("frequency", self.frequency))
-        phase = float(self.phase)
-        if not np.isfinite(phase):
-            raise ArgumentError("phase", f"must be finite; got {phase}")
-        object.__setattr__(self, "phase", phase)
+        object.__setattr__(self, "phase", finite_scalar("phase", self.phase))
+        if not math.isfinite(self.offset + self.amplitude):
+            raise ArgumentError(
+                "amplitude",
+                f"+ offset must be a finite delay; got {self.amplitude:g} + {self.offset:g} s",
+            )
 
     @classmethod
     def S1(cls) -> AbsSineDelay:

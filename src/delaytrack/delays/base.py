@@ -54,6 +54,15 @@ class DelayProfile(ABC):
         return 0.0
 
     @property
+    def start(self) -> float:
+        """First time (s) from which the profile's data define ``h`` (``-inf``: always).
+
+        A measured trace starts at its first sample; :func:`~delaytrack.sim.simulate` refuses a
+        run that starts before it (never extends the data silently).
+        """
+        return -math.inf
+
+    @property
     def horizon(self) -> float:
         """Last time (s) up to which the profile's data define ``h`` (``inf``: always).
 

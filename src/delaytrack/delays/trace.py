@@ -38,9 +38,9 @@ def _unit(argument: str, value: object) -> float:
 class TraceDelay(KnotDelay):
     """``h(t)`` linear between knots ``(times[i], values[i])``.
 
-    The trace covers ``[times[0], times[-1]]``, and before its first knot it holds its first
-    value. A simulation that runs beyond its last knot is refused (the trace says nothing about
-    that time), unless ``beyond = "hold"``, which holds the last value.
+    The trace covers ``[times[0], times[-1]]``. A simulation that starts before its first knot
+    is refused, and so is one that runs beyond its last knot (the trace says nothing about
+    those times), unless ``beyond = "hold"``, which holds the last value after it.
 
     Parameters
     ----------
@@ -166,6 +166,10 @@ class TraceDelay(KnotDelay):
     @property
     def kind(self) -> int:
         return _kernel.PIECEWISE_LINEAR
+
+    @property
+    def start(self) -> float:
+        return float(self.times[0])
 
     @property
     def horizon(self) -> float:

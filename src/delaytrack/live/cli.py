@@ -311,7 +311,13 @@ def add_live_commands(commands: Any) -> None:
     _measurement_argument(run)
     _bridge_argument(run)
     _realtime_argument(run)
-    run.add_argument("--handshake-timeout", type=_POSITIVE_SECONDS, default=60.0, metavar="S")
+    run.add_argument(
+        "--handshake-timeout",
+        type=_POSITIVE_SECONDS,
+        default=60.0,
+        metavar="S",
+        help="give up when a node has not seen the others appear (default 60 s)",
+    )
     trust_argument(run)
     quiet_argument(run, "status line")
     run.set_defaults(handler=_run)

@@ -86,6 +86,11 @@ class DelayNode(NodeBase):
                 f"the delay profile is defined up to t = {self.delay.horizon:g} s; the session "
                 f"lasts {self.duration:g} s (shorten --duration or hold the profile's last value)"
             )
+        if self.delay.start > 0.0:
+            raise ValueError(
+                f"the delay profile starts at t = {self.delay.start:g} s, after the session's "
+                "start t = 0 s; give it a sample at or before 0"
+            )
         self.delay.check_run(0.0, self.dt, math.ceil(self.duration / self.dt))
         loss = scenario.simulated_packet_loss
         if getattr(args, "loss", None) is not None:

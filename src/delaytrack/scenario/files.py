@@ -7,7 +7,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from delaytrack._io import regular_file, toml_data
+from delaytrack._io import IntegerTooLarge, regular_file, toml_data
 from delaytrack._spec import PYTHON_TYPE, factory_parts
 from delaytrack._spec import SpecError as ScenarioError
 from delaytrack._trust import Trust, check_factory
@@ -27,6 +27,8 @@ def read_toml_file(source: Path, what: str, error: type[ScenarioError]) -> dict[
         return toml_data(text)
     except tomllib.TOMLDecodeError as problem:
         raise error(f"{source}: not valid TOML: {problem}") from None
+    except IntegerTooLarge as problem:
+        raise error(f"{source}: {problem}") from None
 
 
 def resolve_file_keys(source: Path, table: str, value: object, trust: Trust) -> None:

@@ -450,11 +450,18 @@ def _check_delays(
     for i, delay_b in enumerate(delays):
         switches = delay_b.switch_bound(t0, t1, T_c)
         if not switches <= MAX_STEPS:
+            ticks = (t1 - t0) / T_c  # each tick's command comes into force once
+            advice = (
+                f"The run's {ticks:,.0f} controller ticks alone are most of them: shorten the run "
+                "or lengthen T_c"
+                if ticks >= switches / 2
+                else "Lower its rate of change (amplitude x frequency, or the jumps between knots)"
+            )
             raise ValueError(
                 f"delay[{i}] ({type(delay_b).__name__}) may switch the applied command up to "
-                f"{switches:.3g} times in this run (its t - h(t) sweeps over the controller ticks "
-                f"that often), more than {MAX_STEPS:.0e}: every switch splits a plant step. "
-                "Lower its rate of change (amplitude x frequency, or the jumps between knots)"
+                f"{switches:,.0f} times in this run (its t - h(t) sweeps over the controller ticks "
+                f"that often), more than {MAX_STEPS:,.0f}: every switch splits a plant step. "
+                f"{advice}"
             )
 
 
@@ -616,13 +623,16 @@ def _workers(workers: int | None) -> int:
 def _check_horizons(
     plants: list[ELPlant], delays: list[DelayProfile], reference: Reference, t0: float, t1: float
 ) -> None:
-    """Refuse a run longer than the time its plant's, delay's or reference's data cover (never
-    extend them silently)."""
-    if reference.start > t0:
-        raise ValueError(
-            f"reference ({type(reference).__name__}) starts at t = {reference.start:g} s, after "
-            f"the run's start t0 = {t0:g} s; give it a sample at or before t0"
-        )
+    """Refuse a run that starts before, or lasts longer than, the time its plant's, delay's or
+    reference's data cover (never extend them silently)."""
+    starts: list[tuple[str, DelayProfile | Reference]] = [("reference", reference)]
+    starts += [(f"delay[{i}]", delay) for i, delay in enumerate(delays)]
+    for name, timed in starts:
+        if timed.start > t0:
+            raise ValueError(
+                f"{name} ({type(timed).__name__}) starts at t = {timed.start:g} s, after the "
+                f"run's start t0 = {t0:g} s; give it a sample at or before t0"
+            )
     components: tuple[tuple[str, Sequence[DelayProfile | ELPlant | Reference]], ...] = (
         ("delay", delays),
         ("plant", plants),

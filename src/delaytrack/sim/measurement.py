@@ -91,7 +91,7 @@ class MeasurementNoise:
             value = getattr(self, key)
             try:
                 values = np.asarray(value, dtype=float)
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):
                 values = np.array([np.nan])
             if values.ndim > 1 or not np.all(np.isfinite(values)) or np.any(values < 0.0):
                 raise ValueError(

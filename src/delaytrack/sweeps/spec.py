@@ -56,7 +56,7 @@ from delaytrack._compile.disk_cache import source_hash
 from delaytrack._io import finite_numbers
 from delaytrack._spec import named_in_a_file
 from delaytrack._trust import Trust
-from delaytrack._validation import is_integer_at_least
+from delaytrack._validation import is_integer_at_least, quoted
 from delaytrack._version import __version__
 from delaytrack.metrics import COORDINATE_METRICS
 from delaytrack.scenario import (
@@ -317,9 +317,18 @@ def _check_key(source: str, key: object) -> str:
 
 
 def _number(where: str, name: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise SweepError(f"{where}: '{name}' must be a finite number; got {value!r}")
+    if isinstance(value, bool) or not isinstance(value, int | float) or not _finite(value):
+        raise SweepError(f"{where}: '{name}' must be a finite number; got {quoted(value)}")
     return value
+
+
+def _finite(value: float) -> bool:
+    """Whether the number ``value`` is finite as a float (an integer beyond the largest float
+    is not)."""
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
 
 
 def _draw(key: str, table: object, draws: int, seed: int) -> list[Any]:

@@ -281,11 +281,23 @@ class MujocoPlant(ELPlant):
             raise ValueError(f"stepping must be one of {list(STEPPINGS)}; got {self.stepping!r}")
         if not isinstance(self.add_motors, bool):
             raise TypeError(f"add_motors must be true or false; got {self.add_motors!r}")
-        try:
-            model = _load(mujoco, path, self.add_motors)
-        except Exception as error:  # noqa: BLE001 - MuJoCo's own message names the problem
-            message = " ".join(str(error).split())
-            raise ValueError(f"path {str(path)!r}: MuJoCo could not read it: {message}") from None
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                model = _load(mujoco, path, self.add_motors)
+            except Exception as error:  # noqa: BLE001 - MuJoCo's own message names the problem
+                message = " ".join(str(error).split())
+                raise ValueError(
+                    f"path {str(path)!r}: MuJoCo could not read it: {message}"
+                ) from None
+        for warning in caught:
+            if "NaN" in str(warning.message):
+                # MuJoCo reads it and goes on: a mass from the body's density, a NaN timestep.
+                raise ValueError(
+                    f"path {str(path)!r}: a number of the file is NaN, for which MuJoCo would "
+                    "put a value of its own or a NaN; give it a value"
+                )
+            warnings.warn_explicit(warning.message, warning.category, warning.filename, 0)
         joints = self._coordinate_joints(mujoco, model, path)
         self._check(mujoco, model, path, joints)
         if self.stepping == "mujoco":  # a diverging state must reach the simulator, not reset
@@ -534,7 +546,7 @@ class MujocoPlant(ELPlant):
     def check_step(self, dt: float) -> None:
         """Stepped by MuJoCo, the run's ``dt`` must be the model's ``timestep``."""
         timestep = float(self._model.opt.timestep)
-        if self.stepping == "mujoco" and abs(dt - timestep) > 1e-12 * timestep:
+        if self.stepping == "mujoco" and not abs(dt - timestep) <= 1e-12 * timestep:
             raise ValueError(
                 f"dt = {dt:g} s disagrees with the timestep {timestep:g} s of {str(self.path)!r}, "
                 "which MuJoCo steps it with: set dt to it (or <option timestep> in the file)"

@@ -43,6 +43,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "IntegerTooLarge",
+    "refuse_huge_integers",
     "MAX_READ_BYTES",
     "TIME_UNITS",
     "TIME_UNIT_NAMES",
@@ -72,30 +73,49 @@ MAX_READ_BYTES = 256 * 2**20
 MAX_TOML_DEPTH = 32
 
 
-class IntegerTooLarge(ValueError):
-    """A TOML integer beyond the largest float, which no number of the toolkit's files may be."""
-
-
 def toml_data(text: str) -> dict:
     """``tomllib.loads(text)``, refusing values nested more than :data:`MAX_TOML_DEPTH` levels
-    deep with a :class:`tomllib.TOMLDecodeError` (Python's parser, which recurses, would end in
-    a ``RecursionError`` for a file of a few hundred ``[``), and integers beyond the largest
-    float with :class:`IntegerTooLarge`, naming where (TOML's integers have no bound; every
-    number of the toolkit's files is used as a float or is far smaller)."""
+    deep with a :class:`tomllib.TOMLDecodeError` (Python's parser, which recurses, would end
+    in a ``RecursionError`` for a file of a few hundred ``[``)."""
     too_deep = f"values nested more than {MAX_TOML_DEPTH} levels deep (arrays or tables)"
     try:
         data = tomllib.loads(text)
     except RecursionError:
         raise tomllib.TOMLDecodeError(too_deep) from None
-    level: list[tuple[str, dict | list]] = [("", data)]
+    level: list[dict | list] = [data]
     for _ in range(MAX_TOML_DEPTH):
+        level = [
+            item
+            for value in level
+            for item in (value.values() if isinstance(value, dict) else value)
+            if isinstance(item, dict | list)
+        ]
+        if not level:
+            return data
+    raise tomllib.TOMLDecodeError(too_deep)
+
+
+class IntegerTooLarge(ValueError):
+    """A TOML integer beyond the largest float, which no number of a scenario or sweep may be."""
+
+
+#: The largest float, as an integer: a TOML integer beyond it cannot become a float.
+_LARGEST_FLOAT = int(sys.float_info.max)
+
+
+def refuse_huge_integers(data: dict) -> None:
+    """Raise :class:`IntegerTooLarge`, naming where (``run.x0[0]``), for an integer of
+    ``data`` (read by :func:`toml_data`, so nested at most :data:`MAX_TOML_DEPTH` deep) beyond
+    the largest float: TOML's integers have no bound, and every number of a scenario or sweep
+    is used as a float or is far smaller (Python's conversion would raise ``OverflowError``)."""
+    level: list[tuple[str, dict | list]] = [("", data)]
+    while level:
         inner = []
         for where, value in level:
-            entries = (
-                (((f"{where}.{key}" if where else str(key)), item) for key, item in value.items())
-                if isinstance(value, dict)
-                else ((f"{where}[{i}]", item) for i, item in enumerate(value))
-            )
+            if isinstance(value, dict):
+                entries = [(f"{where}.{key}" if where else str(key), v) for key, v in value.items()]
+            else:
+                entries = [(f"{where}[{i}]", item) for i, item in enumerate(value)]
             for place, item in entries:
                 if isinstance(item, dict | list):
                     inner.append((place, item))
@@ -105,13 +125,6 @@ def toml_data(text: str) -> dict:
                         f"number a float holds ({sys.float_info.max:.4g})"
                     )
         level = inner
-        if not level:
-            return data
-    raise tomllib.TOMLDecodeError(too_deep)
-
-
-#: The largest float, as an integer: a TOML integer beyond it cannot become a float.
-_LARGEST_FLOAT = int(sys.float_info.max)
 
 
 #: What a path that is not a regular file is, by its ``st_mode``.

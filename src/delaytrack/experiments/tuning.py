@@ -89,7 +89,7 @@ import pandas as pd
 import tomli_w
 from tqdm.auto import tqdm
 
-from delaytrack._io import IntegerTooLarge, regular_file, toml_data, write_text
+from delaytrack._io import regular_file, toml_data, write_text
 from delaytrack.analysis import razumikhin_bound
 from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
 from delaytrack.analysis.razumikhin import PAPER_R as R
@@ -633,9 +633,8 @@ def load_tuning_record(source: GainsSource = None) -> Mapping[str, Any]:
     regular_file(path, "gains file", GainsFileError)
     try:
         record = toml_data(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError, IntegerTooLarge) as error:
-        what = "holds" if isinstance(error, IntegerTooLarge) else "is not TOML:"
-        problem = f"{what} {error}; give a gains file written by tune-baselines"
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
+        problem = f"is not TOML ({error}); give a gains file written by tune-baselines"
         raise GainsFileError(f"{where} {problem}", problem) from None
     _check_chosen(record, where)
     return record

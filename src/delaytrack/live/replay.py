@@ -6,7 +6,8 @@ applied (``applied.csv``). The replay turns these into a :class:`~delaytrack.del
 with knots ``(a_i, a_i - t_{k_i} - ε)``: between two knots ``t - h(t)`` runs linearly from
 ``t_{k_i}`` to ``t_{k_{i+1}}`` (plus ``ε``), so the simulator's rule (the latest command with
 ``t_k <= t - h(t)``) switches to command ``k_{i+1}`` at ``a_{i+1} - ε``, where the robot
-switched (``ε = 10⁻⁶ dt`` keeps the switch clear of rounding). Lost packets are lost again with
+switched (``ε = 10⁻⁶ dt`` keeps the switch clear of rounding); from the session's start to the
+first knot, while ``u_init`` is applied, the first knot's delay. Lost packets are lost again with
 the same seed (:class:`~delaytrack.sim.packet_loss.PacketLoss`), so the held commands agree.
 The controller reads the state through the measurement noise the live controller applied
 (``measurement_noise`` in ``controller.json``: the scenario's, or none when the session turned it
@@ -143,6 +144,8 @@ def _realised_delay(folder: Path, dt: float) -> TraceDelay:
         raise ValueError(f"{path}, line {bad[0] + 2}: {columns} must be finite times in seconds")
     times = numbers[:, 0] - epsilon
     values = np.maximum(times - numbers[:, 1], 0.0)
+    if times[0] > 0.0:  # before the first command arrived (u_init applied): its delay, held
+        times, values = np.r_[0.0, times], np.r_[values[0], values]
     return TraceDelay(times, values, beyond="hold", source=str(folder / "applied.csv"))
 
 

@@ -7,7 +7,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from delaytrack._io import IntegerTooLarge, regular_file, toml_data
+from delaytrack._io import IntegerTooLarge, refuse_huge_integers, regular_file, toml_data
 from delaytrack._spec import PYTHON_TYPE, factory_parts
 from delaytrack._spec import SpecError as ScenarioError
 from delaytrack._trust import Trust, check_factory
@@ -24,11 +24,14 @@ def read_toml_file(source: Path, what: str, error: type[ScenarioError]) -> dict[
     except (OSError, UnicodeDecodeError) as problem:
         raise error(f"cannot read {what} {str(source)!r}: {problem}") from None
     try:
-        return toml_data(text)
+        data = toml_data(text)
     except tomllib.TOMLDecodeError as problem:
         raise error(f"{source}: not valid TOML: {problem}") from None
+    try:
+        refuse_huge_integers(data)
     except IntegerTooLarge as problem:
         raise error(f"{source}: {problem}") from None
+    return data
 
 
 def resolve_file_keys(source: Path, table: str, value: object, trust: Trust) -> None:

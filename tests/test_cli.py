@@ -184,6 +184,21 @@ def test_a_flag_is_taken_only_as_spelled_in_full(command, shortened, tmp_path, c
     assert f"unrecognized arguments: {shortened}" in capsys.readouterr().err
 
 
+def test_a_value_that_starts_with_a_minus_is_shown_how_to_be_written(capsys):
+    """argparse takes ``-50%`` for a flag; the error shows the form it takes as a value, and
+    says nothing of the kind where no value was given."""
+    with pytest.raises(SystemExit) as stop:
+        main(["tradeoff", "robot.toml", "--knowledge", "-50%"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert "--knowledge: expected one argument" in err
+    assert "a value that starts with '-' is written --knowledge=-50%" in err
+    with pytest.raises(SystemExit):
+        main(["simulate", "x.toml", "--out"])
+    err = capsys.readouterr().err
+    assert "--out: expected one argument (see" in err and "starts with" not in err
+
+
 @pytest.mark.parametrize(
     "command", [[], ["bound"], ["simulate"], ["reproduce"], ["tune-baselines"]]
 )

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import re
+import sys
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
@@ -51,11 +52,20 @@ class OptionParser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
 
     def error(self, message: str) -> None:  # type: ignore[override]
+        missing = re.fullmatch(r"argument (-[^\s/:]+)(?:/\S+)?: expected one argument", message)
+        given = getattr(self, "_given", [])
+        if missing and missing.group(1) in given[:-1]:
+            # argparse takes a value that starts with "-" (-50%) for a flag of its own
+            flag = missing.group(1)
+            value = given[given.index(flag) + 1]
+            if value.startswith("-"):
+                message += f"; a value that starts with '-' is written {flag}={value}"
         self.exit(EXIT_USAGE, f"error: {message} (see {self.prog} --help)\n")
 
     def parse_known_args(  # type: ignore[override]
         self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
     ) -> tuple[argparse.Namespace, list[str]]:
+        self._given = list(sys.argv[1:] if args is None else args)
         parsed, extras = super().parse_known_args(args, namespace)
         assert parsed is not None  # argparse returns the namespace it filled
         # A command's parser returns first: the innermost one that met arguments it does not

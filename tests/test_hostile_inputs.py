@@ -65,22 +65,27 @@ def test_values_nested_hundreds_deep_are_refused_not_a_recursion_error(tmp_path,
 @pytest.mark.parametrize("command", ["simulate", "sweep"])
 def test_an_integer_beyond_the_largest_float_is_refused_naming_where(tmp_path, capsys, command):
     """TOML's integers have no bound; no number of a scenario or sweep file may exceed the
-    largest float (the conversions raised Python's OverflowError). A gains file names its own
-    (``tests/test_hostile_outputs.py``)."""
+    largest float (the conversions raised Python's OverflowError, with a traceback). A gains
+    file names its own (``tests/test_hostile_outputs.py``)."""
     huge = "1" + "0" * 400
-    text = {
-        "simulate": f'scenario = "two_link_S1"\n[run]\nx0 = [{huge}, 0, 0, 0]\n',
-        "sweep": (
-            'scenario = "two_link_S1"\n[random]\n'
-            f'"controller.K1" = {{dist = "uniform", low = 1, high = {huge}}}\n'
-        ),
-    }[command]
     path = tmp_path / "huge.toml"
-    path.write_text(text)
+    if command == "simulate":
+        text = short().to_toml()
+        assert "\nx0 = " not in text
+        path.write_text(f"x0 = [{huge}, 0, 0, 0]\n" + text)
+        where = "x0[0]"
+    else:
+        path.write_text(
+            'scenario = "two_link_S1"\nunit_size = 8\ndraws = 2\nseed = 1\n[random]\n'
+            f'"controller.K1" = {{dist = "uniform", low = 1, high = {huge}}}\n'
+        )
+        where = "random.controller.K1.high"
     argv = {"simulate": ["simulate", str(path)], "sweep": ["sweep", str(path), "--quiet"]}
     assert main([*argv[command], "--out", str(tmp_path / "out")]) == 2
-    where = {"simulate": "run.x0[0]", "sweep": "random.controller.K1.high"}[command]
     one_line_error(capsys, "huge.toml", where, "an integer of 401 digits")
+    # the same file without the huge number is a valid one
+    path.write_text(path.read_text().replace(huge, "2"))
+    assert main([*argv[command], "--out", str(tmp_path / "out")]) == 0
 
 
 @pytest.mark.parametrize(
@@ -90,11 +95,31 @@ def test_an_integer_beyond_the_largest_float_is_refused_naming_where(tmp_path, c
         lambda huge: dt.AbsSineDelay(huge, 0.01, 1.0),
         lambda huge: dt.TwoLinkArm(p1=huge),
         lambda huge: dt.MeasurementNoise(position=huge),
+        lambda huge: short(x0=[huge, 0, 0, 0]),
+        lambda huge: short(error_bound=huge),
+        lambda huge: simulate(
+            dt.TwoLinkArm(),
+            dt.OuterLoop(dt.TwoLinkArm(), K1=1.0, K2=1.0),
+            ConstantDelay(0.01),
+            [0, 0, 0, 0],
+            reference=dt.SinusoidalReference([0.0, 0.0]),
+            t1=huge,
+            dt=1e-3,
+            T_c=1e-2,
+        ),
     ],
-    ids=["ConstantDelay", "AbsSineDelay", "TwoLinkArm", "MeasurementNoise"],
+    ids=[
+        "ConstantDelay",
+        "AbsSineDelay",
+        "TwoLinkArm",
+        "MeasurementNoise",
+        "scenario x0",
+        "scenario error_bound",
+        "simulate t1",
+    ],
 )
 def test_an_integer_beyond_the_largest_float_is_refused_by_the_library(make):
-    with pytest.raises(ValueError, match=r"must be (finite|a number >= 0)"):
+    with pytest.raises(ValueError, match=r"must be (finite|a number (>|>=) 0)"):
         make(10**400)
 
 

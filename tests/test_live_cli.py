@@ -126,6 +126,22 @@ def test_a_session_longer_than_the_nodes_hold_is_refused_before_its_folder_is_ma
     assert not out.exists()
 
 
+@pytest.mark.parametrize("role", ["run", "delay"])
+def test_a_trace_that_starts_after_the_session_is_refused(capsys, tmp_path, signals_kept, role):
+    from delaytrack.scenario import load_builtin
+
+    text = load_builtin(SCENARIO).to_toml()
+    text = text[: text.index("[delay]")] + text[text.index("[reference]") :]
+    scenario = tmp_path / "late.toml"
+    scenario.write_text(
+        text + '\n[delay]\ntype = "trace"\ntimes = [0.5, 2.0]\nvalues = [0.02, 0.03]\n'
+    )
+    out = tmp_path / "out"
+    line = refusal(capsys, role, str(scenario), "--out", str(out), "--duration", "1", "--quiet")
+    assert "starts at t = 0.5 s" in line and "give it a sample at or before" in line
+    assert not out.exists()
+
+
 def test_trust_and_quiet_are_the_options_of_every_command(capsys):
     texts = {}
     for argv in (["simulate", "--help"], ["live", "run", "--help"], ["live", "robot", "--help"]):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import copy
 import json
+import os
 import pickle
 import shutil
 from pathlib import Path
@@ -517,7 +518,62 @@ def test_mujocos_profiling_clock_is_stopped_while_a_run_steps_it_and_given_back_
         assert clock.value == yours
         np.testing.assert_array_equal(alone.x[0], result.x[0])
     finally:
+        mujoco.set_mjcb_time(None)  # the bindings forget the user's clock, then get theirs back
         clock.value = bindings
+
+
+_CONCURRENT = """
+import ctypes, os, sys, threading
+import mujoco
+import numpy as np
+import delaytrack as dt
+from delaytrack.plants import MujocoPlant
+from delaytrack.plants.mujoco.capi import mujoco_library
+
+arm = sys.argv[1]
+clock = ctypes.c_void_p.in_dll(mujoco_library(os.path.dirname(mujoco.__file__)), "mjcb_time")
+plants = [MujocoPlant(arm, stepping="mujoco") for _ in range(2)]
+bindings = clock.value
+# each run its own model: a MuJoCo model's data is written by every evaluation
+controllers = [dt.OuterLoop(MujocoPlant(arm, mass_scale=0.8), K1=16.0, K2=8.0) for _ in range(2)]
+reference = dt.SinusoidalReference([0.0, 0.3, 0.0], amplitude=[[0.5], [0.3], [0.2]],
+                                   frequency=[[1.0], [1.3], [0.7]])
+start = threading.Barrier(2)
+results = [None, None]
+
+def run(i):
+    start.wait()
+    results[i] = dt.simulate(plants[i], controllers[i], dt.ConstantDelay(0.01 * (i + 1)),
+                             np.zeros(6), reference=reference, t1=0.3, dt=1e-3, T_c=0.01,
+                             workers=1, progress=False)
+
+threads = [threading.Thread(target=run, args=(i,)) for i in range(2)]
+for thread in threads:
+    thread.start()
+for thread in threads:
+    thread.join()
+print([r.status_names[0] for r in results], bool(bindings) and clock.value == bindings)
+"""
+
+
+def test_batches_on_two_threads_at_once_stop_the_clock_once_and_give_it_back(tmp_path):
+    """Two simulations start together in a fresh process, where the stopped clock is not yet
+    compiled: it is compiled once, both runs end, and the bindings' clock is back."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "two_batches.py"  # not concurrent.py: the module it would hide
+    script.write_text(_CONCURRENT)
+    for _ in range(3):  # a race: a few fresh processes
+        done = subprocess.run(
+            [sys.executable, str(script), str(ARM)],
+            capture_output=True,
+            text=True,
+            timeout=600,
+            env={**os.environ, "DELAYTRACK_INTERPRET_FIRST": "0"},
+        )
+        assert done.returncode == 0, done.stderr[-2000:]
+        assert done.stdout.strip().splitlines()[-1] == "['ok', 'ok'] True", done.stdout
 
 
 def test_mujocos_warnings_are_python_warnings_and_no_log_file_is_written(tmp_path, monkeypatch):

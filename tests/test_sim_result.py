@@ -155,6 +155,19 @@ def test_a_figure_saved_in_two_formats_keeps_its_layout_engine(tmp_path):
     assert figure.get_layout_engine() is engine  # laid out once for both, then given back
 
 
+def test_a_title_too_long_for_the_layout_is_drawn_without_matplotlibs_warning(tmp_path):
+    """A scenario named with thousands of characters: constrained layout gives up (warnings
+    are errors in this suite) and the figure is drawn in matplotlib's default positions."""
+    from delaytrack.report.figures import png_bytes, save_figure
+
+    figure = Figure(layout="constrained")
+    figure.subplots().plot([0.0, 1.0])
+    figure.suptitle("x" * 5000)
+    paths = save_figure(figure, tmp_path / "long")
+    assert all(p.stat().st_size > 0 for p in paths)
+    assert png_bytes(figure).startswith(b"\x89PNG")
+
+
 def test_a_figure_saved_in_two_formats_is_laid_out_once(tmp_path, monkeypatch):
     import matplotlib
     from matplotlib.figure import Figure

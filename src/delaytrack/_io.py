@@ -104,7 +104,7 @@ _LARGEST_FLOAT = int(sys.float_info.max)
 
 
 def refuse_huge_integers(data: dict) -> None:
-    """Raise :class:`IntegerTooLarge`, naming where (``run.x0[0]``), for an integer of
+    """Raise :class:`IntegerTooLarge`, naming where (``x0[0]``), for an integer of
     ``data`` (read by :func:`toml_data`, so nested at most :data:`MAX_TOML_DEPTH` deep) beyond
     the largest float: TOML's integers have no bound, and every number of a scenario or sweep
     is used as a float or is far smaller (Python's conversion would raise ``OverflowError``)."""

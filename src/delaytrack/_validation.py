@@ -203,7 +203,9 @@ def real_array(name: str, value: object, *, ndim: int | None = None) -> np.ndarr
         ):
             raise TypeError
         array = np.array(given, dtype=float)
-    except (TypeError, ValueError, OverflowError, RecursionError):
+    except OverflowError:  # an integer beyond the largest float
+        raise ArgumentError(name, f"must be finite; got {quoted(value)}") from None
+    except (TypeError, ValueError, RecursionError):
         raise TypeError(f"{name} must be an array of real numbers; got {quoted(value)}") from None
     if ndim is not None and array.ndim != ndim:
         raise ArgumentError(name, f"must be {ndim}-dimensional; got shape {array.shape}")

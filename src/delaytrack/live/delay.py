@@ -53,7 +53,7 @@ from delaytrack.live.messages import CommandMessage, ReleaseMessage
 from delaytrack.live.transport import declare_stream
 from delaytrack.sim.packet_loss import PacketLoss, packet_lost
 
-__all__ = ["DelayNode", "default_lead"]
+__all__ = ["DelayNode", "check_session_delay", "default_lead"]
 
 #: Without commands to release, the node wakes at most this often (seconds) to plan again.
 _HORIZON = 0.1
@@ -73,6 +73,21 @@ def default_lead(dt: float, h_min: float) -> float:
     return max(min(dt / 2, 5e-4), min(2e-3, h_min / 4))
 
 
+def check_session_delay(delay: Any, duration: float) -> None:
+    """Refuse a delay profile whose data do not cover a session of ``duration`` seconds from
+    ``t = 0`` (a trace that starts later or ends sooner; raises ValueError)."""
+    if duration > delay.horizon:
+        raise ValueError(
+            f"the delay profile is defined up to t = {delay.horizon:g} s; the session "
+            f"lasts {duration:g} s (shorten --duration or hold the profile's last value)"
+        )
+    if delay.start > 0.0:
+        raise ValueError(
+            f"the delay profile starts at t = {delay.start:g} s, after the session's start "
+            "t = 0 s; give it a sample at or before 0"
+        )
+
+
 class DelayNode(NodeBase):
     """The delay node (module docstring)."""
 
@@ -81,16 +96,7 @@ class DelayNode(NodeBase):
     def __init__(self, scenario: Any, built: Any, args: Any) -> None:
         super().__init__(scenario, built, args)
         self.delay = built.delay
-        if self.duration > self.delay.horizon:
-            raise ValueError(
-                f"the delay profile is defined up to t = {self.delay.horizon:g} s; the session "
-                f"lasts {self.duration:g} s (shorten --duration or hold the profile's last value)"
-            )
-        if self.delay.start > 0.0:
-            raise ValueError(
-                f"the delay profile starts at t = {self.delay.start:g} s, after the session's "
-                "start t = 0 s; give it a sample at or before 0"
-            )
+        check_session_delay(self.delay, self.duration)
         self.delay.check_run(0.0, self.dt, math.ceil(self.duration / self.dt))
         loss = scenario.simulated_packet_loss
         if getattr(args, "loss", None) is not None:

@@ -169,12 +169,14 @@ def _checked_session(args: Any) -> tuple[Any, Any, float, Path]:
     checked before any node starts (raises ``ScenarioError``, ``ValueError`` or ``OSError``)."""
     from delaytrack._output import check_output_folder
     from delaytrack.live.bridge import bridge_factory
+    from delaytrack.live.delay import check_session_delay
 
     scenario = load_scenario(str(args.scenario), list(args.trust))
     built = scenario.build()
     if scenario.measurement_noise is not None:  # the controller's check, before any node
         scenario.simulated_measurement_noise.params(built.plant.n)
     duration = session_duration(scenario, args.duration)
+    check_session_delay(built.delay, duration)  # as the delay node checks it
     if getattr(args, "bridge", None) is not None:
         bridge_factory(args.bridge)  # the robot node builds and checks the bridge itself
     folder = check_output_folder(args.out, "--out")

@@ -16,10 +16,11 @@ whatever the plant's size.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import traceback
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -322,10 +323,25 @@ def margins_figure(
     return figure
 
 
+@contextlib.contextmanager
+def _layout_given_up_quietly() -> Iterator[None]:
+    """Without matplotlib's warning that its constrained layout gave up: a title or a legend
+    larger than the figure (a name of thousands of characters, dozens of series) leaves no room
+    for the axes, and matplotlib then draws the figure in its default positions, with a warning
+    about its own settings that a user of this toolkit cannot act on. The figure is the same
+    with or without the warning."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings(
+            "ignore", message="constrained_layout not applied", category=UserWarning
+        )
+        yield
+
+
 def png_bytes(figure: Figure) -> bytes:
     """The figure rendered as PNG."""
     buffer = io.BytesIO()
-    figure.savefig(buffer, format="png", dpi=_DPI)
+    with _layout_given_up_quietly():
+        figure.savefig(buffer, format="png", dpi=_DPI)
     return buffer.getvalue()
 
 
@@ -345,7 +361,7 @@ def save_figure(
     try:
         for fmt in formats:
             path = Path(stem).with_suffix(f".{fmt}")
-            with atomic_path(path) as temporary:
+            with atomic_path(path) as temporary, _layout_given_up_quietly():
                 # SVG embeds a date by default; drop it so identical runs give identical files.
                 metadata = {"Date": None} if fmt == "svg" else None
                 figure.savefig(temporary, format=fmt, dpi=_DPI, metadata=metadata)

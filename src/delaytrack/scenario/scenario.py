@@ -69,7 +69,7 @@ def _check_value(key: str, value: object, check: Callable[[object], str | None])
 
 def _all_finite(values: Any) -> str | None:
     """``None`` when every entry of ``values`` (a checked vector) is finite."""
-    return None if all(math.isfinite(value) for value in values) else "must be finite"
+    return None if all(number(value) is None for value in values) else "must be finite"
 
 
 def _plain(value: Any) -> Any:

@@ -54,7 +54,7 @@ from tqdm.auto import tqdm
 
 from delaytrack._compile.disk_cache import source_hash
 from delaytrack._io import finite_numbers
-from delaytrack._spec import named_in_a_file
+from delaytrack._spec import named_in_a_file, number
 from delaytrack._trust import Trust
 from delaytrack._validation import is_integer_at_least, quoted
 from delaytrack._version import __version__
@@ -317,18 +317,9 @@ def _check_key(source: str, key: object) -> str:
 
 
 def _number(where: str, name: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not _finite(value):
+    if number(value) is not None:  # not a number, or not finite as a float
         raise SweepError(f"{where}: '{name}' must be a finite number; got {quoted(value)}")
-    return value
-
-
-def _finite(value: float) -> bool:
-    """Whether the number ``value`` is finite as a float (an integer beyond the largest float
-    is not)."""
-    try:
-        return math.isfinite(value)
-    except OverflowError:
-        return False
+    return value  # type: ignore[return-value]
 
 
 def _draw(key: str, table: object, draws: int, seed: int) -> list[Any]:

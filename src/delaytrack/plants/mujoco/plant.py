@@ -28,6 +28,7 @@ import copy
 import hashlib
 import importlib
 import sys
+import threading
 import unicodedata
 import warnings
 from dataclasses import dataclass, field, fields
@@ -86,11 +87,24 @@ def import_mujoco() -> Any:
     return mujoco
 
 
+#: The warnings MuJoCo gave while this thread read a model file (:class:`MujocoPlant`), or None.
+_reading = threading.local()
+#: MuJoCo's warning that a model file holds a NaN (which it then replaces or keeps).
+_NAN_READ = "XML contains a 'NaN'"
+
+
 def _warn(text: str) -> None:
     """MuJoCo's warning handler: a Python warning, one line placed at MuJoCo (it comes from
     MuJoCo's C code, mostly on one of the engine's threads, not from a line of yours). Nothing
     may raise through MuJoCo's C code (the process would abort), so a warning that a filter
-    turns into an error is printed."""
+    turns into an error is printed. While this thread reads a model file, the warning is also
+    kept for :class:`MujocoPlant` to see, which refuses a file with a NaN instead of warning of
+    it (with a handler of yours installed, such a file is MuJoCo's to read)."""
+    met = getattr(_reading, "met", None)
+    if met is not None:
+        met.append(text)
+        if _NAN_READ in text:
+            return
     try:
         warnings.warn_explicit(
             f"MuJoCo: {text}", RuntimeWarning, "mujoco", 0, module="delaytrack.plants.mujoco"
@@ -281,23 +295,20 @@ class MujocoPlant(ELPlant):
             raise ValueError(f"stepping must be one of {list(STEPPINGS)}; got {self.stepping!r}")
         if not isinstance(self.add_motors, bool):
             raise TypeError(f"add_motors must be true or false; got {self.add_motors!r}")
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            try:
-                model = _load(mujoco, path, self.add_motors)
-            except Exception as error:  # noqa: BLE001 - MuJoCo's own message names the problem
-                message = " ".join(str(error).split())
-                raise ValueError(
-                    f"path {str(path)!r}: MuJoCo could not read it: {message}"
-                ) from None
-        for warning in caught:
-            if "NaN" in str(warning.message):
-                # MuJoCo reads it and goes on: a mass from the body's density, a NaN timestep.
-                raise ValueError(
-                    f"path {str(path)!r}: a number of the file is NaN, for which MuJoCo would "
-                    "put a value of its own or a NaN; give it a value"
-                )
-            warnings.warn_explicit(warning.message, warning.category, warning.filename, 0)
+        _reading.met = []  # what MuJoCo warns of while this thread reads the file (_warn)
+        try:
+            model = _load(mujoco, path, self.add_motors)
+        except Exception as error:  # noqa: BLE001 - MuJoCo's own message names the problem
+            message = " ".join(str(error).split())
+            raise ValueError(f"path {str(path)!r}: MuJoCo could not read it: {message}") from None
+        finally:
+            met, _reading.met = _reading.met, None
+        if any(_NAN_READ in text for text in met):
+            # MuJoCo reads it and goes on: a mass from the body's density, a NaN timestep.
+            raise ValueError(
+                f"path {str(path)!r}: a number of the file is NaN, for which MuJoCo would put "
+                "a value of its own or a NaN; give it a value"
+            )
         joints = self._coordinate_joints(mujoco, model, path)
         self._check(mujoco, model, path, joints)
         if self.stepping == "mujoco":  # a diverging state must reach the simulator, not reset

@@ -5,8 +5,8 @@ which a MuJoCo model's terms kernel calls) for its profiler, ``mjData.timer``: e
 the clock ``mjcb_time`` at its start and at its end when one is installed. MuJoCo's Python
 bindings install one, the steady clock in milliseconds, when they make the first ``mjData`` of
 a process in which none is installed. For a small model these clock reads cost about as much as
-the physics: the three-link arm of ``examples/mujoco_arm`` steps 1.75 times as fast without
-them (``make bench``, MuJoCo 3).
+the physics: the three-link arm of ``examples/mujoco_arm`` steps 1.74 times as fast without
+them (``make bench``, MuJoCo 4.0).
 
 While a simulation runs a MuJoCo model, :func:`profiler_clock_stopped` installs a clock that
 always reads 0 (a function of two machine instructions, compiled once a process by llvmlite,
@@ -25,7 +25,6 @@ import ctypes
 import os
 import threading
 from collections.abc import Iterator
-from functools import cache
 from typing import Any
 
 from delaytrack.plants.mujoco.capi import mujoco_library
@@ -36,21 +35,28 @@ _lock = threading.Lock()
 #: Simulations running with the clock stopped, and the clock they found installed.
 _running = 0
 _before: int | None = None
+#: The stopped clock's execution engine (kept alive with its code) and address, once compiled.
+_compiled: tuple[Any, int] | None = None
 
 
-@cache
-def _stopped_clock() -> tuple[Any, int]:
-    """``double stopped(void) { return 0.0; }`` compiled: ``(its execution engine, kept alive
-    with the code, its address)``."""
-    import llvmlite.binding as llvm
+def _stopped_clock() -> int:
+    """The address of ``double stopped(void) { return 0.0; }``, compiled the first time (the
+    caller holds ``_lock``; llvmlite's global context is numba's, so under numba's compiler
+    lock)."""
+    global _compiled
+    if _compiled is None:
+        import llvmlite.binding as llvm
+        from numba.core.compiler_lock import global_compiler_lock
 
-    llvm.initialize_native_target()
-    llvm.initialize_native_asmprinter()
-    module = llvm.parse_assembly("define double @stopped() {\n  ret double 0.0\n}\n")
-    machine = llvm.Target.from_default_triple().create_target_machine()
-    engine = llvm.create_mcjit_compiler(module, machine)
-    engine.finalize_object()
-    return engine, engine.get_function_address("stopped")
+        with global_compiler_lock:
+            llvm.initialize_native_target()
+            llvm.initialize_native_asmprinter()
+            module = llvm.parse_assembly("define double @stopped() {\n  ret double 0.0\n}\n")
+            machine = llvm.Target.from_default_triple().create_target_machine()
+            engine = llvm.create_mcjit_compiler(module, machine)
+            engine.finalize_object()
+            _compiled = (engine, engine.get_function_address("stopped"))
+    return _compiled[1]
 
 
 @contextlib.contextmanager
@@ -59,8 +65,8 @@ def profiler_clock_stopped(mujoco: Any) -> Iterator[None]:
     ``with`` block runs (module docstring); blocks on several threads may overlap."""
     global _running, _before
     clock = ctypes.c_void_p.in_dll(mujoco_library(os.path.dirname(mujoco.__file__)), "mjcb_time")
-    stopped = _stopped_clock()[1]
     with _lock:
+        stopped = _stopped_clock()
         if _running == 0:
             _before = clock.value
             clock.value = stopped

@@ -13,6 +13,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from delaytrack.delays._kernel import NO_KERNEL
+from delaytrack.plants.base import ELPlant
 from delaytrack.sim._broadcast import stack_padded
 from delaytrack.sim._build import Build
 from delaytrack.sim._kernel_errors import could_not_compile, raised_during_the_run
@@ -106,12 +107,12 @@ def cut(build: Build, runs: Run, settings: Settings, records: Records, progress:
     )
 
 
-def _components(build: Build) -> list:
+def _components(build: Build) -> list[ELPlant]:
     """The plant and the controller's model of each kind in the batch (one of each kind holds
     what its kind asks for while it runs: :meth:`ELPlant.while_running
     <delaytrack.plants.base.ELPlant.while_running>`)."""
     plan = build.plan
-    kinds: dict[type, object] = {}
+    kinds: dict[type, ELPlant] = {}
     for component in (*plan.plants, *(controller.model for controller in plan.controllers)):
         kinds.setdefault(type(component), component)
     return list(kinds.values())

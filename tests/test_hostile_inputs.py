@@ -467,7 +467,9 @@ def test_a_delay_that_would_split_steps_without_end_is_refused(delay):
 
 def test_a_run_of_too_many_ticks_is_told_to_shorten_not_to_slow_its_delay():
     """Every tick's command comes into force once, whatever the delay: beyond the limit by its
-    ticks alone, the advice is about the run, and the counts differ where they are printed."""
+    ticks alone, the advice is about the run, and the counts differ where they are printed.
+    1e5 s at T_c = 1 ms is 10⁸ ticks; a constant delay's bound is the ticks plus one
+    (``delays._kernel.switch_bound``), one more than the limit of 10⁸."""
     arm = dt.TwoLinkArm()
     with pytest.raises(
         ValueError,

@@ -155,14 +155,16 @@ def test_a_figure_saved_in_two_formats_keeps_its_layout_engine(tmp_path):
     assert figure.get_layout_engine() is engine  # laid out once for both, then given back
 
 
-def test_a_title_too_long_for_the_layout_is_drawn_without_matplotlibs_warning(tmp_path):
-    """A scenario named with thousands of characters: constrained layout gives up (warnings
-    are errors in this suite) and the figure is drawn in matplotlib's default positions."""
+def test_a_legend_too_wide_for_the_layout_is_drawn_without_matplotlibs_warning(tmp_path):
+    """A run named with thousands of characters, in a legend beside the axes: constrained layout
+    gives up (warnings are errors in this suite; a title alone that wide is clipped without one)
+    and the figure is drawn in matplotlib's default positions."""
     from delaytrack.report.figures import png_bytes, save_figure
 
     figure = Figure(layout="constrained")
-    figure.subplots().plot([0.0, 1.0])
-    figure.suptitle("x" * 5000)
+    axes = figure.subplots()
+    axes.plot([0.0, 1.0], label="x" * 5000)
+    axes.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0))
     paths = save_figure(figure, tmp_path / "long")
     assert all(p.stat().st_size > 0 for p in paths)
     assert png_bytes(figure).startswith(b"\x89PNG")

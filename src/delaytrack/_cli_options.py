@@ -50,10 +50,11 @@ class OptionParser(argparse.ArgumentParser):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         kwargs.setdefault("allow_abbrev", False)
         super().__init__(*args, **kwargs)
+        self._given: list[str] = []  # the arguments of the last parse, for error()
 
     def error(self, message: str) -> None:  # type: ignore[override]
         missing = re.fullmatch(r"argument (-[^\s/:]+)(?:/\S+)?: expected one argument", message)
-        given = getattr(self, "_given", [])
+        given = self._given
         if missing and missing.group(1) in given[:-1]:
             # argparse takes a value that starts with "-" (-50%) for a flag of its own
             flag = missing.group(1)

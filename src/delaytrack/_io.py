@@ -43,7 +43,6 @@ if TYPE_CHECKING:
 
 __all__ = [
     "IntegerTooLarge",
-    "refuse_huge_integers",
     "MAX_READ_BYTES",
     "TIME_UNITS",
     "TIME_UNIT_NAMES",
@@ -58,6 +57,7 @@ __all__ = [
     "finite_numbers",
     "json_text",
     "named_time_units",
+    "refuse_huge_integers",
     "regular_file",
     "toml_data",
     "write_bytes",
@@ -99,32 +99,25 @@ class IntegerTooLarge(ValueError):
     """A TOML integer beyond the largest float, which no number of a scenario or sweep may be."""
 
 
-#: The largest float, as an integer: a TOML integer beyond it cannot become a float.
-_LARGEST_FLOAT = int(sys.float_info.max)
-
-
-def refuse_huge_integers(data: dict) -> None:
-    """Raise :class:`IntegerTooLarge`, naming where (``x0[0]``), for an integer of
-    ``data`` (read by :func:`toml_data`, so nested at most :data:`MAX_TOML_DEPTH` deep) beyond
-    the largest float: TOML's integers have no bound, and every number of a scenario or sweep
-    is used as a float or is far smaller (Python's conversion would raise ``OverflowError``)."""
-    level: list[tuple[str, dict | list]] = [("", data)]
-    while level:
-        inner = []
-        for where, value in level:
-            if isinstance(value, dict):
-                entries = [(f"{where}.{key}" if where else str(key), v) for key, v in value.items()]
-            else:
-                entries = [(f"{where}[{i}]", item) for i, item in enumerate(value)]
-            for place, item in entries:
-                if isinstance(item, dict | list):
-                    inner.append((place, item))
-                elif type(item) is int and not -_LARGEST_FLOAT <= item <= _LARGEST_FLOAT:
-                    raise IntegerTooLarge(
-                        f"{place}: an integer of {len(str(abs(item)))} digits, beyond the largest "
-                        f"number a float holds ({sys.float_info.max:.4g})"
-                    )
-        level = inner
+def refuse_huge_integers(data: dict | list, where: str = "") -> None:
+    """Raise :class:`IntegerTooLarge`, naming where (``x0[0]``), for an integer of ``data``
+    beyond the largest float: TOML's integers have no bound, and every number of a scenario or
+    sweep is used as a float or is far smaller (Python's conversion would raise
+    ``OverflowError``). ``data`` is read by :func:`toml_data`, so nested at most
+    :data:`MAX_TOML_DEPTH` deep: the walk recurses that deep at most."""
+    entries = data.items() if isinstance(data, dict) else enumerate(data)
+    for key, item in entries:
+        if isinstance(data, list):
+            place = f"{where}[{key}]"
+        else:
+            place = f"{where}.{key}" if where else str(key)
+        if isinstance(item, dict | list):
+            refuse_huge_integers(item, place)
+        elif type(item) is int and abs(item) > sys.float_info.max:  # compared exactly
+            raise IntegerTooLarge(
+                f"{place}: an integer of {len(str(abs(item)))} digits, beyond the largest "
+                f"number a float holds ({sys.float_info.max:.4g})"
+            )
 
 
 #: What a path that is not a regular file is, by its ``st_mode``.

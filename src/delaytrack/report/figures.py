@@ -325,11 +325,11 @@ def margins_figure(
 
 @contextlib.contextmanager
 def _layout_given_up_quietly() -> Iterator[None]:
-    """Without matplotlib's warning that its constrained layout gave up: a title or a legend
-    larger than the figure (a name of thousands of characters, dozens of series) leaves no room
-    for the axes, and matplotlib then draws the figure in its default positions, with a warning
-    about its own settings that a user of this toolkit cannot act on. The figure is the same
-    with or without the warning."""
+    """Without matplotlib's warning that its constrained layout gave up: a legend or labels
+    larger than the figure (a run named with thousands of characters, dozens of series) leave
+    no room for the axes, and matplotlib then draws the figure in its default positions, with
+    a warning about its own settings that a user of this toolkit cannot act on. The figure is
+    the same with or without the warning."""
     with warnings.catch_warnings():
         warnings.filterwarnings(
             "ignore", message="constrained_layout not applied", category=UserWarning

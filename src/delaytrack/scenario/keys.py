@@ -8,6 +8,7 @@ completes with the key's name and the value.
 from __future__ import annotations
 
 import re
+import sys
 from collections.abc import Callable
 from types import MappingProxyType
 
@@ -35,7 +36,10 @@ def error_bound_phrase(value: object) -> str | None:
     """Check an ``error_bound``: a number or a list of numbers, each > 0 (``inf`` allowed)."""
     values = value if isinstance(value, list) else [value]
     valid = values and all(
-        isinstance(v, int | float) and not isinstance(v, bool) and v > 0 and _as_float(v)
+        isinstance(v, int | float)
+        and not isinstance(v, bool)
+        and v > 0
+        and (isinstance(v, float) or v <= sys.float_info.max)  # an int that becomes a float
         for v in values
     )
     if valid:
@@ -44,16 +48,6 @@ def error_bound_phrase(value: object) -> str | None:
         "must be a number > 0 or a list of them, one per coordinate (inf: no bound for that "
         "coordinate)"
     )
-
-
-def _as_float(value: float) -> bool:
-    """Whether the number ``value`` converts to a float (an integer beyond the largest does
-    not)."""
-    try:
-        float(value)
-    except OverflowError:
-        return False
-    return True
 
 
 def input_limits_phrase(value: object) -> str | None:

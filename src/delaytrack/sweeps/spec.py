@@ -319,7 +319,7 @@ def _check_key(source: str, key: object) -> str:
 def _number(where: str, name: str, value: object) -> float:
     if number(value) is not None:  # not a number, or not finite as a float
         raise SweepError(f"{where}: '{name}' must be a finite number; got {quoted(value)}")
-    return value  # type: ignore[return-value]
+    return value  # type: ignore[return-value]  # checked a number by number()
 
 
 def _draw(key: str, table: object, draws: int, seed: int) -> list[Any]:

@@ -85,6 +85,15 @@ def test_bound_text_output(capsys):
     assert "h_m" in out and "0.12487 s" in out and "lambda_min(Q)" in out
 
 
+def test_bound_and_design_show_an_r_just_above_one_as_given(capsys):
+    # six significant digits would print the refused r = 1
+    r = "1.0000000000000002"
+    assert main(["bound", "--k1", "1", "--k2", "1.5", "--r", r]) == 0
+    assert "K2 = 1.5 I, Q = 1 I, beta = 1, r = 1.0000000000000002\n" in capsys.readouterr().out
+    assert main(["design", "--r", r]) == 0
+    assert "r = 1.0000000000000002\n" in capsys.readouterr().out
+
+
 def test_bound_r_of_one_is_refused_without_traceback():
     done = run_cli("bound", "--k1", "1", "--k2", "1", "--q", "1", "--beta", "1", "--r", "1")
     assert done.returncode == 2

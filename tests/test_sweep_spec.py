@@ -157,6 +157,15 @@ def test_the_noise_seed_can_be_drawn_per_run():
         ({"unit_size": True}, "sweep key 'unit_size' must be a positive integer; got True"),
         ({"scenario": "nope"}, "sweep key 'scenario' = 'nope' is neither a file"),
         (
+            {"scenario": "/dev/zero"},
+            "sweep key 'scenario' = '/dev/zero' is not a file but a character device; it must "
+            "be a regular file",
+        ),
+        (
+            {"scenario": "/"},
+            "sweep key 'scenario' = '/' is not a file but a folder; it must be a regular file",
+        ),
+        (
             {"scenario": 3},
             "sweep key 'scenario' must be a scenario file or a shipped scenario name",
         ),

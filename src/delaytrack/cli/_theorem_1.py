@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from delaytrack._cli_options import integer, quiet_argument
-from delaytrack.cli._numbers import numbers, scalar
+from delaytrack.cli._numbers import numbers, scalar, shown_number
 from delaytrack.cli._usage import UsageError, flagged
 
 if TYPE_CHECKING:
@@ -140,8 +140,8 @@ def _diagonal(values: np.ndarray, size: int) -> np.ndarray:
 def _shown(values: np.ndarray) -> str:
     """``"2 I"`` for one value, ``"diag(1, 2)"`` for a list."""
     if len(values) == 1:
-        return f"{values[0]:g} I"
-    return "diag(" + ", ".join(f"{v:g}" for v in values) + ")"
+        return f"{shown_number(values[0])} I"
+    return "diag(" + ", ".join(shown_number(v) for v in values) + ")"
 
 
 def theorem_1(args: argparse.Namespace) -> tuple[RazumikhinBound, str]:
@@ -159,7 +159,7 @@ def theorem_1(args: argparse.Namespace) -> tuple[RazumikhinBound, str]:
     except (ValueError, TypeError) as error:
         raise flagged(error, _FLAGS, given=given) from None
     settings = (
-        f"  n = {n}, K1 = {_shown(k1)}, K2 = {_shown(k2)}, Q = {_shown(q)}, beta = {beta:g}, "
-        f"r = {r:g}"
+        f"  n = {n}, K1 = {_shown(k1)}, K2 = {_shown(k2)}, Q = {_shown(q)}, "
+        f"beta = {shown_number(beta)}, r = {shown_number(r)}"
     )
     return bound, settings

@@ -7,7 +7,7 @@ import json
 from typing import TYPE_CHECKING
 
 from delaytrack._cli_options import integer
-from delaytrack.cli._numbers import scalar
+from delaytrack.cli._numbers import scalar, shown_number
 from delaytrack.cli._theorem_1 import joints, r_and_json_arguments, razumikhin_factor
 from delaytrack.cli._usage import flagged
 
@@ -85,7 +85,7 @@ def _print(design: GainDesign, bandwidth: float | None) -> None:
     print(
         f"  n = {design.n}, K1 = {design.K1[0, 0]:.6g} I, K2 = {design.K2[0, 0]:.6g} I, "
         f"Q = diag(1, {design.Q[-1, -1]:.6g}) per joint, beta = {design.beta:.6g}, "
-        f"r = {design.r:g}"
+        f"r = {shown_number(design.r)}"
     )
     print(
         f"  h_m = {design.h_m:.6g} s ({1e3 * design.h_m:.4g} ms); the paper's K1 = K2 = Q = I, "

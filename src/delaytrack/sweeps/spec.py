@@ -53,7 +53,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from delaytrack._compile.disk_cache import source_hash
-from delaytrack._io import finite_numbers
+from delaytrack._io import finite_numbers, regular_file
 from delaytrack._spec import named_in_a_file, number
 from delaytrack._trust import Trust
 from delaytrack._validation import is_integer_at_least, quoted
@@ -698,6 +698,8 @@ def _load_base(source: object, root: Path, trust: Sequence[str]) -> Scenario:
         return Scenario.from_toml(path, trust=trust)
     if source in builtin_scenario_names():
         return Scenario.from_toml(builtin_scenario_path(source))
+    if path.exists():  # a folder, a device, a FIFO: named as such
+        regular_file(path, "sweep key 'scenario' =", SweepError)
     raise SweepError(
         f"sweep key 'scenario' = {source!r} is neither a file (looked for {str(path)!r}) nor a "
         f"shipped scenario ({builtin_scenario_names()})"

@@ -186,10 +186,20 @@ def _tradeoff_with_a_decision(folder, envelope: str, knowledge: str):
     return out
 
 
+def test_an_envelope_as_long_as_the_runs_is_refused(tmp_path):
+    from types import SimpleNamespace
+
+    from delaytrack.experiments.decision import run_decision
+
+    study = SimpleNamespace(scenario=SimpleNamespace(duration=8.0))
+    with pytest.raises(ArgumentError, match=r"^h_max must be less than the scenario's duration 8 s"):
+        run_decision(study, Envelope(8.0, "exact"), tmp_path)
+
+
 def test_a_small_run_says_no_candidate_qualifies_at_this_size(tmp_path, capsys):
     out = _tradeoff_with_a_decision(tmp_path, "0.1", "±25%")
     printed = capsys.readouterr().out
-    assert "no candidate qualifies at this size: with 1 draws per condition" in printed
+    assert "no candidate qualifies at this size: with 1 draw per condition" in printed
     table = pd.read_csv(out / "decision.csv")
     # AROLC and the outer loop at the true delay, PCONf told 0.075 s and 0.125 s; PCON is PCONf
     assert len(table) == 2 * (1 + 1 + 2)
@@ -199,14 +209,20 @@ def test_a_small_run_says_no_candidate_qualifies_at_this_size(tmp_path, capsys):
     assert "Decision for a delay envelope" in (out / "report.html").read_text()
 
 
-def test_an_envelope_beyond_a_predictors_history_leaves_it_out_and_says_why(tmp_path, capsys):
-    """PCONf cannot keep 1e5 s of commands (more than its 1e7 ticks of 2 ms): the decision goes
-    on without it (it ended in a KeyError)."""
-    out = _tradeoff_with_a_decision(tmp_path, "1e5", "exact")
+def test_an_envelope_beyond_a_predictors_history_leaves_it_out_and_says_why(
+    tmp_path, capsys, monkeypatch
+):
+    """PCONf cannot keep 5 s of commands when its history holds at most 2000 ticks of 2 ms (a
+    limit lowered from 1e7 ticks, which only a run of hours reaches): the decision goes on
+    without it (it ended in a KeyError)."""
+    from delaytrack.controllers import pcon
+
+    monkeypatch.setattr(pcon, "MAX_HISTORY_TICKS", 2000)
+    out = _tradeoff_with_a_decision(tmp_path, "5", "exact")
     assert set(pd.read_csv(out / "decision.csv").controller) == {"arolc", "outer-loop"}
     report = html.unescape((out / "report.html").read_text())
     assert "pconf: under the envelope's largest delay, the scenario's nominal model" in report
-    assert "'controller.history' must be at most 1e+07 controller periods" in report
+    assert "'controller.history' must be at most 2e+03 controller periods" in report
     capsys.readouterr()
 
 

@@ -480,9 +480,14 @@ def test_record_every_decimates_the_full_record() -> None:
     [
         (
             {"T_c": 0.0025, "dt": 0.001},
-            r"T_c must be a positive integer multiple of dt; got \(T_c\)/dt = 2\.5",
+            r"^T_c must be a positive integer multiple of dt; got T_c = 0\.0025, dt = 0\.001 "
+            r"\(T_c/dt = 2\.5\)$",
         ),
-        ({"t1": 1.005}, r"t1 - t0 must be a positive integer multiple of T_c"),
+        (
+            {"t1": 1.005},
+            r"^t1 - t0 must be a positive integer multiple of T_c; got t1 = 1\.005, t0 = 0, "
+            r"T_c = 0\.01 \(\(t1 - t0\)/T_c = 100\.5\)$",
+        ),
         ({"dt": -1e-3}, r"dt must be > 0; got -0\.001"),
         ({"dt": float("nan")}, r"dt must be finite"),
         ({"t1": 0.0}, r"t1 must be later than t0"),

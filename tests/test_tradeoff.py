@@ -133,6 +133,12 @@ def test_command_writes_the_table_figure_and_page(tmp_path, capsys):
         (["--envelope", "0.1", "--knowledge", "often"], "--knowledge must be exact, ±X%"),
         (["--envelope", "0.1", "--knowledge", "150%"], "got '150%'"),
         (["--envelope", "-1"], "--envelope: must be a largest delay > 0 (s); got '-1'"),
+        (  # 300 meant as ms; refused before the trade-off runs
+            ["--envelope", "300"],
+            "--envelope must be less than the scenario's duration 8 s (under a delay that long "
+            "no command reaches the plant); got 300",
+        ),
+        (["--envelope", "8"], "--envelope must be less than the scenario's duration 8 s"),
         (["--knowledge", "exact"], "--knowledge exact needs --envelope H_MAX"),
         (["--decision-draws", "5"], "--decision-draws 5 needs --envelope H_MAX"),
         (

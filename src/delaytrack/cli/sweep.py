@@ -8,6 +8,7 @@ from pathlib import Path
 
 from delaytrack._cli_options import integer, quiet_argument, trust_argument
 from delaytrack._output import check_output_folder, plain_folder_name, record_outputs
+from delaytrack._words import counted
 from delaytrack.cli._scenarios import trusted
 from delaytrack.cli._usage import UsageError, flagged
 
@@ -108,7 +109,8 @@ def run(args: argparse.Namespace) -> int:
     files = write_sweep_outputs(outcome)
     record_outputs(folder, [*files, folder / "runs.parquet", folder / "runs.csv"])
     print(
-        f"{len(spec.runs)} runs done ({outcome.computed} units computed, {outcome.resumed} found "
+        f"{counted(len(spec.runs), 'run')} done ({counted(outcome.computed, 'unit')} computed, "
+        f"{outcome.resumed} found "
         f"finished) in {outcome.seconds:.1f} s on {outcome.executor}"
     )
     for name, reason in outcome.rejected.items():

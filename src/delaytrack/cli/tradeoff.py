@@ -16,6 +16,7 @@ from delaytrack._cli_options import (
     within,
 )
 from delaytrack._output import check_output_folder, plain_folder_name
+from delaytrack._words import counted
 from delaytrack.cli._numbers import numbers
 from delaytrack.cli._scenarios import scenario_source, trusted
 from delaytrack.cli._usage import UsageError, flagged
@@ -108,8 +109,8 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         type=within(decimal, "a largest delay > 0 (s)", lambda v: v > 0),
         default=None,
         metavar="H_MAX",
-        help="decide the controller and gains for delays up to H_MAX s (decision.csv and a "
-        "section of report.html)",
+        help="decide the controller and gains for delays up to H_MAX s, less than the "
+        "scenario's duration (decision.csv and a section of report.html)",
     )
     command.add_argument(
         "--knowledge",
@@ -202,6 +203,11 @@ def run(args: argparse.Namespace) -> int:
     except SweepError as error:
         raise flagged(error) from None
     scenario = Scenario.from_toml(scenario_source(args.scenario), trust=trusted(args))
+    if envelope is not None:  # before the trade-off runs, not after
+        try:
+            envelope.check_run_length(scenario.duration)
+        except ValueError as error:
+            raise flagged(error, _ENVELOPE_FLAGS) from None
     folder = _folder(args, scenario.name)
     try:
         study = run_tradeoff(
@@ -238,9 +244,10 @@ def run(args: argparse.Namespace) -> int:
     files = write_tradeoff(study, folder, decision)
     front = study.front
     print(
-        f"tradeoff {scenario.name}: {len(study.omegas)} gain points x {len(study.families)} "
-        f"controllers, {study.draws} draw{'s' if study.draws > 1 else ''} each, "
-        f"{study.seconds:.1f} s ({study.computed} units computed, {study.resumed} resumed)"
+        f"tradeoff {scenario.name}: {counted(len(study.omegas), 'gain point')} x "
+        f"{counted(len(study.families), 'controller')}, {counted(study.draws, 'draw')} each, "
+        f"{study.seconds:.1f} s ({counted(study.computed, 'unit')} computed, {study.resumed} "
+        "resumed)"
     )
     ae_unit = f" {study.ae_unit}" if study.ae_unit else ""
     print("Pareto front (empirical margin, median AE):")

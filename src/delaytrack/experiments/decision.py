@@ -146,6 +146,17 @@ class Envelope:
             )
         return cls(h_max, "within", float(match[1]) / 100.0)
 
+    def check_run_length(self, duration: float) -> None:
+        """Refuse an envelope whose largest delay is not shorter than the runs' ``duration`` (s):
+        under it no command would reach the plant, and every candidate would run open loop
+        alike."""
+        if self.h_max >= duration:
+            raise ArgumentError(
+                "h_max",
+                f"must be less than the scenario's duration {duration:g} s (under a delay that "
+                f"long no command reaches the plant); got {self.h_max:g}",
+            )
+
     @property
     def delays(self) -> tuple[float, ...]:
         """The constant true delays of the conditions (s)."""
@@ -519,7 +530,7 @@ def run_decision(
         The trade-off: its scenario, gain points, controllers, rule of staying on the path,
         draws' distributions and seed.
     envelope : Envelope
-        The delay envelope.
+        The delay envelope; its ``h_max`` must be less than the scenario's duration.
     out : path
         Folder of the conditions' sweep (``out/decision-sweep``: parts, resumable).
     draws : int, optional
@@ -533,6 +544,7 @@ def run_decision(
     start = time.perf_counter()
     if draws is not None and not is_integer_at_least(draws, 1):
         raise ArgumentError("draws", f"must be an integer >= 1; got {draws!r}")
+    envelope.check_run_length(study.scenario.duration)
     scenario = study.scenario.replace(delay={"type": "constant", "h": envelope.h_max})
     history = max(envelope.h_max, *envelope.told)
     tables, left_out = family_tables(scenario, study.zeta, study.omegas, history)

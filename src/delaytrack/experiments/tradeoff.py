@@ -74,6 +74,7 @@ import pandas as pd
 from delaytrack._output import claim_output_folder
 from delaytrack._result_columns import shared_unit
 from delaytrack._validation import ArgumentError, is_integer_at_least, positive_scalar
+from delaytrack._words import counted
 from delaytrack.analysis import exact_delay_margin, razumikhin_bound
 from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
 from delaytrack.analysis.razumikhin import PAPER_R as R
@@ -646,7 +647,8 @@ def drawn_runs(
         unit_size=UNIT_SIZE,
         progress=progress,
     )
-    _say(progress, f"draws: {len(spec.runs)} runs ({len(labels)} points x {draws} draws)")
+    points = f"{counted(len(labels), 'point')} x {counted(draws, 'draw')}"
+    _say(progress, f"draws: {counted(len(spec.runs), 'run')} ({points})")
     folder = claim_output_folder(out)
     outcome = run_sweep(spec, folder / name, executor=executor, progress=progress)
     runs = outcome.runs.sort_values("run").reset_index(drop=True)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
+from delaytrack._words import counted
 from delaytrack.units import with_unit
 
 if TYPE_CHECKING:
@@ -71,7 +72,8 @@ def refusal_text(decision: Decision) -> str | None:
     closest = refused.closest
     if refused.too_few_draws or closest is None:
         return (
-            f"no candidate qualifies at this size: with {refused.draws} draws per condition the "
+            f"no candidate qualifies at this size: with {counted(refused.draws, 'draw')} per "
+            "condition the "
             f"Wilson lower bound cannot exceed n/(n + z²) = {refused.ceiling:.3f} "
             f"< {decision.required_share:g} even with every robot on the path; at least "
             f"{decision.draws_needed} draws are needed"

@@ -14,6 +14,7 @@ import pandas as pd
 from delaytrack._io import write_frame
 from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack._version import __version__
+from delaytrack._words import counted
 from delaytrack.report.decision import (
     candidates_table,
     conditions_text,
@@ -68,7 +69,8 @@ def decision_sentence(case: str, decision: Decision) -> str:
     sentence = (
         f"{name}: use {_choice(winner)}{edge}; its worst-case AE is {winner.worst_ae:.3g}{unit} "
         f"and at least {100 * winner.worst_share_low:.1f} % of drawn robots stay on the path in "
-        f"every condition (Wilson 95 % lower bound, {decision.draws} draws per condition)"
+        f"every condition (Wilson 95 % lower bound, {counted(decision.draws, 'draw')} per "
+        "condition)"
     )
     if second is None:
         return f"{sentence}; no other controller qualifies."

@@ -14,6 +14,7 @@ from matplotlib.figure import Figure
 
 from delaytrack._io import write_frame
 from delaytrack._output import record_outputs
+from delaytrack._words import counted
 from delaytrack.report.figures import save_figure
 from delaytrack.report.html import HtmlReport
 
@@ -568,7 +569,7 @@ def _size_text(study: RobustnessStudy) -> str:
         )
         + f"; {study.size.knowledge} per delay-knowledge case, {study.size.claims} per claims "
         "case); "
-        f"{study.computed} work units computed and {study.resumed} resumed in "
+        f"{counted(study.computed, 'work unit')} computed and {study.resumed} resumed in "
         f"{study.seconds:.1f} s."
     )
 

@@ -26,6 +26,7 @@ from matplotlib.figure import Figure
 from delaytrack import _result_columns as result_columns
 from delaytrack._io import write_frame
 from delaytrack._version import __version__
+from delaytrack._words import counted
 from delaytrack.report.figures import save_figure
 from delaytrack.report.html import HtmlReport
 from delaytrack.sweeps.runner import SweepOutcome, folder_lock
@@ -204,7 +205,7 @@ def sweep_section(
             ),
             "runs": f"{len(spec.runs)} in {len(spec.units())} units of up to {spec.unit_size}",
             "this call": (
-                f"{outcome.computed} units computed, {outcome.resumed} found finished, "
+                f"{counted(outcome.computed, 'unit')} computed, {outcome.resumed} found finished, "
                 f"{outcome.seconds:.1f} s wall time"
             ),
             "executor": outcome.executor,

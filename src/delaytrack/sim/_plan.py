@@ -256,8 +256,15 @@ def _times(
             f"{max(abs(t0), abs(t1)):g} s are spaced {max(abs(t0), abs(t1)) * 2.2e-16:.2g} s apart "
             f"in double precision, not far below dt = {dt:g} s; start the run at t0 = 0"
         )
-    steps_per_tick = _integer_ratio("T_c", T_c, dt, "dt")
-    n_ticks = _integer_ratio("t1 - t0", t1 - t0, T_c, "T_c", scale=max(abs(t0), abs(t1)))
+    steps_per_tick = _integer_ratio("T_c", T_c, dt, "dt", f"T_c = {T_c:g}, dt = {dt:g}")
+    n_ticks = _integer_ratio(
+        "t1 - t0",
+        t1 - t0,
+        T_c,
+        "T_c",
+        f"t1 = {t1:g}, t0 = {t0:g}, T_c = {T_c:g}",
+        scale=max(abs(t0), abs(t1)),
+    )
     if n_ticks * steps_per_tick > MAX_STEPS:
         raise ValueError(
             f"t1 - t0 must be at most {MAX_STEPS:.0e} plant steps of dt per run (about a "
@@ -571,12 +578,17 @@ def _check_memory(plan: Plan) -> None:
         )
 
 
-def _integer_ratio(name: str, value: float, unit: float, what: str, scale: float = 0.0) -> int:
+def _integer_ratio(
+    name: str, value: float, unit: float, what: str, given: str, scale: float = 0.0
+) -> int:
+    """``value / unit`` as a positive integer, or a ValueError naming ``name``, the values
+    ``given`` (their text) and the ratio."""
     count = integer_multiple(value, unit, scale=scale)
     if count is None:
+        ratio = name if name.isidentifier() else f"({name})"
         raise ValueError(
-            f"{name} must be a positive integer multiple of {what}; "
-            f"got ({name})/{what} = {value / unit:.12g}"
+            f"{name} must be a positive integer multiple of {what}; got {given} "
+            f"({ratio}/{what} = {value / unit:.12g})"
         )
     return count
 

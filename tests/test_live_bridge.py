@@ -84,6 +84,16 @@ def recorded(scenario, dt):
     return Recorded(example.make_bridge(scenario, dt), "recorded.json")
 
 
+class JammedBrakes(Recorded):
+    def close(self):
+        super().close()
+        raise RuntimeError("brakes jammed")
+
+
+def jammed_brakes(scenario, dt):
+    return JammedBrakes(example.make_bridge(scenario, dt), "jammed.json")
+
+
 def failing(scenario, dt):
     return Recorded(example.make_bridge(scenario, dt), "failing.json", fail_at=0.3)
 
@@ -170,6 +180,8 @@ def sessions(bridges_file):
                       "--out", root / "good", "--quiet"),
         "failing": _live("run", SCENARIO, "--duration", "3", "--bridge", f"{bridge}failing",
                          "--out", root / "failing", "--quiet"),
+        "jammed_brakes": _live("run", SCENARIO, "--duration", "1", "--bridge",
+                               f"{bridge}jammed_brakes", "--out", root / "jammed", "--quiet"),
         "not_a_bridge": _live("run", SCENARIO, "--duration", "3", "--bridge",
                               f"{bridge}not_a_bridge", "--out", root / "none", "--quiet"),
         "no_file": _live("run", SCENARIO, "--bridge", f"{root}/nothing.py:make",
@@ -189,6 +201,22 @@ def test_a_session_with_the_example_bridge_runs_and_every_node_exits_cleanly(ses
     assert summary["exit_codes"] == {"robot": 0, "delay": 0, "controller": 0}
     robot = json.loads((root / "good" / "robot.json").read_text())
     assert robot["bridge"].endswith("bridges.py:recorded") and robot["failure"] is None
+
+
+def test_a_bridge_whose_close_raises_fails_the_node_in_one_line_with_its_tables_written(
+    sessions,
+):
+    root, results = sessions
+    _stdout, stderr, code = results["jammed_brakes"]
+    folder = root / "jammed"
+    assert code == 1 and "Traceback" not in stderr.decode(), stderr.decode()
+    assert [line for line in _errors(stderr) if "close()" in line] == [
+        "error: JammedBrakes.close() raised RuntimeError: brakes jammed; the robot may still "
+        "hold its last input"
+    ]
+    robot = json.loads((folder / "robot.json").read_text())
+    assert robot["stopped_by"] == "failure" and "brakes jammed" in robot["failure"]
+    assert len(_rows(folder / "states.csv")) > 0 and (folder / "report.html").is_file()
 
 
 def test_the_bridge_is_written_the_released_commands_under_the_delay_rule_in_order(sessions):
@@ -283,7 +311,7 @@ def test_a_bad_bridge_is_refused_in_one_line_with_exit_code_2(sessions, name):
         ("wrong_shapes", "read_state returned q of shape (2,) and q̇ of shape (2,)"),
         ("not_finite", "read_state returned a state that is not finite"),
         ("raises", "raises(scenario, dt) raised RuntimeError: no robot on /dev/ttyUSB0"),
-        ("missing", "has no function 'missing' (its functions: failing, not_a_bridge"),
+        ("missing", "has no function 'missing' (its functions: failing, jammed_brakes, not_a_bridge"),
     ],
 )
 def test_bridge_errors_name_the_option_the_value_and_what_is_valid(

@@ -57,6 +57,40 @@ def test_collect_names_the_files_a_folder_lacks(tmp_path):
 
 
 @pytest.mark.parametrize(
+    ("scenario", "edit", "message"),
+    [
+        ("robot_S1", None, "the robot node ran another scenario than robot_S1 (they differ in "
+         "plant, coordinates, T_c); give the scenario file the nodes ran"),
+        ("two_link_S3", None, "(they differ in the rest of the scenario)"),
+        (SCENARIO, lambda f: (f / "robot.json").write_text("{bad"), "robot.json is not a node's "
+         "record (not JSON"),
+        (SCENARIO, lambda f: (f / "delay.json").write_text("[1, 2]"), "delay.json is not a "
+         "node's record: it holds no JSON table"),
+        (SCENARIO, lambda f: (f / "ticks.csv").write_text("k,t_s\n1,0\n"), "ticks.csv: no "
+         "column 'send_s'"),
+        (SCENARIO, lambda f: _edit_cell(f / "releases.csv", "seq", "x"), "releases.csv: column "
+         "'seq' holds 'x', not an index"),
+    ],
+)  # fmt: skip
+def test_collect_refuses_another_scenario_or_a_damaged_file_in_one_line(
+    folder, tmp_path, scenario, edit, message
+):
+    """Before it writes anything: the folder's scenario.toml is the one the nodes ran."""
+    copy = tmp_path / "session"
+    shutil.copytree(folder, copy)
+    for name in ("scenario.toml", "summary.json"):
+        (copy / name).unlink(missing_ok=True)
+    if edit is not None:
+        edit(copy)
+    done = subprocess.run(
+        [*PYTHON, "collect", str(copy), scenario], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    assert done.stderr.count("\n") == 1 and message in done.stderr, done.stderr
+    assert not (copy / "scenario.toml").exists() and not (copy / "summary.json").exists()
+
+
+@pytest.mark.parametrize(
     ("edit", "message"),
     [
         (lambda f: (f / "states.csv").unlink(), "states.csv is missing or has no rows"),

@@ -24,6 +24,7 @@ import tempfile
 import threading
 import time
 from collections import deque
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -43,6 +44,8 @@ from delaytrack.live.transport import Handshake, HandshakeError, open_session, s
 from delaytrack.sim.simulate import MAX_STEPS, physical_memory
 
 __all__ = [
+    "LAUNCHER_PID",
+    "ROLE_FILES",
     "NodeBase",
     "Received",
     "StopFlag",
@@ -50,6 +53,7 @@ __all__ = [
     "load_scenario",
     "percentile",
     "record_node_files",
+    "remove_files",
     "run_node",
     "session_duration",
     "session_files",
@@ -64,6 +68,18 @@ BYTES_PER_STEP = 1024
 #: robot's state), 2 refused (a usage error, a scenario that differs from a peer's, no peer in
 #: time), 130 stopped by SIGINT.
 EXIT_OK, EXIT_FAILED, EXIT_REFUSED, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+#: The files each node writes into its folder: a session that starts removes those of its role
+#: that an earlier session left there, so that no table of that session is taken for its own.
+ROLE_FILES = {
+    "controller": ("controller.json", "controller.mcap", "ticks.csv"),
+    "delay": ("delay.json", "delay.mcap", "releases.csv", "release_events.csv"),
+    "robot": ("robot.json", "robot.mcap", "steps.csv", "states.csv", "applied.csv"),
+}
+
+#: The environment variable by which ``delaytrack live run`` gives its nodes its process id:
+#: a node it started stops (as on SIGTERM) when the launcher is gone, killed or not.
+LAUNCHER_PID = "DELAYTRACK_LIVE_LAUNCHER_PID"
 
 
 class StopFlag:
@@ -194,6 +210,33 @@ def claim_node_folder(out: str) -> Path:
     """
     with _folder_turn(out):
         return claim_output_folder(check_output_folder(out, "--out"))
+
+
+def remove_files(folder: Path, names: Iterable[str]) -> None:
+    """Remove the files ``names`` (relative to ``folder``) that exist, in turn with the nodes
+    that share the folder."""
+    with _folder_turn(str(folder)):
+        for name in names:
+            (folder / name).unlink(missing_ok=True)
+
+
+#: ``prctl``'s option that sets the signal a process gets when its parent ends (linux/prctl.h).
+_PR_SET_PDEATHSIG = 1
+
+
+def end_with_launcher(stop: StopFlag) -> None:
+    """In a node started by ``delaytrack live run`` (:data:`LAUNCHER_PID` set): ask the kernel
+    for SIGTERM when the launcher ends (Linux's ``PR_SET_PDEATHSIG``), and stop at once if it
+    has ended already, so that no node outlives a launcher that was killed."""
+    launcher = os.environ.get(LAUNCHER_PID)
+    if not launcher:
+        return
+    import ctypes
+
+    with contextlib.suppress(OSError, AttributeError):  # not Linux: the check below only
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+    if str(os.getppid()) != launcher:
+        stop.set(signal.SIGTERM)
 
 
 def session_files(folder: Path) -> list[Path]:
@@ -352,6 +395,7 @@ def run_node(node_class: type[NodeBase], args: Any) -> int:
         return EXIT_REFUSED
     stop = StopFlag()
     stop.install()
+    end_with_launcher(stop)
     try:
         return _run_node(node_class, args, stop)
     finally:
@@ -402,6 +446,7 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
             print(f"error: {error}", file=sys.stderr)
             return EXIT_REFUSED
         node.t0 = t0
+        remove_files(node.out, ROLE_FILES[node.role])  # an earlier session's, if any
         try:
             node.loop(t0, stop, handshake)
         finally:
@@ -412,6 +457,7 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
         assert offset is not None  # the handshake agreed t0, so it knows the clock offset
         summary.update(offset.summary())
         summary["realtime_priority"] = getattr(args, "realtime", None)
+        summary["scenario_hashes"] = node.hashes  # what live collect checks its scenario by
         summary["stopped_by"] = (
             signal.Signals(stop.signal).name
             if stop.signal

@@ -3,27 +3,62 @@
 from __future__ import annotations
 
 import csv
+import json
 import math
+import re
 from pathlib import Path
 from typing import Any
 
 from delaytrack._io import regular_file
 
-__all__ = ["ms", "number", "read_rows", "required_rows"]
+__all__ = ["index_cell", "ms", "node_record", "number", "read_rows", "required_rows"]
 
 
-def read_rows(path: Path) -> list[dict[str, str]]:
+def read_rows(path: Path, columns: tuple[str, ...] = ()) -> list[dict[str, str]]:
     """The rows of a CSV table of the session folder (none when the file is missing); a file
     that is not a regular file (:func:`~delaytrack._io.regular_file`; its size is the session's,
-    which the session's length bounds) or not UTF-8 text is a ValueError naming it."""
+    which the session's length bounds), not UTF-8 text or without one of ``columns`` is a
+    ValueError naming it."""
     if not path.exists():
         return []
     regular_file(path, "session table", largest=None)
     try:
         with open(path, newline="", encoding="utf-8") as handle:
-            return list(csv.DictReader(handle))
+            reader = csv.DictReader(handle)
+            rows = list(reader)
     except (UnicodeDecodeError, csv.Error) as error:
         raise ValueError(f"session table {str(path)!r} is not a CSV table ({error})") from None
+    missing = [column for column in columns if column not in (reader.fieldnames or ())]
+    if missing:
+        raise ValueError(
+            f"{path}: no column {missing[0]!r} (it has {list(reader.fieldnames or ())}); a "
+            "session folder written by delaytrack live run (or a node) holds the table whole"
+        )
+    return rows
+
+
+def index_cell(row: dict[str, str], column: str, path: Path) -> int:
+    """The integer index in ``column`` of a session table's ``row``, or a ValueError naming
+    the table."""
+    text = row.get(column) or ""
+    if not re.fullmatch(r"[0-9]+", text.strip()):  # ASCII digits, as every number read
+        raise ValueError(f"{path}: column {column!r} holds {text[:20]!r}, not an index")
+    return int(text)
+
+
+def node_record(path: Path) -> dict[str, Any] | None:
+    """A node's record (``<role>.json``, a JSON table), None when the file is missing, or a
+    ValueError naming it."""
+    if not path.exists():
+        return None
+    regular_file(path, "node record")
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"{path} is not a node's record (not JSON: {error})") from None
+    if not isinstance(record, dict):
+        raise ValueError(f"{path} is not a node's record: it holds no JSON table")
+    return record
 
 
 def required_rows(path: Path, columns: tuple[str, ...]) -> list[dict[str, str]]:

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import json
 import math
-import re
 import sys
 from dataclasses import dataclass
 from functools import cached_property
@@ -38,7 +37,7 @@ import numpy as np
 
 from delaytrack._io import json_text, regular_file, write_text
 from delaytrack.live._node import session_files
-from delaytrack.live._tables import number, read_rows, required_rows
+from delaytrack.live._tables import index_cell, number, read_rows, required_rows
 from delaytrack.live.log import write_csv
 from delaytrack.live.report import format_agreement, write_report
 
@@ -70,12 +69,13 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     t1 = _replayed_duration(folder, scenario.dt, scenario.T_c)
     trace = _realised_delay(folder, scenario.dt)
     states = {
-        _index(r, "j", folder / "states.csv"): r
+        index_cell(r, "j", folder / "states.csv"): r
         for r in required_rows(folder / "states.csv", ("j",))
     }
     names = [k for k in next(iter(states.values())) if k not in ("j", "t_s")][: built.plant.n]
     ticks = {
-        _index(r, "k", folder / "ticks.csv"): r for r in required_rows(folder / "ticks.csv", ("k",))
+        index_cell(r, "k", folder / "ticks.csv"): r
+        for r in required_rows(folder / "ticks.csv", ("k",))
     }
     # A session folder from before the controller measured recorded no noise: it read the truth.
     noise_spec = controller_node.get("measurement_noise")
@@ -108,14 +108,6 @@ def _session_nodes(path: Path) -> dict[str, Any]:
             "(as delaytrack live run and live collect write it)"
         )
     return nodes
-
-
-def _index(row: dict[str, str], column: str, path: Path) -> int:
-    """The integer index in ``column`` of a session table's ``row``."""
-    text = row.get(column) or ""
-    if not re.fullmatch(r"[0-9]+", text.strip()):  # ASCII digits, as every number read
-        raise ValueError(f"{path}: column {column!r} holds {text[:20]!r}, not a tick index")
-    return int(text)
 
 
 def _replayed_duration(folder: Path, dt: float, T_c: float) -> float:

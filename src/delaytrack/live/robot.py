@@ -498,10 +498,21 @@ class RobotNode(NodeBase):
         self._stop.set()
 
     def close(self) -> None:
-        """Close the bridge (once)."""
-        if not self._closed and hasattr(self, "bridge"):
-            self._closed = True
+        """Close the bridge (once). A bridge whose ``close`` raises is said on stderr in one line
+        and ends the node as a failure (exit code 1), its log and tables written."""
+        if self._closed or not hasattr(self, "bridge"):
+            return
+        self._closed = True
+        try:
             self.bridge.close()
+        except Exception as error:  # noqa: BLE001 - the bridge is the user's code
+            what = f"{type(self.bridge).__name__}.close() raised {type(error).__name__}: {error}"
+            self.failure = self.failure or what.replace("\n", " ")
+            print(
+                f"error: {self.failure}; the robot may still hold its last input",
+                file=sys.stderr,
+                flush=True,
+            )
 
     def _announce(self, text: str) -> None:
         """A first compile is said on stderr even with --quiet (it may take a minute)."""

@@ -25,17 +25,25 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from delaytrack._io import json_text, write_text
-from delaytrack.live._node import load_scenario, percentile, session_duration, session_files
-from delaytrack.live._tables import ms, number, read_rows
+from delaytrack.live._node import (
+    LAUNCHER_PID,
+    ROLE_FILES,
+    load_scenario,
+    percentile,
+    remove_files,
+    session_duration,
+    session_files,
+)
+from delaytrack.live._tables import index_cell, ms, node_record, number, read_rows
 from delaytrack.live.log import write_csv
 from delaytrack.live.status import StatusWatch
+from delaytrack.live.transport import differing_parts, scenario_hashes
 
 __all__ = ["collect", "run_session"]
 
@@ -135,6 +143,7 @@ def run_session(args: Any) -> int:
         print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
         return 2
     claim_output_folder(folder)
+    _remove_earlier_session(folder)
     # The nodes read the scenario as written here, so a shipped name and the replay agree.
     scenario.to_toml(folder / "scenario.toml")
     ports = _free_ports(3) if args.port is None else [args.port + i for i in range(3)]
@@ -148,12 +157,26 @@ def run_session(args: Any) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     commands = node_commands(args, folder, ports, session, watched)
-    codes, interrupted, started = _run_nodes(
+    codes, interrupted, started, (stuck, why) = _run_nodes(
         commands, folder, watch, args.handshake_timeout, duration
     )
+    for role in stuck:
+        print(
+            f"error: the {role} node did not end in time ({why}): it was stopped (SIGTERM, "
+            f"then SIGKILL); its tables may be missing, {role}.mcap holds what it logged",
+            file=sys.stderr,
+        )
     failed = {role: code for role, code in codes.items() if code not in (0,)}
     if failed and not interrupted and not any((folder / f"{r}.mcap").exists() for r in ROLES):
-        return max(failed.values())  # refused before the start, said by the node: no session
+        # No session: a node refused before the start (said by the node) or was killed.
+        killed = [_exit_text(role, code) for role, code in failed.items() if code < 0]
+        if killed:
+            print(
+                f"error: node(s) {', '.join(killed)} ended before the session started",
+                file=sys.stderr,
+            )
+            return 1
+        return max(failed.values())
     summary = collect(folder, scenario, built)
     summary["exit_codes"] = codes
     summary["wall_s"] = time.monotonic() - started
@@ -162,6 +185,28 @@ def run_session(args: Any) -> int:
     if not args.quiet or failed:
         print(format_summary(summary, folder))
     return _session_exit_code(interrupted, failed, report_failed)
+
+
+#: The files a session's launcher writes besides the nodes' (``replay`` writes the last two).
+SESSION_FILES = (
+    "scenario.toml",
+    "summary.json",
+    "delays.csv",
+    "metrics.csv",
+    "report.html",
+    "replay.csv",
+    "replay.json",
+)
+
+
+def _remove_earlier_session(folder: Path) -> None:
+    """Remove what an earlier session left in ``folder`` (the files its record lists, and any
+    file of a session not recorded), so that none of its tables is taken for this one's."""
+    from delaytrack._output import record_outputs
+
+    record_outputs(folder, [])
+    names = [*SESSION_FILES, *(name for files in ROLE_FILES.values() for name in files)]
+    remove_files(folder, names)
 
 
 def _checked_session(args: Any) -> tuple[Any, Any, float, Path]:
@@ -189,10 +234,11 @@ def _run_nodes(
     watch: StatusWatch | None,
     handshake_timeout: float,
     duration: float,
-) -> tuple[dict[str, int], list[int], float]:
-    """Start the nodes, pass SIGINT/SIGTERM on to them as SIGTERM and wait for their end (at
-    the latest ``handshake_timeout + duration + 30`` s after the start); return their exit
-    codes, the signals that interrupted the session and its start on the monotonic clock."""
+) -> tuple[dict[str, int], list[int], float, tuple[list[str], str]]:
+    """Start the nodes, pass SIGINT/SIGTERM on to them as SIGTERM and wait for their end;
+    return their exit codes, the signals that interrupted the session, its start on the
+    monotonic clock and the nodes stopped for not ending in time, with why
+    (:func:`_wait_for_nodes`)."""
     processes: dict[str, subprocess.Popen[bytes]] = {}
     interrupted: list[int] = []
 
@@ -203,17 +249,26 @@ def _run_nodes(
     previous = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM)}
     started = time.monotonic()
     try:
+        # A node stops when this process ends, even killed (:func:`end_with_launcher`).
+        environment = {**os.environ, LAUNCHER_PID: str(os.getpid())}
         for role in ROLES:
-            processes[role] = subprocess.Popen(commands[role])
+            processes[role] = subprocess.Popen(commands[role], env=environment)
         limit = started + handshake_timeout + duration + 30.0
-        _wait_for_nodes(processes, folder, watch, limit, forward)
+        stuck = _wait_for_nodes(processes, folder, watch, limit, ending_grace(duration))
         codes = {role: process.wait() for role, process in processes.items()}
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
         if watch is not None:
             watch.close()
-    return codes, interrupted, started
+    return codes, interrupted, started, stuck
+
+
+def ending_grace(duration: float) -> float:
+    """Seconds a node may take to end after another node of a session of ``duration`` seconds
+    ended (or the session was told to stop): 30 s and 5 % of the session, for writing its
+    tables."""
+    return 30.0 + 0.05 * duration
 
 
 def _wait_for_nodes(
@@ -221,22 +276,32 @@ def _wait_for_nodes(
     folder: Path,
     watch: StatusWatch | None,
     limit: float,
-    forward: Callable[[int, Any], None],
-) -> None:
-    """Wait while any node runs, showing the status: a node that ended early ends the session,
-    and past ``limit`` (monotonic clock) the nodes are stopped (``forward``), 5 s on killed."""
+    grace: float,
+) -> tuple[list[str], str]:
+    """Wait while any node runs, showing the status: a node that ended early ends the session.
+    A node still running ``grace`` seconds after another ended (the session over, or stopped),
+    or past ``limit`` (monotonic clock), is stopped: SIGTERM, then SIGKILL 5 s on. Returns the
+    roles stopped so and why."""
     ended = False
     exited: set[str] = set()  # the nodes whose end has been looked at (once each)
+    deadline, why = limit, "the session's end, its handshake time and 30 s passed"
     while any(p.poll() is None for p in processes.values()):
-        if time.monotonic() > limit:
-            forward(signal.SIGTERM, None)
-            time.sleep(5.0)
+        now = time.monotonic()
+        if now > deadline:
+            stuck = [role for role, p in processes.items() if p.poll() is None]
+            _terminate(processes)
+            given_up = time.monotonic() + 5.0
             for process in processes.values():
-                if process.poll() is None:
+                try:
+                    process.wait(timeout=max(0.0, given_up - time.monotonic()))
+                except subprocess.TimeoutExpired:
                     process.kill()
-            return
+            return stuck, why
         newly = [r for r, p in processes.items() if r not in exited and p.poll() is not None]
         exited.update(newly)
+        if newly and now + grace < deadline:  # the others end about as soon, or are stopped
+            deadline = now + grace
+            why = f"{grace:g} s after the {newly[0]} node ended"
         if not ended and any(_ended_early(folder, r, processes[r].poll()) for r in newly):
             # A node that failed, refused or was stopped ends the session: the others stop
             # (once: a second SIGTERM could reach a node exiting, without its handler).
@@ -245,6 +310,7 @@ def _wait_for_nodes(
         if watch is not None:
             watch.show()
         time.sleep(0.05)
+    return [], ""
 
 
 def _terminate(processes: dict[str, subprocess.Popen[bytes]]) -> None:
@@ -318,13 +384,14 @@ def collect_main(args: Any) -> int:
             )
         scenario = load_scenario(str(args.scenario), list(args.trust))
         built = scenario.build()
+        _check_nodes_ran(folder, scenario_hashes(scenario, built.plant), str(args.scenario))
+        summary = collect(folder, scenario, built)
     except (ScenarioError, ValueError, OSError) as error:
         print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
         return 2
     scenario.to_toml(folder / "scenario.toml")
-    summary = collect(folder, scenario, built)
     summary["stopped_by"] = {
-        role: json.loads((folder / f"{role}.json").read_text()).get("stopped_by") for role in ROLES
+        role: (summary["nodes"][role] or {}).get("stopped_by") for role in ROLES
     }
     report_failed = _write_summary_and_report(folder, scenario, summary)
     if not args.quiet:
@@ -332,15 +399,42 @@ def collect_main(args: Any) -> int:
     return 1 if report_failed else 0
 
 
+def _check_nodes_ran(folder: Path, hashes: dict[str, str], given: str) -> None:
+    """Refuse a scenario other than the one the nodes of the session in ``folder`` ran (the
+    :func:`~delaytrack.live.transport.scenario_hashes` each node recorded), naming the parts
+    that differ."""
+    for role in ROLES:
+        recorded = (node_record(folder / f"{role}.json") or {}).get("scenario_hashes")
+        if not isinstance(recorded, dict):
+            continue  # a node of an earlier version recorded none
+        parts = differing_parts(hashes, recorded)
+        if parts is not None:
+            raise ValueError(
+                f"{folder}: the {role} node ran another scenario than {given} (they differ in "
+                f"{parts}); give the scenario file the nodes ran"
+            )
+
+
 def collect(folder: Path, scenario: Any, built: Any) -> dict[str, Any]:
     """Merge the nodes' tables into ``delays.csv``; return the session's summary. ``built`` is
-    ``scenario.build()``."""
+    ``scenario.build()``. A table or record that is not the toolkit's is a ValueError naming
+    it."""
     delay = built.delay
-    sent = {int(r["k"]): r for r in read_rows(folder / "ticks.csv") if r["status"] != "no-state"}
-    received = {int(r["seq"]): r for r in read_rows(folder / "releases.csv")}
+    ticks, releases, applied = (
+        folder / name for name in ("ticks.csv", "releases.csv", "applied.csv")
+    )
+    sent = {
+        index_cell(r, "k", ticks): r
+        for r in read_rows(ticks, ("k", "t_s", "send_s", "status"))
+        if r["status"] != "no-state"
+    }
+    received = {
+        index_cell(r, "seq", releases): r
+        for r in read_rows(releases, ("seq", "t_k_s", "received_s", "lost", "released_s"))
+    }
     first_applied: dict[int, float] = {}
-    for row in read_rows(folder / "applied.csv"):
-        first_applied.setdefault(int(row["seq"]), number(row["applied_s"]))
+    for row in read_rows(applied, ("seq", "applied_s")):
+        first_applied.setdefault(index_cell(row, "seq", applied), number(row["applied_s"]))
     rows = []
     for k in sorted(set(sent) | set(received)):
         tick, rel = sent.get(k, {}), received.get(k, {})
@@ -380,10 +474,7 @@ def collect(folder: Path, scenario: Any, built: Any) -> dict[str, Any]:
         ],
         rows,
     )
-    nodes = {}
-    for role in ROLES:
-        path = folder / f"{role}.json"
-        nodes[role] = json.loads(path.read_text()) if path.is_file() else None
+    nodes = {role: node_record(folder / f"{role}.json") for role in ROLES}
     error = np.array([r[10] for r in rows], dtype=float)
     end = len(read_rows(folder / "steps.csv")) * scenario.dt
     listened = (nodes.get("delay") or {}).get("session_s", -math.inf)
@@ -431,28 +522,43 @@ def _rule_error_ms(rows: list[list[Any]], delay: Any, dt: float, end: float) -> 
 
 
 def format_summary(summary: dict[str, Any], folder: Path) -> str:
-    """A few lines for the terminal."""
-    c = summary["nodes"].get("controller") or {}
-    r = summary["nodes"].get("robot") or {}
-    d = summary["nodes"].get("delay") or {}
-
+    """A few lines for the terminal; a node that wrote no record (it did not finish) is said
+    to have none, not shown as zeros."""
+    nodes = summary["nodes"]
+    c = nodes.get("controller") or {}
+    r = nodes.get("robot") or {}
+    d = nodes.get("delay") or {}
+    lines = {
+        "controller": f"  controller: {c.get('ticks', 0)} ticks, {c.get('missed', 0)} missed, "
+        f"lateness p50 {ms(c.get('lateness_ms_p50'))} p99 {ms(c.get('lateness_ms_p99'))}, "
+        f"compute p99 {ms(c.get('compute_ms_p99'))}, {c.get('older_state', 0)} on a state older "
+        f"than t_k, stale {c.get('stale', 0)}",
+        "delay": f"  delay node: {d.get('received', 0)} received, {d.get('lost', 0)} lost "
+        f"(injected), {summary.get('not_received', 0)} sent but never received, "
+        f"{d.get('released', 0)} releases",
+        "robot": f"  robot: {r.get('steps', 0)} steps, {r.get('missed_steps', 0)} missed, "
+        f"lateness p99 {ms(r.get('lateness_ms_p99'))}, u_init {r.get('no_command_steps', 0)} "
+        f"steps before the first command + zero input {r.get('timeout_zero_steps', 0)} on "
+        "timeout",
+    }
+    for role in ROLES:
+        if nodes.get(role) is None:
+            title = "delay node" if role == "delay" else role
+            lines[role] = (
+                f"  {title}: no record ({role}.json): the node did not finish; {role}.mcap holds "
+                "what it logged"
+            )
+    never_applied = summary["never_applied"] if nodes.get("robot") is not None else "n/a"
     return "\n".join(
         [
             f"live session {summary['scenario']} (T_c = {summary['T_c_s'] * 1e3:g} ms, "
             f"dt = {summary['dt_s'] * 1e3:g} ms) -> {folder}",
-            f"  controller: {c.get('ticks', 0)} ticks, {c.get('missed', 0)} missed, lateness p50 "
-            f"{ms(c.get('lateness_ms_p50'))} p99 {ms(c.get('lateness_ms_p99'))}, compute p99 "
-            f"{ms(c.get('compute_ms_p99'))}, {c.get('older_state', 0)} on a state older than t_k, "
-            f"stale {c.get('stale', 0)}",
-            f"  delay node: {d.get('received', 0)} received, {d.get('lost', 0)} lost (injected), "
-            f"{summary.get('not_received', 0)} sent but never received, "
-            f"{d.get('released', 0)} releases",
-            f"  robot: {r.get('steps', 0)} steps, {r.get('missed_steps', 0)} missed, lateness p99 "
-            f"{ms(r.get('lateness_ms_p99'))}, u_init {r.get('no_command_steps', 0)} steps before "
-            f"the first command + zero input {r.get('timeout_zero_steps', 0)} on timeout",
+            lines["controller"],
+            lines["delay"],
+            lines["robot"],
             f"  realised delay - h(t_applied): p50 {ms(summary['realised_minus_h_ms_p50'])}, "
             f"|.| p99 {ms(summary['realised_minus_h_abs_ms_p99'])} (the exact rule on the step "
             f"grid alone: {ms(summary.get('realised_minus_h_abs_ms_p99_of_the_rule'))}); "
-            f"{summary['never_applied']} commands never applied",
+            f"commands never applied: {never_applied}",
         ]
     )

@@ -48,6 +48,7 @@ __all__ = [
     "ROLES",
     "Handshake",
     "HandshakeError",
+    "differing_parts",
     "open_session",
     "scenario_hashes",
 ]
@@ -157,6 +158,15 @@ def scenario_hashes(scenario: Any, plant: Any) -> dict[str, str]:
     }
 
 
+def differing_parts(mine: Mapping[str, str], theirs: Mapping[str, Any]) -> str | None:
+    """The parts (:func:`scenario_hashes`) whose hashes differ, named for a message (``"T_c,
+    dt"``; ``"the rest of the scenario"`` when only that differs), or None when they agree."""
+    differ = [part for part in mine if theirs.get(part) != mine[part]]
+    if not differ:
+        return None
+    return ", ".join(part for part in differ if part != "scenario") or "the rest of the scenario"
+
+
 class Handshake:
     """Hello exchange and start agreement (module docstring).
 
@@ -230,13 +240,11 @@ class Handshake:
         with self._lock:
             peers = dict(self._peers)
         for role, hello in sorted(peers.items()):
-            theirs = hello.get("hashes") or {}
-            differ = [part for part in self.hashes if theirs.get(part) != self.hashes[part]]
-            if differ:
-                parts = ", ".join(p for p in differ if p != "scenario") or "scenario"
+            parts = differing_parts(self.hashes, hello.get("hashes") or {})
+            if parts is not None:
                 return (
                     f"the {role} node (pid {hello.get('pid')}) runs another scenario than this "
-                    f"{self.role} node: its {parts} differ; start every node with the same "
+                    f"{self.role} node (they differ in {parts}); start every node with the same "
                     "scenario file"
                 )
         return None

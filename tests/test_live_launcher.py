@@ -1,0 +1,114 @@
+"""``delaytrack live run``'s launcher, without a session: what it removes of an earlier session,
+how it stops a node that does not end, how its nodes end with it, and what its summary says of
+a node that wrote no record."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from delaytrack._output import MANIFEST, claim_output_folder
+from delaytrack.live._node import LAUNCHER_PID, ROLE_FILES, StopFlag, end_with_launcher
+from delaytrack.live.session import (
+    SESSION_FILES,
+    _remove_earlier_session,
+    _wait_for_nodes,
+    format_summary,
+)
+
+
+def test_an_earlier_sessions_files_are_removed_before_a_session_starts(tmp_path):
+    folder = claim_output_folder(tmp_path / "session")
+    (folder / "figures").mkdir()
+    recorded = ["summary.json", "figures/tracking.png", "robot.json"]
+    unrecorded = ["steps.csv", "replay.json", "release_events.csv"]  # a session cut short
+    for name in recorded + unrecorded:
+        (folder / name).write_text("from the session before")
+    (folder / MANIFEST).write_text(json.dumps({"files": recorded}))
+    _remove_earlier_session(folder)
+    assert sorted(p.name for p in folder.rglob("*")) == [MANIFEST]
+    every_file = {*SESSION_FILES, *(name for names in ROLE_FILES.values() for name in names)}
+    assert set(unrecorded) <= every_file
+
+
+def _child(code: str, **options) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-c", textwrap.dedent(code)], **options)
+
+
+def test_a_node_still_running_after_its_peers_ended_is_stopped_and_named(tmp_path):
+    deaf = "import signal, time\nsignal.signal(signal.SIGTERM, signal.SIG_IGN)\ntime.sleep(60)"
+    processes = {"controller": _child("pass"), "robot": _child(deaf)}
+    start = time.monotonic()
+    stuck, why = _wait_for_nodes(processes, tmp_path, None, start + 600.0, grace=0.5)
+    assert stuck == ["robot"] and why == "0.5 s after the controller node ended"
+    assert processes["robot"].wait(timeout=10) == -signal.SIGKILL  # SIGTERM ignored
+    assert time.monotonic() - start < 30.0
+
+
+def test_the_nodes_of_a_launcher_stop_when_it_is_killed(tmp_path):
+    """A launcher (a process that starts a node-like child with :data:`LAUNCHER_PID`) killed
+    with SIGKILL: its child's stop flag is set (SIGTERM from the kernel) and it ends."""
+    done = tmp_path / "stopped"
+    node = f"""
+        import time
+        from delaytrack.live._node import StopFlag, end_with_launcher
+        stop = StopFlag()
+        stop.install()
+        end_with_launcher(stop)
+        deadline = time.monotonic() + 60
+        while not stop() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        from pathlib import Path
+        Path({str(done)!r}).write_text(str(stop.signal))
+    """
+    launcher = f"""
+        import os, subprocess, sys
+        env = {{**os.environ, {LAUNCHER_PID!r}: str(os.getpid())}}
+        child = subprocess.Popen([sys.executable, "-c", {textwrap.dedent(node)!r}], env=env)
+        print(child.pid, flush=True)
+        child.wait()
+    """
+    parent = _child(launcher, stdout=subprocess.PIPE, text=True)
+    child = int(parent.stdout.readline())
+    time.sleep(1.0)  # time to set its parent-death signal
+    parent.kill()
+    parent.wait()
+    parent.stdout.close()
+    deadline = time.monotonic() + 30
+    while not done.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert done.read_text() == str(int(signal.SIGTERM))
+    with pytest.raises(ProcessLookupError):
+        for _ in range(100):
+            os.kill(child, 0)
+            time.sleep(0.05)
+
+
+def test_a_node_whose_launcher_is_gone_already_stops_at_once(monkeypatch):
+    monkeypatch.setenv(LAUNCHER_PID, str(os.getppid() + 1))
+    stop = StopFlag()
+    end_with_launcher(stop)
+    assert stop() and stop.signal == signal.SIGTERM
+
+
+def test_the_summary_says_a_node_wrote_no_record_rather_than_zeros():
+    summary = {
+        "scenario": "two_link_S1",
+        "T_c_s": 0.002,
+        "dt_s": 0.001,
+        "never_applied": 0,
+        "realised_minus_h_ms_p50": float("nan"),
+        "realised_minus_h_abs_ms_p99": float("nan"),
+        "nodes": {"controller": {"ticks": 5}, "delay": {"received": 5}, "robot": None},
+    }
+    text = format_summary(summary, Path("out"))
+    assert "  robot: no record (robot.json): the node did not finish; robot.mcap holds" in text
+    assert "commands never applied: n/a" in text and "controller: 5 ticks" in text

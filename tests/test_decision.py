@@ -192,7 +192,8 @@ def test_an_envelope_as_long_as_the_runs_is_refused(tmp_path):
     from delaytrack.experiments.decision import run_decision
 
     study = SimpleNamespace(scenario=SimpleNamespace(duration=8.0))
-    with pytest.raises(ArgumentError, match=r"^h_max must be less than the scenario's duration 8 s"):
+    refused = r"^h_max must be less than the scenario's duration 8 s"
+    with pytest.raises(ArgumentError, match=refused):
         run_decision(study, Envelope(8.0, "exact"), tmp_path)
 
 

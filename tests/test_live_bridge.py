@@ -311,7 +311,10 @@ def test_a_bad_bridge_is_refused_in_one_line_with_exit_code_2(sessions, name):
         ("wrong_shapes", "read_state returned q of shape (2,) and q̇ of shape (2,)"),
         ("not_finite", "read_state returned a state that is not finite"),
         ("raises", "raises(scenario, dt) raised RuntimeError: no robot on /dev/ttyUSB0"),
-        ("missing", "has no function 'missing' (its functions: failing, jammed_brakes, not_a_bridge"),
+        (
+            "missing",
+            "has no function 'missing' (its functions: failing, jammed_brakes, not_a_bridge",
+        ),
     ],
 )
 def test_bridge_errors_name_the_option_the_value_and_what_is_valid(

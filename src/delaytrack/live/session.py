@@ -420,21 +420,21 @@ def collect(folder: Path, scenario: Any, built: Any) -> dict[str, Any]:
     ``scenario.build()``. A table or record that is not the toolkit's is a ValueError naming
     it."""
     delay = built.delay
-    ticks, releases, applied = (
+    ticks_csv, releases_csv, applied_csv = (
         folder / name for name in ("ticks.csv", "releases.csv", "applied.csv")
     )
     sent = {
-        index_cell(r, "k", ticks): r
-        for r in read_rows(ticks, ("k", "t_s", "send_s", "status"))
+        index_cell(r, "k", ticks_csv): r
+        for r in read_rows(ticks_csv, ("k", "t_s", "send_s", "status"))
         if r["status"] != "no-state"
     }
     received = {
-        index_cell(r, "seq", releases): r
-        for r in read_rows(releases, ("seq", "t_k_s", "received_s", "lost", "released_s"))
+        index_cell(r, "seq", releases_csv): r
+        for r in read_rows(releases_csv, ("seq", "t_k_s", "received_s", "lost", "released_s"))
     }
     first_applied: dict[int, float] = {}
-    for row in read_rows(applied, ("seq", "applied_s")):
-        first_applied.setdefault(index_cell(row, "seq", applied), number(row["applied_s"]))
+    for row in read_rows(applied_csv, ("seq", "applied_s")):
+        first_applied.setdefault(index_cell(row, "seq", applied_csv), number(row["applied_s"]))
     rows = []
     for k in sorted(set(sent) | set(received)):
         tick, rel = sent.get(k, {}), received.get(k, {})

@@ -98,6 +98,31 @@ def test_a_bad_number_is_refused_in_one_line_naming_the_flag(
     assert os.listdir(tmp_path) == []  # refused before anything is made
 
 
+@pytest.mark.parametrize(
+    ("flag", "value"),
+    [
+        ("--connect", "tcp/127.0.0.1:notaport"),  # Zenoh retried it until the handshake gave up
+        ("--connect", "udp/10.0.0.2:70000"),
+        ("--connect", "tcp/127.0.0.1"),
+        ("--listen", "foo"),
+        ("--listen", "TCP/0.0.0.0:7447"),
+    ],
+)
+def test_a_malformed_endpoint_is_refused_before_the_node_starts(capsys, tmp_path, flag, value):
+    out = tmp_path / "out"
+    line = refusal(capsys, "controller", SCENARIO, "--out", str(out), flag, value)
+    assert line.startswith(f"error: argument {flag}: must be a Zenoh endpoint PROTOCOL/ADDRESS")
+    assert f"got {value!r}" in line and not out.exists()
+
+
+def test_endpoints_zenoh_takes_are_taken():
+    from delaytrack.live.cli import _endpoint
+
+    for endpoint in ("tcp/127.0.0.1:7447", "tcp/[::1]:0", "udp/host.lab:9000#iface=eth0"):
+        assert _endpoint(endpoint) == endpoint
+    assert _endpoint("unixsock-stream//tmp/zenoh.sock") == "unixsock-stream//tmp/zenoh.sock"
+
+
 def test_the_module_entry_point_refuses_in_one_line_too():
     done = subprocess.run(
         [sys.executable, "-m", "delaytrack.live", "run", SCENARIO, "--out", "x", "--loss", "2"],
@@ -123,6 +148,20 @@ def test_a_session_longer_than_the_nodes_hold_is_refused_before_its_folder_is_ma
     out = tmp_path / "out"
     line = refusal(capsys, role, SCENARIO, "--out", str(out), "--duration", "1e9", "--quiet")
     assert "--duration 1e+09 s" in line and "plant steps" in line and "shorten" in line
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("role", ["run", "robot"])
+def test_a_session_shorter_than_two_ticks_is_refused_before_its_folder_is_made(
+    capsys, tmp_path, signals_kept, role
+):
+    """One tick is a session no replay can check (two_link_S1: T_c = 2 ms)."""
+    out = tmp_path / "out"
+    line = refusal(capsys, role, SCENARIO, "--out", str(out), "--duration", "1e-9", "--quiet")
+    assert line == (
+        "error: --duration must be at least two controller periods, 2 T_c = 0.004 s (a session "
+        "of one tick cannot be replayed); got 1e-09"
+    )
     assert not out.exists()
 
 

@@ -60,9 +60,10 @@ __all__ = [
 ]
 
 #: Memory a live session holds per plant step until it ends, all nodes on one machine: the
-#: robot's row of the step (about 320 bytes in Python lists, measured), its states and the
-#: other nodes' rows of ticks and releases, rounded up.
-BYTES_PER_STEP = 1024
+#: robot's row of the step, its states and the other nodes' rows of ticks and releases. The
+#: three nodes' resident sizes grew by about 2 KiB a step together with the controller at every
+#: step (``T_c = dt``, 1 ms), the most rows a step can bring (measured over 14 s).
+BYTES_PER_STEP = 2048
 
 #: Exit codes: 0 done (also when stopped by SIGTERM), 1 stopped by a failure of its own (the
 #: robot's state), 2 refused (a usage error, a scenario that differs from a peer's, no peer in
@@ -167,15 +168,18 @@ def session_duration(scenario: Any, duration: float | None) -> float:
     Raises
     ------
     ValueError
-        When it is not > 0, or has more plant steps of ``dt`` than a session holds: the nodes
-        keep a row of every step in memory until the session ends (:data:`BYTES_PER_STEP`,
-        within this machine's memory), and a scenario's run has at most
-        :data:`~delaytrack.sim.simulate.MAX_STEPS` steps.
+        When it is shorter than two controller periods, or has more plant steps of ``dt``
+        than a session holds: the nodes keep a row of every step in memory until the session
+        ends (:data:`BYTES_PER_STEP`, within this machine's memory), and a scenario's run has
+        at most :data:`~delaytrack.sim.simulate.MAX_STEPS` steps.
     """
     length = float(scenario.duration if duration is None else duration)
     name = "the scenario's duration" if duration is None else "--duration"
-    if not length > 0:
-        raise ValueError(f"{name} must be > 0 seconds; got {length!r}")
+    if not length >= 2 * scenario.T_c:  # NaN too
+        raise ValueError(
+            f"{name} must be at least two controller periods, 2 T_c = {2 * scenario.T_c:g} s "
+            f"(a session of one tick cannot be replayed); got {length!r}"
+        )
     steps = length / scenario.dt
     limit = min(MAX_STEPS, physical_memory() / BYTES_PER_STEP)
     if steps > limit:

@@ -64,6 +64,33 @@ def _session_name(text: str) -> str:
     return text
 
 
+#: Zenoh's protocols whose endpoints are ``PROTOCOL/HOST:PORT``.
+_PORTED = ("tcp", "udp", "tls", "quic")
+
+
+def _endpoint(text: str) -> str:
+    """argparse type: a Zenoh endpoint, ``PROTOCOL/ADDRESS`` (with ``?`` metadata or ``#``
+    configuration after it); for TCP, UDP, TLS and QUIC the address ends in a port from 0 to
+    65535 (0: any free port, for --listen). Zenoh itself takes a malformed address to connect
+    to without a word and retries it until the handshake gives up."""
+    protocol, slash, rest = text.partition("/")
+    address = re.split(r"[?#]", rest, maxsplit=1)[0]
+    host, colon, port = address.rpartition(":")
+    ported = protocol in _PORTED
+    if (
+        not slash
+        or not re.fullmatch(r"[a-z][a-z0-9-]*", protocol)
+        or not address
+        or (ported and not (colon and host and re.fullmatch(r"[0-9]{1,5}", port)))
+        or (ported and int(port) > 65535)
+    ):
+        raise argparse.ArgumentTypeError(
+            "must be a Zenoh endpoint PROTOCOL/ADDRESS, for TCP, UDP, TLS and QUIC "
+            f"PROTOCOL/HOST:PORT with a port from 0 to 65535 (tcp/127.0.0.1:7447); got {text!r}"
+        )
+    return text
+
+
 def _realtime_argument(command: argparse.ArgumentParser) -> None:
     """--realtime (on every node and ``live run``)."""
     command.add_argument(
@@ -151,6 +178,7 @@ def _node_arguments(command: argparse.ArgumentParser, role: str) -> None:
     command.add_argument(
         "--listen",
         action="append",
+        type=_endpoint,
         default=[],
         metavar="ENDPOINT",
         help="Zenoh endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable)",
@@ -158,6 +186,7 @@ def _node_arguments(command: argparse.ArgumentParser, role: str) -> None:
     command.add_argument(
         "--connect",
         action="append",
+        type=_endpoint,
         default=[],
         metavar="ENDPOINT",
         help="Zenoh endpoint of a peer, e.g. tcp/10.0.0.2:7447 (repeatable)",
@@ -319,7 +348,7 @@ def add_live_commands(commands: Any) -> None:
         help="give up when a node has not seen the others appear (default 60 s)",
     )
     trust_argument(run)
-    quiet_argument(run, "status line")
+    quiet_argument(run, "status line and no summary at the end (an error still prints it)")
     run.set_defaults(handler=_run)
     replay = sub.add_parser(
         "replay",

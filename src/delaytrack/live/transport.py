@@ -31,6 +31,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import threading
 import time
 from collections.abc import Mapping, Sequence
@@ -89,9 +90,15 @@ def open_session(listen: Sequence[str], connect: Sequence[str]) -> Any:
         return zenoh.open(zenoh_config(listen, connect))
     except zenoh.ZError as error:
         text = str(error).splitlines()[0] if str(error) else type(error).__name__
+        text = re.sub(r" at \S+\.rs:\d+\.?", "", text)  # where in Zenoh's Rust source
+        hint = (
+            "; is a port in use? choose another with --listen/--connect or --port"
+            if "in use" in text.lower()
+            else ""
+        )
         raise OSError(
             f"cannot open the Zenoh session (listen {list(listen)}, connect {list(connect)}): "
-            f"{text}; is a port in use? choose another with --listen/--connect or --port"
+            f"{text}{hint}"
         ) from None
 
 

@@ -81,6 +81,7 @@ def test_collect_refuses_another_scenario_or_a_damaged_file_in_one_line(
     for name in ("scenario.toml", "summary.json"):
         (copy / name).unlink(missing_ok=True)
     if edit is not None:
+        _forget_sizes(copy)  # a table's content is checked too (nodes of earlier versions)
         edit(copy)
     done = subprocess.run(
         [*PYTHON, "collect", str(copy), scenario], capture_output=True, text=True, timeout=120
@@ -116,6 +117,7 @@ def test_replay_of_an_edited_folder_is_refused_in_one_line_naming_the_file(
     shutil.copytree(folder, copy)
     if not (copy / "summary.json").exists():
         subprocess.run([*PYTHON, "collect", str(copy), SCENARIO], check=True, timeout=300)
+    _forget_sizes(copy)  # a table's content is checked too (nodes of earlier versions)
     edit(copy)
     done = subprocess.run(
         [*PYTHON, "replay", str(copy), "--quiet"], capture_output=True, text=True, timeout=300
@@ -131,3 +133,39 @@ def _edit_cell(path, column, value):
     rows[1][rows[0].index(column)] = value
     with open(path, "w", newline="") as handle:
         csv.writer(handle).writerows(rows)
+
+
+@pytest.mark.parametrize(
+    ("command", "table", "role"),
+    [("collect", "applied.csv", "robot"), ("replay", "states.csv", "robot"),
+     ("replay", "ticks.csv", "controller")],
+)  # fmt: skip
+def test_a_table_cut_short_is_refused_naming_both_sizes(folder, tmp_path, command, table, role):
+    """A node records the size of each table it wrote: a copy made before the table was whole
+    (its last row cut in two, which reads as a shorter number) is refused."""
+    copy = tmp_path / "session"
+    shutil.copytree(folder, copy)
+    if not (copy / "summary.json").exists():
+        subprocess.run([*PYTHON, "collect", str(copy), SCENARIO], check=True, timeout=300)
+    size = (copy / table).stat().st_size
+    (copy / table).write_bytes((copy / table).read_bytes()[:-5])
+    arguments = [str(copy), SCENARIO] if command == "collect" else [str(copy), "--quiet"]
+    done = subprocess.run(
+        [*PYTHON, command, *arguments], capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert f"{table} holds {size - 5} bytes where the {role} node wrote {size}" in done.stderr
+
+
+def _forget_sizes(folder):
+    """The folder as a session of nodes that recorded no table sizes (an earlier version)."""
+    for path in [folder / f"{role}.json" for role in ROLES]:
+        record = json.loads(path.read_text())
+        record.pop("table_bytes", None)
+        path.write_text(json.dumps(record))
+    summary = folder / "summary.json"
+    if summary.exists():
+        data = json.loads(summary.read_text())
+        for record in data["nodes"].values():
+            record.pop("table_bytes", None)
+        summary.write_text(json.dumps(data))

@@ -16,7 +16,8 @@ from pathlib import Path
 import pytest
 
 from delaytrack._output import MANIFEST, claim_output_folder
-from delaytrack.live._node import LAUNCHER_PID, ROLE_FILES, StopFlag, end_with_launcher
+from delaytrack.live._node import LAUNCHER_PID, StopFlag, end_with_launcher
+from delaytrack.live._tables import ROLE_FILES
 from delaytrack.live.session import (
     SESSION_FILES,
     _remove_earlier_session,
@@ -112,3 +113,18 @@ def test_the_summary_says_a_node_wrote_no_record_rather_than_zeros():
     text = format_summary(summary, Path("out"))
     assert "  robot: no record (robot.json): the node did not finish; robot.mcap holds" in text
     assert "commands never applied: n/a" in text and "controller: 5 ticks" in text
+
+
+def test_a_session_interrupted_before_it_starts_says_so_and_writes_no_summary(tmp_path):
+    pytest.importorskip("zenoh")
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "delaytrack.live", "run", "two_link_S1", "--out", str(out)]
+    launcher = subprocess.Popen(
+        [*command, "--duration", "30", "--quiet"], stderr=subprocess.PIPE, text=True
+    )
+    time.sleep(1.0)  # the nodes are loading: no session has started
+    launcher.send_signal(signal.SIGINT)
+    _, stderr = launcher.communicate(timeout=120)
+    assert launcher.returncode == 130
+    assert stderr.splitlines() in (["interrupted"], ["interrupted before the session started"])
+    assert not (out / "summary.json").exists() and not (out / "robot.mcap").exists()

@@ -64,4 +64,9 @@ def command() -> NoReturn:
     :func:`main` on the command line's arguments, then the exit of a whole process
     (:func:`~delaytrack._process_exit.exit_process`). It ends the process that calls it: from
     Python, call :func:`main`."""
-    exit_process(main())
+    try:
+        code = main()
+    except KeyboardInterrupt:  # while the command's options were read (or its modules loaded)
+        print("interrupted", file=sys.stderr)
+        code = 130
+    exit_process(code)

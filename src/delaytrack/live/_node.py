@@ -33,6 +33,7 @@ import numpy as np
 from delaytrack._file_lock import exclusive
 from delaytrack._io import json_text, write_text
 from delaytrack._output import check_output_folder, claim_output_folder, record_outputs
+from delaytrack.live._tables import ROLE_FILES, table_bytes
 from delaytrack.live.status import (
     STATUS_PERIOD,
     encode_status,
@@ -45,7 +46,6 @@ from delaytrack.sim.simulate import MAX_STEPS, physical_memory
 
 __all__ = [
     "LAUNCHER_PID",
-    "ROLE_FILES",
     "NodeBase",
     "Received",
     "StopFlag",
@@ -69,14 +69,6 @@ BYTES_PER_STEP = 2048
 #: robot's state), 2 refused (a usage error, a scenario that differs from a peer's, no peer in
 #: time), 130 stopped by SIGINT.
 EXIT_OK, EXIT_FAILED, EXIT_REFUSED, EXIT_INTERRUPTED = 0, 1, 2, 130
-
-#: The files each node writes into its folder: a session that starts removes those of its role
-#: that an earlier session left there, so that no table of that session is taken for its own.
-ROLE_FILES = {
-    "controller": ("controller.json", "controller.mcap", "ticks.csv"),
-    "delay": ("delay.json", "delay.mcap", "releases.csv", "release_events.csv"),
-    "robot": ("robot.json", "robot.mcap", "steps.csv", "states.csv", "applied.csv"),
-}
 
 #: The environment variable by which ``delaytrack live run`` gives its nodes its process id:
 #: a node it started stops (as on SIGTERM) when the launcher is gone, killed or not.
@@ -462,6 +454,7 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
         summary.update(offset.summary())
         summary["realtime_priority"] = getattr(args, "realtime", None)
         summary["scenario_hashes"] = node.hashes  # what live collect checks its scenario by
+        summary["table_bytes"] = table_bytes(node.out, node.role)  # and its tables whole
         summary["stopped_by"] = (
             signal.Signals(stop.signal).name
             if stop.signal

@@ -6,12 +6,62 @@ import csv
 import json
 import math
 import re
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from delaytrack._io import regular_file
 
-__all__ = ["index_cell", "ms", "node_record", "number", "read_rows", "required_rows"]
+__all__ = [
+    "ROLE_FILES",
+    "check_tables_whole",
+    "index_cell",
+    "ms",
+    "node_record",
+    "number",
+    "read_rows",
+    "required_rows",
+    "table_bytes",
+]
+
+
+#: The files each node writes into its folder: a session that starts removes those of its role
+#: that an earlier session left there, so that no table of that session is taken for its own.
+ROLE_FILES = {
+    "controller": ("controller.json", "controller.mcap", "ticks.csv"),
+    "delay": ("delay.json", "delay.mcap", "releases.csv", "release_events.csv"),
+    "robot": ("robot.json", "robot.mcap", "steps.csv", "states.csv", "applied.csv"),
+}
+
+
+def table_bytes(folder: Path, role: str) -> dict[str, int]:
+    """The size in bytes of each table the ``role`` node wrote into ``folder``: what its
+    record keeps, so that a table cut short (copied from another machine before it was whole)
+    is refused (:func:`check_tables_whole`)."""
+    return {
+        name: (folder / name).stat().st_size
+        for name in ROLE_FILES[role]
+        if name.endswith(".csv") and (folder / name).is_file()
+    }
+
+
+def check_tables_whole(folder: Path, nodes: Mapping[str, Any]) -> None:
+    """Refuse a table of ``folder`` whose size differs from the one its node recorded
+    (``table_bytes`` in the node's record of ``nodes``, role -> record or None; a node of an
+    earlier version recorded none), naming it and both sizes."""
+    for role, names in ROLE_FILES.items():
+        written = (nodes.get(role) or {}).get("table_bytes")
+        if not isinstance(written, dict):
+            continue
+        for name in names:
+            path = folder / name
+            expected = written.get(name)
+            if isinstance(expected, int) and path.is_file() and path.stat().st_size != expected:
+                raise ValueError(
+                    f"{path} holds {path.stat().st_size} bytes where the {role} node wrote "
+                    f"{expected}: it is not the table the node wrote (cut short or changed); "
+                    "copy it again from the node's folder"
+                )
 
 
 def read_rows(path: Path, columns: tuple[str, ...] = ()) -> list[dict[str, str]]:

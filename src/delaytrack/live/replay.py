@@ -37,7 +37,13 @@ import numpy as np
 
 from delaytrack._io import json_text, regular_file, write_text
 from delaytrack.live._node import session_files
-from delaytrack.live._tables import index_cell, number, read_rows, required_rows
+from delaytrack.live._tables import (
+    check_tables_whole,
+    index_cell,
+    number,
+    read_rows,
+    required_rows,
+)
 from delaytrack.live.log import write_csv
 from delaytrack.live.report import format_agreement, write_report
 
@@ -64,6 +70,7 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     scenario = Scenario.from_toml(folder / "scenario.toml", trust=list(trust or []))
     built = scenario.build()
     nodes = _session_nodes(folder / "summary.json")
+    check_tables_whole(folder, nodes)
     robot, delay_node = nodes.get("robot") or {}, nodes.get("delay") or {}
     controller_node = nodes.get("controller") or {}
     t1 = _replayed_duration(folder, scenario.dt, scenario.T_c)

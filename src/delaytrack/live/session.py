@@ -33,14 +33,21 @@ import numpy as np
 from delaytrack._io import json_text, write_text
 from delaytrack.live._node import (
     LAUNCHER_PID,
-    ROLE_FILES,
     load_scenario,
     percentile,
     remove_files,
     session_duration,
     session_files,
 )
-from delaytrack.live._tables import index_cell, ms, node_record, number, read_rows
+from delaytrack.live._tables import (
+    ROLE_FILES,
+    check_tables_whole,
+    index_cell,
+    ms,
+    node_record,
+    number,
+    read_rows,
+)
 from delaytrack.live.log import write_csv
 from delaytrack.live.status import StatusWatch
 from delaytrack.live.transport import differing_parts, scenario_hashes
@@ -167,8 +174,12 @@ def run_session(args: Any) -> int:
             file=sys.stderr,
         )
     failed = {role: code for role, code in codes.items() if code not in (0,)}
-    if failed and not interrupted and not any((folder / f"{r}.mcap").exists() for r in ROLES):
-        # No session: a node refused before the start (said by the node) or was killed.
+    if not any((folder / f"{r}.mcap").exists() for r in ROLES):
+        # No session (an earlier one's logs were removed): stopped, refused by a node (said
+        # by the node) or a node killed, before the start.
+        if interrupted:
+            print("interrupted before the session started", file=sys.stderr)
+            return 130
         killed = [_exit_text(role, code) for role, code in failed.items() if code < 0]
         if killed:
             print(
@@ -176,12 +187,21 @@ def run_session(args: Any) -> int:
                 file=sys.stderr,
             )
             return 1
-        return max(failed.values())
-    summary = collect(folder, scenario, built)
-    summary["exit_codes"] = codes
-    summary["wall_s"] = time.monotonic() - started
-    summary["load_average"] = list(os.getloadavg())
-    report_failed = _write_summary_and_report(folder, scenario, summary)
+        if failed:
+            return max(failed.values())
+    try:
+        summary = collect(folder, scenario, built)
+        summary["exit_codes"] = codes
+        summary["wall_s"] = time.monotonic() - started
+        summary["load_average"] = list(os.getloadavg())
+        report_failed = _write_summary_and_report(folder, scenario, summary)
+    except KeyboardInterrupt:
+        print(
+            "interrupted while writing the session's summary and report; the nodes' files are "
+            f"whole: delaytrack live collect {folder} SCENARIO writes them",
+            file=sys.stderr,
+        )
+        return 130
     if not args.quiet or failed:
         print(format_summary(summary, folder))
     return _session_exit_code(interrupted, failed, report_failed)
@@ -390,6 +410,7 @@ def collect_main(args: Any) -> int:
         print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
         return 2
     scenario.to_toml(folder / "scenario.toml")
+    summary.update(_launcher_facts(folder / "summary.json"))
     summary["stopped_by"] = {
         role: (summary["nodes"][role] or {}).get("stopped_by") for role in ROLES
     }
@@ -397,6 +418,19 @@ def collect_main(args: Any) -> int:
     if not args.quiet:
         print(format_summary(summary, folder))
     return 1 if report_failed else 0
+
+
+def _launcher_facts(path: Path) -> dict[str, Any]:
+    """What ``live run`` measured of a session (the nodes' exit codes, its wall time and load)
+    from its ``summary.json``, kept when ``live collect`` writes the summary again; none when
+    the file is missing or not a summary."""
+    try:
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return {}
+    if not isinstance(summary, dict):
+        return {}
+    return {key: summary[key] for key in ("exit_codes", "wall_s", "load_average") if key in summary}
 
 
 def _check_nodes_ran(folder: Path, hashes: dict[str, str], given: str) -> None:
@@ -420,6 +454,8 @@ def collect(folder: Path, scenario: Any, built: Any) -> dict[str, Any]:
     ``scenario.build()``. A table or record that is not the toolkit's is a ValueError naming
     it."""
     delay = built.delay
+    nodes = {role: node_record(folder / f"{role}.json") for role in ROLES}
+    check_tables_whole(folder, nodes)
     ticks_csv, releases_csv, applied_csv = (
         folder / name for name in ("ticks.csv", "releases.csv", "applied.csv")
     )
@@ -474,7 +510,6 @@ def collect(folder: Path, scenario: Any, built: Any) -> dict[str, Any]:
         ],
         rows,
     )
-    nodes = {role: node_record(folder / f"{role}.json") for role in ROLES}
     error = np.array([r[10] for r in rows], dtype=float)
     end = len(read_rows(folder / "steps.csv")) * scenario.dt
     listened = (nodes.get("delay") or {}).get("session_s", -math.inf)

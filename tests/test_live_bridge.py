@@ -12,6 +12,7 @@ what the bridge read and was written.
 from __future__ import annotations
 
 import csv
+import html
 import json
 import re
 import subprocess
@@ -285,6 +286,10 @@ def test_a_bridge_that_fails_mid_session_stops_the_robot_node_cleanly(sessions):
     failed_at = int(found[1])
     robot = json.loads((folder / "robot.json").read_text())
     assert robot["stopped_by"] == "failure" and "encoder link lost" in robot["failure"]
+    # The report says so: the metrics are the tracking up to the failure, not an "ok" run.
+    assert [r["status"] for r in _rows(folder / "metrics.csv")] == ["robot failed"]
+    report = html.unescape((folder / "report.html").read_text())
+    assert "robot: failure: Recorded.read_state raised ConnectionError: encoder link lost" in report
     steps = _rows(folder / "steps.csv")
     assert [int(r["j"]) for r in steps] == list(range(failed_at)) and failed_at >= 300
     woken = [int(r["j"]) for r in steps if r["status"] != "missed"]

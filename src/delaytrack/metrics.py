@@ -122,13 +122,14 @@ def _metrics(result: SimResult, t_from: float | None) -> dict[str, np.ndarray]:
     window = _samples(result, result.t[0] if t_from is None else t_from)
     errors = np.abs(result.e1[:, window, :])
     count = errors.shape[1]
-    metrics = {
-        "ae": _sequential_sum(errors, axis=1) / count,
-        "rms": np.sqrt(_sequential_sum(errors * errors, axis=1) / count),
-        "max": np.max(errors, axis=1),
-        "tv": _total_variation(result.commands[:, window, :]),
-        "tv_applied": _total_variation(result.applied[:, window, :]),
-    }
+    with np.errstate(over="ignore"):  # errors near the largest float: RMS and TV are inf
+        metrics = {
+            "ae": _sequential_sum(errors, axis=1) / count,
+            "rms": np.sqrt(_sequential_sum(errors * errors, axis=1) / count),
+            "max": np.max(errors, axis=1),
+            "tv": _total_variation(result.commands[:, window, :]),
+            "tv_applied": _total_variation(result.applied[:, window, :]),
+        }
     for values in metrics.values():
         values[~result.ok] = np.nan
     return metrics

@@ -188,6 +188,8 @@ def write_session_report(
     live = live_result(folder, scenario, built)
     runs = {"live": live} if replayed is None else {"live": live, "replayed": replayed}
     metrics = _metrics(runs)
+    if _robot_failure(summary) is not None:  # tracked up to where the robot failed
+        metrics.loc[metrics["label"] == "live", "status"] = "robot failed"
     paths = [write_frame(metrics, folder / "metrics.csv")]
     figures = _figures(folder, scenario, built, runs)
     # Each figure drawn once: the same PNG in figures/ and in the report.
@@ -275,8 +277,23 @@ def _node_records(summary: dict[str, Any]) -> tuple[dict[str, Any], ...]:
     return tuple(nodes.get(role) or {} for role in ("controller", "robot", "delay"))
 
 
+def _robot_failure(summary: dict[str, Any]) -> str | None:
+    """What stopped the robot node early (its bridge or its state), or None."""
+    robot = (summary.get("nodes") or {}).get("robot") or {}
+    failure = robot.get("failure")
+    return failure if isinstance(failure, str) else None
+
+
 def _session_settings(summary: dict[str, Any], scenario: Any, live: Any) -> dict[str, str]:
     """The report's first table: the scenario, its periods, the session's length and end."""
+    nodes = summary.get("nodes") or {}
+    ended = {
+        role: (record or {}).get("stopped_by") or "no record (the node did not finish)"
+        for role, record in nodes.items()
+    }
+    failure = _robot_failure(summary)
+    if failure is not None:
+        ended["robot"] = f"failure: {failure}"
     return {
         "scenario": summary.get("scenario", scenario.name),
         "T_c": f"{scenario.T_c * 1e3:g} ms",
@@ -286,6 +303,7 @@ def _session_settings(summary: dict[str, Any], scenario: Any, live: Any) -> dict
         "exit codes": ", ".join(
             f"{role} {code}" for role, code in (summary.get("exit_codes") or {}).items()
         ),
+        "how each node ended": "; ".join(f"{role}: {end}" for role, end in ended.items()),
         "load average (1, 5, 15 min) at the end": ", ".join(
             f"{v:.2f}" for v in summary.get("load_average", [])
         )

@@ -104,6 +104,7 @@ def test_a_bad_number_is_refused_in_one_line_naming_the_flag(
         ("--connect", "tcp/127.0.0.1:notaport"),  # Zenoh retried it until the handshake gave up
         ("--connect", "udp/10.0.0.2:70000"),
         ("--connect", "tcp/127.0.0.1"),
+        ("--connect", "tcp/127.0.0.1:0"),  # any free port: to listen on, not to reach
         ("--listen", "foo"),
         ("--listen", "TCP/0.0.0.0:7447"),
     ],
@@ -112,15 +113,17 @@ def test_a_malformed_endpoint_is_refused_before_the_node_starts(capsys, tmp_path
     out = tmp_path / "out"
     line = refusal(capsys, "controller", SCENARIO, "--out", str(out), flag, value)
     assert line.startswith(f"error: argument {flag}: must be a Zenoh endpoint PROTOCOL/ADDRESS")
+    assert ("from 1 to 65535" if flag == "--connect" else "from 0 to 65535") in line
     assert f"got {value!r}" in line and not out.exists()
 
 
 def test_endpoints_zenoh_takes_are_taken():
     from delaytrack.live.cli import _endpoint
 
+    listen = _endpoint(0)
     for endpoint in ("tcp/127.0.0.1:7447", "tcp/[::1]:0", "udp/host.lab:9000#iface=eth0"):
-        assert _endpoint(endpoint) == endpoint
-    assert _endpoint("unixsock-stream//tmp/zenoh.sock") == "unixsock-stream//tmp/zenoh.sock"
+        assert listen(endpoint) == endpoint
+    assert listen("unixsock-stream//tmp/zenoh.sock") == "unixsock-stream//tmp/zenoh.sock"
 
 
 def test_the_module_entry_point_refuses_in_one_line_too():

@@ -157,6 +157,19 @@ def test_a_table_cut_short_is_refused_naming_both_sizes(folder, tmp_path, comman
     assert f"{table} holds {size - 5} bytes where the {role} node wrote {size}" in done.stderr
 
 
+def test_a_table_whose_line_breaks_a_copy_turned_into_newlines_is_taken(folder, tmp_path):
+    copy = tmp_path / "session"
+    shutil.copytree(folder, copy)
+    table = copy / "ticks.csv"
+    assert b"\r\n" in table.read_bytes()  # as csv writes it
+    table.write_bytes(table.read_bytes().replace(b"\r\n", b"\n"))
+    done = subprocess.run(
+        [*PYTHON, "collect", str(copy), SCENARIO, "--quiet"], capture_output=True, text=True,
+        timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+
+
 def _forget_sizes(folder):
     """The folder as a session of nodes that recorded no table sizes (an earlier version)."""
     for path in [folder / f"{role}.json" for role in ROLES]:

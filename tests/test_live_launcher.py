@@ -27,15 +27,18 @@ from delaytrack.live.session import (
 
 
 def test_an_earlier_sessions_files_are_removed_before_a_session_starts(tmp_path):
+    """The session's own files, recorded or not (a session cut short); nothing else the folder's
+    record lists."""
     folder = claim_output_folder(tmp_path / "session")
     (folder / "figures").mkdir()
-    recorded = ["summary.json", "figures/tracking.png", "robot.json"]
-    unrecorded = ["steps.csv", "replay.json", "release_events.csv"]  # a session cut short
+    recorded = ["summary.json", "figures/tracking.png", "robot.json", "notes.csv"]
+    unrecorded = ["steps.csv", "replay.json", "release_events.csv"]
     for name in recorded + unrecorded:
         (folder / name).write_text("from the session before")
     (folder / MANIFEST).write_text(json.dumps({"files": recorded}))
     _remove_earlier_session(folder)
-    assert sorted(p.name for p in folder.rglob("*")) == [MANIFEST]
+    left = sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file())
+    assert left == [MANIFEST, "notes.csv"]
     every_file = {*SESSION_FILES, *(name for names in ROLE_FILES.values() for name in names)}
     assert set(unrecorded) <= every_file
 
@@ -49,7 +52,8 @@ def test_a_node_still_running_after_its_peers_ended_is_stopped_and_named(tmp_pat
     processes = {"controller": _child("pass"), "robot": _child(deaf)}
     start = time.monotonic()
     stuck, why = _wait_for_nodes(processes, tmp_path, None, start + 600.0, grace=0.5)
-    assert stuck == ["robot"] and why == "0.5 s after the controller node ended"
+    assert stuck == {"robot": "SIGTERM, then SIGKILL 5 s on"}
+    assert why == "0.5 s after the controller node ended"
     assert processes["robot"].wait(timeout=10) == -signal.SIGKILL  # SIGTERM ignored
     assert time.monotonic() - start < 30.0
 
@@ -122,9 +126,24 @@ def test_a_session_interrupted_before_it_starts_says_so_and_writes_no_summary(tm
     launcher = subprocess.Popen(
         [*command, "--duration", "30", "--quiet"], stderr=subprocess.PIPE, text=True
     )
-    time.sleep(1.0)  # the nodes are loading: no session has started
+    deadline = time.monotonic() + 120
+    while not (out / "scenario.toml").exists() and time.monotonic() < deadline:
+        time.sleep(0.02)  # written just before the nodes start; they load for seconds
     launcher.send_signal(signal.SIGINT)
     _, stderr = launcher.communicate(timeout=120)
-    assert launcher.returncode == 130
-    assert stderr.splitlines() in (["interrupted"], ["interrupted before the session started"])
+    assert launcher.returncode == 130, stderr
+    assert stderr.splitlines() == ["interrupted before the session started"]
     assert not (out / "summary.json").exists() and not (out / "robot.mcap").exists()
+
+
+def test_collect_keeps_the_launchers_facts_of_the_same_session_only(tmp_path):
+    from delaytrack.live.session import _launcher_facts
+
+    nodes = {"robot": {"steps": 3000, "lateness_ms_p99": None}, "delay": None}
+    facts = {"exit_codes": {"robot": 0}, "wall_s": 14.0, "load_average": [1.0, 0.5, 0.2]}
+    path = tmp_path / "summary.json"
+    path.write_text(json.dumps({"nodes": nodes, **facts, "commands": 5}))
+    assert _launcher_facts(path, nodes) == facts
+    assert _launcher_facts(path, {**nodes, "robot": {"steps": 1000}}) == {}  # another session
+    path.write_text("[1, 2]")
+    assert _launcher_facts(path, nodes) == {}

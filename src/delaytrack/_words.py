@@ -1,8 +1,9 @@
-"""Counts in words for messages and reports: ``1 unit``, ``2 units``."""
+"""Numbers in words for messages and reports: counts (``1 unit``, ``2 units``) and values
+shown as short as they can be without reading as another number."""
 
 from __future__ import annotations
 
-__all__ = ["counted"]
+__all__ = ["counted", "shown_number"]
 
 
 def counted(count: int, noun: str, plural: str | None = None) -> str:
@@ -10,3 +11,10 @@ def counted(count: int, noun: str, plural: str | None = None) -> str:
     ``count`` is 1: ``counted(1, "draw")`` is ``"1 draw"``, ``counted(3, "draw")``
     ``"3 draws"``."""
     return f"{count} {noun if count == 1 else (plural or noun + 's')}"
+
+
+def shown_number(value: float) -> str:
+    """``value`` to six significant digits, or in full where those would read as another
+    number (an ``--r`` of 1.0000000000000002 is not shown as the refused 1)."""
+    short = f"{value:g}"
+    return short if float(short) == value else repr(float(value))

@@ -10,7 +10,7 @@ import numpy as np
 from delaytrack._validation import DECIMAL_NOTATION, NumberTextError, decimal_number
 from delaytrack.cli._usage import UsageError
 
-__all__ = ["numbers", "scalar", "shown_number"]
+__all__ = ["numbers", "scalar"]
 
 
 def _number(flag: str, part: str, text: str, what: str) -> float:
@@ -39,10 +39,3 @@ def numbers(flag: str, text: str) -> np.ndarray:
 def scalar(flag: str, text: str) -> float:
     """Parse one finite float."""
     return _number(flag, text, text, "a single number" if "," in text else "a number")
-
-
-def shown_number(value: float) -> str:
-    """``value`` to six significant digits, or in full where those would read as another
-    number (an ``--r`` of 1.0000000000000002 is not shown as the refused 1)."""
-    short = f"{value:g}"
-    return short if float(short) == value else repr(float(value))

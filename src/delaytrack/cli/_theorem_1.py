@@ -9,7 +9,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from delaytrack._cli_options import integer, quiet_argument
-from delaytrack.cli._numbers import numbers, scalar, shown_number
+from delaytrack._words import shown_number
+from delaytrack.cli._numbers import numbers, scalar
 from delaytrack.cli._usage import UsageError, flagged
 
 if TYPE_CHECKING:

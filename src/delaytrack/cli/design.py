@@ -7,7 +7,8 @@ import json
 from typing import TYPE_CHECKING
 
 from delaytrack._cli_options import integer
-from delaytrack.cli._numbers import scalar, shown_number
+from delaytrack._words import shown_number
+from delaytrack.cli._numbers import scalar
 from delaytrack.cli._theorem_1 import joints, r_and_json_arguments, razumikhin_factor
 from delaytrack.cli._usage import flagged
 

@@ -120,7 +120,9 @@ class RobotBridge(abc.ABC):
         """
 
     def close(self) -> None:  # noqa: B027 - optional, no-op by default
-        """Leave the robot safe (zero input) and release it; called once, at the end."""
+        """Leave the robot safe (zero input) and release it; called once, at the end. Under
+        ``delaytrack live run`` it must return within a minute (and 5 % of the session) of
+        the other nodes' end, or the robot node is stopped."""
 
 
 def bridge_factory(value: str) -> Any:

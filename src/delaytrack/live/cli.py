@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from delaytrack._cli_options import (
@@ -68,27 +68,33 @@ def _session_name(text: str) -> str:
 _PORTED = ("tcp", "udp", "tls", "quic")
 
 
-def _endpoint(text: str) -> str:
+def _endpoint(lowest_port: int) -> Callable[[str], str]:
     """argparse type: a Zenoh endpoint, ``PROTOCOL/ADDRESS`` (with ``?`` metadata or ``#``
-    configuration after it); for TCP, UDP, TLS and QUIC the address ends in a port from 0 to
-    65535 (0: any free port, for --listen). Zenoh itself takes a malformed address to connect
-    to without a word and retries it until the handshake gives up."""
-    protocol, slash, rest = text.partition("/")
-    address = re.split(r"[?#]", rest, maxsplit=1)[0]
-    host, colon, port = address.rpartition(":")
-    ported = protocol in _PORTED
-    if (
-        not slash
-        or not re.fullmatch(r"[a-z][a-z0-9-]*", protocol)
-        or not address
-        or (ported and not (colon and host and re.fullmatch(r"[0-9]{1,5}", port)))
-        or (ported and int(port) > 65535)
-    ):
-        raise argparse.ArgumentTypeError(
-            "must be a Zenoh endpoint PROTOCOL/ADDRESS, for TCP, UDP, TLS and QUIC "
-            f"PROTOCOL/HOST:PORT with a port from 0 to 65535 (tcp/127.0.0.1:7447); got {text!r}"
-        )
-    return text
+    configuration after it); for TCP, UDP, TLS and QUIC the address ends in a port from
+    ``lowest_port`` to 65535 (0, any free port, is for --listen only). Zenoh itself takes a
+    malformed address to connect to without a word and retries it until the handshake gives
+    up."""
+
+    def endpoint(text: str) -> str:
+        protocol, slash, rest = text.partition("/")
+        address = re.split(r"[?#]", rest, maxsplit=1)[0]
+        host, colon, port = address.rpartition(":")
+        ported = protocol in _PORTED
+        if (
+            not slash
+            or not re.fullmatch(r"[a-z][a-z0-9-]*", protocol)
+            or not address
+            or (ported and not (colon and host and re.fullmatch(r"[0-9]{1,5}", port)))
+            or (ported and not lowest_port <= int(port) <= 65535)
+        ):
+            raise argparse.ArgumentTypeError(
+                "must be a Zenoh endpoint PROTOCOL/ADDRESS, for TCP, UDP, TLS and QUIC "
+                f"PROTOCOL/HOST:PORT with a port from {lowest_port} to 65535 (tcp/127.0.0.1:7447); "
+                f"got {text!r}"
+            )
+        return text
+
+    return endpoint
 
 
 def _realtime_argument(command: argparse.ArgumentParser) -> None:
@@ -178,7 +184,7 @@ def _node_arguments(command: argparse.ArgumentParser, role: str) -> None:
     command.add_argument(
         "--listen",
         action="append",
-        type=_endpoint,
+        type=_endpoint(0),
         default=[],
         metavar="ENDPOINT",
         help="Zenoh endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable)",
@@ -186,7 +192,7 @@ def _node_arguments(command: argparse.ArgumentParser, role: str) -> None:
     command.add_argument(
         "--connect",
         action="append",
-        type=_endpoint,
+        type=_endpoint(1),
         default=[],
         metavar="ENDPOINT",
         help="Zenoh endpoint of a peer, e.g. tcp/10.0.0.2:7447 (repeatable)",

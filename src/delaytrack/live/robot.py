@@ -507,9 +507,10 @@ class RobotNode(NodeBase):
             self.bridge.close()
         except Exception as error:  # noqa: BLE001 - the bridge is the user's code
             what = f"{type(self.bridge).__name__}.close() raised {type(error).__name__}: {error}"
-            self.failure = self.failure or what.replace("\n", " ")
+            what = what.replace("\n", " ")
+            self.failure = self.failure or what
             print(
-                f"error: {self.failure}; the robot may still hold its last input",
+                f"error: {what}; the robot may still hold its last input",
                 file=sys.stderr,
                 flush=True,
             )

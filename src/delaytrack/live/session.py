@@ -169,26 +169,22 @@ def run_session(args: Any) -> int:
     )
     for role in stuck:
         print(
-            f"error: the {role} node did not end in time ({why}): it was stopped (SIGTERM, "
-            f"then SIGKILL); its tables may be missing, {role}.mcap holds what it logged",
+            f"error: the {role} node did not end in time ({why}): it was stopped ({stuck[role]}); "
+            f"its tables may be missing, {role}.mcap holds what it logged",
             file=sys.stderr,
         )
     failed = {role: code for role, code in codes.items() if code not in (0,)}
     if not any((folder / f"{r}.mcap").exists() for r in ROLES):
         # No session (an earlier one's logs were removed): stopped, refused by a node (said
-        # by the node) or a node killed, before the start.
+        # by the node), or a node killed or stopped, before the start. Nothing to collect.
         if interrupted:
             print("interrupted before the session started", file=sys.stderr)
             return 130
-        killed = [_exit_text(role, code) for role, code in failed.items() if code < 0]
-        if killed:
-            print(
-                f"error: node(s) {', '.join(killed)} ended before the session started",
-                file=sys.stderr,
-            )
-            return 1
-        if failed:
+        if failed and all(code > 0 for code in failed.values()):
             return max(failed.values())
+        ended = ", ".join(_exit_text(role, code) for role, code in codes.items())
+        print(f"error: the session did not start; its nodes ended: {ended}", file=sys.stderr)
+        return 1
     try:
         summary = collect(folder, scenario, built)
         summary["exit_codes"] = codes
@@ -202,6 +198,11 @@ def run_session(args: Any) -> int:
             file=sys.stderr,
         )
         return 130
+    except ValueError as error:  # a node's file the summary cannot read
+        print(f"error: the session's summary could not be written: {error}", file=sys.stderr)
+        return 1
+    if stuck:
+        failed.update({role: codes[role] or 1 for role in stuck})
     if not args.quiet or failed:
         print(format_summary(summary, folder))
     return _session_exit_code(interrupted, failed, report_failed)
@@ -216,15 +217,14 @@ SESSION_FILES = (
     "report.html",
     "replay.csv",
     "replay.json",
+    *(f"figures/{name}.png" for name in ("tracking", "error", "commands", "delay", "timing")),
 )
 
 
 def _remove_earlier_session(folder: Path) -> None:
-    """Remove what an earlier session left in ``folder`` (the files its record lists, and any
-    file of a session not recorded), so that none of its tables is taken for this one's."""
-    from delaytrack._output import record_outputs
-
-    record_outputs(folder, [])
+    """Remove the files of an earlier session in ``folder`` (the nodes', the summary's, the
+    report's and the replay's; nothing else), so that none of its tables is taken for this
+    one's."""
     names = [*SESSION_FILES, *(name for files in ROLE_FILES.values() for name in files)]
     remove_files(folder, names)
 
@@ -254,7 +254,7 @@ def _run_nodes(
     watch: StatusWatch | None,
     handshake_timeout: float,
     duration: float,
-) -> tuple[dict[str, int], list[int], float, tuple[list[str], str]]:
+) -> tuple[dict[str, int], list[int], float, tuple[dict[str, str], str]]:
     """Start the nodes, pass SIGINT/SIGTERM on to them as SIGTERM and wait for their end;
     return their exit codes, the signals that interrupted the session, its start on the
     monotonic clock and the nodes stopped for not ending in time, with why
@@ -273,8 +273,9 @@ def _run_nodes(
         environment = {**os.environ, LAUNCHER_PID: str(os.getpid())}
         for role in ROLES:
             processes[role] = subprocess.Popen(commands[role], env=environment)
-        limit = started + handshake_timeout + duration + 30.0
-        stuck = _wait_for_nodes(processes, folder, watch, limit, ending_grace(duration))
+        grace = ending_grace(duration)
+        limit = started + handshake_timeout + duration + grace
+        stuck = _wait_for_nodes(processes, folder, watch, limit, grace)
         codes = {role: process.wait() for role, process in processes.items()}
     finally:
         for signum, handler in previous.items():
@@ -286,9 +287,9 @@ def _run_nodes(
 
 def ending_grace(duration: float) -> float:
     """Seconds a node may take to end after another node of a session of ``duration`` seconds
-    ended (or the session was told to stop): 30 s and 5 % of the session, for writing its
-    tables."""
-    return 30.0 + 0.05 * duration
+    ended (or the session was told to stop): 60 s and 5 % of the session, for a bridge's
+    ``close()`` to leave the robot safe and for writing the tables of a long session."""
+    return 60.0 + 0.05 * duration
 
 
 def _wait_for_nodes(
@@ -297,25 +298,26 @@ def _wait_for_nodes(
     watch: StatusWatch | None,
     limit: float,
     grace: float,
-) -> tuple[list[str], str]:
+) -> tuple[dict[str, str], str]:
     """Wait while any node runs, showing the status: a node that ended early ends the session.
     A node still running ``grace`` seconds after another ended (the session over, or stopped),
     or past ``limit`` (monotonic clock), is stopped: SIGTERM, then SIGKILL 5 s on. Returns the
-    roles stopped so and why."""
+    roles stopped so (and how) and why."""
     ended = False
     exited: set[str] = set()  # the nodes whose end has been looked at (once each)
-    deadline, why = limit, "the session's end, its handshake time and 30 s passed"
+    deadline, why = limit, "the session's end, its handshake time and the grace passed"
     while any(p.poll() is None for p in processes.values()):
         now = time.monotonic()
         if now > deadline:
-            stuck = [role for role, p in processes.items() if p.poll() is None]
+            stuck = {role: "SIGTERM" for role, p in processes.items() if p.poll() is None}
             _terminate(processes)
             given_up = time.monotonic() + 5.0
-            for process in processes.values():
+            for role in stuck:
                 try:
-                    process.wait(timeout=max(0.0, given_up - time.monotonic()))
+                    processes[role].wait(timeout=max(0.0, given_up - time.monotonic()))
                 except subprocess.TimeoutExpired:
-                    process.kill()
+                    processes[role].kill()
+                    stuck[role] = "SIGTERM, then SIGKILL 5 s on"
             return stuck, why
         newly = [r for r, p in processes.items() if r not in exited and p.poll() is not None]
         exited.update(newly)
@@ -330,7 +332,7 @@ def _wait_for_nodes(
         if watch is not None:
             watch.show()
         time.sleep(0.05)
-    return [], ""
+    return {}, ""
 
 
 def _terminate(processes: dict[str, subprocess.Popen[bytes]]) -> None:
@@ -410,7 +412,8 @@ def collect_main(args: Any) -> int:
         print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
         return 2
     scenario.to_toml(folder / "scenario.toml")
-    summary.update(_launcher_facts(folder / "summary.json"))
+    summary.update(_launcher_facts(folder / "summary.json", summary["nodes"]))
+    remove_files(folder, ("replay.csv", "replay.json"))  # of the summary before, if any
     summary["stopped_by"] = {
         role: (summary["nodes"][role] or {}).get("stopped_by") for role in ROLES
     }
@@ -420,15 +423,15 @@ def collect_main(args: Any) -> int:
     return 1 if report_failed else 0
 
 
-def _launcher_facts(path: Path) -> dict[str, Any]:
+def _launcher_facts(path: Path, nodes: dict[str, Any]) -> dict[str, Any]:
     """What ``live run`` measured of a session (the nodes' exit codes, its wall time and load)
-    from its ``summary.json``, kept when ``live collect`` writes the summary again; none when
-    the file is missing or not a summary."""
+    from its ``summary.json``, kept when ``live collect`` writes the summary again: only when
+    that summary is of the same session (its node records are ``nodes``); none otherwise."""
     try:
         summary = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError):
         return {}
-    if not isinstance(summary, dict):
+    if not isinstance(summary, dict) or summary.get("nodes") != json.loads(json_text(nodes)):
         return {}
     return {key: summary[key] for key in ("exit_codes", "wall_s", "load_average") if key in summary}
 

@@ -22,6 +22,7 @@ from delaytrack._validation import (
     positive_scalar,
     real_array,
 )
+from delaytrack._words import shown_number
 from delaytrack.components import Kernel
 from delaytrack.controllers.base import Controller
 from delaytrack.delays._kernel import NO_KERNEL
@@ -256,13 +257,15 @@ def _times(
             f"{max(abs(t0), abs(t1)):g} s are spaced {max(abs(t0), abs(t1)) * 2.2e-16:.2g} s apart "
             f"in double precision, not far below dt = {dt:g} s; start the run at t0 = 0"
         )
-    steps_per_tick = _integer_ratio("T_c", T_c, dt, "dt", f"T_c = {T_c:g}, dt = {dt:g}")
+    steps_per_tick = _integer_ratio(
+        "T_c", T_c, dt, "dt", f"T_c = {shown_number(T_c)}, dt = {shown_number(dt)}"
+    )
     n_ticks = _integer_ratio(
         "t1 - t0",
         t1 - t0,
         T_c,
         "T_c",
-        f"t1 = {t1:g}, t0 = {t0:g}, T_c = {T_c:g}",
+        f"t1 = {shown_number(t1)}, t0 = {shown_number(t0)}, T_c = {shown_number(T_c)}",
         scale=max(abs(t0), abs(t1)),
     )
     if n_ticks * steps_per_tick > MAX_STEPS:

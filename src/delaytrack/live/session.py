@@ -272,6 +272,8 @@ def _run_nodes(
         # A node stops when this process ends, even killed (:func:`end_with_launcher`).
         environment = {**os.environ, LAUNCHER_PID: str(os.getpid())}
         for role in ROLES:
+            if interrupted:  # stopped while the nodes start: the rest are not started
+                break
             processes[role] = subprocess.Popen(commands[role], env=environment)
         grace = ending_grace(duration)
         limit = started + handshake_timeout + duration + grace

@@ -149,21 +149,24 @@ def run_session(args: Any) -> int:
     except (ScenarioError, ValueError, OSError) as error:
         print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
         return 2
-    claim_output_folder(folder)
-    _remove_earlier_session(folder)
-    # The nodes read the scenario as written here, so a shipped name and the replay agree.
-    scenario.to_toml(folder / "scenario.toml")
-    ports = _free_ports(3) if args.port is None else [args.port + i for i in range(3)]
-    session = f"run-{os.getpid()}-{int(time.time())}"
-    # The status watch listens before the nodes start, and they connect to it: a watch that
-    # connected to them could miss a short session while its connections were retried.
-    watched = None if args.quiet else f"tcp/127.0.0.1:{_free_ports(1)[0]}"
     try:
+        claim_output_folder(folder)
+        _remove_earlier_session(folder)
+        # The nodes read the scenario as written here, so a shipped name and the replay agree.
+        scenario.to_toml(folder / "scenario.toml")
+        ports = _free_ports(3) if args.port is None else [args.port + i for i in range(3)]
+        session = f"run-{os.getpid()}-{int(time.time())}"
+        # The status watch listens before the nodes start, and they connect to it: a watch
+        # that connected to them could miss a short session while its connections were retried.
+        watched = None if args.quiet else f"tcp/127.0.0.1:{_free_ports(1)[0]}"
         watch = None if watched is None else StatusWatch(watched, f"delaytrack/{session}")
+        commands = node_commands(args, folder, ports, session, watched)
     except OSError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    commands = node_commands(args, folder, ports, session, watched)
+    except KeyboardInterrupt:
+        print("interrupted before the session started", file=sys.stderr)
+        return 130
     codes, interrupted, started, (stuck, why) = _run_nodes(
         commands, folder, watch, args.handshake_timeout, duration
     )

@@ -50,12 +50,10 @@ def _child(code: str, **options) -> subprocess.Popen:
 def test_a_node_still_running_after_its_peers_ended_is_stopped_and_named(tmp_path):
     deaf = "import signal, time\nsignal.signal(signal.SIGTERM, signal.SIG_IGN)\ntime.sleep(60)"
     processes = {"controller": _child("pass"), "robot": _child(deaf)}
-    start = time.monotonic()
-    stuck, why = _wait_for_nodes(processes, tmp_path, None, start + 600.0, grace=0.5)
+    stuck, why = _wait_for_nodes(processes, tmp_path, None, time.monotonic() + 600, grace=0.5)
     assert stuck == {"robot": "SIGTERM, then SIGKILL 5 s on"}
     assert why == "0.5 s after the controller node ended"
     assert processes["robot"].wait(timeout=10) == -signal.SIGKILL  # SIGTERM ignored
-    assert time.monotonic() - start < 30.0
 
 
 def test_the_nodes_of_a_launcher_stop_when_it_is_killed(tmp_path):

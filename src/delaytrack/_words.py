@@ -6,11 +6,10 @@ from __future__ import annotations
 __all__ = ["counted", "shown_number"]
 
 
-def counted(count: int, noun: str, plural: str | None = None) -> str:
-    """``count`` and ``noun``, in the plural (``plural``, by default ``noun + "s"``) unless
-    ``count`` is 1: ``counted(1, "draw")`` is ``"1 draw"``, ``counted(3, "draw")``
-    ``"3 draws"``."""
-    return f"{count} {noun if count == 1 else (plural or noun + 's')}"
+def counted(count: int, noun: str) -> str:
+    """``count`` and ``noun``, with an ``s`` unless ``count`` is 1: ``counted(1, "draw")`` is
+    ``"1 draw"``, ``counted(3, "draw")`` ``"3 draws"``."""
+    return f"{count} {noun if count == 1 else noun + 's'}"
 
 
 def shown_number(value: float) -> str:

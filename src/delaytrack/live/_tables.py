@@ -16,6 +16,7 @@ __all__ = [
     "ROLE_FILES",
     "check_tables_whole",
     "index_cell",
+    "json_table",
     "ms",
     "node_record",
     "number",
@@ -106,32 +107,32 @@ def index_cell(row: dict[str, str], column: str, path: Path) -> int:
     return int(text)
 
 
-def node_record(path: Path) -> dict[str, Any] | None:
-    """A node's record (``<role>.json``, a JSON table), None when the file is missing, or a
-    ValueError naming it."""
-    if not path.exists():
-        return None
-    regular_file(path, "node record")
+def json_table(path: Path, what: str) -> dict[str, Any]:
+    """The JSON table in the session file ``path`` (a node's record, the summary), or a
+    ValueError naming it as ``what`` (FileNotFoundError when it is missing)."""
+    regular_file(path, what)
     try:
-        record = json.loads(path.read_text(encoding="utf-8"))
+        table = json.loads(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise ValueError(f"{path} is not a node's record (not JSON: {error})") from None
-    if not isinstance(record, dict):
-        raise ValueError(f"{path} is not a node's record: it holds no JSON table")
-    return record
+        raise ValueError(f"{path} is not a {what} (not JSON: {error})") from None
+    if not isinstance(table, dict):
+        raise ValueError(f"{path} is not a {what}: it holds no JSON table")
+    return table
+
+
+def node_record(path: Path) -> dict[str, Any] | None:
+    """A node's record (``<role>.json``, :func:`json_table`), None when the file is missing."""
+    return json_table(path, "node's record") if path.exists() else None
 
 
 def required_rows(path: Path, columns: tuple[str, ...]) -> list[dict[str, str]]:
     """:func:`read_rows` of a table the replay needs: at least one row, and ``columns``."""
-    rows = read_rows(path)
+    rows = read_rows(path, columns)
     if not rows:
         raise ValueError(
             f"{path.parent}: {path.name} is missing or has no rows; a session folder written by "
             "delaytrack live run (or live collect) holds it"
         )
-    missing = [column for column in columns if column not in rows[0]]
-    if missing:
-        raise ValueError(f"{path}: no column {missing[0]!r} (it has {list(rows[0])})")
     return rows
 
 

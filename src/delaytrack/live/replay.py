@@ -25,7 +25,6 @@ missed, states older than ``t_k`` that it computed on.
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 from dataclasses import dataclass
@@ -35,11 +34,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from delaytrack._io import json_text, regular_file, write_text
+from delaytrack._io import json_text, write_text
 from delaytrack.live._node import session_files
 from delaytrack.live._tables import (
     check_tables_whole,
     index_cell,
+    json_table,
     number,
     read_rows,
     required_rows,
@@ -103,12 +103,7 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
 def _session_nodes(path: Path) -> dict[str, Any]:
     """The ``nodes`` of the session's ``summary.json`` (a table of tables), or a ValueError
     naming the file."""
-    regular_file(path, "session summary")
-    try:
-        summary = json.loads(path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise ValueError(f"{path} is not a session summary (not JSON: {error})") from None
-    nodes = summary.get("nodes") if isinstance(summary, dict) else None
+    nodes = json_table(path, "session summary").get("nodes")
     if not isinstance(nodes, dict) or not all(isinstance(v, dict | None) for v in nodes.values()):
         raise ValueError(
             f"{path} is not a session summary: it needs a table 'nodes' of the nodes' tables "

@@ -209,27 +209,33 @@ def _metrics(runs: dict[str, Any]) -> Any:
     return pd.concat(tables, ignore_index=True).drop(columns=["run"])
 
 
+#: The report's figures, ``figures/<name>.png``, in their order.
+FIGURES = ("tracking", "error", "commands", "delay", "timing")
+
+
 def _figures(folder: Path, scenario: Any, built: Any, runs: dict[str, Any]) -> dict[str, Any]:
-    """The report's figures, each with its caption: name -> (figure, caption)."""
+    """The report's figures, each with its caption: name (:data:`FIGURES`) -> (figure,
+    caption)."""
     from delaytrack.report.figures import commands_figure, error_figure, tracking_figure
 
-    return {
-        "tracking": (tracking_figure(runs), "Each coordinate against its reference q_d"),
-        "error": (error_figure(runs), "Absolute tracking error |q_d − q| at the ticks"),
-        "commands": (
+    figures = [
+        (tracking_figure(runs), "Each coordinate against its reference q_d"),
+        (error_figure(runs), "Absolute tracking error |q_d − q| at the ticks"),
+        (
             commands_figure({"live": runs["live"]}),
             "Commands sent by the controller (solid) and held by the robot over the step after "
             "each tick (dashed)",
         ),
-        "delay": (
+        (
             _delay_figure(folder, built.delay, scenario.dt),
             "Realised delay of each command against h(t), and their difference",
         ),
-        "timing": (
+        (
             _timing_figure(folder),
             "Wake-up lateness and compute time of the controller, lateness of the robot's steps",
         ),
-    }
+    ]
+    return dict(zip(FIGURES, figures, strict=True))
 
 
 def _html_report(

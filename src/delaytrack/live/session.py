@@ -43,12 +43,14 @@ from delaytrack.live._tables import (
     ROLE_FILES,
     check_tables_whole,
     index_cell,
+    json_table,
     ms,
     node_record,
     number,
     read_rows,
 )
 from delaytrack.live.log import write_csv
+from delaytrack.live.report import FIGURES
 from delaytrack.live.status import StatusWatch
 from delaytrack.live.transport import differing_parts, scenario_hashes
 
@@ -220,7 +222,7 @@ SESSION_FILES = (
     "report.html",
     "replay.csv",
     "replay.json",
-    *(f"figures/{name}.png" for name in ("tracking", "error", "commands", "delay", "timing")),
+    *(f"figures/{name}.png" for name in FIGURES),
 )
 
 
@@ -411,8 +413,7 @@ def collect_main(args: Any) -> int:
             )
         scenario = load_scenario(str(args.scenario), list(args.trust))
         built = scenario.build()
-        _check_nodes_ran(folder, scenario_hashes(scenario, built.plant), str(args.scenario))
-        summary = collect(folder, scenario, built)
+        summary = collect(folder, scenario, built, given=str(args.scenario))
     except (ScenarioError, ValueError, OSError) as error:
         print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
         return 2
@@ -433,20 +434,22 @@ def _launcher_facts(path: Path, nodes: dict[str, Any]) -> dict[str, Any]:
     from its ``summary.json``, kept when ``live collect`` writes the summary again: only when
     that summary is of the same session (its node records are ``nodes``); none otherwise."""
     try:
-        summary = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        summary = json_table(path, "session summary")
+    except (OSError, ValueError):
         return {}
-    if not isinstance(summary, dict) or summary.get("nodes") != json.loads(json_text(nodes)):
+    if summary.get("nodes") != json.loads(json_text(nodes)):
         return {}
     return {key: summary[key] for key in ("exit_codes", "wall_s", "load_average") if key in summary}
 
 
-def _check_nodes_ran(folder: Path, hashes: dict[str, str], given: str) -> None:
-    """Refuse a scenario other than the one the nodes of the session in ``folder`` ran (the
-    :func:`~delaytrack.live.transport.scenario_hashes` each node recorded), naming the parts
-    that differ."""
+def _check_nodes_ran(
+    folder: Path, nodes: dict[str, Any], hashes: dict[str, str], given: str
+) -> None:
+    """Refuse a scenario (``given``, of ``hashes``) other than the one the nodes of the session
+    in ``folder`` ran (the :func:`~delaytrack.live.transport.scenario_hashes` each node
+    recorded in its record of ``nodes``), naming the parts that differ."""
     for role in ROLES:
-        recorded = (node_record(folder / f"{role}.json") or {}).get("scenario_hashes")
+        recorded = (nodes.get(role) or {}).get("scenario_hashes")
         if not isinstance(recorded, dict):
             continue  # a node of an earlier version recorded none
         parts = differing_parts(hashes, recorded)
@@ -457,12 +460,15 @@ def _check_nodes_ran(folder: Path, hashes: dict[str, str], given: str) -> None:
             )
 
 
-def collect(folder: Path, scenario: Any, built: Any) -> dict[str, Any]:
+def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -> dict[str, Any]:
     """Merge the nodes' tables into ``delays.csv``; return the session's summary. ``built`` is
     ``scenario.build()``. A table or record that is not the toolkit's is a ValueError naming
-    it."""
+    it, and so is a scenario other than the one the nodes ran, when it was ``given`` (its file
+    or name, for the message) rather than the launcher's own."""
     delay = built.delay
     nodes = {role: node_record(folder / f"{role}.json") for role in ROLES}
+    if given is not None:
+        _check_nodes_ran(folder, nodes, scenario_hashes(scenario, built.plant), given)
     check_tables_whole(folder, nodes)
     ticks_csv, releases_csv, applied_csv = (
         folder / name for name in ("ticks.csv", "releases.csv", "applied.csv")

@@ -280,6 +280,8 @@ def _run_nodes(
             if interrupted:  # stopped while the nodes start: the rest are not started
                 break
             processes[role] = subprocess.Popen(commands[role], env=environment)
+        if interrupted:  # the signal may have come inside Popen, before the node was listed
+            _terminate(processes)
         grace = ending_grace(duration)
         limit = started + handshake_timeout + duration + grace
         stuck = _wait_for_nodes(processes, folder, watch, limit, grace)

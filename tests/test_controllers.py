@@ -451,6 +451,8 @@ def test_controller_from_spec(arm, rng):
             r"qd_ddot must have shape \(2,\); got \(1,\)",
         ),
         (dict(state=np.zeros(3)), r"state must have shape \(4,\); got \(3,\)"),
+        (dict(state=[0.0, 1.0, "a", 2.0]), r"state must be a vector of 4 numbers; got list \[0\.0"),
+        (dict(q=[{}, 1.0]), r"q must be a vector of 2 numbers; got list \[\{\}"),
         (dict(T_c=0.0), r"T_c must be > 0; got 0"),
     ],
 )

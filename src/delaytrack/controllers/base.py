@@ -260,6 +260,9 @@ class Controller(ABC):
         call's period are used again (a :class:`~delaytrack.controllers.stepper.ControllerStepper`
         kept by the controller). A loop of your own that keeps the state can call a
         :meth:`stepper` instead, which neither copies the state nor makes new arrays.
+
+        The values are used as given: a NaN in a measurement gives a NaN command (checking
+        every value would more than double the time of a call).
         """
         kept = getattr(self, "__dict__", {})
         stepper = kept.pop(_STEP_STEPPER, None)  # a call on another thread makes its own

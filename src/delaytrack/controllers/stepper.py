@@ -8,14 +8,14 @@ of the law from the measured state and the reference at ``t_k``,
 
 (for AROLC: ``τ = M̂(q) u + N̂(q, q̇)`` with ``u = û + Δu``, paper eqs. (input), (control input),
 and ĉ advanced by the adaptive law (ATRC); see :mod:`delaytrack.controllers.arolc`).
-:meth:`Controller.step <delaytrack.controllers.base.Controller.step>` checks and converts
-every argument, makes a new command, state and scratch memory, and has numba type the step's
-fourteen arguments at every call. A :class:`ControllerStepper`, made by
-:meth:`Controller.stepper <delaytrack.controllers.base.Controller.stepper>`, does all of that
-once: the period is checked with the law's ``check_run``, the arrays of the step (the inputs,
-state, command and scratch memory) are its own, and the step's compiled code is called through
-its entry point for these arrays (:func:`entry_point`), without numba's dispatch. A tick then
-only checks the delay ``h`` (and, called with arrays, copies them into its own).
+A :class:`ControllerStepper`, made by
+:meth:`Controller.stepper <delaytrack.controllers.base.Controller.stepper>`, checks what can be
+checked once when it is made: the period with the law's ``check_run``; the arrays of the step
+(the inputs, state, command and scratch memory) are its own, and the step's compiled code is
+called through its entry point for these arrays (:func:`entry_point`), without numba's type
+dispatch. A tick then only checks the delay ``h`` (and, called with arrays, copies them into its
+own). :meth:`Controller.step <delaytrack.controllers.base.Controller.step>` keeps such a
+stepper and copies the state in and out at each call.
 """
 
 from __future__ import annotations
@@ -39,7 +39,12 @@ Vector = np.ndarray | Sequence[float]
 def checked_vector(name: str, value: Vector, size: int) -> np.ndarray:
     """``value`` as a float64 array of shape ``(size,)`` (``value`` itself when it is one), or
     a ValueError naming ``name``."""
-    array = np.asarray(value, dtype=float)
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"{name} must be a vector of {size} numbers; got {type(value).__name__} {value!r:.60}"
+        ) from None
     if array.shape != (size,):
         raise ValueError(f"{name} must have shape ({size},); got {array.shape}")
     return array
@@ -189,26 +194,7 @@ class ControllerStepper:
 
         ``h`` is the true delay (s), required by laws that read it.
         """
-        delay = self._delay(h)
-        qd, qd_dot, qd_ddot = reference
-        size = self._size
-        own_q, own_qdot, own_qd, own_qd_dot, own_qd_ddot = self._inputs
-        try:  # written out: a loop over the five costs a third more
-            copied = len(q) == len(qdot) == len(qd) == len(qd_dot) == len(qd_ddot) == size
-            if copied:
-                own_q[...] = q
-                own_qdot[...] = qdot
-                own_qd[...] = qd
-                own_qd_dot[...] = qd_dot
-                own_qd_ddot[...] = qd_ddot
-        except (TypeError, ValueError):
-            copied = False
-        if not copied:  # one by one, refusing the first that is not a vector of n numbers
-            for name, value, own in zip(
-                INPUT_NAMES, (q, qdot, qd, qd_dot, qd_ddot), self._inputs, strict=True
-            ):
-                _copy_checked(name, value, own)
-        return self.tick(t, delay)
+        return self._tick_from(None, t, q, qdot, reference, h)
 
     def _step_from(
         self,
@@ -222,9 +208,55 @@ class ControllerStepper:
         """:meth:`reset` to ``state``, then one tick (:meth:`__call__`): new arrays ``(command
         (m,), next state)``, what :meth:`Controller.step
         <delaytrack.controllers.base.Controller.step>` returns."""
-        _copy_checked("state", state, self._state)
-        command = self(t, q, qdot, reference, h)
+        command = self._tick_from(state, t, q, qdot, reference, h)
         return command.copy(), self._state.copy()
+
+    def _tick_from(
+        self,
+        state: Vector | None,
+        t: float,
+        q: Vector,
+        qdot: Vector,
+        reference: tuple[Vector, Vector, Vector],
+        h: float | None,
+    ) -> np.ndarray:
+        """One tick (:meth:`__call__`), from ``state`` (copied in) unless it is None.
+
+        Written out in one function, as :meth:`tick` is: in a loop at a kilohertz, every call
+        and every loop over the vectors is a tenth of a microsecond.
+        """
+        if not (isinstance(h, float) and 0.0 <= h <= self._h_max):  # else checked before
+            h = self._delay(h)
+        qd, qd_dot, qd_ddot = reference
+        size = self._size
+        own_q, own_qdot, own_qd, own_qd_dot, own_qd_ddot = self._inputs
+        own_state = self._state
+        try:
+            copied = len(q) == len(qdot) == len(qd) == len(qd_dot) == len(qd_ddot) == size and (
+                state is None or len(state) == own_state.shape[0]
+            )
+            if copied:
+                own_q[...] = q  # faster than own_q[:] = q
+                own_qdot[...] = qdot
+                own_qd[...] = qd
+                own_qd_dot[...] = qd_dot
+                own_qd_ddot[...] = qd_ddot
+                if state is not None:
+                    own_state[...] = state
+        except (TypeError, ValueError):
+            copied = False
+        if not copied:  # one by one, refusing the first that is not a vector of n numbers
+            if state is not None:
+                _copy_checked("state", state, own_state)
+            for name, value, own in zip(
+                INPUT_NAMES, (q, qdot, qd, qd_dot, qd_ddot), self._inputs, strict=True
+            ):
+                _copy_checked(name, value, own)
+        arguments = self._arguments
+        arguments[0] = float(t)
+        arguments[7] = h
+        self._step(*arguments)
+        return self._command_view
 
     def tick(self, t: float, h: float | None = None) -> np.ndarray:
         """One tick at ``t`` from the values in :attr:`inputs`: the command (m,).

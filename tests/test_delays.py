@@ -10,6 +10,7 @@ each RK4 step at those instants: docs/decisions.md D12).
 from __future__ import annotations
 
 import math
+import types
 
 import numpy as np
 import pytest
@@ -23,6 +24,7 @@ from delaytrack.delays import (
     RandomDelay,
     TraceDelay,
     delay_from_spec,
+    random_delay,
 )
 from delaytrack.delays._kernel import (
     ABS_SINE,
@@ -35,6 +37,7 @@ from delaytrack.delays._kernel import (
     piece_end_values,
     slope_bound,
 )
+from delaytrack.delays.random_delay import reflected_walk
 
 TIMES = np.linspace(-3.0, 40.0, 4001)  # dense grid including negative times
 
@@ -689,6 +692,44 @@ def test_random_delay_in_a_very_narrow_band_reflects_in_closed_form():
     profile = RandomDelay(0.05, 0.05 + 1e-9, 1.0, 1.0, seed=1)
     values = profile.h(np.linspace(0.0, 1.0, 1001))
     assert np.all((values >= 0.05) & (values <= 0.05 + 1e-9))
+
+
+@pytest.mark.parametrize(
+    "low, high, rate, spacing",
+    [
+        (0.01, 0.12, 0.2, 0.01),  # the example sweep's walk
+        (0.05, 0.05 + 1e-9, 1.0, 1e-3),  # folded at almost every knot
+        (0.0, 5e-324, 3.0, 0.1),  # the narrowest band there is
+        (0.02, 0.02, 1.0, 0.01),  # no band: every value is h_low
+        (1e-300, 1e300, 1e300, 7.0),  # steps of 1e301
+    ],
+)
+def test_a_walk_drawn_compiled_has_the_knots_plain_python_draws(low, high, rate, spacing):
+    # Walks of more than PYTHON_KNOTS knots are drawn compiled: the same doubles as the plain
+    # Python loop, fold for fold.
+    rng = np.random.default_rng(7)
+    steps = rng.uniform(-rate, rate, size=20_000) * spacing
+    compiled, python = (np.empty(steps.size + 1) for _ in range(2))
+    compiled[0] = python[0] = rng.uniform(low, high)
+    reflected_walk(compiled, steps, low, high)
+    reflected_walk.py_func(python, steps, low, high)
+    np.testing.assert_array_equal(compiled, python)
+    assert np.all((compiled >= low) & (compiled <= high))
+
+
+def test_a_walk_of_more_knots_than_python_draws_is_the_same_walk(monkeypatch):
+    def walk() -> np.ndarray:
+        return RandomDelay(0.01, 0.12, 0.5, 30.0, seed=9, knot_spacing=1e-3).params
+
+    # Drawn in plain Python: a stand-in for the kernel that cannot be called compiled.
+    python_only = types.SimpleNamespace(signatures=[], py_func=reflected_walk.py_func)
+    with monkeypatch.context() as patch:
+        patch.setattr(random_delay, "reflected_walk", python_only)
+        drawn_in_python = walk()
+    # More knots than PYTHON_KNOTS: drawn compiled.
+    monkeypatch.setattr(random_delay, "PYTHON_KNOTS", 100)
+    np.testing.assert_array_equal(walk(), drawn_in_python)
+    assert reflected_walk.signatures
 
 
 def test_a_number_given_as_text_or_bool_is_refused():

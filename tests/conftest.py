@@ -22,7 +22,7 @@ import sys
 import threading
 import time
 from argparse import Namespace
-from pathlib import PurePosixPath
+from pathlib import Path, PurePosixPath
 
 import pytest
 
@@ -136,13 +136,17 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log):
 
 #: The scenario of the shared sessions.
 LIVE_SCENARIO = "two_link_S1"
+#: Modules a live node imports, written into the working folder of :func:`live_run`.
+SHADOWED = ("zenoh", "numpy", "json", "delaytrack")
 
 
 class Launched:
     """A process started at once, whose outcome is read when first asked for."""
 
-    def __init__(self, command: list[str]) -> None:
-        self.process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    def __init__(self, command: list[str], cwd: Path | None = None) -> None:
+        self.process = subprocess.Popen(
+            command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=cwd
+        )
 
     @functools.cached_property
     def outcome(self) -> tuple[bytes, bytes, int]:
@@ -166,7 +170,16 @@ def live_run(tmp_path_factory):
     pytest.importorskip("mcap_ros2")
     folder = tmp_path_factory.mktemp("live_run") / "run"
     command = ["run", LIVE_SCENARIO, "--duration", "2", "--out", str(folder)]
-    launched = Launched([sys.executable, "-m", "delaytrack.live", *command])
+    # Started from a folder of files named like modules the nodes import, each of which would
+    # leave a mark (test_live_loop.py): the launcher as the `delaytrack` command starts (no
+    # folder first on its module search path), then the nodes it starts must not import them.
+    working = folder.parent / "working"
+    working.mkdir()
+    for module in SHADOWED:
+        (working / f"{module}.py").write_text(
+            f"open({str(working / 'imported')!r}, 'a').write({module!r} + '\\n')\n"
+        )
+    launched = Launched([sys.executable, "-P", "-m", "delaytrack.live", *command], cwd=working)
     yield folder, launched
     launched.stop()
 

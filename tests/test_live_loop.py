@@ -158,6 +158,15 @@ def test_a_session_runs_and_every_node_exits_cleanly(sessions):
         json.loads((folder / name).read_text(), parse_constant=_not_json)  # strict JSON
 
 
+def test_the_nodes_import_no_module_of_the_working_folder(sessions, live_run):
+    # The launcher ran from a folder of files named like modules the nodes import
+    # (tests/conftest.py): a file a user was sent beside a scenario must not run.
+    folder, _ = live_run
+    working = folder.parent / "working"
+    assert sorted(working.glob("*.py"))  # the files were there
+    assert not (working / "imported").exists(), (working / "imported").read_text()
+
+
 def _not_json(constant: str) -> None:
     raise AssertionError(f"{constant} is not JSON")
 

@@ -158,7 +158,16 @@ def test_interrupted_and_corrupt_on_dask_resume_without_recomputing(
     pd.testing.assert_frame_equal(resumed.runs, local_runs, check_exact=True)
 
 
-def test_cli_local_cluster(spec, local_runs, tmp_path, capsys):
+def test_cli_local_cluster(spec, local_runs, tmp_path, capsys, monkeypatch):
+    # Run from a folder holding a file named like a module Dask's worker processes import at
+    # their start: it must not run (it would leave a mark, and stop the worker).
+    working = tmp_path / "working"
+    working.mkdir()
+    mark = working / "imported"
+    (working / "multiprocessing.py").write_text(
+        f"open({str(mark)!r}, 'w').write('ran')\nraise SystemExit('shadowed')\n"
+    )
+    monkeypatch.chdir(working)
     spec_file = tmp_path / "sweep.toml"
     spec_file.write_text(
         EXAMPLE.read_text()
@@ -179,11 +188,26 @@ def test_cli_local_cluster(spec, local_runs, tmp_path, capsys):
             "--quiet",
         ]
     )
-    assert code == 0
+    assert code == 0 and not mark.exists()
     assert "on dask: local cluster of 2 worker processes" in capsys.readouterr().out
+    assert "PYTHONSAFEPATH" not in os.environ  # as it was before the cluster
     pd.testing.assert_frame_equal(
         pd.read_parquet(out / "runs.parquet"), local_runs.reset_index(drop=True), check_exact=True
     )
+
+
+def test_a_local_cluster_that_does_not_start_is_one_line(monkeypatch):
+    def fails(**_options):
+        try:
+            raise ImportError("no module named 'x'")
+        except ImportError as error:
+            raise RuntimeError("Nanny failed to start.") from error
+
+    monkeypatch.setattr(distributed, "LocalCluster", fails)
+    message = r"'local-cluster': the local Dask cluster did not start: Nanny .* \(no module"
+    with pytest.raises(SweepError, match=message):
+        DaskExecutor("local-cluster", workers=1)
+    assert "PYTHONSAFEPATH" not in os.environ
 
 
 def test_a_scheduler_that_does_not_answer_is_a_clear_error():

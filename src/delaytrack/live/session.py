@@ -101,6 +101,7 @@ def node_commands(
     for i, role in enumerate(ROLES):
         command = [
             sys.executable,
+            "-P",  # no module of the working folder's: they would run before the node's own
             "-m",
             "delaytrack.live",
             role,

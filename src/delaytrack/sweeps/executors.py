@@ -17,6 +17,8 @@ only the units in flight.
 
 from __future__ import annotations
 
+import contextlib
+import os
 import re
 import sys
 from collections.abc import Iterator, Mapping, Sequence
@@ -196,14 +198,24 @@ class DaskExecutor:
             raise SweepError(f"retries must be an integer >= 0; got {retries!r}")
         distributed = _distributed()
         self._cluster = None
+        self._while_cluster_runs = contextlib.ExitStack()
         self.retries = retries
         self._futures: set[Any] = set()
         if scheduler == LOCAL_CLUSTER:
             count = workers or available_cores()
-            # ":0": any free port for the scheduler's HTTP server (two local clusters coexist).
-            self._cluster = distributed.LocalCluster(
-                n_workers=count, threads_per_worker=1, processes=True, dashboard_address=":0"
-            )
+            self._while_cluster_runs.enter_context(_workers_without_the_working_folder())
+            try:
+                # ":0": any free port for the scheduler's HTTP server (two clusters coexist).
+                self._cluster = distributed.LocalCluster(
+                    n_workers=count, threads_per_worker=1, processes=True, dashboard_address=":0"
+                )
+            except (RuntimeError, OSError, TimeoutError) as error:
+                self.close()
+                cause = f" ({error.__cause__})" if error.__cause__ is not None else ""
+                raise SweepError(
+                    f"--scheduler {scheduler!r}: the local Dask cluster did not start: "
+                    f"{error}{cause}"
+                ) from None
             address = self._cluster.scheduler_address
             self.description = (
                 f"dask: local cluster of {count} worker processes ({address}, dashboard "
@@ -262,6 +274,24 @@ class DaskExecutor:
         if self._cluster is not None:
             self._cluster.close()
             self._cluster = None
+        self._while_cluster_runs.close()
+
+
+@contextlib.contextmanager
+def _workers_without_the_working_folder() -> Iterator[None]:
+    """``PYTHONSAFEPATH=1`` in this process's environment while a local cluster runs, for the
+    worker processes it starts (``python -c``, which would put the working folder first on
+    their module search path, where a file named like a module they import at start, a
+    ``multiprocessing.py`` sent with a sweep, would run instead)."""
+    before = os.environ.get("PYTHONSAFEPATH")
+    os.environ["PYTHONSAFEPATH"] = "1"
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop("PYTHONSAFEPATH", None)
+        else:
+            os.environ["PYTHONSAFEPATH"] = before
 
 
 def make_executor(

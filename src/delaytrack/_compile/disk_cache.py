@@ -22,10 +22,12 @@ import hashlib
 import os
 from pathlib import Path
 
-import numba
-from numba.core.caching import IndexDataCacheFile
-
+from delaytrack._compile.numba_settings import import_numba
 from delaytrack._file_lock import LOCKS, exclusive
+
+numba = import_numba()  # first: no settings from the working folder (numba_settings)
+
+from numba.core.caching import IndexDataCacheFile  # noqa: E402
 
 __all__ = [
     "cache_directory",

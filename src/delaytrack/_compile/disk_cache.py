@@ -110,4 +110,4 @@ def locked_cache(dispatcher):
 
 
 # numba.config sets its settings from the environment at run time: its typing lists none of them
-numba.config.CACHE_DIR = str(cache_directory())  # type: ignore[attr-defined]
+numba.config.CACHE_DIR = str(cache_directory())

@@ -47,7 +47,7 @@ def import_numba() -> ModuleType:
     import numba
     import numba.core.config
 
-    numba.core.config._config_fname = _NO_FILE  # type: ignore[attr-defined]
+    numba.core.config._config_fname = _NO_FILE
     if ignored:
         warnings.warn(
             f"{os.path.abspath(SETTINGS_FILE)} is not read: delaytrack takes numba's settings "

@@ -313,6 +313,12 @@ def marking(marker: Path) -> str:
         (("web", "node_modules", "pkg"), None, "a folder of installed packages"),
         (("robots", "__pycache__"), None, "a folder of compiled Python code"),
         (("python", "lib", "python3.12"), None, "a Python installation (it holds lib/python3.12)"),
+        # An unpacked Python source tree, whose standard library a scenario could call into
+        (
+            ("Python-3.11.7", "Lib"),
+            "Python-3.11.7/Lib/os.py",
+            "a copy of Python's standard library (it holds os.py)",
+        ),
     ],
 )
 def test_a_file_below_the_folder_in_installed_or_hidden_code_is_refused(

@@ -49,6 +49,12 @@ _CODE_FOLDERS = {
     "__pycache__": "a folder of compiled Python code",
 }
 
+#: A file of Python's standard library, which marks a folder holding it (an unpacked source
+#: tree's ``Lib``, a copy of an installation's library): a scenario could name any of its
+#: functions (``subprocess.py:getoutput``).
+_STANDARD_LIBRARY_MARK = "os.py"
+_STANDARD_LIBRARY = f"a copy of Python's standard library (it holds {_STANDARD_LIBRARY_MARK})"
+
 
 def _is_path(name: str) -> bool:
     """A trust name with a path separator, a leading ``.`` or ``~``, or ending in ``.py``."""
@@ -134,16 +140,24 @@ def installed_locations() -> tuple[tuple[Path, str], ...]:
 
 def _not_its_own(path: Path, folder: Path) -> str | None:
     """Why the file ``path`` (resolved, below the resolved ``folder``) is not that folder's own
-    code: the first folder on the way down from ``folder`` that is hidden, of installed or
-    generated code, a Python environment or a Python installation, or a place where Python or
-    this package is installed; None when it is its own."""
+    code: a place where Python or this package is installed, else the first folder on the way
+    down from ``folder`` (itself included) that is hidden, of installed or generated code, a
+    Python environment, a Python installation or a copy of its standard library; None when it
+    is its own."""
+    for place, what in installed_locations():
+        if path.is_relative_to(place):
+            return f"inside {place}, {what}"
     current = folder
+    if (current / _STANDARD_LIBRARY_MARK).is_file():
+        return f"inside {current}, {_STANDARD_LIBRARY}"
     for name in path.parent.relative_to(folder).parts:
         current = current / name
         if name.startswith("."):
             return f"inside the hidden folder {current}"
         if name in _CODE_FOLDERS:
             return f"inside {current}, {_CODE_FOLDERS[name]}"
+        if (current / _STANDARD_LIBRARY_MARK).is_file():
+            return f"inside {current}, {_STANDARD_LIBRARY}"
         if (current / "pyvenv.cfg").is_file():
             return f"inside {current}, a Python environment (it holds pyvenv.cfg)"
         library = next(current.glob("lib/python3.*"), None)
@@ -151,9 +165,6 @@ def _not_its_own(path: Path, folder: Path) -> str | None:
             return f"inside {current}, a Python installation (it holds lib/{library.name})"
         if name.startswith("python3.") and current.parent.name == "lib":
             return f"inside {current}, a Python installation's library"
-    for place, what in installed_locations():
-        if path.is_relative_to(place):
-            return f"inside {place}, {what}"
     return None
 
 

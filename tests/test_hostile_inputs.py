@@ -62,6 +62,46 @@ def test_values_nested_hundreds_deep_are_refused_not_a_recursion_error(tmp_path,
     one_line_error(capsys, "deep.toml", "nested more than 32 levels deep")
 
 
+def test_control_characters_of_a_file_name_are_shown_escaped(tmp_path, capsys):
+    # A folder's name may hold a line break, a carriage return or a terminal's escape: an error
+    # that names the file must not let them act ("FAKE: all runs ok" over the line's start).
+    folder = tmp_path / "x\n\x1b[31mFAKE: all 100 runs ok\x1b[0m\ry"
+    folder.mkdir()
+    path = folder / "case.toml"
+    path.write_text("bogus = 1\n" + short().to_toml())
+    assert main(["simulate", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = one_line_error(capsys, "'bogus'", "x\\n\\x1b[31mFAKE: all 100 runs ok\\x1b[0m\\ry")
+    assert "\x1b" not in err and "\r" not in err
+
+
+@pytest.mark.parametrize(
+    ("command", "table", "where"),
+    [
+        ("simulate", '[delay]\ntype = "trace"\npath = "a\\u0000.csv"\n', "delay.path"),
+        ("simulate", '[delay]\ntype = "trace"\npath = "/tmp/a\\u0000.csv"\n', "delay.path"),
+        ("simulate", '[plant]\ntype = "python:a\\u0000.py:make"\n', "plant.type"),
+        ("sweep", '[grid]\n"delay.path" = ["a\\u0000.csv"]\n', "grid.delay.path[0]"),
+    ],
+)
+def test_a_text_holding_a_nul_character_is_refused_naming_where(
+    tmp_path, capsys, command, table, where
+):
+    """A NUL is valid in TOML's text, but not in a path: the operating system's refusal was a
+    traceback."""
+    path = tmp_path / "nul.toml"
+    if command == "simulate":  # the scenario's own table of that name left out
+        header = table.partition("\n")[0]
+        text = re.sub(
+            rf"^{re.escape(header)}\n(?:[^\[\n].*\n|\n)*", "", short().to_toml(), flags=re.M
+        )
+        path.write_text(text + "\n" + table)
+    else:
+        path.write_text('scenario = "two_link_S1"\nunit_size = 8\n' + table)
+    argv = [command, str(path), "--out", str(tmp_path / "out")]
+    assert main(argv) == 2
+    one_line_error(capsys, "nul.toml", where, "a text holding a NUL character")
+
+
 @pytest.mark.parametrize("command", ["simulate", "sweep"])
 def test_an_integer_beyond_the_largest_float_is_refused_naming_where(tmp_path, capsys, command):
     """TOML's integers have no bound; no number of a scenario or sweep file may exceed the

@@ -42,10 +42,10 @@ if TYPE_CHECKING:
     import pandas as pd
 
 __all__ = [
-    "IntegerTooLarge",
     "MAX_READ_BYTES",
     "TIME_UNITS",
     "TIME_UNIT_NAMES",
+    "UnusableValue",
     "atomic_path",
     "check_column_unit",
     "column_count",
@@ -57,7 +57,7 @@ __all__ = [
     "finite_numbers",
     "json_text",
     "named_time_units",
-    "refuse_huge_integers",
+    "refuse_unusable_values",
     "regular_file",
     "toml_data",
     "write_bytes",
@@ -95,28 +95,38 @@ def toml_data(text: str) -> dict:
     raise tomllib.TOMLDecodeError(too_deep)
 
 
-class IntegerTooLarge(ValueError):
-    """A TOML integer beyond the largest float, which no number of a scenario or sweep may be."""
+class UnusableValue(ValueError):
+    """A TOML value no scenario or sweep may hold: an integer beyond the largest float, or text
+    holding a NUL character."""
 
 
-def refuse_huge_integers(data: dict | list, where: str = "") -> None:
-    """Raise :class:`IntegerTooLarge`, naming where (``x0[0]``), for an integer of ``data``
-    beyond the largest float: TOML's integers have no bound, and every number of a scenario or
-    sweep is used as a float or is far smaller (Python's conversion would raise
-    ``OverflowError``). ``data`` is read by :func:`toml_data`, so nested at most
-    :data:`MAX_TOML_DEPTH` deep: the walk recurses that deep at most."""
+def refuse_unusable_values(data: dict | list, where: str = "") -> None:
+    """Raise :class:`UnusableValue`, naming where (``x0[0]``), for an integer of ``data``
+    beyond the largest float (TOML's integers have no bound, and every number of a scenario or
+    sweep is used as a float or is far smaller: Python's conversion would raise
+    ``OverflowError``) or a text holding a NUL character (valid TOML, but no name, path or
+    choice holds one, and the operating system refuses it in a path). ``data`` is read by
+    :func:`toml_data`, so nested at most :data:`MAX_TOML_DEPTH` deep: the walk recurses that
+    deep at most."""
     entries = data.items() if isinstance(data, dict) else enumerate(data)
     for key, item in entries:
         if isinstance(data, list):
             place = f"{where}[{key}]"
         else:
             place = f"{where}.{key}" if where else str(key)
+        if isinstance(key, str) and "\0" in key:
+            raise UnusableValue(f"the key {key!r} holds a NUL character (\\0)")
         if isinstance(item, dict | list):
-            refuse_huge_integers(item, place)
+            refuse_unusable_values(item, place)
         elif type(item) is int and abs(item) > sys.float_info.max:  # compared exactly
-            raise IntegerTooLarge(
+            raise UnusableValue(
                 f"{place}: an integer of {len(str(abs(item)))} digits, beyond the largest "
                 f"number a float holds ({sys.float_info.max:.4g})"
+            )
+        elif isinstance(item, str) and "\0" in item:
+            raise UnusableValue(
+                f"{place} = {item!r}: a text holding a NUL character (\\0), which no name or "
+                "path may hold"
             )
 
 

@@ -1,4 +1,5 @@
-"""The base class of the toolkit's own warnings, and how its commands print them: one line."""
+"""The base class of the toolkit's own warnings, and how its commands print them and their
+errors: one line, with no character that a terminal would act on."""
 
 from __future__ import annotations
 
@@ -7,7 +8,21 @@ import sys
 import warnings
 from collections.abc import Iterator
 
-__all__ = ["DelaytrackWarning", "warnings_in_one_line"]
+__all__ = ["DelaytrackWarning", "one_line", "warnings_in_one_line"]
+
+#: Control characters (C0, DEL and C1) as escapes: a file or folder name may hold any of them,
+#: and a terminal acts on them (a line break, a carriage return over the start of the line, the
+#: escape of a colour or a cursor move) instead of showing them.
+_ESCAPES = {
+    code: {"\n": "\\n", "\r": "\\r", "\t": "\\t"}.get(chr(code), f"\\x{code:02x}")
+    for code in (*range(0x20), *range(0x7F, 0xA0))
+}
+
+
+def one_line(text: str) -> str:
+    """``text`` on one line as a terminal shows it: its control characters written as escapes
+    (``\\n``, ``\\r``, ``\\x1b``)."""
+    return text.translate(_ESCAPES)
 
 
 class DelaytrackWarning(UserWarning):
@@ -24,7 +39,7 @@ def warnings_in_one_line() -> Iterator[None]:
 
     def show(message, category, filename, lineno, file=None, line=None):  # noqa: ANN001
         if issubclass(category, DelaytrackWarning):
-            print(f"warning: {message}".replace("\n", "\\n"), file=sys.stderr)
+            print(one_line(f"warning: {message}"), file=sys.stderr)
         else:
             shown(message, category, filename, lineno, file, line)
 

@@ -13,7 +13,7 @@ from delaytrack._output import OutputFolderError
 from delaytrack._process_exit import exit_process
 from delaytrack.cli._parser import build_parser
 from delaytrack.cli._usage import UsageError
-from delaytrack.warning import warnings_in_one_line
+from delaytrack.warning import one_line, warnings_in_one_line
 
 __all__ = ["EXIT_BROKEN_PIPE", "main"]
 
@@ -44,13 +44,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         code = EXIT_BROKEN_PIPE
     except (UsageError, ScenarioError, OutputFolderError) as error:
         # One line, whatever the input held (a key with a newline in it).
-        print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
+        print(one_line(f"error: {error}"), file=sys.stderr)
         code = EXIT_USAGE
     except OSError as error:
         print(f"error: {error}", file=sys.stderr)
         code = 1
     except KeyboardInterrupt as interrupted:  # where, when a factory was interrupted
-        print(str(interrupted).replace("\n", "\\n") or "interrupted", file=sys.stderr)
+        print(one_line(str(interrupted)) or "interrupted", file=sys.stderr)
         code = 130
     if work_left_running():  # a compiled run that Ctrl-C left computing: nothing waits for it
         sys.stdout.flush()

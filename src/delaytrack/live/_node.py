@@ -43,6 +43,7 @@ from delaytrack.live.status import (
 )
 from delaytrack.live.transport import Handshake, HandshakeError, open_session, scenario_hashes
 from delaytrack.sim.simulate import MAX_STEPS, physical_memory
+from delaytrack.warning import one_line
 
 __all__ = [
     "LAUNCHER_PID",
@@ -407,13 +408,13 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
         node = node_class(scenario, built, args)
         enter_realtime(getattr(args, "realtime", None))
     except (ScenarioError, ValueError) as error:
-        print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
+        print(one_line(f"error: {error}"), file=sys.stderr)
         return EXIT_REFUSED
     try:
         node.out = claim_node_folder(args.out)
     except ValueError as error:  # OutputFolderError
         node.close()
-        print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
+        print(one_line(f"error: {error}"), file=sys.stderr)
         return EXIT_REFUSED
     prefix = f"delaytrack/{args.session}"
     try:

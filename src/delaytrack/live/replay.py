@@ -46,6 +46,7 @@ from delaytrack.live._tables import (
 )
 from delaytrack.live.log import write_csv
 from delaytrack.live.report import format_agreement, write_report
+from delaytrack.warning import one_line
 
 if TYPE_CHECKING:
     from delaytrack.delays import TraceDelay
@@ -355,7 +356,7 @@ def replay_main(args: Any) -> int:
     try:
         report, scenario, replayed = _replay(folder, args.trust)
     except (ScenarioError, ValueError) as error:
-        print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
+        print(one_line(f"error: {error}"), file=sys.stderr)
         return 2
     # The session's report again, with the replayed run beside the live one.
     report_failed = write_report(folder, scenario, replayed=replayed, agreement=report)

@@ -53,6 +53,7 @@ from delaytrack.live.log import write_csv
 from delaytrack.live.report import FIGURES
 from delaytrack.live.status import StatusWatch
 from delaytrack.live.transport import differing_parts, scenario_hashes
+from delaytrack.warning import one_line
 
 __all__ = ["collect", "run_session"]
 
@@ -150,7 +151,7 @@ def run_session(args: Any) -> int:
     try:
         scenario, built, duration, folder = _checked_session(args)
     except (ScenarioError, ValueError, OSError) as error:
-        print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
+        print(one_line(f"error: {error}"), file=sys.stderr)
         return 2
     try:
         claim_output_folder(folder)
@@ -418,7 +419,7 @@ def collect_main(args: Any) -> int:
         built = scenario.build()
         summary = collect(folder, scenario, built, given=str(args.scenario))
     except (ScenarioError, ValueError, OSError) as error:
-        print(f"error: {error}".replace("\n", "\\n"), file=sys.stderr)
+        print(one_line(f"error: {error}"), file=sys.stderr)
         return 2
     scenario.to_toml(folder / "scenario.toml")
     summary.update(_launcher_facts(folder / "summary.json", summary["nodes"]))

@@ -7,7 +7,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from delaytrack._io import IntegerTooLarge, refuse_huge_integers, regular_file, toml_data
+from delaytrack._io import UnusableValue, refuse_unusable_values, regular_file, toml_data
 from delaytrack._spec import PYTHON_TYPE, factory_parts
 from delaytrack._spec import SpecError as ScenarioError
 from delaytrack._trust import Trust, check_factory
@@ -28,8 +28,8 @@ def read_toml_file(source: Path, what: str, error: type[ScenarioError]) -> dict[
     except tomllib.TOMLDecodeError as problem:
         raise error(f"{source}: not valid TOML: {problem}") from None
     try:
-        refuse_huge_integers(data)
-    except IntegerTooLarge as problem:
+        refuse_unusable_values(data)
+    except UnusableValue as problem:
         raise error(f"{source}: {problem}") from None
     return data
 
@@ -56,5 +56,5 @@ def _absolute(source: Path, key: str, text: str) -> str:
     try:
         path = Path(text).expanduser()
         return str(path if path.is_absolute() else (source.parent / path).resolve())
-    except (OSError, RuntimeError) as error:  # "~user" of no such user, a link loop
-        raise ScenarioError(f"scenario key {key!r}: {error}") from None
+    except (OSError, RuntimeError, ValueError) as error:  # "~user" of no one, a loop, a NUL
+        raise ScenarioError(f"scenario key {key!r} = {text!r}: {error}") from None

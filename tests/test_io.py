@@ -11,7 +11,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from delaytrack._io import atomic_path, json_text, write_text
+from delaytrack._io import (
+    MAX_LINE_BYTES,
+    MAX_TOML_BYTES,
+    atomic_path,
+    csv_rows,
+    json_text,
+    read_file_bytes,
+    write_text,
+)
+from delaytrack.live._tables import json_table
+from delaytrack.scenario import Scenario, ScenarioError
 
 
 def test_a_failed_write_leaves_the_old_file_and_no_temporary(tmp_path) -> None:
@@ -50,3 +60,40 @@ def test_json_text_writes_numbers_that_are_not_finite_as_null() -> None:
     }
     with pytest.raises(TypeError):  # what json.dumps refuses without a default
         json_text({"where": Path("/tmp/x")})
+
+
+# ---- reading: what a file gives, not what it says it holds -----------------------------------
+
+PAGEMAP = Path("/proc/self/pagemap")
+
+
+def test_a_csv_line_without_end_is_refused_before_it_fills_the_memory(tmp_path) -> None:
+    path = tmp_path / "one_line.csv"
+    path.write_bytes(b"t,h\n" + b"0" * (MAX_LINE_BYTES + 10))
+    with pytest.raises(ValueError, match=r"one_line\.csv: a line longer than 1 MiB"):
+        list(csv_rows(path))
+
+
+@pytest.mark.skipif(not PAGEMAP.exists(), reason="no /proc/self/pagemap here")
+def test_a_file_that_says_it_is_empty_but_gives_without_end_is_refused(tmp_path) -> None:
+    # A file of /proc: regular, of size 0, and it gives gigabytes (it took 5 GB as a trace).
+    link = tmp_path / "trace.csv"
+    link.symlink_to(PAGEMAP)
+    with pytest.raises(ValueError, match=r"a line longer than 1 MiB|cannot be read"):
+        list(csv_rows(link))
+    with pytest.raises(ValueError, match=r"gives more than 1 MiB when read"):
+        read_file_bytes(link, "scenario file", largest=2**20)
+
+
+def test_a_toml_file_beyond_its_limit_is_refused_before_it_is_parsed(tmp_path) -> None:
+    path = tmp_path / "big.toml"
+    path.write_text("# " + "x" * (MAX_TOML_BYTES + 10) + "\n")
+    with pytest.raises(ScenarioError, match=r"big\.toml' holds 8 MiB; .* at most 8 MiB"):
+        Scenario.from_toml(path)
+
+
+def test_a_json_table_nested_without_end_is_a_clear_error(tmp_path) -> None:
+    path = tmp_path / "summary.json"
+    path.write_text('{"nodes": ' + "[" * 200_000 + "]" * 200_000 + "}")
+    with pytest.raises(ValueError, match=r"summary\.json is not a session's summary: its values"):
+        json_table(path, "session's summary")

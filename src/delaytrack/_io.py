@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import io
 import itertools
 import json
 import math
@@ -42,7 +43,9 @@ if TYPE_CHECKING:
     import pandas as pd
 
 __all__ = [
+    "MAX_LINE_BYTES",
     "MAX_READ_BYTES",
+    "MAX_TOML_BYTES",
     "TIME_UNITS",
     "TIME_UNIT_NAMES",
     "UnusableValue",
@@ -57,6 +60,7 @@ __all__ = [
     "finite_numbers",
     "json_text",
     "named_time_units",
+    "read_file_bytes",
     "refuse_unusable_values",
     "regular_file",
     "toml_data",
@@ -67,6 +71,10 @@ __all__ = [
 
 #: Largest file the toolkit reads (256 MiB): a trace sampled at 1 kHz for an hour is about 70 MB.
 MAX_READ_BYTES = 256 * 2**20
+
+#: Largest TOML file the toolkit reads (8 MiB): Python's parser takes about half a second a
+#: MiB, and a scenario or sweep file of the largest batch of initial states is a few MiB.
+MAX_TOML_BYTES = 8 * 2**20
 
 #: Deepest nesting of arrays and tables in a TOML file the toolkit reads (a scenario's deepest
 #: value, a matrix in a table of a table, is four levels down).
@@ -193,6 +201,69 @@ def regular_file(
     return given
 
 
+def read_file_bytes(
+    path: str | os.PathLike[str],
+    name: str,
+    error: type[Exception] = ValueError,
+    *,
+    largest: int = MAX_READ_BYTES,
+) -> bytes:
+    """The bytes of the file ``path``, checked with :func:`regular_file` and read up to
+    ``largest`` bytes: a file that gives more (a file of ``/proc`` or ``/sys`` says it holds
+    nothing, then gives without end) raises ``error`` naming ``name`` and the path."""
+    checked = regular_file(path, name, error, largest=largest)
+    try:
+        with checked.open("rb") as handle:
+            data = handle.read(largest + 1)
+    except OSError as problem:
+        raise error(f"{name} {str(path)!r} cannot be read: {problem.strerror}") from None
+    if len(data) > largest:
+        raise error(_too_large(name, path, largest))
+    return data
+
+
+def _too_large(name: str, path: str | os.PathLike[str], largest: int) -> str:
+    return (
+        f"{name} {str(path)!r} gives more than {largest // 2**20} MiB when read; the toolkit "
+        f"reads files of at most {largest // 2**20} MiB"
+    )
+
+
+#: Longest line of a CSV file the toolkit reads (1 MiB): a row of a trace is a few dozen bytes,
+#: one of a waypoint table of many joints a few kilobytes.
+MAX_LINE_BYTES = 2**20
+
+
+class _BoundedReader(io.RawIOBase):
+    """The raw bytes of ``handle``, ending in a ValueError once more than ``largest`` bytes in
+    all, or a line of more than :data:`MAX_LINE_BYTES`, have been read: a text reader asks for
+    more and more of a file without line breaks."""
+
+    def __init__(self, handle: Any, path: Path, largest: int) -> None:
+        self._handle, self._path, self._largest = handle, path, largest
+        self._total = self._line = 0
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer: Any) -> int:
+        count = self._handle.readinto(buffer)
+        if not count:
+            return count
+        data = memoryview(buffer)[:count].tobytes()
+        self._total += count
+        last = data.rfind(b"\n")
+        self._line = self._line + count if last < 0 else count - last - 1
+        if self._total > self._largest:
+            raise ValueError(_too_large("path =", self._path, self._largest))
+        if self._line > MAX_LINE_BYTES:
+            raise ValueError(
+                f"{self._path}: a line longer than {MAX_LINE_BYTES // 2**20} MiB; give a CSV "
+                "text file"
+            )
+        return count
+
+
 def csv_rows(path: Path) -> Iterator[tuple[int, list[str]]]:
     """The rows of the CSV file ``path`` (UTF-8, a leading byte-order mark skipped), each with
     the line it starts on; rows of blanks only are left out.
@@ -203,7 +274,14 @@ def csv_rows(path: Path) -> Iterator[tuple[int, list[str]]]:
     checked = regular_file(path, "path =")
     line = 1
     try:
-        with checked.open(newline="", encoding="utf-8-sig") as handle:
+        with (
+            checked.open("rb", buffering=0) as raw,
+            io.TextIOWrapper(
+                io.BufferedReader(_BoundedReader(raw, path, MAX_READ_BYTES), 2**16),
+                encoding="utf-8-sig",
+                newline="",
+            ) as handle,
+        ):
             reader = csv.reader(handle)
             for row in reader:
                 if any(cell.strip() for cell in row):

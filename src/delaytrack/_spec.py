@@ -27,7 +27,7 @@ from typing import Any, TypeGuard
 
 from delaytrack._compile.disk_cache import cache_directory
 from delaytrack._file_caches import guard_caches
-from delaytrack._io import regular_file
+from delaytrack._io import read_file_bytes
 from delaytrack._validation import ArgumentError, quoted
 
 __all__ = [
@@ -206,9 +206,9 @@ def module_from_file(path: Path, name: str | None = None) -> ModuleType:
     (:mod:`delaytrack._file_caches`). A file the user imported already is that module, not a
     second copy.
     """
-    path = regular_file(path.expanduser().resolve(), "factory file")
+    path = path.expanduser().resolve()
     with _LOADING:
-        source = path.read_bytes()
+        source = read_file_bytes(path, "factory file")
         content = hashlib.sha256(source).hexdigest()
         known = _FILE_MODULES.get(path)
         if known is not None and known[0] == content:

@@ -89,7 +89,7 @@ import pandas as pd
 import tomli_w
 from tqdm.auto import tqdm
 
-from delaytrack._io import regular_file, toml_data, write_text
+from delaytrack._io import MAX_TOML_BYTES, read_file_bytes, toml_data, write_text
 from delaytrack.analysis import razumikhin_bound
 from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
 from delaytrack.analysis.razumikhin import PAPER_R as R
@@ -630,9 +630,9 @@ def load_tuning_record(source: GainsSource = None) -> Mapping[str, Any]:
         return source
     path = default_gains_path() if source is None else Path(source)
     where = f"gains file {str(path)!r}"
-    regular_file(path, "gains file", GainsFileError)
+    text = read_file_bytes(path, "gains file", GainsFileError, largest=MAX_TOML_BYTES)
     try:
-        record = toml_data(path.read_text(encoding="utf-8"))
+        record = toml_data(text.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
         problem = f"is not TOML ({error}); give a gains file written by tune-baselines"
         raise GainsFileError(f"{where} {problem}", problem) from None

@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from delaytrack._io import regular_file
+from delaytrack._io import read_file_bytes, regular_file
 
 __all__ = [
     "ROLE_FILES",
@@ -89,6 +89,8 @@ def read_rows(path: Path, columns: tuple[str, ...] = ()) -> list[dict[str, str]]
             rows = list(reader)
     except (UnicodeDecodeError, csv.Error) as error:
         raise ValueError(f"session table {str(path)!r} is not a CSV table ({error})") from None
+    except OSError as error:  # a link to a file of /proc that refuses to be read as text
+        raise ValueError(f"session table {str(path)!r} cannot be read: {error.strerror}") from None
     missing = [column for column in columns if column not in (reader.fieldnames or ())]
     if missing:
         raise ValueError(
@@ -110,11 +112,12 @@ def index_cell(row: dict[str, str], column: str, path: Path) -> int:
 def json_table(path: Path, what: str) -> dict[str, Any]:
     """The JSON table in the session file ``path`` (a node's record, the summary), or a
     ValueError naming it as ``what`` (FileNotFoundError when it is missing)."""
-    regular_file(path, what)
     try:
-        table = json.loads(path.read_text(encoding="utf-8"))
+        table = json.loads(read_file_bytes(path, what).decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as error:
         raise ValueError(f"{path} is not a {what} (not JSON: {error})") from None
+    except RecursionError:
+        raise ValueError(f"{path} is not a {what}: its values nest too deep") from None
     if not isinstance(table, dict):
         raise ValueError(f"{path} is not a {what}: it holds no JSON table")
     return table

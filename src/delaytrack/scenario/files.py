@@ -7,7 +7,13 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from delaytrack._io import UnusableValue, refuse_unusable_values, regular_file, toml_data
+from delaytrack._io import (
+    MAX_TOML_BYTES,
+    UnusableValue,
+    read_file_bytes,
+    refuse_unusable_values,
+    toml_data,
+)
 from delaytrack._spec import PYTHON_TYPE, factory_parts
 from delaytrack._spec import SpecError as ScenarioError
 from delaytrack._trust import Trust, check_factory
@@ -17,8 +23,8 @@ def read_toml_file(source: Path, what: str, error: type[ScenarioError]) -> dict[
     """The TOML data of the file ``source`` (a regular file of bounded size, a byte-order mark
     allowed), or ``error`` naming ``what`` (``"scenario file"``) and the file."""
     try:
-        regular_file(source, what, error)
-        text = source.read_text(encoding="utf-8-sig")  # a byte-order mark is not TOML
+        raw = read_file_bytes(source, what, error, largest=MAX_TOML_BYTES)
+        text = raw.decode("utf-8-sig")  # a byte-order mark is not TOML
     except FileNotFoundError:
         raise error(f"{what} {str(source)!r} does not exist") from None
     except (OSError, UnicodeDecodeError) as problem:

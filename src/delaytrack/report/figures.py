@@ -29,8 +29,11 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from delaytrack._io import atomic_path
+from delaytrack.report.settings import without_the_working_folder
 from delaytrack.units import default_names, labelled
 from delaytrack.warning import DelaytrackWarning
+
+without_the_working_folder()  # before any figure: no settings from the working folder
 
 if TYPE_CHECKING:
     from matplotlib.typing import HashableList

@@ -1,4 +1,5 @@
-"""numba takes no settings from a ``.numba_config.yaml`` of the working folder."""
+"""Settings files of the working folder, which could have been sent beside a scenario, are not
+read: numba's ``.numba_config.yaml`` and matplotlib's ``matplotlibrc``."""
 
 from __future__ import annotations
 
@@ -43,3 +44,17 @@ def test_numbas_environment_variables_still_apply(tmp_path):
     )
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "2" and "not read" not in done.stderr
+
+
+def test_the_figures_take_no_matplotlib_settings_from_the_working_folder(tmp_path):
+    (tmp_path / "matplotlibrc").write_text("savefig.bbox: tight\nfont.size: 3000\n")
+    code = (
+        "import matplotlib, delaytrack.report\n"
+        "print(matplotlib.rcParams['font.size'], matplotlib.rcParamsOrig['font.size'])"
+    )
+    done = subprocess.run(
+        [sys.executable, "-P", "-c", code], cwd=tmp_path, capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    assert "3000" not in done.stdout
+    assert "matplotlibrc is not read: the figures take matplotlib's settings from" in done.stderr

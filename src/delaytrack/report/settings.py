@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import warnings
+from typing import Any, cast
 
 import matplotlib
 
@@ -42,8 +43,8 @@ def without_the_working_folder() -> None:
     chosen = next(path for path in candidates if os.path.isfile(path))
     read = matplotlib.rc_params_from_file(chosen, use_default_template=True)
     settings = {key: read[key] for key in read if key != "backend"}
-    matplotlib.rcParams.update(settings)
-    matplotlib.rcParamsOrig.update(settings)  # what a new process of the toolkit reads too
+    for kept in (matplotlib.rcParams, matplotlib.rcParamsOrig):  # Orig: a new process reads it
+        cast(Any, kept).update(settings)
     warnings.warn(
         f"{os.path.abspath(SETTINGS_FILE)} is not read: the figures take matplotlib's settings "
         f"from {chosen} (a settings file in the working folder could have been sent with a "

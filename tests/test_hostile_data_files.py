@@ -574,6 +574,37 @@ def test_a_fifo_a_urdf_names_as_a_mesh_is_refused(tmp_path):
     assert f"<mesh filename> {str(fifo)!r} is not a file but a FIFO" in str(error)
 
 
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (
+            '<asset><texture name="t" type="2d" builtin="checker" width="60000" height="60000"'
+            ' rgb1="1 1 1" rgb2="0 0 0"/></asset>',
+            r"<texture width height> asks for 60000 x 60000 points; at most 16,777,216",
+        ),
+        (
+            '<asset><hfield name="h" nrow="20000" ncol="20000" size="1 1 1 1"/></asset>',
+            r"<hfield nrow ncol> asks for 20000 x 20000 points",
+        ),
+        (
+            '<worldbody><replicate count="1000" offset="0 0 1"><replicate count="1000" '
+            'offset="0 1 0"><geom type="sphere" size=".01"/></replicate></replicate></worldbody>',
+            r"replicates 1000 x 1000 = 1,000,000 copies; at most 100,000 are made",
+        ),
+    ],
+    ids=["texture", "hfield", "replicate"],
+)
+def test_a_model_that_would_take_gigabytes_is_refused_before_mujoco_reads_it(
+    tmp_path, extra, message
+):
+    # A few bytes of XML that make MuJoCo hold gigabytes (a checker texture of 60 000 x 60 000
+    # pixels took 10.7 GB): refused from the XML, before MuJoCo allocates anything.
+    from delaytrack.plants.mujoco.model_files import check_model_files
+
+    with pytest.raises(ValueError, match=message):
+        check_model_files(_model(tmp_path, extra))
+
+
 def test_devices_and_bounds_of_files_a_model_names(tmp_path):
     MujocoPlant = mujoco_plant()
     from delaytrack.plants.mujoco.model_files import MAX_INCLUDE_DEPTH, check_model_files

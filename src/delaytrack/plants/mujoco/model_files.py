@@ -19,6 +19,7 @@ nothing is left for MuJoCo to report.
 
 from __future__ import annotations
 
+import math
 import os
 import re
 import sys
@@ -28,12 +29,28 @@ from pathlib import Path
 
 from delaytrack._io import regular_file
 
-__all__ = ["MAX_INCLUDE_DEPTH", "MAX_MODEL_FILES", "check_model_files"]
+__all__ = [
+    "MAX_GRID_POINTS",
+    "MAX_INCLUDE_DEPTH",
+    "MAX_MODEL_FILES",
+    "MAX_REPLICATED",
+    "check_model_files",
+]
 
 #: Deepest nesting of included files read (MuJoCo's own examples nest two or three).
 MAX_INCLUDE_DEPTH = 20
 #: Most XML files (the model and the files it includes) read for one model.
 MAX_MODEL_FILES = 1000
+
+#: Most points of one texture or height field (4096 x 4096): MuJoCo holds every one in memory
+#: (a checker texture of 60 000 x 60 000 took 10.7 GB).
+MAX_GRID_POINTS = 4096 * 4096
+#: Most copies that the ``<replicate>`` elements of a model make, their counts multiplied (as
+#: if nested: three nested replicates of 1000 took 3.6 GB before failing).
+MAX_REPLICATED = 100_000
+#: The attributes giving a grid's size, per element (a texture's width and height, a height
+#: field's rows and columns).
+_GRIDS = {"texture": (("width", "height"),), "hfield": (("nrow", "ncol"),)}
 
 #: Elements whose file is MJCF, read in turn for the files it names.
 _XML_ELEMENTS = ("include", "model")
@@ -75,6 +92,7 @@ def check_model_files(path: Path) -> None:
     folders: list[str] = []
     read: set[str] = set()
     checked: set[str] = set()
+    replicated: list[int] = []
     pending = [(path, 0)]
     while pending:
         for source, depth in pending:
@@ -91,7 +109,7 @@ def check_model_files(path: Path) -> None:
                     f"includes nest at most {MAX_INCLUDE_DEPTH} levels"
                 )
             read.add(os.path.realpath(source))
-            _scan(source, depth, names, folders)
+            _scan(source, depth, names, folders, replicated)
         pending = []
         for name in names:
             for candidate in _candidates(path, name, folders):
@@ -113,8 +131,12 @@ def check_model_files(path: Path) -> None:
                     pending.append((Path(candidate), name.depth + 1))
 
 
-def _scan(source: Path, depth: int, names: list[_Name], folders: list[str]) -> None:
-    """Add the file names and asset folders the XML file ``source`` holds."""
+def _scan(
+    source: Path, depth: int, names: list[_Name], folders: list[str], replicated: list[int]
+) -> None:
+    """Add the file names and asset folders the XML file ``source`` holds, and the counts of
+    its ``<replicate>`` elements to ``replicated``; refuse a texture or height field beyond
+    :data:`MAX_GRID_POINTS` and replicates beyond :data:`MAX_REPLICATED` in all."""
     try:
         text = source.read_bytes().decode("utf-8-sig", errors="replace")
     except OSError:
@@ -125,6 +147,31 @@ def _scan(source: Path, depth: int, names: list[_Name], folders: list[str]) -> N
                 names.append(_Name(source, line, element, attribute, value.strip(), depth))
             elif element == "compiler" and attribute in _ASSET_FOLDERS:
                 folders.append(value.strip())
+        where = f"line {line} of {str(source)!r}"
+        sizes = {name: _count(value) for name, value in attributes}
+        for attribute_pair in _GRIDS.get(element, ()):
+            first, second = (sizes.get(name) or 1 for name in attribute_pair)
+            if first * second > MAX_GRID_POINTS:
+                raise ValueError(
+                    f"{where}: <{element} {' '.join(attribute_pair)}> asks for {first} x "
+                    f"{second} points; at most {MAX_GRID_POINTS:,} (4096 x 4096) are read, each "
+                    "held in memory"
+                )
+        if element == "replicate" and sizes.get("count"):
+            replicated.append(sizes["count"] or 1)
+            if math.prod(replicated) > MAX_REPLICATED:
+                raise ValueError(
+                    f"{where}: <replicate count> makes the model's replicates "
+                    f"{' x '.join(map(str, replicated))} = {math.prod(replicated):,} copies; at "
+                    f"most {MAX_REPLICATED:,} are made"
+                )
+
+
+def _count(value: str) -> int | None:
+    """An attribute's value as a count (a non-negative integer), None when it is not one
+    (MuJoCo says what is wrong with it)."""
+    text = value.strip()
+    return int(text) if text.isascii() and text.isdigit() and len(text) < 20 else None
 
 
 def _elements(text: str) -> Iterator[tuple[int, str, list[tuple[str, str]]]]:

@@ -199,8 +199,17 @@ class AROLC(Controller):
                 )
         P = lyapunov_matrix(self.K1, self.K2, self.Q)
         input_matrix = error_dynamics_matrices(self.K1, self.K2)[3]
+        sliding_gain = input_matrix.T @ P
+        largest = float(np.max(np.abs(sliding_gain)))
+        if not largest <= _LAW_RANGE:  # NaN too
+            raise ArgumentError(
+                "Q",
+                f"with K1 and K2 gives s = B^T P e a gain of {largest:g} (P solves A^T P + P A "
+                f"= -Q); it must be <= {_LAW_RANGE:g} (the law multiplies it by alpha c_hat / "
+                "epsilon; beyond that the command overflows double precision)",
+            )
         object.__setattr__(self, "P", P)
-        packed = [self.K1.ravel(), self.K2.ravel(), (input_matrix.T @ P).ravel()]
+        packed = [self.K1.ravel(), self.K2.ravel(), sliding_gain.ravel()]
         object.__setattr__(
             self, "_params", np.concatenate([*packed, [self.alpha, self.epsilon, self.gamma]])
         )

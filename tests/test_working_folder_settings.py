@@ -3,8 +3,11 @@ read: numba's ``.numba_config.yaml`` and matplotlib's ``matplotlibrc``."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
+
+import pytest
 
 CHECK = """
 import delaytrack, numba
@@ -40,21 +43,53 @@ def test_numbas_environment_variables_still_apply(tmp_path):
         cwd=tmp_path,
         capture_output=True,
         text=True,
-        env={**__import__("os").environ, "NUMBA_OPT": "2"},
+        env={**os.environ, "NUMBA_OPT": "2"},
     )
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "2" and "not read" not in done.stderr
 
 
-def test_the_figures_take_no_matplotlib_settings_from_the_working_folder(tmp_path):
-    (tmp_path / "matplotlibrc").write_text("savefig.bbox: tight\nfont.size: 3000\n")
+@pytest.mark.parametrize("kind", ["file", "fifo"])
+def test_the_figures_take_no_matplotlib_settings_from_the_working_folder(tmp_path, kind):
+    # A FIFO of that name would hold matplotlib's import forever (it reads the file then).
+    settings = tmp_path / "matplotlibrc"
+    if kind == "fifo":
+        if not hasattr(os, "mkfifo"):
+            pytest.skip("no FIFOs here")
+        os.mkfifo(settings)
+    else:
+        settings.write_text("savefig.bbox: tight\nfont.size: 3000\n")
     code = (
-        "import matplotlib, delaytrack.report\n"
-        "print(matplotlib.rcParams['font.size'], matplotlib.rcParamsOrig['font.size'])"
+        "import os, delaytrack.report, matplotlib\n"
+        "print(matplotlib.rcParams['font.size'], matplotlib.rcParamsOrig['font.size'])\n"
+        "print(os.getcwd())"
+    )
+    done = subprocess.run(
+        [sys.executable, "-P", "-c", code],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 0, done.stderr
+    sizes, working = done.stdout.splitlines()
+    assert "3000" not in sizes and working == str(tmp_path)  # the working folder given back
+    assert "matplotlibrc is not read: the figures take matplotlib's settings from" in done.stderr
+
+
+def test_numba_imported_first_keeps_the_cache_folder_and_is_warned(tmp_path):
+    # numba imported before delaytrack has read the file: delaytrack says so, and its cache
+    # folder survives numba's next reading of its settings (at a compile).
+    (tmp_path / ".numba_config.yaml").write_text("opt: 2\n")
+    code = (
+        "import numba, delaytrack\n"
+        "before = numba.config.CACHE_DIR\n"
+        "numba.njit(lambda x: x + 1)(1)\n"
+        "print(before == numba.config.CACHE_DIR != '', int(numba.config.OPT))"
     )
     done = subprocess.run(
         [sys.executable, "-P", "-c", code], cwd=tmp_path, capture_output=True, text=True
     )
     assert done.returncode == 0, done.stderr
-    assert "3000" not in done.stdout
-    assert "matplotlibrc is not read: the figures take matplotlib's settings from" in done.stderr
+    assert done.stdout.split() == ["True", "3"]  # numba's default level again, not the file's
+    assert ".numba_config.yaml was read by numba, imported before delaytrack" in done.stderr

@@ -29,10 +29,12 @@ _NO_FILE = os.path.join(os.devnull, SETTINGS_FILE)
 def import_numba() -> ModuleType:
     """``import numba`` with no settings read from the working folder's ``.numba_config.yaml``
     (numba then finds no YAML reader for it), and none read from it by a later compile. Warns
-    (:class:`~delaytrack.warning.DelaytrackWarning`) when such a file is there and ignored;
-    numba imported before this package has read it already."""
-    ignored = "numba" not in sys.modules and os.path.isfile(SETTINGS_FILE)
-    if ignored:
+    (:class:`~delaytrack.warning.DelaytrackWarning`) when such a file is there: ignored, or
+    read already by numba imported before this package (its settings are then taken from the
+    environment again, before this package sets numba's cache folder)."""
+    present = os.path.isfile(SETTINGS_FILE)
+    read_before = present and "numba" in sys.modules
+    if present and not read_before:
         yaml = sys.modules.get("yaml")
         sys.modules["yaml"] = None  # type: ignore[assignment]  # import yaml fails in numba
         try:
@@ -48,11 +50,15 @@ def import_numba() -> ModuleType:
     import numba.core.config
 
     numba.core.config._config_fname = _NO_FILE
-    if ignored:
+    # numba compares its settings at each compile with those it read last: read them now, so
+    # that a compile does not set them all again (the cache folder set next among them).
+    numba.core.config.reload_config()
+    if present:
+        done = "was read by numba, imported before delaytrack" if read_before else "is not read"
         warnings.warn(
-            f"{os.path.abspath(SETTINGS_FILE)} is not read: delaytrack takes numba's settings "
-            "from NUMBA_* environment variables only (a settings file in the working folder "
-            "could have been sent with a scenario)",
+            f"{os.path.abspath(SETTINGS_FILE)} {done}: delaytrack takes numba's settings from "
+            "NUMBA_* environment variables only (a settings file in the working folder could "
+            "have been sent with a scenario)",
             DelaytrackWarning,
             stacklevel=2,
         )

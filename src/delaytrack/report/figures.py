@@ -24,16 +24,17 @@ from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import matplotlib
 import numpy as np
-from matplotlib.figure import Figure
 
-from delaytrack._io import atomic_path
-from delaytrack.report.settings import without_the_working_folder
-from delaytrack.units import default_names, labelled
-from delaytrack.warning import DelaytrackWarning
+from delaytrack.report.settings import import_matplotlib
 
-without_the_working_folder()  # before any figure: no settings from the working folder
+matplotlib = import_matplotlib()  # first: no settings from the working folder (settings)
+
+from matplotlib.figure import Figure  # noqa: E402
+
+from delaytrack._io import atomic_path  # noqa: E402
+from delaytrack.units import default_names, labelled  # noqa: E402
+from delaytrack.warning import DelaytrackWarning  # noqa: E402
 
 if TYPE_CHECKING:
     from matplotlib.typing import HashableList

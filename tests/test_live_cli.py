@@ -441,3 +441,25 @@ def test_a_summary_of_a_session_that_measured_nothing_is_strict_json_and_reports
     assert settings["delay node"].endswith("releases, n/a wake-ups/s, lead 0.5 ms")
     assert settings["controller wake-up lateness p50 / p99"] == "n/a / n/a"
     assert settings["realised delay − h(t) p50 / |.| p99"].startswith("n/a / n/a")
+
+
+def test_a_node_starts_with_the_launchers_module_path_and_not_the_working_folder(tmp_path):
+    # A node imports what the launcher imports (an uninstalled copy of the package, a
+    # factory's module on its path), and nothing of the working folder.
+    from delaytrack.live.session import NODE_START
+
+    for folder, said in ((tmp_path / "launchers", "launcher's"), (tmp_path / "working", "sent")):
+        package = folder / "delaytrack" / "live"
+        package.mkdir(parents=True)
+        (folder / "delaytrack" / "__init__.py").write_text("")
+        (package / "__init__.py").write_text("")
+        (package / "__main__.py").write_text(f"import sys; print({said!r}, sys.argv[1:])")
+    path = [str(tmp_path / "launchers"), *sys.path]
+    done = subprocess.run(
+        [*NODE_START, json.dumps(path), "robot", "s.toml", "--quiet"],
+        cwd=tmp_path / "working",
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.stdout.strip() == "launcher's ['robot', 's.toml', '--quiet']", done.stderr

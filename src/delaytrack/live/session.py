@@ -92,6 +92,21 @@ def _ended_early(folder: Path, role: str, code: int | None) -> bool:
     return stopped_by != "duration"
 
 
+#: How a node starts: ``python -P`` (no folder put first on its module search path: a module of
+#: the working folder, sent beside a scenario, would run before the node's own), then with this
+#: process's module search path (the argument after the code), so that it imports what this
+#: process imports (an uninstalled copy of the package, a factory's module it found), then
+#: ``python -m delaytrack.live`` with the arguments that follow.
+NODE_START = (
+    sys.executable,
+    "-P",
+    "-c",
+    "import json, runpy, sys\n"
+    "sys.path[:] = json.loads(sys.argv.pop(1))\n"
+    "runpy.run_module('delaytrack.live', run_name='__main__', alter_sys=True)\n",
+)
+
+
 def node_commands(
     args: Any, folder: Path, ports: list[int], session: str, watch: str | None = None
 ) -> dict[str, list[str]]:
@@ -101,10 +116,8 @@ def node_commands(
     commands = {}
     for i, role in enumerate(ROLES):
         command = [
-            sys.executable,
-            "-P",  # no module of the working folder's: they would run before the node's own
-            "-m",
-            "delaytrack.live",
+            *NODE_START,
+            json.dumps(sys.path),
             role,
             str(args.scenario),
             "--out",

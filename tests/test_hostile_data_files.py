@@ -580,11 +580,28 @@ def test_a_fifo_a_urdf_names_as_a_mesh_is_refused(tmp_path):
         (
             '<asset><texture name="t" type="2d" builtin="checker" width="60000" height="60000"'
             ' rgb1="1 1 1" rgb2="0 0 0"/></asset>',
-            r"<texture width height> asks for 60000 x 60000 points; at most 16,777,216",
+            r"<texture width height> asks for 3,600,000,000 points; at most 16,777,216",
+        ),
+        # written as MuJoCo reads them too: a sign, leading zeros
+        (
+            '<asset><texture name="t" type="2d" builtin="checker" width="+60000" '
+            'height="0000000000000000000060000" rgb1="1 1 1" rgb2="0 0 0"/></asset>',
+            r"<texture width height> asks for 3,600,000,000 points",
+        ),
+        # a cube or skybox is six squares of its width, whatever its height
+        (
+            '<asset><texture name="t" type="skybox" builtin="gradient" width="20000" height="1"'
+            ' rgb1="1 1 1" rgb2="0 0 0"/></asset>',
+            r"<texture width height> asks for 2,400,000,000 points",
+        ),
+        (
+            '<worldbody><flexcomp name="f" type="grid" count="3000 3000 1" spacing=".1 .1 .1"'
+            ' radius=".01" dim="2"/></worldbody>',
+            r"<flexcomp count> asks for 9,000,000 points; at most 100,000",
         ),
         (
             '<asset><hfield name="h" nrow="20000" ncol="20000" size="1 1 1 1"/></asset>',
-            r"<hfield nrow ncol> asks for 20000 x 20000 points",
+            r"<hfield nrow ncol> asks for 400,000,000 points",
         ),
         (
             '<worldbody><replicate count="1000" offset="0 0 1"><replicate count="1000" '
@@ -592,7 +609,7 @@ def test_a_fifo_a_urdf_names_as_a_mesh_is_refused(tmp_path):
             r"replicates 1000 x 1000 = 1,000,000 copies; at most 100,000 are made",
         ),
     ],
-    ids=["texture", "hfield", "replicate"],
+    ids=["texture", "signed-padded", "skybox", "flexcomp", "hfield", "replicate"],
 )
 def test_a_model_that_would_take_gigabytes_is_refused_before_mujoco_reads_it(
     tmp_path, extra, message
@@ -603,6 +620,19 @@ def test_a_model_that_would_take_gigabytes_is_refused_before_mujoco_reads_it(
 
     with pytest.raises(ValueError, match=message):
         check_model_files(_model(tmp_path, extra))
+
+
+def test_a_texture_image_of_too_many_pixels_is_refused_from_its_header(tmp_path):
+    # A few kilobytes of PNG decode to gigabytes: its header says how many pixels it holds.
+    from delaytrack.plants.mujoco.model_files import check_model_files
+
+    header = b"\x89PNG\r\n\x1a\n" + (13).to_bytes(4, "big") + b"IHDR"
+    (tmp_path / "big.png").write_bytes(
+        header + (60000).to_bytes(4, "big") + (60000).to_bytes(4, "big") + b"\x08\x02\0\0\0"
+    )
+    model = _model(tmp_path, '<asset><texture name="t" type="2d" file="big.png"/></asset>')
+    with pytest.raises(ValueError, match=r"'.*big\.png' is an image of 3,600,000,000 pixels"):
+        check_model_files(model)
 
 
 def test_devices_and_bounds_of_files_a_model_names(tmp_path):

@@ -50,7 +50,7 @@ MAX_GRID_POINTS = 4096 * 4096
 MAX_REPLICATED = 100_000
 #: The attributes giving a grid's size, per element (a texture's width and height, a height
 #: field's rows and columns).
-_GRIDS = {"texture": (("width", "height"),), "hfield": (("nrow", "ncol"),)}
+_GRIDS = {"texture": ("width", "height"), "hfield": ("nrow", "ncol")}
 
 #: Elements whose file is MJCF, read in turn for the files it names.
 _XML_ELEMENTS = ("include", "model")
@@ -127,6 +127,13 @@ def check_model_files(path: Path) -> None:
                     )
                 except FileNotFoundError:
                     continue  # removed meanwhile: MuJoCo says so
+                points = image_points(candidate) if name.element in _GRIDS else None
+                if points is not None and points > MAX_GRID_POINTS:
+                    raise ValueError(
+                        f"path {str(path)!r}: {where}, <{name.element} {name.attribute}> "
+                        f"{str(candidate)!r} is an image of {points:,} pixels; at most "
+                        f"{MAX_GRID_POINTS:,} (4096 x 4096) are read, each held in memory"
+                    )
                 if name.element in _XML_ELEMENTS:
                     pending.append((Path(candidate), name.depth + 1))
 
@@ -148,30 +155,66 @@ def _scan(
             elif element == "compiler" and attribute in _ASSET_FOLDERS:
                 folders.append(value.strip())
         where = f"line {line} of {str(source)!r}"
-        sizes = {name: _count(value) for name, value in attributes}
-        for attribute_pair in _GRIDS.get(element, ()):
-            first, second = (sizes.get(name) or 1 for name in attribute_pair)
-            if first * second > MAX_GRID_POINTS:
-                raise ValueError(
-                    f"{where}: <{element} {' '.join(attribute_pair)}> asks for {first} x "
-                    f"{second} points; at most {MAX_GRID_POINTS:,} (4096 x 4096) are read, each "
-                    "held in memory"
-                )
-        if element == "replicate" and sizes.get("count"):
-            replicated.append(sizes["count"] or 1)
-            if math.prod(replicated) > MAX_REPLICATED:
-                raise ValueError(
-                    f"{where}: <replicate count> makes the model's replicates "
-                    f"{' x '.join(map(str, replicated))} = {math.prod(replicated):,} copies; at "
-                    f"most {MAX_REPLICATED:,} are made"
-                )
+        _check_sizes(where, element, dict(attributes), replicated)
 
 
-def _count(value: str) -> int | None:
-    """An attribute's value as a count (a non-negative integer), None when it is not one
-    (MuJoCo says what is wrong with it)."""
-    text = value.strip()
-    return int(text) if text.isascii() and text.isdigit() and len(text) < 20 else None
+def _check_sizes(
+    where: str, element: str, attributes: dict[str, str], replicated: list[int]
+) -> None:
+    """Refuse an element whose attributes ask MuJoCo for more than it may hold: a texture or
+    height field beyond :data:`MAX_GRID_POINTS` points (a cube or skybox texture is six
+    squares of its width), a flex of more than :data:`MAX_REPLICATED` points, or replicates
+    beyond :data:`MAX_REPLICATED` copies with those already in ``replicated`` (their counts,
+    multiplied as if nested)."""
+    counts = {name: _counts(value) for name, value in attributes.items()}
+    if element in _GRIDS:
+        first, second = (counts.get(name, [1])[:1] or [1] for name in _GRIDS[element])
+        points = first[0] * second[0]
+        if element == "texture" and attributes.get("type", "").strip() in ("cube", "skybox"):
+            points = 6 * first[0] ** 2
+        if points > MAX_GRID_POINTS:
+            raise ValueError(
+                f"{where}: <{element} {' '.join(_GRIDS[element])}> asks for {points:,} points; "
+                f"at most {MAX_GRID_POINTS:,} (4096 x 4096) are read, each held in memory"
+            )
+    elif element == "flexcomp" and math.prod(counts.get("count", [])) > MAX_REPLICATED:
+        raise ValueError(
+            f"{where}: <flexcomp count> asks for {math.prod(counts['count']):,} points; at most "
+            f"{MAX_REPLICATED:,} are made"
+        )
+    elif element == "replicate" and counts.get("count"):
+        replicated.append(counts["count"][0])
+        if math.prod(replicated) > MAX_REPLICATED:
+            raise ValueError(
+                f"{where}: <replicate count> makes the model's replicates "
+                f"{' x '.join(map(str, replicated))} = {math.prod(replicated):,} copies; at "
+                f"most {MAX_REPLICATED:,} are made"
+            )
+
+
+def _counts(value: str) -> list[int]:
+    """The whole numbers of an attribute's value, read as MuJoCo reads them (a ``+`` and
+    leading zeros allowed): empty when it holds anything else (MuJoCo says what is wrong)."""
+    numbers = []
+    for word in value.split():
+        digits = word.removeprefix("+").lstrip("0") or "0"
+        if not (digits.isascii() and digits.isdigit()):
+            return []
+        numbers.append(int(digits) if len(digits) < 19 else 10**19)  # a bound beyond any
+    return numbers
+
+
+def image_points(path: str) -> int | None:
+    """The pixels of the PNG image at ``path`` (width x height from its header), None when it
+    is not a PNG that can be read."""
+    try:
+        with open(path, "rb") as handle:
+            header = handle.read(24)
+    except OSError:
+        return None
+    if len(header) < 24 or header[:8] != b"\x89PNG\r\n\x1a\n" or header[12:16] != b"IHDR":
+        return None
+    return int.from_bytes(header[16:20], "big") * int.from_bytes(header[20:24], "big")
 
 
 def _elements(text: str) -> Iterator[tuple[int, str, list[tuple[str, str]]]]:

@@ -319,6 +319,12 @@ def marking(marker: Path) -> str:
             "Python-3.11.7/Lib/os.py",
             "a copy of Python's standard library (it holds os.py)",
         ),
+        # An unpacked package downloaded from PyPI (setuptools' spawn runs a command)
+        (
+            ("setuptools-69.0.0", "setuptools", "_distutils"),
+            "setuptools-69.0.0/PKG-INFO",
+            "an unpacked source distribution (it holds PKG-INFO)",
+        ),
     ],
 )
 def test_a_file_below_the_folder_in_installed_or_hidden_code_is_refused(

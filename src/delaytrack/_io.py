@@ -252,14 +252,14 @@ class _BoundedReader(io.RawIOBase):
             return count
         data = memoryview(buffer)[:count].tobytes()
         self._total += count
-        last = data.rfind(b"\n")
+        last = max(data.rfind(b"\n"), data.rfind(b"\r"))  # a line ends in either
         self._line = self._line + count if last < 0 else count - last - 1
         if self._total > self._largest:
             raise ValueError(_too_large("path =", self._path, self._largest))
         if self._line > MAX_LINE_BYTES:
             raise ValueError(
-                f"{self._path}: a line longer than {MAX_LINE_BYTES // 2**20} MiB; give a CSV "
-                "text file"
+                f"{str(self._path)!r}: a line longer than {MAX_LINE_BYTES // 2**20} MiB; give a "
+                "CSV text file"
             )
         return count
 

@@ -158,6 +158,8 @@ def _not_its_own(path: Path, folder: Path) -> str | None:
             return f"inside {current}, {_CODE_FOLDERS[name]}"
         if (current / _STANDARD_LIBRARY_MARK).is_file():
             return f"inside {current}, {_STANDARD_LIBRARY}"
+        if (current / "PKG-INFO").is_file():
+            return f"inside {current}, an unpacked source distribution (it holds PKG-INFO)"
         if (current / "pyvenv.cfg").is_file():
             return f"inside {current}, a Python environment (it holds pyvenv.cfg)"
         library = next(current.glob("lib/python3.*"), None)

@@ -47,7 +47,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(one_line(f"error: {error}"), file=sys.stderr)
         code = EXIT_USAGE
     except OSError as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(one_line(f"error: {error}"), file=sys.stderr)
         code = 1
     except KeyboardInterrupt as interrupted:  # where, when a factory was interrupted
         print(one_line(str(interrupted)) or "interrupted", file=sys.stderr)

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 from delaytrack._cli_options import quiet_argument, trust_argument
 from delaytrack._output import check_output_folder
 from delaytrack.cli._scenarios import scenario_source, trusted
+from delaytrack.warning import one_line
 
 if TYPE_CHECKING:
     from delaytrack.jobs.scenario_run import RunOutput
@@ -85,7 +86,7 @@ def _no_command_arrives(output: RunOutput) -> None:
 
     warning = no_command_arrives([output.built.delay], 0.0, output.scenario.duration)
     if warning is not None:
-        print(f"warning: {warning}", file=sys.stderr)
+        print(one_line(f"warning: {warning}"), file=sys.stderr)
 
 
 def _certified_bound(output: RunOutput) -> None:
@@ -104,4 +105,4 @@ def _certified_bound(output: RunOutput) -> None:
     )
     warning = beyond_certified_bound([built.controller], [built.delay], output.result)
     if warning is not None:
-        print(f"warning: {warning}", file=sys.stderr)
+        print(one_line(f"warning: {warning}"), file=sys.stderr)

@@ -11,6 +11,7 @@ from delaytrack._output import check_output_folder, plain_folder_name, record_ou
 from delaytrack._words import counted
 from delaytrack.cli._scenarios import trusted
 from delaytrack.cli._usage import UsageError, flagged
+from delaytrack.warning import one_line
 
 __all__ = ["add_command", "run"]
 
@@ -101,10 +102,10 @@ def run(args: argparse.Namespace) -> int:
     try:
         outcome = run_sweep(spec, folder, executor=executor, progress=not args.quiet)
     except KeyboardInterrupt as interrupted:
-        print(str(interrupted) or "interrupted", file=sys.stderr)
+        print(one_line(str(interrupted)) or "interrupted", file=sys.stderr)
         return 130
     except SweepUnitsFailed as failed:
-        print(f"error: {failed}", file=sys.stderr)
+        print(one_line(f"error: {failed}"), file=sys.stderr)
         return 1
     files = write_sweep_outputs(outcome)
     record_outputs(folder, [*files, folder / "runs.parquet", folder / "runs.csv"])

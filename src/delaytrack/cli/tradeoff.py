@@ -20,6 +20,7 @@ from delaytrack._words import counted
 from delaytrack.cli._numbers import numbers
 from delaytrack.cli._scenarios import scenario_source, trusted
 from delaytrack.cli._usage import UsageError, flagged
+from delaytrack.warning import one_line
 
 if TYPE_CHECKING:
     from delaytrack.experiments.decision import Envelope
@@ -234,10 +235,10 @@ def run(args: argparse.Namespace) -> int:
             )
         )
     except KeyboardInterrupt as interrupted:
-        print(str(interrupted) or "interrupted", file=sys.stderr)
+        print(one_line(str(interrupted)) or "interrupted", file=sys.stderr)
         return 130
     except SweepUnitsFailed as failed:
-        print(f"error: {failed}", file=sys.stderr)
+        print(one_line(f"error: {failed}"), file=sys.stderr)
         return 1
     except ValueError as error:
         raise flagged(error, _FLAGS) from None

@@ -205,8 +205,8 @@ class AROLC(Controller):
             raise ArgumentError(
                 "Q",
                 f"with K1 and K2 gives s = B^T P e a gain of {largest:g} (P solves A^T P + P A "
-                f"= -Q); it must be <= {_LAW_RANGE:g} (the law multiplies it by alpha c_hat / "
-                "epsilon; beyond that the command overflows double precision)",
+                f"= -Q); it must be <= {_LAW_RANGE:g}, as alpha, c_hat0 and gamma must (the "
+                "law multiplies them all: a command beyond double precision is a diverged run)",
             )
         object.__setattr__(self, "P", P)
         packed = [self.K1.ravel(), self.K2.ravel(), sliding_gain.ravel()]

@@ -388,7 +388,7 @@ def run_node(node_class: type[NodeBase], args: Any) -> int:
     """Load, warm up, shake hands, run and write one node; return its exit code. Stop signals
     set the node's :class:`StopFlag` until it returns, and are ignored after."""
     if (problem := missing_extra()) is not None:
-        print(f"error: {problem}", file=sys.stderr)
+        print(one_line(f"error: {problem}"), file=sys.stderr)
         return EXIT_REFUSED
     stop = StopFlag()
     stop.install()
@@ -421,7 +421,7 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
         session = open_session(args.listen, args.connect)
     except OSError as error:
         node.close()
-        print(f"error: {error}", file=sys.stderr)
+        print(one_line(f"error: {error}"), file=sys.stderr)
         return EXIT_REFUSED
     handshake = None
     code = EXIT_OK
@@ -440,7 +440,7 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
         except HandshakeError as error:
             if stop():
                 return EXIT_INTERRUPTED if stop.signal == signal.SIGINT else EXIT_OK
-            print(f"error: {error}", file=sys.stderr)
+            print(one_line(f"error: {error}"), file=sys.stderr)
             return EXIT_REFUSED
         node.t0 = t0
         remove_files(node.out, ROLE_FILES[node.role])  # an earlier session's, if any

@@ -26,7 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from delaytrack.live._tables import ms, number, per_second, read_rows
+from delaytrack._io import read_file_bytes
+from delaytrack.live._tables import json_table, ms, number, per_second, read_rows
 
 __all__ = [
     "format_agreement",
@@ -184,7 +185,7 @@ def write_session_report(
 
     folder = Path(folder)
     built = scenario.build()
-    summary = json.loads((folder / "summary.json").read_text())
+    summary = json_table(folder / "summary.json", "session's summary")
     live = live_result(folder, scenario, built)
     runs = {"live": live} if replayed is None else {"live": live, "replayed": replayed}
     metrics = _metrics(runs)
@@ -272,7 +273,7 @@ def _html_report(
     report.heading("Scenario")
     scenario_file = folder / "scenario.toml"
     if scenario_file.is_file():
-        report.code(scenario_file.read_text())
+        report.code(read_file_bytes(scenario_file, "scenario file").decode("utf-8", "replace"))
     return report
 
 

@@ -86,7 +86,7 @@ def _ended_early(folder: Path, role: str, code: int | None) -> bool:
     if code != 0:
         return True
     try:
-        stopped_by = json.loads((folder / f"{role}.json").read_text()).get("stopped_by")
+        stopped_by = json_table(folder / f"{role}.json", "node's record").get("stopped_by")
     except (OSError, ValueError):
         return True  # exited 0 without its record: not a normal end
     return stopped_by != "duration"
@@ -159,7 +159,7 @@ def run_session(args: Any) -> int:
     from delaytrack.scenario import ScenarioError
 
     if (problem := missing_extra()) is not None:
-        print(f"error: {problem}", file=sys.stderr)
+        print(one_line(f"error: {problem}"), file=sys.stderr)
         return 2
     try:
         scenario, built, duration, folder = _checked_session(args)
@@ -179,7 +179,7 @@ def run_session(args: Any) -> int:
         watch = None if watched is None else StatusWatch(watched, f"delaytrack/{session}")
         commands = node_commands(args, folder, ports, session, watched)
     except OSError as error:
-        print(f"error: {error}", file=sys.stderr)
+        print(one_line(f"error: {error}"), file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted before the session started", file=sys.stderr)

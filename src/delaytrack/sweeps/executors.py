@@ -216,6 +216,9 @@ class DaskExecutor:
                     f"--scheduler {scheduler!r}: the local Dask cluster did not start: "
                     f"{error}{cause}"
                 ) from None
+            except BaseException:  # Ctrl-C, or another failure: the environment given back
+                self.close()
+                raise
             address = self._cluster.scheduler_address
             self.description = (
                 f"dask: local cluster of {count} worker processes ({address}, dashboard "

@@ -27,7 +27,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from delaytrack._io import regular_file
+from delaytrack._io import read_file_bytes, regular_file
 
 __all__ = [
     "MAX_GRID_POINTS",
@@ -145,7 +145,7 @@ def _scan(
     its ``<replicate>`` elements to ``replicated``; refuse a texture or height field beyond
     :data:`MAX_GRID_POINTS` and replicates beyond :data:`MAX_REPLICATED` in all."""
     try:
-        text = source.read_bytes().decode("utf-8-sig", errors="replace")
+        text = read_file_bytes(source, "MuJoCo model file").decode("utf-8-sig", "replace")
     except OSError:
         return  # unreadable: MuJoCo says why
     for line, element, attributes in _elements(text):

@@ -630,9 +630,9 @@ def load_tuning_record(source: GainsSource = None) -> Mapping[str, Any]:
         return source
     path = default_gains_path() if source is None else Path(source)
     where = f"gains file {str(path)!r}"
-    text = read_file_bytes(path, "gains file", GainsFileError, largest=MAX_TOML_BYTES)
+    raw = read_file_bytes(path, "gains file", GainsFileError, largest=MAX_TOML_BYTES)
     try:
-        record = toml_data(text.decode("utf-8"))
+        record = toml_data(raw.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
         problem = f"is not TOML ({error}); give a gains file written by tune-baselines"
         raise GainsFileError(f"{where} {problem}", problem) from None

@@ -294,9 +294,9 @@ WIRE = [
         "00c00000000000000c400000000000000000",
     ),
     (
-        CommandMessage(-3, 0.01, 2.0, 0.005, 1, U),
-        struct.pack("<qdddqI2d", -3, 0.01, 2.0, 0.005, 1, 2, *U),
-        "fdffffffffffffff7b14ae47e17a843f00000000000000407b14ae47e17a743f01000000000000000200"
+        CommandMessage(3, 0.01, 2.0, 0.005, 1, U),
+        struct.pack("<qdddqI2d", 3, 0.01, 2.0, 0.005, 1, 2, *U),
+        "03000000000000007b14ae47e17a843f00000000000000407b14ae47e17a743f01000000000000000200"
         "0000000000000000e03f000000000000d0bf",
     ),
     (
@@ -324,6 +324,33 @@ def test_messages_keep_their_bytes_and_read_back(message, by_hand, before):
             assert got.dtype == np.float64 and np.array_equal(got, value)
         else:
             assert got == value and type(got) is type(value)
+
+
+R, C, S = ReleaseMessage, CommandMessage, StateMessage
+
+
+@pytest.mark.parametrize(
+    ("kind", "message", "why"),
+    [
+        (R, R(1, 0.1, 0.1, 0.1, 0.1, np.array([1.0, 2.0, 3.0])), "3 values per unit, not 2"),
+        (R, R(1, 0.1, 0.1, 0.1, 0.1, np.array([np.nan, 0.0])), "a value that is not finite"),
+        (S, S(1, 0.1, 0.1, np.array([np.nan, 0.0, 0.0, 0.0])), "a value that is not finite"),
+        (S, S(1, 0.1, 0.1, np.array([0.1, 0.2])), "1 values per unit, not 2"),
+        (C, C(1, np.nan, 0.1, 0.1, 0, U), "a time that is not finite"),
+        (R, R(1, 1e12, 0.1, 0.1, 0.1, U), "a time that is not finite or beyond"),
+        (C, C(-1, -1.0, 0.1, 0.1, 0, U), "sequence number -1"),
+        (C, C(2**62, 0.1, 0.1, 0.1, 0, U), "sequence number 4611686018427387904"),
+        (C, C(1, 0.1, 0.1, 0.1, 0, U).encode() + b"\0", "61 bytes, not those of 2 values"),
+    ],
+    ids=["long-u", "nan-u", "nan-x", "short-x", "nan-t_k", "huge-t_k", "negative-seq"]
+    + ["huge-seq", "trailing-byte"],
+)
+def test_a_message_a_node_cannot_use_is_refused_when_decoded(kind, message, why):
+    # Any peer on the network may publish: a node takes only whole, finite messages of its
+    # sizes (such messages crashed nodes, or reached a robot as NaN).
+    data = message if isinstance(message, bytes) else message.encode()
+    with pytest.raises(ValueError, match=why):
+        kind.decode(data, 2)
 
 
 def test_a_lead_longer_than_half_the_smallest_delay_is_refused(capsys, tmp_path, signals_kept):

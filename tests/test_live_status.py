@@ -125,3 +125,46 @@ def test_a_node_alone_prints_its_own_status_line(sessions):
     assert robot_parts["robot"] and not robot_parts["controller"], outputs["robot"][1]
     for role in ("controller", "delay"):  # quiet
         assert not any(part for part in _status_parts(outputs[role][1].decode()).values())
+
+
+def test_a_status_that_is_not_a_nodes_is_not_read():
+    # Any peer may publish on a session's status keys: a number given as text stopped the
+    # launcher with a traceback while it wrote the status line.
+    import json
+
+    from delaytrack.live.status import MAX_STATUS_BYTES, decode_status, format_line
+
+    good = {"role": "controller", "t": 1.0, "last": {"tick_rate_hz": 100.0}, "total": {}}
+    assert decode_status(json.dumps(good).encode()) == good
+    assert "controller 100 Hz" in format_line({"controller": good})
+    for bad in (
+        {**good, "last": {"tick_rate_hz": "x"}},
+        {**good, "total": {"missed": [1]}},
+        {**good, "last": {"tick_rate_hz": True}},
+        {**good, "role": "robot2"},
+    ):
+        assert decode_status(json.dumps(bad).encode()) is None, bad
+    assert decode_status(b"[" * 100_000 + b"]" * 100_000) is None  # no RecursionError
+    assert decode_status(b" " * (MAX_STATUS_BYTES + 1)) is None
+
+
+def test_a_hello_that_is_not_a_nodes_is_not_read():
+    # A peer's hello whose hashes were a list, or whose t0 was NaN, stopped the other nodes in
+    # the handshake with a traceback.
+    import json
+
+    from delaytrack.live.transport import read_hello
+
+    good = {"role": "robot", "pid": 1, "hashes": {"plant": "ab"}, "agree": [], "t0": 12.5}
+    assert read_hello(json.dumps(good).encode()) == good
+    for bad in (
+        {**good, "hashes": [1]},
+        {**good, "hashes": {"plant": 1}},
+        {**good, "agree": "controller"},
+        {**good, "t0": "soon"},
+        {**good, "t0": True},
+        {**good, "role": "spy"},
+    ):
+        assert read_hello(json.dumps(bad).encode()) is None, bad
+    assert read_hello(json.dumps(good).replace("12.5", "NaN").encode()) is None
+    assert read_hello(b"[" * 100_000 + b"]" * 100_000) is None

@@ -109,7 +109,7 @@ class ControllerNode(NodeBase):
     def _on_state(self, sample: Any) -> None:
         received = time.monotonic()
         try:
-            message = StateMessage.decode(sample.payload.to_bytes())
+            message = StateMessage.decode(sample.payload.to_bytes(), self.n)
         except Exception:  # noqa: BLE001 - a malformed payload is ignored
             return
         with self._lock:

@@ -40,6 +40,7 @@ released for, and ``h`` there.
 from __future__ import annotations
 
 import bisect
+import functools
 import math
 import time
 from typing import Any
@@ -96,6 +97,7 @@ class DelayNode(NodeBase):
     def __init__(self, scenario: Any, built: Any, args: Any) -> None:
         super().__init__(scenario, built, args)
         self.delay = built.delay
+        self.m = built.plant.m  # the inputs of every command
         check_session_delay(self.delay, self.duration)
         self.delay.check_run(0.0, self.dt, math.ceil(self.duration / self.dt))
         loss = scenario.simulated_packet_loss
@@ -137,7 +139,8 @@ class DelayNode(NodeBase):
     def declare(self, session: Any, prefix: str) -> None:
         self._reach = math.inf
         self._received = Received(
-            CommandMessage.decode, wake=lambda message: message.t_k <= self._reach
+            functools.partial(CommandMessage.decode, size=self.m),
+            wake=lambda message: message.t_k <= self._reach,
         )
         self._publisher = declare_stream(session, f"{prefix}/release")
         self._subscriber = session.declare_subscriber(f"{prefix}/command", self._received)

@@ -41,9 +41,23 @@ __all__ = [
 ]
 
 
+#: The largest time (s) a message may carry, on the session clock or the model's: the logs
+#: stamp times in whole seconds of 32 bits (a time of 1e12 s ended a node).
+MAX_TIME = 1e9
+#: The largest sequence number (a tick a millisecond for almost 9000 years).
+MAX_SEQ = 2**48
+
+
 class _Frame:
     """The bytes of one kind of message: a little-endian header of ``fields`` (:mod:`struct`
     codes) and a count ``c`` (``uint32``), then ``per_count · c`` little-endian float64 values.
+
+    A message is taken only whole and well formed: exactly the bytes its count says, its
+    sequence number (the first field) in ``[0, MAX_SEQ)``, its times (the float fields) finite
+    and within ``MAX_TIME``, its values finite, and the count the receiver expects; anything
+    else is a ValueError (a node drops the message and counts it), so that no peer's payload
+    reaches a node's loop, its logs or a robot as a NaN, a wrong shape or a time a log cannot
+    stamp.
 
     Parameters
     ----------
@@ -55,6 +69,7 @@ class _Frame:
 
     def __init__(self, fields: str, per_count: int = 1) -> None:
         self._header = struct.Struct(f"<{fields}I")
+        self._times = [i for i, code in enumerate(fields) if code == "d"]
         self._per_count = per_count
 
     def pack(self, fields: tuple[int | float, ...], values: np.ndarray) -> bytes:
@@ -62,13 +77,24 @@ class _Frame:
         array = np.ascontiguousarray(values, dtype="<f8")
         return self._header.pack(*fields, array.size // self._per_count) + array.tobytes()
 
-    def unpack(self, data: bytes) -> tuple[Any, ...]:
-        """The header's fields of ``data``, then its array (a copy)."""
-        *fields, count = self._header.unpack_from(data)
+    def unpack(self, data: bytes, count: int | None = None) -> tuple[Any, ...]:
+        """The header's fields of ``data``, then its array (a copy); a ValueError unless it is
+        well formed (the class docstring), with ``count`` values per unit when given."""
+        *fields, given = self._header.unpack_from(data)
+        if len(data) != self._header.size + 8 * self._per_count * given:
+            raise ValueError(f"{len(data)} bytes, not those of {given} values")
+        if count is not None and given != count:
+            raise ValueError(f"{given} values per unit, not {count}")
+        if not 0 <= fields[0] < MAX_SEQ:
+            raise ValueError(f"sequence number {fields[0]}")
+        if not all(abs(fields[i]) <= MAX_TIME for i in self._times):  # NaN too
+            raise ValueError("a time that is not finite or beyond MAX_TIME")
         values = np.frombuffer(
-            data, dtype="<f8", count=self._per_count * count, offset=self._header.size
-        )
-        return (*fields, values.copy())
+            data, dtype="<f8", count=self._per_count * given, offset=self._header.size
+        ).copy()
+        if not np.all(np.isfinite(values)):
+            raise ValueError("a value that is not finite")
+        return (*fields, values)
 
 
 _STATE = _Frame("qdd", per_count=2)  # seq, sample time, send time; n, then x (2n)
@@ -93,8 +119,10 @@ class StateMessage:
         return _STATE.pack((self.seq, self.sample_time, self.send_time), self.x)
 
     @classmethod
-    def decode(cls, data: bytes) -> StateMessage:
-        return cls(*_STATE.unpack(data))
+    def decode(cls, data: bytes, size: int | None = None) -> StateMessage:
+        """The message in ``data``, of ``size`` coordinates (or inputs) when given; a
+        ValueError unless it is well formed (:class:`_Frame`)."""
+        return cls(*_STATE.unpack(data, size))
 
 
 @dataclass(frozen=True)
@@ -115,8 +143,10 @@ class CommandMessage:
         )
 
     @classmethod
-    def decode(cls, data: bytes) -> CommandMessage:
-        return cls(*_COMMAND.unpack(data))
+    def decode(cls, data: bytes, size: int | None = None) -> CommandMessage:
+        """The message in ``data``, of ``size`` coordinates (or inputs) when given; a
+        ValueError unless it is well formed (:class:`_Frame`)."""
+        return cls(*_COMMAND.unpack(data, size))
 
 
 @dataclass(frozen=True)
@@ -137,8 +167,10 @@ class ReleaseMessage:
         )
 
     @classmethod
-    def decode(cls, data: bytes) -> ReleaseMessage:
-        return cls(*_RELEASE.unpack(data))
+    def decode(cls, data: bytes, size: int | None = None) -> ReleaseMessage:
+        """The message in ``data``, of ``size`` coordinates (or inputs) when given; a
+        ValueError unless it is well formed (:class:`_Frame`)."""
+        return cls(*_RELEASE.unpack(data, size))
 
 
 # ---- ROS 2 message definitions for the MCAP logs ---------------------------------------------

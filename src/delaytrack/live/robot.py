@@ -37,6 +37,7 @@ the log and tables written up to that step, exit code 1.
 
 from __future__ import annotations
 
+import functools
 import math
 import sys
 from typing import Any
@@ -294,7 +295,7 @@ class RobotNode(NodeBase):
         )
 
     def declare(self, session: Any, prefix: str) -> None:
-        self._received = Received(ReleaseMessage.decode)
+        self._received = Received(functools.partial(ReleaseMessage.decode, size=self.m))
         self._publisher = declare_stream(session, f"{prefix}/state")
         self._subscriber = session.declare_subscriber(f"{prefix}/release", self._received)
         self.entities += [self._subscriber, self._publisher]

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import re
 import threading
@@ -51,6 +52,7 @@ __all__ = [
     "HandshakeError",
     "differing_parts",
     "open_session",
+    "read_hello",
     "scenario_hashes",
 ]
 
@@ -150,6 +152,37 @@ def _portable(value: Any) -> Any:
     return value
 
 
+#: Largest hello read (a node's is a few hundred bytes).
+MAX_HELLO_BYTES = 2**16
+#: How far (s) from now, beyond its start delay, a session start announced by a robot node is
+#: believed: a hello with a start days ahead held the other nodes waiting.
+MAX_START_DISTANCE = 60.0
+
+
+def read_hello(payload: bytes) -> dict[str, Any] | None:
+    """A node's hello read from its payload, or None when it is not one: a JSON table of at
+    most :data:`MAX_HELLO_BYTES` with a node's ``role``, ``hashes`` naming texts, ``agree`` a
+    list of texts and ``t0`` a finite number or null. Any peer on the network may publish one:
+    hashes that were a list, or a ``t0`` of NaN, stopped nodes in the handshake."""
+    if len(payload) > MAX_HELLO_BYTES:
+        return None
+    try:
+        hello = json.loads(payload)
+    except (ValueError, RecursionError):
+        return None
+    if not isinstance(hello, dict) or hello.get("role") not in ROLES:
+        return None
+    hashes, agree, t0 = hello.get("hashes"), hello.get("agree", []), hello.get("t0")
+    texts = isinstance(hashes, dict) and all(
+        isinstance(key, str) and isinstance(value, str) for key, value in hashes.items()
+    )
+    listed = isinstance(agree, list) and all(isinstance(role, str) for role in agree)
+    timed = t0 is None or (
+        isinstance(t0, int | float) and not isinstance(t0, bool) and math.isfinite(t0)
+    )
+    return hello if texts and listed and timed else None
+
+
 def scenario_hashes(scenario: Any, plant: Any) -> dict[str, str]:
     """Hashes of what two nodes must agree on: the plant (its table and size), its coordinates
     (names and units), ``T_c``, ``dt`` and the whole scenario, with the files it names taken by
@@ -214,14 +247,10 @@ class Handshake:
             self._entities.append(serve_clock(session, self._clock_key, clock))
 
     def _on_hello(self, sample: Any) -> None:
-        try:
-            hello = json.loads(sample.payload.to_bytes())
-        except ValueError:
-            return
-        role = hello.get("role")
-        if role in ROLES and role != self.role:
+        hello = read_hello(sample.payload.to_bytes())
+        if hello is not None and hello["role"] != self.role:
             with self._lock:
-                self._peers[role] = hello
+                self._peers[hello["role"]] = hello
 
     def _agreeing(self) -> list[str]:
         with self._lock:
@@ -286,7 +315,10 @@ class Handshake:
                 robot = peers.get("robot")
                 if robot is not None and robot.get("t0") is not None:
                     offset = self._offset_to(robot)
-                    self.t0 = float(robot["t0"]) - offset.offset_s
+                    t0 = float(robot["t0"]) - offset.offset_s
+                    # a start the robot would announce: seconds ahead, not days (nor past)
+                    if abs(t0 - self._clock()) <= self.start_delay + MAX_START_DISTANCE:
+                        self.t0 = t0
             self.publish()
             if self.t0 is not None and (self.role != "robot" or self._clock() > self.t0 - 0.3):
                 return self.t0

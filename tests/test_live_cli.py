@@ -490,3 +490,26 @@ def test_a_node_starts_with_the_launchers_module_path_and_not_the_working_folder
         timeout=60,
     )
     assert done.stdout.strip() == "launcher's ['robot', 's.toml', '--quiet']", done.stderr
+
+
+def test_the_controller_takes_the_newest_state_by_sample_time_not_by_arrival():
+    # A copy of an older state arriving late (replayed by a peer, or held by the network) was
+    # taken for the newest: every tick then computed on a state two ticks old.
+    import threading
+    from collections import deque
+    from types import SimpleNamespace
+
+    from delaytrack.live.controller import ControllerNode
+
+    node = object.__new__(ControllerNode)
+    node._lock, node._states, node.n, node.dt = threading.Lock(), deque(maxlen=64), 2, 1e-3
+
+    def arrive(sample_time):
+        data = StateMessage(int(sample_time * 1e3), sample_time, 0.0, X).encode()
+        node._on_state(SimpleNamespace(payload=SimpleNamespace(to_bytes=lambda: data)))
+
+    for sample_time in (0.000, 0.002, 0.004, 0.002, 0.001):  # the last two: copies, late
+        arrive(sample_time)
+    assert node._latest_state(0.0045)[0].sample_time == 0.004
+    assert node._latest_state(0.003)[0].sample_time == 0.002
+    assert [m.sample_time for m, _ in node._states] == [0.0, 0.001, 0.002, 0.002, 0.004]

@@ -8,6 +8,7 @@ round trips give. Nothing here asserts a timing: the bound holds by construction
 
 from __future__ import annotations
 
+import contextlib
 import shutil
 import socket
 import threading
@@ -19,7 +20,12 @@ import pytest
 pytest.importorskip("zenoh")
 
 from delaytrack.live.clock_sync import estimate_clock_offset, serve_clock  # noqa: E402
-from delaytrack.live.transport import Handshake, open_session, scenario_hashes  # noqa: E402
+from delaytrack.live.transport import (  # noqa: E402
+    Handshake,
+    HandshakeError,
+    open_session,
+    scenario_hashes,
+)
 from delaytrack.scenario import Scenario  # noqa: E402
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "user_arm"
@@ -64,7 +70,7 @@ def test_no_answer_is_a_timeout_naming_the_key(sessions):
         estimate_clock_offset(sessions[1], "test/nobody", rounds=2, timeout=0.3)
 
 
-def _handshakes(sessions, robot_boot, other_boot):
+def _handshakes(sessions, robot_boot, other_boot, robot_clock=_shifted, timeout=20.0):
     roles = ("robot", "controller", "delay")
     shakes = {
         role: Handshake(
@@ -73,7 +79,7 @@ def _handshakes(sessions, robot_boot, other_boot):
             role,
             HASHES,
             start_delay=0.3,
-            clock=_shifted if role == "robot" else time.monotonic,
+            clock=robot_clock if role == "robot" else time.monotonic,
             boot=robot_boot if role == "robot" else other_boot,
         )
         for role, session in zip(roles, sessions, strict=True)
@@ -81,7 +87,8 @@ def _handshakes(sessions, robot_boot, other_boot):
     starts = {}
 
     def wait(role):
-        starts[role] = shakes[role].wait(20)
+        with contextlib.suppress(HandshakeError):  # not started: left out of starts
+            starts[role] = shakes[role].wait(timeout)
 
     threads = [threading.Thread(target=wait, args=(role,)) for role in roles]
     for thread in threads:
@@ -103,11 +110,24 @@ def test_nodes_on_another_machine_start_at_the_robots_t0_on_their_own_clock(sess
 
 
 def test_nodes_on_the_same_machine_take_t0_as_it_is(sessions):
-    shakes, starts = _handshakes(sessions, "one-boot", "one-boot")
+    # One machine, one clock: t0 is taken as announced, with no round trip to estimate an
+    # offset.
+    shakes, starts = _handshakes(sessions, "one-boot", "one-boot", time.monotonic)
     for role in ("controller", "delay"):
         assert shakes[role].clock_offset.offset_s == 0.0
         assert shakes[role].clock_offset.round_trips == 0
-        assert starts[role] == starts["robot"]  # taken as announced (here: a shifted clock)
+        assert starts[role] == starts["robot"]
+
+
+def test_a_start_announced_far_from_now_is_not_taken(sessions):
+    # A robot node's start is seconds ahead: one days away (a peer's hello, or a clock that is
+    # not this machine's under the same boot) held the other nodes waiting for it.
+    shakes, starts = _handshakes(sessions, "one-boot", "one-boot", _far_ahead, timeout=3.0)
+    assert "robot" in starts and "controller" not in starts and "delay" not in starts
+
+
+def _far_ahead():
+    return time.monotonic() + 1e6
 
 
 def _copy_example(folder: Path) -> Path:

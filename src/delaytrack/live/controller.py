@@ -34,6 +34,7 @@ newest state was older than ``--state-timeout`` (safety: the law is not run on a
 
 from __future__ import annotations
 
+import bisect
 import threading
 import time
 from collections import deque
@@ -113,7 +114,16 @@ class ControllerNode(NodeBase):
         except Exception:  # noqa: BLE001 - a malformed payload is ignored
             return
         with self._lock:
-            self._states.append((message, received))
+            states = self._states
+            if states and message.sample_time < states[-1][0].sample_time:
+                # Arrived after a newer one (late, or a copy replayed): kept in the order of
+                # sample times, so that it is never taken for the newest.
+                if len(states) == states.maxlen:
+                    states.popleft()
+                times = [kept.sample_time for kept, _ in states]
+                states.insert(bisect.bisect_right(times, message.sample_time), (message, received))
+            else:
+                states.append((message, received))
 
     def declare(self, session: Any, prefix: str) -> None:
         self._publisher = declare_stream(session, f"{prefix}/command")
@@ -142,6 +152,8 @@ class ControllerNode(NodeBase):
         return self._stepper.tick(t_k, h).copy()
 
     def _latest_state(self, t_k: float) -> tuple[StateMessage, float] | None:
+        """The state of the latest sample time at or before ``t_k`` among those kept (in the
+        order of their sample times: :meth:`_on_state`), None when there is none."""
         with self._lock:
             states = list(self._states)
         tolerance = 1e-9 * self.dt

@@ -131,6 +131,7 @@ class DelayNode(NodeBase):
         self.lateness_ms: list[float] = []  # of each step where the pick changed
         self.session_s = 0.0
         self.lost_count = 0  # commands received and dropped on purpose (packet loss)
+        self.duplicates = 0  # commands received again under a seq already taken, not taken
         self._seq_range: tuple[int, int] | None = None  # the least and greatest seq received
 
     def h(self, t: float) -> float:
@@ -150,6 +151,9 @@ class DelayNode(NodeBase):
         """Take in the commands that arrived (lost ones recorded, not held); whether any did."""
         arrived = self._received.drain()
         for message, received in arrived:
+            if message.seq in self.commands:  # a copy (replayed, or sent twice): not taken
+                self.duplicates += 1
+                continue
             lost = bool(packet_lost(message.seq, self._loss))
             self.lost_count += lost
             low, high = self._seq_range or (message.seq, message.seq)
@@ -340,6 +344,7 @@ class DelayNode(NodeBase):
             "released": len(self.releases),
             "rereleased": len(self.releases) - sum(1 for r in rows if not math.isnan(r[6])),
             "dropped_by_queue": self._received.dropped,
+            "duplicates": self.duplicates,
             "missed_steps": self.missed_steps,
             "wakes": self.wakes,
             "session_s": self.session_s,

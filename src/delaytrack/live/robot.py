@@ -272,6 +272,7 @@ class RobotNode(NodeBase):
         )
         self.x = np.zeros(2 * self.n)  # the state read last
         self.u = np.zeros(self.m)  # the input written last
+        self.releases_out_of_order = 0  # releases older than the command in force, not applied
         # the input before the first command: the scenario's u_init, as the simulator's
         u_init = scenario.simulated_u_init
         self.u_init = np.zeros(self.m) if u_init is None else u_init
@@ -337,7 +338,11 @@ class RobotNode(NodeBase):
                 if due:
                     chosen, arrived = max(due, key=lambda p: (p[0].apply_at, p[1]))
                     pending = [p for p in pending if p[0].apply_at > s + tolerance]
-                    if (
+                    if current is not None and chosen.apply_at < current.apply_at:
+                        # The delay node releases in the order of the steps they apply at: one
+                        # older than the command in force is a copy replayed, not applied.
+                        self.releases_out_of_order += 1
+                    elif (
                         current is None
                         or chosen.seq != current.seq
                         or chosen.apply_at != current.apply_at
@@ -548,6 +553,7 @@ class RobotNode(NodeBase):
             "applications": len(self.applied),
             "late_applications": sum(1 for r in self.applied if r[2] > r[3] + 1e-9 * self.dt),
             "dropped_by_queue": self._received.dropped if hasattr(self, "_received") else 0,
+            "releases_out_of_order": self.releases_out_of_order,
             "coordinates": self.names,
             "bridge": self.bridge_name or "simulated",
             "failure": self.failure,

@@ -353,6 +353,17 @@ def test_a_message_a_node_cannot_use_is_refused_when_decoded(kind, message, why)
         kind.decode(data, 2)
 
 
+def test_a_message_of_a_time_after_the_session_is_refused_when_decoded():
+    # Kept until the session's end, a flood of them made the robot miss steps.
+    assert R.decode(R(1, 0.1, 0.1, 0.1, 2.0, U).encode(), 2, until=2.0).apply_at == 2.0
+    with pytest.raises(ValueError, match="apply_at 1000000000.0 after the session's end"):
+        R.decode(R(1, 0.1, 0.1, 0.1, 1e9, U).encode(), 2, until=2.0)
+    with pytest.raises(ValueError, match="t_k 3.0 after the session's end"):
+        C.decode(C(1, 3.0, 0.1, 0.1, 0, U).encode(), 2, until=2.0)
+    with pytest.raises(ValueError, match="sample_time 5.0 after the session's end"):
+        S.decode(S(1, 5.0, 0.1, X).encode(), 2, until=2.0)
+
+
 def test_a_lead_longer_than_half_the_smallest_delay_is_refused(capsys, tmp_path, signals_kept):
     # S1's smallest delay is 20 ms: a release sent 15 ms ahead would go out before most
     # commands have reached the delay node, and every delay would grow by about that much.
@@ -503,12 +514,13 @@ def test_the_controller_takes_the_newest_state_by_sample_time_not_by_arrival():
 
     node = object.__new__(ControllerNode)
     node._lock, node._states, node.n, node.dt = threading.Lock(), deque(maxlen=64), 2, 1e-3
+    node.duration = 1.0
 
     def arrive(sample_time):
         data = StateMessage(int(sample_time * 1e3), sample_time, 0.0, X).encode()
         node._on_state(SimpleNamespace(payload=SimpleNamespace(to_bytes=lambda: data)))
 
-    for sample_time in (0.000, 0.002, 0.004, 0.002, 0.001):  # the last two: copies, late
+    for sample_time in (0.000, 0.002, 0.004, 0.002, 0.001, 5.0):  # copies, late; one ahead
         arrive(sample_time)
     assert node._latest_state(0.0045)[0].sample_time == 0.004
     assert node._latest_state(0.003)[0].sample_time == 0.002

@@ -294,6 +294,11 @@ class NodeBase:
     def declare(self, session: Any, prefix: str) -> None:
         raise NotImplementedError
 
+    def _latest_time(self) -> float:
+        """The latest model time (s) a message of this session may carry: its end, and a
+        second more (a message of a later time would be kept, unused, until the end)."""
+        return self.duration + 1.0
+
     def loop(self, t0: float, stop: StopFlag, handshake: Handshake) -> None:
         raise NotImplementedError
 

@@ -110,7 +110,7 @@ class ControllerNode(NodeBase):
     def _on_state(self, sample: Any) -> None:
         received = time.monotonic()
         try:
-            message = StateMessage.decode(sample.payload.to_bytes(), self.n)
+            message = StateMessage.decode(sample.payload.to_bytes(), self.n, self._latest_time())
         except Exception:  # noqa: BLE001 - a malformed payload is ignored
             return
         with self._lock:

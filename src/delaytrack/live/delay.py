@@ -140,7 +140,7 @@ class DelayNode(NodeBase):
     def declare(self, session: Any, prefix: str) -> None:
         self._reach = math.inf
         self._received = Received(
-            functools.partial(CommandMessage.decode, size=self.m),
+            functools.partial(CommandMessage.decode, size=self.m, until=self._latest_time()),
             wake=lambda message: message.t_k <= self._reach,
         )
         self._publisher = declare_stream(session, f"{prefix}/release")

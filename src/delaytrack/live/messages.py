@@ -119,10 +119,14 @@ class StateMessage:
         return _STATE.pack((self.seq, self.sample_time, self.send_time), self.x)
 
     @classmethod
-    def decode(cls, data: bytes, size: int | None = None) -> StateMessage:
+    def decode(cls, data: bytes, size: int | None = None, until: float = MAX_TIME) -> StateMessage:
         """The message in ``data``, of ``size`` coordinates (or inputs) when given; a
-        ValueError unless it is well formed (:class:`_Frame`)."""
-        return cls(*_STATE.unpack(data, size))
+        ValueError unless it is well formed (:class:`_Frame`) and its ``sample_time`` is at most
+        ``until`` (a session's end: later ones would be kept until it ends)."""
+        message = cls(*_STATE.unpack(data, size))
+        if not message.sample_time <= until:
+            raise ValueError(f"sample_time {message.sample_time} after the session's end")
+        return message
 
 
 @dataclass(frozen=True)
@@ -143,10 +147,16 @@ class CommandMessage:
         )
 
     @classmethod
-    def decode(cls, data: bytes, size: int | None = None) -> CommandMessage:
+    def decode(
+        cls, data: bytes, size: int | None = None, until: float = MAX_TIME
+    ) -> CommandMessage:
         """The message in ``data``, of ``size`` coordinates (or inputs) when given; a
-        ValueError unless it is well formed (:class:`_Frame`)."""
-        return cls(*_COMMAND.unpack(data, size))
+        ValueError unless it is well formed (:class:`_Frame`) and its ``t_k`` is at most
+        ``until`` (a session's end: later ones would be kept until it ends)."""
+        message = cls(*_COMMAND.unpack(data, size))
+        if not message.t_k <= until:
+            raise ValueError(f"t_k {message.t_k} after the session's end")
+        return message
 
 
 @dataclass(frozen=True)
@@ -167,10 +177,16 @@ class ReleaseMessage:
         )
 
     @classmethod
-    def decode(cls, data: bytes, size: int | None = None) -> ReleaseMessage:
+    def decode(
+        cls, data: bytes, size: int | None = None, until: float = MAX_TIME
+    ) -> ReleaseMessage:
         """The message in ``data``, of ``size`` coordinates (or inputs) when given; a
-        ValueError unless it is well formed (:class:`_Frame`)."""
-        return cls(*_RELEASE.unpack(data, size))
+        ValueError unless it is well formed (:class:`_Frame`) and its ``apply_at`` is at most
+        ``until`` (a session's end: later ones would be kept until it ends)."""
+        message = cls(*_RELEASE.unpack(data, size))
+        if not message.apply_at <= until:
+            raise ValueError(f"apply_at {message.apply_at} after the session's end")
+        return message
 
 
 # ---- ROS 2 message definitions for the MCAP logs ---------------------------------------------

@@ -296,7 +296,9 @@ class RobotNode(NodeBase):
         )
 
     def declare(self, session: Any, prefix: str) -> None:
-        self._received = Received(functools.partial(ReleaseMessage.decode, size=self.m))
+        self._received = Received(
+            functools.partial(ReleaseMessage.decode, size=self.m, until=self._latest_time())
+        )
         self._publisher = declare_stream(session, f"{prefix}/state")
         self._subscriber = session.declare_subscriber(f"{prefix}/release", self._received)
         self.entities += [self._subscriber, self._publisher]

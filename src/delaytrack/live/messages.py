@@ -63,13 +63,16 @@ class _Frame:
     ----------
     fields : str
         The header's fields before the count, as :mod:`struct` format codes.
+    model_time : tuple
+        The name and index of the field holding the message's model time.
     per_count : int
         Values per unit of the count (2 for a state ``[q, q̇]`` counted by ``n``).
     """
 
-    def __init__(self, fields: str, per_count: int = 1) -> None:
+    def __init__(self, fields: str, model_time: tuple[str, int], per_count: int = 1) -> None:
         self._header = struct.Struct(f"<{fields}I")
         self._times = [i for i, code in enumerate(fields) if code == "d"]
+        self._model_time = model_time
         self._per_count = per_count
 
     def pack(self, fields: tuple[int | float, ...], values: np.ndarray) -> bytes:
@@ -77,9 +80,13 @@ class _Frame:
         array = np.ascontiguousarray(values, dtype="<f8")
         return self._header.pack(*fields, array.size // self._per_count) + array.tobytes()
 
-    def unpack(self, data: bytes, count: int | None = None) -> tuple[Any, ...]:
+    def unpack(
+        self, data: bytes, count: int | None = None, until: float = MAX_TIME
+    ) -> tuple[Any, ...]:
         """The header's fields of ``data``, then its array (a copy); a ValueError unless it is
-        well formed (the class docstring), with ``count`` values per unit when given."""
+        well formed (the class docstring), with ``count`` values per unit when given and its
+        model time at most ``until`` (a session's end: a later one would be kept, unused,
+        until it ends)."""
         *fields, given = self._header.unpack_from(data)
         if len(data) != self._header.size + 8 * self._per_count * given:
             raise ValueError(f"{len(data)} bytes, not those of {given} values")
@@ -89,6 +96,9 @@ class _Frame:
             raise ValueError(f"sequence number {fields[0]}")
         if not all(abs(fields[i]) <= MAX_TIME for i in self._times):  # NaN too
             raise ValueError("a time that is not finite or beyond MAX_TIME")
+        name, index = self._model_time
+        if not fields[index] <= until:
+            raise ValueError(f"{name} {fields[index]} after the session's end")
         values = np.frombuffer(
             data, dtype="<f8", count=self._per_count * given, offset=self._header.size
         ).copy()
@@ -97,9 +107,9 @@ class _Frame:
         return (*fields, values)
 
 
-_STATE = _Frame("qdd", per_count=2)  # seq, sample time, send time; n, then x (2n)
-_COMMAND = _Frame("qdddq")  # seq, t_k, send time, state sample time, flags; m, then u
-_RELEASE = _Frame("qdddd")  # seq, t_k, controller send, release send, apply_at; m, then u
+_STATE = _Frame("qdd", ("sample_time", 1), per_count=2)  # seq, sample time, send time; n, x
+_COMMAND = _Frame("qdddq", ("t_k", 1))  # seq, t_k, send time, state sample time, flags; m, u
+_RELEASE = _Frame("qdddd", ("apply_at", 4))  # seq, t_k, command sent, released, apply_at; m, u
 
 #: Flags of a command: the controller held its previous command because its latest state was
 #: older than the limit (``--state-timeout``).
@@ -120,13 +130,8 @@ class StateMessage:
 
     @classmethod
     def decode(cls, data: bytes, size: int | None = None, until: float = MAX_TIME) -> StateMessage:
-        """The message in ``data``, of ``size`` coordinates (or inputs) when given; a
-        ValueError unless it is well formed (:class:`_Frame`) and its ``sample_time`` is at most
-        ``until`` (a session's end: later ones would be kept until it ends)."""
-        message = cls(*_STATE.unpack(data, size))
-        if not message.sample_time <= until:
-            raise ValueError(f"sample_time {message.sample_time} after the session's end")
-        return message
+        """The message in ``data`` (:meth:`_Frame.unpack`)."""
+        return cls(*_STATE.unpack(data, size, until))
 
 
 @dataclass(frozen=True)
@@ -150,13 +155,8 @@ class CommandMessage:
     def decode(
         cls, data: bytes, size: int | None = None, until: float = MAX_TIME
     ) -> CommandMessage:
-        """The message in ``data``, of ``size`` coordinates (or inputs) when given; a
-        ValueError unless it is well formed (:class:`_Frame`) and its ``t_k`` is at most
-        ``until`` (a session's end: later ones would be kept until it ends)."""
-        message = cls(*_COMMAND.unpack(data, size))
-        if not message.t_k <= until:
-            raise ValueError(f"t_k {message.t_k} after the session's end")
-        return message
+        """The message in ``data`` (:meth:`_Frame.unpack`)."""
+        return cls(*_COMMAND.unpack(data, size, until))
 
 
 @dataclass(frozen=True)
@@ -180,13 +180,8 @@ class ReleaseMessage:
     def decode(
         cls, data: bytes, size: int | None = None, until: float = MAX_TIME
     ) -> ReleaseMessage:
-        """The message in ``data``, of ``size`` coordinates (or inputs) when given; a
-        ValueError unless it is well formed (:class:`_Frame`) and its ``apply_at`` is at most
-        ``until`` (a session's end: later ones would be kept until it ends)."""
-        message = cls(*_RELEASE.unpack(data, size))
-        if not message.apply_at <= until:
-            raise ValueError(f"apply_at {message.apply_at} after the session's end")
-        return message
+        """The message in ``data`` (:meth:`_Frame.unpack`)."""
+        return cls(*_RELEASE.unpack(data, size, until))
 
 
 # ---- ROS 2 message definitions for the MCAP logs ---------------------------------------------

@@ -132,7 +132,8 @@ def test_a_status_that_is_not_a_nodes_is_not_read():
     # launcher with a traceback while it wrote the status line.
     import json
 
-    from delaytrack.live.status import MAX_STATUS_BYTES, decode_status, format_line
+    from delaytrack.live.messages import MAX_JSON_BYTES
+    from delaytrack.live.status import decode_status, format_line
 
     good = {"role": "controller", "t": 1.0, "last": {"tick_rate_hz": 100.0}, "total": {}}
     assert decode_status(json.dumps(good).encode()) == good
@@ -145,7 +146,7 @@ def test_a_status_that_is_not_a_nodes_is_not_read():
     ):
         assert decode_status(json.dumps(bad).encode()) is None, bad
     assert decode_status(b"[" * 100_000 + b"]" * 100_000) is None  # no RecursionError
-    assert decode_status(b" " * (MAX_STATUS_BYTES + 1)) is None
+    assert decode_status(b" " * (MAX_JSON_BYTES + 1)) is None
 
 
 def test_a_hello_that_is_not_a_nodes_is_not_read():

@@ -24,6 +24,7 @@ In the MCAP logs the same contents are written with ROS 2 schemas: the state as
 
 from __future__ import annotations
 
+import json
 import struct
 from dataclasses import dataclass
 from typing import Any
@@ -38,6 +39,7 @@ __all__ = [
     "CommandMessage",
     "ReleaseMessage",
     "StateMessage",
+    "node_table",
 ]
 
 
@@ -182,6 +184,24 @@ class ReleaseMessage:
     ) -> ReleaseMessage:
         """The message in ``data`` (:meth:`_Frame.unpack`)."""
         return cls(*_RELEASE.unpack(data, size, until))
+
+
+#: Largest JSON message (a node's hello or status) read: a node's is a few hundred bytes.
+MAX_JSON_BYTES = 2**16
+
+
+def node_table(payload: bytes, roles: tuple[str, ...]) -> dict[str, Any] | None:
+    """The JSON table of a node's hello or status, or None when the payload is not one: at
+    most :data:`MAX_JSON_BYTES`, JSON (nested as deep as it likes: no ``RecursionError``), a
+    table whose ``role`` is one of ``roles``. Any peer on the network may publish one; the
+    caller checks the table's own fields."""
+    if len(payload) > MAX_JSON_BYTES:
+        return None
+    try:
+        table = json.loads(payload)
+    except (ValueError, RecursionError):
+        return None
+    return table if isinstance(table, dict) and table.get("role") in roles else None
 
 
 # ---- ROS 2 message definitions for the MCAP logs ---------------------------------------------

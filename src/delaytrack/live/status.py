@@ -43,6 +43,8 @@ import time
 from collections.abc import Mapping
 from typing import Any, TextIO
 
+from delaytrack.live.messages import node_table
+
 __all__ = [
     "STATUS_PERIOD",
     "StatusWatch",
@@ -94,22 +96,13 @@ def encode_status(status: Mapping[str, Any]) -> bytes:
     return json.dumps(status, allow_nan=False).encode()
 
 
-#: Largest status payload read (a node's is a few hundred bytes).
-MAX_STATUS_BYTES = 2**16
-
-
 def decode_status(payload: bytes) -> dict[str, Any] | None:
     """A status read from its payload, or None when it is not one of a node of the loop: a
-    JSON table of at most :data:`MAX_STATUS_BYTES` whose ``role`` is a node's and whose
-    ``last`` and ``total`` tables hold numbers (or nulls) only. Any peer on the network may
-    publish one: a number that is text stopped the launcher."""
-    if len(payload) > MAX_STATUS_BYTES:
-        return None
-    try:
-        status = json.loads(payload)
-    except (ValueError, RecursionError):
-        return None
-    if not isinstance(status, dict) or status.get("role") not in _ROLES:
+    node's JSON table (:func:`~delaytrack.live.messages.node_table`) whose ``last`` and
+    ``total`` tables hold numbers (or nulls) only. Any peer on the network may publish one: a
+    number that is text stopped the launcher."""
+    status = node_table(payload, _ROLES)
+    if status is None:
         return None
     for part in ("last", "total"):
         table = status.get(part)

@@ -45,6 +45,7 @@ from delaytrack.live.clock_sync import (
     estimate_clock_offset,
     serve_clock,
 )
+from delaytrack.live.messages import node_table
 
 __all__ = [
     "ROLES",
@@ -152,25 +153,18 @@ def _portable(value: Any) -> Any:
     return value
 
 
-#: Largest hello read (a node's is a few hundred bytes).
-MAX_HELLO_BYTES = 2**16
 #: How far (s) from now, beyond its start delay, a session start announced by a robot node is
 #: believed: a hello with a start days ahead held the other nodes waiting.
 MAX_START_DISTANCE = 60.0
 
 
 def read_hello(payload: bytes) -> dict[str, Any] | None:
-    """A node's hello read from its payload, or None when it is not one: a JSON table of at
-    most :data:`MAX_HELLO_BYTES` with a node's ``role``, ``hashes`` naming texts, ``agree`` a
+    """A node's hello read from its payload, or None when it is not one: a node's JSON table
+    (:func:`~delaytrack.live.messages.node_table`) with ``hashes`` naming texts, ``agree`` a
     list of texts and ``t0`` a finite number or null. Any peer on the network may publish one:
     hashes that were a list, or a ``t0`` of NaN, stopped nodes in the handshake."""
-    if len(payload) > MAX_HELLO_BYTES:
-        return None
-    try:
-        hello = json.loads(payload)
-    except (ValueError, RecursionError):
-        return None
-    if not isinstance(hello, dict) or hello.get("role") not in ROLES:
+    hello = node_table(payload, ROLES)
+    if hello is None:
         return None
     hashes, agree, t0 = hello.get("hashes"), hello.get("agree", []), hello.get("t0")
     texts = isinstance(hashes, dict) and all(

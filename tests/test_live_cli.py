@@ -340,6 +340,7 @@ R, C, S = ReleaseMessage, CommandMessage, StateMessage
         (R, R(1, 1e12, 0.1, 0.1, 0.1, U), "a time that is not finite or beyond"),
         (C, C(-1, -1.0, 0.1, 0.1, 0, U), "sequence number -1"),
         (C, C(2**62, 0.1, 0.1, 0.1, 0, U), "sequence number 4611686018427387904"),
+        # the 60 bytes of a command of two inputs (a header of 44, two doubles), and one more
         (C, C(1, 0.1, 0.1, 0.1, 0, U).encode() + b"\0", "61 bytes, not those of 2 values"),
     ],
     ids=["long-u", "nan-u", "nan-x", "short-x", "nan-t_k", "huge-t_k", "negative-seq"]

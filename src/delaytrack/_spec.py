@@ -23,12 +23,12 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
-from typing import Any, TypeGuard
+from typing import Any
 
 from delaytrack._compile.disk_cache import cache_directory
 from delaytrack._file_caches import guard_caches
 from delaytrack._io import read_file_bytes
-from delaytrack._validation import ArgumentError, quoted
+from delaytrack._validation import ArgumentError, is_real_number, quoted
 
 __all__ = [
     "PYTHON_TYPE",
@@ -81,12 +81,8 @@ class SpecError(ValueError):
         return error
 
 
-def _is_number(value: object) -> TypeGuard[int | float]:
-    return isinstance(value, int | float) and not isinstance(value, bool)
-
-
 def _is_vector(value: object) -> bool:
-    return isinstance(value, list) and all(_is_number(item) for item in value)
+    return isinstance(value, list) and all(is_real_number(item) for item in value)
 
 
 def _is_matrix(value: object) -> bool:
@@ -96,7 +92,7 @@ def _is_matrix(value: object) -> bool:
 
 
 def number(value: object) -> str | None:
-    if not _is_number(value):
+    if not is_real_number(value):
         return "must be a number"
     try:
         finite = math.isfinite(value)
@@ -120,7 +116,7 @@ def vector(value: object) -> str | None:
 
 
 def gain(value: object) -> str | None:
-    if _is_number(value) or _is_vector(value) or _is_matrix(value):
+    if is_real_number(value) or _is_vector(value) or _is_matrix(value):
         return None
     return (
         "must be a number (a multiple of I), a list of numbers (a diagonal) or a list of "

@@ -23,6 +23,7 @@ __all__ = [
     "decimal_number",
     "integer_multiple",
     "is_integer_at_least",
+    "is_real_number",
     "as_spd_matrix",
     "as_square_matrix",
     "format_values",
@@ -130,6 +131,12 @@ def coordinate_labels(label: str, value: object, n: int) -> tuple[str, ...]:
     if names is None or not valid:
         raise ValueError(f"{label} must be a list of {what}; got {quoted(value)}")
     return names
+
+
+def is_real_number(value: object) -> TypeGuard[int | float]:
+    """Whether ``value`` is a Python ``int`` or ``float``, not a ``bool``: a number as a TOML or
+    JSON file holds one (finite or not)."""
+    return isinstance(value, int | float) and not isinstance(value, bool)
 
 
 def is_integer_at_least(value: object, least: int) -> TypeGuard[int | np.integer]:

@@ -43,6 +43,7 @@ import time
 from collections.abc import Mapping
 from typing import Any, TextIO
 
+from delaytrack._validation import is_real_number
 from delaytrack.live.messages import node_table
 
 __all__ = [
@@ -107,8 +108,7 @@ def decode_status(payload: bytes) -> dict[str, Any] | None:
     for part in ("last", "total"):
         table = status.get(part)
         if not isinstance(table, dict) or not all(
-            value is None or (isinstance(value, int | float) and not isinstance(value, bool))
-            for value in table.values()
+            value is None or is_real_number(value) for value in table.values()
         ):
             return None
     return status

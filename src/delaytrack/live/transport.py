@@ -38,6 +38,7 @@ import time
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from delaytrack._validation import is_real_number
 from delaytrack.live.clock_sync import (
     SAME_CLOCK,
     ClockOffset,
@@ -171,9 +172,7 @@ def read_hello(payload: bytes) -> dict[str, Any] | None:
         isinstance(key, str) and isinstance(value, str) for key, value in hashes.items()
     )
     listed = isinstance(agree, list) and all(isinstance(role, str) for role in agree)
-    timed = t0 is None or (
-        isinstance(t0, int | float) and not isinstance(t0, bool) and math.isfinite(t0)
-    )
+    timed = t0 is None or (is_real_number(t0) and math.isfinite(t0))
     return hello if texts and listed and timed else None
 
 
@@ -270,7 +269,7 @@ class Handshake:
         with self._lock:
             peers = dict(self._peers)
         for role, hello in sorted(peers.items()):
-            parts = differing_parts(self.hashes, hello.get("hashes") or {})
+            parts = differing_parts(self.hashes, hello["hashes"])  # a table (read_hello)
             if parts is not None:
                 return (
                     f"the {role} node (pid {hello.get('pid')}) runs another scenario than this "

@@ -49,7 +49,7 @@ def import_matplotlib() -> ModuleType:
 
     if present:
         done = (
-            "was read by matplotlib, imported before delaytrack" if read_before else ("is not read")
+            "was read by matplotlib, imported before delaytrack" if read_before else "is not read"
         )
         warnings.warn(
             f"{os.path.join(working, SETTINGS_FILE)} {done}: the figures take matplotlib's "

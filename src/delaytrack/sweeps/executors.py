@@ -209,16 +209,15 @@ class DaskExecutor:
                 self._cluster = distributed.LocalCluster(
                     n_workers=count, threads_per_worker=1, processes=True, dashboard_address=":0"
                 )
-            except (RuntimeError, OSError, TimeoutError) as error:
+            except BaseException as error:  # Ctrl-C too: the environment given back first
                 self.close()
+                if not isinstance(error, RuntimeError | OSError | TimeoutError):
+                    raise
                 cause = f" ({error.__cause__})" if error.__cause__ is not None else ""
                 raise SweepError(
                     f"--scheduler {scheduler!r}: the local Dask cluster did not start: "
                     f"{error}{cause}"
                 ) from None
-            except BaseException:  # Ctrl-C, or another failure: the environment given back
-                self.close()
-                raise
             address = self._cluster.scheduler_address
             self.description = (
                 f"dask: local cluster of {count} worker processes ({address}, dashboard "

@@ -51,6 +51,8 @@ MAX_REPLICATED = 100_000
 #: The attributes giving a grid's size, per element (a texture's width and height, a height
 #: field's rows and columns).
 _GRIDS = {"texture": ("width", "height"), "hfield": ("nrow", "ncol")}
+#: The elements whose attributes :func:`_check_sizes` bounds.
+_SIZED = (*_GRIDS, "flexcomp", "replicate")
 
 #: Elements whose file is MJCF, read in turn for the files it names.
 _XML_ELEMENTS = ("include", "model")
@@ -127,7 +129,7 @@ def check_model_files(path: Path) -> None:
                     )
                 except FileNotFoundError:
                     continue  # removed meanwhile: MuJoCo says so
-                points = image_points(candidate) if name.element in _GRIDS else None
+                points = _image_points(candidate) if name.element in _GRIDS else None
                 if points is not None and points > MAX_GRID_POINTS:
                     raise ValueError(
                         f"path {str(path)!r}: {where}, <{name.element} {name.attribute}> "
@@ -154,8 +156,8 @@ def _scan(
                 names.append(_Name(source, line, element, attribute, value.strip(), depth))
             elif element == "compiler" and attribute in _ASSET_FOLDERS:
                 folders.append(value.strip())
-        where = f"line {line} of {str(source)!r}"
-        _check_sizes(where, element, dict(attributes), replicated)
+        if element in _SIZED:
+            _check_sizes(f"line {line} of {str(source)!r}", element, dict(attributes), replicated)
 
 
 def _check_sizes(
@@ -168,10 +170,10 @@ def _check_sizes(
     multiplied as if nested)."""
     counts = {name: _counts(value) for name, value in attributes.items()}
     if element in _GRIDS:
-        first, second = (counts.get(name, [1])[:1] or [1] for name in _GRIDS[element])
-        points = first[0] * second[0]
+        first, second = ((counts.get(name) or [1])[0] for name in _GRIDS[element])
+        points = first * second
         if element == "texture" and attributes.get("type", "").strip() in ("cube", "skybox"):
-            points = 6 * first[0] ** 2
+            points = 6 * first**2
         if points > MAX_GRID_POINTS:
             raise ValueError(
                 f"{where}: <{element} {' '.join(_GRIDS[element])}> asks for {points:,} points; "
@@ -204,7 +206,7 @@ def _counts(value: str) -> list[int]:
     return numbers
 
 
-def image_points(path: str) -> int | None:
+def _image_points(path: str) -> int | None:
     """The pixels of the PNG image at ``path`` (width x height from its header), None when it
     is not a PNG that can be read."""
     try:

@@ -68,8 +68,8 @@ def test_collect_names_the_files_a_folder_lacks(tmp_path):
          "node's record: it holds no JSON table"),
         (SCENARIO, lambda f: (f / "ticks.csv").write_text("k,t_s\n1,0\n"), "ticks.csv: no "
          "column 'send_s'"),
-        (SCENARIO, lambda f: _edit_cell(f / "releases.csv", "seq", "x"), "releases.csv: column "
-         "'seq' holds 'x', not an index"),
+        (SCENARIO, lambda f: _edit_cell(f / "releases.csv", "seq", "x"), "releases.csv, line 2: "
+         "column 'seq' holds 'x', not an index"),
     ],
 )  # fmt: skip
 def test_collect_refuses_another_scenario_or_a_damaged_file_in_one_line(
@@ -102,7 +102,10 @@ def test_collect_refuses_another_scenario_or_a_damaged_file_in_one_line(
         (lambda f: (f / "summary.json").write_text("[1, 2]"), "is not a session summary"),
         (lambda f: (f / "summary.json").write_text('{"nodes": 5}'), "needs a table 'nodes'"),
         (lambda f: (f / "summary.json").write_text("nope"), "summary.json is not a session"),
-        (lambda f: _edit_cell(f / "ticks.csv", "k", "x"), "ticks.csv: column 'k' holds 'x'"),
+        (
+            lambda f: _edit_cell(f / "ticks.csv", "k", "x"),
+            "ticks.csv, line 2: column 'k' holds 'x'",
+        ),
         (
             lambda f: _edit_cell(f / "applied.csv", "applied_s", "nan"),
             "applied.csv, line 2: ('applied_s', 't_k_s') must be finite",

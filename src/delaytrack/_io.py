@@ -60,6 +60,7 @@ __all__ = [
     "finite_numbers",
     "json_text",
     "named_time_units",
+    "open_csv_text",
     "read_file_bytes",
     "refuse_unusable_values",
     "regular_file",
@@ -235,12 +236,13 @@ MAX_LINE_BYTES = 2**20
 
 
 class _BoundedReader(io.RawIOBase):
-    """The raw bytes of ``handle``, ending in a ValueError once more than ``largest`` bytes in
-    all, or a line of more than :data:`MAX_LINE_BYTES`, have been read: a text reader asks for
-    more and more of a file without line breaks."""
+    """The raw bytes of ``handle``, ending in a ValueError (``too_large``) once more than
+    ``largest`` bytes in all, or a line of more than :data:`MAX_LINE_BYTES`, have been read: a
+    text reader asks for more and more of a file without line breaks."""
 
-    def __init__(self, handle: Any, path: Path, largest: int) -> None:
+    def __init__(self, handle: Any, path: Path, largest: int, too_large: str) -> None:
         self._handle, self._path, self._largest = handle, path, largest
+        self._too_large = too_large
         self._total = self._line = 0
 
     def readable(self) -> bool:
@@ -255,13 +257,29 @@ class _BoundedReader(io.RawIOBase):
         last = max(data.rfind(b"\n"), data.rfind(b"\r"))  # a line ends in either
         self._line = self._line + count if last < 0 else count - last - 1
         if self._total > self._largest:
-            raise ValueError(_too_large("path =", self._path, self._largest))
+            raise ValueError(self._too_large)
         if self._line > MAX_LINE_BYTES:
             raise ValueError(
                 f"{str(self._path)!r}: a line longer than {MAX_LINE_BYTES // 2**20} MiB; give a "
                 "CSV text file"
             )
         return count
+
+
+@contextlib.contextmanager
+def open_csv_text(path: Path, largest: int, too_large: str) -> Iterator[io.TextIOWrapper]:
+    """The file ``path`` opened as CSV text (UTF-8, a leading byte-order mark skipped, lines
+    left to the CSV reader), reading which raises ValueError: ``too_large`` after more than
+    ``largest`` bytes, naming the file after a line longer than :data:`MAX_LINE_BYTES`."""
+    with (
+        path.open("rb", buffering=0) as raw,
+        io.TextIOWrapper(
+            io.BufferedReader(_BoundedReader(raw, path, largest, too_large), 2**16),
+            encoding="utf-8-sig",
+            newline="",
+        ) as handle,
+    ):
+        yield handle
 
 
 def csv_rows(path: Path) -> Iterator[tuple[int, list[str]]]:
@@ -274,14 +292,9 @@ def csv_rows(path: Path) -> Iterator[tuple[int, list[str]]]:
     checked = regular_file(path, "path =")
     line = 1
     try:
-        with (
-            checked.open("rb", buffering=0) as raw,
-            io.TextIOWrapper(
-                io.BufferedReader(_BoundedReader(raw, path, MAX_READ_BYTES), 2**16),
-                encoding="utf-8-sig",
-                newline="",
-            ) as handle,
-        ):
+        with open_csv_text(
+            checked, MAX_READ_BYTES, _too_large("path =", path, MAX_READ_BYTES)
+        ) as handle:
             reader = csv.reader(handle)
             for row in reader:
                 if any(cell.strip() for cell in row):

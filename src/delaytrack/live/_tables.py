@@ -2,27 +2,31 @@
 
 from __future__ import annotations
 
+import array
 import csv
 import json
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from delaytrack._io import read_file_bytes, regular_file
+import numpy as np
+
+from delaytrack._io import open_csv_text, read_file_bytes, regular_file
 
 __all__ = [
     "ROLE_FILES",
+    "RowsByIndex",
+    "SessionTable",
     "check_tables_whole",
-    "index_cell",
     "json_table",
     "ms",
     "node_record",
     "number",
-    "read_rows",
-    "required_rows",
+    "read_table",
     "table_bytes",
+    "values_at",
 ]
 
 
@@ -72,41 +76,246 @@ def _same_size(path: Path, expected: int) -> bool:
     size = path.stat().st_size
     if size == expected:
         return True
-    return size < expected and size + path.read_bytes().count(b"\n") == expected
+    if size >= expected:
+        return False
+    with path.open("rb") as handle:  # counted a MiB at a time
+        breaks = sum(chunk.count(b"\n") for chunk in iter(lambda: handle.read(2**20), b""))
+    return size + breaks == expected
 
 
-def read_rows(path: Path, columns: tuple[str, ...] = ()) -> list[dict[str, str]]:
-    """The rows of a CSV table of the session folder (none when the file is missing); a file
-    that is not a regular file (:func:`~delaytrack._io.regular_file`; its size is the session's,
-    which the session's length bounds), not UTF-8 text or without one of ``columns`` is a
-    ValueError naming it."""
+class SessionTable:
+    """A CSV table of the session folder read column by column (:func:`read_table`).
+
+    ``rows`` rows under ``header``; ``table[name]`` the array of a column read: ``float64`` for
+    numbers (NaN for an empty or unreadable cell, :func:`number`), ``int64`` for indices,
+    ``object`` for text. Eight bytes a cell read, whatever the file holds: a table takes about
+    the memory of its text, where rows of Python objects took some thirty times more.
+    """
+
+    def __init__(
+        self, path: Path, header: list[str], rows: int, columns: dict[str, np.ndarray]
+    ) -> None:
+        self.path, self.header, self.rows, self.columns = path, header, rows, columns
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.columns[name]
+
+    def matrix(self, names: Sequence[str], rows: Any = slice(None)) -> np.ndarray:
+        """The number columns ``names`` side by side at ``rows`` (all by default), ``(rows,
+        len(names))``; a column the table lacks is a ValueError naming it."""
+        for name in names:
+            if name not in self.columns:
+                raise _no_column(self.path, name, self.header)
+        picked = [self.columns[name][rows] for name in names]
+        return (
+            np.stack(picked, axis=-1) if picked else np.empty((np.arange(self.rows)[rows].size, 0))
+        )
+
+    def required(self) -> SessionTable:
+        """This table, or a ValueError naming it when it has no rows (or is missing)."""
+        if not self.rows:
+            raise ValueError(
+                f"{self.path.parent}: {self.path.name} is missing or has no rows; a session "
+                "folder written by delaytrack live run (or live collect) holds it"
+            )
+        return self
+
+
+def _no_column(path: Path, name: str, header: list[str]) -> ValueError:
+    """The error of a table without the column ``name``."""
+    return ValueError(
+        f"{path}: no column {name!r} (it has {header}); a session folder written by delaytrack "
+        "live run (or a node) holds the table whole"
+    )
+
+
+#: The array type of each kind of column read (a text column is kept as a list of texts).
+_TYPES = {"number": "d", "index": "q"}
+
+#: An index cell: ASCII digits, as every number read, blanks around.
+_INDEX = re.compile(r"\s*[0-9]+\s*")
+
+
+def read_table(
+    path: Path,
+    numbers: Sequence[str] | None = (),
+    *,
+    indices: Sequence[str] = (),
+    texts: Sequence[str] = (),
+) -> SessionTable:
+    """A CSV table of the session folder (:class:`SessionTable`; no rows when it is missing).
+
+    Parameters
+    ----------
+    path : Path
+        The table. A file that is not a regular file (:func:`~delaytrack._io.regular_file`),
+        gives more bytes than its size (a file of ``/proc``), is not UTF-8 CSV text, has a line
+        longer than :data:`~delaytrack._io.MAX_LINE_BYTES` or lacks a column asked for is a
+        ValueError naming it. Its size is the session's, which the session's length bounds.
+    numbers : sequence of str or None
+        Columns read as numbers (:func:`number`); None: every column that is not an index or a
+        text, in the table's order.
+    indices : sequence of str
+        Columns of indices: a cell that is not one is a ValueError naming the table, the line
+        and the column.
+    texts : sequence of str
+        Columns kept as text.
+    """
     if not path.exists():
-        return []
+        kinds = _kinds(numbers or (), indices, texts)
+        return SessionTable(path, [], 0, {name: _column([], kind) for name, kind in kinds.items()})
     regular_file(path, "session table", largest=None)
+    too_large = f"session table {str(path)!r} gives more bytes than its size: it is no table"
     try:
-        with open(path, newline="", encoding="utf-8") as handle:
-            reader = csv.DictReader(handle)
-            rows = list(reader)
+        with open_csv_text(path, path.stat().st_size, too_large) as handle:
+            reader = csv.reader(handle)
+            header: list[str] = next(reader, None) or []
+            kinds = _columns_of(path, header, numbers, indices, texts)
+            read: dict[str, Any] = {
+                name: array.array(_TYPES[kind]) if kind in _TYPES else []
+                for name, kind in kinds.items()
+            }
+            width, rows = len(header), 0
+            distinct: dict[str, str] = {}
+            chunk: list[list[str]] = []  # rows converted a chunk at a time, column by column
+            lines: list[int] = []
+            for row in reader:
+                if not row:  # a blank line, which csv.DictReader skipped too
+                    continue
+                if len(row) < width:  # cells missing at the end: empty
+                    row += [""] * (width - len(row))
+                chunk.append(row)
+                lines.append(reader.line_num)
+                if len(chunk) == _CHUNK_ROWS:
+                    _convert(path, header, kinds, chunk, lines, read, distinct)
+                    rows += len(chunk)
+                    chunk, lines = [], []
+            _convert(path, header, kinds, chunk, lines, read, distinct)
+            rows += len(chunk)
     except (UnicodeDecodeError, csv.Error) as error:
         raise ValueError(f"session table {str(path)!r} is not a CSV table ({error})") from None
     except OSError as error:  # a link to a file of /proc that refuses to be read as text
         raise ValueError(f"session table {str(path)!r} cannot be read: {error.strerror}") from None
-    missing = [column for column in columns if column not in (reader.fieldnames or ())]
-    if missing:
-        raise ValueError(
-            f"{path}: no column {missing[0]!r} (it has {list(reader.fieldnames or ())}); a "
-            "session folder written by delaytrack live run (or a node) holds the table whole"
-        )
-    return rows
+    columns = {name: _column(read[name], kind) for name, kind in kinds.items()}
+    return SessionTable(path, header, rows, columns)
 
 
-def index_cell(row: dict[str, str], column: str, path: Path) -> int:
-    """The integer index in ``column`` of a session table's ``row``, or a ValueError naming
-    the table."""
-    text = row.get(column) or ""
-    if not re.fullmatch(r"[0-9]+", text.strip()):  # ASCII digits, as every number read
-        raise ValueError(f"{path}: column {column!r} holds {text[:20]!r}, not an index")
-    return int(text)
+#: Rows converted at once (a chunk's texts are held until then).
+_CHUNK_ROWS = 1024
+
+
+def _convert(
+    path: Path,
+    header: list[str],
+    kinds: dict[str, str],
+    chunk: list[list[str]],
+    lines: list[int],
+    read: dict[str, Any],
+    distinct: dict[str, str],
+) -> None:
+    """Append the cells of the rows ``chunk`` (starting on ``lines``) to the columns ``read``:
+    numbers as :func:`number` reads them, indices checked, texts as their first object in
+    ``distinct`` (one object for each distinct text)."""
+    for name, kind in kinds.items():
+        position = header.index(name)
+        cells = [row[position] for row in chunk]
+        if kind == "number":
+            try:  # the same conversion as float() a cell, at once
+                read[name].frombytes(np.array(cells, dtype=np.float64).tobytes())
+            except ValueError:  # an empty or unreadable cell among them: NaN
+                read[name].extend(number(cell) for cell in cells)
+        elif kind == "index":
+            if not all(map(_INDEX.fullmatch, cells)):
+                line, cell = next(
+                    (line, cell)
+                    for line, cell in zip(lines, cells, strict=True)
+                    if not _INDEX.fullmatch(cell)
+                )
+                raise ValueError(
+                    f"{path}, line {line}: column {name!r} holds {cell[:20]!r}, not an index"
+                )
+            read[name].extend(map(int, cells))
+        else:
+            read[name].extend(distinct.setdefault(cell, cell) for cell in cells)
+
+
+def _kinds(numbers: Sequence[str], indices: Sequence[str], texts: Sequence[str]) -> dict[str, str]:
+    """Each column asked for, with its kind."""
+    return {
+        **dict.fromkeys(indices, "index"),
+        **dict.fromkeys(numbers, "number"),
+        **dict.fromkeys(texts, "text"),
+    }
+
+
+def _columns_of(
+    path: Path,
+    header: list[str],
+    numbers: Sequence[str] | None,
+    indices: Sequence[str],
+    texts: Sequence[str],
+) -> dict[str, str]:
+    """The columns of ``header`` to read, with their kinds; a column asked for that the table
+    lacks is a ValueError naming it."""
+    if numbers is None:
+        numbers = [name for name in header if name not in (*indices, *texts)]
+    kinds = _kinds(numbers, indices, texts)
+    for name in kinds:
+        if name not in header:
+            raise _no_column(path, name, header)
+    return kinds
+
+
+def _column(values: Any, kind: str) -> np.ndarray:
+    """A column read, as an array of its kind's type."""
+    if kind == "text":
+        column = np.empty(len(values), dtype=object)
+        column[:] = values
+        return column
+    dtype = np.float64 if kind == "number" else np.int64
+    # the array's own memory, not a copy (nothing appends to it any more)
+    return np.frombuffer(values, dtype=dtype) if len(values) else np.empty(0, dtype)
+
+
+class RowsByIndex:
+    """The row of each index of a table's index column: its last row (where rows read into a
+    mapping by index kept the last), or its first (``first=True``).
+
+    Parameters
+    ----------
+    indices : ndarray of int
+        The table's index column.
+    first : bool
+        Keep each index's first row instead of its last.
+    """
+
+    def __init__(self, indices: np.ndarray, first: bool = False) -> None:
+        order = np.argsort(indices, kind="stable")  # the rows of one index in their order
+        ordered = indices[order]
+        new = ordered[1:] != ordered[:-1]
+        keep = np.r_[True, new] if first else np.r_[new, True]
+        keep = keep[: ordered.size]
+        #: The distinct indices, ascending, and the row kept for each.
+        self.indices, self.rows = ordered[keep], order[keep]
+
+    def __len__(self) -> int:
+        return self.indices.size
+
+    def find(self, wanted: Any) -> np.ndarray:
+        """The row of each index in ``wanted``; -1 where the table has none."""
+        wanted = np.asarray(wanted, dtype=np.int64)
+        if not self.indices.size:
+            return np.full(wanted.shape, -1)
+        at = np.minimum(np.searchsorted(self.indices, wanted), self.indices.size - 1)
+        return np.where(self.indices[at] == wanted, self.rows[at], -1)
+
+
+def values_at(column: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """The numbers of ``column`` at ``rows`` (:meth:`RowsByIndex.find`); NaN where a row is -1."""
+    values = np.full(rows.shape, np.nan)
+    found = rows >= 0
+    values[found] = column[rows[found]]
+    return values
 
 
 def json_table(path: Path, what: str) -> dict[str, Any]:
@@ -126,17 +335,6 @@ def json_table(path: Path, what: str) -> dict[str, Any]:
 def node_record(path: Path) -> dict[str, Any] | None:
     """A node's record (``<role>.json``, :func:`json_table`), None when the file is missing."""
     return json_table(path, "node's record") if path.exists() else None
-
-
-def required_rows(path: Path, columns: tuple[str, ...]) -> list[dict[str, str]]:
-    """:func:`read_rows` of a table the replay needs: at least one row, and ``columns``."""
-    rows = read_rows(path, columns)
-    if not rows:
-        raise ValueError(
-            f"{path.parent}: {path.name} is missing or has no rows; a session folder written by "
-            "delaytrack live run (or live collect) holds it"
-        )
-    return rows
 
 
 def number(text: str | None) -> float:

@@ -24,7 +24,7 @@ from __future__ import annotations
 import csv
 import time
 from collections import deque
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -186,7 +186,7 @@ def _copied(values: Any) -> Any:
     return tuple(v.copy() if isinstance(v, np.ndarray) else v for v in values)
 
 
-def write_csv(path: str | Path, header: Sequence[str], rows: Sequence[Sequence[Any]]) -> Path:
+def write_csv(path: str | Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) -> Path:
     """Write a CSV table atomically (numbers as ``repr``, so they read back exactly): a reader,
     or a node killed while writing, leaves the old file or the complete new one."""
     path = Path(path)

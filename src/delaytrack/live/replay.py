@@ -37,12 +37,11 @@ import numpy as np
 from delaytrack._io import json_text, write_text
 from delaytrack.live._node import session_files
 from delaytrack.live._tables import (
+    RowsByIndex,
+    SessionTable,
     check_tables_whole,
-    index_cell,
     json_table,
-    number,
-    read_rows,
-    required_rows,
+    read_table,
 )
 from delaytrack.live.log import write_csv
 from delaytrack.live.report import format_agreement, write_report
@@ -76,15 +75,9 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     controller_node = nodes.get("controller") or {}
     t1 = _replayed_duration(folder, scenario.dt, scenario.T_c)
     trace = _realised_delay(folder, scenario.dt)
-    states = {
-        index_cell(r, "j", folder / "states.csv"): r
-        for r in required_rows(folder / "states.csv", ("j",))
-    }
-    names = [k for k in next(iter(states.values())) if k not in ("j", "t_s")][: built.plant.n]
-    ticks = {
-        index_cell(r, "k", folder / "ticks.csv"): r
-        for r in required_rows(folder / "ticks.csv", ("k",))
-    }
+    states = read_table(folder / "states.csv", None, indices=("j",)).required()
+    names = [c for c in states.header if c not in ("j", "t_s")][: built.plant.n]
+    ticks = read_table(folder / "ticks.csv", None, indices=("k",), texts=("status",)).required()
     # A session folder from before the controller measured recorded no noise: it read the truth.
     noise_spec = controller_node.get("measurement_noise")
     result = _resimulate(scenario, built, trace, t1, delay_node, noise_spec)
@@ -115,8 +108,7 @@ def _session_nodes(path: Path) -> dict[str, Any]:
 
 def _replayed_duration(folder: Path, dt: float, T_c: float) -> float:
     """``t1``: the session's duration rounded down to a whole number of ``T_c``, at least two."""
-    steps = required_rows(folder / "steps.csv", ())
-    end = (len(steps)) * dt
+    end = read_table(folder / "steps.csv").required().rows * dt
     n_ticks = int(math.floor(end / T_c + 1e-9))
     if n_ticks < 2:
         raise ValueError(f"{folder}: the session is shorter than two controller periods")
@@ -128,12 +120,12 @@ def _realised_delay(folder: Path, dt: float) -> TraceDelay:
     from delaytrack.delays import TraceDelay
 
     path = folder / "applied.csv"
-    applied = read_rows(path)
-    if not applied:
+    columns = ("applied_s", "t_k_s")
+    applied = read_table(path, columns)
+    if not applied.rows:
         raise ValueError(f"{folder}: the robot applied no command; nothing to replay")
     epsilon = 1e-6 * dt
-    columns = ("applied_s", "t_k_s")
-    numbers = np.array([[number(r.get(c)) for c in columns] for r in applied])
+    numbers = applied.matrix(columns)
     bad = np.flatnonzero(~np.isfinite(numbers).all(axis=1))
     if bad.size:  # line 1 is the header
         raise ValueError(f"{path}, line {bad[0] + 2}: {columns} must be finite times in seconds")
@@ -212,38 +204,28 @@ def _compare(
     scenario: Scenario,
     built: BuiltScenario,
     result: SimResult,
-    states: dict[int, dict[str, str]],
+    states: SessionTable,
     names: list[str],
-    ticks: dict[int, dict[str, str]],
+    ticks: SessionTable,
 ) -> _Compared:
-    """The live session against the replay at every tick with a logged state."""
-    sim_e1, sim_u = result.e1[0], result.commands[0]
-    m = built.plant.m
-    rows = []
-    live_errors, replayed_errors, live_commands, replayed_commands = [], [], [], []
-    steps_per_tick = round(scenario.T_c / scenario.dt)
-    for i, t in enumerate(result.t):
-        k = int(round(t / scenario.T_c))
-        state = states.get(k * steps_per_tick)
-        if state is None:
-            continue
-        e = result.reference[i, 0] - np.array([number(state[c]) for c in names])  # q_d of the run
-        tick = ticks.get(k)
-        u = np.array([number(tick[f"u{j + 1}"]) for j in range(m)]) if tick else np.full(m, np.nan)
-        live_errors.append(e)
-        replayed_errors.append(sim_e1[i])
-        live_commands.append(u)
-        replayed_commands.append(sim_u[i])
-        rows.append(
-            [k, float(t), *e.tolist(), *sim_e1[i].tolist(), *u.tolist(), *sim_u[i].tolist()]
+    """The live session against the replay at every tick with a logged state (a state or tick
+    logged twice: its last row)."""
+    inputs = [f"u{j + 1}" for j in range(built.plant.m)]
+    k = np.rint(result.t / scenario.T_c).astype(np.int64)
+    state_rows = RowsByIndex(states["j"]).find(k * round(scenario.T_c / scenario.dt))
+    compared = state_rows >= 0
+    live_errors = result.reference[compared, 0] - states.matrix(names, state_rows[compared])
+    tick_rows = RowsByIndex(ticks["k"]).find(k[compared])
+    live_commands = np.where((tick_rows >= 0)[:, None], ticks.matrix(inputs, tick_rows), np.nan)
+    replayed_errors, replayed_commands = result.e1[0][compared], result.commands[0][compared]
+    side_by_side = np.hstack([live_errors, replayed_errors, live_commands, replayed_commands])
+    rows = [
+        [k_i, t_i, *row]
+        for k_i, t_i, row in zip(
+            k[compared].tolist(), result.t[compared].tolist(), side_by_side.tolist(), strict=True
         )
-    return _Compared(
-        rows=rows,
-        live_errors=np.array(live_errors),
-        replayed_errors=np.array(replayed_errors),
-        live_commands=np.array(live_commands),
-        replayed_commands=np.array(replayed_commands),
-    )
+    ]
+    return _Compared(rows, live_errors, replayed_errors, live_commands, replayed_commands)
 
 
 def _agreement(compared: _Compared, names: list[str], plant: ELPlant) -> dict[str, Any]:
@@ -302,19 +284,20 @@ def _inputs_agreement(compared: _Compared, plant: ELPlant) -> dict[str, dict[str
 
 
 def _not_reproduced(
-    robot: dict[str, Any], controller_node: dict[str, Any], ticks: dict[int, dict[str, str]]
+    robot: dict[str, Any], controller_node: dict[str, Any], ticks: SessionTable
 ) -> dict[str, Any]:
     """What the simulation cannot reproduce: the robot's zero input on timeout, the ticks the
-    controller missed or computed without a state, on a stale one or one older than ``t_k``."""
-    older = [r for r in ticks.values() if number(r.get("state_age_ms")) > 1e-6]
+    controller missed or computed without a state, on a stale one or one older than ``t_k``
+    (a tick logged twice counted once, by its last row; a session from before the controller
+    logged the state's age counts none older)."""
+    rows = RowsByIndex(ticks["k"]).rows
+    age = ticks.columns.get("state_age_ms", np.full(ticks.rows, np.nan))
     return {
         "robot_zero_input_on_timeout_steps": robot.get("timeout_zero_steps"),
         "controller_missed_ticks": controller_node.get("missed"),
-        "controller_ticks_without_a_state": sum(
-            1 for r in ticks.values() if r["status"] == "no-state"
-        ),
+        "controller_ticks_without_a_state": int(np.sum(ticks["status"][rows] == "no-state")),
         "controller_stale_ticks": controller_node.get("stale"),
-        "controller_ticks_on_a_state_older_than_t_k": len(older),
+        "controller_ticks_on_a_state_older_than_t_k": int(np.sum(age[rows] > 1e-6)),
     }
 
 

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from delaytrack._io import read_file_bytes
-from delaytrack.live._tables import json_table, ms, number, per_second, read_rows
+from delaytrack.live._tables import RowsByIndex, json_table, ms, per_second, read_table, values_at
 
 __all__ = [
     "format_agreement",
@@ -53,30 +53,29 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
     plant, reference = built.plant, built.reference
     m = plant.m
     steps_per_tick = round(scenario.T_c / scenario.dt)
-    states = {int(r["j"]): r for r in read_rows(folder / "states.csv")}
-    if not states:
+    inputs = [f"u{j + 1}" for j in range(m)]
+    states = read_table(folder / "states.csv", None, indices=("j",))
+    if not states.rows:
         raise ValueError(f"{folder}: the robot logged no state (states.csv)")
-    names = [c for c in next(iter(states.values())) if c not in ("j", "t_s")]
-    ticks = {int(r["k"]): r for r in read_rows(folder / "ticks.csv")}
-    steps = {int(r["j"]): r for r in read_rows(folder / "steps.csv")}
-    ks = sorted(j // steps_per_tick for j in states if j % steps_per_tick == 0)
-    t = np.array([k * scenario.T_c for k in ks], dtype=float)
-    x = np.array([[number(states[k * steps_per_tick][c]) for c in names] for k in ks], dtype=float)
+    names = [c for c in states.header if c not in ("j", "t_s")]
+    ticks = read_table(folder / "ticks.csv", inputs, indices=("k",))
+    steps = read_table(folder / "steps.csv", inputs, indices=("j",))
+    logged = RowsByIndex(states["j"])  # a state logged twice: its last row
+    at_tick = logged.indices % steps_per_tick == 0
+    ks = logged.indices[at_tick] // steps_per_tick
+    t = ks * scenario.T_c
+    x = states.matrix(names, logged.rows[at_tick])
     ref = np.stack(reference.evaluate(t), axis=1)  # (R, 3, n): q_d, q̇_d, q̈_d
+    tick_rows = RowsByIndex(ticks["k"]).find(ks)
+    sent = np.where((tick_rows >= 0)[:, None], ticks.matrix(inputs, tick_rows), np.nan)
     commands = np.zeros((t.size, m))
-    applied = np.full((t.size, m), np.nan)
     last = np.zeros(m)
-    for i, k in enumerate(ks):
-        tick = ticks.get(k)
-        sent = (
-            np.array([number(tick[f"u{j + 1}"]) for j in range(m)]) if tick else np.full(m, np.nan)
-        )
-        if np.all(np.isfinite(sent)):
-            last = sent
+    for i in range(t.size):
+        if np.all(np.isfinite(sent[i])):
+            last = sent[i]
         commands[i] = last
-        step = steps.get(k * steps_per_tick)
-        if step is not None:
-            applied[i] = [number(step[f"u{j + 1}"]) for j in range(m)]
+    step_rows = RowsByIndex(steps["j"]).find(ks * steps_per_tick)
+    applied = np.stack([values_at(steps[u], step_rows) for u in inputs], axis=-1).reshape(-1, m)
     finite = bool(np.all(np.isfinite(x)))
     return SimResult(
         t=t,
@@ -115,10 +114,10 @@ def metrics_with_units(result: Any, label: str) -> Any:
 def _delay_figure(folder: Path, delay: Any, dt: float) -> Any:
     from matplotlib.figure import Figure
 
-    rows = [r for r in read_rows(folder / "delays.csv") if math.isfinite(number(r["applied_s"]))]
-    applied = np.array([number(r["applied_s"]) for r in rows])
-    realised = np.array([number(r["realised_delay_s"]) for r in rows])
-    difference = np.array([number(r["realised_minus_h_ms"]) for r in rows])
+    columns = ("applied_s", "realised_delay_s", "realised_minus_h_ms")
+    delays = read_table(folder / "delays.csv", columns)
+    came = np.isfinite(delays["applied_s"])
+    applied, realised, difference = (delays[column][came] for column in columns)
     figure = Figure(figsize=(8.0, 5.4), dpi=110, layout="constrained")
     top, bottom = figure.subplots(2, 1, sharex=True)
     if applied.size:
@@ -156,19 +155,17 @@ def _histogram(ax: Any, values: np.ndarray, what: str) -> None:
 def _timing_figure(folder: Path) -> Any:
     from matplotlib.figure import Figure
 
-    ticks = read_rows(folder / "ticks.csv")
-    steps = read_rows(folder / "steps.csv")
+    ticks = read_table(folder / "ticks.csv", ("lateness_ms", "compute_ms"))
+    steps = read_table(folder / "steps.csv", ("lateness_ms",))
     figure = Figure(figsize=(8.0, 7.2), dpi=110, layout="constrained")
     axes = figure.subplots(3, 1)
     _histogram(
         axes[0],
-        np.array([number(r["lateness_ms"]) for r in ticks]),
+        ticks["lateness_ms"],
         "controller wake-up lateness",
     )
-    _histogram(
-        axes[1], np.array([number(r["compute_ms"]) for r in ticks]), "controller compute time"
-    )
-    _histogram(axes[2], np.array([number(r["lateness_ms"]) for r in steps]), "robot step lateness")
+    _histogram(axes[1], ticks["compute_ms"], "controller compute time")
+    _histogram(axes[2], steps["lateness_ms"], "robot step lateness")
     figure.suptitle("Timing of the session's ticks and steps (counts on a log scale)")
     return figure
 

@@ -25,6 +25,7 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -41,13 +42,13 @@ from delaytrack.live._node import (
 )
 from delaytrack.live._tables import (
     ROLE_FILES,
+    RowsByIndex,
     check_tables_whole,
-    index_cell,
     json_table,
     ms,
     node_record,
-    number,
-    read_rows,
+    read_table,
+    values_at,
 )
 from delaytrack.live.log import write_csv
 from delaytrack.live.report import FIGURES
@@ -487,53 +488,54 @@ def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -
     if given is not None:
         _check_nodes_ran(folder, nodes, scenario_hashes(scenario, built.plant), given)
     check_tables_whole(folder, nodes)
-    ticks_csv, releases_csv, applied_csv = (
-        folder / name for name in ("ticks.csv", "releases.csv", "applied.csv")
+    ticks = read_table(folder / "ticks.csv", ("t_s", "send_s"), indices=("k",), texts=("status",))
+    releases = read_table(
+        folder / "releases.csv",
+        ("t_k_s", "received_s", "lost", "released_s"),
+        indices=("seq",),
     )
-    sent = {
-        index_cell(r, "k", ticks_csv): r
-        for r in read_rows(ticks_csv, ("k", "t_s", "send_s", "status"))
-        if r["status"] != "no-state"
-    }
-    received = {
-        index_cell(r, "seq", releases_csv): r
-        for r in read_rows(releases_csv, ("seq", "t_k_s", "received_s", "lost", "released_s"))
-    }
-    first_applied: dict[int, float] = {}
-    for row in read_rows(applied_csv, ("seq", "applied_s")):
-        first_applied.setdefault(index_cell(row, "seq", applied_csv), number(row["applied_s"]))
-    sequence = sorted(set(sent) | set(received))
-    issued = np.array(
-        [
-            number(sent[k]["t_s"]) if k in sent else number(received[k].get("t_k_s"))
-            for k in sequence
-        ]
+    applied_rows = read_table(folder / "applied.csv", ("applied_s",), indices=("seq",))
+    sent_mask = ticks["status"] != "no-state"
+    sent_t, sent_at = ticks["t_s"][sent_mask], ticks["send_s"][sent_mask]
+    sent_by_k = RowsByIndex(ticks["k"][sent_mask])
+    received_by_seq = RowsByIndex(releases["seq"])
+    # the first time each command was applied (a command is applied once; a later row repeats it)
+    sequence = np.union1d(sent_by_k.indices, received_by_seq.indices)
+    sent, received = sent_by_k.find(sequence), received_by_seq.find(sequence)
+    applied = values_at(
+        applied_rows["applied_s"], RowsByIndex(applied_rows["seq"], first=True).find(sequence)
     )
-    applied = np.array([first_applied.get(k, math.nan) for k in sequence])
+    issued = np.where(sent >= 0, values_at(sent_t, sent), values_at(releases["t_k_s"], received))
+    sent_s = values_at(sent_at, sent)
+    lost = np.where(received >= 0, values_at(releases["lost"], received) == 1, -1).astype(np.int64)
     # h at every time at once (one call of its compiled code, not two a command)
     h_applied = np.full(applied.shape, math.nan)
     came = np.isfinite(applied)
     h_applied[came] = delay.h(applied[came])
-    h_issued = delay.h(issued)
-    rows = []
-    for i, k in enumerate(sequence):
-        tick, rel = sent.get(k, {}), received.get(k, {})
-        realised = float(applied[i] - issued[i])
-        rows.append(
-            [
-                k,
-                float(issued[i]),
-                number(tick.get("send_s")),
-                number(rel.get("received_s")),
-                int(number(rel.get("lost")) == 1) if rel else -1,
-                number(rel.get("released_s")),
-                float(applied[i]),
-                realised,
-                float(h_applied[i]),
-                float(h_issued[i]),
-                (realised - float(h_applied[i])) * 1e3,
-            ]
-        )
+    h_issued = np.asarray(delay.h(issued), dtype=float)
+    realised = applied - issued
+    error = (realised - h_applied) * 1e3
+    numbers = np.stack(
+        [
+            issued,
+            sent_s,
+            values_at(releases["received_s"], received),
+            values_at(releases["released_s"], received),
+            applied,
+            realised,
+            h_applied,
+            h_issued,
+            error,
+        ],
+        axis=-1,
+    )
+
+    def rows() -> Iterator[list[Any]]:
+        """The rows of ``delays.csv``, one at a time."""
+        for seq, lost_seq, row in zip(sequence.tolist(), lost.tolist(), numbers, strict=True):
+            t_k, sent_at_k, received_at, released_at, *later = row.tolist()
+            yield [seq, t_k, sent_at_k, received_at, lost_seq, released_at, *later]
+
     write_csv(
         folder / "delays.csv",
         [
@@ -549,48 +551,43 @@ def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -
             "h_at_t_k_s",
             "realised_minus_h_ms",
         ],
-        rows,
+        rows(),
     )
-    error = np.array([r[10] for r in rows], dtype=float)
-    end = len(read_rows(folder / "steps.csv")) * scenario.dt
+    end = read_table(folder / "steps.csv").rows * scenario.dt
     listened = (nodes.get("delay") or {}).get("session_s", -math.inf)
     return {
         "scenario": scenario.name,
         "T_c_s": scenario.T_c,
         "dt_s": scenario.dt,
-        "commands": len(rows),
-        "lost": sum(1 for r in rows if r[4] == 1),
+        "commands": int(sequence.size),
+        "lost": int(np.sum(lost == 1)),
         # Commands sent while the delay node listened that never reached it (the transport's
         # losses, as opposed to the injected ones counted in "lost").
-        "not_received": sum(1 for r in rows if r[4] == -1 and r[2] <= listened),
+        "not_received": int(np.sum((lost == -1) & (sent_s <= listened))),
         # Commands the rule would have applied before the session ended that never were (the
         # last ones, still held when it ended, are not counted).
-        "never_applied": sum(
-            1
-            for r in rows
-            if r[4] == 0 and not math.isfinite(r[6]) and r[1] + r[9] + 2 * scenario.dt < end
+        "never_applied": int(
+            np.sum((lost == 0) & ~came & (issued + h_issued + 2 * scenario.dt < end))
         ),
         "realised_minus_h_ms_p50": percentile(error, 50),
         "realised_minus_h_abs_ms_p99": percentile(np.abs(error), 99),
         "realised_minus_h_abs_ms_max": percentile(np.abs(error), 100),
         "realised_minus_h_abs_ms_p99_of_the_rule": percentile(
-            np.abs(_rule_error_ms(rows, delay, scenario.dt, end)), 99
+            np.abs(_rule_error_ms(issued[came], delay, scenario.dt, end)), 99
         ),
         "nodes": nodes,
     }
 
 
-def _rule_error_ms(rows: list[list[Any]], delay: Any, dt: float, end: float) -> np.ndarray:
-    """For each command the robot applied, ``realised − h`` in ms had it come into force at the
-    first robot step ``s`` where the rule allows it, ``t_k <= s − h(s)``: what the exact rule
-    gives on the step grid with no lateness at all (``s − h(s)`` advances by ``dt (1 − ḣ)`` a
-    step, so this reaches beyond ``dt`` where ``h`` falls)."""
-    applied = [r for r in rows if math.isfinite(r[6])]
-    if not applied:
+def _rule_error_ms(t_k: np.ndarray, delay: Any, dt: float, end: float) -> np.ndarray:
+    """For each command the robot applied (issued at ``t_k``), ``realised − h`` in ms had it
+    come into force at the first robot step ``s`` where the rule allows it, ``t_k <= s − h(s)``:
+    what the exact rule gives on the step grid with no lateness at all (``s − h(s)`` advances by
+    ``dt (1 − ḣ)`` a step, so this reaches beyond ``dt`` where ``h`` falls)."""
+    if not t_k.size:
         return np.empty(0)
     steps = np.arange(round(end / dt) + 1) * dt
     reach = np.maximum.accumulate(steps - delay.h(steps))  # the newest t_k usable by step s
-    t_k = np.array([r[1] for r in applied])
     first = np.searchsorted(reach, t_k - 1e-9 * dt)
     inside = first < steps.size
     s = steps[first[inside]]

@@ -526,3 +526,48 @@ def test_the_controller_takes_the_newest_state_by_sample_time_not_by_arrival():
     assert node._latest_state(0.0045)[0].sample_time == 0.004
     assert node._latest_state(0.003)[0].sample_time == 0.002
     assert [m.sample_time for m, _ in node._states] == [0.0, 0.001, 0.002, 0.002, 0.004]
+
+
+def test_the_robot_applies_no_release_older_than_the_command_in_force():
+    # A copy of an old release replayed on the network alternated with the new ones.
+    from delaytrack.live.robot import RobotNode
+
+    node = object.__new__(RobotNode)
+    node.dt, node.releases_out_of_order = 1e-3, 0
+
+    def release(seq, apply_at):
+        return ReleaseMessage(
+            seq, apply_at - 0.05, apply_at - 0.049, apply_at - 0.001, apply_at, X[:2]
+        )
+
+    first, second, replayed = release(1, 0.010), release(2, 0.020), release(1, 0.010)
+    pending, taken = node._release_to_apply([(second, 0.0185), (first, 0.0085)], None, 0.020)
+    assert pending == [] and taken == (second, 0.0185)  # the latest due, not the first arrived
+    early = release(3, 0.030)
+    pending, taken = node._release_to_apply([(replayed, 0.021), (early, 0.022)], second, 0.021)
+    assert taken is None and pending == [(early, 0.022)]  # the copy is dropped, counted
+    assert node.releases_out_of_order == 1
+    pending, taken = node._release_to_apply([(second, 0.022)], second, 0.022)  # again: kept
+    assert taken is None and pending == [] and node.releases_out_of_order == 1
+    pending, taken = node._release_to_apply(pending + [(early, 0.022)], second, 0.030)
+    assert taken == (early, 0.022)
+
+
+def test_the_delay_node_takes_a_command_once_and_counts_its_copies():
+    # A copy of a command (replayed, or sent twice) overwrote the record of the first.
+    from types import SimpleNamespace
+
+    from delaytrack.live.delay import DelayNode
+
+    node = object.__new__(DelayNode)
+    node.commands, node.duplicates, node.lost_count, node._seq_range = {}, 0, 0, None
+    node._held_times, node._held = [], []
+    node._loss = np.array([0.0, 0.0])
+    first = CommandMessage(4, 0.008, 0.0081, 0.0079, 0, X[:2])
+    copy = CommandMessage(4, 0.008, 0.0090, 0.0079, 0, -X[:2])
+    arrivals = [(first, 10.0082), (copy, 10.0095), (copy, 10.0101)]
+    node._received = SimpleNamespace(drain=lambda: arrivals)
+    assert node._take(10.0)
+    assert node.duplicates == 2 and list(node.commands) == [4]
+    assert node.commands[4][2:4] == [0.0081, pytest.approx(0.0082)]  # the first copy's times
+    assert node._held == [first]

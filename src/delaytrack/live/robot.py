@@ -322,7 +322,6 @@ class RobotNode(NodeBase):
         status = "no-command"
         j_model = 0  # the next step to read and write
         last_hello = 0.0
-        tolerance = 1e-9 * dt
         for wake in ticker:
             j = wake.k
             j_model = self._missed(j_model, j, current)
@@ -336,42 +335,31 @@ class RobotNode(NodeBase):
                 pending.append((message, received - t0))
                 last_arrival = max(last_arrival, received - t0)
             if pending:
-                due = [p for p in pending if p[0].apply_at <= s + tolerance]
-                if due:
-                    chosen, arrived = max(due, key=lambda p: (p[0].apply_at, p[1]))
-                    pending = [p for p in pending if p[0].apply_at > s + tolerance]
-                    if current is not None and chosen.apply_at < current.apply_at:
-                        # The delay node releases in the order of the steps they apply at: one
-                        # older than the command in force is a copy replayed, not applied.
-                        self.releases_out_of_order += 1
-                    elif (
-                        current is None
-                        or chosen.seq != current.seq
-                        or chosen.apply_at != current.apply_at
-                    ):
-                        current = chosen
-                        saturated = np.minimum(np.maximum(chosen.u, -self.limits), self.limits)
-                        self.applied.append(
-                            [
-                                chosen.seq,
-                                chosen.t_k,
-                                s,
-                                chosen.apply_at,
-                                chosen.release_time,
-                                arrived,
-                            ]
-                        )
-                        self.log.command(
-                            "/applied",
-                            seq=chosen.seq,
-                            sample_time=chosen.t_k,
-                            log_time=now,
-                            u=chosen.u,
-                            send_time=chosen.command_send_time,
-                            receive_time=arrived,
-                            release_time=chosen.release_time,
-                            apply_at=s,
-                        )
+                pending, taken = self._release_to_apply(pending, current, s)
+                if taken is not None:
+                    current, arrived = taken
+                    saturated = np.minimum(np.maximum(current.u, -self.limits), self.limits)
+                    self.applied.append(
+                        [
+                            current.seq,
+                            current.t_k,
+                            s,
+                            current.apply_at,
+                            current.release_time,
+                            arrived,
+                        ]
+                    )
+                    self.log.command(
+                        "/applied",
+                        seq=current.seq,
+                        sample_time=current.t_k,
+                        log_time=now,
+                        u=current.u,
+                        send_time=current.command_send_time,
+                        receive_time=arrived,
+                        release_time=current.release_time,
+                        apply_at=s,
+                    )
             if current is None:
                 u[:], status = self.u_init, "no-command"
             elif now - last_arrival > self.command_timeout:
@@ -431,6 +419,34 @@ class RobotNode(NodeBase):
             "applied": len(self._in_force),
         }
         return measured, totals
+
+    def _release_to_apply(
+        self,
+        pending: list[tuple[ReleaseMessage, float]],
+        current: ReleaseMessage | None,
+        s: float,
+    ) -> tuple[list[tuple[ReleaseMessage, float]], tuple[ReleaseMessage, float] | None]:
+        """The releases ``pending`` (each with its arrival) still not due at the step of time
+        ``s``, and the one to apply from that step with its arrival, or None to keep
+        ``current``: the latest due, by the step it applies at, then by arrival. The delay
+        node releases in the order of the steps they apply at: one older than ``current`` is a
+        copy replayed (counted in ``releases_out_of_order``, not applied), and ``current``
+        again is not applied twice."""
+        tolerance = 1e-9 * self.dt
+        due = [p for p in pending if p[0].apply_at <= s + tolerance]
+        if not due:
+            return pending, None
+        later = [p for p in pending if p[0].apply_at > s + tolerance]
+        chosen = max(due, key=lambda p: (p[0].apply_at, p[1]))
+        if current is not None and chosen[0].apply_at < current.apply_at:
+            self.releases_out_of_order += 1
+            return later, None
+        if current is not None and (chosen[0].seq, chosen[0].apply_at) == (
+            current.seq,
+            current.apply_at,
+        ):
+            return later, None
+        return later, chosen
 
     def _missed(self, j_model: int, j: int, current: Any) -> int:
         """The steps ``j_model .. j - 1`` whose wake-up was missed, each recorded with the input

@@ -163,13 +163,17 @@ class Launched:
 
 @pytest.fixture(scope="session")
 def live_run(tmp_path_factory):
-    """``delaytrack live run`` of :data:`LIVE_SCENARIO` for 2 s with its status line, started
-    when first asked for (test_live_loop.py, test_live_status.py): its folder and the launcher
-    (:class:`Launched`)."""
+    """``delaytrack live run`` of :data:`LIVE_SCENARIO` for 2 s with its status line, its links
+    mutual TLS (certificates of an authority of the tests' own), started when first asked for
+    (test_live_loop.py, test_live_status.py): its folder and the launcher (:class:`Launched`)."""
     pytest.importorskip("zenoh")
     pytest.importorskip("mcap_ros2")
+    from certificates import certificates
+
     folder = tmp_path_factory.mktemp("live_run") / "run"
-    command = ["run", LIVE_SCENARIO, "--duration", "2", "--out", str(folder)]
+    ca, certificate, key = certificates(folder.parent / "tls")
+    command = ["run", LIVE_SCENARIO, "--duration", "2", "--out", str(folder), "--tls-ca", ca]
+    command += ["--tls-certificate", certificate, "--tls-key", key]
     # Started from a folder of files named like modules the nodes import, each of which would
     # leave a mark (test_live_loop.py): the launcher as the `delaytrack` command starts (no
     # folder first on its module search path), then the nodes it starts must not import them.
@@ -207,6 +211,7 @@ def live_nodes(tmp_path_factory):
         trust=[],
         quiet=False,
         loss=None,
+        certificates=None,
     )
     watch = f"tcp/127.0.0.1:{_free_ports(1)[0]}"
     commands = node_commands(options, folder, ports, name, watch)

@@ -419,7 +419,13 @@ def test_realtime_is_set_or_refused_never_left_out(monkeypatch):
             enter_realtime(50)
         enter_realtime(None)  # not asked for: nothing to set
     options = Namespace(
-        scenario=SCENARIO, handshake_timeout=1.0, duration=None, trust=[], loss=None, realtime=7
+        scenario=SCENARIO,
+        handshake_timeout=1.0,
+        duration=None,
+        trust=[],
+        loss=None,
+        realtime=7,
+        certificates=None,
     )
     commands = node_commands(options, "out", [1, 2, 3], "s")
     assert all(command[-2:] == ["--realtime", "7"] for command in commands.values())

@@ -423,7 +423,7 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
         return EXIT_REFUSED
     prefix = f"delaytrack/{args.session}"
     try:
-        session = open_session(args.listen, args.connect)
+        session = open_session(args.listen, args.connect, args.certificates)
     except OSError as error:
         node.close()
         print(one_line(f"error: {error}"), file=sys.stderr)
@@ -459,6 +459,7 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
         assert offset is not None  # the handshake agreed t0, so it knows the clock offset
         summary.update(offset.summary())
         summary["realtime_priority"] = getattr(args, "realtime", None)
+        summary["mutual_tls"] = args.certificates is not None  # its peers authenticated
         summary["scenario_hashes"] = node.hashes  # what live collect checks its scenario by
         summary["table_bytes"] = table_bytes(node.out, node.role)  # and its tables whole
         summary["stopped_by"] = (

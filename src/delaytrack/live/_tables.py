@@ -169,7 +169,7 @@ def read_table(
     try:
         with open_csv_text(path, path.stat().st_size, too_large) as handle:
             reader = csv.reader(handle)
-            header: list[str] = next(reader, None) or []
+            header: list[str] = next(reader, [])
             kinds = _columns_of(path, header, numbers, indices, texts)
             read: dict[str, Any] = {
                 name: array.array(_TYPES[kind]) if kind in _TYPES else []

@@ -23,7 +23,7 @@ from delaytrack._cli_options import (
     within,
 )
 from delaytrack.sim.packet_loss import MAX_SEED
-from delaytrack.warning import warnings_in_one_line
+from delaytrack.warning import one_line, warnings_in_one_line
 
 __all__ = ["add_live_commands", "main"]
 
@@ -109,6 +109,75 @@ def _realtime_argument(command: argparse.ArgumentParser) -> None:
     )
 
 
+#: The mutual TLS flags, with what each names.
+_TLS_FLAGS = {
+    "--tls-ca": "the certificate of the authority that signed every node's certificate (PEM)",
+    "--tls-certificate": "this node's certificate, signed by --tls-ca, naming the host the "
+    "others reach it at (PEM)",
+    "--tls-key": "this node's private key (PEM)",
+}
+
+
+def _tls_arguments(command: argparse.ArgumentParser, run: bool) -> None:
+    """--tls-ca, --tls-certificate and --tls-key (on every node and ``live run``)."""
+    for flag, what in _TLS_FLAGS.items():
+        if run:  # one certificate for the three nodes of this machine
+            what = what.replace("this node's", "the nodes'").replace(
+                "the host the others reach it at", "localhost"
+            )
+        command.add_argument(
+            flag,
+            default=None,
+            metavar="FILE",
+            help=f"{what}; the three flags together make every link mutual TLS: a peer "
+            "without a certificate of the same authority is not connected",
+        )
+
+
+def _peer_certificates(args: argparse.Namespace) -> bool:
+    """Set ``args.certificates`` (:class:`~delaytrack.live.transport.PeerCertificates` of the
+    absolute paths, or None without the flags); False, after one line on stderr, when the
+    flags are given in part, name a file that is not a regular file, or come with an
+    endpoint that TLS does not authenticate."""
+    from delaytrack._io import regular_file
+    from delaytrack.live.transport import TLS_PROTOCOLS, PeerCertificates
+
+    given = {flag: getattr(args, flag[2:].replace("-", "_")) for flag in _TLS_FLAGS}
+    args.certificates = None
+    if not any(given.values()):
+        return True
+    missing = [flag for flag, value in given.items() if not value]
+    if missing:
+        print(
+            f"error: {' and '.join(missing)} must be given with "
+            f"{' and '.join(flag for flag in given if flag not in missing)}: mutual TLS needs "
+            "the authority's certificate, the node's certificate and its key",
+            file=sys.stderr,
+        )
+        return False
+    try:
+        paths = [
+            str(regular_file(value, flag, largest=2**20).resolve()) for flag, value in given.items()
+        ]
+    except (OSError, ValueError) as error:
+        print(one_line(f"error: {error}"), file=sys.stderr)
+        return False
+    for flag in ("--listen", "--connect"):
+        for endpoint in getattr(args, flag[2:], None) or ():
+            if endpoint.partition("/")[0] not in TLS_PROTOCOLS:
+                print(
+                    one_line(
+                        f"error: {flag} {endpoint!r}: with --tls-ca every endpoint must be "
+                        "tls/HOST:PORT or quic/HOST:PORT (a tcp or udp endpoint would take "
+                        "peers without a certificate)"
+                    ),
+                    file=sys.stderr,
+                )
+                return False
+    args.certificates = PeerCertificates(*paths)
+    return True
+
+
 def _loss_and_lead_arguments(command: argparse.ArgumentParser, releases: str) -> None:
     """The delay node's --loss, --loss-seed and --lead (on ``live delay`` and ``live run``)."""
     command.add_argument(
@@ -167,6 +236,7 @@ def _node_arguments(command: argparse.ArgumentParser, role: str) -> None:
         help=f"folder for this node's log ({role}.mcap) and tables",
     )
     _realtime_argument(command)
+    _tls_arguments(command, run=False)
     command.add_argument(
         "--duration",
         type=_POSITIVE_SECONDS,
@@ -272,6 +342,8 @@ def _node_handler(role: str) -> Any:
     def handler(args: argparse.Namespace) -> int:
         if role == "delay" and _loss_seed_given_alone(args):
             return EXIT_USAGE
+        if not _peer_certificates(args):
+            return EXIT_USAGE
         if role == "controller":
             from delaytrack.live.controller import main as node_main
         elif role == "delay":
@@ -286,7 +358,7 @@ def _node_handler(role: str) -> Any:
 def _run(args: argparse.Namespace) -> int:
     from delaytrack.live.session import run_session
 
-    if _loss_seed_given_alone(args):
+    if _loss_seed_given_alone(args) or not _peer_certificates(args):
         return EXIT_USAGE
     return run_session(args)
 
@@ -321,7 +393,8 @@ def add_live_commands(commands: Any) -> None:
         "run",
         help="start the three nodes as processes, wait, and write the session folder",
         description="Start the controller, delay and robot nodes as separate processes on this "
-        "machine (Zenoh peers on tcp/127.0.0.1), wait for the session to end, and write the "
+        "machine (Zenoh peers on tcp/127.0.0.1, or tls/localhost with --tls-ca, --tls-certificate "
+        "and --tls-key), wait for the session to end, and write the "
         "MCAP logs, ticks.csv, delays.csv and summary.json into --out.",
     )
     run.add_argument(
@@ -346,6 +419,7 @@ def add_live_commands(commands: Any) -> None:
     _measurement_argument(run)
     _bridge_argument(run)
     _realtime_argument(run)
+    _tls_arguments(run, run=True)
     run.add_argument(
         "--handshake-timeout",
         type=_POSITIVE_SECONDS,

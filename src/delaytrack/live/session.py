@@ -74,9 +74,10 @@ def _free_ports(count: int) -> list[int]:
             s.close()
 
 
-def _endpoints(ports: list[int]) -> dict[str, str]:
-    """The Zenoh endpoint each node listens on."""
-    return {role: f"tcp/127.0.0.1:{port}" for role, port in zip(ROLES, ports, strict=True)}
+def _endpoint(port: int, certificates: Any) -> str:
+    """The Zenoh endpoint on this machine at ``port``: TCP, or with ``certificates`` TLS at
+    ``localhost`` (the name their certificate gives)."""
+    return f"tcp/127.0.0.1:{port}" if certificates is None else f"tls/localhost:{port}"
 
 
 def _ended_early(folder: Path, role: str, code: int | None) -> bool:
@@ -113,7 +114,9 @@ def node_commands(
 ) -> dict[str, list[str]]:
     """The command line of each node (each ``--quiet``: the launcher prints the status); each
     also connects to the launcher's status watch at the endpoint ``watch``, if given."""
-    endpoint = _endpoints(ports)
+    endpoint = {
+        role: _endpoint(port, args.certificates) for role, port in zip(ROLES, ports, strict=True)
+    }
     commands = {}
     for i, role in enumerate(ROLES):
         command = [
@@ -149,6 +152,9 @@ def node_commands(
             command += ["--realtime", str(args.realtime)]
         if role == "controller" and getattr(args, "no_measurement_noise", False):
             command.append("--no-measurement-noise")
+        if args.certificates is not None:
+            ca, certificate, key = args.certificates
+            command += ["--tls-ca", ca, "--tls-certificate", certificate, "--tls-key", key]
         commands[role] = command
     return commands
 
@@ -176,8 +182,12 @@ def run_session(args: Any) -> int:
         session = f"run-{os.getpid()}-{int(time.time())}"
         # The status watch listens before the nodes start, and they connect to it: a watch
         # that connected to them could miss a short session while its connections were retried.
-        watched = None if args.quiet else f"tcp/127.0.0.1:{_free_ports(1)[0]}"
-        watch = None if watched is None else StatusWatch(watched, f"delaytrack/{session}")
+        watched = None if args.quiet else _endpoint(_free_ports(1)[0], args.certificates)
+        watch = (
+            None
+            if watched is None
+            else StatusWatch(watched, f"delaytrack/{session}", certificates=args.certificates)
+        )
         commands = node_commands(args, folder, ports, session, watched)
     except OSError as error:
         print(one_line(f"error: {error}"), file=sys.stderr)

@@ -41,10 +41,13 @@ import sys
 import threading
 import time
 from collections.abc import Mapping
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from delaytrack._validation import is_real_number
 from delaytrack.live.messages import node_table
+
+if TYPE_CHECKING:
+    from delaytrack.live.transport import PeerCertificates
 
 __all__ = [
     "STATUS_PERIOD",
@@ -166,6 +169,8 @@ class StatusWatch:
         The session's key prefix, ``delaytrack/<session>``.
     stream : text file, optional
         Where the line goes (standard error by default).
+    certificates : PeerCertificates, optional
+        Mutual TLS with the nodes (``listen`` then a TLS endpoint).
 
     Raises
     ------
@@ -173,7 +178,13 @@ class StatusWatch:
         When the Zenoh session cannot be opened.
     """
 
-    def __init__(self, listen: str, prefix: str, stream: TextIO | None = None):
+    def __init__(
+        self,
+        listen: str,
+        prefix: str,
+        stream: TextIO | None = None,
+        certificates: PeerCertificates | None = None,
+    ):
         from delaytrack.live.transport import open_session
 
         self._stream = sys.stderr if stream is None else stream
@@ -182,7 +193,7 @@ class StatusWatch:
         self._lock = threading.Lock()
         self._latest: dict[str, dict[str, Any]] = {}
         self._arrived: float | None = None  # when the first status not yet printed arrived
-        self._session = open_session([listen], [])
+        self._session = open_session([listen], [], certificates)
         self._subscriber = self._session.declare_subscriber(f"{prefix}/status/*", self._on_status)
 
     def _on_status(self, sample: Any) -> None:  # the Zenoh callback

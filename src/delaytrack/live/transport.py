@@ -3,7 +3,10 @@
 Every node opens a Zenoh session in *peer* mode with multicast scouting off and explicit TCP
 endpoints (``--listen tcp/127.0.0.1:7447``, ``--connect tcp/10.0.0.2:7447``), so a session
 reaches exactly the peers it is told about, on one machine or across machines. Zenoh is the
-transport under ROS 2's ``rmw_zenoh``.
+transport under ROS 2's ``rmw_zenoh``. With :class:`PeerCertificates` (``--tls-ca``,
+``--tls-certificate``, ``--tls-key``) the endpoints are TLS or QUIC and Zenoh authenticates
+both ends of every link (mutual TLS): a peer without a certificate signed by the session's
+authority is not connected, so it can neither send nor receive a message.
 
 Keys live under a session prefix (``delaytrack/<session>/``):
 
@@ -36,7 +39,7 @@ import re
 import threading
 import time
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 from delaytrack._validation import is_real_number
 from delaytrack.live.clock_sync import (
@@ -52,6 +55,7 @@ __all__ = [
     "ROLES",
     "Handshake",
     "HandshakeError",
+    "PeerCertificates",
     "differing_parts",
     "open_session",
     "read_hello",
@@ -65,14 +69,45 @@ class HandshakeError(RuntimeError):
     """The peers could not agree (a different scenario) or did not appear in time."""
 
 
-def zenoh_config(listen: Sequence[str], connect: Sequence[str]) -> Any:
-    """A peer-mode Zenoh configuration with multicast scouting off and the given endpoints."""
+class PeerCertificates(NamedTuple):
+    """The files of mutual TLS between the nodes (PEM): ``ca``, the certificate of the
+    authority that signed every node's certificate; ``certificate`` and ``key``, this node's
+    certificate (naming the host it is reached at) and private key."""
+
+    ca: str
+    certificate: str
+    key: str
+
+
+#: The endpoints whose links TLS authenticates.
+TLS_PROTOCOLS = ("tls", "quic")
+
+
+def zenoh_config(
+    listen: Sequence[str], connect: Sequence[str], certificates: PeerCertificates | None = None
+) -> Any:
+    """A peer-mode Zenoh configuration with multicast scouting off and the given endpoints;
+    with ``certificates``, TLS links that authenticate both ends (Zenoh's ``enable_mtls``)."""
     import zenoh
 
     config: dict[str, Any] = {
         "mode": "peer",
         "scouting": {"multicast": {"enabled": False}},
     }
+    if certificates is not None:
+        ca, certificate, key = certificates
+        config["transport"] = {
+            "link": {
+                "tls": {
+                    "root_ca_certificate": ca,
+                    "listen_certificate": certificate,
+                    "listen_private_key": key,
+                    "connect_certificate": certificate,
+                    "connect_private_key": key,
+                    "enable_mtls": True,
+                }
+            }
+        }
     if listen:
         config["listen"] = {"endpoints": list(listen)}
     if connect:
@@ -85,13 +120,15 @@ def zenoh_config(listen: Sequence[str], connect: Sequence[str]) -> Any:
     return zenoh.Config.from_json5(json.dumps(config))
 
 
-def open_session(listen: Sequence[str], connect: Sequence[str]) -> Any:
-    """Open the Zenoh session; a listen endpoint that cannot be bound (a port in use) is an
-    :class:`OSError` naming it."""
+def open_session(
+    listen: Sequence[str], connect: Sequence[str], certificates: PeerCertificates | None = None
+) -> Any:
+    """Open the Zenoh session (:func:`zenoh_config`); a listen endpoint that cannot be bound (a
+    port in use) or a certificate Zenoh cannot use is an :class:`OSError` naming it."""
     import zenoh
 
     try:
-        return zenoh.open(zenoh_config(listen, connect))
+        return zenoh.open(zenoh_config(listen, connect, certificates))
     except zenoh.ZError as error:
         text = str(error).splitlines()[0] if str(error) else type(error).__name__
         text = re.sub(r" at \S+\.rs:\d+\.?", "", text)  # where in Zenoh's Rust source

@@ -168,6 +168,7 @@ def live_run(tmp_path_factory):
     (test_live_loop.py, test_live_status.py): its folder and the launcher (:class:`Launched`)."""
     pytest.importorskip("zenoh")
     pytest.importorskip("mcap_ros2")
+    pytest.importorskip("cryptography")
     from certificates import certificates
 
     folder = tmp_path_factory.mktemp("live_run") / "run"

@@ -10,6 +10,7 @@ import shutil
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 pytest.importorskip("zenoh")
@@ -185,3 +186,18 @@ def _forget_sizes(folder):
         for record in data["nodes"].values():
             record.pop("table_bytes", None)
         summary.write_text(json.dumps(data))
+
+
+def test_a_session_whose_controller_logged_no_tick_is_reported_with_no_command(folder, tmp_path):
+    # ticks.csv of its header alone: the commands read at every tick were rows -1 of nothing.
+    from delaytrack.live.report import live_result
+    from delaytrack.scenario import load_builtin
+
+    copy = tmp_path / "session"
+    shutil.copytree(folder, copy)
+    header = (copy / "ticks.csv").read_text().splitlines()[0]
+    (copy / "ticks.csv").write_text(header + "\n")
+    scenario = load_builtin(SCENARIO)
+    result = live_result(copy, scenario, scenario.build())
+    assert result.t.size > 1 and not result.commands.any()  # zero before a first command
+    assert np.isfinite(result.applied[0, :-1]).all()  # the robot's steps (to the last) read

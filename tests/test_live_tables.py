@@ -117,3 +117,36 @@ def test_a_file_that_gives_more_than_its_size_is_refused(tmp_path):
     (tmp_path / "ticks.csv").symlink_to(pagemap)
     with pytest.raises(ValueError, match=r"ticks.csv' gives more bytes than its size"):
         read_table(tmp_path / "ticks.csv", ("t_s",))
+
+
+def test_a_name_given_twice_is_read_from_its_last_column(tmp_path):
+    # As rows read into a mapping by name kept it; the names in the order they first come.
+    path = tmp_path / "states.csv"
+    _write(path, ["j", "q1", "q2", "q1"], [["0", "1.0", "2.0", "3.0"]])
+    table = read_table(path, None, indices=("j",))
+    assert table.header == ["j", "q1", "q2"]
+    assert table["q1"].tolist() == [3.0] and table["q2"].tolist() == [2.0]
+
+
+def test_an_index_beyond_18_digits_is_refused_naming_the_line(tmp_path):
+    path = tmp_path / "applied.csv"
+    _write(path, ["seq", "applied_s"], [["1", "0.5"], ["9" * 25, "0.6"]])
+    with pytest.raises(ValueError, match=r"applied.csv, line 3: column 'seq' holds '9{20}'"):
+        read_table(path, ("applied_s",), indices=("seq",))
+
+
+def test_rows_of_many_columns_take_memory_of_the_order_of_their_cells(tmp_path):
+    # A chunk of rows is held as texts until converted: bounded by its cells, not its rows.
+    path = tmp_path / "states.csv"
+    width, count = 5000, 200
+    header = ["j", *(f"q{i}" for i in range(width))]
+    rows = ([str(j), *(repr(j + 1e-3 * i) for i in range(width))] for j in range(count))
+    _write(path, header, rows)
+    tracemalloc.start()
+    try:
+        table = read_table(path, None, indices=("j",))
+        _current, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert table.rows == count and table["q4999"][-1] == 199 + 4.999
+    assert peak < 2 * 8 * count * (width + 1)  # the texts of all rows: several times as much

@@ -4,8 +4,11 @@ part, with a file that is none, or beside an endpoint TLS does not authenticate.
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import time
+from pathlib import Path
 
 import pytest
 
@@ -16,7 +19,8 @@ pytest.importorskip("cryptography")
 
 from certificates import certificates  # noqa: E402 - needs cryptography
 from delaytrack.cli import main  # noqa: E402
-from delaytrack.live.transport import PeerCertificates, open_session  # noqa: E402
+from delaytrack.live.tls import PeerCertificates  # noqa: E402
+from delaytrack.live.transport import open_session  # noqa: E402
 
 SCENARIO = "two_link_S1"
 
@@ -63,10 +67,68 @@ def test_the_shared_session_ran_with_mutual_tls_and_its_report_says_so(live_run)
     )
 
 
+def _listening_ports() -> set[tuple[str, int]]:
+    """The TCP and UDP ports this process listens on (Linux)."""
+    sockets = set()
+    for fd in os.listdir("/proc/self/fd"):
+        with contextlib.suppress(OSError):
+            link = os.readlink(f"/proc/self/fd/{fd}")
+            if link.startswith("socket:["):
+                sockets.add(link[len("socket:[") : -1])
+    ports = set()
+    for table in ("tcp", "tcp6", "udp", "udp6"):
+        for line in Path(f"/proc/self/net/{table}").read_text().splitlines()[1:]:
+            fields = line.split()
+            listening = table.startswith("udp") or fields[3] == "0A"
+            if fields[9] in sockets and listening:
+                ports.add((table, int(fields[1].rsplit(":", 1)[1], 16)))
+    return ports
+
+
+@pytest.mark.skipif(not Path("/proc/self/net/tcp").exists(), reason="needs Linux's /proc")
+def test_with_certificates_a_node_listens_on_its_tls_endpoints_only(tmp_path):
+    # Zenoh's default for a session without endpoints to listen on is TCP on every interface:
+    # a node that only connected took unauthenticated peers there, and linked them to the rest.
+    session = PeerCertificates(*certificates(tmp_path / "session"))
+    port = _free_ports(1)[0]
+    before = _listening_ports()
+    opened = [open_session([f"tls/localhost:{port}"], [], session)]
+    try:
+        opened.append(open_session([], [f"tls/localhost:{port}"], session))
+        time.sleep(0.5)  # linked
+        assert {port for _table, port in _listening_ports() - before} == {port}
+    finally:
+        for node in opened:
+            node.close()
+
+
 @pytest.mark.parametrize(
     ("flags", "message"),
     [
         (["--tls-ca", "{ca}"], "--tls-certificate and --tls-key must be given with --tls-ca"),
+        (
+            ["--tls-ca", "", "--tls-certificate", "", "--tls-key", ""],
+            "--tls-ca is empty: give the path of its file",
+        ),
+        (
+            [
+                "--tls-ca",
+                "{ca}",
+                "--tls-certificate",
+                "{other_certificate}",
+                "--tls-key",
+                "{other_key}",
+            ],
+            "is not accepted by a node holding --tls-ca '{ca}': unable to get local issuer",
+        ),
+        (
+            ["--tls-ca", "{ca}", "--tls-certificate", "{certificate}", "--tls-key", "{other_key}"],
+            "--tls-key '{other_key}' cannot be used together (KEY_VALUES_MISMATCH)",
+        ),
+        (
+            ["--tls-ca", "{key}", "--tls-certificate", "{certificate}", "--tls-key", "{key}"],
+            "--tls-ca '{key}' holds no certificate of an authority that can be read",
+        ),
         (
             ["--tls-ca", "{ca}", "--tls-certificate", "{certificate}", "--tls-key", "{missing}"],
             "--tls-key '{missing}' does not exist",
@@ -82,7 +144,9 @@ def test_tls_flags_in_part_or_naming_no_file_are_refused_in_one_line(
     capsys, tmp_path, command, flags, message
 ):
     ca, certificate, key = certificates(tmp_path / "tls")
+    _other_ca, other_certificate, other_key = certificates(tmp_path / "other", "another authority")
     names = {"ca": ca, "certificate": certificate, "key": key, "folder": str(tmp_path)}
+    names |= {"other_certificate": other_certificate, "other_key": other_key}
     names["missing"] = str(tmp_path / "missing.key")
     argv = ["live", command, SCENARIO, "--out", str(tmp_path / "out")]
     argv += [flag.format(**names) for flag in flags]

@@ -445,7 +445,13 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
         except HandshakeError as error:
             if stop():
                 return EXIT_INTERRUPTED if stop.signal == signal.SIGINT else EXIT_OK
-            print(one_line(f"error: {error}"), file=sys.stderr)
+            hint = (
+                "; with --tls-ca, also that each node's certificate is signed by that authority, "
+                "still valid, and names the host the others reach it at"
+                if args.certificates is not None
+                else ""
+            )
+            print(one_line(f"error: {error}{hint}"), file=sys.stderr)
             return EXIT_REFUSED
         node.t0 = t0
         remove_files(node.out, ROLE_FILES[node.role])  # an earlier session's, if any

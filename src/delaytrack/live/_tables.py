@@ -100,16 +100,26 @@ class SessionTable:
     def __getitem__(self, name: str) -> np.ndarray:
         return self.columns[name]
 
-    def matrix(self, names: Sequence[str], rows: Any = slice(None)) -> np.ndarray:
-        """The number columns ``names`` side by side at ``rows`` (all by default), ``(rows,
-        len(names))``; a column the table lacks is a ValueError naming it."""
+    def _columns(self, names: Sequence[str]) -> list[np.ndarray]:
+        """The columns ``names``; a column the table lacks is a ValueError naming it."""
         for name in names:
             if name not in self.columns:
                 raise _no_column(self.path, name, self.header)
-        picked = [self.columns[name][rows] for name in names]
+        return [self.columns[name] for name in names]
+
+    def matrix(self, names: Sequence[str], rows: Any = slice(None)) -> np.ndarray:
+        """The number columns ``names`` side by side at ``rows`` (all by default), ``(rows,
+        len(names))``."""
+        picked = [column[rows] for column in self._columns(names)]
         return (
             np.stack(picked, axis=-1) if picked else np.empty((np.arange(self.rows)[rows].size, 0))
         )
+
+    def at(self, names: Sequence[str], rows: np.ndarray) -> np.ndarray:
+        """The number columns ``names`` side by side at ``rows`` (:meth:`RowsByIndex.find`),
+        NaN where a row is -1, ``(len(rows), len(names))``."""
+        picked = [values_at(column, rows) for column in self._columns(names)]
+        return np.stack(picked, axis=-1) if picked else np.empty((len(rows), 0))
 
     def required(self) -> SessionTable:
         """This table, or a ValueError naming it when it has no rows (or is missing)."""
@@ -132,8 +142,9 @@ def _no_column(path: Path, name: str, header: list[str]) -> ValueError:
 #: The array type of each kind of column read (a text column is kept as a list of texts).
 _TYPES = {"number": "d", "index": "q"}
 
-#: An index cell: ASCII digits, as every number read, blanks around.
-_INDEX = re.compile(r"\s*[0-9]+\s*")
+#: An index cell: ASCII digits, as every number read, blanks around; at most 18 of them (an
+#: int64).
+_INDEX = re.compile(r"\s*[0-9]{1,18}\s*")
 
 
 def read_table(
@@ -170,12 +181,15 @@ def read_table(
         with open_csv_text(path, path.stat().st_size, too_large) as handle:
             reader = csv.reader(handle)
             header: list[str] = next(reader, [])
-            kinds = _columns_of(path, header, numbers, indices, texts)
+            # Each name's last column, the names in the order they first come: as the rows of
+            # csv.DictReader, which the readers took before, had them.
+            positions = {name: position for position, name in enumerate(header)}
+            kinds = _columns_of(path, list(positions), numbers, indices, texts)
             read: dict[str, Any] = {
                 name: array.array(_TYPES[kind]) if kind in _TYPES else []
                 for name, kind in kinds.items()
             }
-            width, rows = len(header), 0
+            width, rows, held = len(header), 0, 0
             distinct: dict[str, str] = {}
             chunk: list[list[str]] = []  # rows converted a chunk at a time, column by column
             lines: list[int] = []
@@ -186,38 +200,40 @@ def read_table(
                     row += [""] * (width - len(row))
                 chunk.append(row)
                 lines.append(reader.line_num)
-                if len(chunk) == _CHUNK_ROWS:
-                    _convert(path, header, kinds, chunk, lines, read, distinct)
-                    rows += len(chunk)
+                held += len(row)
+                if held >= _CHUNK_CELLS:
+                    _convert(path, positions, kinds, chunk, lines, read, distinct)
+                    rows, held = rows + len(chunk), 0
                     chunk, lines = [], []
-            _convert(path, header, kinds, chunk, lines, read, distinct)
+            _convert(path, positions, kinds, chunk, lines, read, distinct)
             rows += len(chunk)
     except (UnicodeDecodeError, csv.Error) as error:
         raise ValueError(f"session table {str(path)!r} is not a CSV table ({error})") from None
     except OSError as error:  # a link to a file of /proc that refuses to be read as text
         raise ValueError(f"session table {str(path)!r} cannot be read: {error.strerror}") from None
     columns = {name: _column(read[name], kind) for name, kind in kinds.items()}
-    return SessionTable(path, header, rows, columns)
+    return SessionTable(path, list(positions), rows, columns)
 
 
-#: Rows converted at once (a chunk's texts are held until then).
-_CHUNK_ROWS = 1024
+#: Cells held before a chunk of rows is converted (about a MiB of texts, however wide the rows).
+_CHUNK_CELLS = 2**14
 
 
 def _convert(
     path: Path,
-    header: list[str],
+    positions: dict[str, int],
     kinds: dict[str, str],
     chunk: list[list[str]],
     lines: list[int],
     read: dict[str, Any],
     distinct: dict[str, str],
 ) -> None:
-    """Append the cells of the rows ``chunk`` (starting on ``lines``) to the columns ``read``:
+    """Append the cells of the rows ``chunk`` (starting on ``lines``; a column's cells at its
+    position in ``positions``) to the columns ``read``:
     numbers as :func:`number` reads them, indices checked, texts as their first object in
     ``distinct`` (one object for each distinct text)."""
     for name, kind in kinds.items():
-        position = header.index(name)
+        position = positions[name]
         cells = [row[position] for row in chunk]
         if kind == "number":
             try:  # the same conversion as float() a cell, at once
@@ -232,7 +248,8 @@ def _convert(
                     if not _INDEX.fullmatch(cell)
                 )
                 raise ValueError(
-                    f"{path}, line {line}: column {name!r} holds {cell[:20]!r}, not an index"
+                    f"{path}, line {line}: column {name!r} holds {cell[:20]!r}, not an index (a "
+                    "whole number of at most 18 digits)"
                 )
             read[name].extend(map(int, cells))
         else:
@@ -260,8 +277,9 @@ def _columns_of(
     if numbers is None:
         numbers = [name for name in header if name not in (*indices, *texts)]
     kinds = _kinds(numbers, indices, texts)
+    present = set(header)
     for name in kinds:
-        if name not in header:
+        if name not in present:
             raise _no_column(path, name, header)
     return kinds
 

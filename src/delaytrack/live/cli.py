@@ -135,18 +135,19 @@ def _tls_arguments(command: argparse.ArgumentParser, run: bool) -> None:
 
 
 def _peer_certificates(args: argparse.Namespace) -> bool:
-    """Set ``args.certificates`` (:class:`~delaytrack.live.transport.PeerCertificates` of the
+    """Set ``args.certificates`` (:class:`~delaytrack.live.tls.PeerCertificates` of the
     absolute paths, or None without the flags); False, after one line on stderr, when the
-    flags are given in part, name a file that is not a regular file, or come with an
-    endpoint that TLS does not authenticate."""
+    flags are given in part or empty, name a file that is not a regular file, hold
+    certificates no peer would accept (:func:`~delaytrack.live.tls.check_certificates`), or
+    come with an endpoint that TLS does not authenticate."""
     from delaytrack._io import regular_file
-    from delaytrack.live.transport import TLS_PROTOCOLS, PeerCertificates
+    from delaytrack.live.tls import TLS_PROTOCOLS, PeerCertificates, check_certificates
 
     given = {flag: getattr(args, flag[2:].replace("-", "_")) for flag in _TLS_FLAGS}
     args.certificates = None
-    if not any(given.values()):
+    if all(value is None for value in given.values()):
         return True
-    missing = [flag for flag, value in given.items() if not value]
+    missing = [flag for flag, value in given.items() if value is None]
     if missing:
         print(
             f"error: {' and '.join(missing)} must be given with "
@@ -155,10 +156,15 @@ def _peer_certificates(args: argparse.Namespace) -> bool:
             file=sys.stderr,
         )
         return False
+    empty = [flag for flag, value in given.items() if not value.strip()]
+    if empty:
+        print(f"error: {empty[0]} is empty: give the path of its file", file=sys.stderr)
+        return False
     try:
         paths = [
             str(regular_file(value, flag, largest=2**20).resolve()) for flag, value in given.items()
         ]
+        check_certificates(PeerCertificates(*paths))
     except (OSError, ValueError) as error:
         print(one_line(f"error: {error}"), file=sys.stderr)
         return False

@@ -216,7 +216,7 @@ def _compare(
     compared = state_rows >= 0
     live_errors = result.reference[compared, 0] - states.matrix(names, state_rows[compared])
     tick_rows = RowsByIndex(ticks["k"]).find(k[compared])
-    live_commands = np.where((tick_rows >= 0)[:, None], ticks.matrix(inputs, tick_rows), np.nan)
+    live_commands = ticks.at(inputs, tick_rows)
     replayed_errors, replayed_commands = result.e1[0][compared], result.commands[0][compared]
     side_by_side = np.hstack([live_errors, replayed_errors, live_commands, replayed_commands])
     rows = [

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from delaytrack._io import read_file_bytes
-from delaytrack.live._tables import RowsByIndex, json_table, ms, per_second, read_table, values_at
+from delaytrack.live._tables import RowsByIndex, json_table, ms, per_second, read_table
 
 __all__ = [
     "format_agreement",
@@ -67,7 +67,7 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
     x = states.matrix(names, logged.rows[at_tick])
     ref = np.stack(reference.evaluate(t), axis=1)  # (R, 3, n): q_d, q̇_d, q̈_d
     tick_rows = RowsByIndex(ticks["k"]).find(ks)
-    sent = np.where((tick_rows >= 0)[:, None], ticks.matrix(inputs, tick_rows), np.nan)
+    sent = ticks.at(inputs, tick_rows)
     commands = np.zeros((t.size, m))
     last = np.zeros(m)
     for i in range(t.size):
@@ -75,7 +75,7 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
             last = sent[i]
         commands[i] = last
     step_rows = RowsByIndex(steps["j"]).find(ks * steps_per_tick)
-    applied = np.stack([values_at(steps[u], step_rows) for u in inputs], axis=-1).reshape(-1, m)
+    applied = steps.at(inputs, step_rows)
     finite = bool(np.all(np.isfinite(x)))
     return SimResult(
         t=t,

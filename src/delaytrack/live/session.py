@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from delaytrack._io import json_text, write_text
+from delaytrack._validation import is_real_number
 from delaytrack.live._node import (
     LAUNCHER_PID,
     load_scenario,
@@ -564,7 +565,9 @@ def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -
         rows(),
     )
     end = read_table(folder / "steps.csv").rows * scenario.dt
-    listened = (nodes.get("delay") or {}).get("session_s", -math.inf)
+    listened = (nodes.get("delay") or {}).get("session_s")
+    if not is_real_number(listened):  # a record without it (or not a number)
+        listened = -math.inf
     return {
         "scenario": scenario.name,
         "T_c_s": scenario.T_c,

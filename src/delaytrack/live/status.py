@@ -47,7 +47,7 @@ from delaytrack._validation import is_real_number
 from delaytrack.live.messages import node_table
 
 if TYPE_CHECKING:
-    from delaytrack.live.transport import PeerCertificates
+    from delaytrack.live.tls import PeerCertificates
 
 __all__ = [
     "STATUS_PERIOD",

@@ -39,7 +39,7 @@ import re
 import threading
 import time
 from collections.abc import Mapping, Sequence
-from typing import Any, NamedTuple
+from typing import Any
 
 from delaytrack._validation import is_real_number
 from delaytrack.live.clock_sync import (
@@ -50,12 +50,12 @@ from delaytrack.live.clock_sync import (
     serve_clock,
 )
 from delaytrack.live.messages import node_table
+from delaytrack.live.tls import TLS_PROTOCOLS, PeerCertificates
 
 __all__ = [
     "ROLES",
     "Handshake",
     "HandshakeError",
-    "PeerCertificates",
     "differing_parts",
     "open_session",
     "read_hello",
@@ -69,20 +69,6 @@ class HandshakeError(RuntimeError):
     """The peers could not agree (a different scenario) or did not appear in time."""
 
 
-class PeerCertificates(NamedTuple):
-    """The files of mutual TLS between the nodes (PEM): ``ca``, the certificate of the
-    authority that signed every node's certificate; ``certificate`` and ``key``, this node's
-    certificate (naming the host it is reached at) and private key."""
-
-    ca: str
-    certificate: str
-    key: str
-
-
-#: The endpoints whose links TLS authenticates.
-TLS_PROTOCOLS = ("tls", "quic")
-
-
 def zenoh_config(
     listen: Sequence[str], connect: Sequence[str], certificates: PeerCertificates | None = None
 ) -> Any:
@@ -94,10 +80,16 @@ def zenoh_config(
         "mode": "peer",
         "scouting": {"multicast": {"enabled": False}},
     }
+    if listen or certificates is not None:
+        # With certificates, only the endpoints given (none, for a node that only connects),
+        # and only links TLS authenticates: Zenoh's default is to listen on TCP on every
+        # interface, over which unauthenticated peers would link to the node.
+        config["listen"] = {"endpoints": list(listen)}
     if certificates is not None:
         ca, certificate, key = certificates
         config["transport"] = {
             "link": {
+                "protocols": list(TLS_PROTOCOLS),
                 "tls": {
                     "root_ca_certificate": ca,
                     "listen_certificate": certificate,
@@ -105,11 +97,9 @@ def zenoh_config(
                     "connect_certificate": certificate,
                     "connect_private_key": key,
                     "enable_mtls": True,
-                }
+                },
             }
         }
-    if listen:
-        config["listen"] = {"endpoints": list(listen)}
     if connect:
         # Retry connecting while a peer is not up yet: nodes may start in any order.
         config["connect"] = {

@@ -86,6 +86,15 @@ def test_a_missing_table_has_no_rows_and_a_required_one_is_refused(tmp_path):
         table.required()
 
 
+def _read_with_peak(path):
+    """The states table ``path`` and the peak of the memory Python allocated reading it."""
+    tracemalloc.start()
+    try:
+        return read_table(path, None, indices=("j",)), tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
 def test_a_table_takes_memory_of_the_order_of_its_text(tmp_path):
     # Rows of Python objects (a dict of texts a row) took about thirty times the file's size.
     path = tmp_path / "states.csv"
@@ -99,12 +108,7 @@ def test_a_table_takes_memory_of_the_order_of_its_text(tmp_path):
             for j in range(count)
         ),
     )
-    tracemalloc.start()
-    try:
-        table = read_table(path, None, indices=("j",))
-        _current, peak = tracemalloc.get_traced_memory()
-    finally:
-        tracemalloc.stop()
+    table, peak = _read_with_peak(path)
     assert table.rows == count
     cells = count * len(columns)
     assert peak < 1.5 * 8 * cells < os.path.getsize(path)
@@ -142,11 +146,6 @@ def test_rows_of_many_columns_take_memory_of_the_order_of_their_cells(tmp_path):
     header = ["j", *(f"q{i}" for i in range(width))]
     rows = ([str(j), *(repr(j + 1e-3 * i) for i in range(width))] for j in range(count))
     _write(path, header, rows)
-    tracemalloc.start()
-    try:
-        table = read_table(path, None, indices=("j",))
-        _current, peak = tracemalloc.get_traced_memory()
-    finally:
-        tracemalloc.stop()
+    table, peak = _read_with_peak(path)
     assert table.rows == count and table["q4999"][-1] == 199 + 4.999
     assert peak < 2 * 8 * count * (width + 1)  # the texts of all rows: several times as much

@@ -577,3 +577,34 @@ def test_the_delay_node_takes_a_command_once_and_counts_its_copies():
     assert node.duplicates == 2 and list(node.commands) == [4]
     assert node.commands[4][2:4] == [0.0081, pytest.approx(0.0082)]  # the first copy's times
     assert node._held == [first]
+
+
+def test_a_command_a_newer_one_supersedes_at_its_step_is_not_counted_as_never_applied():
+    # Where h falls, s - h(s) advances by dt (1 - h') a step: past two commands 1 ms apart at
+    # some steps, where the rule applies the newer. At T_c = dt they were counted as never
+    # applied (82 of 85 in a 5 s session of the P3-DX).
+    from types import SimpleNamespace
+
+    from delaytrack.live.session import _due_steps, _superseded
+
+    delay = SimpleNamespace(h=lambda s: np.maximum(0.05 - 0.5 * np.asarray(s), 0.0))
+    dt, end = 1e-3, 0.2
+    t_k = np.arange(120) * dt
+    steps, due = _due_steps(t_k, delay, dt, end)
+    reach = np.maximum.accumulate(steps - delay.h(steps))
+    for k in range(t_k.size):  # the first step whose reach covers t_k, as the rule says
+        inside = np.flatnonzero(reach >= t_k[k] - 1e-9 * dt)
+        assert due[k] == (inside[0] if inside.size else steps.size)
+    taken = due < steps.size
+    superseded = _superseded(t_k, taken, due)
+    groups = {int(d) for d in due[taken]}
+    assert superseded.sum() == taken.sum() - len(groups) > 0
+    for step in groups:  # the newest of each step is the one applied
+        members = np.flatnonzero(taken & (due == step))
+        assert not superseded[members[-1]] and superseded[members[:-1]].all()
+    lost = taken.copy()
+    lost[np.flatnonzero(superseded)[0] + 1] = False  # the newer one lost: the older applies
+    assert not _superseded(t_k, lost, due)[np.flatnonzero(superseded)[0]]
+    ten_ms = np.arange(12) * 0.01  # T_c = 10 ms: never two commands at one step
+    steps, due = _due_steps(ten_ms, delay, dt, end)
+    assert not _superseded(ten_ms, due < steps.size, due).any()

@@ -358,6 +358,9 @@ def _timing_settings(
         f" / {ms(summary.get('realised_minus_h_abs_ms_p99'))} (the exact rule on the robot's "
         f"step grid alone: {ms(summary.get('realised_minus_h_abs_ms_p99_of_the_rule'))})",
         "commands never applied": str(summary.get("never_applied", 0)),
+        "commands superseded on the step grid (a newer one due at the same step)": str(
+            summary.get("superseded_on_the_step_grid", "n/a")
+        ),
     }
 
 

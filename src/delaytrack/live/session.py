@@ -565,6 +565,8 @@ def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -
         rows(),
     )
     end = read_table(folder / "steps.csv").rows * scenario.dt
+    steps, due = _due_steps(issued, delay, scenario.dt, end)
+    superseded = _superseded(issued, (lost == 0) & (due < steps.size), due)  # due in the session
     listened = (nodes.get("delay") or {}).get("session_s")
     if not is_real_number(listened):  # a record without it (or not a number)
         listened = -math.inf
@@ -578,10 +580,12 @@ def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -
         # losses, as opposed to the injected ones counted in "lost").
         "not_received": int(np.sum((lost == -1) & (sent_s <= listened))),
         # Commands the rule would have applied before the session ended that never were (the
-        # last ones, still held when it ended, are not counted).
+        # last ones, still held when it ended, and those a newer one superseded at the step
+        # they came due, are not counted).
         "never_applied": int(
-            np.sum((lost == 0) & ~came & (issued + h_issued + 2 * scenario.dt < end))
+            np.sum((lost == 0) & ~came & ~superseded & (issued + h_issued + 2 * scenario.dt < end))
         ),
+        "superseded_on_the_step_grid": int(np.sum(superseded)),
         "realised_minus_h_ms_p50": percentile(error, 50),
         "realised_minus_h_abs_ms_p99": percentile(np.abs(error), 99),
         "realised_minus_h_abs_ms_max": percentile(np.abs(error), 100),
@@ -592,6 +596,29 @@ def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -
     }
 
 
+def _due_steps(t_k: np.ndarray, delay: Any, dt: float, end: float) -> tuple[np.ndarray, np.ndarray]:
+    """The robot's step times up to ``end``, and for each command issued at ``t_k`` the index
+    of the first step ``s`` where the rule allows it, ``t_k <= s − h(s)`` (the number of steps
+    where none does)."""
+    steps = np.arange(round(end / dt) + 1) * dt
+    reach = np.maximum.accumulate(steps - delay.h(steps))  # the newest t_k usable by step s
+    return steps, np.searchsorted(reach, t_k - 1e-9 * dt)
+
+
+def _superseded(t_k: np.ndarray, taken: np.ndarray, due: np.ndarray) -> np.ndarray:
+    """Whether each command is superseded on the step grid: a newer one of those ``taken`` (by
+    the delay node, due within the session) is due at the same step (``due``,
+    :func:`_due_steps`), and the rule applies the newest. Where ``h`` falls, ``s − h(s)``
+    advances by ``dt (1 − ḣ)`` a step, past two commands when ``T_c`` is ``dt``."""
+    newest = np.full(due.shape, -np.inf)
+    order = np.flatnonzero(taken)
+    if order.size:
+        latest = np.full(int(due[order].max()) + 1, -np.inf)
+        np.maximum.at(latest, due[order], t_k[order])
+        newest[order] = latest[due[order]]
+    return taken & (t_k < newest)
+
+
 def _rule_error_ms(t_k: np.ndarray, delay: Any, dt: float, end: float) -> np.ndarray:
     """For each command the robot applied (issued at ``t_k``), ``realised − h`` in ms had it
     come into force at the first robot step ``s`` where the rule allows it, ``t_k <= s − h(s)``:
@@ -599,9 +626,7 @@ def _rule_error_ms(t_k: np.ndarray, delay: Any, dt: float, end: float) -> np.nda
     ``dt (1 − ḣ)`` a step, so this reaches beyond ``dt`` where ``h`` falls)."""
     if not t_k.size:
         return np.empty(0)
-    steps = np.arange(round(end / dt) + 1) * dt
-    reach = np.maximum.accumulate(steps - delay.h(steps))  # the newest t_k usable by step s
-    first = np.searchsorted(reach, t_k - 1e-9 * dt)
+    steps, first = _due_steps(t_k, delay, dt, end)
     inside = first < steps.size
     s = steps[first[inside]]
     return (s - t_k[inside] - delay.h(s)) * 1e3

@@ -115,6 +115,7 @@ def test_the_summary_says_a_node_wrote_no_record_rather_than_zeros():
     text = format_summary(summary, Path("out"))
     assert "  robot: no record (robot.json): the node did not finish; robot.mcap holds" in text
     assert "commands never applied: n/a" in text and "controller: 5 ticks" in text
+    assert "links between the nodes: controller: n/a; delay: n/a; robot: n/a" in text
 
 
 def test_a_session_interrupted_before_it_starts_says_so_and_writes_no_summary(tmp_path):

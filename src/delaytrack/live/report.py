@@ -31,6 +31,7 @@ from delaytrack.live._tables import RowsByIndex, json_table, ms, per_second, rea
 
 __all__ = [
     "format_agreement",
+    "links_text",
     "live_result",
     "metrics_with_units",
     "write_report",
@@ -288,13 +289,16 @@ def _robot_failure(summary: dict[str, Any]) -> str | None:
     return failure if isinstance(failure, str) else None
 
 
-def _links(nodes: dict[str, Any]) -> str:
+def links_text(nodes: dict[str, Any]) -> str:
     """Whether the nodes authenticated their peers (``mutual_tls`` in their records)."""
     secured = {role: (record or {}).get("mutual_tls") for role, record in nodes.items()}
     if secured and all(value is True for value in secured.values()):
         return "mutual TLS: every peer authenticated by its certificate"
     if all(value is False for value in secured.values()):
-        return "not authenticated (a network you trust; --tls-ca and its siblings secure it)"
+        return (
+            "not authenticated: a peer on the network could send commands (mutual TLS: "
+            "--tls-ca, --tls-certificate, --tls-key)"
+        )
     return "; ".join(
         f"{role}: {'mutual TLS' if value else 'not authenticated' if value is False else 'n/a'}"
         for role, value in secured.items()
@@ -321,7 +325,7 @@ def _session_settings(summary: dict[str, Any], scenario: Any, live: Any) -> dict
             f"{role} {code}" for role, code in (summary.get("exit_codes") or {}).items()
         ),
         "how each node ended": "; ".join(f"{role}: {end}" for role, end in ended.items()),
-        "links between the nodes": _links(nodes),
+        "links between the nodes": links_text(nodes),
         "load average (1, 5, 15 min) at the end": ", ".join(
             f"{v:.2f}" for v in summary.get("load_average", [])
         )

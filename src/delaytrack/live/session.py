@@ -52,7 +52,7 @@ from delaytrack.live._tables import (
     values_at,
 )
 from delaytrack.live.log import write_csv
-from delaytrack.live.report import FIGURES
+from delaytrack.live.report import FIGURES, links_text
 from delaytrack.live.status import StatusWatch
 from delaytrack.live.transport import differing_parts, scenario_hashes
 from delaytrack.warning import one_line
@@ -660,6 +660,9 @@ def format_summary(summary: dict[str, Any], folder: Path) -> str:
                 "what it logged"
             )
     never_applied = summary["never_applied"] if nodes.get("robot") is not None else "n/a"
+    superseded = summary.get("superseded_on_the_step_grid")
+    if superseded:
+        never_applied = f"{never_applied} ({superseded} superseded at the step they came due)"
     return "\n".join(
         [
             f"live session {summary['scenario']} (T_c = {summary['T_c_s'] * 1e3:g} ms, "
@@ -667,6 +670,7 @@ def format_summary(summary: dict[str, Any], folder: Path) -> str:
             lines["controller"],
             lines["delay"],
             lines["robot"],
+            f"  links between the nodes: {links_text(nodes)}",
             f"  realised delay - h(t_applied): p50 {ms(summary['realised_minus_h_ms_p50'])}, "
             f"|.| p99 {ms(summary['realised_minus_h_abs_ms_p99'])} (the exact rule on the step "
             f"grid alone: {ms(summary.get('realised_minus_h_abs_ms_p99_of_the_rule'))}); "

@@ -156,14 +156,35 @@ def test_tls_flags_in_part_or_naming_no_file_are_refused_in_one_line(
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("endpoint", ["tcp/127.0.0.1:7447", "tls/localhost:7447#enable_mtls=false"])
 @pytest.mark.parametrize("flag", ["--listen", "--connect"])
 def test_an_endpoint_tls_does_not_authenticate_is_refused_with_the_tls_flags(
-    capsys, tmp_path, flag
+    capsys, tmp_path, flag, endpoint
 ):
     ca, certificate, key = certificates(tmp_path / "tls")
-    argv = ["live", "delay", SCENARIO, "--out", str(tmp_path / "out"), flag, "tcp/127.0.0.1:7447"]
+    argv = ["live", "delay", SCENARIO, "--out", str(tmp_path / "out"), flag, endpoint]
     argv += ["--tls-ca", ca, "--tls-certificate", certificate, "--tls-key", key]
     assert main(argv) == 2
     err = capsys.readouterr().err
-    assert f"{flag} 'tcp/127.0.0.1:7447': with --tls-ca every endpoint must be tls/" in err
+    assert f"{flag} {endpoint!r}: with --tls-ca every endpoint must be tls/" in err
     assert not (tmp_path / "out").exists()
+
+
+def test_an_encrypted_key_is_refused_not_asked_a_passphrase_for(capsys, tmp_path):
+    from cryptography.hazmat.primitives import serialization
+
+    ca, certificate, key = certificates(tmp_path / "tls")
+    loaded = serialization.load_pem_private_key(Path(key).read_bytes(), password=None)
+    encrypted = tmp_path / "encrypted.key"
+    encrypted.write_bytes(
+        loaded.private_bytes(
+            serialization.Encoding.PEM,
+            serialization.PrivateFormat.PKCS8,
+            serialization.BestAvailableEncryption(b"secret"),
+        )
+    )
+    argv = ["live", "robot", SCENARIO, "--out", str(tmp_path / "out"), "--tls-ca", ca]
+    argv += ["--tls-certificate", certificate, "--tls-key", str(encrypted)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot be used together" in err and "not encrypted" in err

@@ -170,12 +170,13 @@ def _peer_certificates(args: argparse.Namespace) -> bool:
         return False
     for flag in ("--listen", "--connect"):
         for endpoint in getattr(args, flag[2:], None) or ():
-            if endpoint.partition("/")[0] not in TLS_PROTOCOLS:
+            if endpoint.partition("/")[0] not in TLS_PROTOCOLS or re.search(r"[?#]", endpoint):
                 print(
                     one_line(
                         f"error: {flag} {endpoint!r}: with --tls-ca every endpoint must be "
-                        "tls/HOST:PORT or quic/HOST:PORT (a tcp or udp endpoint would take "
-                        "peers without a certificate)"
+                        "tls/HOST:PORT or quic/HOST:PORT, without ?/# settings (a tcp or udp "
+                        "endpoint, or one that turns mutual TLS off, would take peers without "
+                        "a certificate)"
                     ),
                     file=sys.stderr,
                 )

@@ -566,7 +566,8 @@ def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -
     )
     end = read_table(folder / "steps.csv").rows * scenario.dt
     steps, due = _due_steps(issued, delay, scenario.dt, end)
-    superseded = _superseded(issued, (lost == 0) & (due < steps.size), due)  # due in the session
+    # due at one of the robot's steps (the last of ``steps`` is the session's end)
+    superseded = _superseded(issued, (lost == 0) & (due < steps.size - 1), due)
     listened = (nodes.get("delay") or {}).get("session_s")
     if not is_real_number(listened):  # a record without it (or not a number)
         listened = -math.inf
@@ -585,7 +586,7 @@ def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -
         "never_applied": int(
             np.sum((lost == 0) & ~came & ~superseded & (issued + h_issued + 2 * scenario.dt < end))
         ),
-        "superseded_on_the_step_grid": int(np.sum(superseded)),
+        "superseded_on_the_step_grid": int(np.sum(superseded & ~came)),
         "realised_minus_h_ms_p50": percentile(error, 50),
         "realised_minus_h_abs_ms_p99": percentile(np.abs(error), 99),
         "realised_minus_h_abs_ms_max": percentile(np.abs(error), 100),

@@ -45,14 +45,14 @@ def _end(certificates: PeerCertificates, server: bool) -> ssl.SSLContext:
             f"({error.reason if isinstance(error, ssl.SSLError) else error.strerror}); give the "
             "authority's certificate in PEM"
         ) from None
-    try:
-        context.load_cert_chain(certificates.certificate, certificates.key)
+    try:  # an encrypted key is refused, not asked a passphrase for (Zenoh cannot read it)
+        context.load_cert_chain(certificates.certificate, certificates.key, password=b"")
     except (ssl.SSLError, OSError) as error:
         reason = error.reason if isinstance(error, ssl.SSLError) else error.strerror
         raise ValueError(
             f"--tls-certificate {certificates.certificate!r} and --tls-key "
             f"{certificates.key!r} cannot be used together ({reason}); give the node's "
-            "certificate and its own private key, in PEM"
+            "certificate and its own private key, in PEM, not encrypted"
         ) from None
     return context
 

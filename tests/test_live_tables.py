@@ -62,10 +62,10 @@ def test_cells_are_read_as_the_session_readers_read_them(tmp_path):
     assert table["status"].tolist() == ["ok", "no-state", "ok"]
     assert table["status"][0] is table["status"][2]  # one object for each distinct text
     np.testing.assert_array_equal(
-        table.matrix(["u1", "t_s"], [2, 0]), [[np.nan, np.inf], [1e-3, 0.5]]
+        table.at(["u1", "t_s"], [2, -1, 0]), [[np.nan, np.inf], [np.nan, np.nan], [1e-3, 0.5]]
     )
     with pytest.raises(ValueError, match=r"ticks.csv: no column 'u2' \(it has"):
-        table.matrix(["u1", "u2"])
+        table.at(["u1", "u2"])
     with pytest.raises(ValueError, match=r"ticks.csv: no column 'lateness_ms'"):
         read_table(path, ("lateness_ms",))
 

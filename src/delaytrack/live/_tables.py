@@ -100,26 +100,17 @@ class SessionTable:
     def __getitem__(self, name: str) -> np.ndarray:
         return self.columns[name]
 
-    def _columns(self, names: Sequence[str]) -> list[np.ndarray]:
-        """The columns ``names``; a column the table lacks is a ValueError naming it."""
+    def at(self, names: Sequence[str], rows: Any = None) -> np.ndarray:
+        """The number columns ``names`` side by side at ``rows`` (:meth:`RowsByIndex.find`; all
+        rows by default), NaN where a row is -1, ``(len(rows), len(names))``; a column the
+        table lacks is a ValueError naming it."""
+        rows = np.arange(self.rows) if rows is None else np.asarray(rows)
+        picked = []
         for name in names:
             if name not in self.columns:
                 raise _no_column(self.path, name, self.header)
-        return [self.columns[name] for name in names]
-
-    def matrix(self, names: Sequence[str], rows: Any = slice(None)) -> np.ndarray:
-        """The number columns ``names`` side by side at ``rows`` (all by default), ``(rows,
-        len(names))``."""
-        picked = [column[rows] for column in self._columns(names)]
-        return (
-            np.stack(picked, axis=-1) if picked else np.empty((np.arange(self.rows)[rows].size, 0))
-        )
-
-    def at(self, names: Sequence[str], rows: np.ndarray) -> np.ndarray:
-        """The number columns ``names`` side by side at ``rows`` (:meth:`RowsByIndex.find`),
-        NaN where a row is -1, ``(len(rows), len(names))``."""
-        picked = [values_at(column, rows) for column in self._columns(names)]
-        return np.stack(picked, axis=-1) if picked else np.empty((len(rows), 0))
+            picked.append(values_at(self.columns[name], rows))
+        return np.stack(picked, axis=-1) if picked else np.empty((rows.size, 0))
 
     def required(self) -> SessionTable:
         """This table, or a ValueError naming it when it has no rows (or is missing)."""
@@ -315,9 +306,6 @@ class RowsByIndex:
         keep = keep[: ordered.size]
         #: The distinct indices, ascending, and the row kept for each.
         self.indices, self.rows = ordered[keep], order[keep]
-
-    def __len__(self) -> int:
-        return self.indices.size
 
     def find(self, wanted: Any) -> np.ndarray:
         """The row of each index in ``wanted``; -1 where the table has none."""

@@ -125,7 +125,7 @@ def _realised_delay(folder: Path, dt: float) -> TraceDelay:
     if not applied.rows:
         raise ValueError(f"{folder}: the robot applied no command; nothing to replay")
     epsilon = 1e-6 * dt
-    numbers = applied.matrix(columns)
+    numbers = applied.at(columns)
     bad = np.flatnonzero(~np.isfinite(numbers).all(axis=1))
     if bad.size:  # line 1 is the header
         raise ValueError(f"{path}, line {bad[0] + 2}: {columns} must be finite times in seconds")
@@ -214,7 +214,7 @@ def _compare(
     k = np.rint(result.t / scenario.T_c).astype(np.int64)
     state_rows = RowsByIndex(states["j"]).find(k * round(scenario.T_c / scenario.dt))
     compared = state_rows >= 0
-    live_errors = result.reference[compared, 0] - states.matrix(names, state_rows[compared])
+    live_errors = result.reference[compared, 0] - states.at(names, state_rows[compared])
     tick_rows = RowsByIndex(ticks["k"]).find(k[compared])
     live_commands = ticks.at(inputs, tick_rows)
     replayed_errors, replayed_commands = result.e1[0][compared], result.commands[0][compared]

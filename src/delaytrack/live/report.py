@@ -65,7 +65,7 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
     at_tick = logged.indices % steps_per_tick == 0
     ks = logged.indices[at_tick] // steps_per_tick
     t = ks * scenario.T_c
-    x = states.matrix(names, logged.rows[at_tick])
+    x = states.at(names, logged.rows[at_tick])
     ref = np.stack(reference.evaluate(t), axis=1)  # (R, 3, n): q_d, q̇_d, q̈_d
     tick_rows = RowsByIndex(ticks["k"]).find(ks)
     sent = ticks.at(inputs, tick_rows)

@@ -109,28 +109,30 @@ def _realtime_argument(command: argparse.ArgumentParser) -> None:
     )
 
 
-#: The mutual TLS flags, with what each names.
+#: The mutual TLS flags, with what each names: on a node, and on ``live run`` (one
+#: certificate for its three nodes).
 _TLS_FLAGS = {
-    "--tls-ca": "the certificate of the authority that signed every node's certificate (PEM)",
-    "--tls-certificate": "this node's certificate, signed by --tls-ca, naming the host the "
-    "others reach it at (PEM)",
-    "--tls-key": "this node's private key (PEM)",
+    "--tls-ca": (
+        "the certificate of the authority that signed every node's certificate (PEM)",
+        "the certificate of the authority that signed the nodes' certificate (PEM)",
+    ),
+    "--tls-certificate": (
+        "this node's certificate, signed by --tls-ca, naming the host the others reach it at (PEM)",
+        "the nodes' certificate, signed by --tls-ca, naming localhost (PEM)",
+    ),
+    "--tls-key": ("this node's private key (PEM)", "the nodes' private key (PEM)"),
 }
 
 
 def _tls_arguments(command: argparse.ArgumentParser, run: bool) -> None:
     """--tls-ca, --tls-certificate and --tls-key (on every node and ``live run``)."""
-    for flag, what in _TLS_FLAGS.items():
-        if run:  # one certificate for the three nodes of this machine
-            what = what.replace("this node's", "the nodes'").replace(
-                "the host the others reach it at", "localhost"
-            )
+    for flag, (on_a_node, on_run) in _TLS_FLAGS.items():
         command.add_argument(
             flag,
             default=None,
             metavar="FILE",
-            help=f"{what}; the three flags together make every link mutual TLS: a peer "
-            "without a certificate of the same authority is not connected",
+            help=f"{on_run if run else on_a_node}; the three flags together make every link "
+            "mutual TLS: a peer without a certificate of the same authority is not connected",
         )
 
 

@@ -26,7 +26,6 @@ import numpy as np
 from delaytrack._compile.jit import borrowing_kernel, compiled, inline_kernel, inline_part
 from delaytrack.components import call_reference, call_step
 from delaytrack.controllers.base import step_workspace
-from delaytrack.delays._kernel import delay_at
 from delaytrack.sim.history import tick_time
 from delaytrack.sim.integrator import (
     DELAY_BEYOND_HISTORY,
@@ -36,6 +35,7 @@ from delaytrack.sim.integrator import (
     OK,
     TickArguments,
     beyond,
+    delay_at_tick,
     integrate,
     rk4_workspace,
 )
@@ -251,7 +251,7 @@ def _run_ticks(handles, run, settings, records, memory):
         t_k = tick_time(k, t0, dt, steps_per_tick)
         record = record_every > 0 and k % record_every == 0
         row = k // record_every if record else 0
-        h_k = delay_at(handles.delay, run.delay_kind, run.delay_params, t_k)
+        h_k = delay_at_tick(handles.delay, run.delay_kind, run.delay_params, t_k, work)
         if record:  # copies written as loops: a slice copy needs numba's runtime
             for i in range(2 * n):
                 states[row, i] = x[i]

@@ -59,6 +59,7 @@ from delaytrack.components import (
 )
 from delaytrack.delays._kernel import (
     PIECEWISE_CONSTANT,
+    delay_at,
     next_breakpoint,
     piece_end_values,
     profile_crossing_time,
@@ -76,6 +77,7 @@ __all__ = [
     "OK",
     "TickArguments",
     "beyond",
+    "delay_at_tick",
     "integrate",
     "integrate_reduced_tick",
     "integrate_tick",
@@ -303,6 +305,18 @@ def _piece(delay, delay_kind, delay_params, a, b, profile):
         profile[_EVALUATED_AT] = b
         profile[_H_THERE] = h_b
     return a - h_a, b - h_b
+
+
+@inline_kernel
+def delay_at_tick(delay, delay_kind, delay_params, t_k, work):
+    """``h(t_k)`` at the tick ``t_k`` (:func:`~delaytrack.delays._kernel.delay_at`), taken from
+    the ``profile`` memory of :func:`rk4_workspace` when the last step, ending at ``t_k``, left
+    it there (a continuous profile, evaluated at that step's end): the same number, computed
+    once. With the controller at every step this saves an evaluation of ``h`` a step."""
+    profile = work[5]
+    if delay_kind != PIECEWISE_CONSTANT and profile[_EVALUATED_AT] == t_k:
+        return profile[_H_THERE]
+    return delay_at(delay, delay_kind, delay_params, t_k)
 
 
 @hot_inline_kernel

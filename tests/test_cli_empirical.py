@@ -112,6 +112,16 @@ def test_margins_job_writes_its_files(tmp_path, capsys):
     assert {"k1_per_s2", "delay_s", "metric_rad", "metric_q1_rad", "status"} <= set(evaluated)
     html = (folder / "report.html").read_text()
     assert "data:image/png;base64," in html and "What the gap means" in html
+    shown = html.replace("<wbr>", "")  # the page's tables may break a name at its "_"
+    assert ">k1_per_s2</th>" in shown and ">h_exact_s</th>" in shown  # units, as the file
+    # every gain pair is counted once: within 15 % of h_exact, above, below, or unbounded
+    outer = table["outer_loop_constant_s"] / table["h_exact_s"] - 1.0
+    close, above = int((outer.abs() <= 0.15).sum()), int((outer > 0.15).sum())
+    below, unbounded = int((outer < -0.15).sum()), int(outer.isna().sum())
+    assert close + above + below + unbounded == len(table)
+    assert f"in {close} of {len(table)} gain pairs" in html and f"higher in {above}" in html
+    assert f"It is lower in {below};" in html
+    assert ("no failure up to the search limit in" in html) == (unbounded > 0)
 
 
 def test_margins_job_too_short_for_its_tracking_rule_is_a_usage_error(tmp_path, capsys):

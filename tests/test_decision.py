@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import html
 import math
+import re
 
 import pandas as pd
 import pytest
@@ -233,3 +234,55 @@ def test_the_old_refusal_attribute_warns_and_reads_the_reports_words():
         assert decision.refusal == refusal_text(decision)
     with pytest.warns(DeprecationWarning):
         assert decide(_table(80, 78), ENVELOPE).refusal is None
+
+
+def test_a_condition_with_no_run_on_the_path_leaves_the_worst_case_ae_undefined():
+    """A candidate none of whose robots stayed on the path at one delay has no AE there: its
+    worst-case AE is NaN, not the largest of the other conditions', and it ranks last."""
+    table = _table(80, 80)
+    lost = (table.controller == "arolc") & (table.omega_n == 1.0)
+    table.loc[lost.idxmax(), ["on_path", "ae_median"]] = (0, math.nan)
+    decision = decide(table, ENVELOPE)
+    arolc = decision.candidates[
+        (decision.candidates.controller == "arolc") & (decision.candidates.omega_n == 1.0)
+    ].iloc[0]
+    assert math.isnan(arolc.worst_ae) and arolc.status == "excluded"
+    assert decision.candidates.iloc[-1].omega_n == 1.0  # best first: it is last
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda t: t.iloc[:0], "has no rows"),
+        (lambda t: t.assign(runs=0), "runs must be whole numbers >= 1"),
+        (lambda t: t.assign(runs=math.nan), "runs must be whole numbers >= 1"),
+        (lambda t: t.assign(on_path=t.runs + 1), "on_path must be whole numbers from 0 to runs"),
+        (lambda t: t.assign(on_path=-1), "on_path must be whole numbers from 0 to runs"),
+        (lambda t: t.assign(ae_median=math.nan), "ae_median must be a number >= 0 where"),
+        (lambda t: t.assign(k1=range(len(t))), "one k1 and one k2"),
+        (lambda t: t.drop(columns="told"), "lacks the columns ['told']"),
+    ],
+)
+def test_a_table_the_rule_cannot_read_is_refused_naming_what_is_wrong(edit, message):
+    with pytest.raises(ValueError, match=re.escape(message)):
+        decide(edit(_table(80, 80)), ENVELOPE)
+
+
+@pytest.mark.parametrize("share", [0.0, 1.0, 1.5, math.nan, -0.1])
+def test_a_required_share_outside_zero_to_one_is_refused(share):
+    with pytest.raises(ValueError, match="required_share must be a share strictly between 0"):
+        decide(_table(80, 80), ENVELOPE, required_share=share)
+
+
+def test_a_chosen_predictor_is_given_with_its_own_gains():
+    """PCON and PCONf have κ and k_b, not K1 and K2: the text gives κ = K1/K2 and
+    k_b = K2 M̂(q0), the same delay-free nominal loop."""
+    from delaytrack.experiments.decision import Choice
+    from delaytrack.report.decision import gains_text
+
+    pconf = Choice("pconf", 4.0, 16.0, 8.0, 0.01, 0.96, at_largest_omega_n=False)
+    assert gains_text(pconf) == (
+        "κ = 2, k_b = 8 M̂(q0), M̂(q0) the nominal mass matrix at the initial pose"
+    )
+    arolc = Choice("arolc", 4.0, 16.0, 8.0, 0.01, 0.96, at_largest_omega_n=False)
+    assert gains_text(arolc) == "K1 = 16 I, K2 = 8 I"

@@ -11,8 +11,8 @@ import pandas as pd
 import pytest
 
 from delaytrack.cli import main
-from delaytrack.experiments.tradeoff import pareto_front, run_tradeoff
-from delaytrack.scenario import Scenario
+from delaytrack.experiments.tradeoff import MARGIN_SEARCHES, pareto_front, run_tradeoff
+from delaytrack.scenario import Scenario, load_builtin
 
 #: A small linear plant of our own: a unit mass whose nominal model is 20 % light, tracking a
 #: slow sine under a constant 50 ms delay.
@@ -73,7 +73,8 @@ def test_pareto_front_is_non_dominated_by_brute_force(study):
     table = study.table
     valid = table.ae_median.notna() & table.empirical_margin.notna()
     for i, row in table.iterrows():
-        dominated = any(
+        # a margin at the search limit is a lower bound: no other point is known to beat it
+        dominated = row.margin_found and any(
             other.ae_median <= row.ae_median
             and other.empirical_margin >= row.empirical_margin
             and (other.ae_median < row.ae_median or other.empirical_margin > row.empirical_margin)
@@ -88,6 +89,9 @@ def test_pareto_front_small_cases():
     assert pareto_front([1, 2, 3], [1, 2, 3]).tolist() == [True, True, True]
     assert pareto_front([1, 2, np.nan], [3, 2, 5]).tolist() == [True, False, False]
     assert pareto_front([1, 1], [2, 2]).tolist() == [True, True]
+    # the second margin is a lower bound (no failure up to the limit): never dominated
+    assert pareto_front([1, 2], [3, 3], [True, False]).tolist() == [True, True]
+    assert pareto_front([1, 2], [3, 3], [False, True]).tolist() == [True, False]
 
 
 def test_resuming_after_deleting_a_part_gives_the_same_table(tmp_path):
@@ -128,7 +132,10 @@ def test_command_writes_the_table_figure_and_page(tmp_path, capsys):
         (["--zeta", "1e308"], "with --zeta = 1e+308 gives K1 = "),
         (["--upper", "1e-300"], "--upper must be larger than the margin searches' resolution"),
         (["--omega", "1", "2", "x"], "--omega must be LO HI N"),
+        # equal ends give one point: three copies of it would count its runs three times
+        (["--omega", "2", "2", "3"], "N > 1 needs LO < HI"),
         (["--threshold", "0"], "--threshold"),
+        (["--threshold", "1,2"], "--threshold must be a number > 0 or one per scored coordinate"),
         (["--scheduler", "nowhere"], "--scheduler must be"),
         (["--envelope", "0.1", "--knowledge", "often"], "--knowledge must be exact, ±X%"),
         (["--envelope", "0.1", "--knowledge", "150%"], "got '150%'"),
@@ -186,6 +193,54 @@ def test_more_gain_points_than_a_study_can_search_are_refused_before_any_work(tm
     with pytest.raises(ValueError, match=r"omegas must be at most 1000 natural frequencies"):
         run_tradeoff(Scenario.from_dict(PLANT), tmp_path / "o", zeta=ZETA, omegas=[1.0] * 1001)
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"omegas": [1.0, 2.0, 1.0]}, "omegas must be distinct natural frequencies"),
+        ({"beta": -1.0}, "beta"),
+        ({"beta": math.nan}, "beta"),
+        ({"r": 0.5}, "r must be a number > 1"),
+        ({"r": math.inf}, "r must be a number > 1"),
+        ({"threshold": [0.1, 0.1]}, "one per scored coordinate (1: q1)"),
+    ],
+)
+def test_arguments_that_would_miscount_or_give_nan_are_refused_before_any_work(
+    tmp_path, options, message
+):
+    arguments = {"zeta": ZETA, "omegas": OMEGAS, **options}
+    with pytest.raises(ValueError, match=re.escape(message)):
+        run_tradeoff(Scenario.from_dict(PLANT), tmp_path / "o", **arguments)
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_threshold_for_a_coordinate_the_scenario_does_not_score_is_refused(tmp_path):
+    """The robot's error_bound scores x and y: five bounds would drop three without a word."""
+    robot = load_builtin("robot_S1")
+    with pytest.raises(ValueError, match=r"one per scored coordinate \(2: x, y\); the other"):
+        run_tradeoff(robot, tmp_path / "o", omegas=[1.0], threshold=[1, 1, 1e-9, 1e-9, 1e-9])
+
+
+def test_a_search_that_misses_the_rule_without_delay_is_not_called_a_lower_bound(tmp_path):
+    from delaytrack.experiments.tradeoff import _evaluated, _search_outcome
+
+    assert _search_outcome(True, None) == "rule missed without delay"
+    assert _search_outcome(False, None) == "not searched"
+    assert set(MARGIN_SEARCHES) >= {"rule missed without delay", "no failure up to the limit"}
+    # no search kept a point: the table still has its columns
+    empty = _evaluated({"arolc": [None]}, (1.0,), ("x",), ("m",), (True,))
+    assert empty.empty and {"omega_n", "controller", "value", "metric_m", "status"} <= set(
+        empty.columns
+    )
+
+
+def test_the_table_counts_every_run_off_the_path_by_reason(study):
+    table = study.table
+    assert (table.on_path + table.stopped + table.over_threshold == table.runs).all()
+    assert (table.stopped >= 0).all() and (table.over_threshold >= 0).all()
+    assert table.margin_search.isin(list(MARGIN_SEARCHES)).all()
+    assert (table.margin_found == (table.margin_search == "failure found")).all()
 
 
 def test_every_metric_column_of_the_evaluated_points_has_its_unit():

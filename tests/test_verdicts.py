@@ -183,3 +183,21 @@ def attribution_of(frame):
         extra.append(frame[frame.controller == source].assign(controller=name))
     table = attribution(pd.concat([frame, *extra], ignore_index=True))
     return table[table.part == "Δu at the tuned gains"].iloc[0]
+
+
+def test_wilson_interval_ends_exactly_at_zero_and_one():
+    """At k = 0 the lower end is 0 and at k = n the upper end is 1 exactly (the formula's
+    c - w and c + w round to 2.8e-17 and 0.9999999999999999 there)."""
+    from delaytrack.experiments.intervals import wilson_interval
+
+    for n in (1, 12, 80, 1001):
+        assert wilson_interval(0, n)[0] == 0.0 and wilson_interval(n, n)[1] == 1.0
+        if n > 1:
+            low, high = wilson_interval(1, n)
+            assert 0.0 < low < high < 1.0
+
+
+@pytest.mark.parametrize("p_values", [[-0.5, 0.2], [0.1, 2.0], [0.1, math.inf]])
+def test_holm_refuses_what_is_not_a_p_value(p_values):
+    with pytest.raises(ValueError, match=r"p_values must be p-values in \[0, 1\]"):
+        holm(p_values)

@@ -96,7 +96,8 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         default="1",
         metavar="VALUE",
         help="largest mean |e1| over the run that counts as on the path, in each scored "
-        "coordinate's unit: one number, or a comma list of one per coordinate (default 1)",
+        "coordinate's unit: one number, or a comma list of one per scored coordinate (those "
+        "the scenario's error_bound bounds; every coordinate when it has none) (default 1)",
     )
     command.add_argument(
         "--upper",
@@ -140,6 +141,10 @@ def add_command(commands: argparse._SubParsersAction) -> None:
     command.set_defaults(handler=run)
 
 
+#: How the printed Pareto front marks a margin that is only a lower bound.
+_LOWER_BOUND = {"no failure up to the limit": "+"}
+
+
 def _omegas(given: list[str] | None) -> list[float] | None:
     """``--omega LO HI N``: N log-spaced values from LO to HI, 0 < LO <= HI, N >= 1."""
     if given is None:
@@ -151,14 +156,14 @@ def _omegas(given: list[str] | None) -> list[float] | None:
     text = " ".join(given)
     valid = (
         f"LO HI N with 0 < LO <= HI (rad/s) and N an integer from 1 to {MAX_OMEGAS} (N = 1 "
-        "needs LO = HI)"
+        "needs LO = HI, N > 1 needs LO < HI)"
     )
     try:
         low, high = decimal(given[0]), decimal(given[1])
         count = integer(given[2])
     except argparse.ArgumentTypeError:
         raise UsageError(f"--omega must be {valid}; got {text!r}") from None
-    if not (0 < low <= high and 1 <= count <= MAX_OMEGAS and (count > 1 or low == high)):
+    if not (0 < low <= high and 1 <= count <= MAX_OMEGAS and (count > 1) == (low < high)):
         raise UsageError(f"--omega must be {valid}; got {text!r}")
     return [float(v) for v in np.geomspace(low, high, count)]
 
@@ -255,7 +260,7 @@ def run(args: argparse.Namespace) -> int:
     for row in front.itertuples():
         print(
             f"  {row.controller:<10} omega_n = {row.omega_n:<8.4g} rad/s  margin = "
-            f"{row.empirical_margin:.4g}{'' if row.margin_found else '+'} s  AE = "
+            f"{row.empirical_margin:.4g}{_LOWER_BOUND.get(row.margin_search, '')} s  AE = "
             f"{row.ae_median:.4g}{ae_unit}"
         )
     if decision is not None:

@@ -51,6 +51,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from delaytrack._deprecated import moved_object
@@ -88,6 +89,9 @@ REQUIRED_SHARE = 0.95
 DECISION_DRAWS = 80
 #: The columns :func:`decide` reads.
 _COLUMNS = ("controller", "omega_n", "k1", "k2", "delay", "told", "runs", "on_path", "ae_median")
+#: The counts of the runs off the path by reason (:func:`~delaytrack.experiments.tradeoff.
+#: on_path_summary`), kept in :attr:`Decision.table` when the table has them.
+_REASONS = ("stopped", "over_threshold")
 #: ``±X%`` as the command line writes it.
 _WITHIN = re.compile(r"(?:±|\+-|\+/-)?\s*([0-9]*\.?[0-9]+)\s*%")
 
@@ -336,17 +340,50 @@ def _choice(row: Any, largest_omega_n: float) -> Choice:
     )
 
 
-def _check_columns(table: pd.DataFrame) -> None:
-    """Refuse a ``table`` that lacks any of the columns :func:`decide` reads."""
+def _check_table(table: pd.DataFrame, required_share: float) -> None:
+    """Refuse a ``table`` :func:`decide` cannot read as its docstring says, and a
+    ``required_share`` outside ``(0, 1)``."""
+    if not (isinstance(required_share, int | float) and 0 < required_share < 1):
+        raise ArgumentError(
+            "required_share",
+            f"must be a share strictly between 0 and 1 (0.95: 95 %); got {required_share!r}",
+        )
+    if not isinstance(table, pd.DataFrame):
+        raise ArgumentError("table", f"must be a pandas DataFrame; got {type(table).__name__}")
     missing = [c for c in _COLUMNS if c not in table.columns]
     if missing:
         raise ArgumentError("table", f"lacks the columns {missing}; needs {list(_COLUMNS)}")
+    if table.empty:
+        raise ArgumentError("table", "has no rows: it needs one per candidate and condition")
+    runs = pd.to_numeric(table.runs, errors="coerce").to_numpy(dtype=float)
+    on_path = pd.to_numeric(table.on_path, errors="coerce").to_numpy(dtype=float)
+    if not (np.all(np.isfinite(runs) & (runs >= 1) & (runs == np.round(runs)))):
+        raise ArgumentError("table", f"runs must be whole numbers >= 1; got {list(table.runs)}")
+    if not np.all((on_path >= 0) & (on_path <= runs) & (on_path == np.round(on_path))):
+        raise ArgumentError(
+            "table", f"on_path must be whole numbers from 0 to runs; got {list(table.on_path)}"
+        )
+    ae = pd.to_numeric(table.ae_median, errors="coerce").to_numpy(dtype=float)
+    stayed = on_path > 0
+    if not (np.all(np.isfinite(ae[stayed]) & (ae[stayed] >= 0)) and np.all(np.isnan(ae[~stayed]))):
+        raise ArgumentError(
+            "table",
+            "ae_median must be a number >= 0 where some run stayed on the path and NaN where "
+            f"none did; got {list(table.ae_median)} for on_path {list(table.on_path)}",
+        )
+    gains = table.groupby(["controller", "omega_n"])[["k1", "k2"]].nunique()
+    if (gains > 1).any(axis=None):
+        raise ArgumentError(
+            "table", "must give each candidate (controller, omega_n) one k1 and one k2"
+        )
 
 
 def _with_shares(table: pd.DataFrame) -> pd.DataFrame:
     """The columns :func:`decide` reads, with the share on the path and its Wilson 95 % bounds
-    (``share_on_path``, ``share_low``, ``share_high``) after ``on_path``."""
-    frame = table.loc[:, list(_COLUMNS)].reset_index(drop=True)
+    (``share_on_path``, ``share_low``, ``share_high``) after ``on_path``, and the counts off the
+    path by reason (:data:`_REASONS`) last, when ``table`` has them."""
+    reasons = [c for c in _REASONS if c in table.columns]
+    frame = table.loc[:, [*_COLUMNS, *reasons]].reset_index(drop=True)
     bounds = [
         wilson_interval(int(k), int(n)) for k, n in zip(frame.on_path, frame.runs, strict=True)
     ]
@@ -375,7 +412,8 @@ def _candidate_rows(
                 "k1": conditions.k1.iloc[0],
                 "k2": conditions.k2.iloc[0],
                 "worst_share_low": float(worst.share_low),
-                "worst_ae": float(conditions.ae_median.max()),
+                # NaN when some condition kept no run on the path: no AE there to compare.
+                "worst_ae": float(conditions.ae_median.max(skipna=False)),
                 "qualifies": qualifies,
                 "status": "qualifies" if qualifies else "excluded",
             }
@@ -477,7 +515,7 @@ def decide(
     ae_unit : str, optional
         The unit of AE, for the texts.
     """
-    _check_columns(table)
+    _check_table(table, required_share)
     needed = draws_needed(required_share)
     frame = _with_shares(table)
     rows, shortfalls = _candidate_rows(frame, required_share, needed)

@@ -26,3 +26,9 @@ FRICTION: dict[str, dict[str, Any]] = {
 }
 #: Every uncertain parameter of the payload robot.
 PAYLOAD_ROBOT: dict[str, dict[str, Any]] = {**PAYLOAD, **FRICTION}
+#: The columns of the studies' run tables that hold these draws, with their units.
+DRAWN_COLUMNS: dict[str, str] = {
+    "plant.seed": "payload_seed",
+    "plant.viscous_friction": "viscous_friction_Nms_per_rad",
+    "plant.coulomb_friction": "coulomb_friction_Nm",
+}

@@ -19,14 +19,18 @@ def wilson_interval(k: int, n: int, z: float = Z95) -> tuple[float, float]:
     """Wilson score interval (95 % by default) of a proportion ``p = k / n``.
 
     ``(c - w, c + w)`` clipped to ``[0, 1]``, with ``c = (p + z²/2n) / (1 + z²/n)`` and
-    ``w = z √(p (1 - p)/n + z²/4n²) / (1 + z²/n)``; ``(nan, nan)`` for ``n = 0``.
+    ``w = z √(p (1 - p)/n + z²/4n²) / (1 + z²/n)``; ``(nan, nan)`` for ``n = 0``. At ``k = 0``
+    the lower end is exactly 0 and at ``k = n`` the upper end exactly 1 (``c = w`` there; in
+    floating point their difference is a rounding error such as 2.8e-17).
     """
     if n == 0:
         return math.nan, math.nan
     p = k / n
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(0.0, centre - half), min(1.0, centre + half)
+    low = 0.0 if k == 0 else max(0.0, centre - half)
+    high = 1.0 if k == n else min(1.0, centre + half)
+    return low, high
 
 
 def median_interval(values: Sequence[float], seed: int = 0) -> tuple[float, float, float]:

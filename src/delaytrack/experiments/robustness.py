@@ -58,7 +58,7 @@ from delaytrack._deprecated import moved_names
 from delaytrack._output import claim_output_folder
 from delaytrack.delays import AbsSineDelay, delay_from_spec
 from delaytrack.experiments import tuning
-from delaytrack.experiments.drawn_robots import FRICTION, PAYLOAD_ROBOT, SEED
+from delaytrack.experiments.drawn_robots import DRAWN_COLUMNS, FRICTION, PAYLOAD_ROBOT, SEED
 from delaytrack.experiments.intervals import wilson_interval
 from delaytrack.experiments.outcomes import delay_reach, outcome_table
 from delaytrack.experiments.pairing import AROLC_GAINS, BASELINE, DELAY_CLASS
@@ -396,9 +396,8 @@ def _runs_frame(sweep: _Sweep, runs: pd.DataFrame) -> pd.DataFrame:
     runs = runs.sort_values("run").reset_index(drop=True)
     frame = pd.DataFrame(sweep.labels).iloc[runs.run // draws].reset_index(drop=True)
     frame["draw"] = (runs.run % draws).to_numpy()
-    frame["payload_seed"] = runs["plant.seed"].to_numpy()
-    frame["viscous_friction_Nms_per_rad"] = runs["plant.viscous_friction"].to_numpy()
-    frame["coulomb_friction_Nm"] = runs["plant.coulomb_friction"].to_numpy()
+    for key, column in DRAWN_COLUMNS.items():
+        frame[column] = runs[key].to_numpy()
     frame["ae_mm"] = (500.0 * (runs.ae_x + runs.ae_y)).to_numpy()
     frame["tv_Nm"] = runs.tv.to_numpy()
     if sweep.name.startswith("actuators"):  # on torque-limited wheels: what they received

@@ -51,7 +51,8 @@ so.
 
 **Pareto front** (accuracy against delay margin): among the rows with an empirical margin and
 at least one run on the path, those no other row beats in both median AE (lower) and empirical
-margin (higher).
+margin (higher). A margin at the search limit is only a lower bound, so no row is known to beat
+it: such a row is on the front.
 
 :func:`run_tradeoff` returns a :class:`TradeoffStudy` holding every number of its report, which
 :func:`~delaytrack.report.tradeoff.write_tradeoff` writes.
@@ -94,6 +95,7 @@ from delaytrack.units import default_names, with_unit
 __all__ = [
     "DEFAULT_POINTS",
     "FAMILIES",
+    "MARGIN_SEARCHES",
     "TradeoffStudy",
     "default_omegas",
     "drawn_runs",
@@ -168,8 +170,10 @@ class TradeoffStudy:
         One row per point and family: ``omega_n`` (rad/s), ``k1``, ``k2``, ``controller``,
         ``h_m``, ``h_exact``, ``empirical_margin`` (s; NaN where not defined),
         ``margin_found`` (False: no failure up to ``upper``, the margin is a lower bound),
-        ``runs``, ``on_path``, ``share_on_path`` with ``share_low``, ``share_high`` (Wilson
-        95 %), ``ae_median``, ``tv_median`` (over the runs on the path; NaN when none) and
+        ``margin_search`` (what the search gave, a key of :data:`MARGIN_SEARCHES`),
+        ``runs``, ``on_path``, ``stopped``, ``over_threshold`` (:func:`on_path_summary`),
+        ``share_on_path`` with ``share_low``, ``share_high`` (Wilson 95 %), ``ae_median``,
+        ``tv_median`` (over the runs on the path; NaN when none) and
         ``pareto`` (on the Pareto front).
     runs : DataFrame
         Every drawn run: ``omega_n``, ``controller``, ``draw``, the drawn values, ``status``,
@@ -231,19 +235,24 @@ class TradeoffStudy:
         return self.table[self.table.pareto].sort_values("empirical_margin")
 
 
-def pareto_front(ae: Sequence[float], margin: Sequence[float]) -> np.ndarray:
+def pareto_front(
+    ae: Sequence[float], margin: Sequence[float], exact: Sequence[bool] | None = None
+) -> np.ndarray:
     """Which points are non-dominated when AE is minimised and the margin maximised.
 
     Point ``i`` is dominated when some ``j`` has ``ae_j <= ae_i`` and ``margin_j >= margin_i``
-    with one of them strict. Points with a NaN are never on the front.
+    with one of them strict. Points with a NaN are never on the front. ``exact[i]`` False marks
+    a margin that is only a lower bound (no failure up to the search limit): its true margin
+    may exceed any other's, so such a point is never dominated (all True by default).
     """
     errors, margins = np.asarray(ae, dtype=float), np.asarray(margin, dtype=float)
+    known = np.ones(len(errors), dtype=bool) if exact is None else np.asarray(exact, dtype=bool)
     valid = np.isfinite(errors) & np.isfinite(margins)
     front = np.zeros(len(errors), dtype=bool)
     for i in np.flatnonzero(valid):
         no_worse = valid & (errors <= errors[i]) & (margins >= margins[i])
         better = (errors < errors[i]) | (margins > margins[i])
-        front[i] = not np.any(no_worse & better)
+        front[i] = not (known[i] and np.any(no_worse & better))
     return front
 
 
@@ -355,6 +364,13 @@ def _checked(
     values = tuple(float(v) for v in array)
     if not values or not all(math.isfinite(v) and v > 0 for v in values):
         raise ArgumentError("omegas", f"must be natural frequencies > 0 (rad/s); got {values}")
+    repeated = sorted({v for v in values if values.count(v) > 1})
+    if repeated:
+        raise ArgumentError(
+            "omegas",
+            "must be distinct natural frequencies (a point's runs would be counted once for "
+            f"each copy); got {', '.join(f'{v:g}' for v in repeated)} more than once",
+        )
     for omega in values:  # K1 = ω² and K2 = 2ζω must be numbers a gain can be
         k1, k2 = family_gains(omega, zeta)
         if not all(1.0 / _LARGEST_GAIN < gain < _LARGEST_GAIN for gain in (k1, k2)):
@@ -424,6 +440,9 @@ def run_tradeoff(
     """
     start = time.perf_counter()
     zeta, omegas = _checked(zeta, omegas, draws, scenario)
+    beta = positive_scalar("beta", beta)
+    if not (isinstance(r, (int, float)) and math.isfinite(r) and r > 1):
+        raise ArgumentError("r", f"must be a number > 1 (Theorem 1's Razumikhin factor); got {r!r}")
     built = scenario.build()
     plant = built.plant
     names = default_names(plant.coordinate_names, plant.n)
@@ -489,16 +508,25 @@ def _rule(
     names: tuple[str, ...],
     scored: tuple[bool, ...],
 ) -> tuple[float, ...]:
-    """The bound of each coordinate's mean ``|e1|``: ``threshold`` (checked) where the
-    coordinate is scored, :data:`_UNSCORED` elsewhere."""
-    bounds = np.broadcast_to(np.asarray(threshold, dtype=float), (plant.n,))
-    if not np.all(np.isfinite(bounds) & (bounds > 0)) or np.ndim(threshold) > 1:
-        raise ArgumentError(
-            "threshold",
-            f"must be a number > 0 or one per coordinate ({plant.n}: {', '.join(names)}); got "
-            f"{threshold!r}",
+    """The bound of each coordinate's mean ``|e1|``: ``threshold`` (checked: one number, or one
+    per scored coordinate, in their order) where the coordinate is scored, :data:`_UNSCORED`
+    elsewhere."""
+    given = np.asarray(threshold, dtype=float)
+    scored_names = [name for name, s in zip(names, scored, strict=True) if s]
+    valid = (
+        f"a number > 0 or one per scored coordinate ({len(scored_names)}: "
+        f"{', '.join(scored_names)})"
+    )
+    if len(scored_names) < plant.n:
+        valid += (
+            "; the other coordinates are not scored (the scenario's error_bound bounds only these)"
         )
-    return tuple(float(b) if s else _UNSCORED for b, s in zip(bounds, scored, strict=True))
+    if given.ndim > 1 or (given.ndim == 1 and given.size not in (1, len(scored_names))):
+        raise ArgumentError("threshold", f"must be {valid}; got {threshold!r}")
+    if not np.all(np.isfinite(given) & (given > 0)):
+        raise ArgumentError("threshold", f"must be {valid}; got {threshold!r}")
+    bounds = iter(np.broadcast_to(given.ravel(), (len(scored_names),)))
+    return tuple(float(next(bounds)) if s else _UNSCORED for s in scored)
 
 
 def _family_margins(
@@ -575,12 +603,32 @@ def _table(
                     "h_exact": exact[i] if family in ("arolc", "outer-loop") else math.nan,
                     "empirical_margin": math.nan if found is None else found.margin,
                     "margin_found": found is not None and found.failure_found,
+                    "margin_search": _search_outcome(family in margins, found),
                     **on_path_summary(mine),
                 }
             )
     table = pd.DataFrame(rows)
-    table["pareto"] = pareto_front(table.ae_median, table.empirical_margin)
+    table["pareto"] = pareto_front(table.ae_median, table.empirical_margin, table.margin_found)
     return table
+
+
+#: What a point's margin search gave (:attr:`TradeoffStudy.table`'s ``margin_search``).
+MARGIN_SEARCHES = {
+    "failure found": "the margin is the largest delay that kept the rule",
+    "no failure up to the limit": "the margin is a lower bound: the search limit",
+    "rule missed without delay": "no margin: the closed loop misses the rule already at zero delay",
+    "not searched": "no margin is defined for this controller",
+}
+
+
+def _search_outcome(searched: bool, found: EmpiricalMargin | None) -> str:
+    """The key of :data:`MARGIN_SEARCHES` for a point's search (``searched``: its family is
+    searched; ``found``: its result, None when the rule was missed at zero delay)."""
+    if not searched:
+        return "not searched"
+    if found is None:
+        return "rule missed without delay"
+    return "failure found" if found.failure_found else "no failure up to the limit"
 
 
 def _say(progress: bool, text: str) -> None:
@@ -672,14 +720,19 @@ def drawn_runs(
 
 def on_path_summary(runs: pd.DataFrame) -> dict[str, Any]:
     """The drawn runs of one point (:func:`drawn_runs`' rows): ``runs``, ``on_path`` (of them
-    on the path), ``share_on_path`` ``= on_path / runs`` with its Wilson 95 % interval
-    ``share_low``, ``share_high``, and the median ``ae`` and ``tv`` of the runs on the path
-    (``ae_median``, ``tv_median``; NaN when none)."""
+    on the path), the others by reason, ``stopped`` (the run did not end ok: it diverged or
+    exceeded the scenario's ``error_bound``) and ``over_threshold`` (ended ok, a scored
+    coordinate's mean ``|e1|`` above its bound), ``share_on_path`` ``= on_path / runs`` with
+    its Wilson 95 % interval ``share_low``, ``share_high``, and the median ``ae`` and ``tv`` of
+    the runs on the path (``ae_median``, ``tv_median``; NaN when none)."""
     kept = runs[runs.on_path]
+    stopped = int((runs.status != "ok").sum())
     low, high = wilson_interval(len(kept), len(runs))
     return {
         "runs": len(runs),
         "on_path": len(kept),
+        "stopped": stopped,
+        "over_threshold": len(runs) - len(kept) - stopped,
         "share_on_path": len(kept) / len(runs),
         "share_low": low,
         "share_high": high,
@@ -722,4 +775,9 @@ def _evaluated(
             frame.insert(0, "controller", family)
             frame.insert(0, "omega_n", omega)
             frames.append(frame)
-    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+    if frames:
+        return pd.concat(frames, ignore_index=True)
+    # No search kept a point (each missed the rule without delay): the columns, no rows.
+    metrics = [combined] if comparable else []
+    columns = ["omega_n", "controller", "value", *metrics, *per_coordinate.values()]
+    return pd.DataFrame(columns=[*columns, "status", "passes"])

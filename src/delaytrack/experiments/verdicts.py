@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from delaytrack._validation import ArgumentError
 from delaytrack.experiments.intervals import median_interval, wilson_interval
 from delaytrack.experiments.pairing import BASELINE
 
@@ -189,9 +190,14 @@ def holm(p_values: Sequence[float] | np.ndarray) -> np.ndarray:
     With the ``m`` finite p-values sorted, ``p_(1) ≤ … ≤ p_(m)``, the adjusted
     ``p̃_(i) = max_{j ≤ i} min(1, (m − j + 1) p_(j))``; rejecting where ``p̃ ≤ α`` keeps the
     probability of any false rejection in the family at most ``α``. NaN (no test) stays NaN and
-    is not counted in ``m``.
+    is not counted in ``m``; a p-value outside ``[0, 1]`` is refused.
     """
     p = np.asarray(p_values, dtype=float)
+    outside = p[~np.isnan(p) & ~((p >= 0) & (p <= 1))]
+    if outside.size:
+        raise ArgumentError(
+            "p_values", f"must be p-values in [0, 1] (NaN: no test); got {outside.tolist()}"
+        )
     adjusted = np.full(p.shape, np.nan)
     tested = np.flatnonzero(np.isfinite(p))
     order = tested[np.argsort(p[tested], kind="stable")]

@@ -13,16 +13,21 @@ from delaytrack.units import with_unit
 if TYPE_CHECKING:
     import pandas as pd
 
-    from delaytrack.experiments.decision import Decision, Envelope, Shortfall
+    from delaytrack.experiments.decision import Choice, Decision, Envelope, Shortfall
 
 __all__ = [
     "candidates_table",
     "conditions_text",
     "decision_columns",
     "decision_table",
+    "edge_text",
+    "gains_text",
     "refusal_text",
     "shortfall_text",
 ]
+
+#: The predictors, whose gains are ``κ`` and ``k_b``, not ``K1`` and ``K2``.
+_PREDICTORS = ("pcon", "pconf")
 
 
 def decision_columns(ae_unit: str | None) -> dict[str, str]:
@@ -38,6 +43,29 @@ def decision_columns(ae_unit: str | None) -> dict[str, str]:
         "ae_median": with_unit("ae_median", ae_unit),
         "worst_ae": with_unit("worst_ae", ae_unit),
     }
+
+
+def gains_text(choice: Choice, digits: int = 4) -> str:
+    """The gains an engineer sets for a chosen candidate: ``K1 = k1 I, K2 = k2 I`` for AROLC and
+    the outer loop; for a predictor, whose delay-free nominal loop is the same, ``κ = K1/K2`` and
+    ``k_b = K2 M̂(q0)`` (``M̂(q0)`` the nominal mass matrix at the initial pose)."""
+    if choice.controller in _PREDICTORS:
+        return (
+            f"κ = {choice.k1 / choice.k2:.{digits}g}, k_b = {choice.k2:.{digits}g} M̂(q0), "
+            "M̂(q0) the nominal mass matrix at the initial pose"
+        )
+    return f"K1 = {choice.k1:.{digits}g} I, K2 = {choice.k2:.{digits}g} I"
+
+
+def edge_text(choice: Choice) -> str:
+    """A note when a chosen candidate's ``ω_n`` is the largest of the sweep ("" otherwise):
+    larger gains were not tried, so a more accurate candidate may lie beyond it."""
+    if not choice.at_largest_omega_n:
+        return ""
+    return (
+        " (the largest ω_n of the sweep: larger gains were not tried and may be more accurate "
+        "still)"
+    )
 
 
 def conditions_text(envelope: Envelope, predictor: str) -> str:
@@ -59,7 +87,10 @@ def shortfall_text(shortfall: Shortfall, decision: Decision) -> str:
         f"delay {shortfall.delay:g} s{told} ({shortfall.on_path} of {shortfall.runs} on the path)"
     )
     if shortfall.too_few_draws:
-        text += f"; {shortfall.runs} draws cannot reach it (at least {decision.draws_needed})"
+        text += (
+            f"; {counted(shortfall.runs, 'draw')} cannot reach it (at least "
+            f"{decision.draws_needed})"
+        )
     return text
 
 

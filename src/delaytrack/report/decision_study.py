@@ -20,6 +20,8 @@ from delaytrack.report.decision import (
     conditions_text,
     decision_columns,
     decision_table,
+    edge_text,
+    gains_text,
     refusal_text,
 )
 from delaytrack.report.html import HtmlReport
@@ -47,8 +49,7 @@ def _envelope_name(case: str, decision: Decision) -> str:
 
 def _choice(choice: Choice) -> str:
     return (
-        f"{_named(choice.controller)} at ω_n = {choice.omega_n:.3g} rad/s (K1 = {choice.k1:.3g} I, "
-        f"K2 = {choice.k2:.3g} I)"
+        f"{_named(choice.controller)} at ω_n = {choice.omega_n:.3g} rad/s ({gains_text(choice, 3)})"
     )
 
 
@@ -61,11 +62,7 @@ def decision_sentence(case: str, decision: Decision) -> str:
     winner, second = decision.winner, decision.runner_up
     if winner is None:
         return f"{name}: no recommendation, {refusal_text(decision)}."
-    edge = (
-        " (the largest ω_n of the sweep: larger gains were not tried)"
-        if winner.at_largest_omega_n
-        else ""
-    )
+    edge = edge_text(winner)
     sentence = (
         f"{name}: use {_choice(winner)}{edge}; its worst-case AE is {winner.worst_ae:.3g}{unit} "
         f"and at least {100 * winner.worst_share_low:.1f} % of drawn robots stay on the path in "

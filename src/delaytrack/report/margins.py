@@ -94,7 +94,11 @@ def _report(study: MarginStudy, figure: Figure) -> HtmlReport:
             "version": f"delaytrack {__version__}; wall time {study.seconds:.1f} s",
         }
     )
-    report.table(study.table, caption="Margins in seconds (NaN: no failure up to the upper limit).")
+    report.table(
+        margins_with_units(study.table),
+        caption="Margins in seconds (NaN: no failure up to the upper limit); the columns as "
+        "margins.csv holds them.",
+    )
     report.figure(figure, "Margins per gain pair, log scale.")
     gap = study.gap
     report.heading("What the gap means")
@@ -110,8 +114,14 @@ def _report(study: MarginStudy, figure: Figure) -> HtmlReport:
             "above h_m. Nothing follows from a delay above h_m.",
             f"The outer loop's empirical constant-delay margin is within {study.close_percent:g} "
             f"% of h_exact in {gap.close_to_exact} of {gap.pairs} gain pairs (nominal dynamics "
-            f"up to the model error and the arm's nonlinearity). It is lower in "
-            f"{gap.below_exact}; there the first failing run ended without divergence in "
+            f"up to the model error and the arm's nonlinearity); higher in {gap.above_exact}"
+            + (
+                f"; no failure up to the search limit in {gap.outer_unbounded}"
+                if gap.outer_unbounded
+                else ""
+            )
+            + f". It is lower in {gap.below_exact}; there the first failing run ended without "
+            "divergence in "
             f"{gap.ended_on_path}"
             + (
                 f", with mean |e1| = {gap.largest_ended_error:.3g} rad at most"

@@ -14,11 +14,15 @@ from matplotlib.figure import Figure
 from delaytrack._io import write_frame
 from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack._version import __version__
+from delaytrack.experiments.drawn_robots import DRAWN_COLUMNS
+from delaytrack.experiments.tradeoff import MARGIN_SEARCHES
 from delaytrack.report.decision import (
     candidates_table,
     conditions_text,
     decision_columns,
     decision_table,
+    edge_text,
+    gains_text,
     refusal_text,
 )
 from delaytrack.report.figures import save_figure
@@ -55,14 +59,26 @@ def _columns(study: TradeoffStudy) -> dict[str, str]:
 
 
 def pareto_figure(study: TradeoffStudy) -> Figure:
-    """Median AE against the empirical constant-delay margin, one marker per point and family,
-    the Pareto front joined by a line."""
+    """Median AE against the empirical constant-delay margin, one marker per point and family
+    (an open triangle where the margin is only a lower bound: no failure up to the search
+    limit), the Pareto front joined by a line."""
     figure = Figure(figsize=(7.5, 4.5), dpi=120, layout="constrained")
     ax = figure.add_subplot()
     table = study.table
     for family in study.families:
         rows = table[table.controller == family]
-        ax.plot(rows.empirical_margin, rows.ae_median, "o", label=_NAMES[family], alpha=0.8)
+        exact = rows[rows.margin_found]
+        bounded = rows[rows.margin_search == "no failure up to the limit"]
+        if exact.empty and bounded.empty:
+            continue  # no margin to place (PCONf; or every search missed the rule at zero)
+        (marker,) = ax.plot(exact.empirical_margin, exact.ae_median, "o", alpha=0.8)
+        ax.plot(
+            bounded.empirical_margin, bounded.ae_median, ">", mfc="none", alpha=0.8,
+            color=marker.get_color(),
+        )  # fmt: skip
+        marker.set_label(_NAMES[family])
+    if (table.margin_search == "no failure up to the limit").any():
+        ax.plot([], [], ">", mfc="none", color="grey", label="no failure up to the search limit")
     front = study.front
     ax.plot(front.empirical_margin, front.ae_median, "k--", lw=1, label="Pareto front")
     ax.set_yscale("log")
@@ -76,9 +92,9 @@ def pareto_figure(study: TradeoffStudy) -> Figure:
 
 def _choice_text(choice: Choice, unit: str) -> str:
     return (
-        f"{_NAMES[choice.controller]} at omega_n = {choice.omega_n:.4g} rad/s (K1 = "
-        f"{choice.k1:.4g} I, K2 = {choice.k2:.4g} I): worst-case AE {choice.worst_ae:.4g}{unit}, "
-        f"worst Wilson lower bound {choice.worst_share_low:.3f}"
+        f"{_NAMES[choice.controller]} at omega_n = {choice.omega_n:.4g} rad/s "
+        f"({gains_text(choice)}){edge_text(choice)}: worst-case AE "
+        f"{choice.worst_ae:.4g}{unit}, worst Wilson lower bound {choice.worst_share_low:.3f}"
     )
 
 
@@ -115,6 +131,7 @@ def write_tradeoff(
     files = [write_frame(study.table.rename(columns=columns), folder / "tradeoff.csv")]
     runs = study.runs.rename(
         columns={
+            **DRAWN_COLUMNS,
             "omega_n": columns["omega_n"],
             "ae": with_unit("ae", study.ae_unit),
             "tv": with_unit("tv", study.tv_unit),
@@ -130,6 +147,7 @@ def write_tradeoff(
         )
         drawn = decision.runs.rename(
             columns={
+                **DRAWN_COLUMNS,
                 **named,
                 "ae": with_unit("ae", study.ae_unit),
                 "tv": with_unit("tv", study.tv_unit),
@@ -220,14 +238,19 @@ def _report(study: TradeoffStudy, figure: Figure, decision: Decision | None) -> 
     )
     report.table(
         study.table.rename(columns=_columns(study)),
-        caption="One row per point and controller. Margins in s (NaN: not defined for that "
-        "controller; margin_found False: no failure up to the search limit, a lower bound). "
+        caption="One row per point and controller. Margins in s; margin_search says what "
+        "the empirical margin is: "
+        + "; ".join(f"{key}: {meaning}" for key, meaning in MARGIN_SEARCHES.items())
+        + ". Runs off the path by reason: stopped (diverged or beyond the scenario's "
+        "error_bound) and over_threshold (ended ok, mean |e1| above the threshold). "
         "share_low/high: Wilson 95 % interval.",
     )
     report.figure(
         figure,
         "Median AE against the empirical margin; the dashed line joins the "
-        "Pareto front (no other point is both more accurate and more delay-tolerant).",
+        "Pareto front (no other point is known to be both more accurate and more "
+        "delay-tolerant; a margin at the search limit is a lower bound, so such a point is on "
+        "the front).",
     )
     report.heading("Pareto front")
     report.table(study.front.rename(columns=_columns(study)))

@@ -482,3 +482,13 @@ def test_simulate_says_nothing_of_h_m_for_a_controller_without_one(tmp_path, cap
     assert main(["simulate", str(tmp_path / "outer.toml"), "--out", str(tmp_path / "o")]) == 0
     captured = capsys.readouterr()
     assert "h_m" not in captured.out and "warning" not in captured.err
+
+
+def test_live_replay_of_a_folder_that_is_not_there_says_so(tmp_path, capsys):
+    assert main(["live", "replay", str(tmp_path / "nowhere")]) == 2
+    err = capsys.readouterr().err
+    folder = tmp_path / "nowhere"
+    assert err == f"error: {folder} does not exist: give the folder of a live session\n"
+    (tmp_path / "file").write_text("")
+    assert main(["live", "replay", str(tmp_path / "file")]) == 2
+    assert "is not a folder" in capsys.readouterr().err

@@ -418,3 +418,22 @@ def test_a_kernel_that_draws_random_numbers_is_refused(kernel, source):
         rf"your kernel test_hostile_kernels:{name} draws random numbers: it reads {source}", text
     )
     assert "seeded generator" in text and "parameter vector" in text and "\n" not in text
+
+
+@numba.njit
+def noisy_terms(t, q, qdot, params, M, N, G):
+    M[0, 0] = 1.0
+    N[0] = np.random.randn()  # noqa: NPY002 - the fault under test
+    G[0, 0] = 1.0
+
+
+def test_a_plant_kernel_that_draws_random_numbers_is_refused_as_such_when_made():
+    """Not as one that "does not write N[0]": it writes it, with another number at each call,
+    which the check of unwritten entries (two calls compared) would report."""
+    with pytest.raises(ValueError) as refusal:
+        dt.CompiledPlant(1, 1, noisy_terms, [0.0])
+    assert re.match(
+        r"your kernel test_hostile_kernels:noisy_terms draws random numbers: it reads "
+        r"numpy.random",
+        str(refusal.value),
+    )

@@ -216,7 +216,7 @@ def test_a_link_inside_the_folder_to_a_file_outside_is_refused(tmp_path, capsys)
     assert not marker.exists()
 
 
-def test_a_file_elsewhere_runs_when_its_folder_or_itself_is_trusted(tmp_path, capsys):
+def test_a_file_elsewhere_runs_when_its_folder_or_itself_is_trusted(tmp_path, capsys, monkeypatch):
     lab = tmp_path / "lab"
     lab.mkdir()
     (lab / "arm_elsewhere.py").write_text(ARM_FACTORY)
@@ -229,6 +229,10 @@ def test_a_file_elsewhere_runs_when_its_folder_or_itself_is_trusted(tmp_path, ca
     (lab / "other.py").write_text("")
     with pytest.raises(ScenarioError, match="nor trusted"):  # another file of that folder
         Scenario.from_toml(path, trust=[str(lab / "other.py")])
+    # "lab" without a '/' is a module name; meant for the folder here, the message says so
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ScenarioError, match=re.escape("--trust lab was read as a module name")):
+        Scenario.from_toml(path, trust=["lab"])
     out = tmp_path / "out"
     assert main(["simulate", str(path), "--out", str(out), "--trust", str(lab), "--quiet"]) == 0
     capsys.readouterr()

@@ -5,6 +5,10 @@ what a reader runs: the Markdown cells as they are, each code cell as a Python c
 link to download the notebook. The page is made from the notebook at every build, so it cannot
 drift from it; nothing is executed and nothing is loaded from the network.
 
+The Markdown pages link the notebook itself, ``tutorial.ipynb``, so that the link works where
+the sources are read (a clone, a repository's web view); on the site such a link leads to the
+page instead (:func:`on_page_markdown`), and only the page's own download link to the notebook.
+
 It is loaded by ``mkdocs.yml`` (``hooks``) and changes nothing in the package itself.
 """
 
@@ -59,3 +63,11 @@ def on_files(files: Files, *, config: Any) -> Files:
     content = notebook_markdown(notebook.content_string, NOTEBOOK)
     files.append(File.generated(config, PAGE, content=content))
     return files
+
+
+def on_page_markdown(markdown: str, *, page: Any, config: Any, files: Files) -> str:
+    """On the site, a page's link to the notebook leads to the page made from it (the
+    notebook's own page keeps its download link)."""
+    if page.file.src_uri == PAGE:
+        return markdown
+    return markdown.replace(f"]({NOTEBOOK})", f"]({PAGE})").replace(f"]({NOTEBOOK}#", f"]({PAGE}#")

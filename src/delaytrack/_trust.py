@@ -205,10 +205,23 @@ def check_factory(key: str, kind: str, location: str, source: Path, trust: Trust
             f"scenario key {key!r} = {kind!r} names {path}, which is below {folder} (the "
             f"folder of {source.name}) but {reason}, and is not trusted: {_WHY}; if you trust "
             f"that file, pass --trust {shlex.quote(str(path))} (in Python: trust=[{str(path)!r}])"
+            + _read_as_modules(trust)
         )
     raise SpecError(
         f"scenario key {key!r} = {kind!r} names {path}, which is neither in {folder} (the "
         f"folder of {source.name}) nor below it, nor trusted: {_WHY}; if you trust the code in "
         f"{path.parent}, pass --trust {shlex.quote(str(path.parent))} (in Python: "
-        f"trust=[{str(path.parent)!r}])"
+        f"trust=[{str(path.parent)!r}])" + _read_as_modules(trust)
+    )
+
+
+def _read_as_modules(trust: Trust) -> str:
+    """A note for the trusted names read as module names that are also folders here (``--trust
+    robots`` meant for the folder ``./robots``): "" when there is none."""
+    folders = [name for name in trust.modules if Path(name).is_dir()]
+    if not folders:
+        return ""
+    return "".join(
+        f"; --trust {name} was read as a module name (a folder needs a '/': ./{name})"
+        for name in folders
     )

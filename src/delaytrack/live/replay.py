@@ -328,6 +328,10 @@ def replay_main(args: Any) -> int:
     from delaytrack.scenario import ScenarioError
 
     folder = Path(args.folder)
+    if not folder.is_dir():
+        what = "is not a folder" if folder.exists() else "does not exist"
+        print(f"error: {folder} {what}: give the folder of a live session", file=sys.stderr)
+        return 2
     if not (folder / "summary.json").is_file():
         print(
             f"error: {folder} is not a live session folder (no summary.json; write one with "

@@ -9,6 +9,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from delaytrack._compile.functions import is_compiled
+from delaytrack._compile.guards import refuse_random_draws
 from delaytrack._result_columns import trajectory_columns
 from delaytrack._validation import (
     as_spd_matrix,
@@ -113,6 +114,9 @@ class CompiledPlant(ELPlant):
         parameters = finite_array("parameters", self.parameters, ndim=1)
         object.__setattr__(self, "parameters", np.ascontiguousarray(parameters))
         self._check_reads()
+        # before the entries' check: a kernel that draws random numbers writes other entries
+        # at each call, which that check would report as entries it does not write
+        refuse_random_draws(self.engine_kernel)
         self._check_every_entry_written()
         mass, nonlinear, input_map = self.terms(np.zeros(self.n), np.zeros(self.n))
         for label, value in (("M", mass), ("N", nonlinear), ("G", input_map)):

@@ -60,13 +60,19 @@ def input_limits_phrase(value: object) -> str | None:
 _NOISE_KEYS = ("quantization", "position", "velocity", "seed")
 
 
+def _without_value(error: Exception) -> str:
+    """``error``'s message without its closing ``; got ...``: the key's message gives the whole
+    table after it."""
+    return str(error).rpartition("; got ")[0] or str(error)
+
+
 def measurement_noise_phrase(value: object) -> str | None:
     """Check ``measurement_noise``: a table of :class:`MeasurementNoise`'s keys."""
     if isinstance(value, dict) and set(value) <= set(_NOISE_KEYS):
         try:
             MeasurementNoise(**value)
         except (TypeError, ValueError) as error:
-            return f"is refused: {error}"
+            return f"is refused: {_without_value(error)}"
         return None
     return f"must be a table with keys among {list(_NOISE_KEYS)}"
 
@@ -77,7 +83,7 @@ def packet_loss_phrase(value: object) -> str | None:
         try:
             PacketLoss(**value)
         except (TypeError, ValueError) as error:
-            return f"is refused: {error}"
+            return f"is refused: {_without_value(error)}"
         return None
     return "must be a table with keys among ['probability', 'seed']"
 

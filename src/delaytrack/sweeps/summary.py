@@ -12,7 +12,9 @@ Rows of the runs table (:func:`delaytrack.sweeps.run_unit`) are grouped by
   ms``), then the values of swept ``delay.*`` keys (``abs-sine, h_max 100 ms (frequency=2)``;
   whole ``delay`` tables of one family and bound are told apart as ``#1``, ``#2``). When a
   delay key is drawn from a continuous distribution, the class is the family and the band its
-  bound falls in (``random, h_max 100-150 ms``; bands at :data:`DELAY_BAND_EDGES`).
+  bound falls in (``random, h_max 100-150 ms``; bands at :data:`DELAY_BAND_EDGES`). A delay of
+  the user's is named by its factory's function, as a controller is (``make_congested_link,
+  h_max 120 ms``).
 
 Per group: ``runs``; ``diverged`` and ``divergence_rate`` (status ``diverged``: the state left
 the engine's bound or became non-finite, or ``left the path``: a tracking error passed the
@@ -99,7 +101,8 @@ def delay_classes(runs: pd.DataFrame, keys: Sequence[str] | None = None) -> pd.S
     some delay key was drawn continuously, and classes are bands of ``h_max``
     (:data:`DELAY_BAND_EDGES`, upper edge in).
     """
-    kinds = list(runs["delay_type"])
+    # a delay of the user's by its factory's name, as a controller's (not its file's path)
+    kinds = [kind.rpartition(":")[2] for kind in runs["delay_type"]]
     if keys is None:
         classes = [f"{kind}, {_band(h)}" for kind, h in zip(kinds, runs["h_max"], strict=True)]
         return pd.Series(classes, index=runs.index, name="delay_class")

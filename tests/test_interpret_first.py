@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 import time
@@ -207,6 +208,9 @@ def test_a_run_that_outlasts_the_compile_is_abandoned_and_compiled(
     result = _run(truth, controller, t1=2.0)
     err = capsys.readouterr().err
     assert "running it as plain Python" in err and "delaytrack: compiling" in err
+    # the compile shows its progress: each part as it is done (here, or by the helper)
+    done = re.findall(r"^delaytrack: compiled (.+) \(\d+\.\d s into the compile\)$", err, re.M)
+    assert done, err
     assert result.settings["compiled"] is True
     (spent,) = interpret_first._SPENT.values()
     assert spent.seconds >= 0.05 and spent.pace == 1e-9  # the abandoned run sets no pace

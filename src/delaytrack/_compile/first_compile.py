@@ -15,7 +15,13 @@ import sys
 from collections.abc import Callable, Iterator
 from typing import Any
 
-__all__ = ["after_first_compile", "announce_compile", "code_is_ready", "code_ready"]
+__all__ = [
+    "after_first_compile",
+    "announce_compile",
+    "announce_compiled",
+    "code_is_ready",
+    "code_ready",
+]
 
 
 #: Keys of the signatures found ready in this process (typing the engine's arguments again costs
@@ -45,15 +51,32 @@ def code_ready(dispatcher: Any, key: object, signature: tuple | Callable[[], tup
         return False
 
 
+def _listed(parts: list[str]) -> str:
+    """``a``, ``a and b``, ``a, b and c``."""
+    return parts[0] if len(parts) == 1 else f"{', '.join(parts[:-1])} and {parts[-1]}"
+
+
 def announce_compile(parts: list[str], helped: bool = False) -> None:
     """One line on standard error before a first compile of ``parts`` (what is compiled, such as
     ``"the engine"`` or ``"AROLC's step on NominalRobot"``); ``helped``: a helper process
     compiles some of them (:mod:`delaytrack._compile.helper_process`)."""
-    listed = parts[0] if len(parts) == 1 else f"{', '.join(parts[:-1])} and {parts[-1]}"
+    listed = _listed(parts)
     where = " in two processes" if helped else ""
     print(
         f"delaytrack: compiling {listed} (once{where}; from seconds to a minute, then kept on "
         "disk)",
+        file=sys.stderr,
+        flush=True,
+    )
+
+
+def announce_compiled(parts: list[str], seconds: float, helped: bool = False) -> None:
+    """One line on standard error as a first compile of :func:`announce_compile` goes on: which
+    ``parts`` are compiled (``helped``: by the helper process), ``seconds`` after it began."""
+    listed = _listed(parts)
+    where = " by the helper process" if helped else ""
+    print(
+        f"delaytrack: compiled {listed}{where} ({seconds:.1f} s into the compile)",
         file=sys.stderr,
         flush=True,
     )

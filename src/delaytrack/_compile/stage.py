@@ -4,11 +4,17 @@ parts, shared with a helper process when there are two or more (its first run on
 from __future__ import annotations
 
 import functools
+import time
 from collections.abc import Callable
 from typing import Any
 
 from delaytrack._compile.ahead import parts_ahead
-from delaytrack._compile.first_compile import announce_compile, code_is_ready, code_ready
+from delaytrack._compile.first_compile import (
+    announce_compile,
+    announce_compiled,
+    code_is_ready,
+    code_ready,
+)
 from delaytrack._compile.guards import refuse_changed_globals
 from delaytrack._compile.helper_ahead import take as take_ahead
 from delaytrack._compile.helper_process import CompileJob, order_here
@@ -154,15 +160,22 @@ def compile_engine(build: Build, first_chunk: Callable[[Kernels], tuple]) -> Ker
         helper, handed = start_helper(jobs, take_ahead)
         if waiting:
             announce_compile([name for name, _, _ in waiting], helped=helper is not None)
+        start = time.perf_counter()
         # Each job the helper has not claimed (the engine included; those it cannot take
         # first), then the helper's (loaded from the cache it wrote, or compiled here if it did
         # not deliver).
+        here = set()
         for position in order_here(jobs, handed):
             if helper is None or helper.claim(position):
                 compiling, make = waiting[position][0], waiting[position][2]
                 make()
+                here.add(position)
+                announce_compiled([compiling], time.perf_counter() - start)
         if helper is not None:
-            helper.wait()
+            delivered = helper.wait()  # else what it left is compiled here, below
+            helped = [name for i, (name, _, _) in enumerate(waiting) if i not in here]
+            if delivered and helped:
+                announce_compiled(helped, time.perf_counter() - start, helped=True)
         for name, _, make in waiting:
             compiling = name
             make()

@@ -286,3 +286,17 @@ def test_a_chosen_predictor_is_given_with_its_own_gains():
     )
     arolc = Choice("arolc", 4.0, 16.0, 8.0, 0.01, 0.96, at_largest_omega_n=False)
     assert gains_text(arolc) == "K1 = 16 I, K2 = 8 I"
+
+
+def test_a_winner_that_tracked_without_error_has_no_ratio_to_the_runner_up():
+    """Worst-case AE 0 (to the digits kept): the difference is given, no "inf times"."""
+    from delaytrack.report.tradeoff import decision_lines
+
+    table = _table(80, 0)
+    table.loc[table.controller == "pconf", "ae_median"] = math.nan  # none on the path
+    table.loc[(table.controller == "arolc") & (table.omega_n == 2.0), "ae_median"] = 0.0
+    decision = decide(table, ENVELOPE, ae_unit="m")
+    assert decision.winner.worst_ae == 0.0 and math.isnan(decision.ae_ratio)
+    assert decision.ae_difference == pytest.approx(0.015)
+    text = "\n".join(decision_lines(decision))
+    assert "wins by 0.015 m of worst-case AE" in text and "times" not in text

@@ -208,6 +208,23 @@ def test_a_second_sweep_on_the_same_folder_is_refused(reference, tmp_path):
             write_sweep_outputs(reference)
 
 
+def test_a_factory_is_named_by_its_function_unless_another_type_has_that_name():
+    """A delay of the user's is shown by its factory's name; two files' ``make_link`` (or a
+    factory named like a built-in type) keep their full types, so their runs are not pooled."""
+    kinds = ["python:/a/link.py:make_link", "python:/b/link.py:make_link", "python:/c.py:jam"]
+    runs = pd.DataFrame({"delay_type": [*kinds, "constant", "python:/d.py:constant"]})
+    runs["h_max"] = 0.06
+    assert list(delay_classes(runs)) == [
+        "python:/a/link.py:make_link, h_max 50-100 ms",
+        "python:/b/link.py:make_link, h_max 50-100 ms",
+        "jam, h_max 50-100 ms",
+        "constant, h_max 50-100 ms",
+        "python:/d.py:constant, h_max 50-100 ms",
+    ]
+    controllers = pd.DataFrame({"controller_type": ["arolc", "python:/a.py:pd", "python:/b.py:pd"]})
+    assert list(controller_labels(controllers)) == ["arolc", "python:/a.py:pd", "python:/b.py:pd"]
+
+
 def test_delays_taken_from_lists_are_classes_of_their_own():
     """Grid delays of one family whose bounds share a band are not merged (they were: 0 and
     50 ms both fell in "h_max 0-50 ms"); whole tables alike in family and bound are numbered."""

@@ -85,6 +85,23 @@ def test_pareto_front_is_non_dominated_by_brute_force(study):
     assert table.pareto.any()
 
 
+def test_the_front_lists_tied_margins_by_their_accuracy():
+    """Lower bounds at the search limit tie: the front's line reaches the most accurate first."""
+    from types import SimpleNamespace
+
+    from delaytrack.experiments.tradeoff import TradeoffStudy
+
+    table = pd.DataFrame(
+        {
+            "empirical_margin": [1.0, 0.3, 1.0, 1.0],
+            "ae_median": [0.17, 0.005, 0.02, 0.06],
+            "pareto": [True, True, True, True],
+        }
+    )
+    front = TradeoffStudy.front.fget(SimpleNamespace(table=table))
+    assert list(front.ae_median) == [0.005, 0.02, 0.06, 0.17]
+
+
 def test_pareto_front_small_cases():
     assert pareto_front([1, 2, 3], [1, 2, 3]).tolist() == [True, True, True]
     assert pareto_front([1, 2, np.nan], [3, 2, 5]).tolist() == [True, False, False]

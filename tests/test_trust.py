@@ -231,7 +231,9 @@ def test_a_file_elsewhere_runs_when_its_folder_or_itself_is_trusted(tmp_path, ca
         Scenario.from_toml(path, trust=[str(lab / "other.py")])
     # "lab" without a '/' is a module name; meant for the folder here, the message says so
     monkeypatch.chdir(tmp_path)
-    with pytest.raises(ScenarioError, match=re.escape("--trust lab was read as a module name")):
+    with pytest.raises(
+        ScenarioError, match=re.escape("the trusted name 'lab' was read as a module name")
+    ):
         Scenario.from_toml(path, trust=["lab"])
     out = tmp_path / "out"
     assert main(["simulate", str(path), "--out", str(out), "--trust", str(lab), "--quiet"]) == 0

@@ -222,6 +222,7 @@ def _read_as_modules(trust: Trust) -> str:
     if not folders:
         return ""
     return "".join(
-        f"; --trust {name} was read as a module name (a folder needs a '/': ./{name})"
+        f"; the trusted name {name!r} was read as a module name (a folder needs a '/': "
+        f"--trust ./{name}, trust=['./{name}'])"
         for name in folders
     )

@@ -274,7 +274,8 @@ class Decision:
         (:func:`delaytrack.report.decision.candidates_table` adds why each was not chosen).
     winner, runner_up : Choice or None
     ae_difference, ae_ratio : float
-        The runner-up's worst-case AE minus the winner's, and divided by it (NaN without both).
+        The runner-up's worst-case AE minus the winner's, and divided by it (NaN without both,
+        and the ratio NaN when the winner's is 0).
     refused : Refusal or None
         Why no candidate was chosen (None when one was);
         :func:`delaytrack.report.decision.refusal_text` says it in words.
@@ -531,7 +532,8 @@ def decide(
         winner, runner_up = _mark_choices(candidates, chosen)
         if runner_up is not None:
             difference = runner_up.worst_ae - winner.worst_ae
-            ratio = runner_up.worst_ae / winner.worst_ae
+            # no ratio to a winner that tracked without error (AE 0 to the digits kept)
+            ratio = runner_up.worst_ae / winner.worst_ae if winner.worst_ae > 0 else math.nan
     merged = frame.merge(candidates, on=["controller", "omega_n", "k1", "k2"], how="left")
     return Decision(
         envelope=envelope,

@@ -82,7 +82,7 @@ from delaytrack.analysis.razumikhin import PAPER_R as R
 from delaytrack.controllers import AROLC
 
 # The robustness study's seed and robots: the same robots where the keys are the same.
-from delaytrack.experiments.drawn_robots import PAYLOAD_ROBOT, SEED
+from delaytrack.experiments.drawn_robots import PAYLOAD_ROBOT, PAYLOAD_ROBOT_TYPE, SEED
 from delaytrack.experiments.empirical_margin import EmpiricalMargin, empirical_margin
 from delaytrack.experiments.intervals import wilson_interval
 from delaytrack.experiments.pairing import AROLC_GAINS
@@ -120,7 +120,7 @@ _LARGEST_GAIN = 1e100
 DEFAULT_SPAN = 4.0
 #: Runs per work unit of the draws' sweep.
 UNIT_SIZE = 64
-_DRAWN_BY_PLANT = {"wheeled-robot-payload": PAYLOAD_ROBOT}
+_DRAWN_BY_PLANT = {PAYLOAD_ROBOT_TYPE: PAYLOAD_ROBOT}
 #: The largest double: the bound of a coordinate the rule does not score.
 _UNSCORED = float(np.finfo(float).max)
 
@@ -231,8 +231,11 @@ class TradeoffStudy:
 
     @property
     def front(self) -> pd.DataFrame:
-        """The Pareto front's rows, by increasing empirical margin."""
-        return self.table[self.table.pareto].sort_values("empirical_margin")
+        """The Pareto front's rows, by increasing empirical margin, then (rows whose margins
+        tie, such as the lower bounds at the search limit) increasing median AE."""
+        return self.table[self.table.pareto].sort_values(
+            ["empirical_margin", "ae_median"], kind="stable"
+        )
 
 
 def pareto_front(
@@ -425,7 +428,8 @@ def run_tradeoff(
         none.
     threshold : float or sequence of float
         Largest mean ``|e1|`` of a scored coordinate that still counts as on the path (its
-        unit): one number, or one per coordinate.
+        unit): one number, or one per scored coordinate, in their order (the coordinates the
+        scenario's ``error_bound`` bounds; every coordinate when it has none).
     upper, resolution : float
         The margin search's limit (default the smaller of 1 s and half the duration) and final
         bracket (s).

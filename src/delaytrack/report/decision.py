@@ -22,6 +22,7 @@ __all__ = [
     "decision_table",
     "edge_text",
     "gains_text",
+    "ratio_text",
     "refusal_text",
     "shortfall_text",
 ]
@@ -66,6 +67,12 @@ def edge_text(choice: Choice) -> str:
         " (the largest ω_n of the sweep: larger gains were not tried and may be more accurate "
         "still)"
     )
+
+
+def ratio_text(decision: Decision, template: str) -> str:
+    """``template`` filled with the runner-up's worst-case AE over the winner's, or "" when that
+    ratio is not defined (the winner's worst-case AE is 0)."""
+    return "" if math.isnan(decision.ae_ratio) else template.format(decision.ae_ratio)
 
 
 def conditions_text(envelope: Envelope, predictor: str) -> str:

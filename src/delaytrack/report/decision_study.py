@@ -22,6 +22,7 @@ from delaytrack.report.decision import (
     decision_table,
     edge_text,
     gains_text,
+    ratio_text,
     refusal_text,
 )
 from delaytrack.report.html import HtmlReport
@@ -74,7 +75,7 @@ def decision_sentence(case: str, decision: Decision) -> str:
     return (
         f"{sentence}; the runner-up, {_choice(second)}, has a worst-case AE of "
         f"{second.worst_ae:.3g}{unit}: {decision.ae_difference:.3g}{unit} more than the "
-        f"winner's ({decision.ae_ratio:.3g} times)."
+        f"winner's{ratio_text(decision, ' ({:.3g} times)')}."
     )
 
 

@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 from delaytrack._io import write_frame
 from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack._version import __version__
-from delaytrack.experiments.drawn_robots import DRAWN_COLUMNS
+from delaytrack.experiments.drawn_robots import drawn_columns
 from delaytrack.experiments.tradeoff import MARGIN_SEARCHES
 from delaytrack.report.decision import (
     candidates_table,
@@ -23,6 +23,7 @@ from delaytrack.report.decision import (
     decision_table,
     edge_text,
     gains_text,
+    ratio_text,
     refusal_text,
 )
 from delaytrack.report.figures import save_figure
@@ -115,8 +116,8 @@ def decision_lines(decision: Decision) -> list[str]:
     else:
         lines.append(f"  runner-up: {_choice_text(decision.runner_up, unit)}")
         lines.append(
-            f"  wins by {decision.ae_difference:.4g}{unit} of worst-case AE (the runner-up's is "
-            f"{decision.ae_ratio:.3g} times the winner's)"
+            f"  wins by {decision.ae_difference:.4g}{unit} of worst-case AE"
+            + ratio_text(decision, " (the runner-up's is {:.3g} times the winner's)")
         )
     return lines
 
@@ -129,9 +130,10 @@ def write_tradeoff(
     folder = claim_output_folder(folder)
     columns = _columns(study)
     files = [write_frame(study.table.rename(columns=columns), folder / "tradeoff.csv")]
+    drawn_names = drawn_columns(study.scenario)
     runs = study.runs.rename(
         columns={
-            **DRAWN_COLUMNS,
+            **drawn_names,
             "omega_n": columns["omega_n"],
             "ae": with_unit("ae", study.ae_unit),
             "tv": with_unit("tv", study.tv_unit),
@@ -147,7 +149,7 @@ def write_tradeoff(
         )
         drawn = decision.runs.rename(
             columns={
-                **DRAWN_COLUMNS,
+                **drawn_names,
                 **named,
                 "ae": with_unit("ae", study.ae_unit),
                 "tv": with_unit("tv", study.tv_unit),

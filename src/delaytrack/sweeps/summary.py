@@ -3,10 +3,10 @@
 Rows of the runs table (:func:`delaytrack.sweeps.run_unit`) are grouped by
 
 - **controller**: the controller type (for a factory of yours, ``"python:<module>:<function>"``,
-  the function's name), followed by the values of swept ``controller.*`` keys
-  (``arolc (K1=2)``; a sweep shows its grid and ``choice`` keys only); when a swept
-  ``controller`` table list holds several tables of one type, they are told apart as
-  ``pcon #1``, ``pcon #2`` in the order they first appear;
+  the function's name, unless another type of the sweep has that name), followed by the
+  values of swept ``controller.*`` keys (``arolc (K1=2)``; a sweep shows its grid and
+  ``choice`` keys only); when a swept ``controller`` table list holds several tables of one
+  type, they are told apart as ``pcon #1``, ``pcon #2`` in the order they first appear;
 - **delay class**: when the sweep chooses its delays from lists (a grid, or ``choice`` draws),
   each delay of the lists is a class of its own: its family and bound (``constant, h_max 50
   ms``), then the values of swept ``delay.*`` keys (``abs-sine, h_max 100 ms (frequency=2)``;
@@ -14,7 +14,8 @@ Rows of the runs table (:func:`delaytrack.sweeps.run_unit`) are grouped by
   delay key is drawn from a continuous distribution, the class is the family and the band its
   bound falls in (``random, h_max 100-150 ms``; bands at :data:`DELAY_BAND_EDGES`). A delay of
   the user's is named by its factory's function, as a controller is (``make_congested_link,
-  h_max 120 ms``).
+  h_max 120 ms``), unless another type of the sweep has that name: both then keep their full
+  types.
 
 Per group: ``runs``; ``diverged`` and ``divergence_rate`` (status ``diverged``: the state left
 the engine's bound or became non-finite, or ``left the path``: a tracking error passed the
@@ -34,6 +35,7 @@ the controllers tied for it (:func:`smallest_medians`).
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -101,8 +103,7 @@ def delay_classes(runs: pd.DataFrame, keys: Sequence[str] | None = None) -> pd.S
     some delay key was drawn continuously, and classes are bands of ``h_max``
     (:data:`DELAY_BAND_EDGES`, upper edge in).
     """
-    # a delay of the user's by its factory's name, as a controller's (not its file's path)
-    kinds = [kind.rpartition(":")[2] for kind in runs["delay_type"]]
+    kinds = _short_kinds(list(runs["delay_type"]))
     if keys is None:
         classes = [f"{kind}, {_band(h)}" for kind, h in zip(kinds, runs["h_max"], strict=True)]
         return pd.Series(classes, index=runs.index, name="delay_class")
@@ -114,6 +115,16 @@ def delay_classes(runs: pd.DataFrame, keys: Sequence[str] | None = None) -> pd.S
     classes = [f"{kind}, {bound}" for kind, bound in zip(kinds, bounds, strict=True)]
     classes = _with_swept(classes, runs, [key for key in keys if key.startswith("delay.")])
     return pd.Series(classes, index=runs.index, name="delay_class")
+
+
+def _short_kinds(kinds: list[str]) -> list[str]:
+    """Each ``type`` of ``kinds``, a factory of the user's (``python:<file or module>:<name>``)
+    by its function's name alone where no other type of these shortens to the same name (two
+    files' ``make_link``, or a factory named ``constant`` beside the built-in one, keep their
+    full types)."""
+    short = {kind: kind.rpartition(":")[2] for kind in set(kinds)}
+    uses = Counter(short.values())
+    return [short[kind] if uses[short[kind]] == 1 else kind for kind in kinds]
 
 
 def _numbers(groups: list[str], tables: list[object]) -> list[int | None]:
@@ -135,7 +146,7 @@ def controller_labels(runs: pd.DataFrame, keys: Sequence[str] | None = None) -> 
     ``keys``: the swept ``controller.*`` columns to show in labels (all of them by default;
     :attr:`SweepSpec.label_keys` leaves out continuous draws).
     """
-    kinds = [kind.rpartition(":")[2] for kind in runs["controller_type"]]
+    kinds = _short_kinds(list(runs["controller_type"]))
     labels = kinds
     if "controller" in runs:
         numbers = _numbers(kinds, list(runs["controller"]))

@@ -608,8 +608,26 @@ def test_a_fifo_a_urdf_names_as_a_mesh_is_refused(tmp_path):
             'offset="0 1 0"><geom type="sphere" size=".01"/></replicate></replicate></worldbody>',
             r"replicates 1000 x 1000 = 1,000,000 copies; at most 100,000 are made",
         ),
+        # a built-in mesh of resolution 4000: 16 million vertices (1000 took 3.0 GB)
+        (
+            '<asset><mesh name="m" builtin="supersphere" params="4000 1 1"/></asset>',
+            r"<mesh builtin params> asks for about 16,000,000 vertices; at most 100,000",
+        ),
+        (
+            '<asset><mesh name="m" builtin="wedge" params="1000 1000 1 1 1"/></asset>',
+            r"<mesh builtin params> asks for about 1,000,000 vertices",
+        ),
     ],
-    ids=["texture", "signed-padded", "skybox", "flexcomp", "hfield", "replicate"],
+    ids=[
+        "texture",
+        "signed-padded",
+        "skybox",
+        "flexcomp",
+        "hfield",
+        "replicate",
+        "supersphere",
+        "wedge",
+    ],
 )
 def test_a_model_that_would_take_gigabytes_is_refused_before_mujoco_reads_it(
     tmp_path, extra, message
@@ -620,6 +638,14 @@ def test_a_model_that_would_take_gigabytes_is_refused_before_mujoco_reads_it(
 
     with pytest.raises(ValueError, match=message):
         check_model_files(_model(tmp_path, extra))
+
+
+def test_a_built_in_mesh_of_a_usual_size_is_read(tmp_path):
+    from delaytrack.plants.mujoco.model_files import check_model_files
+
+    check_model_files(
+        _model(tmp_path, '<asset><mesh name="m" builtin="supersphere" params="300 1 1"/></asset>')
+    )
 
 
 def test_a_texture_image_of_too_many_pixels_is_refused_from_its_header(tmp_path):

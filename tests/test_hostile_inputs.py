@@ -62,6 +62,31 @@ def test_values_nested_hundreds_deep_are_refused_not_a_recursion_error(tmp_path,
     one_line_error(capsys, "deep.toml", "nested more than 32 levels deep")
 
 
+@pytest.mark.parametrize(
+    "line",
+    [
+        ".".join(["a"] * 5000) + " = 1",  # a dotted key
+        "[" + ".".join(['"a"'] * 5000) + "]",  # a table's name, of quoted parts
+        "x = { " + ".".join(["a"] * 5000) + " = 1 }",  # an inline table's key
+    ],
+    ids=["key", "table", "inline"],
+)
+def test_a_dotted_key_of_thousands_of_parts_is_refused_before_it_is_parsed(tmp_path, capsys, line):
+    """Python's TOML parser takes time and memory growing with the square of a dotted key's
+    parts (100 000 parts, 200 KB, took 24 GB): such a key is refused before parsing."""
+    deep = tmp_path / "deep.toml"
+    deep.write_text(f'scenario = "two_link_S1"\n{line}\n')
+    assert main(["simulate", str(deep), "--out", str(tmp_path / "out")]) == 2
+    one_line_error(capsys, "deep.toml", "a dotted key of more than 32 parts (line 2)")
+
+
+def test_a_long_dotted_text_in_a_value_is_no_key():
+    from delaytrack._io import toml_data
+
+    text = 'name = "' + ".".join(["w"] * 100) + '"\nx = [1.5, 2.5, 3.5]\n'
+    assert toml_data(text)["name"].count(".") == 99
+
+
 def test_control_characters_of_a_file_name_are_shown_escaped(tmp_path, capsys):
     # A folder's name may hold a line break, a carriage return or a terminal's escape: an error
     # that names the file must not let them act ("FAKE: all runs ok" over the line's start).

@@ -833,3 +833,16 @@ def test_a_figure_matplotlib_cannot_draw_is_left_out_with_a_warning(
     assert (out / "metrics.csv").is_file() and (out / "trajectories.parquet").is_file()
     drawn = {p.stem for p in (out / "figures").glob("*.png")}
     assert figure not in drawn and {"tracking", "error"} <= drawn
+
+
+def test_a_results_list_made_larger_than_any_run_writes_is_not_read(tmp_path):
+    """The marker of a results folder someone sent may be made huge: past 16 MiB it is taken
+    as listing nothing (as an unreadable one), not parsed (at about 11 times its size)."""
+    from delaytrack._output import _listed
+
+    names = [f"part-{i:09d}.parquet" for i in range(800_000)]
+    (tmp_path / MANIFEST).write_text(json.dumps({"files": names}))
+    assert (tmp_path / MANIFEST).stat().st_size > 16 * 2**20
+    assert _listed(tmp_path) == []
+    (tmp_path / MANIFEST).write_text(json.dumps({"files": names[:3]}))
+    assert _listed(tmp_path) == names[:3]

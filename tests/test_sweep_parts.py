@@ -97,6 +97,21 @@ def test_a_part_with_a_foreign_hash_is_unfinished(unit_frame, tmp_path):
     assert reason == f"unit hash 000000000000 != {unit.hash[:12]} of this spec"
 
 
+def test_a_part_whose_values_decompress_far_beyond_a_units_size_is_not_read(unit_frame, tmp_path):
+    """A part of a folder someone sent, with this unit's hash and row count, whose few kB
+    decompress to megabytes a row (gigabytes at scale): refused from its footer, unread."""
+    import pyarrow as pa
+
+    unit, frame = unit_frame
+    path = write_part(frame, unit, tmp_path)
+    metadata = pq.read_table(path).schema.metadata
+    bloated = pa.table({"run": [0, 1, 2], "x": ["a" * 3 * 2**20] * 3})
+    pq.write_table(bloated.replace_schema_metadata(metadata), path, compression="zstd")
+    assert path.stat().st_size < 2**16
+    reason = finished_units(tmp_path, small_spec()).rejected[unit.part_name]
+    assert "bytes of values; unit 0 has 3 runs of at most 1048576 bytes each" in reason, reason
+
+
 def test_the_code_version_covers_every_file_of_simulate_without_compiled_code():
     """An edit of any stage of ``simulate()`` may change a sweep's numbers: each is hashed."""
     from pathlib import Path

@@ -331,6 +331,15 @@ def marking(marker: Path) -> str:
             "setuptools-69.0.0/PKG-INFO",
             "an unpacked source distribution (it holds PKG-INFO)",
         ),
+        # pip install --target deps: the packages beside their records
+        (
+            ("deps",),
+            "deps/nodeenv-1.12.0.dist-info/METADATA",
+            "a folder of installed Python packages (it holds nodeenv-1.12.0.dist-info)",
+        ),
+        (("deps", "pkg"), "deps/old.egg-info/PKG", "(it holds old.egg-info)"),
+        # PEP 582's local packages
+        (("__pypackages__", "3.11", "lib"), None, "(PEP 582)"),
     ],
 )
 def test_a_file_below_the_folder_in_installed_or_hidden_code_is_refused(
@@ -340,6 +349,7 @@ def test_a_file_below_the_folder_in_installed_or_hidden_code_is_refused(
     below = tmp_path.joinpath(*folders)
     below.mkdir(parents=True)
     if setup:
+        (tmp_path / setup).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / setup).write_text("home = /usr/bin\n")
     (below / "shutil_like.py").write_text(marking(marker))
     relative = "/".join([*folders, "shutil_like.py"])
@@ -666,3 +676,22 @@ def test_a_factory_is_imported_exactly_when_it_is_allowed(parts, module, trusted
                 assert bool(imported) == expected, (kind, imported)
                 if not expected:
                     assert "'plant.type'" in message and "trust" in message
+
+
+def test_a_session_folder_someone_sent_runs_no_code_for_lying_in_it(tmp_path, capsys):
+    """``live replay DIR`` opens the folder's scenario.toml, a file the user did not name: a
+    factory beside it runs only when trusted (the nodes name theirs by absolute path)."""
+    session = tmp_path / "session"
+    marker = tmp_path / "ran"
+    (session / "helpers.py").parent.mkdir()
+    (session / "helpers.py").write_text(
+        f"from pathlib import Path\n\ndef f():\n    Path({str(marker)!r}).touch()\n"
+        "    import delaytrack as dt\n    return dt.TwoLinkArm()\n"
+    )
+    scenario_file(session, {"type": "python:helpers.py:f"}, name="scenario.toml")
+    (session / "summary.json").write_text("{}")
+    refused(capsys, ["live", "replay", str(session)], "not trusted for being there")
+    assert not marker.exists()
+    # trusted, it is the user's choice: it loads (and the folder, holding no tables, is refused)
+    assert main(["live", "replay", str(session), "--trust", str(session / "helpers.py")]) == 2
+    assert marker.exists() and "not trusted" not in capsys.readouterr().err

@@ -82,11 +82,30 @@ MAX_TOML_BYTES = 8 * 2**20
 MAX_TOML_DEPTH = 32
 
 
+#: A part of a dotted key, bare or quoted (basic or literal), matched without backtracking.
+_KEY_PART = r"""(?:[A-Za-z0-9_-]++|(?>"(?:[^"\\\n]|\\.)*+")|(?>'[^'\n]*+'))"""
+#: A key of more than :data:`MAX_TOML_DEPTH` dotted parts (``a.b."c"``) where a key may start:
+#: a line's start, or after ``[`` (a table's name), ``{`` or ``,`` (an inline table's keys). Its
+#: table would be nested deeper than the toolkit reads, and Python's parser takes time and
+#: memory growing with the square of the parts (a 200 KB line of ``a.a.a...`` took 24 GB).
+_LONG_DOTTED_KEY = re.compile(
+    rf"(?:^|[\[{{,])[ \t]*+{_KEY_PART}(?:[ \t]*+\.[ \t]*+{_KEY_PART}){{{MAX_TOML_DEPTH},}}",
+    re.MULTILINE,
+)
+
+
 def toml_data(text: str) -> dict:
     """``tomllib.loads(text)``, refusing values nested more than :data:`MAX_TOML_DEPTH` levels
     deep with a :class:`tomllib.TOMLDecodeError` (Python's parser, which recurses, would end
-    in a ``RecursionError`` for a file of a few hundred ``[``)."""
+    in a ``RecursionError`` for a file of a few hundred ``[``), and a dotted key or table name
+    of more parts than that before parsing (:data:`_LONG_DOTTED_KEY`)."""
     too_deep = f"values nested more than {MAX_TOML_DEPTH} levels deep (arrays or tables)"
+    long_key = _LONG_DOTTED_KEY.search(text)
+    if long_key is not None:
+        line = text.count("\n", 0, long_key.start()) + 1
+        raise tomllib.TOMLDecodeError(
+            f"a dotted key of more than {MAX_TOML_DEPTH} parts (line {line}): {too_deep}"
+        )
     try:
         data = tomllib.loads(text)
     except RecursionError:

@@ -34,7 +34,7 @@ import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 
-from delaytrack._io import write_text
+from delaytrack._io import read_file_bytes, write_text
 
 __all__ = [
     "LINK_DEPTH",
@@ -283,9 +283,15 @@ def claim_output_folder(folder: str | os.PathLike[str]) -> Path:
     return root
 
 
+#: Largest marker read (16 MiB, about 200 000 file names): one that someone made larger is
+#: taken as listing nothing, as an unreadable one.
+_LARGEST_MANIFEST = 16 * 2**20
+
+
 def _listed(folder: Path) -> list[str]:
     try:
-        data = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
+        text = read_file_bytes(folder / MANIFEST, "results list", largest=_LARGEST_MANIFEST)
+        data = json.loads(text.decode("utf-8"))
     except (OSError, ValueError):
         return []
     files = data.get("files") if isinstance(data, dict) else None

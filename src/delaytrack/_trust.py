@@ -8,15 +8,18 @@ allowed only when
 - its file, after resolving ``..`` and symbolic links, lies in the folder of the scenario or
   sweep file that names it, or below it, and is that folder's own code: no folder on the way
   down is hidden (``.pyenv``), a folder of installed or generated code (``site-packages``,
-  ``dist-packages``, ``node_modules``, ``__pycache__``), a Python environment (it holds
-  ``pyvenv.cfg``) or a Python installation (``lib/python3.*``), and the file is not where this
-  Python, its packages or this package are installed (:func:`installed_locations`); or
+  ``dist-packages``, ``node_modules``, ``__pypackages__``, ``__pycache__``, or one holding a
+  ``*.dist-info`` or ``*.egg-info`` record, as ``pip install --target`` leaves), a Python
+  environment (it holds ``pyvenv.cfg``) or a Python installation (``lib/python3.*``), and the
+  file is not where this Python, its packages or this package are installed
+  (:func:`installed_locations`); or
 - the user trusts it: a module name (that module and its submodules) or a path (a ``.py`` file,
   or a folder and every file below it), given as ``--trust NAME`` on the command line or
   ``trust=[NAME, ...]`` in Python.
 
 No module is trusted by default, not even this package's own. The check runs before anything is
-imported.
+imported. A file the user only opens, not names (a live session folder's ``scenario.toml``),
+gets no trust for its folder: only what the user trusts runs.
 """
 
 from __future__ import annotations
@@ -46,6 +49,7 @@ _CODE_FOLDERS = {
     "site-packages": "a folder of installed Python packages",
     "dist-packages": "a folder of installed Python packages",
     "node_modules": "a folder of installed packages",
+    "__pypackages__": "a folder of installed Python packages (PEP 582)",
     "__pycache__": "a folder of compiled Python code",
 }
 
@@ -68,6 +72,9 @@ class Trust:
 
     modules: tuple[str, ...] = ()
     paths: tuple[Path, ...] = ()
+    #: Whether a factory is allowed for lying in the folder of the file that names it (False
+    #: for a file the user did not write and only opened, such as a live session folder's).
+    own_folder: bool = True
 
     @classmethod
     def of(cls, names: Iterable[str], option: str = "trust") -> Trust:
@@ -138,6 +145,17 @@ def installed_locations() -> tuple[tuple[Path, str], ...]:
     return tuple((Path(place).resolve(), what) for place, what in places)
 
 
+def _installed_here(folder: Path) -> str | None:
+    """Why ``folder`` holds installed packages (a ``*.dist-info`` or ``*.egg-info`` record, as
+    ``pip install --target`` leaves beside them), or None."""
+    for pattern in ("*.dist-info", "*.egg-info"):
+        record = next(folder.glob(pattern), None)
+        if record is not None:
+            what = f"a folder of installed Python packages (it holds {record.name})"
+            return f"inside {folder}, {what}"
+    return None
+
+
 def _not_its_own(path: Path, folder: Path) -> str | None:
     """Why the file ``path`` (resolved, below the resolved ``folder``) is not that folder's own
     code: a place where Python or this package is installed, else the first folder on the way
@@ -150,6 +168,9 @@ def _not_its_own(path: Path, folder: Path) -> str | None:
     current = folder
     if (current / _STANDARD_LIBRARY_MARK).is_file():
         return f"inside {current}, {_STANDARD_LIBRARY}"
+    installed = _installed_here(current)
+    if installed is not None:
+        return installed
     for name in path.parent.relative_to(folder).parts:
         current = current / name
         if name.startswith("."):
@@ -158,6 +179,9 @@ def _not_its_own(path: Path, folder: Path) -> str | None:
             return f"inside {current}, {_CODE_FOLDERS[name]}"
         if (current / _STANDARD_LIBRARY_MARK).is_file():
             return f"inside {current}, {_STANDARD_LIBRARY}"
+        installed = _installed_here(current)
+        if installed is not None:
+            return installed
         if (current / "PKG-INFO").is_file():
             return f"inside {current}, an unpacked source distribution (it holds PKG-INFO)"
         if (current / "pyvenv.cfg").is_file():
@@ -197,6 +221,14 @@ def check_factory(key: str, kind: str, location: str, source: Path, trust: Trust
         raise SpecError(f"scenario key {key!r} = {kind!r}: {error}") from None
     if trust.allows_file(path):
         return
+    if path.is_relative_to(folder) and not trust.own_folder:
+        raise SpecError(
+            f"scenario key {key!r} = {kind!r} names {path}, in the folder of {source.name}, "
+            f"whose code is not trusted for being there ({source.name} was opened from a "
+            f"folder you did not name as yours, such as a session folder someone sent): "
+            f"{_WHY}; if you trust that file, pass --trust {shlex.quote(str(path))} (in "
+            f"Python: trust=[{str(path)!r}])"
+        )
     if path.is_relative_to(folder):
         reason = _not_its_own(path, folder)
         if reason is None:

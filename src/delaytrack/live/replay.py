@@ -67,7 +67,11 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     from delaytrack.scenario import Scenario
 
     folder = Path(folder)
-    scenario = Scenario.from_toml(folder / "scenario.toml", trust=list(trust or []))
+    # A session folder may come from someone else: code beside its scenario is not trusted
+    # for being there (the nodes name their factories by absolute path).
+    scenario = Scenario.from_toml(
+        folder / "scenario.toml", trust=list(trust or []), trust_its_folder=False
+    )
     built = scenario.build()
     nodes = _session_nodes(folder / "summary.json")
     check_tables_whole(folder, nodes)

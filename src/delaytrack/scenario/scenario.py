@@ -278,7 +278,9 @@ class Scenario:
         return cls(**fields)
 
     @classmethod
-    def from_toml(cls, path: str | Path, *, trust: Sequence[str] = ()) -> Scenario:
+    def from_toml(
+        cls, path: str | Path, *, trust: Sequence[str] = (), trust_its_folder: bool = True
+    ) -> Scenario:
         """Read a scenario file. Relative paths (traces, factory files) are taken relative to
         its folder.
 
@@ -294,6 +296,10 @@ class Scenario:
             its submodules) and paths with a ``/`` or ending in ``.py`` (``"./robots"``,
             ``"~/lab/arm.py"``: that file, or every file below that folder). The command
             line's ``--trust``.
+        trust_its_folder : bool
+            False for a file you did not write and only open (a live session folder's
+            ``scenario.toml``): a factory beside it is then allowed only when ``trust`` names
+            it.
 
         Raises
         ------
@@ -304,7 +310,7 @@ class Scenario:
             If ``trust`` holds a name that is neither a module name nor an existing ``.py`` file
             or folder.
         """
-        trusted = Trust.of(trust)
+        trusted = dataclasses.replace(Trust.of(trust), own_folder=bool(trust_its_folder))
         source = Path(path)
         data = read_toml_file(source, "scenario file", ScenarioError)
         try:

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from delaytrack._io import atomic_path
@@ -215,12 +216,79 @@ class PartsScan:
     rejected: Mapping[str, str]
 
 
+#: Largest uncompressed size of a part's values, per run of its unit (1 MiB: a run's row
+#: holds its labels, drawn values and metrics, a few kB).
+_LARGEST_PER_RUN = 2**20
+
+
+class _TooLarge(Exception):
+    """A part's values take more than the bound they are read against."""
+
+    def __init__(self, size: int) -> None:
+        super().__init__(size)
+        self.size = size
+
+
+def _read_bounded(path: Path, footer: pq.FileMetaData, largest: int) -> pa.Table:
+    """The table of the part at ``path`` (its ``footer`` read), its text columns read as
+    dictionaries first: one text repeated in every row is stored once, and the size of its
+    rows, counted from the dictionary's lengths, is checked against ``largest`` bytes before
+    they are written out (:class:`_TooLarge` beyond)."""
+    schema = footer.schema.to_arrow_schema()
+    texts = [
+        field.name
+        for field in schema
+        if pa.types.is_string(field.type)
+        or pa.types.is_large_string(field.type)
+        or pa.types.is_binary(field.type)
+        or pa.types.is_large_binary(field.type)
+    ]
+    table = pq.read_table(path, read_dictionary=texts)
+    size = 0
+    for column in table.columns:
+        for chunk in column.chunks:
+            if pa.types.is_dictionary(chunk.type):
+                lengths = pc.binary_length(chunk.dictionary).fill_null(0)
+                size += pc.sum(pc.take(lengths, chunk.indices)).as_py() or 0
+            else:
+                size += chunk.nbytes
+        if size > largest:
+            raise _TooLarge(size)
+    return pa.table(
+        [
+            column.cast(column.type.value_type) if pa.types.is_dictionary(column.type) else column
+            for column in table.columns
+        ],
+        schema=schema.with_metadata(table.schema.metadata),
+    )
+
+
 def _check_part(path: Path, unit: Unit) -> str | None:
-    """Why the part at ``path`` does not finish ``unit``, or None when it does."""
+    """Why the part at ``path`` does not finish ``unit``, or None when it does. Its footer is
+    checked before its values are read: a part of a folder someone sent can hold a few hundred
+    bytes that decompress to gigabytes."""
     try:
-        table = pq.read_table(path)
+        footer = pq.read_metadata(path)
     except (OSError, pa.ArrowException) as error:
         return f"unreadable (truncated or corrupt): {error}"
+    stored = (footer.metadata or {}).get(HASH_KEY, b"").decode("ascii", "replace")
+    if stored != unit.hash:
+        return f"unit hash {stored[:12] or 'missing'} != {unit.hash[:12]} of this spec"
+    size = sum(footer.row_group(i).total_byte_size for i in range(footer.num_row_groups))
+    if footer.num_rows != len(unit.runs) or size > _LARGEST_PER_RUN * (len(unit.runs) + 1):
+        return (
+            f"{footer.num_rows} rows of {size} bytes; unit {unit.index} has {len(unit.runs)} "
+            f"runs of at most {_LARGEST_PER_RUN} bytes each"
+        )
+    try:
+        table = _read_bounded(path, footer, _LARGEST_PER_RUN * (len(unit.runs) + 1))
+    except (OSError, pa.ArrowException) as error:
+        return f"unreadable (truncated or corrupt): {error}"
+    except _TooLarge as error:
+        return (
+            f"{error.size} bytes of values; unit {unit.index} has {len(unit.runs)} runs of at "
+            f"most {_LARGEST_PER_RUN} bytes each"
+        )
     metadata = table.schema.metadata or {}
     stored = metadata.get(HASH_KEY, b"").decode("ascii", "replace")
     if stored != unit.hash:

@@ -52,7 +52,7 @@ MAX_REPLICATED = 100_000
 #: field's rows and columns).
 _GRIDS = {"texture": ("width", "height"), "hfield": ("nrow", "ncol")}
 #: The elements whose attributes :func:`_check_sizes` bounds.
-_SIZED = (*_GRIDS, "flexcomp", "replicate")
+_SIZED = (*_GRIDS, "flexcomp", "replicate", "mesh")
 
 #: Elements whose file is MJCF, read in turn for the files it names.
 _XML_ELEMENTS = ("include", "model")
@@ -165,7 +165,8 @@ def _check_sizes(
 ) -> None:
     """Refuse an element whose attributes ask MuJoCo for more than it may hold: a texture or
     height field beyond :data:`MAX_GRID_POINTS` points (a cube or skybox texture is six
-    squares of its width), a flex of more than :data:`MAX_REPLICATED` points, or replicates
+    squares of its width), a flex of more than :data:`MAX_REPLICATED` points, a built-in mesh
+    of more than about :data:`MAX_REPLICATED` vertices (:func:`_builtin_vertices`), or replicates
     beyond :data:`MAX_REPLICATED` copies with those already in ``replicated`` (their counts,
     multiplied as if nested)."""
     counts = {name: _counts(value) for name, value in attributes.items()}
@@ -184,6 +185,13 @@ def _check_sizes(
             f"{where}: <flexcomp count> asks for {math.prod(counts['count']):,} points; at most "
             f"{MAX_REPLICATED:,} are made"
         )
+    elif element == "mesh" and attributes.get("builtin", "").strip():
+        vertices = _builtin_vertices(attributes.get("params", ""))
+        if vertices > MAX_REPLICATED:
+            raise ValueError(
+                f"{where}: <mesh builtin params> asks for about {vertices:,.0f} vertices; at "
+                f"most {MAX_REPLICATED:,} are made"
+            )
     elif element == "replicate" and counts.get("count"):
         replicated.append(counts["count"][0])
         if math.prod(replicated) > MAX_REPLICATED:
@@ -192,6 +200,20 @@ def _check_sizes(
                 f"{' x '.join(map(str, replicated))} = {math.prod(replicated):,} copies; at "
                 f"most {MAX_REPLICATED:,} are made"
             )
+
+
+def _builtin_vertices(params: str) -> float:
+    """About how many vertices MuJoCo makes for a built-in mesh of ``params``: the square of
+    its first parameter (a supersphere's resolution ``n`` makes ``n² - n + 2``), or the product
+    of its first two (a wedge's or a plate's grid) when larger; 0 when they are not numbers
+    (MuJoCo says what is wrong)."""
+    try:
+        leading = [abs(float(word)) for word in params.split()[:2]]
+    except ValueError:
+        return 0.0
+    if not leading or not all(math.isfinite(value) for value in leading):
+        return 0.0 if not leading else math.inf
+    return max(leading[0] ** 2, math.prod(leading))
 
 
 def _counts(value: str) -> list[int]:

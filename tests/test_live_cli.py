@@ -483,7 +483,9 @@ def test_a_summary_of_a_session_that_measured_nothing_is_strict_json_and_reports
         nodes["robot"],
         nodes["delay"],
     )
-    assert settings["delay node"].endswith("releases, n/a wake-ups/s, lead 0.5 ms")
+    assert settings["delay node"].endswith(
+        "releases, 0 steps missed (woke too late to release for them), n/a wake-ups/s, lead 0.5 ms"
+    )
     assert settings["controller wake-up lateness p50 / p99"] == "n/a / n/a"
     assert settings["realised delay − h(t) p50 / |.| p99"].startswith("n/a / n/a")
 
@@ -608,3 +610,21 @@ def test_a_command_a_newer_one_supersedes_at_its_step_is_not_counted_as_never_ap
     ten_ms = np.arange(12) * 0.01  # T_c = 10 ms: never two commands at one step
     steps, due = _due_steps(ten_ms, delay, dt, end)
     assert not _superseded(ten_ms, due < steps.size, due).any()
+
+
+@pytest.mark.parametrize("lead", [1e-4, 2.5e-4, 5e-4, 1e-3, 2e-3])
+def test_a_release_a_little_late_still_reaches_its_step(lead):
+    """The delay node wakes ``lead`` before a step to release for it: a wake-up late by less
+    than half the lead still releases for that step (with the margin equal to a lead of 0.5
+    ms or less, any lateness moved every release of a 2 ms delay one step later)."""
+    from delaytrack.live.delay import default_lead, first_reachable_step, release_margin
+
+    dt = 1e-3
+    margin = release_margin(lead, dt)
+    assert 0 < margin < lead and margin <= min(dt / 2, 5e-4)
+    for step in (1, 7, 1000, 59_999):
+        wake = step * dt - lead
+        for late in (0.0, 1e-5, 0.49 * lead):  # the node releases for max(step, reachable)
+            assert first_reachable_step(wake + late, margin, dt) <= step
+        assert first_reachable_step(step * dt - 0.99 * margin + 1e-12, margin, dt) == step + 1
+    assert release_margin(default_lead(dt, 2e-3), dt) == 2.5e-4  # h = 2 ms: lead 0.5 ms

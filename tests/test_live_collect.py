@@ -111,6 +111,12 @@ def test_collect_refuses_another_scenario_or_a_damaged_file_in_one_line(
             lambda f: _edit_cell(f / "applied.csv", "applied_s", "nan"),
             "applied.csv, line 2: ('applied_s', 't_k_s') must be finite",
         ),
+        (  # the gains changed after the session: the replay would blame the robot
+            lambda f: (f / "scenario.toml").write_text(
+                (f / "scenario.toml").read_text().replace("K1 = ", "K1 = 5.0 #", 1)
+            ),
+            "the session folder's scenario.toml was changed after the session",
+        ),
     ],
 )
 def test_replay_of_an_edited_folder_is_refused_in_one_line_naming_the_file(

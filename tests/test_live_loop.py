@@ -189,6 +189,13 @@ def test_commands_keep_their_order_and_none_is_lost_without_packet_loss(sessions
     assert {k for k, send in sent.items() if send <= delay_end} <= seqs
     summary = json.loads((folder / "summary.json").read_text())
     assert summary["not_received"] == 0
+    # Every command is accounted for, once
+    parts = ("applied", "lost", "not_received", "sent_after_listening", "never_applied")
+    parts += ("superseded_on_the_step_grid", "due_after_the_end")
+    assert summary["commands"] == sum(summary[name] for name in parts), summary
+    assert summary["applied"] == len(
+        {m.seq for t, m in _messages(folder / "robot.mcap") if t == "/applied"}
+    )
     # Never applied before the rule allows it: no better than the rule on the step grid alone.
     rule = summary["realised_minus_h_abs_ms_p99_of_the_rule"]
     assert 0 < rule <= summary["realised_minus_h_abs_ms_p99"] + 1e-9
@@ -321,6 +328,30 @@ def test_the_session_writes_metrics_figures_and_a_report(sessions):
             assert column in metrics.columns
             assert np.isfinite(metrics.loc[0, column]) and metrics.loc[0, column] >= 0
     assert "tv_Nm" in metrics.columns
+    # The commands' TV counts from the first command sent, not from zero before it (at the
+    # ticks before the first state the controller sends nothing): the sum over the ticks the
+    # robot logged, each holding the latest command sent by then.
+    summary = json.loads((folder / "summary.json").read_text())
+    steps_per_tick = round(summary["T_c_s"] / summary["dt_s"])
+    logged = sorted(
+        {
+            int(r["j"]) // steps_per_tick
+            for r in _rows(folder / "states.csv")
+            if int(r["j"]) % steps_per_tick == 0
+        }
+    )
+    sent = {
+        int(r["k"]): (float(r["u1"]), float(r["u2"]))
+        for r in _rows(folder / "ticks.csv")
+        if r["status"] != "no-state"
+    }
+    held, series = None, []
+    for k in logged:
+        held = sent.get(k, held)
+        if held is not None:
+            series.append(held)
+    expected = float(np.abs(np.diff(np.array(series), axis=0)).sum())
+    assert metrics.loc[0, "tv_Nm"] == pytest.approx(expected, rel=1e-9)
     figures = ("tracking", "error", "commands", "delay", "timing")  # the report's figures
     for name in figures:
         assert (folder / "figures" / f"{name}.png").read_bytes().startswith(b"\x89PNG")

@@ -14,11 +14,13 @@ from typing import Any
 import numpy as np
 
 from delaytrack._io import open_csv_text, read_file_bytes, regular_file
+from delaytrack.live.transport import differing_parts
 
 __all__ = [
     "ROLE_FILES",
     "RowsByIndex",
     "SessionTable",
+    "check_nodes_ran",
     "check_tables_whole",
     "json_table",
     "ms",
@@ -48,6 +50,24 @@ def table_bytes(folder: Path, role: str) -> dict[str, int]:
         for name in ROLE_FILES[role]
         if name.endswith(".csv") and (folder / name).is_file()
     }
+
+
+def check_nodes_ran(
+    folder: Path, nodes: Mapping[str, Any], hashes: dict[str, str], given: str, remedy: str
+) -> None:
+    """Refuse a scenario (``given``, of ``hashes``) other than the one the nodes of the session
+    in ``folder`` ran (the :func:`~delaytrack.live.transport.scenario_hashes` each node
+    recorded in its record of ``nodes``), naming the parts that differ and ``remedy``."""
+    for role in ("robot", "delay", "controller"):  # as the session's summary lists them
+        recorded = (nodes.get(role) or {}).get("scenario_hashes")
+        if not isinstance(recorded, dict):
+            continue  # a node of an earlier version recorded none
+        parts = differing_parts(hashes, recorded)
+        if parts is not None:
+            raise ValueError(
+                f"{folder}: the {role} node ran another scenario than {given} (they differ in "
+                f"{parts}); {remedy}"
+            )
 
 
 def check_tables_whole(folder: Path, nodes: Mapping[str, Any]) -> None:

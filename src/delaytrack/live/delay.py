@@ -26,7 +26,8 @@ pick changes (``h`` evaluated on the coming steps at once) and sleeps until ``le
 that step, or until a command arrives that the rule could pick earlier (the plan is then made
 again), or at most :data:`_HORIZON`. At ``T_c`` = 10 ms that is about two wake-ups per command
 instead of one per millisecond. A wake-up so late that the step is less than
-``min(lead, dt/2, 0.5 ms)`` away evaluates the rule at the first step still that far ahead.
+:func:`release_margin` away (``min(lead/2, dt/2, 0.5 ms)``) evaluates the rule at the first step
+still that far ahead.
 
 Packet loss (D12d): with a probability ``p`` and a seed (the scenario's ``packet_loss`` table,
 or ``--loss P --loss-seed S``), command ``k`` is dropped when the toolkit's counter-based draw
@@ -54,7 +55,13 @@ from delaytrack.live.messages import CommandMessage, ReleaseMessage
 from delaytrack.live.transport import declare_stream
 from delaytrack.sim.packet_loss import PacketLoss, packet_lost
 
-__all__ = ["DelayNode", "check_session_delay", "default_lead"]
+__all__ = [
+    "DelayNode",
+    "check_session_delay",
+    "default_lead",
+    "first_reachable_step",
+    "release_margin",
+]
 
 #: Without commands to release, the node wakes at most this often (seconds) to plan again.
 _HORIZON = 0.1
@@ -72,6 +79,24 @@ def default_lead(dt: float, h_min: float) -> float:
     ``lead <= h_min / 4`` that holds up to ``0.75 h_min``.
     """
     return max(min(dt / 2, 5e-4), min(2e-3, h_min / 4))
+
+
+def release_margin(lead: float, dt: float) -> float:
+    """The least time a release is sent before its step: ``min(lead/2, dt/2, 0.5 ms)``. A
+    wake-up planned ``lead`` before a step that comes later than ``lead - margin`` evaluates
+    the rule at the first step still ``margin`` ahead instead.
+
+    Half the lead, not all of it: with ``margin = lead`` (as before, for leads of 0.5 ms or
+    less), any lateness of the wake-up, tens of microseconds at best, moved every release one
+    step later than the rule's.
+    """
+    return min(lead / 2, dt / 2, 5e-4)
+
+
+def first_reachable_step(now: float, margin: float, dt: float) -> int:
+    """The first step ``j`` (at ``j dt``) still at least ``margin`` after ``now`` (seconds from
+    the session's start)."""
+    return math.ceil((now + margin) / dt - 1e-9)
 
 
 def check_session_delay(delay: Any, duration: float) -> None:
@@ -206,12 +231,12 @@ class DelayNode(NodeBase):
         where the pick changes and sleeps until ``lead`` before it, or until a command arrives
         (which may change it: the plan is then made again from the first step still ahead).
         Without commands it wakes at most every ``_HORIZON`` seconds. A wake-up so late that
-        the step is less than ``min(lead, dt/2, 0.5 ms)`` away evaluates the rule at the first
-        step that is still that far ahead instead (the steps in between count as missed).
+        the step is less than :func:`release_margin` away evaluates the rule at the first step
+        that is still that far ahead instead (the steps in between count as missed).
         """
         self.log = McapLog(self.out / "delay.mcap", t0, self.metadata())
         dt, lead, tolerance = self.dt, self.lead, self._tolerance
-        margin = min(lead, dt / 2, 5e-4)  # the least time a release is sent before its step
+        margin = release_margin(lead, dt)
         end = steps_until(self.duration, dt)  # steps 0 .. end - 1
         horizon = max(1, round(_HORIZON / dt))
         clock = time.monotonic
@@ -224,7 +249,7 @@ class DelayNode(NodeBase):
             arrived = self._take(t0)
             now = clock() - t0
             latest = math.floor((now + lead) / dt + 1e-9)  # the latest step whose deadline passed
-            feasible = math.ceil((now + margin) / dt - 1e-9)  # the first step still reachable
+            feasible = first_reachable_step(now, margin, dt)
             if arrived and plan is not None and latest < plan[0]:
                 plan = None  # plan again with it; a planned step already due is dealt with first
             if plan is None:

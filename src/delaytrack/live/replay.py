@@ -39,12 +39,14 @@ from delaytrack.live._node import session_files
 from delaytrack.live._tables import (
     RowsByIndex,
     SessionTable,
+    check_nodes_ran,
     check_tables_whole,
     json_table,
     read_table,
 )
 from delaytrack.live.log import write_csv
 from delaytrack.live.report import format_agreement, write_report
+from delaytrack.live.transport import scenario_hashes
 from delaytrack.warning import one_line
 
 if TYPE_CHECKING:
@@ -74,6 +76,14 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     )
     built = scenario.build()
     nodes = _session_nodes(folder / "summary.json")
+    check_nodes_ran(
+        folder,
+        nodes,
+        scenario_hashes(scenario, built.plant),
+        f"{folder / 'scenario.toml'}",
+        "the session folder's scenario.toml was changed after the session; the replay needs "
+        "the scenario the nodes ran",
+    )
     check_tables_whole(folder, nodes)
     robot, delay_node = nodes.get("robot") or {}, nodes.get("delay") or {}
     controller_node = nodes.get("controller") or {}

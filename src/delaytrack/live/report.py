@@ -45,8 +45,10 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
 
     A tick at which the controller sent nothing (no state yet) counts as the command in force
     from the controller's side: zero before the first command (the simulator's ``u_init``),
-    else the last one sent. A session whose robot state became non-finite has the status
-    ``diverged``.
+    else the last one sent. ``settings["first_command_t"]`` is the first tick's time with a
+    command (NaN without one): the commands' TV counts from there, as the simulator's counts
+    from its first command (:func:`metrics_with_units`; NaN when none was sent). A session
+    whose robot state became non-finite has the status ``diverged``.
     """
     from delaytrack.sim.result import SimResult
 
@@ -71,9 +73,11 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
     sent = ticks.at(inputs, tick_rows)
     commands = np.zeros((t.size, m))
     last = np.zeros(m)
+    first_sent = math.nan  # the first tick with a command: the TV counts from there
     for i in range(t.size):
         if np.all(np.isfinite(sent[i])):
             last = sent[i]
+            first_sent = t[i] if math.isnan(first_sent) else first_sent
         commands[i] = last
     step_rows = RowsByIndex(steps["j"]).find(ks * steps_per_tick)
     applied = steps.at(inputs, step_rows)
@@ -89,7 +93,12 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
         controller_state_names=(),
         status=np.array([0 if finite else 1]),
         t_stop=np.array([t[-1]]),
-        settings={"dt": scenario.dt, "T_c": scenario.T_c, "record_every": 1},
+        settings={
+            "dt": scenario.dt,
+            "T_c": scenario.T_c,
+            "record_every": 1,
+            "first_command_t": first_sent,
+        },
         coordinate_names=plant.coordinate_names,
         coordinate_units=getattr(plant, "coordinate_units", None),
         input_units=getattr(plant, "input_units", None),
@@ -98,12 +107,16 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
 
 def metrics_with_units(result: Any, label: str) -> Any:
     """:func:`delaytrack.metrics.metrics_table` of ``result`` with each metric's unit in its
-    column name (``ae_x_m``, ``rms_phi_rad``, ``tv_Nm`` when the inputs share a unit)."""
+    column name (``ae_x_m``, ``rms_phi_rad``, ``tv_Nm`` when the inputs share a unit); for a
+    live session (:func:`live_result`), the commands' TV from its first command."""
     from delaytrack._result_columns import metric_units
-    from delaytrack.metrics import metrics_table
+    from delaytrack.metrics import metrics_table, total_variation
     from delaytrack.units import with_unit
 
     table = metrics_table(result, label=label)
+    first = result.settings.get("first_command_t")
+    if first is not None:  # a live session: no jump from zero to its first command
+        table["tv"] = total_variation(result, t_from=first) if math.isfinite(first) else math.nan
     units = metric_units(
         result.coordinate_names, result.coordinate_units, result.n, result.input_units
     )
@@ -356,7 +369,8 @@ def _timing_settings(
         f"{ms(robot.get('lateness_ms_p99'))}",
         "delay node": f"{delay.get('received', 0)} commands received, {delay.get('lost', 0)} "
         f"lost (injected), {summary.get('not_received', 0)} sent but never received, "
-        f"{delay.get('released', 0)} releases, "
+        f"{delay.get('released', 0)} releases, {delay.get('missed_steps', 0)} steps missed "
+        f"(woke too late to release for them), "
         f"{per_second(delay.get('wakes_per_s'))} wake-ups/s, lead {delay.get('lead_ms', 0):g} ms",
         "realised delay − h(t) p50 / |.| p99": f"{ms(summary.get('realised_minus_h_ms_p50'))}"
         f" / {ms(summary.get('realised_minus_h_abs_ms_p99'))} (the exact rule on the robot's "
@@ -365,6 +379,7 @@ def _timing_settings(
         "commands superseded on the step grid (a newer one due at the same step)": str(
             summary.get("superseded_on_the_step_grid", "n/a")
         ),
+        "commands not due before the session ended": str(summary.get("due_after_the_end", "n/a")),
     }
 
 

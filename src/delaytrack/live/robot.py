@@ -44,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from delaytrack._compile.functions import FEW_POINTS
 from delaytrack.live._node import NodeBase, Received, percentile
 from delaytrack.live.bridge import RobotBridge, check_state, load_bridge
 from delaytrack.live.clock import Ticker, steps_until
@@ -280,10 +281,12 @@ class RobotNode(NodeBase):
         self.states: list[list[Any]] = []
         self.applied: list[list[Any]] = []
         # The status (status_numbers): h at the steps where commands came into force (warmed
-        # up here: the profile may be compiled), the rows already counted, the commands seen
-        # in force and the zero-input steps counted.
+        # up here, at more points than h evaluates as Python, so that its compiled code is
+        # loaded now: at the first status it took 4-8 ms of the loop, and the robot missed
+        # steps at t = 1 s), the rows already counted, the commands seen in force and the
+        # zero-input steps counted.
         self.delay = built.delay
-        self.delay.h(np.zeros(1))
+        self.delay.h(np.zeros(FEW_POINTS + 1))
         self._status_step, self._status_applied = 0, 0
         self._in_force: set[int] = set()
         self._zero_input = 0

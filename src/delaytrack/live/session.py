@@ -44,6 +44,7 @@ from delaytrack.live._node import (
 from delaytrack.live._tables import (
     ROLE_FILES,
     RowsByIndex,
+    check_nodes_ran,
     check_tables_whole,
     json_table,
     ms,
@@ -54,7 +55,7 @@ from delaytrack.live._tables import (
 from delaytrack.live.log import write_csv
 from delaytrack.live.report import FIGURES, links_text
 from delaytrack.live.status import StatusWatch
-from delaytrack.live.transport import differing_parts, scenario_hashes
+from delaytrack.live.transport import scenario_hashes
 from delaytrack.warning import one_line
 
 __all__ = ["collect", "run_session"]
@@ -471,24 +472,6 @@ def _launcher_facts(path: Path, nodes: dict[str, Any]) -> dict[str, Any]:
     return {key: summary[key] for key in ("exit_codes", "wall_s", "load_average") if key in summary}
 
 
-def _check_nodes_ran(
-    folder: Path, nodes: dict[str, Any], hashes: dict[str, str], given: str
-) -> None:
-    """Refuse a scenario (``given``, of ``hashes``) other than the one the nodes of the session
-    in ``folder`` ran (the :func:`~delaytrack.live.transport.scenario_hashes` each node
-    recorded in its record of ``nodes``), naming the parts that differ."""
-    for role in ROLES:
-        recorded = (nodes.get(role) or {}).get("scenario_hashes")
-        if not isinstance(recorded, dict):
-            continue  # a node of an earlier version recorded none
-        parts = differing_parts(hashes, recorded)
-        if parts is not None:
-            raise ValueError(
-                f"{folder}: the {role} node ran another scenario than {given} (they differ in "
-                f"{parts}); give the scenario file the nodes ran"
-            )
-
-
 def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -> dict[str, Any]:
     """Merge the nodes' tables into ``delays.csv``; return the session's summary. ``built`` is
     ``scenario.build()``. A table or record that is not the toolkit's is a ValueError naming
@@ -497,7 +480,13 @@ def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -
     delay = built.delay
     nodes = {role: node_record(folder / f"{role}.json") for role in ROLES}
     if given is not None:
-        _check_nodes_ran(folder, nodes, scenario_hashes(scenario, built.plant), given)
+        check_nodes_ran(
+            folder,
+            nodes,
+            scenario_hashes(scenario, built.plant),
+            given,
+            "give the scenario file the nodes ran",
+        )
     check_tables_whole(folder, nodes)
     ticks = read_table(folder / "ticks.csv", ("t_s", "send_s"), indices=("k",), texts=("status",))
     releases = read_table(
@@ -567,7 +556,9 @@ def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -
     end = read_table(folder / "steps.csv").rows * scenario.dt
     steps, due = _due_steps(issued, delay, scenario.dt, end)
     # due at one of the robot's steps (the last of ``steps`` is the session's end)
-    superseded = _superseded(issued, (lost == 0) & (due < steps.size - 1), due)
+    within = due < steps.size - 1
+    superseded = _superseded(issued, (lost == 0) & within, due)
+    held = (lost == 0) & ~came
     listened = (nodes.get("delay") or {}).get("session_s")
     if not is_real_number(listened):  # a record without it (or not a number)
         listened = -math.inf
@@ -580,13 +571,14 @@ def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -
         # Commands sent while the delay node listened that never reached it (the transport's
         # losses, as opposed to the injected ones counted in "lost").
         "not_received": int(np.sum((lost == -1) & (sent_s <= listened))),
-        # Commands the rule would have applied before the session ended that never were (the
-        # last ones, still held when it ended, and those a newer one superseded at the step
-        # they came due, are not counted).
-        "never_applied": int(
-            np.sum((lost == 0) & ~came & ~superseded & (issued + h_issued + 2 * scenario.dt < end))
-        ),
-        "superseded_on_the_step_grid": int(np.sum(superseded & ~came)),
+        "sent_after_listening": int(np.sum((lost == -1) & ~(sent_s <= listened))),
+        "applied": int(np.sum(came)),
+        # Received commands the rule would have applied at one of the robot's steps that never
+        # were (those a newer one superseded at the step they came due are counted apart), and
+        # those not due before the session ended.
+        "never_applied": int(np.sum(held & within & ~superseded)),
+        "superseded_on_the_step_grid": int(np.sum(held & superseded)),
+        "due_after_the_end": int(np.sum(held & ~within)),
         "realised_minus_h_ms_p50": percentile(error, 50),
         "realised_minus_h_abs_ms_p99": percentile(np.abs(error), 99),
         "realised_minus_h_abs_ms_max": percentile(np.abs(error), 100),
@@ -647,7 +639,8 @@ def format_summary(summary: dict[str, Any], folder: Path) -> str:
         f"than t_k, stale {c.get('stale', 0)}",
         "delay": f"  delay node: {d.get('received', 0)} received, {d.get('lost', 0)} lost "
         f"(injected), {summary.get('not_received', 0)} sent but never received, "
-        f"{d.get('released', 0)} releases",
+        f"{d.get('released', 0)} releases, {d.get('missed_steps', 0)} steps missed (woke too "
+        "late to release for them)",
         "robot": f"  robot: {r.get('steps', 0)} steps, {r.get('missed_steps', 0)} missed, "
         f"lateness p99 {ms(r.get('lateness_ms_p99'))}, u_init {r.get('no_command_steps', 0)} "
         f"steps before the first command + zero input {r.get('timeout_zero_steps', 0)} on "
@@ -661,9 +654,16 @@ def format_summary(summary: dict[str, Any], folder: Path) -> str:
                 "what it logged"
             )
     never_applied = summary["never_applied"] if nodes.get("robot") is not None else "n/a"
-    superseded = summary.get("superseded_on_the_step_grid")
-    if superseded:
-        never_applied = f"{never_applied} ({superseded} superseded at the step they came due)"
+    apart = [
+        f"{count} {what}"
+        for count, what in (
+            (summary.get("superseded_on_the_step_grid"), "superseded at the step they came due"),
+            (summary.get("due_after_the_end"), "not due before the end"),
+        )
+        if count
+    ]
+    if apart:
+        never_applied = f"{never_applied} ({'; '.join(apart)})"
     return "\n".join(
         [
             f"live session {summary['scenario']} (T_c = {summary['T_c_s'] * 1e3:g} ms, "

@@ -181,17 +181,62 @@ def test_a_table_whose_line_breaks_a_copy_turned_into_newlines_is_taken(folder, 
 
 
 def _forget_sizes(folder):
-    """The folder as a session of nodes that recorded no table sizes (an earlier version)."""
+    """The folder as a session of nodes that recorded no table sizes nor digests (an earlier
+    version)."""
     for path in [folder / f"{role}.json" for role in ROLES]:
         record = json.loads(path.read_text())
         record.pop("table_bytes", None)
+        record.pop("table_sha256", None)
         path.write_text(json.dumps(record))
     summary = folder / "summary.json"
     if summary.exists():
         data = json.loads(summary.read_text())
         for record in data["nodes"].values():
             record.pop("table_bytes", None)
+            record.pop("table_sha256", None)
         summary.write_text(json.dumps(data))
+
+
+def _same_length_edit(path, column):
+    """Replace the first row's ``column`` cell of the table ``path`` with as many ``x``: the
+    table keeps its size."""
+    with open(path, newline="") as handle:
+        rows = list(csv.reader(handle))
+    rows[1][rows[0].index(column)] = "x" * len(rows[1][rows[0].index(column)])
+    with open(path, "w", newline="") as handle:
+        csv.writer(handle).writerows(rows)
+
+
+@pytest.mark.parametrize(
+    ("command", "table", "column"),
+    [("replay", "states.csv", "t_s"), ("collect", "releases.csv", "received_s")],
+)
+def test_a_table_changed_to_the_same_size_is_refused(folder, tmp_path, command, table, column):
+    """A number replaced by text of its length was read as NaN and the session replayed: the
+    nodes record each table's digest."""
+    copy = tmp_path / "session"
+    shutil.copytree(folder, copy)
+    if not (copy / "summary.json").exists():
+        subprocess.run([*PYTHON, "collect", str(copy), SCENARIO], check=True, timeout=300)
+    size = (copy / table).stat().st_size
+    _same_length_edit(copy / table, column)
+    assert (copy / table).stat().st_size == size
+    argv = [str(copy), "--quiet"] if command == "replay" else [str(copy), SCENARIO]
+    done = subprocess.run([*PYTHON, command, *argv], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert f"{table} holds other contents than the" in done.stderr, done.stderr
+
+
+def test_records_of_two_sessions_in_one_folder_are_refused(folder, tmp_path):
+    copy = tmp_path / "session"
+    shutil.copytree(folder, copy)
+    record = json.loads((copy / "robot.json").read_text())
+    record["session"]["t0_robot_clock"] += 37.0  # the robot's of a session started later
+    (copy / "robot.json").write_text(json.dumps(record))
+    done = subprocess.run(
+        [*PYTHON, "collect", str(copy), SCENARIO], capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 2 and "the node records are of different sessions" in done.stderr
 
 
 def test_a_session_whose_controller_logged_no_tick_is_reported_with_no_command(folder, tmp_path):

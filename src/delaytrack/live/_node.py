@@ -33,7 +33,7 @@ import numpy as np
 from delaytrack._file_lock import exclusive
 from delaytrack._io import json_text, write_text
 from delaytrack._output import check_output_folder, claim_output_folder, record_outputs
-from delaytrack.live._tables import ROLE_FILES, table_bytes
+from delaytrack.live._tables import ROLE_FILES, table_bytes, table_digests
 from delaytrack.live.status import (
     STATUS_PERIOD,
     encode_status,
@@ -471,6 +471,9 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
         summary["mutual_tls"] = args.certificates is not None  # its peers authenticated
         summary["scenario_hashes"] = node.hashes  # what live collect checks its scenario by
         summary["table_bytes"] = table_bytes(node.out, node.role)  # and its tables whole
+        summary["table_sha256"] = table_digests(node.out, node.role)
+        # which session: collect refuses records of several sessions in one folder
+        summary["session"] = {"name": args.session, "t0_robot_clock": handshake.robot_t0}
         summary["stopped_by"] = (
             signal.Signals(stop.signal).name
             if stop.signal

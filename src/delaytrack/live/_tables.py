@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import array
 import csv
+import hashlib
 import json
 import math
 import re
@@ -21,13 +22,16 @@ __all__ = [
     "RowsByIndex",
     "SessionTable",
     "check_nodes_ran",
+    "check_one_session",
     "check_tables_whole",
+    "content_digest",
     "json_table",
     "ms",
     "node_record",
     "number",
     "read_table",
     "table_bytes",
+    "table_digests",
     "values_at",
 ]
 
@@ -42,14 +46,37 @@ ROLE_FILES = {
 
 
 def table_bytes(folder: Path, role: str) -> dict[str, int]:
-    """The size in bytes of each table the ``role`` node wrote into ``folder``: what its
+    """The size in bytes of each table and log the ``role`` node wrote into ``folder``: what its
     record keeps, so that a table cut short (copied from another machine before it was whole)
     is refused (:func:`check_tables_whole`)."""
     return {
         name: (folder / name).stat().st_size
         for name in ROLE_FILES[role]
-        if name.endswith(".csv") and (folder / name).is_file()
+        if name.endswith((".csv", ".mcap")) and (folder / name).is_file()
     }
+
+
+def table_digests(folder: Path, role: str) -> dict[str, str]:
+    """The SHA-256 of each table and log the ``role`` node wrote into ``folder``
+    (:func:`content_digest`): what its record keeps, so that a table changed after the session
+    without changing its size (a number replaced by text of its length) is refused too."""
+    return {
+        name: content_digest(folder / name)
+        for name in ROLE_FILES[role]
+        if name.endswith((".csv", ".mcap")) and (folder / name).is_file()
+    }
+
+
+def content_digest(path: Path) -> str:
+    """SHA-256 of the file ``path``, a CSV table's without its carriage returns (a copy may
+    turn its ``\\r\\n`` line breaks into ``\\n``; no cell of a node's table holds one), read a
+    MiB at a time."""
+    digest = hashlib.sha256()
+    text = path.suffix == ".csv"
+    with path.open("rb") as handle:
+        for chunk in iter(lambda: handle.read(2**20), b""):
+            digest.update(chunk.replace(b"\r", b"") if text else chunk)
+    return digest.hexdigest()
 
 
 def check_nodes_ran(
@@ -70,23 +97,58 @@ def check_nodes_ran(
             )
 
 
+def check_one_session(folder: Path, nodes: Mapping[str, Any]) -> None:
+    """Refuse node records of ``folder`` (``nodes``, role -> record or None) that are of
+    different sessions: each records its session's name and start on the robot's clock, the
+    same in every node of one session (a node of an earlier version recorded none)."""
+    sessions: dict[str, dict[str, Any]] = {}
+    for role, record in nodes.items():
+        session = (record or {}).get("session")
+        if isinstance(session, dict):
+            sessions[role] = session
+    if len({json.dumps(session, sort_keys=True) for session in sessions.values()}) > 1:
+        shown = "; ".join(
+            f"{role}: {session.get('name')!r} started at {session.get('t0_robot_clock')}"
+            for role, session in sessions.items()
+        )
+        raise ValueError(
+            f"{folder}: the node records are of different sessions ({shown} s on the robot's "
+            "clock); put the files of one session's three nodes into one folder"
+        )
+
+
 def check_tables_whole(folder: Path, nodes: Mapping[str, Any]) -> None:
-    """Refuse a table of ``folder`` whose size differs from the one its node recorded
-    (``table_bytes`` in the node's record of ``nodes``, role -> record or None; a node of an
-    earlier version recorded none), naming it and both sizes."""
+    """Refuse a table or log of ``folder`` whose size or content differs from the one its node
+    recorded (``table_bytes`` and ``table_sha256`` in the node's record of ``nodes``, role ->
+    record or None; a node of an earlier version recorded none or only the sizes), naming it."""
+    again = "copy it again from the node's folder, or run delaytrack live collect"
     for role, names in ROLE_FILES.items():
-        written = (nodes.get(role) or {}).get("table_bytes")
+        record = nodes.get(role) or {}
+        written, digests = record.get("table_bytes"), record.get("table_sha256")
         if not isinstance(written, dict):
             continue
         for name in names:
             path = folder / name
             expected = written.get(name)
-            if isinstance(expected, int) and path.is_file() and not _same_size(path, expected):
+            if not (isinstance(expected, int) and path.is_file()):
+                continue
+            whole = (
+                _same_size(path, expected)
+                if name.endswith(".csv")
+                else (path.stat().st_size == expected)
+            )
+            if not whole:
                 raise ValueError(
                     f"{path} holds {path.stat().st_size} bytes where the {role} node wrote "
                     f"{expected}: it is not the table the node wrote (cut short or changed, or "
-                    "the folder's records are of another session); copy it again from the "
-                    "node's folder, or run delaytrack live collect"
+                    f"the folder's records are of another session); {again}"
+                )
+            digest = digests.get(name) if isinstance(digests, dict) else None
+            if isinstance(digest, str) and content_digest(path) != digest:
+                raise ValueError(
+                    f"{path} holds other contents than the {role} node wrote (of the same size: "
+                    f"changed after the session, or the folder's records are of another "
+                    f"session); {again}"
                 )
 
 

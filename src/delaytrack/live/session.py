@@ -45,6 +45,7 @@ from delaytrack.live._tables import (
     ROLE_FILES,
     RowsByIndex,
     check_nodes_ran,
+    check_one_session,
     check_tables_whole,
     json_table,
     ms,
@@ -487,6 +488,7 @@ def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -
             given,
             "give the scenario file the nodes ran",
         )
+    check_one_session(folder, nodes)
     check_tables_whole(folder, nodes)
     ticks = read_table(folder / "ticks.csv", ("t_s", "send_s"), indices=("k",), texts=("status",))
     releases = read_table(

@@ -258,6 +258,8 @@ class Handshake:
         self._lock = threading.Lock()
         self._peers: dict[str, dict[str, Any]] = {}
         self.t0: float | None = None
+        #: ``t0`` on the robot node's clock, the same number in every node of one session.
+        self.robot_t0: float | None = None
         self.clock_offset: ClockOffset | None = SAME_CLOCK if role == "robot" else None
         self._session, self._clock_key = session, f"{prefix}/clock"
         self._publisher = session.declare_publisher(f"{prefix}/hello")
@@ -330,7 +332,7 @@ class Handshake:
                     for r in others
                 ) and set(self._agreeing()) == set(others)
                 if everyone and self.t0 is None:
-                    self.t0 = self._clock() + self.start_delay
+                    self.t0 = self.robot_t0 = self._clock() + self.start_delay
             else:
                 robot = peers.get("robot")
                 if robot is not None and robot.get("t0") is not None:
@@ -338,7 +340,7 @@ class Handshake:
                     t0 = float(robot["t0"]) - offset.offset_s
                     # a start the robot would announce: seconds ahead, not days (nor past)
                     if abs(t0 - self._clock()) <= self.start_delay + MAX_START_DISTANCE:
-                        self.t0 = t0
+                        self.t0, self.robot_t0 = t0, float(robot["t0"])
             self.publish()
             if self.t0 is not None and (self.role != "robot" or self._clock() > self.t0 - 0.3):
                 return self.t0

@@ -404,7 +404,7 @@ def test_a_node_that_exits_before_the_sessions_end_ends_it(tmp_path):
     assert _exit_text("robot", 1) == "robot (exit 1)"
 
 
-def test_realtime_is_set_or_refused_never_left_out(monkeypatch):
+def test_realtime_is_set_or_refused_never_left_out(monkeypatch, tmp_path, capsys):
     from argparse import Namespace
 
     from delaytrack.live._node import enter_realtime
@@ -418,6 +418,12 @@ def test_realtime_is_set_or_refused_never_left_out(monkeypatch):
         with pytest.raises(ValueError, match=r"--realtime 50: SCHED_FIFO could not be set"):
             enter_realtime(50)
         enter_realtime(None)  # not asked for: nothing to set
+        # live run checks it once, before its nodes start (each would print the same error)
+        out = tmp_path / "out"
+        assert main(["live", "run", SCENARIO, "--out", str(out), "--realtime", "50"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "--realtime 50: SCHED_FIFO could not be set" in err
+        assert not out.exists()  # no node started
     options = Namespace(
         scenario=SCENARIO,
         handshake_timeout=1.0,

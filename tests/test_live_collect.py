@@ -252,3 +252,35 @@ def test_a_session_whose_controller_logged_no_tick_is_reported_with_no_command(f
     result = live_result(copy, scenario, scenario.build())
     assert result.t.size > 1 and not result.commands.any()  # zero before a first command
     assert np.isfinite(result.applied[0, :-1]).all()  # the robot's steps (to the last) read
+
+
+def test_a_session_whose_controller_did_not_finish_reports_no_command_and_na(folder, tmp_path):
+    """The controller killed: no ticks.csv and no record. Its commands are unknown (NaN, no TV),
+    not zeros, and its rows of the report say n/a, not "0 ticks" or "the true state"."""
+    from delaytrack.live.report import _timing_settings, live_result
+    from delaytrack.scenario import load_builtin
+
+    copy = tmp_path / "session"
+    shutil.copytree(folder, copy)
+    (copy / "ticks.csv").unlink()
+    scenario = load_builtin(SCENARIO)
+    result = live_result(copy, scenario, scenario.build())
+    assert np.isnan(result.commands).all() and np.isnan(result.settings["first_command_t"])
+    rows = _timing_settings({}, scenario, {}, {"steps": 5}, {"received": 5})
+    for name in ("controller ticks", "state the controller's law read"):
+        assert rows[name].startswith("n/a: the controller node wrote no record"), rows[name]
+    assert rows["robot steps"].startswith("5 (")
+
+
+def test_collect_says_which_node_did_not_finish(folder, tmp_path):
+    """A node killed midway leaves its log, not its record and tables: said so, not "put the
+    files the three nodes wrote into one folder"."""
+    copy = tmp_path / "session"
+    shutil.copytree(folder, copy)
+    (copy / "controller.json").unlink()
+    (copy / "ticks.csv").unlink()
+    done = subprocess.run(
+        [*PYTHON, "collect", str(copy), SCENARIO], capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert "the controller node did not finish (its log controller.mcap is there" in done.stderr

@@ -148,3 +148,23 @@ def test_collect_keeps_the_launchers_facts_of_the_same_session_only(tmp_path):
     assert _launcher_facts(path, {**nodes, "robot": {"steps": 1000}}) == {}  # another session
     path.write_text("[1, 2]")
     assert _launcher_facts(path, nodes) == {}
+
+
+def test_nodes_that_ran_for_different_lengths_are_said_to():
+    """Nodes started with different --duration join one session: the summary says so."""
+    from delaytrack.live.report import lengths_text, node_lengths
+
+    nodes = {"robot": {"steps": 2000}, "controller": {"ticks": 2000}, "delay": {"session_s": 3.0}}
+    lengths = node_lengths(nodes, 0.001, 0.002)
+    assert lengths == {"robot": 2.0, "controller": 4.0, "delay": 3.0}
+    text = lengths_text(lengths)
+    assert text is not None and "robot 2 s, controller 4 s, delay 3 s" in text
+    alike = {**nodes, "controller": {"ticks": 1000}, "delay": {"session_s": 2.003}}
+    assert lengths_text(node_lengths(alike, 0.001, 0.002)) is None
+    assert node_lengths({"robot": None}, 0.001, 0.002)["robot"] is None
+    summary = {
+        "scenario": "two_link_S1", "T_c_s": 0.002, "dt_s": 0.001, "never_applied": 0,
+        "realised_minus_h_ms_p50": 0.0, "realised_minus_h_abs_ms_p99": 0.0,
+        "nodes": nodes, "node_lengths_s": lengths,
+    }  # fmt: skip
+    assert "  warning: the nodes ran for different lengths" in format_summary(summary, Path("o"))

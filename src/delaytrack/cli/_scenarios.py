@@ -13,17 +13,13 @@ __all__ = ["scenario_source", "trusted"]
 
 def scenario_source(text: str) -> Path:
     """A scenario file path, or the name of a shipped scenario (``two_link_S1``)."""
-    from delaytrack.scenario import builtin_scenario_names, builtin_scenario_path
+    from delaytrack.scenario import ScenarioError
+    from delaytrack.scenario.builtin import scenario_file_or_builtin
 
-    path = Path(text)
-    if path.exists() or path.suffix == ".toml":
-        return path
-    if text in builtin_scenario_names():
-        return builtin_scenario_path(text)
-    raise UsageError(
-        f"scenario file {text!r} does not exist (nor is it a built-in scenario; those are "
-        f"{builtin_scenario_names()})"
-    )
+    try:
+        return scenario_file_or_builtin(text)
+    except ScenarioError as error:
+        raise UsageError(str(error)) from None
 
 
 def trusted(args: argparse.Namespace) -> list[str]:

@@ -50,6 +50,7 @@ __all__ = [
     "NodeBase",
     "Received",
     "StopFlag",
+    "check_realtime",
     "claim_node_folder",
     "load_scenario",
     "percentile",
@@ -258,12 +259,10 @@ def record_node_files(folder: Path) -> None:
 
 def load_scenario(source: str, trust: list[str]) -> Any:
     """A scenario file, or the name of a shipped scenario (``two_link_S1``)."""
-    from delaytrack.scenario import Scenario, builtin_scenario_names, builtin_scenario_path
+    from delaytrack.scenario import Scenario
+    from delaytrack.scenario.builtin import scenario_file_or_builtin
 
-    path = Path(source)
-    if not path.exists() and path.suffix != ".toml" and source in builtin_scenario_names():
-        path = builtin_scenario_path(source)
-    return Scenario.from_toml(path, trust=trust)
+    return Scenario.from_toml(scenario_file_or_builtin(source), trust=trust)
 
 
 class NodeBase:
@@ -387,6 +386,26 @@ def enter_realtime(priority: int | None) -> None:
             f"--realtime {priority}: SCHED_FIFO could not be set ({reason}); give the user an "
             "rtprio limit (/etc/security/limits.conf) or CAP_SYS_NICE, or leave --realtime out"
         ) from None
+
+
+def check_realtime(priority: int | None) -> None:
+    """Whether :func:`enter_realtime` would succeed (the same ValueError when not), tried on a
+    thread of its own that ends at once, so that the caller's threads keep their policy."""
+    if priority is None:
+        return
+    failed: list[ValueError] = []
+
+    def attempt() -> None:
+        try:
+            enter_realtime(priority)
+        except ValueError as error:
+            failed.append(error)
+
+    thread = threading.Thread(target=attempt, name="delaytrack-realtime-check")
+    thread.start()
+    thread.join()
+    if failed:
+        raise failed[0]
 
 
 def run_node(node_class: type[NodeBase], args: Any) -> int:

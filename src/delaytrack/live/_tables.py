@@ -199,7 +199,8 @@ class SessionTable:
         if not self.rows:
             raise ValueError(
                 f"{self.path.parent}: {self.path.name} is missing or has no rows; a session "
-                "folder written by delaytrack live run (or live collect) holds it"
+                "whose nodes all finished holds it (a node stopped early writes no tables: its "
+                "log, <role>.mcap, reads up to where it stopped)"
             )
         return self
 

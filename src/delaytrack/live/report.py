@@ -27,13 +27,16 @@ from typing import Any
 import numpy as np
 
 from delaytrack._io import read_file_bytes
+from delaytrack._validation import is_real_number
 from delaytrack.live._tables import RowsByIndex, json_table, ms, per_second, read_table
 
 __all__ = [
     "format_agreement",
+    "lengths_text",
     "links_text",
     "live_result",
     "metrics_with_units",
+    "node_lengths",
     "write_report",
     "write_session_report",
 ]
@@ -45,7 +48,8 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
 
     A tick at which the controller sent nothing (no state yet) counts as the command in force
     from the controller's side: zero before the first command (the simulator's ``u_init``),
-    else the last one sent. ``settings["first_command_t"]`` is the first tick's time with a
+    else the last one sent; NaN throughout when the controller wrote no ``ticks.csv`` (it did
+    not finish). ``settings["first_command_t"]`` is the first tick's time with a
     command (NaN without one): the commands' TV counts from there, as the simulator's counts
     from its first command (:func:`metrics_with_units`; NaN when none was sent). A session
     whose robot state became non-finite has the status ``diverged``.
@@ -71,8 +75,10 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
     ref = np.stack(reference.evaluate(t), axis=1)  # (R, 3, n): q_d, q̇_d, q̈_d
     tick_rows = RowsByIndex(ticks["k"]).find(ks)
     sent = ticks.at(inputs, tick_rows)
-    commands = np.zeros((t.size, m))
-    last = np.zeros(m)
+    # no ticks.csv (the controller did not finish): no command known, not zeros
+    logged_ticks = (folder / "ticks.csv").exists()
+    commands = np.zeros((t.size, m)) if logged_ticks else np.full((t.size, m), np.nan)
+    last = np.zeros(m) if logged_ticks else np.full(m, np.nan)
     first_sent = math.nan  # the first tick with a command: the TV counts from there
     for i in range(t.size):
         if np.all(np.isfinite(sent[i])):
@@ -302,6 +308,36 @@ def _robot_failure(summary: dict[str, Any]) -> str | None:
     return failure if isinstance(failure, str) else None
 
 
+#: Nodes whose lengths differ by more than this ran with different ``--duration`` (a node's
+#: own length is its duration to a tick or two).
+LENGTHS_DIFFER_S = 0.5
+
+
+def node_lengths(nodes: dict[str, Any], dt: float, T_c: float) -> dict[str, float | None]:
+    """How long each node ran (s): the robot's steps times ``dt``, the controller's ticks times
+    ``T_c``, the delay node's loop; None without a record."""
+    robot, controller, delay = (nodes.get(role) or {} for role in ("robot", "controller", "delay"))
+    lengths = {
+        "robot": robot.get("steps", math.nan) * dt if robot else None,
+        "controller": controller.get("ticks", math.nan) * T_c if controller else None,
+        "delay": delay.get("session_s") if delay else None,
+    }
+    return {role: v if is_real_number(v) else None for role, v in lengths.items()}
+
+
+def lengths_text(lengths: dict[str, Any] | None) -> str | None:
+    """A warning when the nodes ran for lengths more than :data:`LENGTHS_DIFFER_S` apart
+    (started with different ``--duration``), else None."""
+    known = {role: v for role, v in (lengths or {}).items() if is_real_number(v)}
+    if len(known) < 2 or max(known.values()) - min(known.values()) <= LENGTHS_DIFFER_S:
+        return None
+    shown = ", ".join(f"{role} {v:.3g} s" for role, v in known.items())
+    return (
+        f"the nodes ran for different lengths ({shown}: started with different --duration); "
+        "past the shortest, the others ran without it"
+    )
+
+
 def links_text(nodes: dict[str, Any]) -> str:
     """Whether the nodes authenticated their peers (``mutual_tls`` in their records)."""
     secured = {role: (record or {}).get("mutual_tls") for role, record in nodes.items()}
@@ -337,7 +373,8 @@ def _session_settings(summary: dict[str, Any], scenario: Any, live: Any) -> dict
         "exit codes": ", ".join(
             f"{role} {code}" for role, code in (summary.get("exit_codes") or {}).items()
         ),
-        "how each node ended": "; ".join(f"{role}: {end}" for role, end in ended.items()),
+        "how each node ended": "; ".join(f"{role}: {end}" for role, end in ended.items())
+        + (f"; {differ}" if (differ := lengths_text(summary.get("node_lengths_s"))) else ""),
         "links between the nodes": links_text(nodes),
         "load average (1, 5, 15 min) at the end": ", ".join(
             f"{v:.2f}" for v in summary.get("load_average", [])
@@ -353,8 +390,9 @@ def _timing_settings(
     robot: dict[str, Any],
     delay: dict[str, Any],
 ) -> dict[str, str]:
-    """The nodes' timing and the delay rule's outcome, from their records in the summary."""
-    return {
+    """The nodes' timing and the delay rule's outcome, from their records in the summary; a
+    node that wrote no record (it did not finish) has its rows said to be n/a, not zeros."""
+    rows = {
         "controller ticks": f"{controller.get('ticks', 0)} ({controller.get('missed', 0)} missed, "
         f"{controller.get('older_state', 0)} on a state older than t_k, "
         f"{controller.get('stale', 0)} on a stale state)",
@@ -381,6 +419,15 @@ def _timing_settings(
         ),
         "commands not due before the session ended": str(summary.get("due_after_the_end", "n/a")),
     }
+    for role, record, prefix in (
+        ("controller", controller, ("controller", "state the controller")),
+        ("robot", robot, ("robot", "commands")),
+        ("delay", delay, ("delay node",)),
+    ):
+        if not record:
+            missing = f"n/a: the {role} node wrote no record ({role}.json; it did not finish)"
+            rows.update({name: missing for name in rows if name.startswith(prefix)})
+    return rows
 
 
 def _state_read(controller: dict[str, Any], scenario: Any) -> str:
@@ -408,7 +455,8 @@ def _replay_settings(agreement: dict[str, Any]) -> dict[str, str]:
         name, _, text = line.partition(": ")
         rows[name] = text
     rows["not reproduced by the simulation"] = ", ".join(
-        f"{k.replace('_', ' ')} {v}" for k, v in agreement["not_reproduced"].items()
+        f"{k.replace('_', ' ').replace('t k', 't_k')} {v}"  # t_k keeps its underscore
+        for k, v in agreement["not_reproduced"].items()
     )
     return rows
 

@@ -35,6 +35,7 @@ from delaytrack._io import json_text, write_text
 from delaytrack._validation import is_real_number
 from delaytrack.live._node import (
     LAUNCHER_PID,
+    check_realtime,
     load_scenario,
     percentile,
     remove_files,
@@ -54,7 +55,7 @@ from delaytrack.live._tables import (
     values_at,
 )
 from delaytrack.live.log import write_csv
-from delaytrack.live.report import FIGURES, links_text
+from delaytrack.live.report import FIGURES, lengths_text, links_text, node_lengths
 from delaytrack.live.status import StatusWatch
 from delaytrack.live.transport import scenario_hashes
 from delaytrack.warning import one_line
@@ -278,6 +279,7 @@ def _checked_session(args: Any) -> tuple[Any, Any, float, Path]:
     check_session_delay(built.delay, duration)  # as the delay node checks it
     if getattr(args, "bridge", None) is not None:
         bridge_factory(args.bridge)  # the robot node builds and checks the bridge itself
+    check_realtime(getattr(args, "realtime", None))  # once here, not once per node
     folder = check_output_folder(args.out, "--out")
     return scenario, built, duration, folder
 
@@ -437,6 +439,18 @@ def collect_main(args: Any) -> int:
         missing = [
             name for names in NODE_FILES.values() for name in names if not (folder / name).is_file()
         ]
+        unfinished = [
+            role
+            for role in ROLES
+            if (folder / f"{role}.mcap").is_file() and not (folder / f"{role}.json").is_file()
+        ]
+        if unfinished:  # its log is there, not what it writes at its end
+            raise ValueError(
+                f"{folder}: the {' and '.join(unfinished)} node did not finish (its log "
+                f"{', '.join(f'{r}.mcap' for r in unfinished)} is there, not the record and "
+                "tables a node writes at its end): a summary needs every node's; the logs read "
+                "as they are up to where they stop"
+            )
         if missing:
             raise ValueError(
                 f"{folder} lacks {', '.join(missing)}: put the files the three nodes wrote into "
@@ -587,6 +601,7 @@ def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -
         "realised_minus_h_abs_ms_p99_of_the_rule": percentile(
             np.abs(_rule_error_ms(issued[came], delay, scenario.dt, end)), 99
         ),
+        "node_lengths_s": node_lengths(nodes, scenario.dt, scenario.T_c),
         "nodes": nodes,
     }
 
@@ -678,5 +693,10 @@ def format_summary(summary: dict[str, Any], folder: Path) -> str:
             f"|.| p99 {ms(summary['realised_minus_h_abs_ms_p99'])} (the exact rule on the step "
             f"grid alone: {ms(summary.get('realised_minus_h_abs_ms_p99_of_the_rule'))}); "
             f"commands never applied: {never_applied}",
+            *(
+                [f"  warning: {text}"]
+                if (text := lengths_text(summary.get("node_lengths_s"))) is not None
+                else []
+            ),
         ]
     )

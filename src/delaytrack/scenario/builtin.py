@@ -26,3 +26,23 @@ def builtin_scenario_path(name: str) -> Path:
 def load_builtin(name: str) -> Scenario:
     """Load a shipped scenario by name (see :func:`builtin_scenario_names`)."""
     return Scenario.from_toml(builtin_scenario_path(name))
+
+
+def scenario_file_or_builtin(text: str) -> Path:
+    """The scenario file ``text`` names: a path (any existing file, or one ending in ``.toml``,
+    which then says it is missing when read), else the shipped scenario of that name.
+
+    Raises
+    ------
+    ScenarioError
+        When ``text`` is neither, naming the shipped scenarios.
+    """
+    path = Path(text)
+    if path.exists() or path.suffix == ".toml":
+        return path
+    names = builtin_scenario_names()
+    if text in names:
+        return builtin_scenario_path(text)
+    raise ScenarioError(
+        f"scenario file {text!r} does not exist (nor is it a built-in scenario; those are {names})"
+    )

@@ -337,7 +337,6 @@ def marking(marker: Path) -> str:
             "deps/nodeenv-1.12.0.dist-info/METADATA",
             "a folder of installed Python packages (it holds nodeenv-1.12.0.dist-info)",
         ),
-        (("deps", "pkg"), "deps/old.egg-info/PKG", "(it holds old.egg-info)"),
         # PEP 582's local packages
         (("__pypackages__", "3.11", "lib"), None, "(PEP 582)"),
     ],
@@ -695,3 +694,14 @@ def test_a_session_folder_someone_sent_runs_no_code_for_lying_in_it(tmp_path, ca
     # trusted, it is the user's choice: it loads (and the folder, holding no tables, is refused)
     assert main(["live", "replay", str(session), "--trust", str(session / "helpers.py")]) == 2
     assert marker.exists() and "not trusted" not in capsys.readouterr().err
+
+
+def test_a_project_installed_for_development_keeps_its_own_code(tmp_path):
+    """``pip install -e .`` leaves ``src/<name>.egg-info`` beside the project's own packages:
+    not a folder of installed code (a ``*.dist-info`` beside them, as ``pip install --target``
+    leaves, is: see the test above)."""
+    (tmp_path / "src" / "lab.egg-info").mkdir(parents=True)
+    (tmp_path / "src" / "lab.egg-info" / "PKG-INFO").write_text("Name: lab\n")
+    (tmp_path / "src" / "arm.py").write_text(ARM_FACTORY)
+    path = scenario_file(tmp_path, {"type": "python:src/arm.py:make"})
+    assert Scenario.from_toml(path).plant["type"].endswith("arm.py:make")

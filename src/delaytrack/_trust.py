@@ -9,7 +9,7 @@ allowed only when
   sweep file that names it, or below it, and is that folder's own code: no folder on the way
   down is hidden (``.pyenv``), a folder of installed or generated code (``site-packages``,
   ``dist-packages``, ``node_modules``, ``__pypackages__``, ``__pycache__``, or one holding a
-  ``*.dist-info`` or ``*.egg-info`` record, as ``pip install --target`` leaves), a Python
+  ``*.dist-info`` record, as ``pip install --target`` leaves), a Python
   environment (it holds ``pyvenv.cfg``) or a Python installation (``lib/python3.*``), and the
   file is not where this Python, its packages or this package are installed
   (:func:`installed_locations`); or
@@ -146,13 +146,12 @@ def installed_locations() -> tuple[tuple[Path, str], ...]:
 
 
 def _installed_here(folder: Path) -> str | None:
-    """Why ``folder`` holds installed packages (a ``*.dist-info`` or ``*.egg-info`` record, as
-    ``pip install --target`` leaves beside them), or None."""
-    for pattern in ("*.dist-info", "*.egg-info"):
-        record = next(folder.glob(pattern), None)
-        if record is not None:
-            what = f"a folder of installed Python packages (it holds {record.name})"
-            return f"inside {folder}, {what}"
+    """Why ``folder`` holds installed packages (a ``*.dist-info`` record, as ``pip install
+    --target`` leaves beside them), or None. (A ``*.egg-info`` is not one: ``pip install -e .``
+    leaves it in a project's own source folder.)"""
+    record = next(folder.glob("*.dist-info"), None)
+    if record is not None:
+        return f"inside {folder}, a folder of installed Python packages (it holds {record.name})"
     return None
 
 

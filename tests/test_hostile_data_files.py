@@ -646,6 +646,10 @@ def test_a_built_in_mesh_of_a_usual_size_is_read(tmp_path):
     check_model_files(
         _model(tmp_path, '<asset><mesh name="m" builtin="supersphere" params="300 1 1"/></asset>')
     )
+    # a cone makes 2 nedge vertices: 400 edges are 800 vertices, not 160 000
+    check_model_files(
+        _model(tmp_path, '<asset><mesh name="m" builtin="cone" params="400 1"/></asset>')
+    )
 
 
 def test_a_texture_image_of_too_many_pixels_is_refused_from_its_header(tmp_path):

@@ -171,14 +171,17 @@ def compile_engine(build: Build, first_chunk: Callable[[Kernels], tuple]) -> Ker
                 make()
                 here.add(position)
                 announce_compiled([compiling], time.perf_counter() - start)
+        delivered = True
         if helper is not None:
             delivered = helper.wait()  # else what it left is compiled here, below
             helped = [name for i, (name, _, _) in enumerate(waiting) if i not in here]
-            if delivered and helped:
+            if delivered and helped:  # seen done now, when this process waited for it
                 announce_compiled(helped, time.perf_counter() - start, helped=True)
-        for name, _, make in waiting:
+        for position, (name, _, make) in enumerate(waiting):
             compiling = name
             make()
+            if not delivered and position not in here:  # compiled here after all
+                announce_compiled([name], time.perf_counter() - start)
         for name, part in zip(names, parts, strict=True):
             compiling = name
             natives += (part.native(),)

@@ -49,9 +49,9 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
     A tick at which the controller sent nothing (no state yet) counts as the command in force
     from the controller's side: zero before the first command (the simulator's ``u_init``),
     else the last one sent; NaN throughout when the controller wrote no ``ticks.csv`` (it did
-    not finish). ``settings["first_command_t"]`` is the first tick's time with a
-    command (NaN without one): the commands' TV counts from there, as the simulator's counts
-    from its first command (:func:`metrics_with_units`; NaN when none was sent). A session
+    not finish). ``settings["commands_between_t"]`` are the first and the last tick's times
+    with a command (NaN without one): the commands' TV counts between them
+    (:func:`metrics_with_units`; NaN when none was sent), not from zero before the first. A session
     whose robot state became non-finite has the status ``diverged``.
     """
     from delaytrack.sim.result import SimResult
@@ -79,11 +79,13 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
     logged_ticks = (folder / "ticks.csv").exists()
     commands = np.zeros((t.size, m)) if logged_ticks else np.full((t.size, m), np.nan)
     last = np.zeros(m) if logged_ticks else np.full(m, np.nan)
-    first_sent = math.nan  # the first tick with a command: the TV counts from there
+    # the first and the last tick with a command: the TV counts between them
+    first_sent = last_sent = math.nan
     for i in range(t.size):
         if np.all(np.isfinite(sent[i])):
             last = sent[i]
             first_sent = t[i] if math.isnan(first_sent) else first_sent
+            last_sent = t[i]
         commands[i] = last
     step_rows = RowsByIndex(steps["j"]).find(ks * steps_per_tick)
     applied = steps.at(inputs, step_rows)
@@ -103,7 +105,7 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
             "dt": scenario.dt,
             "T_c": scenario.T_c,
             "record_every": 1,
-            "first_command_t": first_sent,
+            "commands_between_t": (first_sent, last_sent),
         },
         coordinate_names=plant.coordinate_names,
         coordinate_units=getattr(plant, "coordinate_units", None),
@@ -111,18 +113,25 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
     )
 
 
-def metrics_with_units(result: Any, label: str) -> Any:
+def metrics_with_units(
+    result: Any, label: str, commands_between: tuple[float, float] | None = None
+) -> Any:
     """:func:`delaytrack.metrics.metrics_table` of ``result`` with each metric's unit in its
-    column name (``ae_x_m``, ``rms_phi_rad``, ``tv_Nm`` when the inputs share a unit); for a
-    live session (:func:`live_result`), the commands' TV from its first command."""
+    column name (``ae_x_m``, ``rms_phi_rad``, ``tv_Nm`` when the inputs share a unit). With
+    ``commands_between`` (the first and last times of a live session's commands,
+    :func:`live_result`), the commands' TV over the ticks between them: the live controller's
+    (from its first command, not from zero before it, to its last, at the tick before the end,
+    where the simulator issues one more), and a replay's over the same ticks."""
     from delaytrack._result_columns import metric_units
-    from delaytrack.metrics import metrics_table, total_variation
+    from delaytrack.metrics import metrics_table
     from delaytrack.units import with_unit
 
     table = metrics_table(result, label=label)
-    first = result.settings.get("first_command_t")
-    if first is not None:  # a live session: no jump from zero to its first command
-        table["tv"] = total_variation(result, t_from=first) if math.isfinite(first) else math.nan
+    if commands_between is not None:
+        first, last = commands_between
+        within = (result.t >= first - 1e-9) & (result.t <= last + 1e-9)
+        variation = np.abs(np.diff(result.commands[:, within, :], axis=1)).sum(axis=(1, 2))
+        table["tv"] = np.where(result.ok & within.any(), variation, math.nan)  # as metrics_table
     units = metric_units(
         result.coordinate_names, result.coordinate_units, result.n, result.input_units
     )
@@ -220,10 +229,12 @@ def write_session_report(
 
 
 def _metrics(runs: dict[str, Any]) -> Any:
-    """:func:`metrics_with_units` of each run, labelled by its name, in one table."""
+    """:func:`metrics_with_units` of each run, labelled by its name, in one table; the
+    commands' TV of each over the live controller's ticks."""
     import pandas as pd
 
-    tables = [metrics_with_units(result, label) for label, result in runs.items()]
+    between = runs["live"].settings.get("commands_between_t")
+    tables = [metrics_with_units(result, label, between) for label, result in runs.items()]
     return pd.concat(tables, ignore_index=True).drop(columns=["run"])
 
 

@@ -221,20 +221,20 @@ class PartsScan:
 _LARGEST_PER_RUN = 2**20
 
 
-class _TooLarge(Exception):
-    """A part's values take more than the bound they are read against."""
-
-    def __init__(self, size: int) -> None:
-        super().__init__(size)
-        self.size = size
+class _Unbounded(Exception):
+    """A part whose values would be read beyond its bound: the message says why."""
 
 
 def _read_bounded(path: Path, footer: pq.FileMetaData, largest: int) -> pa.Table:
     """The table of the part at ``path`` (its ``footer`` read), its text columns read as
     dictionaries first: one text repeated in every row is stored once, and the size of its
     rows, counted from the dictionary's lengths, is checked against ``largest`` bytes before
-    they are written out (:class:`_TooLarge` beyond)."""
+    they are written out (:class:`_Unbounded` beyond, and for a nested column, which would be
+    read whole first)."""
     schema = footer.schema.to_arrow_schema()
+    nested = [field.name for field in schema if pa.types.is_nested(field.type)]
+    if nested:  # a part holds numbers and texts only: a nested column would be read unbounded
+        raise _Unbounded(f"nested columns {nested}, which no part of the toolkit holds")
     texts = [
         field.name
         for field in schema
@@ -253,7 +253,7 @@ def _read_bounded(path: Path, footer: pq.FileMetaData, largest: int) -> pa.Table
             else:
                 size += chunk.nbytes
         if size > largest:
-            raise _TooLarge(size)
+            raise _Unbounded(f"{size} bytes of values, more than {largest}")
     return pa.table(
         [
             column.cast(column.type.value_type) if pa.types.is_dictionary(column.type) else column
@@ -284,10 +284,10 @@ def _check_part(path: Path, unit: Unit) -> str | None:
         table = _read_bounded(path, footer, _LARGEST_PER_RUN * (len(unit.runs) + 1))
     except (OSError, pa.ArrowException) as error:
         return f"unreadable (truncated or corrupt): {error}"
-    except _TooLarge as error:
+    except _Unbounded as error:
         return (
-            f"{error.size} bytes of values; unit {unit.index} has {len(unit.runs)} runs of at "
-            f"most {_LARGEST_PER_RUN} bytes each"
+            f"{error}; unit {unit.index} has {len(unit.runs)} runs of at most "
+            f"{_LARGEST_PER_RUN} bytes each"
         )
     metadata = table.schema.metadata or {}
     stored = metadata.get(HASH_KEY, b"").decode("ascii", "replace")

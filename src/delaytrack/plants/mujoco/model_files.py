@@ -186,7 +186,7 @@ def _check_sizes(
             f"{MAX_REPLICATED:,} are made"
         )
     elif element == "mesh" and attributes.get("builtin", "").strip():
-        vertices = _builtin_vertices(attributes.get("params", ""))
+        vertices = _builtin_vertices(attributes["builtin"].strip(), attributes.get("params", ""))
         if vertices > MAX_REPLICATED:
             raise ValueError(
                 f"{where}: <mesh builtin params> asks for about {vertices:,.0f} vertices; at "
@@ -202,17 +202,26 @@ def _check_sizes(
             )
 
 
-def _builtin_vertices(params: str) -> float:
-    """About how many vertices MuJoCo makes for a built-in mesh of ``params``: the square of
-    its first parameter (a supersphere's resolution ``n`` makes ``n² - n + 2``), or the product
-    of its first two (a wedge's or a plate's grid) when larger; 0 when they are not numbers
-    (MuJoCo says what is wrong)."""
+#: Built-in meshes whose vertices grow with their first parameter alone (a cone's ``2 nedge``);
+#: the others' grow with its square or with the product of the first two.
+_LINEAR_BUILTINS = {"cone": 2.0}
+
+
+def _builtin_vertices(builtin: str, params: str) -> float:
+    """About how many vertices MuJoCo makes for a built-in mesh ``builtin`` of ``params``: for
+    a cone ``2 nedge``; otherwise the square of its first parameter (a supersphere's resolution
+    ``n`` makes ``n² - n + 2``), or the product of its first two (a wedge's or a plate's grid)
+    when larger; 0 when they are not numbers (MuJoCo says what is wrong)."""
     try:
         leading = [abs(float(word)) for word in params.split()[:2]]
     except ValueError:
         return 0.0
-    if not leading or not all(math.isfinite(value) for value in leading):
-        return 0.0 if not leading else math.inf
+    if not leading:
+        return 0.0
+    if not all(math.isfinite(value) for value in leading):
+        return math.inf
+    if builtin in _LINEAR_BUILTINS:
+        return _LINEAR_BUILTINS[builtin] * leading[0]
     return max(leading[0] ** 2, math.prod(leading))
 
 

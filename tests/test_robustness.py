@@ -288,9 +288,8 @@ def test_the_study_uses_the_gains_it_is_given():
 
 def test_the_drawn_columns_are_named_with_their_units_for_the_payload_robot_only():
     from delaytrack.experiments.drawn_robots import DRAWN_COLUMNS, drawn_columns
-    from delaytrack.scenario import Scenario, load_builtin
+    from delaytrack.scenario import load_builtin
 
     assert drawn_columns(load_builtin("robot_S1")) == DRAWN_COLUMNS
-    # a plant of the user's with a "seed" of its own: not the payload's placement
+    # another plant (a user's may have a "seed" of its own): not the payload's placement
     assert drawn_columns(load_builtin("two_link_S1")) == {}
-    assert isinstance(load_builtin("robot_S1"), Scenario)

@@ -109,6 +109,7 @@ def test_a_part_whose_values_decompress_far_beyond_a_units_size_is_not_read(unit
     pq.write_table(bloated.replace_schema_metadata(metadata), path, compression="zstd")
     assert path.stat().st_size < 2**16
     reason = finished_units(tmp_path, small_spec()).rejected[unit.part_name]
+    # the bound: 1 MiB (1048576 bytes) a run, for the unit's 3 runs and one more
     assert "bytes of values, more than 4194304; unit 0 has 3 runs of at most 1048576" in reason
     # nested, a text is read whole before any check: a part holds no nested column
     nested = pa.table({"run": [0, 1, 2], "x": [{"f": "a" * 3 * 2**20}] * 3})

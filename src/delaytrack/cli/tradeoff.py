@@ -141,10 +141,6 @@ def add_command(commands: argparse._SubParsersAction) -> None:
     command.set_defaults(handler=run)
 
 
-#: How the printed Pareto front marks a margin that is only a lower bound.
-_LOWER_BOUND = {"no failure up to the limit": "+"}
-
-
 def _omegas(given: list[str] | None) -> list[float] | None:
     """``--omega LO HI N``: N log-spaced values from LO to HI, 0 < LO <= HI, N >= 1."""
     if given is None:
@@ -192,7 +188,7 @@ def _folder(args: argparse.Namespace, name: str) -> Path:
 def run(args: argparse.Namespace) -> int:
     """Run (or resume) the trade-off and write its table, figure and report."""
     from delaytrack.experiments.decision import run_decision
-    from delaytrack.experiments.tradeoff import run_tradeoff
+    from delaytrack.experiments.tradeoff import LOWER_BOUND, run_tradeoff
     from delaytrack.report.tradeoff import decision_lines, write_tradeoff
     from delaytrack.scenario import Scenario
     from delaytrack.sweeps import SweepError, SweepUnitsFailed, make_executor
@@ -260,7 +256,7 @@ def run(args: argparse.Namespace) -> int:
     for row in front.itertuples():
         print(
             f"  {row.controller:<10} omega_n = {row.omega_n:<8.4g} rad/s  margin = "
-            f"{row.empirical_margin:.4g}{_LOWER_BOUND.get(row.margin_search, '')} s  AE = "
+            f"{row.empirical_margin:.4g}{'+' if row.margin_search == LOWER_BOUND else ''} s  AE = "
             f"{row.ae_median:.4g}{ae_unit}"
         )
     if decision is not None:

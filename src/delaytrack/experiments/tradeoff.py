@@ -95,6 +95,7 @@ from delaytrack.units import default_names, with_unit
 __all__ = [
     "DEFAULT_POINTS",
     "FAMILIES",
+    "LOWER_BOUND",
     "MARGIN_SEARCHES",
     "TradeoffStudy",
     "default_omegas",
@@ -616,10 +617,12 @@ def _table(
     return table
 
 
+#: The ``margin_search`` of a margin that is only a lower bound (no failure up to the limit).
+LOWER_BOUND = "no failure up to the limit"
 #: What a point's margin search gave (:attr:`TradeoffStudy.table`'s ``margin_search``).
 MARGIN_SEARCHES = {
     "failure found": "the margin is the largest delay that kept the rule",
-    "no failure up to the limit": "the margin is a lower bound: the search limit",
+    LOWER_BOUND: "the margin is a lower bound: the search limit",
     "rule missed without delay": "no margin: the closed loop misses the rule already at zero delay",
     "not searched": "no margin is defined for this controller",
 }
@@ -632,7 +635,7 @@ def _search_outcome(searched: bool, found: EmpiricalMargin | None) -> str:
         return "not searched"
     if found is None:
         return "rule missed without delay"
-    return "failure found" if found.failure_found else "no failure up to the limit"
+    return "failure found" if found.failure_found else LOWER_BOUND
 
 
 def _say(progress: bool, text: str) -> None:

@@ -45,26 +45,27 @@ ROLE_FILES = {
 }
 
 
+def _written(folder: Path, role: str) -> list[str]:
+    """The tables and the log the ``role`` node wrote into ``folder`` (its record aside)."""
+    return [
+        name
+        for name in ROLE_FILES[role]
+        if name.endswith((".csv", ".mcap")) and (folder / name).is_file()
+    ]
+
+
 def table_bytes(folder: Path, role: str) -> dict[str, int]:
     """The size in bytes of each table and log the ``role`` node wrote into ``folder``: what its
     record keeps, so that a table cut short (copied from another machine before it was whole)
     is refused (:func:`check_tables_whole`)."""
-    return {
-        name: (folder / name).stat().st_size
-        for name in ROLE_FILES[role]
-        if name.endswith((".csv", ".mcap")) and (folder / name).is_file()
-    }
+    return {name: (folder / name).stat().st_size for name in _written(folder, role)}
 
 
 def table_digests(folder: Path, role: str) -> dict[str, str]:
     """The SHA-256 of each table and log the ``role`` node wrote into ``folder``
     (:func:`content_digest`): what its record keeps, so that a table changed after the session
     without changing its size (a number replaced by text of its length) is refused too."""
-    return {
-        name: content_digest(folder / name)
-        for name in ROLE_FILES[role]
-        if name.endswith((".csv", ".mcap")) and (folder / name).is_file()
-    }
+    return {name: content_digest(folder / name) for name in _written(folder, role)}
 
 
 def content_digest(path: Path) -> str:
@@ -85,8 +86,8 @@ def check_nodes_ran(
     """Refuse a scenario (``given``, of ``hashes``) other than the one the nodes of the session
     in ``folder`` ran (the :func:`~delaytrack.live.transport.scenario_hashes` each node
     recorded in its record of ``nodes``), naming the parts that differ and ``remedy``."""
-    for role in ("robot", "delay", "controller"):  # as the session's summary lists them
-        recorded = (nodes.get(role) or {}).get("scenario_hashes")
+    for role, record in nodes.items():
+        recorded = (record or {}).get("scenario_hashes")
         if not isinstance(recorded, dict):
             continue  # a node of an earlier version recorded none
         parts = differing_parts(hashes, recorded)

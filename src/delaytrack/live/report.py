@@ -31,6 +31,7 @@ from delaytrack._validation import is_real_number
 from delaytrack.live._tables import RowsByIndex, json_table, ms, per_second, read_table
 
 __all__ = [
+    "delay_node_text",
     "format_agreement",
     "lengths_text",
     "links_text",
@@ -394,6 +395,18 @@ def _session_settings(summary: dict[str, Any], scenario: Any, live: Any) -> dict
     }
 
 
+def delay_node_text(delay: dict[str, Any], summary: dict[str, Any]) -> str:
+    """What the delay node received and released, from its record ``delay`` and the session's
+    ``summary`` (the commands sent that never reached it): the printed summary's and the
+    report's."""
+    return (
+        f"{delay.get('received', 0)} commands received, {delay.get('lost', 0)} lost (injected), "
+        f"{summary.get('not_received', 0)} sent but never received, "
+        f"{delay.get('released', 0)} releases, {delay.get('missed_steps', 0)} steps missed "
+        "(woke too late to release for them)"
+    )
+
+
 def _timing_settings(
     summary: dict[str, Any],
     scenario: Any,
@@ -401,44 +414,71 @@ def _timing_settings(
     robot: dict[str, Any],
     delay: dict[str, Any],
 ) -> dict[str, str]:
-    """The nodes' timing and the delay rule's outcome, from their records in the summary; a
-    node that wrote no record (it did not finish) has its rows said to be n/a, not zeros."""
-    rows = {
-        "controller ticks": f"{controller.get('ticks', 0)} ({controller.get('missed', 0)} missed, "
-        f"{controller.get('older_state', 0)} on a state older than t_k, "
-        f"{controller.get('stale', 0)} on a stale state)",
-        "controller wake-up lateness p50 / p99": f"{ms(controller.get('lateness_ms_p50'))} / "
-        f"{ms(controller.get('lateness_ms_p99'))}",
-        "controller compute time p50 / p99": f"{ms(controller.get('compute_ms_p50'))} / "
-        f"{ms(controller.get('compute_ms_p99'))}",
-        "state the controller's law read": _state_read(controller, scenario),
-        "robot steps": f"{robot.get('steps', 0)} ({robot.get('missed_steps', 0)} missed, "
-        f"{robot.get('late_applications', 0)} applications later than their release step)",
-        "robot step lateness p50 / p99": f"{ms(robot.get('lateness_ms_p50'))} / "
-        f"{ms(robot.get('lateness_ms_p99'))}",
-        "delay node": f"{delay.get('received', 0)} commands received, {delay.get('lost', 0)} "
-        f"lost (injected), {summary.get('not_received', 0)} sent but never received, "
-        f"{delay.get('released', 0)} releases, {delay.get('missed_steps', 0)} steps missed "
-        f"(woke too late to release for them), "
-        f"{per_second(delay.get('wakes_per_s'))} wake-ups/s, lead {delay.get('lead_ms', 0):g} ms",
+    """The nodes' timing and the delay rule's outcome, from their records in the summary; the
+    rows of a node that wrote no record (it did not finish) say n/a, not zeros."""
+    return {
+        **_unless_unfinished(
+            "controller",
+            controller,
+            {
+                "controller ticks": f"{controller.get('ticks', 0)} "
+                f"({controller.get('missed', 0)} missed, "
+                f"{controller.get('older_state', 0)} on a state older than t_k, "
+                f"{controller.get('stale', 0)} on a stale state)",
+                "controller wake-up lateness p50 / p99": f"{ms(controller.get('lateness_ms_p50'))}"
+                f" / {ms(controller.get('lateness_ms_p99'))}",
+                "controller compute time p50 / p99": f"{ms(controller.get('compute_ms_p50'))} / "
+                f"{ms(controller.get('compute_ms_p99'))}",
+                "state the controller's law read": _state_read(controller, scenario),
+            },
+        ),
+        **_unless_unfinished(
+            "robot",
+            robot,
+            {
+                "robot steps": f"{robot.get('steps', 0)} ({robot.get('missed_steps', 0)} missed, "
+                f"{robot.get('late_applications', 0)} applications later than their release "
+                "step)",
+                "robot step lateness p50 / p99": f"{ms(robot.get('lateness_ms_p50'))} / "
+                f"{ms(robot.get('lateness_ms_p99'))}",
+            },
+        ),
+        **_unless_unfinished(
+            "delay",
+            delay,
+            {
+                "delay node": f"{delay_node_text(delay, summary)}, "
+                f"{per_second(delay.get('wakes_per_s'))} wake-ups/s, "
+                f"lead {delay.get('lead_ms', 0):g} ms",
+            },
+        ),
         "realised delay − h(t) p50 / |.| p99": f"{ms(summary.get('realised_minus_h_ms_p50'))}"
         f" / {ms(summary.get('realised_minus_h_abs_ms_p99'))} (the exact rule on the robot's "
         f"step grid alone: {ms(summary.get('realised_minus_h_abs_ms_p99_of_the_rule'))})",
-        "commands never applied": str(summary.get("never_applied", 0)),
-        "commands superseded on the step grid (a newer one due at the same step)": str(
-            summary.get("superseded_on_the_step_grid", "n/a")
+        **_unless_unfinished(
+            "robot",
+            robot,
+            {
+                "commands never applied": str(summary.get("never_applied", 0)),
+                "commands superseded on the step grid (a newer one due at the same step)": str(
+                    summary.get("superseded_on_the_step_grid", "n/a")
+                ),
+                "commands not due before the session ended": str(
+                    summary.get("due_after_the_end", "n/a")
+                ),
+            },
         ),
-        "commands not due before the session ended": str(summary.get("due_after_the_end", "n/a")),
     }
-    for role, record, prefix in (
-        ("controller", controller, ("controller", "state the controller")),
-        ("robot", robot, ("robot", "commands")),
-        ("delay", delay, ("delay node",)),
-    ):
-        if not record:
-            missing = f"n/a: the {role} node wrote no record ({role}.json; it did not finish)"
-            rows.update({name: missing for name in rows if name.startswith(prefix)})
-    return rows
+
+
+def _unless_unfinished(role: str, record: dict[str, Any], rows: dict[str, str]) -> dict[str, str]:
+    """``rows``, or each said n/a when the ``role`` node wrote no ``record`` (it did not
+    finish)."""
+    if record:
+        return rows
+    return dict.fromkeys(
+        rows, f"n/a: the {role} node wrote no record ({role}.json; it did not finish)"
+    )
 
 
 def _state_read(controller: dict[str, Any], scenario: Any) -> str:

@@ -55,7 +55,13 @@ from delaytrack.live._tables import (
     values_at,
 )
 from delaytrack.live.log import write_csv
-from delaytrack.live.report import FIGURES, lengths_text, links_text, node_lengths
+from delaytrack.live.report import (
+    FIGURES,
+    delay_node_text,
+    lengths_text,
+    links_text,
+    node_lengths,
+)
 from delaytrack.live.status import StatusWatch
 from delaytrack.live.transport import scenario_hashes
 from delaytrack.warning import one_line
@@ -599,7 +605,7 @@ def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -
         "realised_minus_h_abs_ms_p99": percentile(np.abs(error), 99),
         "realised_minus_h_abs_ms_max": percentile(np.abs(error), 100),
         "realised_minus_h_abs_ms_p99_of_the_rule": percentile(
-            np.abs(_rule_error_ms(issued[came], delay, scenario.dt, end)), 99
+            np.abs(_rule_error_ms(issued[came], due[came], steps, delay)), 99
         ),
         "node_lengths_s": node_lengths(nodes, scenario.dt, scenario.T_c),
         "nodes": nodes,
@@ -629,16 +635,13 @@ def _superseded(t_k: np.ndarray, taken: np.ndarray, due: np.ndarray) -> np.ndarr
     return taken & (t_k < newest)
 
 
-def _rule_error_ms(t_k: np.ndarray, delay: Any, dt: float, end: float) -> np.ndarray:
-    """For each command the robot applied (issued at ``t_k``), ``realised − h`` in ms had it
-    come into force at the first robot step ``s`` where the rule allows it, ``t_k <= s − h(s)``:
-    what the exact rule gives on the step grid with no lateness at all (``s − h(s)`` advances by
-    ``dt (1 − ḣ)`` a step, so this reaches beyond ``dt`` where ``h`` falls)."""
-    if not t_k.size:
-        return np.empty(0)
-    steps, first = _due_steps(t_k, delay, dt, end)
-    inside = first < steps.size
-    s = steps[first[inside]]
+def _rule_error_ms(t_k: np.ndarray, due: np.ndarray, steps: np.ndarray, delay: Any) -> np.ndarray:
+    """For each command the robot applied (issued at ``t_k``, first due at step ``due`` of the
+    robot's ``steps``, :func:`_due_steps`), ``realised − h`` in ms had it come into force at
+    that step: what the exact rule gives on the step grid with no lateness at all (``s − h(s)``
+    advances by ``dt (1 − ḣ)`` a step, so this reaches beyond ``dt`` where ``h`` falls)."""
+    inside = due < steps.size
+    s = steps[due[inside]]
     return (s - t_k[inside] - delay.h(s)) * 1e3
 
 
@@ -654,10 +657,7 @@ def format_summary(summary: dict[str, Any], folder: Path) -> str:
         f"lateness p50 {ms(c.get('lateness_ms_p50'))} p99 {ms(c.get('lateness_ms_p99'))}, "
         f"compute p99 {ms(c.get('compute_ms_p99'))}, {c.get('older_state', 0)} on a state older "
         f"than t_k, stale {c.get('stale', 0)}",
-        "delay": f"  delay node: {d.get('received', 0)} received, {d.get('lost', 0)} lost "
-        f"(injected), {summary.get('not_received', 0)} sent but never received, "
-        f"{d.get('released', 0)} releases, {d.get('missed_steps', 0)} steps missed (woke too "
-        "late to release for them)",
+        "delay": f"  delay node: {delay_node_text(d, summary)}",
         "robot": f"  robot: {r.get('steps', 0)} steps, {r.get('missed_steps', 0)} missed, "
         f"lateness p99 {ms(r.get('lateness_ms_p99'))}, u_init {r.get('no_command_steps', 0)} "
         f"steps before the first command + zero input {r.get('timeout_zero_steps', 0)} on "

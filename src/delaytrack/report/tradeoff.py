@@ -15,7 +15,7 @@ from delaytrack._io import write_frame
 from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack._version import __version__
 from delaytrack.experiments.drawn_robots import drawn_columns
-from delaytrack.experiments.tradeoff import MARGIN_SEARCHES
+from delaytrack.experiments.tradeoff import LOWER_BOUND, MARGIN_SEARCHES
 from delaytrack.report.decision import (
     candidates_table,
     conditions_text,
@@ -69,7 +69,7 @@ def pareto_figure(study: TradeoffStudy) -> Figure:
     for family in study.families:
         rows = table[table.controller == family]
         exact = rows[rows.margin_found]
-        bounded = rows[rows.margin_search == "no failure up to the limit"]
+        bounded = rows[rows.margin_search == LOWER_BOUND]
         if exact.empty and bounded.empty:
             continue  # no margin to place (PCONf; or every search missed the rule at zero)
         (marker,) = ax.plot(exact.empirical_margin, exact.ae_median, "o", alpha=0.8)
@@ -78,7 +78,7 @@ def pareto_figure(study: TradeoffStudy) -> Figure:
             color=marker.get_color(),
         )  # fmt: skip
         marker.set_label(_NAMES[family])
-    if (table.margin_search == "no failure up to the limit").any():
+    if (table.margin_search == LOWER_BOUND).any():
         ax.plot([], [], ">", mfc="none", color="grey", label="no failure up to the search limit")
     front = study.front
     ax.plot(front.empirical_margin, front.ae_median, "k--", lw=1, label="Pareto front")

@@ -226,15 +226,18 @@ class _Unbounded(Exception):
 
 
 def _read_bounded(path: Path, footer: pq.FileMetaData, largest: int) -> pa.Table:
-    """The table of the part at ``path`` (its ``footer`` read), its text columns read as
-    dictionaries first: one text repeated in every row is stored once, and the size of its
-    rows, counted from the dictionary's lengths, is checked against ``largest`` bytes before
-    they are written out (:class:`_Unbounded` beyond, and for a nested column, which would be
-    read whole first)."""
+    """The table of the part at ``path`` (its ``footer`` read), read within ``largest`` bytes
+    of values or refused (:class:`_Unbounded`): a nested column (no part holds one, and it
+    would be read whole) and a footer giving more bytes are refused before reading; text
+    columns are read as dictionaries, so that a text repeated in every row is held once while
+    its rows' size, counted from the dictionary's lengths, is checked."""
     schema = footer.schema.to_arrow_schema()
     nested = [field.name for field in schema if pa.types.is_nested(field.type)]
     if nested:  # a part holds numbers and texts only: a nested column would be read unbounded
         raise _Unbounded(f"nested columns {nested}, which no part of the toolkit holds")
+    stored = sum(footer.row_group(i).total_byte_size for i in range(footer.num_row_groups))
+    if stored > largest:  # what a column not read as a dictionary takes, read whole
+        raise _Unbounded(f"{stored} bytes of values, more than {largest}")
     texts = [
         field.name
         for field in schema
@@ -265,36 +268,27 @@ def _read_bounded(path: Path, footer: pq.FileMetaData, largest: int) -> pa.Table
 
 def _check_part(path: Path, unit: Unit) -> str | None:
     """Why the part at ``path`` does not finish ``unit``, or None when it does. Its footer is
-    checked before its values are read: a part of a folder someone sent can hold a few hundred
-    bytes that decompress to gigabytes."""
+    checked before its values are read (:func:`_read_bounded`): a part of a folder someone sent
+    can hold a few hundred bytes that decompress to gigabytes."""
     try:
         footer = pq.read_metadata(path)
     except (OSError, pa.ArrowException) as error:
         return f"unreadable (truncated or corrupt): {error}"
-    stored = (footer.metadata or {}).get(HASH_KEY, b"").decode("ascii", "replace")
+    metadata = footer.metadata or {}
+    stored = metadata.get(HASH_KEY, b"").decode("ascii", "replace")
     if stored != unit.hash:
         return f"unit hash {stored[:12] or 'missing'} != {unit.hash[:12]} of this spec"
-    size = sum(footer.row_group(i).total_byte_size for i in range(footer.num_row_groups))
-    if footer.num_rows != len(unit.runs) or size > _LARGEST_PER_RUN * (len(unit.runs) + 1):
-        return (
-            f"{footer.num_rows} rows of {size} bytes; unit {unit.index} has {len(unit.runs)} "
-            f"runs of at most {_LARGEST_PER_RUN} bytes each"
-        )
+    runs = len(unit.runs)
+    if footer.num_rows != runs or metadata.get(RUNS_KEY) != str(runs).encode():
+        return f"{footer.num_rows} rows; unit {unit.index} has {runs} runs"
     try:
-        table = _read_bounded(path, footer, _LARGEST_PER_RUN * (len(unit.runs) + 1))
+        table = _read_bounded(path, footer, _LARGEST_PER_RUN * (runs + 1))
     except (OSError, pa.ArrowException) as error:
         return f"unreadable (truncated or corrupt): {error}"
     except _Unbounded as error:
         return (
-            f"{error}; unit {unit.index} has {len(unit.runs)} runs of at most "
-            f"{_LARGEST_PER_RUN} bytes each"
+            f"{error}; unit {unit.index} has {runs} runs of at most {_LARGEST_PER_RUN} bytes each"
         )
-    metadata = table.schema.metadata or {}
-    stored = metadata.get(HASH_KEY, b"").decode("ascii", "replace")
-    if stored != unit.hash:
-        return f"unit hash {stored[:12] or 'missing'} != {unit.hash[:12]} of this spec"
-    if table.num_rows != len(unit.runs) or metadata.get(RUNS_KEY) != str(len(unit.runs)).encode():
-        return f"{table.num_rows} rows; unit {unit.index} has {len(unit.runs)} runs"
     if metadata.get(CONTENT_KEY) != content_hash(table.to_pandas()).encode("ascii"):
         return "its values do not match the content hash written with them (altered or corrupt)"
     return None

@@ -328,6 +328,16 @@ def test_the_session_writes_metrics_figures_and_a_report(sessions):
             assert column in metrics.columns
             assert np.isfinite(metrics.loc[0, column]) and metrics.loc[0, column] >= 0
     assert "tv_Nm" in metrics.columns
+    # The session's own tables name the joints and the torques with their units too.
+    headers = {
+        name: (folder / name).read_text().splitlines()[0].split(",")
+        for name in ("states.csv", "ticks.csv", "steps.csv")
+    }
+    assert headers["states.csv"] == ["j", "t_s", "q1_rad", "q2_rad"] + [
+        "q1_dot_rad_per_s",
+        "q2_dot_rad_per_s",
+    ]
+    assert headers["ticks.csv"][-2:] == headers["steps.csv"][-2:] == ["u1_Nm", "u2_Nm"]
     # The commands' TV counts from the first command sent, not from zero before it (at the
     # ticks before the first state the controller sends nothing): the sum over the ticks the
     # robot logged, each holding the latest command sent by then.
@@ -341,7 +351,7 @@ def test_the_session_writes_metrics_figures_and_a_report(sessions):
         }
     )
     sent = {
-        int(r["k"]): (float(r["u1"]), float(r["u2"]))
+        int(r["k"]): (float(r["u1_Nm"]), float(r["u2_Nm"]))
         for r in _rows(folder / "ticks.csv")
         if r["status"] != "no-state"
     }

@@ -49,7 +49,8 @@ def test_a_mujoco_stepped_plant_runs_live_and_its_states_are_mujocos(session):
     states = _rows(out / "states.csv")
     # 1 s at the file's timestep, 20 ms: 50 steps, and the states at their starts and the end.
     assert len(steps) == 50 and len(states) == 51
-    inputs = [f"u{i + 1}" for i in range(plant.m)]
+    inputs = list(steps[0])[-plant.m :]  # after j, t_s, lateness_ms, status, seq
+    assert list(steps[0])[:5] == ["j", "t_s", "lateness_ms", "status", "seq"]
     columns = list(states[0])[2:]
     x = np.array([float(states[0][c]) for c in columns])
     params = np.ascontiguousarray(plant.params, dtype=np.float64)

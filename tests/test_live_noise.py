@@ -26,6 +26,7 @@ from mcap_ros2.decoder import DecoderFactory  # noqa: E402
 
 from delaytrack.scenario import load_builtin  # noqa: E402
 from delaytrack.sim.measurement import MeasurementNoise, measure  # noqa: E402
+from delaytrack.units import ascii_unit  # noqa: E402
 
 PYTHON = [sys.executable, "-m", "delaytrack.live"]
 #: Quantisation and velocity noise only, so that the measured positions lie on the encoder grid.
@@ -160,9 +161,11 @@ def _live_and_replayed(folder):
     live command is NaN."""
     with open(folder / "replay.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))
-    inputs = sorted({c[: -len("_live")] for c in rows[0] if c.startswith("u") and "_live" in c})
-    live = np.array([[float(r[f"{u}_live"]) for u in inputs] for r in rows])
-    replayed = np.array([[float(r[f"{u}_replay"]) for u in inputs] for r in rows])
+    live_columns = [c for c in rows[0] if c.startswith("u") and "_live" in c]  # u1_live_Nm
+    live = np.array([[float(r[c]) for c in live_columns] for r in rows])
+    replayed = np.array(
+        [[float(r[c.replace("_live", "_replay")]) for c in live_columns] for r in rows]
+    )
     return live, replayed
 
 
@@ -227,8 +230,9 @@ def test_the_replay_compares_each_coordinate_in_its_own_unit(sessions):
     relative = {}
     units = plant.coordinate_units or (None,) * plant.n
     for name, unit in zip(names, units, strict=True):
-        live = np.array([float(r[f"e1_{name}_live"]) for r in rows])
-        replayed = np.array([float(r[f"e1_{name}_replay"]) for r in rows])
+        suffix = f"_{ascii_unit(unit)}" if unit else ""  # the unit in the column's name
+        live = np.array([float(r[f"e1_{name}_live{suffix}"]) for r in rows])
+        replayed = np.array([float(r[f"e1_{name}_replay{suffix}"]) for r in rows])
         entry = report["coordinates"][name]
         assert entry["unit"] == (unit or "")
         assert entry["tracking_error_rms_live"] == pytest.approx(np.sqrt(np.mean(live**2)))

@@ -32,9 +32,11 @@ __all__ = [
     "FIXED_COLUMNS",
     "SUMMARY_STATISTICS",
     "UNIT_SYMBOLS",
+    "input_column",
     "metric_units",
     "plain_unit",
     "shared_unit",
+    "state_columns",
     "summary_columns",
     "trajectory_columns",
 ]
@@ -169,7 +171,19 @@ def _coordinate_columns(name: str, unit: str | None) -> tuple[str, str, str, str
 
 def _input_columns(index: int, unit: str | None) -> tuple[str, str]:
     """Sent and applied columns of input ``index`` (from 0; named ``u1 .. um``)."""
-    return with_unit(f"u{index + 1}_sent", unit), with_unit(f"u{index + 1}_applied", unit)
+    return input_column(index, unit, "sent"), input_column(index, unit, "applied")
+
+
+def input_column(index: int, unit: str | None, role: str = "") -> str:
+    """The column of input ``index`` (from 0): ``u1_Nm``, or with a ``role`` ``u1_sent_Nm``."""
+    return with_unit(f"u{index + 1}_{role}" if role else f"u{index + 1}", unit)
+
+
+def state_columns(names: Sequence[str], units: Sequence[str | None]) -> list[str]:
+    """The position columns of the coordinates ``names`` in their ``units``, then their
+    velocity columns (``x_m, .., x_dot_m_per_s, ..``): a live session's ``states.csv``."""
+    pairs = [_coordinate_columns(name, unit)[:2] for name, unit in zip(names, units, strict=True)]
+    return [position for position, _ in pairs] + [velocity for _, velocity in pairs]
 
 
 def trajectory_columns(

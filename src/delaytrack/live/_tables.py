@@ -9,17 +9,21 @@ import json
 import math
 import re
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from delaytrack._io import open_csv_text, read_file_bytes, regular_file
+from delaytrack._result_columns import input_column, state_columns
 from delaytrack.live.transport import differing_parts
+from delaytrack.units import default_names, with_unit
 
 __all__ = [
     "ROLE_FILES",
     "RowsByIndex",
+    "SessionColumns",
     "SessionTable",
     "check_nodes_ran",
     "check_one_session",
@@ -30,6 +34,7 @@ __all__ = [
     "node_record",
     "number",
     "read_table",
+    "session_columns",
     "table_bytes",
     "table_digests",
     "values_at",
@@ -43,6 +48,51 @@ ROLE_FILES = {
     "delay": ("delay.json", "delay.mcap", "releases.csv", "release_events.csv"),
     "robot": ("robot.json", "robot.mcap", "steps.csv", "states.csv", "applied.csv"),
 }
+
+
+@dataclass(frozen=True)
+class SessionColumns:
+    """The columns of a session's tables that hold the plant's coordinates and inputs, each
+    named with its unit as the simulator's tables are (:mod:`delaytrack.units`): ``x_m``,
+    ``x_dot_m_per_s`` and ``u1_Nm`` for the P3-DX; ``q1``, ``q1_dot`` and ``u1`` for a plant that
+    declares no units (:func:`session_columns`)."""
+
+    #: The coordinates' names (``q1 .. qn`` when the plant gives none).
+    names: tuple[str, ...]
+    coordinate_units: tuple[str | None, ...]
+    input_units: tuple[str | None, ...]
+
+    @property
+    def states(self) -> list[str]:
+        """``states.csv``'s positions, then velocities."""
+        return state_columns(self.names, self.coordinate_units)
+
+    @property
+    def positions(self) -> list[str]:
+        """``states.csv``'s positions."""
+        return self.states[: len(self.names)]
+
+    def inputs(self, role: str = "") -> list[str]:
+        """The inputs' columns: ``u1_Nm`` (``ticks.csv``, ``steps.csv``), with a ``role``
+        ``u1_live_Nm`` (``replay.csv``)."""
+        return [input_column(j, unit, role) for j, unit in enumerate(self.input_units)]
+
+    def errors(self, role: str) -> list[str]:
+        """The tracking errors' columns of ``replay.csv``: ``e1_x_live_m``."""
+        return [
+            with_unit(f"e1_{name}_{role}", unit)
+            for name, unit in zip(self.names, self.coordinate_units, strict=True)
+        ]
+
+
+def session_columns(plant: Any) -> SessionColumns:
+    """The :class:`SessionColumns` of ``plant`` (its ``coordinate_names``,
+    ``coordinate_units`` and ``input_units``)."""
+    return SessionColumns(
+        default_names(plant.coordinate_names, plant.n),
+        tuple(getattr(plant, "coordinate_units", None) or (None,) * plant.n),
+        tuple(getattr(plant, "input_units", None) or (None,) * plant.m),
+    )
 
 
 def _written(folder: Path, role: str) -> list[str]:

@@ -44,6 +44,7 @@ import numpy as np
 
 from delaytrack.controllers.stepper import entry_point
 from delaytrack.live._node import NodeBase, percentile
+from delaytrack.live._tables import session_columns
 from delaytrack.live.clock import Ticker
 from delaytrack.live.log import McapLog, write_csv
 from delaytrack.live.messages import HELD_STALE, CommandMessage, StateMessage
@@ -87,7 +88,8 @@ class ControllerNode(NodeBase):
             None if self.measurement_off else scenario.simulated_measurement_noise
         )
         self._measurement = (self.measurement_noise or MeasurementNoise()).params(self.n)
-        self.names = list(built.plant.coordinate_names or [f"q{i + 1}" for i in range(self.n)])
+        self.columns = session_columns(built.plant)
+        self.names = list(self.columns.names)
         self._needs_delay = controller.needs_delay
         self._delay = delay
         # Warm up (compile) on x0, then start the law again from its initial state.
@@ -270,7 +272,7 @@ class ControllerNode(NodeBase):
             "skipped_before",
             "status",
             "send_s",
-            *[f"u{j + 1}" for j in range(self.m)],
+            *self.columns.inputs(),
         ]
         write_csv(self.out / "ticks.csv", header, self.rows)
         rows = self.rows

@@ -38,11 +38,13 @@ from delaytrack._io import json_text, write_text
 from delaytrack.live._node import session_files
 from delaytrack.live._tables import (
     RowsByIndex,
+    SessionColumns,
     SessionTable,
     check_nodes_ran,
     check_tables_whole,
     json_table,
     read_table,
+    session_columns,
 )
 from delaytrack.live.log import write_csv
 from delaytrack.live.report import format_agreement, write_report
@@ -51,7 +53,6 @@ from delaytrack.warning import one_line
 
 if TYPE_CHECKING:
     from delaytrack.delays import TraceDelay
-    from delaytrack.plants.base import ELPlant
     from delaytrack.scenario import BuiltScenario, Scenario
     from delaytrack.sim.result import SimResult
 
@@ -89,22 +90,22 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     controller_node = nodes.get("controller") or {}
     t1 = _replayed_duration(folder, scenario.dt, scenario.T_c)
     trace = _realised_delay(folder, scenario.dt)
+    columns = session_columns(built.plant)
     states = read_table(folder / "states.csv", None, indices=("j",)).required()
-    names = [c for c in states.header if c not in ("j", "t_s")][: built.plant.n]
     ticks = read_table(folder / "ticks.csv", None, indices=("k",), texts=("status",)).required()
     # A session folder from before the controller measured recorded no noise: it read the truth.
     noise_spec = controller_node.get("measurement_noise")
     result = _resimulate(scenario, built, trace, t1, delay_node, noise_spec)
-    compared = _compare(scenario, built, result, states, names, ticks)
+    compared = _compare(scenario, result, states, columns, ticks)
     report = {
         "ticks_compared": len(compared.rows),
         "t1_s": t1,
         "status": result.status_names[0],
-        **_agreement(compared, names, built.plant),
+        **_agreement(compared, columns),
         "measurement_noise": noise_spec,
         "not_reproduced": _not_reproduced(robot, controller_node, ticks),
     }
-    _write_replay(folder, names, built.plant.m, compared.rows, report)
+    _write_replay(folder, columns, compared.rows, report)
     return report, scenario, result
 
 
@@ -216,21 +217,19 @@ class _Compared:
 
 def _compare(
     scenario: Scenario,
-    built: BuiltScenario,
     result: SimResult,
     states: SessionTable,
-    names: list[str],
+    columns: SessionColumns,
     ticks: SessionTable,
 ) -> _Compared:
     """The live session against the replay at every tick with a logged state (a state or tick
     logged twice: its last row)."""
-    inputs = [f"u{j + 1}" for j in range(built.plant.m)]
     k = np.rint(result.t / scenario.T_c).astype(np.int64)
     state_rows = RowsByIndex(states["j"]).find(k * round(scenario.T_c / scenario.dt))
     compared = state_rows >= 0
-    live_errors = result.reference[compared, 0] - states.at(names, state_rows[compared])
+    live_errors = result.reference[compared, 0] - states.at(columns.positions, state_rows[compared])
     tick_rows = RowsByIndex(ticks["k"]).find(k[compared])
-    live_commands = ticks.at(inputs, tick_rows)
+    live_commands = ticks.at(columns.inputs(), tick_rows)
     replayed_errors, replayed_commands = result.e1[0][compared], result.commands[0][compared]
     side_by_side = np.hstack([live_errors, replayed_errors, live_commands, replayed_commands])
     rows = [
@@ -242,7 +241,7 @@ def _compare(
     return _Compared(rows, live_errors, replayed_errors, live_commands, replayed_commands)
 
 
-def _agreement(compared: _Compared, names: list[str], plant: ELPlant) -> dict[str, Any]:
+def _agreement(compared: _Compared, columns: SessionColumns) -> dict[str, Any]:
     """How far live and replay differ: the worst coordinate's relative RMS (the headline),
     when and from when the tracking errors differ, and each coordinate's and input's numbers."""
     de, relative_each = compared.error_differences, compared.relative_rms
@@ -251,49 +250,46 @@ def _agreement(compared: _Compared, names: list[str], plant: ELPlant) -> dict[st
     worst = int(np.nanargmax(np.nanmax(np.abs(de), axis=1)))
     return {
         "error_difference_rms_relative": float(np.nanmax(relative_each)),
-        "worst_coordinate": names[int(np.nanargmax(relative_each))],
+        "worst_coordinate": columns.names[int(np.nanargmax(relative_each))],
         "error_difference_max_at_s": float(times_compared[worst]),
         "diverges_from_s": float(times_compared[beyond[0]]) if beyond.size else None,
-        "coordinates": _coordinates_agreement(compared, names, plant),
-        "inputs": _inputs_agreement(compared, plant),
+        "coordinates": _coordinates_agreement(compared, columns),
+        "inputs": _inputs_agreement(compared, columns),
     }
 
 
 def _coordinates_agreement(
-    compared: _Compared, names: list[str], plant: ELPlant
+    compared: _Compared, columns: SessionColumns
 ) -> dict[str, dict[str, Any]]:
     """Per coordinate: its unit, the live and replayed RMS tracking errors, and the max, RMS
     and relative RMS of their difference."""
-    units = [unit or "" for unit in (plant.coordinate_units or (None,) * plant.n)]
     de, relative_each = compared.error_differences, compared.relative_rms
     rms_live_each, rms_replayed_each = _rms(compared.live_errors), _rms(compared.replayed_errors)
     rms_difference_each = _rms(de)
     return {
         name: {
-            "unit": units[i],
+            "unit": columns.coordinate_units[i] or "",
             "tracking_error_rms_live": float(rms_live_each[i]),
             "tracking_error_rms_replayed": float(rms_replayed_each[i]),
             "error_difference_max": float(np.nanmax(np.abs(de[:, i]))),
             "error_difference_rms": float(rms_difference_each[i]),
             "error_difference_rms_relative": float(relative_each[i]),
         }
-        for i, name in enumerate(names)
+        for i, name in enumerate(columns.names)
     }
 
 
-def _inputs_agreement(compared: _Compared, plant: ELPlant) -> dict[str, dict[str, Any]]:
+def _inputs_agreement(compared: _Compared, columns: SessionColumns) -> dict[str, dict[str, Any]]:
     """Per input: its unit, and the max and RMS of live minus replayed command."""
-    given = getattr(plant, "input_units", None) or (None,) * plant.m
-    input_units = [unit or "" for unit in given]
     du = compared.command_differences
     rms_command_difference = _rms(du)
     return {
         f"u{j + 1}": {
-            "unit": input_units[j],
+            "unit": unit or "",
             "command_difference_max": float(np.nanmax(np.abs(du[:, j]))),
             "command_difference_rms": float(rms_command_difference[j]),
         }
-        for j in range(plant.m)
+        for j, unit in enumerate(columns.input_units)
     }
 
 
@@ -316,16 +312,16 @@ def _not_reproduced(
 
 
 def _write_replay(
-    folder: Path, names: list[str], m: int, rows: list[list[Any]], report: dict[str, Any]
+    folder: Path, columns: SessionColumns, rows: list[list[Any]], report: dict[str, Any]
 ) -> None:
     """``replay.csv`` (live beside replayed, tick by tick) and ``replay.json`` (the report)."""
     header = [
         "k",
         "t_s",
-        *[f"e1_{c}_live" for c in names],
-        *[f"e1_{c}_replay" for c in names],
-        *[f"u{j + 1}_live" for j in range(m)],
-        *[f"u{j + 1}_replay" for j in range(m)],
+        *columns.errors("live"),
+        *columns.errors("replay"),
+        *columns.inputs("live"),
+        *columns.inputs("replay"),
     ]
     write_csv(folder / "replay.csv", header, rows)
     write_text(folder / "replay.json", json_text(report, indent=1) + "\n")

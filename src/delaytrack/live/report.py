@@ -28,7 +28,14 @@ import numpy as np
 
 from delaytrack._io import read_file_bytes
 from delaytrack._validation import is_real_number
-from delaytrack.live._tables import RowsByIndex, json_table, ms, per_second, read_table
+from delaytrack.live._tables import (
+    RowsByIndex,
+    json_table,
+    ms,
+    per_second,
+    read_table,
+    session_columns,
+)
 
 __all__ = [
     "delay_node_text",
@@ -61,18 +68,18 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
     plant, reference = built.plant, built.reference
     m = plant.m
     steps_per_tick = round(scenario.T_c / scenario.dt)
-    inputs = [f"u{j + 1}" for j in range(m)]
+    columns = session_columns(plant)
+    inputs = columns.inputs()
     states = read_table(folder / "states.csv", None, indices=("j",))
     if not states.rows:
         raise ValueError(f"{folder}: the robot logged no state (states.csv)")
-    names = [c for c in states.header if c not in ("j", "t_s")]
     ticks = read_table(folder / "ticks.csv", inputs, indices=("k",))
     steps = read_table(folder / "steps.csv", inputs, indices=("j",))
     logged = RowsByIndex(states["j"])  # a state logged twice: its last row
     at_tick = logged.indices % steps_per_tick == 0
     ks = logged.indices[at_tick] // steps_per_tick
     t = ks * scenario.T_c
-    x = states.at(names, logged.rows[at_tick])
+    x = states.at(columns.states, logged.rows[at_tick])
     ref = np.stack(reference.evaluate(t), axis=1)  # (R, 3, n): q_d, q̇_d, q̈_d
     tick_rows = RowsByIndex(ticks["k"]).find(ks)
     sent = ticks.at(inputs, tick_rows)

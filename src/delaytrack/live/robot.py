@@ -46,6 +46,7 @@ import numpy as np
 
 from delaytrack._compile.functions import FEW_POINTS
 from delaytrack.live._node import NodeBase, Received, percentile
+from delaytrack.live._tables import session_columns
 from delaytrack.live.bridge import RobotBridge, check_state, load_bridge
 from delaytrack.live.clock import Ticker, steps_until
 from delaytrack.live.log import McapLog, write_csv
@@ -262,7 +263,8 @@ class RobotNode(NodeBase):
                     f"the {what} is defined up to t = {horizon:g} s; the session lasts "
                     f"{self.duration:g} s (shorten --duration)"
                 )
-        self.names = list(plant.coordinate_names or [f"q{i + 1}" for i in range(self.n)])
+        self.columns = session_columns(plant)
+        self.names = list(self.columns.names)
         limits = scenario.simulated_input_limits
         self.limits = np.broadcast_to(np.asarray(limits, dtype=float), (self.m,)).copy()
         self.state_every = (
@@ -547,17 +549,12 @@ class RobotNode(NodeBase):
         print(f"[robot] delaytrack: {text}", file=sys.stderr, flush=True)
 
     def outputs(self) -> dict[str, Any]:
-        u_names = [f"u{j + 1}" for j in range(self.m)]
         write_csv(
             self.out / "steps.csv",
-            ["j", "t_s", "lateness_ms", "status", "seq", *u_names],
+            ["j", "t_s", "lateness_ms", "status", "seq", *self.columns.inputs()],
             self.steps,
         )
-        write_csv(
-            self.out / "states.csv",
-            ["j", "t_s", *self.names, *[f"{c}_dot" for c in self.names]],
-            self.states,
-        )
+        write_csv(self.out / "states.csv", ["j", "t_s", *self.columns.states], self.states)
         write_csv(
             self.out / "applied.csv",
             ["seq", "t_k_s", "applied_s", "apply_at_s", "released_s", "arrived_s"],

@@ -634,3 +634,72 @@ def test_a_release_a_little_late_still_reaches_its_step(lead):
             assert first_reachable_step(wake + late, margin, dt) <= step
         assert first_reachable_step(step * dt - 0.99 * margin + 1e-12, margin, dt) == step + 1
     assert release_margin(default_lead(dt, 2e-3), dt) == 2.5e-4  # h = 2 ms: lead 0.5 ms
+
+
+class _SessionClock:
+    """The delay node's clock and its inbox in a test: time passes only while the node waits
+    (to the end of its wait, or to the next arrival), and a wait that should end at
+    ``stall_at`` ends ``stall`` later, as a wake-up of a loaded machine does."""
+
+    def __init__(self, arrivals, stall_at, stall):
+        self.now, self.arrivals, self.stall_at, self.stall = 0.0, sorted(arrivals), stall_at, stall
+
+    def __call__(self):
+        return self.now
+
+    def drain(self):
+        arrived = [(message, at) for at, message in self.arrivals if at <= self.now]
+        self.arrivals = self.arrivals[len(arrived) :]
+        return arrived
+
+    def wait(self, timeout):
+        until = self.now + timeout
+        if abs(until - self.stall_at) < 1e-9:
+            until += self.stall
+        if self.arrivals and self.arrivals[0][0] <= until:
+            self.now = self.arrivals[0][0]
+            return True
+        self.now = until
+        return False
+
+
+def test_a_late_wake_up_releases_for_a_later_step_with_the_commands_that_arrive_by_its_deadline(
+    tmp_path,
+):
+    """h = 2 ms, T_c = dt = 1 ms: command k (t_k = k ms) is due at step k + 2, released 0.5 ms
+    (the lead) before it. The wake-up for step 12 comes 0.3 ms late, closer to the step than
+    the margin (a quarter of a millisecond): the rule is then evaluated at step 13, whose own
+    deadline (12.5 ms) is still ahead, and command 11, due there, arrives late too, at 12.2 ms.
+    It is released for step 13, as the rule says; the node had released command 10 for step 13
+    at once, then command 11 for step 14."""
+    from types import SimpleNamespace
+
+    from delaytrack.live.delay import DelayNode, release_margin
+    from delaytrack.scenario import load_builtin
+
+    scenario = load_builtin(SCENARIO).replace(delay={"type": "constant", "h": 0.002}, T_c=0.001)
+    args = SimpleNamespace(duration=0.03, out=tmp_path, quiet=True, loss=None, lead=None)
+    node = DelayNode(scenario, scenario.build(), args)
+    ms = 1e-3
+    assert node.lead == 0.5 * ms and release_margin(node.lead, node.dt) == 0.25 * ms
+    arrivals = [
+        (
+            k * ms + (1.2 * ms if k == 11 else 0.1 * ms),
+            CommandMessage(k, k * ms, k * ms, k * ms, 0, X[:2]),
+        )
+        for k in range(25)
+    ]
+    clock = _SessionClock(arrivals, stall_at=11.5 * ms, stall=0.3 * ms)
+    node._clock, node._received = clock, clock
+    released = []
+    node._publisher = SimpleNamespace(put=lambda data: released.append(data))
+    node.loop(0.0, stop=lambda: False, handshake=SimpleNamespace(publish=lambda: None))
+    node.log.close()
+    apply_at = {seq: round(s / ms) for seq, _t_k, _now, s, _h in node.releases}
+    assert node.missed_steps == 1  # step 12: the robot held command 9 over it
+    assert 10 not in apply_at and apply_at[11] == 13, apply_at
+    # every other command at its own step, released before its deadline
+    assert all(apply_at[k] == k + 2 for k in range(23) if k not in (10, 11)), apply_at
+    for seq, _t_k, now, s, _h in node.releases:
+        assert now <= s - node.lead + 1e-12 or seq == 11, (seq, now, s)
+    assert len(released) == len(node.releases)

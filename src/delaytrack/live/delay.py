@@ -27,7 +27,9 @@ that step, or until a command arrives that the rule could pick earlier (the plan
 again), or at most :data:`_HORIZON`. At ``T_c`` = 10 ms that is about two wake-ups per command
 instead of one per millisecond. A wake-up so late that the step is less than
 :func:`release_margin` away (``min(lead/2, dt/2, 0.5 ms)``) evaluates the rule at the first step
-still that far ahead.
+still that far ahead: at once when that step's own deadline (``lead`` before it) has passed too,
+else at its deadline, with the commands that arrive by then (at leads under ``dt`` plus the
+margin, a step can be that far ahead before its deadline).
 
 Packet loss (D12d): with a probability ``p`` and a seed (the scenario's ``packet_loss`` table,
 or ``--loss P --loss-seed S``), command ``k`` is dropped when the toolkit's counter-based draw
@@ -145,6 +147,7 @@ class DelayNode(NodeBase):
         self.h_max = float(self.delay.h_max)
         self.h(0.0)  # warm up (compile)
         packet_lost(0, self._loss)
+        self._clock = time.monotonic  # the session's clock (a test's own in tests)
         self.commands: dict[int, list[Any]] = {}
         self.releases: list[list[Any]] = []
         self._tolerance = 1e-9 * self.dt
@@ -232,14 +235,15 @@ class DelayNode(NodeBase):
         (which may change it: the plan is then made again from the first step still ahead).
         Without commands it wakes at most every ``_HORIZON`` seconds. A wake-up so late that
         the step is less than :func:`release_margin` away evaluates the rule at the first step
-        that is still that far ahead instead (the steps in between count as missed).
+        that is still that far ahead instead (the steps in between count as missed), at once
+        if that step's deadline has passed too, else at its deadline as planned from it.
         """
         self.log = McapLog(self.out / "delay.mcap", t0, self.metadata())
         dt, lead, tolerance = self.dt, self.lead, self._tolerance
         margin = release_margin(lead, dt)
         end = steps_until(self.duration, dt)  # steps 0 .. end - 1
         horizon = max(1, round(_HORIZON / dt))
-        clock = time.monotonic
+        clock = self._clock
         last_released: int | None = None
         last_hello = -math.inf
         j = 0  # the first step not yet dealt with
@@ -267,12 +271,15 @@ class DelayNode(NodeBase):
                     k = min(max(step, feasible), end - 1)
                     self.missed_steps += k - step
                     self.lateness_ms.append((now - (step * dt - lead)) * 1e3)
-                    s = k * dt
-                    h = self.h(s)
-                    i = bisect.bisect_right(self._held_times, s - h + tolerance) - 1
-                    if i >= 0 and self._held[i].seq != last_released:
-                        last_released = self._release(self._held[i], s, h, clock() - t0)
-                    j = k + 1
+                    if latest >= k:  # its deadline has passed too: release with what is held
+                        s = k * dt
+                        h = self.h(s)
+                        i = bisect.bisect_right(self._held_times, s - h + tolerance) - 1
+                        if i >= 0 and self._held[i].seq != last_released:
+                            last_released = self._release(self._held[i], s, h, clock() - t0)
+                        j = k + 1
+                    else:  # a later step, its deadline ahead: plan it with what comes by then
+                        j = k
                 else:
                     j = step
                 plan = None

@@ -118,6 +118,83 @@ def test_a_part_whose_values_decompress_far_beyond_a_units_size_is_not_read(unit
     assert reason.startswith("nested columns ['x'], which no part of the toolkit holds"), reason
 
 
+def _zigzag_varint(value: int, length: int | None = None) -> bytes:
+    """``value`` as Thrift's compact protocol writes an i64 (zigzag, then 7 bits a byte),
+    padded with continuation bytes to ``length`` bytes when given (readers take those)."""
+    n, out = 2 * value, bytearray()
+    while n or not out or (length is not None and len(out) < length):
+        more = n >= 0x80 or (length is not None and len(out) < length - 1)
+        out.append((n & 0x7F) | (0x80 if more else 0))
+        n >>= 7
+    return bytes(out)
+
+
+def _forge_footer_sizes(path) -> None:
+    """Rewrite the footer of the Parquet file ``path`` so that its row group's and column
+    chunks' sizes of values say 10 bytes, the pages unchanged (the same file length)."""
+    import struct
+
+    data = bytearray(path.read_bytes())
+    length = struct.unpack("<i", data[-8:-4])[0]
+    start = len(data) - 8 - length
+    footer = bytes(data[start : start + length])
+    group = pq.read_metadata(path).row_group(0)
+    sizes = {group.total_byte_size} | {
+        group.column(i).total_uncompressed_size for i in range(group.num_columns)
+    }
+    for size in sorted(sizes, reverse=True):
+        written = _zigzag_varint(size)
+        assert footer.count(written) == 1, size
+        footer = footer.replace(written, _zigzag_varint(10, len(written)))
+    data[start : start + length] = footer
+    path.write_bytes(bytes(data))
+
+
+def test_a_part_whose_footer_understates_its_pages_is_refused_before_they_are_read(
+    unit_frame, tmp_path
+):
+    """The footer's sizes are the file's own word: a part whose footer says 10 bytes of values
+    where its pages decompress to 192 MiB passes every check of the footer; its read is capped
+    at a few times a unit's bound and refused there, before the pages are decompressed."""
+    import pyarrow as pa
+
+    from delaytrack._memory_budget import allocation_budget
+
+    with allocation_budget(2**20) as capped:
+        pass
+    if not capped:
+        pytest.skip("the process's data segment cannot be capped here (no /proc)")
+    unit, frame = unit_frame
+    path = write_part(frame, unit, tmp_path)
+    metadata = pq.read_table(path).schema.metadata
+    bloated = pa.table({"run": [0, 1, 2], "x": [letter * 64 * 2**20 for letter in "abc"]})
+    pq.write_table(
+        bloated.replace_schema_metadata(metadata), path, compression="zstd", use_dictionary=False
+    )
+    _forge_footer_sizes(path)
+    assert pq.read_metadata(path).row_group(0).total_byte_size == 10
+    assert path.stat().st_size < 2**16
+    reason = finished_units(tmp_path, small_spec()).rejected[unit.part_name]
+    # four times the unit's bound (4 MiB: 1 MiB a run, 3 runs and one more) and 64 MiB
+    assert "reading its values asked for more than 83886080 bytes" in reason, reason
+    assert "its pages are larger than its footer says" in reason
+
+
+def test_an_allocation_beyond_the_budget_fails_and_the_budget_ends_with_its_block():
+    from delaytrack._memory_budget import allocation_budget
+
+    with allocation_budget(64 * 2**20) as capped:
+        if capped:
+            with pytest.raises(MemoryError):
+                np.ones(2**28)  # 2 GiB
+        small = np.ones(2**20)  # 8 MiB: within it
+    assert small.sum() == 2**20
+    assert np.ones(2**24).size == 2**24  # 128 MiB, twice the budget, after the block
+    with pytest.raises(ValueError, match="budget must be a positive number of bytes; got 0"):
+        with allocation_budget(0):
+            pass
+
+
 def test_the_code_version_covers_every_file_of_simulate_without_compiled_code():
     """An edit of any stage of ``simulate()`` may change a sweep's numbers: each is hashed."""
     from pathlib import Path

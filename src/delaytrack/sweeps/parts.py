@@ -24,6 +24,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from delaytrack._io import atomic_path
+from delaytrack._memory_budget import allocation_budget
 from delaytrack.metrics import metrics_table
 from delaytrack.scenario.table_memory import remembered_tables
 from delaytrack.sim import MeasurementNoise, PacketLoss, simulate
@@ -225,12 +226,20 @@ class _Unbounded(Exception):
     """A part whose values would be read beyond its bound: the message says why."""
 
 
+#: What reading a part may allocate: this many times the bytes of values it may hold (values,
+#: the pages they are decoded from, the dictionaries of its texts), and this much more.
+_READ_BUDGET_FACTOR = 4
+_READ_BUDGET_SLACK = 64 * 2**20
+
+
 def _read_bounded(path: Path, footer: pq.FileMetaData, largest: int) -> pa.Table:
     """The table of the part at ``path`` (its ``footer`` read), read within ``largest`` bytes
     of values or refused (:class:`_Unbounded`): a nested column (no part holds one, and it
     would be read whole) and a footer giving more bytes are refused before reading; text
     columns are read as dictionaries, so that a text repeated in every row is held once while
-    its rows' size, counted from the dictionary's lengths, is checked."""
+    its rows' size, counted from the dictionary's lengths, is checked. The read itself may
+    allocate at most a few times ``largest`` (:func:`~delaytrack._memory_budget.allocation_budget`):
+    a footer can be forged to give sizes smaller than its pages'."""
     schema = footer.schema.to_arrow_schema()
     nested = [field.name for field in schema if pa.types.is_nested(field.type)]
     if nested:  # a part holds numbers and texts only: a nested column would be read unbounded
@@ -246,7 +255,23 @@ def _read_bounded(path: Path, footer: pq.FileMetaData, largest: int) -> pa.Table
         or pa.types.is_binary(field.type)
         or pa.types.is_large_binary(field.type)
     ]
-    table = pq.read_table(path, read_dictionary=texts)
+    # The footer's sizes are the file's own word: a forged one passes the check above, so the
+    # read itself is capped too (a few kB of pages can decompress to gigabytes). Through the
+    # system's allocator, which maps each large block anew: Arrow's own keeps memory it mapped
+    # before and hands it out again, which the cap cannot see.
+    budget = _READ_BUDGET_FACTOR * largest + _READ_BUDGET_SLACK
+    pool = pa.default_memory_pool()
+    pa.set_memory_pool(pa.system_memory_pool())
+    try:
+        with allocation_budget(budget):
+            table = pq.read_table(path, read_dictionary=texts)
+    except MemoryError:
+        raise _Unbounded(
+            f"reading its values asked for more than {budget} bytes, where its footer gives "
+            f"{stored} bytes of values (its pages are larger than its footer says)"
+        ) from None
+    finally:
+        pa.set_memory_pool(pool)
     size = 0
     for column in table.columns:
         for chunk in column.chunks:

@@ -200,14 +200,28 @@ def test_contact_findings_are_computed_from_the_table():
     )
     text = " ".join(contact_paragraphs(contact_findings(pd.concat([table, stiff]))))
     assert "In the 3 runs" in text and "+20 % to +350 %" in text and "(median +200 %)" in text
-    assert "+0 % to +50 %" in text and "0.25–0.75 mm/s" in text and "at most 12.5 mm/s" in text
+    assert "0 % to +50 %" in text and "0.25–0.75 mm/s" in text and "at most 12.5 mm/s" in text
     assert (
         "in 1 of 2 scenarios (S1: PCON < AROLC on the analytic robot, AROLC < PCON with "
         "contacts; S2: AROLC on both)" in text
     )
-    assert "Left the path on one of the robots: S2 PCON." in text
+    assert "Left the path with contacts only: S2 PCON." in text
     assert "The largest change is PCON's in S1: AE-x 5 → 40 mm" in text
-    assert "time constant of 5 ms instead of 20 ms" in text and "+0 % to +100 %" in text
+    assert "time constant of 5 ms instead of 20 ms" in text and "0 % to +100 %" in text
+    # a run on the path on neither robot is said to be, not "on one of the robots"
+    table.loc[3, ["ae_x_mm", "ae_y_mm"]] = np.nan
+    findings = contact_findings(table)
+    assert findings.lost == {"both": (("S2", "PCON"),)}
+    # a small decrease is not written "+0 %"
+    from delaytrack.report.contact import _percent
+
+    assert [_percent(v) for v in (-0.316, 0.04, 9.94, 114.6, -12.4)] == [
+        "-0.3 %",
+        "0 %",
+        "+9.9 %",
+        "+115 %",
+        "-12 %",
+    ]
 
 
 def test_claims_are_computed_from_the_summary():
@@ -222,13 +236,17 @@ def test_claims_are_computed_from_the_summary():
     checks = paper.claims(pd.DataFrame(rows))
     assert all(checks["ae"].values()) and all(checks["tv"].values())
     assert checks["growth"]["S3->S4"]
-    # A diverged run (NaN metrics) loses: against a diverged baseline AROLC's claims hold; a
-    # diverged AROLC's fail.
+    # A run that left the path (NaN metrics) has no accuracy to compare: a claim comparing it
+    # is not decided (None), whichever side it was; staying on the path is reported apart.
     rows[4].update(ae_x_mm=np.nan, ae_y_mm=np.nan, tv_Nm=np.nan)  # S2 PCON
     rows[9].update(ae_x_mm=np.nan, ae_y_mm=np.nan, tv_Nm=np.nan)  # S4 AROLC
     checks = paper.claims(pd.DataFrame(rows))
-    assert checks["ae"] == {"S1": True, "S2": True, "S3": True, "S4": False}
-    assert checks["tv"] == checks["ae"] and not checks["growth"]["S3->S4"]
+    assert checks["ae"] == {"S1": True, "S2": None, "S3": True, "S4": None}
+    assert checks["tv"] == checks["ae"] and checks["growth"]["S3->S4"] is None
+    rows[9].update(ae_x_mm=11.0, ae_y_mm=9.0, tv_Nm=30.0)  # S4 AROLC back, above in TV
+    checks = paper.claims(pd.DataFrame(rows))
+    assert checks["ae"]["S4"] is True and checks["tv"]["S4"] is False
+    assert checks["growth"]["S3->S4"] is False  # AE-y fell from 10 to 9
 
 
 def test_shipped_gains_file_is_complete():

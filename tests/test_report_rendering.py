@@ -98,6 +98,15 @@ def reports(tmp_path_factory, reproduced):
     )
     sweep = out / "sweep"
     assert main(["sweep", str(EXAMPLES / "sweep_small.toml"), "--out", str(sweep), *quiet]) == 0
+    # The trade-off's page, on the small linear plant of tests/test_tradeoff.py: its table has
+    # a column for every margin and count, the widest the package writes.
+    from delaytrack.scenario import Scenario
+    from test_tradeoff import PLANT
+
+    plant = out / "light_mass.toml"
+    Scenario.from_dict(PLANT).to_toml(plant)
+    tradeoff = ["tradeoff", str(plant), "--omega", "0.7", "1.4", "2", "--upper", "2"]
+    assert main([*tradeoff, "--out", str(out / "tradeoff"), *quiet]) == 0
     return {
         "paper": paper / "paper" / "report.html",
         "paper-literal": paper / "paper-literal" / "report.html",
@@ -105,6 +114,7 @@ def reports(tmp_path_factory, reproduced):
         "two-link": out / "two-link" / "report.html",
         "margins": out / "margins" / "report.html",
         "sweep": sweep / "report.html",
+        "tradeoff": out / "tradeoff" / "report.html",
     }
 
 
@@ -116,7 +126,7 @@ def probes(reports, tmp_path_factory):
 
 
 #: Every report the fixture writes.
-REPORTS = ["paper", "paper-literal", "robustness", "two-link", "margins", "sweep"]
+REPORTS = ["paper", "paper-literal", "robustness", "two-link", "margins", "sweep", "tradeoff"]
 
 
 @pytest.mark.parametrize("name", REPORTS)
@@ -126,6 +136,13 @@ def test_report_fits_the_window_and_every_image_loads(probes, name):
     assert probe["page"] <= probe["window"], probe
     assert probe["wide"] == [], probe
     assert probe["scrolling"] == [], probe  # no table scrolls sideways in its box
+
+
+@pytest.mark.parametrize("name", REPORTS)
+def test_report_is_laid_out_for_the_device_s_width(reports, name):
+    # Without it a phone lays the page out 980 px wide and shrinks it: 16 px text shown at 6 px.
+    page = reports[name].read_text()
+    assert '<meta name="viewport" content="width=device-width, initial-scale=1"/>' in page
 
 
 @pytest.mark.parametrize("name", REPORTS)

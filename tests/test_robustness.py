@@ -212,6 +212,14 @@ def test_a_small_study_runs_resumes_and_writes_its_files(tmp_path):
     assert again.computed == 0 and again.resumed == first.computed
     pd.testing.assert_frame_equal(again.map, first.map)
     # Every verdict's numbers come from the runs: recompute one comparison's counts.
+    claims = pd.read_csv(tmp_path / "runs.csv", keep_default_na=False, na_values=[""])
+    # The map's first-pass runs a refined cell's edge sweep ran again are marked, one each.
+    repeated = claims[claims.repeated_in.notna()]
+    assert len(repeated) == len(edges) and set(repeated.sweep) == {"map"}
+    assert set(repeated.repeated_in) <= {s for s in first.runs if s.startswith("map-edge-")}
+    report = (tmp_path / "report.html").read_text()
+    distinct = first.run_count - len(edges)
+    assert f"Size: {first.run_count} runs of 60 s, {distinct} distinct" in report
     claims = pd.read_csv(tmp_path / "runs.csv")
     s1 = claims[(claims.sweep == "claims-S1") & (claims.noise == "off")]
     a = s1[s1.controller == "AROLC (paper gains)"].sort_values("draw")

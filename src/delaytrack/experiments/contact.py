@@ -166,9 +166,10 @@ class ContactFindings:
     others : tuple of ContactChange
         The other time constants, in the table's order (those with a run on the path on both
         robots).
-    lost : tuple of (str, str)
-        ``(scenario, controller)`` of the main runs that left the path (or diverged) on one of
-        the robots.
+    lost : dict
+        Where the main runs that left the path (or diverged) did: ``"analytic"`` (on the
+        analytic robot only), ``"contact"`` (with contacts only), ``"both"`` -> their
+        ``(scenario, controller)``.
     circle_speed : float
         The speed along the consistent circle (mm/s), beside which the slip is read.
     """
@@ -182,7 +183,7 @@ class ContactFindings:
     rankings: tuple[Ranking, ...]
     same_rankings: int
     others: tuple[ContactChange, ...]
-    lost: tuple[tuple[str, str], ...]
+    lost: dict[str, tuple[tuple[str, str], ...]]
     circle_speed: float = 1e3 * CIRCLE_RADIUS * CIRCLE_RATE
 
 
@@ -240,7 +241,21 @@ def contact_findings(table: pd.DataFrame) -> ContactFindings:
         rankings=rankings,
         same_rankings=sum(ranking.analytic == ranking.contact for ranking in rankings),
         others=tuple(others),
-        lost=tuple(
-            (r.scenario, r.controller) for r in main[main["change_ae_pct"].isna()].itertuples()
-        ),
+        lost=_lost(main),
     )
+
+
+def _lost(runs: pd.DataFrame) -> dict[str, tuple[tuple[str, str], ...]]:
+    """:attr:`ContactFindings.lost` of ``runs`` (a run off the path has no AE)."""
+    analytic = runs[["ae_x_mm", "ae_y_mm"]].isna().any(axis=1)
+    contact = runs[["ae_x_contact_mm", "ae_y_contact_mm"]].isna().any(axis=1)
+    where = {
+        "analytic": analytic & ~contact,
+        "contact": contact & ~analytic,
+        "both": analytic & contact,
+    }
+    return {
+        name: tuple((r.scenario, r.controller) for r in runs[mask].itertuples())
+        for name, mask in where.items()
+        if mask.any()
+    }

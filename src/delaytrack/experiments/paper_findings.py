@@ -10,7 +10,7 @@ The report (:mod:`delaytrack.report.paper`) only writes these numbers down.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -51,8 +51,8 @@ __all__ = [
 ]
 
 #: The paper's claims, case by case: ``{"ae": {scenario: holds}, "tv": {...}, "growth":
-#: {"S3->S4": holds}}`` (:func:`claims`).
-Claims = dict[str, dict[str, bool]]
+#: {"S3->S4": holds}}`` (:func:`claims`); None where a run the claim compares left the path.
+Claims = dict[str, dict[str, bool | None]]
 #: A baseline's delay "dwells" above this share of its largest delay (:class:`BaselineFailure`).
 _DWELL_SHARE = 0.9
 #: Grid points of each tuning grid the report lists, best first.
@@ -239,24 +239,28 @@ def summary_row(summary: pd.DataFrame, scenario: str, controller: str) -> pd.Ser
     return summary[(summary.scenario == scenario) & (summary.controller == controller)].iloc[0]
 
 
-def _below(a: float, b: float) -> bool:
-    """``a < b``, where a diverged run (NaN) loses against a finished one."""
-    if not np.isfinite(a):
-        return False
-    return bool(not np.isfinite(b) or a < b)
+def _all_below(a: Sequence[float], b: Sequence[float]) -> bool | None:
+    """Whether every ``a`` is below its ``b``; None when a value is not finite (its run left
+    the path: staying on it is one question, accuracy another, and a run off the path has no
+    accuracy to compare)."""
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        return None
+    return bool(np.all(np.asarray(a) < np.asarray(b)))
 
 
 def claims(summary: pd.DataFrame) -> Claims:
     """The paper's claims, case by case: ``ae`` (AROLC below the baseline in AE-x and AE-y),
     ``tv`` (AROLC below in TV), and ``growth`` (AROLC's AE-x and AE-y larger in S4 than in S3).
-    A diverged baseline (NaN) counts as above AROLC."""
-    ae, tv = {}, {}
+    A claim that compares a run that left the path (NaN) is None: not decided by this run, whichever
+    run it was (the report says which stayed on the path)."""
+    ae: dict[str, bool | None] = {}
+    tv: dict[str, bool | None] = {}
     for case in SCENARIOS:
         a, b = summary_row(summary, case, "AROLC"), summary_row(summary, case, BASELINE[case])
-        ae[case] = _below(a.ae_x_mm, b.ae_x_mm) and _below(a.ae_y_mm, b.ae_y_mm)
-        tv[case] = _below(a.tv_Nm, b.tv_Nm)
+        ae[case] = _all_below([a.ae_x_mm, a.ae_y_mm], [b.ae_x_mm, b.ae_y_mm])
+        tv[case] = _all_below([a.tv_Nm], [b.tv_Nm])
     s3, s4 = summary_row(summary, "S3", "AROLC"), summary_row(summary, "S4", "AROLC")
-    growth = {"S3->S4": bool(s4.ae_x_mm > s3.ae_x_mm and s4.ae_y_mm > s3.ae_y_mm)}
+    growth = {"S3->S4": _all_below([s3.ae_x_mm, s3.ae_y_mm], [s4.ae_x_mm, s4.ae_y_mm])}
     return {"ae": ae, "tv": tv, "growth": growth}
 
 

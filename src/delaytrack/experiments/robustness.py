@@ -85,6 +85,7 @@ __all__ = [
     "StudySize",
     "claim_verdicts",
     "knowledge_table",
+    "repeated_in",
     "run_study",
     "scenario_delay_ranges",
     "study_specs",
@@ -309,6 +310,20 @@ def refined_map(map_runs: pd.DataFrame, edge_runs: list[pd.DataFrame]) -> pd.Dat
     refined = _cells(pd.concat(edge_runs)) if edge_runs else {}
     parts = [refined.get(cell, group) for cell, group in _cells(map_runs).items()]
     return pd.concat(parts, ignore_index=True)
+
+
+def repeated_in(runs: Mapping[str, pd.DataFrame]) -> pd.Series:
+    """Per run of the map's first pass (``runs["map"]``, in its order): the edge sweep that ran
+    its draw again with the cell's other draws (:func:`edge_sweeps`: draw ``i`` is the same
+    robot in both, so the numbers are the same), or an empty text."""
+    first = runs["map"]
+    where = pd.Series("", index=first.index, dtype=object)
+    cells = _cells(first)
+    for name, frame in runs.items():
+        if name.startswith("map-edge-"):
+            for cell in _cells(frame):
+                where[cells[cell].index] = name
+    return where
 
 
 def _knowledge_sweep(gains: Gains, case: str, draws: int) -> _Sweep:

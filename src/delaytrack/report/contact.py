@@ -37,7 +37,14 @@ _COLUMNS = {
 
 
 def _percent(value: float) -> str:
-    return f"{round(float(value)):+d} %"  # rounded first: no "-0 %"
+    """A change in percent with its sign: whole percent from 10 % on, one decimal below (a
+    decrease of 0.3 % is not written "+0 %"); a change that rounds to nothing is "0 %"."""
+    value = float(value)
+    if abs(value) >= 9.95:
+        return f"{round(value):+d} %"
+    if round(value, 1) == 0:
+        return "0 %"
+    return f"{value:+.1f} %"
 
 
 def _changes(change: ContactChange) -> str:
@@ -99,10 +106,19 @@ def contact_paragraphs(findings: ContactFindings) -> list[str]:
             f"changed {_changes(other)} ({other.runs} runs on the path on both robots; "
             "summary_contact.csv has them)."
         )
+    where = {
+        "analytic": "on the analytic robot only",
+        "contact": "with contacts only",
+        "both": "on both robots",
+    }
     if findings.lost:
         text.append(
-            "Left the path on one of the robots: "
-            + ", ".join(f"{scenario} {controller}" for scenario, controller in findings.lost)
+            "Left the path "
+            + "; ".join(
+                f"{where[name]}: "
+                + ", ".join(f"{scenario} {controller}" for scenario, controller in runs)
+                for name, runs in findings.lost.items()
+            )
             + "."
         )
     return text
@@ -145,5 +161,6 @@ def write_contact_section(report: HtmlReport, study: PaperStudy) -> None:
         main[list(_COLUMNS)].rename(columns=_COLUMNS),
         "summary_contact.csv: each run on the analytic robot and with contacts (time constant "
         f"{1e3 * CONTACT_TIME_CONSTANTS[0]:g} ms; AE of x and y together for the change); slip "
-        "from the residual of the rolling constraints.",
+        "from the residual of the rolling constraints; —: the run left the path.",
+        missing="—",
     )

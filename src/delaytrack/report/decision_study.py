@@ -26,7 +26,7 @@ from delaytrack.report.decision import (
     refusal_text,
 )
 from delaytrack.report.html import HtmlReport
-from delaytrack.report.tradeoff import write_tradeoff
+from delaytrack.report.tradeoff import threshold_text, write_tradeoff
 from delaytrack.units import with_unit
 
 if TYPE_CHECKING:
@@ -154,8 +154,7 @@ def _report(study: DecisionStudy) -> HtmlReport:
             + ", ".join(f"{w:.3g}" for w in tradeoff.omegas)
             + f" rad/s, {tradeoff.draws} drawn robots per point and controller",
             "drawn": f"{drawn}; seed {tradeoff.seed}",
-            "on the path": "run ok and mean |e1| over the whole run: "
-            + ", ".join(f"{c} <= {b:g}" for c, b in tradeoff.threshold.items()),
+            "on the path": f"run ok and mean |e1| over the whole run: {threshold_text(tradeoff)}",
             "conditions": "constant true delays; AROLC and the outer loop are told nothing, "
             "PCONf (under a constant delay the law of PCON told the same delay) is told a "
             "delay as listed under each envelope below",

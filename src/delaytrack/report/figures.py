@@ -298,6 +298,7 @@ def margins_figure(
     margins: Mapping[str, Sequence[float]],
     groups: Sequence[str],
     *,
+    xlabel: str,
     title: str | None = None,
 ) -> Figure:
     """Delay margins side by side per group (e.g. per gain pair), on a log scale.
@@ -308,6 +309,8 @@ def margins_figure(
         ``label -> margin (s) per group``; NaN where a margin is unknown (not drawn).
     groups : sequence of str
         Name of each group, on the horizontal axis.
+    xlabel : str
+        What the groups are (the horizontal axis's label, with units).
     title : str, optional
     """
     figure = Figure(figsize=(_WIDTH + 2.0, 4.2), dpi=_DPI, layout="constrained")
@@ -319,6 +322,7 @@ def margins_figure(
         ax.bar(positions + (k - (len(margins) - 1) / 2) * width, heights, width, label=label)
     ax.set_yscale("log")
     ax.set_xticks(positions, groups, rotation=30, ha="right", fontsize="small")
+    ax.set_xlabel(xlabel)
     ax.set_ylabel("delay margin (s)")
     ax.grid(axis="y", which="both", alpha=0.3)
     ax.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.0, 1.0))

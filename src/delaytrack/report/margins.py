@@ -54,10 +54,11 @@ def write_study(study: MarginStudy, folder: str | Path) -> list[Path]:
     files.append(write_frame(evaluated, folder / "evaluated.csv"))
     study.scenario.to_toml(folder / "scenario.toml")
     files.append(folder / "scenario.toml")
-    labels = [f"k1={k1:g}, k2={k2:g}" for k1, k2 in table[["k1", "k2"]].to_numpy()]
+    labels = [f"k1 = {k1:g}, k2 = {k2:g}" for k1, k2 in table[["k1", "k2"]].to_numpy()]
     figure = margins_figure(
         {label: table[column].to_numpy() for column, label in _LABELS.items()},
         labels,
+        xlabel="outer-loop gains K1 = k1 I (k1 in 1/s²), K2 = k2 I (k2 in 1/s)",
         title="Delay margins of K1 = k1 I, K2 = k2 I on the two-link arm",
     )
     files += save_figure(figure, folder / "figures" / "margins")

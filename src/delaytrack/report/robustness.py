@@ -15,6 +15,7 @@ from matplotlib.figure import Figure
 from delaytrack._io import write_frame
 from delaytrack._output import record_outputs
 from delaytrack._words import counted
+from delaytrack.experiments.robustness import repeated_in
 from delaytrack.report.figures import save_figure
 from delaytrack.report.html import HtmlReport
 
@@ -245,7 +246,7 @@ def display_survival(table: pd.DataFrame) -> pd.DataFrame:
                 _interval_text(r.b_stayed_share, r.b_stayed_ci_low, r.b_stayed_ci_high, 100.0)
                 for r in rows
             ],
-            "draws: both stayed / only A / only B / both diverged": [
+            "draws: both stayed / only A diverged / only B diverged / both diverged": [
                 f"{r.both_stayed} / {r.only_a_diverged} / {r.only_b_diverged} / {r.both_diverged}"
                 for r in rows
             ],
@@ -460,9 +461,10 @@ def write_robustness(study: RobustnessStudy, out: str | Path) -> list[Path]:
     figure and ``report.html`` into ``out``; return their paths."""
     out = Path(out)
     files = []
+    marked = {**study.runs, "map": study.runs["map"].assign(repeated_in=repeated_in(study.runs))}
     every = pd.concat(
-        [frame.assign(sweep=name) for name, frame in study.runs.items()], ignore_index=True
-    )
+        [frame.assign(sweep=name) for name, frame in marked.items()], ignore_index=True
+    ).fillna({"repeated_in": ""})
     files.append(write_frame(every, out / "runs.csv"))
     tables = ("map", "knowledge", "claims", "actuators", "verdicts", "attribution")
     for name in (*tables, "knowledge_table"):
@@ -558,9 +560,16 @@ def _judgement_text(study: RobustnessStudy) -> str:
 
 def _size_text(study: RobustnessStudy) -> str:
     """The study's size: its runs, draws per case, work units and time."""
+    repeats = int((repeated_in(study.runs) != "").sum())
     return (
-        f"Size: {study.run_count} runs of {study.scenario.duration:g} s "
-        f"({study.size.map} draws per map cell"
+        f"Size: {study.run_count} runs of {study.scenario.duration:g} s"
+        + (
+            f", {study.run_count - repeats} distinct: the refined cells' edge sweeps ran the "
+            f"{repeats} draws of their first pass again (runs.csv marks these in repeated_in) "
+            if repeats
+            else " "
+        )
+        + f"({study.size.map} draws per map cell"
         + (
             f"; the {study.refined_cells} cells at a controller's divergence edge again with "
             f"{study.size.map_edge}"

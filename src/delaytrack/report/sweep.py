@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -40,7 +41,7 @@ from delaytrack.sweeps.summary import (
     smallest_medians,
     summary_table,
 )
-from delaytrack.units import labelled
+from delaytrack.units import default_names, labelled
 
 __all__ = [
     "ae_vs_h_max_figure",
@@ -224,10 +225,13 @@ def sweep_section(
     report.bullets(findings(summary, metrics, units))
     report.heading("Outcomes", level=3)
     report.paragraph(
-        "Divergence rate: share of runs whose state left the engine's bound or became non-finite. "
+        "Divergence rate ('diverged'): share of runs whose state left the engine's bound or "
+        "became non-finite (status 'diverged'), or whose tracking error passed the scenario's "
+        f"error_bound (status 'left the path'; {_error_bound_text(spec.base)}). "
         "'failed': any other status that is not ok (a delay beyond the history buffer, a mass "
         "matrix that stopped being positive definite). Metric "
-        "statistics are over the runs that ended ok."
+        "statistics are over the runs that ended ok, however far their errors grew within "
+        "the bound."
     )
     outcomes = ["controller", "delay_class", "runs", "diverged", "divergence_rate", "failed"]
     report.table(summary[outcomes])
@@ -237,6 +241,23 @@ def sweep_section(
     report.heading("Figures", level=3)
     for figure, caption in figures.values():
         report.figure(figure, caption)
+
+
+def _error_bound_text(scenario: Any) -> str:
+    """The base scenario's ``error_bound`` per bounded coordinate, with units (``x 10 m, y
+    10 m``), or that it sets none."""
+    bound = scenario.error_bound
+    if bound is None or not any(math.isfinite(b) for b in bound):
+        return "the base scenario sets none"
+    plant = scenario.build().plant
+    names = default_names(plant.coordinate_names, plant.n)
+    units = plant.coordinate_units or (None,) * plant.n
+    bounded = [
+        f"{name} {b:g}" + (f" {unit}" if unit else "")
+        for name, b, unit in zip(names, bound, units, strict=True)
+        if math.isfinite(b)
+    ]
+    return "the base scenario's: " + ", ".join(bounded)
 
 
 def sweep_figures(

@@ -28,13 +28,13 @@ from delaytrack.report.decision import (
 )
 from delaytrack.report.figures import save_figure
 from delaytrack.report.html import HtmlReport
-from delaytrack.units import labelled, with_unit
+from delaytrack.units import default_names, labelled, with_unit
 
 if TYPE_CHECKING:
     from delaytrack.experiments.decision import Choice, Decision
     from delaytrack.experiments.tradeoff import TradeoffStudy
 
-__all__ = ["decision_lines", "pareto_figure", "write_tradeoff"]
+__all__ = ["decision_lines", "pareto_figure", "threshold_text", "write_tradeoff"]
 
 #: The families as the report names them.
 _NAMES = {
@@ -57,6 +57,23 @@ def _columns(study: TradeoffStudy) -> dict[str, str]:
         "ae_median": with_unit("ae_median", study.ae_unit),
         "tv_median": with_unit("tv_median", study.tv_unit),
     }
+
+
+def threshold_text(study: TradeoffStudy) -> str:
+    """The rule's bound on each scored coordinate's mean ``|e1|``, in its unit: ``x <= 1 m,
+    y <= 1 m``."""
+    plant = study.scenario.build().plant
+    units = dict(
+        zip(
+            default_names(plant.coordinate_names, plant.n),
+            plant.coordinate_units or (None,) * plant.n,
+            strict=True,
+        )
+    )
+    return ", ".join(
+        f"{name} <= {bound:g}" + (f" {units[name]}" if units.get(name) else "")
+        for name, bound in study.threshold.items()
+    )
 
 
 def pareto_figure(study: TradeoffStudy) -> Figure:
@@ -209,7 +226,7 @@ def _report(study: TradeoffStudy, figure: Figure, decision: Decision | None) -> 
         "that stay on the path with median AE and TV."
     )
     scenario = study.scenario
-    scored = ", ".join(f"{name} <= {bound:g}" for name, bound in study.threshold.items())
+    scored = threshold_text(study)
     drawn = (
         ", ".join(study.random) + f"; {study.draws} draws, seed {study.seed}"
         if study.random
@@ -238,13 +255,24 @@ def _report(study: TradeoffStudy, figure: Figure, decision: Decision | None) -> 
             f"{study.computed} computed, {study.resumed} resumed",
         }
     )
+    # tradeoff.csv in two tables (a point's margins, then its runs at the scenario's delay),
+    # each narrow enough to read without scrolling sideways
+    table = study.table.rename(columns=_columns(study))
+    point = ["omega_n_rad_per_s", "k1_per_s2", "k2_per_s", "controller"]
+    margins = ["h_m_s", "h_exact_s", "empirical_margin_s", "margin_search"]
     report.table(
-        study.table.rename(columns=_columns(study)),
-        caption="One row per point and controller. Margins in s; margin_search says what "
-        "the empirical margin is: "
+        table[point + margins],
+        caption="tradeoff.csv (1 of 2), one row per point and controller: the margins (s). "
+        "margin_search says what the empirical margin is: "
         + "; ".join(f"{key}: {meaning}" for key, meaning in MARGIN_SEARCHES.items())
-        + ". Runs off the path by reason: stopped (diverged or beyond the scenario's "
-        "error_bound) and over_threshold (ended ok, mean |e1| above the threshold). "
+        + ".",
+    )
+    runs = [c for c in table.columns if c not in (*point, *margins, "margin_found")]
+    report.table(
+        table[[point[0], point[3], *runs]],
+        caption="tradeoff.csv (2 of 2), one row per point and controller: its drawn robots at "
+        "the scenario's delay. Runs off the path by reason: stopped (diverged or beyond the "
+        "scenario's error_bound) and over_threshold (ended ok, mean |e1| above the threshold). "
         "share_low/high: Wilson 95 % interval.",
     )
     report.figure(
@@ -255,7 +283,12 @@ def _report(study: TradeoffStudy, figure: Figure, decision: Decision | None) -> 
         "the front).",
     )
     report.heading("Pareto front")
-    report.table(study.front.rename(columns=_columns(study)))
+    front = study.front.rename(columns=_columns(study))
+    shown = [*point, "empirical_margin_s", "margin_search", "share_on_path", "share_low"]
+    report.table(
+        front[shown + [_columns(study)["ae_median"], _columns(study)["tv_median"]]],
+        caption="The points on the front (their other columns in the tables above).",
+    )
     report.paragraph(
         "Empirical margins hold for this scenario, horizon and rule only; a margin at the search "
         "limit is a lower bound. h_m is sufficient only; h_exact covers the nominal linear loop "

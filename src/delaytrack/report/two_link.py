@@ -62,6 +62,14 @@ def _figures(study: TwoLinkStudy) -> dict[str, tuple[Figure, str]]:
     return figures
 
 
+def _with_unit(column: str) -> str:
+    """A metric column of the two-link arm's tables with its unit: the joints' errors in rad,
+    the torques' TV in N·m, the stop time in s (``ae_q1`` -> ``ae_q1_rad``)."""
+    if column.startswith(("ae_", "rms_", "max_")):
+        return f"{column}_rad"
+    return {"tv": "tv_Nm", "t_stop": "t_stop_s"}.get(column, column)
+
+
 def _verdict(study: TwoLinkStudy) -> list[str]:
     """The outcome in words, from the summary and AROLC's change against the outer loop."""
     summary = study.summary
@@ -253,11 +261,13 @@ def _report(study: TwoLinkStudy, figures: dict[str, tuple[Figure, str]]) -> Html
     )
     report.heading("Summary")
     report.table(
-        study.summary,
-        "Metrics over the whole run. ae/rms/max in rad (per joint), tv in N·m; status 'ok' means "
-        "the run reached the final time.",
+        study.summary.rename(columns=_with_unit),
+        "Metrics over the whole run (summary.csv, with the units in the column names): ae/rms/"
+        "max per joint, tv; status 'ok' means the run reached the final time.",
     )
-    report.table(study.undelayed, "Context: the same runs with no delay (h = 0).")
+    report.table(
+        study.undelayed.rename(columns=_with_unit), "Context: the same runs with no delay (h = 0)."
+    )
     write_dt_check(report, study.dt_verdict, study.half_dt)
     report.heading("Settings")
     report.settings(_settings_rows(study))

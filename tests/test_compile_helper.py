@@ -434,7 +434,7 @@ def _movable_jobs() -> list[CompileJob]:
     from delaytrack._compile.native_parts import delay_part, reference_part
     from delaytrack.references import SinusoidalReference
 
-    reference = reference_part(SinusoidalReference([0.0], [1.0], [1.0]).engine_kernel, 1)
+    reference = reference_part(SinusoidalReference([0.0], [1.0], [1.0], [1.0]).engine_kernel, 1)
     return [
         CompileJob(part.function, part.signature, part.compile_job().kernels, 10.0)
         for part in (reference, delay_part(NO_KERNEL))

@@ -271,4 +271,4 @@ def test_the_paper_job_with_decision_runs_it_after_its_checks(tmp_path, monkeypa
     assert "decision" not in calls
     assert main([*common, "--job", "margins", "--decision"]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "--decision applies to the paper job" in err
+    assert err.count("\n") == 1 and "--decision does not apply to --job margins" in err

@@ -808,3 +808,134 @@ def test_a_path_that_is_not_utf8_is_refused_before_running(tmp_path):
     with pytest.raises(ScenarioError, match="not UTF-8"):
         run_to_folder(Scenario.from_toml(scenario), out)
     assert not out.exists() or not any(out.iterdir())
+
+
+# ---- what an audit of every command's inputs found ----------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("key", "value"), [("half_track", 1e200), ("d", 1e160), ("com_lateral", 1e155)]
+)
+def test_a_robot_too_large_for_a_float_is_refused_in_one_line(tmp_path, capsys, key, value):
+    """Its parallel-axis inertia overflowed Python's floats: a traceback (OverflowError)."""
+    scenario = load_builtin("robot_S1").replace(duration=0.1)
+    text = scenario.to_toml()
+    path = tmp_path / "huge_robot.toml"
+    path.write_text(text.replace("[plant]\n", f"[plant]\n{key} = {value}\n", 1))
+    assert main(["simulate", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    one_line_error(capsys, "[plant]", "beyond the largest float", "metres")
+    from delaytrack.plants import NominalRobot
+
+    with pytest.raises(ValueError, match="give the robot's lengths in metres"):
+        NominalRobot(**{key: value})
+
+
+def test_a_swept_integer_a_part_cannot_store_is_refused_before_any_unit_runs(tmp_path, capsys):
+    """A seed of 2**64 ran its unit, then failed writing it, every time the sweep resumed."""
+    path = tmp_path / "big_seed.toml"
+    path.write_text(
+        'scenario = "two_link_S1"\nunit_size = 2\n[grid]\nduration = [0.1]\n'
+        'delay = [{ type = "random", h_low = 0.01, h_high = 0.05, max_rate = 0.1, seed = 0 }]\n'
+        f'"delay.seed" = [1, {2**64}]\n'
+    )
+    assert main(["sweep", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    one_line_error(capsys, 'grid."delay.seed"[1] = 18446744073709551616', "64-bit integer")
+    assert not list((tmp_path / "out").rglob("part-*.parquet"))
+    # inside a table it is JSON text, whatever its size
+    table = {"type": "random", "h_low": 0.01, "h_high": 0.05, "max_rate": 0.1, "seed": 2**64}
+    SweepSpec.from_dict({"scenario": "two_link_S1", "unit_size": 2, "grid": {"delay": [table]}})
+
+
+@pytest.mark.parametrize(("n", "m"), [(10**7, 1), (1, 10**7)])
+def test_a_compiled_plant_of_millions_of_coordinates_is_refused_at_once(n, m):
+    """It took 19-39 s and 6-8 GB before numpy's or a column check's refusal."""
+    import numba
+
+    @numba.njit
+    def terms(t, q, qdot, params, M, N, G):
+        M[0, 0] = 1.0
+        N[0] = 0.0
+        G[0, 0] = 1.0
+
+    with pytest.raises(ValueError, match="is more than a plant may have: at most 1000"):
+        dt.CompiledPlant(n, m, terms, [1.0])
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: dt.AbsSineDelay(0.02, 0.08, 1.0, phase=1e308),
+        lambda: dt.SinusoidalReference([0.0], amplitude=[1.0], frequency=[1.0], phase=[1e16]),
+    ],
+    ids=["delay", "reference"],
+)
+def test_a_phase_that_swallows_the_sines_variation_is_refused(make):
+    """At 1e308 the delay was a constant; at 1e16 it took two values over 2 s."""
+    with pytest.raises(ValueError, match="phase must be at most 1e\\+06 rad in magnitude"):
+        make()
+    dt.AbsSineDelay(0.02, 0.08, 1.0, phase=1e6)  # the bound itself
+
+
+@pytest.mark.parametrize(
+    ("given", "named"),
+    [({"amplitude": [1.0]}, "only amplitude"), ({"phase": [0.5]}, "only phase")],
+)
+def test_a_harmonic_given_in_part_is_refused_not_flattened(given, named):
+    """An amplitude without frequency drew a constant: a run with AE 0 that tracked nothing."""
+    with pytest.raises(
+        ValueError, match=f"a harmonic needs both amplitude and frequency; got {named}"
+    ):
+        dt.SinusoidalReference([0.0], **given)
+
+
+def test_empirical_refuses_a_frequency_its_profile_has_not(capsys):
+    args = ["empirical", "two_link_margins", "--threshold", "0.2", "--frequency", "7"]
+    assert main([*args, "--json"]) == 2
+    one_line_error(capsys, "--frequency 7", "--profile constant has none")
+
+
+def test_run_to_folder_checks_what_it_is_given_before_running(tmp_path):
+    scenario = short()
+    with pytest.raises(TypeError, match="figure_formats must be a sequence of format names"):
+        run_to_folder(scenario, tmp_path / "a", figure_formats="png")
+    with pytest.raises(ValueError, match=r"figure_formats \['bmp'\] are not formats matplotlib"):
+        run_to_folder(scenario, tmp_path / "b", figure_formats=["png", "bmp"])
+    with pytest.raises(TypeError, match="scenario must be a Scenario .*got str"):
+        run_to_folder("case.toml", tmp_path / "c")
+    assert not any((tmp_path / name).exists() for name in "abc")
+
+
+@pytest.mark.parametrize(
+    ("path", "error", "message"),
+    [
+        (None, TypeError, "path must be a file name .*got NoneType"),
+        (b"case.toml", TypeError, "path must be a file name .*got bytes"),
+        ("", ScenarioError, "the scenario file's name is empty"),
+    ],
+)
+def test_from_toml_names_a_path_it_cannot_read(path, error, message):
+    with pytest.raises(error, match=message):
+        Scenario.from_toml(path)
+
+
+def test_an_empty_scenario_name_on_the_command_line_is_not_the_current_folder(tmp_path, capsys):
+    assert main(["simulate", "", "--out", str(tmp_path / "out")]) == 2
+    one_line_error(capsys, "the scenario is an empty name", "two_link_S1")
+
+
+def test_simulate_refuses_more_threads_than_four_per_core():
+    from delaytrack.sim._machine import available_cores
+
+    arm = dt.TwoLinkArm()
+    with pytest.raises(ValueError, match=r"workers must be at most \d+ \(4 threads per core"):
+        simulate(
+            arm,
+            dt.OuterLoop(arm, K1=1.0, K2=1.0),
+            ConstantDelay(0.01),
+            [0.0, 0.0, 0.0, 0.0],
+            reference=dt.SinusoidalReference([0.0, 0.0]),
+            t1=0.1,
+            dt=1e-3,
+            T_c=1e-2,
+            workers=4 * available_cores() + 1,
+        )

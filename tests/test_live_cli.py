@@ -372,6 +372,10 @@ def test_a_lead_longer_than_half_the_smallest_delay_is_refused(capsys, tmp_path,
         capsys, "delay", SCENARIO, "--out", str(tmp_path / "out"), "--lead", "0.015", "--quiet"
     )
     assert "--lead 0.015 s" in line and "h = 20 ms" in line and "at most 0.01 s" in line
+    # live run refuses it before any node starts (the robot compiled its plant first)
+    out = tmp_path / "run"
+    line = refusal(capsys, "run", SCENARIO, "--out", str(out), "--lead", "0.015", "--quiet")
+    assert "--lead 0.015 s" in line and not out.exists()
 
 
 def test_a_phase_past_the_next_tick_is_refused(capsys, tmp_path, signals_kept):

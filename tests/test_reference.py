@@ -112,11 +112,11 @@ def test_spec_round_trip(reference):
     [
         (dict(offset=[0.0, 1.0], slope=[1.0]), r"slope must have length n = 2; got 1"),
         (
-            dict(offset=[0.0, 1.0], amplitude=[1.0, 2.0, 3.0]),
+            dict(offset=[0.0, 1.0], amplitude=[1.0, 2.0, 3.0], frequency=[1.0, 1.0]),
             r"amplitude must have shape \(n,\) or \(n, K\) with n = 2; got \(3,\)",
         ),
         (
-            dict(offset=[0.0, 1.0], frequency=np.ones((3, 2))),
+            dict(offset=[0.0, 1.0], amplitude=np.ones((2, 2)), frequency=np.ones((3, 2))),
             r"frequency must have shape \(n,\) or \(n, K\) with n = 2; got \(3, 2\)",
         ),
         (
@@ -126,7 +126,10 @@ def test_spec_round_trip(reference):
         ),
         (dict(offset=[[0.0, 1.0]]), r"offset must be 1-dimensional; got shape \(1, 2\)"),
         (dict(offset=[0.0, np.nan]), r"offset must be finite"),
-        (dict(offset=[0.0], phase=[np.inf]), r"phase must be finite"),
+        (
+            dict(offset=[0.0], amplitude=[1.0], frequency=[1.0], phase=[np.inf]),
+            r"phase must be finite",
+        ),
     ],
 )
 def test_refused_shapes(kwargs, message):

@@ -68,6 +68,35 @@ def test_reproduce_rejects_a_bad_duration(tmp_path, capsys):
     assert "must be a positive integer multiple of 'T_c'" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    ("flags", "message"),
+    [
+        (
+            ["--job", "two-link", "--scheduler", "tcp://127.0.0.1:1"],
+            "--scheduler does not apply to --job two-link; it applies to --job paper, "
+            "robustness or decision",
+        ),
+        (["--job", "margins", "--size", "full"], "--size does not apply to --job margins"),
+        (["--job", "two-link", "--no-contact"], "--no-contact does not apply to --job two-link"),
+        (["--job", "robustness", "--no-dt-check"], "--no-dt-check does not apply"),
+        (["--job", "decision", "--no-robustness"], "--no-robustness does not apply"),
+        (
+            ["--no-robustness", "--scheduler", "local-cluster"],
+            "--scheduler sets the robustness and decision studies, which this paper job does "
+            "not run",
+        ),
+        (["--no-robustness", "--size", "full"], "--size sets the robustness and decision"),
+    ],
+)
+def test_reproduce_refuses_a_flag_its_job_would_ignore(tmp_path, capsys, flags, message):
+    """A flag that changes nothing in the job asked for was ignored without a word (an
+    unreachable scheduler address was taken, the job then ran on this machine)."""
+    assert main(["reproduce", "--out", str(tmp_path / "out"), *flags, "--quiet"]) == 2
+    error = capsys.readouterr().err
+    assert error.startswith("error: ") and error.count("\n") == 1 and message in error, error
+    assert not (tmp_path / "out").exists()
+
+
 def test_readme_first_screen_introduces():
     """Its first screen says what this is and for whom, the two commands, the install with its
     extras (each one pyproject.toml declares) and starts the example on a plant of one's own."""

@@ -18,6 +18,7 @@ __all__ = [
     "ArgumentError",
     "BEYOND_CHOICES",
     "DECIMAL_NOTATION",
+    "MAX_PHASE",
     "NumberTextError",
     "beyond_choice",
     "decimal_number",
@@ -26,6 +27,7 @@ __all__ = [
     "is_real_number",
     "as_spd_matrix",
     "as_square_matrix",
+    "check_phase",
     "format_values",
     "positive_scalar",
     "finite_array",
@@ -227,6 +229,25 @@ def finite_array(name: str, value: object, *, ndim: int | None = None) -> np.nda
         where = f"{name}[{', '.join(map(str, bad))}]" if bad else name
         raise ArgumentError(name, f"must be finite; {where} is {array[bad]}")
     return array
+
+
+#: Largest phase of a sine (rad): beyond it, the phase's double-precision spacing (about 1e-10
+#: rad at 1e6) starts to swallow what ``frequency t`` adds in a step; at 1e16 the sine is a
+#: constant.
+MAX_PHASE = 1e6
+
+
+def check_phase(name: str, phase: float | np.ndarray) -> None:
+    """Refuse a sine's ``phase`` (rad, a number or an array) beyond :data:`MAX_PHASE` in
+    magnitude: ``sin(frequency t + phase)`` would lose ``frequency t`` to rounding."""
+    largest = float(np.max(np.abs(np.asarray(phase, dtype=float)), initial=0.0))
+    if largest > MAX_PHASE:
+        raise ArgumentError(
+            name,
+            f"must be at most {MAX_PHASE:g} rad in magnitude (a larger phase swallows "
+            f"frequency t in rounding, and the sine stops varying); got {largest:g}: give it "
+            "modulo 2π",
+        )
 
 
 #: How a number is written in text the toolkit reads: command-line arguments and CSV data files.

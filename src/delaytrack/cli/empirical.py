@@ -70,7 +70,10 @@ def add_command(commands: argparse._SubParsersAction) -> None:
     )
     command.add_argument("--upper", default=None, metavar="S", help="search limit (default 1 s)")
     command.add_argument(
-        "--frequency", default="1", metavar="W", help="w of the abs-sine families (default 1 rad/s)"
+        "--frequency",
+        default=None,
+        metavar="W",
+        help="w of the abs-sine families (default 1 rad/s; not with --profile constant)",
     )
     command.add_argument(
         "--json", action="store_true", help="print one JSON object instead of text"
@@ -114,7 +117,12 @@ def run(args: argparse.Namespace) -> int:
     settle = None if args.settle is None else scalar("--settle", args.settle)
     resolution = scalar("--resolution", args.resolution)
     upper = 1.0 if args.upper is None else scalar("--upper", args.upper)
-    frequency = scalar("--frequency", args.frequency)
+    if args.frequency is not None and args.profile == "constant":
+        raise UsageError(
+            f"--frequency {args.frequency} sets w of the abs-sine families; --profile constant "
+            "has none (give --profile abs-sine or abs-sine-offset, or leave --frequency out)"
+        )
+    frequency = 1.0 if args.frequency is None else scalar("--frequency", args.frequency)
     start = time.perf_counter()
     try:
         result = empirical_margin(

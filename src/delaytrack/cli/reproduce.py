@@ -144,8 +144,7 @@ def _job(args: argparse.Namespace) -> int:
             raise UsageError(
                 f"--duration must be a positive number of seconds; got {args.duration:g}"
             )
-    if args.decision and args.job != "paper":
-        raise UsageError(f"--decision applies to the paper job (--job paper); got --job {args.job}")
+    _check_flags_apply(args)
     if args.job == "two-link":
         return _two_link(args)
     if args.job == "margins":
@@ -158,13 +157,46 @@ def _job(args: argparse.Namespace) -> int:
     return _paper(args, executor)
 
 
+#: The jobs each flag changes; given to another job, it is refused rather than ignored.
+_FLAG_JOBS = {
+    "duration": ("--duration", ("paper", "two-link", "margins")),
+    "size": ("--size", ("paper", "robustness", "decision")),
+    "scheduler": ("--scheduler", ("paper", "robustness", "decision")),
+    "no_robustness": ("--no-robustness", ("paper",)),
+    "no_dt_check": ("--no-dt-check", ("paper", "two-link")),
+    "decision": ("--decision", ("paper",)),
+    "no_contact": ("--no-contact", ("paper",)),
+    "gains": ("--gains", ("paper", "robustness")),
+}
+
+
+def _check_flags_apply(args: argparse.Namespace) -> None:
+    """Refuse a flag given to a job it does not change (``--scheduler`` with ``--job
+    two-link``; ``--size`` or ``--scheduler`` with a paper job that runs no study), naming
+    the jobs it applies to: a flag silently ignored lets a user believe it was used."""
+    defaults = {"duration": None, "size": "default", "scheduler": None, "gains": None}
+    for name, (flag, jobs) in _FLAG_JOBS.items():
+        if getattr(args, name) in (defaults.get(name, False),):
+            continue
+        if args.job not in jobs:
+            why = " (its runs are 60 s)" if name == "duration" else ""
+            named = jobs[0] if len(jobs) == 1 else f"{', '.join(jobs[:-1])} or {jobs[-1]}"
+            raise UsageError(
+                f"{flag} does not apply to --job {args.job}{why}; it applies to --job {named}"
+            )
+        if name in ("size", "scheduler") and args.job == "paper":
+            if args.no_robustness and not args.decision:
+                raise UsageError(
+                    f"{flag} sets the robustness and decision studies, which this paper job "
+                    "does not run (--no-robustness, no --decision)"
+                )
+
+
 def _study_executor(args: argparse.Namespace):
     """A factory of the robustness study's executors (``--scheduler``), checked before running."""
     from delaytrack.sweeps import SweepError, make_executor
     from delaytrack.sweeps.executors import checked_scheduler
 
-    if args.duration is not None and args.job in ("robustness", "decision"):
-        raise UsageError(f"--duration does not apply to --job {args.job} (its runs are 60 s)")
     try:
         checked_scheduler(args.scheduler, None)
     except SweepError as error:

@@ -9,7 +9,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 import delaytrack.delays._kernel as _kernel
-from delaytrack._validation import ArgumentError, finite_scalar, positive_scalar
+from delaytrack._validation import ArgumentError, check_phase, finite_scalar, positive_scalar
 from delaytrack.delays.base import DelayProfile
 
 __all__ = ["AbsSineDelay"]
@@ -42,6 +42,7 @@ class AbsSineDelay(DelayProfile):
         )
         object.__setattr__(self, "frequency", positive_scalar("frequency", self.frequency))
         object.__setattr__(self, "phase", finite_scalar("phase", self.phase))
+        check_phase("phase", self.phase)
         if not math.isfinite(self.offset + self.amplitude):
             raise ArgumentError(
                 "amplitude",

@@ -86,16 +86,16 @@ def _check_duration(duration: float) -> None:
     """Refuse a ``duration`` that is not a positive integer multiple of the controller period
     :data:`T_C` (the engine ends every run on a controller tick), or beyond
     :data:`MAX_DURATION`."""
-    if integer_multiple(duration, T_C) is None:
-        raise ArgumentError(
-            "duration",
-            f"must be a positive integer multiple of 'T_c' = {T_C:g} s; got {duration:g}",
-        )
-    if duration > MAX_DURATION:
+    if duration > MAX_DURATION:  # first: 1e308 is no multiple of T_c, nor worth being one
         raise ArgumentError(
             "duration",
             f"must be at most {MAX_DURATION:g} s (ten times the paper's {DURATION:g} s runs: the "
             f"job keeps every tick of every run for its report); got {duration:g}",
+        )
+    if integer_multiple(duration, T_C) is None:
+        raise ArgumentError(
+            "duration",
+            f"must be a positive integer multiple of 'T_c' = {T_C:g} s; got {duration:g}",
         )
 
 

@@ -34,6 +34,29 @@ class RunOutput:
     built: BuiltScenario
 
 
+def _figure_formats(formats: Sequence[str]) -> tuple[str, ...]:
+    """``figure_formats`` checked before the run: format names matplotlib writes (a text such as
+    ``"png"`` is refused, not read letter by letter); matplotlib is asked only for formats
+    other than the default ones."""
+    if isinstance(formats, str) or not all(isinstance(name, str) for name in formats):
+        raise TypeError(
+            f"figure_formats must be a sequence of format names such as ('png', 'svg'); "
+            f"got {formats!r}"
+        )
+    formats = tuple(formats)
+    if set(formats) - {"png", "svg"}:
+        from matplotlib.backend_bases import FigureCanvasBase
+
+        known = FigureCanvasBase.get_supported_filetypes()
+        unknown = [name for name in formats if name not in known]
+        if unknown:
+            raise ValueError(
+                f"figure_formats {unknown} are not formats matplotlib writes; give some of "
+                f"{sorted(known)}"
+            )
+    return formats
+
+
 def run_to_folder(
     scenario: Scenario,
     folder: str | Path,
@@ -69,11 +92,17 @@ def run_to_folder(
     from delaytrack.metrics import metrics_table
     from delaytrack.report.figures import write_run_figures
 
-    unknown = sorted(set(formats) - set(TRAJECTORY_FORMATS))
-    if unknown or not formats:
-        raise ValueError(
-            f"formats must be a non-empty subset of {list(TRAJECTORY_FORMATS)}; got {list(formats)}"
+    if not isinstance(scenario, Scenario):
+        raise TypeError(
+            f"scenario must be a Scenario (Scenario.from_toml(path) reads a file, "
+            f"load_builtin(name) a shipped one); got {type(scenario).__name__} {scenario!r:.80}"
         )
+    unknown = sorted(set(formats) - set(TRAJECTORY_FORMATS))
+    if unknown or not formats or isinstance(formats, str):
+        raise ValueError(
+            f"formats must be a non-empty subset of {list(TRAJECTORY_FORMATS)}; got {formats!r}"
+        )
+    figure_formats = _figure_formats(figure_formats)
     folder = check_output_folder(folder)
     resolved, built = scenario.resolved_and_built()
     records = int(resolved.duration / resolved.T_c) // resolved.record_every + 1

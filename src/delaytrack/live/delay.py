@@ -63,6 +63,7 @@ __all__ = [
     "default_lead",
     "first_reachable_step",
     "release_margin",
+    "session_lead",
 ]
 
 #: Without commands to release, the node wakes at most this often (seconds) to plan again.
@@ -101,6 +102,26 @@ def first_reachable_step(now: float, margin: float, dt: float) -> int:
     return math.ceil((now + margin) / dt - 1e-9)
 
 
+def session_lead(lead: float | None, delay: Any, dt: float, duration: float) -> tuple[float, float]:
+    """``(lead, h_min)``: the lead of a session (``--lead``, or :func:`default_lead`) and the
+    smallest ``h`` over its robot steps; a lead longer than half that ``h`` (or the default's
+    floor) is a ValueError naming ``--lead``: a command must reach the delay node more than
+    the lead before the step it is due at, so a longer lead makes the delays longer than
+    ``h(t)``. The launcher checks it before any node starts, the delay node again."""
+    steps = np.arange(steps_until(duration, dt)) * dt
+    h_min = float(np.min(delay.h(steps))) if steps.size else 0.0
+    chosen = default_lead(dt, h_min) if lead is None else lead
+    longest = max(h_min / 2, default_lead(dt, h_min))
+    if chosen > longest:
+        raise ValueError(
+            f"--lead {chosen:g} s is longer than half the session's smallest delay, "
+            f"h = {h_min * 1e3:g} ms: a command must reach the delay node more than "
+            "--lead before the robot step it is due at, so a longer lead makes the delays "
+            f"longer than h(t); give at most {longest:g} s"
+        )
+    return chosen, h_min
+
+
 def check_session_delay(delay: Any, duration: float) -> None:
     """Refuse a delay profile whose data do not cover a session of ``duration`` seconds from
     ``t = 0`` (a trace that starts later or ends sooner; raises ValueError)."""
@@ -132,18 +153,9 @@ class DelayNode(NodeBase):
             loss = PacketLoss(args.loss, args.loss_seed)
         self.loss = loss or PacketLoss()
         self._loss = np.array(self.loss.params(), dtype=float)
-        steps = np.arange(steps_until(self.duration, self.dt)) * self.dt
-        self.h_min = float(np.min(self.delay.h(steps))) if steps.size else 0.0
-        lead = getattr(args, "lead", None)
-        self.lead = default_lead(self.dt, self.h_min) if lead is None else lead
-        longest = max(self.h_min / 2, default_lead(self.dt, self.h_min))
-        if self.lead > longest:
-            raise ValueError(
-                f"--lead {self.lead:g} s is longer than half the session's smallest delay, "
-                f"h = {self.h_min * 1e3:g} ms: a command must reach the delay node more than "
-                "--lead before the robot step it is due at, so a longer lead makes the delays "
-                f"longer than h(t); give at most {longest:g} s"
-            )
+        self.lead, self.h_min = session_lead(
+            getattr(args, "lead", None), self.delay, self.dt, self.duration
+        )
         self.h_max = float(self.delay.h_max)
         self.h(0.0)  # warm up (compile)
         packet_lost(0, self._loss)

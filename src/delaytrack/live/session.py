@@ -275,7 +275,7 @@ def _checked_session(args: Any) -> tuple[Any, Any, float, Path]:
     checked before any node starts (raises ``ScenarioError``, ``ValueError`` or ``OSError``)."""
     from delaytrack._output import check_output_folder
     from delaytrack.live.bridge import bridge_factory
-    from delaytrack.live.delay import check_session_delay
+    from delaytrack.live.delay import check_session_delay, session_lead
 
     scenario = load_scenario(str(args.scenario), list(args.trust))
     built = scenario.build()
@@ -283,6 +283,7 @@ def _checked_session(args: Any) -> tuple[Any, Any, float, Path]:
         scenario.simulated_measurement_noise.params(built.plant.n)
     duration = session_duration(scenario, args.duration)
     check_session_delay(built.delay, duration)  # as the delay node checks it
+    session_lead(getattr(args, "lead", None), built.delay, scenario.dt, duration)  # the same
     if getattr(args, "bridge", None) is not None:
         bridge_factory(args.bridge)  # the robot node builds and checks the bridge itself
     check_realtime(getattr(args, "realtime", None))  # once here, not once per node

@@ -31,7 +31,26 @@ from delaytrack.components import (
     plant_sizes,
 )
 
-__all__ = ["ELPlant", "el_rhs", "rhs_scratch"]
+__all__ = ["MAX_PLANT_SIZE", "ELPlant", "check_plant_size", "el_rhs", "rhs_scratch"]
+
+#: Most coordinates, and most inputs, of a plant: every run holds ``M`` (n x n) and ``G``
+#: (n x m) dense and solves ``M q̈ = f`` in O(n³) at every RK4 stage (8 MB for ``M`` at
+#: n = 1000, about 10⁹ operations a stage).
+MAX_PLANT_SIZE = 1000
+
+
+def check_plant_size(label: str, value: object) -> int:
+    """``value`` (``n`` or ``m``, named ``label``) as an int from 1 to :data:`MAX_PLANT_SIZE`,
+    or a ValueError naming it."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        raise ValueError(f"{label} must be a positive integer; got {value!r}")
+    if value > MAX_PLANT_SIZE:
+        raise ValueError(
+            f"{label} = {value} is more than a plant may have: at most {MAX_PLANT_SIZE} (every "
+            "run holds M (n x n) and G (n x m) dense and solves M q̈ = f in O(n³) at every "
+            "RK4 stage)"
+        )
+    return int(value)
 
 
 @inline_kernel

@@ -11,7 +11,7 @@ import numpy as np
 from delaytrack._result_columns import trajectory_columns
 from delaytrack._user_calls import UserFunctionError, raised_by
 from delaytrack._validation import as_spd_matrix, coordinate_labels, format_values
-from delaytrack.plants.base import ELPlant
+from delaytrack.plants.base import ELPlant, check_plant_size
 
 __all__ = ["CallablePlant"]
 
@@ -66,8 +66,7 @@ class CallablePlant(ELPlant):
     type_name: ClassVar[str] = "callable"
 
     def __post_init__(self) -> None:
-        if not isinstance(self.n, int | np.integer) or self.n < 1:
-            raise ValueError(f"n must be a positive integer; got {self.n!r}")
+        check_plant_size("n", self.n)
         for label, fn in (
             ("mass_matrix", self.mass_matrix_fn),
             ("nonlinear_terms", self.nonlinear_terms_fn),
@@ -87,7 +86,7 @@ class CallablePlant(ELPlant):
         mass = self._evaluate("mass_matrix", self.mass_matrix_fn, (zero,), (self.n, self.n))
         as_spd_matrix("mass_matrix(0)", mass, self.n)
         self._evaluate("nonlinear_terms", self.nonlinear_terms_fn, (zero, zero), (self.n,))
-        object.__setattr__(self, "m", self._input_map(zero).shape[1])
+        object.__setattr__(self, "m", check_plant_size("m", self._input_map(zero).shape[1]))
         if self.input_units is not None:
             units = coordinate_labels("input_units", self.input_units, self.m)
             object.__setattr__(self, "input_units", units)

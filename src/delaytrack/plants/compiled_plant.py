@@ -16,11 +16,10 @@ from delaytrack._validation import (
     coordinate_labels,
     finite_array,
     format_values,
-    is_integer_at_least,
 )
 from delaytrack.components import Kernel, ReducedForm
 from delaytrack.kernel_arguments import check_kernel_arguments
-from delaytrack.plants.base import ELPlant
+from delaytrack.plants.base import ELPlant, check_plant_size
 
 __all__ = ["CompiledPlant"]
 
@@ -87,9 +86,7 @@ class CompiledPlant(ELPlant):
 
     def __post_init__(self) -> None:
         for label in ("n", "m"):
-            value = getattr(self, label)
-            if not is_integer_at_least(value, 1):
-                raise ValueError(f"{label} must be a positive integer; got {value!r}")
+            check_plant_size(label, getattr(self, label))
         if not is_compiled(self.kernel):
             raise TypeError(
                 "kernel must be a numba-compiled function (decorate it with @numba.njit); got "

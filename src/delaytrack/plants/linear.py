@@ -9,14 +9,13 @@ import numpy as np
 
 from delaytrack._compile.jit import kernel
 from delaytrack._validation import as_spd_matrix, as_square_matrix, finite_array
-from delaytrack.plants.base import ELPlant
+from delaytrack.plants.base import MAX_PLANT_SIZE, ELPlant
 
 __all__ = ["MAX_COORDINATES", "LinearPlant", "linear_terms"]
 
-#: Most coordinates of a :class:`LinearPlant`: it holds M, D and K as dense n x n matrices in
-#: its parameters (24 MB at n = 1000), computes ``D q̇ + K q`` in O(n²) at every RK4 stage and
-#: checks M in O(n³) when built.
-MAX_COORDINATES = 1000
+#: Most coordinates of a :class:`LinearPlant`, as of any plant (:data:`MAX_PLANT_SIZE`): it
+#: also holds M, D and K as dense n x n matrices in its parameters (24 MB at n = 1000).
+MAX_COORDINATES = MAX_PLANT_SIZE
 
 
 @kernel

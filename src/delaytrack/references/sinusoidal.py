@@ -16,7 +16,7 @@ import numpy as np
 
 from delaytrack._compile.functions import at_few_points
 from delaytrack._compile.jit import kernel, tick_kernel
-from delaytrack._validation import ArgumentError, finite_array
+from delaytrack._validation import ArgumentError, check_phase, finite_array
 from delaytrack.references.base import Reference, by_time
 
 __all__ = [
@@ -81,6 +81,15 @@ class SinusoidalReference(Reference):
         slope = np.zeros(n) if self.slope is None else finite_array("slope", self.slope, ndim=1)
         if slope.size != n:
             raise ArgumentError("slope", f"must have length n = {n}; got {slope.size}")
+        given = [
+            name for name in ("amplitude", "frequency", "phase") if getattr(self, name) is not None
+        ]
+        if given and not {"amplitude", "frequency"} <= set(given):
+            raise ValueError(
+                f"a harmonic needs both amplitude and frequency; got only {' and '.join(given)} "
+                "(the other would default to zeros: an amplitude at frequency 0 is a constant "
+                "amplitude sin(phase), a frequency or phase without amplitude draws nothing)"
+            )
         harmonic = {}
         for name in ("amplitude", "frequency", "phase"):
             value = getattr(self, name)
@@ -105,6 +114,7 @@ class SinusoidalReference(Reference):
                     f"amplitude, frequency and phase must have the same shape; got {widths}"
                 )
         _check_derivatives_finite(harmonic["amplitude"], harmonic["frequency"])
+        check_phase("phase", harmonic["phase"])
         object.__setattr__(self, "offset", offset)
         object.__setattr__(self, "slope", slope)
         for name, array in harmonic.items():

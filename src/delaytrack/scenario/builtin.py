@@ -37,10 +37,14 @@ def scenario_file_or_builtin(text: str) -> Path:
     ScenarioError
         When ``text`` is neither, naming the shipped scenarios.
     """
+    names = builtin_scenario_names()
+    if not text:  # Path("") is the current folder
+        raise ScenarioError(
+            f"the scenario is an empty name; give a scenario file or one of {names}"
+        )
     path = Path(text)
     if path.exists() or path.suffix == ".toml":
         return path
-    names = builtin_scenario_names()
     if text in names:
         return builtin_scenario_path(text)
     raise ScenarioError(

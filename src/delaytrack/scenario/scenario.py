@@ -7,6 +7,7 @@ import copy
 import dataclasses
 import functools
 import math
+import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -311,6 +312,13 @@ class Scenario:
             or folder.
         """
         trusted = dataclasses.replace(Trust.of(trust), own_folder=bool(trust_its_folder))
+        if not isinstance(path, str | os.PathLike) or isinstance(path, bytes):
+            raise TypeError(
+                f"path must be a file name (str or pathlib.Path); got {type(path).__name__} "
+                f"{path!r:.80}"
+            )
+        if not str(path):
+            raise ScenarioError("the scenario file's name is empty; give the path of a .toml file")
         source = Path(path)
         data = read_toml_file(source, "scenario file", ScenarioError)
         try:

@@ -35,7 +35,8 @@ def broadcast(name: str, items: list[_T], batch: int) -> list[_T]:
     if len(items) == 1:
         return items * batch
     raise ValueError(
-        f"{name} has {len(items)} entries but the batch has {batch}; give 1 or {batch}"
+        f"{name} has {len(items)} entries but the batch has {batch}; give "
+        + ("one" if batch == 1 else f"1 (for every run) or {batch}")
     )
 
 

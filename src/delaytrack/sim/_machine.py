@@ -5,7 +5,11 @@ from __future__ import annotations
 import math
 import os
 
-__all__ = ["available_cores", "physical_memory"]
+__all__ = ["WORKERS_PER_CORE", "available_cores", "physical_memory"]
+
+#: Most threads or local worker processes per available core: more only share the same cores
+#: (and each worker process loads its own compiled engine, hundreds of MB).
+WORKERS_PER_CORE = 4
 
 
 def available_cores() -> int:

@@ -39,7 +39,7 @@ from delaytrack.sim._kernel_checks import (
     checked_before_the_run,
     refuse_reads_past,
 )
-from delaytrack.sim._machine import available_cores, physical_memory
+from delaytrack.sim._machine import WORKERS_PER_CORE, available_cores, physical_memory
 from delaytrack.sim.history import history_capacity, tick_time
 from delaytrack.sim.measurement import MeasurementNoise
 from delaytrack.sim.packet_loss import PacketLoss
@@ -387,7 +387,8 @@ def _initial_states_of_batch(states0: np.ndarray, batch: int) -> np.ndarray:
     )
     if states0.shape[0] != batch:
         raise ValueError(
-            f"x0 has {states0.shape[0]} rows but the batch has {batch}; give 1 or {batch}"
+            f"x0 has {states0.shape[0]} rows but the batch has {batch}; give "
+            + ("one row" if batch == 1 else f"1 row (for every run) or {batch}")
         )
     return states0
 
@@ -632,6 +633,12 @@ def _workers(workers: int | None) -> int:
         return available_cores()
     if not is_integer_at_least(workers, 1):
         raise ValueError(f"workers must be a positive integer (threads); got {workers!r}")
+    most = WORKERS_PER_CORE * available_cores()
+    if workers > most:
+        raise ValueError(
+            f"workers must be at most {most} ({WORKERS_PER_CORE} threads per core of the "
+            f"{available_cores()} this process may use: more only share them); got {workers}"
+        )
     return int(workers)
 
 

@@ -27,6 +27,7 @@ from typing import Any, Protocol
 import pandas as pd
 
 from delaytrack._validation import ArgumentError, is_integer_at_least
+from delaytrack.sim._machine import WORKERS_PER_CORE
 from delaytrack.sim.simulate import available_cores
 from delaytrack.sweeps.parts import run_unit
 from delaytrack.sweeps.spec import SweepError, Unit
@@ -64,11 +65,6 @@ class Executor(Protocol):
     def close(self) -> None:
         """Stop what is still running and release workers (idempotent)."""
         ...
-
-
-#: Most threads or local worker processes per available core: more only share the same cores
-#: (and each worker process loads its own compiled engine, hundreds of MB).
-WORKERS_PER_CORE = 4
 
 
 class _WorkersError(SweepError, ArgumentError):

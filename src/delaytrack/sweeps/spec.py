@@ -78,6 +78,21 @@ class SweepError(ScenarioError):
 
 
 _INT64_MIN, _INT64_MAX = -(2**63), 2**63 - 1
+
+
+def _check_storable(where: str, values: list[Any]) -> None:
+    """Refuse a swept integer that a part's column of numbers cannot hold (beyond 64 bits):
+    found after its unit ran, it lost the unit every time (an integer inside a table is
+    stored as JSON text, whatever its size)."""
+    for i, value in enumerate(values):
+        if isinstance(value, int) and not isinstance(value, bool):
+            if not _INT64_MIN <= value <= _INT64_MAX:
+                raise SweepError(
+                    f"{where}[{i}] = {value} is beyond what a sweep's tables store: a 64-bit "
+                    f"integer, from {_INT64_MIN} to {_INT64_MAX}"
+                )
+
+
 #: Most runs of one sweep: loading checks every run (about 0.3 ms each on two busy cores, each
 #: distinct table once, so 100 000 runs take about 30 to 50 s and a few hundred MB); larger
 #: studies are several sweep files.
@@ -344,6 +359,7 @@ def _draw(key: str, table: object, draws: int, seed: int) -> list[Any]:
         values = table["values"]
         if not isinstance(values, list) or not values:
             raise SweepError(f"{where}: 'values' must be a non-empty list; got {values!r}")
+        _check_storable(f"{where}.values", values)
         return [copy.deepcopy(values[i]) for i in rng.integers(0, len(values), size=draws)]
     low = _number(where, "low", table["low"])
     high = _number(where, "high", table["high"])
@@ -494,6 +510,7 @@ class SweepSpec:
             _check_key("grid", key)
             if not isinstance(values, list) or not values:
                 raise SweepError(f'grid."{key}" must be a non-empty list of values; got {values!r}')
+            _check_storable(f'grid."{key}"', values)
             checked_grid[key] = tuple(copy.deepcopy(values))
         random = data.get("random", {})
         if not isinstance(random, Mapping):

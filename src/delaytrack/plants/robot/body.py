@@ -14,6 +14,7 @@ where ``(c_x, c_y)`` is the platform's centre of mass (``(d, 0)`` by default). K
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -104,11 +105,22 @@ class RobotBody:
                 f"got wheel_mass = {self.wheel_mass:g} kg, mass = {self.mass:g} kg"
             )
         platform = self.mass - 2.0 * self.wheel_mass
-        own = (
-            self.yaw_inertia
-            - platform * (forward**2 + self.com_lateral**2)
-            - 2.0 * self.wheel_mass * self.half_track**2
-        )
+        try:
+            parallel = (
+                platform * (forward**2 + self.com_lateral**2)
+                + 2.0 * self.wheel_mass * self.half_track**2
+            )
+        except OverflowError:  # a length of 1e155 m squared
+            parallel = math.inf
+        if not math.isfinite(parallel):
+            raise ValueError(
+                "the robot's lengths (m) and masses (kg) give a parallel-axis inertia "
+                "m_c |c|² + 2 m_w L² beyond the largest float: half_track = "
+                f"{self.half_track:g}, com_forward = {forward:g}, com_lateral = "
+                f"{self.com_lateral:g}, mass = {self.mass:g}, wheel_mass = {self.wheel_mass:g}; "
+                "give the robot's lengths in metres and masses in kilograms"
+            )
+        own = self.yaw_inertia - parallel
         if own < 0.0:
             raise ValueError(
                 "yaw_inertia must be at least the parallel-axis share of the platform and wheel "

@@ -540,23 +540,26 @@ def test_a_run_of_too_many_ticks_is_told_to_shorten_not_to_slow_its_delay():
     ticks alone, the advice is about the run, and the counts differ where they are printed.
     1e5 s at T_c = 1 ms is 10⁸ ticks; a constant delay's bound is the ticks plus one
     (``delays._kernel.switch_bound``), one more than the limit of 10⁸."""
-    arm = dt.TwoLinkArm()
     with pytest.raises(
         ValueError,
         match=r"100,000,001 times .* more than 100,000,000: .* "
         r"100,000,000 controller ticks alone .* shorten the run or lengthen T_c",
     ):
-        simulate(
-            arm,
-            dt.OuterLoop(arm, K1=1.0, K2=1.0),
-            ConstantDelay(0.01),
-            [0, 0, 0, 0],
-            reference=dt.SinusoidalReference([0.0, 0.0]),
-            t1=1e5,
-            dt=1e-3,
-            T_c=1e-3,
-            record_every=10**8,
-        )
+        _arm_run(t1=1e5, dt=1e-3, T_c=1e-3, record_every=10**8)
+
+
+def _arm_run(**settings):
+    """The two-link arm under the outer loop and a constant 10 ms delay, at rest on a zero
+    reference, simulated with ``settings``."""
+    arm = dt.TwoLinkArm()
+    return simulate(
+        arm,
+        dt.OuterLoop(arm, K1=1.0, K2=1.0),
+        ConstantDelay(0.01),
+        [0, 0, 0, 0],
+        reference=dt.SinusoidalReference([0.0, 0.0]),
+        **settings,
+    )
 
 
 def test_record_every_beyond_the_run_records_the_start_and_keeps_exact_metrics():
@@ -926,16 +929,5 @@ def test_an_empty_scenario_name_on_the_command_line_is_not_the_current_folder(tm
 def test_simulate_refuses_more_threads_than_four_per_core():
     from delaytrack.sim._machine import available_cores
 
-    arm = dt.TwoLinkArm()
     with pytest.raises(ValueError, match=r"workers must be at most \d+ \(4 threads per core"):
-        simulate(
-            arm,
-            dt.OuterLoop(arm, K1=1.0, K2=1.0),
-            ConstantDelay(0.01),
-            [0.0, 0.0, 0.0, 0.0],
-            reference=dt.SinusoidalReference([0.0, 0.0]),
-            t1=0.1,
-            dt=1e-3,
-            T_c=1e-2,
-            workers=4 * available_cores() + 1,
-        )
+        _arm_run(t1=0.1, dt=1e-3, T_c=1e-2, workers=4 * available_cores() + 1)

@@ -440,6 +440,8 @@ def test_packet_loss_is_a_table_of_the_scenario(tmp_path):
     assert not np.array_equal(result.x, Scenario.from_dict(base_dict()).run().x)
     refused(data | {"packet_loss": {"rate": 0.1}}, "'packet_loss' must be a table with keys among")
     refused(data | {"packet_loss": {"probability": 1.5}}, r"packet_loss.probability must be")
+    # a seed alone loses nothing: a probability was forgotten
+    refused(data | {"packet_loss": {"seed": 5}}, "a seed without a probability, which loses")
     with pytest.raises(ScenarioError) as refusal:  # the value once, in the table given
         Scenario.from_dict(data | {"packet_loss": {"probability": 1.5, "seed": 1}})
     assert str(refusal.value).count("got") == 1

@@ -80,6 +80,11 @@ def measurement_noise_phrase(value: object) -> str | None:
 def packet_loss_phrase(value: object) -> str | None:
     """Check ``packet_loss``: a table of :class:`PacketLoss`'s keys."""
     if isinstance(value, dict) and set(value) <= {"probability", "seed"}:
+        if "probability" not in value:
+            return (
+                "is refused: it gives a seed without a probability, which loses nothing (the "
+                "probability is 0 unless given); give probability = p in [0, 1)"
+            )
         try:
             PacketLoss(**value)
         except (TypeError, ValueError) as error:

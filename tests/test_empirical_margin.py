@@ -206,3 +206,20 @@ def test_a_threshold_per_coordinate_needs_one_positive_number_each(threshold, me
     scenario = double_integrator([1.0, 1.0], [1.0, 1.0], duration=4.0, x0=[1.0, 1.0, 0.0, 0.0])
     with pytest.raises(ValueError, match=message):
         empirical_margin(scenario, threshold=threshold, upper=0.4)
+
+
+def test_an_upper_beyond_a_predictors_history_is_refused_as_upper():
+    """PCON keeps 0.25 s of its commands: a search up to 1 s (the default upper) ran its first
+    batch and failed with "delay 1 s exceeds history", naming neither upper nor the fix."""
+    from delaytrack._validation import ArgumentError
+    from delaytrack.experiments import tuning
+    from delaytrack.scenario import load_builtin
+
+    gains = tuning.load_gains()["PCON"]["varying"]
+    pcon = tuning.make_controller("PCON", gains, history=0.25)
+    scenario = load_builtin("robot_S1").replace(duration=2.0)
+    searched = "upper = 1 s searches delays up to 1 s, under which PCON cannot run"
+    with pytest.raises(ArgumentError, match=searched) as refusal:
+        empirical_margin(scenario, pcon, threshold=1.0, upper=1.0)
+    assert refusal.value.argument == "upper" and "exceeds history = 0.25 s" in str(refusal.value)
+    empirical_margin(scenario, pcon, threshold=1.0, upper=0.2, resolution=0.05, grid=2)

@@ -365,6 +365,7 @@ def empirical_margin(
     built = scenario.build()
     settings["threshold"] = _per_coordinate(settings["threshold"], built.plant)
     _check_switches(scenario, settings, frequency)
+    _check_reach(scenario, controllers, settings, frequency)
     lockstep = _Lockstep(
         scenario=scenario,
         built=built,
@@ -426,6 +427,27 @@ def _check_switches(scenario: Scenario, settings: dict[str, Any], frequency: flo
             f"{MAX_STEPS:.0e} times in the run; at {frequency:g} rad/s with upper = "
             f"{settings['upper']:g} s it may switch {switches:.3g} times",
         )
+
+
+def _check_reach(
+    scenario: Scenario,
+    controllers: Sequence[Controller],
+    settings: dict[str, Any],
+    frequency: float,
+) -> None:
+    """Every controller runs under the largest searched delay (a predictor's history holds
+    it), or an :class:`ArgumentError` of ``upper`` says which cannot: found in the first
+    batch, the refusal did not say that ``upper`` set that delay."""
+    h_max = PROFILES[settings["profile"]](settings["upper"], frequency).h_max
+    for controller in controllers:
+        try:
+            controller.check_run(scenario.T_c, h_max)
+        except ValueError as error:
+            raise ArgumentError(
+                "upper",
+                f"= {settings['upper']:g} s searches delays up to {h_max:g} s, under which "
+                f"{type(controller).__name__} cannot run ({error}); give a smaller upper",
+            ) from None
 
 
 @dataclass(frozen=True)

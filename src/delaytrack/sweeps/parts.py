@@ -263,8 +263,8 @@ def _read_bounded(path: Path, footer: pq.FileMetaData, largest: int) -> pa.Table
     pool = pa.default_memory_pool()
     pa.set_memory_pool(pa.system_memory_pool())
     try:
-        with allocation_budget(budget):
-            table = pq.read_table(path, read_dictionary=texts)
+        with allocation_budget(budget):  # on this thread: a pool's new stacks would count
+            table = pq.read_table(path, read_dictionary=texts, use_threads=False, pre_buffer=False)
     except MemoryError:
         raise _Unbounded(
             f"reading its values asked for more than {budget} bytes, where its footer gives "

@@ -906,6 +906,9 @@ def test_run_to_folder_checks_what_it_is_given_before_running(tmp_path):
     with pytest.raises(TypeError, match="scenario must be a Scenario .*got str"):
         run_to_folder("case.toml", tmp_path / "c")
     assert not any((tmp_path / name).exists() for name in "abc")
+    written = run_to_folder(scenario, tmp_path / "d", figure_formats=("PNG",))  # as savefig
+    assert {path.suffix for path in (tmp_path / "d" / "figures").iterdir()} == {".PNG"}
+    assert written.folder == tmp_path / "d"
 
 
 @pytest.mark.parametrize(

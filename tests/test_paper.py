@@ -249,6 +249,29 @@ def test_claims_are_computed_from_the_summary():
     assert checks["growth"]["S3->S4"] is False  # AE-y fell from 10 to 9
 
 
+def test_a_claim_comparing_a_run_off_the_path_is_not_decided_and_says_why():
+    """Both runs off the path made the AE claim FAIL; one is said to have left the path, the
+    other to have stayed, and what the claim compares, with no NaN printed."""
+    from types import SimpleNamespace
+
+    from delaytrack.report.paper import _claims_text
+
+    rows = [
+        dict(scenario=scenario, controller=controller, ae_x_mm=10.0, ae_y_mm=10.0, tv_Nm=5.0)
+        for scenario, controller in ROWS
+    ]
+    rows[3].update(ae_x_mm=np.nan, ae_y_mm=np.nan, tv_Nm=np.nan)  # S2 AROLC
+    summary = pd.DataFrame(rows)
+    study = SimpleNamespace(summary=summary, findings=SimpleNamespace(claims=paper.claims(summary)))
+    lines = _claims_text(study, None)
+    ae = next(line for line in lines if line.startswith("AE, S2"))
+    tv = next(line for line in lines if line.startswith("TV, S2"))
+    assert "AROLC left the path (x / y) vs PCON 10.00 / 10.00 mm" in ae
+    assert "is not decided (AROLC left the path, PCON stayed on it: accuracy is compared" in ae
+    assert "TV is compared between runs on the path" in tv
+    assert not any("NaN" in line for line in lines)
+
+
 def test_shipped_gains_file_is_complete():
     gains = tuning.load_gains()
     record = tuning.load_tuning_record()

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
@@ -178,6 +181,42 @@ def test_a_part_whose_footer_understates_its_pages_is_refused_before_they_are_re
     # four times the unit's bound (4 MiB: 1 MiB a run, 3 runs and one more) and 64 MiB
     assert "reading its values asked for more than 83886080 bytes" in reason, reason
     assert "its pages are larger than its footer says" in reason
+
+
+def test_a_good_part_is_read_under_the_cap_on_a_machine_of_many_cores(unit_frame, tmp_path):
+    """Arrow starts a thread per core, and its reading threads, on its first read, whose 8 MiB
+    or larger stacks count against the cap: under 16 cores the first part failed to start a
+    thread and was taken for corrupt, and under a 64 MiB stack the read hung."""
+    import resource
+    import subprocess
+    import sys
+    import textwrap
+
+    unit, frame = unit_frame
+    write_part(frame, unit, tmp_path)
+    script = textwrap.dedent(
+        f"""
+        from test_sweep_parts import small_spec
+        from delaytrack.sweeps import finished_units
+        scan = finished_units({str(tmp_path)!r}, small_spec())
+        print(sorted(scan.finished), dict(scan.rejected))
+        """
+    )
+
+    def large_stacks() -> None:
+        resource.setrlimit(resource.RLIMIT_STACK, (64 * 2**20, resource.RLIM_INFINITY))
+
+    done = subprocess.run(
+        [sys.executable, "-c", script],
+        cwd=Path(__file__).parent,
+        env={**os.environ, "OMP_NUM_THREADS": "32"},
+        preexec_fn=large_stacks,
+        capture_output=True,
+        text=True,
+        timeout=60,  # it hung
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[0] {}", done.stdout
 
 
 def test_an_allocation_beyond_the_budget_fails_and_the_budget_ends_with_its_block():

@@ -44,11 +44,11 @@ def _figure_formats(formats: Sequence[str]) -> tuple[str, ...]:
             f"got {formats!r}"
         )
     formats = tuple(formats)
-    if set(formats) - {"png", "svg"}:
+    if {name.lower() for name in formats} - {"png", "svg"}:
         from matplotlib.backend_bases import FigureCanvasBase
 
         known = FigureCanvasBase.get_supported_filetypes()
-        unknown = [name for name in formats if name not in known]
+        unknown = [name for name in formats if name.lower() not in known]  # as savefig reads
         if unknown:
             raise ValueError(
                 f"figure_formats {unknown} are not formats matplotlib writes; give some of "

@@ -77,6 +77,22 @@ class SessionColumns:
         ``u1_live_Nm`` (``replay.csv``)."""
         return [input_column(j, unit, role) for j, unit in enumerate(self.input_units)]
 
+    def in_table(self, table: SessionTable, kind: str) -> list[str]:
+        """The columns ``kind`` (``"states"``, ``"positions"`` or ``"inputs"``) as ``table``
+        names them: with their units, or without where the table has the plain name only (a
+        session recorded by a delaytrack before its tables named units: ``q1``, ``q1_dot``,
+        ``u1``)."""
+        plain_states = [*self.names, *[f"{name}_dot" for name in self.names]]
+        named, plain = {
+            "states": (self.states, plain_states),
+            "positions": (self.positions, list(self.names)),
+            "inputs": (self.inputs(), [f"u{j + 1}" for j in range(len(self.input_units))]),
+        }[kind]
+        return [
+            given if given in table.columns or old not in table.columns else old
+            for given, old in zip(named, plain, strict=True)
+        ]
+
     def errors(self, role: str) -> list[str]:
         """The tracking errors' columns of ``replay.csv``: ``e1_x_live_m``."""
         return [

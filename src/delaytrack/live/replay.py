@@ -227,9 +227,10 @@ def _compare(
     k = np.rint(result.t / scenario.T_c).astype(np.int64)
     state_rows = RowsByIndex(states["j"]).find(k * round(scenario.T_c / scenario.dt))
     compared = state_rows >= 0
-    live_errors = result.reference[compared, 0] - states.at(columns.positions, state_rows[compared])
+    positions = columns.in_table(states, "positions")
+    live_errors = result.reference[compared, 0] - states.at(positions, state_rows[compared])
     tick_rows = RowsByIndex(ticks["k"]).find(k[compared])
-    live_commands = ticks.at(columns.inputs(), tick_rows)
+    live_commands = ticks.at(columns.in_table(ticks, "inputs"), tick_rows)
     replayed_errors, replayed_commands = result.e1[0][compared], result.commands[0][compared]
     side_by_side = np.hstack([live_errors, replayed_errors, live_commands, replayed_commands])
     rows = [

@@ -69,20 +69,19 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
     m = plant.m
     steps_per_tick = round(scenario.T_c / scenario.dt)
     columns = session_columns(plant)
-    inputs = columns.inputs()
     states = read_table(folder / "states.csv", None, indices=("j",))
     if not states.rows:
         raise ValueError(f"{folder}: the robot logged no state (states.csv)")
-    ticks = read_table(folder / "ticks.csv", inputs, indices=("k",))
-    steps = read_table(folder / "steps.csv", inputs, indices=("j",))
+    ticks = read_table(folder / "ticks.csv", None, indices=("k",), texts=("status",))
+    steps = read_table(folder / "steps.csv", None, indices=("j",), texts=("status",))
     logged = RowsByIndex(states["j"])  # a state logged twice: its last row
     at_tick = logged.indices % steps_per_tick == 0
     ks = logged.indices[at_tick] // steps_per_tick
     t = ks * scenario.T_c
-    x = states.at(columns.states, logged.rows[at_tick])
+    x = states.at(columns.in_table(states, "states"), logged.rows[at_tick])
     ref = np.stack(reference.evaluate(t), axis=1)  # (R, 3, n): q_d, q̇_d, q̈_d
     tick_rows = RowsByIndex(ticks["k"]).find(ks)
-    sent = ticks.at(inputs, tick_rows)
+    sent = ticks.at(columns.in_table(ticks, "inputs"), tick_rows)
     # no ticks.csv (the controller did not finish): no command known, not zeros
     logged_ticks = (folder / "ticks.csv").exists()
     commands = np.zeros((t.size, m)) if logged_ticks else np.full((t.size, m), np.nan)
@@ -96,7 +95,7 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
             last_sent = t[i]
         commands[i] = last
     step_rows = RowsByIndex(steps["j"]).find(ks * steps_per_tick)
-    applied = steps.at(inputs, step_rows)
+    applied = steps.at(columns.in_table(steps, "inputs"), step_rows)
     finite = bool(np.all(np.isfinite(x)))
     return SimResult(
         t=t,

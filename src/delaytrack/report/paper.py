@@ -95,9 +95,12 @@ def _tv_of(row: pd.Series) -> str:
     return f", TV {_fmt(row.tv_Nm)} N·m" if np.isfinite(row.tv_Nm) else ""
 
 
-def _one_run_verdict(check: bool | None, who: Mapping[str, pd.Series]) -> str:
+def _one_run_verdict(
+    check: bool | None, who: Mapping[str, pd.Series], compared: str = "accuracy"
+) -> str:
     """``HOLDS``, ``FAILS``, or, for a claim one of whose runs left the path, that it is not
-    decided and which runs left it (``who``: name -> summary row of each run compared)."""
+    decided and which runs left it (``who``: name -> summary row of each run compared;
+    ``compared``: what the claim compares, which only runs on the path have)."""
     if check is not None:
         return "HOLDS" if check else "FAILS"
     gone = [name for name, row in who.items() if not np.isfinite(row.ae_x_mm)]
@@ -106,7 +109,7 @@ def _one_run_verdict(check: bool | None, who: Mapping[str, pd.Series]) -> str:
         "is not decided ("
         + (f"{' and '.join(gone)} left the path" if len(gone) < len(who) else "both left the path")
         + (f", {' and '.join(stayed)} stayed on it" if stayed else "")
-        + ": accuracy is compared between runs on the path)"
+        + f": {compared} is compared between runs on the path)"
     )
 
 
@@ -326,7 +329,7 @@ def _claims_text(study: PaperStudy, robustness: RobustnessStudy | None) -> list[
         )
     for case in SCENARIOS:
         a, b = summary_row(summary, case, "AROLC"), summary_row(summary, case, BASELINE[case])
-        verdict = _one_run_verdict(checks["tv"][case], {"AROLC": a, BASELINE[case]: b})
+        verdict = _one_run_verdict(checks["tv"][case], {"AROLC": a, BASELINE[case]: b}, "TV")
         lines.append(
             f"TV, {case}: {_tv_value_of('AROLC', a)} vs {_tv_value_of(BASELINE[case], b)}: "
             f"in this one run the claim 'AROLC's TV is lower' {verdict}."
@@ -762,7 +765,7 @@ def _tuned_section(
             f"{case}: {_ae_of('AROLC-tuned', a)}{_tv_of(a)} vs {_ae_of(BASELINE[case], b)}"
             f"{_tv_of(b)}: in this one run the AE claim "
             f"{_one_run_verdict(checks['ae'][case], runs)}, the TV claim "
-            f"{_one_run_verdict(checks['tv'][case], runs)}."
+            f"{_one_run_verdict(checks['tv'][case], runs, 'TV')}."
             + _over_draws(robustness, case, f"AE below {BASELINE[case]}", who, "AE claim over")
             + _over_draws(robustness, case, f"TV below {BASELINE[case]}", who, "TV claim over")
         )

@@ -262,8 +262,8 @@ def _report(study: TwoLinkStudy, figures: dict[str, tuple[Figure, str]]) -> Html
     report.heading("Summary")
     report.table(
         study.summary.rename(columns=_with_unit),
-        "Metrics over the whole run (summary.csv, with the units in the column names): ae/rms/"
-        "max per joint, tv; status 'ok' means the run reached the final time.",
+        "Metrics over the whole run (summary.csv's columns, shown here with their units): "
+        "ae/rms/max per joint, tv; status 'ok' means the run reached the final time.",
     )
     report.table(
         study.undelayed.rename(columns=_with_unit), "Context: the same runs with no delay (h = 0)."

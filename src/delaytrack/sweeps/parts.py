@@ -9,6 +9,7 @@ from a stale, truncated, corrupt or altered file.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 from collections.abc import Mapping, Sequence
@@ -232,6 +233,20 @@ _READ_BUDGET_FACTOR = 4
 _READ_BUDGET_SLACK = 64 * 2**20
 
 
+def _read(source: Any, texts: Sequence[str]) -> pa.Table:
+    """A part's table, its ``texts`` as dictionaries, read on this thread."""
+    return pq.read_table(source, read_dictionary=texts, use_threads=False, pre_buffer=False)
+
+
+@functools.cache
+def _arrow_threads_started() -> None:
+    """Read a tiny table once, before any capped read: Arrow starts the threads its reads use
+    on the first one, and their stacks (8 MiB or more each) would count against the cap."""
+    sink = pa.BufferOutputStream()
+    pq.write_table(pa.table({"x": ["a"]}), sink)
+    _read(pa.BufferReader(sink.getvalue()), ["x"])
+
+
 def _read_bounded(path: Path, footer: pq.FileMetaData, largest: int) -> pa.Table:
     """The table of the part at ``path`` (its ``footer`` read), read within ``largest`` bytes
     of values or refused (:class:`_Unbounded`): a nested column (no part holds one, and it
@@ -260,15 +275,21 @@ def _read_bounded(path: Path, footer: pq.FileMetaData, largest: int) -> pa.Table
     # system's allocator, which maps each large block anew: Arrow's own keeps memory it mapped
     # before and hands it out again, which the cap cannot see.
     budget = _READ_BUDGET_FACTOR * largest + _READ_BUDGET_SLACK
+    _arrow_threads_started()
     pool = pa.default_memory_pool()
     pa.set_memory_pool(pa.system_memory_pool())
     try:
         with allocation_budget(budget):  # on this thread: a pool's new stacks would count
-            table = pq.read_table(path, read_dictionary=texts, use_threads=False, pre_buffer=False)
+            table = _read(path, texts)
     except MemoryError:
         raise _Unbounded(
             f"reading its values asked for more than {budget} bytes, where its footer gives "
             f"{stored} bytes of values (its pages are larger than its footer says)"
+        ) from None
+    except pa.ArrowException as error:  # not a corrupt file: what the cap refused
+        raise _Unbounded(
+            f"reading it within {budget} bytes failed ({error}); its footer gives {stored} bytes "
+            "of values"
         ) from None
     finally:
         pa.set_memory_pool(pool)

@@ -252,13 +252,17 @@ class SessionTable:
     def at(self, names: Sequence[str], rows: Any = None) -> np.ndarray:
         """The number columns ``names`` side by side at ``rows`` (:meth:`RowsByIndex.find`; all
         rows by default), NaN where a row is -1, ``(len(rows), len(names))``; a column the
-        table lacks is a ValueError naming it."""
+        table lacks is a ValueError naming it, unless there is no table (no header): then
+        nothing is known, NaN."""
         rows = np.arange(self.rows) if rows is None else np.asarray(rows)
         picked = []
         for name in names:
-            if name not in self.columns:
+            if name in self.columns:
+                picked.append(values_at(self.columns[name], rows))
+            elif not self.header:  # a node that did not finish wrote no table
+                picked.append(np.full(rows.shape, np.nan))
+            else:
                 raise _no_column(self.path, name, self.header)
-            picked.append(values_at(self.columns[name], rows))
         return np.stack(picked, axis=-1) if picked else np.empty((rows.size, 0))
 
     def required(self) -> SessionTable:

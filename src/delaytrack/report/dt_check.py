@@ -53,5 +53,8 @@ def write_dt_check(
         )
     )
     report.table(
-        dt_check.table, "Metrics at dt/2 and the largest relative change per run.", digits=6
+        dt_check.table,
+        "Metrics at dt/2 and the largest relative change per run (—: the run left the path).",
+        digits=6,
+        missing="—",
     )

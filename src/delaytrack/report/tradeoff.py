@@ -262,10 +262,12 @@ def _report(study: TradeoffStudy, figure: Figure, decision: Decision | None) -> 
     margins = ["h_m_s", "h_exact_s", "empirical_margin_s", "margin_search"]
     report.table(
         table[point + margins],
-        caption="tradeoff.csv (1 of 2), one row per point and controller: the margins (s). "
-        "margin_search says what the empirical margin is: "
+        caption="tradeoff.csv (1 of 2), one row per point and controller: the margins (s; —: "
+        "not defined, h_m being AROLC's and PCONf not searched). margin_search says what the "
+        "empirical margin is: "
         + "; ".join(f"{key}: {meaning}" for key, meaning in MARGIN_SEARCHES.items())
         + ".",
+        missing="—",
     )
     runs = [c for c in table.columns if c not in (*point, *margins, "margin_found")]
     report.table(
@@ -273,7 +275,8 @@ def _report(study: TradeoffStudy, figure: Figure, decision: Decision | None) -> 
         caption="tradeoff.csv (2 of 2), one row per point and controller: its drawn robots at "
         "the scenario's delay. Runs off the path by reason: stopped (diverged or beyond the "
         "scenario's error_bound) and over_threshold (ended ok, mean |e1| above the threshold). "
-        "share_low/high: Wilson 95 % interval.",
+        "share_low/high: Wilson 95 % interval; —: no run on the path to take a median of.",
+        missing="—",
     )
     report.figure(
         figure,
@@ -288,6 +291,7 @@ def _report(study: TradeoffStudy, figure: Figure, decision: Decision | None) -> 
     report.table(
         front[shown + [_columns(study)["ae_median"], _columns(study)["tv_median"]]],
         caption="The points on the front (their other columns in the tables above).",
+        missing="—",
     )
     report.paragraph(
         "Empirical margins hold for this scenario, horizon and rule only; a margin at the search "

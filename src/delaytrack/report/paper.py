@@ -989,7 +989,7 @@ def _report(
     )
     if len(found.stopped):
         report.paragraph(
-            "Diverged runs (metrics NaN): "
+            "Runs that left the path (no metrics: — in the tables, empty in the CSV files): "
             + "; ".join(
                 f"{r.scenario} {r.controller} stopped as '{r.status}' at t = {r.t_stop:g} s"
                 for r in found.stopped.itertuples()

@@ -260,8 +260,10 @@ def test_simulate_writes_every_promised_file(short_scenario, tmp_path, capsys):
 
     metrics = pd.read_csv(out / "metrics.csv")
     assert len(metrics) == 1 and metrics.loc[0, "status"] == "ok"
-    assert {"ae_q1", "ae_q2", "rms_q1", "max_q2", "tv"} <= set(metrics.columns)
-    assert np.isfinite(metrics.loc[0, "ae_q1"]) and metrics.loc[0, "ae_q1"] > 0
+    # each metric with its unit (the arm's joints in rad, its torques in N·m)
+    expected = {"ae_q1_rad", "ae_q2_rad", "rms_q1_rad", "max_q2_rad", "tv_Nm", "t_stop_s"}
+    assert expected <= set(metrics.columns)
+    assert np.isfinite(metrics.loc[0, "ae_q1_rad"]) and metrics.loc[0, "ae_q1_rad"] > 0
 
     frame = pd.read_parquet(out / "trajectories.parquet")
     assert len(frame) == 251 and frame["t_s"].iloc[-1] == pytest.approx(0.5)

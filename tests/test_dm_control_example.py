@@ -69,7 +69,7 @@ def test_the_scenario_tracks_the_reference_through_the_cli(folder):
     assert main(["simulate", str(scenario), "--out", str(out), "--format", "csv"]) == 0
     metrics = pd.read_csv(out / "metrics.csv")
     assert metrics["status"].tolist() == ["ok"]
-    errors = metrics[["ae_root_x", "ae_root_y"]].to_numpy()[0]
+    errors = metrics[["ae_root_x_m", "ae_root_y_m"]].to_numpy()[0]
     assert np.all(np.isfinite(errors))
     trajectory = pd.read_csv(out / "trajectories.csv")
     q = trajectory[["root_x_m", "root_y_m"]].to_numpy()

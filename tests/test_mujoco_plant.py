@@ -137,7 +137,7 @@ def test_scenario_simulate_empirical_and_sweep_take_a_model_file(tmp_path, capsy
     out = tmp_path / "run"
     assert main(["simulate", str(folder / "short.toml"), "--out", str(out)]) == 0
     metrics = pd.read_csv(out / "metrics.csv")
-    assert {"ae_shoulder", "ae_elbow", "ae_wrist"} <= set(metrics.columns)
+    assert {"ae_shoulder_rad", "ae_elbow_rad", "ae_wrist_rad"} <= set(metrics.columns)
     sweep = folder / "sweep_arm3.toml"
     text = sweep.read_text().replace("draws = 4", "draws = 1")
     sweep.write_text(text.replace('scenario = "arm3_S1.toml"', 'scenario = "short.toml"'))

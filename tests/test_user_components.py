@@ -82,7 +82,7 @@ def test_simulate_empirical_and_sweep_commands_take_them(tmp_path, capsys):
     trust = ["--trust", str(EXAMPLE)]  # the files are the example's, not beside the scenario
     assert main(["simulate", str(path), "--out", str(out), *trust]) == 0
     metrics = pd.read_csv(out / "metrics.csv")
-    assert {"ae_shoulder", "ae_elbow"} <= set(metrics.columns)
+    assert {"ae_shoulder_rad", "ae_elbow_rad"} <= set(metrics.columns)
     assert (
         main(["empirical", str(path), "--threshold", "0.5", "--upper", "0.5", "--json", *trust])
         == 0

@@ -24,6 +24,7 @@ from __future__ import annotations
 import functools
 import unicodedata
 from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
 
 from delaytrack.metrics import COORDINATE_METRICS
 from delaytrack.units import default_names, with_unit
@@ -33,6 +34,7 @@ __all__ = [
     "SUMMARY_STATISTICS",
     "UNIT_SYMBOLS",
     "input_column",
+    "metric_columns_with_units",
     "metric_units",
     "plain_unit",
     "shared_unit",
@@ -156,6 +158,19 @@ def summary_columns(units: Mapping[str, str | None]) -> dict[str, str]:
             "<metric>_<statistic>_<unit>)"
         )
     return {plain: written for plain, written, _ in described}
+
+
+def metric_columns_with_units(result: Any) -> dict[str, str]:
+    """The columns of :func:`delaytrack.metrics.metrics_table` of ``result`` (a
+    :class:`~delaytrack.sim.SimResult`) renamed with their units, for the tables a user reads:
+    ``ae_x`` -> ``ae_x_m``, ``tv`` -> ``tv_Nm`` (when the inputs share a unit), ``t_stop`` ->
+    ``t_stop_s``; a metric whose unit the plant does not declare keeps its name."""
+    units = metric_units(
+        result.coordinate_names, result.coordinate_units, result.n, result.input_units
+    )
+    return {metric: with_unit(metric, unit) for metric, unit in units.items()} | {
+        "t_stop": "t_stop_s"
+    }
 
 
 def _coordinate_columns(name: str, unit: str | None) -> tuple[str, str, str, str]:

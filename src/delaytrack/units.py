@@ -8,9 +8,10 @@ Every table a run or a sweep writes names a column ``<quantity>[_<coordinate>][_
   ``s``, ``mm``; a quantity whose unit the plant does not declare has no unit suffix (its unit
   is the plant's own);
 - metric columns ``ae_<c>``, ``rms_<c>``, ``max_<c>`` (in the coordinate's unit) and ``tv`` (in
-  the inputs' unit) keep these short names where sweep files refer to them (``metrics = [...]``);
-  the tables written for reading (a sweep's ``summary.csv``, the paper job's ``summary.csv``)
-  carry the unit in the column name.
+  the inputs' unit) keep these short names where sweep files refer to them (``metrics = [...]``,
+  a sweep's ``runs.csv``); the tables written for reading (``simulate``'s and a live session's
+  ``metrics.csv``, a sweep's ``summary.csv``, the paper job's ``summary.csv``) carry the unit in
+  the column name.
 """
 
 from __future__ import annotations

@@ -70,7 +70,8 @@ def run_to_folder(
     Files (each written atomically):
 
     - ``scenario.toml``: the scenario as run (:meth:`Scenario.resolved`; loads back unchanged);
-    - ``metrics.csv``: :func:`delaytrack.metrics.metrics_table` (AE, RMS, max error, TV);
+    - ``metrics.csv``: :func:`delaytrack.metrics.metrics_table` (AE, RMS, max error, TV), each
+      metric's unit in its column name (``ae_x_m``, ``tv_Nm``);
     - ``trajectories.parquet`` and/or ``trajectories.csv``: :meth:`SimResult.to_frame`;
     - ``figures/{tracking,error,commands,delay[,c_hat]}.{png,svg}``.
 
@@ -89,6 +90,7 @@ def run_to_folder(
         Show the simulator's progress bar.
     """
     # Imported here: the first result (metrics.csv) is written before matplotlib is needed.
+    from delaytrack._result_columns import metric_columns_with_units
     from delaytrack.metrics import metrics_table
     from delaytrack.report.figures import write_run_figures
 
@@ -128,9 +130,10 @@ def run_to_folder(
     files = [folder / "scenario.toml"]
     write_text(files[0], text)
     # The metrics first: they are the result a user waits for; trajectories and figures follow.
-    names = built.plant.coordinate_names
-    table = metrics_table(result, coordinate_names=names, label=resolved.name)
-    files.append(write_frame(table, folder / "metrics.csv"))
+    table = metrics_table(result, label=resolved.name)
+    files.append(
+        write_frame(table.rename(columns=metric_columns_with_units(result)), folder / "metrics.csv")
+    )
     frame = result.to_frame()
     for fmt in formats:
         files.append(write_frame(frame, folder / f"trajectories.{fmt}"))

@@ -129,9 +129,8 @@ def metrics_with_units(
     :func:`live_result`), the commands' TV over the ticks between them: the live controller's
     (from its first command, not from zero before it, to its last, at the tick before the end,
     where the simulator issues one more), and a replay's over the same ticks."""
-    from delaytrack._result_columns import metric_units
+    from delaytrack._result_columns import metric_columns_with_units
     from delaytrack.metrics import metrics_table
-    from delaytrack.units import with_unit
 
     table = metrics_table(result, label=label)
     if commands_between is not None:
@@ -139,12 +138,7 @@ def metrics_with_units(
         within = (result.t >= first - 1e-9) & (result.t <= last + 1e-9)
         variation = np.abs(np.diff(result.commands[:, within, :], axis=1)).sum(axis=(1, 2))
         table["tv"] = np.where(result.ok & within.any(), variation, math.nan)  # as metrics_table
-    units = metric_units(
-        result.coordinate_names, result.coordinate_units, result.n, result.input_units
-    )
-    renamed = {metric: with_unit(metric, unit) for metric, unit in units.items()}
-    renamed["t_stop"] = "t_stop_s"
-    return table.rename(columns=renamed)
+    return table.rename(columns=metric_columns_with_units(result))
 
 
 def _delay_figure(folder: Path, delay: Any, dt: float) -> Any:

@@ -222,7 +222,7 @@ def test_the_runs_equal_those_built_one_by_one_without_remembering(
 # ---- the size, said before the work ---------------------------------------------------------
 
 _SIMULATING = re.compile(
-    r"delaytrack: simulating 1 run\(s\) of 200 steps \(dt = 0\.001 s\), n = 2 coordinates; "
+    r"delaytrack: simulating 1 run of 200 steps \(dt = 0\.001 s\), n = 2 coordinates; "
     r"about [0-9.]+ MiB of trajectories \(101 samples per run\)"
 )
 _SWEEPING = re.compile(

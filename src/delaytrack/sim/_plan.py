@@ -22,7 +22,7 @@ from delaytrack._validation import (
     positive_scalar,
     real_array,
 )
-from delaytrack._words import shown_number
+from delaytrack._words import counted, shown_number
 from delaytrack.components import Kernel
 from delaytrack.controllers.base import Controller
 from delaytrack.delays._kernel import NO_KERNEL
@@ -217,10 +217,16 @@ def announce(plan: Plan) -> None:
     """One line on standard error with the size of the work before it starts."""
     size = plan.recorded_bytes
     scale, unit = (2**30, "GiB") if size >= 2**30 else (2**20, "MiB")
-    recorded = f"about {size / scale:.3g} {unit} of trajectories ({plan.records} samples per run)"
+    recorded = (
+        f"about {size / scale:.3g} {unit} of trajectories ({counted(plan.records, 'sample')} "
+        "per run"
+        + ("; record_every is beyond the run: its start only" if plan.records == 1 else "")
+        + ")"
+    )
     print(
-        f"delaytrack: simulating {plan.batch} run(s) of {plan.n_ticks * plan.steps_per_tick} "
-        f"steps (dt = {plan.dt:g} s), n = {plan.n} coordinates; "
+        f"delaytrack: simulating {counted(plan.batch, 'run')} of "
+        f"{plan.n_ticks * plan.steps_per_tick} steps (dt = {plan.dt:g} s), n = "
+        f"{counted(plan.n, 'coordinate')}; "
         + (recorded if plan.trajectories else "metrics only, no trajectories recorded"),
         file=sys.stderr,
         flush=True,

@@ -183,6 +183,18 @@ def test_a_part_whose_footer_understates_its_pages_is_refused_before_they_are_re
     assert "its pages are larger than its footer says" in reason
 
 
+def test_a_part_whose_pages_are_corrupt_is_said_to_be_so(unit_frame, tmp_path):
+    """The footer whole, the pages not: read under the cap, still "unreadable", not a size."""
+    unit, frame = unit_frame
+    path = write_part(frame, unit, tmp_path)
+    data = bytearray(path.read_bytes())
+    data[4:68] = b"\xff" * 64  # the first data page's header and values, after "PAR1"
+    path.write_bytes(bytes(data))
+    assert pq.read_metadata(path).num_rows == 3  # the footer is whole
+    reason = finished_units(tmp_path, small_spec()).rejected[unit.part_name]
+    assert reason.startswith("unreadable (truncated or corrupt)"), reason
+
+
 def test_a_good_part_is_read_under_the_cap_on_a_machine_of_many_cores(unit_frame, tmp_path):
     """Arrow starts a thread per core, and its reading threads, on its first read, whose 8 MiB
     or larger stacks count against the cap: under 16 cores the first part failed to start a

@@ -286,11 +286,6 @@ def _read_bounded(path: Path, footer: pq.FileMetaData, largest: int) -> pa.Table
             f"reading its values asked for more than {budget} bytes, where its footer gives "
             f"{stored} bytes of values (its pages are larger than its footer says)"
         ) from None
-    except pa.ArrowException as error:  # not a corrupt file: what the cap refused
-        raise _Unbounded(
-            f"reading it within {budget} bytes failed ({error}); its footer gives {stored} bytes "
-            "of values"
-        ) from None
     finally:
         pa.set_memory_pool(pool)
     size = 0

@@ -932,5 +932,5 @@ def test_an_empty_scenario_name_on_the_command_line_is_not_the_current_folder(tm
 def test_simulate_refuses_more_threads_than_four_per_core():
     from delaytrack.sim._machine import available_cores
 
-    with pytest.raises(ValueError, match=r"workers must be at most \d+ \(4 threads per core"):
+    with pytest.raises(ValueError, match=r"workers must be at most \d+ \(4 per core"):
         _arm_run(t1=0.1, dt=1e-3, T_c=1e-2, workers=4 * available_cores() + 1)

@@ -134,7 +134,7 @@ def test_threads_give_the_results_of_one_thread_bit_for_bit(workers: int) -> Non
 @pytest.mark.parametrize(
     ("override", "message"),
     [
-        ({"workers": 0}, r"workers must be a positive integer \(threads\); got 0"),
+        ({"workers": 0}, r"workers must be a positive integer or None; got 0"),
         ({"workers": 1.5}, r"workers must be a positive integer"),
         ({"metrics_from": 3.5}, r"metrics_from must lie in \[t0, t1\] = \[0, 3\] s; got 3\.5"),
         ({"metrics_from": float("nan")}, r"metrics_from must be finite"),

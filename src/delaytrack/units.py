@@ -17,8 +17,9 @@ Every table a run or a sweep writes names a column ``<quantity>[_<coordinate>][_
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
-__all__ = ["ascii_unit", "default_names", "labelled", "with_unit"]
+__all__ = ["ascii_unit", "coordinate_units", "default_names", "labelled", "with_unit"]
 
 
 def ascii_unit(unit: str) -> str:
@@ -41,3 +42,10 @@ def default_names(names: Sequence[str] | None, n: int, prefix: str = "q") -> tup
     """``names`` as a tuple, or ``q1 .. qn`` (``prefix`` and a count from 1) when there are
     none."""
     return tuple(names) if names is not None else tuple(f"{prefix}{i + 1}" for i in range(n))
+
+
+def coordinate_units(plant: Any) -> dict[str, str | None]:
+    """Each coordinate of ``plant`` (its ``coordinate_names``, else ``q1 .. qn``) with its unit
+    (its ``coordinate_units``; None where it declares none), in order."""
+    units = getattr(plant, "coordinate_units", None) or (None,) * plant.n
+    return dict(zip(default_names(plant.coordinate_names, plant.n), units, strict=True))

@@ -176,7 +176,7 @@ def _check_flags_apply(args: argparse.Namespace) -> None:
     the jobs it applies to: a flag silently ignored lets a user believe it was used."""
     defaults = {"duration": None, "size": "default", "scheduler": None, "gains": None}
     for name, (flag, jobs) in _FLAG_JOBS.items():
-        if getattr(args, name) in (defaults.get(name, False),):
+        if getattr(args, name) == defaults.get(name, False):  # not given
             continue
         if args.job not in jobs:
             why = " (its runs are 60 s)" if name == "duration" else ""

@@ -125,6 +125,9 @@ class PaperFindings:
         tuned AROLC in its place (:func:`tuned_as_arolc`).
     stopped : DataFrame
         ``scenario, controller, status, t_stop`` of the runs that did not finish.
+    off_path : int
+        Runs off the path by the rule of the tuning and the robustness study: stopped, or a mean
+        of AE-x and AE-y above :data:`~delaytrack.experiments.tuning.DIVERGED_AE_MM`.
     ae_x_range : dict
         ``"AROLC"``, ``"OuterLoop"``, ``"baseline"`` -> smallest and largest AE-x over S1–S4
         (mm).
@@ -195,6 +198,7 @@ class PaperFindings:
     claims: Claims
     tuned_claims: Claims
     stopped: pd.DataFrame
+    off_path: int
     ae_x_range: dict[str, tuple[float, float]]
     natural_frequency: float
     damping: float
@@ -440,6 +444,7 @@ def paper_findings(
         claims=claims(summary),
         tuned_claims=claims(tuned_as_arolc(summary, tuned_summary)),
         stopped=status[status.status != "ok"],
+        off_path=int((~((summary.ae_x_mm + summary.ae_y_mm) / 2 <= tuning.DIVERGED_AE_MM)).sum()),
         ae_x_range={family: _ae_x_range(summary, names) for family, names in families.items()},
         natural_frequency=omega,
         damping=AROLC_GAINS["K2"] / (2.0 * omega),

@@ -132,6 +132,7 @@ __all__ = [
     "load_tuning_record",
     "make_controller",
     "recorded_gains_text",
+    "set_conditions",
     "tune",
     "tune_controllers",
     "vartheta_base",
@@ -380,14 +381,19 @@ class TuningResult:
         return {gain_set: all(flags.values()) for gain_set, flags in self.interior.items()}
 
 
-def _members(classes: Sequence[str], gain_set: str) -> list[str]:
-    """The ``ae_mm_<j>`` columns of a gain set's conditions (``classes``: each condition's
-    delay class, in order)."""
+def set_conditions(classes: Sequence[str], gain_set: str) -> list[int]:
+    """The numbers (from 1) of a gain set's conditions (``classes``: each condition's delay
+    class, in order; ``"all"``: every one)."""
     return [
-        f"ae_mm_{j}"
+        j
         for j, delay_class in enumerate(classes, start=1)
         if gain_set == "all" or delay_class == gain_set
     ]
+
+
+def _members(classes: Sequence[str], gain_set: str) -> list[str]:
+    """The ``ae_mm_<j>`` columns of a gain set's conditions (:func:`set_conditions`)."""
+    return [f"ae_mm_{j}" for j in set_conditions(classes, gain_set)]
 
 
 def _objective(table: pd.DataFrame, columns: list[str]) -> np.ndarray:

@@ -18,7 +18,7 @@ import numpy as np
 from delaytrack._io import open_csv_text, read_file_bytes, regular_file
 from delaytrack._result_columns import input_column, state_columns
 from delaytrack.live.transport import differing_parts
-from delaytrack.units import default_names, with_unit
+from delaytrack.units import coordinate_units, with_unit
 
 __all__ = [
     "ROLE_FILES",
@@ -82,15 +82,17 @@ class SessionColumns:
         names them: with their units, or without where the table has the plain name only (a
         session recorded by a delaytrack before its tables named units: ``q1``, ``q1_dot``,
         ``u1``)."""
-        plain_states = [*self.names, *[f"{name}_dot" for name in self.names]]
-        named, plain = {
-            "states": (self.states, plain_states),
-            "positions": (self.positions, list(self.names)),
-            "inputs": (self.inputs(), [f"u{j + 1}" for j in range(len(self.input_units))]),
-        }[kind]
+        plain = SessionColumns(
+            self.names, (None,) * len(self.names), (None,) * len(self.input_units)
+        )
+        named, old_names = (
+            (self.inputs(), plain.inputs())
+            if kind == "inputs"
+            else (getattr(self, kind), getattr(plain, kind))
+        )
         return [
             given if given in table.columns or old not in table.columns else old
-            for given, old in zip(named, plain, strict=True)
+            for given, old in zip(named, old_names, strict=True)
         ]
 
     def errors(self, role: str) -> list[str]:
@@ -104,10 +106,9 @@ class SessionColumns:
 def session_columns(plant: Any) -> SessionColumns:
     """The :class:`SessionColumns` of ``plant`` (its ``coordinate_names``,
     ``coordinate_units`` and ``input_units``)."""
+    units = coordinate_units(plant)
     return SessionColumns(
-        default_names(plant.coordinate_names, plant.n),
-        tuple(getattr(plant, "coordinate_units", None) or (None,) * plant.n),
-        tuple(getattr(plant, "input_units", None) or (None,) * plant.m),
+        tuple(units), tuple(units.values()), tuple(plant.input_units or (None,) * plant.m)
     )
 
 

@@ -23,6 +23,7 @@ import numpy as np
 from delaytrack._compile.functions import at_few_points
 from delaytrack._compile.jit import hot_inline_kernel, inline_kernel
 from delaytrack._small_linalg import solve_mass_in_place
+from delaytrack._validation import is_integer_at_least
 from delaytrack.components import (
     Kernel,
     ReducedForm,
@@ -42,7 +43,7 @@ MAX_PLANT_SIZE = 1000
 def check_plant_size(label: str, value: object) -> int:
     """``value`` (``n`` or ``m``, named ``label``) as an int from 1 to :data:`MAX_PLANT_SIZE`,
     or a ValueError naming it."""
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+    if not is_integer_at_least(value, 1):
         raise ValueError(f"{label} must be a positive integer; got {value!r}")
     if value > MAX_PLANT_SIZE:
         raise ValueError(

@@ -807,12 +807,7 @@ def _literal_paragraph(study: PaperStudy, literal_summary: pd.DataFrame | None) 
     else:
         return text + " The literal run is written by `delaytrack reproduce` to paper-literal/."
     rows = "; ".join(
-        f"{r.scenario} {r.controller}: "
-        + (
-            f"AE {_fmt(r.ae_x_mm, 0)} / {_fmt(r.ae_y_mm, 0)} mm"
-            if np.isfinite(r.ae_x_mm) and np.isfinite(r.ae_y_mm)
-            else "left the path"
-        )
+        _ae_of(f"{r.scenario} {r.controller}", r, 0)
         for r in frame.itertuples()
         if r.scenario in ("S1", "S4")
     )
@@ -943,11 +938,7 @@ def _tuning_section(report: HtmlReport, study: PaperStudy) -> None:
                 + f"); {grid.excluded} of {grid.points} grid points diverged (stopped, or mean AE "
                 f"above {tuning.DIVERGED_AE_MM:g} mm) under one of the set's conditions."
             )
-            members = [
-                str(j)
-                for j, delay_class in enumerate(record["condition_classes"], start=1)
-                if gain_set == "all" or delay_class == gain_set
-            ]
+            members = map(str, tuning.set_conditions(record["condition_classes"], gain_set))
             report.table(
                 grid.best.rename(columns=_tuning_column),
                 f"{kind} ({gain_set}): the five best grid points; the objective is the worst "
@@ -1012,12 +1003,9 @@ def _report(
         _decision_section(report, decision)
     report.heading(f"Claims check, one run per case (payload seed {PAYLOAD_SEED})")
     if study.reference == "literal":
-        summary = study.summary
-        mean_ae = (summary.ae_x_mm + summary.ae_y_mm) / 2
-        off = int((~(mean_ae <= tuning.DIVERGED_AE_MM)).sum())
         report.paragraph(
             "This is the literal path, which no robot can follow (see 'Literal path' below): "
-            f"{off} of {len(summary)} runs end with a mean AE above "
+            f"{found.off_path} of {len(study.summary)} runs end with a mean AE above "
             f"{tuning.DIVERGED_AE_MM:g} mm or left the path, the rule by which the tuning and "
             "the robustness study count a run as off the path, so this claims check says little "
             "about the controllers. What sets the errors, and why each claim holds or fails, "

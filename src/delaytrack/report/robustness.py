@@ -461,7 +461,8 @@ def write_robustness(study: RobustnessStudy, out: str | Path) -> list[Path]:
     figure and ``report.html`` into ``out``; return their paths."""
     out = Path(out)
     files = []
-    marked = {**study.runs, "map": study.runs["map"].assign(repeated_in=repeated_in(study.runs))}
+    repeated = repeated_in(study.runs)
+    marked = {**study.runs, "map": study.runs["map"].assign(repeated_in=repeated)}
     every = pd.concat(
         [frame.assign(sweep=name) for name, frame in marked.items()], ignore_index=True
     ).fillna({"repeated_in": ""})
@@ -472,17 +473,17 @@ def write_robustness(study: RobustnessStudy, out: str | Path) -> list[Path]:
     saved = save_figure(robustness_map(study), out / "figures" / "robustness_map")
     files += saved
     image = next(path for path in saved if path.suffix == ".png").read_bytes()
-    files.append(_report(study, image).write(out / "report.html"))
+    files.append(_report(study, image, int((repeated != "").sum())).write(out / "report.html"))
     record_outputs(out, files)
     return files
 
 
-def _report(study: RobustnessStudy, image: bytes) -> HtmlReport:
-    """The study's ``report.html``: its method and size, the findings, the map, the verdicts and
-    the tables behind them."""
+def _report(study: RobustnessStudy, image: bytes, repeats: int) -> HtmlReport:
+    """The study's ``report.html``: its method and size (``repeats``: the map's runs its edge
+    sweeps ran again), the findings, the map, the verdicts and the tables behind them."""
     report = HtmlReport("delaytrack: robustness study (which controller when the delay is unknown)")
     report.paragraph(_method_text(study))
-    report.paragraph(_size_text(study))
+    report.paragraph(_size_text(study, repeats))
     report.heading("Findings")
     report.bullets(findings(study))
     report.figure(
@@ -558,9 +559,9 @@ def _judgement_text(study: RobustnessStudy) -> str:
     )
 
 
-def _size_text(study: RobustnessStudy) -> str:
-    """The study's size: its runs, draws per case, work units and time."""
-    repeats = int((repeated_in(study.runs) != "").sum())
+def _size_text(study: RobustnessStudy, repeats: int) -> str:
+    """The study's size: its runs (``repeats`` of them run again, :func:`repeated_in`), draws
+    per case, work units and time."""
     return (
         f"Size: {study.run_count} runs of {study.scenario.duration:g} s"
         + (

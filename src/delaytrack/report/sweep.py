@@ -41,7 +41,7 @@ from delaytrack.sweeps.summary import (
     smallest_medians,
     summary_table,
 )
-from delaytrack.units import default_names, labelled
+from delaytrack.units import coordinate_units, labelled
 
 __all__ = [
     "ae_vs_h_max_figure",
@@ -249,12 +249,10 @@ def _error_bound_text(scenario: Any) -> str:
     bound = scenario.error_bound
     if bound is None or not any(math.isfinite(b) for b in bound):
         return "the base scenario sets none"
-    plant = scenario.build().plant
-    names = default_names(plant.coordinate_names, plant.n)
-    units = plant.coordinate_units or (None,) * plant.n
+    units = coordinate_units(scenario.build().plant)
     bounded = [
         f"{name} {b:g}" + (f" {unit}" if unit else "")
-        for name, b, unit in zip(names, bound, units, strict=True)
+        for (name, unit), b in zip(units.items(), bound, strict=True)
         if math.isfinite(b)
     ]
     return "the base scenario's: " + ", ".join(bounded)

@@ -28,7 +28,7 @@ from delaytrack.report.decision import (
 )
 from delaytrack.report.figures import save_figure
 from delaytrack.report.html import HtmlReport
-from delaytrack.units import default_names, labelled, with_unit
+from delaytrack.units import coordinate_units, labelled, with_unit
 
 if TYPE_CHECKING:
     from delaytrack.experiments.decision import Choice, Decision
@@ -62,14 +62,7 @@ def _columns(study: TradeoffStudy) -> dict[str, str]:
 def threshold_text(study: TradeoffStudy) -> str:
     """The rule's bound on each scored coordinate's mean ``|e1|``, in its unit: ``x <= 1 m,
     y <= 1 m``."""
-    plant = study.scenario.build().plant
-    units = dict(
-        zip(
-            default_names(plant.coordinate_names, plant.n),
-            plant.coordinate_units or (None,) * plant.n,
-            strict=True,
-        )
-    )
+    units = coordinate_units(study.scenario.build().plant)
     return ", ".join(
         f"{name} <= {bound:g}" + (f" {units[name]}" if units.get(name) else "")
         for name, bound in study.threshold.items()

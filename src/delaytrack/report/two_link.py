@@ -12,6 +12,7 @@ import numpy as np
 
 from delaytrack._io import write_frame
 from delaytrack._output import claim_output_folder, record_outputs
+from delaytrack._result_columns import metric_columns_with_units
 from delaytrack._version import __version__
 from delaytrack.report.dt_check import write_dt_check
 from delaytrack.report.figures import (
@@ -60,14 +61,6 @@ def _figures(study: TwoLinkStudy) -> dict[str, tuple[Figure, str]]:
         "The true input delays (unknown to both controllers) and AROLC's certified bound h_m.",
     )
     return figures
-
-
-def _with_unit(column: str) -> str:
-    """A metric column of the two-link arm's tables with its unit: the joints' errors in rad,
-    the torques' TV in N·m, the stop time in s (``ae_q1`` -> ``ae_q1_rad``)."""
-    if column.startswith(("ae_", "rms_", "max_")):
-        return f"{column}_rad"
-    return {"tv": "tv_Nm", "t_stop": "t_stop_s"}.get(column, column)
 
 
 def _verdict(study: TwoLinkStudy) -> list[str]:
@@ -260,13 +253,15 @@ def _report(study: TwoLinkStudy, figures: dict[str, tuple[Figure, str]]) -> Html
         + " (the certificate concerns uniform ultimate boundedness, not the size of the error)."
     )
     report.heading("Summary")
+    # the arm's units, as its runs give them (every controller's runs are of the one arm)
+    with_units = metric_columns_with_units(next(iter(study.results.values())))
     report.table(
-        study.summary.rename(columns=_with_unit),
+        study.summary.rename(columns=with_units),
         "Metrics over the whole run (summary.csv's columns, shown here with their units): "
         "ae/rms/max per joint, tv; status 'ok' means the run reached the final time.",
     )
     report.table(
-        study.undelayed.rename(columns=_with_unit), "Context: the same runs with no delay (h = 0)."
+        study.undelayed.rename(columns=with_units), "Context: the same runs with no delay (h = 0)."
     )
     write_dt_check(report, study.dt_verdict, study.half_dt)
     report.heading("Settings")

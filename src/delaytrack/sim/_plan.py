@@ -18,7 +18,6 @@ from delaytrack._validation import (
     finite_array,
     finite_scalar,
     integer_multiple,
-    is_integer_at_least,
     positive_scalar,
     real_array,
 )
@@ -39,7 +38,7 @@ from delaytrack.sim._kernel_checks import (
     checked_before_the_run,
     refuse_reads_past,
 )
-from delaytrack.sim._machine import WORKERS_PER_CORE, available_cores, physical_memory
+from delaytrack.sim._machine import available_cores, physical_memory, workers_problem
 from delaytrack.sim.history import history_capacity, tick_time
 from delaytrack.sim.measurement import MeasurementNoise
 from delaytrack.sim.packet_loss import PacketLoss
@@ -634,18 +633,12 @@ def _metrics_from_tick(
 
 
 def _workers(workers: int | None) -> int:
-    """Thread count: ``workers`` checked, or the cores this process may use."""
-    if workers is None:
-        return available_cores()
-    if not is_integer_at_least(workers, 1):
-        raise ValueError(f"workers must be a positive integer (threads); got {workers!r}")
-    most = WORKERS_PER_CORE * available_cores()
-    if workers > most:
-        raise ValueError(
-            f"workers must be at most {most} ({WORKERS_PER_CORE} threads per core of the "
-            f"{available_cores()} this process may use: more only share them); got {workers}"
-        )
-    return int(workers)
+    """Thread count: ``workers`` checked (:func:`~delaytrack.sim._machine.workers_problem`), or
+    the cores this process may use."""
+    problem = workers_problem(workers)
+    if problem is not None:
+        raise ValueError(f"workers {problem}")
+    return available_cores() if workers is None else int(workers)
 
 
 def _check_horizons(

@@ -27,7 +27,7 @@ from typing import Any, Protocol
 import pandas as pd
 
 from delaytrack._validation import ArgumentError, is_integer_at_least
-from delaytrack.sim._machine import WORKERS_PER_CORE
+from delaytrack.sim._machine import WORKERS_PER_CORE, workers_problem
 from delaytrack.sim.simulate import available_cores
 from delaytrack.sweeps.parts import run_unit
 from delaytrack.sweeps.spec import SweepError, Unit
@@ -76,18 +76,11 @@ class _WorkersError(SweepError, ArgumentError):
 
 def checked_workers(workers: int | None) -> int | None:
     """``workers`` (threads or local worker processes) checked: None, or 1 to
-    :data:`WORKERS_PER_CORE` per available core."""
-    # Tested outside the `if`, whose test would widen workers to NumPy's integers for mypy.
-    positive = workers is None or is_integer_at_least(workers, 1)
-    if not positive:
-        raise _WorkersError("workers", f"must be a positive integer or None; got {workers!r}")
-    most = WORKERS_PER_CORE * available_cores()
-    if workers is not None and workers > most:
-        raise _WorkersError(
-            "workers",
-            f"must be at most {most} ({WORKERS_PER_CORE} per core of the "
-            f"{available_cores()} this process may use); got {workers}",
-        )
+    :data:`WORKERS_PER_CORE` per available core
+    (:func:`~delaytrack.sim._machine.workers_problem`)."""
+    problem = workers_problem(workers)
+    if problem is not None:
+        raise _WorkersError("workers", problem)
     return workers
 
 

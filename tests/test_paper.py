@@ -41,7 +41,7 @@ ROWS = [
 FIGURES = ("path_S1", "error_S1_S2", "error_S3_S4", "c_hat", "delay")
 COLUMNS = (
     "scenario,controller,ae_x_mm,ae_y_mm,pct_ae_x,pct_ae_y,tv_Nm,rms_x_mm,rms_y_mm,max_x_mm,"
-    "max_y_mm"
+    "max_y_mm,status,t_stop_s"
 )
 
 
@@ -53,7 +53,8 @@ def test_short_run_writes_every_promised_file(tmp_path):
     summary = pd.read_csv(tmp_path / "summary.csv")
     assert list(summary[["scenario", "controller"]].itertuples(index=False, name=None)) == ROWS
     assert (study.status.status == "ok").all()
-    assert np.all(np.isfinite(summary.iloc[:, 2:].to_numpy()))
+    assert (summary.status == "ok").all() and (summary.t_stop_s == 2.0).all()
+    assert np.all(np.isfinite(summary.iloc[:, 2:-2].to_numpy()))
     np.testing.assert_allclose(summary.pct_ae_x, summary.ae_x_mm / 2500 * 100)
     tuned_text = (tmp_path / "summary_tuned_arolc.csv").read_text().splitlines()
     assert tuned_text[0] == COLUMNS
@@ -61,7 +62,7 @@ def test_short_run_writes_every_promised_file(tmp_path):
     assert list(tuned[["scenario", "controller"]].itertuples(index=False, name=None)) == [
         (case, "AROLC-tuned") for case in ("S1", "S2", "S3", "S4")
     ]
-    assert np.all(np.isfinite(tuned.iloc[:, 2:].to_numpy()))
+    assert np.all(np.isfinite(tuned.iloc[:, 2:-2].to_numpy()))
     for name in FIGURES:
         for ext in ("png", "svg"):
             assert (tmp_path / "figures" / f"{name}.{ext}").stat().st_size > 1000
@@ -125,6 +126,36 @@ def test_reproduce_writes_both_folders(reproduced):
     assert "Measured in the sibling run" in consistent
     assert "The claims over distributions (robustness study)" in consistent
     assert "../robustness/report.html" in consistent
+
+
+def test_the_printed_summary_says_which_runs_have_no_metrics_and_why_not_nan():
+    metrics = dict.fromkeys(paper.SUMMARY_COLUMNS[2:], 1.25)
+    summary = pd.DataFrame(
+        [
+            {"scenario": "S1", "controller": "AROLC", **metrics},
+            {"scenario": "S2", "controller": "PCON", **dict.fromkeys(metrics, math.nan)},
+        ]
+    )
+    status = pd.DataFrame(
+        {
+            "scenario": ["S1", "S2"],
+            "controller": ["AROLC", "PCON"],
+            "status": ["ok", "left the path"],
+            "t_stop": [60.0, 12.5],
+        }
+    )
+    text = paper_report.summary_text(summary, status[status.status != "ok"])
+    assert "NaN" not in text and "nan" not in text
+    lines = text.splitlines()
+    assert lines[2].split() == ["S2", "PCON", "—", "—", "—", "—"]
+    assert lines[3] == (
+        "—: no metrics, the run did not finish: S2 PCON stopped as 'left the path' at t = 12.5 s"
+    )
+    assert len(paper_report.summary_text(summary.iloc[:1], status.iloc[:0]).splitlines()) == 2
+    written = paper_report.with_status(summary, status)
+    assert list(written.columns) == [*paper.SUMMARY_COLUMNS, "status", "t_stop_s"]
+    assert written.status.tolist() == ["ok", "left the path"]
+    assert written.t_stop_s.tolist() == [60.0, 12.5]
 
 
 def test_reproduce_refuses_a_duration_off_the_controller_grid(tmp_path, capsys):

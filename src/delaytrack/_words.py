@@ -3,7 +3,12 @@ shown as short as they can be without reading as another number."""
 
 from __future__ import annotations
 
-__all__ = ["counted", "shown_number"]
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = ["counted", "shown_number", "table_text"]
 
 
 def counted(count: int, noun: str) -> str:
@@ -17,3 +22,9 @@ def shown_number(value: float) -> str:
     number (an ``--r`` of 1.0000000000000002 is not shown as the refused 1)."""
     short = f"{value:g}"
     return short if float(short) == value else repr(float(value))
+
+
+def table_text(frame: pd.DataFrame, *, index: bool = False) -> str:
+    """``frame`` as a terminal shows it: numbers to four significant digits, "—" where a value
+    is missing (a run that did not finish has no metrics), never "NaN"."""
+    return frame.to_string(index=index, float_format=lambda v: f"{v:.4g}", na_rep="—")

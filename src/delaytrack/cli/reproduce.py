@@ -13,6 +13,7 @@ from delaytrack._cli_options import quiet_argument
 from delaytrack._compile.helper_ahead import helper_ahead
 from delaytrack._output import OutputFolderError, check_output_folder, check_results_root
 from delaytrack._validation import ArgumentError
+from delaytrack._words import table_text
 from delaytrack.cli._numbers import scalar
 from delaytrack.cli._usage import UsageError, flagged
 
@@ -206,8 +207,9 @@ def _study_executor(args: argparse.Namespace):
 
 def _paper(args: argparse.Namespace, executor) -> int:
     """The paper job: ``<out>/paper-literal/``, ``<out>/robustness/`` and ``<out>/paper/``."""
-    from delaytrack.experiments.paper import DURATION, SUMMARY_COLUMNS
+    from delaytrack.experiments.paper import DURATION
     from delaytrack.jobs.paper import reproduce
+    from delaytrack.report.paper import summary_text
 
     start = time.perf_counter()
     try:
@@ -233,8 +235,7 @@ def _paper(args: argparse.Namespace, executor) -> int:
         f"{out / 'paper-literal'}/"
     )
     study = studies["consistent"]
-    columns = SUMMARY_COLUMNS[:5] + ["tv_Nm"]
-    print(study.summary[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    print(summary_text(study.summary, study.findings.stopped))
     if study.dt_check is not None:
         print(f"largest relative change of a metric when dt is halved: {study.dt_max_change:.2e}")
     if study.contact is not None:
@@ -314,7 +315,7 @@ def _two_link(args: argparse.Namespace) -> int:
     except ScenarioError as error:  # a --duration the job's scenarios refuse
         raise flagged(error, keys=_DURATION) from None
     columns = ["scenario", "controller", "ae_q1", "ae_q2", "tv", "status"]
-    print(study.summary[columns].to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    print(table_text(study.summary[columns]))
     if study.dt_check is not None:
         print(f"largest relative change of a metric when dt is halved: {study.dt_max_change:.2e}")
     print(f"report: {Path(args.out) / FOLDER / 'report.html'}")
@@ -337,6 +338,6 @@ def _margins(args: argparse.Namespace) -> int:
     except ValueError as error:  # a --duration too short for the job's tracking rule
         raise UsageError(f"margins job: {flagged(error, _DURATION)}") from None
     table = margins_with_units(study.table)
-    print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
+    print(table_text(table))
     print(f"report: {Path(args.out) / FOLDER / 'report.html'}")
     return 0

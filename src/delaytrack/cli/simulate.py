@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 from delaytrack._cli_options import quiet_argument, trust_argument
 from delaytrack._output import check_output_folder
+from delaytrack._words import table_text
 from delaytrack.cli._scenarios import scenario_source, trusted
 from delaytrack.warning import one_line
 
@@ -70,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
         f"simulated {scenario.name!r}: {scenario.duration:g} s in {seconds:.1f} s wall time, "
         f"status {status}"
     )
-    print(output.result.summary().to_string(float_format=lambda v: f"{v:.4g}"))
+    print(table_text(output.result.summary(), index=True))
     _no_command_arrives(output)
     _certified_bound(output)
     print(f"wrote {len(output.files)} files to {folder}/:")

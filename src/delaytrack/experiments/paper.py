@@ -5,10 +5,11 @@ quotes (:class:`~delaytrack.experiments.paper_findings.PaperFindings`);
 :func:`delaytrack.jobs.paper.run_paper` runs it and writes the report
 (:mod:`delaytrack.report.paper`) to ``<out_dir>/``:
 
-- ``summary.csv``: one row per (scenario, controller) with exactly the columns of
+- ``summary.csv``: one row per (scenario, controller) with the columns of
   :data:`SUMMARY_COLUMNS` (AE, %AE, RMS and max error of x and y in mm, TV of the commanded wheel
-  torques in N·m); runs that diverged or left the path have NaN metrics (and are flagged in the
-  report);
+  torques in N·m), then ``status`` and ``t_stop_s`` (the time the run stopped, s); runs that
+  diverged or left the path have empty metrics, their ``status`` says why (and the report
+  flags them);
 - ``summary_tuned_arolc.csv``: the same columns for AROLC tuned by the baselines' procedure
   (controller ``AROLC-tuned``; :mod:`delaytrack.experiments.tuning`);
 - ``tables.md``: the paper's Tables I–III with our numbers beside the paper's;

@@ -22,6 +22,7 @@ from matplotlib.ticker import FuncFormatter, LogLocator
 from delaytrack._io import write_frame, write_text
 from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack._version import __version__
+from delaytrack._words import table_text
 from delaytrack.experiments import tuning
 from delaytrack.experiments.pairing import AROLC_GAINS, BASELINE, DELAY_CLASS
 from delaytrack.experiments.paper_findings import summary_row
@@ -32,6 +33,7 @@ from delaytrack.experiments.paper_setup import (
     PAPER_TABLE,
     PAYLOAD_SEED,
     SCENARIOS,
+    SUMMARY_COLUMNS,
     T_C,
     TUNED,
     R,
@@ -111,6 +113,35 @@ def _one_run_verdict(
         + (f", {' and '.join(stayed)} stayed on it" if stayed else "")
         + f": {compared} is compared between runs on the path)"
     )
+
+
+def stopped_runs_text(stopped: pd.DataFrame) -> str:
+    """The runs that did not finish (:attr:`PaperFindings.stopped`), each with its status and
+    the time it stopped: ``"S2 PCON stopped as 'off-path' at t = 12.3 s; ..."``."""
+    return "; ".join(
+        f"{r.scenario} {r.controller} stopped as '{r.status}' at t = {r.t_stop:g} s"
+        for r in stopped.itertuples()
+    )
+
+
+def summary_text(summary: pd.DataFrame, stopped: pd.DataFrame) -> str:
+    """The paper's summary as a terminal shows it: scenario, controller, AE and %AE of x and y
+    and TV (4 significant digits), "—" where a run has no metrics, and a line naming the runs
+    that did not finish (``stopped``: :attr:`PaperFindings.stopped`), when any did not."""
+    columns = [*SUMMARY_COLUMNS[:5], "tv_Nm"]
+    table = table_text(summary[columns])
+    if len(stopped):
+        table += "\n—: no metrics, the run did not finish: " + stopped_runs_text(stopped)
+    return table
+
+
+def with_status(summary: pd.DataFrame, status: pd.DataFrame) -> pd.DataFrame:
+    """``summary`` with each run's ``status`` and ``t_stop_s`` (the time it stopped, s) from
+    ``status`` (:attr:`PaperStudy.status`) as its last columns: what a file's empty metrics
+    mean."""
+    keys = ["scenario", "controller"]
+    stops = status[[*keys, "status", "t_stop"]].rename(columns={"t_stop": "t_stop_s"})
+    return summary.merge(stops, on=keys, how="left", validate="one_to_one")
 
 
 def _ms(seconds: float, spec: str = "g") -> str:
@@ -980,11 +1011,8 @@ def _report(
     )
     if len(found.stopped):
         report.paragraph(
-            "Runs that left the path (no metrics: — in the tables, empty in the CSV files): "
-            + "; ".join(
-                f"{r.scenario} {r.controller} stopped as '{r.status}' at t = {r.t_stop:g} s"
-                for r in found.stopped.itertuples()
-            ),
+            "Runs that left the path (no metrics: — in the tables, empty in the CSV files, "
+            "whose status column says why): " + stopped_runs_text(found.stopped),
             note=True,
         )
     report.heading("Summary")
@@ -1055,8 +1083,9 @@ def write_study(
     envelope when the decision study is, and the literal run's AE when ``literal_summary``
     is)."""
     folder = claim_output_folder(folder)
-    files = [write_frame(study.summary, folder / "summary.csv")]
-    files.append(write_frame(study.tuned_summary, folder / "summary_tuned_arolc.csv"))
+    files = [write_frame(with_status(study.summary, study.status), folder / "summary.csv")]
+    tuned = with_status(study.tuned_summary, study.status)
+    files.append(write_frame(tuned, folder / "summary_tuned_arolc.csv"))
     if study.contact is not None:
         files.append(write_frame(study.contact, folder / "summary_contact.csv"))
     files.append(write_text(folder / "tables.md", tables_markdown(study.summary, study.reference)))

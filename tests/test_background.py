@@ -197,7 +197,19 @@ def test_on_ctrl_c_the_second_process_is_stopped(idle):
     assert process.returncode is not None and process.returncode < 0  # killed, not waited out
 
 
-def test_on_ctrl_c_while_the_block_waits_for_it_the_second_process_is_stopped(tmp_path, idle):
+@pytest.fixture
+def ctrl_c_raises():
+    """SIGINT raises KeyboardInterrupt in this process, as from a terminal: a suite started
+    from a background job (``make test &``) inherits SIGINT ignored, and Python keeps it so,
+    which left the test below waiting ten minutes for a Ctrl-C that never came."""
+    saved = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, saved)
+
+
+def test_on_ctrl_c_while_the_block_waits_for_it_the_second_process_is_stopped(
+    tmp_path, idle, ctrl_c_raises
+):
     target = tmp_path / "file.txt"
     # Ctrl-C for this process alone (a notebook's interrupt), in the block or in its wait; never
     # after the test (the timer is cancelled), which would stop the whole test session.

@@ -62,7 +62,9 @@ def test_a_delay_beyond_h_m_warns_at_the_users_line_and_says_it_is_not_instabili
     assert len(caught) == 1 and caught[0].filename == __file__
     warning = caught[0].message
     assert warning.h_m == H_M and warning.largest_delay == pytest.approx(0.04)
-    assert "in 1 of 2 runs" in str(warning) and "not instability" in str(warning)
+    assert "in 1 of 2 runs" in str(warning) and "does not by itself mean instability" in str(
+        warning
+    )
     assert list(result.status_names) == ["ok", "ok"]  # a warning, not a refusal
 
 
@@ -140,3 +142,10 @@ def test_h_m_is_computed_once_per_gains_and_follows_every_gain():
     again = AROLC(TwoLinkArm(), K1=2.0, K2=4.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
     assert certified_bounds([again]).tolist() == [expected[1]]  # other object, same gains
     assert _h_m.cache_info().hits == hits + 1
+
+
+def test_the_warning_says_when_the_run_it_names_did_not_finish():
+    with pytest.warns(BeyondCertifiedBoundWarning) as caught:
+        result = run(FAST, ConstantDelay(0.04), error_bound=1e-9)
+    assert list(result.status_names) == ["left the path"]
+    assert str(caught[0].message).endswith("; that run did not finish (left the path)")

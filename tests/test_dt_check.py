@@ -13,7 +13,7 @@ from delaytrack.experiments.convergence import (
     dt_check_table,
     dt_check_verdict,
 )
-from delaytrack.report.dt_check import write_dt_check
+from delaytrack.report.dt_check import dt_check_line, write_dt_check
 from delaytrack.report.html import HtmlReport
 
 COARSE = pd.DataFrame(
@@ -45,3 +45,16 @@ def test_the_section_states_the_studys_verdict(tmp_path):
     with pytest.warns(DeprecationWarning, match="DtCheck"):  # a table: the verdict made here
         write_dt_check(HtmlReport("old"), verdict.table, 5e-4)
     assert math.isnan(dt_check_verdict(COARSE.assign(max_relative_change=math.nan)).largest)
+
+
+def test_the_terminals_line_states_the_verdict_and_the_runs_above_it():
+    beyond = dt_check_verdict(dt_check_table(COARSE, _fine(2.5), ["ae", "tv"]))
+    assert dt_check_line(beyond) == (
+        "halving dt: the largest relative change of a summary metric is 0.25, NOT below the 1% "
+        "criterion; runs above it: S3 PCONf (0.25)"
+    )
+    within = dt_check_verdict(dt_check_table(COARSE, _fine(2.0), ["ae", "tv"]))
+    assert dt_check_line(within) == (
+        "halving dt: the largest relative change of a summary metric is 0.001, below the 1% "
+        "criterion"
+    )

@@ -152,10 +152,11 @@ def test_bad_arguments_are_refused_by_name(kwargs, message):
 def test_a_threshold_missed_without_delay_is_refused():
     with pytest.raises(
         ValueError, match=r"threshold = 0.01 is missed already without delay: max of q1 = "
-    ):
+    ) as refused:
         empirical_margin(
             double_integrator(1.0, 1.0, duration=4.0), threshold=0.01, metric="max", settle=0.0
         )
+    assert str(refused.value).endswith("give a larger threshold or a later settle time")
 
 
 def test_bad_scenario_and_controllers_are_refused():

@@ -144,14 +144,28 @@ def test_the_printed_summary_says_which_runs_have_no_metrics_and_why_not_nan():
             "t_stop": [60.0, 12.5],
         }
     )
-    text = paper_report.summary_text(summary, status[status.status != "ok"])
+    text = paper_report.summary_text(summary, status[status.status != "ok"], "consistent")
     assert "NaN" not in text and "nan" not in text
     lines = text.splitlines()
-    assert lines[2].split() == ["S2", "PCON", "—", "—", "—", "—"]
-    assert lines[3] == (
+    assert lines[0].startswith("consistent path: AE in mm, %AE of the 2500 mm diameter")
+    assert lines[1].split() == [*paper.SUMMARY_COLUMNS[:6], "tv_Nm"]
+    assert lines[3].split() == ["S2", "PCON", "—", "—", "—", "—", "—"]
+    assert lines[4] == (
         "—: no metrics, the run did not finish: S2 PCON stopped as 'left the path' at t = 12.5 s"
     )
-    assert len(paper_report.summary_text(summary.iloc[:1], status.iloc[:0]).splitlines()) == 2
+    assert len(lines) == 5
+    assert len(paper_report.summary_text(summary.iloc[:1], status.iloc[:0], "x").splitlines()) == 3
+    # A run that is not in the table (the tuned AROLC's, in its own file) is named apart.
+    tuned = pd.DataFrame(
+        [{"scenario": "S2", "controller": "AROLC-tuned", "status": "left the path", "t_stop": 17.0}]
+    )
+    both = pd.concat([status[status.status != "ok"], tuned], ignore_index=True)
+    lines = paper_report.summary_text(summary, both, "consistent").splitlines()
+    assert "AROLC-tuned" not in lines[4]
+    assert lines[5] == (
+        "in summary_tuned_arolc.csv, did not finish: S2 AROLC-tuned stopped as 'left the path' "
+        "at t = 17 s"
+    )
     written = paper_report.with_status(summary, status)
     assert list(written.columns) == [*paper.SUMMARY_COLUMNS, "status", "t_stop_s"]
     assert written.status.tolist() == ["ok", "left the path"]

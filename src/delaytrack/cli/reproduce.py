@@ -209,6 +209,7 @@ def _paper(args: argparse.Namespace, executor) -> int:
     """The paper job: ``<out>/paper-literal/``, ``<out>/robustness/`` and ``<out>/paper/``."""
     from delaytrack.experiments.paper import DURATION
     from delaytrack.jobs.paper import reproduce
+    from delaytrack.report.dt_check import dt_check_line
     from delaytrack.report.paper import summary_text
 
     start = time.perf_counter()
@@ -235,9 +236,9 @@ def _paper(args: argparse.Namespace, executor) -> int:
         f"{out / 'paper-literal'}/"
     )
     study = studies["consistent"]
-    print(summary_text(study.summary, study.findings.stopped))
-    if study.dt_check is not None:
-        print(f"largest relative change of a metric when dt is halved: {study.dt_max_change:.2e}")
+    print(summary_text(study.summary, study.findings.stopped, study.reference))
+    if study.dt_verdict is not None:
+        print(dt_check_line(study.dt_verdict))
     if study.contact is not None:
         from delaytrack.report.contact import contact_paragraphs
 
@@ -298,6 +299,7 @@ def _two_link(args: argparse.Namespace) -> int:
     """The two-link job, into ``<out>/two-link/``."""
     from delaytrack.experiments.two_link import FOLDER
     from delaytrack.jobs.two_link import reproduce
+    from delaytrack.report.dt_check import dt_check_line
     from delaytrack.scenario import ScenarioError
 
     try:
@@ -316,8 +318,8 @@ def _two_link(args: argparse.Namespace) -> int:
         raise flagged(error, keys=_DURATION) from None
     columns = ["scenario", "controller", "ae_q1", "ae_q2", "tv", "status"]
     print(table_text(study.summary[columns]))
-    if study.dt_check is not None:
-        print(f"largest relative change of a metric when dt is halved: {study.dt_max_change:.2e}")
+    if study.dt_verdict is not None:
+        print(dt_check_line(study.dt_verdict))
     print(f"report: {Path(args.out) / FOLDER / 'report.html'}")
     return 0
 

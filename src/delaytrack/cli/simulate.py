@@ -29,7 +29,7 @@ def add_command(commands: argparse._SubParsersAction) -> None:
         description="Run a scenario TOML file (or the name of a shipped scenario such as "
         "two_link_S1) and write scenario.toml (as run), trajectories, metrics.csv and figures. "
         "For AROLC it prints Theorem 1's certified delay bound h_m and says when the run's "
-        "largest delay exceeds it (not instability: the end of the guarantee).",
+        "largest delay exceeds it (the end of the guarantee, not by itself instability).",
     )
     command.add_argument(
         "scenario", metavar="SCENARIO", help="scenario .toml file or built-in name"

@@ -526,10 +526,17 @@ class _Lockstep:
         """The refusal of a threshold that controller ``i`` misses at ``h = 0``."""
         where = "" if self.single else f" (controller[{i}])"
         found = _missed(self.settings["metric"], metrics, status, self.limits, self.built.plant)
+        advice = (
+            "give a larger threshold or a later settle time"
+            if status == 0
+            else "a larger threshold would not help a run that does not finish: check the "
+            "scenario (its gains, error_bound, plant and reference; delaytrack simulate shows "
+            "the run)"
+        )
         return ArgumentError(
             "threshold",
             f"= {_shown(self.settings['threshold'])} is missed already without delay: "
-            f"{found} at h = 0{where}; give a larger threshold or a later settle time",
+            f"{found} at h = 0{where}; {advice}",
         )
 
 

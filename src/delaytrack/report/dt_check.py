@@ -11,7 +11,7 @@ import pandas as pd
 from delaytrack.experiments.convergence import DtCheck, dt_check_verdict
 from delaytrack.report.html import HtmlReport
 
-__all__ = ["write_dt_check"]
+__all__ = ["dt_check_line", "write_dt_check"]
 
 
 def write_dt_check(
@@ -35,19 +35,12 @@ def write_dt_check(
     if dt_check is None:
         report.paragraph("Not run (check_dt = False).", note=True)
         return
-    verdict = "below" if dt_check.within_tolerance else "NOT below"
     report.paragraph(
         f"Every run repeated with dt = {half_dt:g} s (T_c unchanged). The largest relative change "
-        f"of any summary metric is {dt_check.largest:.3g}, {verdict} the "
-        f"{dt_check.tolerance:.0%} criterion."
+        f"of any summary metric is {_verdict_text(dt_check)}."
         + (
             " Runs above it (their metrics depend on the step; typically a law chattering at its "
-            "stability edge, whose oscillation the step resolves differently): "
-            + "; ".join(
-                f"{row.scenario} {row.controller} ({row.max_relative_change:.3g})"
-                for row in dt_check.above.itertuples()
-            )
-            + "."
+            f"stability edge, whose oscillation the step resolves differently): {_above(dt_check)}."
             if len(dt_check.above)
             else ""
         )
@@ -58,3 +51,26 @@ def write_dt_check(
         digits=6,
         missing="—",
     )
+
+
+def _verdict_text(dt_check: DtCheck) -> str:
+    """``"0.19, NOT below the 1 % criterion"``."""
+    verdict = "below" if dt_check.within_tolerance else "NOT below"
+    return f"{dt_check.largest:.3g}, {verdict} the {dt_check.tolerance:.0%} criterion"
+
+
+def _above(dt_check: DtCheck) -> str:
+    """The runs at or above the tolerance, each with its largest change."""
+    return "; ".join(
+        f"{row.scenario} {row.controller} ({row.max_relative_change:.3g})"
+        for row in dt_check.above.itertuples()
+    )
+
+
+def dt_check_line(dt_check: DtCheck) -> str:
+    """The check in one line for a terminal: the largest relative change, its verdict against
+    the tolerance and the runs above it."""
+    line = (
+        f"halving dt: the largest relative change of a summary metric is {_verdict_text(dt_check)}"
+    )
+    return line + (f"; runs above it: {_above(dt_check)}" if len(dt_check.above) else "")

@@ -124,15 +124,27 @@ def stopped_runs_text(stopped: pd.DataFrame) -> str:
     )
 
 
-def summary_text(summary: pd.DataFrame, stopped: pd.DataFrame) -> str:
-    """The paper's summary as a terminal shows it: scenario, controller, AE and %AE of x and y
-    and TV (4 significant digits), "—" where a run has no metrics, and a line naming the runs
-    that did not finish (``stopped``: :attr:`PaperFindings.stopped`), when any did not."""
-    columns = [*SUMMARY_COLUMNS[:5], "tv_Nm"]
-    table = table_text(summary[columns])
-    if len(stopped):
-        table += "\n—: no metrics, the run did not finish: " + stopped_runs_text(stopped)
-    return table
+def summary_text(summary: pd.DataFrame, stopped: pd.DataFrame, reference: str) -> str:
+    """The paper's summary as a terminal shows it: a line naming the path and the units, then
+    scenario, controller, AE and %AE of x and y and TV (4 significant digits), "—" where a run
+    has no metrics, and a line naming the runs of the table that did not finish (``stopped``:
+    :attr:`PaperFindings.stopped`), and one for the tuned AROLC's (its own file), when any did
+    not."""
+    columns = [*SUMMARY_COLUMNS[:6], "tv_Nm"]
+    text = (
+        f"{reference} path: AE in mm, %AE of the {DIAMETER_MM:g} mm diameter, TV of the "
+        "commanded wheel torques in N·m\n" + table_text(summary[columns])
+    )
+    shown = stopped.set_index(["scenario", "controller"]).index.isin(
+        summary.set_index(["scenario", "controller"]).index
+    )
+    if shown.any():
+        text += "\n—: no metrics, the run did not finish: " + stopped_runs_text(stopped[shown])
+    if not shown.all():
+        text += "\nin summary_tuned_arolc.csv, did not finish: " + stopped_runs_text(
+            stopped[~shown]
+        )
+    return text
 
 
 def with_status(summary: pd.DataFrame, status: pd.DataFrame) -> pd.DataFrame:

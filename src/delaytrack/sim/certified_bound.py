@@ -49,10 +49,10 @@ class BeyondCertifiedBoundWarning(DelaytrackWarning):
     """A run's largest delay exceeds AROLC's certified bound ``h_m`` (Theorem 1, with the run's
     ``K1``, ``K2``, ``Q`` and the paper's ``β = 1``, ``r = 1.1``).
 
-    This is not instability: Theorem 1 is a sufficient condition, and beyond ``h_m`` the
-    guarantee ends, not the loop. Whether the loop still tracks is then an empirical finding
-    of the run. ``h_m`` and ``largest_delay`` (seconds) hold the numbers of the run quoted: of
-    the runs beyond their bound, the one with the largest delay.
+    Exceeding ``h_m`` is not by itself instability: Theorem 1 is a sufficient condition, and
+    beyond ``h_m`` the guarantee ends, not necessarily the loop. Whether the loop still tracks
+    is then an empirical finding of the run. ``h_m`` and ``largest_delay`` (seconds) hold the
+    numbers of the run quoted: of the runs beyond their bound, the one with the largest delay.
     """
 
     def __init__(self, message: str, h_m: float, largest_delay: float) -> None:
@@ -122,9 +122,12 @@ def beyond_certified_bound(
             f"the largest delay exceeds AROLC's certified bound h_m in {beyond.size} of "
             f"{result.batch_size} runs (the most in run {run}: {delay} against h_m = {bound})"
         )
+    status = result.status_names[run]
+    ended = "" if status == "ok" else f"; that run did not finish ({status})"
     return BeyondCertifiedBoundWarning(
         f"{what} (Theorem 1 with the run's K1, K2, Q and the paper's beta = {PAPER_BETA:g}, "
-        f"r = {PAPER_R:g}); this is not instability, only the end of the guarantee",
+        f"r = {PAPER_R:g}): beyond h_m the guarantee ends, which does not by itself mean "
+        f"instability (the theorem is a sufficient condition){ended}",
         float(bounds[run]),
         float(largest[run]),
     )

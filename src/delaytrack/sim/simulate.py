@@ -150,8 +150,8 @@ def simulate(
     BeyondCertifiedBoundWarning
         When a run's controller is AROLC and the largest delay of the run exceeds its certified
         bound ``h_m`` (Theorem 1 with the run's ``K1``, ``K2``, ``Q`` and the paper's ``β = 1``,
-        ``r = 1.1``; :mod:`delaytrack.sim.certified_bound`). Exceeding it is not instability,
-        only the end of the guarantee.
+        ``r = 1.1``; :mod:`delaytrack.sim.certified_bound`). Exceeding it ends the guarantee,
+        which does not by itself mean instability.
     NoCommandArrivesWarning
         When a run's delay is never shorter than the run (:attr:`DelayProfile.h_min` at least
         ``t1 - t0``): no command reaches the plant, which receives ``u_init`` throughout

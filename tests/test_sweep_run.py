@@ -547,3 +547,15 @@ def test_a_sweep_over_input_limits_batches_each_run_with_its_own(tmp_path):
     free = runs[runs["input_limits"] == float("inf")]
     assert len(limited) == len(free) == 6
     assert not np.allclose(limited["ae_q1"].to_numpy(), free["ae_q1"].to_numpy())
+
+
+def test_the_command_says_how_many_runs_did_not_finish_and_how():
+    from delaytrack.cli.sweep import unfinished_runs_line
+
+    status = pd.Series(["ok", "left the path", "diverged", "left the path", "ok"])
+    assert unfinished_runs_line(status) == (
+        "  3 of 5 runs did not finish (2 left the path, 1 diverged): their metrics are empty in "
+        "runs.csv, and summary.csv counts those that diverged or left the path in its "
+        "divergence rate"
+    )
+    assert unfinished_runs_line(pd.Series(["ok", "ok"])) == ""

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from delaytrack._cli_options import integer, quiet_argument, trust_argument
 from delaytrack._output import check_output_folder, plain_folder_name, record_outputs
@@ -12,6 +13,9 @@ from delaytrack._words import counted
 from delaytrack.cli._scenarios import trusted
 from delaytrack.cli._usage import UsageError, flagged
 from delaytrack.warning import one_line
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = ["add_command", "run"]
 
@@ -67,6 +71,20 @@ def _count(flag: str, text: str) -> int:
     return value
 
 
+def unfinished_runs_line(status: pd.Series) -> str:
+    """``"  6 of 8 runs did not finish (4 left the path, 2 diverged): ..."``, or ``""`` when
+    every run finished: what a sweep's empty metrics are."""
+    stopped = status[status != "ok"]
+    if stopped.empty:
+        return ""
+    kinds = ", ".join(f"{count} {name}" for name, count in stopped.value_counts().items())
+    return (
+        f"  {len(stopped)} of {counted(len(status), 'run')} did not finish ({kinds}): their "
+        "metrics are empty in runs.csv, and summary.csv counts those that diverged or left "
+        "the path in its divergence rate"
+    )
+
+
 def _folder(args: argparse.Namespace) -> Path:
     """``--out``, else ``results/sweeps/<sweep file name>``, checked."""
     if args.out is not None:
@@ -114,6 +132,9 @@ def run(args: argparse.Namespace) -> int:
         f"{outcome.resumed} found "
         f"finished) in {outcome.seconds:.1f} s on {outcome.executor}"
     )
+    unfinished = unfinished_runs_line(outcome.runs.status)
+    if unfinished:
+        print(unfinished)
     for name, reason in outcome.rejected.items():
         print(f"  part {name} did not count: {reason}")
     print(f"wrote runs.parquet, runs.csv and {len(files)} files to {folder}/")

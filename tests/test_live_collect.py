@@ -309,3 +309,46 @@ def test_collect_says_which_node_did_not_finish(folder, tmp_path):
     )
     assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
     assert "the controller node did not finish (its log controller.mcap is there" in done.stderr
+
+
+def test_a_replay_that_stops_early_is_compared_only_where_both_ran(folder, tmp_path, monkeypatch):
+    """A replay that stopped (diverged, off the path) has no numbers after it: the live ticks
+    after it are not compared, the RMS of both runs are taken over the same ticks, and the
+    line says where the replay stopped (it said "0.00 %" beside a live RMS that counted ticks
+    the replay never reached, with a RuntimeWarning of an all-NaN row)."""
+    import dataclasses
+
+    from delaytrack.live import replay as replay_module
+
+    if not (folder / "summary.json").exists():  # collected by the first test, unless run alone
+        subprocess.run([*PYTHON, "collect", str(folder), SCENARIO], check=True, timeout=300)
+    copy = tmp_path / "session"
+    shutil.copytree(folder, copy)
+    resimulate = replay_module._resimulate
+    cut = {}
+
+    def stopped_halfway(*args, **kwargs):
+        whole = resimulate(*args, **kwargs)
+        half = whole.t.size // 2
+        x = whole.x.copy()
+        x[:, half:] = np.nan
+        cut.update(whole=whole, half=half)
+        return dataclasses.replace(
+            whole, x=x, status=np.array([3]), t_stop=np.array([whole.t[half]])
+        )
+
+    monkeypatch.setattr(replay_module, "_resimulate", stopped_halfway)
+    report, _, _ = replay_module._replay(copy)
+    half, whole = cut["half"], cut["whole"]
+    assert report["status"] == "left the path"
+    assert report["replay_stopped_at_s"] == whole.t[half]
+    assert 0 < report["ticks_compared"] <= half
+    rows = np.loadtxt(copy / "replay.csv", delimiter=",", skiprows=1, ndmin=2)
+    assert len(rows) == report["ticks_compared"] and np.isfinite(rows).all()
+    assert rows[:, 1].max() < whole.t[half]
+    q1 = report["coordinates"]["q1"]
+    live_rms = np.sqrt(np.mean(rows[:, 2] ** 2))  # e1_q1 live, over the ticks compared
+    assert q1["tracking_error_rms_live"] == pytest.approx(live_rms, rel=1e-12)
+    text = replay_module.ticks_compared_text(report)
+    assert text.endswith("the live ticks after it are not compared")
+    assert f"stopped as 'left the path' at t = {whole.t[half]:g} s" in text

@@ -47,7 +47,7 @@ from delaytrack.live._tables import (
     session_columns,
 )
 from delaytrack.live.log import write_csv
-from delaytrack.live.report import format_agreement, write_report
+from delaytrack.live.report import format_agreement, ticks_compared_text, write_report
 from delaytrack.live.transport import scenario_hashes
 from delaytrack.warning import one_line
 
@@ -97,10 +97,12 @@ def _replay(folder: str | Path, trust: list[str] | None = None) -> tuple[dict[st
     noise_spec = controller_node.get("measurement_noise")
     result = _resimulate(scenario, built, trace, t1, delay_node, noise_spec)
     compared = _compare(scenario, result, states, columns, ticks)
+    stopped = result.status_names[0] != "ok"
     report = {
         "ticks_compared": len(compared.rows),
         "t1_s": t1,
         "status": result.status_names[0],
+        "replay_stopped_at_s": float(result.t_stop[0]) if stopped else None,
         **_agreement(compared, columns),
         "measurement_noise": noise_spec,
         "not_reproduced": _not_reproduced(robot, controller_node, ticks),
@@ -223,10 +225,11 @@ def _compare(
     ticks: SessionTable,
 ) -> _Compared:
     """The live session against the replay at every tick with a logged state (a state or tick
-    logged twice: its last row)."""
+    logged twice: its last row) that the replay reached (a replay that stopped, diverged or
+    off the path, has no numbers after it: the live ticks after it are not compared)."""
     k = np.rint(result.t / scenario.T_c).astype(np.int64)
     state_rows = RowsByIndex(states["j"]).find(k * round(scenario.T_c / scenario.dt))
-    compared = state_rows >= 0
+    compared = (state_rows >= 0) & ~np.isnan(result.e1[0]).any(axis=1)
     positions = columns.in_table(states, "positions")
     live_errors = result.reference[compared, 0] - states.at(positions, state_rows[compared])
     tick_rows = RowsByIndex(ticks["k"]).find(k[compared])
@@ -363,8 +366,8 @@ def replay_main(args: Any) -> int:
     print(
         "\n".join(
             [
-                f"replay of {folder} ({report['ticks_compared']} ticks, status "
-                f"{report['status']}): live - replayed tracking error RMS at most "
+                f"replay of {folder} ({ticks_compared_text(report)}): live - replayed "
+                "tracking error RMS at most "
                 f"{100 * report['error_difference_rms_relative']:.2f} % of the live RMS "
                 f"({report['worst_coordinate']})",
                 *(f"  {line}" for line in format_agreement(report)),

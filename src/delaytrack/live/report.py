@@ -497,6 +497,7 @@ def _replay_settings(agreement: dict[str, Any]) -> dict[str, str]:
     coordinate and input (:func:`format_agreement`) and what the simulation does not
     reproduce."""
     rows = {
+        "ticks compared": ticks_compared_text(agreement).removesuffix(" ticks compared"),
         "live − replayed tracking error, RMS, worst coordinate": (
             f"{100 * agreement['error_difference_rms_relative']:.2f} % of its live RMS "
             f"({agreement['worst_coordinate']})"
@@ -510,6 +511,18 @@ def _replay_settings(agreement: dict[str, Any]) -> dict[str, str]:
         for k, v in agreement["not_reproduced"].items()
     )
     return rows
+
+
+def ticks_compared_text(report: dict[str, Any]) -> str:
+    """``"824 ticks compared"``, and where the replay stopped when it did: the live ticks after
+    it are not compared."""
+    text = f"{report['ticks_compared']} ticks compared"
+    if report.get("replay_stopped_at_s") is None:  # or a replay.json from before it was kept
+        return text
+    return (
+        f"{text}; the replay stopped as '{report['status']}' at t = "
+        f"{report['replay_stopped_at_s']:g} s, and the live ticks after it are not compared"
+    )
 
 
 def format_agreement(report: dict[str, Any]) -> list[str]:

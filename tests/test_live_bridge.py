@@ -360,7 +360,7 @@ def test_the_example_bridge_refuses_a_scenario_of_another_robot():
 
 def test_the_simulated_robot_stops_on_a_state_that_is_not_finite():
     """The default bridge raises (and the node stops with exit code 1) instead of going on."""
-    from delaytrack.live.robot import SimulatedRobot
+    from delaytrack.live.robot import SimulatedRobot, SimulatedRobotDiverged
     from delaytrack.scenario import load_builtin
 
     scenario = load_builtin("two_link_S1")
@@ -369,5 +369,18 @@ def test_the_simulated_robot_stops_on_a_state_that_is_not_finite():
     robot.write_command(0.0, np.array([1.0, -1.0]))
     q, qdot = robot.read_state(0.001)
     assert np.all(np.isfinite(q)) and np.any(qdot != 0.0)
-    with pytest.raises(FloatingPointError, match="not finite .* in the step from t = 0.001 s"):
+    # The loop's divergence, told apart from a driver's fault (the node says "diverged").
+    with pytest.raises(SimulatedRobotDiverged, match="not finite .* in the step from t = 0.001 s"):
         robot.write_command(0.001, np.array([np.inf, 0.0]))
+
+
+def test_the_summary_says_when_the_robot_stopped_the_session_early():
+    from delaytrack.live.session import _robot_stop_text
+
+    assert _robot_stop_text({"failure": None, "diverged": False}) == ""
+    assert _robot_stop_text({"failure": "its state is not finite", "diverged": True}) == (
+        "; it diverged and stopped the session early: its state is not finite"
+    )
+    assert _robot_stop_text({"failure": "Recorded.read_state raised ConnectionError: x"}) == (
+        "; it failed and stopped the session early: Recorded.read_state raised ConnectionError: x"
+    )

@@ -217,7 +217,9 @@ def write_session_report(
     runs = {"live": live} if replayed is None else {"live": live, "replayed": replayed}
     metrics = _metrics(runs)
     if _robot_failure(summary) is not None:  # tracked up to where the robot failed
-        metrics.loc[metrics["label"] == "live", "status"] = "robot failed"
+        robot = (summary.get("nodes") or {}).get("robot") or {}
+        stopped = "diverged" if robot.get("diverged") is True else "robot failed"
+        metrics.loc[metrics["label"] == "live", "status"] = stopped
     paths = [write_frame(metrics, folder / "metrics.csv")]
     figures = _figures(folder, scenario, built, runs)
     # Each figure drawn once: the same PNG in figures/ and in the report.
@@ -375,7 +377,8 @@ def _session_settings(summary: dict[str, Any], scenario: Any, live: Any) -> dict
     }
     failure = _robot_failure(summary)
     if failure is not None:
-        ended["robot"] = f"failure: {failure}"
+        diverged = (nodes.get("robot") or {}).get("diverged") is True
+        ended["robot"] = f"{'diverged' if diverged else 'failure'}: {failure}"
     return {
         "scenario": summary.get("scenario", scenario.name),
         "T_c": f"{scenario.T_c * 1e3:g} ms",

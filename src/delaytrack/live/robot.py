@@ -237,10 +237,15 @@ class SimulatedRobot(RobotBridge):
     def write_command(self, t: float, u: np.ndarray) -> None:
         self.stepper.u[:] = u
         if not self.stepper.step(t):
-            raise FloatingPointError(
-                f"the state is not finite (or its mass matrix not positive definite) in the "
+            raise SimulatedRobotDiverged(
+                f"its state is not finite (or its mass matrix not positive definite) in the "
                 f"step from t = {t:g} s"
             )
+
+
+class SimulatedRobotDiverged(FloatingPointError):
+    """The simulated robot's step left the finite numbers: the closed loop diverged (what
+    ``simulate`` calls ``diverged``), not a fault of a driver."""
 
 
 class RobotNode(NodeBase):
@@ -253,6 +258,7 @@ class RobotNode(NodeBase):
         plant = built.plant
         self.n, self.m = plant.n, plant.m
         self.bridge_name = getattr(args, "bridge", None)
+        self.diverged = False  # the simulated robot's state left the finite numbers
         horizons = [("reference", built.reference.horizon)]
         if self.bridge_name is None:
             plant.check_step(self.dt)
@@ -485,11 +491,13 @@ class RobotNode(NodeBase):
         try:
             state = self.bridge.read_state(j * self.dt)
         except Exception as error:  # noqa: BLE001 - the robot's driver: reported, node stops
-            self._fail(j, f"read_state raised {type(error).__name__}: {error}")
+            self._fail(
+                j, f"{type(self.bridge).__name__}.read_state raised {type(error).__name__}: {error}"
+            )
             return False
         problem = check_state(state, self.x)
         if problem is not None:
-            self._fail(j, problem)
+            self._fail(j, f"{type(self.bridge).__name__}.{problem}")
             return False
         return True
 
@@ -510,16 +518,26 @@ class RobotNode(NodeBase):
         """Write :attr:`u` for step ``j``; False (the node stopped) when the bridge raised."""
         try:
             self.bridge.write_command(j * self.dt, self.u)
+        except SimulatedRobotDiverged as error:  # the loop, not a driver
+            self.diverged = True
+            self._fail(j, str(error))
+            return False
         except Exception as error:  # noqa: BLE001 - the robot's driver: reported, node stops
-            self._fail(j, f"write_command raised {type(error).__name__}: {error}")
+            self._fail(
+                j,
+                f"{type(self.bridge).__name__}.write_command raised "
+                f"{type(error).__name__}: {error}",
+            )
             return False
         return True
 
     def _fail(self, j: int, what: str) -> None:
-        """Stop the node on a failure of the robot at step ``j`` (said on stderr, one line)."""
-        self.failure = f"{type(self.bridge).__name__}.{what}".replace("\n", " ")
+        """Stop the node on a failure of the robot at step ``j`` (said on stderr, one line):
+        its driver's (``what`` names the call), or the simulated robot's divergence."""
+        self.failure = what.replace("\n", " ")
+        event = "diverged" if self.diverged else "failed"
         print(
-            f"error: the robot failed at t = {j * self.dt:g} s (step {j}): {self.failure}; "
+            f"error: the robot {event} at t = {j * self.dt:g} s (step {j}): {self.failure}; "
             "the robot node stops (exit code 1), its log and tables up to there are written",
             file=sys.stderr,
             flush=True,
@@ -575,6 +593,7 @@ class RobotNode(NodeBase):
             "coordinates": self.names,
             "bridge": self.bridge_name or "simulated",
             "failure": self.failure,
+            "diverged": self.diverged,
         }
 
 

@@ -646,6 +646,16 @@ def _rule_error_ms(t_k: np.ndarray, due: np.ndarray, steps: np.ndarray, delay: A
     return (s - t_k[inside] - delay.h(s)) * 1e3
 
 
+def _robot_stop_text(robot: dict[str, Any]) -> str:
+    """``""``, or why the robot node stopped before the session's end (its record's
+    ``failure``): the session ended early there."""
+    failure = robot.get("failure")
+    if not isinstance(failure, str):
+        return ""
+    how = "diverged" if robot.get("diverged") is True else "failed"
+    return f"; it {how} and stopped the session early: {failure}"
+
+
 def format_summary(summary: dict[str, Any], folder: Path) -> str:
     """A few lines for the terminal; a node that wrote no record (it did not finish) is said
     to have none, not shown as zeros."""
@@ -662,7 +672,7 @@ def format_summary(summary: dict[str, Any], folder: Path) -> str:
         "robot": f"  robot: {r.get('steps', 0)} steps, {r.get('missed_steps', 0)} missed, "
         f"lateness p99 {ms(r.get('lateness_ms_p99'))}, u_init {r.get('no_command_steps', 0)} "
         f"steps before the first command + zero input {r.get('timeout_zero_steps', 0)} on "
-        "timeout",
+        "timeout" + _robot_stop_text(r),
     }
     for role in ROLES:
         if nodes.get(role) is None:

@@ -372,3 +372,25 @@ def test_the_session_writes_metrics_figures_and_a_report(sessions):
 
     listed = json.loads((folder / MANIFEST).read_text())["files"]
     assert "figures/delay.png" in listed and "report.html" in listed
+
+
+def test_the_report_says_where_the_live_error_passed_the_scenarios_error_bound():
+    """``simulate`` stops a run whose tracking error leaves ``error_bound`` ("left the path");
+    a live session runs on, and says where it passed the bound."""
+    from types import SimpleNamespace
+
+    from delaytrack.live.report import error_bound_text
+
+    plant = SimpleNamespace(n=2, coordinate_names=None, coordinate_units=("rad", "rad"))
+    e1 = np.array([[[0.01, 0.0], [0.02, 0.02], [0.06, 0.3], [0.01, 0.0]]])
+    live = SimpleNamespace(e1=e1, t=np.array([0.0, 0.002, 0.004, 0.006]))
+    bounded = SimpleNamespace(simulated_error_bound=(0.05, 1.0))
+    assert error_bound_text(live, bounded, plant) == (
+        "the tracking error passed the scenario's error_bound (q1 0.05 rad) at t = 0.004 s, "
+        "where simulate stops a run as 'left the path'; the live session is not stopped by it "
+        "and ran on (its metrics cover the whole session)"
+    )
+    both = SimpleNamespace(simulated_error_bound=0.01)
+    assert "(q1 0.01 rad, q2 0.01 rad) at t = 0.002 s" in error_bound_text(live, both, plant)
+    unbounded = SimpleNamespace(simulated_error_bound=np.inf)
+    assert error_bound_text(live, unbounded, plant) is None

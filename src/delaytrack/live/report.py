@@ -36,15 +36,18 @@ from delaytrack.live._tables import (
     read_table,
     session_columns,
 )
+from delaytrack.units import coordinate_units
 
 __all__ = [
     "delay_node_text",
+    "error_bound_text",
     "format_agreement",
     "lengths_text",
     "links_text",
     "live_result",
     "metrics_with_units",
     "node_lengths",
+    "ticks_compared_text",
     "write_report",
     "write_session_report",
 ]
@@ -226,7 +229,12 @@ def write_session_report(
     images = {name: (png_bytes(figure), caption) for name, (figure, caption) in figures.items()}
     for name, (data, _caption) in images.items():
         paths.append(write_bytes(folder / "figures" / f"{name}.png", data))
-    report = _html_report(folder, scenario, summary, live, metrics, agreement, images.values())
+    beyond = error_bound_text(live, scenario, built.plant)
+    if beyond is not None:  # said where the session's summary is read, and in the report
+        print(f"note: {beyond}")
+    report = _html_report(
+        folder, scenario, summary, live, metrics, agreement, images.values(), beyond
+    )
     paths.append(report.write(folder / "report.html"))
     return paths
 
@@ -278,9 +286,10 @@ def _html_report(
     metrics: Any,
     agreement: Any,
     images: Iterable[tuple[bytes, str]],
+    beyond: str | None,
 ) -> Any:
     """The session's ``report.html``, not yet written; ``images`` are the figures' PNGs and
-    captions."""
+    captions, ``beyond`` :func:`error_bound_text`."""
     from delaytrack.report.html import HtmlReport
 
     nodes = _node_records(summary)
@@ -296,6 +305,8 @@ def _html_report(
     report.settings(_timing_settings(summary, scenario, *nodes))
     report.heading("Tracking")
     report.table(metrics, "Tracking metrics over every controller tick (metrics.csv)")
+    if beyond is not None:
+        report.paragraph(f"Note: {beyond}.", note=True)
     if agreement is not None:
         report.heading("Replay: the simulation with the realised delays")
         report.settings(_replay_settings(agreement))
@@ -547,6 +558,28 @@ def format_agreement(report: dict[str, Any]) -> list[str]:
         for name, c in report["inputs"].items()
     ]
     return lines
+
+
+def error_bound_text(live: Any, scenario: Any, plant: Any) -> str | None:
+    """Where the live tracking error first passed the scenario's ``error_bound`` (a tick's
+    ``|q_d - q|`` beyond it in some coordinate), where ``simulate`` stops a run as ``left the
+    path``: the live robot is not stopped by it. None without a bound or when it held."""
+    bound = np.broadcast_to(np.asarray(scenario.simulated_error_bound, dtype=float), (plant.n,))
+    beyond = np.abs(live.e1[0]) > bound  # NaN (no state) compares False
+    ticks = np.flatnonzero(beyond.any(axis=1))
+    if ticks.size == 0:
+        return None
+    first = int(ticks[0])
+    which = [
+        f"{name} {bound[i]:g}{f' {unit}' if unit else ''}"
+        for i, (name, unit) in enumerate(coordinate_units(plant).items())
+        if beyond[first, i]
+    ]
+    return (
+        f"the tracking error passed the scenario's error_bound ({', '.join(which)}) at "
+        f"t = {live.t[first]:g} s, where simulate stops a run as 'left the path'; the live "
+        "session is not stopped by it and ran on (its metrics cover the whole session)"
+    )
 
 
 def write_report(folder: Path, scenario: Any, **replay: Any) -> bool:

@@ -127,7 +127,7 @@ def test_command_writes_the_table_figure_and_page(tmp_path, capsys):
     Scenario.from_dict(PLANT).to_toml(scenario)
     out = tmp_path / "out"
     args = ["tradeoff", str(scenario), "--omega", "0.7", "1.4", "2", "--upper", "2"]
-    assert main([*args, "--zeta", str(ZETA), "--out", str(out), "--quiet"]) == 0
+    assert main([*args, "--zeta", str(ZETA), "--out", str(out), "--draws", "3", "--quiet"]) == 0
     table = pd.read_csv(out / "tradeoff.csv")
     assert {"omega_n_rad_per_s", "k1_per_s2", "h_m_s", "h_exact_s", "empirical_margin_s"} <= set(
         table.columns
@@ -136,6 +136,15 @@ def test_command_writes_the_table_figure_and_page(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "Pareto front" in printed
     assert re.search(r"omega_n = \S+ +rad/s  margin = \S+ s  AE = \S+", printed), printed
+    # A margin shown as a lower bound ("2+ s") is explained, and only then.
+    assert ("+ s  AE" in printed) == (
+        "+: a lower bound: the loop did not leave the path" in printed
+    )
+    # The linear plant draws nothing: one run per point, and the line says why not three.
+    assert (
+        "1 draw each (not the 3 of --draws: the scenario draws nothing, so every draw would be "
+        "the same run)"
+    ) in printed
 
 
 @pytest.mark.parametrize(
@@ -308,3 +317,17 @@ def test_every_metric_column_of_the_evaluated_points_has_its_unit():
     alone = _evaluated({"arolc": [search, None]}, (1.0, 2.0), names, units, (False,) * 2 + (True,))
     np.testing.assert_array_equal(alone["metric_rad"], [3.0, 2.0, np.nan])
     assert list(alone["omega_n"]) == [1.0] * 3  # a point without a search has no rows
+
+
+def test_command_counts_the_points_with_no_run_on_the_path(tmp_path, capsys):
+    scenario = tmp_path / "light_mass.toml"
+    Scenario.from_dict(PLANT).to_toml(scenario)
+    out = tmp_path / "out"
+    args = ["tradeoff", str(scenario), "--omega", "20", "80", "2", "--upper", "2"]
+    assert main([*args, "--zeta", str(ZETA), "--out", str(out), "--quiet"]) == 0
+    table = pd.read_csv(out / "tradeoff.csv")
+    off = int((table.on_path == 0).sum())
+    assert 0 < off < len(table)  # fast gains beside a 50 ms delay: some points never stay on
+    assert (
+        f"  {off} of {len(table)} points (gain point x controller) had no run on the path"
+    ) in capsys.readouterr().out

@@ -245,11 +245,17 @@ def run(args: argparse.Namespace) -> int:
         raise flagged(error, _FLAGS) from None
     files = write_tradeoff(study, folder, decision)
     front = study.front
+    one_run = (
+        f" (not the {args.draws} of --draws: the scenario draws nothing, so every draw would be "
+        "the same run)"
+        if args.draws is not None and study.draws != args.draws
+        else ""
+    )
     print(
         f"tradeoff {scenario.name}: {counted(len(study.omegas), 'gain point')} x "
-        f"{counted(len(study.families), 'controller')}, {counted(study.draws, 'draw')} each, "
-        f"{study.seconds:.1f} s ({counted(study.computed, 'unit')} computed, {study.resumed} "
-        "resumed)"
+        f"{counted(len(study.families), 'controller')}, {counted(study.draws, 'draw')} each"
+        f"{one_run}, {study.seconds:.1f} s ({counted(study.computed, 'unit')} computed, "
+        f"{study.resumed} resumed)"
     )
     ae_unit = f" {study.ae_unit}" if study.ae_unit else ""
     print("Pareto front (empirical margin, median AE):")
@@ -258,6 +264,17 @@ def run(args: argparse.Namespace) -> int:
             f"  {row.controller:<10} omega_n = {row.omega_n:<8.4g} rad/s  margin = "
             f"{row.empirical_margin:.4g}{'+' if row.margin_search == LOWER_BOUND else ''} s  AE = "
             f"{row.ae_median:.4g}{ae_unit}"
+        )
+    if (front.margin_search == LOWER_BOUND).any():
+        print(
+            f"  +: a lower bound: the loop did not leave the path up to --upper, {study.upper:g} s"
+        )
+    table = study.table
+    off = table[table.on_path == 0]
+    if len(off):
+        print(
+            f"  {len(off)} of {counted(len(table), 'point')} (gain point x controller) had no "
+            "run on the path: no median AE, not on the front (tradeoff.csv lists them)"
         )
     if decision is not None:
         print("\n".join(decision_lines(decision)))

@@ -317,7 +317,7 @@ def _two_link(args: argparse.Namespace) -> int:
     except ScenarioError as error:  # a --duration the job's scenarios refuse
         raise flagged(error, keys=_DURATION) from None
     columns = ["scenario", "controller", "ae_q1", "ae_q2", "tv", "status"]
-    print(table_text(study.summary[columns]))
+    print(table_text(study.summary[columns].rename(columns=study.columns_with_units)))
     if study.dt_verdict is not None:
         print(dt_check_line(study.dt_verdict))
     print(f"report: {Path(args.out) / FOLDER / 'report.html'}")

@@ -34,6 +34,7 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from delaytrack._deprecated import moved_names
+from delaytrack._result_columns import metric_columns_with_units
 from delaytrack.analysis import RazumikhinBound, razumikhin_bound
 from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
 from delaytrack.analysis.razumikhin import PAPER_R as R
@@ -195,6 +196,12 @@ class TwoLinkStudy:
     def dt_verdict(self) -> DtCheck | None:
         """The dt-halving check's verdict (None if not checked)."""
         return dt_check_verdict(self.dt_check)
+
+    @property
+    def columns_with_units(self) -> dict[str, str]:
+        """The metric columns of :attr:`summary` renamed with the arm's units, as its runs
+        give them (every controller's runs are of the one arm): ``ae_q1`` -> ``ae_q1_rad``."""
+        return metric_columns_with_units(next(iter(self.results.values())))
 
 
 def _summary(results: dict[str, SimResult]) -> pd.DataFrame:

@@ -12,7 +12,6 @@ import numpy as np
 
 from delaytrack._io import write_frame
 from delaytrack._output import claim_output_folder, record_outputs
-from delaytrack._result_columns import metric_columns_with_units
 from delaytrack._version import __version__
 from delaytrack.report.dt_check import write_dt_check
 from delaytrack.report.figures import (
@@ -253,8 +252,7 @@ def _report(study: TwoLinkStudy, figures: dict[str, tuple[Figure, str]]) -> Html
         + " (the certificate concerns uniform ultimate boundedness, not the size of the error)."
     )
     report.heading("Summary")
-    # the arm's units, as its runs give them (every controller's runs are of the one arm)
-    with_units = metric_columns_with_units(next(iter(study.results.values())))
+    with_units = study.columns_with_units
     report.table(
         study.summary.rename(columns=with_units),
         "Metrics over the whole run (summary.csv's columns, shown here with their units): "

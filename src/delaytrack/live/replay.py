@@ -47,7 +47,12 @@ from delaytrack.live._tables import (
     session_columns,
 )
 from delaytrack.live.log import write_csv
-from delaytrack.live.report import format_agreement, ticks_compared_text, write_report
+from delaytrack.live.report import (
+    format_agreement,
+    not_reproduced_text,
+    ticks_compared_text,
+    write_report,
+)
 from delaytrack.live.transport import scenario_hashes
 from delaytrack.warning import one_line
 
@@ -362,7 +367,6 @@ def replay_main(args: Any) -> int:
     # The session's report again, with the replayed run beside the live one.
     report_failed = write_report(folder, scenario, replayed=replayed, agreement=report)
     record_outputs(folder, session_files(folder))
-    not_reproduced = ", ".join(f"{k} {v}" for k, v in report["not_reproduced"].items())
     print(
         "\n".join(
             [
@@ -371,7 +375,7 @@ def replay_main(args: Any) -> int:
                 f"{100 * report['error_difference_rms_relative']:.2f} % of the live RMS "
                 f"({report['worst_coordinate']})",
                 *(f"  {line}" for line in format_agreement(report)),
-                f"  not reproduced by the simulation: {not_reproduced}",
+                f"  not reproduced by the simulation: {not_reproduced_text(report)}",
             ]
         )
     )

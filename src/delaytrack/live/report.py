@@ -47,6 +47,7 @@ __all__ = [
     "live_result",
     "metrics_with_units",
     "node_lengths",
+    "not_reproduced_text",
     "ticks_compared_text",
     "write_report",
     "write_session_report",
@@ -520,11 +521,17 @@ def _replay_settings(agreement: dict[str, Any]) -> dict[str, str]:
     for line in format_agreement(agreement):
         name, _, text = line.partition(": ")
         rows[name] = text
-    rows["not reproduced by the simulation"] = ", ".join(
+    rows["not reproduced by the simulation"] = not_reproduced_text(agreement)
+    return rows
+
+
+def not_reproduced_text(agreement: dict[str, Any]) -> str:
+    """What the simulation does not reproduce, in words: ``"robot zero input on timeout steps
+    0, controller missed ticks 0, ..."``."""
+    return ", ".join(
         f"{k.replace('_', ' ').replace('t k', 't_k')} {v}"  # t_k keeps its underscore
         for k, v in agreement["not_reproduced"].items()
     )
-    return rows
 
 
 def ticks_compared_text(report: dict[str, Any]) -> str:

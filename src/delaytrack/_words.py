@@ -24,7 +24,7 @@ def shown_number(value: float) -> str:
     return short if float(short) == value else repr(float(value))
 
 
-def table_text(frame: pd.DataFrame, *, index: bool = False) -> str:
-    """``frame`` as a terminal shows it: numbers to four significant digits, "—" where a value
-    is missing (a run that did not finish has no metrics), never "NaN"."""
-    return frame.to_string(index=index, float_format=lambda v: f"{v:.4g}", na_rep="—")
+def table_text(frame: pd.DataFrame) -> str:
+    """``frame`` as a terminal shows it, without its index: numbers to four significant digits,
+    "—" where a value is missing (a run that did not finish has no metrics), never "NaN"."""
+    return frame.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="—")

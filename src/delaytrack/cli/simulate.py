@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
         f"simulated {scenario.name!r}: {scenario.duration:g} s in {seconds:.1f} s wall time, "
         f"status {status}"
     )
-    print(table_text(output.result.summary(), index=True))
+    print(table_text(output.result.summary().reset_index()))
     _no_command_arrives(output)
     _certified_bound(output)
     print(f"wrote {len(output.files)} files to {folder}/:")

@@ -49,7 +49,9 @@ PARTS = {
         rf"^controller (\S+) Hz, lateness p99 {_MS}, (\d+) missed, (\d+) stale$"
     ),
     "delay": re.compile(r"^delay (\d+) received, (\d+) lost, (\d+) gaps$"),
-    "robot": re.compile(rf"^robot (\d+) missed, (\d+) zero input, realised-h \|\.\| p99 {_MS}$"),
+    "robot": re.compile(
+        rf"^robot (\d+) missed, (\d+) without a command, realised-h \|\.\| p99 {_MS}$"
+    ),
 }
 
 

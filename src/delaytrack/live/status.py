@@ -137,7 +137,7 @@ def _part(status: Mapping[str, Any]) -> str:
             f"{total.get('gaps')} gaps"
         )
     return (
-        f"robot {total.get('missed')} missed, {total.get('zero_input')} zero input, "
+        f"robot {total.get('missed')} missed, {total.get('zero_input')} without a command, "
         f"realised-h |.| p99 {_ms(last.get('realised_minus_h_abs_ms_p99'))}"
     )
 
@@ -146,7 +146,7 @@ def format_line(statuses: Mapping[str, Mapping[str, Any]]) -> str:
     """One line from the latest status of each node (keyed by role), in the order controller,
     delay, robot, starting with the latest session time: ``t=12 s | controller 100 Hz, lateness
     p99 0.43 ms, 0 missed, 0 stale | delay 1200 received, 0 lost, 0 gaps | robot 0 missed, 105
-    zero input, realised-h |.| p99 1.02 ms``. The counts are totals since the start; the rate
+    without a command, realised-h |.| p99 1.02 ms``. The counts are totals since the start; the rate
     and the percentiles are over the last second."""
     t = max(float(status["t"]) for status in statuses.values())
     parts = [_part(statuses[role]) for role in _ROLES if role in statuses]

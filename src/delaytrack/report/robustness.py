@@ -93,15 +93,16 @@ def findings(study: RobustnessStudy) -> list[str]:
             "Tuned gain sets still on an edge of their grid after the extensions, so possibly "
             "not fully tuned: "
             + ", ".join(f"{kind} ({gain_set})" for kind, gain_set in study.edges)
-            + " (gains file, 'interior')."
+            + " (their chosen value of some gain lies on the grid's edge: 'interior = false' in "
+            "the gains file)."
         )
     ranges = study.attribution_ranges
     for row in ranges.itertuples():
         out.append(
             f"{row.part} (noise {row.noise}, S1–S4, median paired change over the draws where "
-            f"both stayed on the path): AE {row.ae_change_min_mm:+.3g} to "
-            f"{row.ae_change_max_mm:+.3g} mm, TV {row.tv_change_min_Nm:+.3g} to "
-            f"{row.tv_change_max_Nm:+.3g} N·m; diverged in {row.diverged_with} of {row.draws} "
+            f"both stayed on the path): AE {row.ae_change_min_mm:+.4g} to "
+            f"{row.ae_change_max_mm:+.4g} mm, TV {row.tv_change_min_Nm:+.4g} to "
+            f"{row.tv_change_max_Nm:+.4g} N·m; diverged in {row.diverged_with} of {row.draws} "
             f"draws with it and in {row.diverged_without} without it"
             + (
                 f"; in {', '.join(row.not_compared)} no draw could be compared (in no draw did "

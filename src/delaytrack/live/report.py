@@ -48,6 +48,7 @@ __all__ = [
     "metrics_with_units",
     "node_lengths",
     "not_reproduced_text",
+    "robot_stop",
     "ticks_compared_text",
     "write_report",
     "write_session_report",
@@ -220,10 +221,11 @@ def write_session_report(
     live = live_result(folder, scenario, built)
     runs = {"live": live} if replayed is None else {"live": live, "replayed": replayed}
     metrics = _metrics(runs)
-    if _robot_failure(summary) is not None:  # tracked up to where the robot failed
-        robot = (summary.get("nodes") or {}).get("robot") or {}
-        stopped = "diverged" if robot.get("diverged") is True else "robot failed"
-        metrics.loc[metrics["label"] == "live", "status"] = stopped
+    stop = robot_stop((summary.get("nodes") or {}).get("robot") or {})
+    if stop is not None:  # tracked up to where the robot diverged or failed
+        how, _ = stop
+        status = "diverged" if how == "diverged" else "robot failed"
+        metrics.loc[metrics["label"] == "live", "status"] = status
     paths = [write_frame(metrics, folder / "metrics.csv")]
     figures = _figures(folder, scenario, built, runs)
     # Each figure drawn once: the same PNG in figures/ and in the report.
@@ -327,11 +329,14 @@ def _node_records(summary: dict[str, Any]) -> tuple[dict[str, Any], ...]:
     return tuple(nodes.get(role) or {} for role in ("controller", "robot", "delay"))
 
 
-def _robot_failure(summary: dict[str, Any]) -> str | None:
-    """What stopped the robot node early (its bridge or its state), or None."""
-    robot = (summary.get("nodes") or {}).get("robot") or {}
+def robot_stop(robot: dict[str, Any]) -> tuple[str, str] | None:
+    """How the robot node stopped early, from its record (``robot.json``): ``("diverged",
+    what)`` for the simulated robot's divergence, ``("failed", what)`` for its bridge's fault
+    or a state it gave; None when it did not."""
     failure = robot.get("failure")
-    return failure if isinstance(failure, str) else None
+    if not isinstance(failure, str):
+        return None
+    return ("diverged" if robot.get("diverged") is True else "failed"), failure
 
 
 #: Nodes whose lengths differ by more than this ran with different ``--duration`` (a node's
@@ -387,10 +392,10 @@ def _session_settings(summary: dict[str, Any], scenario: Any, live: Any) -> dict
         role: (record or {}).get("stopped_by") or "no record (the node did not finish)"
         for role, record in nodes.items()
     }
-    failure = _robot_failure(summary)
-    if failure is not None:
-        diverged = (nodes.get("robot") or {}).get("diverged") is True
-        ended["robot"] = f"{'diverged' if diverged else 'failure'}: {failure}"
+    stop = robot_stop(nodes.get("robot") or {})
+    if stop is not None:
+        how, failure = stop
+        ended["robot"] = f"{'diverged' if how == 'diverged' else 'failure'}: {failure}"
     return {
         "scenario": summary.get("scenario", scenario.name),
         "T_c": f"{scenario.T_c * 1e3:g} ms",
@@ -512,7 +517,7 @@ def _replay_settings(agreement: dict[str, Any]) -> dict[str, str]:
     coordinate and input (:func:`format_agreement`) and what the simulation does not
     reproduce."""
     rows = {
-        "ticks compared": ticks_compared_text(agreement).removesuffix(" ticks compared"),
+        "ticks compared": f"{agreement['ticks_compared']}{_replay_stop_text(agreement)}",
         "live − replayed tracking error, RMS, worst coordinate": (
             f"{100 * agreement['error_difference_rms_relative']:.2f} % of its live RMS "
             f"({agreement['worst_coordinate']})"
@@ -537,11 +542,16 @@ def not_reproduced_text(agreement: dict[str, Any]) -> str:
 def ticks_compared_text(report: dict[str, Any]) -> str:
     """``"824 ticks compared"``, and where the replay stopped when it did: the live ticks after
     it are not compared."""
-    text = f"{report['ticks_compared']} ticks compared"
+    return f"{report['ticks_compared']} ticks compared{_replay_stop_text(report)}"
+
+
+def _replay_stop_text(report: dict[str, Any]) -> str:
+    """``""``, or ``"; the replay stopped as 'diverged' at t = 1.6 s, and the live ticks after
+    it are not compared"``."""
     if report.get("replay_stopped_at_s") is None:  # or a replay.json from before it was kept
-        return text
+        return ""
     return (
-        f"{text}; the replay stopped as '{report['status']}' at t = "
+        f"; the replay stopped as '{report['status']}' at t = "
         f"{report['replay_stopped_at_s']:g} s, and the live ticks after it are not compared"
     )
 

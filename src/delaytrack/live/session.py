@@ -61,6 +61,7 @@ from delaytrack.live.report import (
     lengths_text,
     links_text,
     node_lengths,
+    robot_stop,
 )
 from delaytrack.live.status import StatusWatch
 from delaytrack.live.transport import scenario_hashes
@@ -647,12 +648,12 @@ def _rule_error_ms(t_k: np.ndarray, due: np.ndarray, steps: np.ndarray, delay: A
 
 
 def _robot_stop_text(robot: dict[str, Any]) -> str:
-    """``""``, or why the robot node stopped before the session's end (its record's
-    ``failure``): the session ended early there."""
-    failure = robot.get("failure")
-    if not isinstance(failure, str):
+    """``""``, or why the robot node stopped before the session's end (:func:`robot_stop`):
+    the session ended early there."""
+    stop = robot_stop(robot)
+    if stop is None:
         return ""
-    how = "diverged" if robot.get("diverged") is True else "failed"
+    how, failure = stop
     return f"; it {how} and stopped the session early: {failure}"
 
 

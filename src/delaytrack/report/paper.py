@@ -117,7 +117,7 @@ def _one_run_verdict(
 
 def stopped_runs_text(stopped: pd.DataFrame) -> str:
     """The runs that did not finish (:attr:`PaperFindings.stopped`), each with its status and
-    the time it stopped: ``"S2 PCON stopped as 'off-path' at t = 12.3 s; ..."``."""
+    the time it stopped: ``"S2 PCON stopped as 'left the path' at t = 18.25 s; ..."``."""
     return "; ".join(
         f"{r.scenario} {r.controller} stopped as '{r.status}' at t = {r.t_stop:g} s"
         for r in stopped.itertuples()

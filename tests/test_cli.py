@@ -85,6 +85,13 @@ def test_bound_text_output(capsys):
     assert "h_m" in out and "0.12487 s" in out and "lambda_min(Q)" in out
 
 
+def test_bound_shows_a_tiny_bound_in_a_unit_that_reads(capsys):
+    """High gains certify about a nanosecond: shown so, not as "1e-06 ms"."""
+    assert main(["bound", "--k1", "1000", "--k2", "1000"]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.strip().startswith("h_m"))
+    assert line.endswith(" s (1 ns)") and "e-06" not in line
+
+
 def test_bound_and_design_show_an_r_just_above_one_as_given(capsys):
     # six significant digits would print the refused r = 1
     r = "1.0000000000000002"

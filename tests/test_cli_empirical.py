@@ -97,8 +97,13 @@ def test_margins_job_writes_its_files(tmp_path, capsys):
     assert main(args) == 0
     printed = capsys.readouterr().out
     assert "margins job done" in printed
-    header = next(line for line in printed.splitlines() if "k1" in line).split()
+    lines = printed.splitlines()
+    header = next(line for line in lines if "k1_per_s2" in line.split()).split()
     assert header[:4] == ["k1_per_s2", "k2_per_s", "h_m_s", "h_exact_s"]  # as margins.csv
+    legend = lines[lines.index(next(line for line in lines if "k1_per_s2" in line.split())) - 1]
+    for column in header[2:8]:  # every margin's column is said in words above the table
+        assert f"{column}: " in legend, column
+    assert "no failure found up to 2 s" in legend
     folder = tmp_path / "margins"
     for name in ("margins.csv", "evaluated.csv", "scenario.toml", "report.html"):
         assert (folder / name).is_file(), name
@@ -125,11 +130,14 @@ def test_margins_job_writes_its_files(tmp_path, capsys):
 
 
 def test_margins_job_too_short_for_its_tracking_rule_is_a_usage_error(tmp_path, capsys):
+    """The job has no --threshold: the error names the flag that mends it, --duration."""
     args = ["reproduce", "--job", "margins", "--out", str(tmp_path), "--duration", "4", "--quiet"]
     assert main(args) == 2
-    assert "error: margins job: threshold = 0.2 is missed already without delay" in (
-        capsys.readouterr().err
-    )
+    err = capsys.readouterr().err
+    assert "error: margins job: --duration = 4 s is too short: AROLC at K1 = 0.5 I" in err
+    assert "already without delay (ae of q1 = " in err
+    assert "give a longer --duration (the job's own, 30 s, meets it)" in err
+    assert "threshold" not in err
 
 
 def test_empirical_takes_a_threshold_per_coordinate(tmp_path, capsys):

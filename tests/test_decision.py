@@ -103,7 +103,7 @@ def test_the_decision_holds_the_facts_and_the_report_words_them():
     assert why == {
         "arolc2.0": "",
         "outer-loop2.0": "",
-        "arolc1.0": "worst-case AE 0.02 m against the winner's 0.012 m",
+        "arolc1.0": "worst-case AE 20 mm against the winner's 12 mm",
         "pconf2.0": f"Wilson lower bound {low:.3f} < 0.95 at delay 0.1 s, told 0.075 s "
         "(78 of 80 on the path)",
     }
@@ -299,4 +299,4 @@ def test_a_winner_that_tracked_without_error_has_no_ratio_to_the_runner_up():
     assert decision.winner.worst_ae == 0.0 and math.isnan(decision.ae_ratio)
     assert decision.ae_difference == pytest.approx(0.015)
     text = "\n".join(decision_lines(decision))
-    assert "wins by 0.015 m of worst-case AE" in text and "times" not in text
+    assert "wins by 15 mm of worst-case AE" in text and "times" not in text

@@ -163,12 +163,12 @@ def test_the_paper_report_renders_the_section_from_the_result(paper_study, tmp_p
     assert sentence == (
         "S1, h_max = 0.1 s, delay known exactly: use AROLC at ω_n = 2 rad/s (K1 = 4 I, K2 = 4 I) "
         "(the largest ω_n of the sweep: larger gains were not tried and may be more accurate "
-        "still); its worst-case AE is "
-        f"{arolc_ae:.3g} m and at least {100 * low:.1f} % of drawn robots stay on the path in "
-        "every condition (Wilson 95 % lower bound, 120 draws per condition); the runner-up, "
+        f"still); its worst-case AE is {1e3 * arolc_ae:.3g} mm and at least {100 * low:.1f} % "
+        "of drawn robots stay on the path in every condition (Wilson 95 % lower bound, 120 "
+        "draws per condition); the runner-up, "
         "the outer loop (AROLC without Δu) at ω_n = 2 rad/s (K1 = 4 I, K2 = 4 I), has a "
-        f"worst-case AE of {2 * arolc_ae:.3g} m: {arolc_ae:.3g} m more than the winner's "
-        "(2 times)."
+        f"worst-case AE of {2e3 * arolc_ae:.3g} mm: {1e3 * arolc_ae:.3g} mm more than the "
+        "winner's (2 times)."
     )
     text = html.unescape(re.sub(r"<[^>]+>", "", report))
     assert sentence in text

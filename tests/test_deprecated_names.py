@@ -51,7 +51,7 @@ def test_arolc_gains_text_gives_the_outer_loop_from_k_and_zeta() -> None:
     from delaytrack.experiments.tuning import gains_text
 
     text = gains_text("AROLC", {"k": 6.0, "zeta": 0.7, "alpha": 54.0})
-    assert text == "k = 6, ζ = 0.7 (K1 = 36 I, K2 = 8.4 I), α = 54"
+    assert text == "k = 6 rad/s, ζ = 0.7 (K1 = 36 I, K2 = 8.4 I), α = 54"
 
 
 def test_with_tuned_arolc_warns_and_gives_the_tuned_summary() -> None:

@@ -224,3 +224,61 @@ def test_an_upper_beyond_a_predictors_history_is_refused_as_upper():
         empirical_margin(scenario, pcon, threshold=1.0, upper=1.0)
     assert refusal.value.argument == "upper" and "exceeds history = 0.25 s" in str(refusal.value)
     empirical_margin(scenario, pcon, threshold=1.0, upper=0.2, resolution=0.05, grid=2)
+
+
+def _found(margin, first_failure, resolution, threshold, names, units):
+    """A search result that found a failure, as :func:`empirical_margin` returns it."""
+    return EmpiricalMargin(
+        margin=margin,
+        failure_found=True,
+        first_failure=first_failure,
+        profile="constant",
+        frequency=1.0,
+        metric="ae",
+        threshold=threshold,
+        settle=30.0,
+        resolution=resolution,
+        upper=1.0,
+        values=np.array([margin, first_failure]),
+        statuses=np.array([0, 1]),
+        coordinate_metrics=np.array([[0.01] * len(names), [np.nan] * len(names)]),
+        coordinate_names=names,
+        scenario="robot",
+        controller="arolc",
+        simulations=2,
+        rounds=1,
+        coordinate_units=units,
+    )
+
+
+@pytest.mark.parametrize(
+    ("margin", "first_failure", "resolution", "shown"),
+    [
+        (0.6333333333333333, 0.6375, 0.005, "0.633 s (first failure 0.638 s;"),
+        (0.7, 0.7025, 0.005, "0.700 s (first failure 0.703 s;"),  # 0.7 is not floored to 0.699
+        (0.123456789, 0.123456790, 1e-9, "0.123456789 s (first failure 0.123456790 s;"),
+        (3.25, 4.0, 1.0, "3 s (first failure 4 s;"),
+    ],
+)
+def test_the_margin_is_shown_to_the_resolution_as_a_bracket_that_holds_the_found_one(
+    margin, first_failure, resolution, shown
+):
+    """No digit beyond the search's resolution; the margin rounded down and the first failure
+    up, so the bracket shown holds the bracket found."""
+    result = _found(margin, first_failure, resolution, 0.2, ("q1",), (None,))
+    assert result.describe().startswith(shown)
+    low, high = (float(word) for word in shown.replace(";", "").split()[::4][:2])
+    assert low <= margin and first_failure <= high
+
+
+def test_the_threshold_is_shown_in_the_coordinates_units_where_the_plant_declares_them():
+    names, units = ("x", "y", "phi"), ("m", "m", "rad")
+    text = _found(0.3, 0.305, 0.005, (0.05, 0.05, 0.5), names, units).describe()
+    assert "ae <= (x 0.05 m, y 0.05 m, phi 0.5 rad) after t = 30 s" in text
+    assert "coordinate's unit" not in text
+    mixed = _found(0.3, 0.305, 0.005, 0.2, names, units).describe()
+    assert "ae <= 0.2 in each coordinate (x in m, y in m, phi in rad) after" in mixed
+    same = _found(0.3, 0.305, 0.005, 0.2, ("q1", "q2"), ("rad", "rad")).describe()
+    assert "ae <= 0.2 rad after" in same
+    partly = _found(0.3, 0.305, 0.005, (0.1, 0.2), ("q1", "q2"), ("rad", None)).describe()
+    assert "(q1 0.1 rad, q2 0.2) (each in its coordinate's unit)" in partly

@@ -306,6 +306,24 @@ def test_a_urdf_file_gets_a_motor_on_every_joint_when_asked(tmp_path):
     expected = 0.01 + 0.005 + 0.5 * (0.4**2 + 0.2**2 + 2 * 0.4 * 0.2 * np.cos(0.7))
     assert mass[0, 0] == pytest.approx(expected, rel=1e-12)
     assert dt.plant_from_spec(plant.to_spec()).to_spec() == plant.to_spec()
+    assert plant.input_units == ("N·m", "N·m")  # a motor of gear 1 on a hinge: a torque
+
+
+def test_a_control_has_a_unit_only_where_it_is_the_joint_force(tmp_path):
+    """A motor of gear 1 on a hinge takes N·m, on a slide N; a gear g makes the control a g-th
+    of the torque, which has no unit of its own: TV then has none."""
+    assert MujocoPlant(ARM).input_units is None  # gears 10, 5 and 2
+    geared = ARM.read_text().replace('gear="5"', 'gear="1"').replace('gear="2"', 'gear="1"')
+    direct = geared.replace('gear="10"', 'gear="1"')
+    slide = direct.replace('<joint name="wrist"/>', '<joint name="wrist" type="slide"/>')
+    assert len({geared, direct, slide}) == 3
+    for name, written, units in (
+        ("geared.xml", geared, None),  # one geared motor: the controls have no one unit
+        ("direct.xml", direct, ("N·m", "N·m", "N·m")),
+        ("slide.xml", slide, ("N·m", "N·m", "N")),
+    ):
+        (tmp_path / name).write_text(written)
+        assert MujocoPlant(tmp_path / name).input_units == units
 
 
 # ---- stepped by MuJoCo ----------------------------------------------------------------------

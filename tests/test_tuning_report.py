@@ -26,7 +26,7 @@ def test_the_lines_quote_the_chosen_gains_their_objective_and_the_edge():
     )
     assert list(study) == ["AROLC", "PCON-wheel"] and study["AROLC"].best["all"] is arolc
     assert chosen_gains_lines(study) == [
-        "AROLC (all): k = 2, ζ = 0.5 (K1 = 4 I, K2 = 2 I), α = 4 (worst mean AE 3.25 mm)",
+        "AROLC (all): k = 2 rad/s, ζ = 0.5 (K1 = 4 I, K2 = 2 I), α = 4 (worst mean AE 3.25 mm)",
         "PCON-wheel (varying): κ = 8, k_b = 3 I, ϑ = 0.35 M̂_r⁻¹ (worst mean AE 1.5 mm, ON THE "
         "GRID'S EDGE)",
     ]

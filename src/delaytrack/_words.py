@@ -8,7 +8,13 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["counted", "shown_number", "table_text"]
+__all__ = ["counted", "quantity_text", "scaled_unit", "shown_number", "table_text", "with_scaled"]
+
+#: The smaller units a value below one of these units is shown in: (factor, unit), largest first.
+_SMALLER_UNITS: dict[str, tuple[tuple[float, str], ...]] = {
+    "s": ((1e-3, "ms"), (1e-6, "µs"), (1e-9, "ns")),
+    "m": ((1e-3, "mm"),),
+}
 
 
 def counted(count: int, noun: str) -> str:
@@ -28,3 +34,42 @@ def table_text(frame: pd.DataFrame) -> str:
     """``frame`` as a terminal shows it, without its index: numbers to four significant digits,
     "—" where a value is missing (a run that did not finish has no metrics), never "NaN"."""
     return frame.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="—")
+
+
+def scaled_unit(unit: str | None, largest: float) -> tuple[float, str | None]:
+    """The factor and unit to show values of ``unit`` in when the largest of them (in
+    magnitude) is ``largest``: a smaller unit below one ``unit`` (seconds as ms, µs or ns,
+    metres as mm), the largest whose value is at least one, else the smallest; ``(1, unit)``
+    for one and more, for zero, for a value that is not finite and for a unit without
+    smaller ones."""
+    magnitude = abs(largest)
+    smaller = _SMALLER_UNITS.get(unit or "", ())
+    if not smaller or not 0.0 < magnitude < 1.0:
+        return 1.0, unit
+    for factor, name in smaller:
+        if magnitude >= factor:
+            return factor, name
+    return smaller[-1]
+
+
+def quantity_text(
+    value: float, unit: str | None, digits: int = 3, largest: float | None = None
+) -> str:
+    """``value`` of ``unit`` to ``digits`` significant digits in the unit
+    :func:`scaled_unit` picks for it (or for ``largest``, to show several values of one
+    sentence in one unit): ``quantity_text(0.00951, "m")`` is ``"9.51 mm"``,
+    ``quantity_text(9.99997e-10, "s", 4)`` ``"1 ns"``, ``quantity_text(2.5, "s")``
+    ``"2.5 s"``; without a unit, the number alone."""
+    factor, shown = scaled_unit(unit, value if largest is None else largest)
+    number = f"{value / factor:.{digits}g}"
+    return number if shown is None else f"{number} {shown}"
+
+
+def with_scaled(value: float, unit: str, digits: int = 6) -> str:
+    """``value`` in ``unit`` to ``digits`` significant digits, then, when it is below one
+    ``unit``, in the smaller unit of :func:`scaled_unit` to four: ``"0.12487 s (124.9 ms)"``,
+    ``"9.99997e-10 s (1 ns)"``, ``"2.5 s"``."""
+    text = f"{value:.{digits}g} {unit}"
+    if scaled_unit(unit, value)[1] == unit:
+        return text
+    return f"{text} ({quantity_text(value, unit, 4)})"

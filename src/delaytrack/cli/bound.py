@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from delaytrack._words import with_scaled
 from delaytrack.cli._theorem_1 import theorem_1, theorem_1_arguments
 
 __all__ = ["add_command", "run"]
@@ -35,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     print(settings)
     print(f"  lambda_min(Q) = {bound.lambda_min_Q:.6g}")
     print(f"  ||E||_2       = {bound.E_norm:.6g}")
-    print(f"  h_m           = {bound.h_m:.6g} s ({1e3 * bound.h_m:.4g} ms)")
+    print(f"  h_m           = {with_scaled(bound.h_m, 's')}")
     print(
         "AROLC is certified for every input delay 0 <= h(t) < h_m "
         "(Q - h E stays positive definite)."

@@ -7,7 +7,7 @@ import json
 from typing import TYPE_CHECKING
 
 from delaytrack._cli_options import integer
-from delaytrack._words import shown_number
+from delaytrack._words import shown_number, with_scaled
 from delaytrack.cli._numbers import scalar
 from delaytrack.cli._theorem_1 import joints, r_and_json_arguments, razumikhin_factor
 from delaytrack.cli._usage import flagged
@@ -89,7 +89,7 @@ def _print(design: GainDesign, bandwidth: float | None) -> None:
         f"r = {shown_number(design.r)}"
     )
     print(
-        f"  h_m = {design.h_m:.6g} s ({1e3 * design.h_m:.4g} ms); the paper's K1 = K2 = Q = I, "
+        f"  h_m = {with_scaled(design.h_m, 's')}; the paper's K1 = K2 = Q = I, "
         f"beta = 1: {design.reference_h_m:.6g} s ({gain_text} %)"
     )
     print(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from delaytrack._words import with_scaled
 from delaytrack.cli._theorem_1 import theorem_1, theorem_1_arguments
 
 __all__ = ["add_command", "run"]
@@ -45,9 +46,9 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print("Delay margins of the nominal error dynamics e1'' = -K2 e1'(t-h) - K1 e1(t-h)")
     print(settings)
-    print(f"  h_m (certified, Theorem 1)  = {bound.h_m:.6g} s ({1e3 * bound.h_m:.4g} ms)")
+    print(f"  h_m (certified, Theorem 1)  = {with_scaled(bound.h_m, 's')}")
     print(
-        f"  h_exact (constant delay)    = {exact.h:.6g} s ({1e3 * exact.h:.4g} ms) "
+        f"  h_exact (constant delay)    = {with_scaled(exact.h, 's')} "
         f"at omega_exact = {exact.omega:.6g} rad/s"
     )
     print(f"  h_m / h_exact               = {ratio:.4g}")

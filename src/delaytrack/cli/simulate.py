@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 from delaytrack._cli_options import quiet_argument, trust_argument
 from delaytrack._output import check_output_folder
-from delaytrack._words import table_text
+from delaytrack._words import table_text, with_scaled
 from delaytrack.cli._scenarios import scenario_source, trusted
 from delaytrack.warning import one_line
 
@@ -101,8 +101,8 @@ def _certified_bound(output: RunOutput) -> None:
     if not math.isfinite(h_m):  # not AROLC: no certificate
         return
     print(
-        f"AROLC's certified delay bound h_m = {h_m:.6g} s ({1e3 * h_m:.4g} ms; Theorem 1 with "
-        f"the scenario's K1, K2, Q and the paper's beta = {PAPER_BETA:g}, r = {PAPER_R:g})"
+        f"AROLC's certified delay bound h_m = {with_scaled(h_m, 's')}, by Theorem 1 with the "
+        f"scenario's K1, K2, Q and the paper's beta = {PAPER_BETA:g}, r = {PAPER_R:g}"
     )
     warning = beyond_certified_bound([built.controller], [built.delay], output.result)
     if warning is not None:

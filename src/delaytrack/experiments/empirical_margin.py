@@ -34,6 +34,7 @@ batched simulation per round for all of them; the results equal separate calls.
 
 from __future__ import annotations
 
+import decimal
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -55,7 +56,7 @@ from delaytrack.scenario import BuiltScenario, Scenario, ScenarioError
 from delaytrack.sim import STATUS_NAMES, simulate
 from delaytrack.sim.certified_bound import stated_by_the_caller
 from delaytrack.sim.simulate import MAX_STEPS
-from delaytrack.units import default_names
+from delaytrack.units import coordinate_units, default_names
 
 __all__ = ["METRICS", "MIN_RESOLUTION", "PROFILES", "EmpiricalMargin", "empirical_margin"]
 
@@ -104,6 +105,8 @@ class EmpiricalMargin:
         The metric of every evaluated value in each coordinate (NaN when the run is not ok).
     coordinate_names : tuple of str
         The plant's coordinate names (``q1``, ``q2``, ... when it has none).
+    coordinate_units : tuple of str or None, optional
+        Each coordinate's unit (None where the plant declares none, or for all when not given).
     scenario, controller : str
         Scenario name and controller type.
     simulations, rounds : int
@@ -128,6 +131,7 @@ class EmpiricalMargin:
     controller: str
     simulations: int
     rounds: int
+    coordinate_units: tuple[str | None, ...] | None = None
 
     @property
     def metric_values(self) -> np.ndarray:
@@ -142,25 +146,44 @@ class EmpiricalMargin:
         return (self.statuses == 0) & np.all(within, axis=1)
 
     def describe(self) -> str:
-        """One line: the margin with its threshold and resolution, or that none was found."""
-        if isinstance(self.threshold, tuple):
-            bounds = ", ".join(
-                f"{name} {bound:g}"
-                for name, bound in zip(self.coordinate_names, self.threshold, strict=True)
-            )
-            rule = f"{self.metric} <= ({bounds}) (each in its coordinate's unit)"
-        else:
-            rule = f"{self.metric} <= {self.threshold:g} (in each coordinate's unit)"
-        rule += f" after t = {self.settle:g} s"
+        """One line: the margin with its threshold and resolution, or that none was found. The
+        margin is shown rounded down and the first failure up to the decimals of the
+        resolution: the bracket shown holds the one found, and no digit claims more than the
+        search resolved."""
+        rule = f"{self.metric} <= {self._threshold_text()} after t = {self.settle:g} s"
         if not self.failure_found:
             return (
                 f"no failure up to upper = {self.upper:g} s ({rule}): the margin is at least "
                 f"{self.upper:g} s"
             )
-        return (
-            f"{self.margin:.6g} s (first failure {self.first_failure:.6g} s; {rule}; "
-            f"resolution {self.resolution:g} s)"
+        assert self.first_failure is not None  # a failure was found
+        decimals = max(0, math.ceil(-math.log10(self.resolution)))
+        margin = _rounded(self.margin, decimals, decimal.ROUND_FLOOR)
+        failure = _rounded(self.first_failure, decimals, decimal.ROUND_CEILING)
+        return f"{margin} s (first failure {failure} s; {rule}; resolution {self.resolution:g} s)"
+
+    def _threshold_text(self) -> str:
+        """The threshold with the coordinates' units where the plant declares them:
+        ``0.05 m``, ``0.2 in each coordinate (x in m, heading in rad)``,
+        ``(x 0.05 m, heading 0.1 rad)``."""
+        units = self.coordinate_units or (None,) * len(self.coordinate_names)
+        known = None not in units
+        if isinstance(self.threshold, tuple):
+            bounds = ", ".join(
+                f"{name} {bound:g}" + (f" {unit}" if unit else "")
+                for name, bound, unit in zip(
+                    self.coordinate_names, self.threshold, units, strict=True
+                )
+            )
+            return f"({bounds})" + ("" if known else " (each in its coordinate's unit)")
+        if not known:
+            return f"{self.threshold:g} (in each coordinate's unit)"
+        if len(set(units)) == 1:
+            return f"{self.threshold:g} {units[0]}"
+        each = ", ".join(
+            f"{name} in {unit}" for name, unit in zip(self.coordinate_names, units, strict=True)
         )
+        return f"{self.threshold:g} in each coordinate ({each})"
 
     def to_frame(self) -> pd.DataFrame:
         """Every evaluated value: ``value, metric, status, passes`` and the metric of each
@@ -195,6 +218,9 @@ class EmpiricalMargin:
                 for v, m, s in zip(self.values, self.metric_values, self.statuses, strict=True)
             ],
             "coordinate_names": list(self.coordinate_names),
+            "coordinate_units": None
+            if self.coordinate_units is None
+            else list(self.coordinate_units),
             "coordinate_metrics": [
                 [None if math.isnan(m) else float(m) for m in row]
                 for row in self.coordinate_metrics
@@ -376,9 +402,9 @@ def empirical_margin(
         single=single,
     )
     searches = lockstep.run(controllers, grid, points)
-    names = default_names(built.plant.coordinate_names, built.plant.n)
+    units = coordinate_units(built.plant)
     results = [
-        _result(search, scenario, item, frequency, settings, names)
+        _result(search, scenario, item, frequency, settings, units)
         for search, item in zip(searches, controllers, strict=True)
     ]
     return results[0] if single else results
@@ -533,11 +559,41 @@ class _Lockstep:
             "scenario (its gains, error_bound, plant and reference; delaytrack simulate shows "
             "the run)"
         )
-        return ArgumentError(
+        return MissedWithoutDelay(
             "threshold",
             f"= {_shown(self.settings['threshold'])} is missed already without delay: "
             f"{found} at h = 0{where}; {advice}",
+            index=i,
+            found=found,
         )
+
+
+class MissedWithoutDelay(ArgumentError):
+    """The refusal of a threshold that a controller misses already at ``h = 0``: ``index`` is
+    the controller's place in the list searched, ``found`` what its run gave (``ae of q1 =
+    0.2956 rad``, or how it stopped), for a caller that words it in its own terms."""
+
+    def __init__(self, argument: str, problem: str, *, index: int, found: str) -> None:
+        super().__init__(argument, problem)
+        self.index = index
+        self.found = found
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        # Rebuilt with its parts (an error raised in a worker process crosses back pickled).
+        return _missed_again, (self.argument, self.problem, self.index, self.found)
+
+
+def _missed_again(argument: str, problem: str, index: int, found: str) -> MissedWithoutDelay:
+    return MissedWithoutDelay(argument, problem, index=index, found=found)
+
+
+def _rounded(value: float, decimals: int, rounding: str) -> str:
+    """``value`` to ``decimals`` decimals, rounded as ``rounding`` says (``decimal.ROUND_FLOOR``,
+    ``decimal.ROUND_CEILING``), from its shortest decimal form (0.7 stays 0.70, not the 0.69
+    its binary value's floor would give)."""
+    exact = decimal.Context(prec=decimal.MAX_PREC)  # a large value keeps all its digits
+    step = decimal.Decimal(1).scaleb(-decimals)
+    return format(decimal.Decimal(repr(float(value))).quantize(step, rounding, exact), "f")
 
 
 def _shown(threshold: float | tuple[float, ...]) -> str:
@@ -638,7 +694,7 @@ def _result(
     controller: Controller,
     frequency: float,
     settings: dict[str, Any],
-    names: tuple[str, ...],
+    units: dict[str, str | None],
 ) -> EmpiricalMargin:
     rows = sorted(search.rows, key=lambda row: row[0])
     found = search.failed is not None
@@ -650,7 +706,8 @@ def _result(
         values=np.array([row[0] for row in rows]),
         statuses=np.array([row[1] for row in rows], dtype=int),
         coordinate_metrics=np.array([row[2] for row in rows]),
-        coordinate_names=names,
+        coordinate_names=tuple(units),
+        coordinate_units=tuple(units.values()),
         scenario=scenario.name,
         controller=controller.type_name,
         simulations=len(rows),

@@ -41,7 +41,11 @@ from delaytrack._validation import ArgumentError
 from delaytrack.analysis import exact_delay_margin, razumikhin_bound
 from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
 from delaytrack.analysis.razumikhin import PAPER_R as R
-from delaytrack.experiments.empirical_margin import EmpiricalMargin, empirical_margin
+from delaytrack.experiments.empirical_margin import (
+    EmpiricalMargin,
+    MissedWithoutDelay,
+    empirical_margin,
+)
 from delaytrack.scenario import Scenario, load_builtin
 
 __all__ = ["FOLDER", "GAINS", "MarginStudy", "run_study"]
@@ -79,6 +83,8 @@ SEARCH = SearchSettings(
 )
 #: Controllers (scenario type -> column prefix) and delay families searched.
 CONTROLLERS = {"arolc": "arolc", "outer-loop": "outer_loop"}
+#: The controllers as a sentence names them.
+_NAMES = {"arolc": "AROLC", "outer-loop": "the outer loop"}
 PROFILES = ("constant", "abs-sine")
 #: The outer loop's empirical constant-delay margin counts as close to ``h_exact`` within this
 #: many percent of it.
@@ -211,7 +217,14 @@ def run_study(*, duration: float | None = None, progress: bool = False) -> Margi
             for k1, k2 in pairs
         ]
         for profile in PROFILES:
-            found = empirical_margin(scenario, built, profile=profile, progress=progress, **SEARCH)
+            try:
+                found = empirical_margin(
+                    scenario, built, profile=profile, progress=progress, **SEARCH
+                )
+            except MissedWithoutDelay as missed:
+                if duration is None:
+                    raise  # the job's own duration meets its rule: not the user's to mend
+                raise _too_short(duration, controller, pairs[missed.index], missed) from None
             searches[controller, profile] = found
             for row, result in zip(rows, found, strict=True):
                 row[_column(controller, profile)] = (
@@ -228,6 +241,22 @@ def run_study(*, duration: float | None = None, progress: bool = False) -> Margi
         scenario=scenario,
         window=(scenario.duration / 2, scenario.duration),
         seconds=time.perf_counter() - start,
+    )
+
+
+def _too_short(
+    duration: float, controller: str, gains: tuple[float, float], missed: MissedWithoutDelay
+) -> ArgumentError:
+    """The refusal of a ``duration`` too short for the job's tracking rule: with the metric
+    window the second half of the run, a run too short has not settled by then."""
+    k1, k2 = gains
+    return ArgumentError(
+        "duration",
+        f"= {duration:g} s is too short: {_NAMES[controller]} at K1 = {k1:g} I, K2 = {k2:g} I "
+        f"misses the job's rule ({SEARCH['metric']} <= {SEARCH['threshold']:g} over the second "
+        f"half of the run) already without delay ({missed.found}); give a longer $duration "
+        f"(the job's own, {load_builtin(SCENARIO).duration:g} s, meets it)",
+        ("duration",),
     )
 
 

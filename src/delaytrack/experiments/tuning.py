@@ -284,8 +284,8 @@ def _with_outer_loop_gains(kind: str, gains: Mapping[str, float]) -> dict[str, f
 
 def gains_text(kind: str, gains: Mapping[str, float]) -> str:
     """The gains of one chosen set as text (``κ = 8, k_b = 3 I, ϑ = 0.35 M̂⁻¹``); AROLC's
-    with the outer loop's ``K1 = k²``, ``K2 = 2 ζ k`` they give (``k = 6, ζ = 0.7 (K1 = 36 I,
-    K2 = 8.4 I), α = 54``)."""
+    with the outer loop's ``K1 = k²``, ``K2 = 2 ζ k`` they give (``k = 6 rad/s, ζ = 0.7
+    (K1 = 36 I, K2 = 8.4 I), α = 54``)."""
     return recorded_gains_text(kind, _with_outer_loop_gains(kind, gains))
 
 
@@ -298,7 +298,7 @@ def recorded_gains_text(kind: str, gains: Mapping[str, float]) -> str:
     """
     if kind == "AROLC":
         return (
-            f"k = {gains['k']:g}, ζ = {gains['zeta']:g} (K1 = {gains['K1']:g} I, "
+            f"k = {gains['k']:g} rad/s, ζ = {gains['zeta']:g} (K1 = {gains['K1']:g} I, "
             f"K2 = {gains['K2']:g} I), α = {gains['alpha']:g}"
         )
     inverse = "M̂_r⁻¹" if kind == "PCON-wheel" else "M̂⁻¹"

@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
-from delaytrack._words import counted
+from delaytrack._words import counted, quantity_text
 from delaytrack.units import with_unit
 
 if TYPE_CHECKING:
@@ -16,6 +16,7 @@ if TYPE_CHECKING:
     from delaytrack.experiments.decision import Choice, Decision, Envelope, Shortfall
 
 __all__ = [
+    "ae_text",
     "candidates_table",
     "conditions_text",
     "decision_columns",
@@ -124,10 +125,17 @@ def refusal_text(decision: Decision) -> str | None:
     )
 
 
+def ae_text(decision: Decision, value: float, digits: int = 3) -> str:
+    """An AE of ``decision`` with its unit, in the unit the larger worst-case AE of its
+    winner and runner-up reads best in (a robot's metres as mm below a metre), so that every
+    AE of one decision is in one unit: ``9.51 mm``."""
+    chosen = [c.worst_ae for c in (decision.winner, decision.runner_up) if c is not None]
+    return quantity_text(value, decision.ae_unit, digits, largest=max(chosen, default=value))
+
+
 def _why(decision: Decision, table: pd.DataFrame) -> list[str]:
     """Per row of ``table`` (the decision's candidates, or candidates and conditions): why the
     candidate was not chosen; empty for the winner and the runner-up."""
-    unit = f" {decision.ae_unit}" if decision.ae_unit else ""
     reasons = []
     for row in table.itertuples(index=False):
         if row.status == "excluded":
@@ -136,8 +144,8 @@ def _why(decision: Decision, table: pd.DataFrame) -> list[str]:
             )
         elif row.status == "qualifies" and decision.winner is not None:
             reasons.append(
-                f"worst-case AE {row.worst_ae:.4g}{unit} against the winner's "
-                f"{decision.winner.worst_ae:.4g}{unit}"
+                f"worst-case AE {ae_text(decision, row.worst_ae, 4)} against the winner's "
+                f"{ae_text(decision, decision.winner.worst_ae, 4)}"
             )
         else:
             reasons.append("")

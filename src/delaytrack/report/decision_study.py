@@ -16,6 +16,7 @@ from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack._version import __version__
 from delaytrack._words import counted
 from delaytrack.report.decision import (
+    ae_text,
     candidates_table,
     conditions_text,
     decision_columns,
@@ -58,24 +59,23 @@ def decision_sentence(case: str, decision: Decision) -> str:
     """One sentence for an envelope: the winner with its gains (and whether they are the
     sweep's largest), worst-case AE and the smallest Wilson lower bound of its share on the
     path, the runner-up and the margin; or why no candidate is recommended."""
-    unit = f" {decision.ae_unit}" if decision.ae_unit else ""
     name = _envelope_name(case, decision)
     winner, second = decision.winner, decision.runner_up
     if winner is None:
         return f"{name}: no recommendation, {refusal_text(decision)}."
     edge = edge_text(winner)
     sentence = (
-        f"{name}: use {_choice(winner)}{edge}; its worst-case AE is {winner.worst_ae:.3g}{unit} "
-        f"and at least {100 * winner.worst_share_low:.1f} % of drawn robots stay on the path in "
-        f"every condition (Wilson 95 % lower bound, {counted(decision.draws, 'draw')} per "
-        "condition)"
+        f"{name}: use {_choice(winner)}{edge}; its worst-case AE is "
+        f"{ae_text(decision, winner.worst_ae)} and at least "
+        f"{100 * winner.worst_share_low:.1f} % of drawn robots stay on the path in every "
+        f"condition (Wilson 95 % lower bound, {counted(decision.draws, 'draw')} per condition)"
     )
     if second is None:
         return f"{sentence}; no other controller qualifies."
     return (
         f"{sentence}; the runner-up, {_choice(second)}, has a worst-case AE of "
-        f"{second.worst_ae:.3g}{unit}: {decision.ae_difference:.3g}{unit} more than the "
-        f"winner's{ratio_text(decision, ' ({:.3g} times)')}."
+        f"{ae_text(decision, second.worst_ae)}: {ae_text(decision, decision.ae_difference)} "
+        f"more than the winner's{ratio_text(decision, ' ({:.3g} times)')}."
     )
 
 

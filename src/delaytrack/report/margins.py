@@ -20,7 +20,7 @@ from delaytrack.report.html import HtmlReport
 if TYPE_CHECKING:
     from delaytrack.experiments.margins import MarginStudy
 
-__all__ = ["margins_with_units", "write_study"]
+__all__ = ["legend_text", "margins_with_units", "write_study"]
 
 #: The margins' columns and their labels.
 _LABELS = {
@@ -40,6 +40,16 @@ def margins_with_units(table: pd.DataFrame) -> pd.DataFrame:
     ``k1_per_s2``, ``k2_per_s`` and each margin in seconds (``h_m_s``, ...)."""
     delays = {column: f"{column}_s" for column in _LABELS}
     return table.rename(columns={**_GAIN_COLUMNS, **delays})
+
+
+def legend_text(study: MarginStudy) -> str:
+    """What the columns of :func:`margins_with_units` hold, for the table on a terminal."""
+    margins = "; ".join(f"{column}_s: {label}" for column, label in _LABELS.items())
+    return (
+        "K1 = k1 I, K2 = k2 I; margins in s: "
+        f"{margins}; the last two columns are ratios; —: no failure found up to "
+        f"{study.search['upper']:g} s (the margin is at least that)"
+    )
 
 
 def write_study(study: MarginStudy, folder: str | Path) -> list[Path]:

@@ -17,6 +17,7 @@ from delaytrack._version import __version__
 from delaytrack.experiments.drawn_robots import drawn_columns
 from delaytrack.experiments.tradeoff import LOWER_BOUND, MARGIN_SEARCHES
 from delaytrack.report.decision import (
+    ae_text,
     candidates_table,
     conditions_text,
     decision_columns,
@@ -101,18 +102,18 @@ def pareto_figure(study: TradeoffStudy) -> Figure:
     return figure
 
 
-def _choice_text(choice: Choice, unit: str) -> str:
+def _choice_text(choice: Choice, decision: Decision) -> str:
     return (
         f"{_NAMES[choice.controller]} at omega_n = {choice.omega_n:.4g} rad/s "
         f"({gains_text(choice)}){edge_text(choice)}: worst-case AE "
-        f"{choice.worst_ae:.4g}{unit}, worst Wilson lower bound {choice.worst_share_low:.3f}"
+        f"{ae_text(decision, choice.worst_ae, 4)}, worst Wilson lower bound "
+        f"{choice.worst_share_low:.3f}"
     )
 
 
 def decision_lines(decision: Decision) -> list[str]:
     """The decision in a few lines of text: the envelope and rule, then the winner, the
     runner-up and the margin, or why no candidate was chosen."""
-    unit = f" {decision.ae_unit}" if decision.ae_unit else ""
     lines = [
         f"decision for {decision.envelope.text}: smallest worst-case AE among the candidates on "
         f"the path in >= {100 * decision.required_share:g} % of {decision.draws} drawn robots "
@@ -120,13 +121,13 @@ def decision_lines(decision: Decision) -> list[str]:
     ]
     if decision.winner is None:
         return [*lines, f"  {refusal_text(decision)}"]
-    lines.append(f"  winner: {_choice_text(decision.winner, unit)}")
+    lines.append(f"  winner: {_choice_text(decision.winner, decision)}")
     if decision.runner_up is None:
         lines.append("  runner-up: none (no other controller qualifies)")
     else:
-        lines.append(f"  runner-up: {_choice_text(decision.runner_up, unit)}")
+        lines.append(f"  runner-up: {_choice_text(decision.runner_up, decision)}")
         lines.append(
-            f"  wins by {decision.ae_difference:.4g}{unit} of worst-case AE"
+            f"  wins by {ae_text(decision, decision.ae_difference, 4)} of worst-case AE"
             + ratio_text(decision, " (the runner-up's is {:.3g} times the winner's)")
         )
     return lines

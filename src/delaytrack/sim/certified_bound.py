@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from delaytrack._words import quantity_text
 from delaytrack.analysis.razumikhin import PAPER_BETA, PAPER_R, razumikhin_bound
 from delaytrack.controllers.arolc import AROLC
 from delaytrack.warning import DelaytrackWarning
@@ -98,11 +99,6 @@ def largest_delays(result: SimResult, delays: Sequence[DelayProfile]) -> np.ndar
     return np.array([delay.h_max for delay in delays])
 
 
-def _duration(seconds: float) -> str:
-    """``seconds`` in ms below a second, in s from there (1e306 s has no value in ms)."""
-    return f"{1e3 * seconds:.4g} ms" if seconds < 1.0 else f"{seconds:.4g} s"
-
-
 def beyond_certified_bound(
     controllers: Sequence[Controller], delays: Sequence[DelayProfile], result: SimResult
 ) -> BeyondCertifiedBoundWarning | None:
@@ -114,7 +110,7 @@ def beyond_certified_bound(
         return None
     # The run named: the largest delay among the runs beyond their bound.
     run = int(beyond[np.argmax(largest[beyond])])
-    delay, bound = _duration(largest[run]), _duration(bounds[run])
+    delay, bound = quantity_text(largest[run], "s", 4), quantity_text(bounds[run], "s", 4)
     if result.batch_size == 1:
         what = f"the largest delay {delay} exceeds AROLC's certified bound h_m = {bound}"
     else:

@@ -185,6 +185,29 @@ def mujoco_step(t, x, u, dt, params, first):
 
 
 _JOINT_KINDS = {0: "free", 1: "ball", 2: "slide", 3: "hinge"}
+#: The unit of a joint force by the joint's kind: a torque on a hinge, a force on a slide.
+_FORCE_UNITS = {3: "N·m", 2: "N"}
+
+
+def _input_units(mujoco: Any, model: Any) -> tuple[str, ...] | None:
+    """Each actuator's control unit where MuJoCo's units give it for all of them: a motor of
+    gain 1 and gear 1 on a hinge joint takes N·m, on a slide joint N (its control is the joint
+    force); None when any actuator's control is not a joint force (a gear g makes it a g-th of
+    the force, a servo's control is a position)."""
+    units = []
+    for j in range(model.nu):
+        motor = (
+            model.actuator_trntype[j] == int(mujoco.mjtTrn.mjTRN_JOINT)
+            and model.actuator_dyntype[j] == 0
+            and model.actuator_gaintype[j] == 0
+            and model.actuator_biastype[j] == 0
+            and model.actuator_gainprm[j, 0] == 1.0
+            and model.actuator_gear[j, 0] == 1.0
+        )
+        if not motor:
+            return None
+        units.append(_FORCE_UNITS[int(model.jnt_type[int(model.actuator_trnid[j, 0])])])
+    return tuple(units)
 
 
 @dataclass(frozen=True, eq=False)
@@ -271,6 +294,7 @@ class MujocoPlant(ELPlant):
     m: int = field(init=False)
     coordinate_names: tuple[str, ...] | None = field(init=False)
     coordinate_units: tuple[str, ...] | None = field(init=False)
+    input_units: tuple[str, ...] | None = field(init=False)
     _model: Any = field(init=False, repr=False)
     _data: Any = field(init=False, repr=False)
     _scratch: np.ndarray = field(init=False, repr=False)
@@ -361,6 +385,7 @@ class MujocoPlant(ELPlant):
             ("m", int(model.nu)),
             ("coordinate_names", joint_names),
             ("coordinate_units", units),
+            ("input_units", _input_units(mujoco, model)),
             ("_model", model),
             ("_data", data),
             ("_scratch", scratch),

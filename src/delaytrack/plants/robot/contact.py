@@ -30,7 +30,7 @@ import numpy as np
 from delaytrack._compile.jit import tick_kernel
 from delaytrack.plants.mujoco.capi import write_at
 from delaytrack.plants.mujoco.plant import MujocoPlant, extras_start, import_mujoco, mujoco_step
-from delaytrack.plants.robot.body import COORDINATES, INPUT_UNITS
+from delaytrack.plants.robot.body import COORDINATES
 from delaytrack.plants.robot.payload import SCHEDULE_POINTS, PayloadSchedule, active_placement
 
 __all__ = ["P3DX_MJCF", "MujocoWheeledRobot", "wheeled_robot_step"]
@@ -98,7 +98,6 @@ class MujocoWheeledRobot(PayloadSchedule, MujocoPlant):
     coordinates: tuple[str, ...] | None = COORDINATES
     _schedule: np.ndarray | None = field(init=False, repr=False)
     type_name: ClassVar[str] = "wheeled-robot-mujoco"
-    input_units = INPUT_UNITS
 
     def __post_init__(self) -> None:
         if self.stepping != "mujoco":

@@ -394,6 +394,48 @@ def test_the_delay_agrees_with_mujocos_own_actuator_delay(h):
         np.testing.assert_array_equal(ours, _native_delay_run(h, ticks, controller, False))
 
 
+def test_under_a_time_varying_delay_each_step_holds_the_command_in_force_at_its_start():
+    """The rule for a plant stepped by its own integrator, restated in plain Python: each step
+    from ``t = i dt`` holds the command of the latest tick ``k T_c <= t - h(t) + 1e-9 dt``
+    (``u_init = 0`` before the first), under S1 and the paper's ``T_c`` = 10 ms, where the
+    engine evaluates ``h`` at few of the steps (where the command may switch)."""
+    import math
+
+    controller, t_c, ticks = _arolc_on_the_light_arm(), 0.01, 150
+    steps = round(t_c / DT)
+    engine = dt.simulate(
+        MujocoPlant(ARM, stepping="mujoco"),
+        controller,
+        dt.AbsSineDelay.S1(),
+        X0,
+        reference=REFERENCE,
+        t1=ticks * t_c,
+        dt=DT,
+        T_c=t_c,
+    ).x[0, :ticks]
+    model = mujoco.MjModel.from_xml_path(str(ARM))
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:] = X0[:3], X0[3:]
+    state, commands, states, held = controller.initial_state(), [], [], -1
+    for i in range(ticks * steps):
+        if i % steps == 0:
+            k = i // steps
+            reference = tuple(array[0] for array in REFERENCE.evaluate(np.array([k * steps * DT])))
+            states.append(np.concatenate([data.qpos, data.qvel]))
+            command, state = controller.step(
+                k * steps * DT, data.qpos.copy(), data.qvel.copy(), reference, state, T_c=t_c
+            )
+            commands.append(command)
+        t = i * DT
+        g = t - (0.02 + 0.08 * abs(math.sin(t))) + 1e-9 * DT
+        while (held + 1) * steps * DT <= g:
+            held += 1
+        data.ctrl[:] = commands[held] if held >= 0 else 0.0
+        data.time = t
+        mujoco.mj_step(model, data)
+    np.testing.assert_array_equal(engine, np.array(states))
+
+
 def test_mujocos_own_delay_differs_under_its_rk4_integrator(tmp_path):
     """MuJoCo's actuator delay is this toolkit's rule only with one force evaluation per step
     (Euler, implicit, implicitfast: the test above). Under ``integrator="RK4"``,

@@ -98,9 +98,11 @@ def test_margins_job_writes_its_files(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "margins job done" in printed
     lines = printed.splitlines()
-    header = next(line for line in lines if "k1_per_s2" in line.split()).split()
+    at = next(i for i, line in enumerate(lines) if "k1_per_s2" in line.split())
+    header = lines[at].split()
     assert header[:4] == ["k1_per_s2", "k2_per_s", "h_m_s", "h_exact_s"]  # as margins.csv
-    legend = lines[lines.index(next(line for line in lines if "k1_per_s2" in line.split())) - 1]
+    first = next(i for i, line in enumerate(lines) if line.startswith("K1 = k1 I"))
+    legend = " ".join(lines[first:at])
     for column in header[2:8]:  # every margin's column is said in words above the table
         assert f"{column}: " in legend, column
     assert "no failure found up to 2 s" in legend
@@ -111,6 +113,13 @@ def test_margins_job_writes_its_files(tmp_path, capsys):
         assert (folder / "figures" / f"margins.{suffix}").is_file()
     table = pd.read_csv(folder / "margins.csv")  # units in the column names
     assert len(table) == len(GAINS) ** 2
+    # On the terminal an empirical margin is never above the one found, nor finer than 5 ms.
+    rows = [line.split() for line in lines[at + 1 : at + 1 + len(table)]]
+    column = header.index("arolc_abs_sine_s")
+    for row, found in zip(rows, table["arolc_abs_sine_s"], strict=True):
+        if row[column] != "—":
+            assert float(row[column]) <= found < float(row[column]) + 0.001
+            assert len(row[column].split(".")[1]) == 3
     assert (table["h_m_s"] < table["h_exact_s"]).all()
     assert {"k1_per_s2", "k2_per_s", "arolc_abs_sine_s", "h_m_over_h_exact"} <= set(table)
     evaluated = pd.read_csv(folder / "evaluated.csv")
@@ -149,3 +158,25 @@ def test_empirical_takes_a_threshold_per_coordinate(tmp_path, capsys):
     assert data["threshold"] == [0.5, 5.0] and data["coordinate_names"] == ["q1", "q2"]
     assert main([*args, "--quiet"]) == 0
     assert "max <= (q1 0.5, q2 5) (each in its coordinate's unit)" in capsys.readouterr().out
+
+
+def test_a_margin_with_no_failure_up_to_the_limit_is_drawn_hatched_to_the_limit():
+    """A NaN margin (no failure up to the search limit) is a lower bound, not a small margin:
+    its bar reaches the limit, hatched and unfilled, and the legend says what that means."""
+    import numpy as np
+
+    from delaytrack.report.figures import margins_figure
+
+    margins = {
+        "h_m": [0.1, 0.12, 0.05],
+        "empirical": [0.6, np.nan, 0.5],
+        "other": [0.3, 0.7, np.nan],
+    }
+    ax = margins_figure(margins, ["a", "b", "c"], xlabel="gains", at_least=2.0).axes[0]
+    hatched = [bar for bar in ax.patches if bar.get_hatch() and np.isfinite(bar.get_height())]
+    assert [bar.get_height() for bar in hatched] == [2.0, 2.0]
+    assert not any(bar.get_fill() for bar in hatched)
+    legend = [text.get_text() for text in ax.get_legend().get_texts()]
+    assert legend[-1] == "hatched: no failure up to 2 s (at least that)"
+    known = margins_figure({"h_m": [0.1, 0.12]}, ["a", "b"], xlabel="gains", at_least=2.0)
+    assert not any(bar.get_hatch() for bar in known.axes[0].patches)  # nothing unknown: no hatch

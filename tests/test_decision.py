@@ -103,7 +103,7 @@ def test_the_decision_holds_the_facts_and_the_report_words_them():
     assert why == {
         "arolc2.0": "",
         "outer-loop2.0": "",
-        "arolc1.0": "worst-case AE 20 mm against the winner's 12 mm",
+        "arolc1.0": "worst-case AE 0.02 m against the winner's 0.012 m",  # as the table
         "pconf2.0": f"Wilson lower bound {low:.3f} < 0.95 at delay 0.1 s, told 0.075 s "
         "(78 of 80 on the path)",
     }

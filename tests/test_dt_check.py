@@ -41,7 +41,7 @@ def test_the_section_states_the_studys_verdict(tmp_path):
     report = HtmlReport("check")
     write_dt_check(report, verdict, 5e-4)
     text = report.write(tmp_path / "report.html").read_text()
-    assert "0.25, NOT below the 1% criterion" in text and "S3 PCONf (0.25)" in text
+    assert "25 %, NOT below the 1 % criterion" in text and "S3 PCONf (25 %)" in text
     with pytest.warns(DeprecationWarning, match="DtCheck"):  # a table: the verdict made here
         write_dt_check(HtmlReport("old"), verdict.table, 5e-4)
     assert math.isnan(dt_check_verdict(COARSE.assign(max_relative_change=math.nan)).largest)
@@ -50,11 +50,11 @@ def test_the_section_states_the_studys_verdict(tmp_path):
 def test_the_terminals_line_states_the_verdict_and_the_runs_above_it():
     beyond = dt_check_verdict(dt_check_table(COARSE, _fine(2.5), ["ae", "tv"]))
     assert dt_check_line(beyond) == (
-        "halving dt: the largest relative change of a summary metric is 0.25, NOT below the 1% "
-        "criterion; runs above it: S3 PCONf (0.25)"
+        "halving dt: the largest relative change of a summary metric is 25 %, NOT below the "
+        "1 % criterion; runs above it: S3 PCONf (25 %)"
     )
     within = dt_check_verdict(dt_check_table(COARSE, _fine(2.0), ["ae", "tv"]))
     assert dt_check_line(within) == (
-        "halving dt: the largest relative change of a summary metric is 0.001, below the 1% "
-        "criterion"
+        "halving dt: the largest relative change of a summary metric is 0.1 %, below the 1 % "
+        "criterion"  # a fraction of the criterion's own unit, not "0.001 ... 1%"
     )

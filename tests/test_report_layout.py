@@ -59,9 +59,10 @@ def test_text_columns_left_numbers_right_and_headers_break_after_underscores():
     head = re.findall(r"<th( class=\"num\")?>([^<]*)", table)
     assert [bool(css) for css, _ in head] == [False, True, True, False]
     assert "ae_<wbr>x_<wbr>mm" in table
-    assert '<td class="num">1.235</td>' in table and '<td class="num">NaN</td>' in table
+    assert '<td class="num">1.235</td>' in table and '<td class="num">—</td>' in table
+    assert "NaN" not in table  # a report never shows NaN: "—" unless said otherwise
     assert "<td>AROLC</td>" in table
-    assert '<td class="num">—</td>' in frame_to_html(frame, missing="—")
+    assert '<td class="num">n/a</td>' in frame_to_html(frame, missing="n/a")
 
 
 def test_the_robustness_maps_told_ratio_says_not_told_for_a_controller_told_nothing():

@@ -1,5 +1,6 @@
-"""Numbers in words for messages and reports: counts (``1 unit``, ``2 units``) and values
-shown as short as they can be without reading as another number."""
+"""Numbers in words for messages and reports: counts (``1 unit``, ``2 units``), values
+shown as short as they can be without reading as another number, and quantities in the unit
+that reads (``9.51 mm``, not ``0.00951 m``)."""
 
 from __future__ import annotations
 
@@ -36,18 +37,19 @@ def table_text(frame: pd.DataFrame) -> str:
     return frame.to_string(index=False, float_format=lambda v: f"{v:.4g}", na_rep="—")
 
 
-def scaled_unit(unit: str | None, largest: float) -> tuple[float, str | None]:
+def scaled_unit(unit: str | None, largest: float, digits: int = 3) -> tuple[float, str | None]:
     """The factor and unit to show values of ``unit`` in when the largest of them (in
-    magnitude) is ``largest``: a smaller unit below one ``unit`` (seconds as ms, µs or ns,
-    metres as mm), the largest whose value is at least one, else the smallest; ``(1, unit)``
-    for one and more, for zero, for a value that is not finite and for a unit without
-    smaller ones."""
-    magnitude = abs(largest)
+    magnitude), rounded to ``digits`` significant digits, is ``largest``: a smaller unit below
+    one ``unit`` (seconds as ms, µs or ns, metres as mm), the largest whose value is at least
+    one, else the smallest; ``(1, unit)`` for one and more (0.9996 m to three digits is 1 m,
+    not 1e+03 mm), for zero, for a value that is not finite and for a unit without smaller
+    ones."""
+    magnitude = abs(float(f"{largest:.{digits}g}"))
     smaller = _SMALLER_UNITS.get(unit or "", ())
     if not smaller or not 0.0 < magnitude < 1.0:
         return 1.0, unit
     for factor, name in smaller:
-        if magnitude >= factor:
+        if float(f"{magnitude / factor:.{digits}g}") >= 1.0:
             return factor, name
     return smaller[-1]
 
@@ -60,7 +62,7 @@ def quantity_text(
     sentence in one unit): ``quantity_text(0.00951, "m")`` is ``"9.51 mm"``,
     ``quantity_text(9.99997e-10, "s", 4)`` ``"1 ns"``, ``quantity_text(2.5, "s")``
     ``"2.5 s"``; without a unit, the number alone."""
-    factor, shown = scaled_unit(unit, value if largest is None else largest)
+    factor, shown = scaled_unit(unit, value if largest is None else largest, digits)
     number = f"{value / factor:.{digits}g}"
     return number if shown is None else f"{number} {shown}"
 
@@ -68,8 +70,10 @@ def quantity_text(
 def with_scaled(value: float, unit: str, digits: int = 6) -> str:
     """``value`` in ``unit`` to ``digits`` significant digits, then, when it is below one
     ``unit``, in the smaller unit of :func:`scaled_unit` to four: ``"0.12487 s (124.9 ms)"``,
-    ``"9.99997e-10 s (1 ns)"``, ``"2.5 s"``."""
+    ``"9.99997e-10 s (1 ns)"``, ``"2.5 s"``; without the second where it would add nothing (a
+    value that rounds to one ``unit``, or below a thousandth of the smallest unit)."""
     text = f"{value:.{digits}g} {unit}"
-    if scaled_unit(unit, value)[1] == unit:
+    factor, shown = scaled_unit(unit, value, 4)
+    if shown == unit or abs(value / factor) < 1e-3:
         return text
     return f"{text} ({quantity_text(value, unit, 4)})"

@@ -19,7 +19,14 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-__all__ = ["ascii_unit", "coordinate_units", "default_names", "labelled", "with_unit"]
+__all__ = [
+    "ascii_unit",
+    "coordinate_units",
+    "default_names",
+    "labelled",
+    "value_with_unit",
+    "with_unit",
+]
 
 
 def ascii_unit(unit: str) -> str:
@@ -36,6 +43,12 @@ def labelled(name: str, unit: str | None) -> str:
 def with_unit(name: str, unit: str | None) -> str:
     """``name_<unit>``, or ``name`` when the unit is not known."""
     return f"{name}_{ascii_unit(unit)}" if unit else name
+
+
+def value_with_unit(value: str, unit: str | None) -> str:
+    """A value as text followed by its unit for a sentence (``"0.2 rad"``), or the value alone
+    when the unit is not known."""
+    return f"{value} {unit}" if unit else value
 
 
 def default_names(names: Sequence[str] | None, n: int, prefix: str = "q") -> tuple[str, ...]:

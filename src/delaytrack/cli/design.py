@@ -90,10 +90,10 @@ def _print(design: GainDesign, bandwidth: float | None) -> None:
     )
     print(
         f"  h_m = {with_scaled(design.h_m, 's')}; the paper's K1 = K2 = Q = I, "
-        f"beta = 1: {design.reference_h_m:.6g} s ({gain_text} %)"
+        f"beta = 1: {with_scaled(design.reference_h_m, 's')} ({gain_text} %)"
     )
     print(
-        f"  exact margin of these gains (constant delay): {design.exact.h:.6g} s at "
+        f"  exact margin of these gains (constant delay): {with_scaled(design.exact.h, 's')} at "
         f"{design.exact.omega:.6g} rad/s"
     )
     active = {True: "active", False: "inactive"}

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from delaytrack._cli_options import quiet_argument, trust_argument
+from delaytrack._words import with_scaled
 from delaytrack.cli._numbers import numbers, scalar
 from delaytrack.cli._scenarios import scenario_source, trusted
 from delaytrack.cli._usage import UsageError, flagged
@@ -172,7 +173,11 @@ def _print(
     )
     if analytic:
         print(
-            f"  h_m         = {analytic['h_m']:.6g} s (Theorem 1: the controller's K1, K2, "
+            f"  h_m         = {with_scaled(analytic['h_m'], 's')}, by Theorem 1 (the "
+            f"controller's K1, K2, "
             f"{weight}; beta = {PAPER_BETA:g}, r = {PAPER_R:g})"
         )
-        print(f"  h_exact     = {analytic['h_exact']:.6g} s (constant delay, nominal dynamics)")
+        print(
+            f"  h_exact     = {with_scaled(analytic['h_exact'], 's')}, exact (constant delay, "
+            "nominal dynamics)"
+        )

@@ -328,7 +328,7 @@ def _margins(args: argparse.Namespace) -> int:
     """The margins job, into ``<out>/margins/``."""
     from delaytrack.experiments.margins import FOLDER
     from delaytrack.jobs.margins import reproduce
-    from delaytrack.report.margins import legend_text, margins_with_units
+    from delaytrack.report.margins import terminal_text
 
     try:
         study = _timed(
@@ -339,7 +339,6 @@ def _margins(args: argparse.Namespace) -> int:
         )
     except ValueError as error:  # a --duration too short for the job's tracking rule
         raise UsageError(f"margins job: {flagged(error, _DURATION)}") from None
-    print(legend_text(study))
-    print(table_text(margins_with_units(study.table)))
+    print(terminal_text(study))
     print(f"report: {Path(args.out) / FOLDER / 'report.html'}")
     return 0

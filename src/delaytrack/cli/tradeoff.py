@@ -16,7 +16,7 @@ from delaytrack._cli_options import (
     within,
 )
 from delaytrack._output import check_output_folder, plain_folder_name
-from delaytrack._words import counted
+from delaytrack._words import counted, quantity_text
 from delaytrack.cli._numbers import numbers
 from delaytrack.cli._scenarios import scenario_source, trusted
 from delaytrack.cli._usage import UsageError, flagged
@@ -257,13 +257,14 @@ def run(args: argparse.Namespace) -> int:
         f"{one_run}, {study.seconds:.1f} s ({counted(study.computed, 'unit')} computed, "
         f"{study.resumed} resumed)"
     )
-    ae_unit = f" {study.ae_unit}" if study.ae_unit else ""
     print("Pareto front (empirical margin, median AE):")
+    largest = front.ae_median.abs().max()  # every AE in one unit (a robot's m as mm)
     for row in front.itertuples():
+        ae = quantity_text(row.ae_median, study.ae_unit, 4, largest=largest)
         print(
             f"  {row.controller:<10} omega_n = {row.omega_n:<8.4g} rad/s  margin = "
-            f"{row.empirical_margin:.4g}{'+' if row.margin_search == LOWER_BOUND else ''} s  AE = "
-            f"{row.ae_median:.4g}{ae_unit}"
+            f"{row.empirical_margin:.4g}{'+' if row.margin_search == LOWER_BOUND else ''} s  "
+            f"AE = {ae}"
         )
     if (front.margin_search == LOWER_BOUND).any():
         print(

@@ -56,9 +56,17 @@ from delaytrack.scenario import BuiltScenario, Scenario, ScenarioError
 from delaytrack.sim import STATUS_NAMES, simulate
 from delaytrack.sim.certified_bound import stated_by_the_caller
 from delaytrack.sim.simulate import MAX_STEPS
-from delaytrack.units import coordinate_units, default_names
+from delaytrack.units import coordinate_units, default_names, value_with_unit
 
-__all__ = ["METRICS", "MIN_RESOLUTION", "PROFILES", "EmpiricalMargin", "empirical_margin"]
+__all__ = [
+    "METRICS",
+    "MIN_RESOLUTION",
+    "PROFILES",
+    "EmpiricalMargin",
+    "MissedWithoutDelay",
+    "empirical_margin",
+    "resolved_text",
+]
 
 #: Delay families: name -> (value v, frequency) -> profile.
 PROFILES: dict[str, Callable[[float, float], DelayProfile]] = {
@@ -157,9 +165,8 @@ class EmpiricalMargin:
                 f"{self.upper:g} s"
             )
         assert self.first_failure is not None  # a failure was found
-        decimals = max(0, math.ceil(-math.log10(self.resolution)))
-        margin = _rounded(self.margin, decimals, decimal.ROUND_FLOOR)
-        failure = _rounded(self.first_failure, decimals, decimal.ROUND_CEILING)
+        margin = resolved_text(self.margin, self.resolution)
+        failure = resolved_text(self.first_failure, self.resolution, up=True)
         return f"{margin} s (first failure {failure} s; {rule}; resolution {self.resolution:g} s)"
 
     def _threshold_text(self) -> str:
@@ -170,7 +177,7 @@ class EmpiricalMargin:
         known = None not in units
         if isinstance(self.threshold, tuple):
             bounds = ", ".join(
-                f"{name} {bound:g}" + (f" {unit}" if unit else "")
+                value_with_unit(f"{name} {bound:g}", unit)
                 for name, bound, unit in zip(
                     self.coordinate_names, self.threshold, units, strict=True
                 )
@@ -565,35 +572,54 @@ class _Lockstep:
             f"{found} at h = 0{where}; {advice}",
             index=i,
             found=found,
+            finished=status == 0,
         )
 
 
 class MissedWithoutDelay(ArgumentError):
     """The refusal of a threshold that a controller misses already at ``h = 0``: ``index`` is
     the controller's place in the list searched, ``found`` what its run gave (``ae of q1 =
-    0.2956 rad``, or how it stopped), for a caller that words it in its own terms."""
+    0.2956 rad``, or how it stopped), ``finished`` whether that run ended ok (else no threshold
+    would help), for a caller that words it in its own terms."""
 
-    def __init__(self, argument: str, problem: str, *, index: int, found: str) -> None:
+    def __init__(
+        self, argument: str, problem: str, *, index: int, found: str, finished: bool
+    ) -> None:
         super().__init__(argument, problem)
         self.index = index
         self.found = found
+        self.finished = finished
 
     def __reduce__(self) -> tuple[Any, ...]:
         # Rebuilt with its parts (an error raised in a worker process crosses back pickled).
-        return _missed_again, (self.argument, self.problem, self.index, self.found)
+        parts = (self.argument, self.problem, self.index, self.found, self.finished)
+        return _missed_again, parts
 
 
-def _missed_again(argument: str, problem: str, index: int, found: str) -> MissedWithoutDelay:
-    return MissedWithoutDelay(argument, problem, index=index, found=found)
+def _missed_again(
+    argument: str, problem: str, index: int, found: str, finished: bool
+) -> MissedWithoutDelay:
+    """A :class:`MissedWithoutDelay` made again from its parts (unpickling)."""
+    return MissedWithoutDelay(argument, problem, index=index, found=found, finished=finished)
+
+
+def resolved_text(value: float, resolution: float, *, up: bool = False) -> str:
+    """A delay a search found, to the decimals of its ``resolution`` (s) and no finer: rounded
+    down (a margin: never above the value that passed), or up with ``up`` (a first failure),
+    so that a bracket shown holds the bracket found: ``resolved_text(0.63333, 0.005)`` is
+    ``"0.633"``."""
+    decimals = max(0, math.ceil(-math.log10(resolution)))
+    return _rounded(value, decimals, decimal.ROUND_CEILING if up else decimal.ROUND_FLOOR)
 
 
 def _rounded(value: float, decimals: int, rounding: str) -> str:
     """``value`` to ``decimals`` decimals, rounded as ``rounding`` says (``decimal.ROUND_FLOOR``,
-    ``decimal.ROUND_CEILING``), from its shortest decimal form (0.7 stays 0.70, not the 0.69
-    its binary value's floor would give)."""
+    ``decimal.ROUND_CEILING``), from its decimal form to 12 significant digits: a grid value
+    that carries binary noise (0.6000000000000001, 0.7 stored as 0.6999...) is rounded as the
+    value it stands for, 0.600 and 0.700, not 0.601 or 0.699."""
     exact = decimal.Context(prec=decimal.MAX_PREC)  # a large value keeps all its digits
     step = decimal.Decimal(1).scaleb(-decimals)
-    return format(decimal.Decimal(repr(float(value))).quantize(step, rounding, exact), "f")
+    return format(decimal.Decimal(f"{value:.12g}").quantize(step, rounding, exact), "f")
 
 
 def _shown(threshold: float | tuple[float, ...]) -> str:
@@ -635,7 +661,7 @@ def _missed(
     j = int(np.argmax(values / limits))
     unit = (plant.coordinate_units or [None] * plant.n)[j]
     name = default_names(plant.coordinate_names, plant.n)[j]
-    return f"{metric} of {name} = {values[j]:.4g}" + (f" {unit}" if unit else "")
+    return value_with_unit(f"{metric} of {name} = {values[j]:.4g}", unit)
 
 
 def _settings(

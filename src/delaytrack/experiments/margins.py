@@ -37,6 +37,7 @@ import numpy as np
 import pandas as pd
 
 from delaytrack._deprecated import moved_names
+from delaytrack._result_columns import shared_unit
 from delaytrack._validation import ArgumentError
 from delaytrack.analysis import exact_delay_margin, razumikhin_bound
 from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
@@ -47,6 +48,7 @@ from delaytrack.experiments.empirical_margin import (
     empirical_margin,
 )
 from delaytrack.scenario import Scenario, load_builtin
+from delaytrack.units import coordinate_units, value_with_unit
 
 __all__ = ["FOLDER", "GAINS", "MarginStudy", "run_study"]
 #: Running the study and writing its report is a job (:mod:`delaytrack.jobs.margins`).
@@ -222,9 +224,11 @@ def run_study(*, duration: float | None = None, progress: bool = False) -> Margi
                     scenario, built, profile=profile, progress=progress, **SEARCH
                 )
             except MissedWithoutDelay as missed:
-                if duration is None:
-                    raise  # the job's own duration meets its rule: not the user's to mend
-                raise _too_short(duration, controller, pairs[missed.index], missed) from None
+                job = load_builtin(SCENARIO).duration
+                if duration is None or duration >= job or not missed.finished:
+                    raise  # not mended by a longer run: the job's own meets its rule
+                pair = pairs[missed.index]
+                raise _too_short(duration, job, controller, pair, missed, scenario) from None
             searches[controller, profile] = found
             for row, result in zip(rows, found, strict=True):
                 row[_column(controller, profile)] = (
@@ -245,17 +249,24 @@ def run_study(*, duration: float | None = None, progress: bool = False) -> Margi
 
 
 def _too_short(
-    duration: float, controller: str, gains: tuple[float, float], missed: MissedWithoutDelay
+    duration: float,
+    job: float,
+    controller: str,
+    gains: tuple[float, float],
+    missed: MissedWithoutDelay,
+    scenario: Scenario,
 ) -> ArgumentError:
-    """The refusal of a ``duration`` too short for the job's tracking rule: with the metric
-    window the second half of the run, a run too short has not settled by then."""
+    """The refusal of a ``duration`` shorter than the job's own ``job`` that leaves a run
+    without delay above the job's tracking rule: with the metric window the second half of
+    the run, a run that short has not settled by then."""
     k1, k2 = gains
+    unit = shared_unit(tuple(coordinate_units(scenario.build().plant).values()))
+    rule = value_with_unit(f"{SEARCH['metric']} <= {SEARCH['threshold']:g}", unit)
     return ArgumentError(
         "duration",
         f"= {duration:g} s is too short: {_NAMES[controller]} at K1 = {k1:g} I, K2 = {k2:g} I "
-        f"misses the job's rule ({SEARCH['metric']} <= {SEARCH['threshold']:g} over the second "
-        f"half of the run) already without delay ({missed.found}); give a longer $duration "
-        f"(the job's own, {load_builtin(SCENARIO).duration:g} s, meets it)",
+        f"misses the job's rule ({rule} over the second half of the run) already without "
+        f"delay ({missed.found}); give a longer $duration (the job's own, {job:g} s, meets it)",
         ("duration",),
     )
 

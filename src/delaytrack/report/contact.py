@@ -162,5 +162,4 @@ def write_contact_section(report: HtmlReport, study: PaperStudy) -> None:
         "summary_contact.csv: each run on the analytic robot and with contacts (time constant "
         f"{1e3 * CONTACT_TIME_CONSTANTS[0]:g} ms; AE of x and y together for the change); slip "
         "from the residual of the rolling constraints; —: the run left the path.",
-        missing="—",
     )

@@ -135,7 +135,9 @@ def ae_text(decision: Decision, value: float, digits: int = 3) -> str:
 
 def _why(decision: Decision, table: pd.DataFrame) -> list[str]:
     """Per row of ``table`` (the decision's candidates, or candidates and conditions): why the
-    candidate was not chosen; empty for the winner and the runner-up."""
+    candidate was not chosen; empty for the winner and the runner-up. In the table's unit (the
+    AE columns beside it), not scaled as the sentences are."""
+    unit = f" {decision.ae_unit}" if decision.ae_unit else ""
     reasons = []
     for row in table.itertuples(index=False):
         if row.status == "excluded":
@@ -144,8 +146,8 @@ def _why(decision: Decision, table: pd.DataFrame) -> list[str]:
             )
         elif row.status == "qualifies" and decision.winner is not None:
             reasons.append(
-                f"worst-case AE {ae_text(decision, row.worst_ae, 4)} against the winner's "
-                f"{ae_text(decision, decision.winner.worst_ae, 4)}"
+                f"worst-case AE {row.worst_ae:.4g}{unit} against the winner's "
+                f"{decision.winner.worst_ae:.4g}{unit}"
             )
         else:
             reasons.append("")

@@ -145,7 +145,6 @@ def _report(study: DecisionStudy) -> HtmlReport:
         "Wilson lower bound of the share on the path over the conditions; ae_difference and "
         "ae_ratio compare the runner-up's worst-case AE with the winner's; reason: why no "
         "candidate was chosen.",
-        missing="—",
     )
     drawn = ", ".join(tradeoff.random) or "nothing"
     report.settings(
@@ -170,6 +169,5 @@ def _report(study: DecisionStudy) -> HtmlReport:
             report.table(
                 candidates_table(decision).rename(columns=decision_columns(study.tradeoff.ae_unit)),
                 caption="One row per candidate, best first (candidates.csv has every condition).",
-                missing="—",
             )
     return report

@@ -49,20 +49,25 @@ def write_dt_check(
         dt_check.table,
         "Metrics at dt/2 and the largest relative change per run (—: the run left the path).",
         digits=6,
-        missing="—",
     )
 
 
+def _percent(fraction: float) -> str:
+    """A relative change as a percentage to three significant digits: ``"19 %"``,
+    ``"0.0212 %"``."""
+    return f"{100 * fraction:.3g} %"
+
+
 def _verdict_text(dt_check: DtCheck) -> str:
-    """``"0.19, NOT below the 1 % criterion"``."""
+    """``"19 %, NOT below the 1 % criterion"``: the change in the criterion's terms."""
     verdict = "below" if dt_check.within_tolerance else "NOT below"
-    return f"{dt_check.largest:.3g}, {verdict} the {dt_check.tolerance:.0%} criterion"
+    return f"{_percent(dt_check.largest)}, {verdict} the {_percent(dt_check.tolerance)} criterion"
 
 
 def _above(dt_check: DtCheck) -> str:
     """The runs at or above the tolerance, each with its largest change."""
     return "; ".join(
-        f"{row.scenario} {row.controller} ({row.max_relative_change:.3g})"
+        f"{row.scenario} {row.controller} ({_percent(row.max_relative_change)})"
         for row in dt_check.above.itertuples()
     )
 

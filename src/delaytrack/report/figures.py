@@ -33,6 +33,7 @@ matplotlib = import_matplotlib()  # first: no settings from the working folder (
 from matplotlib.figure import Figure  # noqa: E402
 
 from delaytrack._io import atomic_path  # noqa: E402
+from delaytrack._words import quantity_text  # noqa: E402
 from delaytrack.units import default_names, labelled  # noqa: E402
 from delaytrack.warning import DelaytrackWarning  # noqa: E402
 
@@ -260,7 +261,11 @@ def delay_figure(
         ax.plot(result.t, 1e3 * result.h[0], lw=1.2, label=label)
     if h_m is not None:
         ax.axhline(
-            1e3 * h_m, color="black", ls=":", lw=1.2, label=f"certified h_m = {1e3 * h_m:.2f} ms"
+            1e3 * h_m,
+            color="black",
+            ls=":",
+            lw=1.2,
+            label=f"certified h_m = {quantity_text(h_m, 's', 4)}",
         )
     ax.set_ylabel("h(t) (ms)")
     highest = max([np.nanmax(1e3 * r.h[0]) for r in runs.values()] + [1e3 * (h_m or 0.0)])
@@ -300,6 +305,7 @@ def margins_figure(
     *,
     xlabel: str,
     title: str | None = None,
+    at_least: float | None = None,
 ) -> Figure:
     """Delay margins side by side per group (e.g. per gain pair), on a log scale.
 
@@ -312,14 +318,34 @@ def margins_figure(
     xlabel : str
         What the groups are (the horizontal axis's label, with units).
     title : str, optional
+    at_least : float, optional
+        The search limit (s) of margins searched empirically: a NaN margin is then drawn as a
+        hatched, unfilled bar up to it (no failure found below it: the margin is at least
+        that), not left out as if it were small or zero.
     """
     figure = Figure(figsize=(_WIDTH + 2.0, 4.2), dpi=_DPI, layout="constrained")
     ax = figure.add_subplot()
     width = 0.8 / len(margins)
     positions = np.arange(len(groups))
+    unknown = False  # whether a bar was drawn hatched, to the search limit
     for k, (label, values) in enumerate(margins.items()):
         heights = np.asarray(values, dtype=float)
-        ax.bar(positions + (k - (len(margins) - 1) / 2) * width, heights, width, label=label)
+        at = positions + (k - (len(margins) - 1) / 2) * width
+        bars = ax.bar(at, heights, width, label=label)
+        missing = np.isnan(heights)
+        if at_least is not None and missing.any():
+            color = bars.patches[0].get_facecolor()
+            ax.bar(at[missing], at_least, width, fill=False, hatch="///", edgecolor=color)
+            unknown = True
+    if unknown:  # the hatch's meaning, once, in the legend
+        ax.bar(
+            np.nan,
+            np.nan,
+            fill=False,
+            hatch="///",
+            edgecolor="grey",
+            label=f"hatched: no failure up to {at_least:g} s (at least that)",
+        )
     ax.set_yscale("log")
     ax.set_xticks(positions, groups, rotation=30, ha="right", fontsize="small")
     ax.set_xlabel(xlabel)

@@ -60,8 +60,16 @@ figure img { max-width: 100%; border: 1px solid #eee; }
 figcaption { font-size: .9rem; color: #555; }
 code, pre { background: #f6f6f6; font-size: .88rem; }
 pre { padding: .6rem; overflow-x: auto; }
+footer { margin-top: 2rem; border-top: 1px solid #ddd; color: #555; font-size: .9em; }
 .note { background: #fff8e1; border-left: 4px solid #f0c040; padding: .5rem .8rem; }
 """
+#: The reference every page ends with: the paper the controller, Theorem 1 and the robot
+#: experiment are taken from.
+_FOOTER = (
+    "<footer><p>AROLC, its certified delay bound (Theorem 1) and the robot experiment: "
+    "S. Roy and I. N. Kar, &ldquo;Adaptive-Robust Control of a Class of Nonlinear Systems "
+    "with Unknown Input Delay&rdquo; (arXiv preprint).</p></footer>"
+)
 #: A path to another report in the text: ``../robustness/report.html``, ``report.html``.
 _REPORT_PATH = re.compile(r"(?<![\w/.-])((?:\.\./|\./)?(?:[\w.-]+/)*[\w.-]+\.html)(?![\w/])")
 
@@ -132,10 +140,11 @@ class HtmlReport:
         caption: str | None = None,
         *,
         digits: int = 4,
-        missing: str = "NaN",
+        missing: str = "—",
     ) -> None:
         """A DataFrame as a table, with an optional caption above it; a missing value shows as
-        ``missing`` (say ``"—"`` where a value does not apply)."""
+        ``missing`` ("—" unless said otherwise: a report never shows "NaN"; a caption says what
+        "—" means where it is not plain)."""
         if caption:
             self._blocks.append(f"<p><em>{_linked(caption)}</em></p>")
         # A table too wide for the window would scroll inside its own box, never the page.
@@ -158,14 +167,14 @@ class HtmlReport:
 
     def render(self) -> str:
         """The complete HTML document: the title, the table of contents (with two sections or
-        more), then the blocks."""
+        more), the blocks, then the paper's reference."""
         body = "\n".join(self._blocks)
         title = html.escape(self.title)
         return (
             '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8"/>\n'
             '<meta name="viewport" content="width=device-width, initial-scale=1"/>\n'
             f"<title>{title}</title>\n<style>{_STYLE}</style>\n</head>\n<body>\n"
-            f"<h1>{title}</h1>\n{self._contents()}{body}\n</body>\n</html>\n"
+            f"<h1>{title}</h1>\n{self._contents()}{body}\n{_FOOTER}\n</body>\n</html>\n"
         )
 
     def _contents(self) -> str:

@@ -5,6 +5,8 @@ writes the job's files."""
 
 from __future__ import annotations
 
+import math
+import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -14,13 +16,15 @@ from matplotlib.figure import Figure
 from delaytrack._io import write_frame
 from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack._version import __version__
+from delaytrack._words import table_text
+from delaytrack.experiments.empirical_margin import resolved_text
 from delaytrack.report.figures import margins_figure, save_figure
 from delaytrack.report.html import HtmlReport
 
 if TYPE_CHECKING:
     from delaytrack.experiments.margins import MarginStudy
 
-__all__ = ["legend_text", "margins_with_units", "write_study"]
+__all__ = ["margins_with_units", "terminal_text", "write_study"]
 
 #: The margins' columns and their labels.
 _LABELS = {
@@ -31,6 +35,8 @@ _LABELS = {
     "outer_loop_constant": "outer loop, empirical, constant h",
     "outer_loop_abs_sine": "outer loop, empirical, a |sin t|",
 }
+#: The empirical margins' columns (a search's result, shown to its resolution).
+_EMPIRICAL = tuple(column for column in _LABELS if column not in ("h_m", "h_exact"))
 #: The gains' columns in the files, with their units (``e'' + K2 e' + K1 e = 0``).
 _GAIN_COLUMNS = {"k1": "k1_per_s2", "k2": "k2_per_s"}
 
@@ -42,14 +48,30 @@ def margins_with_units(table: pd.DataFrame) -> pd.DataFrame:
     return table.rename(columns={**_GAIN_COLUMNS, **delays})
 
 
-def legend_text(study: MarginStudy) -> str:
-    """What the columns of :func:`margins_with_units` hold, for the table on a terminal."""
-    margins = "; ".join(f"{column}_s: {label}" for column, label in _LABELS.items())
-    return (
-        "K1 = k1 I, K2 = k2 I; margins in s: "
-        f"{margins}; the last two columns are ratios; —: no failure found up to "
-        f"{study.search['upper']:g} s (the margin is at least that)"
+def _resolved(study: MarginStudy) -> pd.DataFrame:
+    """:func:`margins_with_units` with the empirical margins as text to the search's
+    resolution, rounded down (as ``delaytrack empirical`` shows them: no digit finer than the
+    search resolved), None where no failure was found."""
+    table = study.table.copy()
+    for column in _EMPIRICAL:
+        table[column] = [
+            None if math.isnan(value) else resolved_text(value, study.search["resolution"])
+            for value in table[column]
+        ]
+    return margins_with_units(table)
+
+
+def terminal_text(study: MarginStudy) -> str:
+    """The table of :func:`_resolved` for a terminal, below a legend of what its columns
+    hold."""
+    shown = _resolved(study)
+    named = dict(zip(study.table.columns, shown.columns, strict=True))
+    margins = "; ".join(f"{named[column]}: {label}" for column, label in _LABELS.items())
+    legend = (
+        f"K1 = k1 I, K2 = k2 I; margins in s: {margins}; the last two columns are ratios; "
+        f"—: no failure found up to {study.search['upper']:g} s (the margin is at least that)"
     )
+    return "\n".join([*textwrap.wrap(legend, 100), table_text(shown)])
 
 
 def write_study(study: MarginStudy, folder: str | Path) -> list[Path]:
@@ -70,6 +92,7 @@ def write_study(study: MarginStudy, folder: str | Path) -> list[Path]:
         labels,
         xlabel="outer-loop gains K1 = k1 I (k1 in 1/s²), K2 = k2 I (k2 in 1/s)",
         title="Delay margins of K1 = k1 I, K2 = k2 I on the two-link arm",
+        at_least=study.search["upper"],
     )
     files += save_figure(figure, folder / "figures" / "margins")
     files.append(_report(study, figure).write(folder / "report.html"))
@@ -106,9 +129,11 @@ def _report(study: MarginStudy, figure: Figure) -> HtmlReport:
         }
     )
     report.table(
-        margins_with_units(study.table),
-        caption="Margins in seconds (NaN: no failure up to the upper limit); the columns as "
-        "margins.csv holds them.",
+        _resolved(study),
+        caption="Margins in seconds, the empirical ones rounded down to the search's "
+        f"resolution ({search['resolution']:g} s; margins.csv has them in full); —: no failure "
+        f"up to the search limit (the margin is at least {search['upper']:g} s). The columns "
+        "as margins.csv holds them.",
     )
     report.figure(figure, "Margins per gain pair, log scale.")
     gap = study.gap

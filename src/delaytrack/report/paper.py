@@ -22,7 +22,7 @@ from matplotlib.ticker import FuncFormatter, LogLocator
 from delaytrack._io import write_frame, write_text
 from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack._version import __version__
-from delaytrack._words import table_text
+from delaytrack._words import counted, quantity_text, table_text
 from delaytrack.experiments import tuning
 from delaytrack.experiments.pairing import AROLC_GAINS, BASELINE, DELAY_CLASS
 from delaytrack.experiments.paper_findings import summary_row
@@ -406,7 +406,7 @@ def _verdicts(checks: Claims) -> str:
     growth = {True: "holds", False: "fails", None: "is not decided (a run left the path)"}
     return (
         f"{part('AE below the baseline', 'ae')}; {part('TV below the baseline', 'tv')}; "
-        f"error growth S3 -> S4 {growth[checks['growth']['S3->S4']]}"
+        f"error growth S3 → S4 {growth[checks['growth']['S3->S4']]}"
     )
 
 
@@ -428,7 +428,8 @@ def _distribution_verdicts(robustness: RobustnessStudy | None, controller: str) 
 
 def _claims_summary(study: PaperStudy, robustness: RobustnessStudy | None) -> str:
     sets = "; ".join(
-        f"{gain_set} delays: {gains_text('AROLC', g)}, certified up to h_m = {g['h_m']:.4f} s"
+        f"{gain_set} delays: {gains_text('AROLC', g)}, certified up to h_m = "
+        f"{quantity_text(g['h_m'], 's', 4)}"
         for gain_set, g in study.gains["AROLC"].items()
         if gain_set in tuning.DELAY_CLASSES
     )
@@ -439,8 +440,8 @@ def _claims_summary(study: PaperStudy, robustness: RobustnessStudy | None) -> st
             if robustness is not None
             else ""
         )
-        + f". With the paper's gains (certified by Theorem 1 up to h_m = {study.bound.h_m:.4f} "
-        f"s): one run: {_verdicts(study.findings.claims)}"
+        + ". With the paper's gains (certified by Theorem 1 up to h_m = "
+        f"{quantity_text(study.bound.h_m, 's', 4)}): one run: {_verdicts(study.findings.claims)}"
         + _distribution_verdicts(robustness, "AROLC (paper gains)")
         + f". Tuned by the same protocol as the baselines, per delay class as they are ({sets}): "
         f"one run: {_verdicts(study.findings.tuned_claims)}"
@@ -736,7 +737,6 @@ def _decision_section(report: HtmlReport, decision: DecisionStudy) -> None:
     report.table(
         display_envelopes(decision),
         "decision/decision.csv: one row per envelope (—: no winner or no runner-up).",
-        missing="—",
     )
 
 
@@ -778,7 +778,6 @@ def _tuned_section(
         chosen,
         "Chosen gains per controller and gain set (objective: worst mean AE over the set's "
         "tuning conditions, mm; certified h_m in ms, AROLC only).",
-        missing="—",
     )
     report.paragraph(
         f"Certification caveat: Theorem 1 certifies the tuned AROLC only up to h_m = "
@@ -796,7 +795,6 @@ def _tuned_section(
     report.table(
         side,
         "AROLC-tuned beside the tuned baselines (mm, %, N·m; —: the run left the path).",
-        missing="—",
     )
     checks = found.tuned_claims
     lines = []
@@ -815,7 +813,7 @@ def _tuned_section(
     s3 = summary_row(study.tuned_summary, "S3", TUNED)
     s4 = summary_row(study.tuned_summary, "S4", TUNED)
     lines.append(
-        "Growth S3 -> S4 for AROLC-tuned, in this one run: "
+        "Growth S3 → S4 for AROLC-tuned, in this one run: "
         + _one_run_verdict(
             checks["growth"]["S3->S4"], {"AROLC-tuned in S3": s3, "AROLC-tuned in S4": s4}
         )
@@ -837,9 +835,9 @@ def _literal_paragraph(study: PaperStudy, literal_summary: pd.DataFrame | None) 
         "five, so every controller, which "
         "weighs all five coordinates, settles on a compromise between the x–y circle, the "
         "heading and the wheel angles, and the x–y errors grow to the order of the path itself. "
-        "The main results "
-        "(results/paper/) use the 'consistent' path (same circle, heading and wheel angles "
-        "derived from the kinematics)."
+        "The main results (the report in paper/ beside this one's folder) use the "
+        "'consistent' path (same circle, heading and wheel angles derived from the "
+        "kinematics)."
     )
     if study.reference == "literal":
         frame = study.summary
@@ -913,7 +911,7 @@ def _settings(study: PaperStudy) -> dict[str, str]:
         "AROLC-tuned": "; ".join(
             f"{', '.join(c for c, k in DELAY_CLASS.items() if k == gain_set)}: "
             + gains_text("AROLC", g["AROLC"][gain_set])
-            + f" (certified up to h_m = {g['AROLC'][gain_set]['h_m']:.4f} s)"
+            + f" (certified up to h_m = {quantity_text(g['AROLC'][gain_set]['h_m'], 's', 4)})"
             for gain_set in tuning.DELAY_CLASSES
         )
         + f"; Q = I, ε = {AROLC_GAINS['epsilon']:g}, γ = {AROLC_GAINS['gamma']:g}",
@@ -934,7 +932,7 @@ def _settings(study: PaperStudy) -> dict[str, str]:
         "delays": "; ".join(f"{k}: {v}" for k, v in _SCENARIO_TEXT.items())
         + " (unknown to AROLC and the outer loop)",
         "duration": f"{study.duration:g} s (not in the paper; "
-        f"{study.findings.payload_placements} payload placements)",
+        f"{counted(study.findings.payload_placements, 'payload placement')})",
         "plant step dt": f"{DT:g} s, RK4 split at the delayed input's switches; "
         + (
             "not checked at dt/2"
@@ -987,7 +985,6 @@ def _tuning_section(report: HtmlReport, study: PaperStudy) -> None:
                 f"{kind} ({gain_set}): the five best grid points; the objective is the worst "
                 f"ae_i_mm of conditions {', '.join(members)}; —: the point left the path under "
                 "that condition.",
-                missing="—",
             )
 
 
@@ -1032,7 +1029,6 @@ def _report(
         study.summary,
         f"summary.csv: AE, RMS, max in mm; %AE of {DIAMETER_MM:g} mm; TV in N·m; —: the run "
         "left the path.",
-        missing="—",
     )
     report.heading("Figures")
     for figure, caption in figures.values():

@@ -41,7 +41,7 @@ from delaytrack.sweeps.summary import (
     smallest_medians,
     summary_table,
 )
-from delaytrack.units import coordinate_units, labelled
+from delaytrack.units import coordinate_units, labelled, value_with_unit
 
 __all__ = [
     "ae_vs_h_max_figure",
@@ -197,7 +197,8 @@ def sweep_section(
     report.settings(
         {
             "base scenario": spec.base.name,
-            "grid": "; ".join(f"{k}: {len(v)} values" for k, v in spec.grid.items()) or "none",
+            "grid": "; ".join(f"{k}: {counted(len(v), 'value')}" for k, v in spec.grid.items())
+            or "none",
             "random draws": (
                 "; ".join(f"{k}: {v['dist']}" for k, v in spec.random.items())
                 + f" ({spec.draws} draws, seed {spec.seed})"
@@ -251,7 +252,7 @@ def _error_bound_text(scenario: Any) -> str:
         return "the base scenario sets none"
     units = coordinate_units(scenario.build().plant)
     bounded = [
-        f"{name} {b:g}" + (f" {unit}" if unit else "")
+        value_with_unit(f"{name} {b:g}", unit)
         for (name, unit), b in zip(units.items(), bound, strict=True)
         if math.isfinite(b)
     ]

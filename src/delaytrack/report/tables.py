@@ -22,7 +22,7 @@ MOVED = {
 __getattr__ = moved_names(__name__, MOVED)
 
 
-def frame_to_html(frame: pd.DataFrame, *, digits: int = 4, missing: str = "NaN") -> str:
+def frame_to_html(frame: pd.DataFrame, *, digits: int = 4, missing: str = "—") -> str:
     """Render a DataFrame as an HTML table (no index; floats to ``digits`` significant digits,
     a missing value as ``missing``).
 

@@ -29,7 +29,7 @@ from delaytrack.report.decision import (
 )
 from delaytrack.report.figures import save_figure
 from delaytrack.report.html import HtmlReport
-from delaytrack.units import coordinate_units, labelled, with_unit
+from delaytrack.units import coordinate_units, labelled, value_with_unit, with_unit
 
 if TYPE_CHECKING:
     from delaytrack.experiments.decision import Choice, Decision
@@ -65,7 +65,7 @@ def threshold_text(study: TradeoffStudy) -> str:
     y <= 1 m``."""
     units = coordinate_units(study.scenario.build().plant)
     return ", ".join(
-        f"{name} <= {bound:g}" + (f" {units[name]}" if units.get(name) else "")
+        value_with_unit(f"{name} <= {bound:g}", units.get(name))
         for name, bound in study.threshold.items()
     )
 
@@ -201,10 +201,16 @@ def _decision_section(report: HtmlReport, decision: Decision) -> None:
         caption="One row per candidate, best first: its worst (smallest) Wilson lower bound "
         "over the conditions, worst-case AE, and why it was not chosen.",
     )
+    # Each candidate's worst values and why it was not chosen are in the table above: here only
+    # what differs from condition to condition (decision.csv has both).
+    keys = ("controller", "omega_n", "k1", "k2", "status")
+    repeated = [column for column in decision.candidates.columns if column not in keys]
     report.table(
-        decision_table(decision).rename(columns=decision_columns(decision.ae_unit)),
-        caption="One row per candidate and condition (decision.csv): robots on the path of "
-        "those drawn, share with its Wilson 95 % interval, median AE of the runs on the path.",
+        decision.table.drop(columns=repeated).rename(columns=decision_columns(decision.ae_unit)),
+        caption="One row per candidate and condition (decision.csv, which also repeats each "
+        "candidate's row above): robots on the path of those drawn, share with its Wilson 95 % "
+        "interval, median AE of the runs on the path; told_s —: told no delay (AROLC and the "
+        "outer loop).",
     )
 
 
@@ -261,7 +267,6 @@ def _report(study: TradeoffStudy, figure: Figure, decision: Decision | None) -> 
         "empirical margin is: "
         + "; ".join(f"{key}: {meaning}" for key, meaning in MARGIN_SEARCHES.items())
         + ".",
-        missing="—",
     )
     runs = [c for c in table.columns if c not in (*point, *margins, "margin_found")]
     report.table(
@@ -270,7 +275,6 @@ def _report(study: TradeoffStudy, figure: Figure, decision: Decision | None) -> 
         "the scenario's delay. Runs off the path by reason: stopped (diverged or beyond the "
         "scenario's error_bound) and over_threshold (ended ok, mean |e1| above the threshold). "
         "share_low/high: Wilson 95 % interval; —: no run on the path to take a median of.",
-        missing="—",
     )
     report.figure(
         figure,
@@ -285,7 +289,6 @@ def _report(study: TradeoffStudy, figure: Figure, decision: Decision | None) -> 
     report.table(
         front[shown + [_columns(study)["ae_median"], _columns(study)["tv_median"]]],
         caption="The points on the front (their other columns in the tables above).",
-        missing="—",
     )
     report.paragraph(
         "Empirical margins hold for this scenario, horizon and rule only; a margin at the search "

@@ -191,22 +191,24 @@ _FORCE_UNITS = {3: "N·m", 2: "N"}
 
 def _input_units(mujoco: Any, model: Any) -> tuple[str, ...] | None:
     """Each actuator's control unit where MuJoCo's units give it for all of them: a motor of
-    gain 1 and gear 1 on a hinge joint takes N·m, on a slide joint N (its control is the joint
+    gain 1 and gear ±1 on a hinge joint takes N·m, on a slide joint N (its control is the joint
     force); None when any actuator's control is not a joint force (a gear g makes it a g-th of
-    the force, a servo's control is a position)."""
+    the force, a servo's control is a position; a ball or free joint has no one unit)."""
+    joint = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT))
     units = []
     for j in range(model.nu):
         motor = (
-            model.actuator_trntype[j] == int(mujoco.mjtTrn.mjTRN_JOINT)
+            model.actuator_trntype[j] in joint
             and model.actuator_dyntype[j] == 0
             and model.actuator_gaintype[j] == 0
             and model.actuator_biastype[j] == 0
             and model.actuator_gainprm[j, 0] == 1.0
-            and model.actuator_gear[j, 0] == 1.0
+            and abs(model.actuator_gear[j, 0]) == 1.0
         )
-        if not motor:
+        unit = _FORCE_UNITS.get(int(model.jnt_type[int(model.actuator_trnid[j, 0])]))
+        if not motor or unit is None:
             return None
-        units.append(_FORCE_UNITS[int(model.jnt_type[int(model.actuator_trnid[j, 0])])])
+        units.append(unit)
     return tuple(units)
 
 

@@ -254,6 +254,13 @@ def test_simulate_writes_every_promised_file(short_scenario, tmp_path, capsys):
     assert main(["simulate", str(short_scenario), "--out", str(out), "--format", "both"]) == 0
     printed = capsys.readouterr().out
     assert str(out) in printed
+    # AROLC's h_m of the scenario's gains, in s and in the unit that reads
+    from delaytrack.sim.certified_bound import certified_bounds
+
+    h_m = certified_bounds([load_builtin("two_link_S1").build().controller])[0]
+    line = next(x for x in printed.splitlines() if x.startswith("AROLC's certified"))
+    assert line.startswith(f"AROLC's certified delay bound h_m = {h_m:.6g} s (")
+    assert f"{1e3 * h_m:.4g} ms), by Theorem 1 with the scenario's K1, K2, Q" in line
     expected = ["scenario.toml", "trajectories.parquet", "trajectories.csv", "metrics.csv"]
     expected += [
         f"figures/{name}.{ext}"

@@ -265,7 +265,7 @@ def test_the_findings_call_medians_within_one_percent_a_tie():
     )
     text = " ".join(findings(summary, ["ae_x"], {"ae_x": "m"}))
     assert "a: arolc and outer-loop within 1% of each other (0.00917 and 0.009172 m)" in text
-    assert "b: arolc (0.01 m)" in text
+    assert "b: arolc, median 0.01 m" in text
     assert "c: outer-loop and pcon and arolc within 1% of each other (0.01 and 0.01005 and " in text
 
 
@@ -559,3 +559,24 @@ def test_the_command_says_how_many_runs_did_not_finish_and_how():
         "divergence rate"
     )
     assert unfinished_runs_line(pd.Series(["ok", "ok"])) == ""
+
+
+def test_the_figures_count_the_runs_not_ok_and_keep_the_legend_off_the_points():
+    import pandas as pd
+
+    from delaytrack.report.sweep import ae_vs_h_max_figure, distribution_figure
+
+    runs = pd.DataFrame(
+        {
+            "controller_type": ["arolc"] * 4 + ["outer-loop"] * 3,
+            "status": ["ok", "diverged", "ok", "left the path", "ok", "ok", "ok"],
+            "h_max": [0.05, 0.05, 0.1, 0.1, 0.05, 0.1, 0.1],
+            "ae_q1": [0.1, float("nan"), 0.2, float("nan"), 0.15, 0.25, 0.3],
+        }
+    )
+    ax = distribution_figure(runs, ["ae_q1"]).axes[0]
+    ticks = [tick.get_text() for tick in ax.get_xticklabels()]
+    assert ticks == ["arolc\n2 of 4 not ok", "outer-loop\nall 3 ok"]
+    scatter = ae_vs_h_max_figure(runs, ["ae_q1"])
+    assert scatter.axes[0].get_legend() is None  # the figure's legend, below the panels
+    assert [text.get_text() for text in scatter.legends[0].get_texts()] == ["arolc", "outer-loop"]

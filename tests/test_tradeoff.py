@@ -331,3 +331,17 @@ def test_command_counts_the_points_with_no_run_on_the_path(tmp_path, capsys):
     assert (
         f"  {off} of {len(table)} points (gain point x controller) had no run on the path"
     ) in capsys.readouterr().out
+
+
+def test_the_figure_labels_each_point_with_its_gain_and_says_which_family_it_leaves_out(study):
+    from delaytrack.experiments.tradeoff import LOWER_BOUND, MARGIN_SEARCHES
+    from delaytrack.report.tradeoff import pareto_figure
+
+    ax = pareto_figure(study).axes[0]
+    table = study.table
+    placed = table[table.margin_found | (table.margin_search == LOWER_BOUND)]
+    labels = sorted(text.get_text() for text in ax.texts)
+    assert labels == sorted(f"{omega:.3g}" for omega in placed.omega_n)
+    legend = [text.get_text() for text in ax.get_legend().get_texts()]
+    assert f"PCONf (told h̄): not shown, {MARGIN_SEARCHES['not searched']}" in legend
+    assert "numbers: ω_n (rad/s)" in legend

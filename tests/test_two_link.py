@@ -55,10 +55,13 @@ def test_the_report_words_the_studys_judgements(study, tmp_path):
     text = _text(tmp_path / "as-run")
     for case in study.cases:
         head = {
-            study.coordinates: "AROLC tracks better on both joints",
-            (): "AROLC does not track better than the outer loop",
-        }.get(study.arolc_better[case], f"AROLC tracks better on {study.arolc_better[case][0]}")
-        assert f"{case}: {head}" in text
+            study.coordinates: "mean error is lower than the outer loop's on both joints",
+            (): "mean error is not lower than the outer loop's",
+        }.get(
+            study.arolc_better[case],
+            f"mean error is lower than the outer loop's on {study.arolc_better[case][0]}",
+        )
+        assert f"{case}: in this one run, AROLC's {head}" in text
     small = "comes mostly from the model mismatch, not from the delay"
     assert (small in text) == study.delay_effect_small
     # The report follows the study's judgements, not the numbers beside them.
@@ -70,8 +73,14 @@ def test_the_report_words_the_studys_judgements(study, tmp_path):
     )
     write_study(judged, tmp_path / "judged")
     text = _text(tmp_path / "judged")
-    assert "S1: AROLC tracks better on q2 only. AROLC vs outer loop: " in text
-    assert "S3: AROLC does not track better than the outer loop. AROLC vs outer loop: " in text
+    assert (
+        "S1: in this one run, AROLC's mean error is lower than the outer loop's on q2 only. "
+        "AROLC vs outer loop: " in text
+    )
+    assert (
+        "S3: in this one run, AROLC's mean error is not lower than the outer loop's. "
+        "AROLC vs outer loop: " in text
+    )
     assert (small in text) != study.delay_effect_small
     assert ("so the delay is a large part of the tracking error" in text) == (
         study.delay_effect_small

@@ -115,16 +115,16 @@ def _report(study: MarginStudy, figure: Figure) -> HtmlReport:
         {
             "scenario": f"{scenario.name} ({scenario.duration:g} s, dt = "
             f"{scenario.dt:g} s, T_c = {scenario.T_c:g} s)",
-            "tracking rule": f"status ok and max over joints of mean |e1| <= "
+            "tracking rule": f"status ok and max over joints of mean |e1| ≤ "
             f"{search['threshold']:g} rad over [{start:g}, {end:g}] s",
             "delay families": "constant h; h(t) = a |sin(t)| (the margin is the amplitude a)",
             "search": f"coarse grid of {search['grid'] + 1} values over [0, {search['upper']:g}] "
             f"s, then multi-section ({search['points']} values a round) to a bracket of "
             f"{search['resolution']:g} s",
-            "certificate": f"Theorem 1 with Q = I, beta = {study.beta:g}, r = {study.r:g}",
-            "gains": f"k1, k2 in {list(study.gain_values)}; AROLC alpha = "
-            f"{scenario.controller['alpha']:g}, epsilon = {scenario.controller['epsilon']:g}, "
-            f"gamma = {scenario.controller['gamma']:g}",
+            "certificate": f"Theorem 1 with Q = I, β = {study.beta:g}, r = {study.r:g}",
+            "gains": f"k1, k2 in {list(study.gain_values)}; AROLC α = "
+            f"{scenario.controller['alpha']:g}, ε = {scenario.controller['epsilon']:g}, "
+            f"γ = {scenario.controller['gamma']:g}",
             "version": f"delaytrack {__version__}; wall time {study.seconds:.1f} s",
         }
     )

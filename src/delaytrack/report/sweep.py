@@ -84,15 +84,19 @@ def distribution_figure(
     label_keys: Sequence[str] | None = None,
     units: Mapping[str, str] | None = None,
 ) -> Figure:
-    """Per metric, one box per controller over its ``ok`` runs; the share not ok below it."""
+    """Per metric, one box per controller over its ``ok`` runs; below it, how many of its runs
+    were not ok (``2 of 12 not ok``, or ``all 12 ok``)."""
     labels = controller_labels(runs, label_keys)
     order = list(dict.fromkeys(labels))
     ok = runs["status"] == "ok"
     figure, axes = _panels(len(metrics))
     names = []
     for label in order:
-        share = 1.0 - ok[labels == label].mean()
-        names.append(f"{label}\n{100 * share:.3g} % not ok")
+        runs_of = int((labels == label).sum())
+        not_ok = runs_of - int(ok[labels == label].sum())
+        names.append(
+            f"{label}\n{f'{not_ok} of {runs_of} not ok' if not_ok else f'all {runs_of} ok'}"
+        )
     for ax, metric in zip(axes, metrics, strict=True):
         data = [runs.loc[ok & (labels == label), metric].to_numpy(float) for label in order]
         ax.boxplot(data, whis=(5, 95), flierprops={"markersize": 2})
@@ -130,7 +134,16 @@ def ae_vs_h_max_figure(
         ax.set_title(metric)
         _log_scale_if_wide(ax, runs.loc[ok, metric].to_numpy(float))
         ax.grid(True, alpha=0.3)
-    axes[0].legend(fontsize="small", markerscale=2)
+    # Below the panels, not over a panel's points.
+    handles, names = axes[0].get_legend_handles_labels()
+    figure.legend(
+        handles,
+        names,
+        fontsize="small",
+        markerscale=2,
+        loc="outside lower center",
+        ncols=min(len(names), 4),
+    )
     return figure
 
 
@@ -170,8 +183,8 @@ def findings(summary: pd.DataFrame, metrics: Sequence[str], units: Mapping[str, 
                 )
             else:
                 best.append(
-                    f"{smallest.delay_class}: {smallest.controllers[0]} "
-                    f"({smallest.medians[0]:.3g}{unit})"
+                    f"{smallest.delay_class}: {smallest.controllers[0]}, "
+                    f"median {smallest.medians[0]:.3g}{unit}"
                 )
         if best:
             out.append(f"Smallest median {metric}, per delay class: " + "; ".join(best) + ".")

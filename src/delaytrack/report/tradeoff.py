@@ -72,8 +72,10 @@ def threshold_text(study: TradeoffStudy) -> str:
 
 def pareto_figure(study: TradeoffStudy) -> Figure:
     """Median AE against the empirical constant-delay margin, one marker per point and family
-    (an open triangle where the margin is only a lower bound: no failure up to the search
-    limit), the Pareto front joined by a line."""
+    labelled with its ω_n (an open triangle where the margin is only a lower bound: no failure
+    up to the search limit), the Pareto front joined by a line; a family with no margin to
+    place is named in the legend with the reason. The AE axis is logarithmic where the AEs
+    span more than a decade."""
     figure = Figure(figsize=(7.5, 4.5), dpi=120, layout="constrained")
     ax = figure.add_subplot()
     table = study.table
@@ -81,19 +83,33 @@ def pareto_figure(study: TradeoffStudy) -> Figure:
         rows = table[table.controller == family]
         exact = rows[rows.margin_found]
         bounded = rows[rows.margin_search == LOWER_BOUND]
-        if exact.empty and bounded.empty:
-            continue  # no margin to place (PCONf; or every search missed the rule at zero)
+        if exact.empty and bounded.empty:  # PCONf: not searched; or missed at zero delay
+            reason = MARGIN_SEARCHES[rows.margin_search.iloc[0]] if len(rows) else "no runs"
+            ax.plot([], [], " ", label=f"{_NAMES[family]}: not shown, {reason}")
+            continue
         (marker,) = ax.plot(exact.empirical_margin, exact.ae_median, "o", alpha=0.8)
         ax.plot(
             bounded.empirical_margin, bounded.ae_median, ">", mfc="none", alpha=0.8,
             color=marker.get_color(),
         )  # fmt: skip
         marker.set_label(_NAMES[family])
+        for row in (*exact.itertuples(), *bounded.itertuples()):
+            ax.annotate(
+                f"{row.omega_n:.3g}",
+                (row.empirical_margin, row.ae_median),
+                xytext=(3, 3),
+                textcoords="offset points",
+                fontsize="x-small",
+                color=marker.get_color(),
+            )
     if (table.margin_search == LOWER_BOUND).any():
         ax.plot([], [], ">", mfc="none", color="grey", label="no failure up to the search limit")
+    ax.plot([], [], " ", label="numbers: ω_n (rad/s)")
     front = study.front
     ax.plot(front.empirical_margin, front.ae_median, "k--", lw=1, label="Pareto front")
-    ax.set_yscale("log")
+    placed = table.ae_median[table.margin_found | (table.margin_search == LOWER_BOUND)]
+    if placed.max() > 10 * placed.min() > 0:
+        ax.set_yscale("log")
     ax.set_xlabel("empirical delay margin, constant delay (s)")
     ax.set_ylabel(labelled("median AE of the runs on the path", study.ae_unit))
     ax.set_title(f"{study.scenario.name}: K1 = ω_n² I, K2 = 2ζω_n I, ζ = {study.zeta:g}")
@@ -183,8 +199,8 @@ def _decision_section(report: HtmlReport, decision: Decision) -> None:
         {
             "envelope": decision.envelope.text,
             "conditions": f"{conditions} (constant true delays; AROLC and the outer loop are "
-            "told nothing; under a constant delay PCON told s h is PCONf's law told h̄ = s h, "
-            "run as PCONf)",
+            "told nothing; under a constant delay h, PCON told a delay (s h, s the told "
+            "ratio) is PCONf's law told h̄ = s h, run as PCONf)",
             "rule": "smallest worst-case AE (the largest over the conditions of the median AE "
             "of the runs on the path) among the candidates whose share of drawn robots on the "
             f"path has a Wilson 95 % lower bound >= {decision.required_share:g} in every "
@@ -249,10 +265,11 @@ def _report(study: TradeoffStudy, figure: Figure, decision: Decision | None) -> 
             "empirical margin": f"constant delay, up to {study.upper:g} s, bracket "
             f"{study.resolution:g} s, same rule; not for PCONf (its window is fixed at h̄; told "
             "a constant delay exactly it is PCON's law)",
-            "certificate": f"Theorem 1 with the AROLC controller's Q, beta = {study.beta:g}, "
+            "certificate": f"Theorem 1 with the AROLC controller's Q, β = {study.beta:g}, "
             f"r = {study.r:g}",
-            "version": f"delaytrack {__version__}; wall time {study.seconds:.1f} s; draws' units "
-            f"{study.computed} computed, {study.resumed} resumed",
+            "version": f"delaytrack {__version__}; wall time {study.seconds:.1f} s; work units "
+            f"of the draws: {study.computed} computed, {study.resumed} resumed from an earlier "
+            "run",
         }
     )
     # tradeoff.csv in two tables (a point's margins, then its runs at the scenario's delay),

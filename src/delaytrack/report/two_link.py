@@ -70,7 +70,8 @@ def _verdict(study: TwoLinkStudy) -> list[str]:
     for _, row in not_ok.iterrows():
         lines.append(
             f"{row['scenario']}, {study.controllers[row['controller']]}: the run stopped with "
-            f"status '{row['status']}' at t = {row['t_stop']:g} s; its metrics are NaN."
+            f"status '{row['status']}' at t = {row['t_stop']:g} s; it has no metrics (— in the "
+            "tables)."
         )
     for _, row in study.changes.iterrows():
         case = row["scenario"]
@@ -95,11 +96,16 @@ def _verdict(study: TwoLinkStudy) -> list[str]:
             )
         wins = study.arolc_better[case]
         if wins == study.coordinates:
-            head = "AROLC tracks better on both joints"
+            head = (
+                "in this one run, AROLC's mean error is lower than the outer loop's on both joints"
+            )
         elif wins:
-            head = f"AROLC tracks better on {' and '.join(wins)} only"
+            head = (
+                "in this one run, AROLC's mean error is lower than the outer loop's on "
+                f"{' and '.join(wins)} only"
+            )
         else:
-            head = "AROLC does not track better than the outer loop"
+            head = "in this one run, AROLC's mean error is not lower than the outer loop's"
         lines.append(f"{case}: {head}. AROLC vs outer loop: " + "; ".join(parts) + ".")
     return lines
 

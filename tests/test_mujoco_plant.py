@@ -367,18 +367,20 @@ def _arolc_on_the_light_arm():
     return dt.AROLC(model, K1=16.0, K2=8.0, Q=1.0, alpha=2.0, epsilon=0.1, gamma=0.001)
 
 
-def _toolkit_delay_run(arm: Path, h: float, ticks: int, controller) -> np.ndarray:
-    """The same loop run by :func:`simulate`, the arm stepped by MuJoCo; the states at the
-    ticks."""
+def _toolkit_delay_run(
+    arm: Path, h: float, ticks: int, controller, delay=None, t_c: float = T_C
+) -> np.ndarray:
+    """The same loop run by :func:`simulate`, the arm stepped by MuJoCo, under a constant delay
+    ``h`` (or the profile ``delay``); the states at the ticks."""
     return dt.simulate(
         MujocoPlant(arm, stepping="mujoco"),
         controller,
-        dt.ConstantDelay(h),
+        dt.ConstantDelay(h) if delay is None else delay,
         X0,
         reference=REFERENCE,
-        t1=ticks * T_C,
+        t1=ticks * t_c,
         dt=DT,
-        T_c=T_C,
+        T_c=t_c,
     ).x[0, :ticks]
 
 
@@ -397,22 +399,14 @@ def test_the_delay_agrees_with_mujocos_own_actuator_delay(h):
 def test_under_a_time_varying_delay_each_step_holds_the_command_in_force_at_its_start():
     """The rule for a plant stepped by its own integrator, restated in plain Python: each step
     from ``t = i dt`` holds the command of the latest tick ``k T_c <= t - h(t) + 1e-9 dt``
-    (``u_init = 0`` before the first), under S1 and the paper's ``T_c`` = 10 ms, where the
-    engine evaluates ``h`` at few of the steps (where the command may switch)."""
+    (``u_init = 0`` before the first), under S1 and the paper's ``T_c`` = 10 ms: the only
+    independent check of the rule under a time-varying delay (MuJoCo's own actuator delay,
+    above, is constant)."""
     import math
 
     controller, t_c, ticks = _arolc_on_the_light_arm(), 0.01, 150
     steps = round(t_c / DT)
-    engine = dt.simulate(
-        MujocoPlant(ARM, stepping="mujoco"),
-        controller,
-        dt.AbsSineDelay.S1(),
-        X0,
-        reference=REFERENCE,
-        t1=ticks * t_c,
-        dt=DT,
-        T_c=t_c,
-    ).x[0, :ticks]
+    engine = _toolkit_delay_run(ARM, 0.0, ticks, controller, dt.AbsSineDelay.S1(), t_c)
     model = mujoco.MjModel.from_xml_path(str(ARM))
     data = mujoco.MjData(model)
     data.qpos[:], data.qvel[:] = X0[:3], X0[3:]

@@ -161,22 +161,24 @@ def test_empirical_takes_a_threshold_per_coordinate(tmp_path, capsys):
 
 
 def test_a_margin_with_no_failure_up_to_the_limit_is_drawn_hatched_to_the_limit():
-    """A NaN margin (no failure up to the search limit) is a lower bound, not a small margin:
-    its bar reaches the limit, hatched and unfilled, and the legend says what that means."""
+    """A NaN margin of a searched series (no failure up to the search limit) is a lower bound,
+    not a small margin: its bar reaches the limit, hatched and unfilled, and the legend says
+    what that means; a NaN of a series not searched is not drawn."""
     import numpy as np
 
     from delaytrack.report.figures import margins_figure
 
     margins = {
-        "h_m": [0.1, 0.12, 0.05],
+        "h_m": [np.nan, 0.12, 0.05],
         "empirical": [0.6, np.nan, 0.5],
         "other": [0.3, 0.7, np.nan],
     }
-    ax = margins_figure(margins, ["a", "b", "c"], xlabel="gains", at_least=2.0).axes[0]
+    limits = {"empirical": 2.0, "other": 1.5}
+    ax = margins_figure(margins, ["a", "b", "c"], xlabel="gains", at_least=limits).axes[0]
     hatched = [bar for bar in ax.patches if bar.get_hatch() and np.isfinite(bar.get_height())]
-    assert [bar.get_height() for bar in hatched] == [2.0, 2.0]
+    assert [bar.get_height() for bar in hatched] == [2.0, 1.5]  # not h_m's NaN
     assert not any(bar.get_fill() for bar in hatched)
     legend = [text.get_text() for text in ax.get_legend().get_texts()]
-    assert legend[-1] == "hatched: no failure up to 2 s (at least that)"
-    known = margins_figure({"h_m": [0.1, 0.12]}, ["a", "b"], xlabel="gains", at_least=2.0)
+    assert legend[-1] == "hatched: no failure up to the search limit (at least that)"
+    known = margins_figure({"h_m": [0.1, 0.12]}, ["a", "b"], xlabel="gains", at_least=limits)
     assert not any(bar.get_hatch() for bar in known.axes[0].patches)  # nothing unknown: no hatch

@@ -270,7 +270,16 @@ def test_the_margin_is_shown_to_the_resolution_as_a_bracket_that_holds_the_found
     """No digit beyond the search's resolution; the margin rounded down and the first failure
     up, so the bracket shown holds the bracket found."""
     result = _found(margin, first_failure, resolution, 0.2, ("q1",), (None,))
-    assert result.describe().startswith(shown)
+    text = result.describe()
+    assert text.startswith(shown)
+    # the bracket shown holds the one found, up to the binary noise of a grid value
+    low, high = float(text.split(" s ")[0]), float(text.split("first failure ")[1].split()[0])
+    assert low <= margin + 1e-12 and first_failure <= high + 1e-12
+
+
+def test_a_large_first_failure_is_not_shown_below_the_value_found():
+    result = _found(1234.567890120, 1234.56789012345, 1e-9, 0.2, ("q1",), (None,))
+    assert result.describe().startswith("1234.567890120 s (first failure 1234.567890124 s;")
 
 
 def test_the_threshold_is_shown_in_the_coordinates_units_where_the_plant_declares_them():

@@ -317,10 +317,23 @@ def test_a_control_has_a_unit_only_where_it_is_the_joint_force(tmp_path):
     direct = geared.replace('gear="10"', 'gear="1"')
     slide = direct.replace('<joint name="wrist"/>', '<joint name="wrist" type="slide"/>')
     assert len({geared, direct, slide}) == 3
+    reversed_gear = direct.replace(
+        '<motor joint="wrist" gear="1"/>', '<motor joint="wrist" gear="-1"/>'
+    )
+    site = direct.replace(
+        '<geom fromto="0 0 0 0.15 0 0" mass="0.4"/>',
+        # three sites before it: its id, 3, is no joint's (the arm has joints 0 to 2)
+        '<geom fromto="0 0 0 0.15 0 0" mass="0.4"/>'
+        + "".join(f'<site name="s{i}"/>' for i in range(3))
+        + '<site name="tip" pos="0.15 0 0"/>',
+    ).replace('<motor joint="wrist" gear="1"/>', '<motor site="tip" gear="0 0 1 0 0 0"/>')
+    assert reversed_gear != direct and site != direct
     for name, written, units in (
         ("geared.xml", geared, None),  # one geared motor: the controls have no one unit
         ("direct.xml", direct, ("N·m", "N·m", "N·m")),
         ("slide.xml", slide, ("N·m", "N·m", "N")),
+        ("reversed.xml", reversed_gear, ("N·m", "N·m", "N·m")),  # gear -1: the torque's sign
+        ("site.xml", site, None),  # a force at a site: not a joint's force
     ):
         (tmp_path / name).write_text(written)
         assert MujocoPlant(tmp_path / name).input_units == units

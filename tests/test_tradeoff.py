@@ -341,7 +341,7 @@ def test_the_figure_labels_each_point_with_its_gain_and_says_which_family_it_lea
     table = study.table
     placed = table[table.margin_found | (table.margin_search == LOWER_BOUND)]
     labels = sorted(text.get_text() for text in ax.texts)
-    assert labels == sorted(f"{omega:.3g}" for omega in placed.omega_n)
+    assert labels == sorted(f"{omega:.4g}" for omega in placed.omega_n)
     legend = [text.get_text() for text in ax.get_legend().get_texts()]
     assert f"PCONf (told h̄): not shown, {MARGIN_SEARCHES['not searched']}" in legend
     assert "numbers: ω_n (rad/s)" in legend

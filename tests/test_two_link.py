@@ -82,6 +82,16 @@ def test_the_report_words_the_studys_judgements(study, tmp_path):
         "AROLC vs outer loop: " in text
     )
     assert (small in text) != study.delay_effect_small
+    # A change that is not finite (a run that did not finish): not "not lower".
+    stopped = dataclasses.replace(
+        judged, changes=judged.changes.assign(ae_q1=[np.nan] * len(judged.changes))
+    )
+    write_study(stopped, tmp_path / "stopped")
+    text_stopped = _text(tmp_path / "stopped")
+    assert "S1: in this one run, the mean errors cannot be compared (a run did not finish)" in (
+        text_stopped
+    )
+    assert "AE of q1: not comparable" in text_stopped
     assert ("so the delay is a large part of the tracking error" in text) == (
         study.delay_effect_small
     )

@@ -27,6 +27,7 @@ def test_one_is_singular_and_every_other_count_plural():
         (0.3, None, "0.3"),
         (0.9996, "m", "1 m"),  # the unit of the rounded value: not "1e+03 mm"
         (0.0009996, "s", "1 ms"),  # not "1e+03 µs"
+        (0.0009995, "s", "0.999 ms"),  # 999.5 µs would round to "1e+03 µs"
     ],
 )
 def test_a_quantity_below_one_unit_is_shown_in_a_smaller_one(value, unit, shown):

@@ -4,6 +4,7 @@ that reads (``9.51 mm``, not ``0.00951 m``)."""
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -39,18 +40,22 @@ def table_text(frame: pd.DataFrame) -> str:
 
 def scaled_unit(unit: str | None, largest: float, digits: int = 3) -> tuple[float, str | None]:
     """The factor and unit to show values of ``unit`` in when the largest of them (in
-    magnitude), rounded to ``digits`` significant digits, is ``largest``: a smaller unit below
-    one ``unit`` (seconds as ms, µs or ns, metres as mm), the largest whose value is at least
-    one, else the smallest; ``(1, unit)`` for one and more (0.9996 m to three digits is 1 m,
-    not 1e+03 mm), for zero, for a value that is not finite and for a unit without smaller
-    ones."""
-    magnitude = abs(float(f"{largest:.{digits}g}"))
+    magnitude) is ``largest``: ``unit`` itself when ``largest`` shown to ``digits``
+    significant digits reads as one or more (0.9996 m is "1 m", not "1e+03 mm"), else the
+    first smaller unit (seconds as ms, µs or ns, metres as mm) in which it does, else the
+    smallest; ``(1, unit)`` for zero, for a value that is not finite and for a unit without
+    smaller ones. The unit is chosen from the number as it would be printed, so that no
+    value is shown as ``1e+03`` of a unit."""
+    magnitude = abs(largest)
     smaller = _SMALLER_UNITS.get(unit or "", ())
-    if not smaller or not 0.0 < magnitude < 1.0:
+    if not smaller or not 0.0 < magnitude < math.inf:
         return 1.0, unit
-    for factor, name in smaller:
-        if float(f"{magnitude / factor:.{digits}g}") >= 1.0:
-            return factor, name
+    units = ((1.0, unit), *smaller)
+    for i, (factor, name) in enumerate(units):
+        shown = float(f"{magnitude / factor:.{digits}g}")
+        if shown >= 1.0:
+            # 0.0009995 s: "0.999" ms, not "1e+03" µs (rounding carried it to a thousand)
+            return units[i - 1] if shown >= 1000.0 and i > 0 else (factor, name)
     return smaller[-1]
 
 

@@ -188,6 +188,7 @@ def _folder(args: argparse.Namespace, name: str) -> Path:
 def run(args: argparse.Namespace) -> int:
     """Run (or resume) the trade-off and write its table, figure and report."""
     from delaytrack.experiments.decision import run_decision
+    from delaytrack.experiments.empirical_margin import resolved_text
     from delaytrack.experiments.tradeoff import LOWER_BOUND, run_tradeoff
     from delaytrack.report.tradeoff import decision_lines, write_tradeoff
     from delaytrack.scenario import Scenario
@@ -263,7 +264,8 @@ def run(args: argparse.Namespace) -> int:
         ae = quantity_text(row.ae_median, study.ae_unit, 4, largest=largest)
         print(
             f"  {row.controller:<10} omega_n = {row.omega_n:<8.4g} rad/s  margin = "
-            f"{row.empirical_margin:.4g}{'+' if row.margin_search == LOWER_BOUND else ''} s  "
+            f"{resolved_text(row.empirical_margin, study.resolution)}"
+            f"{'+' if row.margin_search == LOWER_BOUND else ''} s  "
             f"AE = {ae}"
         )
     if (front.margin_search == LOWER_BOUND).any():

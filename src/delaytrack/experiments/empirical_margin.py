@@ -614,12 +614,13 @@ def resolved_text(value: float, resolution: float, *, up: bool = False) -> str:
 
 def _rounded(value: float, decimals: int, rounding: str) -> str:
     """``value`` to ``decimals`` decimals, rounded as ``rounding`` says (``decimal.ROUND_FLOOR``,
-    ``decimal.ROUND_CEILING``), from its decimal form to 12 significant digits: a grid value
+    ``decimal.ROUND_CEILING``), from its decimal form to three more decimals: a grid value
     that carries binary noise (0.6000000000000001, 0.7 stored as 0.6999...) is rounded as the
-    value it stands for, 0.600 and 0.700, not 0.601 or 0.699."""
+    value it stands for, 0.600 and 0.700, not 0.601 or 0.699, whatever its size."""
     exact = decimal.Context(prec=decimal.MAX_PREC)  # a large value keeps all its digits
     step = decimal.Decimal(1).scaleb(-decimals)
-    return format(decimal.Decimal(f"{value:.12g}").quantize(step, rounding, exact), "f")
+    near = decimal.Decimal(f"{value:.{decimals + 3}f}")
+    return format(near.quantize(step, rounding, exact), "f")
 
 
 def _shown(threshold: float | tuple[float, ...]) -> str:

@@ -8,7 +8,7 @@ import math
 from typing import TYPE_CHECKING
 
 from delaytrack._words import counted, quantity_text
-from delaytrack.units import with_unit
+from delaytrack.units import value_with_unit, with_unit
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -137,7 +137,6 @@ def _why(decision: Decision, table: pd.DataFrame) -> list[str]:
     """Per row of ``table`` (the decision's candidates, or candidates and conditions): why the
     candidate was not chosen; empty for the winner and the runner-up. In the table's unit (the
     AE columns beside it), not scaled as the sentences are."""
-    unit = f" {decision.ae_unit}" if decision.ae_unit else ""
     reasons = []
     for row in table.itertuples(index=False):
         if row.status == "excluded":
@@ -146,8 +145,10 @@ def _why(decision: Decision, table: pd.DataFrame) -> list[str]:
             )
         elif row.status == "qualifies" and decision.winner is not None:
             reasons.append(
-                f"worst-case AE {row.worst_ae:.4g}{unit} against the winner's "
-                f"{decision.winner.worst_ae:.4g}{unit}"
+                "worst-case AE "
+                + value_with_unit(f"{row.worst_ae:.4g}", decision.ae_unit)
+                + " against the winner's "
+                + value_with_unit(f"{decision.winner.worst_ae:.4g}", decision.ae_unit)
             )
         else:
             reasons.append("")

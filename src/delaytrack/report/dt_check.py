@@ -4,6 +4,7 @@ verdict against the tolerance and its table, as the study's
 
 from __future__ import annotations
 
+import math
 import warnings
 
 import pandas as pd
@@ -47,15 +48,16 @@ def write_dt_check(
     )
     report.table(
         dt_check.table,
-        "Metrics at dt/2 and the largest relative change per run (—: the run left the path).",
+        "Metrics at dt/2 and the largest relative change per run, max_relative_change as a "
+        "fraction (0.01 is the 1 % criterion; —: the run left the path).",
         digits=6,
     )
 
 
 def _percent(fraction: float) -> str:
     """A relative change as a percentage to three significant digits: ``"19 %"``,
-    ``"0.0212 %"``."""
-    return f"{100 * fraction:.3g} %"
+    ``"0.0212 %"``; "not computed" where no run gave one (every run left the path)."""
+    return f"{100 * fraction:.3g} %" if math.isfinite(fraction) else "not computed"
 
 
 def _verdict_text(dt_check: DtCheck) -> str:

@@ -305,7 +305,7 @@ def margins_figure(
     *,
     xlabel: str,
     title: str | None = None,
-    at_least: float | None = None,
+    at_least: Mapping[str, float] | None = None,
 ) -> Figure:
     """Delay margins side by side per group (e.g. per gain pair), on a log scale.
 
@@ -318,10 +318,11 @@ def margins_figure(
     xlabel : str
         What the groups are (the horizontal axis's label, with units).
     title : str, optional
-    at_least : float, optional
-        The search limit (s) of margins searched empirically: a NaN margin is then drawn as a
-        hatched, unfilled bar up to it (no failure found below it: the margin is at least
-        that), not left out as if it were small or zero.
+    at_least : mapping of str to float, optional
+        ``label -> search limit (s)`` of the margins searched empirically: a NaN margin of
+        such a series is drawn as a hatched, unfilled bar up to its limit (no failure found
+        below it: the margin is at least that), not left out as if it were small or zero. A
+        NaN of another series is not drawn.
     """
     figure = Figure(figsize=(_WIDTH + 2.0, 4.2), dpi=_DPI, layout="constrained")
     ax = figure.add_subplot()
@@ -333,9 +334,10 @@ def margins_figure(
         at = positions + (k - (len(margins) - 1) / 2) * width
         bars = ax.bar(at, heights, width, label=label)
         missing = np.isnan(heights)
-        if at_least is not None and missing.any():
+        limit = (at_least or {}).get(label)
+        if limit is not None and missing.any():
             color = bars.patches[0].get_facecolor()
-            ax.bar(at[missing], at_least, width, fill=False, hatch="///", edgecolor=color)
+            ax.bar(at[missing], limit, width, fill=False, hatch="///", edgecolor=color)
             unknown = True
     if unknown:  # the hatch's meaning, once, in the legend
         ax.bar(
@@ -344,7 +346,7 @@ def margins_figure(
             fill=False,
             hatch="///",
             edgecolor="grey",
-            label=f"hatched: no failure up to {at_least:g} s (at least that)",
+            label="hatched: no failure up to the search limit (at least that)",
         )
     ax.set_yscale("log")
     ax.set_xticks(positions, groups, rotation=30, ha="right", fontsize="small")

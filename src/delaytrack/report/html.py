@@ -66,9 +66,10 @@ footer { margin-top: 2rem; border-top: 1px solid #ddd; color: #555; font-size: .
 #: The reference every page ends with: the paper the controller, Theorem 1 and the robot
 #: experiment are taken from.
 _FOOTER = (
-    "<footer><p>AROLC, its certified delay bound (Theorem 1) and the robot experiment: "
-    "S. Roy and I. N. Kar, &ldquo;Adaptive-Robust Control of a Class of Nonlinear Systems "
-    "with Unknown Input Delay&rdquo; (arXiv preprint).</p></footer>"
+    "<footer><p>AROLC and its certified delay bound (Theorem 1) are those of S. Roy and "
+    "I. N. Kar, &ldquo;Adaptive-Robust Control of a Class of Nonlinear Systems with Unknown "
+    "Input Delay&rdquo; (arXiv preprint), whose robot experiment the paper job "
+    "reproduces.</p></footer>"
 )
 #: A path to another report in the text: ``../robustness/report.html``, ``report.html``.
 _REPORT_PATH = re.compile(r"(?<![\w/.-])((?:\.\./|\./)?(?:[\w.-]+/)*[\w.-]+\.html)(?![\w/])")

@@ -5,7 +5,6 @@ writes the job's files."""
 
 from __future__ import annotations
 
-import math
 import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -49,13 +48,13 @@ def margins_with_units(table: pd.DataFrame) -> pd.DataFrame:
 
 
 def _resolved(study: MarginStudy) -> pd.DataFrame:
-    """:func:`margins_with_units` with the empirical margins as text to the search's
-    resolution, rounded down (as ``delaytrack empirical`` shows them: no digit finer than the
-    search resolved), None where no failure was found."""
+    """:func:`margins_with_units` with the empirical margins as text to the decimals of the
+    search's resolution, rounded down (as ``delaytrack empirical`` shows them: never above the
+    value that passed), None where no failure was found."""
     table = study.table.copy()
     for column in _EMPIRICAL:
         table[column] = [
-            None if math.isnan(value) else resolved_text(value, study.search["resolution"])
+            None if pd.isna(value) else resolved_text(value, study.search["resolution"])
             for value in table[column]
         ]
     return margins_with_units(table)
@@ -69,7 +68,8 @@ def terminal_text(study: MarginStudy) -> str:
     margins = "; ".join(f"{named[column]}: {label}" for column, label in _LABELS.items())
     legend = (
         f"K1 = k1 I, K2 = k2 I; margins in s: {margins}; the last two columns are ratios; "
-        f"—: no failure found up to {study.search['upper']:g} s (the margin is at least that)"
+        f"—: no failure found up to {study.search['upper']:g} s (the margin is at least that, "
+        "and no ratio to it is given)"
     )
     return "\n".join([*textwrap.wrap(legend, 100), table_text(shown)])
 
@@ -92,7 +92,7 @@ def write_study(study: MarginStudy, folder: str | Path) -> list[Path]:
         labels,
         xlabel="outer-loop gains K1 = k1 I (k1 in 1/s²), K2 = k2 I (k2 in 1/s)",
         title="Delay margins of K1 = k1 I, K2 = k2 I on the two-link arm",
-        at_least=study.search["upper"],
+        at_least={_LABELS[column]: study.search["upper"] for column in _EMPIRICAL},
     )
     files += save_figure(figure, folder / "figures" / "margins")
     files.append(_report(study, figure).write(folder / "report.html"))
@@ -130,10 +130,10 @@ def _report(study: MarginStudy, figure: Figure) -> HtmlReport:
     )
     report.table(
         _resolved(study),
-        caption="Margins in seconds, the empirical ones rounded down to the search's "
-        f"resolution ({search['resolution']:g} s; margins.csv has them in full); —: no failure "
-        f"up to the search limit (the margin is at least {search['upper']:g} s). The columns "
-        "as margins.csv holds them.",
+        caption="Margins in seconds, the empirical ones rounded down to the decimals of the "
+        f"search's resolution ({search['resolution']:g} s; margins.csv has them in full); —: "
+        f"no failure up to the search limit (the margin is at least {search['upper']:g} s, "
+        "and no ratio to it is given). The columns as margins.csv holds them.",
     )
     report.figure(figure, "Margins per gain pair, log scale.")
     gap = study.gap
@@ -166,8 +166,9 @@ def _report(study: MarginStudy, figure: Figure) -> HtmlReport:
             )
             + ": there the tracking rule, not a divergence, sets the margin.",
             f"AROLC's empirical constant-delay margin stays within "
-            f"{gap.arolc_constant[0]:.3g}-{gap.arolc_constant[1]:.3g} s while h_exact spans "
-            f"{gap.h_exact[0]:.3g}-{gap.h_exact[1]:.3g} s: its switching term changes the loop "
+            f"{resolved_text(gap.arolc_constant[0], search['resolution'])}–"
+            f"{resolved_text(gap.arolc_constant[1], search['resolution'])} s while h_exact spans "
+            f"{gap.h_exact[0]:.3g}–{gap.h_exact[1]:.3g} s: its switching term changes the loop "
             "that h_exact describes, in either direction.",
             "Empirical margins hold for this scenario, horizon and rule only: an instability "
             "that grows too slowly to show in the scored window passes.",

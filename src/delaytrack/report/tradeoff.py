@@ -9,12 +9,14 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import pandas as pd
 from matplotlib.figure import Figure
 
 from delaytrack._io import write_frame
 from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack._version import __version__
 from delaytrack.experiments.drawn_robots import drawn_columns
+from delaytrack.experiments.empirical_margin import resolved_text
 from delaytrack.experiments.tradeoff import LOWER_BOUND, MARGIN_SEARCHES
 from delaytrack.report.decision import (
     ae_text,
@@ -44,6 +46,17 @@ _NAMES = {
     "pcon": "PCON (told the true delay)",
     "pconf": "PCONf (told h̄)",
 }
+
+
+def _shown(study: TradeoffStudy, frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` (the study's table or its front) as the page shows it: its columns with their
+    units, the empirical margin rounded down to the decimals of the search's resolution (as
+    ``delaytrack empirical`` shows it; tradeoff.csv has it in full), None where there is none."""
+    margins = [
+        None if pd.isna(value) else resolved_text(value, study.resolution)
+        for value in frame.empirical_margin
+    ]
+    return frame.assign(empirical_margin=margins).rename(columns=_columns(study))
 
 
 def _columns(study: TradeoffStudy) -> dict[str, str]:
@@ -84,8 +97,8 @@ def pareto_figure(study: TradeoffStudy) -> Figure:
         exact = rows[rows.margin_found]
         bounded = rows[rows.margin_search == LOWER_BOUND]
         if exact.empty and bounded.empty:  # PCONf: not searched; or missed at zero delay
-            reason = MARGIN_SEARCHES[rows.margin_search.iloc[0]] if len(rows) else "no runs"
-            ax.plot([], [], " ", label=f"{_NAMES[family]}: not shown, {reason}")
+            reasons = "; ".join(MARGIN_SEARCHES[key] for key in dict.fromkeys(rows.margin_search))
+            ax.plot([], [], " ", label=f"{_NAMES[family]}: not shown, {reasons or 'no runs'}")
             continue
         (marker,) = ax.plot(exact.empirical_margin, exact.ae_median, "o", alpha=0.8)
         ax.plot(
@@ -95,7 +108,7 @@ def pareto_figure(study: TradeoffStudy) -> Figure:
         marker.set_label(_NAMES[family])
         for row in (*exact.itertuples(), *bounded.itertuples()):
             ax.annotate(
-                f"{row.omega_n:.3g}",
+                f"{row.omega_n:.4g}",
                 (row.empirical_margin, row.ae_median),
                 xytext=(3, 3),
                 textcoords="offset points",
@@ -104,7 +117,8 @@ def pareto_figure(study: TradeoffStudy) -> Figure:
             )
     if (table.margin_search == LOWER_BOUND).any():
         ax.plot([], [], ">", mfc="none", color="grey", label="no failure up to the search limit")
-    ax.plot([], [], " ", label="numbers: ω_n (rad/s)")
+    if ax.texts:
+        ax.plot([], [], " ", label="numbers: ω_n (rad/s)")
     front = study.front
     ax.plot(front.empirical_margin, front.ae_median, "k--", lw=1, label="Pareto front")
     placed = table.ae_median[table.margin_found | (table.margin_search == LOWER_BOUND)]
@@ -220,7 +234,7 @@ def _decision_section(report: HtmlReport, decision: Decision) -> None:
     # Each candidate's worst values and why it was not chosen are in the table above: here only
     # what differs from condition to condition (decision.csv has both).
     keys = ("controller", "omega_n", "k1", "k2", "status")
-    repeated = [column for column in decision.candidates.columns if column not in keys]
+    repeated = [c for c in decision.candidates.columns if c not in keys and c in decision.table]
     report.table(
         decision.table.drop(columns=repeated).rename(columns=decision_columns(decision.ae_unit)),
         caption="One row per candidate and condition (decision.csv, which also repeats each "
@@ -274,13 +288,15 @@ def _report(study: TradeoffStudy, figure: Figure, decision: Decision | None) -> 
     )
     # tradeoff.csv in two tables (a point's margins, then its runs at the scenario's delay),
     # each narrow enough to read without scrolling sideways
-    table = study.table.rename(columns=_columns(study))
+    table = _shown(study, study.table)
     point = ["omega_n_rad_per_s", "k1_per_s2", "k2_per_s", "controller"]
     margins = ["h_m_s", "h_exact_s", "empirical_margin_s", "margin_search"]
     report.table(
         table[point + margins],
         caption="tradeoff.csv (1 of 2), one row per point and controller: the margins (s; —: "
-        "not defined, h_m being AROLC's and PCONf not searched). margin_search says what the "
+        "not defined, h_m being AROLC's and PCONf not searched; the empirical one rounded down "
+        "to the decimals of the search's resolution, in full in the file). margin_search says "
+        "what the "
         "empirical margin is: "
         + "; ".join(f"{key}: {meaning}" for key, meaning in MARGIN_SEARCHES.items())
         + ".",
@@ -301,7 +317,7 @@ def _report(study: TradeoffStudy, figure: Figure, decision: Decision | None) -> 
         "the front).",
     )
     report.heading("Pareto front")
-    front = study.front.rename(columns=_columns(study))
+    front = _shown(study, study.front)
     shown = [*point, "empirical_margin_s", "margin_search", "share_on_path", "share_low"]
     report.table(
         front[shown + [_columns(study)["ae_median"], _columns(study)["tv_median"]]],

@@ -95,7 +95,9 @@ def _verdict(study: TwoLinkStudy) -> list[str]:
                 f"{what} {abs(pct):.1f} % {word} ({cand[metric]:.4g} vs {base[metric]:.4g} {unit})"
             )
         wins = study.arolc_better[case]
-        if wins == study.coordinates:
+        if not all(np.isfinite(row[f"ae_{name}"]) for name in study.coordinates):
+            head = "in this one run, the mean errors cannot be compared (a run did not finish)"
+        elif wins == study.coordinates:
             head = (
                 "in this one run, AROLC's mean error is lower than the outer loop's on both joints"
             )

@@ -205,8 +205,10 @@ def _input_units(mujoco: Any, model: Any) -> tuple[str, ...] | None:
             and model.actuator_gainprm[j, 0] == 1.0
             and abs(model.actuator_gear[j, 0]) == 1.0
         )
+        if not motor:  # its target may be a site, tendon or body: no joint to look up
+            return None
         unit = _FORCE_UNITS.get(int(model.jnt_type[int(model.actuator_trnid[j, 0])]))
-        if not motor or unit is None:
+        if unit is None:
             return None
         units.append(unit)
     return tuple(units)

@@ -967,7 +967,10 @@ def _tuning_section(report: HtmlReport, study: PaperStudy) -> None:
                 zip(record["conditions"], record["condition_classes"], strict=True), start=1
             )
         )
-        + "."
+        + ". The grids' columns: AROLC's k (rad/s; K1 = k² I, K2 = 2ζk I), zeta (ζ) and alpha "
+        "(α); a predictor's kappa (κ), k_b and c (ϑ = c M̂⁻¹). PCON-wheel is PCON with its "
+        "law on the wheel torques it sends rather than on generalised forces (its ϑ = c M̂_r⁻¹, "
+        "M̂_r = SᵀM̂S the nominal reduced mass matrix, and its integral of the commands sent)."
     )
     with report.folded("The five best grid points of each controller and gain set"):
         for (kind, gain_set), grid in study.findings.tuning_grids.items():

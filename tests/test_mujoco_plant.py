@@ -309,6 +309,26 @@ def test_a_urdf_file_gets_a_motor_on_every_joint_when_asked(tmp_path):
     assert plant.input_units == ("N·m", "N·m")  # a motor of gear 1 on a hinge: a torque
 
 
+#: A hinge and a ball joint, each driven by a motor of gear 1.
+BALL_ARM = """<mujoco>
+  <worldbody>
+    <body name="upper" pos="0 0 1">
+      <joint name="hinge" type="hinge" axis="0 1 0"/>
+      <geom type="capsule" fromto="0 0 0 0.4 0 0" size="0.03" mass="1"/>
+      <body name="fore" pos="0.4 0 0">
+        <joint name="ball" type="ball"/>
+        <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor joint="hinge" gear="1"/>
+    <motor joint="ball" gear="1 0 0"/>
+  </actuator>
+</mujoco>
+"""
+
+
 def test_a_control_has_a_unit_only_where_it_is_the_joint_force(tmp_path):
     """A motor of gear 1 on a hinge takes N·m, on a slide N; a gear g makes the control a g-th
     of the torque, which has no unit of its own: TV then has none."""
@@ -328,6 +348,9 @@ def test_a_control_has_a_unit_only_where_it_is_the_joint_force(tmp_path):
         + '<site name="tip" pos="0.15 0 0"/>',
     ).replace('<motor joint="wrist" gear="1"/>', '<motor site="tip" gear="0 0 1 0 0 0"/>')
     assert reversed_gear != direct and site != direct
+    (tmp_path / "ball.xml").write_text(BALL_ARM)  # stepped by MuJoCo, the ball joint left out
+    ball = MujocoPlant(tmp_path / "ball.xml", stepping="mujoco", coordinates=("hinge",))
+    assert ball.input_units is None  # a motor on a ball joint: no one unit, and no error
     for name, written, units in (
         ("geared.xml", geared, None),  # one geared motor: the controls have no one unit
         ("direct.xml", direct, ("N·m", "N·m", "N·m")),

@@ -87,9 +87,11 @@ def test_bound_text_output(capsys):
 
 def test_bound_shows_a_tiny_bound_in_a_unit_that_reads(capsys):
     """High gains certify about a nanosecond: shown so, not as "1e-06 ms"."""
+    h_m = razumikhin_bound(1000.0, 1000.0).h_m  # Theorem 1, the paper's Q = I, beta, r
+    assert 0.5e-9 < h_m < 1.5e-9  # about a nanosecond, to 4 digits "1 ns"
     assert main(["bound", "--k1", "1000", "--k2", "1000"]) == 0
     line = next(x for x in capsys.readouterr().out.splitlines() if x.strip().startswith("h_m"))
-    assert line.endswith(" s (1 ns)") and "e-06" not in line
+    assert line.endswith(f"= {h_m:.6g} s ({1e9 * h_m:.4g} ns)") and "e-06" not in line
 
 
 def test_bound_and_design_show_an_r_just_above_one_as_given(capsys):

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import json
+import math
 
 import pandas as pd
 import pytest
 
 from delaytrack.analysis.razumikhin import PAPER_BETA, PAPER_R, razumikhin_bound
 from delaytrack.cli import main
-from delaytrack.experiments.margins import GAINS
+from delaytrack.experiments.margins import GAINS, SCENARIO, SEARCH
+from delaytrack.scenario import load_builtin
 from test_empirical_margin import TOLERANCE, double_integrator
 
 IDENTITY_MARGIN = 0.711118648715793
@@ -105,7 +107,7 @@ def test_margins_job_writes_its_files(tmp_path, capsys):
     legend = " ".join(lines[first:at])
     for column in header[2:8]:  # every margin's column is said in words above the table
         assert f"{column}: " in legend, column
-    assert "no failure found up to 2 s" in legend
+    assert f"no failure found up to {SEARCH['upper']:g} s" in legend  # the search's limit
     folder = tmp_path / "margins"
     for name in ("margins.csv", "evaluated.csv", "scenario.toml", "report.html"):
         assert (folder / name).is_file(), name
@@ -113,13 +115,15 @@ def test_margins_job_writes_its_files(tmp_path, capsys):
         assert (folder / "figures" / f"margins.{suffix}").is_file()
     table = pd.read_csv(folder / "margins.csv")  # units in the column names
     assert len(table) == len(GAINS) ** 2
-    # On the terminal an empirical margin is never above the one found, nor finer than 5 ms.
+    # On the terminal an empirical margin is never above the one found, nor shown to more
+    # decimals than the search's resolution has (0.005 s: 3).
+    decimals = math.ceil(-math.log10(SEARCH["resolution"]))
     rows = [line.split() for line in lines[at + 1 : at + 1 + len(table)]]
     column = header.index("arolc_abs_sine_s")
     for row, found in zip(rows, table["arolc_abs_sine_s"], strict=True):
         if row[column] != "—":
-            assert float(row[column]) <= found < float(row[column]) + 0.001
-            assert len(row[column].split(".")[1]) == 3
+            assert float(row[column]) <= found < float(row[column]) + 10.0**-decimals
+            assert len(row[column].split(".")[1]) == decimals
     assert (table["h_m_s"] < table["h_exact_s"]).all()
     assert {"k1_per_s2", "k2_per_s", "arolc_abs_sine_s", "h_m_over_h_exact"} <= set(table)
     evaluated = pd.read_csv(folder / "evaluated.csv")
@@ -143,9 +147,12 @@ def test_margins_job_too_short_for_its_tracking_rule_is_a_usage_error(tmp_path, 
     args = ["reproduce", "--job", "margins", "--out", str(tmp_path), "--duration", "4", "--quiet"]
     assert main(args) == 2
     err = capsys.readouterr().err
-    assert "error: margins job: --duration = 4 s is too short: AROLC at K1 = 0.5 I" in err
+    # the search's first gain pair, (GAINS[0], GAINS[0]), misses the rule in 4 s
+    first = f"AROLC at K1 = {GAINS[0]:g} I, K2 = {GAINS[0]:g} I"
+    assert f"error: margins job: --duration = 4 s is too short: {first}" in err
     assert "already without delay (ae of q1 = " in err
-    assert "give a longer --duration (the job's own, 30 s, meets it)" in err
+    own = load_builtin(SCENARIO).duration
+    assert f"give a longer --duration (the job's own, {own:g} s, meets it)" in err
     assert "threshold" not in err
 
 

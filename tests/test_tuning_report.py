@@ -37,3 +37,14 @@ def test_the_shipped_gains_read_as_text_with_the_outer_loop_gains_they_give():
     chosen = tuning.load_gains()["AROLC"]["all"]
     g = tuning.arolc_gains(chosen["k"], chosen["zeta"], chosen["alpha"])
     assert f"(K1 = {g['K1']:g} I, K2 = {g['K2']:g} I)" in gains_text("AROLC", chosen)
+
+
+def test_a_run_is_off_the_path_when_it_stopped_or_its_mean_error_passed_a_metre():
+    """The one rule of the tuning, the robustness study and the paper job's claims."""
+    import numpy as np
+
+    from delaytrack.experiments.tuning import DIVERGED_AE_MM, off_path
+
+    ok = np.array([True, True, True, False, True])
+    ae = np.array([1.0, DIVERGED_AE_MM, np.nextafter(DIVERGED_AE_MM, np.inf), 1.0, np.nan])
+    assert off_path(ok, ae).tolist() == [False, False, True, True, True]

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import decimal
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any, overload
 
@@ -56,7 +56,7 @@ from delaytrack.scenario import BuiltScenario, Scenario, ScenarioError
 from delaytrack.sim import STATUS_NAMES, simulate
 from delaytrack.sim.certified_bound import stated_by_the_caller
 from delaytrack.sim.simulate import MAX_STEPS
-from delaytrack.units import coordinate_units, default_names, value_with_unit
+from delaytrack.units import coordinate_units, value_with_unit
 
 __all__ = [
     "METRICS",
@@ -66,6 +66,7 @@ __all__ = [
     "MissedWithoutDelay",
     "empirical_margin",
     "resolved_text",
+    "resolved_texts",
 ]
 
 #: Delay families: name -> (value v, frequency) -> profile.
@@ -612,6 +613,12 @@ def resolved_text(value: float, resolution: float, *, up: bool = False) -> str:
     return _rounded(value, decimals, decimal.ROUND_CEILING if up else decimal.ROUND_FLOOR)
 
 
+def resolved_texts(values: Iterable[float], resolution: float) -> list[str | None]:
+    """:func:`resolved_text` of each of ``values`` (margins: rounded down), None where there is
+    none (NaN: no failure found, or not searched), for a column of a table a user reads."""
+    return [None if math.isnan(value) else resolved_text(value, resolution) for value in values]
+
+
 def _rounded(value: float, decimals: int, rounding: str) -> str:
     """``value`` to ``decimals`` decimals, rounded as ``rounding`` says (``decimal.ROUND_FLOOR``,
     ``decimal.ROUND_CEILING``), from its decimal form to three more decimals: a grid value
@@ -638,10 +645,8 @@ def _per_coordinate(
         return positive_scalar("threshold", threshold)
     bounds = finite_array("threshold", threshold, ndim=1)
     if bounds.size != plant.n or not np.all(bounds > 0.0):
-        names = default_names(plant.coordinate_names, plant.n)
-        units = plant.coordinate_units or [None] * plant.n
         coordinates = ", ".join(
-            name + (f" [{unit}]" if unit else "") for name, unit in zip(names, units, strict=True)
+            name + (f" [{unit}]" if unit else "") for name, unit in coordinate_units(plant).items()
         )
         raise ArgumentError(
             "threshold",
@@ -660,8 +665,7 @@ def _missed(
     if status != 0:
         return f"status {STATUS_NAMES[int(status)]!r}"
     j = int(np.argmax(values / limits))
-    unit = (plant.coordinate_units or [None] * plant.n)[j]
-    name = default_names(plant.coordinate_names, plant.n)[j]
+    name, unit = list(coordinate_units(plant).items())[j]
     return value_with_unit(f"{metric} of {name} = {values[j]:.4g}", unit)
 
 

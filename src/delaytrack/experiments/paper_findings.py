@@ -385,6 +385,16 @@ def _chosen_gains(gains: Mapping[str, Mapping[str, Mapping[str, float]]]) -> pd.
     return pd.DataFrame(rows)
 
 
+def _off_path(summary: pd.DataFrame, status: pd.DataFrame) -> int:
+    """How many runs of ``summary`` are off the path by the tuning's rule
+    (:func:`~delaytrack.experiments.tuning.off_path`; their ``status`` from ``status``, their
+    mean AE of x and y)."""
+    keys = ["scenario", "controller"]
+    frame = summary[keys].merge(status, on=keys, how="left", validate="one_to_one")
+    ok = frame.status.eq("ok").to_numpy()
+    return int(tuning.off_path(ok, (summary.ae_x_mm + summary.ae_y_mm) / 2).sum())
+
+
 def _ae_x_range(summary: pd.DataFrame, controllers: list[str]) -> tuple[float, float]:
     """Smallest and largest AE-x (mm) of ``controllers`` over S1–S4 (finished runs)."""
     ae_x = summary[summary.controller.isin(controllers)].ae_x_mm
@@ -444,7 +454,7 @@ def paper_findings(
         claims=claims(summary),
         tuned_claims=claims(tuned_as_arolc(summary, tuned_summary)),
         stopped=status[status.status != "ok"],
-        off_path=int((~((summary.ae_x_mm + summary.ae_y_mm) / 2 <= tuning.DIVERGED_AE_MM)).sum()),
+        off_path=_off_path(summary, status),
         ae_x_range={family: _ae_x_range(summary, names) for family, names in families.items()},
         natural_frequency=omega,
         damping=AROLC_GAINS["K2"] / (2.0 * omega),

@@ -420,9 +420,7 @@ def _runs_frame(sweep: _Sweep, runs: pd.DataFrame) -> pd.DataFrame:
         frame["wound_up"] = wound_up(frame.tv_Nm.to_numpy(), frame.tv_received_Nm.to_numpy())
     frame["status"] = runs.status.to_numpy()
     frame["t_stop_s"] = runs.t_stop.to_numpy()
-    frame["diverged"] = (
-        (frame.status != "ok") | ~np.isfinite(frame.ae_mm) | (frame.ae_mm > DIVERGED_AE_MM)
-    )
+    frame["diverged"] = tuning.off_path(frame.status == "ok", frame.ae_mm)
     return frame
 
 

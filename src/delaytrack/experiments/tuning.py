@@ -131,6 +131,7 @@ __all__ = [
     "load_gains",
     "load_tuning_record",
     "make_controller",
+    "off_path",
     "recorded_gains_text",
     "set_conditions",
     "tune",
@@ -156,6 +157,16 @@ HISTORY = 0.15
 #: point so detuned that its error averages a metre while its state stays finite and within the
 #: bound is excluded from the choice as if it had stopped.
 DIVERGED_AE_MM = 1000.0
+
+
+def off_path(ok: np.ndarray, ae_mm: np.ndarray) -> np.ndarray:
+    """Whether each run counts as off the path by the rule of the tuning, the robustness study
+    and the paper job's claims: it did not end ``ok`` (``ok`` False), or its mean AE (mm) is
+    not finite or above :data:`DIVERGED_AE_MM`."""
+    ae = np.asarray(ae_mm, dtype=float)
+    return ~np.asarray(ok, dtype=bool) | ~np.isfinite(ae) | (ae > DIVERGED_AE_MM)
+
+
 #: The tuned controllers. ``PCON-wheel`` is PCON in wheel space (``space="actuator"``).
 KINDS: tuple[str, ...] = ("AROLC", "PCON", "PCON-wheel", "PCONf")
 #: The controllers that are told the delay.
@@ -428,7 +439,7 @@ def _evaluate(
             )
         ae = 1e3 * mean_absolute_error(result)[:, :2].mean(axis=1)
         names = np.asarray(result.status_names)
-        left = (names != "ok") | ~np.isfinite(ae) | (ae > DIVERGED_AE_MM)
+        left = off_path(names == "ok", ae)
         for i in np.flatnonzero(left):
             if status[i] == "ok":
                 name = "left path" if names[i] == "ok" else names[i]

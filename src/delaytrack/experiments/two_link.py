@@ -34,7 +34,7 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from delaytrack._deprecated import moved_names
-from delaytrack._result_columns import metric_columns_with_units
+from delaytrack._result_columns import metric_columns_with_units, metric_units
 from delaytrack.analysis import RazumikhinBound, razumikhin_bound
 from delaytrack.analysis.razumikhin import PAPER_BETA as BETA
 from delaytrack.analysis.razumikhin import PAPER_R as R
@@ -196,6 +196,15 @@ class TwoLinkStudy:
     def dt_verdict(self) -> DtCheck | None:
         """The dt-halving check's verdict (None if not checked)."""
         return dt_check_verdict(self.dt_check)
+
+    @property
+    def metric_units(self) -> dict[str, str | None]:
+        """Each metric of :attr:`summary` (``ae_q1``, ..., ``tv``) with its unit, as the arm's
+        runs give it: the joints' in rad, the torques' TV in N·m."""
+        result = next(iter(self.results.values()))
+        return metric_units(
+            result.coordinate_names, result.coordinate_units, result.n, result.input_units
+        )
 
     @property
     def columns_with_units(self) -> dict[str, str]:

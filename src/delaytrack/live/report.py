@@ -36,7 +36,7 @@ from delaytrack.live._tables import (
     read_table,
     session_columns,
 )
-from delaytrack.units import coordinate_units
+from delaytrack.units import coordinate_units, value_with_unit
 
 __all__ = [
     "delay_node_text",
@@ -588,7 +588,7 @@ def error_bound_text(live: Any, scenario: Any, plant: Any) -> str | None:
         return None
     first = int(ticks[0])
     which = [
-        f"{name} {bound[i]:g}{f' {unit}' if unit else ''}"
+        value_with_unit(f"{name} {bound[i]:g}", unit)
         for i, (name, unit) in enumerate(coordinate_units(plant).items())
         if beyond[first, i]
     ]

@@ -49,7 +49,8 @@ def write_dt_check(
     report.table(
         dt_check.table,
         "Metrics at dt/2 and the largest relative change per run, max_relative_change as a "
-        "fraction (0.01 is the 1 % criterion; —: the run left the path).",
+        f"fraction ({dt_check.tolerance:g} is the {_percent(dt_check.tolerance)} criterion; —: "
+        "the run left the path).",
         digits=6,
     )
 

@@ -16,7 +16,7 @@ from delaytrack._io import write_frame
 from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack._version import __version__
 from delaytrack._words import table_text
-from delaytrack.experiments.empirical_margin import resolved_text
+from delaytrack.experiments.empirical_margin import resolved_text, resolved_texts
 from delaytrack.report.figures import margins_figure, save_figure
 from delaytrack.report.html import HtmlReport
 
@@ -51,13 +51,9 @@ def _resolved(study: MarginStudy) -> pd.DataFrame:
     """:func:`margins_with_units` with the empirical margins as text to the decimals of the
     search's resolution, rounded down (as ``delaytrack empirical`` shows them: never above the
     value that passed), None where no failure was found."""
-    table = study.table.copy()
-    for column in _EMPIRICAL:
-        table[column] = [
-            None if pd.isna(value) else resolved_text(value, study.search["resolution"])
-            for value in table[column]
-        ]
-    return margins_with_units(table)
+    resolution = study.search["resolution"]
+    empirical = {column: resolved_texts(study.table[column], resolution) for column in _EMPIRICAL}
+    return margins_with_units(study.table.assign(**empirical))
 
 
 def terminal_text(study: MarginStudy) -> str:

@@ -171,7 +171,7 @@ def findings(summary: pd.DataFrame, metrics: Sequence[str], units: Mapping[str, 
     ]
     out = ["Runs that diverged or left the path, per controller: " + "; ".join(parts) + "."]
     for metric in metrics:
-        unit = f" {units[metric]}" if metric in units else ""
+        unit = units.get(metric)
         best = []
         for smallest in smallest_medians(summary, metric):
             if len(smallest.controllers) > 1:
@@ -179,12 +179,12 @@ def findings(summary: pd.DataFrame, metrics: Sequence[str], units: Mapping[str, 
                 medians = " and ".join(f"{value:.4g}" for value in smallest.medians)
                 best.append(
                     f"{smallest.delay_class}: {names} within {TIE:.0%} of each other "
-                    f"({medians}{unit})"
+                    f"({value_with_unit(medians, unit)})"
                 )
             else:
                 best.append(
                     f"{smallest.delay_class}: {smallest.controllers[0]}, "
-                    f"median {smallest.medians[0]:.3g}{unit}"
+                    f"median {value_with_unit(f'{smallest.medians[0]:.3g}', unit)}"
                 )
         if best:
             out.append(f"Smallest median {metric}, per delay class: " + "; ".join(best) + ".")

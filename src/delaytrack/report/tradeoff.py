@@ -9,14 +9,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import pandas as pd
 from matplotlib.figure import Figure
 
 from delaytrack._io import write_frame
 from delaytrack._output import claim_output_folder, record_outputs
 from delaytrack._version import __version__
 from delaytrack.experiments.drawn_robots import drawn_columns
-from delaytrack.experiments.empirical_margin import resolved_text
+from delaytrack.experiments.empirical_margin import resolved_texts
 from delaytrack.experiments.tradeoff import LOWER_BOUND, MARGIN_SEARCHES
 from delaytrack.report.decision import (
     ae_text,
@@ -34,6 +33,8 @@ from delaytrack.report.html import HtmlReport
 from delaytrack.units import coordinate_units, labelled, value_with_unit, with_unit
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from delaytrack.experiments.decision import Choice, Decision
     from delaytrack.experiments.tradeoff import TradeoffStudy
 
@@ -52,10 +53,7 @@ def _shown(study: TradeoffStudy, frame: pd.DataFrame) -> pd.DataFrame:
     """``frame`` (the study's table or its front) as the page shows it: its columns with their
     units, the empirical margin rounded down to the decimals of the search's resolution (as
     ``delaytrack empirical`` shows it; tradeoff.csv has it in full), None where there is none."""
-    margins = [
-        None if pd.isna(value) else resolved_text(value, study.resolution)
-        for value in frame.empirical_margin
-    ]
+    margins = resolved_texts(frame.empirical_margin, study.resolution)
     return frame.assign(empirical_margin=margins).rename(columns=_columns(study))
 
 

@@ -22,6 +22,7 @@ from delaytrack.report.figures import (
     tracking_figure,
 )
 from delaytrack.report.html import HtmlReport
+from delaytrack.units import value_with_unit
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -73,6 +74,7 @@ def _verdict(study: TwoLinkStudy) -> list[str]:
             f"status '{row['status']}' at t = {row['t_stop']:g} s; it has no metrics (— in the "
             "tables)."
         )
+    units = study.metric_units
     for _, row in study.changes.iterrows():
         case = row["scenario"]
         base = summary[(summary.scenario == case) & (summary.controller == "outer-loop")].iloc[0]
@@ -90,10 +92,8 @@ def _verdict(study: TwoLinkStudy) -> list[str]:
                 parts.append(f"{what}: not comparable")
                 continue
             word = "lower" if pct < 0 else "higher"
-            unit = "N·m" if metric == "tv" else "rad"
-            parts.append(
-                f"{what} {abs(pct):.1f} % {word} ({cand[metric]:.4g} vs {base[metric]:.4g} {unit})"
-            )
+            values = value_with_unit(f"{cand[metric]:.4g} vs {base[metric]:.4g}", units[metric])
+            parts.append(f"{what} {abs(pct):.1f} % {word} ({values})")
         wins = study.arolc_better[case]
         if not all(np.isfinite(row[f"ae_{name}"]) for name in study.coordinates):
             head = "in this one run, the mean errors cannot be compared (a run did not finish)"

@@ -147,7 +147,9 @@ def test_the_printed_summary_says_which_runs_have_no_metrics_and_why_not_nan():
     text = paper_report.summary_text(summary, status[status.status != "ok"], "consistent")
     assert "NaN" not in text and "nan" not in text
     lines = text.splitlines()
-    assert lines[0].startswith("consistent path: AE in mm, %AE of the 2500 mm diameter")
+    from delaytrack.experiments.paper_setup import DIAMETER_MM  # the paper's circle
+
+    assert lines[0].startswith(f"consistent path: AE in mm, %AE of the {DIAMETER_MM:g} mm diameter")
     assert lines[1].split() == [*paper.SUMMARY_COLUMNS[:6], "tv_Nm"]
     assert lines[3].split() == ["S2", "PCON", "—", "—", "—", "—", "—"]
     assert lines[4] == (

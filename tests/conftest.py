@@ -200,11 +200,12 @@ def live_nodes(tmp_path_factory):
     """
     pytest.importorskip("zenoh")
     pytest.importorskip("mcap_ros2")
-    from delaytrack.live.session import ROLES, _free_ports, node_commands
+    from delaytrack.live.session import ROLES, node_commands
     from delaytrack.live.transport import open_session
+    from ports import free_ports
 
     folder = tmp_path_factory.mktemp("live_nodes") / "nodes"
-    ports, name = _free_ports(3), "nodes-test"
+    ports, name = free_ports(3), "nodes-test"
     options = Namespace(
         scenario=LIVE_SCENARIO,
         handshake_timeout=60.0,
@@ -214,7 +215,7 @@ def live_nodes(tmp_path_factory):
         loss=None,
         certificates=None,
     )
-    watch = f"tcp/127.0.0.1:{_free_ports(1)[0]}"
+    watch = f"tcp/127.0.0.1:{free_ports(1)[0]}"
     commands = node_commands(options, folder, ports, name, watch)
     commands["robot"].remove("--quiet")
     received: list[tuple[str, bytes]] = []

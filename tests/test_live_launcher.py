@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 import textwrap
@@ -16,8 +17,10 @@ from pathlib import Path
 import pytest
 
 from delaytrack._output import MANIFEST, claim_output_folder
-from delaytrack.live._node import LAUNCHER_PID, StopFlag, end_with_launcher
+from delaytrack.live import session as session_module
+from delaytrack.live._node import EXIT_PORT_TAKEN, LAUNCHER_PID, StopFlag, end_with_launcher
 from delaytrack.live._tables import ROLE_FILES
+from delaytrack.live.cli import main as live_main
 from delaytrack.live.session import (
     SESSION_FILES,
     _remove_earlier_session,
@@ -168,3 +171,86 @@ def test_nodes_that_ran_for_different_lengths_are_said_to():
         "nodes": nodes, "node_lengths_s": lengths,
     }  # fmt: skip
     assert "  warning: the nodes ran for different lengths" in format_summary(summary, Path("o"))
+
+
+def _held_port() -> socket.socket:
+    """A socket listening on a port of 127.0.0.1, as another program holding it."""
+    held = socket.socket()
+    held.bind(("127.0.0.1", 0))
+    held.listen()
+    return held
+
+
+@pytest.mark.parametrize(("picked", "code"), [(True, EXIT_PORT_TAKEN), (False, 2)])
+def test_a_node_whose_port_is_taken_says_so_unless_the_launcher_picked_it(tmp_path, picked, code):
+    """On ports the user gave, one line naming the endpoint; on ports ``live run`` picked,
+    the exit code by which it picks again, and no message."""
+    pytest.importorskip("zenoh")
+    with _held_port() as held:
+        endpoint = f"tcp/127.0.0.1:{held.getsockname()[1]}"
+        command = ["robot", "two_link_S1", "--out", str(tmp_path / "robot"), "--quiet"]
+        command += ["--listen", endpoint] + (["--picked-ports"] if picked else [])
+        node = subprocess.run(
+            [sys.executable, "-m", "delaytrack.live", *command], capture_output=True, timeout=120
+        )
+    assert node.returncode == code, node.stderr.decode()
+    lines = node.stderr.decode().splitlines()
+    if picked:
+        assert lines == []
+    else:
+        assert len(lines) == 1 and lines[0].startswith("error: cannot open the Zenoh session")
+        assert endpoint in lines[0] and "in use" in lines[0]
+
+
+def _taking_ports(monkeypatch, held: socket.socket, times: int) -> list[list[int]]:
+    """Make ``live run``'s first ``times`` picks of the nodes' ports give the robot the port
+    ``held`` holds (as if another program took it in between); the picks, as made."""
+    picks: list[list[int]] = []
+    pick = session_module._free_ports
+
+    def taking(count: int) -> list[int]:
+        ports = pick(count)
+        if count == 3 and len(picks) < times:
+            ports[0] = held.getsockname()[1]
+        picks.append(ports)
+        return ports
+
+    monkeypatch.setattr(session_module, "_free_ports", taking)
+    return picks
+
+
+def test_a_session_whose_picked_port_was_taken_starts_again_on_new_ports(
+    tmp_path, monkeypatch, capfd
+):
+    pytest.importorskip("zenoh")
+    pytest.importorskip("mcap_ros2")
+    with _held_port() as held:
+        picks = _taking_ports(monkeypatch, held, times=1)
+        out = tmp_path / "run"
+        code = live_main(["run", "two_link_S1", "--duration", "0.5", "--out", str(out), "--quiet"])
+        taken = held.getsockname()[1]
+    stderr = capfd.readouterr().err
+    assert code == 0, stderr
+    assert "error" not in stderr
+    assert len(picks) == 2 and picks[0][0] == taken != picks[1][0]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["exit_codes"] == {"robot": 0, "delay": 0, "controller": 0}
+
+
+def test_a_session_whose_picked_ports_are_taken_every_time_gives_up_in_one_line(
+    tmp_path, monkeypatch, capfd
+):
+    pytest.importorskip("zenoh")
+    pytest.importorskip("mcap_ros2")
+    monkeypatch.setattr(session_module, "PORT_ATTEMPTS", 2)
+    with _held_port() as held:
+        picks = _taking_ports(monkeypatch, held, times=2)
+        out = tmp_path / "run"
+        code = live_main(["run", "two_link_S1", "--duration", "0.5", "--out", str(out), "--quiet"])
+    errors = [line for line in capfd.readouterr().err.splitlines() if line]
+    assert code == 1 and len(picks) == 2
+    assert errors == [
+        "error: the session did not start: 2 times in a row, another program took a port "
+        "picked for it before its node could listen on it; give free ports with --port"
+    ]
+    assert not (out / "summary.json").exists()

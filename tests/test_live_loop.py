@@ -13,13 +13,14 @@ import csv
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
 
 import numpy as np
 import pytest
+
+from ports import free_ports
 
 pytest.importorskip("zenoh")
 pytest.importorskip("mcap_ros2")
@@ -33,16 +34,6 @@ from delaytrack.sim.packet_loss import packet_lost  # noqa: E402
 
 SCENARIO = "two_link_S1"
 PYTHON = [sys.executable, "-m", "delaytrack.live"]
-
-
-def _ports(count):
-    sockets = [socket.socket() for _ in range(count)]
-    for s in sockets:
-        s.bind(("127.0.0.1", 0))
-    ports = [s.getsockname()[1] for s in sockets]
-    for s in sockets:
-        s.close()
-    return ports
 
 
 def _node(role, scenario, out, session, listen, connect, *extra):
@@ -93,7 +84,7 @@ def _messages(path, *, finished=True):
 @pytest.fixture(scope="module")
 def sessions(live_run, tmp_path_factory):
     root = tmp_path_factory.mktemp("live")
-    env_ports = _ports(5)
+    env_ports = free_ports(5)
     # 1. A normal session through the launcher (tests/conftest.py, shared with
     # test_live_status.py, which reads its status line).
     run_out, run = live_run

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from delaytrack.live.session import _free_ports
+from ports import free_ports
 
 pytest.importorskip("zenoh")
 pytest.importorskip("cryptography")
@@ -31,7 +31,7 @@ def test_only_a_peer_with_a_certificate_of_the_sessions_authority_is_connected(t
     # the node's certificate, but holds a certificate of another authority.
     _ca, certificate, key = certificates(tmp_path / "other", "another authority")
     other = PeerCertificates(session.ca, certificate, key)
-    endpoint = f"tls/localhost:{_free_ports(1)[0]}"
+    endpoint = f"tls/localhost:{free_ports(1)[0]}"
     received: list[bytes] = []
     node = open_session([endpoint], [], session)
     peers = {
@@ -90,7 +90,7 @@ def test_with_certificates_a_node_listens_on_its_tls_endpoints_only(tmp_path):
     # Zenoh's default for a session without endpoints to listen on is TCP on every interface:
     # a node that only connected took unauthenticated peers there, and linked them to the rest.
     session = PeerCertificates(*certificates(tmp_path / "session"))
-    port = _free_ports(1)[0]
+    port = free_ports(1)[0]
     before = _listening_ports()
     opened = [open_session([f"tls/localhost:{port}"], [], session)]
     try:

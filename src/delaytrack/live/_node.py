@@ -41,11 +41,18 @@ from delaytrack.live.status import (
     make_status,
     status_key,
 )
-from delaytrack.live.transport import Handshake, HandshakeError, open_session, scenario_hashes
+from delaytrack.live.transport import (
+    Handshake,
+    HandshakeError,
+    PortInUseError,
+    open_session,
+    scenario_hashes,
+)
 from delaytrack.sim.simulate import MAX_STEPS, physical_memory
 from delaytrack.warning import one_line
 
 __all__ = [
+    "EXIT_PORT_TAKEN",
     "LAUNCHER_PID",
     "NodeBase",
     "Received",
@@ -71,6 +78,12 @@ BYTES_PER_STEP = 2048
 #: robot's state), 2 refused (a usage error, a scenario that differs from a peer's, no peer in
 #: time), 130 stopped by SIGINT.
 EXIT_OK, EXIT_FAILED, EXIT_REFUSED, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+#: The exit code of a node started by ``delaytrack live run`` on ports it picked (the hidden
+#: ``--picked-ports``) when its listen port was taken by another program in between, before
+#: the session started: a temporary failure (``EX_TEMPFAIL``), said by no message, on which
+#: the launcher picks new ports and starts the nodes again.
+EXIT_PORT_TAKEN = 75
 
 #: The environment variable by which ``delaytrack live run`` gives its nodes its process id:
 #: a node it started stops (as on SIGTERM) when the launcher is gone, killed or not.
@@ -446,6 +459,12 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
     prefix = f"delaytrack/{args.session}"
     try:
         session = open_session(args.listen, args.connect, args.certificates)
+    except PortInUseError as error:
+        node.close()
+        if getattr(args, "picked_ports", False):
+            return EXIT_PORT_TAKEN
+        print(one_line(f"error: {error}"), file=sys.stderr)
+        return EXIT_REFUSED
     except OSError as error:
         node.close()
         print(one_line(f"error: {error}"), file=sys.stderr)

@@ -286,6 +286,9 @@ def _node_arguments(command: argparse.ArgumentParser, role: str) -> None:
     command.add_argument(
         "--start-delay", type=_SECONDS, default=0.5, metavar="S", help=argparse.SUPPRESS
     )
+    # Given by ``delaytrack live run`` when it picked the ports: a listen port taken since
+    # exits with EXIT_PORT_TAKEN, without a message, and the launcher picks new ones.
+    command.add_argument("--picked-ports", action="store_true", help=argparse.SUPPRESS)
     trust_argument(command)
     quiet_argument(command, "status line")
     if role == "controller":

@@ -34,6 +34,7 @@ import numpy as np
 from delaytrack._io import json_text, write_text
 from delaytrack._validation import is_real_number
 from delaytrack.live._node import (
+    EXIT_PORT_TAKEN,
     LAUNCHER_PID,
     check_realtime,
     load_scenario,
@@ -64,7 +65,7 @@ from delaytrack.live.report import (
     robot_stop,
 )
 from delaytrack.live.status import StatusWatch
-from delaytrack.live.transport import scenario_hashes
+from delaytrack.live.transport import PortInUseError, scenario_hashes
 from delaytrack.warning import one_line
 
 __all__ = ["collect", "run_session"]
@@ -121,10 +122,17 @@ NODE_START = (
 
 
 def node_commands(
-    args: Any, folder: Path, ports: list[int], session: str, watch: str | None = None
+    args: Any,
+    folder: Path,
+    ports: list[int],
+    session: str,
+    watch: str | None = None,
+    picked: bool = False,
 ) -> dict[str, list[str]]:
     """The command line of each node (each ``--quiet``: the launcher prints the status); each
-    also connects to the launcher's status watch at the endpoint ``watch``, if given."""
+    also connects to the launcher's status watch at the endpoint ``watch``, if given. With
+    ``picked`` (ports the launcher picked, not the user's), a node whose port is taken when it
+    listens exits with :data:`~delaytrack.live._node.EXIT_PORT_TAKEN`, silently."""
     endpoint = {
         role: _endpoint(port, args.certificates) for role, port in zip(ROLES, ports, strict=True)
     }
@@ -153,6 +161,8 @@ def node_commands(
         for name in args.trust:
             command += ["--trust", name]
         command.append("--quiet")
+        if picked:
+            command.append("--picked-ports")
         if role == "delay" and args.loss is not None:
             command += ["--loss", repr(args.loss), "--loss-seed", str(args.loss_seed)]
         if role == "delay" and getattr(args, "lead", None) is not None:
@@ -186,29 +196,22 @@ def run_session(args: Any) -> int:
         return 2
     try:
         claim_output_folder(folder)
-        _remove_earlier_session(folder)
-        # The nodes read the scenario as written here, so a shipped name and the replay agree.
-        scenario.to_toml(folder / "scenario.toml")
-        ports = _free_ports(3) if args.port is None else [args.port + i for i in range(3)]
-        session = f"run-{os.getpid()}-{int(time.time())}"
-        # The status watch listens before the nodes start, and they connect to it: a watch
-        # that connected to them could miss a short session while its connections were retried.
-        watched = None if args.quiet else _endpoint(_free_ports(1)[0], args.certificates)
-        watch = (
-            None
-            if watched is None
-            else StatusWatch(watched, f"delaytrack/{session}", certificates=args.certificates)
-        )
-        commands = node_commands(args, folder, ports, session, watched)
+        started_nodes = _start_nodes(args, scenario, folder, duration)
     except OSError as error:
         print(one_line(f"error: {error}"), file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted before the session started", file=sys.stderr)
         return 130
-    codes, interrupted, started, (stuck, why) = _run_nodes(
-        commands, folder, watch, args.handshake_timeout, duration
-    )
+    if started_nodes is None:
+        print(
+            f"error: the session did not start: {PORT_ATTEMPTS} times in a row, another "
+            "program took a port picked for it before its node could listen on it; give free "
+            "ports with --port",
+            file=sys.stderr,
+        )
+        return 1
+    codes, interrupted, started, (stuck, why) = started_nodes
     for role in stuck:
         print(
             f"error: the {role} node did not end in time ({why}): it was stopped ({stuck[role]}); "
@@ -216,7 +219,7 @@ def run_session(args: Any) -> int:
             file=sys.stderr,
         )
     failed = {role: code for role, code in codes.items() if code not in (0,)}
-    if not any((folder / f"{r}.mcap").exists() for r in ROLES):
+    if not _logged(folder):
         # No session (an earlier one's logs were removed): stopped, refused by a node (said
         # by the node), or a node killed or stopped, before the start. Nothing to collect.
         if interrupted:
@@ -248,6 +251,59 @@ def run_session(args: Any) -> int:
     if not args.quiet or failed:
         print(format_summary(summary, folder))
     return _session_exit_code(interrupted, failed, report_failed)
+
+
+#: How many times ``live run`` picks ports for a session whose nodes find a port taken by
+#: another program before they listen on it (the picked ports are free when picked, but
+#: another program, such as another session, may take one before the node binds it).
+PORT_ATTEMPTS = 5
+
+
+def _start_nodes(
+    args: Any, scenario: Any, folder: Path, duration: float
+) -> tuple[dict[str, int], list[int], float, tuple[dict[str, str], str]] | None:
+    """Start the session's nodes on ports picked for them and wait for their end
+    (:func:`_run_nodes`, whose result this returns). When a node, or the status watch, finds
+    its picked port taken before the session began, start again on new ports, up to
+    :data:`PORT_ATTEMPTS` times (None when every time found a port taken)."""
+    session = f"run-{os.getpid()}-{int(time.time())}"
+    for _ in range(PORT_ATTEMPTS):
+        try:
+            commands, watch = _prepare_attempt(args, scenario, folder, session)
+        except PortInUseError:  # the watch's port
+            continue
+        ended = _run_nodes(commands, folder, watch, args.handshake_timeout, duration)
+        codes, interrupted = ended[0], ended[1]
+        if interrupted or EXIT_PORT_TAKEN not in codes.values() or _logged(folder):
+            return ended
+    return None
+
+
+def _prepare_attempt(
+    args: Any, scenario: Any, folder: Path, session: str
+) -> tuple[dict[str, list[str]], StatusWatch | None]:
+    """Ready ``folder`` for a start of the session's nodes and pick their ports: the nodes'
+    commands and the status watch (listening, or None with ``--quiet``). Raises
+    :class:`~delaytrack.live.transport.PortInUseError` when the watch's port was taken since
+    it was picked, and ``OSError`` for a folder that cannot be written."""
+    _remove_earlier_session(folder)
+    # The nodes read the scenario as written here, so a shipped name and the replay agree.
+    scenario.to_toml(folder / "scenario.toml")
+    ports = _free_ports(3) if args.port is None else [args.port + i for i in range(3)]
+    # The status watch listens before the nodes start, and they connect to it: a watch that
+    # connected to them could miss a short session while its connections were retried.
+    watched = None if args.quiet else _endpoint(_free_ports(1)[0], args.certificates)
+    watch = (
+        None
+        if watched is None
+        else StatusWatch(watched, f"delaytrack/{session}", certificates=args.certificates)
+    )
+    return node_commands(args, folder, ports, session, watched, args.port is None), watch
+
+
+def _logged(folder: Path) -> bool:
+    """Whether a node of the session in ``folder`` has started its log (the session began)."""
+    return any((folder / f"{role}.mcap").exists() for role in ROLES)
 
 
 #: The files a session's launcher writes besides the nodes' (``replay`` writes the last two).

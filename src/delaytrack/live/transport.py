@@ -56,6 +56,7 @@ __all__ = [
     "ROLES",
     "Handshake",
     "HandshakeError",
+    "PortInUseError",
     "differing_parts",
     "open_session",
     "read_hello",
@@ -114,7 +115,8 @@ def open_session(
     listen: Sequence[str], connect: Sequence[str], certificates: PeerCertificates | None = None
 ) -> Any:
     """Open the Zenoh session (:func:`zenoh_config`); a listen endpoint that cannot be bound (a
-    port in use) or a certificate Zenoh cannot use is an :class:`OSError` naming it."""
+    port in use: :class:`PortInUseError`) or a certificate Zenoh cannot use is an
+    :class:`OSError` naming it."""
     import zenoh
 
     try:
@@ -122,15 +124,16 @@ def open_session(
     except zenoh.ZError as error:
         text = str(error).splitlines()[0] if str(error) else type(error).__name__
         text = re.sub(r" at \S+\.rs:\d+\.?", "", text)  # where in Zenoh's Rust source
-        hint = (
-            "; is a port in use? choose another with --listen/--connect or --port"
-            if "in use" in text.lower()
-            else ""
-        )
-        raise OSError(
+        in_use = "in use" in text.lower()
+        hint = "; is a port in use? choose another with --listen/--connect or --port"
+        raise (PortInUseError if in_use else OSError)(
             f"cannot open the Zenoh session (listen {list(listen)}, connect {list(connect)}): "
-            f"{text}{hint}"
+            f"{text}{hint if in_use else ''}"
         ) from None
+
+
+class PortInUseError(OSError):
+    """A listen endpoint of :func:`open_session` whose port another program holds."""
 
 
 def declare_stream(session: Any, key: str) -> Any:

@@ -5,6 +5,7 @@ asserted)."""
 from __future__ import annotations
 
 import csv
+import html
 import json
 import shutil
 import subprocess
@@ -353,3 +354,22 @@ def test_a_replay_that_stops_early_is_compared_only_where_both_ran(folder, tmp_p
     text = replay_module.ticks_compared_text(report)
     assert text.endswith("the live ticks after it are not compared")
     assert f"stopped as 'left the path' at t = {whole.t[half]:g} s" in text
+
+
+def test_the_reports_note_on_the_error_bound_comes_after_the_summary(
+    folder, tmp_path, monkeypatch, capsys
+):
+    """The note that the live error passed the scenario's ``error_bound`` is printed below the
+    session's summary, where it is read with it (it came above, while the report was written)."""
+    from delaytrack.live import report as report_module
+    from delaytrack.live.cli import main as live_main
+
+    copy = tmp_path / "session"
+    shutil.copytree(folder, copy)
+    said = "the tracking error passed the scenario's error_bound (q1 0.001 rad) at t = 0.1 s"
+    monkeypatch.setattr(report_module, "error_bound_text", lambda *_: said)
+    assert live_main(["collect", str(copy), SCENARIO]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-1] == f"note: {said}"
+    assert any(line.startswith("live session two_link_S1") for line in lines[:-1]), lines
+    assert said in html.unescape((copy / "report.html").read_text())

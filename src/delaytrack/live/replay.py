@@ -365,7 +365,7 @@ def replay_main(args: Any) -> int:
         print(one_line(f"error: {error}"), file=sys.stderr)
         return 2
     # The session's report again, with the replayed run beside the live one.
-    report_failed = write_report(folder, scenario, replayed=replayed, agreement=report)
+    report_failed, note = write_report(folder, scenario, replayed=replayed, agreement=report)
     record_outputs(folder, session_files(folder))
     print(
         "\n".join(
@@ -376,6 +376,7 @@ def replay_main(args: Any) -> int:
                 f"({report['worst_coordinate']})",
                 *(f"  {line}" for line in format_agreement(report)),
                 f"  not reproduced by the simulation: {not_reproduced_text(report)}",
+                *([] if note is None else [f"note: {note}"]),
             ]
         )
     )

@@ -207,11 +207,13 @@ def _timing_figure(folder: Path) -> Any:
 
 def write_session_report(
     folder: str | Path, scenario: Any, *, replayed: Any = None, agreement: Any = None
-) -> list[Path]:
+) -> tuple[list[Path], str | None]:
     """Write ``metrics.csv``, the figures and ``report.html`` of the session in ``folder``;
-    return their paths. With ``replayed`` (the replay's :class:`~delaytrack.sim.SimResult`)
-    and ``agreement`` (what :func:`~delaytrack.live.replay.replay` returns) the live and
-    replayed runs are drawn and measured side by side."""
+    return their paths and the report's note on the scenario's ``error_bound``
+    (:func:`error_bound_text`; None when the error stayed within it). With ``replayed`` (the
+    replay's :class:`~delaytrack.sim.SimResult`) and ``agreement`` (what
+    :func:`~delaytrack.live.replay.replay` returns) the live and replayed runs are drawn and
+    measured side by side."""
     from delaytrack._io import write_bytes, write_frame
     from delaytrack.report.figures import png_bytes
 
@@ -233,13 +235,11 @@ def write_session_report(
     for name, (data, _caption) in images.items():
         paths.append(write_bytes(folder / "figures" / f"{name}.png", data))
     beyond = error_bound_text(live, scenario, built.plant)
-    if beyond is not None:  # said where the session's summary is read, and in the report
-        print(f"note: {beyond}")
     report = _html_report(
         folder, scenario, summary, live, metrics, agreement, images.values(), beyond
     )
     paths.append(report.write(folder / "report.html"))
-    return paths
+    return paths, beyond
 
 
 def _metrics(runs: dict[str, Any]) -> Any:
@@ -599,16 +599,18 @@ def error_bound_text(live: Any, scenario: Any, plant: Any) -> str | None:
     )
 
 
-def write_report(folder: Path, scenario: Any, **replay: Any) -> bool:
+def write_report(folder: Path, scenario: Any, **replay: Any) -> tuple[bool, str | None]:
     """Write the session's metrics, figures and report (:mod:`delaytrack.live.report`);
-    whether that failed (said on stderr: the logs and tables stay)."""
+    whether that failed (said on stderr: the logs and tables stay), and the report's note on
+    the ``error_bound``, to print as ``note: ...`` after what the command prints of the
+    session (:func:`write_session_report`)."""
     try:
-        write_session_report(folder, scenario, **replay)
+        _paths, note = write_session_report(folder, scenario, **replay)
     except (ValueError, OSError, KeyError) as error:
         print(
             f"error: the session's report (metrics.csv, figures, report.html) could not be "
             f"written: {error}",
             file=sys.stderr,
         )
-        return True
-    return False
+        return True, None
+    return False, note

@@ -235,7 +235,7 @@ def run_session(args: Any) -> int:
         summary["exit_codes"] = codes
         summary["wall_s"] = time.monotonic() - started
         summary["load_average"] = list(os.getloadavg())
-        report_failed = _write_summary_and_report(folder, scenario, summary)
+        report_failed, note = _write_summary_and_report(folder, scenario, summary)
     except KeyboardInterrupt:
         print(
             "interrupted while writing the session's summary and report; the nodes' files are "
@@ -248,8 +248,7 @@ def run_session(args: Any) -> int:
         return 1
     if stuck:
         failed.update({role: codes[role] or 1 for role in stuck})
-    if not args.quiet or failed:
-        print(format_summary(summary, folder))
+    _print_summary(summary, folder, note, shown=not args.quiet or bool(failed))
     return _session_exit_code(interrupted, failed, report_failed)
 
 
@@ -446,16 +445,26 @@ def _terminate(processes: dict[str, subprocess.Popen[bytes]]) -> None:
             process.send_signal(signal.SIGTERM)
 
 
-def _write_summary_and_report(folder: Path, scenario: Any, summary: dict[str, Any]) -> bool:
+def _write_summary_and_report(
+    folder: Path, scenario: Any, summary: dict[str, Any]
+) -> tuple[bool, str | None]:
     """Write ``summary.json`` and the report, and record the session's files; whether the
-    report failed (:func:`~delaytrack.live.report.write_report`)."""
+    report failed, and its note (:func:`~delaytrack.live.report.write_report`)."""
     from delaytrack._output import record_outputs
     from delaytrack.live.report import write_report
 
     write_text(folder / "summary.json", json_text(summary, indent=1, default=str) + "\n")
-    report_failed = write_report(folder, scenario)
+    written = write_report(folder, scenario)
     record_outputs(folder, session_files(folder))
-    return report_failed
+    return written
+
+
+def _print_summary(summary: dict[str, Any], folder: Path, note: str | None, shown: bool) -> None:
+    """Print the session's summary (when ``shown``), then the report's ``note``, if any."""
+    if shown:
+        print(format_summary(summary, folder))
+    if note is not None:
+        print(f"note: {note}")
 
 
 def _session_exit_code(interrupted: list[int], failed: dict[str, int], report_failed: bool) -> int:
@@ -532,9 +541,8 @@ def collect_main(args: Any) -> int:
     summary["stopped_by"] = {
         role: (summary["nodes"][role] or {}).get("stopped_by") for role in ROLES
     }
-    report_failed = _write_summary_and_report(folder, scenario, summary)
-    if not args.quiet:
-        print(format_summary(summary, folder))
+    report_failed, note = _write_summary_and_report(folder, scenario, summary)
+    _print_summary(summary, folder, note, shown=not args.quiet)
     return 1 if report_failed else 0
 
 

@@ -188,7 +188,7 @@ def _arm_with(tmp_path: Path, old: str, new: str) -> Path:
             "'base' is a free joint",
         ),
         (
-            '<motor joint="elbow" gear="5"/>',
+            '<motor name="elbow" joint="elbow" gear="5"/>',
             '<position joint="elbow" kp="5"/>',
             {},
             "only direct actuators",
@@ -338,7 +338,8 @@ def test_a_control_has_a_unit_only_where_it_is_the_joint_force(tmp_path):
     slide = direct.replace('<joint name="wrist"/>', '<joint name="wrist" type="slide"/>')
     assert len({geared, direct, slide}) == 3
     reversed_gear = direct.replace(
-        '<motor joint="wrist" gear="1"/>', '<motor joint="wrist" gear="-1"/>'
+        '<motor name="wrist" joint="wrist" gear="1"/>',
+        '<motor name="wrist" joint="wrist" gear="-1"/>',
     )
     site = direct.replace(
         '<geom fromto="0 0 0 0.15 0 0" mass="0.4"/>',
@@ -346,7 +347,9 @@ def test_a_control_has_a_unit_only_where_it_is_the_joint_force(tmp_path):
         '<geom fromto="0 0 0 0.15 0 0" mass="0.4"/>'
         + "".join(f'<site name="s{i}"/>' for i in range(3))
         + '<site name="tip" pos="0.15 0 0"/>',
-    ).replace('<motor joint="wrist" gear="1"/>', '<motor site="tip" gear="0 0 1 0 0 0"/>')
+    ).replace(
+        '<motor name="wrist" joint="wrist" gear="1"/>', '<motor site="tip" gear="0 0 1 0 0 0"/>'
+    )
     assert reversed_gear != direct and site != direct
     (tmp_path / "ball.xml").write_text(BALL_ARM)  # stepped by MuJoCo, the ball joint left out
     ball = MujocoPlant(tmp_path / "ball.xml", stepping="mujoco", coordinates=("hinge",))
@@ -360,6 +363,38 @@ def test_a_control_has_a_unit_only_where_it_is_the_joint_force(tmp_path):
     ):
         (tmp_path / name).write_text(written)
         assert MujocoPlant(tmp_path / name).input_units == units
+
+
+def test_the_figures_name_the_controls_by_their_actuators(tmp_path):
+    """An actuator's name labels its panel; an unnamed one is ``u<j>``; a model with none
+    named keeps ``u1 .. um`` (and its tables keep ``u1 .. um`` whatever the names)."""
+    from delaytrack.report.figures import commands_figure
+
+    assert MujocoPlant(ARM).input_names == ("shoulder", "elbow", "wrist")
+    partly = ARM.read_text().replace('<motor name="elbow" ', "<motor ")
+    unnamed = partly.replace('name="shoulder" joint', "joint").replace(
+        'name="wrist" joint', "joint"
+    )
+    for name, written, names in (("partly.xml", partly, ("shoulder", "u2", "wrist")),
+                                 ("unnamed.xml", unnamed, None)):  # fmt: skip
+        (tmp_path / name).write_text(written)
+        assert MujocoPlant(tmp_path / name).input_names == names
+    result = dt.simulate(
+        MujocoPlant(ARM),
+        _arolc_on_the_light_arm(),
+        dt.AbsSineDelay.S1(),
+        X0,
+        reference=REFERENCE,
+        t1=0.02,
+        dt=1e-3,
+        T_c=2e-3,
+    )
+    assert result.input_names == ("shoulder", "elbow", "wrist") == result[0].input_names
+    labels = {ax.get_ylabel() for ax in commands_figure(result).axes}
+    assert labels == {"shoulder", "elbow", "wrist"}
+    assert [c for c in result.to_frame().columns if c.startswith("u")] == [
+        f"u{j}_{kind}" for j in (1, 2, 3) for kind in ("sent", "applied")
+    ]
 
 
 # ---- stepped by MuJoCo ----------------------------------------------------------------------

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from matplotlib.figure import Figure
@@ -97,6 +99,11 @@ def test_the_run_figures_label_each_axis_with_the_plants_own_units_or_none():
     )
     assert labels(outer_loop_run(plant)) == (["cart (m)"], ["|e1| of cart (m)"], ["u1 (N)"])
     assert list(outer_loop_run(plant).summary())[2:] == ["AE cart (m)", "TV (N)"]
+    # Inputs named by the plant: the commands' panels (the overview's legend too).
+    pushed = outer_loop_run(dataclasses.replace(plant, input_names=["push"]))
+    assert [ax.get_ylabel() for ax in commands_figure(pushed).axes] == ["push (N)"]
+    assert "push sent" in [t.get_text() for ax in pushed.plot().axes if ax.get_legend()
+                           for t in ax.get_legend().get_texts()]  # fmt: skip
     # A plant that declares no units gets none, not radians and newton-metres.
     bare = labels(outer_loop_run(LinearPlant(np.eye(1))))
     assert bare == (["q1"], ["|e1| of q1"], ["u1"])
@@ -113,6 +120,8 @@ def test_the_run_figures_label_each_axis_with_the_plants_own_units_or_none():
         (dict(coordinate_names=["1a"]), r"coordinate_names must be a list of n = 1 different"),
         (dict(coordinate_units=[""]), r"coordinate_units must be a list of 1 unit strings"),
         (dict(input_units=["N", "N"]), r"input_units must be .* 1 unit strings, one per input"),
+        (dict(input_names=["", "u"]), r"input_names must be a list of 1 different non-empty"),
+        (dict(input_names=[" "]), r"input_names must be a list of 1 different non-empty names"),
         (dict(coordinate_units="rad"), r"coordinate_units must be a list .* got 'rad'"),
     ],
 )

@@ -110,11 +110,20 @@ def beyond_choice(value: object) -> str:
 
 
 def coordinate_labels(label: str, value: object, n: int) -> tuple[str, ...]:
-    """``n`` different names (letters, digits and ``_``) for ``coordinate_names``, or ``n``
+    """``n`` different names (letters, digits and ``_``) for ``coordinate_names``, ``n``
+    different non-empty names for ``input_names`` (they label figures only), or ``n``
     non-empty unit strings for ``coordinate_units`` or ``input_units``, as a tuple; else a
     ValueError naming ``label``."""
     names = tuple(value) if isinstance(value, list | tuple) else None
-    if label.endswith("names"):
+    if label == "input_names":
+        valid = (
+            names is not None
+            and len(names) == n
+            and len(set(names)) == n
+            and all(isinstance(name, str) and name.strip() for name in names)
+        )
+        what = f"{n} different non-empty names, one per input"
+    elif label.endswith("names"):
         valid = (
             names is not None
             and len(names) == n

@@ -122,6 +122,7 @@ def live_result(folder: str | Path, scenario: Any, built: Any) -> Any:
         coordinate_names=plant.coordinate_names,
         coordinate_units=getattr(plant, "coordinate_units", None),
         input_units=getattr(plant, "input_units", None),
+        input_names=getattr(plant, "input_names", None),
     )
 
 

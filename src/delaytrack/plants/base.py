@@ -116,6 +116,9 @@ class ELPlant(ABC):
     coordinate_units: tuple[str, ...] | None = None
     #: Units of the actuator inputs (``"N·m"``); None when the plant does not say.
     input_units: tuple[str, ...] | None = None
+    #: Names of the actuator inputs in figures (``tau1``, a MuJoCo actuator's name); None
+    #: means ``u1 .. um``.
+    input_names: tuple[str, ...] | None = None
     #: True for a plant whose terms kernel always fills ``M(q) = I`` (a constrained robot
     #: integrated as ``q̈ = a + b τ``): the simulator then skips the solve for ``q̈``.
     identity_mass: ClassVar[bool] = False

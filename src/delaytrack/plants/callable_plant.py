@@ -42,6 +42,9 @@ class CallablePlant(ELPlant):
     input_units : sequence of str, optional
         Units of the inputs (``"N"``, ``"N·m"``), one per input, for figure axes and table
         columns.
+    input_names : sequence of str, optional
+        Names of the inputs in figures (``"shoulder"``), one per input; ``u1 .. um`` by
+        default.
 
     Notes
     -----
@@ -62,6 +65,7 @@ class CallablePlant(ELPlant):
     coordinate_names: tuple[str, ...] | None = None
     coordinate_units: tuple[str, ...] | None = None
     input_units: tuple[str, ...] | None = None
+    input_names: tuple[str, ...] | None = None
     m: int = field(init=False)
     type_name: ClassVar[str] = "callable"
 
@@ -87,9 +91,10 @@ class CallablePlant(ELPlant):
         as_spd_matrix("mass_matrix(0)", mass, self.n)
         self._evaluate("nonlinear_terms", self.nonlinear_terms_fn, (zero, zero), (self.n,))
         object.__setattr__(self, "m", check_plant_size("m", self._input_map(zero).shape[1]))
-        if self.input_units is not None:
-            units = coordinate_labels("input_units", self.input_units, self.m)
-            object.__setattr__(self, "input_units", units)
+        for label in ("input_units", "input_names"):
+            if getattr(self, label) is not None:
+                labels = coordinate_labels(label, getattr(self, label), self.m)
+                object.__setattr__(self, label, labels)
         trajectory_columns(
             self.coordinate_names, self.coordinate_units, self.n, self.input_units, self.m
         )

@@ -55,6 +55,9 @@ class CompiledPlant(ELPlant):
         ``numba.njit``), which the simulator integrates instead of the terms; ``kernel`` still
         gives ``M, N, G`` to the Python methods. ``simulate`` then refuses a start off the
         constraints.
+    input_names : sequence of str, optional
+        Names of the inputs in figures (``"shoulder"``), one per input; ``u1 .. um`` by
+        default.
 
     Notes
     -----
@@ -82,6 +85,7 @@ class CompiledPlant(ELPlant):
     coordinate_units: tuple[str, ...] | None = None
     input_units: tuple[str, ...] | None = None
     reduced: ReducedForm | None = None
+    input_names: tuple[str, ...] | None = None
     type_name: ClassVar[str] = "compiled"
 
     def __post_init__(self) -> None:
@@ -102,9 +106,10 @@ class CompiledPlant(ELPlant):
             if getattr(self, label) is not None:
                 labels = coordinate_labels(label, getattr(self, label), self.n)
                 object.__setattr__(self, label, labels)
-        if self.input_units is not None:
-            units = coordinate_labels("input_units", self.input_units, self.m)
-            object.__setattr__(self, "input_units", units)
+        for label in ("input_units", "input_names"):
+            if getattr(self, label) is not None:
+                labels = coordinate_labels(label, getattr(self, label), self.m)
+                object.__setattr__(self, label, labels)
         trajectory_columns(
             self.coordinate_names, self.coordinate_units, self.n, self.input_units, self.m
         )

@@ -69,6 +69,7 @@ class TwoLinkArm(ELPlant):
     type_name: ClassVar[str] = "two-link-arm"
     coordinate_units = ("rad", "rad")
     input_units = ("N·m", "N·m")
+    input_names = ("tau1", "tau2")
 
     def __post_init__(self) -> None:
         for name in ("p1", "p2", "p3"):

@@ -218,12 +218,15 @@ def commands_figure(
     """Commanded ``τ_j(t)`` (solid) and applied, delayed ``τ_j(t - h(t))`` (dashed) inputs, a
     panel per input (at most :data:`MAX_PANELS`: those with the largest commands).
 
+    ``input_names`` name the panels; by default the plant's (:attr:`SimResult.input_names`),
+    or ``u1 .. um``.
+
     ``unit`` labels every axis; by default each input's unit as the plant gives it
     (:attr:`SimResult.input_units`), or none."""
     runs = _runs(runs)
     first = next(iter(runs.values()))
     m = first.commands.shape[2]
-    names = _names(m, input_names, "u")
+    names = _names(m, first.input_names if input_names is None else input_names, "u")
     units = _units(m, first.input_units, unit)
     shown = _largest(np.concatenate([result.commands[0] for result in runs.values()]))
     figure, axes = _stacked(shown.size, _title(title, shown.size, m, *_BY_COMMAND))
@@ -487,7 +490,7 @@ def overview_figure(result: SimResult, run: int = 0) -> Figure:
     n, m = result.n, result.commands.shape[2]
     names = _names(n, result.coordinate_names, "q")
     units = _units(n, result.coordinate_units, None)
-    inputs = _names(m, None, "u")
+    inputs = _names(m, result.input_names, "u")
     input_units = _units(m, result.input_units, None)
     states = list(result.controller_state_names)
     shown = ["c_hat"] if "c_hat" in states else states[:4]

@@ -64,6 +64,7 @@ def collect(chunks: Chunks) -> SimResult:
         coordinate_names=first_plant.coordinate_names,
         coordinate_units=first_plant.coordinate_units,
         input_units=first_plant.input_units,
+        input_names=first_plant.input_names,
     )
 
 

@@ -64,6 +64,8 @@ class SimResult:
     reported_state_names : tuple of str, optional
         The controller state entries that :meth:`to_frame` writes (the controller's
         bookkeeping left out); None means all of ``controller_state_names``.
+    input_names : tuple of str, optional
+        The plant's names of its inputs, for the figures; None means ``u1 .. um``.
     """
 
     t: np.ndarray
@@ -82,6 +84,7 @@ class SimResult:
     coordinate_units: tuple[str, ...] | None = None
     input_units: tuple[str, ...] | None = None
     reported_state_names: tuple[str, ...] | None = None
+    input_names: tuple[str, ...] | None = None
 
     @property
     def has_trajectories(self) -> bool:
@@ -151,6 +154,7 @@ class SimResult:
             coordinate_units=self.coordinate_units,
             input_units=self.input_units,
             reported_state_names=self.reported_state_names,
+            input_names=self.input_names,
         )
 
     def plot(self, run: int = 0) -> Figure:

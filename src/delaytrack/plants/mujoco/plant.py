@@ -214,6 +214,17 @@ def _input_units(mujoco: Any, model: Any) -> tuple[str, ...] | None:
     return tuple(units)
 
 
+def _input_names(mujoco: Any, model: Any) -> tuple[str, ...] | None:
+    """The actuators' names, an unnamed one as ``u<j>`` (``j`` from 1); None when none is named
+    or two would share a name."""
+    names = [
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_ACTUATOR, j) or f"u{j + 1}"
+        for j in range(model.nu)
+    ]
+    named = any(name != f"u{j + 1}" for j, name in enumerate(names))
+    return tuple(names) if named and len(set(names)) == len(names) else None
+
+
 @dataclass(frozen=True, eq=False)
 class MujocoPlant(ELPlant):
     """A robot from a MuJoCo model file: coordinates are its joints, inputs its actuators.
@@ -299,6 +310,7 @@ class MujocoPlant(ELPlant):
     coordinate_names: tuple[str, ...] | None = field(init=False)
     coordinate_units: tuple[str, ...] | None = field(init=False)
     input_units: tuple[str, ...] | None = field(init=False)
+    input_names: tuple[str, ...] | None = field(init=False)
     _model: Any = field(init=False, repr=False)
     _data: Any = field(init=False, repr=False)
     _scratch: np.ndarray = field(init=False, repr=False)
@@ -390,6 +402,7 @@ class MujocoPlant(ELPlant):
             ("coordinate_names", joint_names),
             ("coordinate_units", units),
             ("input_units", _input_units(mujoco, model)),
+            ("input_names", _input_names(mujoco, model)),
             ("_model", model),
             ("_data", data),
             ("_scratch", scratch),

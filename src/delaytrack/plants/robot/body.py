@@ -30,6 +30,8 @@ COORDINATES = ("x", "y", "phi", "theta_r", "theta_l")
 #: Units of :data:`COORDINATES` and of the two wheel torques.
 COORDINATE_UNITS = ("m", "m", "rad", "rad", "rad")
 INPUT_UNITS = ("N·m", "N·m")
+#: The two wheel torques, right and left, as the wheel angles are named.
+INPUT_NAMES = ("tau_r", "tau_l")
 
 #: Names of the body fields, in the order of their scenario keys.
 BODY_KEYS = (
@@ -86,6 +88,7 @@ class RobotBody:
     coordinate_names: ClassVar[tuple[str, ...] | None] = COORDINATES
     coordinate_units: ClassVar[tuple[str, ...] | None] = COORDINATE_UNITS
     input_units: ClassVar[tuple[str, ...] | None] = INPUT_UNITS
+    input_names: ClassVar[tuple[str, ...] | None] = INPUT_NAMES
 
     def _check_body(self) -> None:
         for name in ("wheel_radius", "half_track", "mass", "yaw_inertia", "wheel_spin_inertia"):

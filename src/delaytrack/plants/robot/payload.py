@@ -43,7 +43,12 @@ from delaytrack._validation import (
 )
 from delaytrack.components import ReducedForm
 from delaytrack.plants.base import ELPlant
-from delaytrack.plants.robot.body import COORDINATE_UNITS, COORDINATES, INPUT_UNITS
+from delaytrack.plants.robot.body import (
+    COORDINATE_UNITS,
+    COORDINATES,
+    INPUT_NAMES,
+    INPUT_UNITS,
+)
 from delaytrack.plants.robot.kinematics import robot_velocity_map
 from delaytrack.plants.robot.parameters import P3DX_PAYLOAD
 from delaytrack.plants.robot.truth import (
@@ -304,6 +309,7 @@ class PayloadRobot(PayloadSchedule, ConstrainedRobotPhysics, ELPlant):
     coordinate_names = COORDINATES
     coordinate_units = COORDINATE_UNITS
     input_units = INPUT_UNITS
+    input_names = INPUT_NAMES
     type_name: ClassVar[str] = "wheeled-robot-payload"
     identity_mass: ClassVar[bool] = True
 

@@ -50,7 +50,12 @@ import numpy as np
 from delaytrack._compile.jit import kernel
 from delaytrack._validation import positive_scalar
 from delaytrack.plants.base import ELPlant
-from delaytrack.plants.robot.body import COORDINATE_UNITS, COORDINATES, INPUT_UNITS
+from delaytrack.plants.robot.body import (
+    COORDINATE_UNITS,
+    COORDINATES,
+    INPUT_NAMES,
+    INPUT_UNITS,
+)
 from delaytrack.plants.robot.kinematics import robot_command_map
 from delaytrack.plants.robot.parameters import P3DX
 
@@ -149,6 +154,7 @@ class PrintedRobotModel(ELPlant):
     coordinate_names = COORDINATES
     coordinate_units = COORDINATE_UNITS
     input_units = INPUT_UNITS
+    input_names = INPUT_NAMES
     type_name: ClassVar[str] = "wheeled-robot-printed"
 
     def __post_init__(self) -> None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import re
 import reprlib
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import TypeGuard
 
 import numpy as np
@@ -115,33 +115,30 @@ def coordinate_labels(label: str, value: object, n: int) -> tuple[str, ...]:
     non-empty unit strings for ``coordinate_units`` or ``input_units``, as a tuple; else a
     ValueError naming ``label``."""
     names = tuple(value) if isinstance(value, list | tuple) else None
-    if label == "input_names":
-        valid = (
-            names is not None
-            and len(names) == n
-            and len(set(names)) == n
-            and all(isinstance(name, str) and name.strip() for name in names)
-        )
-        what = f"{n} different non-empty names, one per input"
-    elif label.endswith("names"):
-        valid = (
-            names is not None
-            and len(names) == n
-            and len(set(names)) == n
-            and all(isinstance(name, str) and name.isidentifier() for name in names)
-        )
+    fits: Callable[[str], bool]
+    if label == "coordinate_names":
+        fits, distinct = str.isidentifier, True
         what = f"n = {n} different names (letters, digits and '_')"
+    elif label == "input_names":
+        fits, distinct = _not_blank, True
+        what = f"{n} different non-empty names, one per input"
     else:
-        valid = (
-            names is not None
-            and len(names) == n
-            and all(isinstance(unit, str) and unit.strip() for unit in names)
-        )
+        fits, distinct = _not_blank, False
         one = "input" if label.startswith("input") else "coordinate"
         what = f"{n} unit strings, one per {one} (such as 'm', 'rad' or 'N')"
+    valid = (
+        names is not None
+        and len(names) == n
+        and (not distinct or len(set(names)) == n)
+        and all(isinstance(name, str) and fits(name) for name in names)
+    )
     if names is None or not valid:
         raise ValueError(f"{label} must be a list of {what}; got {quoted(value)}")
     return names
+
+
+def _not_blank(text: str) -> bool:
+    return bool(text.strip())
 
 
 def is_real_number(value: object) -> TypeGuard[int | float]:

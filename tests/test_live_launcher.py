@@ -105,6 +105,44 @@ def test_a_node_whose_launcher_is_gone_already_stops_at_once(monkeypatch):
     assert stop() and stop.signal == signal.SIGTERM
 
 
+def test_a_stop_signal_that_comes_inside_the_handler_of_another_does_not_hang_the_node():
+    """SIGINT, then SIGTERM microseconds later (Ctrl-C under ``live run``, which forwards
+    SIGTERM), to 300 forked nodes' stop flags: the second handler may run inside the first. A
+    handler that took a lock hung such a node for good within a few hundred pairs (tried). A
+    node still running 10 s after the pair is hung."""
+    child = """
+        import os, signal, time
+        from delaytrack.live._node import StopFlag
+        for pair in range(300):
+            ready, told = os.pipe()
+            pid = os.fork()
+            if pid == 0:
+                stop = StopFlag()
+                stop.install()
+                os.write(told, b"r")
+                while not stop():
+                    pass
+                os._exit(0)
+            os.read(ready, 1)
+            os.kill(pid, signal.SIGINT)
+            until = time.perf_counter() + (pair % 40) * 2e-6
+            while time.perf_counter() < until:
+                pass
+            os.kill(pid, signal.SIGTERM)
+            deadline = time.monotonic() + 10.0
+            while not os.waitpid(pid, os.WNOHANG)[0]:
+                if time.monotonic() > deadline:
+                    os.kill(pid, signal.SIGKILL)
+                    raise SystemExit(f"pair {pair}: the node hung")
+                time.sleep(0.001)
+        print("done")
+    """
+    done = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(child)], capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 0 and done.stdout == "done\n", done.stderr
+
+
 def test_the_summary_says_a_node_wrote_no_record_rather_than_zeros():
     summary = {
         "scenario": "two_link_S1",

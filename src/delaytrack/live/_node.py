@@ -91,19 +91,25 @@ LAUNCHER_PID = "DELAYTRACK_LIVE_LAUNCHER_PID"
 
 
 class StopFlag:
-    """Set by SIGINT/SIGTERM (and by the node itself); the loops check it at every wake-up."""
+    """Set by SIGINT/SIGTERM (and by the node itself); the loops check it at every wake-up.
+
+    A plain attribute, set without a lock: a signal handler runs in the main thread between
+    two of its bytecodes, so a handler that took a lock (``threading.Event.set`` does) would
+    wait forever for one the main thread held when the signal came, or that a first handler
+    held when a second signal interrupted it (Ctrl-C under ``live run`` brings SIGINT, then
+    the launcher's SIGTERM)."""
 
     def __init__(self) -> None:
         self.signal: int | None = None
-        self._event = threading.Event()
+        self._set = False
 
     def __call__(self) -> bool:
-        return self._event.is_set()
+        return self._set
 
     def set(self, signum: int | None = None) -> None:
         if self.signal is None:
             self.signal = signum
-        self._event.set()
+        self._set = True
 
     def install(self) -> None:
         for signum in (signal.SIGINT, signal.SIGTERM):

@@ -448,6 +448,29 @@ def test_packet_loss_is_a_table_of_the_scenario(tmp_path):
     assert str(refusal.value).endswith("got {'probability': 1.5, 'seed': 1}")
 
 
+@pytest.mark.parametrize(
+    "key, table",
+    [("measurement_noise", {"velocity": 0.05}), ("packet_loss", {"probability": 0.3})],
+)
+def test_noise_and_losses_without_a_seed_of_their_own_take_the_scenarios(key, table):
+    """As the README says of ``seed``: a sweep over the scenario's seed draws new noise and new
+    losses each run (it drew the same, seed 0, for every run)."""
+    seeds = {5: {"seed": 5}, 9: {"seed": 9}, None: {}}
+    runs = {seed: Scenario.from_dict(base_dict() | {key: table} | seeds[seed]) for seed in seeds}
+    simulated = f"simulated_{key}"
+    assert [getattr(runs[seed], simulated).seed for seed in runs] == [5, 9, 0]
+    assert dict(getattr(runs[5].resolved(), key)) == {**table, "seed": 5}
+    assert getattr(runs[None].resolved(), key) == table  # no seed to write in
+    x = {seed: runs[seed].run().x for seed in (5, 9)}
+    assert not np.array_equal(x[5], x[9])
+    np.testing.assert_array_equal(x[5], runs[5].resolved().run().x)  # the scenario as run
+    own = Scenario.from_dict(base_dict() | {key: {**table, "seed": 7}, "seed": 5})
+    assert getattr(own, simulated).seed == 7  # its own seed wins
+    with pytest.raises(ScenarioError, match=rf"'seed' must be at most 4294967295 .*seeds {key}"):
+        Scenario.from_dict(base_dict() | {key: table, "seed": 2**32})
+    Scenario.from_dict(base_dict() | {key: {**table, "seed": 1}, "seed": 2**32})  # not used
+
+
 def test_the_scenario_names_stay_importable_from_experiments_and_the_package_root():
     import delaytrack
     import delaytrack.experiments as experiments

@@ -53,6 +53,7 @@ from delaytrack.scenario.toml_text import dumps_toml
 from delaytrack.sim import MeasurementNoise, PacketLoss, SimResult, simulate
 from delaytrack.sim._kernel_checks import velocities_on_constraints
 from delaytrack.sim.certified_bound import stated_by_the_caller
+from delaytrack.sim.measurement import MAX_SEED as MAX_NOISE_SEED
 from delaytrack.sim.simulate import MAX_STEPS
 
 _T = TypeVar("_T")
@@ -127,7 +128,8 @@ class Scenario:
         Simulated time from ``t = 0``, plant step and controller period, in seconds. ``T_c`` must
         be an integer multiple of ``dt`` and ``duration`` of ``T_c``.
     seed : int or None
-        Default seed of random elements (a random delay without its own seed).
+        Default seed of random elements: a random delay, ``measurement_noise`` and
+        ``packet_loss`` without a seed of their own.
     x0 : tuple of float, "reference" or None
         Initial state ``[q, q̇]`` (2n); zeros when None. ``"reference"``: on the reference at
         ``t = 0``, ``q = q_d(0)`` and ``q̇ = q̇_d(0)``, or, for a plant with a reduced form
@@ -241,6 +243,13 @@ class Scenario:
                 table = _plain(getattr(self, key))
                 _check_value(key, table, phrase)
                 object.__setattr__(self, key, MappingProxyType(table))
+                if "seed" not in table and (self.seed or 0) > MAX_NOISE_SEED:
+                    raise fail(
+                        "seed",
+                        f"must be at most {MAX_NOISE_SEED} (2**32 - 1): it seeds {key}, which "
+                        "has no seed of its own",
+                        self.seed,
+                    )
         for table in TABLES:
             content = _plain(getattr(self, table))
             if isinstance(content, dict):  # anything else is refused by its check below
@@ -464,7 +473,8 @@ class Scenario:
         return remembered(make, "built", lambda: self._identities, *tables)
 
     def resolved(self) -> Scenario:
-        """The scenario with its defaults written in: ``x0``, and a random delay's seed/duration.
+        """The scenario with its defaults written in: ``x0``, a random delay's seed/duration, and
+        the seed of ``measurement_noise`` and ``packet_loss`` where they have none.
 
         Running the resolved scenario gives the same result; it is what gets saved as the
         scenario "as run".
@@ -474,10 +484,15 @@ class Scenario:
     def resolved_and_built(self) -> tuple[Scenario, BuiltScenario]:
         """:meth:`resolved` and :meth:`build` from one construction (sweeps check every run)."""
         built = self.build()
-        x0, delay = tuple(built.x0.tolist()), delay_as_run(self)
-        if x0 == self.x0 and delay == self.delay:  # resolved already: nothing to check again
-            return self, built
-        return self.replace(x0=x0, delay=delay), built
+        as_run = {
+            "x0": tuple(built.x0.tolist()),
+            "delay": delay_as_run(self),
+            "measurement_noise": _seeded(self.measurement_noise, self.seed),
+            "packet_loss": _seeded(self.packet_loss, self.seed),
+        }
+        if all(value == getattr(self, key) for key, value in as_run.items()):
+            return self, built  # resolved already: nothing to check again
+        return self.replace(**as_run), built
 
     @property
     def simulated_error_bound(self) -> float | tuple[float, ...]:
@@ -487,14 +502,14 @@ class Scenario:
     @property
     def simulated_measurement_noise(self) -> MeasurementNoise | None:
         """``measurement_noise`` as :func:`~delaytrack.sim.simulate` takes it."""
-        if self.measurement_noise is None:
-            return None
-        return MeasurementNoise(**_plain(self.measurement_noise))
+        noise = _seeded(self.measurement_noise, self.seed)
+        return None if noise is None else MeasurementNoise(**noise)
 
     @property
     def simulated_packet_loss(self) -> PacketLoss | None:
         """``packet_loss`` as :func:`~delaytrack.sim.simulate` takes it."""
-        return None if self.packet_loss is None else PacketLoss(**_plain(self.packet_loss))
+        loss = _seeded(self.packet_loss, self.seed)
+        return None if loss is None else PacketLoss(**loss)
 
     @property
     def simulated_input_limits(self) -> float | tuple[float, ...]:
@@ -533,6 +548,17 @@ def _with_reference_type(reference: object) -> object:
     if not isinstance(reference, Mapping) or "type" in reference:
         return reference
     return {"type": "sinusoidal", **reference}
+
+
+def _seeded(table: Mapping[str, Any] | None, seed: int | None) -> dict[str, Any] | None:
+    """A ``measurement_noise`` or ``packet_loss`` table as it runs (a plain copy): without a
+    seed of its own, with the scenario's ``seed``; with neither, it keeps its class's, 0."""
+    if table is None:
+        return None
+    spec = _plain(table)
+    if "seed" not in spec and seed is not None:
+        spec["seed"] = seed
+    return spec
 
 
 def _with_delay_defaults(delay: Any, seed: int | None, duration: float) -> Any:

@@ -46,6 +46,26 @@ def test_an_earlier_sessions_files_are_removed_before_a_session_starts(tmp_path)
     assert set(unrecorded) <= every_file
 
 
+def test_a_node_recording_the_folder_removes_no_table_another_node_wrote_meanwhile(
+    tmp_path, monkeypatch
+):
+    """The folder's record lists an earlier session's ``steps.csv``; the robot node renames its
+    own into place just after a node that finished first listed the folder: that node records
+    what it listed and removes nothing (it removed the new table as the earlier one's, and the
+    session ended with exit code 0 and no steps)."""
+    from delaytrack.live import _node
+
+    folder = claim_output_folder(tmp_path / "session")
+    (folder / MANIFEST).write_text(json.dumps({"files": ["steps.csv", "delay.json"]}))
+    (folder / "delay.json").write_text("{}")
+    listed = _node.session_files(folder)  # before the robot's table is there
+    (folder / "steps.csv").write_text("k,t_s\n0,0.0\n")  # renamed into place meanwhile
+    monkeypatch.setattr(_node, "session_files", lambda _folder: listed)
+    _node.record_node_files(folder)
+    assert (folder / "steps.csv").read_text() == "k,t_s\n0,0.0\n"
+    assert json.loads((folder / MANIFEST).read_text())["files"] == ["delay.json"]
+
+
 def _child(code: str, **options) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-c", textwrap.dedent(code)], **options)
 

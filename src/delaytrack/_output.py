@@ -298,9 +298,17 @@ def _listed(folder: Path) -> list[str]:
     return [name for name in files if isinstance(name, str)] if isinstance(files, list) else []
 
 
-def record_outputs(folder: str | os.PathLike[str], files: Iterable[str | os.PathLike[str]]) -> None:
+def record_outputs(
+    folder: str | os.PathLike[str],
+    files: Iterable[str | os.PathLike[str]],
+    *,
+    remove_others: bool = True,
+) -> None:
     """After a run wrote ``files`` into ``folder``: remove the previous run's other files and
-    record these (module docstring).
+    record these (module docstring). With ``remove_others`` False, record them and remove
+    nothing: for a process that writes its part of a folder while other processes write
+    theirs, so that a file another one renames into place meanwhile is not taken for a stale
+    one.
 
     Raises
     ------
@@ -310,7 +318,7 @@ def record_outputs(folder: str | os.PathLike[str], files: Iterable[str | os.Path
     root = Path(folder).resolve()
     _refuse_links(root, "results folder", folder)
     written = sorted({_inside(root, Path(file).resolve()) for file in files if Path(file).exists()})
-    for name in set(_listed(root)) - set(written):
+    for name in set(_listed(root)) - set(written) if remove_others else ():
         stale = (root / name).resolve()
         if stale.is_relative_to(root) and stale.is_file():
             stale.unlink()

@@ -271,9 +271,10 @@ def record_node_files(folder: Path) -> None:
     """Record the files of ``folder`` in its marker once a node has written its own
     (:func:`delaytrack._output.record_outputs`), in turn with the nodes that share it. Every
     file is recorded and none removed: the folder may hold the files of the other nodes of the
-    session."""
+    session, which they write outside this turn (a table another node renamed into place
+    while this one listed the folder was removed as the earlier session's)."""
     with _folder_turn(str(folder)):
-        record_outputs(folder, session_files(folder))
+        record_outputs(folder, session_files(folder), remove_others=False)
 
 
 def load_scenario(source: str, trust: list[str]) -> Any:

@@ -70,7 +70,9 @@ def test_no_answer_is_a_timeout_naming_the_key(sessions):
         estimate_clock_offset(sessions[1], "test/nobody", rounds=2, timeout=0.3)
 
 
-def _handshakes(sessions, robot_boot, other_boot, robot_clock=_shifted, timeout=20.0):
+def _handshakes(
+    sessions, robot_boot, other_boot, robot_clock=_shifted, timeout=20.0, start_delay=0.3
+):
     roles = ("robot", "controller", "delay")
     shakes = {
         role: Handshake(
@@ -78,7 +80,7 @@ def _handshakes(sessions, robot_boot, other_boot, robot_clock=_shifted, timeout=
             "test/hand",
             role,
             HASHES,
-            start_delay=0.3,
+            start_delay=start_delay,
             clock=robot_clock if role == "robot" else time.monotonic,
             boot=robot_boot if role == "robot" else other_boot,
         )
@@ -151,3 +153,17 @@ def test_the_same_scenario_in_two_folders_has_the_same_hashes_and_an_edit_change
         scenario_hashes(edited, edited.build().plant)["scenario"]
         != scenario_hashes(first, first.build().plant)["scenario"]
     )
+
+
+def test_a_robot_that_announced_the_start_starts_though_its_timeout_passes_before_it(sessions):
+    """The robot announces ``t0`` 4 s ahead, and its 3 s handshake timeout passes before
+    ``t0``: the others start at ``t0``, and so does the robot (it gave up, and the others ran
+    without it). On a machine too loaded to agree within 3 s, nobody starts."""
+    shakes, starts = _handshakes(
+        sessions, "one-boot", "one-boot", time.monotonic, timeout=3.0, start_delay=4.0
+    )
+    announced = shakes["robot"].t0
+    if announced is None:
+        assert starts == {}
+    else:
+        assert starts == {"robot": announced, "controller": announced, "delay": announced}

@@ -347,12 +347,20 @@ class Handshake:
             self.publish()
             if self.t0 is not None and (self.role != "robot" or self._clock() > self.t0 - 0.3):
                 return self.t0
-            if self._clock() > deadline:
+            # Once the robot announced t0, the others start then: so does it, whatever the
+            # time left (it gave up between the announcement and t0, the others ran without it).
+            if self.t0 is None and self._clock() > deadline:
                 missing = [r for r in others if r not in peers]
+                if missing:
+                    what = f"no {' and no '.join(missing)} node answered"
+                elif self.role == "robot":
+                    what = "not every node saw the others agree with it"
+                else:
+                    what = "the robot node announced no start"
                 raise HandshakeError(
-                    f"no {' and no '.join(missing) or 'start'} node answered within {timeout:g} s "
-                    f"(this {self.role} node waited for the others' hello; check that they run "
-                    "with matching --listen/--connect endpoints and the same --session)"
+                    f"{what} within {timeout:g} s (this {self.role} node waited for the others' "
+                    "hello; check that they run with matching --listen/--connect endpoints and "
+                    "the same --session)"
                 )
             time.sleep(0.1)
         raise HandshakeError("stopped during the handshake")

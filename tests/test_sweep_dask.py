@@ -215,6 +215,42 @@ def test_a_scheduler_that_does_not_answer_is_a_clear_error():
         DaskExecutor("tcp://127.0.0.1:9", timeout=1.0)
 
 
+@pytest.mark.parametrize(
+    "answer, message",
+    [
+        (None, r"a server accepted the connection but sent no Dask handshake within 2 s"),
+        (b"HTTP/1.0 200 OK\r\n\r\n", r"what answered there is not a Dask scheduler"),
+    ],
+    ids=["silent", "http"],
+)
+def test_a_server_that_is_not_a_dask_scheduler_is_a_clear_error_in_time(answer, message):
+    """An HTTP server waiting for a request (a ``Client`` waited for its handshake without
+    end), or one that answers at once (its bytes read as a frame length: a ``MemoryError``)."""
+    import socket
+    import threading
+
+    server = socket.create_server(("127.0.0.1", 0))
+    accepted = []
+
+    def serve():
+        connection, _ = server.accept()
+        accepted.append(connection)
+        if answer is not None:
+            connection.sendall(answer)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    try:
+        with pytest.raises(SweepError, match=rf"--scheduler '{address}': {message}"):
+            DaskExecutor(address, timeout=1.0)
+    finally:
+        thread.join(5)
+        for connection in accepted:
+            connection.close()
+        server.close()
+
+
 def test_the_robustness_study_runs_on_the_cluster(cluster, tmp_path):
     # The study's sweeps on the cluster give the local executor's tables, bit for bit.
     from delaytrack.experiments import robustness

@@ -17,6 +17,8 @@ only the units in flight.
 
 from __future__ import annotations
 
+import asyncio
+import concurrent.futures
 import contextlib
 import os
 import re
@@ -114,6 +116,42 @@ def compute_part(payload: Mapping[str, Any]) -> pd.DataFrame:
     """The Dask task: rebuild a unit from :meth:`Unit.to_payload` here and run it on one thread
     (a Dask worker's threads are the parallelism)."""
     return run_unit(Unit.from_payload(payload), workers=1)
+
+
+def _check_scheduler(distributed: Any, scheduler: str, timeout: float) -> None:
+    """Connect to ``scheduler`` and exchange Dask's handshake, all within ``timeout`` seconds,
+    before a ``Client`` does: its handshake waits without end for a server that answers
+    nothing (an HTTP server), and reads another server's first bytes as a frame length (3 EiB
+    to allocate, a ``MemoryError``). Raises ``OSError`` when nothing answers,
+    :class:`SweepError` when what answers is not Dask."""
+
+    # Dask's connect gives up at ``timeout`` on a connection refused or not made, with an
+    # OSError; past it, with a second more, only a handshake not answered holds it.
+    limit = timeout + 1.0
+
+    async def handshake() -> None:
+        connect = distributed.comm.connect(scheduler, timeout=timeout)
+        comm = await asyncio.wait_for(connect, limit)
+        await comm.close()
+
+    with concurrent.futures.ThreadPoolExecutor(1) as thread:  # a caller's loop may be running
+        try:
+            thread.submit(asyncio.run, handshake()).result()
+        except TimeoutError:  # connected, and then no handshake (before OSError: a subclass)
+            raise SweepError(
+                f"--scheduler {scheduler!r}: a server accepted the connection but sent no Dask "
+                f"handshake within {limit:g} s: it is not a Dask scheduler, or not one that "
+                "answers; check the address and port (the scheduler's, 8786 by default, not its "
+                "dashboard's)"
+            ) from None
+        except OSError:  # refused, or no connection within the time: Dask's own message
+            raise
+        except Exception as error:  # noqa: BLE001 - whatever the bytes of another server give
+            raise SweepError(
+                f"--scheduler {scheduler!r}: what answered there is not a Dask scheduler (its "
+                f"first message is not Dask's handshake: {type(error).__name__}); check the "
+                "address and port (the scheduler's, 8786 by default, not its dashboard's)"
+            ) from None
 
 
 def _distributed() -> Any:
@@ -223,6 +261,8 @@ class DaskExecutor:
                     flush=True,
                 )
         try:
+            if self._cluster is None:
+                _check_scheduler(distributed, scheduler, timeout)
             self.client = distributed.Client(address, timeout=timeout)
         except (OSError, TimeoutError) as error:
             self.close()

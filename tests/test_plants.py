@@ -214,6 +214,9 @@ def test_state_derivative_refuses_mismatched_input_batch():
         (dict(p1=0.5, p2=0.4, p3=0.3), r"p1\*p2 - p2\*\*2 > p3\*\*2.*p1=0\.5, p2=0\.4, p3=0\.3"),
         # Boundary: p1 p2 − p2² = p3² exactly (1·1 − 0.75 = 0.25 = 0.5²) is refused too.
         (dict(p1=1.0, p2=0.75, p3=0.5), r"p1\*p2 - p2\*\*2 > p3\*\*2"),
+        # Terms beyond a float: refused, not an OverflowError from p3**2, nor inf - inf taken.
+        (dict(p3=1e300), r"p1\*p2 - p2\*\*2 > p3\*\*2, a finite margin.*p3=1e\+300"),
+        (dict(p1=1e300, p2=1e200), r"p1\*p2 - p2\*\*2 > p3\*\*2, a finite margin"),
         (dict(p1=-1.0), r"p1'? must be > 0; got -1"),
         (dict(fd2=-0.1), r"fd2'? must be >= 0; got -0\.1"),
     ],

@@ -78,10 +78,11 @@ class TwoLinkArm(ELPlant):
             object.__setattr__(
                 self, name, positive_scalar(name, getattr(self, name), strictly=False)
             )
-        margin = self.p1 * self.p2 - self.p2**2 - self.p3**2
-        if margin <= 0.0:
+        # Products, not powers: a float's ** raises OverflowError where * gives inf.
+        margin = self.p1 * self.p2 - self.p2 * self.p2 - self.p3 * self.p3
+        if not (math.isfinite(margin) and margin > 0.0):
             raise ValueError(
-                "two-link arm parameters must satisfy p1*p2 - p2**2 > p3**2 "
+                "two-link arm parameters must satisfy p1*p2 - p2**2 > p3**2, a finite margin, "
                 "for a positive definite "
                 f"mass matrix; got p1={self.p1:g}, p2={self.p2:g}, p3={self.p3:g}"
             )

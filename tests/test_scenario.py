@@ -6,6 +6,7 @@ import re
 import tomllib
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from delaytrack.controllers import AROLC
@@ -401,6 +402,13 @@ def test_input_limits_saturate_the_actuators_and_are_checked(tmp_path):
         Scenario.from_dict({**data, "input_limits": 1e9}).run().x,
         Scenario.from_dict(base_dict()).run().x,
     )
+    # Its results folder has the TV received that its summary shows beside the TV.
+    from delaytrack.jobs.scenario_run import run_to_folder
+
+    written = run_to_folder(scenario, tmp_path / "out", figure_formats=())
+    metrics = pd.read_csv(tmp_path / "out" / "metrics.csv")
+    assert "TV received" in " ".join(written.result.summary().columns)
+    assert metrics["tv_applied_Nm"][0] == written.result.metrics["tv_applied"][0]
     refused({**data, "input_limits": -1.0}, "'input_limits' must be a number > 0 or a list of them")
     with pytest.raises(ScenarioError, match="'input_limits' must be one number or m = 2 of them"):
         Scenario.from_dict({**data, "input_limits": [1.0, 2.0, 3.0]}).run()

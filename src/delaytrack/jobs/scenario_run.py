@@ -70,8 +70,9 @@ def run_to_folder(
     Files (each written atomically):
 
     - ``scenario.toml``: the scenario as run (:meth:`Scenario.resolved`; loads back unchanged);
-    - ``metrics.csv``: :func:`delaytrack.metrics.metrics_table` (AE, RMS, max error, TV), each
-      metric's unit in its column name (``ae_x_m``, ``tv_Nm``);
+    - ``metrics.csv``: :func:`delaytrack.metrics.metrics_table` (AE, RMS, max error, TV, and
+      with input limits the TV received), each metric's unit in its column name (``ae_x_m``,
+      ``tv_Nm``, ``tv_applied_Nm``);
     - ``trajectories.parquet`` and/or ``trajectories.csv``: :meth:`SimResult.to_frame`;
     - ``figures/{tracking,error,commands,delay[,c_hat]}.{png,svg}``.
 
@@ -130,7 +131,8 @@ def run_to_folder(
     files = [folder / "scenario.toml"]
     write_text(files[0], text)
     # The metrics first: they are the result a user waits for; trajectories and figures follow.
-    table = metrics_table(result, label=resolved.name)
+    # TV received beside TV where the summary printed shows it: with input limits.
+    table = metrics_table(result, label=resolved.name, tv_applied=result.input_limited)
     files.append(
         write_frame(table.rename(columns=metric_columns_with_units(result)), folder / "metrics.csv")
     )

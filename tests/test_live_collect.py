@@ -373,3 +373,20 @@ def test_the_reports_note_on_the_error_bound_comes_after_the_summary(
     assert lines[-1] == f"note: {said}"
     assert any(line.startswith("live session two_link_S1") for line in lines[:-1]), lines
     assert said in html.unescape((copy / "report.html").read_text())
+
+
+def test_a_file_the_replay_cannot_write_is_one_line_from_python_dash_m(folder, tmp_path):
+    """``python -m delaytrack.live`` says it as the ``delaytrack`` command does (it printed a
+    traceback naming the replay's temporary file)."""
+    if not (folder / "summary.json").exists():  # collected by the first test, unless run alone
+        subprocess.run([*PYTHON, "collect", str(folder), SCENARIO], check=True, timeout=300)
+    copy = tmp_path / "session"
+    shutil.copytree(folder, copy)
+    (copy / "replay.csv").unlink(missing_ok=True)
+    (copy / "replay.csv").mkdir()
+    done = subprocess.run(
+        [*PYTHON, "replay", str(copy), "--quiet"], capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 1 and "Traceback" not in done.stderr, done.stderr
+    errors = [line for line in done.stderr.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and "replay.csv" in errors[0], done.stderr

@@ -11,4 +11,9 @@ try:
 except KeyboardInterrupt:  # while the modules load or the options are read
     print("interrupted", file=sys.stderr)
     code = 130
+except OSError as error:  # a file that cannot be written, as the delaytrack command says it
+    from delaytrack.warning import one_line
+
+    print(one_line(f"error: {error}"), file=sys.stderr)
+    code = 1
 exit_process(code)

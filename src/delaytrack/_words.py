@@ -10,7 +10,15 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["counted", "quantity_text", "scaled_unit", "shown_number", "table_text", "with_scaled"]
+__all__ = [
+    "count_text",
+    "counted",
+    "quantity_text",
+    "scaled_unit",
+    "shown_number",
+    "table_text",
+    "with_scaled",
+]
 
 #: The smaller units a value below one of these units is shown in: (factor, unit), largest first.
 _SMALLER_UNITS: dict[str, tuple[tuple[float, str], ...]] = {
@@ -23,6 +31,13 @@ def counted(count: int, noun: str) -> str:
     """``count`` and ``noun``, with an ``s`` unless ``count`` is 1: ``counted(1, "draw")`` is
     ``"1 draw"``, ``counted(3, "draw")`` ``"3 draws"``."""
     return f"{count} {noun if count == 1 else noun + 's'}"
+
+
+def count_text(count: float) -> str:
+    """A count, possibly a bound computed as a float, in digits grouped by thousands
+    (``1,234,567``) up to a trillion, in three significant digits beyond (``2.53e+302``, not
+    three hundred digits)."""
+    return f"{count:,.0f}" if abs(count) < 1e12 or not math.isfinite(count) else f"{count:.3g}"
 
 
 def shown_number(value: float) -> str:

@@ -21,7 +21,7 @@ from delaytrack._validation import (
     positive_scalar,
     real_array,
 )
-from delaytrack._words import counted, shown_number
+from delaytrack._words import count_text, counted, shown_number
 from delaytrack.components import Kernel
 from delaytrack.controllers.base import Controller
 from delaytrack.delays._kernel import NO_KERNEL
@@ -468,15 +468,16 @@ def _check_delays(
         if not switches <= MAX_STEPS:
             ticks = (t1 - t0) / T_c  # each tick's command comes into force once
             advice = (
-                f"The run's {ticks:,.0f} controller ticks alone are most of them: shorten the run "
-                "or lengthen T_c"
+                f"The run's {count_text(ticks)} controller ticks alone are most of them: shorten "
+                "the run or lengthen T_c"
                 if ticks >= switches / 2
                 else "Lower its rate of change (amplitude x frequency, or the jumps between knots)"
             )
             raise ValueError(
                 f"delay[{i}] ({type(delay_b).__name__}) may switch the applied command up to "
-                f"{switches:,.0f} times in this run (its t - h(t) sweeps over the controller ticks "
-                f"that often), more than {MAX_STEPS:,.0f}: every switch splits a plant step. "
+                f"{count_text(switches)} times in this run (its t - h(t) sweeps over the "
+                f"controller ticks that often), more than {MAX_STEPS:,.0f}: every switch splits a "
+                "plant step. "
                 f"{advice}"
             )
 

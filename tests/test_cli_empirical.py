@@ -85,6 +85,20 @@ def test_a_default_upper_longer_than_the_run_says_it_is_the_default(tmp_path, ca
     assert capsys.readouterr().err.endswith("got 1\n")
 
 
+def test_a_default_upper_beyond_a_predictors_history_says_so_once(tmp_path, capsys):
+    """The library's advice in the command's flag, and that it is the default, once each (it
+    read "give a smaller upper (the default of --upper; give a smaller --upper S)")."""
+    pcon = {"type": "pcon", "kappa": 1.0, "vartheta": 1.0, "k_b": 1.0, "T_c": 0.002}
+    path = tmp_path / "pcon.toml"
+    scenario = load_builtin("two_link_S1").replace(controller={**pcon, "history": 0.2})
+    scenario.replace(duration=4.0).to_toml(path)
+    assert main(["empirical", str(path), "--threshold", "0.3"]) == 2
+    err = capsys.readouterr().err
+    assert "--upper = 1 s searches delays up to 1 s, under which PCON cannot run" in err
+    assert err.endswith("; give a smaller --upper (the default of --upper)\n")
+    assert err.count("give a smaller") == 1
+
+
 def test_empirical_needs_a_threshold_and_a_scenario(capsys):
     with pytest.raises(SystemExit) as stop:
         main(["empirical", "two_link_margins"])

@@ -141,7 +141,8 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as error:
         usage = flagged(error, _FLAGS)
         if args.upper is None and getattr(error, "argument", None) == "upper":
-            usage = UsageError(f"{usage} (the default of --upper; give a smaller --upper S)")
+            advice = "" if "give a smaller --upper" in str(usage) else "; give a smaller --upper S"
+            usage = UsageError(f"{usage} (the default of --upper{advice})")
         raise usage from None
     seconds = time.perf_counter() - start
     analytic = _analytic(controller)

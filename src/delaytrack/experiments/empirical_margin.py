@@ -480,7 +480,8 @@ def _check_reach(
             raise ArgumentError(
                 "upper",
                 f"= {settings['upper']:g} s searches delays up to {h_max:g} s, under which "
-                f"{type(controller).__name__} cannot run ({error}); give a smaller upper",
+                f"{type(controller).__name__} cannot run ({error}); give a smaller $upper",
+                ("upper",),
             ) from None
 
 

@@ -128,6 +128,10 @@ def not_finite(scenario, dt):
 
 def raises(scenario, dt):
     raise RuntimeError("no robot on /dev/ttyUSB0")
+
+
+def exits(scenario, dt):  # as a vendor's SDK may, when no device answers
+    raise SystemExit("no device found")
 """
 
 
@@ -316,9 +320,10 @@ def test_a_bad_bridge_is_refused_in_one_line_with_exit_code_2(sessions, name):
         ("wrong_shapes", "read_state returned q of shape (2,) and q̇ of shape (2,)"),
         ("not_finite", "read_state returned a state that is not finite"),
         ("raises", "raises(scenario, dt) raised RuntimeError: no robot on /dev/ttyUSB0"),
+        ("exits", "exits(scenario, dt) raised SystemExit: no device found"),
         (
             "missing",
-            "has no function 'missing' (its functions: failing, jammed_brakes, not_a_bridge",
+            "has no function 'missing' (its functions: exits, failing, jammed_brakes, not_a",
         ),
     ],
 )

@@ -25,12 +25,25 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["BridgeError", "RobotBridge", "bridge_factory", "check_state", "load_bridge"]
+__all__ = [
+    "DRIVER_ERRORS",
+    "BridgeError",
+    "RobotBridge",
+    "bridge_factory",
+    "check_state",
+    "load_bridge",
+]
 
 #: The form of the ``--bridge`` option, for messages.
 _FORM = (
     "FILE.py:FUNCTION (a Python file and its function (scenario, dt) that returns a RobotBridge)"
 )
+
+
+#: What a call into a bridge (the user's code, a robot's driver) may raise that the robot node
+#: reports as the bridge's failure: anything but ``KeyboardInterrupt``, ``SystemExit`` included
+#: (a vendor's SDK that calls ``sys.exit()`` when no device answers ended the node silently).
+DRIVER_ERRORS = (Exception, SystemExit)
 
 
 class BridgeError(ValueError):
@@ -144,7 +157,7 @@ def bridge_factory(value: str) -> Any:
         raise BridgeError(f"--bridge {value!r}: no such file {str(path)!r}; give {_FORM}")
     try:
         module = module_from_file(path)
-    except Exception as error:  # noqa: BLE001 - anything the user's file raises is reported
+    except DRIVER_ERRORS as error:  # anything the user's file raises is reported
         raise BridgeError(
             f"--bridge {value!r}: importing {str(path)!r} raised {type(error).__name__}: {error}"
         ) from None
@@ -177,7 +190,7 @@ def load_bridge(value: str, scenario: Any, dt: float, n: int) -> RobotBridge:
     name = getattr(factory, "__name__", "the factory")
     try:
         bridge = factory(scenario, dt)
-    except Exception as error:  # noqa: BLE001 - the user's code
+    except DRIVER_ERRORS as error:  # the user's code
         raise BridgeError(
             f"--bridge {value!r}: {name}(scenario, dt) raised {type(error).__name__}: {error}"
         ) from None
@@ -191,7 +204,7 @@ def load_bridge(value: str, scenario: Any, dt: float, n: int) -> RobotBridge:
         try:
             bridge.start()
             state = bridge.read_state(0.0)
-        except Exception as error:  # noqa: BLE001 - the user's code
+        except DRIVER_ERRORS as error:  # the user's code
             raise BridgeError(
                 f"--bridge {value!r}: {type(bridge).__name__} raised {type(error).__name__} "
                 f"when started and read: {error}"

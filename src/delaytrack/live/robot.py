@@ -47,7 +47,7 @@ import numpy as np
 from delaytrack._compile.functions import FEW_POINTS
 from delaytrack.live._node import NodeBase, Received, percentile
 from delaytrack.live._tables import session_columns
-from delaytrack.live.bridge import RobotBridge, check_state, load_bridge
+from delaytrack.live.bridge import DRIVER_ERRORS, RobotBridge, check_state, load_bridge
 from delaytrack.live.clock import Ticker, steps_until
 from delaytrack.live.log import McapLog, write_csv
 from delaytrack.live.messages import ReleaseMessage, StateMessage
@@ -490,7 +490,7 @@ class RobotNode(NodeBase):
         the bridge raised or the state has the wrong shape or is not finite."""
         try:
             state = self.bridge.read_state(j * self.dt)
-        except Exception as error:  # noqa: BLE001 - the robot's driver: reported, node stops
+        except DRIVER_ERRORS as error:  # the robot's driver: reported, node stops
             self._fail(
                 j, f"{type(self.bridge).__name__}.read_state raised {type(error).__name__}: {error}"
             )
@@ -522,7 +522,7 @@ class RobotNode(NodeBase):
             self.diverged = True
             self._fail(j, str(error))
             return False
-        except Exception as error:  # noqa: BLE001 - the robot's driver: reported, node stops
+        except DRIVER_ERRORS as error:  # the robot's driver: reported, node stops
             self._fail(
                 j,
                 f"{type(self.bridge).__name__}.write_command raised "
@@ -552,7 +552,7 @@ class RobotNode(NodeBase):
         self._closed = True
         try:
             self.bridge.close()
-        except Exception as error:  # noqa: BLE001 - the bridge is the user's code
+        except DRIVER_ERRORS as error:  # the bridge is the user's code
             what = f"{type(self.bridge).__name__}.close() raised {type(error).__name__}: {error}"
             what = what.replace("\n", " ")
             self.failure = self.failure or what

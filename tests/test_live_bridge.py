@@ -222,6 +222,13 @@ def test_a_bridge_whose_close_raises_fails_the_node_in_one_line_with_its_tables_
     robot = json.loads((folder / "robot.json").read_text())
     assert robot["stopped_by"] == "failure" and "brakes jammed" in robot["failure"]
     assert len(_rows(folder / "states.csv")) > 0 and (folder / "report.html").is_file()
+    # After the session's end: said so, not that it stopped the session early, and the
+    # tracking measured over the whole session.
+    assert robot["failed_when_closed"] is True and robot["steps"] == 1000
+    stdout = _stdout.decode()
+    assert "its bridge failed when closed, after the session: JammedBrakes.close()" in stdout
+    assert "stopped the session early" not in stdout
+    assert [r["status"] for r in _rows(folder / "metrics.csv")] == ["ok"]
 
 
 def test_the_bridge_is_written_the_released_commands_under_the_delay_rule_in_order(sessions):

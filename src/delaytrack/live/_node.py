@@ -508,6 +508,9 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
         finally:
             if node.log is not None:
                 node.log.close()
+        # A signal that comes once the loop is over (the launcher ending the session because
+        # another node ended) stopped nothing: the node ran to its end.
+        stopped_by_signal = stop.signal
         summary = node.outputs()
         offset = handshake.clock_offset
         assert offset is not None  # the handshake agreed t0, so it knows the clock offset
@@ -520,13 +523,13 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
         # which session: collect refuses records of several sessions in one folder
         summary["session"] = {"name": args.session, "t0_robot_clock": handshake.robot_t0}
         summary["stopped_by"] = (
-            signal.Signals(stop.signal).name
-            if stop.signal
+            signal.Signals(stopped_by_signal).name
+            if stopped_by_signal
             else ("failure" if node.failure else "duration")
         )
         write_text(node.out / f"{node.role}.json", json_text(summary, indent=1) + "\n")
         record_node_files(node.out)
-        if stop.signal == signal.SIGINT:
+        if stopped_by_signal == signal.SIGINT:
             code = EXIT_INTERRUPTED
         elif node.failure is not None:
             code = EXIT_FAILED

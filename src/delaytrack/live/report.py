@@ -225,7 +225,7 @@ def write_session_report(
     runs = {"live": live} if replayed is None else {"live": live, "replayed": replayed}
     metrics = _metrics(runs)
     stop = robot_stop((summary.get("nodes") or {}).get("robot") or {})
-    if stop is not None:  # tracked up to where the robot diverged or failed
+    if stop is not None and stop[0] != "failed when closed":  # tracked up to where it stopped
         how, _ = stop
         status = "diverged" if how == "diverged" else "robot failed"
         metrics.loc[metrics["label"] == "live", "status"] = status
@@ -331,12 +331,16 @@ def _node_records(summary: dict[str, Any]) -> tuple[dict[str, Any], ...]:
 
 
 def robot_stop(robot: dict[str, Any]) -> tuple[str, str] | None:
-    """How the robot node stopped early, from its record (``robot.json``): ``("diverged",
-    what)`` for the simulated robot's divergence, ``("failed", what)`` for its bridge's fault
-    or a state it gave; None when it did not."""
+    """How the robot node failed, from its record (``robot.json``): ``("diverged", what)`` for
+    the simulated robot's divergence, ``("failed", what)`` for its bridge's fault or a state
+    it gave, both of which stopped the session early, ``("failed when closed", what)`` for its
+    bridge's ``close()`` raising after the session ran to its end; None when it did not
+    fail."""
     failure = robot.get("failure")
     if not isinstance(failure, str):
         return None
+    if robot.get("failed_when_closed") is True:
+        return "failed when closed", failure
     return ("diverged" if robot.get("diverged") is True else "failed"), failure
 
 
@@ -396,7 +400,8 @@ def _session_settings(summary: dict[str, Any], scenario: Any, live: Any) -> dict
     stop = robot_stop(nodes.get("robot") or {})
     if stop is not None:
         how, failure = stop
-        ended["robot"] = f"{'diverged' if how == 'diverged' else 'failure'}: {failure}"
+        label = "failure" if how == "failed" else how
+        ended["robot"] = f"{label}: {failure}"
     return {
         "scenario": summary.get("scenario", scenario.name),
         "T_c": f"{scenario.T_c * 1e3:g} ms",

@@ -259,6 +259,7 @@ class RobotNode(NodeBase):
         self.n, self.m = plant.n, plant.m
         self.bridge_name = getattr(args, "bridge", None)
         self.diverged = False  # the simulated robot's state left the finite numbers
+        self.failed_when_closed = False  # the bridge's close() raised, the loop had not failed
         horizons = [("reference", built.reference.horizon)]
         if self.bridge_name is None:
             plant.check_step(self.dt)
@@ -555,7 +556,8 @@ class RobotNode(NodeBase):
         except DRIVER_ERRORS as error:  # the bridge is the user's code
             what = f"{type(self.bridge).__name__}.close() raised {type(error).__name__}: {error}"
             what = what.replace("\n", " ")
-            self.failure = self.failure or what
+            if self.failure is None:
+                self.failure, self.failed_when_closed = what, True
             print(
                 f"error: {what}; the robot may still hold its last input",
                 file=sys.stderr,
@@ -594,6 +596,7 @@ class RobotNode(NodeBase):
             "bridge": self.bridge_name or "simulated",
             "failure": self.failure,
             "diverged": self.diverged,
+            "failed_when_closed": self.failed_when_closed,
         }
 
 

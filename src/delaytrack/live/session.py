@@ -713,11 +713,13 @@ def _rule_error_ms(t_k: np.ndarray, due: np.ndarray, steps: np.ndarray, delay: A
 
 def _robot_stop_text(robot: dict[str, Any]) -> str:
     """``""``, or why the robot node stopped before the session's end (:func:`robot_stop`):
-    the session ended early there."""
+    the session ended early there; or that its bridge failed when closed, after the end."""
     stop = robot_stop(robot)
     if stop is None:
         return ""
     how, failure = stop
+    if how == "failed when closed":  # after the session's end: it did not end it
+        return f"; its bridge failed when closed, after the session: {failure}"
     return f"; it {how} and stopped the session early: {failure}"
 
 

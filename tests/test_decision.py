@@ -1,9 +1,10 @@
 """The decision rule: on hand-built candidate tables it picks the known winner, runner-up and
 margin, refuses when the Wilson lower bound cannot reach 0.95; end to end on a small linear
-plant with few draws it says no candidate qualifies at this size; bad flags exit 2."""
+plant, which draws nothing, it says no candidate can qualify; bad flags exit 2."""
 
 from __future__ import annotations
 
+import dataclasses
 import html
 import math
 import re
@@ -145,6 +146,18 @@ def test_a_refusal_holds_its_facts_and_the_report_words_them():
     )
 
 
+def test_a_scenario_that_draws_nothing_is_not_told_to_draw_more():
+    """One run per condition, as :func:`run_decision` gives a scenario with nothing to draw:
+    the refusal says so, and does not ask for 73 draws that would all be the same run."""
+    one = dataclasses.replace(decide(_table(1, 1), ENVELOPE), drawn=False)
+    assert refusal_text(one) == (
+        "no candidate qualifies: the scenario draws nothing, so each condition is one run, whose "
+        f"Wilson lower bound cannot exceed {1 / (1 + Z95**2):.3f} < 0.95 even on the path; more "
+        "draws cannot help, only a scenario with something to draw (the payload robot's payload "
+        "and friction)"
+    )
+
+
 def test_the_rule_refuses_when_the_lower_bound_cannot_reach_095():
     assert draws_needed() == 73
     assert wilson_interval(73, 73)[0] >= 0.95 > wilson_interval(72, 72)[0]
@@ -198,10 +211,13 @@ def test_an_envelope_as_long_as_the_runs_is_refused(tmp_path):
         run_decision(study, Envelope(8.0, "exact"), tmp_path)
 
 
-def test_a_small_run_says_no_candidate_qualifies_at_this_size(tmp_path, capsys):
+def test_a_scenario_that_draws_nothing_says_no_candidate_can_qualify(tmp_path, capsys):
+    """The linear plant draws nothing: one run per condition, and the page does not ask for
+    more draws (they would all be the same run)."""
     out = _tradeoff_with_a_decision(tmp_path, "0.1", "±25%")
     printed = capsys.readouterr().out
-    assert "no candidate qualifies at this size: with 1 draw per condition" in printed
+    assert "no candidate qualifies: the scenario draws nothing, so each condition is one" in printed
+    assert "draws are needed" not in printed
     table = pd.read_csv(out / "decision.csv")
     # AROLC and the outer loop at the true delay, PCONf told 0.075 s and 0.125 s; PCON is PCONf
     assert len(table) == 2 * (1 + 1 + 2)

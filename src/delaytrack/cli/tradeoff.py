@@ -280,6 +280,12 @@ def run(args: argparse.Namespace) -> int:
             "run on the path: no median AE, not on the front (tradeoff.csv lists them)"
         )
     if decision is not None:
+        if not decision.drawn and args.decision_draws is not None:
+            print(
+                f"decision: 1 run per condition (not the {args.decision_draws} of "
+                "--decision-draws: the scenario draws nothing, so every draw would be the same "
+                "run)"
+            )
         print("\n".join(decision_lines(decision)))
     print(f"wrote {len(files)} files to {folder}/; report: {folder / 'report.html'}")
     return 0

@@ -295,6 +295,9 @@ class Decision:
     seconds : float
     computed, resumed : int
         Work units of the draws computed and found finished.
+    drawn : bool
+        Whether the scenario drew its robots; False when it has nothing to draw, so that each
+        condition is one run, which can never show the required share on the path.
     """
 
     envelope: Envelope
@@ -315,6 +318,7 @@ class Decision:
     seconds: float = 0.0
     computed: int = 0
     resumed: int = 0
+    drawn: bool = True
 
     @property
     def refusal(self) -> str | None:
@@ -637,4 +641,5 @@ def run_decision(
         seconds=time.perf_counter() - start,
         computed=outcome.computed,
         resumed=outcome.resumed,
+        drawn=bool(drawn),
     )

@@ -109,6 +109,13 @@ def refusal_text(decision: Decision) -> str | None:
     if refused is None:
         return None
     closest = refused.closest
+    if not decision.drawn:
+        return (
+            "no candidate qualifies: the scenario draws nothing, so each condition is one run, "
+            f"whose Wilson lower bound cannot exceed {refused.ceiling:.3f} < "
+            f"{decision.required_share:g} even on the path; more draws cannot help, only a "
+            "scenario with something to draw (the payload robot's payload and friction)"
+        )
     if refused.too_few_draws or closest is None:
         return (
             f"no candidate qualifies at this size: with {counted(refused.draws, 'draw')} per "

@@ -707,3 +707,24 @@ def test_a_late_wake_up_releases_for_a_later_step_with_the_commands_that_arrive_
     for seq, _t_k, now, s, _h in node.releases:
         assert now <= s - node.lead + 1e-12 or seq == 11, (seq, now, s)
     assert len(released) == len(node.releases)
+
+
+def test_the_report_gives_the_packet_loss_the_delay_node_ran_and_the_scenarios_beside():
+    """``--loss``/``--loss-seed`` change the session's losses, not its scenario file: the
+    report gave the scenario's alone (0.2, seed 3) for a session run with 0.5, seed 9."""
+    from delaytrack.live.report import _packet_loss_text
+    from delaytrack.scenario import load_builtin
+
+    lossy = load_builtin("two_link_S1").replace(packet_loss={"probability": 0.2, "seed": 3})
+    ran = {"packet_loss": {"probability": 0.5, "seed": 9}}
+    assert _packet_loss_text(ran, lossy) == (
+        "probability 0.5, seed 9 (--loss/--loss-seed; the scenario's: probability 0.2, seed 3)"
+    )
+    assert _packet_loss_text({"packet_loss": {"probability": 0.2, "seed": 3}}, lossy) == (
+        "probability 0.2, seed 3"
+    )
+    plain = load_builtin("two_link_S1")
+    assert _packet_loss_text({"packet_loss": {"probability": 0.0, "seed": 0}}, plain) == "none"
+    assert _packet_loss_text(ran, plain) == (
+        "probability 0.5, seed 9 (--loss/--loss-seed; the scenario's: none)"
+    )

@@ -476,6 +476,7 @@ def _timing_settings(
                 "delay node": f"{delay_node_text(delay, summary)}, "
                 f"{per_second(delay.get('wakes_per_s'))} wake-ups/s, "
                 f"lead {delay.get('lead_ms', 0):g} ms",
+                "packet loss": _packet_loss_text(delay, scenario),
             },
         ),
         "realised delay − h(t) p50 / |.| p99": f"{ms(summary.get('realised_minus_h_ms_p50'))}"
@@ -505,6 +506,21 @@ def _unless_unfinished(role: str, record: dict[str, Any], rows: dict[str, str]) 
     return dict.fromkeys(
         rows, f"n/a: the {role} node wrote no record ({role}.json; it did not finish)"
     )
+
+
+def _loss_text(spec: Any) -> str:
+    if not isinstance(spec, dict) or not spec.get("probability"):
+        return "none"
+    return f"probability {spec['probability']:g}, seed {spec.get('seed', 0)}"
+
+
+def _packet_loss_text(delay: dict[str, Any], scenario: Any) -> str:
+    """The packet loss the delay node ran (its record), and the scenario's where that differs
+    (``--loss``/``--loss-seed`` given to the session)."""
+    ran = _loss_text(delay.get("packet_loss"))
+    loss = scenario.simulated_packet_loss
+    own = _loss_text(None if loss is None else loss.to_spec())
+    return ran if ran == own else f"{ran} (--loss/--loss-seed; the scenario's: {own})"
 
 
 def _state_read(controller: dict[str, Any], scenario: Any) -> str:

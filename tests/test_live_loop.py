@@ -231,6 +231,24 @@ def test_a_killed_node_leaves_a_readable_log_and_the_others_finish(sessions):
     assert seqs == sorted(seqs)
 
 
+def test_the_summary_of_a_session_whose_robot_left_no_steps_counts_no_command_by_step(sessions):
+    """The killed robot wrote no step table: the session's end on the step grid is unknown, so
+    whether a command came due before it is too (every command was counted "not due before
+    the end", the session taken to have ended at t = 0)."""
+    from delaytrack.live.session import collect, format_summary
+
+    folder, _ = sessions["kill"]
+    assert not (folder / "steps.csv").exists()
+    scenario = load_builtin(SCENARIO)
+    summary = collect(folder, scenario, scenario.build())
+    assert summary["commands"] > 0
+    counts = ("never_applied", "superseded_on_the_step_grid", "due_after_the_end")
+    assert [summary[name] for name in counts] == [None, None, None]
+    text = format_summary(summary, folder)
+    assert "commands never applied: n/a (the robot node logged no step table)" in text
+    assert "not due before the end" not in text
+
+
 def test_packet_loss_drops_the_commands_the_toolkit_draws(sessions):
     folder, _ = sessions["kill"]
     rows = _rows(folder / "releases.csv")

@@ -486,12 +486,12 @@ def _timing_settings(
             "robot",
             robot,
             {
-                "commands never applied": str(summary.get("never_applied", 0)),
-                "commands superseded on the step grid (a newer one due at the same step)": str(
-                    summary.get("superseded_on_the_step_grid", "n/a")
+                "commands never applied": _count_or_na(summary.get("never_applied", 0)),
+                "commands superseded on the step grid (a newer one due at the same step)": (
+                    _count_or_na(summary.get("superseded_on_the_step_grid"))
                 ),
-                "commands not due before the session ended": str(
-                    summary.get("due_after_the_end", "n/a")
+                "commands not due before the session ended": _count_or_na(
+                    summary.get("due_after_the_end")
                 ),
             },
         ),
@@ -506,6 +506,11 @@ def _unless_unfinished(role: str, record: dict[str, Any], rows: dict[str, str]) 
     return dict.fromkeys(
         rows, f"n/a: the {role} node wrote no record ({role}.json; it did not finish)"
     )
+
+
+def _count_or_na(count: Any) -> str:
+    """A count of the session's summary, or n/a where the robot logged no step table."""
+    return "n/a (the robot node logged no step table)" if count is None else str(count)
 
 
 def _loss_text(spec: Any) -> str:

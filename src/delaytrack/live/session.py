@@ -641,12 +641,16 @@ def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -
         ],
         rows(),
     )
-    end = read_table(folder / "steps.csv").rows * scenario.dt
+    robot_steps = read_table(folder / "steps.csv").rows
+    end = robot_steps * scenario.dt
     steps, due = _due_steps(issued, delay, scenario.dt, end)
     # due at one of the robot's steps (the last of ``steps`` is the session's end)
     within = due < steps.size - 1
     superseded = _superseded(issued, (lost == 0) & within, due)
     held = (lost == 0) & ~came
+    # Without the robot's steps (a robot node killed, or stuck and stopped, writes no tables)
+    # the session's end on the step grid is unknown: so is which command came due before it.
+    counted_by_step = robot_steps > 0
     listened = (nodes.get("delay") or {}).get("session_s")
     if not is_real_number(listened):  # a record without it (or not a number)
         listened = -math.inf
@@ -664,9 +668,11 @@ def collect(folder: Path, scenario: Any, built: Any, given: str | None = None) -
         # Received commands the rule would have applied at one of the robot's steps that never
         # were (those a newer one superseded at the step they came due are counted apart), and
         # those not due before the session ended.
-        "never_applied": int(np.sum(held & within & ~superseded)),
-        "superseded_on_the_step_grid": int(np.sum(held & superseded)),
-        "due_after_the_end": int(np.sum(held & ~within)),
+        "never_applied": int(np.sum(held & within & ~superseded)) if counted_by_step else None,
+        "superseded_on_the_step_grid": (
+            int(np.sum(held & superseded)) if counted_by_step else None
+        ),
+        "due_after_the_end": int(np.sum(held & ~within)) if counted_by_step else None,
         "realised_minus_h_ms_p50": percentile(error, 50),
         "realised_minus_h_abs_ms_p99": percentile(np.abs(error), 99),
         "realised_minus_h_abs_ms_max": percentile(np.abs(error), 100),
@@ -748,7 +754,9 @@ def format_summary(summary: dict[str, Any], folder: Path) -> str:
                 f"  {title}: no record ({role}.json): the node did not finish; {role}.mcap holds "
                 "what it logged"
             )
-    never_applied = summary["never_applied"] if nodes.get("robot") is not None else "n/a"
+    never_applied = summary["never_applied"]
+    if nodes.get("robot") is None or never_applied is None:
+        never_applied = "n/a (the robot node logged no step table)"
     apart = [
         f"{count} {what}"
         for count, what in (

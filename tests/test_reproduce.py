@@ -33,13 +33,15 @@ def test_reproduce_smoke(tmp_path, capsys):
         ("S3", "arolc"),
         ("S3", "outer-loop"),
     ]
-    for column in ("ae_q1", "ae_q2", "rms_q1", "rms_q2", "max_q1", "max_q2", "tv", "status"):
+    metrics = ("ae_q1", "ae_q2", "rms_q1", "rms_q2", "max_q1", "max_q2")
+    for column in (*(f"{name}_rad" for name in metrics), "tv_Nm", "t_stop_s", "status"):
         assert column in summary.columns
     assert (summary["status"] == "ok").all()
-    assert (summary["ae_q1"] > 0).all()
+    assert (summary["ae_q1_rad"] > 0).all()
 
     check = pd.read_csv(folder / "dt_check.csv")
     assert len(check) == 4 and (check["max_relative_change"] < 0.01).all()
+    assert "ae_q1_rad" in check.columns  # every table with its units
 
     for case in ("S1", "S3"):
         for controller in ("arolc", "outer-loop"):

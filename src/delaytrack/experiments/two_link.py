@@ -4,7 +4,8 @@
 writes ``<out>/two-link/``:
 
 - ``summary.csv``: one row per (scenario, controller): AE, RMS and max error per joint (rad), TV
-  of the commanded torques (N·m), status;
+  of the commanded torques (N·m), status, each unit in its column's name (``ae_q1_rad``,
+  ``tv_Nm``);
 - ``dt_check.csv``: the same metrics with ``dt`` halved, and their relative change;
 - ``trajectories/<S>_<controller>.parquet``: every recorded sample of each run;
 - ``scenarios/*.toml``: the four scenarios as run;

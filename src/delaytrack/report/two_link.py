@@ -212,9 +212,11 @@ def write_study(study: TwoLinkStudy, folder: str | Path) -> list[Path]:
     """Write the study's files into ``folder`` (see :mod:`delaytrack.experiments.two_link`);
     return the paths."""
     folder = claim_output_folder(folder)
-    files = [write_frame(study.summary, folder / "summary.csv")]
+    with_units = study.columns_with_units  # in the files' column names, as every table's
+    files = [write_frame(study.summary.rename(columns=with_units), folder / "summary.csv")]
     if study.dt_check is not None:
-        files.append(write_frame(study.dt_check, folder / "dt_check.csv"))
+        dt_check = study.dt_check.rename(columns=with_units)
+        files.append(write_frame(dt_check, folder / "dt_check.csv"))
     for (case, controller), scenario in study.scenarios.items():
         files.append(folder / "scenarios" / f"{scenario.name}.toml")
         scenario.to_toml(files[-1])
@@ -263,7 +265,7 @@ def _report(study: TwoLinkStudy, figures: dict[str, tuple[Figure, str]]) -> Html
     with_units = study.columns_with_units
     report.table(
         study.summary.rename(columns=with_units),
-        "Metrics over the whole run (summary.csv's columns, shown here with their units): "
+        "Metrics over the whole run (summary.csv's columns): "
         "ae/rms/max per joint, tv; status 'ok' means the run reached the final time.",
     )
     report.table(

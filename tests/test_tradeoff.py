@@ -345,3 +345,22 @@ def test_the_figure_labels_each_point_with_its_gain_and_says_which_family_it_lea
     legend = [text.get_text() for text in ax.get_legend().get_texts()]
     assert f"PCONf (told h̄): not shown, {MARGIN_SEARCHES['not searched']}" in legend
     assert "numbers: ω_n (rad/s)" in legend
+
+
+def test_draws_beyond_what_a_sweep_holds_are_refused_naming_draws_before_any_search(
+    tmp_path, capsys, monkeypatch
+):
+    """The payload robot draws its robots: 20 000 draws at 2 gain points are more runs than a
+    sweep holds. Refused at once, naming --draws and its largest value here (it was refused
+    after the margin searches, in a sweep's words: "split it into several sweep files")."""
+    from delaytrack.experiments import tradeoff as tradeoff_module
+
+    def no_search(*_args, **_kwargs):
+        raise AssertionError("a margin search ran before the refusal")
+
+    monkeypatch.setattr(tradeoff_module, "_family_margins", no_search)
+    args = ["tradeoff", "robot_S1", "--omega", "1", "2", "2", "--draws", "20000"]
+    assert main([*args, "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --draws = 20000 makes ") and err.count("\n") == 1, err
+    assert "more than a sweep holds (100000); give at most " in err

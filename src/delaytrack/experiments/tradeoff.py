@@ -90,6 +90,7 @@ from delaytrack.plants.base import ELPlant
 from delaytrack.scenario import Scenario, ScenarioError
 from delaytrack.sweeps import SweepOutcome, SweepSpec, run_sweep
 from delaytrack.sweeps.executors import Executor
+from delaytrack.sweeps.spec import MAX_RUNS
 from delaytrack.units import default_names, with_unit
 
 __all__ = [
@@ -462,12 +463,19 @@ def run_tradeoff(
     history = max(upper, float(built.delay.h_max))
     tables, left_out = family_tables(scenario, zeta, omegas, history)
     families = tuple(f for f in FAMILIES if f in tables)
-    certified, exact = _analytic(scenario, tables, beta, r)
-    margins = _family_margins(scenario, tables, families, rule, upper, resolution, progress)
     drawn = _drawn(scenario, random)
     count = (40 if draws is None else int(draws)) if drawn else 1
-    scored_bounds = {name: bound for name, bound, s in zip(names, rule, scored, strict=True) if s}
     grid, labels = _grid_points(tables, omegas, families)
+    if count * len(labels) > MAX_RUNS:  # before the margin searches, not after them
+        raise ArgumentError(
+            "draws",
+            f"= {count} makes {count * len(labels)} runs ({len(omegas)} gain points x "
+            f"{len(families)} controllers x {count} draws), more than a sweep holds "
+            f"({MAX_RUNS}); give at most {MAX_RUNS // len(labels)} draws, or fewer gain points",
+        )
+    certified, exact = _analytic(scenario, tables, beta, r)
+    margins = _family_margins(scenario, tables, families, rule, upper, resolution, progress)
+    scored_bounds = {name: bound for name, bound, s in zip(names, rule, scored, strict=True) if s}
     runs, outcome = drawn_runs(
         scenario,
         grid,

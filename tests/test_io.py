@@ -21,7 +21,7 @@ from delaytrack._io import (
     write_text,
 )
 from delaytrack.live._tables import json_table
-from delaytrack.scenario import Scenario, ScenarioError
+from delaytrack.scenario import Scenario, ScenarioError, load_builtin
 
 
 def test_a_failed_write_leaves_the_old_file_and_no_temporary(tmp_path) -> None:
@@ -31,6 +31,17 @@ def test_a_failed_write_leaves_the_old_file_and_no_temporary(tmp_path) -> None:
         raise RuntimeError("interrupted")
     assert target.read_text() == "old\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["table.csv"]
+
+
+def test_a_folder_given_as_the_file_is_refused_naming_it_and_leaves_nothing(tmp_path) -> None:
+    """``Scenario.to_toml("/tmp")`` said "Is a directory" of a temporary file beside it."""
+    folder = tmp_path / "results"
+    folder.mkdir()
+    refusal = r"is a folder; give the path of a file: '.*results'"
+    with pytest.raises(IsADirectoryError, match=refusal):
+        load_builtin("two_link_S1").to_toml(folder)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["results"]
+    assert list(folder.iterdir()) == []
 
 
 def test_written_files_get_the_mode_of_a_plain_write(tmp_path) -> None:

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import errno
 import io
 import itertools
 import json
@@ -529,6 +530,8 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     ...     frame.to_csv(tmp)
     """
     target = Path(path)
+    if target.is_dir():  # refused here, naming it, not by os.replace naming the temporary file
+        raise IsADirectoryError(errno.EISDIR, "is a folder; give the path of a file", str(path))
     target.parent.mkdir(parents=True, exist_ok=True)
     handle, name = tempfile.mkstemp(
         dir=target.parent, prefix=f".{target.name}.", suffix=target.suffix

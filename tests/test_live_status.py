@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from types import SimpleNamespace
 
 import pytest
 
@@ -171,3 +172,41 @@ def test_a_hello_that_is_not_a_nodes_is_not_read():
         assert read_hello(json.dumps(bad).encode()) is None, bad
     assert read_hello(json.dumps(good).replace("12.5", "NaN").encode()) is None
     assert read_hello(b"[" * 100_000 + b"]" * 100_000) is None
+
+
+def test_a_reader_that_closed_the_status_output_ends_the_lines_not_the_launcher():
+    """``delaytrack live run ... 2>&1 | head -1``: the first line is read, the next write meets
+    a closed pipe. The status lines stop; the launcher goes on to the summary (a
+    ``BrokenPipeError`` from the watch would end it, its nodes with it)."""
+    from delaytrack.live.status import StatusWatch
+    from ports import free_ports
+
+    class ReadOnce:
+        def __init__(self):
+            self.lines = []
+
+        def isatty(self):
+            return False
+
+        def write(self, text):
+            if self.lines:
+                raise BrokenPipeError(32, "Broken pipe")
+            self.lines.append(text)
+
+        def flush(self):
+            pass
+
+    class Sample:  # as Zenoh gives a status to the watch
+        def __init__(self, second):
+            status = {"role": "controller", "t": second, "last": {"tick_rate_hz": 1e2}, "total": {}}
+            self.payload = SimpleNamespace(to_bytes=lambda: json.dumps(status).encode())
+
+    stream = ReadOnce()
+    watch = StatusWatch(f"tcp/127.0.0.1:{free_ports(1)[0]}", "delaytrack/test", stream=stream)
+    try:
+        for second in (1.0, 2.0, 3.0):
+            watch._on_status(Sample(second))
+            watch.show(now=True)
+    finally:
+        watch.close()
+    assert len(stream.lines) == 1 and stream.lines[0].startswith("t=1 s"), stream.lines

@@ -187,7 +187,7 @@ class StatusWatch:
     ):
         from delaytrack.live.transport import open_session
 
-        self._stream = sys.stderr if stream is None else stream
+        self._stream: Any = sys.stderr if stream is None else stream
         self._rewrite = self._stream.isatty()
         self._line_open = False  # a line rewritten in place, not yet ended
         self._lock = threading.Lock()
@@ -218,19 +218,29 @@ class StatusWatch:
             statuses = dict(self._latest)
         line = format_line(statuses)
         if self._rewrite and len(line) < shutil.get_terminal_size().columns:
-            self._stream.write(f"\r{line}\x1b[K")
+            self._write(f"\r{line}\x1b[K")
             self._line_open = True
         else:
-            self._stream.write(("\n" if self._line_open else "") + line + "\n")
+            self._write(("\n" if self._line_open else "") + line + "\n")
             self._line_open = False
-        self._stream.flush()
+
+    def _write(self, text: str) -> None:
+        """Write ``text`` to the stream, until its reader is gone: a reader that closed it
+        (``2>&1 | head -1``) ends the status lines, not the session (the launcher died of it,
+        its nodes with it, and no summary was written)."""
+        if self._stream is None:
+            return
+        try:
+            self._stream.write(text)
+            self._stream.flush()
+        except (BrokenPipeError, ValueError):  # a closed pipe, or a stream closed
+            self._stream = None
 
     def close(self) -> None:
         """Print what arrived since the last line, end the line and close the Zenoh session."""
         self.show(now=True)
         if self._line_open:
-            self._stream.write("\n")
-            self._stream.flush()
+            self._write("\n")
             self._line_open = False
         try:
             self._subscriber.undeclare()

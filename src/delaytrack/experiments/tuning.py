@@ -32,7 +32,7 @@ points, every one run on every condition.
   (:func:`vartheta_base`): ``M̂⁻¹`` (5×5) for the five-coordinate law, ``M̂_r⁻¹ = (SᵀM̂S)⁻¹``
   (2×2) for the wheel-space law (paper Refs 31–32: ``ϑ`` estimates ``M⁻¹``). The same ``c``
   grid for all three, reaching ``c = 1`` (the model's own estimate). The sampled law is stable
-  only for about ``T_c k_b c λ_max(ϑ₀) < 2`` (decisions D23; ``λ_max`` is 100 for ``M̂⁻¹``,
+  only for about ``T_c k_b c λ_max(ϑ₀) < 2`` (docs/decisions.md, D23; ``λ_max`` is 100 for ``M̂⁻¹``,
   about 19 for ``M̂_r⁻¹``): the initial grid crosses that edge for the five-coordinate law and
   reaches about 0.76 of it for the wheel-space law, whose optimum the edge rule then follows.
 - AROLC: a gain scale ``k``, ``K1 = k² I``, ``K2 = 2 ζ k I`` (outer loop of natural frequency

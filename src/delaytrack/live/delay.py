@@ -4,7 +4,7 @@ The paper injected the input delay "by halting the programme for h(t) amount of 
 between the control input computation and feeding it to the system". This node sits on the
 command path between the controller and the robot and holds each command until the toolkit's
 rule lets the robot apply it: at time ``t`` the robot applies the latest command whose sample
-time satisfies ``t_k <= t - h(t)`` (D10 of the design decisions), for the scenario's delay
+time satisfies ``t_k <= t - h(t)`` (docs/decisions.md, D10), for the scenario's delay
 profile — any profile of the toolkit (constant, S1–S4, traces, random, a user's compiled
 kernel), evaluated by the profile's own ``h``.
 
@@ -16,9 +16,9 @@ robot applies a released command from its step ``apply_at`` on, never earlier, s
 holds by construction; the ``lead`` (default :func:`default_lead`: a quarter of the session's
 smallest ``h``, within 2 ms, at least ``min(dt/2, 0.5 ms)``) covers the transport to the
 robot. When ``t - h(t)`` runs backwards (``dh/dt > 1``) the rule picks an older command again
-and it is released again (D11). A command that reaches this node after its release time is
-released at the first step after it arrives; its realised delay is then longer than ``h``, and
-the logs show it.
+and it is released again (docs/decisions.md, D11). A command that reaches this node after its
+release time is released at the first step after it arrives; its realised delay is then longer
+than ``h``, and the logs show it.
 
 The node does not wake at every step: at most steps the rule picks the command last released
 and nothing is sent. It computes ahead, from the commands it holds, the next step where the
@@ -31,10 +31,10 @@ still that far ahead: at once when that step's own deadline (``lead`` before it)
 else at its deadline, with the commands that arrive by then (at leads under ``dt`` plus the
 margin, a step can be that far ahead before its deadline).
 
-Packet loss (D12d): with a probability ``p`` and a seed (the scenario's ``packet_loss`` table,
-or ``--loss P --loss-seed S``), command ``k`` is dropped when the toolkit's counter-based draw
-:func:`~delaytrack.sim.packet_loss.packet_lost` says so — the same commands the simulator loses
-— and the latest command received stays in force.
+Packet loss (docs/decisions.md, D12d): with a probability ``p`` and a seed (the scenario's
+``packet_loss`` table, or ``--loss P --loss-seed S``), command ``k`` is dropped when the
+toolkit's counter-based draw :func:`~delaytrack.sim.packet_loss.packet_lost` says so — the
+same commands the simulator loses — and the latest command received stays in force.
 
 It records, per command: receive time, lost or not, first release time and the step it was
 released for, and ``h`` there.
@@ -238,7 +238,7 @@ class DelayNode(NodeBase):
         return start + change, reach
 
     def loop(self, t0: float, stop: Any, handshake: Any) -> None:
-        """Wake only where the rule can change (D42, event-driven).
+        """Wake only where the rule can change (event-driven: docs/decisions.md, D42).
 
         The rule is evaluated at the steps ``s_j`` as before, ``lead`` before each, with the
         commands received by then; but at a step where the command it picks is the one last

@@ -6,7 +6,7 @@ The node wakes at the absolute deadlines ``t0 + j·dt`` and talks to a robot thr
 publishes it on the ``state`` key (every ``--state-every`` steps, default every controller
 period, at the tick times), picks the command in force — the released command with the latest
 ``apply_at <= s`` (:mod:`delaytrack.live.delay`) — saturates it to the scenario's
-``input_limits`` (D12b) and writes it
+``input_limits`` (docs/decisions.md, D12b) and writes it
 (:meth:`~delaytrack.live.bridge.RobotBridge.write_command`), which the robot holds over the
 step, as a zero-order hold sampled at ``dt``.
 

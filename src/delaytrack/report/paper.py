@@ -599,8 +599,8 @@ def _baseline_failure_text(failure: BaselineFailure) -> str:
 
 
 def _predictor_text(found: PaperFindings) -> str:
-    """What the predictor does on this robot (D23): partly effective, and stable only for a
-    small enough gain product."""
+    """What the predictor does on this robot (docs/decisions.md, D23): partly effective, and
+    stable only for a small enough gain product."""
     return (
         "What the predictor does on this robot. The law is applied in the five coordinates "
         "q = (x, y, φ, θ_r, θ_l) and its command is projected to the wheels by τ_w = S(q)ᵀ τ. "

@@ -125,6 +125,10 @@ def test_with_certificates_a_node_listens_on_its_tls_endpoints_only(tmp_path):
             ["--tls-ca", "{ca}", "--tls-certificate", "{certificate}", "--tls-key", "{other_key}"],
             "--tls-key '{other_key}' cannot be used together (KEY_VALUES_MISMATCH)",
         ),
+        (  # swapped: OpenSSL gives no reason; its own text stands for it (it read "(None)")
+            ["--tls-ca", "{ca}", "--tls-certificate", "{key}", "--tls-key", "{certificate}"],
+            "--tls-key '{certificate}' cannot be used together ([SSL] PEM lib",
+        ),
         (
             ["--tls-ca", "{key}", "--tls-certificate", "{certificate}", "--tls-key", "{key}"],
             "--tls-ca '{key}' holds no certificate of an authority that can be read",

@@ -42,19 +42,24 @@ def _end(certificates: PeerCertificates, server: bool) -> ssl.SSLContext:
     except (ssl.SSLError, OSError) as error:
         raise ValueError(
             f"--tls-ca {certificates.ca!r} holds no certificate of an authority that can be read "
-            f"({error.reason if isinstance(error, ssl.SSLError) else error.strerror}); give the "
-            "authority's certificate in PEM"
+            f"({_reason(error)}); give the authority's certificate in PEM"
         ) from None
     try:  # an encrypted key is refused, not asked a passphrase for (Zenoh cannot read it)
         context.load_cert_chain(certificates.certificate, certificates.key, password=b"")
     except (ssl.SSLError, OSError) as error:
-        reason = error.reason if isinstance(error, ssl.SSLError) else error.strerror
         raise ValueError(
             f"--tls-certificate {certificates.certificate!r} and --tls-key "
-            f"{certificates.key!r} cannot be used together ({reason}); give the node's "
+            f"{certificates.key!r} cannot be used together ({_reason(error)}); give the node's "
             "certificate and its own private key, in PEM, not encrypted"
         ) from None
     return context
+
+
+def _reason(error: ssl.SSLError | OSError) -> str:
+    """Why OpenSSL or the system refused a file, in words: its reason, its error text, or,
+    where it gives neither (a certificate and a key swapped), the error's own text."""
+    reason = error.reason if isinstance(error, ssl.SSLError) else error.strerror
+    return str(reason) if reason else (str(error) or type(error).__name__)
 
 
 def check_certificates(certificates: PeerCertificates) -> None:

@@ -189,7 +189,7 @@ def check_tables_whole(folder: Path, nodes: Mapping[str, Any]) -> None:
     """Refuse a table or log of ``folder`` whose size or content differs from the one its node
     recorded (``table_bytes`` and ``table_sha256`` in the node's record of ``nodes``, role ->
     record or None; a node of an earlier version recorded none or only the sizes), naming it."""
-    again = "copy it again from the node's folder, or run delaytrack live collect"
+    again = "copy it again from the node's folder, with the node's record beside it"
     for role, names in ROLE_FILES.items():
         record = nodes.get(role) or {}
         written, digests = record.get("table_bytes"), record.get("table_sha256")

@@ -488,7 +488,7 @@ def test_a_summary_of_a_session_that_measured_nothing_is_strict_json_and_reports
     nodes = summary["nodes"]
     settings = _timing_settings(
         summary,
-        SimpleNamespace(measurement_noise=None),
+        SimpleNamespace(measurement_noise=None, simulated_packet_loss=None),
         nodes["controller"],
         nodes["robot"],
         nodes["delay"],
@@ -496,6 +496,7 @@ def test_a_summary_of_a_session_that_measured_nothing_is_strict_json_and_reports
     assert settings["delay node"].endswith(
         "releases, 0 steps missed (woke too late to release for them), n/a wake-ups/s, lead 0.5 ms"
     )
+    assert settings["packet loss"] == "none"  # the delay node recorded none
     assert settings["controller wake-up lateness p50 / p99"] == "n/a / n/a"
     assert settings["realised delay − h(t) p50 / |.| p99"].startswith("n/a / n/a")
 

@@ -479,6 +479,15 @@ def test_noise_and_losses_without_a_seed_of_their_own_take_the_scenarios(key, ta
     Scenario.from_dict(base_dict() | {key: {**table, "seed": 1}, "seed": 2**32})  # not used
 
 
+def test_a_sweep_file_given_as_a_scenario_is_said_to_be_one():
+    sweep = {"scenario": "two_link_S1", "unit_size": 4, "grid": {"controller.K2": [1.0]}}
+    said = r"unknown key 'scenario' in scenario; valid keys .*; this looks like a sweep file"
+    with pytest.raises(ScenarioError, match=said + r" \(run it with delaytrack sweep\)$"):
+        Scenario.from_dict(sweep)
+    with pytest.raises(ScenarioError, match=r"unknown key 'dt_typo' in scenario; valid keys .*\]$"):
+        Scenario.from_dict(base_dict() | {"dt_typo": 1})
+
+
 def test_the_scenario_names_stay_importable_from_experiments_and_the_package_root():
     import delaytrack
     import delaytrack.experiments as experiments

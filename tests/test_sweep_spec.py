@@ -174,6 +174,12 @@ def test_the_noise_seed_can_be_drawn_per_run():
             "unknown sweep key 'extra'; valid keys are ['scenario', 'unit_size', 'draws', 'seed', "
             "'metrics', 'grid', 'random']",
         ),
+        (  # a scenario file given as a sweep file: said so
+            {"name": "arm"},
+            "unknown sweep key 'name'; valid keys are ['scenario', 'unit_size', 'draws', 'seed', "
+            "'metrics', 'grid', 'random']; this looks like a scenario file (run it with "
+            "delaytrack simulate, or name it in a sweep file's 'scenario' key)",
+        ),
         ({"random": {}}, "sweep table [random] is empty; give it at least one key or leave it"),
         ({"grid": {}}, "sweep table [grid] is empty; give it at least one key or leave it out"),
         (

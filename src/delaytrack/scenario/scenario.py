@@ -105,9 +105,18 @@ def _refuse_unknown_keys(keys: Iterable[str]) -> None:
     """Raise :class:`ScenarioError` naming the first of ``keys`` that is not a scenario's."""
     for key in keys:
         if key not in TOP_LEVEL_KEYS:
-            raise ScenarioError(
-                f"unknown key {key!r} in scenario; valid keys are {sorted(TOP_LEVEL_KEYS)}"
+            kind = (
+                "; this looks like a sweep file (run it with delaytrack sweep)"
+                if key in _SWEEP_KEYS
+                else ""
             )
+            raise ScenarioError(
+                f"unknown key {key!r} in scenario; valid keys are {sorted(TOP_LEVEL_KEYS)}{kind}"
+            )
+
+
+#: Keys of a sweep file that a scenario does not have: a sweep file given as a scenario.
+_SWEEP_KEYS = ("scenario", "unit_size", "grid", "random", "draws", "metrics")
 
 
 @dataclass(frozen=True)

@@ -67,6 +67,7 @@ from delaytrack.scenario import (
     builtin_scenario_path,
 )
 from delaytrack.scenario.files import read_toml_file, resolve_file_keys
+from delaytrack.scenario.keys import TOP_LEVEL_KEYS
 from delaytrack.scenario.table_memory import remembered_tables
 from delaytrack.units import default_names
 
@@ -491,7 +492,15 @@ class SweepSpec:
             raise SweepError(f"a sweep spec must be a table of keys; got {type(data).__name__}")
         for key in data:
             if key not in _TOP_LEVEL:
-                raise SweepError(f"unknown sweep key {key!r}; valid keys are {list(_TOP_LEVEL)}")
+                kind = (
+                    "; this looks like a scenario file (run it with delaytrack simulate, or name "
+                    "it in a sweep file's 'scenario' key)"
+                    if key in TOP_LEVEL_KEYS
+                    else ""
+                )
+                raise SweepError(
+                    f"unknown sweep key {key!r}; valid keys are {list(_TOP_LEVEL)}{kind}"
+                )
         for key in ("scenario", "unit_size"):
             if key not in data:
                 raise SweepError(f"sweep spec is missing the required key {key!r}")

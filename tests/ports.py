@@ -23,6 +23,8 @@ def free_ports(count: int) -> list[int]:
         first_ephemeral = int(_RANGE.read_text().split()[0])
     except (OSError, ValueError, IndexError):
         first_ephemeral = 32768
+    # Ports from 1024 (below them, binding needs privileges) up to the range: 12 000 of them,
+    # enough that two tests drawing at once hardly ever draw the same.
     low = max(1024, first_ephemeral - 12000)
     drawn: list[int] = []
     draw = random.SystemRandom()

@@ -218,6 +218,7 @@ def test_a_scheduler_that_does_not_answer_is_a_clear_error():
 @pytest.mark.parametrize(
     "answer, message",
     [
+        # the timeout given below, 1 s, and the second Dask's own connect may take beyond it
         (None, r"a server accepted the connection but sent no Dask handshake within 2 s"),
         (b"HTTP/1.0 200 OK\r\n\r\n", r"what answered there is not a Dask scheduler"),
     ],

@@ -362,5 +362,8 @@ def test_draws_beyond_what_a_sweep_holds_are_refused_naming_draws_before_any_sea
     args = ["tradeoff", "robot_S1", "--omega", "1", "2", "2", "--draws", "20000"]
     assert main([*args, "--out", str(tmp_path / "out"), "--quiet"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: --draws = 20000 makes ") and err.count("\n") == 1, err
-    assert "more than a sweep holds (100000); give at most " in err
+    from delaytrack.sweeps.spec import MAX_RUNS
+
+    # 2 gain points x 4 controllers (the robot's families) x 20 000 draws
+    assert err.startswith("error: --draws = 20000 makes 160000 runs") and err.count("\n") == 1
+    assert f"more than a sweep holds ({MAX_RUNS}); give at most {MAX_RUNS // 8} draws" in err

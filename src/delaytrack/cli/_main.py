@@ -6,7 +6,7 @@ from __future__ import annotations
 import os
 import sys
 from collections.abc import Sequence
-from typing import NoReturn
+from typing import NoReturn, TextIO
 
 from delaytrack._cli_options import EXIT_USAGE
 from delaytrack._output import OutputFolderError
@@ -15,7 +15,7 @@ from delaytrack.cli._parser import build_parser
 from delaytrack.cli._usage import UsageError
 from delaytrack.warning import one_line, warnings_in_one_line
 
-__all__ = ["EXIT_BROKEN_PIPE", "main"]
+__all__ = ["EXIT_BROKEN_PIPE", "closed_pipe_exit", "main"]
 
 #: A reader closed standard output (``| head``): 128 + SIGPIPE, as a shell reports a program
 #: that the pipe's signal ended.
@@ -38,10 +38,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             code = args.handler(args)  # Ctrl-C ends even a run whose kernel never returns
         sys.stdout.flush()  # here, where a reader that closed the pipe is caught
     except BrokenPipeError:
-        # The reader of the output closed it (| head): end quietly, as a program that the
-        # pipe's signal ends (Python's advice, "Note on SIGPIPE": no flush into the closed pipe).
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        code = EXIT_BROKEN_PIPE
+        code = closed_pipe_exit()
     except (UsageError, ScenarioError, OutputFolderError) as error:
         # One line, whatever the input held (a key with a newline in it).
         print(one_line(f"error: {error}"), file=sys.stderr)
@@ -57,6 +54,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stderr.flush()
         os._exit(code)
     return code
+
+
+def closed_pipe_exit(*streams: TextIO) -> int:
+    """The reader of the output closed it (``| head``): end quietly, as a program that the
+    pipe's signal ends (Python's advice, "Note on SIGPIPE": no flush into the closed pipe).
+    Standard output, and ``streams``, go to the null device; returns
+    :data:`EXIT_BROKEN_PIPE`."""
+    for stream in (sys.stdout, *streams):
+        os.dup2(os.open(os.devnull, os.O_WRONLY), stream.fileno())
+    return EXIT_BROKEN_PIPE
 
 
 def command() -> NoReturn:

@@ -141,7 +141,8 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as error:
         usage = flagged(error, _FLAGS)
         if args.upper is None and getattr(error, "argument", None) == "upper":
-            advice = "" if "give a smaller --upper" in str(usage) else "; give a smaller --upper S"
+            advised = "upper" in getattr(error, "mentions", ())  # its advice names --upper
+            advice = "" if advised else "; give a smaller --upper S"
             usage = UsageError(f"{usage} (the default of --upper{advice})")
         raise usage from None
     seconds = time.perf_counter() - start

@@ -185,6 +185,14 @@ def _folder(args: argparse.Namespace, name: str) -> Path:
     return check_output_folder(Path("results/tradeoff") / folder, "the results folder")
 
 
+def _one_run_text(flag: str, asked: int) -> str:
+    """Why a study ran one run where ``flag`` asked for ``asked`` draws."""
+    return (
+        f" (not the {asked} of {flag}: the scenario draws nothing, so every draw would be the "
+        "same run)"
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     """Run (or resume) the trade-off and write its table, figure and report."""
     from delaytrack.experiments.decision import run_decision
@@ -247,8 +255,7 @@ def run(args: argparse.Namespace) -> int:
     files = write_tradeoff(study, folder, decision)
     front = study.front
     one_run = (
-        f" (not the {args.draws} of --draws: the scenario draws nothing, so every draw would be "
-        "the same run)"
+        _one_run_text("--draws", args.draws)
         if args.draws is not None and study.draws != args.draws
         else ""
     )
@@ -282,9 +289,8 @@ def run(args: argparse.Namespace) -> int:
     if decision is not None:
         if not decision.drawn and args.decision_draws is not None:
             print(
-                f"decision: 1 run per condition (not the {args.decision_draws} of "
-                "--decision-draws: the scenario draws nothing, so every draw would be the same "
-                "run)"
+                "decision: 1 run per condition"
+                + _one_run_text("--decision-draws", args.decision_draws)
             )
         print("\n".join(decision_lines(decision)))
     print(f"wrote {len(files)} files to {folder}/; report: {folder / 'report.html'}")

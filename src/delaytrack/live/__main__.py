@@ -12,13 +12,9 @@ except KeyboardInterrupt:  # while the modules load or the options are read
     print("interrupted", file=sys.stderr)
     code = 130
 except BrokenPipeError:  # the reader closed the output (| head): end quietly, as delaytrack
-    import os
+    from delaytrack.cli._main import closed_pipe_exit
 
-    from delaytrack.cli._main import EXIT_BROKEN_PIPE
-
-    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stderr.fileno())
-    code = EXIT_BROKEN_PIPE
+    code = closed_pipe_exit(sys.stderr)  # a status line on stderr may have met it
 except OSError as error:  # a file that cannot be written, as the delaytrack command says it
     from delaytrack.warning import one_line
 

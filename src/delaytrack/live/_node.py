@@ -466,14 +466,10 @@ def _run_node(node_class: type[NodeBase], args: Any, stop: StopFlag) -> int:
     prefix = f"delaytrack/{args.session}"
     try:
         session = open_session(args.listen, args.connect, args.certificates)
-    except PortInUseError as error:
-        node.close()
-        if getattr(args, "picked_ports", False):
-            return EXIT_PORT_TAKEN
-        print(one_line(f"error: {error}"), file=sys.stderr)
-        return EXIT_REFUSED
     except OSError as error:
         node.close()
+        if isinstance(error, PortInUseError) and getattr(args, "picked_ports", False):
+            return EXIT_PORT_TAKEN  # the launcher picks new ports: nothing to say
         print(one_line(f"error: {error}"), file=sys.stderr)
         return EXIT_REFUSED
     handshake = None

@@ -111,6 +111,9 @@ _TOP_LEVEL_SCALARS: dict[str, Callable[[object], str | None]] = {
 TABLES = ("plant", "model", "controller", "delay", "reference")
 REQUIRED = ("name", "duration", "dt", "T_c", *TABLES)
 TOP_LEVEL_KEYS = (*_TOP_LEVEL_SCALARS, *TABLES)
+#: The top-level keys of a sweep file (:mod:`delaytrack.sweeps.spec`): here, so that a sweep
+#: file given as a scenario is told apart from a scenario file given as a sweep.
+SWEEP_KEYS = ("scenario", "unit_size", "draws", "seed", "metrics", "grid", "random")
 #: The types each table may name, and the keys of each.
 TABLE_TYPES = MappingProxyType(
     {

@@ -38,6 +38,7 @@ from delaytrack.scenario.files import read_toml_file, resolve_file_keys
 from delaytrack.scenario.keys import (
     NAME_PATTERN,
     REQUIRED,
+    SWEEP_KEYS,
     TABLE_PURPOSE,
     TABLE_TYPES,
     TABLES,
@@ -107,16 +108,12 @@ def _refuse_unknown_keys(keys: Iterable[str]) -> None:
         if key not in TOP_LEVEL_KEYS:
             kind = (
                 "; this looks like a sweep file (run it with delaytrack sweep)"
-                if key in _SWEEP_KEYS
+                if key in SWEEP_KEYS
                 else ""
             )
             raise ScenarioError(
                 f"unknown key {key!r} in scenario; valid keys are {sorted(TOP_LEVEL_KEYS)}{kind}"
             )
-
-
-#: Keys of a sweep file that a scenario does not have: a sweep file given as a scenario.
-_SWEEP_KEYS = ("scenario", "unit_size", "grid", "random", "draws", "metrics")
 
 
 @dataclass(frozen=True)

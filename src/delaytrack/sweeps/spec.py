@@ -67,7 +67,7 @@ from delaytrack.scenario import (
     builtin_scenario_path,
 )
 from delaytrack.scenario.files import read_toml_file, resolve_file_keys
-from delaytrack.scenario.keys import TOP_LEVEL_KEYS
+from delaytrack.scenario.keys import SWEEP_KEYS, TOP_LEVEL_KEYS
 from delaytrack.scenario.table_memory import remembered_tables
 from delaytrack.units import default_names
 
@@ -98,7 +98,6 @@ def _check_storable(where: str, values: list[Any]) -> None:
 #: distinct table once, so 100 000 runs take about 30 to 50 s and a few hundred MB); larger
 #: studies are several sweep files.
 MAX_RUNS = 100_000
-_TOP_LEVEL = ("scenario", "unit_size", "draws", "seed", "metrics", "grid", "random")
 _TABLES = ("plant", "model", "controller", "delay", "reference")
 #: Optional scenario tables whose keys a sweep may also set one by one (``measurement_noise.seed``).
 _OPTIONAL_TABLES = ("measurement_noise", "packet_loss")
@@ -491,7 +490,7 @@ class SweepSpec:
         if not isinstance(data, Mapping):
             raise SweepError(f"a sweep spec must be a table of keys; got {type(data).__name__}")
         for key in data:
-            if key not in _TOP_LEVEL:
+            if key not in SWEEP_KEYS:
                 kind = (
                     "; this looks like a scenario file (run it with delaytrack simulate, or name "
                     "it in a sweep file's 'scenario' key)"
@@ -499,7 +498,7 @@ class SweepSpec:
                     else ""
                 )
                 raise SweepError(
-                    f"unknown sweep key {key!r}; valid keys are {list(_TOP_LEVEL)}{kind}"
+                    f"unknown sweep key {key!r}; valid keys are {list(SWEEP_KEYS)}{kind}"
                 )
         for key in ("scenario", "unit_size"):
             if key not in data:
